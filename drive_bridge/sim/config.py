@@ -1,0 +1,106 @@
+"""Configuration of the simulated robot: plant per axis, hidden effects, seed.
+
+The effects listed here act on the simulated plant only; nothing on the bus
+reveals them.  They exist to test identification on data with an effect that
+nobody declared.  All values SI, motor side (rad, rad/s, Nm).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..yamlconf import Section, load_yaml
+
+DEFAULT_CONFIG = Path(__file__).with_name("robot.yaml")
+
+#: effect name -> {yaml key: kernel parameter name}
+EFFECTS = {
+    "load": {"torque_Nm": "LOAD"},
+    "position_periodic": {"amplitude_Nm": "PER_AMP", "period_rad": "PER_PERIOD", "phase_rad": "PER_PHASE"},
+    "stribeck": {"amplitude_Nm": "STR_AMP", "velocity_rad_s": "STR_VEL"},
+    "direction_asymmetry": {"dc0_Nm": "ASYM_DC0", "dc1_Nm_s_rad": "ASYM_DC1"},
+    "cross_axis": {"source": "CPL_SRC", "coefficient_Nm_per_rad": "CPL_COEF"},
+    "drift": {"fraction": "DRIFT_FRAC", "time_constant_s": "DRIFT_TAU"},
+}
+
+
+@dataclass
+class Motor:
+    """Motor and power stage: R [Ohm], L [H], kt [Nm/A], DC link [V], rated torque [Nm]."""
+
+    R: float = 0.8
+    L: float = 0.002
+    kt: float = 0.2
+    vbus: float = 60.0
+    rated_torque_Nm: float = 1.27
+
+
+@dataclass
+class SimAxis:
+    name: str
+    node_id: int
+    serial: int
+    J: float
+    c0: float
+    c1: float
+    cp: float = 0.0
+    D: float = 0.0
+    torque_noise_Nm: float = 0.0
+    motor: Motor = field(default_factory=Motor)
+    effects: dict = field(default_factory=dict)   # name -> {kernel param: value}; source as axis name
+
+
+@dataclass
+class SimConfig:
+    axes: dict[str, SimAxis]
+    seed: int = 0
+    path: Path | None = None
+
+
+def load_sim_config(path: str | Path = DEFAULT_CONFIG) -> SimConfig:
+    """Read and check a simulator YAML file (see ``robot.yaml`` for the format)."""
+    path = Path(path)
+    top = Section(path, "", load_yaml(path))
+    seed = top.get("seed", int, 0, low=0)
+    axes_sec = top.section("axes")
+    axes: dict[str, SimAxis] = {}
+    for name in axes_sec.keys():
+        sec = axes_sec.section(name)
+        plant = sec.section("plant")
+        motor_sec = sec.section("motor", required=False)
+        motor = Motor(**{k: motor_sec.get(k, float, getattr(Motor, k), low=1e-9)
+                         for k in ("R", "L", "kt", "vbus", "rated_torque_Nm")})
+        motor_sec.done()
+        effects = {}
+        eff_sec = sec.section("effects", required=False)
+        for eff in eff_sec.keys():
+            if eff not in EFFECTS:
+                raise eff_sec.error(eff, f"unknown effect (known: {', '.join(EFFECTS)})")
+            es = eff_sec.section(eff)
+            values = {}
+            for key, param in EFFECTS[eff].items():
+                values[param] = es.get(key, str) if key == "source" else es.get(key, float)
+            es.done()
+            effects[eff] = values
+        eff_sec.done()
+        axes[name] = SimAxis(
+            name=name,
+            node_id=sec.get("node_id", int, low=1, high=127),
+            serial=sec.get("serial", int, 0, low=0),
+            J=plant.get("J", float, low=1e-9), c0=plant.get("c0", float, low=0.0),
+            c1=plant.get("c1", float, low=0.0), cp=plant.get("cp", float, 0.0),
+            D=plant.get("D", float, 0.0),
+            torque_noise_Nm=sec.get("torque_noise_Nm", float, 0.0, low=0.0),
+            motor=motor, effects=effects)
+        plant.done()
+        sec.done()
+    axes_sec.done()
+    top.done()
+    for ax in axes.values():
+        src = ax.effects.get("cross_axis", {}).get("CPL_SRC")
+        if src is not None and src not in axes:
+            raise axes_sec.error(f"{ax.name}.effects.cross_axis.source", f"no axis named {src!r}")
+    ids = [a.node_id for a in axes.values()]
+    if len(set(ids)) != len(ids):
+        raise axes_sec.error("node_id", f"node ids must be unique, got {ids}")
+    return SimConfig(axes=axes, seed=seed, path=path)

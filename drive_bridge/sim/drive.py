@@ -1,0 +1,563 @@
+"""One simulated CiA 402 servo drive: a CANopen slave on the robot's bus.
+
+The SDO server and the object storage are canopen's ``LocalNode``; this module
+adds what a real drive does with those objects: NMT, heartbeat, EMCY, PDOs as
+the master maps them (TPDOs sent on SYNC, synchronous RPDOs applied on SYNC),
+the CiA 402 state machine, the operating modes CSP (8), PV (3) and PP (1),
+and the safety functions (following-error window, software position limits,
+loss of setpoint).  The loops and the plant live in :mod:`.kernel`; this
+module converts between device units and SI at its edge.
+"""
+from __future__ import annotations
+
+import copy
+import math
+import struct
+from typing import TYPE_CHECKING, Callable
+
+import canopen
+from canopen.objectdictionary import ODVariable
+from canopen.sdo import SdoAbortedError
+
+from . import kernel as K
+
+if TYPE_CHECKING:
+    from .config import SimAxis
+    from .robot import SimRobot
+
+# CiA 402 states and their statusword bits (bits 0-3, 5, 6)
+NOT_READY, SWITCH_ON_DISABLED, READY, SWITCHED_ON, ENABLED, QUICK_STOP, FAULT_REACTION, FAULT = range(8)
+_STATE_BITS = {NOT_READY: 0x00, SWITCH_ON_DISABLED: 0x40, READY: 0x21, SWITCHED_ON: 0x23,
+               ENABLED: 0x27, QUICK_STOP: 0x07, FAULT_REACTION: 0x0F, FAULT: 0x08}
+# NMT states as sent in the heartbeat
+NMT_BOOT, NMT_STOPPED, NMT_OPERATIONAL, NMT_PREOP = 0x00, 0x04, 0x05, 0x7F
+
+CSP, PV, PP = 8, 3, 1
+SAVE_SIGNATURE = 0x65766173      # 'save'
+LOAD_SIGNATURE = 0x64616F6C      # 'load'
+PDO_INVALID = 0x8000_0000
+
+# EMCY error codes (CiA 301 / 402)
+ERR_FOLLOWING = 0x8611
+ERR_RPDO_TIMEOUT = 0x8250
+
+ABORT_RANGE = 0x06090030
+ABORT_TOO_LOW = 0x06090032
+ABORT_STATE = 0x08000022
+ABORT_NOT_MAPPABLE = 0x06040041
+ABORT_PDO_LENGTH = 0x06040042
+
+_STRUCT = {1: "?", 2: "b", 3: "h", 4: "i", 5: "B", 6: "H", 7: "I", 8: "f"}
+
+_GAIN_PARAMS = {1: K.KPP, 2: K.FWF, 3: K.KPS, 4: K.KIS, 5: K.KPC, 6: K.KIC}
+_MODEL_PARAMS = {1: K.FF_EN, 2: K.FF_J, 3: K.FF_C0, 4: K.FF_C1, 5: K.FF_OFF, 6: K.FF_CP,
+                 7: K.FF_DC0, 8: K.FF_DC1}
+_MOTOR_OBJECTS = {1: "R", 2: "L", 3: "kt", 4: "vbus"}
+
+
+class PdoCodec:
+    """Packs or unpacks one PDO from its mapping, compiled once per mapping change."""
+
+    def __init__(self, entries: list[tuple[int, int, str]]):
+        self.entries = [(i, s) for i, s, _ in entries]
+        self.struct = struct.Struct("<" + "".join(f for _, _, f in entries))
+
+
+class SimDrive:
+    """A servo drive of one axis.  ``index`` is the axis' row in the kernel arrays."""
+
+    def __init__(self, robot: "SimRobot", index: int, axis: "SimAxis", eds_path: str):
+        self.robot = robot
+        self.index = index
+        self.axis = axis
+        self.node_id = axis.node_id
+        self.node = canopen.LocalNode(axis.node_id, canopen.import_od(eds_path, axis.node_id))
+        # Heartbeat and NMT run in simulation time here, not in canopen's timer thread.
+        self.node._write_callbacks.remove(self.node.nmt.on_write)
+        self.node.add_write_callback(self._on_sdo_write)
+        self.node.add_read_callback(self._on_sdo_read)
+        self.node.sdo.network = robot.network
+        self.od = self.node.object_dictionary
+        self._cache: dict[tuple[int, int], object] = {}
+        self._live = self._live_objects()
+        self.inc_per_rad = self._od(0x608F, 1) / self._od(0x608F, 2) / (2 * math.pi)
+        self.s = robot.state[index]        # kernel rows of this axis (views)
+        self.p = robot.param[index]
+        self.d = robot.demand[index]
+        self.online = True                 # False: the drive has dropped off the bus
+        self.abort_writes: dict[tuple[int, int], int] = {}   # injected SDO aborts, for tests
+        self._init_storage()
+        self._saved = copy.deepcopy(self.node.data_store)
+        self._power_up()
+
+    # ------------------------------------------------------------------ storage
+    def _init_storage(self) -> None:
+        m = self.axis.motor
+        store = self.node.data_store
+        store.clear()
+        for sub, name in _MOTOR_OBJECTS.items():
+            self._store(0x2002, sub, getattr(m, name))
+        self._store(0x6076, 0, round(m.rated_torque_Nm * 1000))
+        self._store(0x6075, 0, round(m.rated_torque_Nm / m.kt * 1000))
+        self._store(0x1018, 4, self.axis.serial)
+
+    def _store(self, index: int, sub: int, value) -> None:
+        self.node.data_store.setdefault(index, {})[sub] = self._var(index, sub).encode_raw(value)
+        self._cache[(index, sub)] = value
+
+    def _var(self, index: int, sub: int) -> ODVariable:
+        obj = self.od[index]
+        return obj if isinstance(obj, ODVariable) else obj[sub]
+
+    def _od(self, index: int, sub: int = 0):
+        """Current value of an object, as the SDO server would return it (cached)."""
+        try:
+            return self._cache[(index, sub)]
+        except KeyError:
+            value = self._var(index, sub).decode_raw(self.node.get_data(index, sub))
+            if index not in self._live:
+                self._cache[(index, sub)] = value
+            return value
+
+    def _power_up(self) -> None:
+        """Reset application: load parameters from storage, state machine to start."""
+        p, s = self.p, self.s
+        m = self.axis.motor
+        p[K.J], p[K.C0], p[K.C1], p[K.CP], p[K.D] = (self.axis.J, self.axis.c0, self.axis.c1,
+                                                     self.axis.cp, self.axis.D)
+        p[K.KT], p[K.R], p[K.L], p[K.VBUS] = m.kt, m.R, m.L, m.vbus
+        p[K.INC_PER_RAD] = self.inc_per_rad
+        p[K.CPL_SRC] = -1.0
+        for eff, values in self.axis.effects.items():
+            for name, value in values.items():
+                if name == "CPL_SRC":
+                    value = float(list(self.robot.config.axes).index(value))
+                p[getattr(K, name)] = value
+        self.rated_torque = self._od(0x6076) / 1000.0
+        for sub, col in _GAIN_PARAMS.items():
+            p[col] = self._od(0x2000, sub)
+        for sub, col in _MODEL_PARAMS.items():
+            p[col] = self._od(0x2001, sub)
+        p[K.TMAX] = self._od(0x6072) / 1000.0 * self.rated_torque
+        p[K.FE_WINDOW] = self._od(0x6065) / self.inc_per_rad
+        self.state = SWITCH_ON_DISABLED
+        self.nmt_state = NMT_PREOP
+        self.controlword = 0
+        self.mode = self._od(0x6060)
+        self.error_code = 0
+        self.error_history: list[int] = []
+        self.internal_limit = False
+        self.target_reached = False
+        self.new_target = False          # a CSP target arrived since the last SYNC
+        self.setpoint_armed = False      # loss-of-setpoint watchdog armed (CSP streaming started)
+        self.last_setpoint_time = 0.0
+        self.v_dem = 0.0                 # demand velocity of the current period [rad/s]
+        self.pending_rpdo: list[tuple[PdoCodec, bytes]] = []
+        self.pp_target: float | None = None
+        s[K.ENABLED] = 0.0
+        self._sync_count = 0
+        self._hb_next = 0.0
+        self._last_count = math.floor(s[K.Q] * self.inc_per_rad)
+        self._last_refresh = self.robot.time
+        self._velocity_inc_s = 0
+        self.d[:] = 0.0
+        self.d[K.P0] = self.d[K.P1] = self.s[K.ENC] = self._last_count / self.inc_per_rad
+        self._rebuild_pdos()
+        self._refresh_actuals(noise=False)
+
+    # ------------------------------------------------------------------ NMT
+    def boot(self) -> None:
+        self.nmt_state = NMT_PREOP
+        self._send(0x700 + self.node_id, b"\x00")
+        self._hb_next = self.robot.time + self._od(0x1017) / 1000.0
+
+    def on_nmt(self, data: bytes) -> None:
+        if len(data) < 2 or data[1] not in (0, self.node_id):
+            return
+        cs = data[0]
+        if cs == 0x01:
+            self.nmt_state = NMT_OPERATIONAL
+        elif cs == 0x02:
+            self.nmt_state = NMT_STOPPED
+        elif cs == 0x80:
+            self.nmt_state = NMT_PREOP
+        elif cs in (0x81, 0x82):          # reset node / reset communication
+            saved = copy.deepcopy(self._saved)
+            if cs == 0x82:                # only the communication area 0x1000-0x1FFF
+                saved.update({i: v for i, v in self.node.data_store.items() if i >= 0x2000})
+            self.node.data_store = saved
+            self._cache.clear()
+            self._init_storage_missing()
+            self._power_up()
+            self.boot()
+
+    def _init_storage_missing(self) -> None:
+        m = self.axis.motor
+        for sub, name in _MOTOR_OBJECTS.items():
+            self._store(0x2002, sub, getattr(m, name))
+        self._store(0x1018, 4, self.axis.serial)
+
+    def heartbeat_due(self, now: float) -> None:
+        period = self._od(0x1017) / 1000.0
+        if period > 0 and now >= self._hb_next - 1e-9:
+            self._send(0x700 + self.node_id, bytes([self.nmt_state]))
+            self._hb_next = max(self._hb_next + period, now)
+
+    # ------------------------------------------------------------------ SDO hooks
+    def _on_sdo_read(self, index: int, subindex: int, od) -> int | None:
+        live = self._live.get(index)
+        if live is not None:
+            return live()
+        if index in (0x1010, 0x1011) and subindex == 1:
+            return 1                      # device saves/restores on command
+        if index == 0x1003:
+            if subindex == 0:
+                return len(self.error_history)
+            return self.error_history[subindex - 1] if subindex <= len(self.error_history) else 0
+        return None
+
+    def _on_sdo_write(self, index: int, subindex: int, od, data: bytes) -> None:
+        code = self.abort_writes.get((index, subindex))
+        if code is not None:
+            raise SdoAbortedError(code)
+        value = od.decode_raw(data)
+        self._write(index, subindex, value)
+        if index not in self._live:
+            self._cache[(index, subindex)] = value      # LocalNode stores the bytes after this
+
+    def _write(self, index: int, sub: int, value) -> None:
+        """Apply a value written by SDO or RPDO; raise SdoAbortedError to refuse it."""
+        if 0x1400 <= index <= 0x1BFF:
+            self._check_pdo_write(index, sub, value)
+            self._store(index, sub, value)
+            self._rebuild_pdos()
+            return
+        if index == 0x6040:
+            self._on_controlword(value)
+        elif index == 0x6060:
+            if value not in (0, CSP, PV, PP):
+                raise SdoAbortedError(ABORT_RANGE)
+            if value != self.mode and self.state == ENABLED:
+                self._hold_position()
+            self.mode = value
+        elif index == 0x607A:
+            self.new_target = True
+            self.last_setpoint_time = self.robot.time
+            if self.state == ENABLED and self.mode == CSP:
+                self.setpoint_armed = True
+        elif index == 0x2000:
+            if not math.isfinite(value) or value < 0:
+                raise SdoAbortedError(ABORT_TOO_LOW if value < 0 else ABORT_RANGE)
+            self.p[_GAIN_PARAMS[sub]] = value
+        elif index == 0x2001:
+            if not math.isfinite(value) or (sub == 1 and value not in (0, 1)) or (sub == 2 and value < 0):
+                raise SdoAbortedError(ABORT_RANGE)
+            self.p[_MODEL_PARAMS[sub]] = value
+        elif index == 0x6065:
+            self.p[K.FE_WINDOW] = value / self.inc_per_rad
+        elif index == 0x6072:
+            self.p[K.TMAX] = value / 1000.0 * self.rated_torque
+        elif index == 0x1010 and sub == 1:
+            if value != SAVE_SIGNATURE:
+                raise SdoAbortedError(0x08000020)
+            self._saved = copy.deepcopy(self.node.data_store)
+            return
+        elif index == 0x1011 and sub == 1:
+            if value != LOAD_SIGNATURE:
+                raise SdoAbortedError(0x08000020)
+            self._saved = {}
+            return
+        elif index == 0x1003 and sub == 0:
+            if value != 0:
+                raise SdoAbortedError(ABORT_RANGE)
+            self.error_history.clear()
+            return
+
+    # ------------------------------------------------------------------ PDOs
+    def _check_pdo_write(self, index: int, sub: int, value: int) -> None:
+        is_map = (index & 0xFF00) in (0x1600, 0x1A00)
+        comm = (index & ~0x0200) if is_map else index      # 0x16xx -> 0x14xx, 0x1Axx -> 0x18xx
+        cob = self._od(comm, 1)
+        if not is_map:
+            if sub == 1 and not cob & PDO_INVALID and not value & PDO_INVALID and \
+                    (value & 0x7FF) != (cob & 0x7FF):
+                raise SdoAbortedError(ABORT_RANGE)    # change the COB-ID only while invalid
+            return
+        if not cob & PDO_INVALID:
+            raise SdoAbortedError(ABORT_STATE)        # map only while the PDO is invalid
+        if sub == 0:
+            bits = 0
+            for n in range(1, value + 1):
+                entry = self._od(index, n)
+                target = self._mappable(entry >> 16, (entry >> 8) & 0xFF, tpdo=index >= 0x1A00)
+                if target is None:
+                    raise SdoAbortedError(ABORT_NOT_MAPPABLE)
+                bits += entry & 0xFF
+            if value > 8 or bits > 64:
+                raise SdoAbortedError(ABORT_PDO_LENGTH)
+        else:
+            if self._od(index, 0) != 0:
+                raise SdoAbortedError(ABORT_STATE)    # sub 0 must be 0 while entries change
+            if value and self._mappable(value >> 16, (value >> 8) & 0xFF, tpdo=index >= 0x1A00) is None:
+                raise SdoAbortedError(ABORT_NOT_MAPPABLE)
+
+    def _mappable(self, index: int, sub: int, tpdo: bool) -> ODVariable | None:
+        try:
+            var = self._var(index, sub)
+        except (KeyError, IndexError):
+            return None
+        if not var.pdo_mappable or (tpdo and not var.readable) or (not tpdo and not var.writable):
+            return None
+        return var
+
+    def _rebuild_pdos(self) -> None:
+        """Compile the codecs of every valid PDO and tell the robot the RPDO routes."""
+        self.rpdos: dict[int, tuple[PdoCodec, int]] = {}
+        self.tpdos: list[tuple[int, PdoCodec, int, list[Callable]]] = []
+        for n in range(4):
+            for comm, mapping, table in ((0x1400 + n, 0x1600 + n, "r"), (0x1800 + n, 0x1A00 + n, "t")):
+                cob = self._od(comm, 1)
+                if cob & PDO_INVALID:
+                    continue
+                entries = []
+                for k in range(1, self._od(mapping, 0) + 1):
+                    entry = self._od(mapping, k)
+                    idx, sub = entry >> 16, (entry >> 8) & 0xFF
+                    entries.append((idx, sub, _STRUCT[self._var(idx, sub).data_type]))
+                codec = PdoCodec(entries)
+                ttype = self._od(comm, 2)
+                if table == "r":
+                    self.rpdos[cob & 0x7FF] = (codec, ttype)
+                else:
+                    getters = [self._getter(i, s) for i, s in codec.entries]
+                    self.tpdos.append((cob & 0x7FF, codec, ttype, getters))
+        self.robot.routes_changed()
+
+    def _getter(self, index: int, sub: int) -> Callable:
+        live = self._live.get(index)
+        if live is not None:
+            return live
+        return lambda: self._od(index, sub)
+
+    def on_rpdo(self, cob_id: int, data: bytes) -> None:
+        if self.nmt_state != NMT_OPERATIONAL:
+            return
+        codec, ttype = self.rpdos[cob_id]
+        if len(data) < codec.struct.size:
+            return
+        if ttype <= 240:
+            self.pending_rpdo.append((codec, data))     # synchronous: applied on the next SYNC
+        else:
+            self._apply_rpdo(codec, data)
+
+    def _apply_rpdo(self, codec: PdoCodec, data: bytes) -> None:
+        for (index, sub), value in zip(codec.entries, codec.struct.unpack_from(data)):
+            self._write(index, sub, value)
+            if index not in self._live:
+                self._store(index, sub, value)
+
+    def send_tpdos(self) -> None:
+        self._sync_count += 1
+        for cob_id, codec, ttype, getters in self.tpdos:
+            if 1 <= ttype <= 240 and self._sync_count % ttype == 0:
+                self._send(cob_id, codec.struct.pack(*[g() for g in getters]))
+
+    # ------------------------------------------------------------------ CiA 402
+    @property
+    def statusword(self) -> int:
+        sw = _STATE_BITS[self.state] | 0x0200
+        if self.state in (READY, SWITCHED_ON, ENABLED, QUICK_STOP, FAULT_REACTION):
+            sw |= 0x0010                   # voltage enabled
+        if self.target_reached:
+            sw |= 0x0400
+        if self.internal_limit:
+            sw |= 0x0800
+        if self.state == ENABLED and self.mode == CSP:
+            sw |= 0x1000                   # drive follows the command value
+        if self.s[K.FE_COUNT] > 0:
+            sw |= 0x2000
+        return sw
+
+    def _on_controlword(self, cw: int) -> None:
+        reset_edge = cw & 0x80 and not self.controlword & 0x80
+        new_setpoint = cw & 0x10 and not self.controlword & 0x10
+        self.controlword = cw
+        st = self.state
+        if st == FAULT:
+            if reset_edge:
+                self.error_code = 0
+                self.state = SWITCH_ON_DISABLED
+                self._emcy(0x0000)
+            return
+        if not cw & 0x02:                                   # disable voltage
+            self._go(SWITCH_ON_DISABLED)
+        elif not cw & 0x04:                                 # quick stop
+            if st == ENABLED:
+                self._go(QUICK_STOP)
+            elif st in (READY, SWITCHED_ON):
+                self._go(SWITCH_ON_DISABLED)
+        elif cw & 0x0F == 0x06:                             # shutdown
+            if st in (SWITCH_ON_DISABLED, SWITCHED_ON, ENABLED):
+                self._go(READY)
+        elif cw & 0x0F == 0x07:                             # switch on / disable operation
+            if st in (READY, ENABLED):
+                self._go(SWITCHED_ON)
+        elif cw & 0x0F == 0x0F:                             # enable operation
+            if st in (READY, SWITCHED_ON):
+                self._go(ENABLED)
+            elif st == QUICK_STOP and self._od(0x605A) in (5, 6, 7, 8):
+                self._go(ENABLED)
+        if self.state == ENABLED and self.mode == PP and new_setpoint:
+            target = self._od(0x607A) / self.inc_per_rad
+            self.pp_target = target if not cw & 0x40 else self.d[K.P1] + target
+            self.target_reached = False
+
+    def _go(self, state: int) -> None:
+        if state == self.state:
+            return
+        if state == ENABLED:
+            self.s[K.ENABLED] = 1.0
+            self.s[K.V_INT] = self.s[K.I_INT] = 0.0
+            self._hold_position()
+            self.setpoint_armed = False
+        elif state != QUICK_STOP:
+            self.s[K.ENABLED] = 0.0
+        self.state = state
+
+    def _hold_position(self) -> None:
+        self.d[K.P0] = self.d[K.P1] = self.s[K.ENC]
+        self.d[K.A_FF] = 0.0
+        self.v_dem = 0.0
+        self.new_target = False
+        self.pp_target = None
+
+    def fault(self, code: int) -> None:
+        if self.state == FAULT:
+            return
+        self.state = FAULT_REACTION
+        self.s[K.ENABLED] = 0.0
+        self.error_code = code
+        self.error_history.insert(0, code)
+        del self.error_history[8:]
+        self.state = FAULT
+        self.setpoint_armed = False
+        self._emcy(code)
+
+    def _emcy(self, code: int) -> None:
+        reg = 0x01 if code else 0x00
+        self._send(0x80 + self.node_id, struct.pack("<HB5s", code, reg, b"\x00" * 5))
+
+    # ------------------------------------------------------------------ cyclic
+    def on_sync(self) -> None:
+        """SYNC: send TPDOs with the values at this instant, then latch new setpoints."""
+        if not self.online:
+            return
+        if self.nmt_state == NMT_OPERATIONAL:
+            self.send_tpdos()
+            for codec, data in self.pending_rpdo:
+                self._apply_rpdo(codec, data)
+        self.pending_rpdo.clear()
+        self._next_period()
+
+    def _next_period(self) -> None:
+        """Set the demand P0 -> P1 of the interpolation period that starts now."""
+        d, T = self.d, self.robot.sync_period
+        d[K.P0] = d[K.P1]
+        v_old = self.v_dem
+        self.internal_limit = False
+        if self.state == ENABLED and self.mode == CSP:
+            if self.new_target:
+                d[K.P1] = self._limit(self._od(0x607A) / self.inc_per_rad)
+            self.v_dem = (d[K.P1] - d[K.P0]) / T
+        elif self.state == QUICK_STOP:
+            self._ramp(0.0, self._od(0x6085) / self.inc_per_rad, T)
+            if self.v_dem == 0.0:
+                self.target_reached = True
+                if self._od(0x605A) in (0, 1, 2, 3):
+                    self._go(SWITCH_ON_DISABLED)
+        elif self.state == ENABLED and self.mode == PV:
+            self._ramp(self._od(0x60FF) / self.inc_per_rad, self._od(0x6083) / self.inc_per_rad, T)
+            self.target_reached = self.v_dem == self._od(0x60FF) / self.inc_per_rad
+        elif self.state == ENABLED and self.mode == PP and self.pp_target is not None:
+            dist = self.pp_target - d[K.P0]
+            dec = self._od(0x6084) / self.inc_per_rad
+            v_max = min(self._od(0x6081) / self.inc_per_rad, math.sqrt(2 * dec * abs(dist)))
+            self._ramp(math.copysign(v_max, dist), self._od(0x6083) / self.inc_per_rad, T)
+            if abs(dist) <= abs(self.v_dem) * T or abs(dist) < 1.0 / self.inc_per_rad:
+                d[K.P1] = self.pp_target
+                self.v_dem = 0.0
+                self.pp_target = None
+                self.target_reached = True
+        else:
+            self.v_dem = 0.0
+        d[K.A_FF] = (self.v_dem - v_old) / T
+        self.new_target = False
+
+    def _ramp(self, v_target: float, accel: float, T: float) -> None:
+        """Move the demand velocity toward ``v_target`` at ``accel`` and integrate P1."""
+        dv = max(-accel * T, min(accel * T, v_target - self.v_dem))
+        v_new = self.v_dem + dv
+        self.d[K.P1] = self._limit(self.d[K.P0] + 0.5 * (self.v_dem + v_new) * T)
+        self.v_dem = v_new
+
+    def _limit(self, position: float) -> float:
+        lo, hi = self._od(0x607D, 1), self._od(0x607D, 2)
+        if lo >= hi:
+            return position
+        lo, hi = lo / self.inc_per_rad, hi / self.inc_per_rad
+        if position < lo or position > hi:
+            self.internal_limit = True
+            return min(max(position, lo), hi)
+        return position
+
+    def check_faults(self) -> None:
+        """After the plant advanced: following error and loss of setpoint."""
+        if self.state not in (ENABLED, QUICK_STOP):
+            return
+        timeout_ticks = max(1, round(self._od(0x6066) / 1000.0 / K.VELOCITY_TICK_S))
+        if self.s[K.FE_COUNT] >= timeout_ticks:
+            self.fault(ERR_FOLLOWING)
+        elif self.setpoint_armed and self.mode == CSP and self.state == ENABLED and \
+                self.robot.time - self.last_setpoint_time > 3 * self._interpolation_period() + 1e-9:
+            self.fault(ERR_RPDO_TIMEOUT)
+
+    def _interpolation_period(self) -> float:
+        return self._od(0x60C2, 1) * 10.0 ** self._od(0x60C2, 2)
+
+    # ------------------------------------------------------------------ actual values
+    def refresh_actuals(self) -> None:
+        """Sample the measured values the drive reports (called after each advance)."""
+        self._refresh_actuals(noise=True)
+
+    def _refresh_actuals(self, noise: bool) -> None:
+        count = math.floor(self.s[K.Q] * self.inc_per_rad)
+        dt = self.robot.time - self._last_refresh
+        if dt > 0:
+            self._velocity_inc_s = round((count - self._last_count) / dt)
+        self._last_count = count
+        self._last_refresh = self.robot.time
+        torque = self.p[K.KT] * self.s[K.I]
+        if noise and self.axis.torque_noise_Nm:
+            torque += self.axis.torque_noise_Nm * self.robot.noise()
+        self._torque_pm = max(-32768, min(32767, round(torque / self.rated_torque * 1000)))
+        self._current_pm = max(-32768, min(32767, round(
+            self.s[K.I] / (self.rated_torque / self.p[K.KT]) * 1000)))
+        self._position_inc = max(-2**31, min(2**31 - 1, count))
+
+    def _live_objects(self) -> dict[int, Callable[[], int]]:
+        """Objects whose value the drive measures or computes instead of storing."""
+        return {
+            0x6041: lambda: self.statusword,
+            0x6061: lambda: self.mode,
+            0x6064: lambda: self._position_inc,
+            0x606C: lambda: self._velocity_inc_s,
+            0x6077: lambda: self._torque_pm,
+            0x6078: lambda: self._current_pm,
+            0x60F4: lambda: round(self.s[K.FERR] * self.inc_per_rad),
+            0x603F: lambda: self.error_code,
+            0x1001: lambda: 0x01 if self.state == FAULT else 0x00,
+        }
+
+    def _send(self, cob_id: int, data: bytes) -> None:
+        if self.online:
+            self.robot.send(cob_id, data)

@@ -1,0 +1,183 @@
+"""Compiled cascade loops and plant of the simulated axes.
+
+One call advances every axis by a number of velocity-loop ticks (2 kHz); each
+tick runs the position P + velocity feed-forward and velocity PI loops once and
+the current PI loop with the RL motor and the mechanical plant
+``CURRENT_SUBSTEPS`` times (8 kHz).  Everything is SI, motor side: rad, rad/s,
+Nm, A, V.  State and parameters are rows of float64 arrays indexed by the
+constants below, so the loops compile once with numba and run without Python
+objects in between.
+
+Plant, per axis (``sign`` = direction of motion)::
+
+    J*dv/dt = kt*i - load(q, t, other axes) - friction(v)
+    load     = cp*q + D + load_Nm + A_per*sin(2*pi*q/period + phase)
+    friction = (c1 + dc1*sign)*v + (c0*drift(t) + dc0*sign + cpl*q_src + S*exp(-(v/vs)^2))*sign
+
+with stiction at rest: the axis stays stopped while the driving torque is
+within the breakaway friction, and stops when its velocity crosses zero.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+CURRENT_SUBSTEPS = 4          # current-loop ticks per velocity-loop tick (8 kHz / 2 kHz)
+VELOCITY_TICK_S = 0.0005      # velocity / position loop period
+
+# --- state columns -------------------------------------------------------------------
+Q, V, I, I_INT, V_INT, ENC, VMEAS, TCMD, PDEM, VDEM, FERR, FE_COUNT, T, ENABLED = range(14)
+N_STATE = 14
+
+# --- parameter columns ---------------------------------------------------------------
+(J, C0, C1, CP, D, KT, R, L, VBUS, TMAX, INC_PER_RAD,
+ KPP, FWF, KPS, KIS, KPC, KIC,
+ FF_EN, FF_J, FF_C0, FF_C1, FF_OFF, FF_CP, FF_DC0, FF_DC1,
+ LOAD, PER_AMP, PER_PERIOD, PER_PHASE, STR_AMP, STR_VEL, ASYM_DC0, ASYM_DC1,
+ CPL_SRC, CPL_COEF, DRIFT_FRAC, DRIFT_TAU, FE_WINDOW) = range(38)
+N_PARAM = 38
+
+# --- demand columns (one row per axis, set once per SYNC period) ----------------------
+P0, P1, A_FF, V_OFF, T_OFF = range(5)
+N_DEMAND = 5
+
+
+@njit(cache=True)
+def _sign(x):
+    if x > 0.0:
+        return 1.0
+    if x < 0.0:
+        return -1.0
+    return 0.0
+
+
+@njit(cache=True, nogil=True)
+def advance(state, param, demand, tick0, n_ticks, ticks_per_period):
+    """Advance all axes by ``n_ticks`` velocity-loop ticks.
+
+    ``tick0[a]`` is the number of ticks axis ``a`` has already done in the
+    current interpolation period; the position demand moves linearly from
+    ``P0`` to ``P1`` over ``ticks_per_period`` ticks and holds at ``P1`` after.
+    """
+    n_axes = state.shape[0]
+    dt_v = VELOCITY_TICK_S
+    dt_c = dt_v / CURRENT_SUBSTEPS
+    period = ticks_per_period * dt_v
+    for k in range(n_ticks):
+        # ---------------- position + velocity loops (2 kHz) ----------------
+        for a in range(n_axes):
+            s = state[a]
+            p = param[a]
+            d = demand[a]
+            inc = p[INC_PER_RAD]
+            enc = math.floor(s[Q] * inc) / inc
+            s[VMEAS] = (enc - s[ENC]) / dt_v
+            s[ENC] = enc
+            frac = (tick0[a] + k + 1) / ticks_per_period
+            if frac > 1.0:
+                frac = 1.0
+                v_d = 0.0
+                a_d = 0.0
+            else:
+                v_d = (d[P1] - d[P0]) / period
+                a_d = d[A_FF]
+            p_d = d[P0] + (d[P1] - d[P0]) * frac
+            s[PDEM] = p_d
+            s[VDEM] = v_d
+            if s[ENABLED] == 0.0:
+                s[V_INT] = 0.0
+                s[TCMD] = 0.0
+                s[FERR] = 0.0
+                s[FE_COUNT] = 0.0
+                continue
+            ferr = p_d - enc
+            s[FERR] = ferr
+            if abs(ferr) > p[FE_WINDOW]:
+                s[FE_COUNT] += 1.0
+            else:
+                s[FE_COUNT] = 0.0
+            e_v = p[FWF] * v_d + p[KPP] * ferr + d[V_OFF] - s[VMEAS]
+            t_ff = d[T_OFF]
+            if p[FF_EN] != 0.0:
+                sg = _sign(v_d)
+                t_ff += (p[FF_J] * a_d + (p[FF_C1] + p[FF_DC1] * sg) * v_d
+                         + (p[FF_C0] + p[FF_DC0] * sg) * sg + p[FF_OFF] + p[FF_CP] * p_d)
+            integ = s[V_INT] + p[KIS] * e_v * dt_v
+            t_cmd = p[KPS] * (e_v + integ) + t_ff
+            if t_cmd > p[TMAX]:
+                t_cmd = p[TMAX]
+            elif t_cmd < -p[TMAX]:
+                t_cmd = -p[TMAX]
+            else:
+                s[V_INT] = integ          # anti-windup: integrate only when not saturated
+            s[TCMD] = t_cmd
+        # ---------------- current loop, motor and mechanics (8 kHz) ----------------
+        for _ in range(CURRENT_SUBSTEPS):
+            for a in range(n_axes):
+                s = state[a]
+                p = param[a]
+                if s[ENABLED] == 0.0:    # power stage off, holding brake engaged
+                    s[I] = 0.0
+                    s[I_INT] = 0.0
+                    s[V] = 0.0
+                    continue
+                kt = p[KT]
+                e_i = s[TCMD] / kt - s[I]
+                integ = s[I_INT] + p[KIC] * e_i * dt_c
+                u = p[KPC] * (e_i + integ)
+                if u > p[VBUS]:
+                    u = p[VBUS]
+                elif u < -p[VBUS]:
+                    u = -p[VBUS]
+                else:
+                    s[I_INT] = integ
+                decay = math.exp(-p[R] * dt_c / p[L])
+                s[I] = s[I] * decay + (1.0 - decay) * (u - kt * s[V]) / p[R]
+            for a in range(n_axes):
+                s = state[a]
+                p = param[a]
+                if s[ENABLED] == 0.0:
+                    continue
+                q = s[Q]
+                v = s[V]
+                t_now = s[T]
+                load = p[CP] * q + p[D] + p[LOAD]
+                if p[PER_PERIOD] > 0.0:
+                    load += p[PER_AMP] * math.sin(2.0 * math.pi * q / p[PER_PERIOD] + p[PER_PHASE])
+                c0 = p[C0]
+                if p[DRIFT_TAU] > 0.0:
+                    c0 *= 1.0 + p[DRIFT_FRAC] * math.exp(-t_now / p[DRIFT_TAU])
+                src = int(p[CPL_SRC])
+                if src >= 0:
+                    c0 += p[CPL_COEF] * state[src, Q]
+                net = p[KT] * s[I] - load
+                if v == 0.0:
+                    sg = _sign(net)
+                    breakaway = c0 + p[ASYM_DC0] * sg + p[STR_AMP]
+                    if abs(net) <= breakaway:
+                        continue
+                    v_new = (net - breakaway * sg) / p[J] * dt_c
+                else:
+                    sg = _sign(v)
+                    c0_dir = c0 + p[ASYM_DC0] * sg
+                    if p[STR_VEL] > 0.0:
+                        c0_dir += p[STR_AMP] * math.exp(-(v / p[STR_VEL]) ** 2)
+                    friction = (p[C1] + p[ASYM_DC1] * sg) * v + c0_dir * sg
+                    v_new = v + (net - friction) / p[J] * dt_c
+                    if v_new * v < 0.0:      # crossed zero within the step: stick
+                        v_new = 0.0
+                s[Q] = q + 0.5 * (v + v_new) * dt_c
+                s[V] = v_new
+        for a in range(n_axes):
+            state[a, T] += dt_v
+
+
+def new_arrays(n_axes: int):
+    """Zeroed (state, param, demand) arrays for ``n_axes`` axes."""
+    state = np.zeros((n_axes, N_STATE))
+    param = np.zeros((n_axes, N_PARAM))
+    param[:, CPL_SRC] = -1.0
+    demand = np.zeros((n_axes, N_DEMAND))
+    return state, param, demand

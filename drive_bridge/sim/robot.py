@@ -1,0 +1,168 @@
+"""The simulated robot: its drives on one python-can bus, one clock for all.
+
+Two clocks drive the same code:
+
+* lockstep (:meth:`SimRobot.process`): each SYNC advances every drive by
+  exactly one SYNC period before the drives answer it; nothing depends on the
+  wall clock, so one configuration and seed give byte-identical feedback;
+* wall clock (:meth:`SimRobot.start_realtime`): a thread advances the plant
+  with real time and answers frames as they come, so a master that does not
+  know it talks to a simulation sees drives that move on their own.
+"""
+from __future__ import annotations
+
+import threading
+import time
+from pathlib import Path
+
+import can
+import canopen
+import numpy as np
+
+from . import kernel as K
+from .config import SimConfig
+from .drive import SimDrive
+
+DEFAULT_EDS = Path(__file__).resolve().parents[2] / "eds" / "drive_bridge_servo.eds"
+NOISE_BLOCK = 4096
+
+
+class SimRobot:
+    """All simulated drives of one robot, answering on ``channel`` of the virtual bus.
+
+    ``sync_period`` [s] is the SYNC period the drives interpolate over (0x60C2
+    is written by the master; the kernel needs the tick count up front).
+    """
+
+    def __init__(self, config: SimConfig, channel: str = "drive-bridge", *,
+                 sync_period: float = 0.002, eds_path: str | Path = DEFAULT_EDS):
+        self.config = config
+        self.sync_period = sync_period
+        self.ticks_per_period = round(sync_period / K.VELOCITY_TICK_S)
+        if abs(self.ticks_per_period * K.VELOCITY_TICK_S - sync_period) > 1e-9:
+            raise ValueError(f"SYNC period {sync_period} s is not a multiple of the 0.5 ms loop tick")
+        self.bus = can.Bus(interface="virtual", channel=channel, preserve_timestamps=True)
+        self.network = canopen.Network(self.bus)        # used to send; frames are dispatched here
+        self.time = 0.0
+        self._rng = np.random.default_rng(config.seed)
+        self._noise = np.empty(0)
+        self._noise_i = 0
+        self.state, self.param, self.demand = K.new_arrays(len(config.axes))
+        self._tick0 = np.zeros(len(config.axes), dtype=np.int64)
+        self._routes: dict[int, callable] = {}
+        self.drives: dict[str, SimDrive] = {}      # filled before the first routes_changed() counts
+        for i, (name, axis) in enumerate(config.axes.items()):
+            self.drives[name] = SimDrive(self, i, axis, str(eds_path))
+        self.routes_changed()
+        self._thread: threading.Thread | None = None
+        self._running = False
+        self._lock = threading.Lock()
+
+    # ------------------------------------------------------------------ bus
+    def power_on(self) -> None:
+        """Every drive sends its boot-up message."""
+        for drive in self.drives.values():
+            drive.boot()
+
+    def send(self, cob_id: int, data: bytes) -> None:
+        self.bus.send(can.Message(arbitration_id=cob_id, data=data, is_extended_id=False,
+                                  timestamp=self.time))
+
+    def routes_changed(self) -> None:
+        """Rebuild the COB-ID -> handler table (after a PDO mapping change)."""
+        routes = {0x000: self._on_nmt, 0x080: self._on_sync}
+        for drive in self.drives.values():
+            routes[0x600 + drive.node_id] = self._sdo_handler(drive)
+            for cob_id in drive.rpdos:
+                routes[cob_id] = self._rpdo_handler(drive, cob_id)
+        self._routes = routes
+
+    @staticmethod
+    def _sdo_handler(drive: SimDrive):
+        def handle(data: bytes) -> None:
+            if drive.online:
+                drive.node.sdo.on_request(0x600 + drive.node_id, data, 0.0)
+        return handle
+
+    @staticmethod
+    def _rpdo_handler(drive: SimDrive, cob_id: int):
+        def handle(data: bytes) -> None:
+            if drive.online:
+                drive.on_rpdo(cob_id, data)
+        return handle
+
+    def dispatch(self, msg: can.Message) -> None:
+        handler = self._routes.get(msg.arbitration_id)
+        if handler is not None and not msg.is_remote_frame:
+            handler(bytes(msg.data))
+
+    def _on_nmt(self, data: bytes) -> None:
+        for drive in self.drives.values():
+            if drive.online:
+                drive.on_nmt(data)
+
+    def _on_sync(self, _data: bytes) -> None:
+        if self._thread is None:            # lockstep: the SYNC period passes now
+            self.advance(self.ticks_per_period)
+        for drive in self.drives.values():
+            drive.on_sync()
+        self._tick0[:] = 0
+
+    # ------------------------------------------------------------------ lockstep
+    def process(self) -> None:
+        """Lockstep: handle every frame waiting on the bus, in order."""
+        recv = self.bus.recv
+        while (msg := recv(0)) is not None:
+            self.dispatch(msg)
+
+    def idle(self, duration: float) -> None:
+        """Lockstep: let ``duration`` seconds pass without SYNC (drives hold, heartbeats go out)."""
+        ticks = max(1, round(duration / K.VELOCITY_TICK_S))
+        while ticks > 0:                    # in SYNC-period steps so heartbeats go out on time
+            step = min(ticks, self.ticks_per_period)
+            self.advance(step)
+            ticks -= step
+
+    # ------------------------------------------------------------------ plant
+    def advance(self, n_ticks: int) -> None:
+        """Run loops and plant for ``n_ticks`` velocity-loop ticks, then faults and heartbeats."""
+        K.advance(self.state, self.param, self.demand, self._tick0, n_ticks, self.ticks_per_period)
+        self._tick0 += n_ticks
+        self.time = float(self.state[0, K.T])
+        for drive in self.drives.values():
+            drive.refresh_actuals()
+            drive.check_faults()
+            if drive.online:
+                drive.heartbeat_due(self.time)
+
+    def noise(self) -> float:
+        """One standard-normal sample from the robot's seeded generator."""
+        if self._noise_i >= self._noise.size:
+            self._noise = self._rng.standard_normal(NOISE_BLOCK)
+            self._noise_i = 0
+        self._noise_i += 1
+        return float(self._noise[self._noise_i - 1])
+
+    # ------------------------------------------------------------------ wall clock
+    def start_realtime(self) -> None:
+        """Run the drives against the wall clock in a background thread."""
+        self._running = True
+        self._thread = threading.Thread(target=self._run_realtime, name="sim-drives", daemon=True)
+        self._thread.start()
+
+    def _run_realtime(self) -> None:
+        t0 = time.perf_counter() - self.time
+        dt = K.VELOCITY_TICK_S
+        while self._running:
+            msg = self.bus.recv(timeout=0.001)
+            due = int((time.perf_counter() - t0 - self.time) / dt)
+            if due > 0:
+                self.advance(due)
+            if msg is not None:
+                self.dispatch(msg)
+
+    def shutdown(self) -> None:
+        self._running = False
+        if self._thread is not None:
+            self._thread.join(timeout=2)
+        self.bus.shutdown()

@@ -1,0 +1,91 @@
+"""Strict reading of YAML configuration: every error names the file and the key."""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Mapping
+
+import yaml
+
+from .errors import ConfigError
+
+
+def load_yaml(path: str | Path) -> dict:
+    """Read a YAML mapping with ``yaml.safe_load``; errors name the file."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ConfigError(path, "", "file not found") from None
+    except OSError as exc:
+        raise ConfigError(path, "", f"cannot read: {exc.strerror}") from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" at line {mark.line + 1}" if mark else ""
+        raise ConfigError(path, "", f"not valid YAML{where}: {getattr(exc, 'problem', exc)}") from None
+    if data is None:
+        data = {}
+    if not isinstance(data, dict):
+        raise ConfigError(path, "", "the top level must be a mapping of keys")
+    return data
+
+
+class Section:
+    """A mapping read from a YAML file that knows its path for error messages.
+
+    ``get`` checks types and ranges; ``done`` refuses keys nobody asked for,
+    so a typo is an error instead of a silently ignored setting.
+    """
+
+    def __init__(self, path: Path, key: str, data: Any):
+        if not isinstance(data, Mapping):
+            raise ConfigError(path, key, f"must be a mapping, got {type(data).__name__}")
+        self.path = Path(path)
+        self.key = key
+        self.data = data
+        self._used: set[str] = set()
+
+    def _name(self, key: str) -> str:
+        return f"{self.key}.{key}" if self.key else key
+
+    def has(self, key: str) -> bool:
+        return key in self.data
+
+    def error(self, key: str, problem: str) -> ConfigError:
+        return ConfigError(self.path, self._name(key), problem)
+
+    def get(self, key: str, kind: type | tuple, default: Any = ..., *, low=None, high=None,
+            choices=None) -> Any:
+        self._used.add(key)
+        if key not in self.data:
+            if default is ...:
+                raise self.error(key, "missing (required)")
+            return default
+        value = self.data[key]
+        kinds = kind if isinstance(kind, tuple) else (kind,)
+        if float in kinds and isinstance(value, int) and not isinstance(value, bool):
+            value = float(value)
+        if isinstance(value, bool) and bool not in kinds or not isinstance(value, kinds):
+            names = " or ".join(k.__name__ for k in kinds)
+            raise self.error(key, f"must be {names}, got {value!r}")
+        if choices is not None and value not in choices:
+            raise self.error(key, f"must be one of {', '.join(map(str, choices))}, got {value!r}")
+        if low is not None and value < low:
+            raise self.error(key, f"must be >= {low}, got {value!r}")
+        if high is not None and value > high:
+            raise self.error(key, f"must be <= {high}, got {value!r}")
+        return value
+
+    def section(self, key: str, required: bool = True) -> "Section":
+        value = self.get(key, dict, ... if required else {})
+        return Section(self.path, self._name(key), value)
+
+    def keys(self):
+        return list(self.data.keys())
+
+    def done(self) -> None:
+        unknown = [k for k in self.data if k not in self._used]
+        if unknown:
+            known = ", ".join(sorted(self._used)) or "none"
+            raise self.error(str(unknown[0]), f"unknown key (known keys here: {known})")
