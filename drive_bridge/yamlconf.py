@@ -47,7 +47,9 @@ class Section:
         self._used: set[str] = set()
 
     def _name(self, key: str) -> str:
-        return f"{self.key}.{key}" if self.key else key
+        if not key:
+            return self.key
+        return f"{self.key}.{key}" if self.key else str(key)
 
     def has(self, key: str) -> bool:
         return key in self.data

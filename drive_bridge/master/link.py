@@ -70,13 +70,17 @@ class MasterNetwork(canopen.Network):
         self.trace: TraceRecorder | None = None
         self.after_send = None
 
-    def send_message(self, can_id: int, data: bytes, remote: bool = False) -> None:
+    def send_message(self, can_id: int, data: bytes, remote: bool = False,
+                     timestamp: float | None = None) -> None:
+        """Send one frame stamped ``timestamp`` (default: now); it is traced before it
+        goes on the bus, so the trace never shows a reply before its request."""
         msg = can.Message(arbitration_id=can_id, data=data, is_extended_id=can_id > 0x7FF,
-                          is_remote_frame=remote, timestamp=self.clock.now(), is_rx=False)
-        with self.send_lock:
-            self.bus.send(msg)
+                          is_remote_frame=remote, is_rx=False,
+                          timestamp=self.clock.now() if timestamp is None else timestamp)
         if self.trace is not None:
             self.trace.on_message_received(msg)
+        with self.send_lock:
+            self.bus.send(msg)
         if self.after_send is not None:
             self.after_send()
 

@@ -253,6 +253,8 @@ class SimDrive:
             if not math.isfinite(value) or (sub == 1 and value not in (0, 1)) or (sub == 2 and value < 0):
                 raise SdoAbortedError(ABORT_RANGE)
             self.p[_MODEL_PARAMS[sub]] = value
+        elif index == 0x1017:
+            self._hb_next = self.robot.time + value / 1000.0     # first beat one period from now
         elif index == 0x6065:
             self.p[K.FE_WINDOW] = value / self.inc_per_rad
         elif index == 0x6072:
@@ -448,6 +450,11 @@ class SimDrive:
         self._send(0x80 + self.node_id, struct.pack("<HB5s", code, reg, b"\x00" * 5))
 
     # ------------------------------------------------------------------ cyclic
+    @property
+    def internal_profile(self) -> bool:
+        """True when the drive generates its own demand (quick stop, PV, PP) on its own clock."""
+        return self.state == QUICK_STOP or (self.state == ENABLED and self.mode in (PV, PP))
+
     def on_sync(self) -> None:
         """SYNC: send TPDOs with the values at this instant, then latch new setpoints."""
         if not self.online:
@@ -457,9 +464,10 @@ class SimDrive:
             for codec, data in self.pending_rpdo:
                 self._apply_rpdo(codec, data)
         self.pending_rpdo.clear()
-        self._next_period()
+        if not self.internal_profile:
+            self.next_period()
 
-    def _next_period(self) -> None:
+    def next_period(self) -> None:
         """Set the demand P0 -> P1 of the interpolation period that starts now."""
         d, T = self.d, self.robot.sync_period
         d[K.P0] = d[K.P1]

@@ -106,7 +106,8 @@ class SimRobot:
             self.advance(self.ticks_per_period)
         for drive in self.drives.values():
             drive.on_sync()
-        self._tick0[:] = 0
+            if not drive.internal_profile:      # a new interpolation period starts at SYNC
+                self._tick0[drive.index] = 0
 
     # ------------------------------------------------------------------ lockstep
     def process(self) -> None:
@@ -130,6 +131,9 @@ class SimRobot:
         self._tick0 += n_ticks
         self.time = float(self.state[0, K.T])
         for drive in self.drives.values():
+            if drive.internal_profile and self._tick0[drive.index] >= self.ticks_per_period:
+                drive.next_period()
+                self._tick0[drive.index] = 0
             drive.refresh_actuals()
             drive.check_faults()
             if drive.online:

@@ -1,0 +1,258 @@
+"""Bus configuration (bus.yml), in the spirit of ros2_canopen's bus.yml.
+
+``master`` holds the bus and timing, ``defaults`` is merged into every node,
+``nodes`` is keyed by axis name, ``campaign`` sets the excitation.  Every
+problem is a :class:`ConfigError` naming the file and the key.  Limits are SI
+(m for linear axes, rad for rotary), converted to the motor side here.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import canopen
+
+from .errors import ConfigError
+from .od import load_od
+from .units import Scaling
+from .yamlconf import Section, load_yaml
+
+#: objects the master must find in the PDO mapping: what it streams and what it logs
+REQUIRED_RPDO = {0x6040: "controlword", 0x607A: "target position"}
+REQUIRED_TPDO = {0x6064: "position actual", 0x606C: "velocity actual",
+                 0x6077: "torque actual", 0x6041: "statusword"}
+#: objects the master can fill in an RPDO / log from a TPDO
+RPDO_OBJECTS = {0x6040, 0x607A, 0x60B1, 0x60B2}
+TPDO_OBJECTS = {0x6064, 0x606C, 0x6077, 0x6041, 0x60F4, 0x6078}
+
+
+@dataclass(frozen=True)
+class PdoConfig:
+    number: int                           # 1..4
+    transmission: int
+    mapping: tuple[tuple[int, int], ...]  # (index, subindex)
+
+
+@dataclass(frozen=True)
+class Limits:
+    """Axis limits, motor side: rad, rad/s, rad/s²."""
+
+    position_min: float
+    position_max: float
+    max_velocity: float
+    max_acceleration: float
+
+
+@dataclass(frozen=True)
+class NodeConfig:
+    axis: str
+    node_id: int
+    dcf: Path
+    od: canopen.ObjectDictionary = field(repr=False, compare=False)
+    scaling: Scaling
+    limits: Limits
+    linear: bool
+    heartbeat_producer_ms: int
+    following_error_window_rad: float
+    rpdo: tuple[PdoConfig, ...]
+    tpdo: tuple[PdoConfig, ...]
+    sdo: tuple[tuple[int, int, int | float], ...]
+
+
+@dataclass(frozen=True)
+class MasterConfig:
+    interface: str
+    channel: str
+    bitrate: int
+    sync_period_s: float
+    heartbeat_timeout_s: float
+    sdo_timeout_s: float
+    state_timeout_s: float
+    tpdo_miss_limit: int
+
+
+@dataclass(frozen=True)
+class CampaignConfig:
+    velocity_levels: tuple[float, ...] = (0.2, 0.4, 0.8)
+    acceleration_levels: tuple[float, ...] = (0.2, 0.4, 0.8)
+    cycles: int = 25
+    max_axis_time_s: float = 300.0
+    move_fraction: float = 0.8
+    dwell_s: float = 0.05
+    together: bool = False
+
+    def quick(self) -> "CampaignConfig":
+        """A few seconds of motion per axis, for demos and tests."""
+        return replace(self, velocity_levels=self.velocity_levels[-2:],
+                       acceleration_levels=self.acceleration_levels[-2:], cycles=1,
+                       max_axis_time_s=min(self.max_axis_time_s, 5.0),
+                       move_fraction=min(self.move_fraction, 0.05))
+
+
+@dataclass(frozen=True)
+class BusConfig:
+    path: Path
+    master: MasterConfig
+    nodes: dict[str, NodeConfig]
+    campaign: CampaignConfig
+
+    def only(self, axes: list[str]) -> "BusConfig":
+        """The same configuration restricted to ``axes`` (errors name unknown ones)."""
+        unknown = [a for a in axes if a not in self.nodes]
+        if unknown:
+            raise ConfigError(self.path, "nodes", f"no axis named {unknown[0]!r} "
+                              f"(configured: {', '.join(self.nodes)})")
+        return replace(self, nodes={a: self.nodes[a] for a in axes})
+
+
+def _pdos(sec: Section, key: str, od: canopen.ObjectDictionary, allowed: set[int],
+          required: dict[int, str]) -> tuple[PdoConfig, ...]:
+    pdo_sec = sec.section(key)
+    result = []
+    seen: set[int] = set()
+    for num in pdo_sec.keys():
+        if not isinstance(num, int) or not 1 <= num <= 4:
+            raise pdo_sec.error(str(num), "PDO numbers are 1 to 4")
+        p = pdo_sec.section(num)
+        enabled = p.get("enabled", bool, True)
+        trans = p.get("transmission", int, 1, low=0, high=255)
+        if not 1 <= trans <= 240:
+            raise p.error("transmission", "the master streams one sample per SYNC: use 1..240 (synchronous)")
+        mapping = []
+        bits = 0
+        for n, entry in enumerate(p.get("mapping", list)):
+            e = Section(sec.path, f"{p.key}.mapping[{n}]", entry)
+            index = e.get("index", int)
+            sub = e.get("sub_index", int, 0, low=0, high=255)
+            e.done()
+            if index not in allowed:
+                raise e.error("index", f"0x{index:04X} is not an object the master can "
+                              f"{'send' if key == 'rpdo' else 'log'} (use: "
+                              f"{', '.join(f'0x{i:04X}' for i in sorted(allowed))})")
+            var = od.get_variable(index, sub)
+            if var is None:
+                raise e.error("index", f"0x{index:04X}:{sub} is not in the drive's EDS/DCF")
+            if not var.pdo_mappable:
+                raise e.error("index", f"0x{index:04X} is not PDO-mappable in the drive's EDS/DCF")
+            bits += len(var)
+            mapping.append((index, sub))
+        p.done()
+        if bits > 64:
+            raise p.error("mapping", f"{bits} bits do not fit in one 8-byte PDO")
+        if enabled:
+            seen.update(i for i, _ in mapping)
+            result.append(PdoConfig(num, trans, tuple(mapping)))
+    pdo_sec.done()
+    missing = [f"0x{i:04X} ({name})" for i, name in required.items() if i not in seen]
+    if missing:
+        raise pdo_sec.error("", f"must map {', '.join(missing)}")
+    return tuple(result)
+
+
+def _node(path: Path, axis: str, data: dict) -> NodeConfig:
+    sec = Section(path, f"nodes.{axis}", data)
+    node_id = sec.get("node_id", int, low=1, high=127)
+    dcf = (path.parent / sec.get("dcf", str)).resolve()
+    if not dcf.is_file():
+        raise sec.error("dcf", f"EDS/DCF file not found: {dcf}")
+    od = load_od(dcf, node_id)
+    sc = sec.section("scaling")
+    feed = sc.get("feed_m_per_rev", float, None, low=1e-6)
+    scaling = Scaling(increments_per_rev=sc.get("increments_per_rev", int, low=1),
+                      rated_torque_Nm=sc.get("rated_torque_Nm", float, low=1e-6),
+                      feed_m_per_rev=feed)
+    sc.done()
+    unit = "m" if feed else "rad"
+    lim = sec.section("limits")
+    stroke = lim.get("stroke_" + unit, list)
+    if len(stroke) != 2 or not all(isinstance(v, (int, float)) for v in stroke) or stroke[0] >= stroke[1]:
+        raise lim.error("stroke_" + unit, f"must be [min, max] in {unit} with min < max, got {stroke!r}")
+    vmax = lim.get(f"max_velocity_{unit}_s", float, low=1e-9)
+    amax = lim.get(f"max_acceleration_{unit}_s2", float, low=1e-9)
+    lim.done()
+    limits = Limits(float(scaling.load_to_motor(stroke[0])), float(scaling.load_to_motor(stroke[1])),
+                    float(scaling.load_to_motor(vmax)), float(scaling.load_to_motor(amax)))
+    if 0x6080 in od and od[0x6080].default:
+        drive_max = od[0x6080].default * 2 * math.pi / 60.0
+        if limits.max_velocity > drive_max * (1 + 1e-9):
+            raise lim.error(f"max_velocity_{unit}_s",
+                            f"{vmax} {unit}/s is {limits.max_velocity * 60 / (2 * math.pi):.0f} rpm at the motor, "
+                            f"above the drive's max motor speed 0x6080 = {od[0x6080].default} rpm")
+    edge = max(abs(limits.position_min), abs(limits.position_max)) * scaling.inc_per_rad
+    if edge >= 2**31:
+        raise lim.error("stroke_" + unit, "does not fit the drive's 32-bit position range with this scaling")
+    sdo = []
+    for n, entry in enumerate(sec.get("sdo", list, [])):
+        e = Section(path, f"nodes.{axis}.sdo[{n}]", entry)
+        index, sub = e.get("index", int), e.get("sub_index", int, 0)
+        value = e.get("value", (int, float))
+        e.done()
+        if od.get_variable(index, sub) is None:
+            raise e.error("index", f"0x{index:04X}:{sub} is not in the drive's EDS/DCF")
+        sdo.append((index, sub, value))
+    cfg = NodeConfig(
+        axis=axis, node_id=node_id, dcf=dcf, od=od, scaling=scaling, limits=limits, linear=bool(feed),
+        heartbeat_producer_ms=sec.get("heartbeat_producer", int, 100, low=1, high=65535),
+        following_error_window_rad=sec.get("following_error_window_rad", float, 0.6, low=1e-6),
+        rpdo=_pdos(sec, "rpdo", od, RPDO_OBJECTS, REQUIRED_RPDO),
+        tpdo=_pdos(sec, "tpdo", od, TPDO_OBJECTS, REQUIRED_TPDO),
+        sdo=tuple(sdo))
+    sec.done()
+    return cfg
+
+
+def _merge(defaults: dict, node: dict) -> dict:
+    merged = dict(defaults)
+    for key, value in node.items():
+        if isinstance(value, dict) and isinstance(merged.get(key), dict):
+            merged[key] = _merge(merged[key], value)
+        else:
+            merged[key] = value
+    return merged
+
+
+def load_bus_config(path: str | Path) -> BusConfig:
+    """Read and check ``bus.yml``; raises :class:`ConfigError` naming file and key."""
+    path = Path(path)
+    top = Section(path, "", load_yaml(path))
+    m = top.section("master")
+    master = MasterConfig(
+        interface=m.get("interface", str, "socketcan"),
+        channel=m.get("channel", str, "can0"),
+        bitrate=m.get("bitrate", int, 1_000_000, low=10_000, high=1_000_000),
+        sync_period_s=m.get("sync_period", int, 2000, low=500, high=100_000) * 1e-6,
+        heartbeat_timeout_s=m.get("heartbeat_consumer_ms", int, 300, low=10) / 1000.0,
+        sdo_timeout_s=m.get("sdo_timeout_s", float, 0.5, low=0.01),
+        state_timeout_s=m.get("state_timeout_s", float, 1.0, low=0.01),
+        tpdo_miss_limit=m.get("tpdo_miss_limit", int, 3, low=1))
+    m.done()
+    defaults = top.get("defaults", dict, {})
+    nodes_sec = top.section("nodes")
+    if not nodes_sec.keys():
+        raise nodes_sec.error("", "no nodes configured")
+    nodes = {}
+    for axis in nodes_sec.keys():
+        nodes_sec.get(axis, dict)
+        nodes[axis] = _node(path, str(axis), _merge(defaults, nodes_sec.data[axis]))
+    nodes_sec.done()
+    ids = [n.node_id for n in nodes.values()]
+    if len(set(ids)) != len(ids):
+        raise nodes_sec.error("", f"node ids must be unique, got {ids}")
+    c = top.section("campaign", required=False)
+    levels = lambda key, dflt: tuple(c.get(key, list, list(dflt)))  # noqa: E731
+    campaign = CampaignConfig(
+        velocity_levels=levels("velocity_levels", CampaignConfig.velocity_levels),
+        acceleration_levels=levels("acceleration_levels", CampaignConfig.acceleration_levels),
+        cycles=c.get("cycles", int, 25, low=1),
+        max_axis_time_s=c.get("max_axis_time_s", float, 300.0, low=0.1),
+        move_fraction=c.get("move_fraction", float, 0.8, low=0.01, high=1.0),
+        dwell_s=c.get("dwell_s", float, 0.05, low=0.0),
+        together=c.get("together", bool, False))
+    for key in ("velocity_levels", "acceleration_levels"):
+        vals = getattr(campaign, key)
+        if not vals or not all(isinstance(v, (int, float)) and 0 < v <= 1 for v in vals):
+            raise c.error(key, f"must be a list of fractions of the limit in (0, 1], got {list(vals)!r}")
+    c.done()
+    top.done()
+    return BusConfig(path=path, master=master, nodes=nodes, campaign=campaign)

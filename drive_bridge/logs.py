@@ -1,0 +1,128 @@
+"""Record output: ``log.csv`` (SI, one row per SYNC), ``meta.yaml`` and the raw CAN trace.
+
+The CSV is made from a :class:`~drive_bridge.master.stream.Recording` in
+device units through the axis scaling; :func:`decode_trace` refills the same
+Recording from the trace and the PDO layout in meta.yaml, so decoding gives
+the same CSV as the live run.
+"""
+from __future__ import annotations
+
+import struct
+from pathlib import Path
+
+import can
+import numpy as np
+import yaml
+
+from .errors import UserError
+from .master.bringup import Codec
+from .master.stream import SYNC_COB_ID, Recording
+from .units import Scaling
+
+LOG_NAME, META_NAME, TRACE_NAME = "log.csv", "meta.yaml", "trace.blf"
+
+#: TPDO object -> (column suffix, converter name on Scaling or None for raw integers, format)
+_COLUMNS = {
+    0x6064: ("position_rad", "position_from_device", "%.9g"),
+    0x606C: ("velocity_rad_s", "velocity_from_device", "%.9g"),
+    0x6077: ("torque_Nm", "torque_from_device", "%.6g"),
+    0x6041: ("statusword", None, "%d"),
+    0x60F4: ("following_error_rad", "position_from_device", "%.9g"),
+    0x6078: ("current_permille", None, "%d"),
+}
+
+
+def _codec_meta(codecs: list[Codec]) -> list[dict]:
+    return [{"cob_id": c.cob_id, "format": c.struct.format, "objects": list(c.objects)} for c in codecs]
+
+
+def _codecs(entries: list[dict]) -> list[Codec]:
+    return [Codec(e["cob_id"], struct.Struct(e["format"]), tuple(e["objects"])) for e in entries]
+
+
+def to_table(rec: Recording, scaling: dict[str, Scaling], period: float) -> tuple[list[str], np.ndarray, list[str]]:
+    """Columns, values and formats of log.csv; missing samples are NaN with ``<axis>_valid`` = 0."""
+    n = len(rec.raw)
+    names = ["time_s", "sync_time_s"]
+    cols = [np.arange(n) * period, np.round(rec.sync_time - (rec.sync_time[0] if n else 0.0), 6)]
+    fmts = ["%.6f", "%.6f"]
+    for ai, axis in enumerate(rec.axes):
+        sc = scaling[axis]
+        valid = np.ones(n, dtype=bool)
+        for slot, owner in enumerate(rec.tpdo_owner):
+            if owner == axis:
+                valid &= rec.got[:, slot]
+        indices = [i for a, i in rec.columns if a == axis]
+        for index in sorted(indices, key=list(_COLUMNS).index):
+            suffix, conv, fmt = _COLUMNS[index]
+            raw = rec.raw[:, rec.column(axis, index)]
+            values = getattr(sc, conv)(raw) if conv else raw.astype(float)
+            names.append(f"{axis}_{suffix}")
+            cols.append(np.where(valid, values, np.nan))
+            fmts.append(fmt if fmt != "%d" else "%.0f")
+            if index == 0x6064:
+                names.append(f"{axis}_position_demand_rad")
+                cols.append(sc.position_from_device(rec.demand[:, ai]))
+                fmts.append("%.9g")
+        names.append(f"{axis}_valid")
+        cols.append(valid.astype(float))
+        fmts.append("%.0f")
+    return names, np.column_stack(cols) if n else np.empty((0, len(names))), fmts
+
+
+def write_csv(path: Path, rec: Recording, scaling: dict[str, Scaling], period: float) -> None:
+    names, values, fmts = to_table(rec, scaling, period)
+    np.savetxt(path, values, fmt=fmts, delimiter=",", header=",".join(names), comments="")
+
+
+def write_meta(path: Path, meta: dict) -> None:
+    path.write_text(yaml.safe_dump(meta, sort_keys=False), encoding="utf-8")
+
+
+def layout_meta(axes) -> dict:
+    """Per axis: scaling and PDO layout, what decode needs to rebuild the log."""
+    out = {}
+    for name, ax in axes.items():
+        sc = ax.cfg.scaling
+        out[name] = {"node_id": ax.cfg.node_id, "identity": ax.identity,
+                     "scaling": {"increments_per_rev": sc.increments_per_rev,
+                                 "rated_torque_Nm": sc.rated_torque_Nm,
+                                 "feed_m_per_rev": sc.feed_m_per_rev},
+                     "rpdo": _codec_meta(ax.rpdos), "tpdo": _codec_meta(ax.tpdos)}
+    return out
+
+
+def decode_trace(trace: Path, meta_path: Path | None = None) -> tuple[list[str], np.ndarray, list[str], dict]:
+    """Rebuild the log table from a raw trace and the meta.yaml beside it."""
+    trace = Path(trace)
+    meta_path = Path(meta_path) if meta_path else trace.with_name(META_NAME)
+    if not trace.is_file():
+        raise UserError(f"{trace}: trace file not found")
+    if not meta_path.is_file():
+        raise UserError(f"{meta_path}: not found; decode needs the meta.yaml written with the trace "
+                        f"(give it with --meta)")
+    meta = yaml.safe_load(meta_path.read_text(encoding="utf-8"))
+    try:
+        axes = meta["axes"]
+        period = float(meta["sync_period_s"])
+        rec = Recording({a: _codecs(v["tpdo"]) for a, v in axes.items()},
+                        {a: _codecs(v["rpdo"]) for a, v in axes.items()},
+                        int(meta["counts"]["cycles_sent"]))
+        scaling = {a: Scaling(**v["scaling"]) for a, v in axes.items()}
+    except (KeyError, TypeError, ValueError) as exc:
+        raise UserError(f"{meta_path}: not a drive-bridge record meta.yaml (missing or bad {exc})") from None
+    handlers = rec.handlers()
+    try:
+        with can.LogReader(str(trace)) as reader:
+            for msg in reader:
+                if msg.arbitration_id == SYNC_COB_ID and not msg.is_rx:
+                    rec.on_sync(msg.timestamp)
+                else:
+                    handler = handlers.get(msg.arbitration_id)
+                    if handler is not None:
+                        handler(msg.arbitration_id, msg.data, msg.timestamp)
+    except (ValueError, struct.error, OSError) as exc:
+        raise UserError(f"{trace}: cannot read the trace ({exc})") from None
+    rec.truncate()
+    names, values, fmts = to_table(rec, scaling, period)
+    return names, values, fmts, meta

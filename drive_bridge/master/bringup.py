@@ -1,0 +1,175 @@
+"""Bring-up of the configured drives: scan, identity, NMT, heartbeat, EMCY, PDO mapping."""
+from __future__ import annotations
+
+import struct
+from dataclasses import dataclass, field
+
+import canopen
+from canopen.pdo.base import PdoMap
+
+from ..config import BusConfig, NodeConfig, PdoConfig
+from ..errors import BusError
+from .cia402 import Drive402
+
+CIA402_PROFILE = 402
+_STRUCT = {1: "?", 2: "b", 3: "h", 4: "i", 5: "B", 6: "H", 7: "I", 8: "f"}
+EMCY_TEXT = {0x8611: "following error", 0x8250: "RPDO timeout (loss of setpoint)",
+             0x8130: "heartbeat or life guard error", 0x8400: "velocity speed controller",
+             0x2310: "continuous over-current", 0x3210: "DC link over-voltage", 0x4310: "drive temperature"}
+
+
+def emcy_text(code: int) -> str:
+    return EMCY_TEXT.get(code, f"EMCY 0x{code:04X}")
+
+
+@dataclass
+class Codec:
+    """One PDO of one axis: COB-ID, struct and the objects in it, compiled once."""
+
+    cob_id: int
+    struct: struct.Struct
+    objects: tuple[int, ...]          # object indices in mapping order
+
+
+@dataclass
+class AxisLink:
+    """A brought-up axis: its node, state machine, PDO codecs and live monitors."""
+
+    name: str
+    cfg: NodeConfig
+    node: canopen.RemoteNode
+    drive: Drive402
+    identity: dict
+    rpdos: list[Codec] = field(default_factory=list)
+    tpdos: list[Codec] = field(default_factory=list)
+    last_heartbeat: float | None = None
+    nmt_state: int | None = None
+    emcy: list[tuple[float, int]] = field(default_factory=list)   # (time, code)
+
+
+@dataclass
+class ScanResult:
+    found: dict[int, dict]            # node id -> identity
+    missing: list[str]                # configured axes that did not answer
+    unexpected: list[int]             # node ids that answered but are not configured
+    wrong_type: list[str]             # configured axes that are not CiA 402 drives
+
+
+def _identity(node: canopen.RemoteNode) -> dict:
+    return {"device_type": node.sdo[0x1000].raw,
+            "vendor_id": node.sdo[0x1018][1].raw, "product_code": node.sdo[0x1018][2].raw,
+            "revision": node.sdo[0x1018][3].raw, "serial": node.sdo[0x1018][4].raw}
+
+
+def scan(link, config: BusConfig) -> ScanResult:
+    """Ask every node id who is there; compare with the configuration."""
+    net = link.network
+    net.scanner.reset()
+    net.scanner.search()
+    link.clock.sleep(0.2)
+    answered = set(net.scanner.nodes)
+    by_id = {n.node_id: n for n in config.nodes.values()}
+    found, missing, wrong = {}, [], []
+    for axis, ncfg in config.nodes.items():
+        if ncfg.node_id not in answered:
+            missing.append(axis)
+            continue
+        node = net.add_node(ncfg.node_id, ncfg.od) if ncfg.node_id not in net else net[ncfg.node_id]
+        node.sdo.RESPONSE_TIMEOUT = config.master.sdo_timeout_s
+        found[ncfg.node_id] = _identity(node)
+        if found[ncfg.node_id]["device_type"] & 0xFFFF != CIA402_PROFILE:
+            wrong.append(axis)
+    unexpected = sorted(i for i in answered if i not in by_id)
+    return ScanResult(found, missing, unexpected, wrong)
+
+
+def _configure_pdos(node: canopen.RemoteNode, maps, configured: tuple[PdoConfig, ...], base: int) -> list[Codec]:
+    codecs = []
+    by_num = {p.number: p for p in configured}
+    for num in range(1, 5):
+        pdo: PdoMap = maps[num]
+        pdo.clear()
+        pdo.cob_id = base + 0x100 * (num - 1) + node.id
+        pc = by_num.get(num)
+        pdo.enabled = pc is not None
+        if pc is not None:
+            for index, sub in pc.mapping:
+                pdo.add_variable(index, sub)
+            pdo.trans_type = pc.transmission
+        pdo.save()
+        if pc is not None:
+            fmt = "<" + "".join(_STRUCT[node.object_dictionary.get_variable(i, s).data_type]
+                                for i, s in pc.mapping)
+            codecs.append(Codec(pdo.cob_id, struct.Struct(fmt), tuple(i for i, _ in pc.mapping)))
+    return codecs
+
+
+def bring_up(link, config: BusConfig) -> dict[str, AxisLink]:
+    """Scan, check and configure every configured drive (drives stay disabled).
+
+    Raises BusError naming the axis when a node is missing or is no CiA 402 drive.
+    """
+    result = scan(link, config)
+    if result.missing:
+        ids = ", ".join(f"{a} (node {config.nodes[a].node_id})" for a in result.missing)
+        raise BusError(f"no answer from {ids} on {config.master.interface}:{config.master.channel}; "
+                       f"check power, wiring, bitrate and node_id in {config.path}")
+    if result.wrong_type:
+        ax = result.wrong_type[0]
+        dt = result.found[config.nodes[ax].node_id]["device_type"]
+        raise BusError(f"axis {ax} (node {config.nodes[ax].node_id}) is not a CiA 402 drive "
+                       f"(device type 0x{dt:08X}); check node_id in {config.path}")
+    net = link.network
+    clock = link.clock
+    axes: dict[str, AxisLink] = {}
+    period = config.master.sync_period_s
+    for name, ncfg in config.nodes.items():
+        node = net[ncfg.node_id]
+        ax = AxisLink(name, ncfg, node, Drive402(node, name, clock, config.master.state_timeout_s),
+                      result.found[ncfg.node_id])
+        node.nmt.send_command(0x80)                               # pre-operational
+        for index, sub, value in ncfg.sdo:
+            _write(node, name, index, sub, value)
+        limits = ncfg.limits
+        inc = ncfg.scaling.inc_per_rad
+        _write(node, name, 0x1017, 0, ncfg.heartbeat_producer_ms)
+        _write(node, name, 0x6065, 0, round(ncfg.following_error_window_rad * inc))
+        _write(node, name, 0x607D, 1, round(limits.position_min * inc))
+        _write(node, name, 0x607D, 2, round(limits.position_max * inc))
+        if 0x60C2 in ncfg.od:
+            _write(node, name, 0x60C2, 1, round(period * 1000))
+            _write(node, name, 0x60C2, 2, -3)
+        if 0x1006 in ncfg.od:
+            _write(node, name, 0x1006, 0, round(period * 1e6))
+        try:
+            ax.rpdos = _configure_pdos(node, node.rpdo, ncfg.rpdo, 0x200)
+            ax.tpdos = _configure_pdos(node, node.tpdo, ncfg.tpdo, 0x180)
+        except canopen.SdoAbortedError as exc:
+            raise BusError(f"axis {name}: the drive refused the PDO mapping ({exc}); "
+                           f"check nodes.{name}.rpdo / tpdo in {config.path}") from None
+        _watch(net, ax, clock)
+        axes[name] = ax
+    return axes
+
+
+def _write(node, axis: str, index: int, sub: int, value) -> None:
+    try:
+        node.sdo.download(index, sub, node.object_dictionary.get_variable(index, sub).encode_raw(value))
+    except canopen.SdoAbortedError as exc:
+        raise BusError(f"axis {axis}: writing 0x{index:04X}:{sub} = {value} was refused ({exc})") from None
+    except canopen.SdoCommunicationError as exc:
+        raise BusError(f"axis {axis}: no SDO answer writing 0x{index:04X}:{sub} ({exc})") from None
+
+
+def _watch(net: canopen.Network, ax: AxisLink, clock) -> None:
+    """Heartbeat consumer and EMCY listener of one axis (they only record; the loop decides)."""
+    def on_heartbeat(can_id, data, timestamp):
+        ax.last_heartbeat = clock.now()
+        ax.nmt_state = data[0] & 0x7F if data else None
+
+    def on_emcy(error):
+        if error.code:
+            ax.emcy.append((clock.now(), error.code))
+
+    net.subscribe(0x700 + ax.node.id, on_heartbeat)
+    ax.node.emcy.add_callback(on_emcy)

@@ -1,0 +1,53 @@
+"""Bus-load budget of a cyclic plan: bits on the wire per second against the bitrate."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from ..config import BusConfig
+from ..errors import UserError
+
+MAX_LOAD = 0.80
+
+
+def frame_bits(data_bytes: int) -> int:
+    """Worst-case bits of a standard (11-bit) data frame, stuff bits and interframe space included."""
+    body = 34 + 8 * data_bytes                 # bits exposed to stuffing: SOF .. CRC
+    return body + (body - 1) // 4 + 13         # + stuff bits + CRC delimiter, ACK, EOF, IFS
+
+
+@dataclass(frozen=True)
+class BusLoad:
+    bits_per_cycle: int
+    bits_per_second: float
+    load: float                                 # fraction of the bitrate
+
+    def describe(self) -> str:
+        return f"{self.load * 100:.1f} % ({self.bits_per_second / 1000:.0f} kbit/s)"
+
+
+def pdo_bytes(od, mapping) -> int:
+    return sum(len(od.get_variable(i, s)) for i, s in mapping) // 8
+
+
+def bus_load(config: BusConfig) -> BusLoad:
+    """Load of one SYNC period: SYNC + every enabled RPDO and TPDO of every node."""
+    bits = frame_bits(0)                        # SYNC
+    for node in config.nodes.values():
+        for pdo in node.rpdo:
+            bits += frame_bits(pdo_bytes(node.od, pdo.mapping))
+        for pdo in node.tpdo:
+            bits += frame_bits(pdo_bytes(node.od, pdo.mapping)) / pdo.transmission
+    per_s = bits / config.master.sync_period_s
+    return BusLoad(int(bits), per_s, per_s / config.master.bitrate)
+
+
+def check_bus_load(config: BusConfig) -> BusLoad:
+    """Refuse a plan above 80 % of the bitrate with what to change."""
+    load = bus_load(config)
+    if load.load > MAX_LOAD:
+        raise UserError(
+            f"{config.path}: the cyclic plan needs {load.describe()} of {config.master.bitrate / 1000:.0f} "
+            f"kbit/s, above the {MAX_LOAD:.0%} budget. Map fewer or shorter PDOs (nodes.<axis>.tpdo/rpdo), "
+            f"send TPDOs every n-th SYNC (transmission: n), lengthen master.sync_period, "
+            f"or raise master.bitrate.")
+    return load

@@ -1,0 +1,164 @@
+"""The excitation campaign of the paper: forward and backward trapezoidal moves
+at velocity x acceleration levels of each axis' limits, sampled once per SYNC.
+
+Everything is motor side SI (rad, rad/s, rad/s²); the plan is checked against
+the axis limits before anything moves, and a profile outside them is refused.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from ..config import CampaignConfig, Limits
+from ..errors import UserError
+
+APPROACH_LEVEL = 0.2     # approach and return moves run at 20 % of the limits
+
+
+@dataclass(frozen=True)
+class Segment:
+    """A span of SYNC cycles [start, end) with one velocity / acceleration level."""
+
+    kind: str                       # "approach", "level" or "return"
+    axes: tuple[str, ...]
+    velocity_fraction: float
+    acceleration_fraction: float
+    cycles: int                     # complete forward + backward cycles (0 for approach/return)
+    start: int
+    end: int
+
+    def as_dict(self, period: float) -> dict:
+        d = asdict(self)
+        d["axes"] = list(self.axes)
+        d["start_s"] = round(self.start * period, 6)
+        d["end_s"] = round(self.end * period, 6)
+        return d
+
+
+@dataclass
+class Plan:
+    axes: list[str]
+    demand: np.ndarray              # (n_cycles, n_axes) position demand [rad]
+    segments: list[Segment]
+    period: float
+
+    @property
+    def duration(self) -> float:
+        return len(self.demand) * self.period
+
+
+def trapezoid(p0: float, p1: float, v: float, a: float, period: float) -> np.ndarray:
+    """Positions at t = period, 2*period, ... of a trapezoidal (or triangular) move."""
+    dist = abs(p1 - p0)
+    if dist == 0.0:
+        return np.empty(0)
+    v = min(v, math.sqrt(dist * a))              # triangular when the plateau vanishes
+    t_acc = v / a
+    total = dist / v + t_acc
+    t = np.arange(1, math.ceil(total / period - 1e-9) + 1) * period
+    t = np.minimum(t, total)
+    s = np.where(t < t_acc, 0.5 * a * t**2,
+                 np.where(t <= total - t_acc, 0.5 * a * t_acc**2 + v * (t - t_acc),
+                          dist - 0.5 * a * (total - t)**2))
+    return p0 + math.copysign(1.0, p1 - p0) * s
+
+
+def _cycle(lo: float, hi: float, v: float, a: float, dwell: int, period: float) -> np.ndarray:
+    fwd = trapezoid(lo, hi, v, a, period)
+    back = trapezoid(hi, lo, v, a, period)
+    return np.concatenate([fwd, np.full(dwell, hi), back, np.full(dwell, lo)])
+
+
+def _allocate(cycle_times: list[float], wanted: int, budget: float) -> list[int]:
+    """Cycles per level: ``wanted`` each if the budget allows, else a fair share (at least 1)."""
+    order = sorted(range(len(cycle_times)), key=lambda i: cycle_times[i])
+    counts = [0] * len(cycle_times)
+    left = budget
+    for rank, i in enumerate(order):
+        share = left / (len(order) - rank)
+        counts[i] = max(1, min(wanted, int(share // cycle_times[i])))
+        left -= counts[i] * cycle_times[i]
+    return counts
+
+
+def build_plan(cfg: CampaignConfig, limits: dict[str, Limits], start: dict[str, float],
+               period: float) -> Plan:
+    """Plan of the whole campaign for the axes in ``limits``, from positions ``start`` [rad]."""
+    axes = list(limits)
+    dwell = round(cfg.dwell_s / period)
+    levels = [(v, a) for v in cfg.velocity_levels for a in cfg.acceleration_levels]
+    ends = {}
+    for ax, lim in limits.items():
+        centre = 0.5 * (lim.position_min + lim.position_max)
+        half = 0.5 * (lim.position_max - lim.position_min) * cfg.move_fraction
+        ends[ax] = (centre - half, centre + half)
+
+    def level_cycle(ax: str, vf: float, af: float) -> np.ndarray:
+        lim = limits[ax]
+        return _cycle(*ends[ax], vf * lim.max_velocity, af * lim.max_acceleration, dwell, period)
+
+    def approach(ax: str, p0: float, p1: float) -> np.ndarray:
+        lim = limits[ax]
+        return trapezoid(p0, p1, APPROACH_LEVEL * lim.max_velocity, APPROACH_LEVEL * lim.max_acceleration, period)
+
+    # cycles per level and axis, within the per-axis time cap (approach and return included)
+    counts = {}
+    for ax in axes:
+        travel = (len(approach(ax, start[ax], ends[ax][0])) + len(approach(ax, ends[ax][0], start[ax]))) * period
+        times = [len(level_cycle(ax, v, a)) * period for v, a in levels]
+        counts[ax] = _allocate(times, cfg.cycles, cfg.max_axis_time_s - travel)
+
+    groups = [axes] if cfg.together else [[ax] for ax in axes]
+    pos = dict(start)
+    columns = {ax: [] for ax in axes}
+    segments = []
+    n = 0
+
+    def add(kind: str, group: list[str], pieces: dict[str, np.ndarray], vf: float, af: float, cycles: int):
+        nonlocal n
+        length = max(len(p) for p in pieces.values())
+        if length == 0:
+            return
+        for ax in axes:
+            piece = pieces.get(ax, np.empty(0))
+            if len(piece):
+                pos[ax] = float(piece[-1])
+            columns[ax].append(np.concatenate([piece, np.full(length - len(piece), pos[ax])]))
+        segments.append(Segment(kind, tuple(group), vf, af, cycles, n, n + length))
+        n += length
+
+    for group in groups:
+        add("approach", group, {ax: approach(ax, pos[ax], ends[ax][0]) for ax in group},
+            APPROACH_LEVEL, APPROACH_LEVEL, 0)
+        for li, (vf, af) in enumerate(levels):
+            pieces = {ax: np.tile(level_cycle(ax, vf, af), counts[ax][li]) for ax in group}
+            add("level", group, pieces, vf, af, min(counts[ax][li] for ax in group))
+        add("return", group, {ax: approach(ax, pos[ax], start[ax]) for ax in group},
+            APPROACH_LEVEL, APPROACH_LEVEL, 0)
+    demand = np.column_stack([np.concatenate(columns[ax]) for ax in axes])
+    plan = Plan(axes, demand, segments, period)
+    check_plan(plan, limits)
+    return plan
+
+
+def check_plan(plan: Plan, limits: dict[str, Limits], tolerance: float = 1e-6) -> None:
+    """Refuse a plan that leaves the stroke or exceeds velocity or acceleration limits."""
+    T = plan.period
+    for i, ax in enumerate(plan.axes):
+        lim = limits[ax]
+        p = plan.demand[:, i]
+        lo, hi = p.min(), p.max()
+        if lo < lim.position_min - tolerance or hi > lim.position_max + tolerance:
+            raise UserError(f"axis {ax}: the profile spans {lo:.4f} .. {hi:.4f} rad, outside the stroke "
+                            f"{lim.position_min:.4f} .. {lim.position_max:.4f} rad; nothing was moved. "
+                            f"Move the axis inside its stroke or correct limits.stroke in the bus config.")
+        v = np.abs(np.diff(p)) / T
+        if v.size and v.max() > lim.max_velocity * (1 + 1e-6):
+            raise UserError(f"axis {ax}: the profile reaches {v.max():.4g} rad/s, above the limit "
+                            f"{lim.max_velocity:.4g} rad/s; nothing was moved.")
+        acc = np.abs(np.diff(p, 2)) / T**2
+        if acc.size and acc.max() > lim.max_acceleration * (1 + 1e-3):
+            raise UserError(f"axis {ax}: the profile reaches {acc.max():.4g} rad/s², above the limit "
+                            f"{lim.max_acceleration:.4g} rad/s²; nothing was moved.")

@@ -1,0 +1,92 @@
+"""CiA 402 power state machine of one drive, driven over SDO.
+
+canopen's BaseNode402 has fixed timeouts and a mode switch that can fail
+silently; here every wait uses the link clock and a configured timeout, the
+mode switch is confirmed through 0x6061, and every failure says what the
+drive showed.
+"""
+from __future__ import annotations
+
+import canopen
+from canopen.profiles.p402 import State402
+
+from ..errors import BusError
+
+CW_SHUTDOWN, CW_SWITCH_ON, CW_ENABLE = 0x06, 0x07, 0x0F
+CW_QUICK_STOP = 0x02
+CW_FAULT_RESET = 0x80
+SW_FAULT, SW_WARNING, SW_FOLLOWING_ERROR = 0x0008, 0x0080, 0x2000
+
+
+def state_name(statusword: int) -> str:
+    """Name of the CiA 402 state a statusword shows."""
+    for name, (mask, value) in State402.SW_MASK.items():
+        if statusword & mask == value:
+            return name
+    return f"UNKNOWN (0x{statusword:04X})"
+
+
+class Drive402:
+    """Power state machine of ``node`` with waits on ``clock`` bounded by ``timeout`` [s]."""
+
+    def __init__(self, node: canopen.RemoteNode, axis: str, clock, timeout: float):
+        self.node = node
+        self.axis = axis
+        self.clock = clock
+        self.timeout = timeout
+
+    def statusword(self) -> int:
+        return self.node.sdo[0x6041].raw
+
+    def state(self) -> str:
+        return state_name(self.statusword())
+
+    def _wait_for(self, target: str, doing: str) -> None:
+        deadline = self.clock.now() + self.timeout
+        while True:
+            sw = self.statusword()
+            if state_name(sw) == target:
+                return
+            if sw & SW_FAULT and target != "FAULT":
+                raise BusError(f"axis {self.axis}: drive went to FAULT while {doing} "
+                               f"(error code 0x{self.node.sdo[0x603F].raw:04X})")
+            if self.clock.now() >= deadline:
+                raise BusError(f"axis {self.axis}: drive did not reach {target} within {self.timeout} s "
+                               f"while {doing}; it shows {state_name(sw)} (statusword 0x{sw:04X})")
+            self.clock.sleep(0.005)
+
+    def reset_fault(self) -> None:
+        if not self.statusword() & SW_FAULT:
+            return
+        code = self.node.sdo[0x603F].raw
+        self.node.sdo[0x6040].raw = 0x00
+        self.node.sdo[0x6040].raw = CW_FAULT_RESET
+        try:
+            self._wait_for("SWITCH ON DISABLED", f"resetting fault 0x{code:04X}")
+        except BusError:
+            raise BusError(f"axis {self.axis}: fault 0x{code:04X} does not clear with a fault reset; "
+                           f"find and remove its cause at the drive") from None
+
+    def set_mode(self, mode: int) -> None:
+        """Select the operating mode and confirm it in 0x6061 (no silent failure)."""
+        try:
+            self.node.sdo[0x6060].raw = mode
+        except canopen.SdoAbortedError as exc:
+            raise BusError(f"axis {self.axis}: drive refused operating mode {mode} ({exc})") from None
+        deadline = self.clock.now() + self.timeout
+        while (shown := self.node.sdo[0x6061].raw) != mode:
+            if self.clock.now() >= deadline:
+                raise BusError(f"axis {self.axis}: mode {mode} requested, drive still shows {shown} "
+                               f"in 0x6061 after {self.timeout} s")
+            self.clock.sleep(0.005)
+
+    def enable(self) -> None:
+        """Fault reset if needed, then Shutdown -> Switch on -> Enable operation."""
+        self.reset_fault()
+        for cw, target in ((CW_SHUTDOWN, "READY TO SWITCH ON"), (CW_SWITCH_ON, "SWITCHED ON"),
+                           (CW_ENABLE, "OPERATION ENABLED")):
+            self.node.sdo[0x6040].raw = cw
+            self._wait_for(target, f"enabling (controlword 0x{cw:04X})")
+
+    def disable(self) -> None:
+        self.node.sdo[0x6040].raw = CW_SHUTDOWN

@@ -1,0 +1,239 @@
+"""Cyclic streaming: one CSP setpoint per SYNC, feedback recorded per SYNC, safety on every cycle.
+
+The sending loop does only light work: pack the RPDOs, send them and the SYNC,
+check the previous cycle's feedback.  Samples stay in device units in
+preallocated arrays; conversion to SI happens once, afterwards, in
+:mod:`drive_bridge.logs`.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import canopen
+import numpy as np
+
+from ..errors import MotionAborted
+from .bringup import AxisLink, Codec, emcy_text
+from .campaign import Plan
+from .cia402 import CW_ENABLE, SW_FAULT, state_name
+
+CW_QUICK_STOP_CMD = 0x000B          # enable voltage + switch on + enable operation, quick stop bit low
+SYNC_COB_ID = 0x080
+
+
+class Recording:
+    """Samples in device units, one row per SYNC cycle.
+
+    ``raw`` holds the TPDO objects of every axis side by side (``columns``
+    names them as (axis, index)); ``got`` says which TPDO of which row arrived;
+    ``demand`` is the target position sent before each SYNC; ``sync_time``
+    the SYNC's time stamp.  :meth:`handlers` gives the per-COB-ID callbacks
+    that fill it, used live on the bus and when decoding a trace.
+    """
+
+    def __init__(self, tpdos: dict[str, list[Codec]], rpdos: dict[str, list[Codec]], n_cycles: int):
+        self.axes = list(tpdos)
+        self.columns: list[tuple[str, int]] = []
+        self._tpdo_slots: list[tuple[int, Codec, int, int]] = []   # (cob, codec, first column, got column)
+        for axis, codecs in tpdos.items():
+            for codec in codecs:
+                self._tpdo_slots.append((codec.cob_id, codec, len(self.columns), len(self._tpdo_slots)))
+                self.columns.extend((axis, index) for index in codec.objects)
+        self._rpdo_slots = []
+        for ai, (axis, codecs) in enumerate(rpdos.items()):
+            for codec in codecs:
+                if 0x607A in codec.objects:
+                    self._rpdo_slots.append((codec.cob_id, codec, codec.objects.index(0x607A), ai))
+        self.tpdo_owner = [self.columns[first][0] for _, _, first, _ in self._tpdo_slots]
+        self.raw = np.zeros((n_cycles, len(self.columns)), dtype=np.int64)
+        self.got = np.zeros((n_cycles, len(self._tpdo_slots)), dtype=bool)
+        self.demand = np.zeros((n_cycles, len(self.axes)), dtype=np.int64)
+        self.sync_time = np.full(n_cycles, np.nan)
+        self.sync_index = -1          # row of the last SYNC sent (TPDOs after it belong to it)
+        self.rows = 0                 # rows that have a SYNC
+
+    def column(self, axis: str, index: int) -> int:
+        return self.columns.index((axis, index))
+
+    def handlers(self) -> dict[int, Callable]:
+        """COB-ID -> callback(can_id, data, timestamp) for every TPDO and RPDO of the plan."""
+        out = {}
+        raw, got = self.raw, self.got
+        for cob, codec, first, slot in self._tpdo_slots:
+            def on_tpdo(can_id, data, ts, first=first, last=first + len(codec.objects),
+                        unpack=codec.struct.unpack_from, size=codec.struct.size, slot=slot):
+                row = self.sync_index
+                if 0 <= row < len(raw) and len(data) >= size:
+                    raw[row, first:last] = unpack(data)
+                    got[row, slot] = True
+            out[cob] = on_tpdo
+        for cob, codec, pos, ai in self._rpdo_slots:
+            def on_rpdo(can_id, data, ts, unpack=codec.struct.unpack_from, pos=pos, ai=ai):
+                row = self.sync_index + 1
+                if row < len(raw):
+                    self.demand[row, ai] = unpack(data)[pos]
+            out[cob] = on_rpdo
+        return out
+
+    def on_sync(self, timestamp: float) -> None:
+        self.sync_index += 1
+        if self.sync_index < len(self.raw):
+            self.sync_time[self.sync_index] = timestamp
+            self.rows = self.sync_index + 1
+
+    def truncate(self) -> None:
+        """Drop rows after the last SYNC (the plan was not finished)."""
+        n = self.rows
+        self.raw, self.got, self.demand, self.sync_time = (self.raw[:n], self.got[:n],
+                                                           self.demand[:n], self.sync_time[:n])
+
+
+@dataclass
+class StreamResult:
+    recording: Recording
+    cycles_sent: int
+    aborted: MotionAborted | None
+    missing: dict[str, int]           # samples (rows) missing per axis
+
+
+def _packer(ax: AxisLink, codec: Codec, demand: np.ndarray, ai: int, send) -> Callable[[int], None]:
+    """Send function of one RPDO for cycle k: controlword, target from the plan, zero offsets."""
+    pack = codec.struct.pack
+    slots = {0x6040: None, 0x607A: None, 0x60B1: 0, 0x60B2: 0}
+    layout = [(obj, slots[obj]) for obj in codec.objects]
+    targets = ax.cfg.scaling.position_to_device(demand[:, ai]).tolist()
+    cob = codec.cob_id
+
+    def send_cycle(k: int, cw: int) -> None:
+        send(cob, pack(*[cw if obj == 0x6040 else targets[k] if obj == 0x607A else const
+                         for obj, const in layout]))
+    return send_cycle
+
+
+def quick_stop(link, axes: dict[str, AxisLink], timeout: float) -> list[str]:
+    """Quick stop every axis by SDO, then wait until they stand still. Returns problems seen."""
+    problems = []
+    for name, ax in axes.items():
+        try:
+            ax.node.sdo[0x6040].raw = CW_QUICK_STOP_CMD
+        except (canopen.SdoCommunicationError, canopen.SdoAbortedError) as exc:
+            problems.append(f"axis {name}: quick stop not confirmed ({exc})")
+    deadline = link.clock.now() + timeout
+    pending = {n for n in axes if not any(p.startswith(f"axis {n}:") for p in problems)}
+    while pending and link.clock.now() < deadline:
+        for name in list(pending):
+            try:
+                sw = axes[name].node.sdo[0x6041].raw
+            except (canopen.SdoCommunicationError, canopen.SdoAbortedError):
+                continue
+            st = state_name(sw)
+            if st in ("SWITCH ON DISABLED", "FAULT") or (st == "QUICK STOP ACTIVE" and sw & 0x0400):
+                pending.discard(name)
+        if pending:
+            link.clock.sleep(0.01)
+    problems.extend(f"axis {n}: still moving {timeout} s after quick stop" for n in sorted(pending))
+    return problems
+
+
+def stream(link, axes: dict[str, AxisLink], plan: Plan, *, heartbeat_timeout: float, miss_limit: int,
+           state_timeout: float, progress: Callable[[int], None] | None = None) -> StreamResult:
+    """Enable the axes in CSP, stream ``plan`` one setpoint per SYNC, stop, return the recording.
+
+    A fault (EMCY, fault bit, heartbeat loss, missing TPDOs) or Ctrl-C quick-stops every
+    axis; the recording up to that point is kept and the cause is in ``aborted``.
+    """
+    net, clock = link.network, link.clock
+    n = len(plan.demand)
+    rec = Recording({a: axes[a].tpdos for a in plan.axes}, {a: axes[a].rpdos for a in plan.axes}, n)
+    for i, a in enumerate(plan.axes):        # what the RPDOs carry (decode reads it from the trace)
+        rec.demand[:, i] = axes[a].cfg.scaling.position_to_device(plan.demand[:, i])
+    tpdo_cobs = {c.cob_id for a in plan.axes for c in axes[a].tpdos}
+    for cob, handler in rec.handlers().items():
+        if cob in tpdo_cobs:
+            net.unsubscribe(cob)                # canopen's own PdoMap decoding is not needed here
+            net.subscribe(cob, handler)
+    send = net.send_message
+    packers = [_packer(axes[a], c, plan.demand, i, send) for i, a in enumerate(plan.axes) for c in axes[a].rpdos]
+    sw_cols = [(a, rec.column(a, 0x6041)) for a in plan.axes]
+    owners = [(plan.axes.index(a)) for a in rec.tpdo_owner]
+    misses = dict.fromkeys(plan.axes, 0)
+    missing = dict.fromkeys(plan.axes, 0)
+    aborted = None
+    k = 0
+    for a in plan.axes:
+        axes[a].node.nmt.send_command(0x01)                  # operational: PDOs flow
+    try:
+        for a in plan.axes:
+            axes[a].drive.set_mode(8)
+            axes[a].drive.enable()
+        t0 = clock.now()
+        for a in plan.axes:                                  # heartbeat supervision starts now
+            if axes[a].last_heartbeat is None:
+                axes[a].last_heartbeat = t0
+        period = plan.period
+        check_every = max(1, round(0.05 / period))
+        for k in range(n):
+            clock.wait_until(t0 + k * period)
+            if k:
+                aborted = _check_row(rec, k - 1, axes, sw_cols, owners, plan.axes, misses, missing, miss_limit)
+                if aborted is None and k % check_every == 0:
+                    aborted = _check_heartbeats(axes, plan.axes, clock.now(), heartbeat_timeout)
+                if aborted is not None:
+                    break
+                if progress is not None and k % 50 == 0:
+                    progress(k)
+            for packer in packers:
+                packer(k, CW_ENABLE)
+            stamp = clock.now()
+            rec.on_sync(stamp)
+            send(SYNC_COB_ID, b"", False, stamp)
+        else:
+            k = n
+            clock.sleep(period)
+            aborted = _check_row(rec, n - 1, axes, sw_cols, owners, plan.axes, misses, missing, miss_limit)
+    except KeyboardInterrupt:
+        aborted = MotionAborted("interrupted by the user (Ctrl-C)")
+    except Exception as exc:          # a bus error mid-motion: still stop the axes
+        aborted = MotionAborted(f"{type(exc).__name__}: {exc}")
+    finally:
+        for cob in tpdo_cobs:
+            net.unsubscribe(cob)
+    rec.truncate()
+    if aborted is not None:
+        problems = quick_stop(link, {a: axes[a] for a in plan.axes}, max(state_timeout, 2.0))
+        if problems:
+            aborted = MotionAborted(aborted.reason + "; " + "; ".join(problems), aborted.axis)
+    else:
+        for a in plan.axes:
+            axes[a].drive.disable()
+    return StreamResult(rec, k, aborted, missing)
+
+
+def _check_row(rec, row, axes, sw_cols, owners, names, misses, missing, miss_limit) -> MotionAborted | None:
+    got = rec.got[row]
+    for ai, name in enumerate(names):
+        ax = axes[name]
+        if ax.emcy:
+            code = ax.emcy[-1][1]
+            return MotionAborted(f"drive sent {emcy_text(code)} (EMCY 0x{code:04X})", name)
+        complete = all(got[slot] for slot, owner in enumerate(owners) if owner == ai)
+        if not complete:
+            missing[name] += 1
+            misses[name] += 1
+            if misses[name] >= miss_limit:
+                return MotionAborted(f"no TPDO for {misses[name]} consecutive SYNC cycles", name)
+            continue
+        misses[name] = 0
+        sw = int(rec.raw[row, sw_cols[ai][1]])
+        if sw & SW_FAULT:
+            return MotionAborted(f"drive reports {state_name(sw)} (statusword 0x{sw:04X})", name)
+    return None
+
+
+def _check_heartbeats(axes, names, now, timeout) -> MotionAborted | None:
+    for name in names:
+        last = axes[name].last_heartbeat
+        if last is not None and now - last > timeout:
+            return MotionAborted(f"heartbeat lost (none for {now - last:.3f} s)", name)
+    return None

@@ -1,0 +1,83 @@
+"""``record``: bring up the drives, run the excitation campaign, write log.csv, meta.yaml, trace."""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+from . import __version__
+from .config import BusConfig
+from .errors import MotionAborted
+from .logs import LOG_NAME, META_NAME, TRACE_NAME, layout_meta, write_csv, write_meta
+from .master.bringup import bring_up
+from .master.busload import check_bus_load
+from .master.campaign import Plan, build_plan
+from .master.link import TraceRecorder
+from .master.stream import stream
+
+
+@dataclass
+class RecordResult:
+    out_dir: Path
+    plan: Plan
+    cycles_sent: int
+    samples: dict[str, int]          # rows with a complete sample, per axis
+    missing: dict[str, int]
+    aborted: MotionAborted | None
+    bus_load: str
+    wall_time_s: float
+
+    @property
+    def ok(self) -> bool:
+        return self.aborted is None
+
+
+def record(config: BusConfig, link, out_dir: str | Path, *,
+           on_plan: Callable[[Plan], Callable[[int], None] | None] | None = None) -> RecordResult:
+    """Run the campaign of ``config`` over ``link``; files go to ``out_dir``.
+
+    ``on_plan`` receives the checked plan before anything moves and may return a
+    progress callback.  Data recorded before a fault is always written.
+    """
+    t_start = time.perf_counter()
+    load = check_bus_load(config)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    axes = bring_up(link, config)
+    start = {name: float(ax.cfg.scaling.position_from_device(ax.node.sdo[0x6064].raw))
+             for name, ax in axes.items()}
+    plan = build_plan(config.campaign, {n: a.cfg.limits for n, a in axes.items()}, start,
+                      config.master.sync_period_s)
+    progress = on_plan(plan) if on_plan else None
+    trace = TraceRecorder(out / TRACE_NAME)
+    link.record(trace)
+    try:
+        result = stream(link, axes, plan, heartbeat_timeout=config.master.heartbeat_timeout_s,
+                        miss_limit=config.master.tpdo_miss_limit, state_timeout=config.master.state_timeout_s,
+                        progress=progress)
+    finally:
+        link.record(None)
+        trace.stop()
+    rec = result.recording
+    write_csv(out / LOG_NAME, rec, {n: axes[n].cfg.scaling for n in plan.axes}, plan.period)
+    samples = {a: int(len(rec.raw) - result.missing[a]) for a in plan.axes}
+    meta = {
+        "drive_bridge_version": __version__,
+        "config_file": str(config.path.resolve()),
+        "sync_period_s": plan.period,
+        "bus_load": load.describe(),
+        "campaign": {k: (list(v) if isinstance(v, tuple) else v)
+                     for k, v in vars(config.campaign).items()},
+        "axes": layout_meta({a: axes[a] for a in plan.axes}),
+        "segments": [s.as_dict(plan.period) for s in plan.segments],
+        "counts": {"cycles_planned": len(plan.demand), "cycles_sent": result.cycles_sent,
+                   "samples_received": samples, "samples_missing": dict(result.missing)},
+        "status": "ok" if result.aborted is None else "aborted",
+        "trace": TRACE_NAME,
+    }
+    if result.aborted is not None:
+        meta["abort"] = {"axis": result.aborted.axis, "reason": result.aborted.reason}
+    write_meta(out / META_NAME, meta)
+    return RecordResult(out, plan, result.cycles_sent, samples, dict(result.missing), result.aborted,
+                        load.describe(), time.perf_counter() - t_start)

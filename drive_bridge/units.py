@@ -1,0 +1,66 @@
+"""The one scaling layer between SI (motor side) and drive device units.
+
+Inside drive-bridge every quantity is SI on the motor side: rad, rad/s,
+rad/s², Nm.  Linear axes are described in m, m/s, m/s² (load side) and turned
+into motor radians through the feed constant.  Device units exist only at the
+bus: positions in encoder increments, velocities in increments/s, torque in
+per mille of the rated torque (0x6076).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Scaling:
+    """Conversion for one axis.
+
+    increments_per_rev: encoder increments per motor revolution (0x608F).
+    feed_m_per_rev: load travel per motor revolution (belt pulley or screw lead);
+        None for a rotary axis.
+    rated_torque_Nm: the drive's rated torque (0x6076 in mNm / 1000).
+    """
+
+    increments_per_rev: int
+    rated_torque_Nm: float
+    feed_m_per_rev: float | None = None
+
+    @property
+    def inc_per_rad(self) -> float:
+        return self.increments_per_rev / (2 * math.pi)
+
+    # --- load side (m) <-> motor side (rad) -----------------------------------------
+    def load_to_motor(self, value_m):
+        """m, m/s or m/s² of a linear axis to rad, rad/s or rad/s² of the motor."""
+        if self.feed_m_per_rev is None:
+            return value_m
+        return value_m * (2 * math.pi / self.feed_m_per_rev)
+
+    def motor_to_load(self, value_rad):
+        if self.feed_m_per_rev is None:
+            return value_rad
+        return value_rad * (self.feed_m_per_rev / (2 * math.pi))
+
+    # --- SI <-> device --------------------------------------------------------------
+    def position_to_device(self, rad):
+        """rad -> increments (rounded to the nearest increment)."""
+        return np.rint(np.asarray(rad) * self.inc_per_rad).astype(np.int64)
+
+    def position_from_device(self, increments):
+        return np.asarray(increments, dtype=float) / self.inc_per_rad
+
+    def velocity_to_device(self, rad_s):
+        return np.rint(np.asarray(rad_s) * self.inc_per_rad).astype(np.int64)
+
+    def velocity_from_device(self, inc_s):
+        return np.asarray(inc_s, dtype=float) / self.inc_per_rad
+
+    def torque_to_device(self, Nm):
+        """Nm -> per mille of rated torque."""
+        return np.rint(np.asarray(Nm) / self.rated_torque_Nm * 1000).astype(np.int64)
+
+    def torque_from_device(self, per_mille):
+        return np.asarray(per_mille, dtype=float) * (self.rated_torque_Nm / 1000.0)
