@@ -7,6 +7,7 @@ master knows which one it has.
 """
 from __future__ import annotations
 
+import sys
 import threading
 import time
 from typing import Protocol
@@ -95,6 +96,9 @@ class BusLink:
         if interface == "virtual":
             kwargs["preserve_timestamps"] = False
         self.clock = WallClock()
+        # CPython hands the GIL over every 5 ms by default: longer than a SYNC period. The
+        # receiving thread must get it within a fraction of a period.
+        sys.setswitchinterval(min(sys.getswitchinterval(), 0.001))
         self.bus = can.Bus(**kwargs)
         self.network = MasterNetwork(self.bus, self.clock)
         self.network.connect()

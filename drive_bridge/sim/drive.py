@@ -61,6 +61,12 @@ class PdoCodec:
     def __init__(self, entries: list[tuple[int, int, str]]):
         self.entries = [(i, s) for i, s, _ in entries]
         self.struct = struct.Struct("<" + "".join(f for _, _, f in entries))
+        self.spans = []                      # byte slice of each entry in the frame
+        offset = 0
+        for _, _, fmt in entries:
+            size = struct.calcsize("<" + fmt)
+            self.spans.append((offset, offset + size))
+            offset += size
 
 
 class SimDrive:
@@ -207,6 +213,8 @@ class SimDrive:
     def _on_sdo_read(self, index: int, subindex: int, od) -> int | None:
         live = self._live.get(index)
         if live is not None:
+            if self._last_refresh != self.robot.time:
+                self.refresh_actuals()
             return live()
         if index in (0x1010, 0x1011) and subindex == 1:
             return 1                      # device saves/restores on command
@@ -353,10 +361,12 @@ class SimDrive:
             self._apply_rpdo(codec, data)
 
     def _apply_rpdo(self, codec: PdoCodec, data: bytes) -> None:
-        for (index, sub), value in zip(codec.entries, codec.struct.unpack_from(data)):
+        store, cache = self.node.data_store, self._cache
+        for (index, sub), (lo, hi), value in zip(codec.entries, codec.spans, codec.struct.unpack_from(data)):
             self._write(index, sub, value)
             if index not in self._live:
-                self._store(index, sub, value)
+                store.setdefault(index, {})[sub] = data[lo:hi]
+                cache[(index, sub)] = value
 
     def send_tpdos(self) -> None:
         self._sync_count += 1
@@ -381,6 +391,8 @@ class SimDrive:
         return sw
 
     def _on_controlword(self, cw: int) -> None:
+        if cw == self.controlword == 0x0F and self.state == ENABLED:
+            return                                          # the streaming steady state
         reset_edge = cw & 0x80 and not self.controlword & 0x80
         new_setpoint = cw & 0x10 and not self.controlword & 0x10
         self.controlword = cw
@@ -460,6 +472,7 @@ class SimDrive:
         if not self.online:
             return
         if self.nmt_state == NMT_OPERATIONAL:
+            self.refresh_actuals()
             self.send_tpdos()
             for codec, data in self.pending_rpdo:
                 self._apply_rpdo(codec, data)

@@ -8,10 +8,9 @@ returns.  Time is the simulation's: it moves with SYNC and with
 """
 from __future__ import annotations
 
-import can
-
 from ..master.link import MasterNetwork, TraceRecorder
 from .robot import SimRobot
+from .vbus import FastVirtualBus
 
 
 class LockstepClock:
@@ -37,7 +36,7 @@ class LockstepLink:
     def __init__(self, robot: SimRobot, channel: str = "drive-bridge"):
         self.robot = robot
         self.clock = LockstepClock(self)
-        self.bus = can.Bus(interface="virtual", channel=channel, preserve_timestamps=True)
+        self.bus = FastVirtualBus(channel=channel, preserve_timestamps=True)
         self.network = MasterNetwork(self.bus, self.clock)
         self.network.after_send = self._after_send
         self._notify = self.network.notify
@@ -53,8 +52,8 @@ class LockstepLink:
 
     def pump(self) -> None:
         """Deliver every frame waiting for the master to its canopen Network."""
-        recv, notify, trace = self.bus.recv, self._notify, self.network.trace
-        while (msg := recv(0)) is not None:
+        notify, trace = self._notify, self.network.trace
+        for msg in self.bus.drain():
             if trace is not None:
                 trace.on_message_received(msg)
             notify(msg.arbitration_id, msg.data, msg.timestamp)

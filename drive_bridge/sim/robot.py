@@ -22,6 +22,7 @@ import numpy as np
 from . import kernel as K
 from .config import SimConfig
 from .drive import SimDrive
+from .vbus import FastVirtualBus
 
 DEFAULT_EDS = Path(__file__).resolve().parents[2] / "eds" / "drive_bridge_servo.eds"
 NOISE_BLOCK = 4096
@@ -41,7 +42,7 @@ class SimRobot:
         self.ticks_per_period = round(sync_period / K.VELOCITY_TICK_S)
         if abs(self.ticks_per_period * K.VELOCITY_TICK_S - sync_period) > 1e-9:
             raise ValueError(f"SYNC period {sync_period} s is not a multiple of the 0.5 ms loop tick")
-        self.bus = can.Bus(interface="virtual", channel=channel, preserve_timestamps=True)
+        self.bus = FastVirtualBus(channel=channel, preserve_timestamps=True)
         self.network = canopen.Network(self.bus)        # used to send; frames are dispatched here
         self.time = 0.0
         self._rng = np.random.default_rng(config.seed)
@@ -49,6 +50,8 @@ class SimRobot:
         self._noise_i = 0
         self.state, self.param, self.demand = K.new_arrays(len(config.axes))
         self._tick0 = np.zeros(len(config.axes), dtype=np.int64)
+        # compile (or load from numba's cache) now, not while a clock is running
+        K.advance(self.state, self.param, self.demand, self._tick0, 0, self.ticks_per_period)
         self._routes: dict[int, callable] = {}
         self.drives: dict[str, SimDrive] = {}      # filled before the first routes_changed() counts
         for i, (name, axis) in enumerate(config.axes.items()):
@@ -112,8 +115,7 @@ class SimRobot:
     # ------------------------------------------------------------------ lockstep
     def process(self) -> None:
         """Lockstep: handle every frame waiting on the bus, in order."""
-        recv = self.bus.recv
-        while (msg := recv(0)) is not None:
+        for msg in self.bus.drain():
             self.dispatch(msg)
 
     def idle(self, duration: float) -> None:
@@ -134,7 +136,6 @@ class SimRobot:
             if drive.internal_profile and self._tick0[drive.index] >= self.ticks_per_period:
                 drive.next_period()
                 self._tick0[drive.index] = 0
-            drive.refresh_actuals()
             drive.check_faults()
             if drive.online:
                 drive.heartbeat_due(self.time)
@@ -158,12 +159,13 @@ class SimRobot:
         t0 = time.perf_counter() - self.time
         dt = K.VELOCITY_TICK_S
         while self._running:
-            msg = self.bus.recv(timeout=0.001)
+            msg = self.bus.recv(timeout=dt)
+            if msg is not None:            # frames first: a late thread must not see late setpoints
+                self.dispatch(msg)
+                self.process()
             due = int((time.perf_counter() - t0 - self.time) / dt)
             if due > 0:
                 self.advance(due)
-            if msg is not None:
-                self.dispatch(msg)
 
     def shutdown(self) -> None:
         self._running = False
