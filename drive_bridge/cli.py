@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import sys
 from contextlib import contextmanager
+from dataclasses import replace
 from pathlib import Path
 
 from . import __version__
@@ -56,10 +57,8 @@ def _load(args):
     if getattr(args, "axes", None):
         config = config.only([a.strip() for a in args.axes.split(",") if a.strip()])
     if getattr(args, "quick", False):
-        from dataclasses import replace
         config = replace(config, campaign=config.campaign.quick())
     if getattr(args, "together", False):
-        from dataclasses import replace
         config = replace(config, campaign=replace(config.campaign, together=True))
     return config
 

@@ -21,14 +21,15 @@ from .units import Scaling
 
 LOG_NAME, META_NAME, TRACE_NAME = "log.csv", "meta.yaml", "trace.blf"
 
-#: TPDO object -> (column suffix, converter name on Scaling or None for raw integers, format)
+#: TPDO object -> (column suffix, converter name on Scaling or None for raw integers, format;
+#: integers as %.0f so that a missing sample can be written as nan)
 _COLUMNS = {
     0x6064: ("position_rad", "position_from_device", "%.9g"),
     0x606C: ("velocity_rad_s", "velocity_from_device", "%.9g"),
     0x6077: ("torque_Nm", "torque_from_device", "%.6g"),
-    0x6041: ("statusword", None, "%d"),
+    0x6041: ("statusword", None, "%.0f"),
     0x60F4: ("following_error_rad", "position_from_device", "%.9g"),
-    0x6078: ("current_permille", None, "%d"),
+    0x6078: ("current_permille", None, "%.0f"),
 }
 
 
@@ -48,10 +49,7 @@ def to_table(rec: Recording, scaling: dict[str, Scaling], period: float) -> tupl
     fmts = ["%.6f", "%.6f"]
     for ai, axis in enumerate(rec.axes):
         sc = scaling[axis]
-        valid = np.ones(n, dtype=bool)
-        for slot, owner in enumerate(rec.tpdo_owner):
-            if owner == axis:
-                valid &= rec.got[:, slot]
+        valid = rec.got[:, rec.slots[axis]].all(axis=1)
         indices = [i for a, i in rec.columns if a == axis]
         for index in sorted(indices, key=list(_COLUMNS).index):
             suffix, conv, fmt = _COLUMNS[index]
@@ -59,7 +57,7 @@ def to_table(rec: Recording, scaling: dict[str, Scaling], period: float) -> tupl
             values = getattr(sc, conv)(raw) if conv else raw.astype(float)
             names.append(f"{axis}_{suffix}")
             cols.append(np.where(valid, values, np.nan))
-            fmts.append(fmt if fmt != "%d" else "%.0f")
+            fmts.append(fmt)
             if index == 0x6064:
                 names.append(f"{axis}_position_demand_rad")
                 cols.append(sc.position_from_device(rec.demand[:, ai]))

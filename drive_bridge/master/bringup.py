@@ -9,10 +9,10 @@ from canopen.pdo.base import PdoMap
 
 from ..config import BusConfig, NodeConfig, PdoConfig
 from ..errors import BusError
+from ..od import pdo_struct
 from .cia402 import Drive402
 
 CIA402_PROFILE = 402
-_STRUCT = {1: "?", 2: "b", 3: "h", 4: "i", 5: "B", 6: "H", 7: "I", 8: "f"}
 EMCY_TEXT = {0x8611: "following error", 0x8250: "RPDO timeout (loss of setpoint)",
              0x8130: "heartbeat or life guard error", 0x8400: "velocity speed controller",
              0x2310: "continuous over-current", 0x3210: "DC link over-voltage", 0x4310: "drive temperature"}
@@ -98,9 +98,8 @@ def _configure_pdos(node: canopen.RemoteNode, maps, configured: tuple[PdoConfig,
             pdo.trans_type = pc.transmission
         pdo.save()
         if pc is not None:
-            fmt = "<" + "".join(_STRUCT[node.object_dictionary.get_variable(i, s).data_type]
-                                for i, s in pc.mapping)
-            codecs.append(Codec(pdo.cob_id, struct.Struct(fmt), tuple(i for i, _ in pc.mapping)))
+            variables = [node.object_dictionary.get_variable(i, s) for i, s in pc.mapping]
+            codecs.append(Codec(pdo.cob_id, pdo_struct(variables), tuple(i for i, _ in pc.mapping)))
     return codecs
 
 

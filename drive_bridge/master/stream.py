@@ -45,7 +45,9 @@ class Recording:
             for codec in codecs:
                 if 0x607A in codec.objects:
                     self._rpdo_slots.append((codec.cob_id, codec, codec.objects.index(0x607A), ai))
-        self.tpdo_owner = [self.columns[first][0] for _, _, first, _ in self._tpdo_slots]
+        #: per axis, the columns of ``got`` (its TPDOs): a row is complete when all of them arrived
+        self.slots = {axis: [slot for _, _, first, slot in self._tpdo_slots if self.columns[first][0] == axis]
+                      for axis in self.axes}
         self.raw = np.zeros((n_cycles, len(self.columns)), dtype=np.int64)
         self.got = np.zeros((n_cycles, len(self._tpdo_slots)), dtype=bool)
         self.demand = np.zeros((n_cycles, len(self.axes)), dtype=np.int64)
@@ -156,7 +158,6 @@ def stream(link, axes: dict[str, AxisLink], plan: Plan, *, heartbeat_timeout: fl
     send = net.send_message
     packers = [_packer(axes[a], c, plan.demand, i, send) for i, a in enumerate(plan.axes) for c in axes[a].rpdos]
     sw_cols = [(a, rec.column(a, 0x6041)) for a in plan.axes]
-    owners = [(plan.axes.index(a)) for a in rec.tpdo_owner]
     misses = dict.fromkeys(plan.axes, 0)
     missing = dict.fromkeys(plan.axes, 0)
     aborted = None
@@ -176,7 +177,7 @@ def stream(link, axes: dict[str, AxisLink], plan: Plan, *, heartbeat_timeout: fl
         for k in range(n):
             clock.wait_until(t0 + k * period)
             if k:
-                aborted = _check_row(rec, k - 1, axes, sw_cols, owners, plan.axes, misses, missing, miss_limit)
+                aborted = _check_row(rec, k - 1, axes, sw_cols, plan.axes, misses, missing, miss_limit)
                 if aborted is None and k % check_every == 0:
                     aborted = _check_heartbeats(axes, plan.axes, clock.now(), heartbeat_timeout)
                 if aborted is not None:
@@ -191,7 +192,7 @@ def stream(link, axes: dict[str, AxisLink], plan: Plan, *, heartbeat_timeout: fl
         else:
             k = n
             clock.sleep(period)
-            aborted = _check_row(rec, n - 1, axes, sw_cols, owners, plan.axes, misses, missing, miss_limit)
+            aborted = _check_row(rec, n - 1, axes, sw_cols, plan.axes, misses, missing, miss_limit)
     except KeyboardInterrupt:
         aborted = MotionAborted("interrupted by the user (Ctrl-C)")
     except Exception as exc:          # a bus error mid-motion: still stop the axes
@@ -210,15 +211,14 @@ def stream(link, axes: dict[str, AxisLink], plan: Plan, *, heartbeat_timeout: fl
     return StreamResult(rec, k, aborted, missing)
 
 
-def _check_row(rec, row, axes, sw_cols, owners, names, misses, missing, miss_limit) -> MotionAborted | None:
+def _check_row(rec, row, axes, sw_cols, names, misses, missing, miss_limit) -> MotionAborted | None:
     got = rec.got[row]
     for ai, name in enumerate(names):
         ax = axes[name]
         if ax.emcy:
             code = ax.emcy[-1][1]
             return MotionAborted(f"drive sent {emcy_text(code)} (EMCY 0x{code:04X})", name)
-        complete = all(got[slot] for slot, owner in enumerate(owners) if owner == ai)
-        if not complete:
+        if not got[rec.slots[name]].all():
             missing[name] += 1
             misses[name] += 1
             if misses[name] >= miss_limit:

@@ -19,6 +19,7 @@ import canopen
 from canopen.objectdictionary import ODVariable
 from canopen.sdo import SdoAbortedError
 
+from ..od import pdo_struct
 from . import kernel as K
 
 if TYPE_CHECKING:
@@ -47,7 +48,6 @@ ABORT_STATE = 0x08000022
 ABORT_NOT_MAPPABLE = 0x06040041
 ABORT_PDO_LENGTH = 0x06040042
 
-_STRUCT = {1: "?", 2: "b", 3: "h", 4: "i", 5: "B", 6: "H", 7: "I", 8: "f"}
 
 _GAIN_PARAMS = {1: K.KPP, 2: K.FWF, 3: K.KPS, 4: K.KIS, 5: K.KPC, 6: K.KIC}
 _MODEL_PARAMS = {1: K.FF_EN, 2: K.FF_J, 3: K.FF_C0, 4: K.FF_C1, 5: K.FF_OFF, 6: K.FF_CP,
@@ -58,15 +58,14 @@ _MOTOR_OBJECTS = {1: "R", 2: "L", 3: "kt", 4: "vbus"}
 class PdoCodec:
     """Packs or unpacks one PDO from its mapping, compiled once per mapping change."""
 
-    def __init__(self, entries: list[tuple[int, int, str]]):
+    def __init__(self, entries: list[tuple[int, int, ODVariable]]):
         self.entries = [(i, s) for i, s, _ in entries]
-        self.struct = struct.Struct("<" + "".join(f for _, _, f in entries))
+        self.struct = pdo_struct([var for _, _, var in entries])
         self.spans = []                      # byte slice of each entry in the frame
         offset = 0
-        for _, _, fmt in entries:
-            size = struct.calcsize("<" + fmt)
-            self.spans.append((offset, offset + size))
-            offset += size
+        for _, _, var in entries:
+            self.spans.append((offset, offset + len(var) // 8))
+            offset += len(var) // 8
 
 
 class SimDrive:
@@ -333,7 +332,7 @@ class SimDrive:
                 for k in range(1, self._od(mapping, 0) + 1):
                     entry = self._od(mapping, k)
                     idx, sub = entry >> 16, (entry >> 8) & 0xFF
-                    entries.append((idx, sub, _STRUCT[self._var(idx, sub).data_type]))
+                    entries.append((idx, sub, self._var(idx, sub)))
                 codec = PdoCodec(entries)
                 ttype = self._od(comm, 2)
                 if table == "r":
