@@ -50,7 +50,7 @@ def record(config: BusConfig, link, out_dir: str | Path, *,
     plan = build_plan(config.campaign, {n: a.cfg.limits for n, a in axes.items()}, start,
                       config.master.sync_period_s)
     progress = on_plan(plan) if on_plan else None
-    trace = TraceRecorder(out / TRACE_NAME)
+    trace = TraceRecorder(out / TRACE_NAME, background=link.threaded)
     link.record(trace)
     try:
         result = stream(link, axes, plan, heartbeat_timeout=config.master.heartbeat_timeout_s,

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from conftest import clean_config
+from drive_bridge.sim.drive import SETPOINT_TIMEOUT_PERIODS
 
 INC_PER_RAD = 2**20 / (2 * math.pi)
 
@@ -209,7 +210,10 @@ def test_loss_of_setpoint_faults(bench):
     run_csp(b, node, np.zeros(10))
     emcy = []
     node.emcy.add_callback(lambda e: emcy.append(e.code))
-    for _ in range(5):                                      # SYNC keeps coming, RPDOs stop
+    for _ in range(SETPOINT_TIMEOUT_PERIODS - 1):          # SYNC keeps coming, RPDOs stop
+        b.net.sync.transmit()
+    assert emcy == []                                       # within the drive's tolerance
+    for _ in range(2):
         b.net.sync.transmit()
     assert emcy == [0x8250]
 

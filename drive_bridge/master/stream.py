@@ -7,6 +7,7 @@ preallocated arrays; conversion to SI happens once, afterwards, in
 """
 from __future__ import annotations
 
+import gc
 from dataclasses import dataclass
 from typing import Callable
 
@@ -20,6 +21,9 @@ from .cia402 import CW_ENABLE, SW_FAULT, state_name
 
 CW_QUICK_STOP_CMD = 0x000B          # enable voltage + switch on + enable operation, quick stop bit low
 SYNC_COB_ID = 0x080
+#: a cycle's feedback is checked this many SYNC periods after it was due, so that a
+#: reply the receiving thread hands over late still counts (and is in the log)
+FEEDBACK_LAG = 1
 
 
 class Recording:
@@ -30,6 +34,10 @@ class Recording:
     ``demand`` is the target position sent before each SYNC; ``sync_time``
     the SYNC's time stamp.  :meth:`handlers` gives the per-COB-ID callbacks
     that fill it, used live on the bus and when decoding a trace.
+
+    A TPDO belongs to the last SYNC sent before it; when the receiving thread
+    hands it over after the next SYNC went out, its frame time stamp (taken
+    when it reached the bus, before that SYNC) still places it in its own row.
     """
 
     def __init__(self, tpdos: dict[str, list[Codec]], rpdos: dict[str, list[Codec]], n_cycles: int):
@@ -53,6 +61,7 @@ class Recording:
         self.demand = np.zeros((n_cycles, len(self.axes)), dtype=np.int64)
         self.sync_time = np.full(n_cycles, np.nan)
         self.sync_index = -1          # row of the last SYNC sent (TPDOs after it belong to it)
+        self.last_sync_time = -np.inf
         self.rows = 0                 # rows that have a SYNC
 
     def column(self, axis: str, index: int) -> int:
@@ -61,11 +70,16 @@ class Recording:
     def handlers(self) -> dict[int, Callable]:
         """COB-ID -> callback(can_id, data, timestamp) for every TPDO and RPDO of the plan."""
         out = {}
-        raw, got = self.raw, self.got
+        raw, got, sync_time = self.raw, self.got, self.sync_time
         for cob, codec, first, slot in self._tpdo_slots:
             def on_tpdo(can_id, data, ts, first=first, last=first + len(codec.objects),
                         unpack=codec.struct.unpack_from, size=codec.struct.size, slot=slot):
-                row = self.sync_index
+                row = back = self.sync_index
+                if ts < self.last_sync_time and row < len(raw):   # reached the bus before that SYNC
+                    while back > 0 and back >= row - FEEDBACK_LAG and ts < sync_time[back]:
+                        back -= 1
+                    if sync_time[back] <= ts:
+                        row = back
                 if 0 <= row < len(raw) and len(data) >= size:
                     raw[row, first:last] = unpack(data)
                     got[row, slot] = True
@@ -79,10 +93,16 @@ class Recording:
         return out
 
     def on_sync(self, timestamp: float) -> None:
+        self.last_sync_time = timestamp
         self.sync_index += 1
         if self.sync_index < len(self.raw):
             self.sync_time[self.sync_index] = timestamp
             self.rows = self.sync_index + 1
+
+    def missing(self) -> dict[str, int]:
+        """Rows without a complete sample, per axis."""
+        return {axis: int(np.count_nonzero(~self.got[:self.rows, slots].all(axis=1)))
+                for axis, slots in self.slots.items()}
 
     def truncate(self) -> None:
         """Drop rows after the last SYNC (the plan was not finished)."""
@@ -159,11 +179,15 @@ def stream(link, axes: dict[str, AxisLink], plan: Plan, *, heartbeat_timeout: fl
     packers = [_packer(axes[a], c, plan.demand, i, send) for i, a in enumerate(plan.axes) for c in axes[a].rpdos]
     sw_cols = [(a, rec.column(a, 0x6041)) for a in plan.axes]
     misses = dict.fromkeys(plan.axes, 0)
-    missing = dict.fromkeys(plan.axes, 0)
     aborted = None
     k = 0
     for a in plan.axes:
         axes[a].node.nmt.send_command(0x01)                  # operational: PDOs flow
+    # The cycle collector stops every thread while it walks the heap (gen 2: tens of ms with
+    # the object dictionaries loaded). Streaming frees its frames by reference counting, so
+    # the collector is off while it runs and collects once afterwards.
+    gc.collect()
+    gc.disable()
     try:
         for a in plan.axes:
             axes[a].drive.set_mode(8)
@@ -176,8 +200,8 @@ def stream(link, axes: dict[str, AxisLink], plan: Plan, *, heartbeat_timeout: fl
         check_every = max(1, round(0.05 / period))
         for k in range(n):
             clock.wait_until(t0 + k * period)
-            if k:
-                aborted = _check_row(rec, k - 1, axes, sw_cols, plan.axes, misses, missing, miss_limit)
+            if k >= FEEDBACK_LAG + 1:
+                aborted = _check_row(rec, k - 1 - FEEDBACK_LAG, axes, sw_cols, plan.axes, misses, miss_limit)
                 if aborted is None and k % check_every == 0:
                     aborted = _check_heartbeats(axes, plan.axes, clock.now(), heartbeat_timeout)
                 if aborted is not None:
@@ -189,10 +213,15 @@ def stream(link, axes: dict[str, AxisLink], plan: Plan, *, heartbeat_timeout: fl
             stamp = clock.now()
             rec.on_sync(stamp)
             send(SYNC_COB_ID, b"", False, stamp)
+            if stamp - (t0 + k * period) > period / 2:
+                t0 = stamp - k * period          # late: restart the schedule here, never burst SYNCs
         else:
             k = n
-            clock.sleep(period)
-            aborted = _check_row(rec, n - 1, axes, sw_cols, plan.axes, misses, missing, miss_limit)
+            for a in plan.axes:              # before the drives' loss-of-setpoint time-out
+                axes[a].drive.disable()
+            clock.sleep((FEEDBACK_LAG + 1) * period)
+            for row in range(max(0, n - 1 - FEEDBACK_LAG), n):
+                aborted = aborted or _check_row(rec, row, axes, sw_cols, plan.axes, misses, miss_limit)
     except KeyboardInterrupt:
         aborted = MotionAborted("interrupted by the user (Ctrl-C)")
     except Exception as exc:          # a bus error mid-motion: still stop the axes
@@ -200,18 +229,17 @@ def stream(link, axes: dict[str, AxisLink], plan: Plan, *, heartbeat_timeout: fl
     finally:
         for cob in tpdo_cobs:
             net.unsubscribe(cob)
+        gc.enable()
     rec.truncate()
+    missing = rec.missing()
     if aborted is not None:
         problems = quick_stop(link, {a: axes[a] for a in plan.axes}, max(state_timeout, 2.0))
         if problems:
             aborted = MotionAborted(aborted.reason + "; " + "; ".join(problems), aborted.axis)
-    else:
-        for a in plan.axes:
-            axes[a].drive.disable()
     return StreamResult(rec, k, aborted, missing)
 
 
-def _check_row(rec, row, axes, sw_cols, names, misses, missing, miss_limit) -> MotionAborted | None:
+def _check_row(rec, row, axes, sw_cols, names, misses, miss_limit) -> MotionAborted | None:
     got = rec.got[row]
     for ai, name in enumerate(names):
         ax = axes[name]
@@ -219,7 +247,6 @@ def _check_row(rec, row, axes, sw_cols, names, misses, missing, miss_limit) -> M
             code = ax.emcy[-1][1]
             return MotionAborted(f"drive sent {emcy_text(code)} (EMCY 0x{code:04X})", name)
         if not got[rec.slots[name]].all():
-            missing[name] += 1
             misses[name] += 1
             if misses[name] >= miss_limit:
                 return MotionAborted(f"no TPDO for {misses[name]} consecutive SYNC cycles", name)

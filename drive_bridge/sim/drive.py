@@ -41,6 +41,7 @@ PDO_INVALID = 0x8000_0000
 # EMCY error codes (CiA 301 / 402)
 ERR_FOLLOWING = 0x8611
 ERR_RPDO_TIMEOUT = 0x8250
+SETPOINT_TIMEOUT_PERIODS = 10     # CSP: no setpoint for this many interpolation periods -> fault
 
 ABORT_RANGE = 0x06090030
 ABORT_TOO_LOW = 0x06090032
@@ -538,7 +539,7 @@ class SimDrive:
         if self.s[K.FE_COUNT] >= timeout_ticks:
             self.fault(ERR_FOLLOWING)
         elif self.setpoint_armed and self.mode == CSP and self.state == ENABLED and \
-                self.robot.time - self.last_setpoint_time > 3 * self._interpolation_period() + 1e-9:
+                self.robot.time - self.last_setpoint_time > SETPOINT_TIMEOUT_PERIODS * self._interpolation_period() + 1e-9:
             self.fault(ERR_RPDO_TIMEOUT)
 
     def _interpolation_period(self) -> float:

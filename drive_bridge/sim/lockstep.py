@@ -33,10 +33,13 @@ class LockstepClock:
 class LockstepLink:
     """Master side of the virtual bus, pumped synchronously with ``robot``."""
 
+    threaded = False          # every frame is seen on the calling thread
+
     def __init__(self, robot: SimRobot, channel: str = "drive-bridge"):
         self.robot = robot
         self.clock = LockstepClock(self)
         self.bus = FastVirtualBus(channel=channel, preserve_timestamps=True)
+        self.bus.direct = robot.bus.direct = True       # one thread: hand frames over as they are
         self.network = MasterNetwork(self.bus, self.clock)
         self.network.after_send = self._after_send
         self._notify = self.network.notify

@@ -26,6 +26,8 @@ from .vbus import FastVirtualBus
 
 DEFAULT_EDS = Path(__file__).resolve().parents[2] / "eds" / "drive_bridge_servo.eds"
 NOISE_BLOCK = 4096
+REPLY_DELAY_S = 50e-6        # wall clock: a drive's reply follows the frame it answers
+IDLE_WAKE_S = 0.005          # wall clock: longest sleep of the drives' thread between frames
 
 
 class SimRobot:
@@ -35,14 +37,15 @@ class SimRobot:
     is written by the master; the kernel needs the tick count up front).
     """
 
-    def __init__(self, config: SimConfig, channel: str = "drive-bridge", *,
+    def __init__(self, config: SimConfig, channel: str = "drive-bridge", *, bus: can.BusABC | None = None,
                  sync_period: float = 0.002, eds_path: str | Path = DEFAULT_EDS):
         self.config = config
         self.sync_period = sync_period
         self.ticks_per_period = round(sync_period / K.VELOCITY_TICK_S)
         if abs(self.ticks_per_period * K.VELOCITY_TICK_S - sync_period) > 1e-9:
             raise ValueError(f"SYNC period {sync_period} s is not a multiple of the 0.5 ms loop tick")
-        self.bus = FastVirtualBus(channel=channel, preserve_timestamps=True)
+        self.bus = bus if bus is not None else FastVirtualBus(channel=channel, preserve_timestamps=True)
+        self._stamp = lambda: self.time           # lockstep: frames carry simulation time
         self.network = canopen.Network(self.bus)        # used to send; frames are dispatched here
         self.time = 0.0
         self._rng = np.random.default_rng(config.seed)
@@ -69,7 +72,7 @@ class SimRobot:
 
     def send(self, cob_id: int, data: bytes) -> None:
         self.bus.send(can.Message(arbitration_id=cob_id, data=data, is_extended_id=False,
-                                  timestamp=self.time))
+                                  timestamp=self._stamp()))
 
     def routes_changed(self) -> None:
         """Rebuild the COB-ID -> handler table (after a PDO mapping change)."""
@@ -114,9 +117,13 @@ class SimRobot:
 
     # ------------------------------------------------------------------ lockstep
     def process(self) -> None:
-        """Lockstep: handle every frame waiting on the bus, in order."""
-        for msg in self.bus.drain():
-            self.dispatch(msg)
+        """Handle every frame waiting on the bus, in order."""
+        if isinstance(self.bus, FastVirtualBus):
+            for msg in self.bus.drain():
+                self.dispatch(msg)
+        else:
+            while (msg := self.bus.recv(0)) is not None:
+                self.dispatch(msg)
 
     def idle(self, duration: float) -> None:
         """Lockstep: let ``duration`` seconds pass without SYNC (drives hold, heartbeats go out)."""
@@ -150,22 +157,34 @@ class SimRobot:
 
     # ------------------------------------------------------------------ wall clock
     def start_realtime(self) -> None:
-        """Run the drives against the wall clock in a background thread."""
+        """Run the drives against the wall clock in a background thread
+        (in a process of its own: :mod:`drive_bridge.sim.process`)."""
+        self._bus_time = time.time()             # frames leave REPLY_DELAY_S after what they answer
+        self._stamp = lambda: self._bus_time + REPLY_DELAY_S
         self._running = True
         self._thread = threading.Thread(target=self._run_realtime, name="sim-drives", daemon=True)
         self._thread.start()
 
     def _run_realtime(self) -> None:
-        t0 = time.perf_counter() - self.time
-        dt = K.VELOCITY_TICK_S
+        # Each frame is applied at the time it reached the bus: the plant first runs up to its
+        # time stamp. A thread that woke late therefore neither misses a setpoint nor sees one
+        # late, and its replies carry the bus time at which a drive would have sent them.
+        # Between frames the plant catches up every IDLE_WAKE_S (heartbeats, time-outs).
+        t0 = time.time() - self.time            # wall-clock time of simulation time 0
         while self._running:
-            msg = self.bus.recv(timeout=dt)
-            if msg is not None:            # frames first: a late thread must not see late setpoints
+            msg = self.bus.recv(timeout=IDLE_WAKE_S)
+            while msg is not None:
+                self._catch_up(msg.timestamp, t0)
+                self._bus_time = max(self._bus_time, msg.timestamp)
                 self.dispatch(msg)
-                self.process()
-            due = int((time.perf_counter() - t0 - self.time) / dt)
-            if due > 0:
-                self.advance(due)
+                msg = self.bus.recv(0)
+            self._catch_up(time.time(), t0)
+
+    def _catch_up(self, now: float, t0: float) -> None:
+        due = int((now - t0 - self.time) / K.VELOCITY_TICK_S)
+        if due > 0:
+            self.advance(due)
+            self._bus_time = max(self._bus_time, t0 + self.time)
 
     def shutdown(self) -> None:
         self._running = False

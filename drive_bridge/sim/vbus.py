@@ -5,6 +5,12 @@ single cost of a lockstep cycle).  This subclass shares the same channels and
 queues, so it talks to any other VirtualBus on the channel, but builds each
 receiver's copy directly, and :meth:`drain` empties the receive queue without
 the generic ``recv`` bookkeeping.
+
+With ``direct = True`` (lockstep: every bus on the channel lives in one thread
+and nobody blocks in ``recv``) a frame is handed over as the sender's own
+``Message`` object, marked received, appended to the receivers' queues
+without the queue's locks and wake-ups.  Senders must not touch a frame after
+sending it.
 """
 from __future__ import annotations
 
@@ -15,8 +21,16 @@ from can.interfaces.virtual import VirtualBus
 
 
 class FastVirtualBus(VirtualBus):
+    direct = False
+
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
         self._check_if_open()
+        if self.direct:
+            msg.is_rx = True
+            for bus_queue in self.channel:
+                if bus_queue is not self.queue:
+                    bus_queue.queue.append(msg)
+            return
         timestamp = msg.timestamp if self.preserve_timestamps else time.time()
         for bus_queue in self.channel:
             if bus_queue is self.queue and not self.receive_own_messages:
@@ -28,6 +42,7 @@ class FastVirtualBus(VirtualBus):
 
     def drain(self):
         """Yield every frame waiting in the receive queue, oldest first."""
-        pending, get = self.queue.queue, self.queue.get_nowait    # the Queue's deque: a lock-free peek
+        pending = self.queue.queue           # the Queue's deque: popleft is atomic, no lock needed
+        popleft = pending.popleft
         while pending:
-            yield get()
+            yield popleft()

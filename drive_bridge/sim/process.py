@@ -1,0 +1,107 @@
+"""Wall-clock simulation in a process of its own, on python-can's loopback multicast bus.
+
+Real drives are other devices.  In one process, the drives' thread and the
+master's threads take turns on one GIL and a drive now and then answers a SYNC
+after the next one went out.  So the wall-clock simulation runs as a separate
+process, the same :class:`~drive_bridge.sim.robot.SimRobot`, reached over
+python-can's ``udp_multicast`` interface, which stamps every frame with the
+kernel's reception time like a CAN controller does.
+"""
+from __future__ import annotations
+
+import gc
+import select
+import socket
+import subprocess
+import sys
+from pathlib import Path
+
+import can
+from can.interfaces.udp_multicast import UdpMulticastBus
+from can.interfaces.udp_multicast.utils import unpack_message
+
+GROUP = "239.74.163.2"           # python-can's default IPv4 group; each run gets its own port
+START_TIMEOUT_S = 120.0          # the child imports numpy/numba and loads the kernel
+
+
+class LoopbackMulticastBus(UdpMulticastBus):
+    """udp_multicast bus that drops the echo of its own frames and keeps the sender's time stamp.
+
+    Multicast loops every datagram back to its sender.  In CANopen each COB-ID
+    has exactly one producer, so a frame whose COB-ID this bus has sent itself
+    is its own echo.  A frame's time stamp is the time its sender put it on
+    the bus (a CAN controller's hardware time stamp), not when this process
+    got around to reading the socket.
+    """
+
+    def __init__(self, channel: str = GROUP, port: int = 43113, **kwargs):
+        super().__init__(channel, port, **kwargs)
+        self._sent_ids: set[int] = set()
+
+    def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        self._sent_ids.add(msg.arbitration_id)
+        super().send(msg, timeout)
+
+    def _recv_internal(self, timeout):
+        result = self._multicast.recv(timeout)
+        if not result:
+            return None, False
+        msg = unpack_message(result[0], check=True)
+        if msg.arbitration_id in self._sent_ids:
+            return None, False
+        return msg, False
+
+
+def free_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("", 0))
+        return s.getsockname()[1]
+
+
+class SimProcess:
+    """The simulated robot of ``config_path`` running against the wall clock in a child process.
+
+    The child prints ``ready`` once its drives are on the bus and stops when
+    its standard input closes (so it also stops when this process dies).
+    """
+
+    def __init__(self, config_path: str | Path, sync_period: float):
+        self.port = free_port()
+        self.bus = LoopbackMulticastBus(GROUP, self.port)      # the master's end, open before boot-up
+        self.process = subprocess.Popen(
+            [sys.executable, "-m", __name__, str(config_path), str(self.port), repr(sync_period)],
+            stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+        ready = select.select([self.process.stdout], [], [], START_TIMEOUT_S)[0]
+        if not ready or self.process.stdout.readline().strip() != "ready":
+            self.shutdown()
+            raise RuntimeError(f"simulated drives did not start within {START_TIMEOUT_S:.0f} s")
+
+    def shutdown(self) -> None:
+        if self.process.poll() is None:
+            self.process.stdin.close()
+            try:
+                self.process.wait(timeout=5)
+            except subprocess.TimeoutExpired:
+                self.process.kill()
+        self.process.stdout.close()
+        self.bus.shutdown()
+
+
+def main(config_path: str, port: str, sync_period: str) -> None:
+    from .config import load_sim_config
+    from .robot import SimRobot
+    robot = SimRobot(load_sim_config(config_path), bus=LoopbackMulticastBus(GROUP, int(port)),
+                     sync_period=float(sync_period))
+    # Out of the cycle collector's reach: a full collection walking three object dictionaries
+    # stops the drives for tens of ms, longer than the master's missing-feedback limit.
+    gc.collect()
+    gc.freeze()
+    robot.start_realtime()
+    robot.power_on()
+    print("ready", flush=True)
+    sys.stdin.read()                     # until the master closes the pipe
+    robot.shutdown()
+
+
+if __name__ == "__main__":
+    main(*sys.argv[1:])
