@@ -117,6 +117,23 @@ def cmd_decode(args) -> int:
     return 0
 
 
+def cmd_identify(args) -> int:
+    import warnings
+    from .ident import identify
+    from .ident.report import as_json, summary, write_markdown
+    warnings.filterwarnings("ignore", module="scipy.optimize")     # DE's vectorized/updating note
+    progress = None if args.json else (lambda axis: print(f"identifying axis {axis} ...", file=sys.stderr))
+    axes = [a.strip() for a in args.axis.split(",")] if args.axis else None
+    results = identify(args.log, args.validate, axes, seed=args.seed, cutoff_hz=args.cutoff,
+                       decimation=args.decimate, progress=progress)
+    if args.out:
+        report = write_markdown(results, Path(args.out), str(args.log))
+        if not args.json:
+            print(f"wrote {report} (plots and identify.json beside it)", file=sys.stderr)
+    print(as_json(results) if args.json else summary(results))
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="drive-bridge", description=__doc__.splitlines()[0])
     parser.add_argument("--version", action="version", version=f"drive-bridge {__version__}")
@@ -139,6 +156,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--together", action="store_true", help="move all axes at once (exposes coupling)")
     p.add_argument("--out", required=True, help="output directory")
     p.set_defaults(func=cmd_record)
+
+    p = sub.add_parser("identify", help="identify J, c0, c1 from a log and trace the residual to its effects")
+    p.add_argument("log", help="log CSV, or a record output directory")
+    p.add_argument("--validate", help="a second log to validate on (default: held-out parts of LOG)")
+    p.add_argument("--axis", help="axis name(s), comma-separated (default: every axis that moves)")
+    p.add_argument("--json", action="store_true", help="print exactly one JSON object (automation)")
+    p.add_argument("--out", help="directory for the Markdown report, its plots and identify.json")
+    p.add_argument("--cutoff", type=float, help="low-pass cut-off [Hz] (default: from the data)")
+    p.add_argument("--decimate", type=int, help="decimation factor (default: from the cut-off)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the evolutionary fits (default: 0)")
+    p.set_defaults(func=cmd_identify)
 
     p = sub.add_parser("decode", help="rebuild log.csv from a raw CAN trace")
     p.add_argument("trace", help="trace file written by record (trace.blf)")

@@ -56,6 +56,17 @@ _MODEL_PARAMS = {1: K.FF_EN, 2: K.FF_J, 3: K.FF_C0, 4: K.FF_C1, 5: K.FF_OFF, 6: 
 _MOTOR_OBJECTS = {1: "R", 2: "L", 3: "kt", 4: "vbus"}
 
 
+def plant_params(p, axis: "SimAxis", axis_names: list[str]) -> None:
+    """Write the plant, motor and hidden effects of ``axis`` into its kernel parameter row ``p``."""
+    m = axis.motor
+    p[K.J], p[K.C0], p[K.C1], p[K.CP], p[K.D] = axis.J, axis.c0, axis.c1, axis.cp, axis.D
+    p[K.KT], p[K.R], p[K.L], p[K.VBUS] = m.kt, m.R, m.L, m.vbus
+    p[K.CPL_SRC] = -1.0
+    for values in axis.effects.values():
+        for name, value in values.items():
+            p[getattr(K, name)] = float(axis_names.index(value)) if name == "CPL_SRC" else value
+
+
 class PdoCodec:
     """Packs or unpacks one PDO from its mapping, compiled once per mapping change."""
 
@@ -128,17 +139,8 @@ class SimDrive:
     def _power_up(self) -> None:
         """Reset application: load parameters from storage, state machine to start."""
         p, s = self.p, self.s
-        m = self.axis.motor
-        p[K.J], p[K.C0], p[K.C1], p[K.CP], p[K.D] = (self.axis.J, self.axis.c0, self.axis.c1,
-                                                     self.axis.cp, self.axis.D)
-        p[K.KT], p[K.R], p[K.L], p[K.VBUS] = m.kt, m.R, m.L, m.vbus
+        plant_params(p, self.axis, list(self.robot.config.axes))
         p[K.INC_PER_RAD] = self.inc_per_rad
-        p[K.CPL_SRC] = -1.0
-        for eff, values in self.axis.effects.items():
-            for name, value in values.items():
-                if name == "CPL_SRC":
-                    value = float(list(self.robot.config.axes).index(value))
-                p[getattr(K, name)] = value
         self.rated_torque = self._od(0x6076) / 1000.0
         for sub, col in _GAIN_PARAMS.items():
             p[col] = self._od(0x2000, sub)
@@ -557,12 +559,12 @@ class SimDrive:
             self._velocity_inc_s = round((count - self._last_count) / dt)
         self._last_count = count
         self._last_refresh = self.robot.time
-        torque = self.p[K.KT] * self.s[K.I]
+        current = K.mean_current(self.s)
+        torque = self.p[K.KT] * current
         if noise and self.axis.torque_noise_Nm:
             torque += self.axis.torque_noise_Nm * self.robot.noise()
         self._torque_pm = max(-32768, min(32767, round(torque / self.rated_torque * 1000)))
-        self._current_pm = max(-32768, min(32767, round(
-            self.s[K.I] / (self.rated_torque / self.p[K.KT]) * 1000)))
+        self._current_pm = max(-32768, min(32767, round(current / (self.rated_torque / self.p[K.KT]) * 1000)))
         self._position_inc = max(-2**31, min(2**31 - 1, count))
 
     def _live_objects(self) -> dict[int, Callable[[], int]]:

@@ -28,8 +28,8 @@ CURRENT_SUBSTEPS = 4          # current-loop ticks per velocity-loop tick (8 kHz
 VELOCITY_TICK_S = 0.0005      # velocity / position loop period
 
 # --- state columns -------------------------------------------------------------------
-Q, V, I, I_INT, V_INT, ENC, VMEAS, TCMD, PDEM, VDEM, FERR, FE_COUNT, T, ENABLED = range(14)
-N_STATE = 14
+Q, V, I, I_INT, V_INT, ENC, VMEAS, TCMD, PDEM, VDEM, FERR, FE_COUNT, T, ENABLED, I_SUM, I_COUNT = range(16)
+N_STATE = 16
 
 # --- parameter columns ---------------------------------------------------------------
 (J, C0, C1, CP, D, KT, R, L, VBUS, TMAX, INC_PER_RAD,
@@ -42,6 +42,15 @@ N_PARAM = 38
 # --- demand columns (one row per axis, set once per SYNC period) ----------------------
 P0, P1, A_FF, V_OFF, T_OFF = range(5)
 N_DEMAND = 5
+
+
+def mean_current(state_row) -> float:
+    """Current [A] averaged since the last call (what a drive reports as actual torque/current
+    is filtered over its report period, not one sample of the 8 kHz loop), then restart."""
+    n = state_row[I_COUNT]
+    mean = state_row[I_SUM] / n if n > 0 else state_row[I]
+    state_row[I_SUM] = state_row[I_COUNT] = 0.0
+    return float(mean)
 
 
 @njit(cache=True)
@@ -135,6 +144,8 @@ def advance(state, param, demand, tick0, n_ticks, ticks_per_period):
                     s[I_INT] = integ
                 decay = math.exp(-p[R] * dt_c / p[L])
                 s[I] = s[I] * decay + (1.0 - decay) * (u - kt * s[V]) / p[R]
+                s[I_SUM] += s[I]             # the drive reports the current averaged since its last report
+                s[I_COUNT] += 1.0
             for a in range(n_axes):
                 s = state[a]
                 p = param[a]

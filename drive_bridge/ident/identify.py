@@ -1,0 +1,136 @@
+"""``identify``: from a log to each axis's model, with the residual traced (Python API).
+
+    results = identify("out/record", seed=0)
+    results["y"].model.params_, results["y"].after.rmse
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import UserError
+from .logdata import Log, read_log
+from .model import AxisModel, Errors, errors, fit_ga
+from .signals import Samples, Settings, choose_settings, noise_floor, prepare
+from .trace import TracedEffect, trace, unexplained
+
+HOLDOUT_BLOCKS, HOLDOUT_EVERY = 10, 3      # without --validate: blocks 3, 6, 9 of 10 (by moving samples)
+
+
+@dataclass
+class AxisResult:
+    axis: str
+    kind: str                                  # rotary | linear
+    units: dict[str, str]
+    settings: Settings
+    validation: str                            # which samples validate
+    est: Samples
+    val: Samples
+    base: AxisModel
+    model: AxisModel
+    effects: list[TracedEffect]
+    before: Errors                             # base model on the validation samples
+    after: Errors                              # final model on the validation samples
+    noise_floor: float
+    unexplained: list[dict]
+    ga_coef: np.ndarray
+    ga_errors: Errors
+    dropped: list[str] = field(default_factory=list)
+
+    def as_json(self) -> dict:
+        return {
+            "units": self.units,
+            "samples": int(self.est.moving.sum()),
+            "params": self.model.params_,
+            "param_std": self.model.param_std_,
+            "rmse_before": self.before.rmse,
+            "rmse_after": self.after.rmse,
+            "torque_rms": self.after.torque_rms,
+            "noise_floor": self.noise_floor,
+            "relative_error_before": self.before.relative_error,
+            "relative_error_after": self.after.relative_error,
+            "fit_relative_error_before": self.base.relative_error_,
+            "fit_relative_error_after": self.model.relative_error_,
+            "effects": [{"name": t.effect.name, "depends_on": t.effect.depends_on, "params": t.params,
+                         "rmse_after": t.rmse_after, "relative_error_after": t.relative_error_after,
+                         "fit_relative_error_after": t.fit_relative_error, "model_params": t.model_params,
+                         "evidence": t.evidence} for t in self.effects],
+            "unexplained": self.unexplained,
+            "validation": self.validation,
+            "validation_samples": self.after.samples,
+            "condition_number": self.model.cond_,
+            "residual_std": self.model.sigma_,
+            "ga": {"params": dict(zip(self.model.coef_names, map(float, self.ga_coef))),
+                   "rmse": self.ga_errors.rmse},
+            "settings": {"cutoff_hz": self.settings.cutoff_hz, "decimation": self.settings.decimation,
+                         "rate_hz": self.settings.rate_hz},
+            "dropped": self.dropped,
+        }
+
+
+def _holdout(s: Samples) -> tuple[Samples, Samples, str]:
+    order = np.cumsum(s.moving) * HOLDOUT_BLOCKS // max(1, s.moving.sum())
+    block = np.minimum(order, HOLDOUT_BLOCKS - 1)
+    held = (block % HOLDOUT_EVERY) == HOLDOUT_EVERY - 1
+    spans = []
+    for b in sorted(set(block[held].tolist())):
+        t = s.t[(block == b) & s.moving]
+        if len(t):
+            spans.append(f"{t[0]:.1f}-{t[-1]:.1f} s")
+    return (s.take(~held), s.take(held),
+            f"held out of the same log: blocks {', '.join(str(b + 1) for b in sorted(set(block[held].tolist())))} "
+            f"of {HOLDOUT_BLOCKS} by moving samples (t = {', '.join(spans)})")
+
+
+def identify_axis(log: Log, axis: str, val_log: Log | None = None, *, seed: int = 0,
+                  cutoff_hz: float | None = None, decimation: int | None = None) -> AxisResult:
+    settings = choose_settings(log, axis, cutoff_hz, decimation)
+    samples = prepare(log, axis, settings)
+    if val_log is not None:
+        if axis not in val_log.axes:
+            raise UserError(f"{val_log.path}: the validation log has no axis {axis!r} "
+                            f"(it has {', '.join(val_log.axes)})")
+        vs = settings
+        if abs(val_log.dt - log.dt) > 1e-9:
+            vs = choose_settings(val_log, axis, settings.cutoff_hz)
+        est, val = samples, prepare(val_log, axis, vs)
+        how = f"the validation log {val_log.path}"
+    else:
+        est, val, how = _holdout(samples)
+        vs = settings
+    base, model, traced = trace(est, val, seed)
+    noise_log = val_log if val_log is not None else log
+    ga = fit_ga(model, est, seed)
+    ga_model = AxisModel(model.effects)
+    ga_model.coef_ = ga
+    return AxisResult(axis, log.axes[axis].kind, log.axes[axis].units, settings, how, est, val, base, model,
+                      traced, errors(base, val), errors(model, val), noise_floor(noise_log, axis, vs if val_log else settings),
+                      unexplained(model, val, settings.rate_hz / settings.decimation), ga,
+                      errors(ga_model, val), list(log.axes[axis].dropped))
+
+
+def identify(path: str | Path, validate: str | Path | None = None, axes: list[str] | None = None, *,
+             seed: int = 0, cutoff_hz: float | None = None, decimation: int | None = None,
+             progress=None) -> dict[str, AxisResult]:
+    """Identify every axis of the log at ``path`` (or ``axes``); see the package docstring."""
+    log = read_log(path)
+    val_log = read_log(validate) if validate else None
+    names = axes or list(log.axes)
+    for a in names:
+        if a not in log.axes:
+            raise UserError(f"{log.path}: no axis {a!r} in the log (it has {', '.join(log.axes)})")
+    results, skipped = {}, []
+    for a in names:
+        if progress:
+            progress(a)
+        try:
+            results[a] = identify_axis(log, a, val_log, seed=seed, cutoff_hz=cutoff_hz, decimation=decimation)
+        except UserError as exc:
+            if axes:                          # asked for by name: its problem is the answer
+                raise
+            skipped.append(exc)
+    if not results:
+        raise skipped[0]
+    return results

@@ -1,0 +1,140 @@
+"""Reading a measured log for identification: columns, checks, usable segments.
+
+A log is a CSV with ``time_s`` and, per axis, ``<axis>_position_rad`` with
+``<axis>_torque_Nm`` (rotary, motor side) or ``<axis>_position_m`` with
+``<axis>_force_N`` (linear).  Other columns are ignored (``<axis>_valid`` = 0
+marks a missing sample, as ``record`` writes it).  A record output directory
+stands for its ``log.csv``.  Everything wrong with the file is a
+:class:`~drive_bridge.errors.UserError` that says what and where; rows that
+cannot be used (NaN runs, time gaps) split the log into segments and are
+reported in :attr:`AxisLog.dropped`.
+"""
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import UserError
+
+LOG_NAME = "log.csv"
+KINDS = {"rad": ("rotary", "torque_Nm", {"position": "rad", "torque": "Nm"}),
+         "m": ("linear", "force_N", {"position": "m", "torque": "N"})}
+MIN_SEGMENT = 64            # samples: shorter finite runs are dropped (the filters need room)
+GAP_TOLERANCE = 0.5         # a time step off the median by more than this fraction is a gap
+MAX_GAP_FRACTION = 0.01     # more gaps than this: the sampling is irregular, not gapped
+
+
+@dataclass
+class AxisLog:
+    """One axis of a log: position [rad | m] and torque [Nm | N] on the log's time base."""
+
+    name: str
+    kind: str                                    # "rotary" | "linear"
+    units: dict[str, str]
+    q: np.ndarray
+    tau: np.ndarray
+    segments: list[tuple[int, int]]              # [start, stop) row ranges that are usable
+    dropped: list[str] = field(default_factory=list)
+
+
+@dataclass
+class Log:
+    path: Path
+    t: np.ndarray                                # [s]
+    dt: float                                    # median sample period [s]
+    axes: dict[str, AxisLog]
+
+
+def _csv_path(path: Path) -> Path:
+    if path.is_dir():
+        if not (path / LOG_NAME).exists():
+            raise UserError(f"{path}: a directory, but it holds no {LOG_NAME} (give a record output "
+                            f"directory or a CSV file)")
+        return path / LOG_NAME
+    if not path.exists():
+        raise UserError(f"{path}: no such file")
+    return path
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """[start, stop) of the True runs of ``mask``."""
+    edges = np.flatnonzero(np.diff(np.concatenate(([0], mask.view(np.int8), [0]))))
+    return list(zip(edges[::2].tolist(), edges[1::2].tolist()))
+
+
+def _describe(runs: list[tuple[int, int]], t: np.ndarray, limit: int = 3) -> str:
+    parts = [f"rows {a + 2}-{b + 1} (t = {t[a]:.3f}-{t[b - 1]:.3f} s)" for a, b in runs[:limit]]
+    return ", ".join(parts) + (f" and {len(runs) - limit} more" if len(runs) > limit else "")
+
+
+def read_log(path: str | Path) -> Log:
+    """Read and check a log; see the module docstring for the format."""
+    path = _csv_path(Path(path))
+    try:
+        with open(path, encoding="utf-8") as f:
+            header = f.readline().strip().split(",")
+        data = np.loadtxt(path, delimiter=",", skiprows=1, dtype=float, ndmin=2)
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise UserError(f"{path}: not a readable CSV log ({exc})") from None
+    if "time_s" not in header:
+        raise UserError(f"{path}: no time_s column (columns: {', '.join(header[:8])}...)")
+    if data.shape[0] < 2 or data.shape[1] != len(header):
+        raise UserError(f"{path}: {data.shape[0]} data rows of {data.shape[1]} columns under a header of "
+                        f"{len(header)}: not a log")
+    col = {name: data[:, i] for i, name in enumerate(header)}
+    t = col["time_s"]
+    if not np.all(np.isfinite(t)):
+        bad = int(np.flatnonzero(~np.isfinite(t))[0])
+        raise UserError(f"{path}: time_s is not a number at row {bad + 2}")
+    dt_all = np.diff(t)
+    if np.any(dt_all <= 0):
+        bad = int(np.flatnonzero(dt_all <= 0)[0])
+        raise UserError(f"{path}: time_s does not increase at row {bad + 3} "
+                        f"(t = {t[bad]:.6f} then {t[bad + 1]:.6f}); sort the log or fix its time base")
+    dt = float(np.median(dt_all))
+    gaps = np.flatnonzero(np.abs(dt_all - dt) > GAP_TOLERANCE * dt)
+    if len(gaps) > MAX_GAP_FRACTION * len(dt_all):
+        raise UserError(f"{path}: irregular sampling: {len(gaps)} of {len(dt_all)} time steps differ from the "
+                        f"median {dt * 1e3:.3f} ms by more than {GAP_TOLERANCE:.0%}; resample to a fixed rate")
+    axes = {}
+    for name in header:
+        m = re.fullmatch(r"(.+)_position_(rad|m)", name)
+        if not m:
+            continue
+        axis, unit = m.groups()
+        kind, tau_suffix, units = KINDS[unit]
+        tau_name = f"{axis}_{tau_suffix}"
+        if tau_name not in col:
+            raise UserError(f"{path}: axis {axis!r} has {name} but no {tau_name} column")
+        q, tau = col[name].copy(), col[tau_name].copy()
+        dropped = []
+        if f"{axis}_valid" in col:
+            invalid = col[f"{axis}_valid"] == 0
+            q[invalid] = tau[invalid] = np.nan
+        finite = np.isfinite(q) & np.isfinite(tau)
+        nan_runs = _runs(~finite)
+        if nan_runs:
+            dropped.append(f"{int((~finite).sum())} samples without a value in {len(nan_runs)} run(s): "
+                           f"{_describe(nan_runs, t)}")
+        usable = finite.copy()
+        usable[gaps + 1] = False                 # a segment never spans a time gap
+        if len(gaps):
+            dropped.append(f"time gaps split the log at {len(gaps)} place(s): "
+                           f"{_describe([(g, g + 2) for g in gaps], t)}")
+        segments = []
+        for a, b in _runs(usable):
+            if b - a >= MIN_SEGMENT:
+                segments.append((a, b))
+            else:
+                dropped.append(f"{b - a} samples at {_describe([(a, b)], t)}: too short a run to filter")
+        if not segments:
+            raise UserError(f"{path}: axis {axis!r}: no run of {MIN_SEGMENT} or more consecutive samples "
+                            f"with position and torque")
+        axes[axis] = AxisLog(axis, kind, units, q, tau, segments, dropped)
+    if not axes:
+        raise UserError(f"{path}: no axis found: expected <axis>_position_rad with <axis>_torque_Nm, or "
+                        f"<axis>_position_m with <axis>_force_N")
+    return Log(path, t, dt, axes)

@@ -1,0 +1,200 @@
+"""From a logged axis to identification samples (IDIM-LS practice, Gautier / Janot).
+
+Position and torque get the same zero-phase Butterworth low-pass (parallel
+filtering); velocity and acceleration are central differences of the filtered
+position; the edges of every segment, where the filter has not settled, are
+cut; then everything is decimated (``scipy.signal.decimate``, zero phase).
+The torque as logged is kept at the decimated instants, for errors that mean
+what a user thinks they mean.  Units follow the log: rad, rad/s, rad/s², Nm
+(rotary) or m, m/s, m/s², N (linear).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import signal
+
+from ..errors import UserError
+from .logdata import Log
+
+FILTER_ORDER = 4
+MOTION_POWER = 0.99          # the motion bandwidth holds this share of the velocity power
+CUTOFF_FACTOR = 25.0         # cut-off = 25 x the motion bandwidth (~5 x a closed-loop bandwidth,
+                             # itself ~5 x the motion's; EMPS: 4.15 Hz -> 104 Hz, reference 100 Hz)
+DECIMATION_MARGIN = 2.5      # decimated sample rate = 2.5 x the cut-off: nearly white residual samples
+MOVING_FRACTION = 0.02       # |velocity| below this share of its maximum: near zero, not fitted
+SETTLE_CYCLES = 1.0          # ... nor this many cut-off periods from it
+MIN_MOVING = 50              # decimated moving samples below this: nothing to identify
+
+
+@dataclass
+class Settings:
+    """How the samples were made: cut-off [Hz], decimation factor, log rate [Hz], edge cut."""
+
+    cutoff_hz: float
+    decimation: int
+    rate_hz: float
+    edge: int
+    motion_bandwidth_hz: float
+
+
+@dataclass
+class Samples:
+    """Decimated samples of one axis (and the other axes of the log at the same instants)."""
+
+    axis: str
+    t: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+    qdd: np.ndarray
+    sgn: np.ndarray              # sign(q̇) through the same filters as the torque (Coulomb column)
+    tau_f: np.ndarray            # filtered torque
+    tau: np.ndarray              # torque as logged (mean over each decimation interval)
+    moving: np.ndarray           # |qd| above the near-zero threshold
+    others: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]    # axis -> (q, qd, qdd)
+
+    def take(self, mask: np.ndarray) -> "Samples":
+        return Samples(self.axis, self.t[mask], self.q[mask], self.qd[mask], self.qdd[mask], self.sgn[mask],
+                       self.tau_f[mask], self.tau[mask], self.moving[mask],
+                       {a: tuple(x[mask] for x in v) for a, v in self.others.items()})
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+
+def motion_bandwidth(log: Log, axis: str) -> float:
+    """Frequency [Hz] below which MOTION_POWER of the axis's velocity power lies."""
+    ax = log.axes[axis]
+    a, b = max(ax.segments, key=lambda s: s[1] - s[0])
+    fs = 1.0 / log.dt
+    v = np.gradient(ax.q[a:b], log.dt)
+    f, pxx = signal.welch(v - v.mean(), fs=fs, nperseg=min(len(v), 4096))
+    cum = np.cumsum(pxx)
+    if cum[-1] <= 0:
+        raise UserError(f"{log.path}: axis {axis!r} does not move (its position is constant)")
+    return float(max(f[np.searchsorted(cum, MOTION_POWER * cum[-1])], f[1]))
+
+
+def choose_settings(log: Log, axis: str, cutoff_hz: float | None = None,
+                    decimation: int | None = None) -> Settings:
+    """Cut-off and decimation from the data (overridable)."""
+    fs = 1.0 / log.dt
+    bw = motion_bandwidth(log, axis)
+    fc = cutoff_hz if cutoff_hz else float(np.clip(CUTOFF_FACTOR * bw, 0.5, 0.4 * fs))
+    if not 0 < fc < fs / 2:
+        raise UserError(f"cut-off {fc} Hz must be between 0 and the Nyquist frequency {fs / 2:g} Hz")
+    r = decimation if decimation else max(1, int(fs / (DECIMATION_MARGIN * fc)))
+    edge = max(50, int(3 * fs / fc))             # the Butterworth's settling, both ends
+    return Settings(fc, max(1, r), fs, edge, bw)
+
+
+def _interval_window(r: int) -> np.ndarray:
+    w = np.ones(r + 1 - r % 2)
+    if r % 2 == 0:
+        w[0] = w[-1] = 0.5
+    return w / w.sum()
+
+
+def _interval_mean(x: np.ndarray, r: int) -> np.ndarray:
+    """Mean of the logged values over the decimation interval centred on each sample (nothing
+    else): one sample in r would alias what the log holds near its Nyquist frequency."""
+    return x if r == 1 else np.convolve(x, _interval_window(r), mode="same")
+
+
+def _decimate(x: np.ndarray, settings: Settings) -> np.ndarray:
+    """Keep every r-th sample.  When the Butterworth already removed what would alias (the
+    decimated Nyquist frequency is at least twice the cut-off) nothing more is needed;
+    otherwise scipy's decimate, with its Chebyshev filter's DC gain set to 1 (an even-order
+    Chebyshev I passes DC at its ripple minimum, and filtered twice that scales every signal
+    by 0.989 while sign(q̇) stays ±1: c0 would come out 1 % low)."""
+    r = settings.decimation
+    if r == 1 or settings.rate_hz / r >= 4 * settings.cutoff_hz:
+        return x[::r]
+    b, a = signal.cheby1(8, 0.05, 0.8 / r)
+    b = b * (np.sum(a) / np.sum(b))
+    return signal.decimate(x, r, ftype=signal.dlti(b, a), zero_phase=True)
+
+
+def prepare(log: Log, axis: str, settings: Settings) -> Samples:
+    """Filtered, differentiated, decimated samples of ``axis`` (all segments)."""
+    ax = log.axes[axis]
+    sos = signal.butter(FILTER_ORDER, settings.cutoff_hz, fs=settings.rate_hz, output="sos")
+    r, edge, dt = settings.decimation, settings.edge, log.dt
+    parts: dict[str, list[np.ndarray]] = {k: [] for k in ("t", "q", "qd", "qdd", "sgn", "tau_f", "tau", "settled")}
+    other_parts: dict[str, list[list[np.ndarray]]] = {o: [[], [], []] for o in log.axes if o != axis}
+    for a, b in ax.segments:
+        if b - a <= 2 * edge + 3 * r * 9:       # too short to filter, cut and decimate
+            continue
+        sl = slice(a, b)
+        keep = slice(edge, b - a - edge)
+        qf = signal.sosfiltfilt(sos, ax.q[sl])
+        channels = {"q": qf, "qd": np.gradient(qf, dt), "tau_f": signal.sosfiltfilt(sos, ax.tau[sl])}
+        channels["qdd"] = np.gradient(channels["qd"], dt)
+        # parallel filtering of the Coulomb column: the torque's step at a reversal is smoothed
+        # by the low-pass, so sign(q̇) gets the same filter (IDIM: filter W and τ alike)
+        channels["sgn"] = signal.sosfiltfilt(sos, np.sign(channels["qd"]))
+        for k, x in channels.items():
+            parts[k].append(_decimate(x[keep], settings))
+        parts["settled"].append(_settled(channels["qd"], settings)[keep][::r])
+        parts["t"].append(log.t[sl][keep][::r])
+        parts["tau"].append(_interval_mean(ax.tau[sl], r)[keep][::r])
+        for o, lists in other_parts.items():
+            oq = log.axes[o].q[sl]
+            if not np.all(np.isfinite(oq)):
+                oq = np.interp(np.arange(len(oq)), np.flatnonzero(np.isfinite(oq)), oq[np.isfinite(oq)])
+            oqf = signal.sosfiltfilt(sos, oq)
+            oqd = np.gradient(oqf, dt)
+            for i, x in enumerate((oqf, oqd, np.gradient(oqd, dt))):
+                lists[i].append(_decimate(x[keep], settings))
+    if not parts["t"]:
+        raise UserError(f"{log.path}: axis {axis!r}: every usable run is shorter than the filter needs "
+                        f"({2 * edge + 27 * r} samples)")
+    cat = {k: np.concatenate(v) for k, v in parts.items()}
+    n = min(len(v) for v in cat.values())        # decimate rounds up; t[::r] too: align
+    cat = {k: v[:n] for k, v in cat.items()}
+    others = {o: tuple(np.concatenate(x)[:n] for x in lists) for o, lists in other_parts.items()}
+    vmax = np.max(np.abs(cat["qd"]))
+    moving = cat.pop("settled").astype(bool)
+    if vmax == 0 or np.ptp(cat["q"]) == 0:
+        raise UserError(f"{log.path}: axis {axis!r} does not move")
+    if moving.sum() < MIN_MOVING:
+        raise UserError(f"{log.path}: axis {axis!r}: only {int(moving.sum())} moving samples after filtering "
+                        f"and decimation (need {MIN_MOVING}); record longer or with more motion")
+    return Samples(axis, cat["t"], cat["q"], cat["qd"], cat["qdd"], cat["sgn"], cat["tau_f"], cat["tau"],
+                   moving, others)
+
+
+def _settled(qd: np.ndarray, settings: Settings) -> np.ndarray:
+    """Samples that are moving, and not within the filters' reach of a standstill or reversal.
+
+    At rest a drive holds the axis with whatever torque static friction allows,
+    not c0·sign(q̇); the low-pass spreads that over its impulse response, so
+    samples that close to a near-zero velocity are left out of the fit, not
+    only the near-zero ones themselves (IDIM excludes low velocities).
+    """
+    near_zero = np.abs(qd) <= MOVING_FRACTION * np.max(np.abs(qd))
+    settle_s = SETTLE_CYCLES / settings.cutoff_hz
+    half = int(np.ceil(settle_s * settings.rate_hz))
+    spread = np.convolve(near_zero.astype(float), np.ones(2 * half + 1), mode="same")
+    return spread == 0
+
+
+def noise_floor(log: Log, axis: str, settings: Settings) -> float:
+    """Standard deviation of the torque measurement noise [Nm | N] in the logged torque as the
+    errors see it (mean over each decimation interval).
+
+    What the low-pass removes from the logged torque, scaled to the full band
+    (white noise: the removed part holds 1 - fc/fN of it) and through the
+    interval mean.  No model can have a smaller validation RMSE.
+    """
+    ax = log.axes[axis]
+    sos = signal.butter(FILTER_ORDER, settings.cutoff_hz, fs=settings.rate_hz, output="sos")
+    res = []
+    for a, b in ax.segments:
+        if b - a > 2 * settings.edge:
+            x = ax.tau[a:b]
+            res.append((x - signal.sosfiltfilt(sos, x))[settings.edge:-settings.edge])
+    hf = np.concatenate(res) if res else np.zeros(1)
+    share = 1.0 - settings.cutoff_hz / (settings.rate_hz / 2)
+    return float(np.std(hf) / np.sqrt(share) * np.sqrt(np.sum(_interval_window(settings.decimation) ** 2)))

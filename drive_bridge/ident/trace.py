@@ -1,0 +1,160 @@
+"""Residual tracing: find what the model lacks, add it, refit, repeat until nothing is left.
+
+Each round fits every candidate of the effect library (see
+:func:`~drive_bridge.ident.effects.candidates`) together with the model so
+far, all parameters at once, on the estimation samples, and scores it on the
+validation samples by the drop of the log sum of squared errors per added
+parameter (the quantity AIC and BIC weigh against parameter count; per
+parameter, so a simpler explanation of the same residual comes first).  The
+errors used to choose are those of the filtered torque, which the model
+predicts; the torque as logged adds measurement noise that no model can
+follow (reported beside: RMSE on the logged torque).  The best candidate is
+added when it is significant:
+
+* partial F-test of the nested models on the estimation samples, p < ``P_VALUE``, and
+* validation error (filtered torque) down by at least ``MIN_GAIN`` (relative): the
+  F-test alone flags effects far too small to matter on long logs whose
+  residual samples are correlated.
+
+Tracing stops when no candidate passes.  Structure left in the final residual
+that no effect explains is reported by what it depends on: the share of the
+validation residual's variance explained by its mean in bins of each variable
+(correlation ratio η², one-way ANOVA), and by a dominant frequency.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import signal, stats
+
+from .effects import Effect, candidates
+from .model import AxisModel, errors, tune
+from .signals import Samples
+
+P_VALUE = 1e-3
+MIN_GAIN = 0.01
+MAX_EFFECTS = 6
+UNEXPLAINED_SHARE = 0.05      # report a dependence that explains this share of the residual variance
+BINS = 20
+
+
+@dataclass
+class TracedEffect:
+    effect: Effect
+    params: dict               # in the final model (all parameters refitted together)
+    rmse_before: float         # validation RMSE on the logged torque
+    rmse_after: float
+    relative_error_before: float   # validation, filtered torque (paper's measure)
+    relative_error_after: float
+    f_stat: float
+    p_value: float
+    share: float               # share of the residual variance (estimation) it explains
+    evidence: str
+    model_params: dict         # every parameter of the model once this effect was added
+    fit_relative_error: float  # relative error on the estimation samples once it was added
+
+
+def f_test(small: AxisModel, big: AxisModel) -> tuple[float, float]:
+    """Partial F statistic and p-value of ``big`` against the nested ``small``."""
+    k = len(big.coef_) - len(small.coef_)
+    dof = big.n_samples_ - len(big.coef_)
+    f = ((small.sse_ - big.sse_) / k) / (big.sse_ / dof) if big.sse_ > 0 else np.inf
+    return float(f), float(stats.f.sf(f, k, dof))
+
+
+def _evidence(e: Effect, params: dict, share: float, f: float, before, after) -> str:
+    what = {
+        "offset": lambda: f"mean residual {params['offset']:+.4g}",
+        "position_linear": lambda: f"residual slope over position {params['cp']:+.4g}",
+        "position_periodic": lambda: f"residual periodic in position, period {params['period']:.4g}, "
+                                     f"amplitude {params['amplitude']:.3g}",
+        "stribeck": lambda: f"residual rises near standstill below {params['velocity']:.3g}/s",
+        "direction_asymmetry": lambda: "residual differs with the direction of motion "
+                                       f"(dc1 {params['dc1']:+.3g}" + (f", dc0 {params['dc0']:+.3g})"
+                                                                       if "dc0" in params else ")"),
+        "cross_axis": lambda: f"residual follows axis {params['source']} ({params['form']}), "
+                              f"coefficient {params['coefficient']:+.3g}",
+        "drift": lambda: f"Coulomb friction changes over time, time constant {params['time_constant_s']:.3g} s",
+    }[e.name]()
+    return (f"{what}; explains {share:.0%} of the residual variance (F = {f:.3g}); validation "
+            f"RMSE {before.rmse:.4g} -> {after.rmse:.4g}, relative error "
+            f"{before.relative_error:.2%} -> {after.relative_error:.2%}")
+
+
+def trace(est: Samples, val: Samples, seed: int) -> tuple[AxisModel, AxisModel, list[TracedEffect]]:
+    """Base model, final model, and the effects added on the way (in order)."""
+    base = AxisModel().fit(est)
+    model, traced = base, []
+    err = errors(model, val)
+    for _ in range(MAX_EFFECTS):
+        resid = est.tau_f - model.predict(est)
+        best = None
+        for cand in candidates(model.effects, est, resid):
+            fitted = tune(model, cand, est, seed)
+            if not np.all(np.isfinite(fitted.coef_)) or fitted.sse_ >= model.sse_:
+                continue
+            new_err = errors(fitted, val)
+            if new_err.relative_error <= 0:
+                continue
+            score = 2 * np.log(err.relative_error / new_err.relative_error) / len(cand.coef_names)
+            if best is None or score > best[0]:
+                best = (score, fitted, new_err, cand)
+        if best is None:
+            break
+        _, fitted, new_err, cand = best
+        f, p = f_test(model, fitted)
+        if p >= P_VALUE or new_err.relative_error > (1 - MIN_GAIN) * err.relative_error:
+            break
+        share = 1.0 - fitted.sse_ / model.sse_
+        params = fitted.effect_params(cand)
+        traced.append(TracedEffect(cand, params, err.rmse, new_err.rmse, err.relative_error,
+                                   new_err.relative_error, f, p, share,
+                                   _evidence(cand, params, share, f, err, new_err), fitted.params_,
+                                   fitted.relative_error_))
+        model, err = fitted, new_err
+    for t in traced:                      # every effect's parameters as the final joint fit has them
+        t.params = model.effect_params(t.effect)
+    return base, model, traced
+
+
+def _eta2(x: np.ndarray, r: np.ndarray) -> tuple[float, float]:
+    """Share of var(r) explained by its mean in quantile bins of x, and the ANOVA p-value."""
+    edges = np.unique(np.quantile(x, np.linspace(0, 1, BINS + 1)))
+    if len(edges) < 3:
+        return 0.0, 1.0
+    idx = np.clip(np.searchsorted(edges, x, side="right") - 1, 0, len(edges) - 2)
+    counts = np.bincount(idx)
+    means = np.bincount(idx, r) / np.maximum(counts, 1)
+    between = float(np.sum(counts * (means - r.mean()) ** 2))
+    total = float(np.sum((r - r.mean()) ** 2))
+    k, n = int(np.count_nonzero(counts)), len(r)
+    if total == 0 or k < 2 or n <= k:
+        return 0.0, 1.0
+    f = (between / (k - 1)) / max((total - between) / (n - k), 1e-300)
+    return between / total, float(stats.f.sf(f, k - 1, n - k))
+
+
+def unexplained(model: AxisModel, s: Samples, rate_hz: float) -> list[dict]:
+    """What the residual on ``s`` still depends on (see the module docstring)."""
+    m = s.moving
+    r = (s.tau - model.predict(s))[m]
+    total = float(np.mean(r ** 2))
+    out = []
+    if total > 0 and r.mean() ** 2 / total >= UNEXPLAINED_SHARE:
+        out.append({"depends_on": "constant", "fraction": float(r.mean() ** 2 / total)})
+    variables = {"position": s.q, "velocity": s.qd, "acceleration": s.qdd, "time": s.t,
+                 "direction": np.sign(s.qd)}
+    for o, (q, qd, qdd) in s.others.items():
+        variables.update({f"{o}_position": q, f"{o}_velocity": qd, f"{o}_acceleration": qdd})
+    for name, x in variables.items():
+        share, p = _eta2(x[m], r)
+        if share >= UNEXPLAINED_SHARE and p < P_VALUE:
+            out.append({"depends_on": name, "fraction": round(share, 4)})
+    if len(r) >= 256:
+        f, pxx = signal.welch(r - r.mean(), fs=rate_hz, nperseg=256)
+        peak = int(np.argmax(pxx[1:])) + 1
+        band = float(pxx[max(1, peak - 1):peak + 2].sum() / pxx[1:].sum())
+        if band >= 0.25:
+            out.append({"depends_on": "frequency", "fraction": round(band, 4), "frequency_hz": float(f[peak])})
+    return sorted(out, key=lambda d: -d["fraction"])

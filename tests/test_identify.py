@@ -1,0 +1,209 @@
+"""Identification: hidden effects found on plant logs, clean logs left alone, bad logs refused,
+and the real EMPS benchmark against its published IDIM-LS values."""
+from __future__ import annotations
+
+import json
+import math
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from drive_bridge.cli import main
+from drive_bridge.config import load_bus_config
+from drive_bridge.ident import identify
+from drive_bridge.master.campaign import build_plan
+from drive_bridge.sim.config import Motor, SimAxis, SimConfig
+from drive_bridge.sim.plantlog import plant_log, write_log
+
+ROOT = Path(__file__).resolve().parents[1]
+EMPS = ROOT.parent / "shared" / "data" / "emps"
+PLANT = {"J": 1.0e-4, "c0": 0.323, "c1": 5.0e-4}          # the paper's Y axis, motor side
+
+
+def campaign(seconds_per_axis: float = 20.0, axes=("y",)):
+    cfg = load_bus_config(ROOT / "config" / "bus.yml")
+    camp = replace(cfg.campaign, max_axis_time_s=seconds_per_axis, together=False)
+    return build_plan(camp, {a: cfg.nodes[a].limits for a in axes}, dict.fromkeys(axes, 0.0), 0.002)
+
+
+def sim_config(effects: dict | None = None, seed: int = 3, **plant) -> SimConfig:
+    values = {**PLANT, **plant}
+    axes = {name: SimAxis(name, i + 1, 0, values["J"], values["c0"], values["c1"], values.get("cp", 0.0),
+                          values.get("D", 0.0), torque_noise_Nm=0.004, motor=Motor(),
+                          effects=(effects or {}) if name == "y" else {})
+            for i, name in enumerate(("y", "z"))}
+    return SimConfig(axes, seed=seed)
+
+
+def log_of(tmp_path, effects=None, z_demand=None, seconds=20.0, seed=3, **plant) -> Path:
+    plan = campaign(seconds)
+    n = len(plan.demand)
+    demand = {"y": plan.demand[:, 0],
+              "z": z_demand(np.arange(n) * 0.002) if z_demand else np.zeros(n)}
+    return write_log(tmp_path / "log.csv", plant_log(sim_config(effects, seed, **plant), demand))
+
+
+def check_base(result, plant=PLANT, tol=0.05):
+    for k in ("J", "c0", "c1"):
+        assert result.model.params_[k] == pytest.approx(plant[k], rel=tol), k
+
+
+# ---------------------------------------------------------------- effects nobody declared
+def test_clean_log_gets_no_effect(tmp_path):
+    r = identify(log_of(tmp_path), axes=["y"])["y"]
+    assert r.effects == [] and r.unexplained == []
+    check_base(r, tol=0.03)
+    assert r.after.rmse < 1.3 * r.noise_floor            # the base model is all there is
+
+
+@pytest.mark.parametrize("effects, name, depends_on, check", [
+    ({"position_periodic": {"PER_AMP": 0.03, "PER_PERIOD": 2.0, "PER_PHASE": 0.5}},
+     "position_periodic", "position",
+     lambda p: p["period"] == pytest.approx(2.0, rel=0.01) and p["amplitude"] == pytest.approx(0.03, rel=0.1)),
+    ({"stribeck": {"STR_AMP": 0.08, "STR_VEL": 15.0}}, "stribeck", "velocity",
+     lambda p: p["amplitude"] == pytest.approx(0.08, rel=0.25) and p["velocity"] == pytest.approx(15, rel=0.3)),
+    ({"direction_asymmetry": {"ASYM_DC0": 0.0, "ASYM_DC1": 2e-4}}, "direction_asymmetry", "direction",
+     lambda p: p["dc1"] == pytest.approx(2e-4, rel=0.1)),
+    ({"drift": {"DRIFT_FRAC": 0.3, "DRIFT_TAU": 15.0}}, "drift", "time",
+     lambda p: p["time_constant_s"] == pytest.approx(15, rel=0.3)
+     and p["amplitude"] == pytest.approx(0.3 * PLANT["c0"], rel=0.2)),
+    ({"load": {"LOAD": 0.078}}, "offset", "constant", lambda p: p["offset"] == pytest.approx(0.078, rel=0.05)),
+])
+def test_injected_effect_is_traced(tmp_path, effects, name, depends_on, check):
+    r = identify(log_of(tmp_path, effects), axes=["y"])["y"]
+    assert [e.effect.name for e in r.effects] == [name]
+    assert r.effects[0].effect.depends_on == depends_on
+    assert check(r.effects[0].params), r.effects[0].params
+    check_base(r)
+    assert r.after.rmse < 0.97 * r.before.rmse and r.after.rmse < 1.3 * r.noise_floor
+
+
+def test_paper_y_axis_position_spring_and_weight(tmp_path):
+    """The paper's Y model (cp, D) comes out as position_linear + offset."""
+    r = identify(log_of(tmp_path, cp=5e-4, D=0.0062 + 0.03), axes=["y"])["y"]
+    found = {e.effect.name: e for e in r.effects}
+    assert set(found) == {"offset", "position_linear"}
+    assert found["position_linear"].params["cp"] == pytest.approx(5e-4, rel=0.05)
+    assert r.model.params_["offset.offset"] == pytest.approx(0.0362, rel=0.05)
+    check_base(r)
+
+
+def test_coupling_with_the_other_axis(tmp_path):
+    """Y's Coulomb friction grows with Z's position: found as cross_axis on z_position."""
+    r = identify(log_of(tmp_path, {"cross_axis": {"CPL_SRC": "z", "CPL_COEF": 0.004}},
+                        z_demand=lambda t: 15.0 * np.sin(2 * np.pi * t / 13.0)), axes=["y"])["y"]
+    assert [(e.effect.name, e.effect.depends_on) for e in r.effects] == [("cross_axis", "z_position")]
+    p = r.effects[0].params
+    assert p["form"] == "position_friction" and p["coefficient"] == pytest.approx(0.004, rel=0.1)
+    check_base(r)
+
+
+def test_identification_is_reproducible(tmp_path):
+    log = log_of(tmp_path, {"stribeck": {"STR_AMP": 0.08, "STR_VEL": 15.0}})
+    a = identify(log, axes=["y"], seed=7)["y"].as_json()
+    b = identify(log, axes=["y"], seed=7)["y"].as_json()
+    assert json.dumps(a) == json.dumps(b)
+
+
+# ---------------------------------------------------------------- CLI and bad input
+def test_cli_json_is_one_object_and_report_has_plots(tmp_path, capsys):
+    log = log_of(tmp_path, {"position_periodic": {"PER_AMP": 0.03, "PER_PERIOD": 2.0, "PER_PHASE": 0.5}})
+    assert main(["identify", str(log), "--json", "--out", str(tmp_path / "rep")]) == 0
+    out = capsys.readouterr().out
+    doc = json.loads(out)                       # exactly one JSON object, nothing else on stdout
+    y = doc["axes"]["y"]
+    assert y["units"] == {"position": "rad", "torque": "Nm"} and y["samples"] > 1000
+    for key in ("params", "param_std", "rmse_before", "rmse_after", "torque_rms", "noise_floor",
+                "effects", "unexplained"):
+        assert key in y
+    assert y["effects"][0]["name"] == "position_periodic" and y["effects"][0]["depends_on"] == "position"
+    assert "z" not in doc["axes"]               # z never moves in this log: not an axis to identify
+    md = (tmp_path / "rep" / "identify.md").read_text()
+    assert "y_fit.png" in md and (tmp_path / "rep" / "y_effect1_position_periodic.png").stat().st_size > 10000
+
+
+def test_linear_axis_units_and_validation_log(tmp_path, capsys):
+    """A linear axis (m, N) with a separate validation log."""
+    lead = 0.01 / (2 * math.pi)
+    for name, seed in (("est.csv", 3), ("val.csv", 4)):
+        cols = plant_log(sim_config(seed=seed), {"y": campaign(12).demand[:, 0], "z": np.zeros(len(campaign(12).demand))})
+        write_log(tmp_path / name, {"time_s": cols["time_s"], "y_position_m": cols["y_position_rad"] * lead,
+                                    "y_force_N": cols["y_torque_Nm"] / lead})
+    assert main(["identify", str(tmp_path / "est.csv"), "--validate", str(tmp_path / "val.csv"), "--json"]) == 0
+    y = json.loads(capsys.readouterr().out)["axes"]["y"]
+    assert y["units"] == {"position": "m", "torque": "N"} and "val.csv" in y["validation"]
+    assert y["params"]["J"] == pytest.approx(PLANT["J"] / lead ** 2, rel=0.05)      # kg
+    assert y["params"]["c1"] == pytest.approx(PLANT["c1"] / lead ** 2, rel=0.05)    # N·s/m
+
+
+def test_record_directory_and_nan_runs(tmp_path, capsys):
+    log = log_of(tmp_path)
+    text = log.read_text().splitlines()
+    for i in range(3000, 3040):                       # a run of lost samples
+        parts = text[i].split(",")
+        parts[1] = parts[3] = "nan"
+        text[i] = ",".join(parts)
+    (tmp_path / "rec").mkdir()
+    (tmp_path / "rec" / "log.csv").write_text("\n".join(text) + "\n")
+    assert main(["identify", str(tmp_path / "rec"), "--axis", "y"]) == 0
+    out = capsys.readouterr().out
+    assert "dropped: 40 samples without a value in 1 run(s): rows 3001-3040" in out
+
+
+@pytest.mark.parametrize("content, message", [
+    ("time_s,y_position_rad\n0,0\n0.002,0\n", "axis 'y' has y_position_rad but no y_torque_Nm column"),
+    ("t,y_position_rad,y_torque_Nm\n0,0,0\n1,0,0\n", "no time_s column"),
+    ("time_s,y_position_rad,y_torque_Nm\n0,0,0\n0.002,0,0\n0.001,0,0\n", "time_s does not increase at row 4"),
+    ("time_s,a,b\n0,0,0\n0.002,0,0\n", "no axis found"),
+])
+def test_bad_logs_are_refused_with_what_and_where(tmp_path, capsys, content, message):
+    path = tmp_path / "bad.csv"
+    path.write_text(content)
+    assert main(["identify", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err and str(path) in err
+
+
+def test_log_without_motion_is_refused(tmp_path, capsys):
+    t = np.arange(2000) * 0.002
+    write_log(tmp_path / "still.csv", {"time_s": t, "y_position_rad": np.zeros_like(t),
+                                       "y_torque_Nm": 0.01 * np.sin(t)})
+    assert main(["identify", str(tmp_path / "still.csv")]) == 2
+    assert "does not move" in capsys.readouterr().err
+
+
+def test_irregular_time_is_refused(tmp_path, capsys):
+    t = np.cumsum(np.random.default_rng(0).uniform(0.001, 0.003, 3000))
+    write_log(tmp_path / "jitter.csv", {"time_s": t, "y_position_rad": np.sin(t), "y_torque_Nm": np.cos(t)})
+    assert main(["identify", str(tmp_path / "jitter.csv")]) == 2
+    assert "irregular sampling" in capsys.readouterr().err
+
+
+# ---------------------------------------------------------------- real data: EMPS
+@pytest.mark.skipif(not (EMPS / "DATA_EMPS.mat").exists(), reason="../shared/data/emps not present")
+def test_emps_benchmark_offset_then_asymmetry(tmp_path):
+    """Published IDIM-LS (Janot, Gautier, Brunot 2019): M 95.1089 kg, Fv 203.5034 N·s/m,
+    Fc 20.3935 N, offset -3.1648 N; relative error 4.083 % (estimation), 5.98 % (pulses)."""
+    sys.path.insert(0, str(ROOT / "tools"))
+    from emps_to_csv import write_csv
+    est = write_csv(EMPS / "DATA_EMPS.mat", tmp_path / "emps.csv")
+    val = write_csv(EMPS / "DATA_EMPS_PULSES.mat", tmp_path / "pulses.csv")
+    # the reference procedure (100 Hz Butterworth, decimation 10) so the errors compare like for like
+    r = identify(est, val, cutoff_hz=100, decimation=10)["emps"]
+    assert r.units == {"position": "m", "torque": "N"}
+    assert [(e.effect.name, e.effect.depends_on) for e in r.effects[:2]] == \
+        [("offset", "constant"), ("direction_asymmetry", "direction")]
+    offset, asym = r.effects[0], r.effects[1]
+    p = offset.model_params
+    assert p["J"] == pytest.approx(95.1089, rel=0.01)
+    assert p["c1"] == pytest.approx(203.5034, rel=0.03)
+    assert p["c0"] == pytest.approx(20.3935, rel=0.03)
+    assert p["offset.offset"] == pytest.approx(-3.1648, rel=0.1)
+    assert offset.fit_relative_error <= 0.04083 and offset.relative_error_after <= 0.0598
+    assert asym.fit_relative_error < offset.fit_relative_error
+    assert asym.relative_error_after < offset.relative_error_after
+    assert asym.rmse_after < offset.rmse_after < offset.rmse_before
+    assert asym.params["dc1"] == pytest.approx((166.7061 - 240.4236) / 2, rel=0.1)   # published Fv+ / Fv-
