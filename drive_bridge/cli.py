@@ -134,6 +134,164 @@ def cmd_identify(args) -> int:
     return 0
 
 
+TABLE_III = {"scenario 1": {"KpP": 150.0, "KpS": 0.12, "KiS": 20.0, "FwF": 1.0, "ff_enable": 0.0},
+             "scenario 2": {"KpP": 170.0, "KpS": 0.17, "KiS": 15.0, "FwF": 0.5, "ff_enable": 0.0},
+             "scenario 3": {"KpP": 200.0, "KpS": 0.30, "KiS": 17.0, "FwF": 1.0, "ff_enable": 0.0}}
+
+
+def _motor(node, args) -> tuple[float, float]:
+    """Motor R [Ω] and L [H]: from the drive's 0x2002 where it has it, else from the options."""
+    if 0x2002 in node.object_dictionary:
+        return float(node.sdo[0x2002][1].raw), float(node.sdo[0x2002][2].raw)
+    if args.motor_R and args.motor_L:
+        return args.motor_R, args.motor_L
+    raise UserError(f"node {node.id}: the drive does not report its motor R and L; give --motor-R and --motor-L")
+
+
+def cmd_tune(args) -> int:
+    import json
+    import warnings
+    from .master.bringup import bring_up
+    from .params.profile import load_profile
+    from .params.write import write_parameters
+    from .tuning.experiment import run_experiment
+    from .tuning.tune import GAINS, read_identify_json, tune_axis
+    warnings.filterwarnings("ignore", module="scipy.optimize")
+    config = _load(args)
+    models = read_identify_json(args.ident)
+    names = [a for a in config.nodes if a in models]
+    if not names:
+        raise UserError(f"{args.ident}: none of its axes ({', '.join(models)}) is in {config.path}")
+    profile = load_profile(args.profile)
+    results = {}
+    with open_link(config, args.sim, args.realtime, args.sim_config) as link:
+        axes = bring_up(link, config.only(names))
+        for a in names:
+            node = axes[a].node
+            R, L = _motor(node, args)
+            before = {w.parameter: w.old_si for w in
+                      write_parameters(node, profile, dict.fromkeys(GAINS, 1.0), dry_run=True).objects}
+            t = tune_axis(a, models[a], R, L, before)
+            if args.experiment:
+                t.experiment = run_experiment(config, link, axes, a, profile, before.get("KpS", t.design.KpS))
+            results[a] = t
+    doc = {"axes": {a: t.as_dict() for a, t in results.items()}}
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(doc, indent=1, default=float))
+    if args.json:
+        print(json.dumps(doc, default=float))
+        return 0
+    for a, t in results.items():
+        d = t.design
+        print(f"axis {a}: J {t.model['J']:.4g} kg·m², c1 {t.model['c1']:.4g} Nm·s/rad")
+        for g in GAINS:
+            print(f"  {g:<4} {t.before.get(g, float('nan')):>10.5g} -> {getattr(d, g):.5g}")
+        print(f"  velocity loop: phase margin {d.velocity.phase_margin_deg:.1f}°, gain margin "
+              f"{d.velocity.gain_margin_db:.1f} dB, crossover {d.velocity.crossover_hz:.0f} Hz"
+              + ("" if t.before_margins is None else f" (before: {t.before_margins[0].phase_margin_deg:.1f}°, "
+                 f"{t.before_margins[0].gain_margin_db:.1f} dB)"))
+        print(f"  position loop: phase margin {d.position.phase_margin_deg:.1f}°, gain margin "
+              f"{d.position.gain_margin_db:.1f} dB, crossover {d.position.crossover_hz:.0f} Hz")
+        if t.experiment is not None:
+            e = t.experiment
+            print(f"  paper's procedure on the drive: KpS {e.KpS if e.KpS is None else round(e.KpS, 4)} after "
+                  f"{len(e.steps)} steps (model-based: {d.KpS:.4g})")
+    print(f"wrote {out}")
+    return 0
+
+
+def _remote_nodes(link, config, profile, names):
+    import canopen
+    nodes = {}
+    for a in names:
+        node = canopen.RemoteNode(config.nodes[a].node_id, profile.object_dictionary(config.nodes[a].node_id))
+        link.network.add_node(node)
+        nodes[a] = node
+    return nodes
+
+
+def cmd_write(args) -> int:
+    import json
+    from .params.profile import load_profile
+    from .params.write import export_dcf, write_parameters
+    from .tuning.tune import read_tune_json
+    config = _load(args)
+    params = read_tune_json(args.params)
+    names = [a for a in config.nodes if a in params]
+    profile = load_profile(args.profile)
+    results = {}
+    with open_link(config, args.sim, args.realtime, args.sim_config) as link:
+        nodes = _remote_nodes(link, config, profile, names)
+        for a in names:
+            backup = Path(args.backup_dir) / f"{a}_backup.json" if args.backup_dir else None
+            r = write_parameters(nodes[a], profile, params[a], dry_run=args.dry_run, backup_path=backup)
+            results[a] = r
+            if args.dcf_dir and r.ok and not args.dry_run:
+                export_dcf(nodes[a], r, Path(args.dcf_dir) / f"{a}.dcf")
+            if not r.ok:
+                break                          # the axes after a failure are left untouched
+    ok = all(r.ok for r in results.values()) and len(results) == len(names)
+    if args.json:
+        print(json.dumps({"ok": ok, "axes": {a: r.as_dict() for a, r in results.items()}}, default=float))
+    else:
+        for a, r in results.items():
+            print(f"axis {a} (node {r.node_id}, {r.drive}){' — dry run, nothing written' if r.dry_run else ''}:")
+            for w in r.objects:
+                state = "verified" if w.verified else ("" if r.dry_run else "NOT verified")
+                print(f"  {w.parameter:<9} 0x{w.index:04X}:{w.sub:<2} {_num(w.old_si):>11} -> {_num(w.new_si):<11} "
+                      f"{w.unit:<18} (device {w.old_device} -> {w.new_device}) {state}")
+            for name in r.unsupported:
+                print(f"  {name:<9} not supported by {r.drive}: not written")
+            if r.stored:
+                print("  stored to non-volatile memory (0x1010 'save')")
+            for n in r.notes:
+                print(f"  note: {n}")
+            if r.error:
+                print(f"  FAILED: {r.error}; backup {'restored' if r.restored else 'NOT fully restored'}",
+                      file=sys.stderr)
+    return 0 if ok else 3
+
+
+def _num(v) -> str:
+    return "?" if v is None else f"{v:.6g}"
+
+
+def cmd_validate(args) -> int:
+    import json
+    from .master.bringup import bring_up
+    from .params.profile import load_profile
+    from .tuning.tune import read_tune_json
+    from .tuning.validate import validate
+    config = _load(args)
+    params = read_tune_json(args.params)
+    names = [a for a in config.nodes if a in params]
+    model = {a: {k: v for k, v in params[a].items() if k in ("J", "c0", "c1", "offset", "cp", "dc0", "dc1")}
+             for a in names}
+    scenarios = {n: {a: dict(g) for a in names} for n, g in TABLE_III.items()}
+    scenarios["tuned + model feed-forward"] = {a: params[a] for a in names}
+    profile = load_profile(args.profile)
+    with open_link(config, args.sim, args.realtime, args.sim_config) as link:
+        axes = bring_up(link, config.only(names))
+        runs = validate(config, link, axes, profile, scenarios, model)
+    doc = {"runs": [r.as_dict() for r in runs]}
+    if args.out:
+        Path(args.out).mkdir(parents=True, exist_ok=True)
+        (Path(args.out) / "validate.json").write_text(json.dumps(doc, indent=1, default=float))
+    if args.json:
+        print(json.dumps(doc, default=float))
+        return 0
+    print(f"{'scenario':<28} {'trajectory':<15} {'axis':<4} {'FE rms [rad]':>12} {'FE max [rad]':>12} "
+          f"{'overshoot %':>11} {'settling s':>10} {'torque RMSE [Nm]':>16}")
+    for r in runs:
+        for a, m in r.axes.items():
+            print(f"{r.scenario:<28} {r.trajectory:<15} {a:<4} {m.fe_rms:>12.3g} {m.fe_max:>12.3g} "
+                  f"{_num(m.overshoot_pct):>11} {_num(m.settling_s):>10} {m.torque_rmse:>16.3g}")
+        if r.aborted:
+            print(f"  {r.scenario}, {r.trajectory}: stopped: {r.aborted}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="drive-bridge", description=__doc__.splitlines()[0])
     parser.add_argument("--version", action="version", version=f"drive-bridge {__version__}")
@@ -167,6 +325,39 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--decimate", type=int, help="decimation factor (default: from the cut-off)")
     p.add_argument("--seed", type=int, default=0, help="seed of the evolutionary fits (default: 0)")
     p.set_defaults(func=cmd_identify)
+
+    def profile_option(p):
+        p.add_argument("--profile", default="drive_bridge_servo",
+                       help="drive profile: a shipped name or a YAML file (default: %(default)s)")
+
+    p = sub.add_parser("tune", help="design the cascade gains from identified models (margins with python-control)")
+    bus_options(p)
+    profile_option(p)
+    p.add_argument("--ident", required=True, help="identify --json output (identify.json)")
+    p.add_argument("--out", default="tune.json", help="where to write the result (default: %(default)s)")
+    p.add_argument("--experiment", action="store_true", help="also run the paper's gain-raising procedure on the drive")
+    p.add_argument("--motor-R", type=float, help="motor resistance [Ω] if the drive does not report it")
+    p.add_argument("--motor-L", type=float, help="motor inductance [H] if the drive does not report it")
+    p.add_argument("--json", action="store_true", help="print the result as one JSON object")
+    p.set_defaults(func=cmd_tune, axes=None, quick=False)
+
+    p = sub.add_parser("write", help="write gains and model to the drives: backup, verify, then store")
+    bus_options(p)
+    profile_option(p)
+    p.add_argument("--params", required=True, help="tune result (tune.json)")
+    p.add_argument("--dry-run", action="store_true", help="print old -> new and write nothing")
+    p.add_argument("--backup-dir", default="backup", help="where the backups go (default: %(default)s)")
+    p.add_argument("--dcf-dir", help="export each commissioned node as a DCF here")
+    p.add_argument("--json", action="store_true", help="print the result as one JSON object")
+    p.set_defaults(func=cmd_write)
+
+    p = sub.add_parser("validate", help="reference trajectories: Table III scenarios against the tuned set")
+    bus_options(p)
+    profile_option(p)
+    p.add_argument("--params", required=True, help="tune result (tune.json)")
+    p.add_argument("--out", help="directory for validate.json")
+    p.add_argument("--json", action="store_true", help="print the result as one JSON object")
+    p.set_defaults(func=cmd_validate)
 
     p = sub.add_parser("decode", help="rebuild log.csv from a raw CAN trace")
     p.add_argument("trace", help="trace file written by record (trace.blf)")

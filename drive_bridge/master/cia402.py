@@ -81,8 +81,12 @@ class Drive402:
             self.clock.sleep(0.005)
 
     def enable(self) -> None:
-        """Fault reset if needed, then Shutdown -> Switch on -> Enable operation."""
+        """Fault reset if needed, disable voltage (from wherever a quick stop left it), then
+        Shutdown -> Switch on -> Enable operation."""
         self.reset_fault()
+        if state_name(self.statusword()) != "SWITCH ON DISABLED":
+            self.node.sdo[0x6040].raw = 0x00
+            self._wait_for("SWITCH ON DISABLED", "disabling voltage before enabling (controlword 0x0000)")
         for cw, target in ((CW_SHUTDOWN, "READY TO SWITCH ON"), (CW_SWITCH_ON, "SWITCHED ON"),
                            (CW_ENABLE, "OPERATION ENABLED")):
             self.node.sdo[0x6040].raw = cw

@@ -159,11 +159,14 @@ def quick_stop(link, axes: dict[str, AxisLink], timeout: float) -> list[str]:
 
 
 def stream(link, axes: dict[str, AxisLink], plan: Plan, *, heartbeat_timeout: float, miss_limit: int,
-           state_timeout: float, progress: Callable[[int], None] | None = None) -> StreamResult:
+           state_timeout: float, progress: Callable[[int], None] | None = None,
+           guard: Callable[[dict[str, int]], str | None] | None = None) -> StreamResult:
     """Enable the axes in CSP, stream ``plan`` one setpoint per SYNC, stop, return the recording.
 
     A fault (EMCY, fault bit, heartbeat loss, missing TPDOs) or Ctrl-C quick-stops every
-    axis; the recording up to that point is kept and the cause is in ``aborted``.
+    axis; the recording up to that point is kept and the cause is in ``aborted``.  ``guard``
+    sees each checked cycle's actual velocity per axis (device units) and stops the run by
+    returning a reason.
     """
     net, clock = link.network, link.clock
     n = len(plan.demand)
@@ -173,11 +176,13 @@ def stream(link, axes: dict[str, AxisLink], plan: Plan, *, heartbeat_timeout: fl
     tpdo_cobs = {c.cob_id for a in plan.axes for c in axes[a].tpdos}
     for cob, handler in rec.handlers().items():
         if cob in tpdo_cobs:
-            net.unsubscribe(cob)                # canopen's own PdoMap decoding is not needed here
+            if net.subscribers.get(cob):
+                net.unsubscribe(cob)            # canopen's own PdoMap decoding is not needed here
             net.subscribe(cob, handler)
     send = net.send_message
     packers = [_packer(axes[a], c, plan.demand, i, send) for i, a in enumerate(plan.axes) for c in axes[a].rpdos]
     sw_cols = [(a, rec.column(a, 0x6041)) for a in plan.axes]
+    vel_cols = [(a, rec.column(a, 0x606C)) for a in plan.axes] if guard is not None else []
     misses = dict.fromkeys(plan.axes, 0)
     aborted = None
     k = 0
@@ -201,7 +206,12 @@ def stream(link, axes: dict[str, AxisLink], plan: Plan, *, heartbeat_timeout: fl
         for k in range(n):
             clock.wait_until(t0 + k * period)
             if k >= FEEDBACK_LAG + 1:
-                aborted = _check_row(rec, k - 1 - FEEDBACK_LAG, axes, sw_cols, plan.axes, misses, miss_limit)
+                row = k - 1 - FEEDBACK_LAG
+                aborted = _check_row(rec, row, axes, sw_cols, plan.axes, misses, miss_limit)
+                if aborted is None and guard is not None and rec.got[row].all():
+                    reason = guard({a: int(rec.raw[row, c]) for a, c in vel_cols})
+                    if reason:
+                        aborted = MotionAborted(reason)
                 if aborted is None and k % check_every == 0:
                     aborted = _check_heartbeats(axes, plan.axes, clock.now(), heartbeat_timeout)
                 if aborted is not None:

@@ -84,8 +84,9 @@ def advance(state, param, demand, tick0, n_ticks, ticks_per_period):
             enc = math.floor(s[Q] * inc) / inc
             s[VMEAS] = (enc - s[ENC]) / dt_v
             s[ENC] = enc
-            frac = (tick0[a] + k + 1) / ticks_per_period
-            if frac > 1.0:
+            # demand at the instant the encoder is read (the start of this tick)
+            frac = (tick0[a] + k) / ticks_per_period
+            if frac >= 1.0:
                 frac = 1.0
                 v_d = 0.0
                 a_d = 0.0

@@ -1,0 +1,1 @@
+"""Drive parameters: profiles that map abstract parameters to objects, and the transactional write."""

@@ -1,0 +1,138 @@
+"""Drive profiles: which object of one drive model holds each abstract parameter, and in what units.
+
+A profile is a YAML file (``profiles/*.yaml``): the drive's EDS/DCF (``project/…``
+inside this repository, ``vendor/…`` in the vendor folder, read in place:
+``$DRIVE_BRIDGE_VENDOR_EDS`` or ``../shared/eds-vendor`` beside the
+repository), the store object, and per abstract parameter (J, c0, c1, offset,
+cp, dc0, dc1, ff_enable, KpP, FwF, KpS, KiS, KpC, KiC) its index, sub-index,
+data type and scaling: device value = scale × SI value, or 1 / SI value for
+``reciprocal`` (a reset time written for an integral rate).  A parameter a
+drive has no object for is simply absent: the writer reports it as not
+supported.
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import canopen
+from canopen.objectdictionary import ODVariable, datatypes
+
+from ..errors import ConfigError
+from ..od import load_od
+from ..yamlconf import Section, load_yaml
+
+PROFILE_DIR = Path(__file__).with_name("profiles")
+ROOT = Path(__file__).resolve().parents[2]
+PARAMETERS = ("J", "c0", "c1", "offset", "cp", "dc0", "dc1", "ff_enable", "KpP", "FwF", "KpS", "KiS", "KpC", "KiC")
+TYPES = {name: getattr(datatypes, name) for name in
+         ("UNSIGNED8", "UNSIGNED16", "UNSIGNED32", "INTEGER8", "INTEGER16", "INTEGER32", "REAL32", "REAL64")}
+
+
+def vendor_dir() -> Path:
+    return Path(os.environ.get("DRIVE_BRIDGE_VENDOR_EDS", ROOT.parent / "shared" / "eds-vendor"))
+
+
+@dataclass(frozen=True)
+class Entry:
+    """Where one abstract parameter lives on the drive, and its scaling."""
+
+    parameter: str
+    index: int
+    sub: int
+    type: str
+    scale: float
+    reciprocal: bool
+    unit: str
+
+    @property
+    def is_integer(self) -> bool:
+        return not self.type.startswith("REAL")
+
+    def to_device(self, value: float):
+        raw = (1.0 / value if value else float("inf")) if self.reciprocal else value * self.scale
+        return round(raw) if self.is_integer else float(raw)
+
+    def to_si(self, raw) -> float:
+        return (1.0 / raw if raw else float("inf")) if self.reciprocal else raw / self.scale
+
+    def where(self) -> str:
+        return f"0x{self.index:04X}:{self.sub}"
+
+
+@dataclass
+class Profile:
+    name: str
+    path: Path
+    drive: str
+    eds: Path
+    entries: dict[str, Entry]
+    save: tuple[int, int] | None
+
+    def object_dictionary(self, node_id: int) -> canopen.ObjectDictionary:
+        return load_od(self.eds, node_id)
+
+    def variable(self, od: canopen.ObjectDictionary, entry: Entry) -> ODVariable:
+        obj = od[entry.index]
+        return obj if isinstance(obj, ODVariable) else obj[entry.sub]
+
+
+def available() -> list[str]:
+    return sorted(p.stem for p in PROFILE_DIR.glob("*.yaml"))
+
+
+def load_profile(name_or_path: str | Path) -> Profile:
+    """A shipped profile by name (see :func:`available`) or a profile YAML file, checked
+    against its EDS (every object present, of the declared type, writable)."""
+    path = Path(name_or_path)
+    if not path.suffix:
+        path = PROFILE_DIR / f"{name_or_path}.yaml"
+        if not path.exists():
+            raise ConfigError(name_or_path, "", f"no such drive profile (shipped: {', '.join(available())})")
+    top = Section(path, "", load_yaml(path))
+    drive = top.get("drive", str)
+    eds_ref = top.get("eds", str)
+    kind, _, rel = eds_ref.partition("/")
+    if kind == "project":
+        eds = ROOT / rel
+    elif kind == "vendor":
+        eds = vendor_dir() / rel
+    else:
+        raise top.error("eds", "must start with project/ (this repository) or vendor/ (the vendor folder)")
+    if not eds.exists():
+        raise top.error("eds", f"{eds} not found" + (" (set DRIVE_BRIDGE_VENDOR_EDS to the vendor EDS folder)"
+                                                     if kind == "vendor" else ""))
+    save_sec = top.section("save", required=False)
+    save = None
+    if save_sec.keys():
+        save = (save_sec.get("index", int), save_sec.get("sub", int))
+    save_sec.done()
+    params = top.section("parameters")
+    entries = {}
+    od = load_od(eds, 1)
+    for name in params.keys():
+        if name not in PARAMETERS:
+            raise params.error(name, f"unknown parameter (known: {', '.join(PARAMETERS)})")
+        sec = params.section(name)
+        entry = Entry(name, sec.get("index", int), sec.get("sub", int, 0), sec.get("type", str),
+                      sec.get("scale", float, 1.0), sec.get("reciprocal", bool, False), sec.get("unit", str, ""))
+        sec.done()
+        if entry.type not in TYPES:
+            raise params.error(f"{name}.type", f"unknown data type {entry.type!r} (known: {', '.join(TYPES)})")
+        try:
+            obj = od[entry.index]
+            var = obj if isinstance(obj, ODVariable) else obj[entry.sub]
+        except KeyError:
+            raise params.error(name, f"{eds.name} has no object {entry.where()}") from None
+        if var.data_type != TYPES[entry.type]:
+            raise params.error(f"{name}.type", f"{eds.name} declares {entry.where()} as data type "
+                                               f"0x{var.data_type:04X}, not {entry.type}")
+        if "w" not in var.access_type:
+            raise params.error(name, f"{eds.name}: {entry.where()} is not writable ({var.access_type})")
+        entries[name] = entry
+    params.done()
+    if save is not None and save[0] not in od:
+        raise top.error("save", f"{eds.name} has no object 0x{save[0]:04X}")
+    top.done()
+    return Profile(path.stem, path, drive, eds, entries, save)

@@ -1,0 +1,196 @@
+"""Transactional parameter write: backup, write all, read back and compare, then store.
+
+Nothing is half-written: any failure (SDO abort, time-out, a value out of the
+data type's range, a read-back that differs) restores the backup and issues
+no store; only when every value is verified is 0x1010 'save' written.  The
+result lists every object with its old and new value in SI and device units.
+"""
+from __future__ import annotations
+
+import json
+import struct
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import canopen
+from canopen.objectdictionary import datatypes
+
+from .profile import Entry, Profile
+
+SAVE_SIGNATURE = 0x65766173         # "save"
+_RANGES = {datatypes.UNSIGNED8: (0, 2**8 - 1), datatypes.UNSIGNED16: (0, 2**16 - 1),
+           datatypes.UNSIGNED32: (0, 2**32 - 1), datatypes.INTEGER8: (-2**7, 2**7 - 1),
+           datatypes.INTEGER16: (-2**15, 2**15 - 1), datatypes.INTEGER32: (-2**31, 2**31 - 1)}
+
+
+@dataclass
+class ObjectWrite:
+    parameter: str
+    index: int
+    sub: int
+    unit: str
+    old_si: float | None = None
+    new_si: float | None = None
+    old_device: float | int | None = None
+    new_device: float | int | None = None
+    written: bool = False
+    verified: bool = False
+
+
+@dataclass
+class WriteResult:
+    """What happened; ``ok`` only when every object was written, verified (and stored if asked)."""
+
+    node_id: int
+    drive: str
+    objects: list[ObjectWrite]
+    unsupported: list[str]
+    dry_run: bool = False
+    stored: bool = False
+    restored: bool = False
+    error: str | None = None
+    backup: str | None = None
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def ok(self) -> bool:
+        return self.error is None
+
+    def as_dict(self) -> dict:
+        d = asdict(self)
+        d["ok"] = self.ok
+        return d
+
+
+def _describe(exc: Exception) -> str:
+    if isinstance(exc, canopen.SdoAbortedError):
+        return f"SDO abort 0x{exc.code:08X}: {canopen.SdoAbortedError.CODES.get(exc.code, 'unknown abort code')}"
+    if isinstance(exc, canopen.SdoCommunicationError):
+        return f"no answer ({exc}): the node may have dropped off the bus"
+    return f"{type(exc).__name__}: {exc}"
+
+
+def _same(entry: Entry, a, b) -> bool:
+    if entry.is_integer:
+        return int(a) == int(b)
+    f32 = entry.type == "REAL32"
+    pack = (lambda x: struct.unpack("<f", struct.pack("<f", x))[0]) if f32 else float
+    return pack(float(a)) == pack(float(b))
+
+
+def write_parameters(node: canopen.RemoteNode, profile: Profile, values: dict[str, float], *,
+                     dry_run: bool = False, store: bool = True, backup_path: str | Path | None = None
+                     ) -> WriteResult:
+    """Write ``values`` (abstract name -> SI value) to ``node`` through ``profile``.
+
+    ``node.object_dictionary`` must be the profile's EDS.  Returns a
+    :class:`WriteResult`; never raises for a drive's refusal.
+    """
+    supported = [k for k in values if k in profile.entries]
+    result = WriteResult(node.id, profile.drive, [], [k for k in values if k not in profile.entries],
+                         dry_run=dry_run)
+    od = node.object_dictionary
+    plan: list[tuple[Entry, ObjectWrite, canopen.sdo.Variable]] = []
+    for name in supported:
+        e = profile.entries[name]
+        w = ObjectWrite(name, e.index, e.sub, e.unit, new_si=float(values[name]), new_device=e.to_device(values[name]))
+        var = profile.variable(od, e)
+        low, high = _RANGES.get(var.data_type, (None, None))
+        if var.min is not None:
+            low = var.min
+        if var.max is not None:
+            high = var.max
+        if (low is not None and w.new_device < low) or (high is not None and w.new_device > high):
+            result.objects.append(w)
+            result.error = (f"{name} = {values[name]:.6g} {e.unit} is {w.new_device} in device units, outside "
+                            f"{e.where()}'s range {low}..{high}; nothing was written")
+            return result
+        sdo_var = node.sdo[e.index] if isinstance(od[e.index], canopen.objectdictionary.ODVariable) \
+            else node.sdo[e.index][e.sub]
+        plan.append((e, w, sdo_var))
+        result.objects.append(w)
+    # 1. backup
+    for e, w, var in plan:
+        try:
+            w.old_device = var.raw
+        except (canopen.SdoAbortedError, canopen.SdoCommunicationError) as exc:
+            result.error = f"reading {w.parameter} ({e.where()}) for the backup failed: {_describe(exc)}; nothing was written"
+            return result
+        w.old_si = e.to_si(w.old_device)
+    if backup_path is not None:
+        path = Path(backup_path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps({"node_id": node.id, "drive": profile.drive, "profile": profile.name,
+                                    "objects": [{"parameter": w.parameter, "index": w.index, "sub": w.sub,
+                                                 "device": w.old_device, "si": w.old_si}
+                                                for _, w, _ in plan]}, indent=1))
+        result.backup = str(path)
+    if dry_run:
+        return result
+    # 2. write all, 3. read back and compare
+    failed = None
+    for e, w, var in plan:
+        try:
+            var.raw = w.new_device
+            w.written = True
+        except (canopen.SdoAbortedError, canopen.SdoCommunicationError) as exc:
+            failed = f"writing {w.parameter} = {w.new_device} to {e.where()} failed: {_describe(exc)}"
+            break
+    if failed is None:
+        for e, w, var in plan:
+            try:
+                back = var.raw
+            except (canopen.SdoAbortedError, canopen.SdoCommunicationError) as exc:
+                failed = f"reading back {w.parameter} ({e.where()}) failed: {_describe(exc)}"
+                break
+            w.verified = _same(e, back, w.new_device)
+            if not w.verified:
+                failed = f"{w.parameter} ({e.where()}) reads back {back}, not the {w.new_device} written"
+                break
+    # 4. store only a verified set
+    if failed is None and store:
+        if profile.save is None:
+            result.notes.append(f"{profile.drive} has no store object: the values are not made non-volatile")
+        else:
+            try:
+                node.sdo[profile.save[0]][profile.save[1]].raw = SAVE_SIGNATURE
+                result.stored = True
+            except (canopen.SdoAbortedError, canopen.SdoCommunicationError) as exc:
+                failed = f"store (0x{profile.save[0]:04X}:{profile.save[1]} 'save') failed: {_describe(exc)}"
+    if failed is not None:
+        result.error = failed
+        result.restored = _restore(plan, result)
+        for _, w, _ in plan:
+            w.verified = False
+    return result
+
+
+def _restore(plan, result: WriteResult) -> bool:
+    """Write the backup back to every object written; True when all of them took it."""
+    ok = True
+    for e, w, var in reversed(plan):
+        if not w.written:
+            continue
+        try:
+            var.raw = w.old_device
+        except (canopen.SdoAbortedError, canopen.SdoCommunicationError) as exc:
+            ok = False
+            result.notes.append(f"restoring {w.parameter} ({e.where()}) failed: {_describe(exc)}")
+    if not ok:
+        result.notes.append("no store was issued, so the drive's stored set is unchanged: "
+                            "a power cycle (or NMT reset node) brings it back")
+    return ok
+
+
+def export_dcf(node: canopen.RemoteNode, result: WriteResult, path: str | Path) -> Path:
+    """The node's object dictionary as a DCF with the written values as ParameterValue."""
+    od = node.object_dictionary
+    for w in result.objects:
+        obj = od[w.index]
+        var = obj if isinstance(obj, canopen.objectdictionary.ODVariable) else obj[w.sub]
+        var.value = w.new_device if result.ok else w.old_device
+        var.value_raw = None
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    canopen.export_od(od, str(path), doc_type="dcf")
+    return path

@@ -1,0 +1,1 @@
+"""Tuning the drive's cascade from the identified model: design, experiment, validation."""

@@ -1,0 +1,138 @@
+"""The paper's experimental tuning, automated and guarded, on the drive.
+
+A velocity square wave between 0 and 10 % of the axis's maximum velocity
+(edges at its maximum acceleration, as a CSP position profile) is run with the
+velocity gain KpS raised by 50 % per step until the logged velocity
+oscillates, then lowered by 10 % per step until it no longer does.
+Oscillation: on the flat parts of the square wave (after a settling time), the
+RMS of the velocity error exceeds ``OSCILLATION_RATIO`` of the step height.
+Guards: the drive's following-error window is tightened to ``FE_GUARD_RAD``
+for the experiment (the drive faults before the axis wanders), and a
+velocity beyond ``VELOCITY_GUARD`` × the highest demanded speed stops the run at once;
+the original window and gain are written back at the end.
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from ..config import BusConfig
+from ..master.bringup import AxisLink
+from ..master.campaign import APPROACH_LEVEL
+from ..params.profile import Profile
+from ..params.write import write_parameters
+from . import motion
+
+STEP_FRACTION = 0.10
+HALF_PERIOD_S = 0.15
+CYCLES = 2
+RAISE, LOWER = 1.5, 0.9
+OSCILLATION_RATIO = 0.05
+SETTLE_S = 0.05
+VELOCITY_GUARD = 3.0
+FE_GUARD_RAD = 0.05
+MAX_STEPS = 12
+RECOVER_S = 0.5
+
+
+@dataclass
+class Step:
+    KpS: float
+    oscillation: float            # RMS velocity error on the flat parts / step height
+    oscillating: bool
+    aborted: str | None
+
+
+@dataclass
+class ExperimentResult:
+    axis: str
+    KpS: float | None             # the last gain without oscillation
+    steps: list[Step] = field(default_factory=list)
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+def square_wave(v_step: float, a_max: float, period: float, start: float) -> tuple[np.ndarray, np.ndarray]:
+    """Position demand [rad] of the velocity square wave, and the velocity demand [rad/s]."""
+    n_half = round(HALF_PERIOD_S / period)
+    ramp = max(1, int(np.ceil(v_step / a_max / period)))          # edges at the acceleration limit
+    k = np.arange(1, n_half + 1)
+    one = np.concatenate([np.minimum(k / ramp, 1.0), np.maximum(1.0 - k / ramp, 0.0)])
+    vel = np.tile(one, CYCLES) * v_step
+    return start + (np.cumsum(vel) - vel) * period, vel     # p[k] = start + T·Σ_{j<k} v[j]
+
+
+def _oscillation(m: motion.Motion, axis: str, vel: np.ndarray, period: float, v_step: float) -> float:
+    n_half = round(HALF_PERIOD_S / period)
+    settle = round(SETTLE_S / period)
+    err = []
+    for k in range(2 * CYCLES):
+        flat = slice(k * n_half + settle, (k + 1) * n_half)
+        e = m.velocity[axis][flat] - vel[flat]
+        err.append(e[np.isfinite(e)] - np.nanmean(e))
+    e = np.concatenate(err)
+    return float(np.sqrt(np.mean(e ** 2)) / v_step) if e.size else float("inf")
+
+
+def run_experiment(config: BusConfig, link, axes: dict[str, AxisLink], axis: str, profile: Profile,
+                   start_KpS: float) -> ExperimentResult:
+    ax = axes[axis]
+    lim = ax.cfg.limits
+    period = config.master.sync_period_s
+    v_step = STEP_FRACTION * lim.max_velocity
+    centre = 0.5 * (lim.position_min + lim.position_max)
+    demand, vel = square_wave(v_step, lim.max_acceleration, period, centre - 0.5 * v_step * HALF_PERIOD_S * CYCLES)
+    inc = ax.cfg.scaling.inc_per_rad
+    window = ax.node.sdo[0x6065].raw
+    original = None
+    result = ExperimentResult(axis, None)
+    ax.node.sdo[0x6065].raw = round(FE_GUARD_RAD * inc)
+
+    v_limit = VELOCITY_GUARD * max(v_step, APPROACH_LEVEL * lim.max_velocity)    # the approach runs at 20 %
+
+    def guard(v: dict[str, float]) -> str | None:
+        if abs(v[axis]) > v_limit:
+            return f"axis {axis}: velocity {v[axis]:.3g} rad/s beyond the guard {v_limit:.3g} rad/s: stopped"
+        return None
+
+    def trial(kps: float) -> Step:
+        res = write_parameters(ax.node, profile, {"KpS": kps}, store=False)
+        if not res.ok:
+            raise RuntimeError(res.error)
+        m = motion.run(config, link, {axis: ax}, {axis: demand}, guard=guard)
+        if m.aborted is not None:
+            ax.drive.reset_fault()
+            step = Step(kps, float("inf"), True, str(m.aborted))
+            recover()
+        else:
+            osc = _oscillation(m, axis, vel, period, v_step)
+            step = Step(kps, osc, osc > OSCILLATION_RATIO, None)
+        result.steps.append(step)
+        return step
+
+    def recover() -> None:
+        """After a stop: settle the axis where it stands with the gain it had before the experiment."""
+        write_parameters(ax.node, profile, {"KpS": original}, store=False)
+        here = float(ax.cfg.scaling.position_from_device(ax.node.sdo[0x6064].raw))
+        motion.run(config, link, {axis: ax}, {axis: np.full(round(RECOVER_S / period), here)})
+
+    try:
+        before = write_parameters(ax.node, profile, {"KpS": start_KpS}, dry_run=True)
+        original = before.objects[0].old_si
+        kps = start_KpS
+        step = trial(kps)
+        while not step.oscillating and len(result.steps) < MAX_STEPS:
+            kps *= RAISE
+            step = trial(kps)
+        while step.oscillating and len(result.steps) < MAX_STEPS:
+            kps *= LOWER
+            step = trial(kps)
+        if not step.oscillating:
+            result.KpS = kps
+    finally:
+        ax.node.sdo[0x6065].raw = window
+        if original is not None:
+            write_parameters(ax.node, profile, {"KpS": original}, store=False)
+    return result

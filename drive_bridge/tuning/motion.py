@@ -1,0 +1,61 @@
+"""Running a demand on brought-up axes and getting SI arrays back (for validation and experiments)."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from ..config import BusConfig
+from ..errors import MotionAborted
+from ..logs import to_table
+from ..master.bringup import AxisLink
+from ..master.campaign import APPROACH_LEVEL, Plan, Segment, check_plan, trapezoid
+from ..master.stream import stream
+
+
+@dataclass
+class Motion:
+    """One run, approach move excluded. Per axis [rad, rad/s, Nm]: ``position``, ``velocity``,
+    ``torque`` measured at each SYNC; ``demand`` the setpoint the drive was following then."""
+
+    t: np.ndarray
+    position: dict[str, np.ndarray]
+    velocity: dict[str, np.ndarray]
+    torque: dict[str, np.ndarray]
+    demand: dict[str, np.ndarray]
+    aborted: MotionAborted | None
+
+
+def run(config: BusConfig, link, axes: dict[str, AxisLink], demand: dict[str, np.ndarray], *,
+        guard: Callable[[dict[str, float]], str | None] | None = None) -> Motion:
+    """Approach the first setpoint of ``demand`` (axis -> positions per SYNC [rad]) at 20 % of the
+    limits, then stream it; ``guard`` sees each cycle's measured velocities and may stop the run."""
+    period = config.master.sync_period_s
+    names = list(demand)
+    limits = {a: axes[a].cfg.limits for a in names}
+    start = {a: float(axes[a].cfg.scaling.position_from_device(axes[a].node.sdo[0x6064].raw)) for a in names}
+    approach = {a: trapezoid(start[a], float(demand[a][0]), APPROACH_LEVEL * limits[a].max_velocity,
+                             APPROACH_LEVEL * limits[a].max_acceleration, period) for a in names}
+    n_app = max(len(v) for v in approach.values()) + round(0.2 / period)       # then settle
+    cols = [np.concatenate([np.full(n_app - len(approach[a]), start[a]) if len(approach[a]) == 0 else
+                            np.concatenate([approach[a], np.full(n_app - len(approach[a]), approach[a][-1])]),
+                            demand[a]]) for a in names]
+    plan = Plan(names, np.column_stack(cols), [Segment("approach", tuple(names), APPROACH_LEVEL, APPROACH_LEVEL,
+                                                       0, 0, n_app),
+                                               Segment("trajectory", tuple(names), 1.0, 1.0, 0, n_app,
+                                                       n_app + len(demand[names[0]]))], period)
+    check_plan(plan, limits)
+    m = config.master
+    result = stream(link, {a: axes[a] for a in names}, plan, heartbeat_timeout=m.heartbeat_timeout_s,
+                    miss_limit=m.tpdo_miss_limit, state_timeout=m.state_timeout_s, guard=guard and
+                    (lambda raw: guard({a: float(axes[a].cfg.scaling.velocity_from_device(raw[a]))
+                                        for a in names})))
+    names_, values, _ = to_table(result.recording, {a: axes[a].cfg.scaling for a in names}, period)
+    col = {n: values[:, i] for i, n in enumerate(names_)}
+    rows = slice(n_app, max(n_app, len(values)))
+    get = lambda suffix: {a: col[f"{a}_{suffix}"][rows] for a in names}       # noqa: E731
+    # the setpoint a SYNC's sample was following: the one sent before the previous SYNC
+    dem = {a: col[f"{a}_position_demand_rad"][n_app - 1:max(n_app - 1, len(values) - 1)] for a in names}
+    return Motion(col["time_s"][rows] - n_app * period, get("position_rad"), get("velocity_rad_s"),
+                  get("torque_Nm"), dem, result.aborted)

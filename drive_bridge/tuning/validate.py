@@ -1,0 +1,110 @@
+"""Validation on reference trajectories: following error, overshoot, settling, model torque.
+
+Each scenario (a set of parameters per axis: gains, model feed-forward) is
+written to the drives without storing it, then the point-to-point moves and
+the 3-D path are run; the metrics come from the logged feedback.  Following
+error = setpoint − measured position [rad]; overshoot [%] and settling time
+[s] (into ±2 % of the move) after each point-to-point move; the model torque
+RMSE compares the measured torque with J·a + c1·v + c0·sign(v) (+ offset, cp,
+dc0, dc1) of the setpoint trajectory while it moves (at rest the axis holds
+with whatever static friction gives) [Nm].
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from ..config import BusConfig
+from ..master.bringup import AxisLink
+from ..params.profile import Profile
+from ..params.write import write_parameters
+from . import motion, trajectories
+
+SETTLE_BAND = 0.02
+
+
+@dataclass
+class AxisMetrics:
+    fe_rms: float
+    fe_max: float
+    overshoot_pct: float | None
+    settling_s: float | None
+    torque_rmse: float
+    torque_rms: float
+
+
+@dataclass
+class Run:
+    scenario: str
+    trajectory: str
+    axes: dict[str, AxisMetrics]
+    aborted: str | None
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+def model_torque(p: dict[str, float], q: np.ndarray, period: float) -> np.ndarray:
+    v = np.gradient(q, period)
+    a = np.gradient(v, period)
+    sg = np.sign(np.where(np.abs(v) > 1e-6, v, 0.0))
+    return (p.get("J", 0.0) * a + (p.get("c1", 0.0) + p.get("dc1", 0.0) * sg) * v
+            + (p.get("c0", 0.0) + p.get("dc0", 0.0) * sg) * sg + p.get("offset", 0.0) + p.get("cp", 0.0) * q)
+
+
+def metrics(m: motion.Motion, model: dict[str, dict[str, float]], period: float,
+            moves: dict[str, list[tuple[int, float, float]]] | None) -> dict[str, AxisMetrics]:
+    out = {}
+    rest = round(trajectories.REST_S / period)
+    for a in m.position:
+        fe = m.demand[a] - m.position[a]
+        ok = np.isfinite(fe)
+        over = settle = None
+        if moves:
+            overs, settles = [], []
+            for end, start, target in moves[a]:
+                window = m.position[a][end:end + rest]
+                dist = abs(target - start)
+                if dist == 0 or len(window) < rest or not np.all(np.isfinite(window)):
+                    continue
+                overs.append(max(0.0, float(np.max((window - target) * np.sign(target - start)))) / dist * 100)
+                outside = np.flatnonzero(np.abs(window - target) > SETTLE_BAND * dist)
+                settles.append(0.0 if len(outside) == 0 else (outside[-1] + 1) * period)
+            over = max(overs) if overs else None
+            settle = max(settles) if settles else None
+        pred = model_torque(model.get(a, {}), m.demand[a], period)
+        tq = m.torque[a]
+        okt = ok & np.isfinite(tq) & (np.abs(np.gradient(m.demand[a])) > 0)      # moving: at rest, stiction
+        if not okt.any():
+            okt = ok & np.isfinite(tq)
+        out[a] = AxisMetrics(float(np.sqrt(np.mean(fe[ok] ** 2))), float(np.max(np.abs(fe[ok]))), over, settle,
+                             float(np.sqrt(np.mean((tq[okt] - pred[okt]) ** 2))), float(np.sqrt(np.mean(tq[okt] ** 2))))
+    return out
+
+
+def validate(config: BusConfig, link, axes: dict[str, AxisLink], profile: Profile,
+             scenarios: dict[str, dict[str, dict[str, float]]],
+             model: dict[str, dict[str, float]]) -> list[Run]:
+    """Run every scenario (name -> axis -> parameter values) on both reference trajectories.
+
+    ``model`` (axis -> J, c0, c1, ...) predicts the torque the metrics compare with.
+    """
+    period = config.master.sync_period_s
+    limits = {a: axes[a].cfg.limits for a in axes}
+    ptp, moves = trajectories.point_to_point(limits, period)
+    path = trajectories.path(limits, period)
+    runs = []
+    for name, values in scenarios.items():
+        for a, v in values.items():
+            res = write_parameters(axes[a].node, profile, v, store=False)
+            if not res.ok:
+                raise RuntimeError(f"scenario {name}, axis {a}: {res.error}")
+        for traj, demand, marks in (("point_to_point", ptp, moves), ("path", path, None)):
+            m = motion.run(config, link, axes, demand)
+            runs.append(Run(name, traj, metrics(m, model, period, marks),
+                            None if m.aborted is None else str(m.aborted)))
+            if m.aborted is not None:
+                for ax in axes.values():              # the next run starts from a clean state machine
+                    ax.drive.reset_fault()
+    return runs
