@@ -326,37 +326,34 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0, help="seed of the evolutionary fits (default: 0)")
     p.set_defaults(func=cmd_identify)
 
-    def profile_option(p):
+    def drive_options(p, params: bool = True):
+        """Bus, drive profile, --params (a tune result) and --json: what tune/write/validate share."""
+        bus_options(p)
         p.add_argument("--profile", default="drive_bridge_servo",
                        help="drive profile: a shipped name or a YAML file (default: %(default)s)")
+        if params:
+            p.add_argument("--params", required=True, help="tune result (tune.json)")
+        p.add_argument("--json", action="store_true", help="print the result as one JSON object")
 
     p = sub.add_parser("tune", help="design the cascade gains from identified models (margins with python-control)")
-    bus_options(p)
-    profile_option(p)
+    drive_options(p, params=False)
     p.add_argument("--ident", required=True, help="identify --json output (identify.json)")
     p.add_argument("--out", default="tune.json", help="where to write the result (default: %(default)s)")
     p.add_argument("--experiment", action="store_true", help="also run the paper's gain-raising procedure on the drive")
     p.add_argument("--motor-R", type=float, help="motor resistance [Ω] if the drive does not report it")
     p.add_argument("--motor-L", type=float, help="motor inductance [H] if the drive does not report it")
-    p.add_argument("--json", action="store_true", help="print the result as one JSON object")
     p.set_defaults(func=cmd_tune, axes=None, quick=False)
 
     p = sub.add_parser("write", help="write gains and model to the drives: backup, verify, then store")
-    bus_options(p)
-    profile_option(p)
-    p.add_argument("--params", required=True, help="tune result (tune.json)")
+    drive_options(p)
     p.add_argument("--dry-run", action="store_true", help="print old -> new and write nothing")
     p.add_argument("--backup-dir", default="backup", help="where the backups go (default: %(default)s)")
     p.add_argument("--dcf-dir", help="export each commissioned node as a DCF here")
-    p.add_argument("--json", action="store_true", help="print the result as one JSON object")
     p.set_defaults(func=cmd_write)
 
     p = sub.add_parser("validate", help="reference trajectories: Table III scenarios against the tuned set")
-    bus_options(p)
-    profile_option(p)
-    p.add_argument("--params", required=True, help="tune result (tune.json)")
+    drive_options(p)
     p.add_argument("--out", help="directory for validate.json")
-    p.add_argument("--json", action="store_true", help="print the result as one JSON object")
     p.set_defaults(func=cmd_validate)
 
     p = sub.add_parser("decode", help="rebuild log.csv from a raw CAN trace")
