@@ -134,11 +134,6 @@ def cmd_identify(args) -> int:
     return 0
 
 
-TABLE_III = {"scenario 1": {"KpP": 150.0, "KpS": 0.12, "KiS": 20.0, "FwF": 1.0, "ff_enable": 0.0},
-             "scenario 2": {"KpP": 170.0, "KpS": 0.17, "KiS": 15.0, "FwF": 0.5, "ff_enable": 0.0},
-             "scenario 3": {"KpP": 200.0, "KpS": 0.30, "KiS": 17.0, "FwF": 1.0, "ff_enable": 0.0}}
-
-
 def _motor(node, args) -> tuple[float, float]:
     """Motor R [Ω] and L [H]: from the drive's 0x2002 where it has it, else from the options."""
     if 0x2002 in node.object_dictionary:
@@ -261,7 +256,7 @@ def cmd_validate(args) -> int:
     import json
     from .master.bringup import bring_up
     from .params.profile import load_profile
-    from .tuning.tune import read_tune_json
+    from .tuning.tune import TABLE_III, read_tune_json
     from .tuning.validate import validate
     config = _load(args)
     params = read_tune_json(args.params)
@@ -342,7 +337,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--experiment", action="store_true", help="also run the paper's gain-raising procedure on the drive")
     p.add_argument("--motor-R", type=float, help="motor resistance [Ω] if the drive does not report it")
     p.add_argument("--motor-L", type=float, help="motor inductance [H] if the drive does not report it")
-    p.set_defaults(func=cmd_tune, axes=None, quick=False)
+    p.set_defaults(func=cmd_tune)
 
     p = sub.add_parser("write", help="write gains and model to the drives: backup, verify, then store")
     drive_options(p)

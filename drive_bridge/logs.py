@@ -49,7 +49,7 @@ def to_table(rec: Recording, scaling: dict[str, Scaling], period: float) -> tupl
     fmts = ["%.6f", "%.6f"]
     for ai, axis in enumerate(rec.axes):
         sc = scaling[axis]
-        valid = rec.got[:, rec.slots[axis]].all(axis=1)
+        valid = rec.valid(axis)
         indices = [i for a, i in rec.columns if a == axis]
         for index in sorted(indices, key=list(_COLUMNS).index):
             suffix, conv, fmt = _COLUMNS[index]

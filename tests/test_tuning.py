@@ -9,11 +9,12 @@ import canopen
 import pytest
 
 from conftest import BUS_CONFIG, PAPER, clean_config
-from drive_bridge.cli import TABLE_III, main, open_link
+from drive_bridge.cli import main, open_link
 from drive_bridge.config import load_bus_config
 from drive_bridge.master.bringup import bring_up
 from drive_bridge.params.profile import available, load_profile, vendor_dir
 from drive_bridge.params.write import write_parameters
+from drive_bridge.tuning.tune import TABLE_III
 from drive_bridge.tuning.design import GM_MIN_DB, PM_MIN_DEG, design_gains, loop_margins
 from drive_bridge.tuning.experiment import run_experiment
 from drive_bridge.tuning.validate import validate

@@ -18,13 +18,13 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from drive_bridge.cli import TABLE_III, open_link                  # noqa: E402
+from drive_bridge.cli import open_link                             # noqa: E402
 from drive_bridge.config import load_bus_config                     # noqa: E402
 from drive_bridge.ident import identify                             # noqa: E402
 from drive_bridge.master.bringup import bring_up                    # noqa: E402
 from drive_bridge.params.profile import load_profile                # noqa: E402
 from drive_bridge.record import record                              # noqa: E402
-from drive_bridge.tuning.tune import model_from_identify, tune_axis  # noqa: E402
+from drive_bridge.tuning.tune import TABLE_III, model_from_identify, tune_axis  # noqa: E402
 from drive_bridge.tuning.validate import validate                   # noqa: E402
 
 

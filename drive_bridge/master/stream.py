@@ -99,10 +99,13 @@ class Recording:
             self.sync_time[self.sync_index] = timestamp
             self.rows = self.sync_index + 1
 
+    def valid(self, axis: str) -> np.ndarray:
+        """Per row: every TPDO of ``axis`` arrived (a complete sample)."""
+        return self.got[:, self.slots[axis]].all(axis=1)
+
     def missing(self) -> dict[str, int]:
         """Rows without a complete sample, per axis."""
-        return {axis: int(np.count_nonzero(~self.got[:self.rows, slots].all(axis=1)))
-                for axis, slots in self.slots.items()}
+        return {axis: int(np.count_nonzero(~self.valid(axis)[:self.rows])) for axis in self.axes}
 
     def truncate(self) -> None:
         """Drop rows after the last SYNC (the plan was not finished)."""

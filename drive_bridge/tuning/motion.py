@@ -38,9 +38,8 @@ def run(config: BusConfig, link, axes: dict[str, AxisLink], demand: dict[str, np
     approach = {a: trapezoid(start[a], float(demand[a][0]), APPROACH_LEVEL * limits[a].max_velocity,
                              APPROACH_LEVEL * limits[a].max_acceleration, period) for a in names}
     n_app = max(len(v) for v in approach.values()) + round(0.2 / period)       # then settle
-    cols = [np.concatenate([np.full(n_app - len(approach[a]), start[a]) if len(approach[a]) == 0 else
-                            np.concatenate([approach[a], np.full(n_app - len(approach[a]), approach[a][-1])]),
-                            demand[a]]) for a in names]
+    cols = [np.concatenate([approach[a], np.full(n_app - len(approach[a]), float(demand[a][0])), demand[a]])
+            for a in names]                  # the approach ends at the first setpoint, then holds it
     plan = Plan(names, np.column_stack(cols), [Segment("approach", tuple(names), APPROACH_LEVEL, APPROACH_LEVEL,
                                                        0, 0, n_app),
                                                Segment("trajectory", tuple(names), 1.0, 1.0, 0, n_app,

@@ -13,6 +13,10 @@ from .experiment import ExperimentResult
 MODEL_KEYS = {"J": "J", "c0": "c0", "c1": "c1", "offset.offset": "offset", "position_linear.cp": "cp",
               "direction_asymmetry.dc0": "dc0", "direction_asymmetry.dc1": "dc1"}
 GAINS = ("KpP", "FwF", "KpS", "KiS", "KpC", "KiC")
+#: the paper's Table III gain scenarios (KpP 1/s, KpS Nm·s/rad, KiS 1/s), model feed-forward off
+TABLE_III = {"scenario 1": {"KpP": 150.0, "KpS": 0.12, "KiS": 20.0, "FwF": 1.0, "ff_enable": 0.0},
+             "scenario 2": {"KpP": 170.0, "KpS": 0.17, "KiS": 15.0, "FwF": 0.5, "ff_enable": 0.0},
+             "scenario 3": {"KpP": 200.0, "KpS": 0.30, "KiS": 17.0, "FwF": 1.0, "ff_enable": 0.0}}
 
 
 @dataclass
