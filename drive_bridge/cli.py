@@ -256,13 +256,12 @@ def cmd_validate(args) -> int:
     import json
     from .master.bringup import bring_up
     from .params.profile import load_profile
-    from .tuning.tune import TABLE_III, read_tune_json
+    from .tuning.tune import MODEL_KEYS, TABLE_III, read_tune_json
     from .tuning.validate import validate
     config = _load(args)
     params = read_tune_json(args.params)
     names = [a for a in config.nodes if a in params]
-    model = {a: {k: v for k, v in params[a].items() if k in ("J", "c0", "c1", "offset", "cp", "dc0", "dc1")}
-             for a in names}
+    model = {a: {k: v for k, v in params[a].items() if k in MODEL_KEYS.values()} for a in names}
     scenarios = {n: {a: dict(g) for a in names} for n, g in TABLE_III.items()}
     scenarios["tuned + model feed-forward"] = {a: params[a] for a in names}
     profile = load_profile(args.profile)

@@ -14,7 +14,7 @@ from drive_bridge.config import load_bus_config
 from drive_bridge.master.bringup import bring_up
 from drive_bridge.params.profile import available, load_profile, vendor_dir
 from drive_bridge.params.write import write_parameters
-from drive_bridge.tuning.tune import TABLE_III
+from drive_bridge.tuning.tune import TABLE_III, model_from_identify
 from drive_bridge.tuning.design import GM_MIN_DB, PM_MIN_DEG, design_gains, loop_margins
 from drive_bridge.tuning.experiment import run_experiment
 from drive_bridge.tuning.validate import validate
@@ -162,6 +162,7 @@ def test_tuned_set_beats_table_iii_on_reference_trajectories():
     config = load_bus_config(BUS_CONFIG).only(["y"])
     model = {"y": dict(PAPER["y"])}
     scenarios = {"scenario 1": {"y": dict(TABLE_III["scenario 1"])},
+                 "scenario 3": {"y": dict(TABLE_III["scenario 3"])},
                  "tuned": {"y": tuned_values()}}
     with open_link(config, sim=True, sim_config=None) as link:
         link.robot.config.axes["y"].effects = {}
@@ -169,11 +170,30 @@ def test_tuned_set_beats_table_iii_on_reference_trajectories():
         runs = validate(config, link, axes, SIM, scenarios, model)
     fe = {(r.scenario, r.trajectory): r.axes["y"].fe_rms for r in runs}
     assert all(r.aborted is None for r in runs)
-    for traj in ("point_to_point", "path"):
-        assert fe[("tuned", traj)] < fe[("scenario 1", traj)] / 2.5, fe
+    for traj in ("point_to_point", "path"):                          # the issue's target: 5x the best
+        assert fe[("tuned", traj)] < min(fe[("scenario 1", traj)], fe[("scenario 3", traj)]) / 5, fe
     ptp = {r.scenario: r.axes["y"] for r in runs if r.trajectory == "point_to_point"}
     assert ptp["tuned"].overshoot_pct < 1.0 and ptp["tuned"].settling_s < 0.1
     assert ptp["tuned"].torque_rmse < 0.25 * ptp["tuned"].torque_rms   # the model predicts the torque
+
+
+def test_ripple_compensation_from_the_traced_effect():
+    """X's belt ripple (a hidden plant effect): the drive's position-periodic feed-forward, fed
+    with identify's position_periodic terms, takes it out of the following error."""
+    config = load_bus_config(BUS_CONFIG).only(["x"])
+    with open_link(config, sim=True) as link:
+        ripple = link.robot.config.axes["x"].effects["position_periodic"]
+        traced = model_from_identify({**PAPER["x"], "position_periodic.amplitude": ripple["PER_AMP"],
+                                      "position_periodic.period": ripple["PER_PERIOD"],
+                                      "position_periodic.phase": ripple["PER_PHASE"]})
+        base = {**design_gains(PAPER["x"]["J"], PAPER["x"]["c1"], **MOTOR).gains(), "ff_enable": 1.0}
+        scenarios = {"J, c0, c1": {"x": {**base, **PAPER["x"], "periodic_period": 0.0}},
+                     "+ ripple": {"x": {**base, **traced}}}
+        axes = bring_up(link, config)
+        runs = validate(config, link, axes, SIM, scenarios, {"x": traced})
+    fe = {(r.scenario, r.trajectory): r.axes["x"].fe_rms for r in runs}
+    for traj in ("point_to_point", "path"):
+        assert fe[("+ ripple", traj)] < fe[("J, c0, c1", traj)] / 3, fe
 
 
 def test_paper_procedure_finds_the_stability_edge_and_restores_the_drive():
@@ -184,7 +204,9 @@ def test_paper_procedure_finds_the_stability_edge_and_restores_the_drive():
         result = run_experiment(config, link, axes, "y", SIM, 0.12)
         assert axes["y"].node.sdo[0x6065].raw == window
         assert axes["y"].node.sdo[0x2000][3].raw == pytest.approx(0.12)
-    assert result.KpS is not None and 0.2 < result.KpS < 0.30          # scenario 3 (0.30) oscillates
+    # the sampled loop (2 kHz, hold + backward-difference velocity) of an inertia J is stable for
+    # KpS < 2·J/T; the current loop's lag brings the edge below that
+    assert result.KpS is not None and 0.2 < result.KpS < 2 * PAPER["y"]["J"] / 0.5e-3
     assert any(s.oscillating for s in result.steps) and not result.steps[-1].oscillating
     design = design_gains(PAPER["y"]["J"], PAPER["y"]["c1"], **MOTOR)
     assert design.KpS < result.KpS                                     # the design keeps its margins

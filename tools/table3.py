@@ -24,6 +24,7 @@ from drive_bridge.ident import identify                             # noqa: E402
 from drive_bridge.master.bringup import bring_up                    # noqa: E402
 from drive_bridge.params.profile import load_profile                # noqa: E402
 from drive_bridge.record import record                              # noqa: E402
+from drive_bridge.tuning.design import loop_margins                 # noqa: E402
 from drive_bridge.tuning.tune import TABLE_III, model_from_identify, tune_axis  # noqa: E402
 from drive_bridge.tuning.validate import validate                   # noqa: E402
 
@@ -37,13 +38,14 @@ def main(axes: list[str]) -> None:
         ident = identify(tmp)
         models = {a: model_from_identify(ident[a].model.params_) for a in axes}
         links = bring_up(link, config)
-        tuned = {}
-        margins = {}
+        tuned, designs, motors = {}, {}, {}
         for a in axes:
-            R, L = float(links[a].node.sdo[0x2002][1].raw), float(links[a].node.sdo[0x2002][2].raw)
-            t = tune_axis(a, models[a], R, L, {})
-            tuned[a], margins[a] = t.parameters(), t.design
+            motors[a] = float(links[a].node.sdo[0x2002][1].raw), float(links[a].node.sdo[0x2002][2].raw)
+            t = tune_axis(a, models[a], *motors[a], {})
+            tuned[a], designs[a] = t.parameters(), t.design
+        factory_current = {k: float(links[axes[0]].node.sdo[0x2000][i].raw) for i, k in ((5, "KpC"), (6, "KiC"))}
         scenarios = {n: {a: dict(g) for a in axes} for n, g in TABLE_III.items()}
+        scenarios["tuned gains, model FF off"] = {a: {**tuned[a], "ff_enable": 0.0} for a in axes}
         scenarios["tuned + model FF"] = tuned
         runs = validate(config, link, links, profile, scenarios, models)
     print("| scenario | KpP / KpS / KiS / FwF | trajectory | " + " | ".join(f"{a} FE rms [mrad]" for a in axes) + " |")
@@ -53,8 +55,16 @@ def main(axes: list[str]) -> None:
         gains = f"{g['KpP']:.0f} / {g['KpS']:.3g} / {g['KiS']:.3g} / {g['FwF']:.3g}"
         print(f"| {r.scenario} | {gains} | {r.trajectory} | "
               + " | ".join(f"{r.axes[a].fe_rms * 1e3:.3g}" for a in axes) + " |")
+    print("\nvelocity loop margins on the identified model (python-control), phase [°] / gain [dB]:")
+    for name, per_axis in scenarios.items():
+        cells = []
+        for a in axes:
+            gains = {**factory_current, **per_axis[a]}
+            vel, _ = loop_margins(models[a]["J"], models[a]["c1"], gains, *motors[a])
+            cells.append(f"{a} {vel.phase_margin_deg:.1f} / {vel.gain_margin_db:.1f}")
+        print(f"  {name}: " + ", ".join(cells))
     for a in axes:
-        d = margins[a]
+        d = designs[a]
         print(f"\naxis {a}: velocity loop PM {d.velocity.phase_margin_deg:.1f}°, GM {d.velocity.gain_margin_db:.1f} dB; "
               f"position loop PM {d.position.phase_margin_deg:.1f}°, GM {d.position.gain_margin_db:.1f} dB")
         for traj in ("point_to_point", "path"):

@@ -4,7 +4,7 @@ A profile is a YAML file (``profiles/*.yaml``): the drive's EDS/DCF (``project/�
 inside this repository, ``vendor/…`` in the vendor folder, read in place:
 ``$DRIVE_BRIDGE_VENDOR_EDS`` or ``../shared/eds-vendor`` beside the
 repository), the store object, and per abstract parameter (J, c0, c1, offset,
-cp, dc0, dc1, ff_enable, KpP, FwF, KpS, KiS, KpC, KiC) its index, sub-index,
+cp, dc0, dc1, periodic_amplitude/period/phase, ff_enable, KpP, FwF, KpS, KiS, KpC, KiC) its index, sub-index,
 data type and scaling: device value = scale × SI value, or 1 / SI value for
 ``reciprocal`` (a reset time written for an integral rate).  A parameter a
 drive has no object for is simply absent: the writer reports it as not
@@ -25,7 +25,8 @@ from ..yamlconf import Section, load_yaml
 
 PROFILE_DIR = Path(__file__).with_name("profiles")
 ROOT = Path(__file__).resolve().parents[2]
-PARAMETERS = ("J", "c0", "c1", "offset", "cp", "dc0", "dc1", "ff_enable", "KpP", "FwF", "KpS", "KiS", "KpC", "KiC")
+PARAMETERS = ("J", "c0", "c1", "offset", "cp", "dc0", "dc1", "periodic_amplitude", "periodic_period",
+              "periodic_phase", "ff_enable", "KpP", "FwF", "KpS", "KiS", "KpC", "KiC")
 TYPES = {name: getattr(datatypes, name) for name in
          ("UNSIGNED8", "UNSIGNED16", "UNSIGNED32", "INTEGER8", "INTEGER16", "INTEGER32", "REAL32", "REAL64")}
 

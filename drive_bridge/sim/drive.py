@@ -52,7 +52,7 @@ ABORT_PDO_LENGTH = 0x06040042
 
 _GAIN_PARAMS = {1: K.KPP, 2: K.FWF, 3: K.KPS, 4: K.KIS, 5: K.KPC, 6: K.KIC}
 _MODEL_PARAMS = {1: K.FF_EN, 2: K.FF_J, 3: K.FF_C0, 4: K.FF_C1, 5: K.FF_OFF, 6: K.FF_CP,
-                 7: K.FF_DC0, 8: K.FF_DC1}
+                 7: K.FF_DC0, 8: K.FF_DC1, 9: K.FF_PER_AMP, 10: K.FF_PER_PERIOD, 11: K.FF_PER_PHASE}
 _MOTOR_OBJECTS = {1: "R", 2: "L", 3: "kt", 4: "vbus"}
 
 
@@ -260,7 +260,7 @@ class SimDrive:
                 raise SdoAbortedError(ABORT_TOO_LOW if value < 0 else ABORT_RANGE)
             self.p[_GAIN_PARAMS[sub]] = value
         elif index == 0x2001:
-            if not math.isfinite(value) or (sub == 1 and value not in (0, 1)) or (sub == 2 and value < 0):
+            if not math.isfinite(value) or (sub == 1 and value not in (0, 1)) or (sub in (2, 10) and value < 0):
                 raise SdoAbortedError(ABORT_RANGE)
             self.p[_MODEL_PARAMS[sub]] = value
         elif index == 0x1017:

@@ -16,6 +16,18 @@ Plant, per axis (``sign`` = direction of motion)::
 
 with stiction at rest: the axis stays stopped while the driving torque is
 within the breakaway friction, and stops when its velocity crosses zero.
+
+Drive, per axis: the position demand between two CSP setpoints is the parabola
+through the last three (``A_FF`` is their second difference), so velocity and
+acceleration demand are exact for a constant acceleration.  The velocity
+feed-forward is the demand half a tick back, the instant the backward-difference
+velocity refers to.  With the model feed-forward on, the torque command adds::
+
+    J*a + (c1 + dc1*s)*v + (c0 + dc0*s)*s + offset + cp*p + A*sin(2*pi*p/period + phase)
+
+of the demand (s = its direction), and the velocity integrator restarts from
+zero when a move starts: the model, not a torque the integrator was left
+holding against stiction, carries the axis.
 """
 from __future__ import annotations
 
@@ -34,10 +46,10 @@ N_STATE = 16
 # --- parameter columns ---------------------------------------------------------------
 (J, C0, C1, CP, D, KT, R, L, VBUS, TMAX, INC_PER_RAD,
  KPP, FWF, KPS, KIS, KPC, KIC,
- FF_EN, FF_J, FF_C0, FF_C1, FF_OFF, FF_CP, FF_DC0, FF_DC1,
+ FF_EN, FF_J, FF_C0, FF_C1, FF_OFF, FF_CP, FF_DC0, FF_DC1, FF_PER_AMP, FF_PER_PERIOD, FF_PER_PHASE,
  LOAD, PER_AMP, PER_PERIOD, PER_PHASE, STR_AMP, STR_VEL, ASYM_DC0, ASYM_DC1,
- CPL_SRC, CPL_COEF, DRIFT_FRAC, DRIFT_TAU, FE_WINDOW) = range(38)
-N_PARAM = 38
+ CPL_SRC, CPL_COEF, DRIFT_FRAC, DRIFT_TAU, FE_WINDOW) = range(41)
+N_PARAM = 41
 
 # --- demand columns (one row per axis, set once per SYNC period) ----------------------
 P0, P1, A_FF, V_OFF, T_OFF = range(5)
@@ -86,14 +98,16 @@ def advance(state, param, demand, tick0, n_ticks, ticks_per_period):
             s[ENC] = enc
             # demand at the instant the encoder is read (the start of this tick)
             frac = (tick0[a] + k) / ticks_per_period
-            if frac >= 1.0:
-                frac = 1.0
-                v_d = 0.0
-                a_d = 0.0
-            else:
-                v_d = (d[P1] - d[P0]) / period
+            if frac >= 1.0:                  # no new setpoint yet: hold the last one
+                p_d, v_d, a_d = d[P1], 0.0, 0.0
+            else:                            # the parabola through the last three setpoints
                 a_d = d[A_FF]
-            p_d = d[P0] + (d[P1] - d[P0]) * frac
+                tau = frac * period
+                v0 = (d[P1] - d[P0]) / period - 0.5 * a_d * period
+                p_d = d[P0] + (v0 + 0.5 * a_d * tau) * tau
+                v_d = v0 + a_d * tau
+            if p[FF_EN] != 0.0 and s[VDEM] == 0.0 and v_d != 0.0:
+                s[V_INT] = 0.0               # motion starts: the model, not the integrator, carries the torque
             s[PDEM] = p_d
             s[VDEM] = v_d
             if s[ENABLED] == 0.0:
@@ -108,12 +122,15 @@ def advance(state, param, demand, tick0, n_ticks, ticks_per_period):
                 s[FE_COUNT] += 1.0
             else:
                 s[FE_COUNT] = 0.0
-            e_v = p[FWF] * v_d + p[KPP] * ferr + d[V_OFF] - s[VMEAS]
+            # velocity demand half a tick back: the instant the backward-difference velocity is of
+            e_v = p[FWF] * (v_d - 0.5 * dt_v * a_d) + p[KPP] * ferr + d[V_OFF] - s[VMEAS]
             t_ff = d[T_OFF]
             if p[FF_EN] != 0.0:
                 sg = _sign(v_d)
                 t_ff += (p[FF_J] * a_d + (p[FF_C1] + p[FF_DC1] * sg) * v_d
                          + (p[FF_C0] + p[FF_DC0] * sg) * sg + p[FF_OFF] + p[FF_CP] * p_d)
+                if p[FF_PER_PERIOD] > 0.0:
+                    t_ff += p[FF_PER_AMP] * math.sin(2.0 * math.pi * p_d / p[FF_PER_PERIOD] + p[FF_PER_PHASE])
             integ = s[V_INT] + p[KIS] * e_v * dt_v
             t_cmd = p[KPS] * (e_v + integ) + t_ff
             if t_cmd > p[TMAX]:

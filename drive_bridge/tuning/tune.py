@@ -11,7 +11,9 @@ from .experiment import ExperimentResult
 
 #: identify's parameter names -> the drive's model parameters
 MODEL_KEYS = {"J": "J", "c0": "c0", "c1": "c1", "offset.offset": "offset", "position_linear.cp": "cp",
-              "direction_asymmetry.dc0": "dc0", "direction_asymmetry.dc1": "dc1"}
+              "direction_asymmetry.dc0": "dc0", "direction_asymmetry.dc1": "dc1",
+              "position_periodic.amplitude": "periodic_amplitude", "position_periodic.period": "periodic_period",
+              "position_periodic.phase": "periodic_phase"}
 GAINS = ("KpP", "FwF", "KpS", "KiS", "KpC", "KiC")
 #: the paper's Table III gain scenarios (KpP 1/s, KpS Nm·s/rad, KiS 1/s), model feed-forward off
 TABLE_III = {"scenario 1": {"KpP": 150.0, "KpS": 0.12, "KiS": 20.0, "FwF": 1.0, "ff_enable": 0.0},
@@ -22,7 +24,7 @@ TABLE_III = {"scenario 1": {"KpP": 150.0, "KpS": 0.12, "KiS": 20.0, "FwF": 1.0, 
 @dataclass
 class AxisTuning:
     axis: str
-    model: dict[str, float]                 # J, c0, c1 (+ offset, cp, dc0, dc1), SI motor side
+    model: dict[str, float]                 # J, c0, c1 (+ effect terms), SI motor side
     design: GainDesign
     before: dict[str, float]                # the drive's gains before tuning
     before_margins: tuple[Margins, Margins] | None

@@ -6,8 +6,8 @@ the 3-D path are run; the metrics come from the logged feedback.  Following
 error = setpoint − measured position [rad]; overshoot [%] and settling time
 [s] (into ±2 % of the move) after each point-to-point move; the model torque
 RMSE compares the measured torque with J·a + c1·v + c0·sign(v) (+ offset, cp,
-dc0, dc1) of the setpoint trajectory while it moves (at rest the axis holds
-with whatever static friction gives) [Nm].
+dc0, dc1, position-periodic ripple) of the setpoint trajectory while it moves
+(at rest the axis holds with whatever static friction gives) [Nm].
 """
 from __future__ import annotations
 
@@ -49,8 +49,10 @@ def model_torque(p: dict[str, float], q: np.ndarray, period: float) -> np.ndarra
     v = np.gradient(q, period)
     a = np.gradient(v, period)
     sg = np.sign(np.where(np.abs(v) > 1e-6, v, 0.0))
+    ripple = (p.get("periodic_amplitude", 0.0) * np.sin(2 * np.pi * q / p["periodic_period"] + p.get("periodic_phase", 0.0))
+              if p.get("periodic_period", 0.0) > 0 else 0.0)
     return (p.get("J", 0.0) * a + (p.get("c1", 0.0) + p.get("dc1", 0.0) * sg) * v
-            + (p.get("c0", 0.0) + p.get("dc0", 0.0) * sg) * sg + p.get("offset", 0.0) + p.get("cp", 0.0) * q)
+            + (p.get("c0", 0.0) + p.get("dc0", 0.0) * sg) * sg + p.get("offset", 0.0) + p.get("cp", 0.0) * q + ripple)
 
 
 def metrics(m: motion.Motion, model: dict[str, dict[str, float]], period: float,
