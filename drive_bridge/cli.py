@@ -134,23 +134,14 @@ def cmd_identify(args) -> int:
     return 0
 
 
-def _motor(node, args) -> tuple[float, float]:
-    """Motor R [Ω] and L [H]: from the drive's 0x2002 where it has it, else from the options."""
-    if 0x2002 in node.object_dictionary:
-        return float(node.sdo[0x2002][1].raw), float(node.sdo[0x2002][2].raw)
-    if args.motor_R and args.motor_L:
-        return args.motor_R, args.motor_L
-    raise UserError(f"node {node.id}: the drive does not report its motor R and L; give --motor-R and --motor-L")
-
-
 def cmd_tune(args) -> int:
     import json
     import warnings
     from .master.bringup import bring_up
     from .params.profile import load_profile
-    from .params.write import write_parameters
+    from .params.write import read_parameters
     from .tuning.experiment import run_experiment
-    from .tuning.tune import GAINS, read_identify_json, tune_axis
+    from .tuning.tune import GAINS, motor_data, read_identify_json, tune_axis
     warnings.filterwarnings("ignore", module="scipy.optimize")
     config = _load(args)
     models = read_identify_json(args.ident)
@@ -163,9 +154,8 @@ def cmd_tune(args) -> int:
         axes = bring_up(link, config.only(names))
         for a in names:
             node = axes[a].node
-            R, L = _motor(node, args)
-            before = {w.parameter: w.old_si for w in
-                      write_parameters(node, profile, dict.fromkeys(GAINS, 1.0), dry_run=True).objects}
+            R, L = motor_data(node, args.motor_R, args.motor_L)
+            before = read_parameters(node, profile, GAINS)
             t = tune_axis(a, models[a], R, L, before)
             if args.experiment:
                 t.experiment = run_experiment(config, link, axes, a, profile, before.get("KpS", t.design.KpS))
@@ -209,23 +199,21 @@ def _remote_nodes(link, config, profile, names):
 def cmd_write(args) -> int:
     import json
     from .params.profile import load_profile
-    from .params.write import export_dcf, write_parameters
+    from .params.write import export_dcf, write_all, write_parameters
     from .tuning.tune import read_tune_json
     config = _load(args)
     params = read_tune_json(args.params)
     names = [a for a in config.nodes if a in params]
     profile = load_profile(args.profile)
-    results = {}
     with open_link(config, args.sim, args.realtime, args.sim_config) as link:
         nodes = _remote_nodes(link, config, profile, names)
-        for a in names:
-            backup = Path(args.backup_dir) / f"{a}_backup.json" if args.backup_dir else None
-            r = write_parameters(nodes[a], profile, params[a], dry_run=args.dry_run, backup_path=backup)
-            results[a] = r
-            if args.dcf_dir and r.ok and not args.dry_run:
-                export_dcf(nodes[a], r, Path(args.dcf_dir) / f"{a}.dcf")
-            if not r.ok:
-                break                          # the axes after a failure are left untouched
+        if args.dry_run:
+            results = {a: write_parameters(nodes[a], profile, params[a], dry_run=True) for a in names}
+        else:
+            results = write_all(nodes, profile, params, backup_dir=args.backup_dir)
+            for a, r in results.items():
+                if args.dcf_dir and r.ok:
+                    export_dcf(nodes[a], r, Path(args.dcf_dir) / f"{a}.dcf")
     ok = all(r.ok for r in results.values()) and len(results) == len(names)
     if args.json:
         print(json.dumps({"ok": ok, "axes": {a: r.as_dict() for a, r in results.items()}}, default=float))
@@ -256,7 +244,8 @@ def cmd_validate(args) -> int:
     import json
     from .master.bringup import bring_up
     from .params.profile import load_profile
-    from .tuning.tune import MODEL_KEYS, TABLE_III, read_tune_json
+    from .paper import TABLE_III
+    from .tuning.tune import MODEL_KEYS, read_tune_json
     from .tuning.validate import validate
     config = _load(args)
     params = read_tune_json(args.params)
@@ -284,6 +273,21 @@ def cmd_validate(args) -> int:
         if r.aborted:
             print(f"  {r.scenario}, {r.trajectory}: stopped: {r.aborted}")
     return 0
+
+
+def cmd_commission(args) -> int:
+    import json
+    import warnings
+    from .commission import Options, commission
+    warnings.filterwarnings("ignore", module="scipy.optimize")
+    config = _load(args)
+    steps = [s.strip() for s in args.steps.split(",") if s.strip()] if args.steps else None
+    motor = (args.motor_R, args.motor_L) if args.motor_R and args.motor_L else None
+    result = commission(config, args.out, Options(args.sim, args.realtime, args.sim_config, args.profile, motor,
+                                                  args.seed), steps=steps, restart=args.restart)
+    if args.json:
+        print(json.dumps(result.summary, default=float))
+    return result.exit_code
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -349,6 +353,18 @@ def build_parser() -> argparse.ArgumentParser:
     drive_options(p)
     p.add_argument("--out", help="directory for validate.json")
     p.set_defaults(func=cmd_validate)
+
+    p = sub.add_parser("commission", help="the whole job: scan, bring-up, campaign, identify, tune, write, validate")
+    drive_options(p, params=False)
+    p.add_argument("--out", required=True, help="run directory: every step's output, summary.json, report.html")
+    p.add_argument("--steps", help="run only these steps, comma-separated (scan, bringup, campaign, identify, "
+                                   "tune, write, validate); default: resume after the last completed one")
+    p.add_argument("--restart", action="store_true", help="start over: discard the previous run in --out")
+    p.add_argument("--quick", action="store_true", help="a few seconds of campaign per axis (demo)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the evolutionary fits (default: 0)")
+    p.add_argument("--motor-R", type=float, help="motor resistance [Ω] if the drive does not report it")
+    p.add_argument("--motor-L", type=float, help="motor inductance [H] if the drive does not report it")
+    p.set_defaults(func=cmd_commission)
 
     p = sub.add_parser("decode", help="rebuild log.csv from a raw CAN trace")
     p.add_argument("trace", help="trace file written by record (trace.blf)")

@@ -44,3 +44,43 @@ class CampaignProgress:
         if self.tty:
             self.stream.write("\n")
             self.stream.flush()
+
+
+class StepReporter:
+    """Progress of a multi-step run: a line when a step starts and when it ends, a
+    :class:`CampaignProgress` bar for each motion inside a step, and notes in between."""
+
+    def __init__(self, steps: list[str], stream=None):
+        self.steps = steps
+        self.stream = stream or sys.stderr
+        self.bar: CampaignProgress | None = None
+
+    def _print(self, text: str) -> None:
+        self.stream.write(text + "\n")
+        self.stream.flush()
+
+    def start(self, step: str, what: str) -> None:
+        self._print(f"[{self.steps.index(step) + 1}/{len(self.steps)}] {step}: {what}")
+
+    def done(self, step: str, seconds: float, line: str) -> None:
+        self.end_motion()
+        self._print(f"  done: {step} in {seconds:.1f} s: {line}")
+
+    def failed(self, step: str, seconds: float, reason: str) -> None:
+        self.end_motion()
+        self._print(f"  FAILED: {step} after {seconds:.1f} s: {reason}")
+
+    def note(self, text: str) -> None:
+        self.end_motion()
+        self._print(f"  {text}")
+
+    def motion(self, plan: Plan) -> CampaignProgress:
+        """``on_plan`` for record / motion.run: a fresh bar for this motion."""
+        self.end_motion()
+        self.bar = CampaignProgress(plan, self.stream)
+        return self.bar
+
+    def end_motion(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+            self.bar = None

@@ -10,7 +10,7 @@ from . import __version__
 from .config import BusConfig
 from .errors import MotionAborted
 from .logs import LOG_NAME, META_NAME, TRACE_NAME, layout_meta, write_csv, write_meta
-from .master.bringup import bring_up
+from .master.bringup import AxisLink, bring_up
 from .master.busload import check_bus_load
 from .master.campaign import Plan, build_plan
 from .master.link import TraceRecorder
@@ -34,17 +34,19 @@ class RecordResult:
 
 
 def record(config: BusConfig, link, out_dir: str | Path, *,
-           on_plan: Callable[[Plan], Callable[[int], None] | None] | None = None) -> RecordResult:
+           on_plan: Callable[[Plan], Callable[[int], None] | None] | None = None,
+           axes: dict[str, AxisLink] | None = None) -> RecordResult:
     """Run the campaign of ``config`` over ``link``; files go to ``out_dir``.
 
     ``on_plan`` receives the checked plan before anything moves and may return a
-    progress callback.  Data recorded before a fault is always written.
+    progress callback; ``axes`` are drives already brought up (default: bring them
+    up here).  Data recorded before a fault is always written.
     """
     t_start = time.perf_counter()
     load = check_bus_load(config)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    axes = bring_up(link, config)
+    axes = axes or bring_up(link, config)
     start = {name: float(ax.cfg.scaling.position_from_device(ax.node.sdo[0x6064].raw))
              for name, ax in axes.items()}
     plan = build_plan(config.campaign, {n: a.cfg.limits for n, a in axes.items()}, start,

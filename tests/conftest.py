@@ -7,6 +7,7 @@ from pathlib import Path
 import canopen
 import pytest
 
+from drive_bridge.paper import TABLE_II
 from drive_bridge.sim.config import DEFAULT_CONFIG, Motor, SimAxis, SimConfig, load_sim_config
 from drive_bridge.sim.lockstep import LockstepLink
 from drive_bridge.sim.robot import SimRobot
@@ -16,11 +17,7 @@ EDS = ROOT / "eds" / "drive_bridge_servo.eds"
 BUS_CONFIG = ROOT / "config" / "bus.yml"
 _channels = itertools.count(1)
 
-PAPER = {  # Table II, motor side
-    "x": dict(J=0.000089, c0=0.2198, c1=0.000312),
-    "y": dict(J=0.000100, c0=0.3230, c1=0.000500),
-    "z": dict(J=0.000100, c0=0.3230, c1=0.000500),
-}
+PAPER = TABLE_II
 
 
 def clean_config(noise: float = 0.0, seed: int = 0, effects: dict | None = None) -> SimConfig:

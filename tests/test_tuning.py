@@ -14,7 +14,8 @@ from drive_bridge.config import load_bus_config
 from drive_bridge.master.bringup import bring_up
 from drive_bridge.params.profile import available, load_profile, vendor_dir
 from drive_bridge.params.write import write_parameters
-from drive_bridge.tuning.tune import TABLE_III, model_from_identify
+from drive_bridge.paper import TABLE_III
+from drive_bridge.tuning.tune import model_from_identify
 from drive_bridge.tuning.design import GM_MIN_DB, PM_MIN_DEG, design_gains, loop_margins
 from drive_bridge.tuning.experiment import run_experiment
 from drive_bridge.tuning.validate import validate

@@ -103,12 +103,8 @@ def _configure_pdos(node: canopen.RemoteNode, maps, configured: tuple[PdoConfig,
     return codecs
 
 
-def bring_up(link, config: BusConfig) -> dict[str, AxisLink]:
-    """Scan, check and configure every configured drive (drives stay disabled).
-
-    Raises BusError naming the axis when a node is missing or is no CiA 402 drive.
-    """
-    result = scan(link, config)
+def check_scan(result: ScanResult, config: BusConfig) -> None:
+    """Raise BusError naming the axis when a configured node is missing or is no CiA 402 drive."""
     if result.missing:
         ids = ", ".join(f"{a} (node {config.nodes[a].node_id})" for a in result.missing)
         raise BusError(f"no answer from {ids} on {config.master.interface}:{config.master.channel}; "
@@ -118,6 +114,15 @@ def bring_up(link, config: BusConfig) -> dict[str, AxisLink]:
         dt = result.found[config.nodes[ax].node_id]["device_type"]
         raise BusError(f"axis {ax} (node {config.nodes[ax].node_id}) is not a CiA 402 drive "
                        f"(device type 0x{dt:08X}); check node_id in {config.path}")
+
+
+def bring_up(link, config: BusConfig) -> dict[str, AxisLink]:
+    """Scan, check and configure every configured drive (drives stay disabled).
+
+    Raises BusError naming the axis when a node is missing or is no CiA 402 drive.
+    """
+    result = scan(link, config)
+    check_scan(result, config)
     net = link.network
     clock = link.clock
     axes: dict[str, AxisLink] = {}

@@ -15,6 +15,7 @@ from pathlib import Path
 import canopen
 from canopen.objectdictionary import datatypes
 
+from ..errors import BusError
 from .profile import Entry, Profile
 
 SAVE_SIGNATURE = 0x65766173         # "save"
@@ -78,6 +79,21 @@ def _same(entry: Entry, a, b) -> bool:
     return pack(float(a)) == pack(float(b))
 
 
+def read_parameters(node: canopen.RemoteNode, profile: Profile, names=None) -> dict[str, float]:
+    """The drive's current values [SI] of ``names`` (default: every parameter of ``profile``).
+
+    Raises BusError naming the object when the drive does not answer a read."""
+    result = write_parameters(node, profile, dict.fromkeys(names or profile.entries, 1.0), dry_run=True)
+    if result.error:
+        raise BusError(f"node {node.id}: {result.error}")
+    return {w.parameter: w.old_si for w in result.objects}
+
+
+def _sdo_variable(node: canopen.RemoteNode, e: Entry):
+    obj = node.object_dictionary[e.index]
+    return node.sdo[e.index] if isinstance(obj, canopen.objectdictionary.ODVariable) else node.sdo[e.index][e.sub]
+
+
 def write_parameters(node: canopen.RemoteNode, profile: Profile, values: dict[str, float], *,
                      dry_run: bool = False, store: bool = True, backup_path: str | Path | None = None
                      ) -> WriteResult:
@@ -105,9 +121,7 @@ def write_parameters(node: canopen.RemoteNode, profile: Profile, values: dict[st
             result.error = (f"{name} = {values[name]:.6g} {e.unit} is {w.new_device} in device units, outside "
                             f"{e.where()}'s range {low}..{high}; nothing was written")
             return result
-        sdo_var = node.sdo[e.index] if isinstance(od[e.index], canopen.objectdictionary.ODVariable) \
-            else node.sdo[e.index][e.sub]
-        plan.append((e, w, sdo_var))
+        plan.append((e, w, _sdo_variable(node, e)))
         result.objects.append(w)
     # 1. backup
     for e, w, var in plan:
@@ -129,57 +143,101 @@ def write_parameters(node: canopen.RemoteNode, profile: Profile, values: dict[st
         return result
     # 2. write all, 3. read back and compare
     failed = None
-    for e, w, var in plan:
-        try:
-            var.raw = w.new_device
-            w.written = True
-        except (canopen.SdoAbortedError, canopen.SdoCommunicationError) as exc:
-            failed = f"writing {w.parameter} = {w.new_device} to {e.where()} failed: {_describe(exc)}"
-            break
-    if failed is None:
+    try:
         for e, w, var in plan:
             try:
-                back = var.raw
+                var.raw = w.new_device
+                w.written = True
             except (canopen.SdoAbortedError, canopen.SdoCommunicationError) as exc:
-                failed = f"reading back {w.parameter} ({e.where()}) failed: {_describe(exc)}"
+                failed = f"writing {w.parameter} = {w.new_device} to {e.where()} failed: {_describe(exc)}"
                 break
-            w.verified = _same(e, back, w.new_device)
-            if not w.verified:
-                failed = f"{w.parameter} ({e.where()}) reads back {back}, not the {w.new_device} written"
-                break
+        if failed is None:
+            for e, w, var in plan:
+                try:
+                    back = var.raw
+                except (canopen.SdoAbortedError, canopen.SdoCommunicationError) as exc:
+                    failed = f"reading back {w.parameter} ({e.where()}) failed: {_describe(exc)}"
+                    break
+                w.verified = _same(e, back, w.new_device)
+                if not w.verified:
+                    failed = f"{w.parameter} ({e.where()}) reads back {back}, not the {w.new_device} written"
+                    break
+    except KeyboardInterrupt:
+        failed = "interrupted by the user (Ctrl-C)"
     # 4. store only a verified set
     if failed is None and store:
-        if profile.save is None:
-            result.notes.append(f"{profile.drive} has no store object: the values are not made non-volatile")
-        else:
-            try:
-                node.sdo[profile.save[0]][profile.save[1]].raw = SAVE_SIGNATURE
-                result.stored = True
-            except (canopen.SdoAbortedError, canopen.SdoCommunicationError) as exc:
-                failed = f"store (0x{profile.save[0]:04X}:{profile.save[1]} 'save') failed: {_describe(exc)}"
+        failed = store_parameters(node, profile, result)
     if failed is not None:
-        result.error = failed
-        result.restored = _restore(plan, result)
-        for _, w, _ in plan:
-            w.verified = False
+        fail(node, profile, result, failed)
     return result
 
 
-def _restore(plan, result: WriteResult) -> bool:
-    """Write the backup back to every object written; True when all of them took it."""
+def store_parameters(node: canopen.RemoteNode, profile: Profile, result: WriteResult) -> str | None:
+    """Write 'save' to the profile's store object; the reason when that failed, else None."""
+    if profile.save is None:
+        result.notes.append(f"{profile.drive} has no store object: the values are not made non-volatile")
+        return None
+    try:
+        node.sdo[profile.save[0]][profile.save[1]].raw = SAVE_SIGNATURE
+    except (canopen.SdoAbortedError, canopen.SdoCommunicationError) as exc:
+        return f"store (0x{profile.save[0]:04X}:{profile.save[1]} 'save') failed: {_describe(exc)}"
+    result.stored = True
+    return None
+
+
+def fail(node: canopen.RemoteNode, profile: Profile, result: WriteResult, reason: str) -> None:
+    """Mark ``result`` failed and write the backup back to every object it wrote."""
+    result.error = reason
     ok = True
-    for e, w, var in reversed(plan):
+    for w in reversed(result.objects):
         if not w.written:
             continue
+        e = profile.entries[w.parameter]
         try:
-            var.raw = w.old_device
+            _sdo_variable(node, e).raw = w.old_device
         except (canopen.SdoAbortedError, canopen.SdoCommunicationError) as exc:
             ok = False
             result.notes.append(f"restoring {w.parameter} ({e.where()}) failed: {_describe(exc)}")
     if not ok:
         result.notes.append("no store was issued, so the drive's stored set is unchanged: "
                             "a power cycle (or NMT reset node) brings it back")
-    return ok
+    result.restored = ok
+    for w in result.objects:
+        w.verified = False
+
+
+def write_all(nodes: dict[str, canopen.RemoteNode], profile: Profile, values: dict[str, dict[str, float]], *,
+              backup_dir: str | Path | None = None) -> dict[str, WriteResult]:
+    """Write every axis's ``values`` (axis -> name -> SI) as one transaction over all drives.
+
+    Each drive is written and verified without storing; only when every drive verified is each
+    one stored.  Any failure restores the backup of every drive written so far; the axes after
+    the failing one are not touched (they have no entry in the result).
+    """
+    results: dict[str, WriteResult] = {}
+    for axis, node in nodes.items():
+        backup = Path(backup_dir) / f"{axis}_backup.json" if backup_dir is not None else None
+        results[axis] = write_parameters(node, profile, values[axis], store=False, backup_path=backup)
+        if not results[axis].ok:
+            break
+    failed = next(((a, r.error) for a, r in results.items() if not r.ok), None)
+    if failed is None:
+        for axis, node in nodes.items():
+            reason = store_parameters(node, profile, results[axis])
+            if reason is not None:
+                failed = axis, reason
+                fail(node, profile, results[axis], reason)
+                break
+    if failed is not None:
+        for axis, r in results.items():
+            if r.ok:
+                stored = r.stored
+                fail(nodes[axis], profile, r, f"not kept: axis {failed[0]} failed ({failed[1]})")
+                if stored and r.restored:          # its new set was stored already: store the backup
+                    reason = store_parameters(nodes[axis], profile, r)
+                    r.notes.append("the backup was stored again" if reason is None else reason)
+                r.stored = False
+    return results
 
 
 def export_dcf(node: canopen.RemoteNode, result: WriteResult, path: str | Path) -> Path:

@@ -28,9 +28,13 @@ class Motion:
 
 
 def run(config: BusConfig, link, axes: dict[str, AxisLink], demand: dict[str, np.ndarray], *,
-        guard: Callable[[dict[str, float]], str | None] | None = None) -> Motion:
+        guard: Callable[[dict[str, float]], str | None] | None = None,
+        on_plan: Callable[[Plan], Callable[[int], None] | None] | None = None,
+        kind: str = "trajectory", level: float = 1.0) -> Motion:
     """Approach the first setpoint of ``demand`` (axis -> positions per SYNC [rad]) at 20 % of the
-    limits, then stream it; ``guard`` sees each cycle's measured velocities and may stop the run."""
+    limits, then stream it; ``guard`` sees each cycle's measured velocities and may stop the run.
+    ``on_plan`` may return a progress callback (as in ``record``); ``kind`` and ``level`` (fraction
+    of the limits) label the demand's segment for it."""
     period = config.master.sync_period_s
     names = list(demand)
     limits = {a: axes[a].cfg.limits for a in names}
@@ -42,12 +46,13 @@ def run(config: BusConfig, link, axes: dict[str, AxisLink], demand: dict[str, np
             for a in names]                  # the approach ends at the first setpoint, then holds it
     plan = Plan(names, np.column_stack(cols), [Segment("approach", tuple(names), APPROACH_LEVEL, APPROACH_LEVEL,
                                                        0, 0, n_app),
-                                               Segment("trajectory", tuple(names), 1.0, 1.0, 0, n_app,
+                                               Segment(kind, tuple(names), level, level, 0, n_app,
                                                        n_app + len(demand[names[0]]))], period)
     check_plan(plan, limits)
     m = config.master
+    progress = on_plan(plan) if on_plan else None
     result = stream(link, {a: axes[a] for a in names}, plan, heartbeat_timeout=m.heartbeat_timeout_s,
-                    miss_limit=m.tpdo_miss_limit, state_timeout=m.state_timeout_s, guard=guard and
+                    miss_limit=m.tpdo_miss_limit, state_timeout=m.state_timeout_s, progress=progress, guard=guard and
                     (lambda raw: guard({a: float(axes[a].cfg.scaling.velocity_from_device(raw[a]))
                                         for a in names})))
     names_, values, _ = to_table(result.recording, {a: axes[a].cfg.scaling for a in names}, period)

@@ -15,10 +15,6 @@ MODEL_KEYS = {"J": "J", "c0": "c0", "c1": "c1", "offset.offset": "offset", "posi
               "position_periodic.amplitude": "periodic_amplitude", "position_periodic.period": "periodic_period",
               "position_periodic.phase": "periodic_phase"}
 GAINS = ("KpP", "FwF", "KpS", "KiS", "KpC", "KiC")
-#: the paper's Table III gain scenarios (KpP 1/s, KpS Nm·s/rad, KiS 1/s), model feed-forward off
-TABLE_III = {"scenario 1": {"KpP": 150.0, "KpS": 0.12, "KiS": 20.0, "FwF": 1.0, "ff_enable": 0.0},
-             "scenario 2": {"KpP": 170.0, "KpS": 0.17, "KiS": 15.0, "FwF": 0.5, "ff_enable": 0.0},
-             "scenario 3": {"KpP": 200.0, "KpS": 0.30, "KiS": 17.0, "FwF": 1.0, "ff_enable": 0.0}}
 
 
 @dataclass
@@ -55,6 +51,15 @@ def read_identify_json(path: str | Path) -> dict[str, dict[str, float]]:
         return {a: model_from_identify(r["params"]) for a, r in doc["axes"].items()}
     except (OSError, ValueError, KeyError, TypeError) as exc:
         raise UserError(f"{path}: not an identify --json result ({exc})") from None
+
+
+def motor_data(node, R: float | None = None, L: float | None = None) -> tuple[float, float]:
+    """Motor R [Ω] and L [H]: from the drive's motor data 0x2002 where it has it, else ``R``, ``L``."""
+    if 0x2002 in node.object_dictionary:
+        return float(node.sdo[0x2002][1].raw), float(node.sdo[0x2002][2].raw)
+    if R and L:
+        return R, L
+    raise UserError(f"node {node.id}: the drive does not report its motor R and L; give --motor-R and --motor-L")
 
 
 def tune_axis(axis: str, model: dict[str, float], R: float, L: float, before: dict[str, float]) -> AxisTuning:

@@ -11,7 +11,8 @@ dc0, dc1, position-periodic ripple) of the setpoint trajectory while it moves
 """
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
+from typing import Callable
 
 import numpy as np
 
@@ -40,9 +41,11 @@ class Run:
     trajectory: str
     axes: dict[str, AxisMetrics]
     aborted: str | None
+    motion: motion.Motion | None = field(default=None, repr=False)     # the logged run, for plots
 
     def as_dict(self) -> dict:
-        return asdict(self)
+        return {"scenario": self.scenario, "trajectory": self.trajectory, "aborted": self.aborted,
+                "axes": {a: asdict(m) for a, m in self.axes.items()}}
 
 
 def model_torque(p: dict[str, float], q: np.ndarray, period: float) -> np.ndarray:
@@ -87,10 +90,13 @@ def metrics(m: motion.Motion, model: dict[str, dict[str, float]], period: float,
 
 def validate(config: BusConfig, link, axes: dict[str, AxisLink], profile: Profile,
              scenarios: dict[str, dict[str, dict[str, float]]],
-             model: dict[str, dict[str, float]]) -> list[Run]:
+             model: dict[str, dict[str, float]], *,
+             on_plan: Callable[[motion.Plan], Callable[[int], None] | None] | None = None) -> list[Run]:
     """Run every scenario (name -> axis -> parameter values) on both reference trajectories.
 
-    ``model`` (axis -> J, c0, c1, ...) predicts the torque the metrics compare with.
+    ``model`` (axis -> J, c0, c1, ...) predicts the torque the metrics compare with; ``on_plan``
+    may return a progress callback for each run (as in ``record``).  Each parameter set is
+    written without storing it.
     """
     period = config.master.sync_period_s
     limits = {a: axes[a].cfg.limits for a in axes}
@@ -102,10 +108,11 @@ def validate(config: BusConfig, link, axes: dict[str, AxisLink], profile: Profil
             res = write_parameters(axes[a].node, profile, v, store=False)
             if not res.ok:
                 raise RuntimeError(f"scenario {name}, axis {a}: {res.error}")
-        for traj, demand, marks in (("point_to_point", ptp, moves), ("path", path, None)):
-            m = motion.run(config, link, axes, demand)
+        for traj, demand, marks, level in (("point_to_point", ptp, moves, trajectories.PTP_LEVEL),
+                                           ("path", path, None, trajectories.PATH_LEVEL)):
+            m = motion.run(config, link, axes, demand, on_plan=on_plan, kind=traj, level=level)
             runs.append(Run(name, traj, metrics(m, model, period, marks),
-                            None if m.aborted is None else str(m.aborted)))
+                            None if m.aborted is None else str(m.aborted), m))
             if m.aborted is not None:
                 for ax in axes.values():              # the next run starts from a clean state machine
                     ax.drive.reset_fault()

@@ -1,0 +1,173 @@
+"""Running the commissioning steps in order: resume, subsets, failures, summary and report.
+
+The run directory holds ``state.json`` (steps completed, their durations, the failure if
+any). A rerun with the same directory resumes after the last completed step unless
+``restart``; ``steps`` runs a subset. Whatever happens, ``summary.json`` and ``report.html``
+are written from what is on disk, and the result carries the exit code: 0 only when every
+step succeeded, 2 a user mistake, 3 a bus or drive problem, 4 motion stopped (fault or
+Ctrl-C, axes quick-stopped), 130 interrupted outside motion, 1 an internal error (its
+traceback in ``error.log``).
+"""
+from __future__ import annotations
+
+import json
+import shutil
+import time
+import traceback
+from contextlib import ExitStack
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..config import BusConfig
+from ..errors import MotionAborted, UserError
+from ..params.profile import load_profile
+from ..progress import StepReporter
+from . import steps as S
+from .report import write_report
+from .summary import build_summary
+
+STEPS = tuple(S.STEP_FUNCTIONS)
+STATE = "state.json"
+SUMMARY = "summary.json"
+REPORT = "report.html"
+ERROR_LOG = "error.log"
+WHAT = {"scan": "find the configured drives on the bus",
+        "bringup": "configure the drives, read their parameters as they are",
+        "campaign": "excitation campaign, every axis (the robot moves)",
+        "identify": "J, c0, c1 and residual tracing",
+        "tune": "gains from the identified models, margins",
+        "write": "transactional write: backup, write, verify, store",
+        "validate": "reference trajectories, before vs after (the robot moves)"}
+
+
+@dataclass
+class Options:
+    """How to reach the drives and what to run with: ``sim`` (``realtime``, ``sim_config``) for
+    the simulated robot, the drive ``profile``, ``motor`` (R [Ω], L [H]) for drives that do not
+    report it, the ``seed`` of the evolutionary fits."""
+
+    sim: bool = False
+    realtime: bool = False
+    sim_config: str | None = None
+    profile: str = "drive_bridge_servo"
+    motor: tuple[float, float] | None = None
+    seed: int = 0
+
+
+@dataclass
+class CommissionResult:
+    status: str                       # "ok" or "failed"
+    exit_code: int
+    failed_step: str | None
+    reason: str | None
+    ran: list[str]
+    out: Path
+    summary: dict = field(repr=False)
+
+    @property
+    def ok(self) -> bool:
+        return self.status == "ok"
+
+
+def _state(out: Path, config: BusConfig, restart: bool) -> dict:
+    path = out / STATE
+    fresh = {"config": str(config.path.resolve()), "completed": [], "durations_s": {}, "failed": None}
+    if restart or not path.exists():
+        return fresh
+    try:
+        state = json.loads(path.read_text())
+        state["completed"], state["durations_s"]
+    except (ValueError, KeyError, TypeError):
+        raise UserError(f"{path}: unreadable; use --restart to start over") from None
+    if state.get("config") != fresh["config"]:
+        raise UserError(f"{out} holds a run with {state.get('config')}, not {fresh['config']}; "
+                        f"use --restart to start over there, or another --out")
+    return state
+
+
+def _clear(out: Path) -> None:
+    """Remove a previous run's outputs (only the names this tool writes)."""
+    for name in [*S.OUTPUT.values(), STATE, SUMMARY, REPORT, ERROR_LOG]:
+        p = out / name
+        if p.is_dir():
+            shutil.rmtree(p)
+        elif p.exists():
+            p.unlink()
+
+
+def commission(config: BusConfig, out: str | Path, options: Options | None = None, *,
+               steps: list[str] | None = None, restart: bool = False,
+               reporter: StepReporter | None = None) -> CommissionResult:
+    """Run the commissioning steps of ``config`` with every output in ``out``.
+
+    ``steps`` (names from :data:`STEPS`) runs only those, in pipeline order; without it the
+    run resumes after the last completed step recorded in ``out``.  Never raises for a
+    problem on the bus or in the data: the result says which step failed and why.
+    """
+    options = options or Options()
+    out = Path(out)
+    unknown = [s for s in steps or [] if s not in STEPS]
+    if unknown:
+        raise UserError(f"--steps: unknown step {', '.join(unknown)} (steps: {', '.join(STEPS)})")
+    if restart:
+        _clear(out)
+    out.mkdir(parents=True, exist_ok=True)
+    state = _state(out, config, restart)
+    if steps is not None:
+        todo = [s for s in STEPS if s in steps]
+    else:
+        done = [STEPS.index(s) for s in state["completed"] if s in STEPS]
+        todo = list(STEPS[max(done) + 1:]) if done else list(STEPS)
+    reporter = reporter or StepReporter(list(STEPS))
+    if not todo:
+        reporter.note(f"every step is already completed in {out}; --restart to commission again")
+    state["failed"] = None
+    exit_code, failure = 0, None
+    profile = load_profile(options.profile)
+    with ExitStack() as stack:
+        ctx = S.Context(config, out, options, profile, stack, reporter)
+        for step in todo:
+            reporter.start(step, WHAT[step])
+            t0 = time.perf_counter()
+            try:
+                line = S.STEP_FUNCTIONS[step](ctx)
+            except (Exception, KeyboardInterrupt) as exc:      # every failure ends the run with a report
+                exit_code, reason = _failure(exc, out)
+                failure = {"step": step, "reason": reason}
+                state["failed"] = failure
+                state["durations_s"][step] = time.perf_counter() - t0
+                reporter.failed(step, state["durations_s"][step], reason)
+                _save(out, state)
+                break
+            state["durations_s"][step] = time.perf_counter() - t0
+            state["completed"] = [s for s in STEPS if s in state["completed"] or s == step]
+            _save(out, state)
+            reporter.done(step, state["durations_s"][step], line)
+    summary = build_summary(out, state, config, options)
+    (out / SUMMARY).write_text(json.dumps(summary, indent=1, default=float))
+    write_report(out, summary)
+    if failure is not None:
+        last = state["completed"][-1] if state["completed"] else None
+        reporter.note(f"stopped in step {failure['step']}. Everything recorded so far is in {out}; "
+                      f"run the same command again to resume "
+                      + (f"after {last}" if last else "from the start") + " (--restart to start over).")
+    reporter.note(f"summary: {out / SUMMARY}; report: {out / REPORT}")
+    return CommissionResult(summary["status"], exit_code, failure and failure["step"],
+                            failure and failure["reason"], todo, out, summary)
+
+
+def _failure(exc: BaseException, out: Path) -> tuple[int, str]:
+    if isinstance(exc, MotionAborted):
+        return exc.exit_code, f"motion stopped: {exc}; every axis was quick-stopped"
+    if isinstance(exc, UserError):
+        return exc.exit_code, str(exc)
+    if isinstance(exc, KeyboardInterrupt):
+        return 130, "interrupted by the user (Ctrl-C)"
+    (out / ERROR_LOG).write_text("".join(traceback.format_exception(exc)))
+    return 1, f"internal error {type(exc).__name__}: {exc} (traceback in {out / ERROR_LOG})"
+
+
+def _save(out: Path, state: dict) -> None:
+    tmp = out / (STATE + ".tmp")
+    tmp.write_text(json.dumps(state, indent=1))
+    tmp.replace(out / STATE)

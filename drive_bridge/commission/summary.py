@@ -1,0 +1,107 @@
+"""``summary.json``: what a pipeline reads after ``commission``, built from the run directory.
+
+Top level: ``status`` (``ok``: every step completed; ``failed``: ``failed`` names the step
+and reason; ``partial``: a subset ran and succeeded), ``steps`` with durations [s],
+``versions``.  Per axis: the identified parameters and effects (the fields of
+``identify --json``; its ``validation`` is ``identify_validation`` here), the paper's values beside them, gains before/after with their
+margins, validation following error RMS [rad] before/after per trajectory, model torque
+RMSE [Nm], and every object written with ``verified``.
+"""
+from __future__ import annotations
+
+import json
+import platform
+from importlib import metadata
+from pathlib import Path
+
+from .. import __version__
+from ..config import BusConfig
+from ..paper import TABLE_II
+from . import steps as S
+
+PACKAGES = ("python-can", "canopen", "numpy", "scipy", "control", "matplotlib", "numba", "PyYAML")
+IDENTIFY_FIELDS = ("units", "params", "param_std", "effects", "rmse_before", "rmse_after", "torque_rms",
+                   "noise_floor", "relative_error_before", "relative_error_after", "unexplained", "ga")
+
+
+def versions() -> dict[str, str]:
+    out = {"drive-bridge": __version__, "python": platform.python_version()}
+    for name in PACKAGES:
+        try:
+            out[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            out[name] = "not installed"
+    return out
+
+
+def _load(out: Path, name: str) -> dict | None:
+    try:
+        return json.loads((out / name).read_text())
+    except (OSError, ValueError):
+        return None
+
+
+def _paper(axis: str, params: dict) -> dict | None:
+    if axis not in TABLE_II:
+        return None
+    return {k: {"paper": v, "identified": params.get(k), "deviation_pct":
+                None if params.get(k) is None else (params[k] - v) / v * 100}
+            for k, v in TABLE_II[axis].items()}
+
+
+def _validation(runs: list[dict], axis: str) -> dict:
+    by = {(r["scenario"], r["trajectory"]): r for r in runs if axis in r["axes"]}
+    out = {}
+    for traj in ("point_to_point", "path"):
+        b, a = by.get(("before", traj)), by.get(("after", traj))
+        if a is None:
+            continue
+        ma, mb = a["axes"][axis], b and b["axes"][axis]
+        out[traj] = {"fe_rms_before": mb and mb["fe_rms"], "fe_rms_after": ma["fe_rms"],
+                     "improvement": (mb["fe_rms"] / ma["fe_rms"]) if mb and ma["fe_rms"] else None,
+                     "fe_max_before": mb and mb["fe_max"], "fe_max_after": ma["fe_max"],
+                     "overshoot_pct_after": ma["overshoot_pct"], "settling_s_after": ma["settling_s"],
+                     "torque_rmse_before": mb and mb["torque_rmse"], "torque_rmse_after": ma["torque_rmse"],
+                     "aborted": a["aborted"] or (b and b["aborted"])}
+    return out
+
+
+def _written(w: dict) -> list[dict]:
+    return [{"parameter": o["parameter"], "object": f"0x{o['index']:04X}:{o['sub']}", "unit": o["unit"],
+             "old": o["old_si"], "new": o["new_si"], "old_device": o["old_device"],
+             "new_device": o["new_device"], "verified": o["verified"]} for o in w["objects"]]
+
+
+def build_summary(out: Path, state: dict, config: BusConfig, options) -> dict:
+    failed = state.get("failed")
+    completed = state["completed"]
+    steps = [{"name": s, "status": "failed" if failed and failed["step"] == s else
+              ("done" if s in completed else "not run"), "duration_s": state["durations_s"].get(s)}
+             for s in S.STEP_FUNCTIONS]
+    status = "failed" if failed else ("ok" if all(s in completed for s in S.STEP_FUNCTIONS) else "partial")
+    ident = (_load(out, S.IDENTIFY_JSON) or {}).get("axes", {})
+    tune = (_load(out, S.OUTPUT["tune"]) or {}).get("axes", {})
+    write = (_load(out, S.WRITE_JSON) or {}).get("axes", {})
+    runs = (_load(out, S.VALIDATE_JSON) or {}).get("runs", [])
+    axes = {}
+    for a in config.nodes:
+        entry: dict = {}
+        if a in ident:
+            entry.update({k: ident[a].get(k) for k in IDENTIFY_FIELDS})
+            entry["identify_validation"] = ident[a].get("validation")
+            entry["paper"] = _paper(a, ident[a]["params"])
+        if a in tune:
+            t = tune[a]
+            entry.update({"gains_before": t["gains_before"], "gains_after": t["gains"], "margins": t["margins"],
+                          "margins_before": t["margins_before"], "parameters_written": t["parameters"]})
+        if runs:
+            entry["validation"] = _validation(runs, a)
+        if a in write:
+            entry["written"] = _written(write[a])
+            entry["unsupported"] = write[a]["unsupported"]
+            entry["stored"] = write[a]["stored"]
+        axes[a] = entry
+    return {"status": status, "failed": failed, "steps": steps,
+            "duration_s": sum(s["duration_s"] or 0.0 for s in steps),
+            "versions": versions(), "config": str(config.path), "simulated": options.sim,
+            "profile": options.profile, "out": str(out), "axes": axes}
