@@ -97,12 +97,14 @@ def _clear(out: Path) -> None:
 
 def commission(config: BusConfig, out: str | Path, options: Options | None = None, *,
                steps: list[str] | None = None, restart: bool = False,
-               reporter: StepReporter | None = None) -> CommissionResult:
+               reporter: StepReporter | None = None, link=None) -> CommissionResult:
     """Run the commissioning steps of ``config`` with every output in ``out``.
 
     ``steps`` (names from :data:`STEPS`) runs only those, in pipeline order; without it the
-    run resumes after the last completed step recorded in ``out``.  Never raises for a
-    problem on the bus or in the data: the result says which step failed and why.
+    run resumes after the last completed step recorded in ``out``.  ``link`` is an open link
+    to use (default: open the configured bus, or the simulated robot with ``options.sim``).
+    Never raises for a problem on the bus or in the data: the result says which step failed
+    and why.
     """
     options = options or Options()
     out = Path(out)
@@ -125,7 +127,7 @@ def commission(config: BusConfig, out: str | Path, options: Options | None = Non
     exit_code, failure = 0, None
     profile = load_profile(options.profile)
     with ExitStack() as stack:
-        ctx = S.Context(config, out, options, profile, stack, reporter)
+        ctx = S.Context(config, out, options, profile, stack, reporter, link)
         for step in todo:
             reporter.start(step, WHAT[step])
             t0 = time.perf_counter()

@@ -31,10 +31,10 @@ class Context:
     brought-up drives, opened on first use and closed with ``stack``."""
 
     def __init__(self, config: BusConfig, out: Path, options, profile: Profile, stack: ExitStack,
-                 reporter: StepReporter):
+                 reporter: StepReporter, link=None):
         self.config, self.out, self.options, self.profile = config, out, options, profile
         self.stack, self.reporter = stack, reporter
-        self._link = self._axes = None
+        self._link, self._axes = link, None
 
     @property
     def link(self):

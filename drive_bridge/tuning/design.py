@@ -99,28 +99,34 @@ def loop_margins(J, c1, gains: dict[str, float], R: float, L: float) -> tuple[Ma
             _margins(position_open_loop(J, c1, gains["KpS"], gains["KiS"], gains["KpP"], w_i)))
 
 
+def _largest(margins_of, lo: float, hi: float, pm_min: float, what: str) -> tuple[float, Margins]:
+    """The largest x in [lo, hi] whose margins hold (they shrink as x grows), by bisection on
+    log x to 0.1 %."""
+    def ok(x):
+        m = margins_of(x)
+        return m if m.phase_margin_deg >= pm_min and m.gain_margin_db >= GM_DESIGN_DB else None
+    best = ok(lo)
+    if best is None:
+        raise ValueError(f"no {what} gain meets the margins on this plant")
+    while hi / lo > 1.001:
+        mid = float(np.sqrt(lo * hi))
+        m = ok(mid)
+        if m is not None:
+            lo, best = mid, m
+        else:
+            hi = mid
+    return lo, best
+
+
 def design_gains(J: float, c1: float, R: float, L: float) -> GainDesign:
     """Gains for the plant J [kg·m²], c1 [Nm·s/rad] and motor R [Ω], L [H]."""
     if not J > 0:
         raise ValueError(f"J must be positive to design a velocity loop, got {J}")
     KpC, KiC, w_i = current_gains(R, L)
-    best = None
-    for wc in np.geomspace(20.0, np.pi / LOOP_TICK_S, 200):      # velocity crossover, up to Nyquist
-        KpS, KiS = J * wc, wc / INTEGRAL_RATIO
-        m = _margins(velocity_open_loop(J, c1, KpS, KiS, w_i))
-        if not (m.phase_margin_deg >= PM_DESIGN_DEG and m.gain_margin_db >= GM_DESIGN_DB):
-            break                                                # margins only shrink from here
-        best = (KpS, KiS, m)
-    if best is None:
-        raise ValueError("no velocity gain meets the margins on this plant")
-    KpS, KiS, vm = best
-    pbest = None
-    for KpP in np.geomspace(1.0, np.pi / LOOP_TICK_S, 200):
-        m = _margins(position_open_loop(J, c1, KpS, KiS, KpP, w_i))
-        if not (m.phase_margin_deg >= PM_DESIGN_DEG + 5 and m.gain_margin_db >= GM_DESIGN_DB):
-            break
-        pbest = (KpP, m)
-    if pbest is None:
-        raise ValueError("no position gain meets the margins on this plant")
-    KpP, pm = pbest
+    nyquist = np.pi / LOOP_TICK_S
+    wc, vm = _largest(lambda w: _margins(velocity_open_loop(J, c1, J * w, w / INTEGRAL_RATIO, w_i)),
+                      20.0, nyquist, PM_DESIGN_DEG, "velocity")           # the velocity-loop crossover
+    KpS, KiS = J * wc, wc / INTEGRAL_RATIO
+    KpP, pm = _largest(lambda k: _margins(position_open_loop(J, c1, KpS, KiS, k, w_i)),
+                       1.0, nyquist, PM_DESIGN_DEG + 5, "position")
     return GainDesign(float(KpP), 1.0, float(KpS), float(KiS), float(KpC), float(KiC), vm, pm)

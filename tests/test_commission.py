@@ -1,0 +1,178 @@
+"""``drive-bridge commission`` end to end on the simulated robot (lockstep, short campaign):
+summary.json, report.html, resume, --steps, and the failure paths."""
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+import yaml
+
+from conftest import BUS_CONFIG, PAPER, ROOT
+from drive_bridge.cli import main, open_link
+from drive_bridge.commission import STEPS, Options, commission
+from drive_bridge.config import load_bus_config
+from drive_bridge.progress import StepReporter
+from drive_bridge.sim import kernel as K
+from drive_bridge.sim.config import DEFAULT_CONFIG, load_sim_config
+
+SIM = load_sim_config(DEFAULT_CONFIG)          # the shipped robot, hidden effects on
+SHORT_CAMPAIGN = {"velocity_levels": [0.4, 0.8], "acceleration_levels": [0.4, 0.8], "cycles": 3,
+                  "max_axis_time_s": 20}
+
+
+def short_config(tmp: Path) -> Path:
+    """The shipped bus.yml with a short campaign (about 86 s of motion for the three axes)."""
+    doc = yaml.safe_load(BUS_CONFIG.read_text())
+    doc["defaults"]["dcf"] = str(ROOT / "eds" / "drive_bridge_servo.eds")
+    doc["campaign"].update(SHORT_CAMPAIGN)
+    path = tmp / "bus.yml"
+    path.write_text(yaml.safe_dump(doc))
+    return path
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory):
+    """One commissioning in two invocations: the first four steps, then a plain rerun that resumes."""
+    tmp = tmp_path_factory.mktemp("commission")
+    cfg, out = short_config(tmp), tmp / "run"
+    args = ["commission", "--sim", "--config", str(cfg), "--out", str(out)]
+    first = main(args + ["--steps", "scan,bringup,campaign,identify"])
+    partial = json.loads((out / "summary.json").read_text())
+    second = main(args)
+    return {"cfg": cfg, "out": out, "codes": (first, second), "partial": partial,
+            "summary": json.loads((out / "summary.json").read_text())}
+
+
+def test_a_subset_then_a_rerun_resumes_after_the_last_completed_step(run):
+    assert run["codes"] == (0, 0)
+    p = run["partial"]
+    assert p["status"] == "partial" and p["failed"] is None
+    assert [s["status"] for s in p["steps"]] == ["done"] * 4 + ["not run"] * 3
+    s = run["summary"]
+    assert s["status"] == "ok" and all(st["status"] == "done" for st in s["steps"])
+    # the rerun did not move the robot again: the campaign's duration is the first run's
+    assert s["steps"][2]["duration_s"] == p["steps"][2]["duration_s"]
+    assert all(st["duration_s"] > 0 for st in s["steps"])
+    assert s["versions"]["drive-bridge"] and s["versions"]["canopen"] and s["versions"]["python-can"]
+
+
+def test_summary_traces_the_hidden_effects_and_finds_the_plant(run):
+    axes = run["summary"]["axes"]
+    effects = {a: [e["name"] for e in v["effects"]] for a, v in axes.items()}
+    assert effects["x"] == ["position_periodic"]
+    assert "offset" in effects["y"] and "position_linear" in effects["y"] and "direction_asymmetry" in effects["y"]
+    assert effects["z"] == ["offset"]
+    ripple = SIM.axes["x"].effects["position_periodic"]
+    assert axes["x"]["params"]["position_periodic.period"] == pytest.approx(ripple["PER_PERIOD"], rel=0.01)
+    assert axes["z"]["params"]["offset.offset"] == pytest.approx(SIM.axes["z"].effects["load"]["LOAD"], rel=0.05)
+    for a in ("y", "z"):
+        for k in ("J", "c0", "c1"):
+            assert axes[a]["params"][k] == pytest.approx(PAPER[a][k], rel=0.05), (a, k)
+    assert axes["x"]["params"]["c0"] == pytest.approx(PAPER["x"]["c0"], rel=0.05)
+    assert axes["x"]["params"]["J"] == pytest.approx(PAPER["x"]["J"], rel=0.25)   # slow belt axis: little inertia torque
+    for a, v in axes.items():
+        assert v["rmse_after"] < v["rmse_before"] / 5                # the traced effects explain the residual
+        assert set(v["paper"]) == {"J", "c0", "c1"} and all(e["evidence"] for e in v["effects"])
+
+
+def test_gains_written_verified_and_validation_improved(run):
+    for a, v in run["summary"]["axes"].items():
+        assert v["gains_before"]["KpS"] == pytest.approx(0.12)          # the factory set, read at bring-up
+        assert v["gains_after"]["KpS"] != pytest.approx(0.12)
+        assert v["margins"]["velocity"]["phase_margin_deg"] >= 45 and v["margins"]["velocity"]["gain_margin_db"] >= 8
+        written = {w["parameter"]: w for w in v["written"]}
+        assert {"KpP", "KpS", "KiS", "FwF", "J", "c0", "c1", "ff_enable"} <= set(written)
+        assert all(w["verified"] for w in v["written"]) and v["stored"]
+        assert written["J"]["new"] == pytest.approx(v["params"]["J"], rel=1e-6)
+        for traj in ("point_to_point", "path"):
+            val = v["validation"][traj]
+            assert val["fe_rms_after"] < val["fe_rms_before"] / 5, (a, traj, val)
+            assert val["torque_rmse_after"] < 0.05
+    assert (run["out"] / "write" / "x.dcf").exists() and (run["out"] / "write" / "x_backup.json").exists()
+
+
+def test_report_is_one_self_contained_page(run):
+    html = (run["out"] / "report.html").read_text()
+    assert "<b>OK</b>" in html and html.count("data:image/png;base64,") >= 3 * 3
+    for a in ("x", "y", "z"):
+        assert f"<h2>Axis {a}</h2>" in html
+    for text in ("position_periodic", "Objects written", "verified", "Table II", "PM after"):
+        assert text in html
+    assert "src=\"http" not in html and "<link" not in html          # nothing fetched from elsewhere
+
+
+def test_a_complete_run_is_not_repeated_and_restart_starts_over(run, tmp_path, capsys):
+    out = tmp_path / "run"
+    shutil.copytree(run["out"], out)
+    args = ["commission", "--sim", "--config", str(run["cfg"]), "--out", str(out)]
+    assert main(args) == 0
+    assert "already completed" in capsys.readouterr().err
+    assert main(args + ["--steps", "tune", "--restart"]) == 2          # tune needs identify's output
+    err = capsys.readouterr().err
+    assert "identify.json is missing: run the identify step first" in err
+    assert not (out / "campaign").exists()
+
+
+# ---------------------------------------------------------------- failures
+def _prepared(run, tmp_path) -> Path:
+    """A run directory with everything up to tune done (copied from the module's run)."""
+    out = tmp_path / "run"
+    out.mkdir()
+    for name in ("scan.json", "bringup.json", "tune.json"):
+        shutil.copy(run["out"] / name, out / name)
+    (out / "state.json").write_text(json.dumps({"config": str(run["cfg"].resolve()), "failed": None,
+                                                "completed": ["scan", "bringup", "campaign", "identify", "tune"],
+                                                "durations_s": {}}))
+    return out
+
+
+def test_a_refused_write_restores_every_drive_and_stores_nothing(run, tmp_path):
+    out = _prepared(run, tmp_path)
+    config = load_bus_config(run["cfg"])
+    with open_link(config, sim=True) as link:
+        drives = link.robot.drives
+        drives["z"].abort_writes[(0x2001, 4)] = 0x06090030            # z refuses c1
+        saved = {a: d._saved for a, d in drives.items()}
+        result = commission(config, out, Options(sim=True), link=link)
+        assert result.exit_code == 3 and result.failed_step == "write"
+        assert "axis z" in result.reason and "0x2001:4" in result.reason and "restored" in result.reason
+        for a, d in drives.items():
+            assert d._saved is saved[a]                                  # no 'save' reached any drive
+            assert d.p[K.KPS] == pytest.approx(0.12) and d.p[K.FF_EN] == 0.0    # the backup, FF off
+    s = result.summary
+    assert s["status"] == "failed" and s["failed"]["step"] == "write"
+    assert [st["status"] for st in s["steps"]][5:] == ["failed", "not run"]
+    assert not any(w["verified"] for a in s["axes"].values() for w in a.get("written", []))
+    assert "FAILED" in (out / "report.html").read_text()
+
+
+class _Interrupting(StepReporter):
+    """Ctrl-C at the 300th SYNC of the first motion."""
+
+    def motion(self, plan):
+        bar = super().motion(plan)
+
+        def progress(k):
+            bar(k)
+            if k >= 300:
+                raise KeyboardInterrupt
+        return progress
+
+
+def test_ctrl_c_during_the_campaign_stops_safely_and_resume_picks_up_there(run, tmp_path, capsys):
+    out = tmp_path / "run"
+    config = load_bus_config(run["cfg"]).only(["y"])
+    with open_link(config, sim=True) as link:
+        result = commission(config, out, Options(sim=True), link=link, reporter=_Interrupting(list(STEPS)))
+        drive = link.robot.drives["y"]
+        link.clock.sleep(0.01)
+        assert drive.s[1] == 0.0 and drive.state in (1, 7)              # standing still, disabled
+    assert result.exit_code == 4 and result.failed_step == "campaign" and "Ctrl-C" in result.reason
+    assert (out / "campaign" / "log.csv").stat().st_size > 1000          # the data so far is kept
+    assert yaml.safe_load((out / "campaign" / "meta.yaml").read_text())["status"] == "aborted"
+    err = capsys.readouterr().err
+    assert "run the same command again to resume after bringup" in err
+    state = json.loads((out / "state.json").read_text())
+    assert state["completed"] == ["scan", "bringup"]

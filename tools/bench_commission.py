@@ -1,0 +1,38 @@
+"""Benchmark: wall time of ``drive-bridge commission --sim`` with the full paper campaign
+(25 cycles or 300 s per axis), as a new process, the way a user runs it.
+
+    python tools/bench_commission.py [--runs 3]
+
+Prints each run's wall time and the steps' durations from its summary.json; target 60 s.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+
+def main(runs: int) -> None:
+    walls = []
+    for i in range(runs):
+        with tempfile.TemporaryDirectory() as tmp:
+            out = Path(tmp) / "run"
+            t0 = time.perf_counter()
+            subprocess.run([sys.executable, "-m", "drive_bridge", "commission", "--sim", "--out", str(out)],
+                           check=True, stderr=subprocess.DEVNULL)
+            wall = time.perf_counter() - t0
+            summary = json.loads((out / "summary.json").read_text())
+        walls.append(wall)
+        steps = ", ".join(f"{s['name']} {s['duration_s']:.1f}" for s in summary["steps"])
+        print(f"run {i + 1}: {wall:.1f} s wall ({summary['status']}); steps [s]: {steps}")
+    print(f"wall time: min {min(walls):.1f} s, max {max(walls):.1f} s (target 60 s)")
+
+
+if __name__ == "__main__":
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--runs", type=int, default=3)
+    main(parser.parse_args().runs)
