@@ -8,46 +8,15 @@ from __future__ import annotations
 
 import argparse
 import sys
-from contextlib import contextmanager
 from dataclasses import replace
 from pathlib import Path
 
 from . import __version__
 from .config import load_bus_config
+from .connect import open_link
 from .errors import MotionAborted, UserError
 
 DEFAULT_CONFIG = Path(__file__).resolve().parents[1] / "config" / "bus.yml"
-
-
-@contextmanager
-def open_link(config, sim: bool, realtime: bool = False, sim_config: str | None = None):
-    """The link the master talks through: the configured bus, or the simulated robot."""
-    if not sim:
-        from .master.link import BusLink
-        try:
-            link = BusLink.open(config.master.interface, config.master.channel, config.master.bitrate)
-        except Exception as exc:       # python-can raises many kinds for a missing interface
-            raise UserError(f"{config.path}: cannot open bus {config.master.interface}:"
-                            f"{config.master.channel} ({exc})") from None
-    else:
-        from .sim.config import DEFAULT_CONFIG as SIM_DEFAULT, load_sim_config
-        robot_cfg = load_sim_config(sim_config or SIM_DEFAULT)      # errors show here, not in the child
-        if realtime:
-            from .master.link import BusLink
-            from .sim.process import SimProcess
-            drives = SimProcess(sim_config or SIM_DEFAULT, config.master.sync_period_s)
-            link = BusLink(drives.bus)
-            link.on_close.append(drives.shutdown)
-        else:
-            from .sim.lockstep import LockstepLink
-            from .sim.robot import SimRobot
-            channel = f"{config.master.channel}-sim"          # closed again below, so reusable
-            robot = SimRobot(robot_cfg, channel, sync_period=config.master.sync_period_s)
-            link = LockstepLink(robot, channel)
-    try:
-        yield link
-    finally:
-        link.close()
 
 
 def _load(args):

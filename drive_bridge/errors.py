@@ -40,3 +40,10 @@ class MotionAborted(Exception):
         super().__init__(f"axis {axis}: {reason}" if axis else reason)
         self.reason = reason
         self.axis = axis
+
+
+class Interrupted(MotionAborted):
+    """Motion stopped because the user pressed Ctrl-C."""
+
+    def __init__(self, detail: str = ""):
+        super().__init__("interrupted by the user (Ctrl-C)" + (f"; {detail}" if detail else ""))

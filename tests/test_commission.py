@@ -10,7 +10,8 @@ import pytest
 import yaml
 
 from conftest import BUS_CONFIG, PAPER, ROOT
-from drive_bridge.cli import main, open_link
+from drive_bridge.cli import main
+from drive_bridge.connect import open_link
 from drive_bridge.commission import STEPS, Options, commission
 from drive_bridge.config import load_bus_config
 from drive_bridge.progress import StepReporter

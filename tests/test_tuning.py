@@ -9,7 +9,8 @@ import canopen
 import pytest
 
 from conftest import BUS_CONFIG, PAPER, clean_config
-from drive_bridge.cli import main, open_link
+from drive_bridge.cli import main
+from drive_bridge.connect import open_link
 from drive_bridge.config import load_bus_config
 from drive_bridge.master.bringup import bring_up
 from drive_bridge.params.profile import available, load_profile, vendor_dir

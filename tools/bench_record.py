@@ -22,7 +22,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from drive_bridge.cli import open_link                   # noqa: E402
+from drive_bridge.connect import open_link                 # noqa: E402
 from drive_bridge.config import load_bus_config          # noqa: E402
 from drive_bridge.record import record                   # noqa: E402
 

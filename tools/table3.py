@@ -18,7 +18,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from drive_bridge.cli import open_link                             # noqa: E402
+from drive_bridge.connect import open_link                           # noqa: E402
 from drive_bridge.config import load_bus_config                     # noqa: E402
 from drive_bridge.ident import identify                             # noqa: E402
 from drive_bridge.master.bringup import bring_up                    # noqa: E402

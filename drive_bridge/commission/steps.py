@@ -10,10 +10,11 @@ from pathlib import Path
 import numpy as np
 
 from ..config import BusConfig
+from ..connect import open_link
 from ..errors import BusError, MotionAborted, UserError
 from ..master.bringup import bring_up, check_scan, scan as scan_bus
 from ..params.profile import Profile
-from ..params.write import export_dcf, read_parameters, write_all
+from ..params.write import export_dcf, read_parameters, write_all, write_parameters
 from ..progress import StepReporter
 from ..tuning.tune import GAINS, MODEL_KEYS, motor_data, read_identify_json, read_tune_json, tune_axis
 
@@ -39,7 +40,6 @@ class Context:
     @property
     def link(self):
         if self._link is None:
-            from ..cli import open_link
             o = self.options
             self._link = self.stack.enter_context(open_link(self.config, o.sim, o.realtime, o.sim_config))
         return self._link
@@ -164,11 +164,14 @@ def validate(ctx: Context) -> str:
     scenarios = {"before": {a: before[a] for a in params}, "after": params}
     model = {a: {k: v for k, v in p.items() if k in MODEL_KEYS.values()} for a, p in params.items()}
     axes = {a: ctx.axes[a] for a in params}
+    written = (ctx.out / WRITE_JSON).exists() and ctx.read_json(WRITE_JSON)["ok"]
     try:
         runs = run_validation(ctx.config, ctx.link, axes, ctx.profile, scenarios, model,
                               on_plan=ctx.reporter.motion)
     finally:
         ctx.reporter.end_motion()
+        for a, ax in axes.items():         # leave the drives with the set they have stored
+            write_parameters(ax.node, ctx.profile, (params if written else before)[a], store=False)
     ctx.write_json(VALIDATE_JSON, {"runs": [r.as_dict() for r in runs]})
     traces = {}
     for r in runs:

@@ -14,7 +14,7 @@ from typing import Callable
 import canopen
 import numpy as np
 
-from ..errors import MotionAborted
+from ..errors import Interrupted, MotionAborted
 from .bringup import AxisLink, Codec, emcy_text
 from .campaign import Plan
 from .cia402 import CW_ENABLE, SW_FAULT, state_name
@@ -236,7 +236,7 @@ def stream(link, axes: dict[str, AxisLink], plan: Plan, *, heartbeat_timeout: fl
             for row in range(max(0, n - 1 - FEEDBACK_LAG), n):
                 aborted = aborted or _check_row(rec, row, axes, sw_cols, plan.axes, misses, miss_limit)
     except KeyboardInterrupt:
-        aborted = MotionAborted("interrupted by the user (Ctrl-C)")
+        aborted = Interrupted()
     except Exception as exc:          # a bus error mid-motion: still stop the axes
         aborted = MotionAborted(f"{type(exc).__name__}: {exc}")
     finally:
@@ -248,7 +248,8 @@ def stream(link, axes: dict[str, AxisLink], plan: Plan, *, heartbeat_timeout: fl
     if aborted is not None:
         problems = quick_stop(link, {a: axes[a] for a in plan.axes}, max(state_timeout, 2.0))
         if problems:
-            aborted = MotionAborted(aborted.reason + "; " + "; ".join(problems), aborted.axis)
+            aborted = (Interrupted("; ".join(problems)) if isinstance(aborted, Interrupted) else
+                       MotionAborted(aborted.reason + "; " + "; ".join(problems), aborted.axis))
     return StreamResult(rec, k, aborted, missing)
 
 

@@ -17,6 +17,8 @@ from typing import Callable
 import numpy as np
 
 from ..config import BusConfig
+from ..errors import Interrupted
+from ..master.campaign import Plan
 from ..master.bringup import AxisLink
 from ..params.profile import Profile
 from ..params.write import write_parameters
@@ -91,7 +93,7 @@ def metrics(m: motion.Motion, model: dict[str, dict[str, float]], period: float,
 def validate(config: BusConfig, link, axes: dict[str, AxisLink], profile: Profile,
              scenarios: dict[str, dict[str, dict[str, float]]],
              model: dict[str, dict[str, float]], *,
-             on_plan: Callable[[motion.Plan], Callable[[int], None] | None] | None = None) -> list[Run]:
+             on_plan: Callable[[Plan], Callable[[int], None] | None] | None = None) -> list[Run]:
     """Run every scenario (name -> axis -> parameter values) on both reference trajectories.
 
     ``model`` (axis -> J, c0, c1, ...) predicts the torque the metrics compare with; ``on_plan``
@@ -113,6 +115,8 @@ def validate(config: BusConfig, link, axes: dict[str, AxisLink], profile: Profil
             m = motion.run(config, link, axes, demand, on_plan=on_plan, kind=traj, level=level)
             runs.append(Run(name, traj, metrics(m, model, period, marks),
                             None if m.aborted is None else str(m.aborted), m))
+            if isinstance(m.aborted, Interrupted):
+                return runs                           # the user stopped: no further motion
             if m.aborted is not None:
                 for ax in axes.values():              # the next run starts from a clean state machine
                     ax.drive.reset_fault()
