@@ -214,12 +214,12 @@ def cmd_validate(args) -> int:
     from .master.bringup import bring_up
     from .params.profile import load_profile
     from .paper import TABLE_III
-    from .tuning.tune import MODEL_KEYS, read_tune_json
+    from .tuning.tune import drive_model, read_tune_json
     from .tuning.validate import validate
     config = _load(args)
     params = read_tune_json(args.params)
     names = [a for a in config.nodes if a in params]
-    model = {a: {k: v for k, v in params[a].items() if k in MODEL_KEYS.values()} for a in names}
+    model = {a: drive_model(params[a]) for a in names}
     scenarios = {n: {a: dict(g) for a in names} for n, g in TABLE_III.items()}
     scenarios["tuned + model feed-forward"] = {a: params[a] for a in names}
     profile = load_profile(args.profile)
@@ -302,13 +302,17 @@ def build_parser() -> argparse.ArgumentParser:
             p.add_argument("--params", required=True, help="tune result (tune.json)")
         p.add_argument("--json", action="store_true", help="print the result as one JSON object")
 
+    def motor_options(p):
+        """Motor data for drives that do not report it (tune and commission design the current loop)."""
+        p.add_argument("--motor-R", type=float, help="motor resistance [Ω] if the drive does not report it")
+        p.add_argument("--motor-L", type=float, help="motor inductance [H] if the drive does not report it")
+
     p = sub.add_parser("tune", help="design the cascade gains from identified models (margins with python-control)")
     drive_options(p, params=False)
     p.add_argument("--ident", required=True, help="identify --json output (identify.json)")
     p.add_argument("--out", default="tune.json", help="where to write the result (default: %(default)s)")
     p.add_argument("--experiment", action="store_true", help="also run the paper's gain-raising procedure on the drive")
-    p.add_argument("--motor-R", type=float, help="motor resistance [Ω] if the drive does not report it")
-    p.add_argument("--motor-L", type=float, help="motor inductance [H] if the drive does not report it")
+    motor_options(p)
     p.set_defaults(func=cmd_tune)
 
     p = sub.add_parser("write", help="write gains and model to the drives: backup, verify, then store")
@@ -331,8 +335,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--restart", action="store_true", help="start over: discard the previous run in --out")
     p.add_argument("--quick", action="store_true", help="a few seconds of campaign per axis (demo)")
     p.add_argument("--seed", type=int, default=0, help="seed of the evolutionary fits (default: 0)")
-    p.add_argument("--motor-R", type=float, help="motor resistance [Ω] if the drive does not report it")
-    p.add_argument("--motor-L", type=float, help="motor inductance [H] if the drive does not report it")
+    motor_options(p)
     p.set_defaults(func=cmd_commission)
 
     p = sub.add_parser("decode", help="rebuild log.csv from a raw CAN trace")

@@ -17,6 +17,7 @@ import numpy as np
 
 from . import steps as S
 
+REPORT = "report.html"
 UNITS = {"J": "kg·m²", "c0": "Nm", "c1": "Nm·s/rad", "offset": "Nm", "cp": "Nm/rad", "dc0": "Nm",
          "dc1": "Nm·s/rad", "amplitude": "Nm", "period": "rad", "phase": "rad"}
 CSS = """body{font-family:system-ui,sans-serif;max-width:1100px;margin:1.5em auto;padding:0 1em;color:#222}
@@ -161,12 +162,12 @@ def write_report(out: Path, summary: dict) -> Path:
     vers = ", ".join(f"{_e(k)} {_e(v)}" for k, v in summary["versions"].items())
     traces_path = out / S.TRACES
     traces = np.load(traces_path) if traces_path.exists() else None
-    body = [f"<h1>Commissioning report</h1>", banner,
+    body = ["<h1>Commissioning report</h1>", banner,
             f"<p>Bus configuration {_e(summary['config'])}{' (simulated robot)' if summary['simulated'] else ''}; "
             f"drive profile {_e(summary['profile'])}; run directory {_e(summary['out'])}.</p>", steps,
             *(_axis(out, a, v, traces) for a, v in summary["axes"].items() if v),
             f"<p class='evidence'>{vers}</p>"]
-    path = out / "report.html"
+    path = out / REPORT
     path.write_text(f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>drive-bridge commissioning"
                     f"</title><style>{CSS}</style></head><body>{''.join(body)}</body></html>", encoding="utf-8")
     return path

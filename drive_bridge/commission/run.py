@@ -23,13 +23,12 @@ from ..errors import MotionAborted, UserError
 from ..params.profile import load_profile
 from ..progress import StepReporter
 from . import steps as S
-from .report import write_report
+from .report import REPORT, write_report
 from .summary import build_summary
 
 STEPS = tuple(S.STEP_FUNCTIONS)
 STATE = "state.json"
 SUMMARY = "summary.json"
-REPORT = "report.html"
 ERROR_LOG = "error.log"
 WHAT = {"scan": "find the configured drives on the bus",
         "bringup": "configure the drives, read their parameters as they are",
@@ -56,7 +55,7 @@ class Options:
 
 @dataclass
 class CommissionResult:
-    status: str                       # "ok" or "failed"
+    status: str                       # "ok", "failed" or "partial" (a subset of the steps ran)
     exit_code: int
     failed_step: str | None
     reason: str | None

@@ -16,7 +16,7 @@ from ..master.bringup import bring_up, check_scan, scan as scan_bus
 from ..params.profile import Profile
 from ..params.write import export_dcf, read_parameters, write_all, write_parameters
 from ..progress import StepReporter
-from ..tuning.tune import GAINS, MODEL_KEYS, motor_data, read_identify_json, read_tune_json, tune_axis
+from ..tuning.tune import GAINS, drive_model, motor_data, read_identify_json, read_tune_json, tune_axis
 
 #: where each step keeps its output, relative to the run directory
 OUTPUT = {"scan": "scan.json", "bringup": "bringup.json", "campaign": "campaign", "identify": "identify",
@@ -162,7 +162,7 @@ def validate(ctx: Context) -> str:
     params = _tuned(ctx)
     before = {a: v["parameters_before"] for a, v in ctx.read_json(OUTPUT["bringup"])["axes"].items()}
     scenarios = {"before": {a: before[a] for a in params}, "after": params}
-    model = {a: {k: v for k, v in p.items() if k in MODEL_KEYS.values()} for a, p in params.items()}
+    model = {a: drive_model(p) for a, p in params.items()}
     axes = {a: ctx.axes[a] for a in params}
     written = (ctx.out / WRITE_JSON).exists() and ctx.read_json(WRITE_JSON)["ok"]
     try:

@@ -3,9 +3,10 @@
 Top level: ``status`` (``ok``: every step completed; ``failed``: ``failed`` names the step
 and reason; ``partial``: a subset ran and succeeded), ``steps`` with durations [s],
 ``versions``.  Per axis: the identified parameters and effects (the fields of
-``identify --json``; its ``validation`` is ``identify_validation`` here), the paper's values beside them, gains before/after with their
-margins, validation following error RMS [rad] before/after per trajectory, model torque
-RMSE [Nm], and every object written with ``verified``.
+``identify --json``; its ``validation`` is ``identify_validation`` here), the paper's
+values beside them, gains before/after with their margins, validation following error
+RMS [rad] before/after per trajectory, model torque RMSE [Nm], and every object written
+with ``verified``.
 """
 from __future__ import annotations
 

@@ -44,6 +44,11 @@ def model_from_identify(params: dict[str, float]) -> dict[str, float]:
     return {short: float(params[key]) for key, short in MODEL_KEYS.items() if key in params}
 
 
+def drive_model(parameters: dict[str, float]) -> dict[str, float]:
+    """The model part (J, c0, c1 and effect terms) of a parameter set to write."""
+    return {k: v for k, v in parameters.items() if k in MODEL_KEYS.values()}
+
+
 def read_identify_json(path: str | Path) -> dict[str, dict[str, float]]:
     path = Path(path)
     try:
