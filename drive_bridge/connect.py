@@ -2,26 +2,27 @@
 (``--sim``: the only place outside the tests that reaches into ``drive_bridge.sim``)."""
 from __future__ import annotations
 
+from collections.abc import Iterator
 from contextlib import contextmanager
 
+from .config import BusConfig
 from .errors import UserError
+from .master.link import BusLink, Link
 
 
 @contextmanager
-def open_link(config, sim: bool, realtime: bool = False, sim_config: str | None = None):
+def open_link(config: BusConfig, sim: bool, realtime: bool = False, sim_config: str | None = None) -> Iterator[Link]:
     """The link the master talks through: the configured bus, or the simulated robot."""
     if not sim:
-        from .master.link import BusLink
         try:
             link = BusLink.open(config.master.interface, config.master.channel, config.master.bitrate)
         except Exception as exc:       # python-can raises many kinds for a missing interface
             raise UserError(f"{config.path}: cannot open bus {config.master.interface}:"
-                            f"{config.master.channel} ({exc})") from None
+                            f"{config.master.channel} ({exc})") from exc
     else:
         from .sim.config import DEFAULT_CONFIG as SIM_DEFAULT, load_sim_config
         robot_cfg = load_sim_config(sim_config or SIM_DEFAULT)      # errors show here, not in the child
         if realtime:
-            from .master.link import BusLink
             from .sim.process import SimProcess
             drives = SimProcess(sim_config or SIM_DEFAULT, config.master.sync_period_s)
             link = BusLink(drives.bus)

@@ -1,14 +1,44 @@
-"""Exceptions that the CLI turns into one clear message and an exit code."""
+"""Errors by what they mean, and the one table from meaning to exit code.
+
+Every error the tool reports to a person is a :class:`DriveBridgeError`: its
+message is one line naming the file, key, axis or object and what to do, and
+its ``exit_code`` says how the command ended:
+
+=====  ==================  ===================================================
+code   kind                meaning
+=====  ==================  ===================================================
+0      ok                  everything asked for was done
+1      internal            a defect in drive-bridge (traceback kept in a log)
+2      user                bad configuration, argument or input file
+3      bus                 the bus or a drive does not answer, or refuses
+4      motion              motion stopped (fault, Ctrl-C): axes quick-stopped,
+                           data recorded so far kept
+130    interrupted         Ctrl-C outside motion
+=====  ==================  ===================================================
+"""
 from __future__ import annotations
 
+EXIT_CODES = {"ok": 0, "internal": 1, "user": 2, "bus": 3, "motion": 4, "interrupted": 130}
 
-class UserError(Exception):
-    """A mistake the user can fix: bad configuration, bad log, unknown node.
 
-    The CLI prints the message alone (no traceback) and exits with ``exit_code``.
-    """
+class DriveBridgeError(Exception):
+    """Base of every error drive-bridge reports as one message and an exit code."""
 
-    exit_code = 2
+    kind = "internal"
+
+    @property
+    def exit_code(self) -> int:
+        return EXIT_CODES[self.kind]
+
+
+class InternalError(DriveBridgeError):
+    """Something drive-bridge got wrong itself (never the user's or the drive's doing)."""
+
+
+class UserError(DriveBridgeError):
+    """A mistake the user can fix: bad configuration, bad argument, bad log, unknown node."""
+
+    kind = "user"
 
 
 class ConfigError(UserError):
@@ -22,19 +52,23 @@ class ConfigError(UserError):
         self.problem = problem
 
 
-class BusError(UserError):
-    """The bus or a node does not answer or answers wrongly."""
+class BusError(DriveBridgeError):
+    """The bus or a node does not answer, or answers wrongly."""
 
-    exit_code = 3
+    kind = "bus"
 
 
-class MotionAborted(Exception):
+class DriveRefused(BusError):
+    """A drive refused a value or a command (an SDO abort, a failed transaction)."""
+
+
+class MotionAborted(DriveBridgeError):
     """Motion was stopped by a fault or by the user; data up to the stop is kept.
 
     ``axis`` names the axis that caused the stop (None for Ctrl-C or a bus-wide cause).
     """
 
-    exit_code = 4
+    kind = "motion"
 
     def __init__(self, reason: str, axis: str | None = None):
         super().__init__(f"axis {axis}: {reason}" if axis else reason)
@@ -47,3 +81,12 @@ class Interrupted(MotionAborted):
 
     def __init__(self, detail: str = ""):
         super().__init__("interrupted by the user (Ctrl-C)" + (f"; {detail}" if detail else ""))
+
+
+def exit_code(exc: BaseException) -> int:
+    """The exit code a command ends with after ``exc`` (see the table above)."""
+    if isinstance(exc, DriveBridgeError):
+        return exc.exit_code
+    if isinstance(exc, KeyboardInterrupt):
+        return EXIT_CODES["interrupted"]
+    return EXIT_CODES["internal"]

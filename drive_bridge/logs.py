@@ -108,7 +108,7 @@ def decode_trace(trace: Path, meta_path: Path | None = None) -> tuple[list[str],
                         int(meta["counts"]["cycles_sent"]))
         scaling = {a: Scaling(**v["scaling"]) for a, v in axes.items()}
     except (KeyError, TypeError, ValueError) as exc:
-        raise UserError(f"{meta_path}: not a drive-bridge record meta.yaml (missing or bad {exc})") from None
+        raise UserError(f"{meta_path}: not a drive-bridge record meta.yaml (missing or bad {exc})") from exc
     handlers = rec.handlers()
     try:
         with can.LogReader(str(trace)) as reader:
@@ -120,7 +120,7 @@ def decode_trace(trace: Path, meta_path: Path | None = None) -> tuple[list[str],
                     if handler is not None:
                         handler(msg.arbitration_id, msg.data, msg.timestamp)
     except (ValueError, struct.error, OSError) as exc:
-        raise UserError(f"{trace}: cannot read the trace ({exc})") from None
+        raise UserError(f"{trace}: cannot read the trace ({exc})") from exc
     rec.truncate()
     names, values, fmts = to_table(rec, scaling, period)
     return names, values, fmts, meta

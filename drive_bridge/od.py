@@ -20,7 +20,7 @@ def load_od(path: str | Path, node_id: int) -> canopen.ObjectDictionary:
     try:
         raw = path.read_bytes()
     except OSError as exc:
-        raise ConfigError(path, "", f"cannot read EDS/DCF: {exc.strerror}") from None
+        raise ConfigError(path, "", f"cannot read EDS/DCF: {exc.strerror}") from exc
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError:
@@ -30,7 +30,7 @@ def load_od(path: str | Path, node_id: int) -> canopen.ObjectDictionary:
     try:
         return canopen.import_od(source, node_id)
     except Exception as exc:  # canopen raises bare parser errors of several kinds
-        raise ConfigError(path, "", f"not a readable EDS/DCF: {exc}") from None
+        raise ConfigError(path, "", f"not a readable EDS/DCF: {exc}") from exc
 
 
 def pdo_struct(variables: list[ODVariable]) -> struct.Struct:

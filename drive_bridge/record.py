@@ -13,7 +13,7 @@ from .logs import LOG_NAME, META_NAME, TRACE_NAME, layout_meta, write_csv, write
 from .master.bringup import AxisLink, bring_up
 from .master.busload import check_bus_load
 from .master.campaign import Plan, build_plan
-from .master.link import TraceRecorder
+from .master.link import Link, TraceRecorder
 from .master.stream import stream
 
 
@@ -33,7 +33,7 @@ class RecordResult:
         return self.aborted is None
 
 
-def record(config: BusConfig, link, out_dir: str | Path, *,
+def record(config: BusConfig, link: Link, out_dir: str | Path, *,
            on_plan: Callable[[Plan], Callable[[int], None] | None] | None = None,
            axes: dict[str, AxisLink] | None = None) -> RecordResult:
     """Run the campaign of ``config`` over ``link``; files go to ``out_dir``.

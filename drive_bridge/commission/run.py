@@ -14,14 +14,15 @@ import json
 import shutil
 import time
 import traceback
-from contextlib import ExitStack
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..config import BusConfig
-from ..errors import MotionAborted, UserError
-from ..params.profile import load_profile
+from ..errors import DriveBridgeError, MotionAborted, UserError, exit_code
+from ..master.link import Link
+from ..outputs import write_json
 from ..progress import StepReporter
+from ..session import Options, Session
 from . import steps as S
 from .report import REPORT, write_report
 from .summary import build_summary
@@ -37,20 +38,6 @@ WHAT = {"scan": "find the configured drives on the bus",
         "tune": "gains from the identified models, margins",
         "write": "transactional write: backup, write, verify, store",
         "validate": "reference trajectories, before vs after (the robot moves)"}
-
-
-@dataclass
-class Options:
-    """How to reach the drives and what to run with: ``sim`` (``realtime``, ``sim_config``) for
-    the simulated robot, the drive ``profile``, ``motor`` (R [Ω], L [H]) for drives that do not
-    report it, the ``seed`` of the evolutionary fits."""
-
-    sim: bool = False
-    realtime: bool = False
-    sim_config: str | None = None
-    profile: str = "drive_bridge_servo"
-    motor: tuple[float, float] | None = None
-    seed: int = 0
 
 
 @dataclass
@@ -76,8 +63,8 @@ def _state(out: Path, config: BusConfig, restart: bool) -> dict:
     try:
         state = json.loads(path.read_text())
         state["completed"], state["durations_s"]
-    except (ValueError, KeyError, TypeError):
-        raise UserError(f"{path}: unreadable; use --restart to start over") from None
+    except (ValueError, KeyError, TypeError) as exc:
+        raise UserError(f"{path}: unreadable; use --restart to start over") from exc
     if state.get("config") != fresh["config"]:
         raise UserError(f"{out} holds a run with {state.get('config')}, not {fresh['config']}; "
                         f"use --restart to start over there, or another --out")
@@ -96,7 +83,7 @@ def _clear(out: Path) -> None:
 
 def commission(config: BusConfig, out: str | Path, options: Options | None = None, *,
                steps: list[str] | None = None, restart: bool = False,
-               reporter: StepReporter | None = None, link=None) -> CommissionResult:
+               reporter: StepReporter | None = None, link: Link | None = None) -> CommissionResult:
     """Run the commissioning steps of ``config`` with every output in ``out``.
 
     ``steps`` (names from :data:`STEPS`) runs only those, in pipeline order; without it the
@@ -123,17 +110,16 @@ def commission(config: BusConfig, out: str | Path, options: Options | None = Non
     if not todo:
         reporter.note(f"every step is already completed in {out}; --restart to commission again")
     state["failed"] = None
-    exit_code, failure = 0, None
-    profile = load_profile(options.profile)
-    with ExitStack() as stack:
-        ctx = S.Context(config, out, options, profile, stack, reporter, link)
+    code, failure = 0, None
+    with Session(config, options, link) as session:
+        ctx = S.Context(session, out, reporter)
         for step in todo:
             reporter.start(step, WHAT[step])
             t0 = time.perf_counter()
             try:
                 line = S.STEP_FUNCTIONS[step](ctx)
             except (Exception, KeyboardInterrupt) as exc:      # every failure ends the run with a report
-                exit_code, reason = _failure(exc, out)
+                code, reason = _failure(exc, out)
                 failure = {"step": step, "reason": reason}
                 state["failed"] = failure
                 state["durations_s"][step] = time.perf_counter() - t0
@@ -145,7 +131,7 @@ def commission(config: BusConfig, out: str | Path, options: Options | None = Non
             _save(out, state)
             reporter.done(step, state["durations_s"][step], line)
     summary = build_summary(out, state, config, options)
-    (out / SUMMARY).write_text(json.dumps(summary, indent=1, default=float))
+    write_json(out / SUMMARY, summary)
     write_report(out, summary)
     if failure is not None:
         last = state["completed"][-1] if state["completed"] else None
@@ -153,22 +139,20 @@ def commission(config: BusConfig, out: str | Path, options: Options | None = Non
                       f"run the same command again to resume "
                       + (f"after {last}" if last else "from the start") + " (--restart to start over).")
     reporter.note(f"summary: {out / SUMMARY}; report: {out / REPORT}")
-    return CommissionResult(summary["status"], exit_code, failure and failure["step"],
+    return CommissionResult(summary["status"], code, failure and failure["step"],
                             failure and failure["reason"], todo, out, summary)
 
 
 def _failure(exc: BaseException, out: Path) -> tuple[int, str]:
     if isinstance(exc, MotionAborted):
         return exc.exit_code, f"motion stopped: {exc}; every axis was quick-stopped"
-    if isinstance(exc, UserError):
+    if isinstance(exc, DriveBridgeError):
         return exc.exit_code, str(exc)
     if isinstance(exc, KeyboardInterrupt):
-        return 130, "interrupted by the user (Ctrl-C)"
+        return exit_code(exc), "interrupted by the user (Ctrl-C)"
     (out / ERROR_LOG).write_text("".join(traceback.format_exception(exc)))
-    return 1, f"internal error {type(exc).__name__}: {exc} (traceback in {out / ERROR_LOG})"
+    return exit_code(exc), f"internal error {type(exc).__name__}: {exc} (traceback in {out / ERROR_LOG})"
 
 
 def _save(out: Path, state: dict) -> None:
-    tmp = out / (STATE + ".tmp")
-    tmp.write_text(json.dumps(state, indent=1))
-    tmp.replace(out / STATE)
+    write_json(out / STATE, state)

@@ -78,7 +78,7 @@ def read_log(path: str | Path) -> Log:
             header = f.readline().strip().split(",")
         data = np.loadtxt(path, delimiter=",", skiprows=1, dtype=float, ndmin=2)
     except (OSError, UnicodeDecodeError, ValueError) as exc:
-        raise UserError(f"{path}: not a readable CSV log ({exc})") from None
+        raise UserError(f"{path}: not a readable CSV log ({exc})") from exc
     if "time_s" not in header:
         raise UserError(f"{path}: no time_s column (columns: {', '.join(header[:8])}...)")
     if data.shape[0] < 2 or data.shape[1] != len(header):

@@ -78,7 +78,7 @@ def _plot_fit(r: AxisResult, path: Path) -> None:
 
 def _variable(r: AxisResult, depends_on: str) -> tuple[np.ndarray, str]:
     s = r.est
-    pos, tu = r.units["position"], r.units["torque"]
+    pos = r.units["position"]
     table = {"position": (s.q, f"position [{pos}]"), "velocity": (s.qd, f"velocity [{pos}/s]"),
              "direction": (s.qd, f"velocity [{pos}/s]"), "time": (s.t, "time [s]"),
              "constant": (s.qd, f"velocity [{pos}/s]"), "acceleration": (s.qdd, f"acceleration [{pos}/s²]")}
@@ -124,7 +124,6 @@ def write_markdown(results: dict[str, AxisResult], out: Path, source: str) -> Pa
                f"decimation {r.settings.decimation}, {int(r.est.moving.sum())} moving samples fitted. "
                f"Validation: {r.validation}.", "",
                "| parameter | LSE | std | rel. std | GA |", "| --- | --- | --- | --- | --- |"]
-        std = r.model.param_std_
         for i, name in enumerate(r.model.coef_names):
             v = r.model.coef_[i]
             sd = float(np.sqrt(r.model.cov_[i, i]))

@@ -8,9 +8,10 @@ import canopen
 from canopen.pdo.base import PdoMap
 
 from ..config import BusConfig, NodeConfig, PdoConfig
-from ..errors import BusError
+from ..errors import BusError, DriveRefused
 from ..od import pdo_struct
 from .cia402 import Drive402
+from .link import Link
 
 CIA402_PROFILE = 402
 EMCY_TEXT = {0x8611: "following error", 0x8250: "RPDO timeout (loss of setpoint)",
@@ -54,6 +55,12 @@ class ScanResult:
     unexpected: list[int]             # node ids that answered but are not configured
     wrong_type: list[str]             # configured axes that are not CiA 402 drives
 
+    def as_dict(self, config: BusConfig) -> dict:
+        """scan.json: the nodes found (by axis where configured), missing, unexpected, wrong type."""
+        by_id = {n.node_id: a for a, n in config.nodes.items()}
+        return {"found": {by_id.get(i, str(i)): {"node_id": i, **ident} for i, ident in self.found.items()},
+                "missing": self.missing, "unexpected": self.unexpected, "wrong_type": self.wrong_type}
+
 
 def _identity(node: canopen.RemoteNode) -> dict:
     return {"device_type": node.sdo[0x1000].raw,
@@ -61,7 +68,7 @@ def _identity(node: canopen.RemoteNode) -> dict:
             "revision": node.sdo[0x1018][3].raw, "serial": node.sdo[0x1018][4].raw}
 
 
-def scan(link, config: BusConfig) -> ScanResult:
+def scan(link: Link, config: BusConfig) -> ScanResult:
     """Ask every node id who is there; compare with the configuration."""
     net = link.network
     net.scanner.reset()
@@ -116,7 +123,7 @@ def check_scan(result: ScanResult, config: BusConfig) -> None:
                        f"(device type 0x{dt:08X}); check node_id in {config.path}")
 
 
-def bring_up(link, config: BusConfig) -> dict[str, AxisLink]:
+def bring_up(link: Link, config: BusConfig) -> dict[str, AxisLink]:
     """Scan, check and configure every configured drive (drives stay disabled).
 
     Raises BusError naming the axis when a node is missing or is no CiA 402 drive.
@@ -149,8 +156,8 @@ def bring_up(link, config: BusConfig) -> dict[str, AxisLink]:
             ax.rpdos = _configure_pdos(node, node.rpdo, ncfg.rpdo, 0x200)
             ax.tpdos = _configure_pdos(node, node.tpdo, ncfg.tpdo, 0x180)
         except canopen.SdoAbortedError as exc:
-            raise BusError(f"axis {name}: the drive refused the PDO mapping ({exc}); "
-                           f"check nodes.{name}.rpdo / tpdo in {config.path}") from None
+            raise DriveRefused(f"axis {name}: the drive refused the PDO mapping ({exc}); "
+                               f"check nodes.{name}.rpdo / tpdo in {config.path}") from exc
         _watch(net, ax, clock)
         axes[name] = ax
     return axes
@@ -160,9 +167,9 @@ def _write(node, axis: str, index: int, sub: int, value) -> None:
     try:
         node.sdo.download(index, sub, node.object_dictionary.get_variable(index, sub).encode_raw(value))
     except canopen.SdoAbortedError as exc:
-        raise BusError(f"axis {axis}: writing 0x{index:04X}:{sub} = {value} was refused ({exc})") from None
+        raise DriveRefused(f"axis {axis}: writing 0x{index:04X}:{sub} = {value} was refused ({exc})") from exc
     except canopen.SdoCommunicationError as exc:
-        raise BusError(f"axis {axis}: no SDO answer writing 0x{index:04X}:{sub} ({exc})") from None
+        raise BusError(f"axis {axis}: no SDO answer writing 0x{index:04X}:{sub} ({exc})") from exc
 
 
 def _watch(net: canopen.Network, ax: AxisLink, clock) -> None:

@@ -10,7 +10,7 @@ from __future__ import annotations
 import canopen
 from canopen.profiles.p402 import State402
 
-from ..errors import BusError
+from ..errors import BusError, DriveRefused
 
 CW_SHUTDOWN, CW_SWITCH_ON, CW_ENABLE = 0x06, 0x07, 0x0F
 CW_QUICK_STOP = 0x02
@@ -63,16 +63,16 @@ class Drive402:
         self.node.sdo[0x6040].raw = CW_FAULT_RESET
         try:
             self._wait_for("SWITCH ON DISABLED", f"resetting fault 0x{code:04X}")
-        except BusError:
-            raise BusError(f"axis {self.axis}: fault 0x{code:04X} does not clear with a fault reset; "
-                           f"find and remove its cause at the drive") from None
+        except BusError as exc:
+            raise DriveRefused(f"axis {self.axis}: fault 0x{code:04X} does not clear with a fault reset; "
+                               f"find and remove its cause at the drive") from exc
 
     def set_mode(self, mode: int) -> None:
         """Select the operating mode and confirm it in 0x6061 (no silent failure)."""
         try:
             self.node.sdo[0x6060].raw = mode
         except canopen.SdoAbortedError as exc:
-            raise BusError(f"axis {self.axis}: drive refused operating mode {mode} ({exc})") from None
+            raise DriveRefused(f"axis {self.axis}: drive refused operating mode {mode} ({exc})") from exc
         deadline = self.clock.now() + self.timeout
         while (shown := self.node.sdo[0x6061].raw) != mode:
             if self.clock.now() >= deadline:

@@ -1,9 +1,11 @@
 """How the master reaches the bus: a canopen Network, its clock, and the raw trace.
 
-:class:`BusLink` is the real thing: a python-can bus (socketcan, pcan, kvaser,
-virtual...), canopen's Notifier thread receiving, and the wall clock.  The
-simulator offers a lockstep link with the same attributes; nothing in the
-master knows which one it has.
+:class:`Link` is the contract every master function takes.  :class:`BusLink`
+is the real thing: a python-can bus (socketcan, pcan, kvaser, virtual, or the
+simulator's process on udp_multicast), canopen's Notifier thread receiving,
+and the wall clock.  The simulator's lockstep link fulfils the same contract;
+nothing in the master knows which one it has (``tests/master/test_link.py``
+runs one scenario over both).
 """
 from __future__ import annotations
 
@@ -116,6 +118,26 @@ class MasterNetwork(canopen.Network):
             self.after_send()
 
 
+class Link(Protocol):
+    """What the master needs of its way to the drives.
+
+    ``network`` is the canopen Network the master's nodes live on (every frame it sends is
+    stamped with ``clock`` and traced); ``clock`` is the time the master waits on and stamps
+    with; ``threaded`` says whether frames arrive on another thread (a trace must then be
+    written in the background).
+    """
+
+    network: MasterNetwork
+    clock: Clock
+    threaded: bool
+
+    def record(self, trace: TraceRecorder | None) -> None:
+        """Send every frame from now on, sent and received, to ``trace`` (None stops)."""
+
+    def close(self) -> None:
+        """Close the bus (and whatever runs behind it)."""
+
+
 class BusLink:
     """A python-can bus with canopen's Notifier thread and the wall clock."""
 
@@ -148,9 +170,6 @@ class BusLink:
         self.network.trace = trace
         if trace is not None:
             self.network.notifier.add_listener(trace)
-
-    def pump(self) -> None:
-        """Frames are delivered by the Notifier thread; nothing to do."""
 
     def close(self) -> None:
         self.network.disconnect()

@@ -18,6 +18,7 @@ from ..errors import Interrupted, MotionAborted
 from .bringup import AxisLink, Codec, emcy_text
 from .campaign import Plan
 from .cia402 import CW_ENABLE, SW_FAULT, state_name
+from .link import Link
 
 CW_QUICK_STOP_CMD = 0x000B          # enable voltage + switch on + enable operation, quick stop bit low
 SYNC_COB_ID = 0x080
@@ -136,7 +137,7 @@ def _packer(ax: AxisLink, codec: Codec, demand: np.ndarray, ai: int, send) -> Ca
     return send_cycle
 
 
-def quick_stop(link, axes: dict[str, AxisLink], timeout: float) -> list[str]:
+def quick_stop(link: Link, axes: dict[str, AxisLink], timeout: float) -> list[str]:
     """Quick stop every axis by SDO, then wait until they stand still. Returns problems seen."""
     problems = []
     for name, ax in axes.items():
@@ -161,7 +162,7 @@ def quick_stop(link, axes: dict[str, AxisLink], timeout: float) -> list[str]:
     return problems
 
 
-def stream(link, axes: dict[str, AxisLink], plan: Plan, *, heartbeat_timeout: float, miss_limit: int,
+def stream(link: Link, axes: dict[str, AxisLink], plan: Plan, *, heartbeat_timeout: float, miss_limit: int,
            state_timeout: float, progress: Callable[[int], None] | None = None,
            guard: Callable[[dict[str, int]], str | None] | None = None) -> StreamResult:
     """Enable the axes in CSP, stream ``plan`` one setpoint per SYNC, stop, return the recording.

@@ -1,9 +1,9 @@
 """Drive profiles: which object of one drive model holds each abstract parameter, and in what units.
 
-A profile is a YAML file (``profiles/*.yaml``): the drive's EDS/DCF (``project/…``
-inside this repository, ``vendor/…`` in the vendor folder, read in place:
-``$DRIVE_BRIDGE_VENDOR_EDS`` or ``../shared/eds-vendor`` beside the
-repository), the store object, and per abstract parameter (J, c0, c1, offset,
+A profile is a YAML file (``profiles/*.yaml``): the drive's EDS/DCF (``package/…``
+shipped in ``drive_bridge/data``, ``vendor/…`` in the vendor folder, read in place:
+``$DRIVE_BRIDGE_VENDOR_EDS``, else ``../shared/eds-vendor`` or ``shared/eds-vendor``
+from the working directory), the store object, and per abstract parameter (J, c0, c1, offset,
 cp, dc0, dc1, periodic_amplitude/period/phase, ff_enable, KpP, FwF, KpS, KiS, KpC, KiC) its index, sub-index,
 data type and scaling: device value = scale × SI value, or 1 / SI value for
 ``reciprocal`` (a reset time written for an integral rate).  A parameter a
@@ -17,14 +17,14 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import canopen
-from canopen.objectdictionary import ODVariable, datatypes
+from canopen.objectdictionary import datatypes
 
 from ..errors import ConfigError
 from ..od import load_od
+from ..resources import data, shipped
 from ..yamlconf import Section, load_yaml
 
-PROFILE_DIR = Path(__file__).with_name("profiles")
-ROOT = Path(__file__).resolve().parents[2]
+PROFILE_DIR = shipped("params", "profiles")
 PARAMETERS = ("J", "c0", "c1", "offset", "cp", "dc0", "dc1", "periodic_amplitude", "periodic_period",
               "periodic_phase", "ff_enable", "KpP", "FwF", "KpS", "KiS", "KpC", "KiC")
 TYPES = {name: getattr(datatypes, name) for name in
@@ -32,7 +32,12 @@ TYPES = {name: getattr(datatypes, name) for name in
 
 
 def vendor_dir() -> Path:
-    return Path(os.environ.get("DRIVE_BRIDGE_VENDOR_EDS", ROOT.parent / "shared" / "eds-vendor"))
+    """Where vendor EDS/DCF files are read in place (they never ship with drive-bridge)."""
+    if "DRIVE_BRIDGE_VENDOR_EDS" in os.environ:
+        return Path(os.environ["DRIVE_BRIDGE_VENDOR_EDS"])
+    here = Path.cwd()
+    found = [d for d in (here.parent / "shared" / "eds-vendor", here / "shared" / "eds-vendor") if d.is_dir()]
+    return found[0] if found else here.parent / "shared" / "eds-vendor"
 
 
 @dataclass(frozen=True)
@@ -74,10 +79,6 @@ class Profile:
     def object_dictionary(self, node_id: int) -> canopen.ObjectDictionary:
         return load_od(self.eds, node_id)
 
-    def variable(self, od: canopen.ObjectDictionary, entry: Entry) -> ODVariable:
-        obj = od[entry.index]
-        return obj if isinstance(obj, ODVariable) else obj[entry.sub]
-
 
 def available() -> list[str]:
     return sorted(p.stem for p in PROFILE_DIR.glob("*.yaml"))
@@ -95,12 +96,13 @@ def load_profile(name_or_path: str | Path) -> Profile:
     drive = top.get("drive", str)
     eds_ref = top.get("eds", str)
     kind, _, rel = eds_ref.partition("/")
-    if kind == "project":
-        eds = ROOT / rel
+    if kind == "package":
+        eds = data(rel)
     elif kind == "vendor":
         eds = vendor_dir() / rel
     else:
-        raise top.error("eds", "must start with project/ (this repository) or vendor/ (the vendor folder)")
+        raise top.error("eds", "must start with package/ (shipped in drive_bridge/data) or vendor/ "
+                               "(the vendor folder)")
     if not eds.exists():
         raise top.error("eds", f"{eds} not found" + (" (set DRIVE_BRIDGE_VENDOR_EDS to the vendor EDS folder)"
                                                      if kind == "vendor" else ""))
@@ -121,11 +123,9 @@ def load_profile(name_or_path: str | Path) -> Profile:
         sec.done()
         if entry.type not in TYPES:
             raise params.error(f"{name}.type", f"unknown data type {entry.type!r} (known: {', '.join(TYPES)})")
-        try:
-            obj = od[entry.index]
-            var = obj if isinstance(obj, ODVariable) else obj[entry.sub]
-        except KeyError:
-            raise params.error(name, f"{eds.name} has no object {entry.where()}") from None
+        var = od.get_variable(entry.index, entry.sub)
+        if var is None:
+            raise params.error(name, f"{eds.name} has no object {entry.where()}")
         if var.data_type != TYPES[entry.type]:
             raise params.error(f"{name}.type", f"{eds.name} declares {entry.where()} as data type "
                                                f"0x{var.data_type:04X}, not {entry.type}")

@@ -14,9 +14,11 @@ from pathlib import Path
 
 import canopen
 from canopen.objectdictionary import datatypes
+from canopen.sdo import SdoVariable
 
-from ..errors import BusError
+from ..errors import DriveRefused
 from .profile import Entry, Profile
+from .read import SDO_ERRORS, describe_sdo_error, require_profile_objects, sdo_variable
 
 SAVE_SIGNATURE = 0x65766173         # "save"
 _RANGES = {datatypes.UNSIGNED8: (0, 2**8 - 1), datatypes.UNSIGNED16: (0, 2**16 - 1),
@@ -63,35 +65,12 @@ class WriteResult:
         return d
 
 
-def _describe(exc: Exception) -> str:
-    if isinstance(exc, canopen.SdoAbortedError):
-        return f"SDO abort 0x{exc.code:08X}: {canopen.SdoAbortedError.CODES.get(exc.code, 'unknown abort code')}"
-    if isinstance(exc, canopen.SdoCommunicationError):
-        return f"no answer ({exc}): the node may have dropped off the bus"
-    return f"{type(exc).__name__}: {exc}"
-
-
 def _same(entry: Entry, a, b) -> bool:
     if entry.is_integer:
         return int(a) == int(b)
     f32 = entry.type == "REAL32"
     pack = (lambda x: struct.unpack("<f", struct.pack("<f", x))[0]) if f32 else float
     return pack(float(a)) == pack(float(b))
-
-
-def read_parameters(node: canopen.RemoteNode, profile: Profile, names=None) -> dict[str, float]:
-    """The drive's current values [SI] of ``names`` (default: every parameter of ``profile``).
-
-    Raises BusError naming the object when the drive does not answer a read."""
-    result = write_parameters(node, profile, dict.fromkeys(names or profile.entries, 1.0), dry_run=True)
-    if result.error:
-        raise BusError(f"node {node.id}: {result.error}")
-    return {w.parameter: w.old_si for w in result.objects}
-
-
-def _sdo_variable(node: canopen.RemoteNode, e: Entry):
-    obj = node.object_dictionary[e.index]
-    return node.sdo[e.index] if isinstance(obj, canopen.objectdictionary.ODVariable) else node.sdo[e.index][e.sub]
 
 
 def write_parameters(node: canopen.RemoteNode, profile: Profile, values: dict[str, float], *,
@@ -106,11 +85,11 @@ def write_parameters(node: canopen.RemoteNode, profile: Profile, values: dict[st
     result = WriteResult(node.id, profile.drive, [], [k for k in values if k not in profile.entries],
                          dry_run=dry_run)
     od = node.object_dictionary
-    plan: list[tuple[Entry, ObjectWrite, canopen.sdo.Variable]] = []
+    plan: list[tuple[Entry, ObjectWrite, SdoVariable]] = []
     for name in supported:
         e = profile.entries[name]
         w = ObjectWrite(name, e.index, e.sub, e.unit, new_si=float(values[name]), new_device=e.to_device(values[name]))
-        var = profile.variable(od, e)
+        var = od.get_variable(e.index, e.sub)
         low, high = _RANGES.get(var.data_type, (None, None))
         if var.min is not None:
             low = var.min
@@ -121,14 +100,14 @@ def write_parameters(node: canopen.RemoteNode, profile: Profile, values: dict[st
             result.error = (f"{name} = {values[name]:.6g} {e.unit} is {w.new_device} in device units, outside "
                             f"{e.where()}'s range {low}..{high}; nothing was written")
             return result
-        plan.append((e, w, _sdo_variable(node, e)))
+        plan.append((e, w, sdo_variable(node, e)))
         result.objects.append(w)
     # 1. backup
     for e, w, var in plan:
         try:
             w.old_device = var.raw
-        except (canopen.SdoAbortedError, canopen.SdoCommunicationError) as exc:
-            result.error = f"reading {w.parameter} ({e.where()}) for the backup failed: {_describe(exc)}; nothing was written"
+        except SDO_ERRORS as exc:
+            result.error = f"reading {w.parameter} ({e.where()}) for the backup failed: {describe_sdo_error(exc)}; nothing was written"
             return result
         w.old_si = e.to_si(w.old_device)
     if backup_path is not None:
@@ -148,15 +127,15 @@ def write_parameters(node: canopen.RemoteNode, profile: Profile, values: dict[st
             try:
                 var.raw = w.new_device
                 w.written = True
-            except (canopen.SdoAbortedError, canopen.SdoCommunicationError) as exc:
-                failed = f"writing {w.parameter} = {w.new_device} to {e.where()} failed: {_describe(exc)}"
+            except SDO_ERRORS as exc:
+                failed = f"writing {w.parameter} = {w.new_device} to {e.where()} failed: {describe_sdo_error(exc)}"
                 break
         if failed is None:
             for e, w, var in plan:
                 try:
                     back = var.raw
-                except (canopen.SdoAbortedError, canopen.SdoCommunicationError) as exc:
-                    failed = f"reading back {w.parameter} ({e.where()}) failed: {_describe(exc)}"
+                except SDO_ERRORS as exc:
+                    failed = f"reading back {w.parameter} ({e.where()}) failed: {describe_sdo_error(exc)}"
                     break
                 w.verified = _same(e, back, w.new_device)
                 if not w.verified:
@@ -168,7 +147,7 @@ def write_parameters(node: canopen.RemoteNode, profile: Profile, values: dict[st
     if failed is None and store:
         failed = store_parameters(node, profile, result)
     if failed is not None:
-        fail(node, profile, result, failed)
+        restore_backup(node, profile, result, failed)
     return result
 
 
@@ -179,14 +158,14 @@ def store_parameters(node: canopen.RemoteNode, profile: Profile, result: WriteRe
         return None
     try:
         node.sdo[profile.save[0]][profile.save[1]].raw = SAVE_SIGNATURE
-    except (canopen.SdoAbortedError, canopen.SdoCommunicationError) as exc:
-        return f"store (0x{profile.save[0]:04X}:{profile.save[1]} 'save') failed: {_describe(exc)}"
+    except SDO_ERRORS as exc:
+        return f"store (0x{profile.save[0]:04X}:{profile.save[1]} 'save') failed: {describe_sdo_error(exc)}"
     result.stored = True
     return None
 
 
-def fail(node: canopen.RemoteNode, profile: Profile, result: WriteResult, reason: str) -> None:
-    """Mark ``result`` failed and write the backup back to every object it wrote."""
+def restore_backup(node: canopen.RemoteNode, profile: Profile, result: WriteResult, reason: str) -> None:
+    """Mark ``result`` failed for ``reason`` and write the backup back to every object it wrote."""
     result.error = reason
     ok = True
     for w in reversed(result.objects):
@@ -194,10 +173,10 @@ def fail(node: canopen.RemoteNode, profile: Profile, result: WriteResult, reason
             continue
         e = profile.entries[w.parameter]
         try:
-            _sdo_variable(node, e).raw = w.old_device
-        except (canopen.SdoAbortedError, canopen.SdoCommunicationError) as exc:
+            sdo_variable(node, e).raw = w.old_device
+        except SDO_ERRORS as exc:
             ok = False
-            result.notes.append(f"restoring {w.parameter} ({e.where()}) failed: {_describe(exc)}")
+            result.notes.append(f"restoring {w.parameter} ({e.where()}) failed: {describe_sdo_error(exc)}")
     if not ok:
         result.notes.append("no store was issued, so the drive's stored set is unchanged: "
                             "a power cycle (or NMT reset node) brings it back")
@@ -226,13 +205,13 @@ def write_all(nodes: dict[str, canopen.RemoteNode], profile: Profile, values: di
             reason = store_parameters(node, profile, results[axis])
             if reason is not None:
                 failed = axis, reason
-                fail(node, profile, results[axis], reason)
+                restore_backup(node, profile, results[axis], reason)
                 break
     if failed is not None:
         for axis, r in results.items():
             if r.ok:
                 stored = r.stored
-                fail(nodes[axis], profile, r, f"not kept: axis {failed[0]} failed ({failed[1]})")
+                restore_backup(nodes[axis], profile, r, f"not kept: axis {failed[0]} failed ({failed[1]})")
                 if stored and r.restored:          # its new set was stored already: store the backup
                     reason = store_parameters(nodes[axis], profile, r)
                     r.notes.append("the backup was stored again" if reason is None else reason)
@@ -240,12 +219,51 @@ def write_all(nodes: dict[str, canopen.RemoteNode], profile: Profile, values: di
     return results
 
 
+def write_drives(nodes: dict[str, canopen.RemoteNode], profile: Profile, values: dict[str, dict[str, float]], *,
+                 backup_dir: str | Path | None, dcf_dir: str | Path | None = None,
+                 dry_run: bool = False) -> dict[str, WriteResult]:
+    """The write step: with ``dry_run`` each drive's old and new values, nothing written;
+    else one transaction over every drive (:func:`write_all`, backups in ``backup_dir``)
+    and, when every drive verified, each commissioned node exported as a DCF to ``dcf_dir``."""
+    require_profile_objects(nodes, profile)
+    if dry_run:
+        return {a: write_parameters(node, profile, values[a], dry_run=True) for a, node in nodes.items()}
+    results = write_all(nodes, profile, values, backup_dir=backup_dir)
+    if dcf_dir is not None and transaction_ok(results, nodes):
+        for a, r in results.items():
+            export_dcf(nodes[a], r, Path(dcf_dir) / f"{a}.dcf")
+    return results
+
+
+def transaction_ok(results: dict[str, WriteResult], nodes) -> bool:
+    """Every drive of ``nodes`` has a result, and every result is ok."""
+    return len(results) == len(nodes) and all(r.ok for r in results.values())
+
+
+def results_doc(results: dict[str, WriteResult], nodes) -> dict:
+    """write.json / ``write --json``: ``ok`` and every drive's objects."""
+    return {"ok": transaction_ok(results, nodes), "axes": {a: r.as_dict() for a, r in results.items()}}
+
+
+def raise_for_failure(results: dict[str, WriteResult], nodes, backup_dir) -> None:
+    """DriveRefused naming the first drive that failed and what was done about it."""
+    if transaction_ok(results, nodes):
+        return
+    failed = next(((a, r) for a, r in results.items() if not r.ok), None)
+    if failed is None:
+        raise DriveRefused("not every drive was written; nothing was stored")
+    a, r = failed
+    where = f" ({backup_dir})" if backup_dir is not None else ""
+    state = ("every drive written so far was restored from its backup" if all(x.restored or not any(
+        w.written for w in x.objects) for x in results.values()) else "NOT every drive could be restored")
+    raise DriveRefused(f"axis {a}: {r.error}; {state}{where} and nothing was stored")
+
+
 def export_dcf(node: canopen.RemoteNode, result: WriteResult, path: str | Path) -> Path:
     """The node's object dictionary as a DCF with the written values as ParameterValue."""
     od = node.object_dictionary
     for w in result.objects:
-        obj = od[w.index]
-        var = obj if isinstance(obj, canopen.objectdictionary.ODVariable) else obj[w.sub]
+        var = od.get_variable(w.index, w.sub)
         var.value = w.new_device if result.ok else w.old_device
         var.value_raw = None
     path = Path(path)

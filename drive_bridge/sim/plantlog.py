@@ -14,16 +14,16 @@ from pathlib import Path
 import numpy as np
 
 from ..od import load_od
+from ..resources import PROJECT_EDS
 from . import kernel as K
 from .config import SimConfig
 from .drive import _GAIN_PARAMS, plant_params
-from .robot import DEFAULT_EDS
 
 INC_PER_REV = 2 ** 20
 
 
 def plant_log(config: SimConfig, demand: dict[str, np.ndarray], period: float = 0.002, *,
-              eds_path: str | Path = DEFAULT_EDS) -> dict[str, np.ndarray]:
+              eds_path: str | Path = PROJECT_EDS) -> dict[str, np.ndarray]:
     """Columns ``time_s`` and per axis ``<axis>_position_rad``, ``_position_demand_rad``,
     ``_torque_Nm`` of the plant following ``demand`` (axis -> positions per period [rad]).
     Axes without a demand hold their start position."""

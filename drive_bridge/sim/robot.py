@@ -19,12 +19,12 @@ import can
 import canopen
 import numpy as np
 
+from ..resources import PROJECT_EDS
 from . import kernel as K
 from .config import SimConfig
 from .drive import SimDrive
 from .vbus import FastVirtualBus
 
-DEFAULT_EDS = Path(__file__).resolve().parents[2] / "eds" / "drive_bridge_servo.eds"
 NOISE_BLOCK = 4096
 REPLY_DELAY_S = 50e-6        # wall clock: a drive's reply follows the frame it answers
 IDLE_WAKE_S = 0.005          # wall clock: longest sleep of the drives' thread between frames
@@ -38,7 +38,7 @@ class SimRobot:
     """
 
     def __init__(self, config: SimConfig, channel: str = "drive-bridge", *, bus: can.BusABC | None = None,
-                 sync_period: float = 0.002, eds_path: str | Path = DEFAULT_EDS):
+                 sync_period: float = 0.002, eds_path: str | Path = PROJECT_EDS):
         self.config = config
         self.sync_period = sync_period
         self.ticks_per_period = round(sync_period / K.VELOCITY_TICK_S)

@@ -18,9 +18,12 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from ..config import BusConfig
+from ..errors import DriveRefused
 from ..master.bringup import AxisLink
 from ..master.campaign import APPROACH_LEVEL
+from ..master.link import Link
 from ..params.profile import Profile
+from ..params.read import read_parameters
 from ..params.write import write_parameters
 from . import motion
 
@@ -76,7 +79,7 @@ def _oscillation(m: motion.Motion, axis: str, vel: np.ndarray, period: float, v_
     return float(np.sqrt(np.mean(e ** 2)) / v_step) if e.size else float("inf")
 
 
-def run_experiment(config: BusConfig, link, axes: dict[str, AxisLink], axis: str, profile: Profile,
+def run_experiment(config: BusConfig, link: Link, axes: dict[str, AxisLink], axis: str, profile: Profile,
                    start_KpS: float) -> ExperimentResult:
     ax = axes[axis]
     lim = ax.cfg.limits
@@ -100,7 +103,7 @@ def run_experiment(config: BusConfig, link, axes: dict[str, AxisLink], axis: str
     def trial(kps: float) -> Step:
         res = write_parameters(ax.node, profile, {"KpS": kps}, store=False)
         if not res.ok:
-            raise RuntimeError(res.error)
+            raise DriveRefused(f"axis {axis}: {res.error}")
         m = motion.run(config, link, {axis: ax}, {axis: demand}, guard=guard)
         if m.aborted is not None:
             ax.drive.reset_fault()
@@ -119,8 +122,7 @@ def run_experiment(config: BusConfig, link, axes: dict[str, AxisLink], axis: str
         motion.run(config, link, {axis: ax}, {axis: np.full(round(RECOVER_S / period), here)})
 
     try:
-        before = write_parameters(ax.node, profile, {"KpS": start_KpS}, dry_run=True)
-        original = before.objects[0].old_si
+        original = read_parameters(ax.node, profile, ["KpS"])["KpS"]
         kps = start_KpS
         step = trial(kps)
         while not step.oscillating and len(result.steps) < MAX_STEPS:

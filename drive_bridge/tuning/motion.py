@@ -11,6 +11,7 @@ from ..errors import MotionAborted
 from ..logs import to_table
 from ..master.bringup import AxisLink
 from ..master.campaign import APPROACH_LEVEL, Plan, Segment, check_plan, trapezoid
+from ..master.link import Link
 from ..master.stream import stream
 
 
@@ -27,7 +28,7 @@ class Motion:
     aborted: MotionAborted | None
 
 
-def run(config: BusConfig, link, axes: dict[str, AxisLink], demand: dict[str, np.ndarray], *,
+def run(config: BusConfig, link: Link, axes: dict[str, AxisLink], demand: dict[str, np.ndarray], *,
         guard: Callable[[dict[str, float]], str | None] | None = None,
         on_plan: Callable[[Plan], Callable[[int], None] | None] | None = None,
         kind: str = "trajectory", level: float = 1.0) -> Motion:

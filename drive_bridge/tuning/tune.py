@@ -55,25 +55,34 @@ def read_identify_json(path: str | Path) -> dict[str, dict[str, float]]:
         doc = json.loads(path.read_text())
         return {a: model_from_identify(r["params"]) for a, r in doc["axes"].items()}
     except (OSError, ValueError, KeyError, TypeError) as exc:
-        raise UserError(f"{path}: not an identify --json result ({exc})") from None
-
-
-def motor_data(node, R: float | None = None, L: float | None = None) -> tuple[float, float]:
-    """Motor R [Ω] and L [H]: from the drive's motor data 0x2002 where it has it, else ``R``, ``L``."""
-    if 0x2002 in node.object_dictionary:
-        return float(node.sdo[0x2002][1].raw), float(node.sdo[0x2002][2].raw)
-    if R and L:
-        return R, L
-    raise UserError(f"node {node.id}: the drive does not report its motor R and L; give --motor-R and --motor-L")
+        raise UserError(f"{path}: not an identify --json result ({exc})") from exc
 
 
 def tune_axis(axis: str, model: dict[str, float], R: float, L: float, before: dict[str, float]) -> AxisTuning:
     try:
         design = design_gains(model["J"], model["c1"], R, L)
     except (KeyError, ValueError) as exc:
-        raise UserError(f"axis {axis}: cannot design gains from the model {model}: {exc}") from None
+        raise UserError(f"axis {axis}: cannot design gains from the model {model}: {exc}") from exc
     margins = loop_margins(model["J"], model["c1"], before, R, L) if set(GAINS) <= set(before) else None
     return AxisTuning(axis, model, design, before, margins)
+
+
+def tune_axes(models: dict[str, dict[str, float]], state: dict[str, dict]) -> dict[str, AxisTuning]:
+    """The tune step: gains for every axis of ``state`` (what bring-up read:
+    :func:`~drive_bridge.params.read.drive_state`) from its identified model in ``models``."""
+    out = {}
+    for a, st in state.items():
+        if a not in models:
+            raise UserError(f"axis {a}: no identified model (identify.json has {', '.join(models) or 'no axis'})")
+        before = st["parameters_before"]
+        out[a] = tune_axis(a, models[a], st["motor"]["R"], st["motor"]["L"],
+                           {g: before[g] for g in GAINS if g in before})
+    return out
+
+
+def tune_doc(results: dict[str, AxisTuning]) -> dict:
+    """tune.json: per axis the model, gains before and after, margins, the parameters to write."""
+    return {"axes": {a: t.as_dict() for a, t in results.items()}}
 
 
 def read_tune_json(path: str | Path) -> dict[str, dict[str, float]]:
@@ -83,4 +92,4 @@ def read_tune_json(path: str | Path) -> dict[str, dict[str, float]]:
         doc = json.loads(path.read_text())
         return {a: {k: float(v) for k, v in r["parameters"].items()} for a, r in doc["axes"].items()}
     except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
-        raise UserError(f"{path}: not a tune result ({exc})") from None
+        raise UserError(f"{path}: not a tune result ({exc})") from exc

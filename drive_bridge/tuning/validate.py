@@ -12,15 +12,19 @@ dc0, dc1, position-periodic ripple) of the setpoint trajectory while it moves
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
+from pathlib import Path
 from typing import Callable
 
 import numpy as np
 
 from ..config import BusConfig
-from ..errors import Interrupted
-from ..master.campaign import Plan
+from ..errors import DriveRefused, Interrupted, MotionAborted
 from ..master.bringup import AxisLink
+from ..master.campaign import Plan
+from ..master.link import Link
+from ..outputs import write_json
 from ..params.profile import Profile
+from ..params.read import read_parameters
 from ..params.write import write_parameters
 from . import motion, trajectories
 
@@ -90,7 +94,7 @@ def metrics(m: motion.Motion, model: dict[str, dict[str, float]], period: float,
     return out
 
 
-def validate(config: BusConfig, link, axes: dict[str, AxisLink], profile: Profile,
+def validate(config: BusConfig, link: Link, axes: dict[str, AxisLink], profile: Profile,
              scenarios: dict[str, dict[str, dict[str, float]]],
              model: dict[str, dict[str, float]], *,
              on_plan: Callable[[Plan], Callable[[int], None] | None] | None = None) -> list[Run]:
@@ -109,7 +113,7 @@ def validate(config: BusConfig, link, axes: dict[str, AxisLink], profile: Profil
         for a, v in values.items():
             res = write_parameters(axes[a].node, profile, v, store=False)
             if not res.ok:
-                raise RuntimeError(f"scenario {name}, axis {a}: {res.error}")
+                raise DriveRefused(f"scenario {name}, axis {a}: {res.error}")
         for traj, demand, marks, level in (("point_to_point", ptp, moves, trajectories.PTP_LEVEL),
                                            ("path", path, None, trajectories.PATH_LEVEL)):
             m = motion.run(config, link, axes, demand, on_plan=on_plan, kind=traj, level=level)
@@ -121,3 +125,44 @@ def validate(config: BusConfig, link, axes: dict[str, AxisLink], profile: Profil
                 for ax in axes.values():              # the next run starts from a clean state machine
                     ax.drive.reset_fault()
     return runs
+
+
+VALIDATE_JSON, TRACES = "validate.json", "traces.npz"
+
+
+def run_scenarios(config: BusConfig, link: Link, axes: dict[str, AxisLink], profile: Profile,
+                  scenarios: dict[str, dict[str, dict[str, float]]], model: dict[str, dict[str, float]], *,
+                  out_dir: str | Path | None = None,
+                  on_plan: Callable[[Plan], Callable[[int], None] | None] | None = None) -> list[Run]:
+    """The validate step: :func:`validate` with the drives left holding the parameters they had
+    before (every parameter a scenario sets, read first and written back, not stored), and,
+    with ``out_dir``, ``validate.json`` and the logged runs (``traces.npz``) kept there.
+    A stopped run is in the result (see :func:`stopped`); the runs after it did not move."""
+    names = sorted({k for values in scenarios.values() for v in values.values() for k in v})
+    held = {a: read_parameters(ax.node, profile, names) for a, ax in axes.items()}
+    try:
+        runs = validate(config, link, axes, profile, scenarios, model, on_plan=on_plan)
+    finally:
+        for a, ax in axes.items():
+            write_parameters(ax.node, profile, held[a], store=False)
+    if out_dir is not None:
+        out = Path(out_dir)
+        write_json(out / VALIDATE_JSON, {"runs": [r.as_dict() for r in runs]})
+        traces = {}
+        for r in runs:
+            m = r.motion
+            for a in m.position:
+                key = f"{r.scenario}/{r.trajectory}/{a}"
+                traces[key + "/t"] = m.t
+                traces[key + "/position"], traces[key + "/demand"] = m.position[a], m.demand[a]
+                traces[key + "/torque"] = m.torque[a]
+        np.savez_compressed(out / TRACES, **traces)
+    return runs
+
+
+def stopped(runs: list[Run]) -> MotionAborted | None:
+    """The stop of the first run that was stopped, as the error to end the command with."""
+    aborted = next((r for r in runs if r.aborted), None)
+    if aborted is None:
+        return None
+    return MotionAborted(f"validation ({aborted.scenario}, {aborted.trajectory}): {aborted.aborted}")

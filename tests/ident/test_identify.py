@@ -18,13 +18,17 @@ from drive_bridge.master.campaign import build_plan
 from drive_bridge.sim.config import Motor, SimAxis, SimConfig
 from drive_bridge.sim.plantlog import plant_log, write_log
 
-ROOT = Path(__file__).resolve().parents[1]
-EMPS = ROOT.parent / "shared" / "data" / "emps"
+from ..support import BUS_CONFIG, ROOT, SHARED
+
+
+EMPS = SHARED / "data" / "emps"
+
+
 PLANT = {"J": 1.0e-4, "c0": 0.323, "c1": 5.0e-4}          # the paper's Y axis, motor side
 
 
 def campaign(seconds_per_axis: float = 20.0, axes=("y",)):
-    cfg = load_bus_config(ROOT / "config" / "bus.yml")
+    cfg = load_bus_config(BUS_CONFIG)
     camp = replace(cfg.campaign, max_axis_time_s=seconds_per_axis, together=False)
     return build_plan(camp, {a: cfg.nodes[a].limits for a in axes}, dict.fromkeys(axes, 0.0), 0.002)
 

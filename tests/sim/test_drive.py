@@ -7,8 +7,10 @@ import canopen
 import numpy as np
 import pytest
 
-from conftest import clean_config
 from drive_bridge.sim.drive import SETPOINT_TIMEOUT_PERIODS
+
+from ..support import clean_config
+
 
 INC_PER_RAD = 2**20 / (2 * math.pi)
 

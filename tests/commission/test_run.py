@@ -9,16 +9,20 @@ from pathlib import Path
 import pytest
 import yaml
 
-from conftest import BUS_CONFIG, PAPER, ROOT
 from drive_bridge.cli import main
-from drive_bridge.connect import open_link
 from drive_bridge.commission import STEPS, Options, commission
 from drive_bridge.config import load_bus_config
+from drive_bridge.connect import open_link
 from drive_bridge.progress import StepReporter
 from drive_bridge.sim import kernel as K
 from drive_bridge.sim.config import DEFAULT_CONFIG, load_sim_config
 
+from ..support import BUS_CONFIG, EDS, PAPER
+
+
 SIM = load_sim_config(DEFAULT_CONFIG)          # the shipped robot, hidden effects on
+
+
 SHORT_CAMPAIGN = {"velocity_levels": [0.4, 0.8], "acceleration_levels": [0.4, 0.8], "cycles": 3,
                   "max_axis_time_s": 20}
 
@@ -26,7 +30,7 @@ SHORT_CAMPAIGN = {"velocity_levels": [0.4, 0.8], "acceleration_levels": [0.4, 0.
 def short_config(tmp: Path) -> Path:
     """The shipped bus.yml with a short campaign (about 86 s of motion for the three axes)."""
     doc = yaml.safe_load(BUS_CONFIG.read_text())
-    doc["defaults"]["dcf"] = str(ROOT / "eds" / "drive_bridge_servo.eds")
+    doc["defaults"]["dcf"] = str(EDS)
     doc["campaign"].update(SHORT_CAMPAIGN)
     path = tmp / "bus.yml"
     path.write_text(yaml.safe_dump(doc))

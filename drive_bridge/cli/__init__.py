@@ -1,0 +1,53 @@
+"""Command line of drive-bridge: commission CANopen servo axes (scan, record, identify, tune,
+write, validate, or all of it with commission).
+
+Each command is a thin layer over the same core function the ``commission`` step of that name
+calls: it parses, calls and prints.  Errors end as :mod:`drive_bridge.errors` says: one line, no
+traceback, and the exit code of the error's kind (0 ok, 2 a user mistake, 3 the bus or a drive,
+4 motion stopped with the axes quick-stopped and the data kept, 130 Ctrl-C outside motion,
+1 a defect of drive-bridge).
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+
+from .. import __version__
+from ..errors import DriveBridgeError, MotionAborted, exit_code
+from . import bus, commission, identification, tuning
+
+#: the command modules, in the order of the job (``drive-bridge --help`` lists them this way)
+COMMANDS = (bus, identification, tuning, commission)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    lines = __doc__.splitlines()
+    parser = argparse.ArgumentParser(prog="drive-bridge", description=" ".join(lines[:2]),
+                                     epilog="Run 'drive-bridge COMMAND --help' for a command's options. "
+                                            "Exit codes: 0 ok, 1 internal error, 2 user mistake, 3 bus or drive, "
+                                            "4 motion stopped, 130 Ctrl-C.")
+    parser.add_argument("--version", action="version", version=f"drive-bridge {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for module in COMMANDS:
+        module.register(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return args.func(args)
+    except MotionAborted as exc:
+        print(f"drive-bridge: motion stopped: {exc}. Axes were quick-stopped; "
+              f"the data recorded so far is kept.", file=sys.stderr)
+        return exc.exit_code
+    except DriveBridgeError as exc:
+        print(f"drive-bridge: error: {exc}", file=sys.stderr)
+        return exc.exit_code
+    except KeyboardInterrupt as exc:
+        print("drive-bridge: interrupted", file=sys.stderr)
+        return exit_code(exc)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,89 @@
+"""``scan``, ``record`` and ``decode``: the nodes on the bus, the excitation campaign, the raw trace."""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from ..master.bringup import check_scan, scan
+from ..session import Session
+from . import options
+
+
+def register(sub) -> None:
+    p = sub.add_parser("scan", help="list the nodes on the bus and check them against the configuration",
+                       description="Ask every node who is there: identity (0x1018) and device type (0x1000); "
+                                   "a configured node that is missing or no CiA 402 drive ends with exit 3.")
+    options.bus(p)
+    p.set_defaults(func=cmd_scan)
+
+    p = sub.add_parser("record", help="bring up the drives, run the excitation campaign, log torque, velocity, "
+                                      "position", description="Bring-up, the excitation campaign and its logs "
+                                                              "(log.csv, meta.yaml, trace.blf) in --out.")
+    options.bus(p)
+    p.add_argument("--quick", action="store_true", help="a few seconds per axis (demo, tests)")
+    p.add_argument("--axes", help="comma-separated axes to move (default: all configured)")
+    p.add_argument("--together", action="store_true", help="move all axes at once (exposes coupling)")
+    p.add_argument("--out", required=True, help="output directory")
+    p.set_defaults(func=cmd_record)
+
+    p = sub.add_parser("decode", help="rebuild log.csv from a raw CAN trace",
+                       description="Rebuild the log of a recording from its CAN trace and meta.yaml "
+                                   "(byte-identical to the live log.csv).")
+    p.add_argument("trace", help="trace file written by record (trace.blf)")
+    p.add_argument("--meta", help="meta.yaml of the recording (default: beside the trace)")
+    p.add_argument("--out", help="CSV to write (default: decoded.csv beside the trace)")
+    p.set_defaults(func=cmd_decode)
+
+
+def cmd_scan(args) -> int:
+    config = options.config(args)
+    with Session(config, options.session_options(args)) as session:
+        result = scan(session.link, config)
+    by_id = {n.node_id: a for a, n in config.nodes.items()}
+    for node_id, ident in sorted(result.found.items()):
+        kind = "CiA 402 drive" if ident["device_type"] & 0xFFFF == 402 else f"device type 0x{ident['device_type']:08X}"
+        print(f"node {node_id:3d}  axis {by_id.get(node_id, '?'):<4} {kind}  vendor 0x{ident['vendor_id']:08X} "
+              f"product 0x{ident['product_code']:08X} rev 0x{ident['revision']:08X} serial {ident['serial']}")
+    for axis in result.missing:
+        print(f"node {config.nodes[axis].node_id:3d}  axis {axis:<4} MISSING: configured but no answer")
+    for node_id in result.unexpected:
+        print(f"node {node_id:3d}  not configured: answered but is not in {config.path}")
+    check_scan(result, config)
+    return 0
+
+
+def cmd_record(args) -> int:
+    from ..progress import CampaignProgress
+    from ..record import record
+    config = options.config(args)
+    bars = []
+
+    def on_plan(plan):
+        print(f"campaign: {', '.join(plan.axes)}, {len(plan.segments)} segments, "
+              f"{plan.duration:.1f} s of motion", file=sys.stderr)
+        bars.append(CampaignProgress(plan))
+        return bars[0]
+
+    with Session(config, options.session_options(args)) as session:
+        try:
+            result = record(config, session.link, args.out, on_plan=on_plan)
+        finally:
+            for bar in bars:
+                bar.close()
+    print(f"bus load {result.bus_load}; {result.cycles_sent} SYNC cycles in {result.wall_time_s:.1f} s")
+    for axis in result.plan.axes:
+        print(f"  axis {axis}: {result.samples[axis]} samples, {result.missing[axis]} missing")
+    print(f"wrote {result.out_dir / 'log.csv'}, meta.yaml, trace.blf")
+    if result.aborted is not None:
+        raise result.aborted
+    return 0
+
+
+def cmd_decode(args) -> int:
+    import numpy as np
+    from ..logs import decode_trace
+    names, values, fmts, _ = decode_trace(Path(args.trace), args.meta)
+    out = Path(args.out) if args.out else Path(args.trace).with_name("decoded.csv")
+    np.savetxt(out, values, fmt=fmts, delimiter=",", header=",".join(names), comments="")
+    print(f"wrote {out}: {len(values)} rows, {len(names)} columns")
+    return 0

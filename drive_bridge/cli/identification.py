@@ -1,0 +1,38 @@
+"""``identify``: J, c0, c1 and the effects the residual points to, from a log."""
+from __future__ import annotations
+
+import sys
+import warnings
+from pathlib import Path
+
+from . import options
+
+
+def register(sub) -> None:
+    p = sub.add_parser("identify", help="identify J, c0, c1 from a log and trace the residual to its effects",
+                       description="Least squares and differential evolution on a log CSV (or a record "
+                                   "directory), then residual tracing: effects found, added, error before -> after.")
+    p.add_argument("log", help="log CSV, or a record output directory")
+    p.add_argument("--validate", help="a second log to validate on (default: held-out parts of LOG)")
+    p.add_argument("--axis", help="axis name(s), comma-separated (default: every axis that moves)")
+    p.add_argument("--json", action="store_true", help="print exactly one JSON object (automation)")
+    p.add_argument("--out", help="directory for the Markdown report, its plots and identify.json")
+    p.add_argument("--cutoff", type=float, help="low-pass cut-off [Hz] (default: from the data)")
+    p.add_argument("--decimate", type=int, help="decimation factor (default: from the cut-off)")
+    options.seed(p)
+    p.set_defaults(func=cmd_identify)
+
+
+def cmd_identify(args) -> int:
+    from ..ident import identify
+    from ..ident.report import as_json, summary, write_markdown
+    warnings.filterwarnings("ignore", module="scipy.optimize")     # DE's vectorized/updating note
+    progress = None if args.json else (lambda axis: print(f"identifying axis {axis} ...", file=sys.stderr))
+    results = identify(args.log, args.validate, options.axes_list(args.axis), seed=args.seed,
+                       cutoff_hz=args.cutoff, decimation=args.decimate, progress=progress)
+    if args.out:
+        report = write_markdown(results, Path(args.out), str(args.log))
+        if not args.json:
+            print(f"wrote {report} (plots and identify.json beside it)", file=sys.stderr)
+    print(as_json(results) if args.json else summary(results))
+    return 0

@@ -1,0 +1,66 @@
+"""Options the commands share, declared once, and what they turn into."""
+from __future__ import annotations
+
+import argparse
+from dataclasses import replace
+
+from ..config import BusConfig, load_bus_config
+from ..errors import UserError
+from ..resources import DEFAULT_BUS_CONFIG
+from ..session import Options
+
+
+def bus(p: argparse.ArgumentParser) -> None:
+    """How to reach the drives: the bus configuration, or the simulated robot."""
+    p.add_argument("--config", default=str(DEFAULT_BUS_CONFIG),
+                   help="bus configuration (default: the simulated robot's, shipped with drive-bridge)")
+    p.add_argument("--sim", action="store_true", help="run against the simulated robot in-process")
+    p.add_argument("--realtime", action="store_true", help="with --sim: wall clock instead of lockstep")
+    p.add_argument("--sim-config", help="with --sim: simulator YAML (default: the shipped robot)")
+
+
+def drive(p: argparse.ArgumentParser, params: bool = True) -> None:
+    """Bus, drive profile, --params (a tune result) and --json: what tune/write/validate share."""
+    bus(p)
+    p.add_argument("--profile", default="drive_bridge_servo",
+                   help="drive profile: a shipped name or a YAML file (default: %(default)s)")
+    if params:
+        p.add_argument("--params", required=True, help="tune result (tune.json)")
+    p.add_argument("--json", action="store_true", help="print the result as one JSON object")
+
+
+def motor(p: argparse.ArgumentParser) -> None:
+    """Motor data for drives that do not report it (tune and commission design the current loop)."""
+    p.add_argument("--motor-R", type=float, help="motor resistance [Ω] if the drive does not report it")
+    p.add_argument("--motor-L", type=float, help="motor inductance [H] if the drive does not report it")
+
+
+def seed(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--seed", type=int, default=0, help="seed of the evolutionary fits (default: 0)")
+
+
+def axes_list(text: str | None) -> list[str] | None:
+    """A comma-separated list of names (None when not given)."""
+    return [a.strip() for a in text.split(",") if a.strip()] if text else None
+
+
+def config(args) -> BusConfig:
+    """The bus configuration of ``--config``, restricted to ``--axes`` and with the campaign
+    options (``--quick``, ``--together``) applied."""
+    if getattr(args, "realtime", False) and not args.sim:
+        raise UserError("--realtime only applies with --sim")
+    cfg = load_bus_config(args.config)
+    if getattr(args, "axes", None):
+        cfg = cfg.only(axes_list(args.axes))
+    if getattr(args, "quick", False):
+        cfg = replace(cfg, campaign=cfg.campaign.quick())
+    if getattr(args, "together", False):
+        cfg = replace(cfg, campaign=replace(cfg.campaign, together=True))
+    return cfg
+
+
+def session_options(args) -> Options:
+    """What a Session needs from the command line."""
+    given = (getattr(args, "motor_R", None), getattr(args, "motor_L", None))
+    return Options(args.sim, args.realtime, args.sim_config, getattr(args, "profile", "drive_bridge_servo"),
+                   given if all(given) else None, getattr(args, "seed", 0))

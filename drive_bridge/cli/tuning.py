@@ -1,0 +1,150 @@
+"""``tune``, ``write`` and ``validate``: gains from the identified models, the transactional write
+of gains and model, and the reference trajectories."""
+from __future__ import annotations
+
+import json
+import warnings
+from pathlib import Path
+
+from ..errors import UserError
+from ..outputs import write_json
+from ..params.read import drive_state
+from ..params.write import raise_for_failure, results_doc, write_drives
+from ..session import Session
+from ..tuning.tune import GAINS, drive_model, read_identify_json, read_tune_json, tune_axes, tune_doc
+from . import options
+
+
+def register(sub) -> None:
+    p = sub.add_parser("tune", help="design the cascade gains from identified models (margins with python-control)",
+                       description="Gains from identify.json on the drives' motor data and present gains; "
+                                   "--experiment also runs the paper's gain-raising procedure on the drive.")
+    options.drive(p, params=False)
+    p.add_argument("--ident", required=True, help="identify --json output (identify.json)")
+    p.add_argument("--out", default="tune.json", help="where to write the result (default: %(default)s)")
+    p.add_argument("--experiment", action="store_true", help="also run the paper's gain-raising procedure on the drive")
+    options.motor(p)
+    p.set_defaults(func=cmd_tune)
+
+    p = sub.add_parser("write", help="write gains and model to the drives: backup, verify, then store",
+                       description="One transaction over all drives: backup, write, read back and compare, "
+                                   "then store (0x1010); any failure restores every drive and stores nothing.")
+    options.drive(p)
+    p.add_argument("--dry-run", action="store_true", help="print old -> new and write nothing")
+    p.add_argument("--backup-dir", default="backup", help="where the backups go (default: %(default)s)")
+    p.add_argument("--dcf-dir", help="export each commissioned node as a DCF here")
+    p.set_defaults(func=cmd_write)
+
+    p = sub.add_parser("validate", help="reference trajectories: Table III scenarios against the tuned set",
+                       description="Point-to-point moves and a 3-D path with each Table III scenario and the "
+                                   "tuned set; the drives are left with the parameters they held before.")
+    options.drive(p)
+    p.add_argument("--out", help="directory for validate.json and the logged runs (traces.npz)")
+    p.set_defaults(func=cmd_validate)
+
+
+def _axes_in(config, names, path) -> list[str]:
+    axes = [a for a in config.nodes if a in names]
+    if not axes:
+        raise UserError(f"{path}: none of its axes ({', '.join(names)}) is in {config.path}")
+    return axes
+
+
+def cmd_tune(args) -> int:
+    from ..tuning.experiment import run_experiment
+    warnings.filterwarnings("ignore", module="scipy.optimize")
+    config = options.config(args)
+    models = read_identify_json(args.ident)
+    config = config.only(_axes_in(config, models, args.ident))
+    with Session(config, options.session_options(args)) as session:
+        results = tune_axes(models, drive_state(session.axes, session.profile, session.options.motor))
+        if args.experiment:
+            for a, t in results.items():
+                t.experiment = run_experiment(config, session.link, session.axes, a, session.profile,
+                                              t.before.get("KpS", t.design.KpS))
+    doc = tune_doc(results)
+    out = write_json(args.out, doc)
+    if args.json:
+        print(json.dumps(doc, default=float))
+        return 0
+    for a, t in results.items():
+        d = t.design
+        print(f"axis {a}: J {t.model['J']:.4g} kg·m², c1 {t.model['c1']:.4g} Nm·s/rad")
+        for g in GAINS:
+            print(f"  {g:<4} {t.before.get(g, float('nan')):>10.5g} -> {getattr(d, g):.5g}")
+        print(f"  velocity loop: phase margin {d.velocity.phase_margin_deg:.1f}°, gain margin "
+              f"{d.velocity.gain_margin_db:.1f} dB, crossover {d.velocity.crossover_hz:.0f} Hz"
+              + ("" if t.before_margins is None else f" (before: {t.before_margins[0].phase_margin_deg:.1f}°, "
+                 f"{t.before_margins[0].gain_margin_db:.1f} dB)"))
+        print(f"  position loop: phase margin {d.position.phase_margin_deg:.1f}°, gain margin "
+              f"{d.position.gain_margin_db:.1f} dB, crossover {d.position.crossover_hz:.0f} Hz")
+        if t.experiment is not None:
+            e = t.experiment
+            print(f"  paper's procedure on the drive: KpS {e.KpS if e.KpS is None else round(e.KpS, 4)} after "
+                  f"{len(e.steps)} steps (model-based: {d.KpS:.4g})")
+    print(f"wrote {out}")
+    return 0
+
+
+def cmd_write(args) -> int:
+    config = options.config(args)
+    params = read_tune_json(args.params)
+    config = config.only(_axes_in(config, params, args.params))
+    with Session(config, options.session_options(args)) as session:
+        nodes = session.nodes
+        results = write_drives(nodes, session.profile, {a: params[a] for a in nodes},
+                               backup_dir=args.backup_dir, dcf_dir=args.dcf_dir, dry_run=args.dry_run)
+    if args.json:
+        print(json.dumps(results_doc(results, nodes), default=float))
+    else:
+        _print_write(results)
+    if not args.dry_run:
+        raise_for_failure(results, nodes, args.backup_dir)
+    return 0
+
+
+def _print_write(results) -> None:
+    for a, r in results.items():
+        print(f"axis {a} (node {r.node_id}, {r.drive}){' — dry run, nothing written' if r.dry_run else ''}:")
+        for w in r.objects:
+            state = "verified" if w.verified else ("" if r.dry_run else "NOT verified")
+            print(f"  {w.parameter:<9} 0x{w.index:04X}:{w.sub:<2} {_num(w.old_si):>11} -> {_num(w.new_si):<11} "
+                  f"{w.unit:<18} (device {w.old_device} -> {w.new_device}) {state}")
+        for name in r.unsupported:
+            print(f"  {name:<9} not supported by {r.drive}: not written")
+        if r.stored:
+            print("  stored to non-volatile memory (0x1010 'save')")
+        for n in r.notes:
+            print(f"  note: {n}")
+
+
+def _num(v) -> str:
+    return "?" if v is None else f"{v:.6g}"
+
+
+def cmd_validate(args) -> int:
+    from ..paper import TABLE_III
+    from ..tuning.validate import run_scenarios, stopped
+    config = options.config(args)
+    params = read_tune_json(args.params)
+    names = _axes_in(config, params, args.params)
+    config = config.only(names)
+    model = {a: drive_model(params[a]) for a in names}
+    scenarios = {n: {a: dict(g) for a in names} for n, g in TABLE_III.items()}
+    scenarios["tuned + model feed-forward"] = {a: params[a] for a in names}
+    with Session(config, options.session_options(args)) as session:
+        runs = run_scenarios(config, session.link, session.axes, session.profile, scenarios, model,
+                             out_dir=Path(args.out) if args.out else None)
+    if args.json:
+        print(json.dumps({"runs": [r.as_dict() for r in runs]}, default=float))
+    else:
+        print(f"{'scenario':<28} {'trajectory':<15} {'axis':<4} {'FE rms [rad]':>12} {'FE max [rad]':>12} "
+              f"{'overshoot %':>11} {'settling s':>10} {'torque RMSE [Nm]':>16}")
+        for r in runs:
+            for a, m in r.axes.items():
+                print(f"{r.scenario:<28} {r.trajectory:<15} {a:<4} {m.fe_rms:>12.3g} {m.fe_max:>12.3g} "
+                      f"{_num(m.overshoot_pct):>11} {_num(m.settling_s):>10} {m.torque_rmse:>16.3g}")
+    stop = stopped(runs)
+    if stop is not None:
+        raise stop
+    return 0

@@ -1,0 +1,76 @@
+"""Reading a drive: its parameters in SI through the drive profile, its motor data, and the
+state bring-up records before commissioning (the set a commissioning can be compared with)."""
+from __future__ import annotations
+
+import canopen
+from canopen.sdo import SdoVariable
+
+from ..errors import BusError, UserError
+from .profile import Entry, Profile
+
+SDO_ERRORS = (canopen.SdoAbortedError, canopen.SdoCommunicationError)
+
+
+def sdo_variable(node: canopen.RemoteNode, entry: Entry) -> SdoVariable:
+    """The SDO accessor of ``entry``'s object on ``node`` (canopen's own lookup)."""
+    return SdoVariable(node.sdo, node.object_dictionary.get_variable(entry.index, entry.sub))
+
+
+def describe_sdo_error(exc: Exception) -> str:
+    """One phrase for an SDO failure: the abort code and its CiA 301 text, or the lost answer."""
+    if isinstance(exc, canopen.SdoAbortedError):
+        return f"SDO abort 0x{exc.code:08X}: {canopen.SdoAbortedError.CODES.get(exc.code, 'unknown abort code')}"
+    if isinstance(exc, canopen.SdoCommunicationError):
+        return f"no answer ({exc}): the node may have dropped off the bus"
+    return f"{type(exc).__name__}: {exc}"
+
+
+def read_parameters(node: canopen.RemoteNode, profile: Profile, names=None) -> dict[str, float]:
+    """The drive's current values [SI] of ``names`` (default: every parameter of ``profile``;
+    names the profile has no object for are left out).
+
+    Raises BusError naming the object when the drive does not answer or refuses a read."""
+    out = {}
+    for name in names or profile.entries:
+        entry = profile.entries.get(name)
+        if entry is None:
+            continue
+        try:
+            out[name] = entry.to_si(sdo_variable(node, entry).raw)
+        except SDO_ERRORS as exc:
+            raise BusError(f"node {node.id}: reading {name} ({entry.where()}) failed: "
+                           f"{describe_sdo_error(exc)}") from exc
+    return out
+
+
+def motor_data(node: canopen.RemoteNode, R: float | None = None, L: float | None = None) -> tuple[float, float]:
+    """Motor R [Ω] and L [H]: from the drive's motor data 0x2002 where it has it, else ``R``, ``L``."""
+    if 0x2002 in node.object_dictionary:
+        return float(node.sdo[0x2002][1].raw), float(node.sdo[0x2002][2].raw)
+    if R and L:
+        return R, L
+    raise UserError(f"node {node.id}: the drive does not report its motor R and L; give --motor-R and --motor-L")
+
+
+def require_profile_objects(nodes: dict[str, canopen.RemoteNode], profile: Profile) -> None:
+    """UserError naming the axis when its EDS/DCF lacks an object of ``profile`` (wrong profile)."""
+    for a, node in nodes.items():
+        missing = [e.where() for e in profile.entries.values()
+                   if node.object_dictionary.get_variable(e.index, e.sub) is None]
+        if missing:
+            raise UserError(f"axis {a}: the EDS/DCF of node {node.id} has no object {', '.join(missing)} of the "
+                            f"drive profile {profile.path}; choose the profile of this drive (--profile)")
+
+
+def drive_state(axes: dict, profile: Profile, motor: tuple[float, float] | None = None) -> dict[str, dict]:
+    """Per brought-up axis (:class:`~drive_bridge.master.bringup.AxisLink`): node id, identity,
+    motor R [Ω] / L [H] and every parameter of ``profile`` as the drive holds it now [SI].
+
+    Raises UserError when the drive's EDS/DCF lacks an object of the profile (wrong profile)."""
+    require_profile_objects({a: ax.node for a, ax in axes.items()}, profile)
+    out = {}
+    for a, ax in axes.items():
+        R, L = motor_data(ax.node, *(motor or (None, None)))
+        out[a] = {"node_id": ax.cfg.node_id, "identity": ax.identity, "motor": {"R": R, "L": L},
+                  "parameters_before": read_parameters(ax.node, profile)}
+    return out

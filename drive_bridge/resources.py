@@ -1,0 +1,29 @@
+"""Files that ship inside the package, found with :mod:`importlib.resources`.
+
+``drive_bridge/data`` holds the project's EDS (``eds/``) and bus configurations
+(``config/``); drive profiles live beside their reader (``params/profiles``) and
+the simulated robot beside the simulator (``sim/robot.yaml``).  The package is
+installed as files (wheel or source tree), so each resource has a path on disk:
+canopen and the YAML readers take paths, and a bus.yml names its EDS by a path
+relative to itself.
+"""
+from __future__ import annotations
+
+from importlib import resources
+from pathlib import Path
+
+
+def shipped(*parts: str) -> Path:
+    """Path of the file ``drive_bridge/<parts...>`` of the installed package."""
+    return Path(str(resources.files("drive_bridge").joinpath(*parts)))
+
+
+def data(*parts: str) -> Path:
+    """Path of ``drive_bridge/data/<parts...>``: the project's EDS and bus configurations."""
+    return shipped("data", *parts)
+
+
+#: the project's drive (the simulated one): its EDS
+PROJECT_EDS = data("eds", "drive_bridge_servo.eds")
+#: the bus configuration of the simulated robot, the default of every command
+DEFAULT_BUS_CONFIG = data("config", "bus.yml")

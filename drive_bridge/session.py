@@ -1,0 +1,85 @@
+"""A session with the drives of one bus configuration: the link, the nodes and the
+brought-up axes, each opened on first use and closed with the session.
+
+Every command that talks to drives, and every step of ``commission``, works
+through a :class:`Session`, so a step behaves the same run alone or in the
+whole job.
+"""
+from __future__ import annotations
+
+from contextlib import ExitStack
+from dataclasses import dataclass
+
+import canopen
+
+from .config import BusConfig
+from .connect import open_link
+from .master.bringup import AxisLink, bring_up, check_scan, scan
+from .master.link import Link
+from .params.profile import Profile, load_profile
+
+
+@dataclass
+class Options:
+    """How to reach the drives and what to run with: ``sim`` (``realtime``, ``sim_config``) for
+    the simulated robot, the drive ``profile``, ``motor`` (R [Ω], L [H]) for drives that do not
+    report it, the ``seed`` of the evolutionary fits."""
+
+    sim: bool = False
+    realtime: bool = False
+    sim_config: str | None = None
+    profile: str = "drive_bridge_servo"
+    motor: tuple[float, float] | None = None
+    seed: int = 0
+
+
+class Session:
+    """The drives of ``config`` reached as ``options`` say (or over an open ``link``)."""
+
+    def __init__(self, config: BusConfig, options: Options | None = None, link: Link | None = None):
+        self.config = config
+        self.options = options or Options()
+        self._stack = ExitStack()
+        self._link = link
+        self._nodes: dict[str, canopen.RemoteNode] | None = None
+        self._axes: dict[str, AxisLink] | None = None
+        self._profile: Profile | None = None
+
+    def __enter__(self) -> "Session":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def close(self) -> None:
+        self._stack.close()
+
+    @property
+    def profile(self) -> Profile:
+        if self._profile is None:
+            self._profile = load_profile(self.options.profile)
+        return self._profile
+
+    @property
+    def link(self) -> Link:
+        if self._link is None:
+            o = self.options
+            self._link = self._stack.enter_context(open_link(self.config, o.sim, o.realtime, o.sim_config))
+        return self._link
+
+    @property
+    def nodes(self) -> dict[str, canopen.RemoteNode]:
+        """The configured nodes, found on the bus (scan), with their EDS/DCF; nothing written."""
+        if self._axes is not None:
+            return {a: ax.node for a, ax in self._axes.items()}
+        if self._nodes is None:
+            check_scan(scan(self.link, self.config), self.config)
+            self._nodes = {a: self.link.network[n.node_id] for a, n in self.config.nodes.items()}
+        return self._nodes
+
+    @property
+    def axes(self) -> dict[str, AxisLink]:
+        """The configured drives brought up: PDO mapping, heartbeat, limits (drives stay disabled)."""
+        if self._axes is None:
+            self._axes = bring_up(self.link, self.config)
+        return self._axes

@@ -1,0 +1,71 @@
+"""Streaming's fault paths: every axis quick-stopped, the data so far kept."""
+from __future__ import annotations
+
+import numpy as np
+import yaml
+
+from drive_bridge.record import record
+
+from ..support import Bench, clean_config, quick_config, read_csv
+
+
+def run_record(tmp_path, sim_cfg, config=None, axes=None, on_progress=None):
+    config = config or quick_config()
+    if axes:
+        config = config.only(axes)
+    bench = Bench(sim_cfg)
+    hook = (lambda plan: (lambda k: on_progress(bench, k))) if on_progress else None
+    return bench, record(config, bench.link, tmp_path, on_plan=hook)
+
+
+# ---------------------------------------------------------------- fault paths
+def assert_stopped_and_kept(bench, tmp_path, result, axis, reason):
+    assert not result.ok and result.aborted.axis == axis and reason in result.aborted.reason
+    meta = yaml.safe_load((tmp_path / "meta.yaml").read_text())
+    assert meta["status"] == "aborted" and meta["abort"]["axis"] == axis
+    names, data = read_csv(tmp_path / "log.csv")
+    assert 0 < len(data) < meta["counts"]["cycles_planned"]
+    assert len(data) == meta["counts"]["cycles_sent"]
+    bench.link.clock.sleep(0.01)                             # the holding brakes engage
+    for drive in bench.robot.drives.values():                # every axis stands still, disabled
+        assert drive.s[1] == 0.0 and drive.state in (1, 7)   # SWITCH ON DISABLED or FAULT
+
+
+def test_following_error_fault_stops_every_axis(tmp_path):
+    # a hidden 5 Nm load on Y is more than the drive's 3.8 Nm: it cannot follow
+    sim = clean_config(effects={"y": {"load": {"LOAD": 5.0}}})
+    bench, result = run_record(tmp_path, sim, quick_config(together=True))
+    assert_stopped_and_kept(bench, tmp_path, result, "y", "following error (EMCY 0x8611)")
+
+
+def test_heartbeat_loss_stops_every_axis(tmp_path):
+    def silence_z(bench, k):
+        if k == 500:
+            bench.robot.drives["z"].node.data_store[0x1017] = {0: b"\x00\x00"}   # producer off
+            bench.robot.drives["z"]._cache.pop((0x1017, 0), None)
+    bench, result = run_record(tmp_path, clean_config(), quick_config(together=True), on_progress=silence_z)
+    assert_stopped_and_kept(bench, tmp_path, result, "z", "heartbeat lost")
+
+
+def test_missing_tpdos_stop_every_axis(tmp_path):
+    def unplug_x(bench, k):
+        if k == 400:
+            bench.robot.drives["x"].online = False
+    bench, result = run_record(tmp_path, clean_config(), quick_config(together=True), on_progress=unplug_x)
+    assert not result.ok and result.aborted.axis == "x" and "no TPDO for 3" in result.aborted.reason
+    assert "axis x: quick stop not confirmed" in result.aborted.reason    # it is gone from the bus
+    names, data = read_csv(tmp_path / "log.csv")
+    assert np.isnan(data[-1, names.index("x_position_rad")]) and data[-1, names.index("x_valid")] == 0
+    # every SYNC after the unplug is a counted gap (3 checked + the one sent before the check)
+    gaps = np.flatnonzero(data[:, names.index("x_valid")] == 0)
+    assert result.missing["x"] == len(gaps) == 4 and np.all(np.diff(gaps) == 1)
+    assert result.missing["y"] == result.missing["z"] == 0
+
+
+def test_ctrl_c_stops_every_axis(tmp_path):
+    def interrupt(bench, k):
+        if k == 300:
+            raise KeyboardInterrupt
+    bench, result = run_record(tmp_path, clean_config(), quick_config(together=True), on_progress=interrupt)
+    assert not result.ok and "Ctrl-C" in result.aborted.reason
+    assert (tmp_path / "log.csv").exists()

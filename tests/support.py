@@ -1,0 +1,79 @@
+"""Helpers the tests share: paths, the paper's plant, simulated robots on private virtual-bus
+channels in lockstep, and small readers.  Fixtures built on them are in conftest.py."""
+from __future__ import annotations
+
+import itertools
+import os
+from dataclasses import replace
+from pathlib import Path
+
+import canopen
+import numpy as np
+
+from drive_bridge.config import load_bus_config
+from drive_bridge.paper import TABLE_II
+from drive_bridge.resources import DEFAULT_BUS_CONFIG, PROJECT_EDS
+from drive_bridge.sim.config import Motor, SimAxis, SimConfig
+from drive_bridge.sim.lockstep import LockstepLink
+from drive_bridge.sim.robot import SimRobot
+
+ROOT = Path(__file__).resolve().parents[1]
+SHARED = ROOT.parent / "shared"
+EDS = PROJECT_EDS
+BUS_CONFIG = DEFAULT_BUS_CONFIG
+VENDOR_EDS = Path(os.environ.get("DRIVE_BRIDGE_VENDOR_EDS", SHARED / "eds-vendor"))
+PAPER = TABLE_II
+_channels = itertools.count(1)
+
+
+def clean_config(noise: float = 0.0, seed: int = 0, effects: dict | None = None) -> SimConfig:
+    """The robot without hidden effects; ``effects`` = {axis: {name: {kernel param: value}}}."""
+    axes = {}
+    for i, (name, p) in enumerate(PAPER.items()):
+        axes[name] = SimAxis(name=name, node_id=i + 1, serial=100 + i, torque_noise_Nm=noise,
+                             motor=Motor(), effects=(effects or {}).get(name, {}), **p)
+    return SimConfig(axes=axes, seed=seed)
+
+
+class Bench:
+    """A simulated robot with a lockstep master link and canopen RemoteNodes for its drives."""
+
+    open: list["Bench"] = []
+
+    def __init__(self, config: SimConfig):
+        Bench.open.append(self)
+        channel = f"test-{next(_channels)}"
+        self.robot = SimRobot(config, channel)
+        self.link = LockstepLink(self.robot, channel)
+        self.net = self.link.network
+        self.nodes = {}
+        for name, axis in config.axes.items():
+            node = canopen.RemoteNode(axis.node_id, canopen.import_od(str(EDS), axis.node_id))
+            self.net.add_node(node)
+            self.nodes[name] = node
+
+    def close(self):
+        if self in Bench.open:
+            Bench.open.remove(self)
+            self.link.close()
+
+
+def quick_config(**campaign):
+    """The shipped bus configuration with a campaign of a few seconds per axis."""
+    cfg = load_bus_config(BUS_CONFIG)
+    return replace(cfg, campaign=replace(cfg.campaign.quick(), **campaign))
+
+
+def read_csv(path):
+    """Column names and values of a log CSV."""
+    with open(path) as f:
+        names = f.readline().strip().split(",")
+    return names, np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+
+
+def bus_yml_beside(tmp_path: Path, old: str = "", new: str = "") -> Path:
+    """The shipped bus.yml copied to ``tmp_path`` (one text replaced), its EDS path made absolute."""
+    text = BUS_CONFIG.read_text().replace(old, new, 1) if old else BUS_CONFIG.read_text()
+    cfg = tmp_path / "bus.yml"
+    cfg.write_text(text.replace("../eds/", str(EDS.parent) + "/"))
+    return cfg

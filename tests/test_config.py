@@ -1,0 +1,50 @@
+"""The bus configuration: one clear message for every mistake, the bus-load budget."""
+from __future__ import annotations
+
+import pytest
+
+from drive_bridge.cli import main
+from drive_bridge.config import load_bus_config
+
+from .support import BUS_CONFIG, bus_yml_beside
+
+
+BAD_CONFIGS = [
+    ("  sync_period: 2000", "  sync_period: 2000\n  colour: red", "master.colour: unknown key"),
+    ("    node_id: 2\n", "", "nodes.y.node_id: missing"),
+    ("  bitrate: 1000000", "  bitrate: fast", "master.bitrate: must be int"),
+    ("dcf: ../eds/drive_bridge_servo.eds", "dcf: ../eds/nope.eds", "nodes.x.dcf: EDS/DCF file not found"),
+    ("max_velocity_m_s: 0.230, max_acceleration_m_s2: 5.0}\n  z",
+     "max_velocity_m_s: 0.8, max_acceleration_m_s2: 5.0}\n  z",
+     "nodes.y.limits.max_velocity_m_s: 0.8 m/s is 4800 rpm at the motor, above the drive's max motor speed"),
+    ("        - {index: 0x607A, sub_index: 0}", "", "nodes.x.rpdo: must map 0x607A"),
+]
+
+
+@pytest.mark.parametrize("old,new,message", BAD_CONFIGS)
+def test_bad_configuration_is_one_clear_message(tmp_path, capsys, old, new, message):
+    assert old in BUS_CONFIG.read_text()
+    cfg = bus_yml_beside(tmp_path, old, new)
+    assert main(["record", "--sim", "--quick", "--config", str(cfg), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert str(cfg) in err and message in err
+    assert "Traceback" not in err and len(err.strip().splitlines()) == 1
+
+
+def test_unknown_axis_is_refused(tmp_path, capsys):
+    assert main(["record", "--sim", "--axes", "x,w", "--out", str(tmp_path)]) == 2
+    assert "no axis named 'w'" in capsys.readouterr().err
+
+
+def test_bus_load_above_budget_is_refused(tmp_path, capsys):
+    cfg = bus_yml_beside(tmp_path, "sync_period: 2000", "sync_period: 1000")
+    assert main(["record", "--sim", "--quick", "--config", str(cfg), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert "above the 80% budget" in err and "sync_period" in err
+    assert not (tmp_path / "o").exists() or not any((tmp_path / "o").iterdir())
+
+
+def test_three_axes_at_500_hz_fit_at_1_mbit():
+    from drive_bridge.master.busload import bus_load
+    load = bus_load(load_bus_config(BUS_CONFIG))
+    assert 0.4 < load.load < 0.8
