@@ -1,8 +1,8 @@
 """The effect library: what the base model J·q̈ + c1·q̇ + c0·sign(q̇) may lack.
 
 Each effect adds regressor columns that are linear in its coefficients, given
-its nonlinear parameters (``hyper``: a period, a Stribeck velocity, a time
-constant), which the tracer tunes with differential evolution.  Effects are
+its nonlinear parameters (a period, a Stribeck velocity, a time constant),
+which its ``fit`` learns with differential evolution.  Effects are
 deviations around the base model, so J, c0 and c1 keep their meaning:
 friction in the direction of motion is c0 + dc0 and c1 + dc1, against it
 c0 - dc0 and c1 - dc1.  Units follow the axis (rotary: rad, Nm; linear: m, N).
@@ -13,39 +13,96 @@ c0 - dc0 and c1 - dc1.  Units follow the axis (rotary: rad, Nm; linear: m, N).
 """
 from __future__ import annotations
 
+import inspect
 import math
 from typing import ClassVar
 
 import numpy as np
+from scipy import optimize
 
+from ..errors import InternalError
 from .signals import Samples
 
 
+class NotFittedError(InternalError):
+    """An effect's columns were asked for before ``fit`` learned its nonlinear parameters."""
+
+
 class Effect:
+    """One term the base model may lack (scikit-learn's estimator conventions).
+
+    The constructor's keyword parameters (``get_params``) are the starting values and
+    search ranges of the effect's nonlinear parameters and are never changed; ``fit``
+    learns those parameters, stored with a trailing underscore (``period_``).  The linear
+    coefficients (``coef_names``) are fitted jointly with the whole model by
+    :class:`~drive_bridge.ident.model.AxisModel`.
+    """
+
     name: ClassVar[str]
-    depends_on: str
+    depends_on: ClassVar[str]
     coef_names: ClassVar[tuple[str, ...]]
+    nonlinear: ClassVar[tuple[str, ...]] = ()     # nonlinear parameters, learned by fit as <name>_
 
-    def __init__(self, **hyper: float):
-        self.hyper = dict(hyper)
-        self.bounds: dict[str, tuple[float, float]] = {}      # hyper -> search range for tuning
+    def get_params(self) -> dict:
+        """The constructor's keyword parameters and their values."""
+        init = type(self).__init__
+        if init is object.__init__:
+            return {}
+        return {k: getattr(self, k) for k, p in inspect.signature(init).parameters.items()
+                if k != "self" and p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)}
 
-    def columns(self, s: Samples) -> np.ndarray:
-        """Regressor columns (n × len(coef_names)) at the samples ``s``."""
+    def bounds(self) -> dict[str, tuple[float, float]]:
+        """Search range of each nonlinear parameter."""
+        return {}
+
+    def _columns(self, s: Samples, **nonlinear: float) -> np.ndarray:
+        """Regressor columns (n × len(coef_names)) with the nonlinear parameters given."""
         raise NotImplementedError
 
+    def columns(self, s: Samples) -> np.ndarray:
+        """Regressor columns (n × len(coef_names)) at the samples ``s``, with the fitted nonlinear parameters."""
+        learned = {}
+        for k in self.nonlinear:
+            if not hasattr(self, k + "_"):
+                raise NotFittedError(f"{self!r}: fit it before asking for its columns")
+            learned[k] = getattr(self, k + "_")
+        return self._columns(s, **learned)
+
+    def fit(self, s: Samples, fixed: np.ndarray, y: np.ndarray, seed: int = 0) -> "Effect":
+        """Learn the nonlinear parameters on samples ``s`` against the observation ``y``, with the
+        columns ``fixed`` (the model so far) solved by least squares inside (variable projection),
+        by differential evolution seeded with ``seed``.  An effect without nonlinear parameters
+        has nothing to learn."""
+        if not self.nonlinear:
+            return self
+        scale = np.sqrt(np.mean(fixed ** 2, axis=0))
+        scale[scale == 0] = 1.0
+        q, _ = np.linalg.qr(fixed / scale)                 # project the fixed columns out once
+        y_perp = y - q @ (q.T @ y)
+        bounds = self.bounds()
+
+        def sse(x):
+            extra = self._columns(s, **dict(zip(self.nonlinear, x)))
+            extra = extra - q @ (q.T @ extra)
+            coef, *_ = np.linalg.lstsq(extra, y_perp, rcond=None)
+            r = y_perp - extra @ coef
+            return float(r @ r)
+
+        result = optimize.differential_evolution(sse, [bounds[k] for k in self.nonlinear], seed=seed,
+                                                 popsize=8, maxiter=25, tol=1e-6, polish=True)
+        for k, v in zip(self.nonlinear, result.x):
+            setattr(self, k + "_", float(v))
+        return self
+
     def params(self, coef: np.ndarray) -> dict[str, float | str]:
-        """Physical parameters from the fitted coefficients (and the hyper-parameters)."""
+        """Physical parameters from the fitted coefficients (and the learned nonlinear ones)."""
         return dict(zip(self.coef_names, map(float, coef)))
 
     def param_std(self, coef: np.ndarray, cov: np.ndarray) -> dict[str, float]:
         return {k: float(math.sqrt(cov[i, i])) for i, k in enumerate(self.coef_names)}
 
-    def label(self) -> str:
-        return self.name
-
     def __repr__(self) -> str:
-        return f"{type(self).__name__}({self.hyper})"
+        return f"{type(self).__name__}({', '.join(f'{k}={v!r}' for k, v in self.get_params().items())})"
 
 
 class Offset(Effect):
@@ -53,7 +110,7 @@ class Offset(Effect):
 
     name, depends_on, coef_names = "offset", "constant", ("offset",)
 
-    def columns(self, s):
+    def _columns(self, s):
         return np.ones((len(s), 1))
 
 
@@ -62,27 +119,31 @@ class PositionLinear(Effect):
 
     name, depends_on, coef_names = "position_linear", "position", ("cp",)
 
-    def columns(self, s):
+    def _columns(self, s):
         return s.q[:, None]
 
 
 class PositionPeriodic(Effect):
-    """A sin(2π q / period + phase): cogging, belt-tooth or screw-lead ripple."""
+    """A sin(2π q / period + phase): cogging, belt-tooth or screw-lead ripple.
 
-    name, depends_on, coef_names = "position_periodic", "position", ("a_sin", "a_cos")
+    ``period`` [rad | m] is the starting value (from the residual's spectrum over position);
+    ``fit`` searches ``period`` ± ``spread`` (the spectrum's resolution) and learns ``period_``."""
 
-    def __init__(self, period: float):
-        super().__init__(period=period)
-        self.bounds = {"period": (0.9 * period, 1.1 * period)}     # the spectrum's resolution
+    name, depends_on, coef_names, nonlinear = "position_periodic", "position", ("a_sin", "a_cos"), ("period",)
 
-    def columns(self, s):
-        x = 2 * np.pi * s.q / self.hyper["period"]
+    def __init__(self, period: float, spread: float = 0.1):
+        self.period, self.spread = period, spread
+
+    def bounds(self):
+        return {"period": ((1 - self.spread) * self.period, (1 + self.spread) * self.period)}
+
+    def _columns(self, s, period):
+        x = 2 * np.pi * s.q / period
         return np.column_stack((np.sin(x), np.cos(x)))
 
     def params(self, coef):
         a, b = coef
-        return {"amplitude": float(math.hypot(a, b)), "period": self.hyper["period"],
-                "phase": float(math.atan2(b, a))}
+        return {"amplitude": float(math.hypot(a, b)), "period": self.period_, "phase": float(math.atan2(b, a))}
 
     def param_std(self, coef, cov):
         a, b = coef
@@ -92,37 +153,44 @@ class PositionPeriodic(Effect):
 
 
 class Stribeck(Effect):
-    """Extra friction near standstill: amplitude · exp(-(q̇/velocity)²) · sign(q̇)."""
+    """Extra friction near standstill: amplitude · exp(-(q̇/velocity)²) · sign(q̇).
 
-    name, depends_on, coef_names = "stribeck", "velocity", ("amplitude",)
+    ``velocity`` [rad/s | m/s] starts the search over [``low``, ``high``]; ``fit`` learns ``velocity_``."""
+
+    name, depends_on, coef_names, nonlinear = "stribeck", "velocity", ("amplitude",), ("velocity",)
 
     def __init__(self, velocity: float, low: float, high: float):
-        super().__init__(velocity=velocity)
-        self.bounds = {"velocity": (low, high)}
+        self.velocity, self.low, self.high = velocity, low, high
 
-    def columns(self, s):
-        return (np.exp(-(s.qd / self.hyper["velocity"]) ** 2) * np.sign(s.qd))[:, None]
+    def bounds(self):
+        return {"velocity": (self.low, self.high)}
+
+    def _columns(self, s, velocity):
+        return (np.exp(-(s.qd / velocity) ** 2) * np.sign(s.qd))[:, None]
 
     def params(self, coef):
-        return {"amplitude": float(coef[0]), "velocity": self.hyper["velocity"]}
+        return {"amplitude": float(coef[0]), "velocity": self.velocity_}
 
 
 class DirectionAsymmetry(Effect):
     """Friction that differs with the direction of motion: c1 ± dc1, c0 ± dc0.
 
     While moving, dc0 is a constant torque: with an offset already in the model
-    the two cannot be told apart and only dc1 is fitted.
+    the two cannot be told apart, so ``with_dc0=False`` fits dc1 only.
     """
 
     name, depends_on = "direction_asymmetry", "direction"
 
     def __init__(self, with_dc0: bool = True):
-        super().__init__()
-        self.coef_names = ("dc1", "dc0") if with_dc0 else ("dc1",)
+        self.with_dc0 = with_dc0
 
-    def columns(self, s):
+    @property
+    def coef_names(self) -> tuple[str, ...]:
+        return ("dc1", "dc0") if self.with_dc0 else ("dc1",)
+
+    def _columns(self, s):
         cols = [np.abs(s.qd)]
-        if len(self.coef_names) == 2:
+        if self.with_dc0:
             cols.append(np.ones(len(s)))
         return np.column_stack(cols)
 
@@ -139,11 +207,13 @@ class CrossAxis(Effect):
     FORMS = ("position_friction", "position", "velocity", "acceleration")
 
     def __init__(self, source: str, form: str):
-        super().__init__()
         self.source, self.form = source, form
-        self.depends_on = f"{source}_{'position' if form.startswith('position') else form}"
 
-    def columns(self, s):
+    @property
+    def depends_on(self) -> str:
+        return f"{self.source}_{'position' if self.form.startswith('position') else self.form}"
+
+    def _columns(self, s):
         q, qd, qdd = s.others[self.source]
         col = {"position_friction": q * np.sign(s.qd), "position": q, "velocity": qd, "acceleration": qdd}
         return col[self.form][:, None]
@@ -151,28 +221,25 @@ class CrossAxis(Effect):
     def params(self, coef):
         return {"source": self.source, "form": self.form, "coefficient": float(coef[0])}
 
-    def label(self):
-        return f"cross_axis({self.source}, {self.form})"
-
 
 class Drift(Effect):
-    """Coulomb friction that changes with time (warm-up): amplitude · exp(-t/time_constant) · sign(q̇)."""
+    """Coulomb friction that changes with time (warm-up): amplitude · exp(-t/time_constant) · sign(q̇).
 
-    name, depends_on, coef_names = "drift", "time", ("amplitude",)
+    ``time_constant`` [s] starts the search over [``low``, ``high``]; ``fit`` learns ``time_constant_``."""
+
+    name, depends_on, coef_names, nonlinear = "drift", "time", ("amplitude",), ("time_constant",)
 
     def __init__(self, time_constant: float, low: float, high: float):
-        super().__init__(time_constant=time_constant)
-        self.bounds = {"time_constant": (low, high)}
+        self.time_constant, self.low, self.high = time_constant, low, high
 
-    def columns(self, s):
-        return (np.exp(-s.t / self.hyper["time_constant"]) * np.sign(s.qd))[:, None]
+    def bounds(self):
+        return {"time_constant": (self.low, self.high)}
+
+    def _columns(self, s, time_constant):
+        return (np.exp(-s.t / time_constant) * np.sign(s.qd))[:, None]
 
     def params(self, coef):
-        return {"amplitude": float(coef[0]), "time_constant_s": self.hyper["time_constant"]}
-
-
-LIBRARY = ("offset", "position_linear", "position_periodic", "stribeck", "direction_asymmetry",
-           "cross_axis", "drift")
+        return {"amplitude": float(coef[0]), "time_constant_s": self.time_constant_}
 
 
 def position_period(s: Samples, residual: np.ndarray) -> float | None:
@@ -206,7 +273,7 @@ def position_period(s: Samples, residual: np.ndarray) -> float | None:
 
 
 def candidates(present: list[Effect], s: Samples, residual: np.ndarray) -> list[Effect]:
-    """Effects not yet in the model that the residual could reveal, with starting hyper-parameters."""
+    """Effects not yet in the model that the residual could reveal, unfitted, with starting values."""
     names = {e.name for e in present}
     m = s.moving
     out: list[Effect] = []
@@ -221,12 +288,12 @@ def candidates(present: list[Effect], s: Samples, residual: np.ndarray) -> list[
     vmax = float(np.max(np.abs(s.qd[m])))
     vmin = float(np.min(np.abs(s.qd[m])))
     if "stribeck" not in names:
-        out.append(Stribeck(0.1 * vmax, max(vmin, 0.01 * vmax), 0.5 * vmax))
+        out.append(Stribeck(0.1 * vmax, low=max(vmin, 0.01 * vmax), high=0.5 * vmax))
     if "direction_asymmetry" not in names:
         out.append(DirectionAsymmetry(with_dc0="offset" not in names))
     if "drift" not in names:
         duration = float(np.ptp(s.t))
-        out.append(Drift(duration / 5, duration / 100, 3 * duration))
+        out.append(Drift(duration / 5, low=duration / 100, high=3 * duration))
     coupled = {(e.source, e.form) for e in present if isinstance(e, CrossAxis)}
     for src in s.others:
         for form in CrossAxis.FORMS:

@@ -12,7 +12,7 @@ import numpy as np
 
 from ..errors import UserError
 from .logdata import Log, read_log
-from .model import AxisModel, Errors, errors, fit_ga
+from .model import AxisModel, Errors, errors
 from .signals import Samples, Settings, choose_settings, noise_floor, prepare
 from .trace import TracedEffect, trace, unexplained
 
@@ -102,12 +102,10 @@ def identify_axis(log: Log, axis: str, val_log: Log | None = None, *, seed: int 
         vs = settings
     base, model, traced = trace(est, val, seed)
     noise_log = val_log if val_log is not None else log
-    ga = fit_ga(model, est, seed)
-    ga_model = AxisModel(model.effects)
-    ga_model.coef_ = ga
+    ga_model = AxisModel(model.effects, method="ga", seed=seed).fit(est)
     return AxisResult(axis, log.axes[axis].kind, log.axes[axis].units, settings, how, est, val, base, model,
                       traced, errors(base, val), errors(model, val), noise_floor(noise_log, axis, vs if val_log else settings),
-                      unexplained(model, val, settings.rate_hz / settings.decimation), ga,
+                      unexplained(model, val, settings.rate_hz / settings.decimation), ga_model.coef_,
                       errors(ga_model, val), list(log.axes[axis].dropped))
 
 

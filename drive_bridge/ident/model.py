@@ -2,9 +2,11 @@
 
 ``AxisModel(effects).fit(samples)`` solves the least-squares problem of the
 paper (eq. 2–3) on the moving samples, with the filtered torque as the
-observation; fitted values end in ``_`` (scikit-learn style).  ``fit_ga``
-fits the same structure with differential evolution (the paper's genetic
-algorithm), seeded.  Units follow the axis: J [kg·m² | kg], c1 [Nm·s/rad |
+observation; fitted values end in ``_`` (scikit-learn style), and only ``fit``
+sets them.  ``AxisModel(effects, method="ga", seed=...)`` fits the same
+structure with differential evolution (the paper's genetic algorithm).
+:func:`extend` adds an effect: its nonlinear parameters first, then every
+coefficient again.  Units follow the axis: J [kg·m² | kg], c1 [Nm·s/rad |
 N·s/m], c0 [Nm | N].
 """
 from __future__ import annotations
@@ -25,13 +27,21 @@ def base_columns(s: Samples) -> np.ndarray:
 
 
 class AxisModel:
-    """Base rigid-body model plus ``effects``; see the module docstring."""
+    """Base rigid-body model plus ``effects`` (fitted ones: their nonlinear parameters learned),
+    fitted by least squares (``method="lse"``) or differential evolution (``"ga"``, seeded)."""
 
-    def __init__(self, effects: list[Effect] | tuple[Effect, ...] = ()):
+    METHODS = ("lse", "ga")
+
+    def __init__(self, effects: list[Effect] | tuple[Effect, ...] = (), method: str = "lse", seed: int = 0):
+        if method not in self.METHODS:
+            raise ValueError(f"method must be one of {self.METHODS}, got {method!r}")
         self.effects = list(effects)
+        self.method = method
+        self.seed = seed
 
     def with_effect(self, effect: Effect) -> "AxisModel":
-        return AxisModel(self.effects + [effect])
+        """The same model, unfitted, with ``effect`` added."""
+        return AxisModel(self.effects + [effect], self.method, self.seed)
 
     def design(self, s: Samples) -> np.ndarray:
         return np.column_stack([base_columns(s)] + [e.columns(s) for e in self.effects])
@@ -41,20 +51,27 @@ class AxisModel:
         return list(BASE) + [f"{e.name}.{c}" for e in self.effects for c in e.coef_names]
 
     def fit(self, s: Samples) -> "AxisModel":
+        """Fit every coefficient on the moving samples of ``s``.  ``cov_``, ``sigma_`` and
+        ``cond_`` are those of the least-squares problem (with ``"ga"`` too: differential
+        evolution gives no covariance)."""
         m = s.moving
         phi, y = self.design(s)[m], s.tau_f[m]
         scale = np.sqrt(np.mean(phi ** 2, axis=0))
         scale[scale == 0] = 1.0
         coef, *_ = np.linalg.lstsq(phi / scale, y, rcond=None)
-        self.coef_ = coef / scale
-        resid = y - phi @ self.coef_
+        coef = coef / scale
         n, p = phi.shape
-        self.n_samples_ = n
-        self.sse_ = float(resid @ resid)
-        self.sigma_ = float(np.sqrt(self.sse_ / max(1, n - p)))           # residual std
+        resid = y - phi @ coef
+        self.sigma_ = float(np.sqrt(float(resid @ resid) / max(1, n - p)))     # residual std
         gram_inv = np.linalg.pinv((phi / scale).T @ (phi / scale)) / np.outer(scale, scale)
         self.cov_ = self.sigma_ ** 2 * gram_inv
         self.cond_ = float(np.linalg.cond(phi))
+        if self.method == "ga":
+            coef = _differential_evolution(phi, y, coef, self.cov_, self.seed)
+            resid = y - phi @ coef
+        self.coef_ = coef
+        self.n_samples_ = n
+        self.sse_ = float(resid @ resid)
         self.relative_error_ = float(np.linalg.norm(resid) / np.linalg.norm(y))   # paper / EMPS measure
         return self
 
@@ -112,48 +129,25 @@ def errors(model: AxisModel, s: Samples) -> Errors:
                   float(np.linalg.norm(tau_f - pred) / np.linalg.norm(tau_f)), int(m.sum()))
 
 
-def tune(model: AxisModel, effect: Effect, s: Samples, seed: int) -> AxisModel:
-    """Tune ``effect``'s nonlinear parameters (differential evolution, seeded) with every linear
-    parameter solved by least squares inside (variable projection); return the fitted model."""
-    candidate = model.with_effect(effect)
-    if not effect.bounds:
-        return candidate.fit(s)
+def extend(model: AxisModel, effect: Effect, s: Samples) -> AxisModel:
+    """``model`` with ``effect`` added and fitted: the effect's nonlinear parameters learned with
+    every column of ``model`` solved inside (seeded with the model's seed), then every
+    coefficient refitted together."""
     m = s.moving
-    base = model.design(s)[m]
-    y = s.tau_f[m]
-    scale = np.sqrt(np.mean(base ** 2, axis=0))
-    scale[scale == 0] = 1.0
-    q, _ = np.linalg.qr(base / scale)                 # project the fixed columns out once
-    y_perp = y - q @ (q.T @ y)
-    keys = list(effect.bounds)
-    sub = s.take(m)
-
-    def sse(x):
-        effect.hyper.update(zip(keys, x))
-        extra = effect.columns(sub)
-        extra = extra - q @ (q.T @ extra)
-        coef, *_ = np.linalg.lstsq(extra, y_perp, rcond=None)
-        r = y_perp - extra @ coef
-        return float(r @ r)
-
-    result = optimize.differential_evolution(sse, [effect.bounds[k] for k in keys], seed=seed,
-                                             popsize=8, maxiter=25, tol=1e-6, polish=True)
-    effect.hyper.update(zip(keys, result.x))
-    return candidate.fit(s)
+    effect.fit(s.take(m), model.design(s)[m], s.tau_f[m], seed=model.seed)
+    return model.with_effect(effect).fit(s)
 
 
-def fit_ga(model: AxisModel, s: Samples, seed: int) -> np.ndarray:
-    """Every linear coefficient of ``model`` (fitted) again by differential evolution.
+def _differential_evolution(phi: np.ndarray, y: np.ndarray, centre: np.ndarray, cov: np.ndarray,
+                            seed: int) -> np.ndarray:
+    """Every coefficient by differential evolution around the least-squares estimate ``centre``.
 
-    The search box is the least-squares estimate ± max(50 %, 10 std) per
-    coefficient; the cost is the same sum of squared torque errors, evaluated
-    from the Gram matrix so each generation costs O(p²), not O(n).
+    The search box is ``centre`` ± max(50 %, 10 std) per coefficient; the cost is the same sum
+    of squared torque errors, evaluated from the Gram matrix so each generation costs O(p²),
+    not O(n).
     """
-    m = s.moving
-    phi, y = model.design(s)[m], s.tau_f[m]
     gram, b, yy = phi.T @ phi, phi.T @ y, float(y @ y)
-    centre = model.coef_
-    half = np.maximum(0.5 * np.abs(centre), 10 * np.sqrt(np.diag(model.cov_))) + 1e-12
+    half = np.maximum(0.5 * np.abs(centre), 10 * np.sqrt(np.diag(cov))) + 1e-12
     lo, hi = centre - half, centre + half
 
     def sse(theta):                                    # theta: (p, S) population

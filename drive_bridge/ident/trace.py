@@ -29,7 +29,7 @@ import numpy as np
 from scipy import signal, stats
 
 from .effects import Effect, candidates
-from .model import AxisModel, errors, tune
+from .model import AxisModel, errors, extend
 from .signals import Samples
 
 P_VALUE = 1e-3
@@ -83,15 +83,16 @@ def _evidence(e: Effect, params: dict, share: float, f: float, before, after) ->
 
 
 def trace(est: Samples, val: Samples, seed: int) -> tuple[AxisModel, AxisModel, list[TracedEffect]]:
-    """Base model, final model, and the effects added on the way (in order)."""
-    base = AxisModel().fit(est)
+    """Base model, final model, and the effects added on the way (in order); ``seed`` seeds
+    the search of every effect's nonlinear parameters."""
+    base = AxisModel(seed=seed).fit(est)
     model, traced = base, []
     err = errors(model, val)
     for _ in range(MAX_EFFECTS):
         resid = est.tau_f - model.predict(est)
         best = None
         for cand in candidates(model.effects, est, resid):
-            fitted = tune(model, cand, est, seed)
+            fitted = extend(model, cand, est)
             if not np.all(np.isfinite(fitted.coef_)) or fitted.sse_ >= model.sse_:
                 continue
             new_err = errors(fitted, val)
