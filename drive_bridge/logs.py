@@ -15,8 +15,8 @@ import numpy as np
 import yaml
 
 from .errors import UserError
-from .master.bringup import Codec
 from .master.stream import SYNC_COB_ID, Recording
+from .pdo import PdoCodec
 from .units import Scaling
 
 LOG_NAME, META_NAME, TRACE_NAME = "log.csv", "meta.yaml", "trace.blf"
@@ -33,12 +33,12 @@ _COLUMNS = {
 }
 
 
-def _codec_meta(codecs: list[Codec]) -> list[dict]:
-    return [{"cob_id": c.cob_id, "format": c.struct.format, "objects": list(c.objects)} for c in codecs]
+def _codec_meta(codecs: list[PdoCodec]) -> list[dict]:
+    return [c.as_dict() for c in codecs]
 
 
-def _codecs(entries: list[dict]) -> list[Codec]:
-    return [Codec(e["cob_id"], struct.Struct(e["format"]), tuple(e["objects"])) for e in entries]
+def _codecs(entries: list[dict]) -> list[PdoCodec]:
+    return [PdoCodec.from_dict(e) for e in entries]
 
 
 def to_table(rec: Recording, scaling: dict[str, Scaling], period: float) -> tuple[list[str], np.ndarray, list[str]]:

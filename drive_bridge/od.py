@@ -2,11 +2,9 @@
 from __future__ import annotations
 
 import io
-import struct
 from pathlib import Path
 
 import canopen
-from canopen.objectdictionary import ODVariable
 
 from .errors import ConfigError
 
@@ -31,9 +29,3 @@ def load_od(path: str | Path, node_id: int) -> canopen.ObjectDictionary:
         return canopen.import_od(source, node_id)
     except Exception as exc:  # canopen raises bare parser errors of several kinds
         raise ConfigError(path, "", f"not a readable EDS/DCF: {exc}") from exc
-
-
-def pdo_struct(variables: list[ODVariable]) -> struct.Struct:
-    """Little-endian struct of a PDO carrying ``variables`` in order (canopen's type table)."""
-    return struct.Struct("<" + "".join(ODVariable.STRUCT_TYPES[v.data_type].format.lstrip("<")
-                                       for v in variables))

@@ -21,7 +21,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from drive_bridge.sim import kernel as K                   # noqa: E402
 from drive_bridge.sim.config import DEFAULT_CONFIG, load_sim_config   # noqa: E402
 from drive_bridge.sim.robot import SimRobot                # noqa: E402
-from drive_bridge.sim.vbus import FastVirtualBus           # noqa: E402
+from drive_bridge.sim.adapters import FastVirtualBus           # noqa: E402
 
 PERIOD = 0.002
 

@@ -1,7 +1,6 @@
 """Bring-up of the configured drives: scan, identity, NMT, heartbeat, EMCY, PDO mapping."""
 from __future__ import annotations
 
-import struct
 from dataclasses import dataclass, field
 
 import canopen
@@ -9,7 +8,7 @@ from canopen.pdo.base import PdoMap
 
 from ..config import BusConfig, NodeConfig, PdoConfig
 from ..errors import BusError, DriveRefused
-from ..od import pdo_struct
+from ..pdo import PdoCodec
 from .cia402 import Drive402
 from .link import Link
 
@@ -24,15 +23,6 @@ def emcy_text(code: int) -> str:
 
 
 @dataclass
-class Codec:
-    """One PDO of one axis: COB-ID, struct and the objects in it, compiled once."""
-
-    cob_id: int
-    struct: struct.Struct
-    objects: tuple[int, ...]          # object indices in mapping order
-
-
-@dataclass
 class AxisLink:
     """A brought-up axis: its node, state machine, PDO codecs and live monitors."""
 
@@ -41,8 +31,8 @@ class AxisLink:
     node: canopen.RemoteNode
     drive: Drive402
     identity: dict
-    rpdos: list[Codec] = field(default_factory=list)
-    tpdos: list[Codec] = field(default_factory=list)
+    rpdos: list[PdoCodec] = field(default_factory=list)
+    tpdos: list[PdoCodec] = field(default_factory=list)
     last_heartbeat: float | None = None
     nmt_state: int | None = None
     emcy: list[tuple[float, int]] = field(default_factory=list)   # (time, code)
@@ -90,7 +80,7 @@ def scan(link: Link, config: BusConfig) -> ScanResult:
     return ScanResult(found, missing, unexpected, wrong)
 
 
-def _configure_pdos(node: canopen.RemoteNode, maps, configured: tuple[PdoConfig, ...], base: int) -> list[Codec]:
+def _configure_pdos(node: canopen.RemoteNode, maps, configured: tuple[PdoConfig, ...], base: int) -> list[PdoCodec]:
     codecs = []
     by_num = {p.number: p for p in configured}
     for num in range(1, 5):
@@ -105,8 +95,7 @@ def _configure_pdos(node: canopen.RemoteNode, maps, configured: tuple[PdoConfig,
             pdo.trans_type = pc.transmission
         pdo.save()
         if pc is not None:
-            variables = [node.object_dictionary.get_variable(i, s) for i, s in pc.mapping]
-            codecs.append(Codec(pdo.cob_id, pdo_struct(variables), tuple(i for i, _ in pc.mapping)))
+            codecs.append(PdoCodec.of(pdo.cob_id, node.object_dictionary, pc.mapping))
     return codecs
 
 

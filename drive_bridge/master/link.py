@@ -14,7 +14,7 @@ import sys
 import threading
 import time
 from collections import deque
-from typing import Protocol
+from typing import Protocol, runtime_checkable
 
 import can
 import canopen
@@ -118,6 +118,7 @@ class MasterNetwork(canopen.Network):
             self.after_send()
 
 
+@runtime_checkable
 class Link(Protocol):
     """What the master needs of its way to the drives.
 

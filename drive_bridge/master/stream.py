@@ -15,7 +15,8 @@ import canopen
 import numpy as np
 
 from ..errors import Interrupted, MotionAborted
-from .bringup import AxisLink, Codec, emcy_text
+from ..pdo import PdoCodec
+from .bringup import AxisLink, emcy_text
 from .campaign import Plan
 from .cia402 import CW_ENABLE, SW_FAULT, state_name
 from .link import Link
@@ -41,10 +42,10 @@ class Recording:
     when it reached the bus, before that SYNC) still places it in its own row.
     """
 
-    def __init__(self, tpdos: dict[str, list[Codec]], rpdos: dict[str, list[Codec]], n_cycles: int):
+    def __init__(self, tpdos: dict[str, list[PdoCodec]], rpdos: dict[str, list[PdoCodec]], n_cycles: int):
         self.axes = list(tpdos)
         self.columns: list[tuple[str, int]] = []
-        self._tpdo_slots: list[tuple[int, Codec, int, int]] = []   # (cob, codec, first column, got column)
+        self._tpdo_slots: list[tuple[int, PdoCodec, int, int]] = []   # (cob, codec, first column, got column)
         for axis, codecs in tpdos.items():
             for codec in codecs:
                 self._tpdo_slots.append((codec.cob_id, codec, len(self.columns), len(self._tpdo_slots)))
@@ -123,7 +124,7 @@ class StreamResult:
     missing: dict[str, int]           # samples (rows) missing per axis
 
 
-def _packer(ax: AxisLink, codec: Codec, demand: np.ndarray, ai: int, send) -> Callable[[int], None]:
+def _packer(ax: AxisLink, codec: PdoCodec, demand: np.ndarray, ai: int, send) -> Callable[[int], None]:
     """Send function of one RPDO for cycle k: controlword, target from the plan, zero offsets."""
     pack = codec.struct.pack
     slots = {0x6040: None, 0x607A: None, 0x60B1: 0, 0x60B2: 0}

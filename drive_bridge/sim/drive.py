@@ -3,33 +3,34 @@
 The SDO server and the object storage are canopen's ``LocalNode``; this module
 adds what a real drive does with those objects: NMT, heartbeat, EMCY, PDOs as
 the master maps them (TPDOs sent on SYNC, synchronous RPDOs applied on SYNC),
-the CiA 402 state machine, the operating modes CSP (8), PV (3) and PP (1),
-and the safety functions (following-error window, software position limits,
-loss of setpoint).  The loops and the plant live in :mod:`.kernel`; this
-module converts between device units and SI at its edge.
+the CiA 402 state machine (:mod:`.cia402`), the operating modes CSP (8), PV (3)
+and PP (1), and the safety functions (following-error window, software
+position limits, loss of setpoint).  The loops and the plant live in
+:mod:`.kernel`; this module converts between device units and SI at its edge.
+
+A drive knows the robot it sits in only through :class:`DriveHost` (as a
+canopen node knows only its Network): the time, the SYNC period, a way to send
+a frame, the robot's noise source, and a call when its RPDO routes change.
 """
 from __future__ import annotations
 
 import copy
 import math
 import struct
-from typing import TYPE_CHECKING, Callable
+from typing import Callable, Protocol
 
 import canopen
+import numpy as np
 from canopen.objectdictionary import ODVariable
 from canopen.sdo import SdoAbortedError
 
-from ..od import pdo_struct
+from ..pdo import PdoCodec
 from . import kernel as K
+from .adapters import local_node
+from .cia402 import (ENABLED, FAULT, FAULT_REACTION, QUICK_STOP, STATUSWORD, SWITCH_ON_DISABLED,
+                     VOLTAGE_ENABLED, next_state)
+from .config import SimAxis
 
-if TYPE_CHECKING:
-    from .config import SimAxis
-    from .robot import SimRobot
-
-# CiA 402 states and their statusword bits (bits 0-3, 5, 6)
-NOT_READY, SWITCH_ON_DISABLED, READY, SWITCHED_ON, ENABLED, QUICK_STOP, FAULT_REACTION, FAULT = range(8)
-_STATE_BITS = {NOT_READY: 0x00, SWITCH_ON_DISABLED: 0x40, READY: 0x21, SWITCHED_ON: 0x23,
-               ENABLED: 0x27, QUICK_STOP: 0x07, FAULT_REACTION: 0x0F, FAULT: 0x08}
 # NMT states as sent in the heartbeat
 NMT_BOOT, NMT_STOPPED, NMT_OPERATIONAL, NMT_PREOP = 0x00, 0x04, 0x05, 0x7F
 
@@ -50,8 +51,9 @@ ABORT_NOT_MAPPABLE = 0x06040041
 ABORT_PDO_LENGTH = 0x06040042
 
 
-_GAIN_PARAMS = {1: K.KPP, 2: K.FWF, 3: K.KPS, 4: K.KIS, 5: K.KPC, 6: K.KIC}
-_MODEL_PARAMS = {1: K.FF_EN, 2: K.FF_J, 3: K.FF_C0, 4: K.FF_C1, 5: K.FF_OFF, 6: K.FF_CP,
+#: 0x2000 sub-index -> kernel parameter of each gain; 0x2001 sub-index -> model feed-forward parameter
+GAIN_PARAMS = {1: K.KPP, 2: K.FWF, 3: K.KPS, 4: K.KIS, 5: K.KPC, 6: K.KIC}
+MODEL_PARAMS = {1: K.FF_EN, 2: K.FF_J, 3: K.FF_C0, 4: K.FF_C1, 5: K.FF_OFF, 6: K.FF_CP,
                  7: K.FF_DC0, 8: K.FF_DC1, 9: K.FF_PER_AMP, 10: K.FF_PER_PERIOD, 11: K.FF_PER_PHASE}
 _MOTOR_OBJECTS = {1: "R", 2: "L", 3: "kt", 4: "vbus"}
 
@@ -67,40 +69,43 @@ def plant_params(p, axis: "SimAxis", axis_names: list[str]) -> None:
             p[getattr(K, name)] = float(axis_names.index(value)) if name == "CPL_SRC" else value
 
 
-class PdoCodec:
-    """Packs or unpacks one PDO from its mapping, compiled once per mapping change."""
+class DriveHost(Protocol):
+    """What a simulated drive needs of the robot it sits in."""
 
-    def __init__(self, entries: list[tuple[int, int, ODVariable]]):
-        self.entries = [(i, s) for i, s, _ in entries]
-        self.struct = pdo_struct([var for _, _, var in entries])
-        self.spans = []                      # byte slice of each entry in the frame
-        offset = 0
-        for _, _, var in entries:
-            self.spans.append((offset, offset + len(var) // 8))
-            offset += len(var) // 8
+    time: float                 # simulation time [s]
+    sync_period: float          # SYNC period the drives interpolate over [s]
+
+    def send(self, cob_id: int, data: bytes) -> None:
+        """Put a frame on the bus, stamped with the robot's clock."""
+
+    def noise(self) -> float:
+        """One standard-normal sample of the robot's seeded generator."""
+
+    def routes_changed(self) -> None:
+        """The drive's RPDO COB-IDs changed."""
 
 
 class SimDrive:
-    """A servo drive of one axis.  ``index`` is the axis' row in the kernel arrays."""
+    """A servo drive of one axis in ``host``.  ``index`` is the axis' row in the kernel arrays
+    ``rows`` (state, param, demand: views of this axis's rows); ``axis_names`` are every axis
+    of the robot in row order (a cross-axis effect names its source)."""
 
-    def __init__(self, robot: "SimRobot", index: int, axis: "SimAxis", eds_path: str):
-        self.robot = robot
+    def __init__(self, host: DriveHost, index: int, axis: SimAxis, eds_path: str,
+                 rows: tuple[np.ndarray, np.ndarray, np.ndarray], axis_names: list[str]):
+        self.host = host
         self.index = index
         self.axis = axis
+        self.axis_names = axis_names
         self.node_id = axis.node_id
-        self.node = canopen.LocalNode(axis.node_id, canopen.import_od(eds_path, axis.node_id))
-        # Heartbeat and NMT run in simulation time here, not in canopen's timer thread.
-        self.node._write_callbacks.remove(self.node.nmt.on_write)
+        # heartbeat and NMT run in simulation time here, not in canopen's timer thread
+        self.node = local_node(axis.node_id, canopen.import_od(eds_path, axis.node_id), self._send)
         self.node.add_write_callback(self._on_sdo_write)
         self.node.add_read_callback(self._on_sdo_read)
-        self.node.sdo.network = robot.network
         self.od = self.node.object_dictionary
         self._cache: dict[tuple[int, int], object] = {}
         self._live = self._live_objects()
         self.inc_per_rad = self._od(0x608F, 1) / self._od(0x608F, 2) / (2 * math.pi)
-        self.s = robot.state[index]        # kernel rows of this axis (views)
-        self.p = robot.param[index]
-        self.d = robot.demand[index]
+        self.s, self.p, self.d = rows      # kernel rows of this axis (views)
         self.online = True                 # False: the drive has dropped off the bus
         self.abort_writes: dict[tuple[int, int], int] = {}   # injected SDO aborts, for tests
         self._init_storage()
@@ -139,12 +144,12 @@ class SimDrive:
     def _power_up(self) -> None:
         """Reset application: load parameters from storage, state machine to start."""
         p, s = self.p, self.s
-        plant_params(p, self.axis, list(self.robot.config.axes))
+        plant_params(p, self.axis, self.axis_names)
         p[K.INC_PER_RAD] = self.inc_per_rad
         self.rated_torque = self._od(0x6076) / 1000.0
-        for sub, col in _GAIN_PARAMS.items():
+        for sub, col in GAIN_PARAMS.items():
             p[col] = self._od(0x2000, sub)
-        for sub, col in _MODEL_PARAMS.items():
+        for sub, col in MODEL_PARAMS.items():
             p[col] = self._od(0x2001, sub)
         p[K.TMAX] = self._od(0x6072) / 1000.0 * self.rated_torque
         p[K.FE_WINDOW] = self._od(0x6065) / self.inc_per_rad
@@ -166,7 +171,7 @@ class SimDrive:
         self._sync_count = 0
         self._hb_next = 0.0
         self._last_count = math.floor(s[K.Q] * self.inc_per_rad)
-        self._last_refresh = self.robot.time
+        self._last_refresh = self.host.time
         self._velocity_inc_s = 0
         self.d[:] = 0.0
         self.d[K.P0] = self.d[K.P1] = self.s[K.ENC] = self._last_count / self.inc_per_rad
@@ -177,7 +182,7 @@ class SimDrive:
     def boot(self) -> None:
         self.nmt_state = NMT_PREOP
         self._send(0x700 + self.node_id, b"\x00")
-        self._hb_next = self.robot.time + self._od(0x1017) / 1000.0
+        self._hb_next = self.host.time + self._od(0x1017) / 1000.0
 
     def on_nmt(self, data: bytes) -> None:
         if len(data) < 2 or data[1] not in (0, self.node_id):
@@ -215,7 +220,7 @@ class SimDrive:
     def _on_sdo_read(self, index: int, subindex: int, od) -> int | None:
         live = self._live.get(index)
         if live is not None:
-            if self._last_refresh != self.robot.time:
+            if self._last_refresh != self.host.time:
                 self.refresh_actuals()
             return live()
         if index in (0x1010, 0x1011) and subindex == 1:
@@ -252,19 +257,19 @@ class SimDrive:
             self.mode = value
         elif index == 0x607A:
             self.new_target = True
-            self.last_setpoint_time = self.robot.time
+            self.last_setpoint_time = self.host.time
             if self.state == ENABLED and self.mode == CSP:
                 self.setpoint_armed = True
         elif index == 0x2000:
             if not math.isfinite(value) or value < 0:
                 raise SdoAbortedError(ABORT_TOO_LOW if value < 0 else ABORT_RANGE)
-            self.p[_GAIN_PARAMS[sub]] = value
+            self.p[GAIN_PARAMS[sub]] = value
         elif index == 0x2001:
             if not math.isfinite(value) or (sub == 1 and value not in (0, 1)) or (sub in (2, 10) and value < 0):
                 raise SdoAbortedError(ABORT_RANGE)
-            self.p[_MODEL_PARAMS[sub]] = value
+            self.p[MODEL_PARAMS[sub]] = value
         elif index == 0x1017:
-            self._hb_next = self.robot.time + value / 1000.0     # first beat one period from now
+            self._hb_next = self.host.time + value / 1000.0     # first beat one period from now
         elif index == 0x6065:
             self.p[K.FE_WINDOW] = value / self.inc_per_rad
         elif index == 0x6072:
@@ -325,25 +330,21 @@ class SimDrive:
     def _rebuild_pdos(self) -> None:
         """Compile the codecs of every valid PDO and tell the robot the RPDO routes."""
         self.rpdos: dict[int, tuple[PdoCodec, int]] = {}
-        self.tpdos: list[tuple[int, PdoCodec, int, list[Callable]]] = []
+        self.tpdos: list[tuple[PdoCodec, int, list[Callable]]] = []
         for n in range(4):
             for comm, mapping, table in ((0x1400 + n, 0x1600 + n, "r"), (0x1800 + n, 0x1A00 + n, "t")):
                 cob = self._od(comm, 1)
                 if cob & PDO_INVALID:
                     continue
-                entries = []
-                for k in range(1, self._od(mapping, 0) + 1):
-                    entry = self._od(mapping, k)
-                    idx, sub = entry >> 16, (entry >> 8) & 0xFF
-                    entries.append((idx, sub, self._var(idx, sub)))
-                codec = PdoCodec(entries)
+                entries = [(e >> 16, (e >> 8) & 0xFF) for e in (self._od(mapping, k)
+                                                                 for k in range(1, self._od(mapping, 0) + 1))]
+                codec = PdoCodec.of(cob & 0x7FF, self.od, entries)
                 ttype = self._od(comm, 2)
                 if table == "r":
-                    self.rpdos[cob & 0x7FF] = (codec, ttype)
+                    self.rpdos[codec.cob_id] = (codec, ttype)
                 else:
-                    getters = [self._getter(i, s) for i, s in codec.entries]
-                    self.tpdos.append((cob & 0x7FF, codec, ttype, getters))
-        self.robot.routes_changed()
+                    self.tpdos.append((codec, ttype, [self._getter(i, s) for i, s in codec.entries]))
+        self.host.routes_changed()
 
     def _getter(self, index: int, sub: int) -> Callable:
         live = self._live.get(index)
@@ -372,16 +373,16 @@ class SimDrive:
 
     def send_tpdos(self) -> None:
         self._sync_count += 1
-        for cob_id, codec, ttype, getters in self.tpdos:
+        for codec, ttype, getters in self.tpdos:
             if 1 <= ttype <= 240 and self._sync_count % ttype == 0:
-                self._send(cob_id, codec.struct.pack(*[g() for g in getters]))
+                self._send(codec.cob_id, codec.struct.pack(*[g() for g in getters]))
 
     # ------------------------------------------------------------------ CiA 402
     @property
     def statusword(self) -> int:
-        sw = _STATE_BITS[self.state] | 0x0200
-        if self.state in (READY, SWITCHED_ON, ENABLED, QUICK_STOP, FAULT_REACTION):
-            sw |= 0x0010                   # voltage enabled
+        sw = STATUSWORD[self.state] | 0x0200
+        if self.state in VOLTAGE_ENABLED:
+            sw |= 0x0010
         if self.target_reached:
             sw |= 0x0400
         if self.internal_limit:
@@ -395,34 +396,15 @@ class SimDrive:
     def _on_controlword(self, cw: int) -> None:
         if cw == self.controlword == 0x0F and self.state == ENABLED:
             return                                          # the streaming steady state
-        reset_edge = cw & 0x80 and not self.controlword & 0x80
         new_setpoint = cw & 0x10 and not self.controlword & 0x10
-        self.controlword = cw
-        st = self.state
-        if st == FAULT:
-            if reset_edge:
+        previous, self.controlword = self.controlword, cw
+        if self.state == FAULT:
+            if next_state(FAULT, cw, previous, 0) != FAULT:        # fault reset
                 self.error_code = 0
                 self.state = SWITCH_ON_DISABLED
                 self._emcy(0x0000)
             return
-        if not cw & 0x02:                                   # disable voltage
-            self._go(SWITCH_ON_DISABLED)
-        elif not cw & 0x04:                                 # quick stop
-            if st == ENABLED:
-                self._go(QUICK_STOP)
-            elif st in (READY, SWITCHED_ON):
-                self._go(SWITCH_ON_DISABLED)
-        elif cw & 0x0F == 0x06:                             # shutdown
-            if st in (SWITCH_ON_DISABLED, SWITCHED_ON, ENABLED):
-                self._go(READY)
-        elif cw & 0x0F == 0x07:                             # switch on / disable operation
-            if st in (READY, ENABLED):
-                self._go(SWITCHED_ON)
-        elif cw & 0x0F == 0x0F:                             # enable operation
-            if st in (READY, SWITCHED_ON):
-                self._go(ENABLED)
-            elif st == QUICK_STOP and self._od(0x605A) in (5, 6, 7, 8):
-                self._go(ENABLED)
+        self._go(next_state(self.state, cw, previous, self._od(0x605A)))
         if self.state == ENABLED and self.mode == PP and new_setpoint:
             target = self._od(0x607A) / self.inc_per_rad
             self.pp_target = target if not cw & 0x40 else self.d[K.P1] + target
@@ -484,7 +466,7 @@ class SimDrive:
 
     def next_period(self) -> None:
         """Set the demand P0 -> P1 of the interpolation period that starts now."""
-        d, T = self.d, self.robot.sync_period
+        d, T = self.d, self.host.sync_period
         d[K.P0] = d[K.P1]
         v_old = self.v_dem
         self.internal_limit = False
@@ -541,7 +523,7 @@ class SimDrive:
         if self.s[K.FE_COUNT] >= timeout_ticks:
             self.fault(ERR_FOLLOWING)
         elif self.setpoint_armed and self.mode == CSP and self.state == ENABLED and \
-                self.robot.time - self.last_setpoint_time > SETPOINT_TIMEOUT_PERIODS * self._interpolation_period() + 1e-9:
+                self.host.time - self.last_setpoint_time > SETPOINT_TIMEOUT_PERIODS * self._interpolation_period() + 1e-9:
             self.fault(ERR_RPDO_TIMEOUT)
 
     def _interpolation_period(self) -> float:
@@ -554,15 +536,15 @@ class SimDrive:
 
     def _refresh_actuals(self, noise: bool) -> None:
         count = math.floor(self.s[K.Q] * self.inc_per_rad)
-        dt = self.robot.time - self._last_refresh
+        dt = self.host.time - self._last_refresh
         if dt > 0:
             self._velocity_inc_s = round((count - self._last_count) / dt)
         self._last_count = count
-        self._last_refresh = self.robot.time
+        self._last_refresh = self.host.time
         current = K.mean_current(self.s)
         torque = self.p[K.KT] * current
         if noise and self.axis.torque_noise_Nm:
-            torque += self.axis.torque_noise_Nm * self.robot.noise()
+            torque += self.axis.torque_noise_Nm * self.host.noise()
         self._torque_pm = max(-32768, min(32767, round(torque / self.rated_torque * 1000)))
         self._current_pm = max(-32768, min(32767, round(current / (self.rated_torque / self.p[K.KT]) * 1000)))
         self._position_inc = max(-2**31, min(2**31 - 1, count))
@@ -583,4 +565,4 @@ class SimDrive:
 
     def _send(self, cob_id: int, data: bytes) -> None:
         if self.online:
-            self.robot.send(cob_id, data)
+            self.host.send(cob_id, data)

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from ..master.link import MasterNetwork, TraceRecorder
 from .robot import SimRobot
-from .vbus import FastVirtualBus
+from .adapters import FastVirtualBus
 
 
 class LockstepClock:

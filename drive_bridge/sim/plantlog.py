@@ -17,7 +17,7 @@ from ..od import load_od
 from ..resources import PROJECT_EDS
 from . import kernel as K
 from .config import SimConfig
-from .drive import _GAIN_PARAMS, plant_params
+from .drive import GAIN_PARAMS, plant_params
 
 INC_PER_REV = 2 ** 20
 
@@ -37,7 +37,7 @@ def plant_log(config: SimConfig, demand: dict[str, np.ndarray], period: float = 
     for i, (name, axis) in enumerate(config.axes.items()):
         plant_params(param[i], axis, names)
         param[i, K.INC_PER_RAD] = inc_per_rad
-        for sub, col in _GAIN_PARAMS.items():
+        for sub, col in GAIN_PARAMS.items():
             param[i, col] = od[0x2000][sub].default
         param[i, K.TMAX] = od[0x6072].default / 1000.0 * axis.motor.rated_torque_Nm
         param[i, K.FE_WINDOW] = 1e9

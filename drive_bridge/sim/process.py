@@ -16,40 +16,11 @@ import subprocess
 import sys
 from pathlib import Path
 
-import can
-from can.interfaces.udp_multicast import UdpMulticastBus
-from can.interfaces.udp_multicast.utils import unpack_message
+from ..errors import BusError
+from .adapters import LoopbackMulticastBus
 
 GROUP = "239.74.163.2"           # python-can's default IPv4 group; each run gets its own port
 START_TIMEOUT_S = 120.0          # the child imports numpy/numba and loads the kernel
-
-
-class LoopbackMulticastBus(UdpMulticastBus):
-    """udp_multicast bus that drops the echo of its own frames and keeps the sender's time stamp.
-
-    Multicast loops every datagram back to its sender.  In CANopen each COB-ID
-    has exactly one producer, so a frame whose COB-ID this bus has sent itself
-    is its own echo.  A frame's time stamp is the time its sender put it on
-    the bus (a CAN controller's hardware time stamp), not when this process
-    got around to reading the socket.
-    """
-
-    def __init__(self, channel: str = GROUP, port: int = 43113, **kwargs):
-        super().__init__(channel, port, **kwargs)
-        self._sent_ids: set[int] = set()
-
-    def send(self, msg: can.Message, timeout: float | None = None) -> None:
-        self._sent_ids.add(msg.arbitration_id)
-        super().send(msg, timeout)
-
-    def _recv_internal(self, timeout):
-        result = self._multicast.recv(timeout)
-        if not result:
-            return None, False
-        msg = unpack_message(result[0], check=True)
-        if msg.arbitration_id in self._sent_ids:
-            return None, False
-        return msg, False
 
 
 def free_port() -> int:
@@ -74,7 +45,7 @@ class SimProcess:
         ready = select.select([self.process.stdout], [], [], START_TIMEOUT_S)[0]
         if not ready or self.process.stdout.readline().strip() != "ready":
             self.shutdown()
-            raise RuntimeError(f"simulated drives did not start within {START_TIMEOUT_S:.0f} s")
+            raise BusError(f"simulated drives did not start within {START_TIMEOUT_S:.0f} s")
 
     def shutdown(self) -> None:
         if self.process.poll() is None:

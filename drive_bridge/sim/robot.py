@@ -16,14 +16,13 @@ import time
 from pathlib import Path
 
 import can
-import canopen
 import numpy as np
 
 from ..resources import PROJECT_EDS
 from . import kernel as K
 from .config import SimConfig
 from .drive import SimDrive
-from .vbus import FastVirtualBus
+from .adapters import FastVirtualBus
 
 NOISE_BLOCK = 4096
 REPLY_DELAY_S = 50e-6        # wall clock: a drive's reply follows the frame it answers
@@ -46,7 +45,6 @@ class SimRobot:
             raise ValueError(f"SYNC period {sync_period} s is not a multiple of the 0.5 ms loop tick")
         self.bus = bus if bus is not None else FastVirtualBus(channel=channel, preserve_timestamps=True)
         self._stamp = lambda: self.time           # lockstep: frames carry simulation time
-        self.network = canopen.Network(self.bus)        # used to send; frames are dispatched here
         self.time = 0.0
         self._rng = np.random.default_rng(config.seed)
         self._noise = np.empty(0)
@@ -57,8 +55,10 @@ class SimRobot:
         K.advance(self.state, self.param, self.demand, self._tick0, 0, self.ticks_per_period)
         self._routes: dict[int, callable] = {}
         self.drives: dict[str, SimDrive] = {}      # filled before the first routes_changed() counts
+        names = list(config.axes)
         for i, (name, axis) in enumerate(config.axes.items()):
-            self.drives[name] = SimDrive(self, i, axis, str(eds_path))
+            self.drives[name] = SimDrive(self, i, axis, str(eds_path),
+                                         (self.state[i], self.param[i], self.demand[i]), names)
         self.routes_changed()
         self._thread: threading.Thread | None = None
         self._running = False

@@ -1,0 +1,52 @@
+"""One PDO's layout and codec, shared by the master (bring-up, streaming, decoding a trace) and
+the simulated drives: the COB-ID, the mapped objects in order, and the little-endian struct of
+their data types (canopen's own type table)."""
+from __future__ import annotations
+
+import struct
+from dataclasses import dataclass
+
+import canopen
+from canopen.objectdictionary import ODVariable
+
+
+@dataclass(frozen=True)
+class PdoCodec:
+    """Packs and unpacks one PDO; built once per mapping."""
+
+    cob_id: int
+    entries: tuple[tuple[int, int], ...]      # (index, sub-index) in mapping order
+    struct: struct.Struct
+
+    @classmethod
+    def of(cls, cob_id: int, od: canopen.ObjectDictionary, entries) -> "PdoCodec":
+        """The codec of ``entries`` ((index, sub-index) pairs) with their types from ``od``."""
+        entries = tuple((int(i), int(s)) for i, s in entries)
+        variables = [od.get_variable(i, s) for i, s in entries]
+        return cls(cob_id, entries, struct.Struct("<" + "".join(
+            ODVariable.STRUCT_TYPES[v.data_type].format.lstrip("<") for v in variables)))
+
+    @property
+    def objects(self) -> tuple[int, ...]:
+        """The mapped object indices, in mapping order."""
+        return tuple(i for i, _ in self.entries)
+
+    @property
+    def spans(self) -> list[tuple[int, int]]:
+        """Byte slice (start, end) of each entry in the frame."""
+        out, offset = [], 0
+        for code in self.struct.format.lstrip("<"):
+            size = struct.calcsize("<" + code)
+            out.append((offset, offset + size))
+            offset += size
+        return out
+
+    def as_dict(self) -> dict:
+        """How meta.yaml records it (enough to decode a trace without the EDS)."""
+        return {"cob_id": self.cob_id, "format": self.struct.format, "objects": list(self.objects),
+                "sub_indices": [s for _, s in self.entries]}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "PdoCodec":
+        subs = d.get("sub_indices", [0] * len(d["objects"]))
+        return cls(d["cob_id"], tuple(zip(d["objects"], subs)), struct.Struct(d["format"]))

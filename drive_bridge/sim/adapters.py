@@ -1,0 +1,127 @@
+"""The one module that relies on internals of python-can and canopen (the simulator only).
+
+Each behaviour relied on is pinned by ``tests/sim/test_adapters.py``, and
+pyproject.toml bounds both libraries above by the versions that test passed on.
+
+:class:`FastVirtualBus` -- python-can's virtual bus without its per-frame cost.
+``VirtualBus.send`` deep-copies the frame for every receiver (the largest
+single cost of a lockstep cycle).  This subclass shares the same channels and
+queues, so it talks to any other VirtualBus on the channel, but builds each
+receiver's copy directly, and :meth:`drain` empties the receive queue without
+the generic ``recv`` bookkeeping.
+
+With ``direct = True`` (lockstep: every bus on the channel lives in one thread
+and nobody blocks in ``recv``) a frame is handed over as the sender's own
+``Message`` object, marked received, appended to the receivers' queues
+without the queue's locks and wake-ups.  Senders must not touch a frame after
+sending it.  Relies on: ``VirtualBus.channel`` (the receivers' queues of the
+channel), ``.queue`` (its own, a ``queue.Queue``), ``.channel_id``,
+``._check_if_open()``.
+
+:class:`LoopbackMulticastBus` -- python-can's ``udp_multicast`` bus for the
+wall-clock simulator's process.  Relies on ``UdpMulticastBus._multicast.recv``
+and ``can.interfaces.udp_multicast.utils.unpack_message``.
+
+:func:`local_node` -- canopen's ``LocalNode`` (the SDO server and object
+store of a simulated drive) without canopen's heartbeat timer, attached to a
+drive's own way of sending.  Relies on ``LocalNode.__init__`` registering
+``nmt.on_write`` through ``add_write_callback`` and on ``sdo.network`` being
+what the SDO server sends its replies through.
+"""
+from __future__ import annotations
+
+import time
+from typing import Callable
+
+import can
+import canopen
+from can.interfaces.udp_multicast import UdpMulticastBus
+from can.interfaces.udp_multicast.utils import unpack_message
+from can.interfaces.virtual import VirtualBus
+
+
+class FastVirtualBus(VirtualBus):
+    direct = False
+
+    def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        self._check_if_open()
+        if self.direct:
+            msg.is_rx = True
+            for bus_queue in self.channel:
+                if bus_queue is not self.queue:
+                    bus_queue.queue.append(msg)
+            return
+        timestamp = msg.timestamp if self.preserve_timestamps else time.time()
+        for bus_queue in self.channel:
+            if bus_queue is self.queue and not self.receive_own_messages:
+                continue
+            bus_queue.put_nowait(can.Message(
+                timestamp=timestamp, arbitration_id=msg.arbitration_id, is_extended_id=msg.is_extended_id,
+                is_remote_frame=msg.is_remote_frame, dlc=msg.dlc, data=bytes(msg.data),
+                channel=self.channel_id, is_rx=bus_queue is not self.queue, check=False))
+
+    def drain(self):
+        """Yield every frame waiting in the receive queue, oldest first."""
+        pending = self.queue.queue           # the Queue's deque: popleft is atomic, no lock needed
+        popleft = pending.popleft
+        while pending:
+            yield popleft()
+
+
+class LoopbackMulticastBus(UdpMulticastBus):
+    """udp_multicast bus that drops the echo of its own frames and keeps the sender's time stamp.
+
+    Multicast loops every datagram back to its sender.  In CANopen each COB-ID
+    has exactly one producer, so a frame whose COB-ID this bus has sent itself
+    is its own echo.  A frame's time stamp is the time its sender put it on
+    the bus (a CAN controller's hardware time stamp), not when this process
+    got around to reading the socket.
+    """
+
+    def __init__(self, channel: str, port: int, **kwargs):
+        super().__init__(channel, port, **kwargs)
+        self._sent_ids: set[int] = set()
+
+    def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        self._sent_ids.add(msg.arbitration_id)
+        super().send(msg, timeout)
+
+    def _recv_internal(self, timeout):
+        result = self._multicast.recv(timeout)
+        if not result:
+            return None, False
+        msg = unpack_message(result[0], check=True)
+        if msg.arbitration_id in self._sent_ids:
+            return None, False
+        return msg, False
+
+
+class _LocalNodeWithoutNmtTimer(canopen.LocalNode):
+    """canopen's LocalNode whose NMT service does not handle writes to 0x1017 (it would start
+    canopen's heartbeat timer thread; a simulated drive sends its heartbeat in simulation time)."""
+
+    def add_write_callback(self, callback) -> None:
+        nmt = getattr(self, "nmt", None)
+        if nmt is not None and callback == nmt.on_write:
+            return
+        super().add_write_callback(callback)
+
+
+class _Replies:
+    """What canopen's SDO server sends its replies through: the drive's own ``send``."""
+
+    def __init__(self, send: Callable[[int, bytes], None]):
+        self._send = send
+
+    def send_message(self, can_id: int, data: bytes, remote: bool = False) -> None:
+        self._send(can_id, bytes(data))
+
+
+def local_node(node_id: int, od: canopen.ObjectDictionary, send: Callable[[int, bytes], None]) -> canopen.LocalNode:
+    """A LocalNode (SDO server, object store) for a simulated drive that sends with ``send``.
+
+    Its SDO server is fed by the drive (``node.sdo.on_request``); heartbeat, NMT, PDOs and
+    EMCY are the drive's own."""
+    node = _LocalNodeWithoutNmtTimer(node_id, od)
+    node.sdo.network = _Replies(send)
+    return node

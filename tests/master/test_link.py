@@ -1,0 +1,51 @@
+"""The Link contract: one scenario, run over the lockstep link and over the wall-clock link to the
+simulated drives in their own process (python-can's udp_multicast bus, canopen's Notifier)."""
+from __future__ import annotations
+
+import can
+import numpy as np
+import pytest
+
+from drive_bridge.config import load_bus_config
+from drive_bridge.connect import open_link
+from drive_bridge.master.bringup import bring_up, scan
+from drive_bridge.master.campaign import trapezoid
+from drive_bridge.master.link import Link, MasterNetwork, TraceRecorder
+from drive_bridge.master.stream import quick_stop
+from drive_bridge.tuning import motion
+
+from ..support import BUS_CONFIG
+
+
+@pytest.mark.parametrize("realtime", [False, True], ids=["lockstep", "process"])
+def test_one_scenario_over_every_link(realtime, tmp_path):
+    config = load_bus_config(BUS_CONFIG).only(["y"])
+    with open_link(config, sim=True, realtime=realtime) as link:
+        assert isinstance(link, Link)
+        assert isinstance(link.network, MasterNetwork) and link.threaded is realtime
+        for name in ("now", "sleep", "wait_until"):
+            assert callable(getattr(link.clock, name))
+        found = scan(link, config)
+        assert sorted(found.found) == [2] and found.unexpected == [1, 3] and not found.missing
+        axes = bring_up(link, config)
+        trace = TraceRecorder(tmp_path / "trace.blf", background=link.threaded)
+        link.record(trace)
+        t0 = link.clock.now()
+        lim = config.nodes["y"].limits
+        here = float(config.nodes["y"].scaling.position_from_device(axes["y"].node.sdo[0x6064].raw))
+        demand = trapezoid(here, here + 2.0, 0.3 * lim.max_velocity, 0.3 * lim.max_acceleration, 0.002)
+        m = motion.run(config, link, axes, {"y": np.concatenate([demand, np.full(100, demand[-1])])})
+        elapsed = link.clock.now() - t0
+        link.record(None)
+        trace.stop()
+        assert m.aborted is None
+        assert np.count_nonzero(np.isnan(m.position["y"])) <= 0.01 * len(m.position["y"])
+        assert abs(np.nanmax(m.position["y"]) - (here + 2.0)) < 0.01          # it arrived
+        assert elapsed >= len(demand) * 0.002                                   # the link's clock moved
+        assert quick_stop(link, axes, 1.0) == []
+    with can.LogReader(str(tmp_path / "trace.blf")) as reader:
+        frames = list(reader)
+    ids = {f.arbitration_id for f in frames}
+    assert {0x080, 0x202, 0x182, 0x282} <= ids                 # SYNC, RPDO1, TPDO1, TPDO2 of node 2
+    stamps = np.array([f.timestamp for f in frames if f.arbitration_id == 0x080])
+    assert np.all(np.diff(stamps) > 0)                          # SYNCs in time order
