@@ -39,11 +39,6 @@ class Scaling:
             return value_m
         return value_m * (2 * math.pi / self.feed_m_per_rev)
 
-    def motor_to_load(self, value_rad):
-        if self.feed_m_per_rev is None:
-            return value_rad
-        return value_rad * (self.feed_m_per_rev / (2 * math.pi))
-
     # --- SI <-> device --------------------------------------------------------------
     def position_to_device(self, rad):
         """rad -> increments (rounded to the nearest increment)."""

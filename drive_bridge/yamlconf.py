@@ -51,9 +51,6 @@ class Section:
             return self.key
         return f"{self.key}.{key}" if self.key else str(key)
 
-    def has(self, key: str) -> bool:
-        return key in self.data
-
     def error(self, key: str, problem: str) -> ConfigError:
         return ConfigError(self.path, self._name(key), problem)
 

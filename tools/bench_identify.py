@@ -31,16 +31,18 @@ from drive_bridge.ident.signals import choose_settings, prepare       # noqa: E4
 from drive_bridge.master.campaign import build_plan                   # noqa: E402
 from drive_bridge.sim.config import load_sim_config                   # noqa: E402
 from drive_bridge.sim.plantlog import plant_log, write_log           # noqa: E402
+from drive_bridge.resources import DEFAULT_BUS_CONFIG   # noqa: E402
+from drive_bridge.sim.config import DEFAULT_CONFIG as SIM_DEFAULT   # noqa: E402
 
 
 def plan_for(axes, seconds_per_axis):
-    cfg = load_bus_config(ROOT / "config" / "bus.yml")
+    cfg = load_bus_config(DEFAULT_BUS_CONFIG)
     camp = replace(cfg.campaign, max_axis_time_s=seconds_per_axis, together=False)
     return build_plan(camp, {a: cfg.nodes[a].limits for a in axes}, dict.fromkeys(axes, 0.0), 0.002)
 
 
 def crb(seeds: int) -> None:
-    sim = load_sim_config(ROOT / "drive_bridge" / "sim" / "robot.yaml")
+    sim = load_sim_config(SIM_DEFAULT)
     y = sim.axes["y"]
     y.effects, y.cp, y.D, y.torque_noise_Nm = {}, 0.0, 0.0, 0.0
     sim = replace(sim, axes={"y": y})
@@ -67,7 +69,7 @@ def crb(seeds: int) -> None:
 
 
 def speed() -> None:
-    sim = load_sim_config(ROOT / "drive_bridge" / "sim" / "robot.yaml")
+    sim = load_sim_config(SIM_DEFAULT)
     plan = plan_for(list(sim.axes), 100.0)
     cols = plant_log(sim, {a: plan.demand[:, i] for i, a in enumerate(plan.axes)})
     with tempfile.TemporaryDirectory() as tmp:

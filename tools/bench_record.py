@@ -25,10 +25,11 @@ sys.path.insert(0, str(ROOT))
 from drive_bridge.connect import open_link                 # noqa: E402
 from drive_bridge.config import load_bus_config          # noqa: E402
 from drive_bridge.record import record                   # noqa: E402
+from drive_bridge.resources import DEFAULT_BUS_CONFIG   # noqa: E402
 
 
 def campaign_config(seconds: float):
-    cfg = load_bus_config(ROOT / "config" / "bus.yml")
+    cfg = load_bus_config(DEFAULT_BUS_CONFIG)
     return replace(cfg, campaign=replace(cfg.campaign, max_axis_time_s=seconds / 3, together=False))
 
 

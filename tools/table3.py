@@ -28,11 +28,12 @@ from drive_bridge.tuning.design import loop_margins                 # noqa: E402
 from drive_bridge.paper import TABLE_III                           # noqa: E402
 from drive_bridge.tuning.tune import model_from_identify, tune_axis  # noqa: E402
 from drive_bridge.tuning.validate import validate                   # noqa: E402
+from drive_bridge.resources import DEFAULT_BUS_CONFIG   # noqa: E402
 
 
 def main(axes: list[str]) -> None:
     warnings.filterwarnings("ignore", module="scipy.optimize")
-    config = load_bus_config(ROOT / "config" / "bus.yml").only(axes)
+    config = load_bus_config(DEFAULT_BUS_CONFIG).only(axes)
     profile = load_profile("drive_bridge_servo")
     with tempfile.TemporaryDirectory() as tmp, open_link(config, sim=True) as link:
         record(config, link, tmp)

@@ -13,9 +13,8 @@ from canopen.profiles.p402 import State402
 from ..errors import BusError, DriveRefused
 
 CW_SHUTDOWN, CW_SWITCH_ON, CW_ENABLE = 0x06, 0x07, 0x0F
-CW_QUICK_STOP = 0x02
 CW_FAULT_RESET = 0x80
-SW_FAULT, SW_WARNING, SW_FOLLOWING_ERROR = 0x0008, 0x0080, 0x2000
+SW_FAULT = 0x0008
 
 
 def state_name(statusword: int) -> str:

@@ -32,7 +32,7 @@ from .cia402 import (ENABLED, FAULT, FAULT_REACTION, QUICK_STOP, STATUSWORD, SWI
 from .config import SimAxis
 
 # NMT states as sent in the heartbeat
-NMT_BOOT, NMT_STOPPED, NMT_OPERATIONAL, NMT_PREOP = 0x00, 0x04, 0x05, 0x7F
+NMT_STOPPED, NMT_OPERATIONAL, NMT_PREOP = 0x04, 0x05, 0x7F
 
 CSP, PV, PP = 8, 3, 1
 SAVE_SIGNATURE = 0x65766173      # 'save'

@@ -62,7 +62,6 @@ class SimRobot:
         self.routes_changed()
         self._thread: threading.Thread | None = None
         self._running = False
-        self._lock = threading.Lock()
 
     # ------------------------------------------------------------------ bus
     def power_on(self) -> None:

@@ -7,11 +7,11 @@ The drive's loops (see the README's control law)::
     velocity = FwF·v_demand + KpP·(p_demand − p)         position P, 2 kHz
 
 Current PI: pole-zero cancellation of the motor's R/L (KiC = R/L) and
-KpC = L·ω_i for a closed current loop ω_i (a tenth of the 8 kHz rate).
+KpC = L·ω_i for a closed current loop ω_i = 2π·1 kHz (an eighth of the 8 kHz rate).
 Velocity PI on the identified plant 1/(J·s + c1) with the closed current loop
 and the sampling delays (zero-order hold ½ T plus the backward-difference
 velocity ½ T, T = 0.5 ms; a Padé approximant): the largest KpS whose open loop
-keeps the phase and gain margins, KiS a quarter decade below the crossover.
+keeps the phase and gain margins, KiS = crossover / ``INTEGRAL_RATIO`` (6).
 Position P on the closed velocity loop, the same way.  FwF = 1 (the model
 feed-forward supplies the torque the velocity demand needs).  Units SI, motor
 side: KpS [Nm·s/rad], KiS [1/s], KpP [1/s], KpC [V/A], KiC [1/s].

@@ -1,0 +1,18 @@
+#!/usr/bin/env bash
+# drive-bridge as a user installs it: build the wheel, install it in a fresh virtual environment
+# outside the source tree, and run the simulated commissioning and a smoke test from there.
+#   tools/check_wheel.sh            (from the repository root; CI runs it after the tests)
+set -euo pipefail
+repo="$(cd "$(dirname "$0")/.." && pwd)"
+work="$(mktemp -d)"
+trap 'rm -rf "$work"' EXIT
+python3 -m pip wheel -q --no-deps -w "$work/dist" "$repo"
+python3 -m venv "$work/venv"
+"$work/venv/bin/pip" install -q "$work"/dist/drive_bridge-*.whl
+cd "$work"
+export DRIVE_BRIDGE_VENDOR_EDS="${DRIVE_BRIDGE_VENDOR_EDS:-$repo/../shared/eds-vendor}"
+venv/bin/drive-bridge --help > /dev/null
+venv/bin/drive-bridge scan --sim
+venv/bin/drive-bridge commission --sim --quick --out run
+venv/bin/python "$repo/tools/smoke_installed.py" run
+echo "wheel check passed: $(ls dist)"
