@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import struct
 from dataclasses import dataclass
+from functools import cached_property
 
 import canopen
 from canopen.objectdictionary import ODVariable
@@ -26,12 +27,12 @@ class PdoCodec:
         return cls(cob_id, entries, struct.Struct("<" + "".join(
             ODVariable.STRUCT_TYPES[v.data_type].format.lstrip("<") for v in variables)))
 
-    @property
+    @cached_property
     def objects(self) -> tuple[int, ...]:
         """The mapped object indices, in mapping order."""
         return tuple(i for i, _ in self.entries)
 
-    @property
+    @cached_property
     def spans(self) -> list[tuple[int, int]]:
         """Byte slice (start, end) of each entry in the frame."""
         out, offset = [], 0
