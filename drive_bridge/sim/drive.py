@@ -124,19 +124,15 @@ class SimDrive:
         self._store(0x1018, 4, self.axis.serial)
 
     def _store(self, index: int, sub: int, value) -> None:
-        self.node.data_store.setdefault(index, {})[sub] = self._var(index, sub).encode_raw(value)
+        self.node.data_store.setdefault(index, {})[sub] = self.od.get_variable(index, sub).encode_raw(value)
         self._cache[(index, sub)] = value
-
-    def _var(self, index: int, sub: int) -> ODVariable:
-        obj = self.od[index]
-        return obj if isinstance(obj, ODVariable) else obj[sub]
 
     def _od(self, index: int, sub: int = 0):
         """Current value of an object, as the SDO server would return it (cached)."""
         try:
             return self._cache[(index, sub)]
         except KeyError:
-            value = self._var(index, sub).decode_raw(self.node.get_data(index, sub))
+            value = self.od.get_variable(index, sub).decode_raw(self.node.get_data(index, sub))
             if index not in self._live:
                 self._cache[(index, sub)] = value
             return value
@@ -319,11 +315,8 @@ class SimDrive:
                 raise SdoAbortedError(ABORT_NOT_MAPPABLE)
 
     def _mappable(self, index: int, sub: int, tpdo: bool) -> ODVariable | None:
-        try:
-            var = self._var(index, sub)
-        except (KeyError, IndexError):
-            return None
-        if not var.pdo_mappable or (tpdo and not var.readable) or (not tpdo and not var.writable):
+        var = self.od.get_variable(index, sub)
+        if var is None or not var.pdo_mappable or (tpdo and not var.readable) or (not tpdo and not var.writable):
             return None
         return var
 
