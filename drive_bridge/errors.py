@@ -62,6 +62,12 @@ class DriveRefused(BusError):
     """A drive refused a value or a command (an SDO abort, a failed transaction)."""
 
 
+class WriteInterrupted(DriveBridgeError):
+    """A parameter write cut short by Ctrl-C, SIGTERM or SIGHUP (the drives were restored)."""
+
+    kind = "interrupted"
+
+
 class MotionAborted(DriveBridgeError):
     """Motion was stopped by a fault or by the user; data up to the stop is kept.
 

@@ -16,6 +16,7 @@ from .config import BusConfig
 from .connect import open_link
 from .master.bringup import AxisLink, bring_up, check_scan, scan
 from .master.link import Link
+from .params.check import GM_FLOOR_DB, PM_FLOOR_DEG
 from .params.profile import Profile, load_profile
 
 
@@ -23,7 +24,8 @@ from .params.profile import Profile, load_profile
 class Options:
     """How to reach the drives and what to run with: ``sim`` (``realtime``, ``sim_config``) for
     the simulated robot, the drive ``profile``, ``motor`` (R [Ω], L [H]) for drives that do not
-    report it, the ``seed`` of the evolutionary fits."""
+    report it, the ``seed`` of the evolutionary fits, and the margin floor a written gain set must
+    keep (``pm_floor`` [°], ``gm_floor`` [dB]) unless ``force``."""
 
     sim: bool = False
     realtime: bool = False
@@ -31,6 +33,9 @@ class Options:
     profile: str = "drive_bridge_servo"
     motor: tuple[float, float] | None = None
     seed: int = 0
+    force: bool = False
+    pm_floor: float = PM_FLOOR_DEG
+    gm_floor: float = GM_FLOOR_DB
 
 
 class Session:

@@ -13,6 +13,7 @@ def register(sub) -> None:
                        description="Every step in one run directory (--out), resumable after the last completed "
                                    "step; summary.json and a self-contained report.html whatever happens.")
     options.drive(p, params=False)
+    options.write_checks(p)
     p.add_argument("--out", required=True, help="run directory: every step's output, summary.json, report.html")
     p.add_argument("--steps", help=f"run only these steps, comma-separated ({', '.join(STEPS)}); "
                                    "default: resume after the last completed one")

@@ -35,8 +35,28 @@ def motor(p: argparse.ArgumentParser) -> None:
     p.add_argument("--motor-L", type=float, help="motor inductance [H] if the drive does not report it")
 
 
+def write_checks(p: argparse.ArgumentParser) -> None:
+    """The margin floor a written gain set must keep, and the deliberate override."""
+    from ..params.check import GM_FLOOR_DB, PM_FLOOR_DEG
+    p.add_argument("--min-phase-margin", type=float, default=PM_FLOOR_DEG, metavar="DEG",
+                   help="refuse gains whose loop phase margin on the identified model is below this "
+                        "(default: %(default)s°)")
+    p.add_argument("--min-gain-margin", type=float, default=GM_FLOOR_DB, metavar="DB",
+                   help="refuse gains whose loop gain margin is below this (default: %(default)s dB)")
+    p.add_argument("--force", action="store_true",
+                   help="write a gain set below the margin floor (recorded in the output); never values "
+                        "outside the drive's ranges")
+
+
+def _seed(text: str) -> int:
+    value = int(text)
+    if not 0 <= value < 2**32:
+        raise argparse.ArgumentTypeError(f"must be a whole number from 0 to {2**32 - 1}, got {text}")
+    return value
+
+
 def seed(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--seed", type=int, default=0, help="seed of the evolutionary fits (default: 0)")
+    p.add_argument("--seed", type=_seed, default=0, help="seed of the evolutionary fits (default: 0)")
 
 
 def axes_list(text: str | None) -> list[str] | None:
@@ -63,4 +83,5 @@ def session_options(args) -> Options:
     """What a Session needs from the command line."""
     given = (getattr(args, "motor_R", None), getattr(args, "motor_L", None))
     return Options(args.sim, args.realtime, args.sim_config, getattr(args, "profile", "drive_bridge_servo"),
-                   given if all(given) else None, getattr(args, "seed", 0))
+                   given if all(given) else None, getattr(args, "seed", 0), getattr(args, "force", False),
+                   getattr(args, "min_phase_margin", Options.pm_floor), getattr(args, "min_gain_margin", Options.gm_floor))

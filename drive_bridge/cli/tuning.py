@@ -9,7 +9,7 @@ from pathlib import Path
 from ..errors import UserError
 from ..outputs import write_json
 from ..params.read import drive_state
-from ..params.write import raise_for_failure, results_doc, write_drives
+from ..params.write import raise_for_failure, write_drives
 from ..session import Session
 from ..tuning.tune import GAINS, drive_model, read_identify_json, read_tune_json, tune_axes, tune_doc
 from . import options
@@ -30,6 +30,7 @@ def register(sub) -> None:
                        description="One transaction over all drives: backup, write, read back and compare, "
                                    "then store (0x1010); any failure restores every drive and stores nothing.")
     options.drive(p)
+    options.write_checks(p)
     p.add_argument("--dry-run", action="store_true", help="print old -> new and write nothing")
     p.add_argument("--backup-dir", default="backup", help="where the backups go (default: %(default)s)")
     p.add_argument("--dcf-dir", help="export each commissioned node as a DCF here")
@@ -44,10 +45,11 @@ def register(sub) -> None:
 
 
 def _axes_in(config, names, path) -> list[str]:
-    axes = [a for a in config.nodes if a in names]
-    if not axes:
-        raise UserError(f"{path}: none of its axes ({', '.join(names)}) is in {config.path}")
-    return axes
+    """The axes of a result file, every one of them configured (in ``config``'s order)."""
+    unknown = [a for a in names if a not in config.nodes]
+    if unknown:
+        raise UserError(f"{path}: axis {unknown[0]!r} is not in {config.path} (configured: {', '.join(config.nodes)})")
+    return [a for a in config.nodes if a in names]
 
 
 def cmd_tune(args) -> int:
@@ -88,23 +90,26 @@ def cmd_tune(args) -> int:
 
 def cmd_write(args) -> int:
     config = options.config(args)
-    params = read_tune_json(args.params)
-    config = config.only(_axes_in(config, params, args.params))
-    with Session(config, options.session_options(args)) as session:
+    tuned = read_tune_json(args.params)
+    config = config.only(_axes_in(config, tuned.parameters, args.params))
+    o = options.session_options(args)
+    with Session(config, o) as session:
         nodes = session.nodes
-        results = write_drives(nodes, session.profile, {a: params[a] for a in nodes},
-                               backup_dir=args.backup_dir, dcf_dir=args.dcf_dir, dry_run=args.dry_run)
+        outcome = write_drives(nodes, session.profile, {a: tuned.parameters[a] for a in nodes},
+                               backup_dir=args.backup_dir, dcf_dir=args.dcf_dir, dry_run=args.dry_run,
+                               inductance=tuned.inductance, force=o.force, pm_floor=o.pm_floor, gm_floor=o.gm_floor)
     if args.json:
-        print(json.dumps(results_doc(results, nodes), default=float))
+        print(json.dumps(outcome.as_dict(), default=float))
     else:
-        _print_write(results)
-    if not args.dry_run:
-        raise_for_failure(results, nodes, args.backup_dir)
+        _print_write(outcome, args.backup_dir)
+    raise_for_failure(outcome, args.backup_dir)
     return 0
 
 
-def _print_write(results) -> None:
-    for a, r in results.items():
+def _print_write(outcome, backup_dir) -> None:
+    for reason in outcome.forced:
+        print(f"FORCED: {reason}")
+    for a, r in outcome.results.items():
         print(f"axis {a} (node {r.node_id}, {r.drive}){' — dry run, nothing written' if r.dry_run else ''}:")
         for w in r.objects:
             state = "verified" if w.verified else ("" if r.dry_run else "NOT verified")
@@ -116,7 +121,11 @@ def _print_write(results) -> None:
             print("  stored to non-volatile memory (0x1010 'save')")
         for n in r.notes:
             print(f"  note: {n}")
-
+        if not r.dry_run:
+            print(f"  drive holds: RAM {r.ram}, stored set {r.stored_set}"
+                  + (f"; backup of the old values: {r.backup}" if r.backup else ""))
+    if backup_dir is not None and not all(r.dry_run for r in outcome.results.values()):
+        print(f"backups of the values before: {backup_dir}/")
 
 def _num(v) -> str:
     return "?" if v is None else f"{v:.6g}"
@@ -126,7 +135,7 @@ def cmd_validate(args) -> int:
     from ..paper import TABLE_III
     from ..tuning.validate import run_scenarios, stopped
     config = options.config(args)
-    params = read_tune_json(args.params)
+    params = read_tune_json(args.params).parameters
     names = _axes_in(config, params, args.params)
     config = config.only(names)
     model = {a: drive_model(params[a]) for a in names}

@@ -12,7 +12,7 @@ from ..master.bringup import scan as scan_bus
 from ..master.bringup import check_scan
 from ..outputs import write_json
 from ..params.read import drive_state
-from ..params.write import raise_for_failure, results_doc, write_drives
+from ..params.write import raise_for_failure, write_drives
 from ..progress import StepReporter
 from ..session import Session
 from ..tuning.tune import drive_model, read_identify_json, read_tune_json, tune_axes, tune_doc
@@ -107,19 +107,23 @@ def tune(ctx: Context) -> str:
 
 
 def write(ctx: Context) -> str:
-    params = read_tune_json(ctx.require(OUTPUT["tune"]))
-    nodes = {a: ctx.session.nodes[a] for a in params}
-    out = ctx.out / OUTPUT["write"]
-    results = write_drives(nodes, ctx.session.profile, params, backup_dir=out, dcf_dir=out)
-    write_json(ctx.out / WRITE_JSON, results_doc(results, nodes))
-    raise_for_failure(results, nodes, out)
+    tuned = read_tune_json(ctx.require(OUTPUT["tune"])).only(ctx.config)
+    nodes = {a: ctx.session.nodes[a] for a in tuned.parameters}
+    out, o = ctx.out / OUTPUT["write"], ctx.options
+    outcome = write_drives(nodes, ctx.session.profile, tuned.parameters, backup_dir=out, dcf_dir=out,
+                           inductance=tuned.inductance, force=o.force, pm_floor=o.pm_floor, gm_floor=o.gm_floor)
+    write_json(ctx.out / WRITE_JSON, outcome.as_dict())
+    raise_for_failure(outcome, out)
+    results = outcome.results
     n = sum(len(r.objects) for r in results.values())
     stored = "stored (0x1010 'save')" if all(r.stored for r in results.values()) else "not stored (no store object)"
-    return f"{n} objects written and verified on {len(results)} drive(s), {stored}; DCFs in {OUTPUT['write']}/"
+    forced = f"; FORCED: {'; '.join(outcome.forced)}" if outcome.forced else ""
+    return (f"{n} objects written and verified on {len(results)} drive(s), {stored}; DCFs and backups in "
+            f"{OUTPUT['write']}/{forced}")
 
 
 def validate(ctx: Context) -> str:
-    params = read_tune_json(ctx.require(OUTPUT["tune"]))
+    params = read_tune_json(ctx.require(OUTPUT["tune"])).only(ctx.config).parameters
     before = {a: v["parameters_before"] for a, v in ctx.read_json(OUTPUT["bringup"])["axes"].items()}
     scenarios = {"before": {a: before[a] for a in params}, "after": params}
     model = {a: drive_model(p) for a, p in params.items()}

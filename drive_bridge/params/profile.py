@@ -6,7 +6,8 @@ shipped in ``drive_bridge/data``, ``vendor/…`` in the vendor folder, read in p
 from the working directory), the store object, and per abstract parameter (J, c0, c1, offset,
 cp, dc0, dc1, periodic_amplitude/period/phase, ff_enable, KpP, FwF, KpS, KiS, KpC, KiC) its index, sub-index,
 data type and scaling: device value = scale × SI value, or 1 / SI value for
-``reciprocal`` (a reset time written for an integral rate).  A parameter a
+``reciprocal`` (a reset time written for an integral rate), and optionally the
+drive's range in SI (``min``, ``max``).  A parameter a
 drive has no object for is simply absent: the writer reports it as not
 supported.
 """
@@ -51,6 +52,8 @@ class Entry:
     scale: float
     reciprocal: bool
     unit: str
+    min: float | None = None          # the drive's range [SI], where the profile states it
+    max: float | None = None
 
     @property
     def is_integer(self) -> bool:
@@ -119,7 +122,10 @@ def load_profile(name_or_path: str | Path) -> Profile:
             raise params.error(name, f"unknown parameter (known: {', '.join(PARAMETERS)})")
         sec = params.section(name)
         entry = Entry(name, sec.get("index", int), sec.get("sub", int, 0), sec.get("type", str),
-                      sec.get("scale", float, 1.0), sec.get("reciprocal", bool, False), sec.get("unit", str, ""))
+                      sec.get("scale", float, 1.0), sec.get("reciprocal", bool, False), sec.get("unit", str, ""),
+                      sec.get("min", float, None), sec.get("max", float, None))
+        if entry.min is not None and entry.max is not None and entry.min > entry.max:
+            raise params.error(f"{name}.min", f"min {entry.min} is above max {entry.max}")
         sec.done()
         if entry.type not in TYPES:
             raise params.error(f"{name}.type", f"unknown data type {entry.type!r} (known: {', '.join(TYPES)})")

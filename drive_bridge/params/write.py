@@ -7,23 +7,20 @@ result lists every object with its old and new value in SI and device units.
 """
 from __future__ import annotations
 
-import json
 import struct
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import canopen
-from canopen.objectdictionary import datatypes
-from canopen.sdo import SdoVariable
 
-from ..errors import DriveRefused
+from ..errors import BusError, DriveRefused, WriteInterrupted
+from ..outputs import write_json
+from ..signals import deferred, signal_name
+from .check import GM_FLOOR_DB, PM_FLOOR_DEG, ValueRefused, check_margins, check_set
 from .profile import Entry, Profile
-from .read import SDO_ERRORS, describe_sdo_error, require_profile_objects, sdo_variable
+from .read import SDO_ERRORS, describe_sdo_error, motor_data, require_profile_objects, sdo_variable
 
 SAVE_SIGNATURE = 0x65766173         # "save"
-_RANGES = {datatypes.UNSIGNED8: (0, 2**8 - 1), datatypes.UNSIGNED16: (0, 2**16 - 1),
-           datatypes.UNSIGNED32: (0, 2**32 - 1), datatypes.INTEGER8: (-2**7, 2**7 - 1),
-           datatypes.INTEGER16: (-2**15, 2**15 - 1), datatypes.INTEGER32: (-2**31, 2**31 - 1)}
 
 
 @dataclass
@@ -36,13 +33,21 @@ class ObjectWrite:
     new_si: float | None = None
     old_device: float | int | None = None
     new_device: float | int | None = None
-    written: bool = False
-    verified: bool = False
+    attempted: bool = False           # a write was sent (its answer may have been lost)
+    written: bool = False             # the drive confirmed the write
+    verified: bool = False            # read back equal to what was written (and still in force)
+
+
+#: what a drive's RAM or its stored (non-volatile) set holds after a transaction
+NEW, BACKUP, UNCHANGED, UNKNOWN = "new", "backup", "unchanged", "unknown"
 
 
 @dataclass
 class WriteResult:
-    """What happened; ``ok`` only when every object was written, verified (and stored if asked)."""
+    """What happened on one drive; ``ok`` only when every object was written and verified
+    (and stored if asked).  ``ram`` and ``stored_set`` say what the drive is known to hold
+    (``new``, ``backup`` = as before, ``unchanged`` = never touched, ``unknown`` = could not
+    be read back or confirmed): never more than was read back."""
 
     node_id: int
     drive: str
@@ -54,6 +59,16 @@ class WriteResult:
     error: str | None = None
     backup: str | None = None
     notes: list[str] = field(default_factory=list)
+    ram: str = UNCHANGED
+    stored_set: str = UNCHANGED
+    interrupted: str | None = None    # the signal that cut the transaction short (Ctrl-C, SIGTERM, SIGHUP)
+    caused: bool = False              # this drive's failure ended the transaction
+
+    def holds(self) -> str:
+        """What the drive is known to hold, in words."""
+        ram = {NEW: "new values in RAM", BACKUP: "restored (read back)", UNCHANGED: "untouched",
+               UNKNOWN: "RAM UNKNOWN (could not be read back)"}[self.ram]
+        return f"{ram}, stored set {self.stored_set}"
 
     @property
     def ok(self) -> bool:
@@ -73,190 +88,280 @@ def _same(entry: Entry, a, b) -> bool:
     return pack(float(a)) == pack(float(b))
 
 
-def write_parameters(node: canopen.RemoteNode, profile: Profile, values: dict[str, float], *,
-                     dry_run: bool = False, store: bool = True, backup_path: str | Path | None = None
-                     ) -> WriteResult:
-    """Write ``values`` (abstract name -> SI value) to ``node`` through ``profile``.
-
-    ``node.object_dictionary`` must be the profile's EDS.  Returns a
-    :class:`WriteResult`; never raises for a drive's refusal.
-    """
-    supported = [k for k in values if k in profile.entries]
-    result = WriteResult(node.id, profile.drive, [], [k for k in values if k not in profile.entries],
-                         dry_run=dry_run)
-    od = node.object_dictionary
-    plan: list[tuple[Entry, ObjectWrite, SdoVariable]] = []
-    for name in supported:
-        e = profile.entries[name]
-        w = ObjectWrite(name, e.index, e.sub, e.unit, new_si=float(values[name]), new_device=e.to_device(values[name]))
-        var = od.get_variable(e.index, e.sub)
-        low, high = _RANGES.get(var.data_type, (None, None))
-        if var.min is not None:
-            low = var.min
-        if var.max is not None:
-            high = var.max
-        if (low is not None and w.new_device < low) or (high is not None and w.new_device > high):
-            result.objects.append(w)
-            result.error = (f"{name} = {values[name]:.6g} {e.unit} is {w.new_device} in device units, outside "
-                            f"{e.where()}'s range {low}..{high}; nothing was written")
-            return result
-        plan.append((e, w, sdo_variable(node, e)))
-        result.objects.append(w)
-    # 1. backup
-    for e, w, var in plan:
-        try:
-            w.old_device = var.raw
-        except SDO_ERRORS as exc:
-            result.error = f"reading {w.parameter} ({e.where()}) for the backup failed: {describe_sdo_error(exc)}; nothing was written"
-            return result
-        w.old_si = e.to_si(w.old_device)
-    if backup_path is not None:
-        path = Path(backup_path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(json.dumps({"node_id": node.id, "drive": profile.drive, "profile": profile.name,
-                                    "objects": [{"parameter": w.parameter, "index": w.index, "sub": w.sub,
-                                                 "device": w.old_device, "si": w.old_si}
-                                                for _, w, _ in plan]}, indent=1))
-        result.backup = str(path)
-    if dry_run:
-        return result
-    # 2. write all, 3. read back and compare
-    failed = None
-    try:
-        for e, w, var in plan:
-            try:
-                var.raw = w.new_device
-                w.written = True
-            except SDO_ERRORS as exc:
-                failed = f"writing {w.parameter} = {w.new_device} to {e.where()} failed: {describe_sdo_error(exc)}"
-                break
-        if failed is None:
-            for e, w, var in plan:
-                try:
-                    back = var.raw
-                except SDO_ERRORS as exc:
-                    failed = f"reading back {w.parameter} ({e.where()}) failed: {describe_sdo_error(exc)}"
-                    break
-                w.verified = _same(e, back, w.new_device)
-                if not w.verified:
-                    failed = f"{w.parameter} ({e.where()}) reads back {back}, not the {w.new_device} written"
-                    break
-    except KeyboardInterrupt:
-        failed = "interrupted by the user (Ctrl-C)"
-    # 4. store only a verified set
-    if failed is None and store:
-        failed = store_parameters(node, profile, result)
-    if failed is not None:
-        restore_backup(node, profile, result, failed)
-    return result
+class _Failed(Exception):
+    """A read-back that differs from what was written."""
 
 
-def store_parameters(node: canopen.RemoteNode, profile: Profile, result: WriteResult) -> str | None:
-    """Write 'save' to the profile's store object; the reason when that failed, else None."""
-    if profile.save is None:
-        result.notes.append(f"{profile.drive} has no store object: the values are not made non-volatile")
-        return None
-    try:
-        node.sdo[profile.save[0]][profile.save[1]].raw = SAVE_SIGNATURE
-    except SDO_ERRORS as exc:
-        return f"store (0x{profile.save[0]:04X}:{profile.save[1]} 'save') failed: {describe_sdo_error(exc)}"
-    result.stored = True
-    return None
+def _describe(exc: BaseException, phase: str, w: ObjectWrite | None, entry: Entry | None) -> str:
+    what = "" if w is None else f" {w.parameter} ({entry.where()})"
+    if isinstance(exc, KeyboardInterrupt):
+        return f"interrupted by {signal_name(exc)} during the {phase} phase"
+    if isinstance(exc, _Failed):
+        return str(exc)
+    doing = {"backup": f"reading{what} for the backup", "write": f"writing{what} = {w.new_device if w else ''}",
+             "verify": f"reading back{what}", "store": "storing (0x1010 'save')"}[phase]
+    if isinstance(exc, SDO_ERRORS):
+        return f"{doing} failed: {describe_sdo_error(exc)}"
+    return f"{doing} failed: {type(exc).__name__}: {exc}"
 
 
-def restore_backup(node: canopen.RemoteNode, profile: Profile, result: WriteResult, reason: str) -> None:
-    """Mark ``result`` failed for ``reason`` and write the backup back to every object it wrote."""
-    result.error = reason
-    ok = True
-    for w in reversed(result.objects):
-        if not w.written:
-            continue
-        e = profile.entries[w.parameter]
-        try:
-            sdo_variable(node, e).raw = w.old_device
-        except SDO_ERRORS as exc:
-            ok = False
-            result.notes.append(f"restoring {w.parameter} ({e.where()}) failed: {describe_sdo_error(exc)}")
-    if not ok:
-        result.notes.append("no store was issued, so the drive's stored set is unchanged: "
-                            "a power cycle (or NMT reset node) brings it back")
-    result.restored = ok
-    for w in result.objects:
-        w.verified = False
+def plan_writes(nodes: dict[str, canopen.RemoteNode], profile: Profile, values: dict[str, dict[str, float]], *,
+                check: bool = True, dry_run: bool = False) -> dict[str, WriteResult]:
+    """The objects each drive will get; with ``check`` every value is checked first
+    (:func:`~drive_bridge.params.check.check_set`) and ValueRefused names every problem of every
+    drive before anything is written."""
+    problems = []
+    results = {}
+    for axis, node in nodes.items():
+        vals = values[axis]
+        if check:
+            problems += [f"axis {axis}: {p}" for p in check_set(profile, node.object_dictionary, vals)]
+        objects = [ObjectWrite(k, profile.entries[k].index, profile.entries[k].sub, profile.entries[k].unit,
+                               new_si=float(v), new_device=None if problems else profile.entries[k].to_device(v))
+                   for k, v in vals.items() if k in profile.entries]
+        results[axis] = WriteResult(node.id, profile.drive, objects, [k for k in vals if k not in profile.entries],
+                                    dry_run=dry_run)
+    if problems:
+        raise ValueRefused("refused before anything was written: " + "; ".join(problems))
+    return results
 
 
 def write_all(nodes: dict[str, canopen.RemoteNode], profile: Profile, values: dict[str, dict[str, float]], *,
-              backup_dir: str | Path | None = None) -> dict[str, WriteResult]:
+              backup_dir: str | Path | None = None, store: bool = True, dry_run: bool = False,
+              check: bool = True) -> dict[str, WriteResult]:
     """Write every axis's ``values`` (axis -> name -> SI) as one transaction over all drives.
 
-    Each drive is written and verified without storing; only when every drive verified is each
-    one stored.  Any failure restores the backup of every drive written so far; the axes after
-    the failing one are not touched (they have no entry in the result).
+    Every value is checked before anything is written (``check``).  Then: backup (read every
+    object), write every drive, read every value back and compare, and only then store on each
+    drive (``store``).  Any failure -- an SDO abort, a lost answer, a value the data type cannot
+    hold, a read-back that differs, an exception, Ctrl-C, SIGTERM or SIGHUP, in any phase --
+    restores the backup on every drive that was written, reads it back and compares, and
+    stores it again where the new set had been stored.  ``dry_run``: the backup phase only.
     """
-    results: dict[str, WriteResult] = {}
-    for axis, node in nodes.items():
-        backup = Path(backup_dir) / f"{axis}_backup.json" if backup_dir is not None else None
-        results[axis] = write_parameters(node, profile, values[axis], store=False, backup_path=backup)
-        if not results[axis].ok:
-            break
-    failed = next(((a, r.error) for a, r in results.items() if not r.ok), None)
-    if failed is None:
-        for axis, node in nodes.items():
-            reason = store_parameters(node, profile, results[axis])
-            if reason is not None:
-                failed = axis, reason
-                restore_backup(node, profile, results[axis], reason)
-                break
-    if failed is not None:
-        for axis, r in results.items():
-            if r.ok:
-                stored = r.stored
-                restore_backup(nodes[axis], profile, r, f"not kept: axis {failed[0]} failed ({failed[1]})")
-                if stored and r.restored:          # its new set was stored already: store the backup
-                    reason = store_parameters(nodes[axis], profile, r)
-                    r.notes.append("the backup was stored again" if reason is None else reason)
-                r.stored = False
+    results = plan_writes(nodes, profile, values, check=check, dry_run=dry_run)
+    _Transaction(nodes, profile, results).run(backup_dir, store, dry_run)
     return results
+
+
+def write_parameters(node: canopen.RemoteNode, profile: Profile, values: dict[str, float], *,
+                     dry_run: bool = False, store: bool = True, backup_path: str | Path | None = None,
+                     check: bool = True) -> WriteResult:
+    """:func:`write_all` for one drive (``backup_path``: where its backup goes)."""
+    results = plan_writes({"": node}, profile, {"": values}, check=check, dry_run=dry_run)
+    _Transaction({"": node}, profile, results, {"": backup_path}).run(None, store, dry_run)
+    return results[""]
+
+
+class _Transaction:
+    def __init__(self, nodes, profile: Profile, results: dict[str, WriteResult], backup_paths=None):
+        self.nodes, self.profile, self.results = nodes, profile, results
+        self.backup_paths = backup_paths
+        self.store_state: dict[str, str] = dict.fromkeys(results, UNCHANGED)
+
+    def _var(self, axis: str, w: ObjectWrite):
+        return sdo_variable(self.nodes[axis], self.profile.entries[w.parameter])
+
+    def run(self, backup_dir, store: bool, dry_run: bool) -> None:
+        phase, where = "backup", (None, None)
+        try:
+            for a, r in self.results.items():
+                for w in r.objects:
+                    where = (a, w)
+                    w.old_device = self._var(a, w).raw
+                    w.old_si = self.profile.entries[w.parameter].to_si(w.old_device)
+                self._save_backup(a, r, backup_dir)
+            if dry_run:
+                return
+            phase = "write"
+            for a, r in self.results.items():
+                for w in r.objects:
+                    where = (a, w)
+                    w.attempted = True
+                    self._var(a, w).raw = w.new_device
+                    w.written = True
+            phase = "verify"
+            for a, r in self.results.items():
+                for w in r.objects:
+                    where = (a, w)
+                    back = self._var(a, w).raw
+                    w.verified = _same(self.profile.entries[w.parameter], back, w.new_device)
+                    if not w.verified:
+                        raise _Failed(f"{w.parameter} ({self.profile.entries[w.parameter].where()}) reads back "
+                                      f"{back}, not the {w.new_device} written")
+            phase = "store"
+            for a, r in self.results.items():
+                where = (a, None)
+                if store:
+                    self._store(a, r)
+            for r in self.results.values():
+                r.ram = NEW
+        except (Exception, KeyboardInterrupt) as exc:
+            axis, w = where
+            reason = _describe(exc, phase, w, None if w is None else self.profile.entries[w.parameter])
+            if isinstance(exc, KeyboardInterrupt):
+                for r in self.results.values():
+                    r.interrupted = signal_name(exc)
+            if phase == "backup":
+                for a, r in self.results.items():
+                    r.caused = a == axis
+                    r.error = reason + "; nothing was written" if a == axis else \
+                        f"not written: axis {axis} failed ({reason})"
+                return
+            with deferred(raise_after=False) as held:
+                self._restore(axis, reason)
+            if held["signal"]:
+                for r in self.results.values():
+                    r.interrupted = r.interrupted or held["signal"]
+
+    def _save_backup(self, axis: str, r: WriteResult, backup_dir) -> None:
+        path = (self.backup_paths or {}).get(axis) if backup_dir is None else Path(backup_dir) / f"{axis}_backup.json"
+        if path is None:
+            return
+        write_json(path, {"node_id": r.node_id, "drive": self.profile.drive, "profile": self.profile.name,
+                          "objects": [{"parameter": w.parameter, "index": w.index, "sub": w.sub,
+                                       "device": w.old_device, "si": w.old_si} for w in r.objects]})
+        r.backup = str(path)
+
+    def _store(self, axis: str, r: WriteResult) -> None:
+        save = self.profile.save
+        if save is None:
+            r.notes.append(f"{self.profile.drive} has no store object: the values are not made non-volatile")
+            return
+        self.store_state[axis] = UNKNOWN              # sent: until it is confirmed, nobody knows
+        self.nodes[axis].sdo[save[0]][save[1]].raw = SAVE_SIGNATURE
+        self.store_state[axis] = NEW
+        r.stored, r.stored_set = True, NEW
+
+    def _restore(self, failed_axis: str, reason: str) -> None:
+        """Write the backup to every drive written so far, read it back, and store it again where
+        a store of the new set was sent; record what each drive is known to hold."""
+        for a, r in self.results.items():
+            r.error = reason if a == failed_axis else f"not kept: axis {failed_axis} failed ({reason})"
+            r.caused = a == failed_axis
+            touched = [w for w in r.objects if w.attempted]
+            for w in r.objects:
+                w.verified = False
+            if not touched and self.store_state[a] == UNCHANGED:
+                r.ram = UNCHANGED
+                continue
+            for w in reversed(touched):
+                try:
+                    self._var(a, w).raw = w.old_device
+                except (Exception, KeyboardInterrupt) as exc:
+                    r.notes.append(f"restoring {w.parameter} failed: {_describe(exc, 'write', w, self.profile.entries[w.parameter])}")
+            back_ok = True
+            for w in touched:
+                try:
+                    back = self._var(a, w).raw
+                except (Exception, KeyboardInterrupt) as exc:
+                    back_ok = False
+                    r.notes.append(f"{w.parameter} could not be read back after restoring "
+                                   f"({describe_sdo_error(exc) if isinstance(exc, SDO_ERRORS) else type(exc).__name__})")
+                    continue
+                if not _same(self.profile.entries[w.parameter], back, w.old_device):
+                    back_ok = False
+                    r.notes.append(f"{w.parameter} reads {back} after restoring, not its backup {w.old_device}")
+            r.ram = BACKUP if back_ok else UNKNOWN
+            r.restored = back_ok
+            self._restore_stored_set(a, r)
+
+    def _restore_stored_set(self, axis: str, r: WriteResult) -> None:
+        state = self.store_state[axis]
+        r.stored = False
+        if state == UNCHANGED:
+            r.stored_set = UNCHANGED
+            r.notes.append("no store was sent to this drive: its stored set is the one it had "
+                           "(a power cycle or NMT reset node brings it back)")
+            return
+        if r.ram != BACKUP:
+            r.stored_set = state
+            r.notes.append("its RAM could not be confirmed as the backup, so it was not stored again: its stored "
+                           + ("set holds the new values" if state == NEW else "set is unknown (a store was sent "
+                                                                              "without an answer)"))
+            return
+        try:
+            save = self.profile.save
+            self.nodes[axis].sdo[save[0]][save[1]].raw = SAVE_SIGNATURE
+            r.stored_set = BACKUP
+            r.notes.append("the backup was stored again")
+        except (Exception, KeyboardInterrupt) as exc:
+            lost = not isinstance(exc, canopen.SdoAbortedError)
+            r.stored_set = UNKNOWN if lost or state == UNKNOWN else NEW
+            r.notes.append(f"storing the backup again failed ({_describe(exc, 'store', None, None)}): its stored set "
+                           + ("is unknown" if r.stored_set == UNKNOWN else "holds the new values"))
+
+
+@dataclass
+class WriteOutcome:
+    """The write step: per drive its result, the loop margins of the gains written on the model
+    they were designed for, and the checks ``force`` overrode."""
+
+    results: dict[str, WriteResult]
+    margins: dict[str, dict]
+    forced: list[str]
+    axes: list[str]
+
+    @property
+    def ok(self) -> bool:
+        return len(self.results) == len(self.axes) and all(r.ok for r in self.results.values())
+
+    def as_dict(self) -> dict:
+        """write.json / ``write --json``."""
+        return {"ok": self.ok, "forced": self.forced, "margins": self.margins,
+                "axes": {a: r.as_dict() for a, r in self.results.items()}}
 
 
 def write_drives(nodes: dict[str, canopen.RemoteNode], profile: Profile, values: dict[str, dict[str, float]], *,
-                 backup_dir: str | Path | None, dcf_dir: str | Path | None = None,
-                 dry_run: bool = False) -> dict[str, WriteResult]:
-    """The write step: with ``dry_run`` each drive's old and new values, nothing written;
-    else one transaction over every drive (:func:`write_all`, backups in ``backup_dir``)
-    and, when every drive verified, each commissioned node exported as a DCF to ``dcf_dir``."""
+                 backup_dir: str | Path | None, dcf_dir: str | Path | None = None, dry_run: bool = False,
+                 inductance: dict[str, float | None] | None = None, force: bool = False,
+                 pm_floor: float = PM_FLOOR_DEG, gm_floor: float = GM_FLOOR_DB) -> WriteOutcome:
+    """The write step: every value checked, and each drive's gains checked against the model in
+    its set (J, c1) with its motor ``inductance`` [H] (from the tune result, else the drive's
+    motor data 0x2002) (margins of the values as written, floor
+    ``pm_floor`` / ``gm_floor``; ``force`` writes a set below it and records that); then with
+    ``dry_run`` each drive's old and new values, nothing written, else one transaction over
+    every drive (:func:`write_all`, backups in ``backup_dir``) and, when every drive verified,
+    each commissioned node exported as a DCF to ``dcf_dir``.  Raises ValueRefused before
+    anything is written."""
     require_profile_objects(nodes, profile)
-    if dry_run:
-        return {a: write_parameters(node, profile, values[a], dry_run=True) for a, node in nodes.items()}
-    results = write_all(nodes, profile, values, backup_dir=backup_dir)
-    if dcf_dir is not None and transaction_ok(results, nodes):
+    margins, refused, forced = {}, [], []
+    for a, node in nodes.items():
+        L = (inductance or {}).get(a)
+        if L is None and 0x2002 in node.object_dictionary:          # the drive reports its motor data
+            try:
+                L = motor_data(node)[1]
+            except SDO_ERRORS:
+                L = None
+        margins[a], reason = check_margins(profile, values[a], values[a], L, pm_floor=pm_floor, gm_floor=gm_floor)
+        if reason:
+            (forced if force else refused).append(f"axis {a}: {reason}")
+    if refused:
+        raise ValueRefused("refused before anything was written: " + "; ".join(refused)
+                           + " (--force writes it anyway and records that)")
+    results = write_all(nodes, profile, values, backup_dir=backup_dir, dry_run=dry_run)
+    outcome = WriteOutcome(results, margins, forced, list(nodes))
+    if dcf_dir is not None and not dry_run and outcome.ok:
         for a, r in results.items():
             export_dcf(nodes[a], r, Path(dcf_dir) / f"{a}.dcf")
-    return results
+    return outcome
 
 
-def transaction_ok(results: dict[str, WriteResult], nodes) -> bool:
-    """Every drive of ``nodes`` has a result, and every result is ok."""
-    return len(results) == len(nodes) and all(r.ok for r in results.values())
-
-
-def results_doc(results: dict[str, WriteResult], nodes) -> dict:
-    """write.json / ``write --json``: ``ok`` and every drive's objects."""
-    return {"ok": transaction_ok(results, nodes), "axes": {a: r.as_dict() for a, r in results.items()}}
-
-
-def raise_for_failure(results: dict[str, WriteResult], nodes, backup_dir) -> None:
-    """DriveRefused naming the first drive that failed and what was done about it."""
-    if transaction_ok(results, nodes):
+def raise_for_failure(outcome: WriteOutcome, backup_dir) -> None:
+    """The error a failed write ends with: what failed, and per drive what it holds now."""
+    if outcome.ok:
         return
-    failed = next(((a, r) for a, r in results.items() if not r.ok), None)
-    if failed is None:
-        raise DriveRefused("not every drive was written; nothing was stored")
-    a, r = failed
-    where = f" ({backup_dir})" if backup_dir is not None else ""
-    state = ("every drive written so far was restored from its backup" if all(x.restored or not any(
-        w.written for w in x.objects) for x in results.values()) else "NOT every drive could be restored")
-    raise DriveRefused(f"axis {a}: {r.error}; {state}{where} and nothing was stored")
+    failed = next((a for a, r in outcome.results.items() if r.caused), None)
+    where = f"; backups in {backup_dir}" if backup_dir is not None else ""
+    states = "; ".join(f"{a}: {r.holds()}" for a, r in outcome.results.items())
+    message = (f"axis {failed}: {outcome.results[failed].error}" if failed else "not every drive was written") + \
+        f" ({states}){where}"
+    failed = outcome.results.get(failed)
+    interrupted = next((r.interrupted for r in outcome.results.values() if r.interrupted), None)
+    if interrupted:
+        raise WriteInterrupted(message)
+    if failed is not None and failed.dry_run:
+        raise BusError(f"dry run: {message}")
+    raise DriveRefused(message)
 
 
 def export_dcf(node: canopen.RemoteNode, result: WriteResult, path: str | Path) -> Path:

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -24,6 +25,7 @@ class AxisTuning:
     design: GainDesign
     before: dict[str, float]                # the drive's gains before tuning
     before_margins: tuple[Margins, Margins] | None
+    motor: dict[str, float]                 # R [Ω], L [H] the current loop was designed for
     experiment: ExperimentResult | None = None
 
     def parameters(self) -> dict[str, float]:
@@ -31,7 +33,7 @@ class AxisTuning:
         return {**self.design.gains(), **self.model, "ff_enable": 1.0}
 
     def as_dict(self) -> dict:
-        return {"model": self.model, "gains": self.design.gains(), "gains_before": self.before,
+        return {"model": self.model, "motor": self.motor, "gains": self.design.gains(), "gains_before": self.before,
                 "margins": {"velocity": vars(self.design.velocity), "position": vars(self.design.position)},
                 "margins_before": None if self.before_margins is None else
                 {"velocity": vars(self.before_margins[0]), "position": vars(self.before_margins[1])},
@@ -49,22 +51,66 @@ def drive_model(parameters: dict[str, float]) -> dict[str, float]:
     return {k: v for k, v in parameters.items() if k in MODEL_KEYS.values()}
 
 
-def read_identify_json(path: str | Path) -> dict[str, dict[str, float]]:
-    path = Path(path)
+def _axes_of(path: Path, what: str) -> dict:
     try:
-        doc = json.loads(path.read_text())
-        return {a: model_from_identify(r["params"]) for a, r in doc["axes"].items()}
-    except (OSError, ValueError, KeyError, TypeError) as exc:
-        raise UserError(f"{path}: not an identify --json result ({exc})") from exc
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError as exc:
+        raise UserError(f"{path}: no such file ({what})") from exc
+    except (OSError, ValueError) as exc:
+        raise UserError(f"{path}: not a {what} (not readable JSON: {exc})") from exc
+    axes = doc.get("axes") if isinstance(doc, dict) else None
+    if not isinstance(axes, dict) or not axes or not all(isinstance(v, dict) for v in axes.values()):
+        raise UserError(f"{path}: not a {what}: it needs an 'axes' mapping of axis name to its result")
+    return axes
+
+
+def _numbers(path: Path, where: str, values) -> dict[str, float]:
+    if not isinstance(values, dict):
+        raise UserError(f"{path}: {where} must be a mapping of names to numbers")
+    out = {}
+    for k, v in values.items():
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            raise UserError(f"{path}: {where}.{k} = {v!r} is not a number")
+        out[k] = float(v)
+    return out
+
+
+def read_identify_json(path: str | Path) -> dict[str, dict[str, float]]:
+    """axis -> the drive-model subset of its identified parameters, from ``identify --json``."""
+    path = Path(path)
+    axes = _axes_of(path, "identify --json result")
+    out = {}
+    for a, r in axes.items():
+        params = r.get("params")
+        numbers = _numbers(path, f"axes.{a}.params", {k: v for k, v in (params or {}).items()
+                                                      if not isinstance(v, str)} if isinstance(params, dict) else params)
+        out[a] = model_from_identify(numbers)
+    return out
+
+
+def check_model(axis: str, model: dict[str, float]) -> None:
+    """UserError naming the axis and parameter when an identified model is not physical."""
+    bad = [f"{k} = {v}" for k, v in model.items() if not math.isfinite(v)]
+    if not bad:
+        bad = ([f"J = {model['J']:.6g} (must be > 0)"] if model.get("J", 0.0) <= 0 else []) + \
+              [f"{k} = {model[k]:.6g} (friction must be ≥ 0)" for k in ("c0", "c1") if model.get(k, 0.0) < 0]
+    if "J" not in model:
+        bad.append("J missing")
+    if bad:
+        raise UserError(f"axis {axis}: the identified model is not physical ({', '.join(bad)}); identify it "
+                        f"again (longer or richer excitation) before tuning")
 
 
 def tune_axis(axis: str, model: dict[str, float], R: float, L: float, before: dict[str, float]) -> AxisTuning:
+    check_model(axis, model)
+    if not (math.isfinite(R) and math.isfinite(L) and R > 0 and L > 0):
+        raise UserError(f"axis {axis}: motor R = {R} Ω, L = {L} H must be positive numbers")
     try:
         design = design_gains(model["J"], model["c1"], R, L)
     except (KeyError, ValueError) as exc:
         raise UserError(f"axis {axis}: cannot design gains from the model {model}: {exc}") from exc
     margins = loop_margins(model["J"], model["c1"], before, R, L) if set(GAINS) <= set(before) else None
-    return AxisTuning(axis, model, design, before, margins)
+    return AxisTuning(axis, model, design, before, margins, {"R": R, "L": L})
 
 
 def tune_axes(models: dict[str, dict[str, float]], state: dict[str, dict]) -> dict[str, AxisTuning]:
@@ -85,11 +131,31 @@ def tune_doc(results: dict[str, AxisTuning]) -> dict:
     return {"axes": {a: t.as_dict() for a, t in results.items()}}
 
 
-def read_tune_json(path: str | Path) -> dict[str, dict[str, float]]:
-    """axis -> parameters to write, from a ``tune`` result file."""
+@dataclass
+class TuneFile:
+    """A ``tune`` result as written: per axis the parameters to write, and the motor inductance
+    [H] its current loop was designed for (None in a file without it)."""
+
+    path: Path
+    parameters: dict[str, dict[str, float]]
+    inductance: dict[str, float | None]
+
+    def only(self, config) -> "TuneFile":
+        """The axes of ``config``; an axis of the file that ``config`` does not have is an error."""
+        unknown = [a for a in self.parameters if a not in config.nodes]
+        if unknown:
+            raise UserError(f"{self.path}: axis {unknown[0]!r} is not in {config.path} "
+                            f"(its axes: {', '.join(config.nodes)})")
+        return self
+
+
+def read_tune_json(path: str | Path) -> TuneFile:
+    """A ``tune`` result file."""
     path = Path(path)
-    try:
-        doc = json.loads(path.read_text())
-        return {a: {k: float(v) for k, v in r["parameters"].items()} for a, r in doc["axes"].items()}
-    except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
-        raise UserError(f"{path}: not a tune result ({exc})") from exc
+    axes = _axes_of(path, "tune result")
+    params, inductance = {}, {}
+    for a, r in axes.items():
+        params[a] = _numbers(path, f"axes.{a}.parameters", r.get("parameters"))
+        motor = r.get("motor")
+        inductance[a] = _numbers(path, f"axes.{a}.motor", motor).get("L") if motor is not None else None
+    return TuneFile(path, params, inductance)

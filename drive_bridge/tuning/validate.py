@@ -23,6 +23,7 @@ from ..master.bringup import AxisLink
 from ..master.campaign import Plan
 from ..master.link import Link
 from ..outputs import write_json
+from ..params.check import ValueRefused, check_set
 from ..params.profile import Profile
 from ..params.read import read_parameters
 from ..params.write import write_parameters
@@ -138,13 +139,17 @@ def run_scenarios(config: BusConfig, link: Link, axes: dict[str, AxisLink], prof
     before (every parameter a scenario sets, read first and written back, not stored), and,
     with ``out_dir``, ``validate.json`` and the logged runs (``traces.npz``) kept there.
     A stopped run is in the result (see :func:`stopped`); the runs after it did not move."""
+    problems = [f"scenario {name}, axis {a}: {p}" for name, values in scenarios.items() for a, v in values.items()
+                for p in check_set(profile, axes[a].node.object_dictionary, v)]
+    if problems:
+        raise ValueRefused("refused before anything moved: " + "; ".join(problems))
     names = sorted({k for values in scenarios.values() for v in values.values() for k in v})
     held = {a: read_parameters(ax.node, profile, names) for a, ax in axes.items()}
     try:
         runs = validate(config, link, axes, profile, scenarios, model, on_plan=on_plan)
     finally:
-        for a, ax in axes.items():
-            write_parameters(ax.node, profile, held[a], store=False)
+        for a, ax in axes.items():          # what the drive held, as it held it: not checked again
+            write_parameters(ax.node, profile, held[a], store=False, check=False)
     if out_dir is not None:
         out = Path(out_dir)
         write_json(out / VALIDATE_JSON, {"runs": [r.as_dict() for r in runs]})

@@ -1,0 +1,135 @@
+"""What may be written to a drive, checked before the first write of a transaction.
+
+A value is refused when it is not finite, has a sign no physical axis has,
+lies outside the drive profile's range in SI (``min``/``max`` of the profile
+entry: the drive's own limits), or, in device units, outside the EDS
+LowLimit/HighLimit or its data type.  A gain set is refused when the loop
+margins it gives on the model it was designed for (recomputed from the exact
+values written) fall below a floor, unless forced.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import canopen
+import numpy as np
+from canopen.objectdictionary import datatypes
+
+from ..errors import UserError
+from ..tuning.design import loop_margins
+from .profile import Entry, Profile
+
+#: sign of each abstract parameter, whatever the drive: (lowest, lowest allowed itself, highest);
+#: a model term of 0 is "no feed-forward of that kind" (the factory model of a drive)
+PHYSICAL = {"J": (0.0, True, None), "c0": (0.0, True, None), "c1": (0.0, True, None),
+            "periodic_amplitude": (0.0, True, None), "periodic_period": (0.0, True, None),
+            "ff_enable": (0.0, True, 1.0), "FwF": (0.0, True, None),
+            **{g: (0.0, False, None) for g in ("KpP", "KpS", "KiS", "KpC", "KiC")}}
+INTEGER_RANGES = {datatypes.UNSIGNED8: (0, 2**8 - 1), datatypes.UNSIGNED16: (0, 2**16 - 1),
+                  datatypes.UNSIGNED32: (0, 2**32 - 1), datatypes.INTEGER8: (-2**7, 2**7 - 1),
+                  datatypes.INTEGER16: (-2**15, 2**15 - 1), datatypes.INTEGER32: (-2**31, 2**31 - 1)}
+REAL_MAX = {datatypes.REAL32: float(np.finfo(np.float32).max), datatypes.REAL64: float(np.finfo(np.float64).max)}
+#: the floor a written gain set must keep on its model (industrial tuners warn below these)
+PM_FLOOR_DEG, GM_FLOOR_DB = 30.0, 4.0
+
+
+class ValueRefused(UserError):
+    """A value that must not reach a drive; the message names the axis, parameter and range."""
+
+
+def check_value(entry: Entry, var: canopen.objectdictionary.ODVariable, value) -> str | None:
+    """Why ``value`` [SI] of ``entry`` must not be written (None: it may)."""
+    name, unit = entry.parameter, f" {entry.unit}" if entry.unit else ""
+    try:
+        value = float(value)
+    except (TypeError, ValueError):
+        return f"{name} = {value!r} is not a number"
+    if not math.isfinite(value):
+        return f"{name} = {value} is not a finite number"
+    low, low_ok, high = PHYSICAL.get(name, (None, True, None))
+    if low is not None and (value < low or (value == low and not low_ok)):
+        return f"{name} = {value:.6g}{unit} must be {'≥' if low_ok else '>'} {low:g}"
+    if high is not None and value > high:
+        return f"{name} = {value:.6g}{unit} must be ≤ {high:g}"
+    if name == "ff_enable" and value not in (0.0, 1.0):
+        return f"ff_enable = {value:g} must be 0 or 1"
+    if entry.min is not None and value < entry.min or entry.max is not None and value > entry.max:
+        return (f"{name} = {value:.6g}{unit} is outside the drive's range {entry.min:g}..{entry.max:g}{unit} "
+                f"(drive profile)")
+    device = entry.to_device(value)
+    if isinstance(device, float) and not math.isfinite(device):
+        return f"{name} = {value:.6g}{unit} has no value in device units"
+    if var.data_type in REAL_MAX and abs(device) > REAL_MAX[var.data_type]:
+        return f"{name} = {value:.6g}{unit} overflows {entry.where()}'s data type"
+    lo, hi = INTEGER_RANGES.get(var.data_type, (None, None))
+    if var.min is not None:
+        lo = var.min
+    if var.max is not None:
+        hi = var.max
+    if (lo is not None and device < lo) or (hi is not None and device > hi):
+        return (f"{name} = {value:.6g}{unit} is {device} in device units, outside {entry.where()}'s range "
+                f"{lo}..{hi} (EDS and data type)")
+    return None
+
+
+def check_set(profile: Profile, od: canopen.ObjectDictionary, values: dict) -> list[str]:
+    """Every reason the parameter set ``values`` (name -> SI) must not be written to a drive of ``profile``."""
+    problems = [p for name, v in values.items() if name in profile.entries
+                for p in [check_value(profile.entries[name], od.get_variable(profile.entries[name].index,
+                                                                                profile.entries[name].sub), v)] if p]
+    amp, period = values.get("periodic_amplitude", 0.0), values.get("periodic_period", 0.0)
+    if not problems and amp and not period:
+        problems.append(f"periodic_amplitude = {amp:.6g} needs a periodic_period > 0 (0 switches the ripple off)")
+    return problems
+
+
+@dataclass
+class MarginCheck:
+    """The margins of the gains written, on the model they were designed for."""
+
+    phase_margin_deg: float
+    gain_margin_db: float
+    ok: bool
+
+    def as_dict(self) -> dict:
+        return {"phase_margin_deg": self.phase_margin_deg, "gain_margin_db": self.gain_margin_db, "ok": self.ok}
+
+
+def written_si(profile: Profile, values: dict) -> dict[str, float]:
+    """``values`` as the drive will hold them: through device units and back (rounding, REAL32)."""
+    out = {}
+    for name, v in values.items():
+        e = profile.entries.get(name)
+        if e is None:
+            out[name] = float(v)
+            continue
+        device = e.to_device(v)
+        if e.type == "REAL32":
+            device = float(np.float32(device))
+        out[name] = float(e.to_si(device))
+    return out
+
+
+def check_margins(profile: Profile, values: dict, model: dict, L: float | None, *,
+                  pm_floor: float = PM_FLOOR_DEG, gm_floor: float = GM_FLOOR_DB) -> tuple[dict, str | None]:
+    """Velocity- and position-loop margins of the gains in ``values``, as written, on ``model``
+    (J, c1) with motor inductance ``L`` [H]; and why the set must not be written (None: it may).
+    A set without gains, or a model without J, cannot be checked: that is a reason too."""
+    gains = ("KpP", "KpS", "KiS", "KpC")
+    if not any(g in values for g in gains):
+        return {}, None                                   # no gains in this set: nothing to check
+    missing = [g for g in gains if g not in values]
+    if missing or not model.get("J") or L is None:
+        what = ", ".join(missing) or ("the model's J" if not model.get("J") else "the motor inductance L")
+        return {}, f"the loop margins cannot be checked without {what}"
+    w = written_si(profile, {g: values[g] for g in gains})
+    velocity, position = loop_margins(model["J"], max(model.get("c1", 0.0), 0.0), w, 0.0, L)
+    out = {name: MarginCheck(m.phase_margin_deg, m.gain_margin_db,
+                             m.phase_margin_deg >= pm_floor and m.gain_margin_db >= gm_floor)
+           for name, m in (("velocity", velocity), ("position", position))}
+    bad = [f"{name} loop PM {m.phase_margin_deg:.1f}° / GM {m.gain_margin_db:.1f} dB" for name, m in out.items()
+           if not m.ok]
+    reason = (f"{' and '.join(bad)} on the identified model, below the floor of {pm_floor:g}° / {gm_floor:g} dB"
+              if bad else None)
+    return {k: v.as_dict() for k, v in out.items()}, reason
