@@ -55,8 +55,8 @@ def check_value(entry: Entry, var: canopen.objectdictionary.ODVariable, value) -
     if name == "ff_enable" and value not in (0.0, 1.0):
         return f"ff_enable = {value:g} must be 0 or 1"
     if entry.min is not None and value < entry.min or entry.max is not None and value > entry.max:
-        return (f"{name} = {value:.6g}{unit} is outside the drive's range {entry.min:g}..{entry.max:g}{unit} "
-                f"(drive profile)")
+        lo, hi = ("" if x is None else f"{x:g}" for x in (entry.min, entry.max))
+        return f"{name} = {value:.6g}{unit} is outside the drive's range {lo}..{hi}{unit} (drive profile)"
     device = entry.to_device(value)
     if isinstance(device, float) and not math.isfinite(device):
         return f"{name} = {value:.6g}{unit} has no value in device units"

@@ -157,6 +157,7 @@ class _Transaction:
         self.nodes, self.profile, self.results = nodes, profile, results
         self.backup_paths = backup_paths
         self.store_state: dict[str, str] = dict.fromkeys(results, UNCHANGED)
+        self.interrupted_in_restore: str | None = None     # a KeyboardInterrupt the restore finished despite
 
     def _var(self, axis: str, w: ObjectWrite):
         return sdo_variable(self.nodes[axis], self.profile.entries[w.parameter])
@@ -209,9 +210,10 @@ class _Transaction:
                 return
             with deferred(raise_after=False) as held:
                 self._restore(axis, reason)
-            if held["signal"]:
+            late = held["signal"] or self.interrupted_in_restore
+            if late:
                 for r in self.results.values():
-                    r.interrupted = r.interrupted or held["signal"]
+                    r.interrupted = r.interrupted or late
 
     def _save_backup(self, axis: str, r: WriteResult, backup_dir) -> None:
         path = (self.backup_paths or {}).get(axis) if backup_dir is None else Path(backup_dir) / f"{axis}_backup.json"
@@ -248,12 +250,14 @@ class _Transaction:
                 try:
                     self._var(a, w).raw = w.old_device
                 except (Exception, KeyboardInterrupt) as exc:
+                    self._note_interrupt(exc)
                     r.notes.append(f"restoring {w.parameter} failed: {_describe(exc, 'write', w, self.profile.entries[w.parameter])}")
             back_ok = True
             for w in touched:
                 try:
                     back = self._var(a, w).raw
                 except (Exception, KeyboardInterrupt) as exc:
+                    self._note_interrupt(exc)
                     back_ok = False
                     r.notes.append(f"{w.parameter} could not be read back after restoring "
                                    f"({describe_sdo_error(exc) if isinstance(exc, SDO_ERRORS) else type(exc).__name__})")
@@ -264,6 +268,11 @@ class _Transaction:
             r.ram = BACKUP if back_ok else UNKNOWN
             r.restored = back_ok
             self._restore_stored_set(a, r)
+
+    def _note_interrupt(self, exc: BaseException) -> None:
+        """The restore goes on through an interrupt (it is what makes the drive safe); remember it."""
+        if isinstance(exc, KeyboardInterrupt):
+            self.interrupted_in_restore = self.interrupted_in_restore or signal_name(exc)
 
     def _restore_stored_set(self, axis: str, r: WriteResult) -> None:
         state = self.store_state[axis]
@@ -285,6 +294,7 @@ class _Transaction:
             r.stored_set = BACKUP
             r.notes.append("the backup was stored again")
         except (Exception, KeyboardInterrupt) as exc:
+            self._note_interrupt(exc)
             lost = not isinstance(exc, canopen.SdoAbortedError)
             r.stored_set = UNKNOWN if lost or state == UNKNOWN else NEW
             r.notes.append(f"storing the backup again failed ({_describe(exc, 'store', None, None)}): its stored set "

@@ -92,6 +92,11 @@ class SimDrive:
 
     def __init__(self, host: DriveHost, index: int, axis: SimAxis, eds_path: str,
                  rows: tuple[np.ndarray, np.ndarray, np.ndarray], axis_names: list[str]):
+        self.abort_writes: dict[tuple[int, int], int] = {}   # injected SDO aborts, for tests
+        #: injected faults, for tests: called as (kind "read" | "write", index, sub) before an SDO
+        #: request is handled; it may raise (SdoAbortedError: the drive refuses), take the drive off
+        #: the bus, or, for a read, return a value the drive answers instead of its own
+        self.sdo_fault: Callable[[str, int, int], object] | None = None
         self.host = host
         self.index = index
         self.axis = axis
@@ -107,7 +112,6 @@ class SimDrive:
         self.inc_per_rad = self._od(0x608F, 1) / self._od(0x608F, 2) / (2 * math.pi)
         self.s, self.p, self.d = rows      # kernel rows of this axis (views)
         self.online = True                 # False: the drive has dropped off the bus
-        self.abort_writes: dict[tuple[int, int], int] = {}   # injected SDO aborts, for tests
         self._init_storage()
         self._saved = copy.deepcopy(self.node.data_store)
         self._power_up()
@@ -214,6 +218,10 @@ class SimDrive:
 
     # ------------------------------------------------------------------ SDO hooks
     def _on_sdo_read(self, index: int, subindex: int, od) -> int | None:
+        if self.sdo_fault is not None:
+            answer = self.sdo_fault("read", index, subindex)
+            if answer is not None:
+                return answer
         live = self._live.get(index)
         if live is not None:
             if self._last_refresh != self.host.time:
@@ -228,6 +236,8 @@ class SimDrive:
         return None
 
     def _on_sdo_write(self, index: int, subindex: int, od, data: bytes) -> None:
+        if self.sdo_fault is not None:
+            self.sdo_fault("write", index, subindex)
         code = self.abort_writes.get((index, subindex))
         if code is not None:
             raise SdoAbortedError(code)

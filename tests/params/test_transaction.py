@@ -1,0 +1,140 @@
+"""The write transaction over two drives, failing in every phase in every way a real bus can:
+the result never claims more than was read back, and a power cycle shows the stored set it names."""
+from __future__ import annotations
+
+import canopen
+import pytest
+
+from drive_bridge.params.check import ValueRefused
+from drive_bridge.params.profile import load_profile
+from drive_bridge.params.read import sdo_variable
+from drive_bridge.params.write import write_all
+from drive_bridge.tuning.design import design_gains
+
+from ..support import PAPER
+
+SIM = load_profile("drive_bridge_servo")
+NAMES = ("KpP", "KpS", "KiS", "J", "c0", "c1", "ff_enable")
+
+
+def new_values(axis: str) -> dict[str, float]:
+    p = PAPER[axis]
+    gains = design_gains(p["J"], p["c1"], 0.8, 0.002).gains()
+    return {"KpP": gains["KpP"], "KpS": gains["KpS"], "KiS": gains["KiS"], **p, "ff_enable": 1.0}
+
+
+def device(node) -> dict[str, float]:
+    return {n: sdo_variable(node, SIM.entries[n]).raw for n in NAMES}
+
+
+class Fault:
+    """Injected into drive y: fires once, on the first SDO request of ``phase``, as ``kind``.
+
+    Phases follow the transaction's order on the bus: backup (reads), write (writes of the
+    parameters), verify (reads after the writes), store (write of 0x1010), restore (writes after
+    the fault fired)."""
+
+    def __init__(self, drive, phase: str, kind: str):
+        self.drive, self.phase, self.kind = drive, phase, kind
+        self.seen, self.fired, self.after = "backup", False, 0
+
+    def __call__(self, op: str, index: int, sub: int):
+        if self.fired:
+            self.after += op == "write"
+            if self.phase == "restore" and self.after == 1:
+                return self._fire(op, index)
+            return None
+        if op == "write":
+            self.seen = "store" if index == 0x1010 else "write"
+        elif self.seen == "write":
+            self.seen = "verify"
+        if self.seen == self.phase or (self.phase == "restore" and self.seen == "verify"):
+            if self.phase == "restore":              # first make the transaction fail, then hit its restore
+                self.fired = True
+                raise canopen.SdoAbortedError(0x08000020)
+            self.fired = True
+            return self._fire(op, index)
+        return None
+
+    def _fire(self, op, index):
+        if self.kind == "abort":
+            raise canopen.SdoAbortedError(0x06090030)
+        if self.kind == "lost":
+            self.drive.online = False
+            return None
+        if self.kind == "ctrl-c":
+            raise KeyboardInterrupt
+        if self.kind == "mismatch":
+            return 12345                              # the drive answers another value than was written
+        raise AssertionError(self.kind)
+
+
+CASES = [(phase, kind) for phase in ("backup", "write", "verify", "store", "restore")
+         for kind in ("abort", "lost", "ctrl-c", "mismatch")
+         if not (kind == "mismatch" and phase != "verify")]
+
+
+@pytest.mark.parametrize("phase,kind", CASES, ids=[f"{p}-{k}" for p, k in CASES])
+def test_every_phase_and_failure_ends_with_what_each_drive_holds_known(bench, tmp_path, phase, kind):
+    b = bench()
+    nodes = {a: b.nodes[a] for a in ("x", "y")}
+    for node in nodes.values():
+        node.sdo.RESPONSE_TIMEOUT = 0.05
+    before = {a: device(n) for a, n in nodes.items()}
+    values = {a: new_values(a) for a in nodes}
+    fault = Fault(b.robot.drives["y"], phase, kind)
+    b.robot.drives["y"].sdo_fault = fault
+    results = write_all(nodes, SIM, values, backup_dir=tmp_path)
+    b.robot.drives["y"].sdo_fault = None
+    b.robot.drives["y"].online = True
+    assert fault.fired and not any(r.ok for r in results.values())
+    assert any(r.caused for r in results.values())
+    if kind == "ctrl-c":
+        assert all(r.interrupted == "Ctrl-C" for r in results.values())
+    for a, r in results.items():
+        assert r.ram in ("backup", "unchanged", "unknown") and r.stored_set in ("backup", "unchanged", "unknown", "new")
+        if r.ram in ("backup", "unchanged"):                # what it claims, it holds
+            assert device(nodes[a]) == pytest.approx(before[a]), (a, r.ram, r.notes)
+        else:
+            assert r.notes, "an unknown state is explained"
+        if phase == "backup":
+            assert r.ram == "unchanged" and r.stored_set == "unchanged"
+    for a, node in nodes.items():                            # power cycle: the stored set it named
+        node.nmt.send_command(0x81)
+    b.link.clock.sleep(0.01)
+    for a, r in results.items():
+        if r.stored_set in ("unchanged", "backup"):
+            assert device(nodes[a]) == pytest.approx(before[a]), (a, r.stored_set)
+        elif r.stored_set == "new":
+            assert device(nodes[a])["KpS"] == pytest.approx(values[a]["KpS"], rel=1e-6)
+
+
+def test_a_store_refused_on_the_second_drive_stores_the_backup_again_on_the_first(bench):
+    b = bench()
+    nodes = {a: b.nodes[a] for a in ("x", "y")}
+    before = {a: device(n) for a, n in nodes.items()}
+    b.robot.drives["y"].abort_writes[(0x1010, 1)] = 0x08000020
+    results = write_all(nodes, SIM, {a: new_values(a) for a in nodes})
+    assert results["y"].caused and "store" in results["y"].error
+    assert results["x"].ram == "backup" and results["x"].stored_set == "backup"
+    assert any("stored again" in n for n in results["x"].notes)
+    for node in nodes.values():
+        node.nmt.send_command(0x81)
+    b.link.clock.sleep(0.01)
+    assert {a: device(n) for a, n in nodes.items()} == before
+
+
+@pytest.mark.parametrize("name,value,why", [("KpS", 1e39, "not a finite number|overflows|outside"),
+                                            ("ff_enable", float("nan"), "not a finite number"),
+                                            ("J", 1e30, "outside the drive's range"),
+                                            ("c1", -1.0, "must be ≥ 0"),
+                                            ("KiS", float("inf"), "not a finite number")])
+def test_a_value_the_drive_must_not_hold_is_refused_before_any_drive_is_written(bench, name, value, why):
+    b = bench()
+    nodes = {a: b.nodes[a] for a in ("x", "y")}
+    before = {a: device(n) for a, n in nodes.items()}
+    values = {"x": new_values("x"), "y": {**new_values("y"), name: value}}
+    with pytest.raises(ValueRefused, match=why) as refused:
+        write_all(nodes, SIM, values)
+    assert "axis y" in str(refused.value) and name in str(refused.value)
+    assert {a: device(n) for a, n in nodes.items()} == before     # not even x was touched
