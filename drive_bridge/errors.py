@@ -76,17 +76,24 @@ class MotionAborted(DriveBridgeError):
 
     kind = "motion"
 
-    def __init__(self, reason: str, axis: str | None = None):
+    def __init__(self, reason: str, axis: str | None = None, emcy: int | None = None):
         super().__init__(f"axis {axis}: {reason}" if axis else reason)
         self.reason = reason
         self.axis = axis
+        self.emcy = emcy                  # the EMCY error code that caused the stop, if one did
+
+
+class GuardStop(MotionAborted):
+    """Motion stopped by a guard of the run itself (e.g. the gain experiment's velocity guard)."""
 
 
 class Interrupted(MotionAborted):
-    """Motion stopped because the user pressed Ctrl-C."""
+    """Motion stopped because the user pressed Ctrl-C, or a SIGTERM / SIGHUP arrived."""
 
-    def __init__(self, detail: str = ""):
-        super().__init__("interrupted by the user (Ctrl-C)" + (f"; {detail}" if detail else ""))
+    def __init__(self, detail: str = "", signal: str = "Ctrl-C"):
+        who = "by the user (Ctrl-C)" if signal == "Ctrl-C" else f"by {signal}"
+        super().__init__(f"interrupted {who}" + (f"; {detail}" if detail else ""))
+        self.signal = signal
 
 
 def exit_code(exc: BaseException) -> int:

@@ -15,6 +15,7 @@ import numpy as np
 import yaml
 
 from .errors import UserError
+from .outputs import atomic, write_text
 from .master.stream import SYNC_COB_ID, Recording
 from .pdo import PdoCodec
 from .units import Scaling
@@ -68,13 +69,18 @@ def to_table(rec: Recording, scaling: dict[str, Scaling], period: float) -> tupl
     return names, np.column_stack(cols) if n else np.empty((0, len(names))), fmts
 
 
+def save_table(path: Path, names: list[str], values: np.ndarray, fmts: list[str]) -> None:
+    """A log table as CSV, complete or not at all."""
+    with atomic(path) as tmp:
+        np.savetxt(tmp, values, fmt=fmts, delimiter=",", header=",".join(names), comments="")
+
+
 def write_csv(path: Path, rec: Recording, scaling: dict[str, Scaling], period: float) -> None:
-    names, values, fmts = to_table(rec, scaling, period)
-    np.savetxt(path, values, fmt=fmts, delimiter=",", header=",".join(names), comments="")
+    save_table(path, *to_table(rec, scaling, period))
 
 
 def write_meta(path: Path, meta: dict) -> None:
-    path.write_text(yaml.safe_dump(meta, sort_keys=False), encoding="utf-8")
+    write_text(path, yaml.safe_dump(meta, sort_keys=False))
 
 
 def layout_meta(axes) -> dict:
@@ -90,8 +96,12 @@ def layout_meta(axes) -> dict:
     return out
 
 
-def decode_trace(trace: Path, meta_path: Path | None = None) -> tuple[list[str], np.ndarray, list[str], dict]:
-    """Rebuild the log table from a raw trace and the meta.yaml beside it."""
+def decode_trace(trace: Path, meta_path: Path | None = None
+                 ) -> tuple[list[str], np.ndarray, list[str], dict, str | None]:
+    """Rebuild the log table from a raw trace and the meta.yaml beside it.
+
+    A damaged or cut-short trace gives the rows before the damage and, last, what is wrong
+    with it (None for a whole trace)."""
     trace = Path(trace)
     meta_path = Path(meta_path) if meta_path else trace.with_name(META_NAME)
     if not trace.is_file():
@@ -99,17 +109,22 @@ def decode_trace(trace: Path, meta_path: Path | None = None) -> tuple[list[str],
     if not meta_path.is_file():
         raise UserError(f"{meta_path}: not found; decode needs the meta.yaml written with the trace "
                         f"(give it with --meta)")
-    meta = yaml.safe_load(meta_path.read_text(encoding="utf-8"))
     try:
+        meta = yaml.safe_load(meta_path.read_text(encoding="utf-8"))
         axes = meta["axes"]
         period = float(meta["sync_period_s"])
+        counts = meta["counts"]
+        sent = int(counts.get("cycles_sent", counts["cycles_planned"]))
+        if not 0 <= sent <= 10**8 or not period > 0:
+            raise ValueError("counts or sync_period_s out of range")
         rec = Recording({a: _codecs(v["tpdo"]) for a, v in axes.items()},
-                        {a: _codecs(v["rpdo"]) for a, v in axes.items()},
-                        int(meta["counts"]["cycles_sent"]))
+                        {a: _codecs(v["rpdo"]) for a, v in axes.items()}, sent)
         scaling = {a: Scaling(**v["scaling"]) for a, v in axes.items()}
-    except (KeyError, TypeError, ValueError) as exc:
+    except (KeyError, TypeError, ValueError, AttributeError, struct.error, UnicodeDecodeError,
+            yaml.YAMLError) as exc:
         raise UserError(f"{meta_path}: not a drive-bridge record meta.yaml (missing or bad {exc})") from exc
     handlers = rec.handlers()
+    frames, last, problem = 0, None, None
     try:
         with can.LogReader(str(trace)) as reader:
             for msg in reader:
@@ -119,8 +134,15 @@ def decode_trace(trace: Path, meta_path: Path | None = None) -> tuple[list[str],
                     handler = handlers.get(msg.arbitration_id)
                     if handler is not None:
                         handler(msg.arbitration_id, msg.data, msg.timestamp)
-    except (ValueError, struct.error, OSError) as exc:
-        raise UserError(f"{trace}: cannot read the trace ({exc})") from exc
+                frames, last = frames + 1, msg.timestamp
+    except Exception as exc:          # python-can's readers raise many kinds on a damaged file
+        where = f"after {frames} frames" + (f" (t = {last:.6f} s)" if last is not None else "")
+        problem = f"the trace is damaged {where}: {type(exc).__name__}: {exc}"
+    if problem is None and rec.rows < sent and meta.get("status") != "running":
+        problem = f"the trace holds {rec.rows} of the {sent} SYNC cycles meta.yaml counts: it was cut short"
+    if problem is None and meta.get("status") == "running":
+        problem = (f"the recording never ended (meta.yaml status 'running': the process was killed); "
+                   f"{rec.rows} SYNC cycles decoded")
     rec.truncate()
     names, values, fmts = to_table(rec, scaling, period)
-    return names, values, fmts, meta
+    return names, values, fmts, meta, problem

@@ -1,16 +1,35 @@
-"""Writing the JSON files the steps leave behind (tune.json, write.json, summary.json, ...):
-to a temporary name beside the file, then renamed, so a file is either complete or absent."""
+"""Writing the files the tool leaves behind (log.csv, meta.yaml, JSON results, reports): each to
+a temporary name beside it, then renamed, so a file is either complete or absent -- whatever
+stops the process (an exception, Ctrl-C, SIGTERM) while it is written."""
 from __future__ import annotations
 
 import json
 import os
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 
-def write_json(path: str | Path, doc) -> Path:
+@contextmanager
+def atomic(path: str | Path) -> Iterator[Path]:
+    """A temporary path to write ``path``'s content to; renamed to ``path`` when the block ends
+    normally, removed otherwise."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(doc, indent=1, default=float))
-    os.replace(tmp, path)
-    return path
+    tmp = path.with_name(f".{path.name}.tmp")
+    try:
+        yield tmp
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+
+
+def write_text(path: str | Path, text: str) -> Path:
+    with atomic(path) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+    return Path(path)
+
+
+def write_json(path: str | Path, doc) -> Path:
+    return write_text(path, json.dumps(doc, indent=1, default=float))

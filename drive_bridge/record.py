@@ -15,6 +15,7 @@ from .master.busload import check_bus_load
 from .master.campaign import Plan, build_plan
 from .master.link import Link, TraceRecorder
 from .master.stream import stream
+from .signals import deferred
 
 
 @dataclass
@@ -47,11 +48,24 @@ def record(config: BusConfig, link: Link, out_dir: str | Path, *,
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     axes = axes or bring_up(link, config)
-    start = {name: float(ax.cfg.scaling.position_from_device(ax.node.sdo[0x6064].raw))
-             for name, ax in axes.items()}
+    start = {name: ax.position_rad() for name, ax in axes.items()}
     plan = build_plan(config.campaign, {n: a.cfg.limits for n, a in axes.items()}, start,
                       config.master.sync_period_s)
     progress = on_plan(plan) if on_plan else None
+    meta = {
+        "drive_bridge_version": __version__,
+        "config_file": str(config.path.resolve()),
+        "sync_period_s": plan.period,
+        "bus_load": load.describe(),
+        "campaign": {k: (list(v) if isinstance(v, tuple) else v)
+                     for k, v in vars(config.campaign).items()},
+        "axes": layout_meta({a: axes[a] for a in plan.axes}),
+        "segments": [s.as_dict(plan.period) for s in plan.segments],
+        "counts": {"cycles_planned": len(plan.demand)},
+        "status": "running",          # until the run ends: a killed run's trace still decodes with this
+        "trace": TRACE_NAME,
+    }
+    write_meta(out / META_NAME, meta)
     trace = TraceRecorder(out / TRACE_NAME, background=link.threaded)
     link.record(trace)
     try:
@@ -62,24 +76,14 @@ def record(config: BusConfig, link: Link, out_dir: str | Path, *,
         link.record(None)
         trace.stop()
     rec = result.recording
-    write_csv(out / LOG_NAME, rec, {n: axes[n].cfg.scaling for n in plan.axes}, plan.period)
     samples = {a: int(len(rec.raw) - result.missing[a]) for a in plan.axes}
-    meta = {
-        "drive_bridge_version": __version__,
-        "config_file": str(config.path.resolve()),
-        "sync_period_s": plan.period,
-        "bus_load": load.describe(),
-        "campaign": {k: (list(v) if isinstance(v, tuple) else v)
-                     for k, v in vars(config.campaign).items()},
-        "axes": layout_meta({a: axes[a] for a in plan.axes}),
-        "segments": [s.as_dict(plan.period) for s in plan.segments],
-        "counts": {"cycles_planned": len(plan.demand), "cycles_sent": result.cycles_sent,
-                   "samples_received": samples, "samples_missing": dict(result.missing)},
-        "status": "ok" if result.aborted is None else "aborted",
-        "trace": TRACE_NAME,
-    }
+    meta["counts"].update({"cycles_sent": result.cycles_sent, "samples_received": samples,
+                           "samples_missing": dict(result.missing)})
+    meta["status"] = "ok" if result.aborted is None else "aborted"
     if result.aborted is not None:
         meta["abort"] = {"axis": result.aborted.axis, "reason": result.aborted.reason}
-    write_meta(out / META_NAME, meta)
+    with deferred():                  # the data so far is written whole before a signal ends the command
+        write_csv(out / LOG_NAME, rec, {n: axes[n].cfg.scaling for n in plan.axes}, plan.period)
+        write_meta(out / META_NAME, meta)
     return RecordResult(out, plan, result.cycles_sent, samples, dict(result.missing), result.aborted,
                         load.describe(), time.perf_counter() - t_start)

@@ -80,10 +80,14 @@ def cmd_record(args) -> int:
 
 
 def cmd_decode(args) -> int:
-    import numpy as np
-    from ..logs import decode_trace
-    names, values, fmts, _ = decode_trace(Path(args.trace), args.meta)
+    from ..errors import UserError
+    from ..logs import decode_trace, save_table
+    names, values, fmts, _, problem = decode_trace(Path(args.trace), args.meta)
     out = Path(args.out) if args.out else Path(args.trace).with_name("decoded.csv")
-    np.savetxt(out, values, fmt=fmts, delimiter=",", header=",".join(names), comments="")
+    if out.is_dir():
+        raise UserError(f"--out {out} is a directory; name the CSV file to write")
+    save_table(out, names, values, fmts)
     print(f"wrote {out}: {len(values)} rows, {len(names)} columns")
+    if problem:
+        raise UserError(f"{args.trace}: {problem}; the {len(values)} rows before it are in {out}")
     return 0

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..outputs import write_text
 from . import steps as S
 
 REPORT = "report.html"
@@ -168,6 +169,6 @@ def write_report(out: Path, summary: dict) -> Path:
             *(_axis(out, a, v, traces) for a, v in summary["axes"].items() if v),
             f"<p class='evidence'>{vers}</p>"]
     path = out / REPORT
-    path.write_text(f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>drive-bridge commissioning"
-                    f"</title><style>{CSS}</style></head><body>{''.join(body)}</body></html>", encoding="utf-8")
+    write_text(path, f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>drive-bridge commissioning"
+                     f"</title><style>{CSS}</style></head><body>{''.join(body)}</body></html>")
     return path

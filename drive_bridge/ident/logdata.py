@@ -12,16 +12,19 @@ reported in :attr:`AxisLog.dropped`.
 from __future__ import annotations
 
 import re
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import UserError
+from ..logs import LOG_NAME, META_NAME, TRACE_NAME
 
-LOG_NAME = "log.csv"
 KINDS = {"rad": ("rotary", "torque_Nm", {"position": "rad", "torque": "Nm"}),
          "m": ("linear", "force_N", {"position": "m", "torque": "N"})}
+MAX_POSITION = 1e7           # rad | m: beyond this a value is a corrupt row, not a position
+MAX_TORQUE = 1e7             # Nm | N
 MIN_SEGMENT = 64            # samples: shorter finite runs are dropped (the filters need room)
 GAP_TOLERANCE = 0.5         # a time step off the median by more than this fraction is a gap
 MAX_GAP_FRACTION = 0.01     # more gaps than this: the sampling is irregular, not gapped
@@ -50,6 +53,10 @@ class Log:
 
 def _csv_path(path: Path) -> Path:
     if path.is_dir():
+        meta = path / META_NAME
+        if meta.is_file() and "status: running" in meta.read_text(encoding="utf-8", errors="replace"):
+            raise UserError(f"{path}: the recording never ended (meta.yaml status 'running': the process was "
+                            f"killed); rebuild what it recorded with: drive-bridge decode {path / TRACE_NAME}")
         if not (path / LOG_NAME).exists():
             raise UserError(f"{path}: a directory, but it holds no {LOG_NAME} (give a record output "
                             f"directory or a CSV file)")
@@ -76,8 +83,10 @@ def read_log(path: str | Path) -> Log:
     try:
         with open(path, encoding="utf-8") as f:
             header = f.readline().strip().split(",")
-        data = np.loadtxt(path, delimiter=",", skiprows=1, dtype=float, ndmin=2)
-    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")              # numpy's "input contained no data": said below
+            data = np.loadtxt(path, delimiter=",", skiprows=1, dtype=float, ndmin=2)
+    except (OSError, UnicodeDecodeError, ValueError, IndexError) as exc:
         raise UserError(f"{path}: not a readable CSV log ({exc})") from exc
     if "time_s" not in header:
         raise UserError(f"{path}: no time_s column (columns: {', '.join(header[:8])}...)")
@@ -110,6 +119,11 @@ def read_log(path: str | Path) -> Log:
         if tau_name not in col:
             raise UserError(f"{path}: axis {axis!r} has {name} but no {tau_name} column")
         q, tau = col[name].copy(), col[tau_name].copy()
+        for what, values, limit in ((name, q, MAX_POSITION), (tau_name, tau, MAX_TORQUE)):
+            wild = np.flatnonzero(np.abs(values) > limit)
+            if len(wild):
+                raise UserError(f"{path}: {what} = {values[wild[0]]:.6g} at row {wild[0] + 2} is not a plausible "
+                                f"value (|x| > {limit:g}); fix or cut the log")
         dropped = []
         if f"{axis}_valid" in col:
             invalid = col[f"{axis}_valid"] == 0

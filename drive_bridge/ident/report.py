@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..outputs import write_text
 from .identify import AxisResult
 from .model import AxisModel
 
@@ -154,6 +155,6 @@ def write_markdown(results: dict[str, AxisResult], out: Path, source: str) -> Pa
         if r.dropped:
             md += ["Dropped from the log:", ""] + [f"- {d}" for d in r.dropped] + [""]
     path = out / "identify.md"
-    path.write_text("\n".join(md), encoding="utf-8")
-    (out / "identify.json").write_text(as_json(results), encoding="utf-8")
+    write_text(out / "identify.json", as_json(results))
+    write_text(path, "\n".join(md))
     return path

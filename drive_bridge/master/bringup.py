@@ -37,6 +37,13 @@ class AxisLink:
     nmt_state: int | None = None
     emcy: list[tuple[float, int]] = field(default_factory=list)   # (time, code)
 
+    def position_rad(self) -> float:
+        """Position actual (0x6064) now [rad | rad motor side], read by SDO; BusError naming the axis."""
+        try:
+            return float(self.cfg.scaling.position_from_device(self.node.sdo[0x6064].raw))
+        except (canopen.SdoCommunicationError, canopen.SdoAbortedError) as exc:
+            raise BusError(f"axis {self.name}: reading its position (0x6064) failed ({exc})") from exc
+
 
 @dataclass
 class ScanResult:

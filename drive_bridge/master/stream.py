@@ -14,7 +14,8 @@ from typing import Callable
 import canopen
 import numpy as np
 
-from ..errors import Interrupted, MotionAborted
+from ..errors import GuardStop, Interrupted, MotionAborted
+from ..signals import signal_name
 from ..pdo import PdoCodec
 from .bringup import AxisLink, emcy_text
 from .campaign import Plan
@@ -22,6 +23,8 @@ from .cia402 import CW_ENABLE, SW_FAULT, state_name
 from .link import Link
 
 CW_QUICK_STOP_CMD = 0x000B          # enable voltage + switch on + enable operation, quick stop bit low
+STANDSTILL = 0.002                  # quick stop complete below this fraction of the axis's max velocity ...
+STANDSTILL_MIN_RAD_S = 0.05         # ... or below this, whichever is larger (encoder differencing noise)
 SYNC_COB_ID = 0x080
 #: a cycle's feedback is checked this many SYNC periods after it was due, so that a
 #: reply the receiving thread hands over late still counts (and is in the log)
@@ -139,7 +142,12 @@ def _packer(ax: AxisLink, codec: PdoCodec, demand: np.ndarray, ai: int, send) ->
 
 
 def quick_stop(link: Link, axes: dict[str, AxisLink], timeout: float) -> list[str]:
-    """Quick stop every axis by SDO, then wait until they stand still. Returns problems seen."""
+    """Quick stop every axis by SDO, then wait until each stands still. Returns problems seen.
+
+    An axis stands still when a fresh read shows it out of OPERATION ENABLED (quick stop active,
+    switched off or faulted) and its measured velocity (0x606C) within ``STANDSTILL`` of its
+    limit on two reads in a row: never a statusword bit left from an earlier stop, and a drive
+    that switched off while its axis coasts is waited for too."""
     problems = []
     for name, ax in axes.items():
         try:
@@ -148,18 +156,25 @@ def quick_stop(link: Link, axes: dict[str, AxisLink], timeout: float) -> list[st
             problems.append(f"axis {name}: quick stop not confirmed ({exc})")
     deadline = link.clock.now() + timeout
     pending = {n for n in axes if not any(p.startswith(f"axis {n}:") for p in problems)}
+    still = dict.fromkeys(pending, 0)
+    speed = {}
     while pending and link.clock.now() < deadline:
         for name in list(pending):
+            ax = axes[name]
             try:
-                sw = axes[name].node.sdo[0x6041].raw
+                sw = ax.node.sdo[0x6041].raw
+                speed[name] = abs(float(ax.cfg.scaling.velocity_from_device(ax.node.sdo[0x606C].raw)))
             except (canopen.SdoCommunicationError, canopen.SdoAbortedError):
                 continue
-            st = state_name(sw)
-            if st in ("SWITCH ON DISABLED", "FAULT") or (st == "QUICK STOP ACTIVE" and sw & 0x0400):
+            stopped = state_name(sw) != "OPERATION ENABLED" and \
+                speed[name] <= max(STANDSTILL * ax.cfg.limits.max_velocity, STANDSTILL_MIN_RAD_S)
+            still[name] = still[name] + 1 if stopped else 0
+            if still[name] >= 2:
                 pending.discard(name)
         if pending:
             link.clock.sleep(0.01)
-    problems.extend(f"axis {n}: still moving {timeout} s after quick stop" for n in sorted(pending))
+    problems.extend(f"axis {n}: still moving ({speed.get(n, float('nan')):.3g} rad/s) {timeout} s after quick stop"
+                    for n in sorted(pending))
     return problems
 
 
@@ -199,6 +214,7 @@ def stream(link: Link, axes: dict[str, AxisLink], plan: Plan, *, heartbeat_timeo
     gc.collect()
     gc.disable()
     try:
+        emcy_from = {a: len(axes[a].emcy) for a in plan.axes}
         for a in plan.axes:
             axes[a].drive.set_mode(8)
             axes[a].drive.enable()
@@ -212,11 +228,11 @@ def stream(link: Link, axes: dict[str, AxisLink], plan: Plan, *, heartbeat_timeo
             clock.wait_until(t0 + k * period)
             if k >= FEEDBACK_LAG + 1:
                 row = k - 1 - FEEDBACK_LAG
-                aborted = _check_row(rec, row, axes, sw_cols, plan.axes, misses, miss_limit)
+                aborted = _check_row(rec, row, axes, sw_cols, plan.axes, misses, miss_limit, emcy_from)
                 if aborted is None and guard is not None and rec.got[row].all():
                     reason = guard({a: int(rec.raw[row, c]) for a, c in vel_cols})
                     if reason:
-                        aborted = MotionAborted(reason)
+                        aborted = GuardStop(reason)
                 if aborted is None and k % check_every == 0:
                     aborted = _check_heartbeats(axes, plan.axes, clock.now(), heartbeat_timeout)
                 if aborted is not None:
@@ -236,9 +252,9 @@ def stream(link: Link, axes: dict[str, AxisLink], plan: Plan, *, heartbeat_timeo
                 axes[a].drive.disable()
             clock.sleep((FEEDBACK_LAG + 1) * period)
             for row in range(max(0, n - 1 - FEEDBACK_LAG), n):
-                aborted = aborted or _check_row(rec, row, axes, sw_cols, plan.axes, misses, miss_limit)
-    except KeyboardInterrupt:
-        aborted = Interrupted()
+                aborted = aborted or _check_row(rec, row, axes, sw_cols, plan.axes, misses, miss_limit, emcy_from)
+    except KeyboardInterrupt as exc:
+        aborted = Interrupted(signal=signal_name(exc))
     except Exception as exc:          # a bus error mid-motion: still stop the axes
         aborted = MotionAborted(f"{type(exc).__name__}: {exc}")
     finally:
@@ -250,18 +266,18 @@ def stream(link: Link, axes: dict[str, AxisLink], plan: Plan, *, heartbeat_timeo
     if aborted is not None:
         problems = quick_stop(link, {a: axes[a] for a in plan.axes}, max(state_timeout, 2.0))
         if problems:
-            aborted = (Interrupted("; ".join(problems)) if isinstance(aborted, Interrupted) else
-                       MotionAborted(aborted.reason + "; " + "; ".join(problems), aborted.axis))
+            aborted = (Interrupted("; ".join(problems), aborted.signal) if isinstance(aborted, Interrupted) else
+                       MotionAborted(aborted.reason + "; " + "; ".join(problems), aborted.axis, aborted.emcy))
     return StreamResult(rec, k, aborted, missing)
 
 
-def _check_row(rec, row, axes, sw_cols, names, misses, miss_limit) -> MotionAborted | None:
+def _check_row(rec, row, axes, sw_cols, names, misses, miss_limit, emcy_from) -> MotionAborted | None:
     got = rec.got[row]
     for ai, name in enumerate(names):
         ax = axes[name]
-        if ax.emcy:
+        if len(ax.emcy) > emcy_from[name]:                 # an EMCY of this run (not of an earlier one)
             code = ax.emcy[-1][1]
-            return MotionAborted(f"drive sent {emcy_text(code)} (EMCY 0x{code:04X})", name)
+            return MotionAborted(f"drive sent {emcy_text(code)} (EMCY 0x{code:04X})", name, code)
         if not got[rec.slots[name]].all():
             misses[name] += 1
             if misses[name] >= miss_limit:

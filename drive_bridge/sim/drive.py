@@ -423,6 +423,7 @@ class SimDrive:
             self.setpoint_armed = False
         elif state != QUICK_STOP:
             self.s[K.ENABLED] = 0.0
+        self.target_reached = False        # bit 10 belongs to the state it was set in
         self.state = state
 
     def _hold_position(self) -> None:

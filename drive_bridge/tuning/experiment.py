@@ -9,7 +9,10 @@ RMS of the velocity error exceeds ``OSCILLATION_RATIO`` of the step height.
 Guards: the drive's following-error window is tightened to ``FE_GUARD_RAD``
 for the experiment (the drive faults before the axis wanders), and a
 velocity beyond ``VELOCITY_GUARD`` × the highest demanded speed stops the run at once;
-the original window and gain are written back at the end.
+the original window and gain are written back at the end.  Those two stops are
+the procedure's own (the fault is reset and the gain lowered); any other stop --
+an EMCY of another kind, a lost heartbeat, missing feedback, Ctrl-C, SIGTERM --
+ends the experiment as a motion stop.
 """
 from __future__ import annotations
 
@@ -18,7 +21,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from ..config import BusConfig
-from ..errors import DriveRefused
+from ..errors import DriveRefused, GuardStop
 from ..master.bringup import AxisLink
 from ..master.campaign import APPROACH_LEVEL
 from ..master.link import Link
@@ -28,6 +31,7 @@ from ..params.write import write_parameters
 from . import motion
 
 STEP_FRACTION = 0.10
+ERR_FOLLOWING = 0x8611            # CiA 402 EMCY: following error
 HALF_PERIOD_S = 0.15
 CYCLES = 2
 RAISE, LOWER = 1.5, 0.9
@@ -105,8 +109,10 @@ def run_experiment(config: BusConfig, link: Link, axes: dict[str, AxisLink], axi
         if not res.ok:
             raise DriveRefused(f"axis {axis}: {res.error}")
         m = motion.run(config, link, {axis: ax}, {axis: demand}, guard=guard)
+        if m.aborted is not None and not _expected(m.aborted):
+            raise m.aborted                   # a fault of the machine, not of the gain: stop here
         if m.aborted is not None:
-            ax.drive.reset_fault()
+            ax.drive.reset_fault()            # the experiment's own guard or its tightened window
             step = Step(kps, float("inf"), True, str(m.aborted))
             recover()
         else:
@@ -115,10 +121,15 @@ def run_experiment(config: BusConfig, link: Link, axes: dict[str, AxisLink], axi
         result.steps.append(step)
         return step
 
+    def _expected(stop) -> bool:
+        """The stops the procedure provokes: its velocity guard, or the following-error fault of
+        its tightened window on the axis under test."""
+        return isinstance(stop, GuardStop) or (stop.axis == axis and stop.emcy == ERR_FOLLOWING)
+
     def recover() -> None:
         """After a stop: settle the axis where it stands with the gain it had before the experiment."""
         write_parameters(ax.node, profile, {"KpS": original}, store=False)
-        here = float(ax.cfg.scaling.position_from_device(ax.node.sdo[0x6064].raw))
+        here = ax.position_rad()
         motion.run(config, link, {axis: ax}, {axis: np.full(round(RECOVER_S / period), here)})
 
     try:

@@ -39,7 +39,7 @@ def run(config: BusConfig, link: Link, axes: dict[str, AxisLink], demand: dict[s
     period = config.master.sync_period_s
     names = list(demand)
     limits = {a: axes[a].cfg.limits for a in names}
-    start = {a: float(axes[a].cfg.scaling.position_from_device(axes[a].node.sdo[0x6064].raw)) for a in names}
+    start = {a: axes[a].position_rad() for a in names}
     approach = {a: trapezoid(start[a], float(demand[a][0]), APPROACH_LEVEL * limits[a].max_velocity,
                              APPROACH_LEVEL * limits[a].max_acceleration, period) for a in names}
     n_app = max(len(v) for v in approach.values()) + round(0.2 / period)       # then settle

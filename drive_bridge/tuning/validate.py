@@ -18,7 +18,7 @@ from typing import Callable
 import numpy as np
 
 from ..config import BusConfig
-from ..errors import DriveRefused, Interrupted, MotionAborted
+from ..errors import DriveRefused, MotionAborted
 from ..master.bringup import AxisLink
 from ..master.campaign import Plan
 from ..master.link import Link
@@ -72,6 +72,9 @@ def metrics(m: motion.Motion, model: dict[str, dict[str, float]], period: float,
     for a in m.position:
         fe = m.demand[a] - m.position[a]
         ok = np.isfinite(fe)
+        if not ok.any():                       # stopped before the trajectory began: nothing to measure
+            out[a] = AxisMetrics(*([float("nan")] * 2), None, None, *([float("nan")] * 2))
+            continue
         over = settle = None
         if moves:
             overs, settles = [], []
@@ -120,11 +123,8 @@ def validate(config: BusConfig, link: Link, axes: dict[str, AxisLink], profile: 
             m = motion.run(config, link, axes, demand, on_plan=on_plan, kind=traj, level=level)
             runs.append(Run(name, traj, metrics(m, model, period, marks),
                             None if m.aborted is None else str(m.aborted), m))
-            if isinstance(m.aborted, Interrupted):
-                return runs                           # the user stopped: no further motion
             if m.aborted is not None:
-                for ax in axes.values():              # the next run starts from a clean state machine
-                    ax.drive.reset_fault()
+                return runs                   # stopped: no fault is reset and nothing moves again by itself
     return runs
 
 
