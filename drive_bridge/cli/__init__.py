@@ -10,9 +10,12 @@ traceback, and the exit code of the error's kind (0 ok, 2 a user mistake, 3 the 
 from __future__ import annotations
 
 import argparse
+import logging
+import os
 import sys
+import warnings
 
-from .. import __version__
+from .. import __version__, signals
 from ..errors import DriveBridgeError, MotionAborted, exit_code
 from . import bus, commission, identification, tuning
 
@@ -34,6 +37,22 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run one command; SIGTERM and SIGHUP end it like Ctrl-C (:mod:`drive_bridge.signals`)."""
+    for name in ("canopen", "can"):           # their log lines are not for the person at the machine:
+        logging.getLogger(name).addHandler(logging.NullHandler())      # what matters is in our message
+    with signals.handled(), warnings.catch_warnings():
+        warnings.simplefilter("ignore")       # library warnings neither; the CLI says what went wrong
+        try:
+            return _run(argv)
+        except KeyboardInterrupt as exc:      # a signal before or after a command's own handling
+            print(f"drive-bridge: interrupted ({signals.signal_name(exc)})", file=sys.stderr)
+            return exit_code(exc)
+        except BrokenPipeError:               # the reader of our output went away (| head): stop quietly
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+            return 1
+
+
+def _run(argv: list[str] | None) -> int:
     args = build_parser().parse_args(argv)
     try:
         return args.func(args)
@@ -45,9 +64,5 @@ def main(argv: list[str] | None = None) -> int:
         print(f"drive-bridge: error: {exc}", file=sys.stderr)
         return exc.exit_code
     except KeyboardInterrupt as exc:
-        print("drive-bridge: interrupted", file=sys.stderr)
+        print(f"drive-bridge: interrupted ({signals.signal_name(exc)}); nothing was moving", file=sys.stderr)
         return exit_code(exc)
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import json
-import warnings
 
 from . import options
 
@@ -26,7 +25,6 @@ def register(sub) -> None:
 
 def cmd_commission(args) -> int:
     from ..commission import commission
-    warnings.filterwarnings("ignore", module="scipy.optimize")
     result = commission(options.config(args), args.out, options.session_options(args),
                         steps=options.axes_list(args.steps), restart=args.restart)
     if args.json:

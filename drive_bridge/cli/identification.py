@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import sys
-import warnings
 from pathlib import Path
 
 from . import options
@@ -26,7 +25,6 @@ def register(sub) -> None:
 def cmd_identify(args) -> int:
     from ..ident import identify
     from ..ident.report import as_json, summary, write_markdown
-    warnings.filterwarnings("ignore", module="scipy.optimize")     # DE's vectorized/updating note
     progress = None if args.json else (lambda axis: print(f"identifying axis {axis} ...", file=sys.stderr))
     results = identify(args.log, args.validate, options.axes_list(args.axis), seed=args.seed,
                        cutoff_hz=args.cutoff, decimation=args.decimate, progress=progress)

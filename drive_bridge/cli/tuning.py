@@ -3,7 +3,6 @@ of gains and model, and the reference trajectories."""
 from __future__ import annotations
 
 import json
-import warnings
 from pathlib import Path
 
 from ..errors import UserError
@@ -23,6 +22,11 @@ def register(sub) -> None:
     p.add_argument("--ident", required=True, help="identify --json output (identify.json)")
     p.add_argument("--out", default="tune.json", help="where to write the result (default: %(default)s)")
     p.add_argument("--experiment", action="store_true", help="also run the paper's gain-raising procedure on the drive")
+    p.add_argument("--offline", action="store_true",
+                   help="design without a bus, from identify.json and the motor data given (--motor-R and "
+                        "--motor-L, or --motor-file); the gains before are then unknown")
+    p.add_argument("--motor-file", help="YAML or JSON with the motor R [Ω] and L [H]: {R: .., L: ..} for every "
+                                        "axis, or per axis {x: {R: .., L: ..}, ...}")
     options.motor(p)
     p.set_defaults(func=cmd_tune)
 
@@ -52,18 +56,40 @@ def _axes_in(config, names, path) -> list[str]:
     return [a for a in config.nodes if a in names]
 
 
+def _motor_given(args, axes) -> dict[str, dict]:
+    """Per axis the motor data of --motor-R/--motor-L or --motor-file, as drive_state gives it."""
+    from ..yamlconf import Section, load_yaml
+    if args.motor_file:
+        top = Section(Path(args.motor_file), "", load_yaml(args.motor_file))
+        per_axis = {a: top.section(a) for a in axes} if not {"R", "L"} & set(top.keys()) else dict.fromkeys(axes, top)
+        motor = {a: (s.get("R", float, low=1e-9, high=1e3), s.get("L", float, low=1e-9, high=10.0))
+                 for a, s in per_axis.items()}
+        for s in per_axis.values():
+            s.done()
+        top.done()
+    elif args.motor_R and args.motor_L:
+        motor = dict.fromkeys(axes, (args.motor_R, args.motor_L))
+    else:
+        raise UserError("--offline needs the motor data: --motor-R and --motor-L, or --motor-file")
+    return {a: {"motor": {"R": r, "L": ell}, "parameters_before": {}} for a, (r, ell) in motor.items()}
+
+
 def cmd_tune(args) -> int:
     from ..tuning.experiment import run_experiment
-    warnings.filterwarnings("ignore", module="scipy.optimize")
-    config = options.config(args)
     models = read_identify_json(args.ident)
-    config = config.only(_axes_in(config, models, args.ident))
-    with Session(config, options.session_options(args)) as session:
-        results = tune_axes(models, drive_state(session.axes, session.profile, session.options.motor))
-        if args.experiment:
-            for a, t in results.items():
-                t.experiment = run_experiment(config, session.link, session.axes, a, session.profile,
-                                              t.before.get("KpS", t.design.KpS))
+    if args.offline:
+        if args.experiment or args.sim:
+            raise UserError("--offline designs without a bus: it does not go with --experiment or --sim")
+        results = tune_axes(models, _motor_given(args, list(models)))
+    else:
+        config = options.config(args)
+        config = config.only(_axes_in(config, models, args.ident))
+        with Session(config, options.session_options(args)) as session:
+            results = tune_axes(models, drive_state(session.axes, session.profile, session.options.motor))
+            if args.experiment:
+                for a, t in results.items():
+                    t.experiment = run_experiment(config, session.link, session.axes, a, session.profile,
+                                                  t.before.get("KpS", t.design.KpS))
     doc = tune_doc(results)
     out = write_json(args.out, doc)
     if args.json:
@@ -73,7 +99,8 @@ def cmd_tune(args) -> int:
         d = t.design
         print(f"axis {a}: J {t.model['J']:.4g} kg·m², c1 {t.model['c1']:.4g} Nm·s/rad")
         for g in GAINS:
-            print(f"  {g:<4} {t.before.get(g, float('nan')):>10.5g} -> {getattr(d, g):.5g}")
+            before = f"{t.before[g]:>10.5g}" if g in t.before else f"{'unknown':>10}"
+            print(f"  {g:<4} {before} -> {getattr(d, g):.5g}")
         print(f"  velocity loop: phase margin {d.velocity.phase_margin_deg:.1f}°, gain margin "
               f"{d.velocity.gain_margin_db:.1f} dB, crossover {d.velocity.crossover_hz:.0f} Hz"
               + ("" if t.before_margins is None else f" (before: {t.before_margins[0].phase_margin_deg:.1f}°, "

@@ -115,6 +115,10 @@ def commission(config: BusConfig, out: str | Path, options: Options | None = Non
         ctx = S.Context(session, out, reporter)
         for step in todo:
             reporter.start(step, WHAT[step])
+            # a step that runs again is not completed until it ends well, nor is any step after it:
+            # their inputs are about to change
+            state["completed"] = [s for s in state["completed"] if STEPS.index(s) < STEPS.index(step)]
+            _save(out, state)
             t0 = time.perf_counter()
             try:
                 line = S.STEP_FUNCTIONS[step](ctx)
@@ -134,13 +138,19 @@ def commission(config: BusConfig, out: str | Path, options: Options | None = Non
     write_json(out / SUMMARY, summary)
     write_report(out, summary)
     if failure is not None:
-        last = state["completed"][-1] if state["completed"] else None
         reporter.note(f"stopped in step {failure['step']}. Everything recorded so far is in {out}; "
-                      f"run the same command again to resume "
-                      + (f"after {last}" if last else "from the start") + " (--restart to start over).")
+                      f"{resume_hint(state, steps is not None)} (--restart to start over).")
     reporter.note(f"summary: {out / SUMMARY}; report: {out / REPORT}")
     return CommissionResult(summary["status"], code, failure and failure["step"],
                             failure and failure["reason"], todo, out, summary)
+
+
+def resume_hint(state: dict, subset: bool) -> str:
+    """What a rerun does: a plain rerun resumes after the last completed step."""
+    done = [STEPS.index(s) for s in state["completed"] if s in STEPS]
+    at = STEPS[max(done) + 1] if done and max(done) + 1 < len(STEPS) else (None if done else STEPS[0])
+    again = "run the same command again without --steps" if subset else "run the same command again"
+    return f"{again} to resume at step {at}" if at else f"{again}: every step is completed"
 
 
 def _failure(exc: BaseException, out: Path) -> tuple[int, str]:

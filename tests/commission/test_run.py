@@ -178,6 +178,28 @@ def test_ctrl_c_during_the_campaign_stops_safely_and_resume_picks_up_there(run, 
     assert (out / "campaign" / "log.csv").stat().st_size > 1000          # the data so far is kept
     assert yaml.safe_load((out / "campaign" / "meta.yaml").read_text())["status"] == "aborted"
     err = capsys.readouterr().err
-    assert "run the same command again to resume after bringup" in err
+    assert "run the same command again to resume at step campaign" in err
     state = json.loads((out / "state.json").read_text())
     assert state["completed"] == ["scan", "bringup"]
+
+
+class _InterruptingIdentify(StepReporter):
+    """Ctrl-C while the identify step works on its first axis."""
+
+    def note(self, text):
+        super().note(text)
+        if text.startswith("axis "):
+            raise KeyboardInterrupt
+
+
+def test_an_interrupted_step_is_never_completed_and_the_hint_says_what_a_rerun_does(run, tmp_path, capsys):
+    out = tmp_path / "run"
+    shutil.copytree(run["out"], out)                                  # every step completed
+    config = load_bus_config(run["cfg"])
+    result = commission(config, out, Options(sim=True), steps=["identify"],
+                        reporter=_InterruptingIdentify(list(STEPS)))
+    assert result.exit_code == 130 and result.failed_step == "identify"
+    state = json.loads((out / "state.json").read_text())
+    assert state["completed"] == ["scan", "bringup", "campaign"]     # identify and what depends on it: not done
+    err = capsys.readouterr().err
+    assert "run the same command again without --steps to resume at step identify" in err
