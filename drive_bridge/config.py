@@ -16,7 +16,7 @@ import canopen
 from .errors import ConfigError
 from .od import load_od
 from .units import Scaling
-from .yamlconf import Section, load_yaml
+from .yamlconf import Section, finite_number, load_yaml
 
 #: objects the master must find in the PDO mapping: what it streams and what it logs
 REQUIRED_RPDO = {0x6040: "controlword", 0x607A: "target position"}
@@ -123,7 +123,7 @@ def _pdos(sec: Section, key: str, od: canopen.ObjectDictionary, allowed: set[int
         bits = 0
         for n, entry in enumerate(p.get("mapping", list)):
             e = Section(sec.path, f"{p.key}.mapping[{n}]", entry)
-            index = e.get("index", int)
+            index = e.get("index", int, low=0, high=0xFFFF)
             sub = e.get("sub_index", int, 0, low=0, high=255)
             e.done()
             if index not in allowed:
@@ -158,18 +158,18 @@ def _node(path: Path, axis: str, data: dict) -> NodeConfig:
         raise sec.error("dcf", f"EDS/DCF file not found: {dcf}")
     od = load_od(dcf, node_id)
     sc = sec.section("scaling")
-    feed = sc.get("feed_m_per_rev", float, None, low=1e-6)
-    scaling = Scaling(increments_per_rev=sc.get("increments_per_rev", int, low=1),
-                      rated_torque_Nm=sc.get("rated_torque_Nm", float, low=1e-6),
+    feed = sc.get("feed_m_per_rev", float, None, low=1e-6, high=100.0)
+    scaling = Scaling(increments_per_rev=sc.get("increments_per_rev", int, low=1, high=2**31 - 1),
+                      rated_torque_Nm=sc.get("rated_torque_Nm", float, low=1e-6, high=1e6),
                       feed_m_per_rev=feed)
     sc.done()
     unit = "m" if feed else "rad"
     lim = sec.section("limits")
     stroke = lim.get("stroke_" + unit, list)
-    if len(stroke) != 2 or not all(isinstance(v, (int, float)) for v in stroke) or stroke[0] >= stroke[1]:
+    if len(stroke) != 2 or not all(finite_number(v) and abs(v) < 1e9 for v in stroke) or stroke[0] >= stroke[1]:
         raise lim.error("stroke_" + unit, f"must be [min, max] in {unit} with min < max, got {stroke!r}")
-    vmax = lim.get(f"max_velocity_{unit}_s", float, low=1e-9)
-    amax = lim.get(f"max_acceleration_{unit}_s2", float, low=1e-9)
+    vmax = lim.get(f"max_velocity_{unit}_s", float, low=1e-9, high=1e6)
+    amax = lim.get(f"max_acceleration_{unit}_s2", float, low=1e-9, high=1e8)
     lim.done()
     limits = Limits(float(scaling.load_to_motor(stroke[0])), float(scaling.load_to_motor(stroke[1])),
                     float(scaling.load_to_motor(vmax)), float(scaling.load_to_motor(amax)))
@@ -185,8 +185,8 @@ def _node(path: Path, axis: str, data: dict) -> NodeConfig:
     sdo = []
     for n, entry in enumerate(sec.get("sdo", list, [])):
         e = Section(path, f"nodes.{axis}.sdo[{n}]", entry)
-        index, sub = e.get("index", int), e.get("sub_index", int, 0)
-        value = e.get("value", (int, float))
+        index, sub = e.get("index", int, low=0, high=0xFFFF), e.get("sub_index", int, 0, low=0, high=255)
+        value = e.get("value", (int, float), low=-2**63, high=2**64 - 1)
         e.done()
         if od.get_variable(index, sub) is None:
             raise e.error("index", f"0x{index:04X}:{sub} is not in the drive's EDS/DCF")
@@ -194,7 +194,7 @@ def _node(path: Path, axis: str, data: dict) -> NodeConfig:
     cfg = NodeConfig(
         axis=axis, node_id=node_id, dcf=dcf, od=od, scaling=scaling, limits=limits, linear=bool(feed),
         heartbeat_producer_ms=sec.get("heartbeat_producer", int, 100, low=1, high=65535),
-        following_error_window_rad=sec.get("following_error_window_rad", float, 0.6, low=1e-6),
+        following_error_window_rad=sec.get("following_error_window_rad", float, 0.6, low=1e-6, high=1e6),
         rpdo=_pdos(sec, "rpdo", od, RPDO_OBJECTS, REQUIRED_RPDO),
         tpdo=_pdos(sec, "tpdo", od, TPDO_OBJECTS, REQUIRED_TPDO),
         sdo=tuple(sdo))
@@ -222,10 +222,10 @@ def load_bus_config(path: str | Path) -> BusConfig:
         channel=m.get("channel", str, "can0"),
         bitrate=m.get("bitrate", int, 1_000_000, low=10_000, high=1_000_000),
         sync_period_s=m.get("sync_period", int, 2000, low=500, high=100_000) * 1e-6,
-        heartbeat_timeout_s=m.get("heartbeat_consumer_ms", int, 300, low=10) / 1000.0,
-        sdo_timeout_s=m.get("sdo_timeout_s", float, 0.5, low=0.01),
-        state_timeout_s=m.get("state_timeout_s", float, 1.0, low=0.01),
-        tpdo_miss_limit=m.get("tpdo_miss_limit", int, 3, low=1))
+        heartbeat_timeout_s=m.get("heartbeat_consumer_ms", int, 300, low=10, high=65535) / 1000.0,
+        sdo_timeout_s=m.get("sdo_timeout_s", float, 0.5, low=0.01, high=60.0),
+        state_timeout_s=m.get("state_timeout_s", float, 1.0, low=0.01, high=60.0),
+        tpdo_miss_limit=m.get("tpdo_miss_limit", int, 3, low=1, high=100))
     m.done()
     defaults = top.get("defaults", dict, {})
     nodes_sec = top.section("nodes")
@@ -244,14 +244,14 @@ def load_bus_config(path: str | Path) -> BusConfig:
     campaign = CampaignConfig(
         velocity_levels=levels("velocity_levels", CampaignConfig.velocity_levels),
         acceleration_levels=levels("acceleration_levels", CampaignConfig.acceleration_levels),
-        cycles=c.get("cycles", int, 25, low=1),
-        max_axis_time_s=c.get("max_axis_time_s", float, 300.0, low=0.1),
+        cycles=c.get("cycles", int, 25, low=1, high=10_000),
+        max_axis_time_s=c.get("max_axis_time_s", float, 300.0, low=0.1, high=3600.0),
         move_fraction=c.get("move_fraction", float, 0.8, low=0.01, high=1.0),
-        dwell_s=c.get("dwell_s", float, 0.05, low=0.0),
+        dwell_s=c.get("dwell_s", float, 0.05, low=0.0, high=60.0),
         together=c.get("together", bool, False))
     for key in ("velocity_levels", "acceleration_levels"):
         vals = getattr(campaign, key)
-        if not vals or not all(isinstance(v, (int, float)) and 0 < v <= 1 for v in vals):
+        if not vals or len(vals) > 20 or not all(finite_number(v) and 0 < v <= 1 for v in vals):
             raise c.error(key, f"must be a list of fractions of the limit in (0, 1], got {list(vals)!r}")
     c.done()
     top.done()

@@ -21,7 +21,13 @@ def open_link(config: BusConfig, sim: bool, realtime: bool = False, sim_config: 
                             f"{config.master.channel} ({exc})") from exc
     else:
         from .sim.config import DEFAULT_CONFIG as SIM_DEFAULT, load_sim_config
+        from .sim.kernel import VELOCITY_TICK_S
         robot_cfg = load_sim_config(sim_config or SIM_DEFAULT)      # errors show here, not in the child
+        ticks = config.master.sync_period_s / VELOCITY_TICK_S
+        if abs(ticks - round(ticks)) > 1e-6:
+            raise UserError(f"{config.path}: master.sync_period: the simulated drives run their loops every "
+                            f"{VELOCITY_TICK_S * 1e6:.0f} µs, so the SYNC period must be a multiple of it "
+                            f"(got {config.master.sync_period_s * 1e6:.0f} µs)")
         if realtime:
             from .sim.process import SimProcess
             drives = SimProcess(sim_config or SIM_DEFAULT, config.master.sync_period_s)

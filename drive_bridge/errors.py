@@ -30,6 +30,10 @@ class DriveBridgeError(Exception):
     def exit_code(self) -> int:
         return EXIT_CODES[self.kind]
 
+    def __str__(self) -> str:
+        """The message on one line (a library's multi-line text folded in)."""
+        return " ".join(super().__str__().split())
+
 
 class InternalError(DriveBridgeError):
     """Something drive-bridge got wrong itself (never the user's or the drive's doing)."""

@@ -117,9 +117,19 @@ def decode_trace(trace: Path, meta_path: Path | None = None
         sent = int(counts.get("cycles_sent", counts["cycles_planned"]))
         if not 0 <= sent <= 10**8 or not period > 0:
             raise ValueError("counts or sync_period_s out of range")
-        rec = Recording({a: _codecs(v["tpdo"]) for a, v in axes.items()},
-                        {a: _codecs(v["rpdo"]) for a, v in axes.items()}, sent)
+        tpdos = {a: _codecs(v["tpdo"]) for a, v in axes.items()}
+        rpdos = {a: _codecs(v["rpdo"]) for a, v in axes.items()}
+        for codec in [c for cs in (*tpdos.values(), *rpdos.values()) for c in cs]:
+            if codec.struct.size > 8 or len(codec.spans) != len(codec.entries) or not 0 < codec.cob_id < 0x800:
+                raise ValueError(f"PDO 0x{codec.cob_id:X}: its format does not fit its objects")
+        unknown = [i for cs in tpdos.values() for c in cs for i in c.objects if i not in _COLUMNS]
+        if unknown:
+            raise ValueError(f"TPDO object 0x{unknown[0]:04X} is not one the log has a column for")
+        rec = Recording(tpdos, rpdos, sent)
         scaling = {a: Scaling(**v["scaling"]) for a, v in axes.items()}
+        for sc in scaling.values():
+            if not (sc.increments_per_rev > 0 and sc.rated_torque_Nm > 0):
+                raise ValueError("scaling must be positive")
     except (KeyError, TypeError, ValueError, AttributeError, struct.error, UnicodeDecodeError,
             yaml.YAMLError) as exc:
         raise UserError(f"{meta_path}: not a drive-bridge record meta.yaml (missing or bad {exc})") from exc

@@ -1,6 +1,7 @@
 """Strict reading of YAML configuration: every error names the file and the key."""
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any, Mapping
 
@@ -16,14 +17,20 @@ def load_yaml(path: str | Path) -> dict:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError as exc:
         raise ConfigError(path, "", "file not found") from exc
+    except IsADirectoryError as exc:
+        raise ConfigError(path, "", "is a directory, not a YAML file") from exc
     except OSError as exc:
         raise ConfigError(path, "", f"cannot read: {exc.strerror}") from exc
+    except UnicodeDecodeError as exc:
+        raise ConfigError(path, "", f"not UTF-8 text (byte {exc.start}): save it as UTF-8") from exc
     try:
         data = yaml.safe_load(text)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" at line {mark.line + 1}" if mark else ""
         raise ConfigError(path, "", f"not valid YAML{where}: {getattr(exc, 'problem', exc)}") from exc
+    except RecursionError as exc:
+        raise ConfigError(path, "", "nested too deeply to be a configuration") from exc
     if data is None:
         data = {}
     if not isinstance(data, dict):
@@ -31,11 +38,21 @@ def load_yaml(path: str | Path) -> dict:
     return data
 
 
+def _short(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def finite_number(value: Any) -> bool:
+    """A real, finite number (bool is not a number here)."""
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+
+
 class Section:
     """A mapping read from a YAML file that knows its path for error messages.
 
-    ``get`` checks types and ranges; ``done`` refuses keys nobody asked for,
-    so a typo is an error instead of a silently ignored setting.
+    ``get`` checks types and ranges (a float must be finite); ``done`` refuses keys
+    nobody asked for, so a typo is an error instead of a silently ignored setting.
     """
 
     def __init__(self, path: Path, key: str, data: Any):
@@ -64,10 +81,15 @@ class Section:
         value = self.data[key]
         kinds = kind if isinstance(kind, tuple) else (kind,)
         if float in kinds and isinstance(value, int) and not isinstance(value, bool):
-            value = float(value)
+            try:
+                value = float(value)
+            except OverflowError as exc:
+                raise self.error(key, f"{value:.3e} is too large a number") from exc
         if isinstance(value, bool) and bool not in kinds or not isinstance(value, kinds):
             names = " or ".join(k.__name__ for k in kinds)
-            raise self.error(key, f"must be {names}, got {value!r}")
+            raise self.error(key, f"must be {names}, got {_short(value)}")
+        if isinstance(value, float) and not math.isfinite(value):
+            raise self.error(key, f"must be a finite number, got {value!r}")
         if choices is not None and value not in choices:
             raise self.error(key, f"must be one of {', '.join(map(str, choices))}, got {value!r}")
         if low is not None and value < low:

@@ -287,8 +287,9 @@ def candidates(present: list[Effect], s: Samples, residual: np.ndarray) -> list[
             out.append(PositionPeriodic(period))
     vmax = float(np.max(np.abs(s.qd[m])))
     vmin = float(np.min(np.abs(s.qd[m])))
-    if "stribeck" not in names:
-        out.append(Stribeck(0.1 * vmax, low=max(vmin, 0.01 * vmax), high=0.5 * vmax))
+    low, high = max(vmin, 0.01 * vmax), 0.5 * vmax
+    if "stribeck" not in names and low < high:          # the log must reach down to low speeds
+        out.append(Stribeck(min(max(0.1 * vmax, low), high), low=low, high=high))
     if "direction_asymmetry" not in names:
         out.append(DirectionAsymmetry(with_dc0="offset" not in names))
     if "drift" not in names:

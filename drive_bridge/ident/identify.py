@@ -124,7 +124,11 @@ def identify(path: str | Path, validate: str | Path | None = None, axes: list[st
         if progress:
             progress(a)
         try:
-            results[a] = identify_axis(log, a, val_log, seed=seed, cutoff_hz=cutoff_hz, decimation=decimation)
+            try:
+                results[a] = identify_axis(log, a, val_log, seed=seed, cutoff_hz=cutoff_hz, decimation=decimation)
+            except (np.linalg.LinAlgError, ValueError, FloatingPointError) as exc:
+                raise UserError(f"{log.path}: axis {a!r}: the log does not determine the model ({exc}); "
+                                f"it needs motion at several speeds and accelerations in both directions") from exc
         except UserError as exc:
             if axes:                          # asked for by name: its problem is the answer
                 raise

@@ -13,6 +13,11 @@ from ..yamlconf import Section, load_yaml
 
 DEFAULT_CONFIG = Path(__file__).with_name("robot.yaml")
 
+#: the range of each effect value the plant can run with (low, high)
+RANGES = {"torque_Nm": (-100.0, 100.0), "amplitude_Nm": (-100.0, 100.0), "period_rad": (1e-3, 1e6),
+          "phase_rad": (-100.0, 100.0), "velocity_rad_s": (1e-6, 1e6), "dc0_Nm": (-100.0, 100.0),
+          "dc1_Nm_s_rad": (-100.0, 100.0), "coefficient_Nm_per_rad": (-100.0, 100.0), "fraction": (-10.0, 10.0),
+          "time_constant_s": (1e-3, 1e9)}
 #: effect name -> {yaml key: kernel parameter name}
 EFFECTS = {
     "load": {"torque_Nm": "LOAD"},
@@ -61,14 +66,14 @@ def load_sim_config(path: str | Path = DEFAULT_CONFIG) -> SimConfig:
     """Read and check a simulator YAML file (see ``robot.yaml`` for the format)."""
     path = Path(path)
     top = Section(path, "", load_yaml(path))
-    seed = top.get("seed", int, 0, low=0)
+    seed = top.get("seed", int, 0, low=0, high=2**32 - 1)
     axes_sec = top.section("axes")
     axes: dict[str, SimAxis] = {}
     for name in axes_sec.keys():
         sec = axes_sec.section(name)
         plant = sec.section("plant")
         motor_sec = sec.section("motor", required=False)
-        motor = Motor(**{k: motor_sec.get(k, float, getattr(Motor, k), low=1e-9)
+        motor = Motor(**{k: motor_sec.get(k, float, getattr(Motor, k), low=1e-9, high=1e4)
                          for k in ("R", "L", "kt", "vbus", "rated_torque_Nm")})
         motor_sec.done()
         effects = {}
@@ -79,18 +84,19 @@ def load_sim_config(path: str | Path = DEFAULT_CONFIG) -> SimConfig:
             es = eff_sec.section(eff)
             values = {}
             for key, param in EFFECTS[eff].items():
-                values[param] = es.get(key, str) if key == "source" else es.get(key, float)
+                values[param] = es.get(key, str) if key == "source" else es.get(key, float, low=RANGES[key][0],
+                                                                                  high=RANGES[key][1])
             es.done()
             effects[eff] = values
         eff_sec.done()
         axes[name] = SimAxis(
             name=name,
             node_id=sec.get("node_id", int, low=1, high=127),
-            serial=sec.get("serial", int, 0, low=0),
-            J=plant.get("J", float, low=1e-9), c0=plant.get("c0", float, low=0.0),
-            c1=plant.get("c1", float, low=0.0), cp=plant.get("cp", float, 0.0),
-            D=plant.get("D", float, 0.0),
-            torque_noise_Nm=sec.get("torque_noise_Nm", float, 0.0, low=0.0),
+            serial=sec.get("serial", int, 0, low=0, high=2**32 - 1),
+            J=plant.get("J", float, low=1e-9, high=10.0), c0=plant.get("c0", float, low=0.0, high=100.0),
+            c1=plant.get("c1", float, low=0.0, high=100.0), cp=plant.get("cp", float, 0.0, low=-100.0, high=100.0),
+            D=plant.get("D", float, 0.0, low=-100.0, high=100.0),
+            torque_noise_Nm=sec.get("torque_noise_Nm", float, 0.0, low=0.0, high=10.0),
             motor=motor, effects=effects)
         plant.done()
         sec.done()

@@ -90,12 +90,11 @@ def read_identify_json(path: str | Path) -> dict[str, dict[str, float]]:
 
 def check_model(axis: str, model: dict[str, float]) -> None:
     """UserError naming the axis and parameter when an identified model is not physical."""
-    bad = [f"{k} = {v}" for k, v in model.items() if not math.isfinite(v)]
+    bad = [f"{k} missing" for k in ("J", "c0", "c1") if k not in model]
+    bad += [f"{k} = {v}" for k, v in model.items() if not math.isfinite(v)]
     if not bad:
-        bad = ([f"J = {model['J']:.6g} (must be > 0)"] if model.get("J", 0.0) <= 0 else []) + \
-              [f"{k} = {model[k]:.6g} (friction must be ≥ 0)" for k in ("c0", "c1") if model.get(k, 0.0) < 0]
-    if "J" not in model:
-        bad.append("J missing")
+        bad = ([f"J = {model['J']:.6g} (must be > 0)"] if model["J"] <= 0 else []) + \
+              [f"{k} = {model[k]:.6g} (friction must be ≥ 0)" for k in ("c0", "c1") if model[k] < 0]
     if bad:
         raise UserError(f"axis {axis}: the identified model is not physical ({', '.join(bad)}); identify it "
                         f"again (longer or richer excitation) before tuning")
