@@ -14,6 +14,7 @@ from pathlib import Path
 import canopen
 
 from .errors import ConfigError
+from .master.timing import TimingLimits
 from .od import load_od
 from .units import Scaling
 from .yamlconf import Section, finite_number, load_yaml
@@ -70,6 +71,7 @@ class MasterConfig:
     sdo_timeout_s: float
     state_timeout_s: float
     tpdo_miss_limit: int
+    timing: TimingLimits = TimingLimits()
 
 
 @dataclass(frozen=True)
@@ -202,6 +204,16 @@ def _node(path: Path, axis: str, data: dict) -> NodeConfig:
     return cfg
 
 
+def _timing(sec: Section) -> TimingLimits:
+    """``master.timing``: when a wall-clock run counts as degraded."""
+    d = TimingLimits()
+    limits = TimingLimits(sec.get("max_late_pct", float, d.max_late_pct, low=0.0, high=100.0),
+                          sec.get("max_gap_periods", float, d.max_gap_periods, low=1.0, high=1e6),
+                          sec.get("max_missing_pct", float, d.max_missing_pct, low=0.0, high=100.0))
+    sec.done()
+    return limits
+
+
 def _merge(defaults: dict, node: dict) -> dict:
     merged = dict(defaults)
     for key, value in node.items():
@@ -225,7 +237,8 @@ def load_bus_config(path: str | Path) -> BusConfig:
         heartbeat_timeout_s=m.get("heartbeat_consumer_ms", int, 300, low=10, high=65535) / 1000.0,
         sdo_timeout_s=m.get("sdo_timeout_s", float, 0.5, low=0.01, high=60.0),
         state_timeout_s=m.get("state_timeout_s", float, 1.0, low=0.01, high=60.0),
-        tpdo_miss_limit=m.get("tpdo_miss_limit", int, 3, low=1, high=100))
+        tpdo_miss_limit=m.get("tpdo_miss_limit", int, 3, low=1, high=100),
+        timing=_timing(m.section("timing", required=False)))
     m.done()
     defaults = top.get("defaults", dict, {})
     nodes_sec = top.section("nodes")

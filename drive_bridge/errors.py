@@ -13,12 +13,14 @@ code   kind                meaning
 3      bus                 the bus or a drive does not answer, or refuses
 4      motion              motion stopped (fault, Ctrl-C): axes quick-stopped,
                            data recorded so far kept
+5      degraded            done, but a wall-clock run missed its timing limits
+                           (late SYNCs, gaps, missing samples): data kept
 130    interrupted         Ctrl-C outside motion
 =====  ==================  ===================================================
 """
 from __future__ import annotations
 
-EXIT_CODES = {"ok": 0, "internal": 1, "user": 2, "bus": 3, "motion": 4, "interrupted": 130}
+EXIT_CODES = {"ok": 0, "internal": 1, "user": 2, "bus": 3, "motion": 4, "degraded": 5, "interrupted": 130}
 
 
 class DriveBridgeError(Exception):

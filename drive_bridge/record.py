@@ -15,6 +15,7 @@ from .master.busload import check_bus_load
 from .master.campaign import Plan, build_plan
 from .master.link import Link, TraceRecorder
 from .master.stream import stream
+from .master.timing import Timing
 from .signals import deferred
 
 
@@ -28,6 +29,7 @@ class RecordResult:
     aborted: MotionAborted | None
     bus_load: str
     wall_time_s: float
+    timing: Timing
 
     @property
     def ok(self) -> bool:
@@ -71,7 +73,7 @@ def record(config: BusConfig, link: Link, out_dir: str | Path, *,
     try:
         result = stream(link, axes, plan, heartbeat_timeout=config.master.heartbeat_timeout_s,
                         miss_limit=config.master.tpdo_miss_limit, state_timeout=config.master.state_timeout_s,
-                        progress=progress)
+                        progress=progress, timing_limits=config.master.timing)
     finally:
         link.record(None)
         trace.stop()
@@ -80,10 +82,11 @@ def record(config: BusConfig, link: Link, out_dir: str | Path, *,
     meta["counts"].update({"cycles_sent": result.cycles_sent, "samples_received": samples,
                            "samples_missing": dict(result.missing)})
     meta["status"] = "ok" if result.aborted is None else "aborted"
+    meta["timing"] = result.timing.as_dict()
     if result.aborted is not None:
         meta["abort"] = {"axis": result.aborted.axis, "reason": result.aborted.reason}
     with deferred():                  # the data so far is written whole before a signal ends the command
         write_csv(out / LOG_NAME, rec, {n: axes[n].cfg.scaling for n in plan.axes}, plan.period)
         write_meta(out / META_NAME, meta)
     return RecordResult(out, plan, result.cycles_sent, samples, dict(result.missing), result.aborted,
-                        load.describe(), time.perf_counter() - t_start)
+                        load.describe(), time.perf_counter() - t_start, result.timing)

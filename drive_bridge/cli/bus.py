@@ -4,6 +4,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from ..errors import EXIT_CODES
 from ..master.bringup import check_scan, scan
 from ..session import Session
 from . import options
@@ -73,10 +74,28 @@ def cmd_record(args) -> int:
     print(f"bus load {result.bus_load}; {result.cycles_sent} SYNC cycles in {result.wall_time_s:.1f} s")
     for axis in result.plan.axes:
         print(f"  axis {axis}: {result.samples[axis]} samples, {result.missing[axis]} missing")
+    print(timing_line(result.timing))
     print(f"wrote {result.out_dir / 'log.csv'}, meta.yaml, trace.blf")
     if result.aborted is not None:
         raise result.aborted
-    return 0
+    return degraded_exit([] if not result.timing.degraded else result.timing.reasons)
+
+
+def timing_line(t) -> str:
+    """One line on how a run kept its clock."""
+    if t.clock != "wall":
+        return "timing: lockstep (simulation time, every SYNC on time)"
+    return (f"timing: wall clock, {t.late_cycles_pct:.3g} % late cycles, largest SYNC gap {t.max_sync_gap_ms:.3g} ms, "
+            f"mean period {t.mean_sync_period_ms:.4g} ms; sending thread {t.priority}")
+
+
+def degraded_exit(reasons: list[str]) -> int:
+    """0, or the degraded exit code with a warning naming what missed its limits."""
+    if not reasons:
+        return 0
+    print(f"drive-bridge: WARNING: timing degraded ({'; '.join(reasons)}): the data are kept; check the load "
+          f"on this machine or raise master.timing limits (exit {EXIT_CODES['degraded']})", file=sys.stderr)
+    return EXIT_CODES["degraded"]
 
 
 def cmd_decode(args) -> int:

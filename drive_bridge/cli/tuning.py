@@ -12,6 +12,7 @@ from ..params.write import raise_for_failure, write_drives
 from ..session import Session
 from ..tuning.tune import GAINS, drive_model, read_identify_json, read_tune_json, tune_axes, tune_doc
 from . import options
+from .bus import degraded_exit
 
 
 def register(sub) -> None:
@@ -160,7 +161,7 @@ def _num(v) -> str:
 
 def cmd_validate(args) -> int:
     from ..paper import TABLE_III
-    from ..tuning.validate import run_scenarios, stopped
+    from ..tuning.validate import degraded, run_scenarios, stopped
     config = options.config(args)
     params = read_tune_json(args.params).parameters
     names = _axes_in(config, params, args.params)
@@ -183,4 +184,4 @@ def cmd_validate(args) -> int:
     stop = stopped(runs)
     if stop is not None:
         raise stop
-    return 0
+    return degraded_exit(degraded(runs))

@@ -156,6 +156,9 @@ def write_report(out: Path, summary: dict) -> Path:
         banner = f"<div class='failed'><b>FAILED</b> in step <b>{_e(f['step'])}</b>: {_e(f['reason'])}</div>"
     elif status == "ok":
         banner = "<div class='ok'><b>OK</b>: every step completed.</div>"
+    elif status == "degraded":
+        banner = ("<div class='partial'><b>DEGRADED TIMING</b>: every step completed, but "
+                  + _e("; ".join(summary["timing_degraded"])) + "</div>")
     else:
         banner = "<div class='partial'><b>PARTIAL</b>: the steps run succeeded; some were not run.</div>"
     steps = _table(["step", "status", "duration [s]"],

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..config import BusConfig
-from ..errors import DriveBridgeError, MotionAborted, UserError, exit_code
+from ..errors import EXIT_CODES, DriveBridgeError, MotionAborted, UserError, exit_code
 from ..master.link import Link
 from ..outputs import write_json
 from ..progress import StepReporter
@@ -132,9 +132,16 @@ def commission(config: BusConfig, out: str | Path, options: Options | None = Non
                 break
             state["durations_s"][step] = time.perf_counter() - t0
             state["completed"] = [s for s in STEPS if s in state["completed"] or s == step]
+            state["timing_degraded"] = [d for d in state.get("timing_degraded", [])
+                                        if not d.startswith(f"{step}:")] + [d for d in ctx.degraded
+                                                                           if d.startswith(f"{step}:")]
             _save(out, state)
             reporter.done(step, state["durations_s"][step], line)
     summary = build_summary(out, state, config, options)
+    if failure is None and summary["status"] == "degraded":
+        code = EXIT_CODES["degraded"]
+        reporter.note(f"WARNING: timing degraded ({'; '.join(summary['timing_degraded'])}); the data are kept "
+                      f"(exit {code})")
     write_json(out / SUMMARY, summary)
     write_report(out, summary)
     if failure is not None:

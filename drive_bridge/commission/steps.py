@@ -17,7 +17,7 @@ from ..progress import StepReporter
 from ..session import Session
 from ..tuning.tune import drive_model, read_identify_json, read_tune_json, tune_axes, tune_doc
 from ..tuning import validate as V
-from ..tuning.validate import run_scenarios, stopped
+from ..tuning.validate import degraded, run_scenarios, stopped
 
 #: where each step keeps its output, relative to the run directory
 OUTPUT = {"scan": "scan.json", "bringup": "bringup.json", "campaign": "campaign", "identify": "identify",
@@ -34,6 +34,7 @@ class Context:
     def __init__(self, session: Session, out: Path, reporter: StepReporter):
         self.session, self.out, self.reporter = session, out, reporter
         self.config, self.options = session.config, session.options
+        self.degraded: list[str] = []       # wall-clock runs past their timing limits (status "degraded")
 
     def require(self, name: str) -> Path:
         """A previous step's output; a clear error naming the step to run when it is missing."""
@@ -77,9 +78,14 @@ def campaign(ctx: Context) -> str:
     ctx.reporter.end_motion()
     if result.aborted is not None:
         raise result.aborted
+    if result.timing.degraded:
+        ctx.degraded.append("campaign: " + "; ".join(result.timing.reasons))
     missing = sum(result.missing.values())
+    late = (f", {result.timing.late_cycles_pct:.3g} % late cycles, largest SYNC gap "
+            f"{result.timing.max_sync_gap_ms:.3g} ms" if result.timing.clock == "wall" else "")
     return (f"{result.plan.duration:.1f} s of motion on {', '.join(result.plan.axes)} "
-            f"({len(result.plan.segments)} segments), {missing} samples missing, bus load {result.bus_load}")
+            f"({len(result.plan.segments)} segments), {missing} samples missing, bus load {result.bus_load}{late}"
+            + (" -- TIMING DEGRADED" if result.timing.degraded else ""))
 
 
 def identify(ctx: Context) -> str:
@@ -136,6 +142,7 @@ def validate(ctx: Context) -> str:
     stop = stopped(runs)
     if stop is not None:
         raise stop
+    ctx.degraded += [f"validate: {d}" for d in degraded(runs)]
     fe = {(r.scenario, r.trajectory, a): m.fe_rms for r in runs for a, m in r.axes.items()}
     return "; ".join(f"{a}: FE RMS " + ", ".join(
         f"{t.replace('_', '-')} {fe[('before', t, a)] * 1e3:.3g} → {fe[('after', t, a)] * 1e3:.3g} mrad"

@@ -1,7 +1,8 @@
 """``summary.json``: what a pipeline reads after ``commission``, built from the run directory.
 
 Top level: ``status`` (``ok``: every step completed; ``failed``: ``failed`` names the step
-and reason; ``partial``: a subset ran and succeeded), ``steps`` with durations [s],
+and reason; ``partial``: a subset ran and succeeded; ``degraded``: every step completed but a
+wall-clock run missed its timing limits, named in ``timing_degraded``), ``steps`` with durations [s],
 ``versions``.  Per axis: the identified parameters and effects (the fields of
 ``identify --json``; its ``validation`` is ``identify_validation`` here), the paper's
 values beside them, gains before/after with their margins, validation following error
@@ -80,6 +81,9 @@ def build_summary(out: Path, state: dict, config: BusConfig, options) -> dict:
               ("done" if s in completed else "not run"), "duration_s": state["durations_s"].get(s)}
              for s in S.STEP_FUNCTIONS]
     status = "failed" if failed else ("ok" if all(s in completed for s in S.STEP_FUNCTIONS) else "partial")
+    timing = state.get("timing_degraded") or []
+    if status == "ok" and timing:
+        status = "degraded"
     ident = (_load(out, S.IDENTIFY_JSON) or {}).get("axes", {})
     tune = (_load(out, S.OUTPUT["tune"]) or {}).get("axes", {})
     write = (_load(out, S.WRITE_JSON) or {}).get("axes", {})
@@ -102,7 +106,7 @@ def build_summary(out: Path, state: dict, config: BusConfig, options) -> dict:
             entry["unsupported"] = write[a]["unsupported"]
             entry["stored"] = write[a]["stored"]
         axes[a] = entry
-    return {"status": status, "failed": failed, "steps": steps,
+    return {"status": status, "failed": failed, "timing_degraded": timing, "steps": steps,
             "duration_s": sum(s["duration_s"] or 0.0 for s in steps),
             "versions": versions(), "config": str(config.path), "simulated": options.sim,
             "profile": options.profile, "out": str(out), "axes": axes}

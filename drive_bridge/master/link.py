@@ -48,6 +48,9 @@ class WallClock:
             time.sleep(left)
 
 
+TRACE_PRIORITY = 10           # SCHED_FIFO priority of the trace writer (the streaming threads: 50)
+
+
 class TraceRecorder(can.Listener):
     """Recorder of every frame sent and received, in a python-can log format.
 
@@ -73,10 +76,14 @@ class TraceRecorder(can.Listener):
             self.writer.on_message_received(msg)
 
     def _write_loop(self) -> None:
-        try:                  # below the threads that send setpoints and receive feedback
-            os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), 10)
-        except (AttributeError, OSError):
-            pass              # not on this platform: the writer still only runs every flush period
+        # Below the threads that send setpoints and receive feedback, but above every ordinary
+        # process: a writer preempted by other load while it holds the GIL would hold them up too.
+        from .timing import raise_priority
+        if not raise_priority(TRACE_PRIORITY)[1]:
+            try:
+                os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), 10)
+            except (AttributeError, OSError):
+                pass          # not on this platform: the writer still only runs every flush period
         while not self._stopping.wait(self._flush_every_s):
             self._write_pending()
         self._write_pending()
@@ -139,6 +146,19 @@ class Link(Protocol):
         """Close the bus (and whatever runs behind it)."""
 
 
+class _ReceiverPriority(can.Listener):
+    """Asks, from the receiving thread itself on its first frame, for the priority the sending
+    thread gets while it streams (see :mod:`drive_bridge.master.timing`)."""
+
+    def __init__(self):
+        self.granted: str | None = None
+
+    def on_message_received(self, msg: can.Message) -> None:
+        if self.granted is None:
+            from .timing import raise_priority
+            self.granted = raise_priority()[0]
+
+
 class BusLink:
     """A python-can bus with canopen's Notifier thread and the wall clock."""
 
@@ -152,6 +172,7 @@ class BusLink:
         self.bus = bus
         self.network = MasterNetwork(self.bus, self.clock)
         self.network.connect()
+        self.network.notifier.add_listener(_ReceiverPriority())
         self.on_close = []                # callbacks after the bus is closed
 
     @classmethod

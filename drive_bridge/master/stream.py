@@ -21,6 +21,7 @@ from .bringup import AxisLink, emcy_text
 from .campaign import Plan
 from .cia402 import CW_ENABLE, SW_FAULT, state_name
 from .link import Link
+from .timing import Timing, TimingLimits, measure, raise_priority, restore_priority
 
 CW_QUICK_STOP_CMD = 0x000B          # enable voltage + switch on + enable operation, quick stop bit low
 STANDSTILL = 0.002                  # quick stop complete below this fraction of the axis's max velocity ...
@@ -125,6 +126,7 @@ class StreamResult:
     cycles_sent: int
     aborted: MotionAborted | None
     missing: dict[str, int]           # samples (rows) missing per axis
+    timing: Timing
 
 
 def _packer(ax: AxisLink, codec: PdoCodec, demand: np.ndarray, ai: int, send) -> Callable[[int], None]:
@@ -180,7 +182,8 @@ def quick_stop(link: Link, axes: dict[str, AxisLink], timeout: float) -> list[st
 
 def stream(link: Link, axes: dict[str, AxisLink], plan: Plan, *, heartbeat_timeout: float, miss_limit: int,
            state_timeout: float, progress: Callable[[int], None] | None = None,
-           guard: Callable[[dict[str, int]], str | None] | None = None) -> StreamResult:
+           guard: Callable[[dict[str, int]], str | None] | None = None,
+           timing_limits: TimingLimits = TimingLimits()) -> StreamResult:
     """Enable the axes in CSP, stream ``plan`` one setpoint per SYNC, stop, return the recording.
 
     A fault (EMCY, fault bit, heartbeat loss, missing TPDOs) or Ctrl-C quick-stops every
@@ -205,7 +208,7 @@ def stream(link: Link, axes: dict[str, AxisLink], plan: Plan, *, heartbeat_timeo
     vel_cols = [(a, rec.column(a, 0x606C)) for a in plan.axes] if guard is not None else []
     misses = dict.fromkeys(plan.axes, 0)
     aborted = None
-    k = 0
+    k = sent = 0
     for a in plan.axes:
         axes[a].node.nmt.send_command(0x01)                  # operational: PDOs flow
     # The cycle collector stops every thread while it walks the heap (gen 2: tens of ms with
@@ -213,6 +216,7 @@ def stream(link: Link, axes: dict[str, AxisLink], plan: Plan, *, heartbeat_timeo
     # the collector is off while it runs and collects once afterwards.
     gc.collect()
     gc.disable()
+    priority, undo = raise_priority() if link.threaded else ("lockstep (no wall clock)", None)
     try:
         emcy_from = {a: len(axes[a].emcy) for a in plan.axes}
         for a in plan.axes:
@@ -244,6 +248,7 @@ def stream(link: Link, axes: dict[str, AxisLink], plan: Plan, *, heartbeat_timeo
             stamp = clock.now()
             rec.on_sync(stamp)
             send(SYNC_COB_ID, b"", False, stamp)
+            sent = k + 1
             if stamp - (t0 + k * period) > period / 2:
                 t0 = stamp - k * period          # late: restart the schedule here, never burst SYNCs
         else:
@@ -258,9 +263,11 @@ def stream(link: Link, axes: dict[str, AxisLink], plan: Plan, *, heartbeat_timeo
     except Exception as exc:          # a bus error mid-motion: still stop the axes
         aborted = MotionAborted(f"{type(exc).__name__}: {exc}")
     finally:
+        restore_priority(undo)
         for cob in tpdo_cobs:
             net.unsubscribe(cob)
         gc.enable()
+    rec.rows = min(rec.rows, sent)           # a row whose SYNC an interrupt kept from the bus is not one
     rec.truncate()
     missing = rec.missing()
     if aborted is not None:
@@ -268,7 +275,8 @@ def stream(link: Link, axes: dict[str, AxisLink], plan: Plan, *, heartbeat_timeo
         if problems:
             aborted = (Interrupted("; ".join(problems), aborted.signal) if isinstance(aborted, Interrupted) else
                        MotionAborted(aborted.reason + "; " + "; ".join(problems), aborted.axis, aborted.emcy))
-    return StreamResult(rec, k, aborted, missing)
+    timing = measure(rec.sync_time, plan.period, missing, wall=link.threaded, priority=priority, limits=timing_limits)
+    return StreamResult(rec, sent, aborted, missing, timing)
 
 
 def _check_row(rec, row, axes, sw_cols, names, misses, miss_limit, emcy_from) -> MotionAborted | None:

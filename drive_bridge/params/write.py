@@ -334,6 +334,7 @@ def write_drives(nodes: dict[str, canopen.RemoteNode], profile: Profile, values:
     each commissioned node exported as a DCF to ``dcf_dir``.  Raises ValueRefused before
     anything is written."""
     require_profile_objects(nodes, profile)
+    plan_writes(nodes, profile, values, dry_run=True)          # every value first: ValueRefused names them
     margins, refused, forced = {}, [], []
     for a, node in nodes.items():
         L = (inductance or {}).get(a)

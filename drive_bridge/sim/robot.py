@@ -11,6 +11,7 @@ Two clocks drive the same code:
 """
 from __future__ import annotations
 
+import os
 import threading
 import time
 from pathlib import Path
@@ -169,6 +170,10 @@ class SimRobot:
         # time stamp. A thread that woke late therefore neither misses a setpoint nor sees one
         # late, and its replies carry the bus time at which a drive would have sent them.
         # Between frames the plant catches up every IDLE_WAKE_S (heartbeats, time-outs).
+        try:                                    # the drives are hardware's stand-in: first in line for the CPU
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(60))
+        except (AttributeError, OSError):
+            pass                                # not allowed here: they run at normal priority
         t0 = time.time() - self.time            # wall-clock time of simulation time 0
         while self._running:
             msg = self.bus.recv(timeout=IDLE_WAKE_S)

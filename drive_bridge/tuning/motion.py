@@ -13,6 +13,7 @@ from ..master.bringup import AxisLink
 from ..master.campaign import APPROACH_LEVEL, Plan, Segment, check_plan, trapezoid
 from ..master.link import Link
 from ..master.stream import stream
+from ..master.timing import Timing
 
 
 @dataclass
@@ -26,6 +27,7 @@ class Motion:
     torque: dict[str, np.ndarray]
     demand: dict[str, np.ndarray]
     aborted: MotionAborted | None
+    timing: Timing
 
 
 def run(config: BusConfig, link: Link, axes: dict[str, AxisLink], demand: dict[str, np.ndarray], *,
@@ -53,7 +55,8 @@ def run(config: BusConfig, link: Link, axes: dict[str, AxisLink], demand: dict[s
     m = config.master
     progress = on_plan(plan) if on_plan else None
     result = stream(link, {a: axes[a] for a in names}, plan, heartbeat_timeout=m.heartbeat_timeout_s,
-                    miss_limit=m.tpdo_miss_limit, state_timeout=m.state_timeout_s, progress=progress, guard=guard and
+                    miss_limit=m.tpdo_miss_limit, state_timeout=m.state_timeout_s, progress=progress,
+                    timing_limits=m.timing, guard=guard and
                     (lambda raw: guard({a: float(axes[a].cfg.scaling.velocity_from_device(raw[a]))
                                         for a in names})))
     names_, values, _ = to_table(result.recording, {a: axes[a].cfg.scaling for a in names}, period)
@@ -63,4 +66,4 @@ def run(config: BusConfig, link: Link, axes: dict[str, AxisLink], demand: dict[s
     # the setpoint a SYNC's sample was following: the one sent before the previous SYNC
     dem = {a: col[f"{a}_position_demand_rad"][n_app - 1:max(n_app - 1, len(values) - 1)] for a in names}
     return Motion(col["time_s"][rows] - n_app * period, get("position_rad"), get("velocity_rad_s"),
-                  get("torque_Nm"), dem, result.aborted)
+                  get("torque_Nm"), dem, result.aborted, result.timing)

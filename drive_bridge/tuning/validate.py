@@ -52,7 +52,8 @@ class Run:
 
     def as_dict(self) -> dict:
         return {"scenario": self.scenario, "trajectory": self.trajectory, "aborted": self.aborted,
-                "axes": {a: asdict(m) for a, m in self.axes.items()}}
+                "axes": {a: asdict(m) for a, m in self.axes.items()},
+                "timing": None if self.motion is None else self.motion.timing.as_dict()}
 
 
 def model_torque(p: dict[str, float], q: np.ndarray, period: float) -> np.ndarray:
@@ -163,6 +164,12 @@ def run_scenarios(config: BusConfig, link: Link, axes: dict[str, AxisLink], prof
                 traces[key + "/torque"] = m.torque[a]
         np.savez_compressed(out / TRACES, **traces)
     return runs
+
+
+def degraded(runs: list[Run]) -> list[str]:
+    """Why wall-clock runs missed their timing limits (empty: none did)."""
+    return [f"{r.scenario}, {r.trajectory}: {'; '.join(r.motion.timing.reasons)}" for r in runs
+            if r.motion is not None and r.motion.timing.degraded]
 
 
 def stopped(runs: list[Run]) -> MotionAborted | None:

@@ -1,0 +1,84 @@
+"""How well a wall-clock run kept its SYNC period, and the thread priority it asked for.
+
+Every run reports its timing: late cycles (a SYNC more than ``LATE_FACTOR`` periods after the
+one before), the largest SYNC gap and the samples missing.  A run past its limits is
+``degraded``: its data are kept and usable with care, and the command ends with exit code 5.
+The thread that sends setpoints, and the one that receives feedback, ask the OS for a
+real-time (SCHED_FIFO) priority where it allows that; the report says whether it did.
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+LATE_FACTOR = 1.5
+RT_PRIORITY = 50                    # SCHED_FIFO priority asked for (1..99); below kernel threads
+
+
+@dataclass(frozen=True)
+class TimingLimits:
+    """Limits of a wall-clock run (bus.yml ``master.timing``)."""
+
+    max_late_pct: float = 1.0       # late cycles [% of all]
+    max_gap_periods: float = 5.0    # largest SYNC gap [periods]
+    max_missing_pct: float = 0.5    # samples missing, any axis [% of rows]
+
+
+@dataclass
+class Timing:
+    clock: str                      # "wall" or "lockstep" (simulation time: always on time)
+    cycles: int
+    late_cycles_pct: float
+    max_sync_gap_ms: float
+    mean_sync_period_ms: float
+    samples_missing: dict[str, int]
+    priority: str                   # what the OS granted the sending thread
+    degraded: bool = False
+    reasons: list[str] = field(default_factory=list)
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+def measure(sync_time: np.ndarray, period: float, missing: dict[str, int], *, wall: bool, priority: str,
+            limits: TimingLimits) -> Timing:
+    """The timing of a run from its SYNC time stamps [s] and missing samples per axis."""
+    gaps = np.diff(sync_time[np.isfinite(sync_time)])
+    n = len(sync_time)
+    late = float(np.count_nonzero(gaps > LATE_FACTOR * period) / len(gaps) * 100) if len(gaps) else 0.0
+    t = Timing("wall" if wall else "lockstep", n, round(late, 3),
+               round(float(gaps.max()) * 1e3, 3) if len(gaps) else 0.0,
+               round(float(gaps.mean()) * 1e3, 4) if len(gaps) else 0.0, dict(missing), priority)
+    if wall and n:
+        worst = max(missing.values(), default=0) / n * 100
+        for what, value, limit in (("late cycles", t.late_cycles_pct, limits.max_late_pct),
+                                   ("largest SYNC gap", t.max_sync_gap_ms / (period * 1e3), limits.max_gap_periods),
+                                   ("samples missing", worst, limits.max_missing_pct)):
+            if value > limit:
+                unit = "periods" if what == "largest SYNC gap" else "%"
+                t.reasons.append(f"{what} {value:.3g} {unit} > {limit:g} {unit}")
+        t.degraded = bool(t.reasons)
+    return t
+
+
+def raise_priority(priority: int = RT_PRIORITY) -> tuple[str, object]:
+    """Ask for SCHED_FIFO ``priority`` for the calling thread; (what was granted, how to undo it:
+    None when nothing was granted)."""
+    if not hasattr(os, "sched_setscheduler"):
+        return "normal (this OS has no SCHED_FIFO)", None
+    try:
+        before = (os.sched_getscheduler(0), os.sched_getparam(0))
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+        return f"SCHED_FIFO {priority}", before
+    except OSError as exc:
+        return f"normal (SCHED_FIFO not granted: {exc.strerror}; run with CAP_SYS_NICE or as root for it)", None
+
+
+def restore_priority(undo) -> None:
+    if undo is not None:
+        try:
+            os.sched_setscheduler(0, undo[0], undo[1])
+        except OSError:
+            pass
