@@ -16,6 +16,7 @@ import yaml
 
 from .errors import UserError
 from .outputs import atomic, write_text
+from .yamlconf import load_yaml
 from .master.stream import SYNC_COB_ID, Recording
 from .pdo import PdoCodec
 from .units import Scaling
@@ -109,8 +110,8 @@ def decode_trace(trace: Path, meta_path: Path | None = None
     if not meta_path.is_file():
         raise UserError(f"{meta_path}: not found; decode needs the meta.yaml written with the trace "
                         f"(give it with --meta)")
+    meta = load_yaml(meta_path)
     try:
-        meta = yaml.safe_load(meta_path.read_text(encoding="utf-8"))
         axes = meta["axes"]
         period = float(meta["sync_period_s"])
         counts = meta["counts"]

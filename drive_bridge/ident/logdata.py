@@ -147,6 +147,9 @@ def read_log(path: str | Path) -> Log:
         if not segments:
             raise UserError(f"{path}: axis {axis!r}: no run of {MIN_SEGMENT} or more consecutive samples "
                             f"with position and torque")
+        if not np.nanmax(tau) > np.nanmin(tau):
+            raise UserError(f"{path}: axis {axis!r}: {tau_name} never changes ({np.nanmax(tau):g}): no torque was "
+                            f"logged; check the TPDO mapping of the torque object")
         axes[axis] = AxisLog(axis, kind, units, q, tau, segments, dropped)
     if not axes:
         raise UserError(f"{path}: no axis found: expected <axis>_position_rad with <axis>_torque_Nm, or "
