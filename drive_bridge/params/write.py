@@ -248,7 +248,7 @@ class _Transaction:
                 continue
             for w in reversed(touched):
                 try:
-                    self._var(a, w).raw = w.old_device
+                    self._restore_object(a, w)
                 except (Exception, KeyboardInterrupt) as exc:
                     self._note_interrupt(exc)
                     r.notes.append(f"restoring {w.parameter} failed: {_describe(exc, 'write', w, self.profile.entries[w.parameter])}")
@@ -268,6 +268,15 @@ class _Transaction:
             r.ram = BACKUP if back_ok else UNKNOWN
             r.restored = back_ok
             self._restore_stored_set(a, r)
+
+    def _restore_object(self, axis: str, w: ObjectWrite) -> None:
+        """Write one object's backup; an interrupt is not the drive's answer, so that object is
+        tried once more before the restore goes on."""
+        try:
+            self._var(axis, w).raw = w.old_device
+        except KeyboardInterrupt as exc:
+            self._note_interrupt(exc)
+            self._var(axis, w).raw = w.old_device
 
     def _note_interrupt(self, exc: BaseException) -> None:
         """The restore goes on through an interrupt (it is what makes the drive safe); remember it."""

@@ -69,3 +69,20 @@ def test_ctrl_c_stops_every_axis(tmp_path):
     bench, result = run_record(tmp_path, clean_config(), quick_config(together=True), on_progress=interrupt)
     assert not result.ok and "Ctrl-C" in result.aborted.reason
     assert (tmp_path / "log.csv").exists()
+
+
+def test_a_second_quick_stop_in_one_process_waits_until_the_axes_stand(tmp_path):
+    """The first quick stop leaves statusword bit 10 set in QUICK STOP ACTIVE; the second must
+    read the drive afresh and wait for standstill, not trust a bit of the earlier stop."""
+    from drive_bridge.sim import kernel as K
+    bench = Bench(clean_config())
+    config = quick_config(together=True)
+
+    def interrupt(k):
+        if k >= 300:
+            raise KeyboardInterrupt
+    for run in range(2):
+        result = record(config, bench.link, tmp_path / str(run), on_plan=lambda plan: interrupt)
+        assert "Ctrl-C" in result.aborted.reason
+        for drive in bench.robot.drives.values():       # at the moment the stop returned
+            assert abs(drive.s[K.V]) < 0.06, (run, drive.axis.name, drive.s[K.V])
