@@ -16,7 +16,7 @@ import sys
 import warnings
 
 from .. import __version__, signals
-from ..errors import DriveBridgeError, MotionAborted, exit_code
+from ..errors import EXIT_CODES, DriveBridgeError, MotionAborted, exit_code
 from . import bus, commission, identification, tuning
 
 #: the command modules, in the order of the job (``drive-bridge --help`` lists them this way)
@@ -66,3 +66,9 @@ def _run(argv: list[str] | None) -> int:
     except KeyboardInterrupt as exc:
         print(f"drive-bridge: interrupted ({signals.signal_name(exc)}); nothing was moving", file=sys.stderr)
         return exit_code(exc)
+    except BrokenPipeError:
+        raise
+    except OSError as exc:                    # an output the user named cannot be written
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"drive-bridge: error: {where}{exc.strerror or exc}; choose another output path", file=sys.stderr)
+        return EXIT_CODES["user"]

@@ -56,6 +56,7 @@ def cmd_scan(args) -> int:
 def cmd_record(args) -> int:
     from ..progress import CampaignProgress
     from ..record import record
+    options.out_dir(args.out)
     config = options.config(args)
     bars = []
 

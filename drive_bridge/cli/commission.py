@@ -25,6 +25,7 @@ def register(sub) -> None:
 
 def cmd_commission(args) -> int:
     from ..commission import commission
+    options.out_dir(args.out)
     result = commission(options.config(args), args.out, options.session_options(args),
                         steps=options.axes_list(args.steps), restart=args.restart)
     if args.json:

@@ -25,6 +25,7 @@ def register(sub) -> None:
 def cmd_identify(args) -> int:
     from ..ident import identify
     from ..ident.report import as_json, summary, write_markdown
+    options.out_dir(args.out)
     progress = None if args.json else (lambda axis: print(f"identifying axis {axis} ...", file=sys.stderr))
     results = identify(args.log, args.validate, options.axes_list(args.axis), seed=args.seed,
                        cutoff_hz=args.cutoff, decimation=args.decimate, progress=progress)

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 from dataclasses import replace
+from pathlib import Path
 
 from ..config import BusConfig, load_bus_config
 from ..errors import UserError
@@ -57,6 +58,12 @@ def _seed(text: str) -> int:
 
 def seed(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=_seed, default=0, help="seed of the evolutionary fits (default: 0)")
+
+
+def out_dir(path: str | None) -> None:
+    """UserError before any work when ``--out`` names something that is not a directory."""
+    if path and Path(path).exists() and not Path(path).is_dir():
+        raise UserError(f"--out {path}: a file of that name exists; --out names a directory")
 
 
 def axes_list(text: str | None) -> list[str] | None:

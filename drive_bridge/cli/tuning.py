@@ -162,6 +162,7 @@ def _num(v) -> str:
 def cmd_validate(args) -> int:
     from ..paper import TABLE_III
     from ..tuning.validate import degraded, run_scenarios, stopped
+    options.out_dir(args.out)
     config = options.config(args)
     params = read_tune_json(args.params).parameters
     names = _axes_in(config, params, args.params)
