@@ -153,8 +153,11 @@ def result_files(draw, kind: str) -> str:
         return json.dumps(draw(JSON))
     field_ = "params" if kind == "identify" else "parameters"
     axes = draw(st.dictionaries(st.sampled_from(["x", "y", "z", "w", ""]), st.fixed_dictionaries({
-        field_: st.dictionaries(NAMES, st.one_of(st.floats(), st.integers(-10**40, 10**40), st.text(max_size=3)),
-                                max_size=8),
+        field_: st.one_of(
+            st.dictionaries(NAMES, st.one_of(st.floats(), st.integers(-10**40, 10**40), st.text(max_size=3)),
+                            max_size=8),
+            st.fixed_dictionaries({"J": st.floats(1e-7, 1e-2), "c0": st.floats(0.0, 2.0),
+                                   "c1": st.floats(0.0, 1e-2)}, optional={"KpS": st.floats(1e-3, 1.0)})),
         "motor": st.one_of(st.none(), st.fixed_dictionaries({"R": st.floats(), "L": st.floats()}))}),
         max_size=3))
     return json.dumps({"axes": axes})

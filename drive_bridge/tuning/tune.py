@@ -88,13 +88,18 @@ def read_identify_json(path: str | Path) -> dict[str, dict[str, float]]:
     return out
 
 
+#: the largest J [kg·m² | kg], c0 [Nm | N], c1 [Nm·s/rad | N·s/m] a servo axis can have (linear axes too)
+PLAUSIBLE = {"J": 1e4, "c0": 1e5, "c1": 1e5}
+
+
 def check_model(axis: str, model: dict[str, float]) -> None:
     """UserError naming the axis and parameter when an identified model is not physical."""
     bad = [f"{k} missing" for k in ("J", "c0", "c1") if k not in model]
     bad += [f"{k} = {v}" for k, v in model.items() if not math.isfinite(v)]
     if not bad:
         bad = ([f"J = {model['J']:.6g} (must be > 0)"] if model["J"] <= 0 else []) + \
-              [f"{k} = {model[k]:.6g} (friction must be ≥ 0)" for k in ("c0", "c1") if model[k] < 0]
+              [f"{k} = {model[k]:.6g} (friction must be ≥ 0)" for k in ("c0", "c1") if model[k] < 0] + \
+              [f"{k} = {model[k]:.6g} (no servo axis has that much)" for k, most in PLAUSIBLE.items() if model[k] > most]
     if bad:
         raise UserError(f"axis {axis}: the identified model is not physical ({', '.join(bad)}); identify it "
                         f"again (longer or richer excitation) before tuning")
