@@ -135,6 +135,7 @@ def test_a_run_past_its_timing_limits_is_degraded_with_exit_5(tmp_path, capsys):
     assert main(["record", "--sim", "--realtime", "--quick", "--axes", "y", "--config", str(cfg),
                  "--out", str(out)]) == 5
     meta = yaml.safe_load((out / "meta.yaml").read_text())
-    assert meta["status"] == "ok" and meta["timing"]["degraded"] and "largest SYNC gap" in meta["timing"]["reasons"][0]
+    timing = meta["timing"]
+    assert meta["status"] == "ok" and timing["degraded"] and any("largest SYNC gap" in r for r in timing["reasons"])
     assert "WARNING: timing degraded" in capsys.readouterr().err
     assert (out / "log.csv").exists()
