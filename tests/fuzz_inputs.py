@@ -261,6 +261,19 @@ def _cli(argv, tmp: Path):
             raise AssertionError(f"{command + argv}: exit {code}")
 
 
+def record_trace(out: Path) -> tuple[bytes, str]:
+    """A real trace and its meta.yaml: a short lockstep recording of one axis, in ``out``."""
+    from drive_bridge.record import record
+
+    from .support import Bench, clean_config, quick_config
+    bench = Bench(clean_config())
+    try:
+        record(quick_config(max_axis_time_s=1.0).only(["y"]), bench.link, out)
+    finally:
+        bench.close()
+    return (out / "trace.blf").read_bytes(), (out / "meta.yaml").read_text()
+
+
 def kinds(trace: bytes | None = None, meta: str | None = None) -> dict[str, Kind]:
     """Every kind of input (the trace kind only when a real trace and its meta.yaml are given)."""
     out = [Kind("bus.yml", mutated_yaml(yaml.safe_load(DEFAULT_BUS_CONFIG.read_text())), _bus_yml),

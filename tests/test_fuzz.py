@@ -9,22 +9,13 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 
 from drive_bridge.errors import DriveBridgeError
-from drive_bridge.record import record
 
-from .fuzz_inputs import kinds
-from .support import Bench, clean_config, quick_config
+from .fuzz_inputs import kinds, record_trace
 
 
 @pytest.fixture(scope="module")
 def trace(tmp_path_factory):
-    """A real trace and its meta.yaml: a short lockstep recording of one axis."""
-    out = tmp_path_factory.mktemp("trace")
-    bench = Bench(clean_config())
-    try:
-        record(quick_config(max_axis_time_s=1.0).only(["y"]), bench.link, out)
-    finally:
-        bench.close()
-    return (out / "trace.blf").read_bytes(), (out / "meta.yaml").read_text()
+    return record_trace(tmp_path_factory.mktemp("trace"))
 
 
 KINDS = kinds(b"", "")                   # names only; the trace kind is rebuilt with the real trace

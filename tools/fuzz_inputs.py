@@ -23,9 +23,7 @@ sys.path.insert(0, str(ROOT))
 from hypothesis import HealthCheck, given, seed, settings  # noqa: E402
 
 from drive_bridge.errors import DriveBridgeError  # noqa: E402
-from drive_bridge.record import record  # noqa: E402
-from tests.fuzz_inputs import kinds  # noqa: E402
-from tests.support import Bench, clean_config, quick_config  # noqa: E402
+from tests.fuzz_inputs import kinds, record_trace  # noqa: E402
 
 HANG_S = 20
 
@@ -36,15 +34,6 @@ class Hang(Exception):
 
 def _alarm(signum, frame):
     raise Hang()
-
-
-def real_trace(tmp: Path) -> tuple[bytes, str]:
-    bench = Bench(clean_config())
-    try:
-        record(quick_config(max_axis_time_s=1.0).only(["y"]), bench.link, tmp)
-    finally:
-        bench.close()
-    return (tmp / "trace.blf").read_bytes(), (tmp / "meta.yaml").read_text()
 
 
 def fuzz(name, kind, args, counts, first) -> None:
@@ -80,7 +69,7 @@ def main() -> int:
     args = ap.parse_args()
     signal.signal(signal.SIGALRM, _alarm)
     with tempfile.TemporaryDirectory() as tmp:
-        all_kinds = kinds(*real_trace(Path(tmp)))
+        all_kinds = kinds(*record_trace(Path(tmp)))
     counts = collections.defaultdict(collections.Counter)
     first = {}
     t0 = time.perf_counter()
