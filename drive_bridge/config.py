@@ -98,6 +98,8 @@ class BusConfig:
     master: MasterConfig
     nodes: dict[str, NodeConfig]
     campaign: CampaignConfig
+    #: node ids whose identity may differ from their EDS/DCF (--accept-identity: a deliberate override)
+    accept_identity: frozenset[int] = frozenset()
 
     def only(self, axes: list[str]) -> "BusConfig":
         """The same configuration restricted to ``axes`` (errors name unknown ones)."""

@@ -49,6 +49,8 @@ def cmd_scan(args) -> int:
         print(f"node {config.nodes[axis].node_id:3d}  axis {axis:<4} MISSING: configured but no answer")
     for node_id in result.unexpected:
         print(f"node {node_id:3d}  not configured: answered but is not in {config.path}")
+    for axis, why in result.identity_accepted.items():
+        print(f"axis {axis}: identity ACCEPTED although it differs (--accept-identity): {why}")
     check_scan(result, config)
     return 0
 

@@ -18,6 +18,9 @@ def bus(p: argparse.ArgumentParser) -> None:
     p.add_argument("--sim", action="store_true", help="run against the simulated robot in-process")
     p.add_argument("--realtime", action="store_true", help="with --sim: wall clock instead of lockstep")
     p.add_argument("--sim-config", help="with --sim: simulator YAML (default: the shipped robot)")
+    p.add_argument("--accept-identity", type=int, action="append", default=[], metavar="NODE",
+                   help="go on although node NODE's identity (0x1018) is not the one its EDS/DCF names "
+                        "(recorded in the output; repeat for more nodes)")
 
 
 def drive(p: argparse.ArgumentParser, params: bool = True) -> None:
@@ -77,6 +80,8 @@ def config(args) -> BusConfig:
     if getattr(args, "realtime", False) and not args.sim:
         raise UserError("--realtime only applies with --sim")
     cfg = load_bus_config(args.config)
+    if getattr(args, "accept_identity", None):
+        cfg = replace(cfg, accept_identity=frozenset(args.accept_identity))
     if getattr(args, "axes", None):
         cfg = cfg.only(axes_list(args.axes))
     if getattr(args, "quick", False):

@@ -58,6 +58,8 @@ def scan(ctx: Context) -> str:
     write_json(ctx.out / OUTPUT["scan"], result.as_dict(config))
     check_scan(result, config)
     extra = f"; not configured, left alone: nodes {result.unexpected}" if result.unexpected else ""
+    extra += "".join(f"; identity of {a} ACCEPTED although it differs: {why}"
+                     for a, why in result.identity_accepted.items())
     return f"{len(result.found)} node(s): " + ", ".join(
         f"{a} = node {n.node_id}" for a, n in config.nodes.items()) + extra
 

@@ -51,18 +51,44 @@ class ScanResult:
     missing: list[str]                # configured axes that did not answer
     unexpected: list[int]             # node ids that answered but are not configured
     wrong_type: list[str]             # configured axes that are not CiA 402 drives
+    #: axis -> how the node's identity (0x1018) differs from its EDS/DCF; accepted ones are overridden
+    identity_mismatch: dict[str, str] = field(default_factory=dict)
+    identity_accepted: dict[str, str] = field(default_factory=dict)
 
     def as_dict(self, config: BusConfig) -> dict:
-        """scan.json: the nodes found (by axis where configured), missing, unexpected, wrong type."""
+        """scan.json: the nodes found (by axis where configured), missing, unexpected, wrong type,
+        identities that differ from the EDS/DCF (and those accepted with --accept-identity)."""
         by_id = {n.node_id: a for a, n in config.nodes.items()}
         return {"found": {by_id.get(i, str(i)): {"node_id": i, **ident} for i, ident in self.found.items()},
-                "missing": self.missing, "unexpected": self.unexpected, "wrong_type": self.wrong_type}
+                "missing": self.missing, "unexpected": self.unexpected, "wrong_type": self.wrong_type,
+                "identity_mismatch": self.identity_mismatch, "identity_accepted": self.identity_accepted}
 
 
-def _identity(node: canopen.RemoteNode) -> dict:
-    return {"device_type": node.sdo[0x1000].raw,
-            "vendor_id": node.sdo[0x1018][1].raw, "product_code": node.sdo[0x1018][2].raw,
-            "revision": node.sdo[0x1018][3].raw, "serial": node.sdo[0x1018][4].raw}
+def _identity(node: canopen.RemoteNode, axis: str) -> dict:
+    try:
+        return {"device_type": node.sdo[0x1000].raw,
+                "vendor_id": node.sdo[0x1018][1].raw, "product_code": node.sdo[0x1018][2].raw,
+                "revision": node.sdo[0x1018][3].raw, "serial": node.sdo[0x1018][4].raw}
+    except (canopen.SdoCommunicationError, canopen.SdoAbortedError) as exc:
+        raise BusError(f"axis {axis} (node {node.id}): reading its identity (0x1000, 0x1018) failed ({exc})") from exc
+
+
+#: identity fields of 0x1018 and the [DeviceInfo] entries of an EDS/DCF that name them
+IDENTITY_FIELDS = (("vendor_id", "vendor_number", "vendor"), ("product_code", "product_number", "product"),
+                   ("revision", "revision_number", "revision"))
+
+
+def identity_mismatch(ident: dict, od: canopen.ObjectDictionary) -> str | None:
+    """How a node's identity differs from what its EDS/DCF names (fields the file leaves out are
+    not compared); None when it matches."""
+    info = od.device_information
+    wrong = [(label, ident[key], getattr(info, attr)) for key, attr, label in IDENTITY_FIELDS
+             if getattr(info, attr, None) is not None and ident[key] != getattr(info, attr)]
+    if not wrong:
+        return None
+    node = ", ".join(f"{label} 0x{have:08X}" for label, have, _ in wrong)
+    eds = ", ".join(f"{label} 0x{want:08X}" for label, _, want in wrong)
+    return f"the node is {node}; its EDS/DCF names {eds}"
 
 
 def scan(link: Link, config: BusConfig) -> ScanResult:
@@ -73,18 +99,21 @@ def scan(link: Link, config: BusConfig) -> ScanResult:
     link.clock.sleep(0.2)
     answered = set(net.scanner.nodes)
     by_id = {n.node_id: n for n in config.nodes.values()}
-    found, missing, wrong = {}, [], []
+    found, missing, wrong, mismatch, accepted = {}, [], [], {}, {}
     for axis, ncfg in config.nodes.items():
         if ncfg.node_id not in answered:
             missing.append(axis)
             continue
         node = net.add_node(ncfg.node_id, ncfg.od) if ncfg.node_id not in net else net[ncfg.node_id]
         node.sdo.RESPONSE_TIMEOUT = config.master.sdo_timeout_s
-        found[ncfg.node_id] = _identity(node)
+        found[ncfg.node_id] = _identity(node, axis)
         if found[ncfg.node_id]["device_type"] & 0xFFFF != CIA402_PROFILE:
             wrong.append(axis)
+        differs = identity_mismatch(found[ncfg.node_id], ncfg.od)
+        if differs:
+            (accepted if ncfg.node_id in config.accept_identity else mismatch)[axis] = f"{differs} ({ncfg.dcf})"
     unexpected = sorted(i for i in answered if i not in by_id)
-    return ScanResult(found, missing, unexpected, wrong)
+    return ScanResult(found, missing, unexpected, wrong, mismatch, accepted)
 
 
 def _configure_pdos(node: canopen.RemoteNode, maps, configured: tuple[PdoConfig, ...], base: int) -> list[PdoCodec]:
@@ -107,11 +136,18 @@ def _configure_pdos(node: canopen.RemoteNode, maps, configured: tuple[PdoConfig,
 
 
 def check_scan(result: ScanResult, config: BusConfig) -> None:
-    """Raise BusError naming the axis when a configured node is missing or is no CiA 402 drive."""
+    """Raise BusError naming the axis when a configured node is missing, is not the drive its
+    EDS/DCF describes (identity 0x1018, unless accepted), or is no CiA 402 drive."""
     if result.missing:
         ids = ", ".join(f"{a} (node {config.nodes[a].node_id})" for a in result.missing)
         raise BusError(f"no answer from {ids} on {config.master.interface}:{config.master.channel}; "
                        f"check power, wiring, bitrate and node_id in {config.path}")
+    if result.identity_mismatch:
+        ax, why = next(iter(result.identity_mismatch.items()))
+        node_id = config.nodes[ax].node_id
+        raise BusError(f"axis {ax} (node {node_id}) is not the drive its EDS/DCF describes: {why}; nothing was "
+                       f"written. Connect that drive, name this drive's own EDS/DCF in {config.path}, or give "
+                       f"--accept-identity {node_id} to go on deliberately")
     if result.wrong_type:
         ax = result.wrong_type[0]
         dt = result.found[config.nodes[ax].node_id]["device_type"]

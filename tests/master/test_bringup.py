@@ -1,6 +1,8 @@
 """Scan and bring-up against the simulated robot."""
 from __future__ import annotations
 
+import pytest
+
 from drive_bridge.cli import main
 
 from ..support import bus_yml_beside
@@ -18,3 +20,41 @@ def test_scan_reports_missing_and_unexpected_nodes(tmp_path, capsys):
     assert main(["scan", "--sim", "--config", str(cfg)]) == 3
     out = capsys.readouterr().out
     assert "axis z    MISSING" in out and "node   3  not configured" in out
+
+
+def _nanotec_y(tmp_path):
+    """The shipped bus.yml with Y's drive described by the Nanotec C5-E's EDS (read in place)."""
+    import yaml
+    from drive_bridge.params.profile import vendor_dir
+    eds = vendor_dir() / "nanotec_C5-E-2-09.eds"
+    if not eds.exists():
+        pytest.skip("../shared/eds-vendor not present")
+    cfg = bus_yml_beside(tmp_path)
+    doc = yaml.safe_load(cfg.read_text())
+    doc["nodes"]["y"]["dcf"] = str(eds)
+    cfg.write_text(yaml.safe_dump(doc))
+    return cfg
+
+
+def test_a_node_that_is_not_the_drive_its_eds_describes_stops_before_any_write(tmp_path, capsys):
+    from drive_bridge.config import load_bus_config
+    from drive_bridge.errors import BusError
+    from drive_bridge.master.bringup import bring_up
+    from ..support import Bench, clean_config
+    cfg = _nanotec_y(tmp_path)
+    assert main(["scan", "--sim", "--config", str(cfg)]) == 3
+    err = capsys.readouterr().err
+    assert "axis y (node 2) is not the drive its EDS/DCF describes" in err
+    assert "vendor 0x00000DB1" in err and "vendor 0x0000026C" in err and "--accept-identity 2" in err
+    bench = Bench(clean_config())
+    writes = []
+    bench.robot.drives["y"].sdo_fault = lambda op, index, sub: writes.append((index, sub)) if op == "write" else None
+    with pytest.raises(BusError, match="is not the drive"):
+        bring_up(bench.link, load_bus_config(cfg))
+    assert writes == []                                       # nothing was written to any drive
+
+
+def test_accept_identity_is_the_deliberate_override_and_is_recorded(tmp_path, capsys):
+    cfg = _nanotec_y(tmp_path)
+    assert main(["scan", "--sim", "--config", str(cfg), "--accept-identity", "2"]) == 0
+    assert "identity ACCEPTED although it differs" in capsys.readouterr().out
