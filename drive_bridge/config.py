@@ -21,8 +21,9 @@ from .yamlconf import Section, finite_number, load_yaml
 
 #: objects the master must find in the PDO mapping: what it streams and what it logs
 REQUIRED_RPDO = {0x6040: "controlword", 0x607A: "target position"}
-REQUIRED_TPDO = {0x6064: "position actual", 0x606C: "velocity actual",
-                 0x6077: "torque actual", 0x6041: "statusword"}
+REQUIRED_TPDO = {0x6064: "position actual", 0x606C: "velocity actual", 0x6041: "statusword"}
+#: the torque feedback the master logs, by scaling.torque_feedback
+TORQUE_OBJECTS = {"torque": (0x6077, "torque actual"), "current": (0x6078, "current actual")}
 #: objects the master can fill in an RPDO / log from a TPDO
 RPDO_OBJECTS = {0x6040, 0x607A, 0x60B1, 0x60B2}
 TPDO_OBJECTS = {0x6064, 0x606C, 0x6077, 0x6041, 0x60F4, 0x6078}
@@ -163,9 +164,17 @@ def _node(path: Path, axis: str, data: dict) -> NodeConfig:
     od = load_od(dcf, node_id)
     sc = sec.section("scaling")
     feed = sc.get("feed_m_per_rev", float, None, low=1e-6, high=100.0)
+    feedback = sc.get("torque_feedback", str, "torque", choices=list(TORQUE_OBJECTS))
+    per_unit = kt = None
+    if feedback == "current":                 # torque = current actual (0x6078) × torque constant
+        unit_ = sc.get("current_unit", str, "permille", choices=["permille", "mA"])
+        per_unit = (sc.get("rated_current_A", float, low=1e-6, high=1e5) / 1000.0 if unit_ == "permille"
+                    else 1e-3)
+        kt = sc.get("torque_constant_Nm_per_A", float, low=1e-6, high=1e3)
     scaling = Scaling(increments_per_rev=sc.get("increments_per_rev", int, low=1, high=2**31 - 1),
                       rated_torque_Nm=sc.get("rated_torque_Nm", float, low=1e-6, high=1e6),
-                      feed_m_per_rev=feed)
+                      feed_m_per_rev=feed, torque_feedback=feedback, current_per_unit_A=per_unit,
+                      torque_constant_Nm_per_A=kt)
     sc.done()
     unit = "m" if feed else "rad"
     lim = sec.section("limits")
@@ -200,7 +209,7 @@ def _node(path: Path, axis: str, data: dict) -> NodeConfig:
         heartbeat_producer_ms=sec.get("heartbeat_producer", int, 100, low=1, high=65535),
         following_error_window_rad=sec.get("following_error_window_rad", float, 0.6, low=1e-6, high=1e6),
         rpdo=_pdos(sec, "rpdo", od, RPDO_OBJECTS, REQUIRED_RPDO),
-        tpdo=_pdos(sec, "tpdo", od, TPDO_OBJECTS, REQUIRED_TPDO),
+        tpdo=_pdos(sec, "tpdo", od, TPDO_OBJECTS, {**REQUIRED_TPDO, **dict([TORQUE_OBJECTS[feedback]])}),
         sdo=tuple(sdo))
     sec.done()
     return cfg

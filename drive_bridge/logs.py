@@ -55,6 +55,8 @@ def to_table(rec: Recording, scaling: dict[str, Scaling], period: float) -> tupl
         indices = [i for a, i in rec.columns if a == axis]
         for index in sorted(indices, key=list(_COLUMNS).index):
             suffix, conv, fmt = _COLUMNS[index]
+            if index == 0x6078 and sc.torque_feedback == "current":     # the axis's torque, from its current
+                suffix, conv, fmt = "torque_Nm", "torque_from_current", "%.6g"
             raw = rec.raw[:, rec.column(axis, index)]
             values = getattr(sc, conv)(raw) if conv else raw.astype(float)
             names.append(f"{axis}_{suffix}")
@@ -92,6 +94,9 @@ def layout_meta(axes) -> dict:
         out[name] = {"node_id": ax.cfg.node_id, "identity": ax.identity,
                      "scaling": {"increments_per_rev": sc.increments_per_rev,
                                  "rated_torque_Nm": sc.rated_torque_Nm,
+                                 "torque_feedback": sc.torque_feedback,
+                                 "current_per_unit_A": sc.current_per_unit_A,
+                                 "torque_constant_Nm_per_A": sc.torque_constant_Nm_per_A,
                                  "feed_m_per_rev": sc.feed_m_per_rev},
                      "rpdo": _codec_meta(ax.rpdos), "tpdo": _codec_meta(ax.tpdos)}
     return out

@@ -4,7 +4,9 @@ Inside drive-bridge every quantity is SI on the motor side: rad, rad/s,
 rad/s², Nm.  Linear axes are described in m, m/s, m/s² (load side) and turned
 into motor radians through the feed constant.  Device units exist only at the
 bus: positions in encoder increments, velocities in increments/s, torque in
-per mille of the rated torque (0x6076).
+per mille of the rated torque (0x6076) -- or, for a drive without a torque
+actual value, the current actual value (0x6078: per mille of the rated current
+0x6075, or mA) times the motor's torque constant.
 """
 from __future__ import annotations
 
@@ -27,6 +29,9 @@ class Scaling:
     increments_per_rev: int
     rated_torque_Nm: float
     feed_m_per_rev: float | None = None
+    torque_feedback: str = "torque"             # "torque": 0x6077; "current": 0x6078 × torque constant
+    current_per_unit_A: float | None = None     # A per unit of 0x6078 (rated current / 1000, or 0.001 for mA)
+    torque_constant_Nm_per_A: float | None = None
 
     @property
     def inc_per_rad(self) -> float:
@@ -59,3 +64,12 @@ class Scaling:
 
     def torque_from_device(self, per_mille):
         return np.asarray(per_mille, dtype=float) * (self.rated_torque_Nm / 1000.0)
+
+    def torque_from_current(self, current_units):
+        """0x6078 (per mille of rated current, or mA) -> Nm through the torque constant."""
+        return np.asarray(current_units, dtype=float) * (self.current_per_unit_A * self.torque_constant_Nm_per_A)
+
+    @property
+    def torque_object(self) -> int:
+        """The object the axis's torque is measured by: 0x6077, or 0x6078 for current feedback."""
+        return 0x6078 if self.torque_feedback == "current" else 0x6077

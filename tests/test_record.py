@@ -139,3 +139,31 @@ def test_a_run_past_its_timing_limits_is_degraded_with_exit_5(tmp_path, capsys):
     assert meta["status"] == "ok" and timing["degraded"] and any("largest SYNC gap" in r for r in timing["reasons"])
     assert "WARNING: timing degraded" in capsys.readouterr().err
     assert (out / "log.csv").exists()
+
+
+def test_torque_from_the_current_actual_value_for_drives_without_0x6077(tmp_path):
+    """A drive that reports no torque (like maxon's EPOS2): 0x6078 (per mille of the rated current)
+    times the torque constant gives the same torque_Nm column as 0x6077 on the same run."""
+    from dataclasses import replace as dc_replace
+
+    from drive_bridge.config import load_bus_config
+    cfg = bus_yml_beside(tmp_path)
+    doc = yaml.safe_load(cfg.read_text())
+    doc["nodes"]["y"]["scaling"].update({"torque_feedback": "current", "current_unit": "permille",
+                                         "rated_current_A": 1.27 / 0.2, "torque_constant_Nm_per_A": 0.2})
+    doc["nodes"]["y"]["tpdo"] = {1: {"transmission": 1, "mapping": [{"index": 0x6064}, {"index": 0x6078},
+                                                                     {"index": 0x6041}]},
+                                 2: {"transmission": 1, "mapping": [{"index": 0x606C}]}}
+    cfg.write_text(yaml.safe_dump(doc))
+    logs = {}
+    for name, config in (("torque", quick_config()), ("current", load_bus_config(cfg))):
+        config = dc_replace(config, campaign=quick_config().campaign).only(["y"])
+        bench, result = run_record(tmp_path / name, clean_config(), config)
+        assert result.ok
+        bench.close()
+        logs[name] = read_csv(tmp_path / name / "log.csv")
+    (n_t, d_t), (n_c, d_c) = logs["torque"], logs["current"]
+    torque, current = d_t[:, n_t.index("y_torque_Nm")], d_c[:, n_c.index("y_torque_Nm")]
+    assert np.nanmax(np.abs(torque)) > 0.2 and np.allclose(torque, current, atol=1.3e-3, equal_nan=True)
+    assert main(["decode", str(tmp_path / "current" / "trace.blf")]) == 0
+    assert (tmp_path / "current" / "decoded.csv").read_bytes() == (tmp_path / "current" / "log.csv").read_bytes()
