@@ -2,8 +2,8 @@
 
 The SDO server and the object storage are canopen's ``LocalNode``; this module
 adds what a real drive does with those objects: NMT, heartbeat, EMCY, PDOs as
-the master maps them (TPDOs sent on SYNC, synchronous RPDOs applied on SYNC),
-the CiA 402 state machine (:mod:`.cia402`), the operating modes CSP (8), PV (3)
+the master maps them (:mod:`.pdo_map`; TPDOs sent on SYNC, synchronous RPDOs
+applied on SYNC), the CiA 402 state machine (:mod:`.cia402`), the operating modes CSP (8), PV (3)
 and PP (1), and the safety functions (following-error window, software
 position limits, loss of setpoint).  The loops and the plant live in
 :mod:`.kernel`; this module converts between device units and SI at its edge.
@@ -21,7 +21,6 @@ from typing import Callable, Protocol
 
 import canopen
 import numpy as np
-from canopen.objectdictionary import ODVariable
 from canopen.sdo import SdoAbortedError
 
 from ..pdo import PdoCodec
@@ -30,6 +29,7 @@ from .adapters import local_node
 from .cia402 import (ENABLED, FAULT, FAULT_REACTION, QUICK_STOP, STATUSWORD, SWITCH_ON_DISABLED,
                      VOLTAGE_ENABLED, next_state)
 from .config import SimAxis
+from .pdo_map import ABORT_RANGE, PdoMapping
 
 # NMT states as sent in the heartbeat
 NMT_STOPPED, NMT_OPERATIONAL, NMT_PREOP = 0x04, 0x05, 0x7F
@@ -37,18 +37,13 @@ NMT_STOPPED, NMT_OPERATIONAL, NMT_PREOP = 0x04, 0x05, 0x7F
 CSP, PV, PP = 8, 3, 1
 SAVE_SIGNATURE = 0x65766173      # 'save'
 LOAD_SIGNATURE = 0x64616F6C      # 'load'
-PDO_INVALID = 0x8000_0000
 
 # EMCY error codes (CiA 301 / 402)
 ERR_FOLLOWING = 0x8611
 ERR_RPDO_TIMEOUT = 0x8250
 SETPOINT_TIMEOUT_PERIODS = 10     # CSP: no setpoint for this many interpolation periods -> fault
 
-ABORT_RANGE = 0x06090030
 ABORT_TOO_LOW = 0x06090032
-ABORT_STATE = 0x08000022
-ABORT_NOT_MAPPABLE = 0x06040041
-ABORT_PDO_LENGTH = 0x06040042
 
 
 #: 0x2000 sub-index -> kernel parameter of each gain; 0x2001 sub-index -> model feed-forward parameter
@@ -109,6 +104,7 @@ class SimDrive:
         self.od = self.node.object_dictionary
         self._cache: dict[tuple[int, int], object] = {}
         self._live = self._live_objects()
+        self.pdos = PdoMapping(self.od, self._od, self._getter)
         self.inc_per_rad = self._od(0x608F, 1) / self._od(0x608F, 2) / (2 * math.pi)
         self.s, self.p, self.d = rows      # kernel rows of this axis (views)
         self.online = True                 # False: the drive has dropped off the bus
@@ -249,7 +245,7 @@ class SimDrive:
     def _write(self, index: int, sub: int, value) -> None:
         """Apply a value written by SDO or RPDO; raise SdoAbortedError to refuse it."""
         if 0x1400 <= index <= 0x1BFF:
-            self._check_pdo_write(index, sub, value)
+            self.pdos.check_write(index, sub, value)
             self._store(index, sub, value)
             self._rebuild_pdos()
             return
@@ -297,57 +293,14 @@ class SimDrive:
             return
 
     # ------------------------------------------------------------------ PDOs
-    def _check_pdo_write(self, index: int, sub: int, value: int) -> None:
-        is_map = (index & 0xFF00) in (0x1600, 0x1A00)
-        comm = (index & ~0x0200) if is_map else index      # 0x16xx -> 0x14xx, 0x1Axx -> 0x18xx
-        cob = self._od(comm, 1)
-        if not is_map:
-            if sub == 1 and not cob & PDO_INVALID and not value & PDO_INVALID and \
-                    (value & 0x7FF) != (cob & 0x7FF):
-                raise SdoAbortedError(ABORT_RANGE)    # change the COB-ID only while invalid
-            return
-        if not cob & PDO_INVALID:
-            raise SdoAbortedError(ABORT_STATE)        # map only while the PDO is invalid
-        if sub == 0:
-            bits = 0
-            for n in range(1, value + 1):
-                entry = self._od(index, n)
-                target = self._mappable(entry >> 16, (entry >> 8) & 0xFF, tpdo=index >= 0x1A00)
-                if target is None:
-                    raise SdoAbortedError(ABORT_NOT_MAPPABLE)
-                bits += entry & 0xFF
-            if value > 8 or bits > 64:
-                raise SdoAbortedError(ABORT_PDO_LENGTH)
-        else:
-            if self._od(index, 0) != 0:
-                raise SdoAbortedError(ABORT_STATE)    # sub 0 must be 0 while entries change
-            if value and self._mappable(value >> 16, (value >> 8) & 0xFF, tpdo=index >= 0x1A00) is None:
-                raise SdoAbortedError(ABORT_NOT_MAPPABLE)
-
-    def _mappable(self, index: int, sub: int, tpdo: bool) -> ODVariable | None:
-        var = self.od.get_variable(index, sub)
-        if var is None or not var.pdo_mappable or (tpdo and not var.readable) or (not tpdo and not var.writable):
-            return None
-        return var
-
     def _rebuild_pdos(self) -> None:
         """Compile the codecs of every valid PDO and tell the robot the RPDO routes."""
-        self.rpdos: dict[int, tuple[PdoCodec, int]] = {}
-        self.tpdos: list[tuple[PdoCodec, int, list[Callable]]] = []
-        for n in range(4):
-            for comm, mapping, table in ((0x1400 + n, 0x1600 + n, "r"), (0x1800 + n, 0x1A00 + n, "t")):
-                cob = self._od(comm, 1)
-                if cob & PDO_INVALID:
-                    continue
-                entries = [(e >> 16, (e >> 8) & 0xFF) for e in (self._od(mapping, k)
-                                                                 for k in range(1, self._od(mapping, 0) + 1))]
-                codec = PdoCodec.of(cob & 0x7FF, self.od, entries)
-                ttype = self._od(comm, 2)
-                if table == "r":
-                    self.rpdos[codec.cob_id] = (codec, ttype)
-                else:
-                    self.tpdos.append((codec, ttype, [self._getter(i, s) for i, s in codec.entries]))
+        self.pdos.rebuild()
         self.host.routes_changed()
+
+    @property
+    def rpdos(self) -> dict[int, tuple[PdoCodec, int]]:
+        return self.pdos.rpdos
 
     def _getter(self, index: int, sub: int) -> Callable:
         live = self._live.get(index)
@@ -376,7 +329,7 @@ class SimDrive:
 
     def send_tpdos(self) -> None:
         self._sync_count += 1
-        for codec, ttype, getters in self.tpdos:
+        for codec, ttype, getters in self.pdos.tpdos:
             if 1 <= ttype <= 240 and self._sync_count % ttype == 0:
                 self._send(codec.cob_id, codec.struct.pack(*[g() for g in getters]))
 
