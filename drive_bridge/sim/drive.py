@@ -162,7 +162,10 @@ class SimDrive:
         self.last_setpoint_time = 0.0
         self.v_dem = 0.0                 # demand velocity of the current period [rad/s]
         self.pending_rpdo: list[tuple[PdoCodec, bytes]] = []
-        self.pp_target: float | None = None
+        self.pp_target: float | None = None    # PP: the demand is still travelling to it
+        self.pp_goal: float | None = None      # PP: the target of the last set-point accepted
+        self.setpoint_ack = False
+        self._in_window_since: float | None = None
         s[K.ENABLED] = 0.0
         self._sync_count = 0
         self._hb_next = 0.0
@@ -343,8 +346,8 @@ class SimDrive:
             sw |= 0x0400
         if self.internal_limit:
             sw |= 0x0800
-        if self.state == ENABLED and self.mode == CSP:
-            sw |= 0x1000                   # drive follows the command value
+        if self.state == ENABLED and (self.mode == CSP or (self.mode == PP and self.setpoint_ack)):
+            sw |= 0x1000                   # CSP: follows the command value; PP: set-point acknowledged
         if self.s[K.FE_COUNT] > 0:
             sw |= 0x2000
         return sw
@@ -361,10 +364,15 @@ class SimDrive:
                 self._emcy(0x0000)
             return
         self._go(next_state(self.state, cw, previous, self._od(0x605A)))
+        if not cw & 0x10:
+            self.setpoint_ack = False                       # the handshake: bit 12 follows bit 4 down
         if self.state == ENABLED and self.mode == PP and new_setpoint:
             target = self._od(0x607A) / self.inc_per_rad
             self.pp_target = target if not cw & 0x40 else self.d[K.P1] + target
+            self.pp_goal = self.pp_target
+            self.setpoint_ack = True                        # statusword bit 12: set-point acknowledged
             self.target_reached = False
+            self._in_window_since = None
 
     def _go(self, state: int) -> None:
         if state == self.state:
@@ -384,7 +392,7 @@ class SimDrive:
         self.d[K.A_FF] = 0.0
         self.v_dem = 0.0
         self.new_target = False
-        self.pp_target = None
+        self.pp_target = self.pp_goal = None
 
     def fault(self, code: int) -> None:
         if self.state == FAULT:
@@ -448,8 +456,7 @@ class SimDrive:
             if abs(dist) <= abs(self.v_dem) * T or abs(dist) < 1.0 / self.inc_per_rad:
                 d[K.P1] = self.pp_target
                 self.v_dem = 0.0
-                self.pp_target = None
-                self.target_reached = True
+                self.pp_target = None         # the demand is there; the axis is when it settles
         else:
             self.v_dem = 0.0
         d[K.A_FF] = (self.v_dem - v_old) / T
@@ -473,9 +480,19 @@ class SimDrive:
         return position
 
     def check_faults(self) -> None:
-        """After the plant advanced: following error and loss of setpoint."""
+        """After the plant advanced: following error, loss of setpoint, and (profile position)
+        target reached once the axis has stood inside the position window (0x6067) for the
+        position window time (0x6068)."""
         if self.state not in (ENABLED, QUICK_STOP):
             return
+        if self.state == ENABLED and self.mode == PP and self.pp_target is None and self.pp_goal is not None:
+            inside = abs(self.s[K.ENC] - self.pp_goal) * self.inc_per_rad <= self._od(0x6067)
+            if not inside:
+                self._in_window_since = None
+            elif self._in_window_since is None:
+                self._in_window_since = self.host.time
+            self.target_reached = inside and \
+                self.host.time - self._in_window_since >= self._od(0x6068) / 1000.0 - 1e-9
         timeout_ticks = max(1, round(self._od(0x6066) / 1000.0 / K.VELOCITY_TICK_S))
         if self.s[K.FE_COUNT] >= timeout_ticks:
             self.fault(ERR_FOLLOWING)

@@ -22,7 +22,7 @@ import numpy as np
 from ..resources import PROJECT_EDS
 from . import kernel as K
 from .config import SimConfig
-from .drive import SimDrive
+from .drive import NMT_STOPPED, SimDrive
 from .adapters import FastVirtualBus
 
 NOISE_BLOCK = 4096
@@ -86,7 +86,7 @@ class SimRobot:
     @staticmethod
     def _sdo_handler(drive: SimDrive):
         def handle(data: bytes) -> None:
-            if drive.online:
+            if drive.online and drive.nmt_state != NMT_STOPPED:        # CiA 301: no SDO in Stopped
                 drive.node.sdo.on_request(0x600 + drive.node_id, data, 0.0)
         return handle
 

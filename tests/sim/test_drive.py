@@ -303,3 +303,41 @@ def test_each_hidden_effect_shows_in_the_torque(bench, effect):
         assert d_fwd == pytest.approx(1.0, abs=0.05) and d_back == pytest.approx(-1.0, abs=0.05)
     elif effect == "drift":                                 # warm-up: friction 1.5 x at t = 0
         assert d_fwd == pytest.approx(0.5 * 0.2198, rel=0.1) and d_back < -0.08
+
+
+def test_profile_position_acknowledges_the_set_point_and_reaches_the_target_in_its_window(bench):
+    """CiA 402 profile position: statusword bit 12 follows the set-point handshake (controlword bit 4),
+    bit 10 only once the axis stands inside the position window 0x6067 for 0x6068 ms."""
+    b = bench()
+    node = b.nodes["y"]
+    node.sdo[0x6060].raw = 1
+    node.sdo[0x6067].raw = 50                                           # a tight window: 50 increments
+    for cw in (0x06, 0x07, 0x0F):
+        node.sdo[0x6040].raw = cw
+    start = node.sdo[0x6064].raw
+    node.sdo[0x607A].raw = start + 2**20                               # one revolution
+    node.sdo[0x6040].raw = 0x1F                                          # new set-point
+    sw = node.sdo[0x6041].raw
+    assert sw & 0x1000 and not sw & 0x0400
+    node.sdo[0x6040].raw = 0x0F
+    assert not node.sdo[0x6041].raw & 0x1000
+    for _ in range(300):
+        b.link.clock.sleep(0.01)
+        sw = node.sdo[0x6041].raw
+        if sw & 0x0400:
+            break
+    assert sw & 0x0400
+    assert abs(node.sdo[0x6064].raw - (start + 2**20)) <= node.sdo[0x6067].raw
+
+
+def test_no_sdo_in_nmt_stopped(bench):
+    b = bench()
+    node = b.nodes["y"]
+    node.sdo.RESPONSE_TIMEOUT = 0.05
+    node.nmt.send_command(0x02)                                         # stopped
+    b.link.clock.sleep(0.01)
+    with pytest.raises(canopen.SdoCommunicationError):
+        node.sdo[0x6041].raw
+    node.nmt.send_command(0x80)                                         # pre-operational: SDO again
+    b.link.clock.sleep(0.01)
+    assert node.sdo[0x6041].raw & 0x40
