@@ -25,7 +25,8 @@ class Options:
     """How to reach the drives and what to run with: ``sim`` (``realtime``, ``sim_config``) for
     the simulated robot, the drive ``profile``, ``motor`` (R [Ω], L [H]) for drives that do not
     report it, the ``seed`` of the evolutionary fits, and the margin floor a written gain set must
-    keep (``pm_floor`` [°], ``gm_floor`` [dB]) unless ``force``."""
+    keep (``pm_floor`` [°], ``gm_floor`` [dB]) unless ``force``; ``allow_unverified_scales`` writes
+    through drive-profile scales without a documented source."""
 
     sim: bool = False
     realtime: bool = False
@@ -36,6 +37,7 @@ class Options:
     force: bool = False
     pm_floor: float = PM_FLOOR_DEG
     gm_floor: float = GM_FLOOR_DB
+    allow_unverified_scales: bool = False
 
 
 class Session:

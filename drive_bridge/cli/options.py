@@ -50,6 +50,8 @@ def write_checks(p: argparse.ArgumentParser) -> None:
     p.add_argument("--force", action="store_true",
                    help="write a gain set below the margin floor (recorded in the output); never values "
                         "outside the drive's ranges")
+    p.add_argument("--allow-unverified-scales", action="store_true",
+                   help="write through drive-profile scales that have no documented source (marked in the output)")
 
 
 def _seed(text: str) -> int:
@@ -96,4 +98,5 @@ def session_options(args) -> Options:
     given = (getattr(args, "motor_R", None), getattr(args, "motor_L", None))
     return Options(args.sim, args.realtime, args.sim_config, getattr(args, "profile", "drive_bridge_servo"),
                    given if all(given) else None, getattr(args, "seed", 0), getattr(args, "force", False),
-                   getattr(args, "min_phase_margin", Options.pm_floor), getattr(args, "min_gain_margin", Options.gm_floor))
+                   getattr(args, "min_phase_margin", Options.pm_floor), getattr(args, "min_gain_margin", Options.gm_floor),
+                   getattr(args, "allow_unverified_scales", False))

@@ -125,7 +125,8 @@ def cmd_write(args) -> int:
         nodes = session.nodes
         outcome = write_drives(nodes, session.profile, {a: tuned.parameters[a] for a in nodes},
                                backup_dir=args.backup_dir, dcf_dir=args.dcf_dir, dry_run=args.dry_run,
-                               inductance=tuned.inductance, force=o.force, pm_floor=o.pm_floor, gm_floor=o.gm_floor)
+                               inductance=tuned.inductance, force=o.force, pm_floor=o.pm_floor, gm_floor=o.gm_floor,
+                               allow_unverified_scales=o.allow_unverified_scales)
     if args.json:
         print(json.dumps(outcome.as_dict(), default=float))
     else:
@@ -137,10 +138,14 @@ def cmd_write(args) -> int:
 def _print_write(outcome, backup_dir) -> None:
     for reason in outcome.forced:
         print(f"FORCED: {reason}")
+    if outcome.unverified_scales:
+        print(f"UNVERIFIED SCALES (no documented source in the drive profile): {', '.join(outcome.unverified_scales)}")
     for a, r in outcome.results.items():
         print(f"axis {a} (node {r.node_id}, {r.drive}){' — dry run, nothing written' if r.dry_run else ''}:")
         for w in r.objects:
             state = "verified" if w.verified else ("" if r.dry_run else "NOT verified")
+            if w.parameter in outcome_unverified(outcome):
+                state += " UNVERIFIED SCALE"
             print(f"  {w.parameter:<9} 0x{w.index:04X}:{w.sub:<2} {_num(w.old_si):>11} -> {_num(w.new_si):<11} "
                   f"{w.unit:<18} (device {w.old_device} -> {w.new_device}) {state}")
         for name in r.unsupported:
@@ -154,6 +159,11 @@ def _print_write(outcome, backup_dir) -> None:
                   + (f"; backup of the old values: {r.backup}" if r.backup else ""))
     if backup_dir is not None and not all(r.dry_run for r in outcome.results.values()):
         print(f"backups of the values before: {backup_dir}/")
+
+def outcome_unverified(outcome) -> set[str]:
+    """The parameters whose scale has no documented source."""
+    return {u.split(" ", 1)[0] for u in outcome.unverified_scales}
+
 
 def _num(v) -> str:
     return "?" if v is None else f"{v:.6g}"

@@ -119,7 +119,8 @@ def write(ctx: Context) -> str:
     nodes = {a: ctx.session.nodes[a] for a in tuned.parameters}
     out, o = ctx.out / OUTPUT["write"], ctx.options
     outcome = write_drives(nodes, ctx.session.profile, tuned.parameters, backup_dir=out, dcf_dir=out,
-                           inductance=tuned.inductance, force=o.force, pm_floor=o.pm_floor, gm_floor=o.gm_floor)
+                           inductance=tuned.inductance, force=o.force, pm_floor=o.pm_floor, gm_floor=o.gm_floor,
+                           allow_unverified_scales=o.allow_unverified_scales)
     write_json(ctx.out / WRITE_JSON, outcome.as_dict())
     raise_for_failure(outcome, out)
     results = outcome.results

@@ -7,7 +7,10 @@ from the working directory), the store object, and per abstract parameter (J, c0
 cp, dc0, dc1, periodic_amplitude/period/phase, ff_enable, KpP, FwF, KpS, KiS, KpC, KiC) its index, sub-index,
 data type and scaling: device value = scale × SI value, or 1 / SI value for
 ``reciprocal`` (a reset time written for an integral rate), and optionally the
-drive's range in SI (``min``, ``max``).  A parameter a
+drive's range in SI (``min``, ``max``), and the ``source`` of its scale and unit (a document
+and section; ``source`` at the top covers every entry).  A scale without a source is
+unverified: shown as such in every write output, and written to a drive only with
+``--allow-unverified-scales``.  A parameter a
 drive has no object for is simply absent: the writer reports it as not
 supported.
 """
@@ -54,6 +57,12 @@ class Entry:
     unit: str
     min: float | None = None          # the drive's range [SI], where the profile states it
     max: float | None = None
+    source: str | None = None         # the document (and section) the scale and unit come from
+
+    @property
+    def verified(self) -> bool:
+        """The scale has a documented source; without one it is this project's reading only."""
+        return self.source is not None
 
     @property
     def is_integer(self) -> bool:
@@ -78,6 +87,7 @@ class Profile:
     eds: Path
     entries: dict[str, Entry]
     save: tuple[int, int] | None
+    motor: dict[str, tuple[int, int]] | None = None    # R [Ω], L [H]: (index, sub) where the drive reports them
 
     def object_dictionary(self, node_id: int) -> canopen.ObjectDictionary:
         return load_od(self.eds, node_id)
@@ -97,6 +107,7 @@ def load_profile(name_or_path: str | Path) -> Profile:
             raise ConfigError(name_or_path, "", f"no such drive profile (shipped: {', '.join(available())})")
     top = Section(path, "", load_yaml(path))
     drive = top.get("drive", str)
+    source = top.get("source", str, None)          # for every entry that does not name its own
     eds_ref = top.get("eds", str)
     kind, _, rel = eds_ref.partition("/")
     if kind == "package":
@@ -114,6 +125,15 @@ def load_profile(name_or_path: str | Path) -> Profile:
     if save_sec.keys():
         save = (save_sec.get("index", int), save_sec.get("sub", int))
     save_sec.done()
+    motor_sec = top.section("motor", required=False)
+    motor = None
+    if motor_sec.keys():
+        motor = {}
+        for key in ("R", "L"):
+            ms = motor_sec.section(key)
+            motor[key] = (ms.get("index", int, low=0, high=0xFFFF), ms.get("sub", int, 0, low=0, high=255))
+            ms.done()
+    motor_sec.done()
     params = top.section("parameters")
     entries = {}
     od = load_od(eds, 1)
@@ -123,7 +143,7 @@ def load_profile(name_or_path: str | Path) -> Profile:
         sec = params.section(name)
         entry = Entry(name, sec.get("index", int), sec.get("sub", int, 0), sec.get("type", str),
                       sec.get("scale", float, 1.0), sec.get("reciprocal", bool, False), sec.get("unit", str, ""),
-                      sec.get("min", float, None), sec.get("max", float, None))
+                      sec.get("min", float, None), sec.get("max", float, None), sec.get("source", str, source))
         if entry.min is not None and entry.max is not None and entry.min > entry.max:
             raise params.error(f"{name}.min", f"min {entry.min} is above max {entry.max}")
         sec.done()
@@ -142,4 +162,8 @@ def load_profile(name_or_path: str | Path) -> Profile:
     if save is not None and save[0] not in od:
         raise top.error("save", f"{eds.name} has no object 0x{save[0]:04X}")
     top.done()
-    return Profile(path.stem, path, drive, eds, entries, save)
+    if motor is not None:
+        for key, (index, sub) in motor.items():
+            if od.get_variable(index, sub) is None:
+                raise top.error(f"motor.{key}", f"{eds.name} has no object 0x{index:04X}:{sub}")
+    return Profile(path.stem, path, drive, eds, entries, save, motor)

@@ -43,13 +43,20 @@ def read_parameters(node: canopen.RemoteNode, profile: Profile, names=None) -> d
     return out
 
 
-def motor_data(node: canopen.RemoteNode, R: float | None = None, L: float | None = None) -> tuple[float, float]:
-    """Motor R [Ω] and L [H]: from the drive's motor data 0x2002 where it has it, else ``R``, ``L``."""
-    if 0x2002 in node.object_dictionary:
-        return float(node.sdo[0x2002][1].raw), float(node.sdo[0x2002][2].raw)
+def motor_data(node: canopen.RemoteNode, profile: Profile, R: float | None = None,
+               L: float | None = None) -> tuple[float, float]:
+    """Motor R [Ω] and L [H]: ``R``, ``L`` where given, else from the objects the drive profile
+    names for them (``motor`` in the profile)."""
     if R and L:
         return R, L
-    raise UserError(f"node {node.id}: the drive does not report its motor R and L; give --motor-R and --motor-L")
+    if profile.motor is not None:
+        try:
+            return tuple(float(SdoVariable(node.sdo, node.object_dictionary.get_variable(i, s)).raw)
+                         for i, s in (profile.motor["R"], profile.motor["L"]))
+        except SDO_ERRORS as exc:
+            raise BusError(f"node {node.id}: reading its motor data failed: {describe_sdo_error(exc)}") from exc
+    raise UserError(f"node {node.id}: the {profile.drive} profile names no motor data objects; give --motor-R "
+                    f"and --motor-L")
 
 
 def require_profile_objects(nodes: dict[str, canopen.RemoteNode], profile: Profile) -> None:
@@ -70,7 +77,7 @@ def drive_state(axes: dict, profile: Profile, motor: tuple[float, float] | None 
     require_profile_objects({a: ax.node for a, ax in axes.items()}, profile)
     out = {}
     for a, ax in axes.items():
-        R, L = motor_data(ax.node, *(motor or (None, None)))
+        R, L = motor_data(ax.node, profile, *(motor or (None, None)))
         out[a] = {"node_id": ax.cfg.node_id, "identity": ax.identity, "motor": {"R": R, "L": L},
                   "parameters_before": read_parameters(ax.node, profile)}
     return out

@@ -319,6 +319,7 @@ class WriteOutcome:
     margins: dict[str, dict]
     forced: list[str]
     axes: list[str]
+    unverified_scales: list[str] = field(default_factory=list)   # "KpS (0x3210:3)" written without a source
 
     @property
     def ok(self) -> bool:
@@ -327,30 +328,39 @@ class WriteOutcome:
     def as_dict(self) -> dict:
         """write.json / ``write --json``."""
         return {"ok": self.ok, "forced": self.forced, "margins": self.margins,
+                "unverified_scales": self.unverified_scales,
                 "axes": {a: r.as_dict() for a, r in self.results.items()}}
 
 
 def write_drives(nodes: dict[str, canopen.RemoteNode], profile: Profile, values: dict[str, dict[str, float]], *,
                  backup_dir: str | Path | None, dcf_dir: str | Path | None = None, dry_run: bool = False,
                  inductance: dict[str, float | None] | None = None, force: bool = False,
-                 pm_floor: float = PM_FLOOR_DEG, gm_floor: float = GM_FLOOR_DB) -> WriteOutcome:
+                 pm_floor: float = PM_FLOOR_DEG, gm_floor: float = GM_FLOOR_DB,
+                 allow_unverified_scales: bool = False) -> WriteOutcome:
     """The write step: every value checked, and each drive's gains checked against the model in
-    its set (J, c1) with its motor ``inductance`` [H] (from the tune result, else the drive's
-    motor data 0x2002) (margins of the values as written, floor
+    its set (J, c1) with its motor ``inductance`` [H] (from the tune result, else the motor
+    data objects the profile names) (margins of the values as written, floor
     ``pm_floor`` / ``gm_floor``; ``force`` writes a set below it and records that); then with
     ``dry_run`` each drive's old and new values, nothing written, else one transaction over
     every drive (:func:`write_all`, backups in ``backup_dir``) and, when every drive verified,
-    each commissioned node exported as a DCF to ``dcf_dir``.  Raises ValueRefused before
-    anything is written."""
+    each commissioned node exported as a DCF to ``dcf_dir``.  A scale without a documented source
+    is written only with ``allow_unverified_scales`` (a dry run shows it).  Raises ValueRefused
+    before anything is written."""
     require_profile_objects(nodes, profile)
     plan_writes(nodes, profile, values, dry_run=True)          # every value first: ValueRefused names them
+    unverified = sorted({f"{k} ({profile.entries[k].where()})" for v in values.values() for k in v
+                         if k in profile.entries and not profile.entries[k].verified})
+    if unverified and not dry_run and not allow_unverified_scales:
+        raise ValueRefused(f"refused before anything was written: the {profile.drive} profile has no documented "
+                           f"source for the scale of {', '.join(unverified)} ({profile.path}); check them against "
+                           f"the drive's manual, or --allow-unverified-scales to write them anyway")
     margins, refused, forced = {}, [], []
     for a, node in nodes.items():
         L = (inductance or {}).get(a)
-        if L is None and 0x2002 in node.object_dictionary:          # the drive reports its motor data
+        if L is None and profile.motor is not None:          # the drive reports its motor data
             try:
-                L = motor_data(node)[1]
-            except SDO_ERRORS:
+                L = motor_data(node, profile)[1]
+            except BusError:
                 L = None
         margins[a], reason = check_margins(profile, values[a], values[a], L, pm_floor=pm_floor, gm_floor=gm_floor)
         if reason:
@@ -359,7 +369,7 @@ def write_drives(nodes: dict[str, canopen.RemoteNode], profile: Profile, values:
         raise ValueRefused("refused before anything was written: " + "; ".join(refused)
                            + " (--force writes it anyway and records that)")
     results = write_all(nodes, profile, values, backup_dir=backup_dir, dry_run=dry_run)
-    outcome = WriteOutcome(results, margins, forced, list(nodes))
+    outcome = WriteOutcome(results, margins, forced, list(nodes), unverified)
     if dcf_dir is not None and not dry_run and outcome.ok:
         for a, r in results.items():
             export_dcf(nodes[a], r, Path(dcf_dir) / f"{a}.dcf")

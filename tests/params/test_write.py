@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import itertools
 import json
+from contextlib import contextmanager
 
 import can
 import canopen
@@ -11,7 +12,8 @@ import pytest
 from drive_bridge.cli import main
 from drive_bridge.params.profile import available, load_profile, vendor_dir
 from drive_bridge.params.read import sdo_variable
-from drive_bridge.params.write import write_parameters
+from drive_bridge.params.check import ValueRefused
+from drive_bridge.params.write import write_drives, write_parameters
 from drive_bridge.tuning.design import design_gains
 
 from ..support import PAPER
@@ -112,11 +114,10 @@ def test_cli_write_dry_run_and_failure_exit_codes(tmp_path, capsys):
     assert "ff_enable" in err and "before anything was written" in err
 
 
-@pytest.mark.skipif(not vendor_dir().exists(), reason="../shared/eds-vendor not present")
-@pytest.mark.parametrize("name", [n for n in available() if n != "drive_bridge_servo"])
-def test_vendor_profile_writes_and_reads_back(name):
-    """A simulated node whose object dictionary is the vendor's own EDS/DCF, read in place."""
-    profile = load_profile(name)
+@contextmanager
+def vendor_node(profile):
+    """A node whose object dictionary is the vendor's own EDS/DCF (read in place), served by a
+    canopen LocalNode on a private virtual bus: (local node, remote node)."""
     channel = f"vendor-{next(_channels)}"
     server, client = canopen.Network(can.Bus(interface="virtual", channel=channel)), \
         canopen.Network(can.Bus(interface="virtual", channel=channel))
@@ -131,6 +132,21 @@ def test_vendor_profile_writes_and_reads_back(name):
         server.add_node(local)
         remote = canopen.RemoteNode(7, profile.object_dictionary(7))
         client.add_node(remote)
+        yield local, remote
+    finally:
+        server.disconnect()
+        client.disconnect()
+
+
+VENDORS = [n for n in available() if n != "drive_bridge_servo"]
+needs_vendor_files = pytest.mark.skipif(not vendor_dir().exists(), reason="../shared/eds-vendor not present")
+
+
+@needs_vendor_files
+@pytest.mark.parametrize("name", VENDORS)
+def test_vendor_profile_writes_and_reads_back(name):
+    profile = load_profile(name)
+    with vendor_node(profile) as (local, remote):
         values = tuned_values()
         r = write_parameters(remote, profile, values)
         assert r.ok, r.error
@@ -142,6 +158,25 @@ def test_vendor_profile_writes_and_reads_back(name):
             raw = local.object_dictionary.get_variable(e.index, e.sub).decode_raw(local.get_data(e.index, e.sub))
             assert raw == pytest.approx(w.new_device, rel=1e-6) and w.verified
         assert r.stored == (profile.save is not None)
-    finally:
-        server.disconnect()
-        client.disconnect()
+
+
+@needs_vendor_files
+@pytest.mark.parametrize("name", VENDORS)
+def test_a_scale_without_a_documented_source_is_written_only_when_allowed(name):
+    profile = load_profile(name)
+    unverified = [k for k, e in profile.entries.items() if not e.verified]
+    if not unverified:
+        pytest.skip(f"every scale of {name} has a source")
+    values = {"y": tuned_values()}
+    with vendor_node(profile) as (local, remote):
+        with pytest.raises(ValueRefused, match="no documented source"):
+            write_drives({"y": remote}, profile, values, backup_dir=None, force=True)
+        dry = write_drives({"y": remote}, profile, values, backup_dir=None, dry_run=True, force=True)
+        assert dry.ok and dry.unverified_scales and not any(w.written for w in dry.results["y"].objects)
+        done = write_drives({"y": remote}, profile, values, backup_dir=None, force=True, allow_unverified_scales=True)
+        assert done.ok and {u.split(" ")[0] for u in done.unverified_scales} == set(unverified) & set(values["y"])
+        assert done.as_dict()["unverified_scales"] == done.unverified_scales
+
+
+def test_the_project_drive_scales_have_their_source():
+    assert all(e.verified for e in SIM.entries.values())
