@@ -96,7 +96,9 @@ def config(args) -> BusConfig:
 def session_options(args) -> Options:
     """What a Session needs from the command line."""
     given = (getattr(args, "motor_R", None), getattr(args, "motor_L", None))
-    return Options(args.sim, args.realtime, args.sim_config, getattr(args, "profile", "drive_bridge_servo"),
-                   given if all(given) else None, getattr(args, "seed", 0), getattr(args, "force", False),
-                   getattr(args, "min_phase_margin", Options.pm_floor), getattr(args, "min_gain_margin", Options.gm_floor),
-                   getattr(args, "allow_unverified_scales", False))
+    return Options(sim=args.sim, realtime=args.realtime, sim_config=args.sim_config,
+                   profile=getattr(args, "profile", Options.profile), motor=given if all(given) else None,
+                   seed=getattr(args, "seed", 0), force=getattr(args, "force", False),
+                   pm_floor=getattr(args, "min_phase_margin", Options.pm_floor),
+                   gm_floor=getattr(args, "min_gain_margin", Options.gm_floor),
+                   allow_unverified_scales=getattr(args, "allow_unverified_scales", False))

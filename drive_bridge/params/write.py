@@ -251,7 +251,8 @@ class _Transaction:
                     self._restore_object(a, w)
                 except (Exception, KeyboardInterrupt) as exc:
                     self._note_interrupt(exc)
-                    r.notes.append(f"restoring {w.parameter} failed: {_describe(exc, 'write', w, self.profile.entries[w.parameter])}")
+                    entry = self.profile.entries[w.parameter]
+                    r.notes.append(f"restoring {w.parameter} failed: {_describe(exc, 'write', w, entry)}")
             back_ok = True
             for w in touched:
                 try:
@@ -259,8 +260,8 @@ class _Transaction:
                 except (Exception, KeyboardInterrupt) as exc:
                     self._note_interrupt(exc)
                     back_ok = False
-                    r.notes.append(f"{w.parameter} could not be read back after restoring "
-                                   f"({describe_sdo_error(exc) if isinstance(exc, SDO_ERRORS) else type(exc).__name__})")
+                    why = describe_sdo_error(exc) if isinstance(exc, SDO_ERRORS) else type(exc).__name__
+                    r.notes.append(f"{w.parameter} could not be read back after restoring ({why})")
                     continue
                 if not _same(self.profile.entries[w.parameter], back, w.old_device):
                     back_ok = False

@@ -82,9 +82,9 @@ def read_identify_json(path: str | Path) -> dict[str, dict[str, float]]:
     out = {}
     for a, r in axes.items():
         params = r.get("params")
-        numbers = _numbers(path, f"axes.{a}.params", {k: v for k, v in (params or {}).items()
-                                                      if not isinstance(v, str)} if isinstance(params, dict) else params)
-        out[a] = model_from_identify(numbers)
+        if isinstance(params, dict):                  # text values (a cross-axis effect's source) are not numbers
+            params = {k: v for k, v in params.items() if not isinstance(v, str)}
+        out[a] = model_from_identify(_numbers(path, f"axes.{a}.params", params))
     return out
 
 
