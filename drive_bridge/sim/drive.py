@@ -260,6 +260,10 @@ class SimDrive:
             if value != self.mode and self.state == ENABLED:
                 self._hold_position()
             self.mode = value
+        elif index == 0x60B2:                               # torque offset [per mille of rated torque]
+            self.d[K.T_OFF] = value / 1000.0 * self.rated_torque
+        elif index == 0x60B1:                               # velocity offset [increments/s]
+            self.d[K.V_OFF] = value / self.inc_per_rad
         elif index == 0x607A:
             self.new_target = True
             self.last_setpoint_time = self.host.time
