@@ -115,6 +115,7 @@ def commission(config: BusConfig, out: str | Path, options: Options | None = Non
         ctx = S.Context(session, out, reporter)
         for step in todo:
             reporter.start(step, WHAT[step])
+            ctx.degraded = []
             # a step that runs again is not completed until it ends well, nor is any step after it:
             # their inputs are about to change
             state["completed"] = [s for s in state["completed"] if STEPS.index(s) < STEPS.index(step)]
@@ -132,9 +133,7 @@ def commission(config: BusConfig, out: str | Path, options: Options | None = Non
                 break
             state["durations_s"][step] = time.perf_counter() - t0
             state["completed"] = [s for s in STEPS if s in state["completed"] or s == step]
-            state["timing_degraded"] = [d for d in state.get("timing_degraded", [])
-                                        if not d.startswith(f"{step}:")] + [d for d in ctx.degraded
-                                                                           if d.startswith(f"{step}:")]
+            state.setdefault("timing_degraded", {})[step] = ctx.degraded    # this run of the step replaces the last
             _save(out, state)
             reporter.done(step, state["durations_s"][step], line)
     summary = build_summary(out, state, config, options)

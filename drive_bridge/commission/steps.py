@@ -34,7 +34,7 @@ class Context:
     def __init__(self, session: Session, out: Path, reporter: StepReporter):
         self.session, self.out, self.reporter = session, out, reporter
         self.config, self.options = session.config, session.options
-        self.degraded: list[str] = []       # wall-clock runs past their timing limits (status "degraded")
+        self.degraded: list[str] = []       # the running step's wall-clock runs past their timing limits
 
     def require(self, name: str) -> Path:
         """A previous step's output; a clear error naming the step to run when it is missing."""

@@ -81,7 +81,7 @@ def build_summary(out: Path, state: dict, config: BusConfig, options) -> dict:
               ("done" if s in completed else "not run"), "duration_s": state["durations_s"].get(s)}
              for s in S.STEP_FUNCTIONS]
     status = "failed" if failed else ("ok" if all(s in completed for s in S.STEP_FUNCTIONS) else "partial")
-    timing = state.get("timing_degraded") or []
+    timing = [d for reasons in (state.get("timing_degraded") or {}).values() for d in reasons]
     if status == "ok" and timing:
         status = "degraded"
     ident = (_load(out, S.IDENTIFY_JSON) or {}).get("axes", {})

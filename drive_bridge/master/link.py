@@ -19,6 +19,8 @@ from typing import Protocol, runtime_checkable
 import can
 import canopen
 
+from .timing import raise_priority
+
 
 class Clock(Protocol):
     def now(self) -> float:
@@ -78,7 +80,6 @@ class TraceRecorder(can.Listener):
     def _write_loop(self) -> None:
         # Below the threads that send setpoints and receive feedback, but above every ordinary
         # process: a writer preempted by other load while it holds the GIL would hold them up too.
-        from .timing import raise_priority
         if not raise_priority(TRACE_PRIORITY)[1]:
             try:
                 os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), 10)
@@ -155,7 +156,6 @@ class _ReceiverPriority(can.Listener):
 
     def on_message_received(self, msg: can.Message) -> None:
         if self.granted is None:
-            from .timing import raise_priority
             self.granted = raise_priority()[0]
 
 

@@ -98,33 +98,24 @@ class MarginCheck:
 
 def written_si(profile: Profile, values: dict) -> dict[str, float]:
     """``values`` as the drive will hold them: through device units and back (rounding, REAL32)."""
-    out = {}
-    for name, v in values.items():
-        e = profile.entries.get(name)
-        if e is None:
-            out[name] = float(v)
-            continue
-        device = e.to_device(v)
-        if e.type == "REAL32":
-            device = float(np.float32(device))
-        out[name] = float(e.to_si(device))
-    return out
+    return {name: float(e.to_si(e.held(e.to_device(v)))) if (e := profile.entries.get(name)) else float(v)
+            for name, v in values.items()}
 
 
-def check_margins(profile: Profile, values: dict, model: dict, L: float | None, *,
+def check_margins(profile: Profile, values: dict, L: float | None, *,
                   pm_floor: float = PM_FLOOR_DEG, gm_floor: float = GM_FLOOR_DB) -> tuple[dict, str | None]:
-    """Velocity- and position-loop margins of the gains in ``values``, as written, on ``model``
-    (J, c1) with motor inductance ``L`` [H]; and why the set must not be written (None: it may).
-    A set without gains, or a model without J, cannot be checked: that is a reason too."""
+    """Velocity- and position-loop margins of the gains in ``values``, as written, on the model
+    of the same set (J, c1) with motor inductance ``L`` [H]; and why the set must not be written
+    (None: it may).  A set without gains, or without J, cannot be checked: that is a reason too."""
     gains = ("KpP", "KpS", "KiS", "KpC")
     if not any(g in values for g in gains):
         return {}, None                                   # no gains in this set: nothing to check
     missing = [g for g in gains if g not in values]
-    if missing or not model.get("J") or L is None:
-        what = ", ".join(missing) or ("the model's J" if not model.get("J") else "the motor inductance L")
+    if missing or not values.get("J") or L is None:
+        what = ", ".join(missing) or ("the model's J" if not values.get("J") else "the motor inductance L")
         return {}, f"the loop margins cannot be checked without {what}"
     w = written_si(profile, {g: values[g] for g in gains})
-    velocity, position = loop_margins(model["J"], max(model.get("c1", 0.0), 0.0), w, 0.0, L)
+    velocity, position = loop_margins(values["J"], max(values.get("c1", 0.0), 0.0), w, 0.0, L)
     out = {name: MarginCheck(m.phase_margin_deg, m.gain_margin_db,
                              m.phase_margin_deg >= pm_floor and m.gain_margin_db >= gm_floor)
            for name, m in (("velocity", velocity), ("position", position))}

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import canopen
+import numpy as np
 from canopen.objectdictionary import datatypes
 
 from ..errors import ConfigError
@@ -71,6 +72,13 @@ class Entry:
     def to_device(self, value: float):
         raw = (1.0 / value if value else float("inf")) if self.reciprocal else value * self.scale
         return round(raw) if self.is_integer else float(raw)
+
+    def held(self, device):
+        """A device value as the drive holds it: an integer, or a float rounded to the object's
+        REAL32 (what a read-back returns)."""
+        if self.is_integer:
+            return int(device)
+        return float(np.float32(device)) if self.type == "REAL32" else float(device)
 
     def to_si(self, raw) -> float:
         return (1.0 / raw if raw else float("inf")) if self.reciprocal else raw / self.scale

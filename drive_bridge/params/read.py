@@ -13,7 +13,12 @@ SDO_ERRORS = (canopen.SdoAbortedError, canopen.SdoCommunicationError)
 
 def sdo_variable(node: canopen.RemoteNode, entry: Entry) -> SdoVariable:
     """The SDO accessor of ``entry``'s object on ``node`` (canopen's own lookup)."""
-    return SdoVariable(node.sdo, node.object_dictionary.get_variable(entry.index, entry.sub))
+    return sdo_object(node, entry.index, entry.sub)
+
+
+def sdo_object(node: canopen.RemoteNode, index: int, sub: int) -> SdoVariable:
+    """The SDO accessor of object ``index``:``sub`` on ``node``."""
+    return SdoVariable(node.sdo, node.object_dictionary.get_variable(index, sub))
 
 
 def describe_sdo_error(exc: Exception) -> str:
@@ -51,8 +56,7 @@ def motor_data(node: canopen.RemoteNode, profile: Profile, R: float | None = Non
         return R, L
     if profile.motor is not None:
         try:
-            return tuple(float(SdoVariable(node.sdo, node.object_dictionary.get_variable(i, s)).raw)
-                         for i, s in (profile.motor["R"], profile.motor["L"]))
+            return tuple(float(sdo_object(node, *profile.motor[k]).raw) for k in ("R", "L"))
         except SDO_ERRORS as exc:
             raise BusError(f"node {node.id}: reading its motor data failed: {describe_sdo_error(exc)}") from exc
     raise UserError(f"node {node.id}: the {profile.drive} profile names no motor data objects; give --motor-R "

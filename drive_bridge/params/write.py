@@ -7,7 +7,6 @@ result lists every object with its old and new value in SI and device units.
 """
 from __future__ import annotations
 
-import struct
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -81,11 +80,7 @@ class WriteResult:
 
 
 def _same(entry: Entry, a, b) -> bool:
-    if entry.is_integer:
-        return int(a) == int(b)
-    f32 = entry.type == "REAL32"
-    pack = (lambda x: struct.unpack("<f", struct.pack("<f", x))[0]) if f32 else float
-    return pack(float(a)) == pack(float(b))
+    return entry.held(a) == entry.held(b)
 
 
 class _Failed(Exception):
@@ -139,8 +134,12 @@ def write_all(nodes: dict[str, canopen.RemoteNode], profile: Profile, values: di
     stores it again where the new set had been stored.  ``dry_run``: the backup phase only.
     """
     results = plan_writes(nodes, profile, values, check=check, dry_run=dry_run)
-    _Transaction(nodes, profile, results).run(backup_dir, store, dry_run)
+    _Transaction(nodes, profile, results, _backup_paths(nodes, backup_dir)).run(store, dry_run)
     return results
+
+
+def _backup_paths(nodes, backup_dir) -> dict[str, Path | None]:
+    return {a: None if backup_dir is None else Path(backup_dir) / f"{a}_backup.json" for a in nodes}
 
 
 def write_parameters(node: canopen.RemoteNode, profile: Profile, values: dict[str, float], *,
@@ -148,12 +147,13 @@ def write_parameters(node: canopen.RemoteNode, profile: Profile, values: dict[st
                      check: bool = True) -> WriteResult:
     """:func:`write_all` for one drive (``backup_path``: where its backup goes)."""
     results = plan_writes({"": node}, profile, {"": values}, check=check, dry_run=dry_run)
-    _Transaction({"": node}, profile, results, {"": backup_path}).run(None, store, dry_run)
+    _Transaction({"": node}, profile, results, {"": backup_path}).run(store, dry_run)
     return results[""]
 
 
 class _Transaction:
-    def __init__(self, nodes, profile: Profile, results: dict[str, WriteResult], backup_paths=None):
+    def __init__(self, nodes, profile: Profile, results: dict[str, WriteResult],
+                 backup_paths: dict[str, Path | None]):
         self.nodes, self.profile, self.results = nodes, profile, results
         self.backup_paths = backup_paths
         self.store_state: dict[str, str] = dict.fromkeys(results, UNCHANGED)
@@ -162,7 +162,7 @@ class _Transaction:
     def _var(self, axis: str, w: ObjectWrite):
         return sdo_variable(self.nodes[axis], self.profile.entries[w.parameter])
 
-    def run(self, backup_dir, store: bool, dry_run: bool) -> None:
+    def run(self, store: bool, dry_run: bool) -> None:
         phase, where = "backup", (None, None)
         try:
             for a, r in self.results.items():
@@ -170,7 +170,7 @@ class _Transaction:
                     where = (a, w)
                     w.old_device = self._var(a, w).raw
                     w.old_si = self.profile.entries[w.parameter].to_si(w.old_device)
-                self._save_backup(a, r, backup_dir)
+                self._save_backup(a, r)
             if dry_run:
                 return
             phase = "write"
@@ -215,8 +215,8 @@ class _Transaction:
                 for r in self.results.values():
                     r.interrupted = r.interrupted or late
 
-    def _save_backup(self, axis: str, r: WriteResult, backup_dir) -> None:
-        path = (self.backup_paths or {}).get(axis) if backup_dir is None else Path(backup_dir) / f"{axis}_backup.json"
+    def _save_backup(self, axis: str, r: WriteResult) -> None:
+        path = self.backup_paths[axis]
         if path is None:
             return
         write_json(path, {"node_id": r.node_id, "drive": self.profile.drive, "profile": self.profile.name,
@@ -348,7 +348,7 @@ def write_drives(nodes: dict[str, canopen.RemoteNode], profile: Profile, values:
     is written only with ``allow_unverified_scales`` (a dry run shows it).  Raises ValueRefused
     before anything is written."""
     require_profile_objects(nodes, profile)
-    plan_writes(nodes, profile, values, dry_run=True)          # every value first: ValueRefused names them
+    results = plan_writes(nodes, profile, values, dry_run=dry_run)     # every value first: ValueRefused
     unverified = sorted({f"{k} ({profile.entries[k].where()})" for v in values.values() for k in v
                          if k in profile.entries and not profile.entries[k].verified})
     if unverified and not dry_run and not allow_unverified_scales:
@@ -363,13 +363,13 @@ def write_drives(nodes: dict[str, canopen.RemoteNode], profile: Profile, values:
                 L = motor_data(node, profile)[1]
             except BusError:
                 L = None
-        margins[a], reason = check_margins(profile, values[a], values[a], L, pm_floor=pm_floor, gm_floor=gm_floor)
+        margins[a], reason = check_margins(profile, values[a], L, pm_floor=pm_floor, gm_floor=gm_floor)
         if reason:
             (forced if force else refused).append(f"axis {a}: {reason}")
     if refused:
         raise ValueRefused("refused before anything was written: " + "; ".join(refused)
                            + " (--force writes it anyway and records that)")
-    results = write_all(nodes, profile, values, backup_dir=backup_dir, dry_run=dry_run)
+    _Transaction(nodes, profile, results, _backup_paths(nodes, backup_dir)).run(True, dry_run)
     outcome = WriteOutcome(results, margins, forced, list(nodes), unverified)
     if dcf_dir is not None and not dry_run and outcome.ok:
         for a, r in results.items():
@@ -381,12 +381,12 @@ def raise_for_failure(outcome: WriteOutcome, backup_dir) -> None:
     """The error a failed write ends with: what failed, and per drive what it holds now."""
     if outcome.ok:
         return
-    failed = next((a for a, r in outcome.results.items() if r.caused), None)
+    axis = next((a for a, r in outcome.results.items() if r.caused), None)
     where = f"; backups in {backup_dir}" if backup_dir is not None else ""
     states = "; ".join(f"{a}: {r.holds()}" for a, r in outcome.results.items())
-    message = (f"axis {failed}: {outcome.results[failed].error}" if failed else "not every drive was written") + \
+    message = (f"axis {axis}: {outcome.results[axis].error}" if axis else "not every drive was written") + \
         f" ({states}){where}"
-    failed = outcome.results.get(failed)
+    failed = outcome.results.get(axis)
     interrupted = next((r.interrupted for r in outcome.results.values() if r.interrupted), None)
     if interrupted:
         raise WriteInterrupted(message)
