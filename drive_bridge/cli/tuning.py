@@ -130,12 +130,12 @@ def cmd_write(args) -> int:
     if args.json:
         print(json.dumps(outcome.as_dict(), default=float))
     else:
-        _print_write(outcome, args.backup_dir)
+        _print_write(outcome, args.backup_dir, session.profile)
     raise_for_failure(outcome, args.backup_dir)
     return 0
 
 
-def _print_write(outcome, backup_dir) -> None:
+def _print_write(outcome, backup_dir, profile) -> None:
     for reason in outcome.forced:
         print(f"FORCED: {reason}")
     if outcome.unverified_scales:
@@ -144,7 +144,7 @@ def _print_write(outcome, backup_dir) -> None:
         print(f"axis {a} (node {r.node_id}, {r.drive}){' — dry run, nothing written' if r.dry_run else ''}:")
         for w in r.objects:
             state = "verified" if w.verified else ("" if r.dry_run else "NOT verified")
-            if w.parameter in outcome_unverified(outcome):
+            if not profile.entries[w.parameter].verified:
                 state += " UNVERIFIED SCALE"
             print(f"  {w.parameter:<9} 0x{w.index:04X}:{w.sub:<2} {_num(w.old_si):>11} -> {_num(w.new_si):<11} "
                   f"{w.unit:<18} (device {w.old_device} -> {w.new_device}) {state}")
@@ -159,10 +159,6 @@ def _print_write(outcome, backup_dir) -> None:
                   + (f"; backup of the old values: {r.backup}" if r.backup else ""))
     if backup_dir is not None and not all(r.dry_run for r in outcome.results.values()):
         print(f"backups of the values before: {backup_dir}/")
-
-def outcome_unverified(outcome) -> set[str]:
-    """The parameters whose scale has no documented source."""
-    return {u.split(" ", 1)[0] for u in outcome.unverified_scales}
 
 
 def _num(v) -> str:
