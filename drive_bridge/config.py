@@ -16,16 +16,17 @@ import canopen
 from .errors import ConfigError
 from .master.timing import TimingLimits
 from .od import load_od
+from .setpoint import SETPOINT_OBJECTS
 from .units import Scaling
 from .yamlconf import Section, finite_number, load_yaml
 
 #: objects the master must find in the PDO mapping: what it streams and what it logs
-REQUIRED_RPDO = {0x6040: "controlword", 0x607A: "target position"}
+REQUIRED_RPDO = {0x6040: "controlword"}
 REQUIRED_TPDO = {0x6064: "position actual", 0x606C: "velocity actual", 0x6041: "statusword"}
 #: the torque feedback the master logs, by scaling.torque_feedback
 TORQUE_OBJECTS = {"torque": (0x6077, "torque actual"), "current": (0x6078, "current actual")}
 #: objects the master can fill in an RPDO / log from a TPDO
-RPDO_OBJECTS = {0x6040, 0x607A, 0x60B1, 0x60B2}
+RPDO_OBJECTS = {0x6040, 0x607A, 0x60C1, 0x20C1, 0x60B1, 0x60B2}
 TPDO_OBJECTS = {0x6064, 0x606C, 0x6077, 0x6041, 0x60F4, 0x6078}
 
 
@@ -60,6 +61,7 @@ class NodeConfig:
     rpdo: tuple[PdoConfig, ...]
     tpdo: tuple[PdoConfig, ...]
     sdo: tuple[tuple[int, int, int | float], ...]
+    profile: str | None = None            # the drive profile (params/profiles) of this node's drive
 
 
 @dataclass(frozen=True)
@@ -102,6 +104,15 @@ class BusConfig:
     #: node ids whose identity may differ from their EDS/DCF (--accept-identity: a deliberate override)
     accept_identity: frozenset[int] = frozenset()
 
+    @property
+    def profile(self) -> str | None:
+        """The drive profile the nodes name (``profile`` in bus.yml); None when none does."""
+        names = {n.profile for n in self.nodes.values()}
+        if len(names) > 1:
+            raise ConfigError(self.path, "nodes", f"the nodes name different drive profiles ({sorted(map(str, names))}); "
+                              "one run commissions one drive model: split the bus into one file per model")
+        return names.pop()
+
     def only(self, axes: list[str]) -> "BusConfig":
         """The same configuration restricted to ``axes`` (errors name unknown ones)."""
         unknown = [a for a in axes if a not in self.nodes]
@@ -140,6 +151,9 @@ def _pdos(sec: Section, key: str, od: canopen.ObjectDictionary, allowed: set[int
                 raise e.error("index", f"0x{index:04X}:{sub} is not in the drive's EDS/DCF")
             if not var.pdo_mappable:
                 raise e.error("index", f"0x{index:04X} is not PDO-mappable in the drive's EDS/DCF")
+            if index in (0x60C1, 0x20C1) and (index, sub) not in SETPOINT_OBJECTS:
+                raise e.error("sub_index", f"0x{index:04X}:{sub} carries no position setpoint (use "
+                                           f"{'0x60C1:1' if index == 0x60C1 else '0x20C1:0'})")
             bits += len(var)
             mapping.append((index, sub))
         p.done()
@@ -150,6 +164,9 @@ def _pdos(sec: Section, key: str, od: canopen.ObjectDictionary, allowed: set[int
             result.append(PdoConfig(num, trans, tuple(mapping)))
     pdo_sec.done()
     missing = [f"0x{i:04X} ({name})" for i, name in required.items() if i not in seen]
+    if key == "rpdo" and not any(e in SETPOINT_OBJECTS for p in result for e in p.mapping):
+        missing.append("a position setpoint (0x607A target position for cyclic synchronous position, or "
+                       "0x60C1:1 / maxon's 0x20C1 interpolation data record for interpolated position)")
     if missing:
         raise pdo_sec.error("", f"must map {', '.join(missing)}")
     return tuple(result)
@@ -165,6 +182,7 @@ def _node(path: Path, axis: str, data: dict) -> NodeConfig:
     sc = sec.section("scaling")
     feed = sc.get("feed_m_per_rev", float, None, low=1e-6, high=100.0)
     feedback = sc.get("torque_feedback", str, "torque", choices=list(TORQUE_OBJECTS))
+    velocity_unit = sc.get("velocity_unit", str, "inc/s", choices=["inc/s", "rpm"])
     per_unit = kt = None
     if feedback == "current":                 # torque = current actual (0x6078) × torque constant
         unit_ = sc.get("current_unit", str, "permille", choices=["permille", "mA"])
@@ -174,7 +192,7 @@ def _node(path: Path, axis: str, data: dict) -> NodeConfig:
     scaling = Scaling(increments_per_rev=sc.get("increments_per_rev", int, low=1, high=2**31 - 1),
                       rated_torque_Nm=sc.get("rated_torque_Nm", float, low=1e-6, high=1e6),
                       feed_m_per_rev=feed, torque_feedback=feedback, current_per_unit_A=per_unit,
-                      torque_constant_Nm_per_A=kt)
+                      torque_constant_Nm_per_A=kt, velocity_unit=velocity_unit)
     sc.done()
     unit = "m" if feed else "rad"
     lim = sec.section("limits")
@@ -210,7 +228,7 @@ def _node(path: Path, axis: str, data: dict) -> NodeConfig:
         following_error_window_rad=sec.get("following_error_window_rad", float, 0.6, low=1e-6, high=1e6),
         rpdo=_pdos(sec, "rpdo", od, RPDO_OBJECTS, REQUIRED_RPDO),
         tpdo=_pdos(sec, "tpdo", od, TPDO_OBJECTS, {**REQUIRED_TPDO, **dict([TORQUE_OBJECTS[feedback]])}),
-        sdo=tuple(sdo))
+        sdo=tuple(sdo), profile=sec.get("profile", str, None))
     sec.done()
     return cfg
 

@@ -28,16 +28,24 @@ def open_link(config: BusConfig, sim: bool, realtime: bool = False, sim_config: 
             raise UserError(f"{config.path}: master.sync_period: the simulated drives run their loops every "
                             f"{VELOCITY_TICK_S * 1e6:.0f} µs, so the SYNC period must be a multiple of it "
                             f"(got {config.master.sync_period_s * 1e6:.0f} µs)")
+        # each simulated drive is the drive its node's EDS/DCF describes (by axis name)
+        eds = {a: n.dcf for a, n in config.nodes.items() if a in robot_cfg.axes}
+        from .sim.vendors import spec_for
+        for axis, path in eds.items():
+            try:
+                spec_for(path)
+            except ValueError as exc:           # no simulated drive for this node's EDS/DCF
+                raise UserError(f"{config.path}: nodes.{axis}.dcf: --sim: {exc}") from exc
         if realtime:
             from .sim.process import SimProcess
-            drives = SimProcess(sim_config or SIM_DEFAULT, config.master.sync_period_s)
+            drives = SimProcess(sim_config or SIM_DEFAULT, config.master.sync_period_s, eds)
             link = BusLink(drives.bus)
             link.on_close.append(drives.shutdown)
         else:
             from .sim.lockstep import LockstepLink
             from .sim.robot import SimRobot
             channel = f"{config.master.channel}-sim"          # closed again below, so reusable
-            robot = SimRobot(robot_cfg, channel, sync_period=config.master.sync_period_s)
+            robot = SimRobot(robot_cfg, channel, sync_period=config.master.sync_period_s, eds=eds)
             link = LockstepLink(robot, channel)
     try:
         yield link

@@ -19,6 +19,7 @@ from .outputs import atomic, write_text
 from .yamlconf import load_yaml
 from .master.stream import SYNC_COB_ID, Recording
 from .pdo import PdoCodec
+from .setpoint import MODE_NAMES
 from .units import Scaling
 
 LOG_NAME, META_NAME, TRACE_NAME = "log.csv", "meta.yaml", "trace.blf"
@@ -87,7 +88,8 @@ def write_meta(path: Path, meta: dict) -> None:
 
 
 def layout_meta(axes) -> dict:
-    """Per axis: scaling and PDO layout, what decode needs to rebuild the log."""
+    """Per axis: scaling, the operating mode streamed in and the PDO layout (what decode needs to
+    rebuild the log)."""
     out = {}
     for name, ax in axes.items():
         sc = ax.cfg.scaling
@@ -97,7 +99,10 @@ def layout_meta(axes) -> dict:
                                  "torque_feedback": sc.torque_feedback,
                                  "current_per_unit_A": sc.current_per_unit_A,
                                  "torque_constant_Nm_per_A": sc.torque_constant_Nm_per_A,
-                                 "feed_m_per_rev": sc.feed_m_per_rev},
+                                 "feed_m_per_rev": sc.feed_m_per_rev,
+                                 "velocity_unit": sc.velocity_unit},
+                     "operating_mode": {"mode": ax.mode, "name": MODE_NAMES.get(ax.mode, str(ax.mode)),
+                                        "setpoint_object": f"0x{ax.setpoint[0]:04X}:{ax.setpoint[1]}"},
                      "rpdo": _codec_meta(ax.rpdos), "tpdo": _codec_meta(ax.tpdos)}
     return out
 

@@ -17,7 +17,7 @@ from .connect import open_link
 from .master.bringup import AxisLink, bring_up, check_scan, scan
 from .master.link import Link
 from .params.check import GM_FLOOR_DB, PM_FLOOR_DEG
-from .params.profile import Profile, load_profile
+from .params.profile import DEFAULT_PROFILE, Profile, load_profile
 
 
 @dataclass
@@ -31,7 +31,7 @@ class Options:
     sim: bool = False
     realtime: bool = False
     sim_config: str | None = None
-    profile: str = "drive_bridge_servo"
+    profile: str | None = None            # None: the one bus.yml names, else the project's drive
     motor: tuple[float, float] | None = None
     seed: int = 0
     force: bool = False
@@ -64,7 +64,7 @@ class Session:
     @property
     def profile(self) -> Profile:
         if self._profile is None:
-            self._profile = load_profile(self.options.profile)
+            self._profile = load_profile(self.options.profile or self.config.profile or DEFAULT_PROFILE)
         return self._profile
 
     @property

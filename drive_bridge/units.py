@@ -3,7 +3,8 @@
 Inside drive-bridge every quantity is SI on the motor side: rad, rad/s,
 rad/s², Nm.  Linear axes are described in m, m/s, m/s² (load side) and turned
 into motor radians through the feed constant.  Device units exist only at the
-bus: positions in encoder increments, velocities in increments/s, torque in
+bus: positions in encoder increments, velocities in increments/s (or rpm, as maxon's EPOS2
+reports them), torque in
 per mille of the rated torque (0x6076) -- or, for a drive without a torque
 actual value, the current actual value (0x6078: per mille of the rated current
 0x6075, or mA) times the motor's torque constant.
@@ -32,10 +33,16 @@ class Scaling:
     torque_feedback: str = "torque"             # "torque": 0x6077; "current": 0x6078 × torque constant
     current_per_unit_A: float | None = None     # A per unit of 0x6078 (rated current / 1000, or 0.001 for mA)
     torque_constant_Nm_per_A: float | None = None
+    velocity_unit: str = "inc/s"                # of 0x606C and the other velocities: "inc/s" or "rpm"
 
     @property
     def inc_per_rad(self) -> float:
         return self.increments_per_rev / (2 * math.pi)
+
+    @property
+    def velocity_per_rad_s(self) -> float:
+        """Device velocity units per rad/s."""
+        return 60.0 / (2 * math.pi) if self.velocity_unit == "rpm" else self.inc_per_rad
 
     # --- load side (m) <-> motor side (rad) -----------------------------------------
     def load_to_motor(self, value_m):
@@ -53,10 +60,10 @@ class Scaling:
         return np.asarray(increments, dtype=float) / self.inc_per_rad
 
     def velocity_to_device(self, rad_s):
-        return np.rint(np.asarray(rad_s) * self.inc_per_rad).astype(np.int64)
+        return np.rint(np.asarray(rad_s) * self.velocity_per_rad_s).astype(np.int64)
 
-    def velocity_from_device(self, inc_s):
-        return np.asarray(inc_s, dtype=float) / self.inc_per_rad
+    def velocity_from_device(self, value):
+        return np.asarray(value, dtype=float) / self.velocity_per_rad_s
 
     def torque_to_device(self, Nm):
         """Nm -> per mille of rated torque."""

@@ -17,7 +17,7 @@ BAD_CONFIGS = [
     ("max_velocity_m_s: 0.230, max_acceleration_m_s2: 5.0}\n  z",
      "max_velocity_m_s: 0.8, max_acceleration_m_s2: 5.0}\n  z",
      "nodes.y.limits.max_velocity_m_s: 0.8 m/s is 4800 rpm at the motor, above the drive's max motor speed"),
-    ("        - {index: 0x607A, sub_index: 0}", "", "nodes.x.rpdo: must map 0x607A"),
+    ("        - {index: 0x607A, sub_index: 0}", "", "nodes.x.rpdo: must map a position setpoint (0x607A"),
 ]
 
 

@@ -26,8 +26,9 @@ def bus(p: argparse.ArgumentParser) -> None:
 def drive(p: argparse.ArgumentParser, params: bool = True) -> None:
     """Bus, drive profile, --params (a tune result) and --json: what tune/write/validate share."""
     bus(p)
-    p.add_argument("--profile", default="drive_bridge_servo",
-                   help="drive profile: a shipped name or a YAML file (default: %(default)s)")
+    p.add_argument("--profile", default=None,
+                   help="drive profile: a shipped name or a YAML file (default: the profile the bus "
+                        "configuration names, else drive_bridge_servo)")
     if params:
         p.add_argument("--params", required=True, help="tune result (tune.json)")
     p.add_argument("--json", action="store_true", help="print the result as one JSON object")

@@ -9,6 +9,7 @@ from canopen.pdo.base import PdoMap
 from ..config import BusConfig, NodeConfig, PdoConfig
 from ..errors import BusError, DriveRefused
 from ..pdo import PdoCodec
+from ..setpoint import IP, IP_SUB_MODE, MODE_NAMES, PVT, choose, describe_modes
 from .cia402 import Drive402
 from .link import Link
 
@@ -31,6 +32,9 @@ class AxisLink:
     node: canopen.RemoteNode
     drive: Drive402
     identity: dict
+    #: the operating mode the master streams in (8 CSP, 7 IP) and the object carrying its setpoints
+    mode: int = 0
+    setpoint: tuple[int, int] = (0x607A, 0)
     rpdos: list[PdoCodec] = field(default_factory=list)
     tpdos: list[PdoCodec] = field(default_factory=list)
     last_heartbeat: float | None = None
@@ -190,9 +194,42 @@ def bring_up(link: Link, config: BusConfig) -> dict[str, AxisLink]:
         except canopen.SdoAbortedError as exc:
             raise DriveRefused(f"axis {name}: the drive refused the PDO mapping ({exc}); "
                                f"check nodes.{name}.rpdo / tpdo in {config.path}") from exc
+        ax.mode, ax.setpoint = _streaming_mode(node, ncfg, config.path)
+        if ax.mode == IP:
+            if 0x60C0 in ncfg.od:
+                _write(node, name, 0x60C0, 0, IP_SUB_MODE[ax.setpoint])
+            if ax.setpoint == PVT and 0x60C4 in ncfg.od:          # clear the record buffer, then enable it
+                _write(node, name, 0x60C4, 6, 0)
+                _write(node, name, 0x60C4, 6, 1)
         _watch(net, ax, clock)
         axes[name] = ax
     return axes
+
+
+def _streaming_mode(node, ncfg: NodeConfig, path) -> tuple[int, tuple[int, int]]:
+    """The mode to stream in, from the modes the drive lists in 0x6502 (read from the drive; the
+    EDS/DCF default where the drive does not answer) and the setpoint objects the RPDOs map."""
+    axis = ncfg.axis
+    bits = None
+    if 0x6502 in ncfg.od:
+        try:
+            bits = node.sdo[0x6502].raw
+        except canopen.SdoAbortedError:
+            bits = ncfg.od[0x6502].default
+        except canopen.SdoCommunicationError as exc:
+            raise BusError(f"axis {axis}: no SDO answer reading its supported modes 0x6502 ({exc})") from exc
+    if bits is None:
+        raise DriveRefused(f"axis {axis}: the drive does not say which operating modes it supports (0x6502 "
+                           f"neither readable nor in {ncfg.dcf.name}); drive-bridge streams only in a mode "
+                           f"the drive lists")
+    mapped = [e for p in ncfg.rpdo for e in p.mapping]
+    chosen = choose(bits, mapped)
+    if chosen is None:
+        raise DriveRefused(f"axis {axis}: no streaming mode: the drive supports {describe_modes(bits)} "
+                           f"(0x6502 = 0x{bits:08X}); drive-bridge streams in {MODE_NAMES[8]} (8, RPDO maps "
+                           f"0x607A) or {MODE_NAMES[7]} (7, RPDO maps 0x60C1:1 or 0x20C1); map the setpoint "
+                           f"object of a mode the drive has in nodes.{axis}.rpdo of {path}")
+    return chosen
 
 
 def _write(node, axis: str, index: int, sub: int, value) -> None:

@@ -43,6 +43,10 @@ class Plan:
     demand: np.ndarray              # (n_cycles, n_axes) position demand [rad]
     segments: list[Segment]
     period: float
+    #: feed-forward the master sends with each setpoint, (n_cycles, n_axes), as torque offset 0x60B2
+    #: [Nm] and velocity offset 0x60B1 [rad/s] where the RPDOs map them (None: zero offsets)
+    torque_ff_Nm: np.ndarray | None = None
+    velocity_ff_rad_s: np.ndarray | None = None
 
     @property
     def duration(self) -> float:

@@ -1,4 +1,6 @@
-"""Cyclic streaming: one CSP setpoint per SYNC, feedback recorded per SYNC, safety on every cycle.
+"""Cyclic streaming: one setpoint per SYNC (cyclic synchronous or interpolated position, with the
+master's feed-forward offsets where the plan has them), feedback recorded per SYNC, safety on
+every cycle.
 
 The sending loop does only light work: pack the RPDOs, send them and the SYNC,
 check the previous cycle's feedback.  Samples stay in device units in
@@ -17,6 +19,7 @@ import numpy as np
 from ..errors import GuardStop, Interrupted, MotionAborted
 from ..signals import signal_name
 from ..pdo import PdoCodec
+from ..setpoint import CW_ENABLE_IP, IP, PVT, SETPOINT_OBJECTS, SW_FOLLOWING, pack_pvt, position_of
 from .bringup import AxisLink, emcy_text
 from .campaign import Plan
 from .cia402 import CW_ENABLE, SW_FAULT, state_name
@@ -30,6 +33,9 @@ SYNC_COB_ID = 0x080
 #: a cycle's feedback is checked this many SYNC periods after it was due, so that a
 #: reply the receiving thread hands over late still counts (and is in the log)
 FEEDBACK_LAG = 1
+#: rows after the first setpoint by which the drive must show statusword bit 12 (following / IP active)
+FOLLOW_GRACE_ROWS = 2
+INT16, INT32 = (-2**15, 2**15 - 1), (-2**31, 2**31 - 1)
 
 
 class Recording:
@@ -57,8 +63,9 @@ class Recording:
         self._rpdo_slots = []
         for ai, (axis, codecs) in enumerate(rpdos.items()):
             for codec in codecs:
-                if 0x607A in codec.objects:
-                    self._rpdo_slots.append((codec.cob_id, codec, codec.objects.index(0x607A), ai))
+                for pos, entry in enumerate(codec.entries):
+                    if entry in SETPOINT_OBJECTS:
+                        self._rpdo_slots.append((codec.cob_id, codec, pos, ai, entry))
         #: per axis, the columns of ``got`` (its TPDOs): a row is complete when all of them arrived
         self.slots = {axis: [slot for _, _, first, slot in self._tpdo_slots if self.columns[first][0] == axis]
                       for axis in self.axes}
@@ -90,11 +97,11 @@ class Recording:
                     raw[row, first:last] = unpack(data)
                     got[row, slot] = True
             out[cob] = on_tpdo
-        for cob, codec, pos, ai in self._rpdo_slots:
-            def on_rpdo(can_id, data, ts, unpack=codec.struct.unpack_from, pos=pos, ai=ai):
+        for cob, codec, pos, ai, entry in self._rpdo_slots:
+            def on_rpdo(can_id, data, ts, unpack=codec.struct.unpack_from, pos=pos, ai=ai, entry=entry):
                 row = self.sync_index + 1
                 if row < len(raw):
-                    self.demand[row, ai] = unpack(data)[pos]
+                    self.demand[row, ai] = position_of(entry, unpack(data)[pos])
             out[cob] = on_rpdo
         return out
 
@@ -129,17 +136,34 @@ class StreamResult:
     timing: Timing
 
 
-def _packer(ax: AxisLink, codec: PdoCodec, demand: np.ndarray, ai: int, send) -> Callable[[int], None]:
-    """Send function of one RPDO for cycle k: controlword, target from the plan, zero offsets."""
+def _packer(ax: AxisLink, codec: PdoCodec, plan: Plan, ai: int, send) -> Callable[[int, int], None]:
+    """Send function of one RPDO for cycle k: the controlword, the setpoint from the plan (target
+    position or interpolation data record), the plan's feed-forward offsets (zero without)."""
+    sc = ax.cfg.scaling
+    demand = plan.demand[:, ai]
+    pos = sc.position_to_device(demand)
+    columns = []
+    for entry in codec.entries:
+        index = entry[0]
+        if index == 0x6040:
+            columns.append(None)
+        elif entry == PVT:       # position, velocity at that position, time to reach it [ms]
+            vel = np.clip(sc.velocity_to_device(np.gradient(demand, plan.period)), -2**23, 2**23 - 1)
+            ms = round(plan.period * 1000)
+            columns.append([pack_pvt(p, v, ms) for p, v in zip(pos.tolist(), vel.tolist())])
+        elif entry in SETPOINT_OBJECTS:
+            columns.append(pos.tolist())
+        elif index == 0x60B2 and plan.torque_ff_Nm is not None:
+            columns.append(np.clip(sc.torque_to_device(plan.torque_ff_Nm[:, ai]), *INT16).tolist())
+        elif index == 0x60B1 and plan.velocity_ff_rad_s is not None:
+            columns.append(np.clip(sc.velocity_to_device(plan.velocity_ff_rad_s[:, ai]), *INT32).tolist())
+        else:
+            columns.append([0] * len(demand))
     pack = codec.struct.pack
-    slots = {0x6040: None, 0x607A: None, 0x60B1: 0, 0x60B2: 0}
-    layout = [(obj, slots[obj]) for obj in codec.objects]
-    targets = ax.cfg.scaling.position_to_device(demand[:, ai]).tolist()
     cob = codec.cob_id
 
     def send_cycle(k: int, cw: int) -> None:
-        send(cob, pack(*[cw if obj == 0x6040 else targets[k] if obj == 0x607A else const
-                         for obj, const in layout]))
+        send(cob, pack(*[cw if col is None else col[k] for col in columns]))
     return send_cycle
 
 
@@ -203,7 +227,8 @@ def stream(link: Link, axes: dict[str, AxisLink], plan: Plan, *, heartbeat_timeo
                 net.unsubscribe(cob)            # canopen's own PdoMap decoding is not needed here
             net.subscribe(cob, handler)
     send = net.send_message
-    packers = [_packer(axes[a], c, plan.demand, i, send) for i, a in enumerate(plan.axes) for c in axes[a].rpdos]
+    packers = [(_packer(axes[a], c, plan, i, send), CW_ENABLE_IP if axes[a].mode == IP else CW_ENABLE)
+               for i, a in enumerate(plan.axes) for c in axes[a].rpdos]
     sw_cols = [(a, rec.column(a, 0x6041)) for a in plan.axes]
     vel_cols = [(a, rec.column(a, 0x606C)) for a in plan.axes] if guard is not None else []
     misses = dict.fromkeys(plan.axes, 0)
@@ -220,7 +245,7 @@ def stream(link: Link, axes: dict[str, AxisLink], plan: Plan, *, heartbeat_timeo
     try:
         emcy_from = {a: len(axes[a].emcy) for a in plan.axes}
         for a in plan.axes:
-            axes[a].drive.set_mode(8)
+            axes[a].drive.set_mode(axes[a].mode)
             axes[a].drive.enable()
         t0 = clock.now()
         for a in plan.axes:                                  # heartbeat supervision starts now
@@ -243,8 +268,8 @@ def stream(link: Link, axes: dict[str, AxisLink], plan: Plan, *, heartbeat_timeo
                     break
                 if progress is not None and k % 50 == 0:
                     progress(k)
-            for packer in packers:
-                packer(k, CW_ENABLE)
+            for packer, cw in packers:
+                packer(k, cw)
             stamp = clock.now()
             rec.on_sync(stamp)
             send(SYNC_COB_ID, b"", False, stamp)
@@ -295,6 +320,9 @@ def _check_row(rec, row, axes, sw_cols, names, misses, miss_limit, emcy_from) ->
         sw = int(rec.raw[row, sw_cols[ai][1]])
         if sw & SW_FAULT:
             return MotionAborted(f"drive reports {state_name(sw)} (statusword 0x{sw:04X})", name)
+        if row >= FOLLOW_GRACE_ROWS and not sw & SW_FOLLOWING:
+            what = ("interpolation is not active" if ax.mode == IP else "the drive does not follow the setpoints")
+            return MotionAborted(f"{what} (statusword 0x{sw:04X}, bit 12 clear, in {state_name(sw)})", name)
     return None
 
 

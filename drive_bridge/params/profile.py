@@ -30,6 +30,7 @@ from ..resources import data, shipped
 from ..yamlconf import Section, load_yaml
 
 PROFILE_DIR = shipped("params", "profiles")
+DEFAULT_PROFILE = "drive_bridge_servo"
 PARAMETERS = ("J", "c0", "c1", "offset", "cp", "dc0", "dc1", "periodic_amplitude", "periodic_period",
               "periodic_phase", "ff_enable", "KpP", "FwF", "KpS", "KiS", "KpC", "KiC")
 TYPES = {name: getattr(datatypes, name) for name in

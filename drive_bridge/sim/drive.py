@@ -3,10 +3,15 @@
 The SDO server and the object storage are canopen's ``LocalNode``; this module
 adds what a real drive does with those objects: NMT, heartbeat, EMCY, PDOs as
 the master maps them (:mod:`.pdo_map`; TPDOs sent on SYNC, synchronous RPDOs
-applied on SYNC), the CiA 402 state machine (:mod:`.cia402`), the operating modes CSP (8), PV (3)
-and PP (1), and the safety functions (following-error window, software
-position limits, loss of setpoint).  The loops and the plant live in
-:mod:`.kernel`; this module converts between device units and SI at its edge.
+applied on SYNC), the CiA 402 state machine (:mod:`.cia402`), the operating modes CSP (8),
+IP (7), PV (3) and PP (1) where its 0x6502 lists them, and the safety functions
+(following-error window, software position limits, loss of setpoint).  The loops and the
+plant live in :mod:`.kernel`; this module converts between device units and SI at its edge.
+
+A drive is built from an EDS/DCF -- the project's own or a vendor's (:mod:`.vendors`) -- and
+behaves as that drive: its object dictionary and identity, only the modes it lists, its
+feedback objects and units, its gain objects turned into the same cascade loops through the
+drive profile's scales, and no torque offset or store object where the file has none.
 
 A drive knows the robot it sits in only through :class:`DriveHost` (as a
 canopen node knows only its Network): the time, the SYNC period, a way to send
@@ -23,18 +28,22 @@ import canopen
 import numpy as np
 from canopen.sdo import SdoAbortedError
 
+from ..params.profile import load_profile
 from ..pdo import PdoCodec
+from ..setpoint import CSP, IP, PVT, SETPOINT_OBJECTS, position_of, supported_modes, unpack_pvt
 from . import kernel as K
 from .adapters import local_node
 from .cia402 import (ENABLED, FAULT, FAULT_REACTION, QUICK_STOP, STATUSWORD, SWITCH_ON_DISABLED,
                      VOLTAGE_ENABLED, next_state)
 from .config import SimAxis
 from .pdo_map import ABORT_RANGE, PdoMapping
+from .vendors import factory, spec_for
 
 # NMT states as sent in the heartbeat
 NMT_STOPPED, NMT_OPERATIONAL, NMT_PREOP = 0x04, 0x05, 0x7F
 
-CSP, PV, PP = 8, 3, 1
+PV, PP = 3, 1
+IMPLEMENTED_MODES = (PP, PV, IP, CSP)
 SAVE_SIGNATURE = 0x65766173      # 'save'
 LOAD_SIGNATURE = 0x64616F6C      # 'load'
 
@@ -46,11 +55,14 @@ SETPOINT_TIMEOUT_PERIODS = 10     # CSP: no setpoint for this many interpolation
 ABORT_TOO_LOW = 0x06090032
 
 
-#: 0x2000 sub-index -> kernel parameter of each gain; 0x2001 sub-index -> model feed-forward parameter
-GAIN_PARAMS = {1: K.KPP, 2: K.FWF, 3: K.KPS, 4: K.KIS, 5: K.KPC, 6: K.KIC}
-MODEL_PARAMS = {1: K.FF_EN, 2: K.FF_J, 3: K.FF_C0, 4: K.FF_C1, 5: K.FF_OFF, 6: K.FF_CP,
-                 7: K.FF_DC0, 8: K.FF_DC1, 9: K.FF_PER_AMP, 10: K.FF_PER_PERIOD, 11: K.FF_PER_PHASE}
-_MOTOR_OBJECTS = {1: "R", 2: "L", 3: "kt", 4: "vbus"}
+#: drive-profile parameter -> kernel parameter: the gains, and the model feed-forward of a drive
+#: that has one
+GAIN_PARAMS = {"KpP": K.KPP, "FwF": K.FWF, "KpS": K.KPS, "KiS": K.KIS, "KpC": K.KPC, "KiC": K.KIC}
+MODEL_PARAMS = {"ff_enable": K.FF_EN, "J": K.FF_J, "c0": K.FF_C0, "c1": K.FF_C1, "offset": K.FF_OFF,
+                "cp": K.FF_CP, "dc0": K.FF_DC0, "dc1": K.FF_DC1, "periodic_amplitude": K.FF_PER_AMP,
+                "periodic_period": K.FF_PER_PERIOD, "periodic_phase": K.FF_PER_PHASE}
+_MOTOR_OBJECTS = {1: "R", 2: "L", 3: "kt", 4: "vbus"}        # 0x2002 of the project's drive
+DEVICE_TYPE_SERVO = 0x00020192                                # CiA 402, servo drive
 
 
 def plant_params(p, axis: "SimAxis", axis_names: list[str]) -> None:
@@ -97,15 +109,26 @@ class SimDrive:
         self.axis = axis
         self.axis_names = axis_names
         self.node_id = axis.node_id
+        self.spec = spec_for(eds_path)
+        #: (index, sub) -> (kernel parameter, profile entry) of every gain / model object the drive has
+        self.params = {(e.index, e.sub): ((GAIN_PARAMS | MODEL_PARAMS)[name], e)
+                       for name, e in load_profile(self.spec.profile).entries.items()}
         # heartbeat and NMT run in simulation time here, not in canopen's timer thread
-        self.node = local_node(axis.node_id, canopen.import_od(eds_path, axis.node_id), self._send)
+        self.node = local_node(axis.node_id, canopen.import_od(str(eds_path), axis.node_id), self._send)
         self.node.add_write_callback(self._on_sdo_write)
         self.node.add_read_callback(self._on_sdo_read)
         self.od = self.node.object_dictionary
         self._cache: dict[tuple[int, int], object] = {}
         self._live = self._live_objects()
         self.pdos = PdoMapping(self.od, self._od, self._getter)
-        self.inc_per_rad = self._od(0x608F, 1) / self._od(0x608F, 2) / (2 * math.pi)
+        encoder = self.od.get_variable(0x608F, 1)
+        if encoder is not None and encoder.default:
+            self.inc_per_rad = self._od(0x608F, 1) / self._od(0x608F, 2) / (2 * math.pi)
+        else:
+            self.inc_per_rad = self.spec.increments_per_rev / (2 * math.pi)
+        #: device velocity units per rad/s (accelerations: the same per s)
+        self.vel_per_si = 60 / (2 * math.pi) if self.spec.velocity_unit == "rpm" else self.inc_per_rad
+        self.modes = [m for m in supported_modes(self._supported_bits()) if m in IMPLEMENTED_MODES]
         self.s, self.p, self.d = rows      # kernel rows of this axis (views)
         self.online = True                 # False: the drive has dropped off the bus
         self._init_storage()
@@ -113,19 +136,49 @@ class SimDrive:
         self._power_up()
 
     # ------------------------------------------------------------------ storage
+    def _supported_bits(self) -> int:
+        var = self.od.get_variable(0x6502, 0)
+        return var.default if var is not None and var.default is not None else (self.spec.supported_modes or 0)
+
     def _init_storage(self) -> None:
+        """Factory state: zero where the file gives no value (a vendor file leaves many out), the
+        fixed values (identity, motor data), and the factory gains in the drive's units."""
+        self.node.data_store.clear()
+        for obj in self.od.values():
+            for var in (obj.values() if hasattr(obj, "values") else [obj]):
+                if var.default is None and var.value is None and var.readable and \
+                        var.data_type in var.STRUCT_TYPES and var.index not in self._live:
+                    self._store(var.index, var.subindex, 0)
+        self._init_storage_missing()
         m = self.axis.motor
-        store = self.node.data_store
-        store.clear()
-        for sub, name in _MOTOR_OBJECTS.items():
-            self._store(0x2002, sub, getattr(m, name))
-        self._store(0x6076, 0, round(m.rated_torque_Nm * 1000))
-        self._store(0x6075, 0, round(m.rated_torque_Nm / m.kt * 1000))
-        self._store(0x1018, 4, self.axis.serial)
+        if 0x6076 in self.od:
+            self._store(0x6076, 0, round(m.rated_torque_Nm * 1000))          # mNm
+        if 0x6075 in self.od:
+            self._store(0x6075, 0, round(m.rated_torque_Nm / m.kt * 1000))   # mA
+        if encoder_var := self.od.get_variable(0x608F, 1):
+            if not encoder_var.default:
+                self._store(0x608F, 1, round(self.inc_per_rad * 2 * math.pi))
+                self._store(0x608F, 2, 1)
+        if self.spec.profile != "drive_bridge_servo":      # the project drive's EDS holds them already
+            f = factory()
+            for (index, sub), (col, entry) in self.params.items():
+                if entry.parameter in f.gains:
+                    self._store(index, sub, entry.to_device(f.gains[entry.parameter]))
+            for index, value in ((0x6072, f.max_torque_permille), (0x6066, f.fe_timeout_ms),
+                                 (0x6085, f.quick_stop_rad_s2 * self.vel_per_si),
+                                 (0x6081, f.profile_velocity_rad_s * self.vel_per_si),
+                                 (0x6083, f.profile_acceleration_rad_s2 * self.vel_per_si),
+                                 (0x6084, f.profile_acceleration_rad_s2 * self.vel_per_si)):
+                if index in self.od:
+                    self._store(index, 0, round(value))
 
     def _store(self, index: int, sub: int, value) -> None:
         self.node.data_store.setdefault(index, {})[sub] = self.od.get_variable(index, sub).encode_raw(value)
         self._cache[(index, sub)] = value
+
+    def _od_or(self, index: int, sub: int, fallback):
+        """An object's value, or ``fallback`` where the drive has no such object."""
+        return self._od(index, sub) if self.od.get_variable(index, sub) is not None else fallback
 
     def _od(self, index: int, sub: int = 0):
         """Current value of an object, as the SDO server would return it (cached)."""
@@ -142,12 +195,16 @@ class SimDrive:
         p, s = self.p, self.s
         plant_params(p, self.axis, self.axis_names)
         p[K.INC_PER_RAD] = self.inc_per_rad
-        self.rated_torque = self._od(0x6076) / 1000.0
-        for sub, col in GAIN_PARAMS.items():
-            p[col] = self._od(0x2000, sub)
-        for sub, col in MODEL_PARAMS.items():
-            p[col] = self._od(0x2001, sub)
-        p[K.TMAX] = self._od(0x6072) / 1000.0 * self.rated_torque
+        m = self.axis.motor
+        self.rated_torque = self._od_or(0x6076, 0, m.rated_torque_Nm * 1000) / 1000.0
+        self.rated_current_A = self._od_or(0x6075, 0, m.rated_torque_Nm / m.kt * 1000) / 1000.0
+        for name, col in GAIN_PARAMS.items():                 # a gain without an object keeps the factory value
+            p[col] = factory().gains[name]
+        for col in MODEL_PARAMS.values():
+            p[col] = 0.0
+        for (index, sub), (col, entry) in self.params.items():
+            p[col] = entry.to_si(self._od(index, sub))
+        p[K.TMAX] = self._od_or(0x6072, 0, factory().max_torque_permille) / 1000.0 * self.rated_torque
         p[K.FE_WINDOW] = self._od(0x6065) / self.inc_per_rad
         self.state = SWITCH_ON_DISABLED
         self.nmt_state = NMT_PREOP
@@ -157,7 +214,8 @@ class SimDrive:
         self.error_history: list[int] = []
         self.internal_limit = False
         self.target_reached = False
-        self.new_target = False          # a CSP target arrived since the last SYNC
+        self.new_target = False          # a CSP target / IP record arrived since the last SYNC
+        self.setpoint_inc = 0            # the last CSP target / IP record position [increments]
         self.setpoint_armed = False      # loss-of-setpoint watchdog armed (CSP streaming started)
         self.last_setpoint_time = 0.0
         self.v_dem = 0.0                 # demand velocity of the current period [rad/s]
@@ -171,7 +229,7 @@ class SimDrive:
         self._hb_next = 0.0
         self._last_count = math.floor(s[K.Q] * self.inc_per_rad)
         self._last_refresh = self.host.time
-        self._velocity_inc_s = 0
+        self._velocity = 0
         self.d[:] = 0.0
         self.d[K.P0] = self.d[K.P1] = self.s[K.ENC] = self._last_count / self.inc_per_rad
         self._rebuild_pdos()
@@ -204,10 +262,21 @@ class SimDrive:
             self.boot()
 
     def _init_storage_missing(self) -> None:
+        """What no parameter store holds: motor data, identity, device type, supported modes."""
         m = self.axis.motor
-        for sub, name in _MOTOR_OBJECTS.items():
-            self._store(0x2002, sub, getattr(m, name))
+        if 0x2002 in self.od and self.spec.profile == "drive_bridge_servo":
+            for sub, name in _MOTOR_OBJECTS.items():
+                self._store(0x2002, sub, getattr(m, name))
+        info = self.od.device_information
+        for sub, value in ((1, info.vendor_number), (2, info.product_number), (3, info.revision_number)):
+            var = self.od.get_variable(0x1018, sub)
+            if var is not None and var.default is None:
+                self._store(0x1018, sub, value or 0)
         self._store(0x1018, 4, self.axis.serial)
+        if self.od[0x1000].default is None:
+            self._store(0x1000, 0, DEVICE_TYPE_SERVO)
+        if 0x6502 in self.od and self.od[0x6502].default is None:
+            self._store(0x6502, 0, self.spec.supported_modes)
 
     def heartbeat_due(self, now: float) -> None:
         period = self._od(0x1017) / 1000.0
@@ -255,28 +324,29 @@ class SimDrive:
         if index == 0x6040:
             self._on_controlword(value)
         elif index == 0x6060:
-            if value not in (0, CSP, PV, PP):
+            if value != 0 and value not in self.modes:
                 raise SdoAbortedError(ABORT_RANGE)
             if value != self.mode and self.state == ENABLED:
                 self._hold_position()
             self.mode = value
         elif index == 0x60B2:                               # torque offset [per mille of rated torque]
             self.d[K.T_OFF] = value / 1000.0 * self.rated_torque
-        elif index == 0x60B1:                               # velocity offset [increments/s]
-            self.d[K.V_OFF] = value / self.inc_per_rad
-        elif index == 0x607A:
-            self.new_target = True
-            self.last_setpoint_time = self.host.time
-            if self.state == ENABLED and self.mode == CSP:
-                self.setpoint_armed = True
-        elif index == 0x2000:
-            if not math.isfinite(value) or value < 0:
-                raise SdoAbortedError(ABORT_TOO_LOW if value < 0 else ABORT_RANGE)
-            self.p[GAIN_PARAMS[sub]] = value
-        elif index == 0x2001:
-            if not math.isfinite(value) or (sub == 1 and value not in (0, 1)) or (sub in (2, 10) and value < 0):
-                raise SdoAbortedError(ABORT_RANGE)
-            self.p[MODEL_PARAMS[sub]] = value
+        elif index == 0x60B1:                               # velocity offset [velocity unit]
+            self.d[K.V_OFF] = value / self.vel_per_si
+        elif (index, sub) in SETPOINT_OBJECTS:
+            if SETPOINT_OBJECTS[(index, sub)] == self.mode:     # 0x607A in PP is read on the set-point edge
+                self.setpoint_inc = position_of((index, sub), value)
+                self.new_target = True
+                self.last_setpoint_time = self.host.time
+                if self.following:
+                    self.setpoint_armed = True
+        elif (index, sub) in self.params:
+            col, entry = self.params[(index, sub)]
+            si = entry.to_si(value)
+            if not math.isfinite(si) or si < 0 and col not in (K.FF_OFF, K.FF_CP, K.FF_DC0, K.FF_DC1, K.FF_PER_PHASE) \
+                    or col == K.FF_EN and value not in (0, 1):
+                raise SdoAbortedError(ABORT_TOO_LOW if si < 0 else ABORT_RANGE)
+            self.p[col] = si
         elif index == 0x1017:
             self._hb_next = self.host.time + value / 1000.0     # first beat one period from now
         elif index == 0x6065:
@@ -350,14 +420,19 @@ class SimDrive:
             sw |= 0x0400
         if self.internal_limit:
             sw |= 0x0800
-        if self.state == ENABLED and (self.mode == CSP or (self.mode == PP and self.setpoint_ack)):
-            sw |= 0x1000                   # CSP: follows the command value; PP: set-point acknowledged
+        if self.following or (self.state == ENABLED and self.mode == PP and self.setpoint_ack):
+            sw |= 0x1000                   # CSP: follows the command value; IP: active; PP: set-point acknowledged
         if self.s[K.FE_COUNT] > 0:
             sw |= 0x2000
         return sw
 
+    @property
+    def following(self) -> bool:
+        """Enabled and taking the master's setpoints: CSP, or IP with interpolation enabled (bit 4)."""
+        return self.state == ENABLED and (self.mode == CSP or (self.mode == IP and bool(self.controlword & 0x10)))
+
     def _on_controlword(self, cw: int) -> None:
-        if cw == self.controlword == 0x0F and self.state == ENABLED:
+        if cw == self.controlword and cw in (0x0F, 0x1F) and self.state == ENABLED:
             return                                          # the streaming steady state
         new_setpoint = cw & 0x10 and not self.controlword & 0x10
         previous, self.controlword = self.controlword, cw
@@ -439,31 +514,35 @@ class SimDrive:
         d[K.P0] = d[K.P1]
         v_old = self.v_dem
         self.internal_limit = False
-        if self.state == ENABLED and self.mode == CSP:
+        if self.following:
             if self.new_target:
-                d[K.P1] = self._limit(self._od(0x607A) / self.inc_per_rad)
+                d[K.P1] = self._limit(self.setpoint_inc / self.inc_per_rad)
             self.v_dem = (d[K.P1] - d[K.P0]) / T
         elif self.state == QUICK_STOP:
-            self._ramp(0.0, self._od(0x6085) / self.inc_per_rad, T)
+            self._ramp(0.0, self._od_or(0x6085, 0, factory().quick_stop_rad_s2 * self.vel_per_si) / self.vel_per_si, T)
             if self.v_dem == 0.0:
                 self.target_reached = True
-                if self._od(0x605A) in (0, 1, 2, 3):
+                if self._od_or(0x605A, 0, 2) in (0, 1, 2, 3):
                     self._go(SWITCH_ON_DISABLED)
         elif self.state == ENABLED and self.mode == PV:
-            self._ramp(self._od(0x60FF) / self.inc_per_rad, self._od(0x6083) / self.inc_per_rad, T)
-            self.target_reached = self.v_dem == self._od(0x60FF) / self.inc_per_rad
+            self._ramp(self._od(0x60FF) / self.vel_per_si, self._od(0x6083) / self.vel_per_si, T)
+            self.target_reached = self.v_dem == self._od(0x60FF) / self.vel_per_si
         elif self.state == ENABLED and self.mode == PP and self.pp_target is not None:
             dist = self.pp_target - d[K.P0]
-            dec = self._od(0x6084) / self.inc_per_rad
-            v_max = min(self._od(0x6081) / self.inc_per_rad, math.sqrt(2 * dec * abs(dist)))
-            self._ramp(math.copysign(v_max, dist), self._od(0x6083) / self.inc_per_rad, T)
+            acc = self._od(0x6083) / self.vel_per_si
+            dec = self._od_or(0x6084, 0, acc * self.vel_per_si) / self.vel_per_si
+            v_max = min(self._od_or(0x6081, 0, factory().profile_velocity_rad_s * self.vel_per_si) / self.vel_per_si,
+                        math.sqrt(2 * dec * abs(dist)))
+            self._ramp(math.copysign(v_max, dist), acc, T)
             if abs(dist) <= abs(self.v_dem) * T or abs(dist) < 1.0 / self.inc_per_rad:
                 d[K.P1] = self.pp_target
                 self.v_dem = 0.0
                 self.pp_target = None         # the demand is there; the axis is when it settles
         else:
             self.v_dem = 0.0
-        d[K.A_FF] = (self.v_dem - v_old) / T
+        # linear interpolation (IP sub-mode 0) has no acceleration within a period
+        linear = self.following and self.mode == IP and self._od_or(0x60C0, 0, 0) == 0
+        d[K.A_FF] = 0.0 if linear else (self.v_dem - v_old) / T
         self.new_target = False
 
     def _ramp(self, v_target: float, accel: float, T: float) -> None:
@@ -490,17 +569,17 @@ class SimDrive:
         if self.state not in (ENABLED, QUICK_STOP):
             return
         if self.state == ENABLED and self.mode == PP and self.pp_target is None and self.pp_goal is not None:
-            inside = abs(self.s[K.ENC] - self.pp_goal) * self.inc_per_rad <= self._od(0x6067)
+            inside = abs(self.s[K.ENC] - self.pp_goal) * self.inc_per_rad <= self._od_or(0x6067, 0, 1000)
             if not inside:
                 self._in_window_since = None
             elif self._in_window_since is None:
                 self._in_window_since = self.host.time
             self.target_reached = inside and \
-                self.host.time - self._in_window_since >= self._od(0x6068) / 1000.0 - 1e-9
-        timeout_ticks = max(1, round(self._od(0x6066) / 1000.0 / K.VELOCITY_TICK_S))
+                self.host.time - self._in_window_since >= self._od_or(0x6068, 0, 10) / 1000.0 - 1e-9
+        timeout_ticks = max(1, round(self._od_or(0x6066, 0, factory().fe_timeout_ms) / 1000.0 / K.VELOCITY_TICK_S))
         if self.s[K.FE_COUNT] >= timeout_ticks:
             self.fault(ERR_FOLLOWING)
-        elif self.setpoint_armed and self.mode == CSP and self.state == ENABLED and \
+        elif self.setpoint_armed and self.following and \
                 self.host.time - self.last_setpoint_time > SETPOINT_TIMEOUT_PERIODS * self._interpolation_period() + 1e-9:
             self.fault(ERR_RPDO_TIMEOUT)
 
@@ -516,7 +595,7 @@ class SimDrive:
         count = math.floor(self.s[K.Q] * self.inc_per_rad)
         dt = self.host.time - self._last_refresh
         if dt > 0:
-            self._velocity_inc_s = round((count - self._last_count) / dt)
+            self._velocity = round((count - self._last_count) / dt / self.inc_per_rad * self.vel_per_si)
         self._last_count = count
         self._last_refresh = self.host.time
         current = K.mean_current(self.s)
@@ -524,7 +603,8 @@ class SimDrive:
         if noise and self.axis.torque_noise_Nm:
             torque += self.axis.torque_noise_Nm * self.host.noise()
         self._torque_pm = max(-32768, min(32767, round(torque / self.rated_torque * 1000)))
-        self._current_pm = max(-32768, min(32767, round(current / (self.rated_torque / self.p[K.KT]) * 1000)))
+        per_unit = 1e-3 if self.spec.current_unit == "mA" else self.rated_current_A / 1000.0
+        self._current = max(-32768, min(32767, round(current / per_unit)))
         self._position_inc = max(-2**31, min(2**31 - 1, count))
 
     def _live_objects(self) -> dict[int, Callable[[], int]]:
@@ -533,9 +613,9 @@ class SimDrive:
             0x6041: lambda: self.statusword,
             0x6061: lambda: self.mode,
             0x6064: lambda: self._position_inc,
-            0x606C: lambda: self._velocity_inc_s,
+            0x606C: lambda: self._velocity,
             0x6077: lambda: self._torque_pm,
-            0x6078: lambda: self._current_pm,
+            0x6078: lambda: self._current,
             0x60F4: lambda: round(self.s[K.FERR] * self.inc_per_rad),
             0x603F: lambda: self.error_code,
             0x1001: lambda: 0x01 if self.state == FAULT else 0x00,

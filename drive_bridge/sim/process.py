@@ -10,6 +10,7 @@ kernel's reception time like a CAN controller does.
 from __future__ import annotations
 
 import gc
+import json
 import select
 import socket
 import subprocess
@@ -36,11 +37,12 @@ class SimProcess:
     its standard input closes (so it also stops when this process dies).
     """
 
-    def __init__(self, config_path: str | Path, sync_period: float):
+    def __init__(self, config_path: str | Path, sync_period: float, eds: dict[str, str] | None = None):
         self.port = free_port()
         self.bus = LoopbackMulticastBus(GROUP, self.port)      # the master's end, open before boot-up
         self.process = subprocess.Popen(
-            [sys.executable, "-m", __name__, str(config_path), str(self.port), repr(sync_period)],
+            [sys.executable, "-m", __name__, str(config_path), str(self.port), repr(sync_period),
+             json.dumps({a: str(p) for a, p in (eds or {}).items()})],
             stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
         ready = select.select([self.process.stdout], [], [], START_TIMEOUT_S)[0]
         if not ready or self.process.stdout.readline().strip() != "ready":
@@ -58,11 +60,11 @@ class SimProcess:
         self.bus.shutdown()
 
 
-def main(config_path: str, port: str, sync_period: str) -> None:
+def main(config_path: str, port: str, sync_period: str, eds: str = "{}") -> None:
     from .config import load_sim_config
     from .robot import SimRobot
     robot = SimRobot(load_sim_config(config_path), bus=LoopbackMulticastBus(GROUP, int(port)),
-                     sync_period=float(sync_period))
+                     sync_period=float(sync_period), eds=json.loads(eds))
     # Out of the cycle collector's reach: a full collection walking three object dictionaries
     # stops the drives for tens of ms, longer than the master's missing-feedback limit.
     gc.collect()

@@ -34,11 +34,12 @@ class SimRobot:
     """All simulated drives of one robot, answering on ``channel`` of the virtual bus.
 
     ``sync_period`` [s] is the SYNC period the drives interpolate over (0x60C2
-    is written by the master; the kernel needs the tick count up front).
+    is written by the master; the kernel needs the tick count up front).  ``eds`` is the EDS/DCF
+    every drive is built from, or one per axis name (the project's drive where an axis has none).
     """
 
     def __init__(self, config: SimConfig, channel: str = "drive-bridge", *, bus: can.BusABC | None = None,
-                 sync_period: float = 0.002, eds_path: str | Path = PROJECT_EDS):
+                 sync_period: float = 0.002, eds: str | Path | dict[str, str | Path] = PROJECT_EDS):
         self.config = config
         self.sync_period = sync_period
         self.ticks_per_period = round(sync_period / K.VELOCITY_TICK_S)
@@ -58,7 +59,8 @@ class SimRobot:
         self.drives: dict[str, SimDrive] = {}      # filled before the first routes_changed() counts
         names = list(config.axes)
         for i, (name, axis) in enumerate(config.axes.items()):
-            self.drives[name] = SimDrive(self, i, axis, str(eds_path),
+            path = eds.get(name, PROJECT_EDS) if isinstance(eds, dict) else eds
+            self.drives[name] = SimDrive(self, i, axis, str(path),
                                          (self.state[i], self.param[i], self.demand[i]), names)
         self.routes_changed()
         self._thread: threading.Thread | None = None

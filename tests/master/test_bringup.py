@@ -36,25 +36,39 @@ def _nanotec_y(tmp_path):
     return cfg
 
 
-def test_a_node_that_is_not_the_drive_its_eds_describes_stops_before_any_write(tmp_path, capsys):
+def test_a_node_that_is_not_the_drive_its_eds_describes_stops_before_any_write(tmp_path):
+    """The bus.yml names the Nanotec EDS for Y, the node on the bus is the project's drive."""
     from drive_bridge.config import load_bus_config
-    from drive_bridge.errors import BusError
-    from drive_bridge.master.bringup import bring_up
+    from drive_bridge.errors import EXIT_CODES, BusError
+    from drive_bridge.master.bringup import bring_up, check_scan, scan
     from ..support import Bench, clean_config
-    cfg = _nanotec_y(tmp_path)
-    assert main(["scan", "--sim", "--config", str(cfg)]) == 3
-    err = capsys.readouterr().err
-    assert "axis y (node 2) is not the drive its EDS/DCF describes" in err
-    assert "vendor 0x00000DB1" in err and "vendor 0x0000026C" in err and "--accept-identity 2" in err
+    cfg = load_bus_config(_nanotec_y(tmp_path))
     bench = Bench(clean_config())
+    with pytest.raises(BusError) as exc:
+        check_scan(scan(bench.link, cfg), cfg)
+    msg = str(exc.value)
+    assert "axis y (node 2) is not the drive its EDS/DCF describes" in msg and EXIT_CODES[exc.value.kind] == 3
+    assert "vendor 0x00000DB1" in msg and "vendor 0x0000026C" in msg and "--accept-identity 2" in msg
     writes = []
     bench.robot.drives["y"].sdo_fault = lambda op, index, sub: writes.append((index, sub)) if op == "write" else None
     with pytest.raises(BusError, match="is not the drive"):
-        bring_up(bench.link, load_bus_config(cfg))
+        bring_up(bench.link, cfg)
     assert writes == []                                       # nothing was written to any drive
 
 
-def test_accept_identity_is_the_deliberate_override_and_is_recorded(tmp_path, capsys):
-    cfg = _nanotec_y(tmp_path)
-    assert main(["scan", "--sim", "--config", str(cfg), "--accept-identity", "2"]) == 0
-    assert "identity ACCEPTED although it differs" in capsys.readouterr().out
+def test_accept_identity_is_the_deliberate_override_and_is_recorded(tmp_path):
+    from dataclasses import replace
+    from drive_bridge.config import load_bus_config
+    from drive_bridge.master.bringup import check_scan, scan
+    from ..support import Bench, clean_config
+    cfg = replace(load_bus_config(_nanotec_y(tmp_path)), accept_identity=frozenset({2}))
+    bench = Bench(clean_config())
+    result = scan(bench.link, cfg)
+    check_scan(result, cfg)                                   # goes on
+    assert "y" in result.identity_accepted and "y" in result.as_dict(cfg)["identity_accepted"]
+
+
+def test_scan_sees_each_vendor_drive_as_its_own_eds_describes(tmp_path, capsys):
+    """--sim builds each node's drive from the EDS/DCF bus.yml names: the Nanotec's identity."""
+    assert main(["scan", "--sim", "--config", str(_nanotec_y(tmp_path))]) == 0
+    assert "axis y    CiA 402 drive  vendor 0x0000026C product 0x00000011" in capsys.readouterr().out

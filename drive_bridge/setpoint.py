@@ -1,0 +1,63 @@
+"""How position setpoints reach a drive: the operating modes the master streams in and the
+objects that carry a setpoint in each (CiA 402), shared by the master, the log decoder and the
+simulated drives.
+
+* cyclic synchronous position (mode 8): one target position 0x607A per SYNC;
+* interpolated position (mode 7): one interpolation data record per SYNC, either the standard
+  0x60C1:1 (sub-mode 0, linear interpolation) or maxon's 0x20C1 PVT record (sub-mode -1:
+  position 32 bit, velocity 24 bit, time 8 bit in ms); controlword bit 4 enables interpolation
+  and statusword bit 12 confirms it.
+"""
+from __future__ import annotations
+
+CSP, IP = 8, 7
+MODE_NAMES = {1: "profile position", 2: "velocity", 3: "profile velocity", 4: "profile torque", 6: "homing",
+              7: "interpolated position", 8: "cyclic synchronous position", 9: "cyclic synchronous velocity",
+              10: "cyclic synchronous torque"}
+PVT = (0x20C1, 0)
+#: object that carries a position setpoint -> the mode it is streamed in
+SETPOINT_OBJECTS = {(0x607A, 0): CSP, (0x60C1, 1): IP, PVT: IP}
+#: interpolation sub-mode (0x60C0) of each interpolated-position setpoint object
+IP_SUB_MODE = {(0x60C1, 1): 0, PVT: -1}
+CW_ENABLE_IP = 0x1F                  # enable operation + bit 4: enable interpolation
+SW_FOLLOWING = 0x1000                # bit 12: CSP follows the setpoints / IP active
+
+
+def supported_modes(bits: int) -> list[int]:
+    """The CiA 402 modes a 0x6502 value lists (bit n-1 is mode n; bit 4 is reserved)."""
+    return [m for m in MODE_NAMES if bits >> (m - 1) & 1]
+
+
+def describe_modes(bits: int) -> str:
+    modes = supported_modes(bits)
+    return ", ".join(f"{MODE_NAMES[m]} ({m})" for m in modes) or "none"
+
+
+def pack_pvt(position_inc: int, velocity: int, time_ms: int) -> int:
+    """maxon's interpolation data record 0x20C1 (UNSIGNED64): position, velocity (the drive's
+    velocity unit), time [ms] from the low byte up."""
+    return (position_inc & 0xFFFFFFFF) | (velocity & 0xFFFFFF) << 32 | (time_ms & 0xFF) << 56
+
+
+def unpack_pvt(record: int) -> tuple[int, int, int]:
+    """(position, velocity, time_ms) of a 0x20C1 record, signed as the drive reads them."""
+    pos = record & 0xFFFFFFFF
+    vel = record >> 32 & 0xFFFFFF
+    return (pos - (1 << 32) if pos >> 31 else pos, vel - (1 << 24) if vel >> 23 else vel, record >> 56 & 0xFF)
+
+
+def position_of(entry: tuple[int, int], value: int) -> int:
+    """The position [increments] a setpoint object's value carries."""
+    return unpack_pvt(value)[0] if entry == PVT else value
+
+
+def choose(bits: int, mapped: list[tuple[int, int]]) -> tuple[int, tuple[int, int]] | None:
+    """(mode, setpoint object) to stream in: cyclic synchronous position where the drive has it
+    (0x6502 ``bits``) and the RPDOs map 0x607A, else interpolated position with its data record
+    mapped; None when neither."""
+    for mode in (CSP, IP):
+        if bits >> (mode - 1) & 1:
+            entry = next((e for e in mapped if SETPOINT_OBJECTS.get(e) == mode), None)
+            if entry is not None:
+                return mode, entry
+    return None

@@ -1,0 +1,83 @@
+"""What a simulated drive takes from its drive's description beyond the EDS/DCF.
+
+A simulated drive is built from an EDS/DCF: its object dictionary, the modes its
+0x6502 lists, its feedback objects and the identity it names come from the file
+itself.  What a file does not say -- the units the drive reports in, an encoder
+resolution where there is no 0x608F, the supported modes where 0x6502 has no
+default, which drive profile holds its gain objects -- is given here per file.
+Values marked as the simulation's choice stand for one plausible drive set-up,
+not for a vendor document.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import cache
+from pathlib import Path
+
+import canopen
+
+from ..resources import PROJECT_EDS
+
+
+@dataclass(frozen=True)
+class DriveSpec:
+    """``profile``: the drive profile whose objects and scales hold the gains (and model);
+    ``increments_per_rev``: the encoder, where the file has no 0x608F default;
+    ``velocity_unit``: of 0x606C and every velocity/acceleration object ("inc/s": inc/s and
+    inc/s²; "rpm": rpm and rpm/s); ``current_unit`` of 0x6078 ("permille" of the rated current
+    0x6075, or "mA"); ``supported_modes``: 0x6502 where the file has no default."""
+
+    profile: str
+    increments_per_rev: int | None = None
+    velocity_unit: str = "inc/s"
+    current_unit: str = "permille"
+    supported_modes: int | None = None
+
+
+#: by EDS/DCF file name
+SPECS = {
+    PROJECT_EDS.name: DriveSpec("drive_bridge_servo"),
+    # EPOS2: velocities in rpm (0x608C = 0xA4 in its EDS), current actual in mA; 0x6502 is left to
+    # the drive: PP, PV, homing, IP and maxon's position/velocity/current modes (bits 16-18).
+    # 16384 increments per revolution: a 4096-count encoder, quadrature (the simulation's choice).
+    "maxon_epos2_50-5.eds": DriveSpec("maxon_epos2", 16384, "rpm", "mA", 0x00070065),
+    # C5-E: 0x608F:1 has no default; 65536 increments per revolution (the simulation's choice).
+    "nanotec_C5-E-2-09.eds": DriveSpec("nanotec_c5e", 65536),
+    # iPOS: no 0x608F; 16384 increments per revolution (the simulation's choice).
+    "technosoft_iPOS.eds": DriveSpec("technosoft_ipos", 16384),
+    # PRBT: no 0x608F; 2^20 increments per revolution (the simulation's choice).
+    "pilz_prbt_0_1.dcf": DriveSpec("pilz_prbt", 2**20),
+}
+
+
+def spec_for(eds_path: str | Path) -> DriveSpec:
+    """The description of the drive an EDS/DCF is for; ValueError naming the known files."""
+    name = Path(eds_path).name
+    try:
+        return SPECS[name]
+    except KeyError:
+        raise ValueError(f"the simulator has no drive for {name} (it has: {', '.join(SPECS)})") from None
+
+
+@dataclass(frozen=True)
+class Factory:
+    """The factory set-up every simulated drive starts from, SI: the project drive's EDS
+    defaults, so that each vendor drive runs the same loops on the same plant."""
+
+    gains: dict[str, float]                 # KpP, FwF, KpS, KiS, KpC, KiC
+    max_torque_permille: int                # 0x6072
+    quick_stop_rad_s2: float                # 0x6085
+    profile_velocity_rad_s: float           # 0x6081
+    profile_acceleration_rad_s2: float      # 0x6083, 0x6084
+    fe_timeout_ms: int                      # 0x6066
+
+
+@cache
+def factory() -> Factory:
+    od = canopen.import_od(str(PROJECT_EDS), 1)
+    inc_per_rad = od[0x608F][1].default / od[0x608F][2].default / (2 * math.pi)
+    names = ("KpP", "FwF", "KpS", "KiS", "KpC", "KiC")
+    return Factory({n: float(od[0x2000][i + 1].default) for i, n in enumerate(names)}, od[0x6072].default,
+                   od[0x6085].default / inc_per_rad, od[0x6081].default / inc_per_rad,
+                   od[0x6083].default / inc_per_rad, od[0x6066].default)
