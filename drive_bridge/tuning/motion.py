@@ -14,6 +14,7 @@ from ..master.campaign import APPROACH_LEVEL, Plan, Segment, check_plan, trapezo
 from ..master.link import Link
 from ..master.stream import stream
 from ..master.timing import Timing
+from .feedforward import MasterFeedForward
 
 
 @dataclass
@@ -33,11 +34,13 @@ class Motion:
 def run(config: BusConfig, link: Link, axes: dict[str, AxisLink], demand: dict[str, np.ndarray], *,
         guard: Callable[[dict[str, float]], str | None] | None = None,
         on_plan: Callable[[Plan], Callable[[int], None] | None] | None = None,
-        kind: str = "trajectory", level: float = 1.0) -> Motion:
+        kind: str = "trajectory", level: float = 1.0,
+        feedforward: dict[str, MasterFeedForward] | None = None) -> Motion:
     """Approach the first setpoint of ``demand`` (axis -> positions per SYNC [rad]) at 20 % of the
     limits, then stream it; ``guard`` sees each cycle's measured velocities and may stop the run.
     ``on_plan`` may return a progress callback (as in ``record``); ``kind`` and ``level`` (fraction
-    of the limits) label the demand's segment for it."""
+    of the limits) label the demand's segment for it.  ``feedforward`` (per axis) is the model
+    feed-forward the master sends with every setpoint, the approach included."""
     period = config.master.sync_period_s
     names = list(demand)
     limits = {a: axes[a].cfg.limits for a in names}
@@ -51,6 +54,11 @@ def run(config: BusConfig, link: Link, axes: dict[str, AxisLink], demand: dict[s
                                                        0, 0, n_app),
                                                Segment(kind, tuple(names), level, level, 0, n_app,
                                                        n_app + len(demand[names[0]]))], period)
+    if feedforward:
+        offsets = [feedforward[a].offsets(plan.demand[:, i], period) if a in feedforward else
+                   (np.zeros(len(plan.demand)),) * 2 for i, a in enumerate(names)]
+        plan.torque_ff_Nm = np.column_stack([t for t, _ in offsets])
+        plan.velocity_ff_rad_s = np.column_stack([v for _, v in offsets])
     check_plan(plan, limits)
     m = config.master
     progress = on_plan(plan) if on_plan else None

@@ -9,12 +9,8 @@ from pathlib import Path
 from ..errors import UserError
 from .design import GainDesign, Margins, design_gains, loop_margins
 from .experiment import ExperimentResult
+from .feedforward import MODEL_KEYS
 
-#: identify's parameter names -> the drive's model parameters
-MODEL_KEYS = {"J": "J", "c0": "c0", "c1": "c1", "offset.offset": "offset", "position_linear.cp": "cp",
-              "direction_asymmetry.dc0": "dc0", "direction_asymmetry.dc1": "dc1",
-              "position_periodic.amplitude": "periodic_amplitude", "position_periodic.period": "periodic_period",
-              "position_periodic.phase": "periodic_phase"}
 GAINS = ("KpP", "FwF", "KpS", "KiS", "KpC", "KiC")
 
 

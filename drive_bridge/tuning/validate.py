@@ -8,6 +8,10 @@ error = setpoint − measured position [rad]; overshoot [%] and settling time
 RMSE compares the measured torque with J·a + c1·v + c0·sign(v) (+ offset, cp,
 dc0, dc1, position-periodic ripple) of the setpoint trajectory while it moves
 (at rest the axis holds with whatever static friction gives) [Nm].
+
+A scenario's model feed-forward runs in the drive where the drive profile has model objects,
+else from the master (:mod:`.feedforward`: torque offset 0x60B2 with each setpoint); each run
+records which, per axis, and why an axis had none.
 """
 from __future__ import annotations
 
@@ -28,6 +32,7 @@ from ..params.profile import Profile
 from ..params.read import read_parameters
 from ..params.write import write_parameters
 from . import motion, trajectories
+from .feedforward import MODEL, MasterFeedForward, model_torque, route
 
 SETTLE_BAND = 0.02
 
@@ -49,21 +54,13 @@ class Run:
     axes: dict[str, AxisMetrics]
     aborted: str | None
     motion: motion.Motion | None = field(default=None, repr=False)     # the logged run, for plots
+    #: per axis: how the model feed-forward ran ("drive", "master: ...", "none: why")
+    feedforward: dict[str, str] = field(default_factory=dict)
 
     def as_dict(self) -> dict:
         return {"scenario": self.scenario, "trajectory": self.trajectory, "aborted": self.aborted,
-                "axes": {a: asdict(m) for a, m in self.axes.items()},
+                "axes": {a: asdict(m) for a, m in self.axes.items()}, "feedforward": self.feedforward,
                 "timing": None if self.motion is None else self.motion.timing.as_dict()}
-
-
-def model_torque(p: dict[str, float], q: np.ndarray, period: float) -> np.ndarray:
-    v = np.gradient(q, period)
-    a = np.gradient(v, period)
-    sg = np.sign(np.where(np.abs(v) > 1e-6, v, 0.0))
-    ripple = (p.get("periodic_amplitude", 0.0) * np.sin(2 * np.pi * q / p["periodic_period"] + p.get("periodic_phase", 0.0))
-              if p.get("periodic_period", 0.0) > 0 else 0.0)
-    return (p.get("J", 0.0) * a + (p.get("c1", 0.0) + p.get("dc1", 0.0) * sg) * v
-            + (p.get("c0", 0.0) + p.get("dc0", 0.0) * sg) * sg + p.get("offset", 0.0) + p.get("cp", 0.0) * q + ripple)
 
 
 def metrics(m: motion.Motion, model: dict[str, dict[str, float]], period: float,
@@ -102,12 +99,15 @@ def metrics(m: motion.Motion, model: dict[str, dict[str, float]], period: float,
 def validate(config: BusConfig, link: Link, axes: dict[str, AxisLink], profile: Profile,
              scenarios: dict[str, dict[str, dict[str, float]]],
              model: dict[str, dict[str, float]], *,
-             on_plan: Callable[[Plan], Callable[[int], None] | None] | None = None) -> list[Run]:
+             on_plan: Callable[[Plan], Callable[[int], None] | None] | None = None,
+             master_feedforward: set[str] = frozenset()) -> list[Run]:
     """Run every scenario (name -> axis -> parameter values) on both reference trajectories.
 
     ``model`` (axis -> J, c0, c1, ...) predicts the torque the metrics compare with; ``on_plan``
     may return a progress callback for each run (as in ``record``).  Each parameter set is
-    written without storing it.
+    written without storing it; a scenario's model runs in the drive where the profile can write
+    it, else from the master, and from the master in the scenarios named in
+    ``master_feedforward`` (the drive's own model feed-forward then off).
     """
     period = config.master.sync_period_s
     limits = {a: axes[a].cfg.limits for a in axes}
@@ -115,15 +115,24 @@ def validate(config: BusConfig, link: Link, axes: dict[str, AxisLink], profile: 
     path = trajectories.path(limits, period)
     runs = []
     for name, values in scenarios.items():
+        ff: dict[str, MasterFeedForward] = {}
+        how: dict[str, str] = {}
         for a, v in values.items():
+            way = route(axes[a], profile, {k: x for k, x in v.items() if k in MODEL}, name in master_feedforward)
+            if isinstance(way, MasterFeedForward):
+                ff[a] = way
+                v = {k: x for k, x in v.items() if k not in MODEL and k != "ff_enable"}
+                if "ff_enable" in profile.entries:
+                    v["ff_enable"] = 0                  # the drive's own model off: the master's runs
+            how[a] = way.describe() if isinstance(way, MasterFeedForward) else way
             res = write_parameters(axes[a].node, profile, v, store=False)
             if not res.ok:
                 raise DriveRefused(f"scenario {name}, axis {a}: {res.error}")
         for traj, demand, marks, level in (("point_to_point", ptp, moves, trajectories.PTP_LEVEL),
                                            ("path", path, None, trajectories.PATH_LEVEL)):
-            m = motion.run(config, link, axes, demand, on_plan=on_plan, kind=traj, level=level)
+            m = motion.run(config, link, axes, demand, on_plan=on_plan, kind=traj, level=level, feedforward=ff)
             runs.append(Run(name, traj, metrics(m, model, period, marks),
-                            None if m.aborted is None else str(m.aborted), m))
+                            None if m.aborted is None else str(m.aborted), m, how))
             if m.aborted is not None:
                 return runs                   # stopped: no fault is reset and nothing moves again by itself
     return runs
@@ -135,7 +144,8 @@ VALIDATE_JSON, TRACES = "validate.json", "traces.npz"
 def run_scenarios(config: BusConfig, link: Link, axes: dict[str, AxisLink], profile: Profile,
                   scenarios: dict[str, dict[str, dict[str, float]]], model: dict[str, dict[str, float]], *,
                   out_dir: str | Path | None = None,
-                  on_plan: Callable[[Plan], Callable[[int], None] | None] | None = None) -> list[Run]:
+                  on_plan: Callable[[Plan], Callable[[int], None] | None] | None = None,
+                  master_feedforward: set[str] = frozenset()) -> list[Run]:
     """The validate step: :func:`validate` with the drives left holding the parameters they had
     before (every parameter a scenario sets, read first and written back, not stored), and,
     with ``out_dir``, ``validate.json`` and the logged runs (``traces.npz``) kept there.
@@ -144,10 +154,11 @@ def run_scenarios(config: BusConfig, link: Link, axes: dict[str, AxisLink], prof
                 for p in check_set(profile, axes[a].node.object_dictionary, v)]
     if problems:
         raise ValueRefused("refused before anything moved: " + "; ".join(problems))
-    names = sorted({k for values in scenarios.values() for v in values.values() for k in v})
+    names = sorted({k for values in scenarios.values() for v in values.values() for k in v} | {"ff_enable"})
     held = {a: read_parameters(ax.node, profile, names) for a, ax in axes.items()}
     try:
-        runs = validate(config, link, axes, profile, scenarios, model, on_plan=on_plan)
+        runs = validate(config, link, axes, profile, scenarios, model, on_plan=on_plan,
+                        master_feedforward=master_feedforward)
     finally:
         for a, ax in axes.items():          # what the drive held, as it held it: not checked again
             write_parameters(ax.node, profile, held[a], store=False, check=False)

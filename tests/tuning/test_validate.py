@@ -8,6 +8,7 @@ from drive_bridge.paper import TABLE_III
 from drive_bridge.params.profile import load_profile
 from drive_bridge.tuning.design import design_gains
 from drive_bridge.tuning.tune import model_from_identify
+from drive_bridge.sim import kernel as K
 from drive_bridge.tuning.validate import validate
 
 from ..params.test_write import tuned_values
@@ -57,3 +58,42 @@ def test_ripple_compensation_from_the_traced_effect():
     fe = {(r.scenario, r.trajectory): r.axes["x"].fe_rms for r in runs}
     for traj in ("point_to_point", "path"):
         assert fe[("+ ripple", traj)] < fe[("J, c0, c1", traj)] / 3, fe
+
+
+# ---------------------------------------------------------------- from the master
+def test_master_feedforward_reaches_the_drives_own_on_the_same_trajectories():
+    """The project's drive with its model feed-forward off, the master sending the model torque
+    as torque offset 0x60B2: well below the gains alone. The issue's target, within 1.5x of the
+    drive's own feed-forward, is not reached (3-4x here): the drive restarts its velocity
+    integrator when a move starts, which no offset can do (README, "Model feed-forward")."""
+    config = load_bus_config(BUS_CONFIG).only(["y"])
+    model = {"y": dict(PAPER["y"])}
+    tuned = tuned_values()
+    gains_only = {k: v for k, v in tuned.items() if k not in model["y"]} | {"ff_enable": 0.0}
+    scenarios = {"gains only": {"y": gains_only}, "drive": {"y": tuned}, "master": {"y": tuned}}
+    with open_link(config, sim=True, sim_config=None) as link:
+        link.robot.config.axes["y"].effects = {}
+        axes = bring_up(link, config)
+        runs = validate(config, link, axes, SIM, scenarios, model, master_feedforward={"master"})
+        drive = link.robot.drives["y"]
+    assert all(r.aborted is None for r in runs)
+    how = {r.scenario: r.feedforward["y"] for r in runs}
+    assert how["drive"] == "drive" and how["master"] == "master: torque offset 0x60B2"
+    fe = {(r.scenario, r.trajectory): r.axes["y"].fe_rms for r in runs}
+    for traj in ("point_to_point", "path"):
+        assert fe[("master", traj)] < fe[("gains only", traj)] / 2, fe
+        assert fe[("master", traj)] < 5 * fe[("drive", traj)], fe
+    assert drive.p[K.FF_EN] == 0.0                 # the last scenario ran with the drive's own model off
+
+
+def test_master_feedforward_offsets_follow_the_interpolation_segment():
+    """One setpoint opens one segment: the offset is the model at its middle (exact for a parabola)."""
+    import numpy as np
+    from drive_bridge.tuning.feedforward import MasterFeedForward
+    T, acc = 0.002, 40.0
+    t = np.arange(200) * T
+    demand = 0.5 * acc * t**2
+    torque, velocity = MasterFeedForward({"J": 1e-4, "c0": 0.3, "c1": 5e-4}, True, True).offsets(demand, T)
+    v_mid = acc * (t[2:] - T / 2)
+    np.testing.assert_allclose(velocity[2:], v_mid, rtol=1e-9)
+    np.testing.assert_allclose(torque[2:], 1e-4 * acc + 5e-4 * v_mid + 0.3, rtol=1e-9)
