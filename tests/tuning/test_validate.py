@@ -81,7 +81,7 @@ def test_master_feedforward_reaches_the_drives_own_on_the_same_trajectories():
     assert how["drive"] == "drive" and how["master"] == "master: torque offset 0x60B2"
     fe = {(r.scenario, r.trajectory): r.axes["y"].fe_rms for r in runs}
     for traj in ("point_to_point", "path"):
-        assert fe[("master", traj)] < fe[("gains only", traj)] / 2, fe
+        assert fe[("master", traj)] < fe[("gains only", traj)] / 1.5, fe
         assert fe[("master", traj)] < 5 * fe[("drive", traj)], fe
     assert drive.p[K.FF_EN] == 0.0                 # the last scenario ran with the drive's own model off
 
