@@ -16,6 +16,7 @@ import canopen
 from .errors import ConfigError
 from .master.timing import TimingLimits
 from .od import load_od
+from .resources import vendor_dir
 from .setpoint import SETPOINT_OBJECTS
 from .units import Scaling
 from .yamlconf import Section, finite_number, load_yaml
@@ -62,6 +63,7 @@ class NodeConfig:
     tpdo: tuple[PdoConfig, ...]
     sdo: tuple[tuple[int, int, int | float], ...]
     profile: str | None = None            # the drive profile (params/profiles) of this node's drive
+    motor: tuple[float, float] | None = None     # winding R [Ω], L [H] where the drive does not report them
 
 
 @dataclass(frozen=True)
@@ -130,6 +132,8 @@ def _pdos(sec: Section, key: str, od: canopen.ObjectDictionary, allowed: set[int
     for num in pdo_sec.keys():
         if not isinstance(num, int) or not 1 <= num <= 4:
             raise pdo_sec.error(str(num), "PDO numbers are 1 to 4")
+        if (0x1400 if key == "rpdo" else 0x1800) + num - 1 not in od:
+            raise pdo_sec.error(str(num), f"the drive has no {key.upper()} {num} in its EDS/DCF")
         p = pdo_sec.section(num)
         enabled = p.get("enabled", bool, True)
         trans = p.get("transmission", int, 1, low=0, high=255)
@@ -175,9 +179,12 @@ def _pdos(sec: Section, key: str, od: canopen.ObjectDictionary, allowed: set[int
 def _node(path: Path, axis: str, data: dict) -> NodeConfig:
     sec = Section(path, f"nodes.{axis}", data)
     node_id = sec.get("node_id", int, low=1, high=127)
-    dcf = (path.parent / sec.get("dcf", str)).resolve()
+    name = sec.get("dcf", str)
+    vendor = name.startswith("vendor/")
+    dcf = (vendor_dir() / name[len("vendor/"):] if vendor else path.parent / name).resolve()
     if not dcf.is_file():
-        raise sec.error("dcf", f"EDS/DCF file not found: {dcf}")
+        raise sec.error("dcf", f"EDS/DCF file not found: {dcf}" + (
+            " (vendor/ files are read from $DRIVE_BRIDGE_VENDOR_EDS or ../shared/eds-vendor)" if vendor else ""))
     od = load_od(dcf, node_id)
     sc = sec.section("scaling")
     feed = sc.get("feed_m_per_rev", float, None, low=1e-6, high=100.0)
@@ -228,9 +235,20 @@ def _node(path: Path, axis: str, data: dict) -> NodeConfig:
         following_error_window_rad=sec.get("following_error_window_rad", float, 0.6, low=1e-6, high=1e6),
         rpdo=_pdos(sec, "rpdo", od, RPDO_OBJECTS, REQUIRED_RPDO),
         tpdo=_pdos(sec, "tpdo", od, TPDO_OBJECTS, {**REQUIRED_TPDO, **dict([TORQUE_OBJECTS[feedback]])}),
-        sdo=tuple(sdo), profile=sec.get("profile", str, None))
+        sdo=tuple(sdo), profile=sec.get("profile", str, None), motor=_motor(sec))
     sec.done()
     return cfg
+
+
+def _motor(sec: Section) -> tuple[float, float] | None:
+    """``motor: {R_ohm, L_H}``: the winding, for drives that do not report it."""
+    m = sec.section("motor", required=False)
+    if not m.keys():
+        m.done()
+        return None
+    motor = (m.get("R_ohm", float, low=1e-6, high=1e4), m.get("L_H", float, low=1e-9, high=10.0))
+    m.done()
+    return motor
 
 
 def _timing(sec: Section) -> TimingLimits:

@@ -9,6 +9,7 @@ relative to itself.
 """
 from __future__ import annotations
 
+import os
 from importlib import resources
 from pathlib import Path
 
@@ -27,3 +28,15 @@ def data(*parts: str) -> Path:
 PROJECT_EDS = data("eds", "drive_bridge_servo.eds")
 #: the bus configuration of the simulated robot, the default of every command
 DEFAULT_BUS_CONFIG = data("config", "bus.yml")
+
+
+def vendor_dir() -> Path:
+    """Where vendor EDS/DCF files are read in place (they never ship with drive-bridge):
+    ``$DRIVE_BRIDGE_VENDOR_EDS``, else ``../shared/eds-vendor`` or ``shared/eds-vendor`` from the
+    working directory.  A bus.yml ``dcf`` and a profile ``eds`` starting with ``vendor/`` name a
+    file there."""
+    if "DRIVE_BRIDGE_VENDOR_EDS" in os.environ:
+        return Path(os.environ["DRIVE_BRIDGE_VENDOR_EDS"])
+    here = Path.cwd()
+    found = [d for d in (here.parent / "shared" / "eds-vendor", here / "shared" / "eds-vendor") if d.is_dir()]
+    return found[0] if found else here.parent / "shared" / "eds-vendor"

@@ -39,6 +39,12 @@ class Options:
     gm_floor: float = GM_FLOOR_DB
     allow_unverified_scales: bool = False
 
+    @property
+    def writes_unverified(self) -> bool:
+        """Write through unverified scales: when asked to, and always to the simulated drives, which
+        take the profile's scales by construction (the output still marks them unverified)."""
+        return self.allow_unverified_scales or self.sim
+
 
 class Session:
     """The drives of ``config`` reached as ``options`` say (or over an open ``link``)."""

@@ -13,7 +13,8 @@ from pathlib import Path
 import drive_bridge
 from drive_bridge.config import load_bus_config
 from drive_bridge.ident import identify
-from drive_bridge.params.profile import available, load_profile, vendor_dir
+from drive_bridge.params.profile import available, load_profile
+from drive_bridge.resources import vendor_dir
 from drive_bridge.resources import DEFAULT_BUS_CONFIG, PROJECT_EDS
 from drive_bridge.sim.config import DEFAULT_CONFIG, load_sim_config
 

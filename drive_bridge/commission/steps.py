@@ -120,11 +120,14 @@ def write(ctx: Context) -> str:
     out, o = ctx.out / OUTPUT["write"], ctx.options
     outcome = write_drives(nodes, ctx.session.profile, tuned.parameters, backup_dir=out, dcf_dir=out,
                            inductance=tuned.inductance, force=o.force, pm_floor=o.pm_floor, gm_floor=o.gm_floor,
-                           allow_unverified_scales=o.allow_unverified_scales)
+                           allow_unverified_scales=o.writes_unverified)
     write_json(ctx.out / WRITE_JSON, outcome.as_dict())
     raise_for_failure(outcome, out)
     results = outcome.results
     n = sum(len(r.objects) for r in results.values())
+    if n == 0:
+        return (f"nothing written: the {ctx.session.profile.drive} profile maps none of the tuned parameters "
+                f"to an object of the drive (set the gains of tune.json with the vendor's own tool)")
     stored = "stored (0x1010 'save')" if all(r.stored for r in results.values()) else "not stored (no store object)"
     forced = f"; FORCED: {'; '.join(outcome.forced)}" if outcome.forced else ""
     return (f"{n} objects written and verified on {len(results)} drive(s), {stored}; DCFs and backups in "
@@ -147,7 +150,8 @@ def validate(ctx: Context) -> str:
         raise stop
     ctx.degraded += [f"validate: {d}" for d in degraded(runs)]
     fe = {(r.scenario, r.trajectory, a): m.fe_rms for r in runs for a, m in r.axes.items()}
-    return "; ".join(f"{a}: FE RMS " + ", ".join(
+    ways = sorted({way for r in runs if r.scenario == "after" for way in r.feedforward.values()})
+    return "model feed-forward " + " / ".join(ways) + "; " + "; ".join(f"{a}: FE RMS " + ", ".join(
         f"{t.replace('_', '-')} {fe[('before', t, a)] * 1e3:.3g} → {fe[('after', t, a)] * 1e3:.3g} mrad"
         for t in ("point_to_point", "path")) for a in params)
 

@@ -121,9 +121,13 @@ def scan(link: Link, config: BusConfig) -> ScanResult:
 
 
 def _configure_pdos(node: canopen.RemoteNode, maps, configured: tuple[PdoConfig, ...], base: int) -> list[PdoCodec]:
+    """Map the configured PDOs and disable the drive's others (of PDOs 1-4, those its EDS/DCF has)."""
     codecs = []
     by_num = {p.number: p for p in configured}
+    comm_base = 0x1400 if base == 0x200 else 0x1800
     for num in range(1, 5):
+        if comm_base + num - 1 not in node.object_dictionary:
+            continue
         pdo: PdoMap = maps[num]
         pdo.clear()
         pdo.cob_id = base + 0x100 * (num - 1) + node.id

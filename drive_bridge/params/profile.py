@@ -16,7 +16,6 @@ supported.
 """
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -26,7 +25,7 @@ from canopen.objectdictionary import datatypes
 
 from ..errors import ConfigError
 from ..od import load_od
-from ..resources import data, shipped
+from ..resources import data, shipped, vendor_dir
 from ..yamlconf import Section, load_yaml
 
 PROFILE_DIR = shipped("params", "profiles")
@@ -35,15 +34,6 @@ PARAMETERS = ("J", "c0", "c1", "offset", "cp", "dc0", "dc1", "periodic_amplitude
               "periodic_phase", "ff_enable", "KpP", "FwF", "KpS", "KiS", "KpC", "KiC")
 TYPES = {name: getattr(datatypes, name) for name in
          ("UNSIGNED8", "UNSIGNED16", "UNSIGNED32", "INTEGER8", "INTEGER16", "INTEGER32", "REAL32", "REAL64")}
-
-
-def vendor_dir() -> Path:
-    """Where vendor EDS/DCF files are read in place (they never ship with drive-bridge)."""
-    if "DRIVE_BRIDGE_VENDOR_EDS" in os.environ:
-        return Path(os.environ["DRIVE_BRIDGE_VENDOR_EDS"])
-    here = Path.cwd()
-    found = [d for d in (here.parent / "shared" / "eds-vendor", here / "shared" / "eds-vendor") if d.is_dir()]
-    return found[0] if found else here.parent / "shared" / "eds-vendor"
 
 
 @dataclass(frozen=True)

@@ -59,8 +59,9 @@ def motor_data(node: canopen.RemoteNode, profile: Profile, R: float | None = Non
             return tuple(float(sdo_object(node, *profile.motor[k]).raw) for k in ("R", "L"))
         except SDO_ERRORS as exc:
             raise BusError(f"node {node.id}: reading its motor data failed: {describe_sdo_error(exc)}") from exc
-    raise UserError(f"node {node.id}: the {profile.drive} profile names no motor data objects; give --motor-R "
-                    f"and --motor-L")
+    raise UserError(f"node {node.id}: the {profile.drive} profile names no motor data objects; give the motor's "
+                    f"winding resistance and inductance as motor: {{R_ohm: ..., L_H: ...}} of the node in the bus "
+                    f"configuration, or --motor-R and --motor-L")
 
 
 def require_profile_objects(nodes: dict[str, canopen.RemoteNode], profile: Profile) -> None:
@@ -75,13 +76,14 @@ def require_profile_objects(nodes: dict[str, canopen.RemoteNode], profile: Profi
 
 def drive_state(axes: dict, profile: Profile, motor: tuple[float, float] | None = None) -> dict[str, dict]:
     """Per brought-up axis (:class:`~drive_bridge.master.bringup.AxisLink`): node id, identity,
-    motor R [Ω] / L [H] and every parameter of ``profile`` as the drive holds it now [SI].
+    motor R [Ω] / L [H] (``motor``, else the node's bus configuration, else the drive's objects) and
+    every parameter of ``profile`` as the drive holds it now [SI].
 
     Raises UserError when the drive's EDS/DCF lacks an object of the profile (wrong profile)."""
     require_profile_objects({a: ax.node for a, ax in axes.items()}, profile)
     out = {}
     for a, ax in axes.items():
-        R, L = motor_data(ax.node, profile, *(motor or (None, None)))
+        R, L = motor_data(ax.node, profile, *(motor or ax.cfg.motor or (None, None)))
         out[a] = {"node_id": ax.cfg.node_id, "identity": ax.identity, "motor": {"R": R, "L": L},
                   "parameters_before": read_parameters(ax.node, profile)}
     return out

@@ -192,7 +192,7 @@ class _Transaction:
             phase = "store"
             for a, r in self.results.items():
                 where = (a, None)
-                if store:
+                if store and r.objects:                 # nothing written: nothing to make non-volatile
                     self._store(a, r)
             for r in self.results.values():
                 r.ram = NEW

@@ -442,7 +442,7 @@ class SimDrive:
                 self.state = SWITCH_ON_DISABLED
                 self._emcy(0x0000)
             return
-        self._go(next_state(self.state, cw, previous, self._od(0x605A)))
+        self._go(next_state(self.state, cw, previous, self._od_or(0x605A, 0, 2)))
         if not cw & 0x10:
             self.setpoint_ack = False                       # the handshake: bit 12 follows bit 4 down
         if self.state == ENABLED and self.mode == PP and new_setpoint:

@@ -70,6 +70,8 @@ class PdoMapping:
         self.rpdos, self.tpdos = {}, []
         for n in range(4):
             for comm, mapping, table in ((0x1400 + n, 0x1600 + n, "r"), (0x1800 + n, 0x1A00 + n, "t")):
+                if comm not in self.od:                    # the drive has fewer PDOs
+                    continue
                 cob = self._value(comm, 1)
                 if cob & PDO_INVALID:
                     continue

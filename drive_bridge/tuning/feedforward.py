@@ -85,7 +85,8 @@ def route(ax: AxisLink, profile: Profile, model: dict[str, float], force_master:
     velocity = 0x60B1 in mapped and "FwF" not in profile.entries
     if torque or velocity:
         return MasterFeedForward(model, torque, velocity)
-    missing = "no torque offset 0x60B2" + ("" if 0x60B2 in ax.cfg.od else " in its EDS/DCF") + " mapped"
-    return (f"none: the drive has no model feed-forward objects and {missing}, so the model torque is left to "
-            f"the velocity loop's integrator (on the project's drive that costs 12-65x in following error "
-            f"against the gains-only 1.2-2.4x); map 0x60B2 in nodes.{ax.name}.rpdo where the drive has it")
+    if 0x60B2 in ax.cfg.od:
+        return ("none: the torque offset 0x60B2 is not in the RPDO mapping (map it in the node's rpdo): the model "
+                "torque is left to the velocity loop")
+    return ("none: the drive has neither model objects nor a torque offset 0x60B2: the model torque is left to "
+            "the velocity loop (the project's drive gains 12-65x in following error with it, 1.2-2.4x without)")

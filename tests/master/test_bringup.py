@@ -25,7 +25,7 @@ def test_scan_reports_missing_and_unexpected_nodes(tmp_path, capsys):
 def _nanotec_y(tmp_path):
     """The shipped bus.yml with Y's drive described by the Nanotec C5-E's EDS (read in place)."""
     import yaml
-    from drive_bridge.params.profile import vendor_dir
+    from drive_bridge.resources import vendor_dir
     eds = vendor_dir() / "nanotec_C5-E-2-09.eds"
     if not eds.exists():
         pytest.skip("../shared/eds-vendor not present")

@@ -10,7 +10,8 @@ import canopen
 import pytest
 
 from drive_bridge.cli import main
-from drive_bridge.params.profile import available, load_profile, vendor_dir
+from drive_bridge.params.profile import available, load_profile
+from drive_bridge.resources import vendor_dir
 from drive_bridge.params.read import sdo_variable
 from drive_bridge.params.check import ValueRefused
 from drive_bridge.params.write import write_drives, write_parameters
