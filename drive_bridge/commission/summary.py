@@ -18,6 +18,10 @@ from pathlib import Path
 
 from .. import __version__
 from ..config import BusConfig
+from ..errors import UserError
+from ..logs import META_NAME
+from ..yamlconf import load_yaml
+from ..params.profile import DEFAULT_PROFILE
 from ..paper import TABLE_II
 from . import steps as S
 
@@ -64,7 +68,8 @@ def _validation(runs: list[dict], axis: str) -> dict:
                      "fe_max_before": mb and mb["fe_max"], "fe_max_after": ma["fe_max"],
                      "overshoot_pct_after": ma["overshoot_pct"], "settling_s_after": ma["settling_s"],
                      "torque_rmse_before": mb and mb["torque_rmse"], "torque_rmse_after": ma["torque_rmse"],
-                     "aborted": a["aborted"] or (b and b["aborted"])}
+                     "aborted": a["aborted"] or (b and b["aborted"]),
+                     "feedforward": a.get("feedforward", {}).get(axis)}
     return out
 
 
@@ -72,6 +77,15 @@ def _written(w: dict) -> list[dict]:
     return [{"parameter": o["parameter"], "object": f"0x{o['index']:04X}:{o['sub']}", "unit": o["unit"],
              "old": o["old_si"], "new": o["new_si"], "old_device": o["old_device"],
              "new_device": o["new_device"], "verified": o["verified"]} for o in w["objects"]]
+
+
+def _meta(out: Path) -> dict:
+    """The campaign's meta.yaml (the mode each axis streamed in), or nothing."""
+    path = out / S.OUTPUT["campaign"] / META_NAME
+    try:
+        return load_yaml(path) if path.is_file() else {}
+    except UserError:
+        return {}
 
 
 def build_summary(out: Path, state: dict, config: BusConfig, options) -> dict:
@@ -88,9 +102,12 @@ def build_summary(out: Path, state: dict, config: BusConfig, options) -> dict:
     tune = (_load(out, S.OUTPUT["tune"]) or {}).get("axes", {})
     write = (_load(out, S.WRITE_JSON) or {}).get("axes", {})
     runs = (_load(out, S.VALIDATE_JSON) or {}).get("runs", [])
+    meta = _meta(out)
     axes = {}
     for a in config.nodes:
         entry: dict = {}
+        if a in meta.get("axes", {}):
+            entry["operating_mode"] = meta["axes"][a].get("operating_mode")
         if a in ident:
             entry.update({k: ident[a].get(k) for k in IDENTIFY_FIELDS})
             entry["identify_validation"] = ident[a].get("validation")
@@ -109,4 +126,4 @@ def build_summary(out: Path, state: dict, config: BusConfig, options) -> dict:
     return {"status": status, "failed": failed, "timing_degraded": timing, "steps": steps,
             "duration_s": sum(s["duration_s"] or 0.0 for s in steps),
             "versions": versions(), "config": str(config.path), "simulated": options.sim,
-            "profile": options.profile, "out": str(out), "axes": axes}
+            "profile": options.profile or config.profile or DEFAULT_PROFILE, "out": str(out), "axes": axes}
