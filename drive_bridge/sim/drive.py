@@ -30,7 +30,7 @@ from canopen.sdo import SdoAbortedError
 
 from ..params.profile import load_profile
 from ..pdo import PdoCodec
-from ..setpoint import CSP, IP, PVT, SETPOINT_OBJECTS, position_of, supported_modes, unpack_pvt
+from ..setpoint import CSP, IP, SETPOINT_OBJECTS, position_of, supported_modes
 from . import kernel as K
 from .adapters import local_node
 from .cia402 import (ENABLED, FAULT, FAULT_REACTION, QUICK_STOP, STATUSWORD, SWITCH_ON_DISABLED,

@@ -2,7 +2,7 @@
 
 The axes follow a position demand in CSP (linear interpolation per SYNC
 period) through the same compiled cascade and plant as the simulated drives,
-with the drive's default gains from its EDS; the log has the columns and the
+with the factory gains of the project's drive (its EDS defaults); the log has the columns and the
 quantisation of ``record``'s log.csv: encoder increments, torque in per mille
 of rated torque, seeded measurement noise.
 """
@@ -10,36 +10,32 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-
 import numpy as np
 
-from ..od import load_od
-from ..resources import PROJECT_EDS
 from . import kernel as K
 from .config import SimConfig
 from .drive import GAIN_PARAMS, plant_params
+from .vendors import factory
 
 INC_PER_REV = 2 ** 20
 
 
-def plant_log(config: SimConfig, demand: dict[str, np.ndarray], period: float = 0.002, *,
-              eds_path: str | Path = PROJECT_EDS) -> dict[str, np.ndarray]:
+def plant_log(config: SimConfig, demand: dict[str, np.ndarray], period: float = 0.002) -> dict[str, np.ndarray]:
     """Columns ``time_s`` and per axis ``<axis>_position_rad``, ``_position_demand_rad``,
     ``_torque_Nm`` of the plant following ``demand`` (axis -> positions per period [rad]).
     Axes without a demand hold their start position."""
     names = list(config.axes)
     n = len(next(iter(demand.values())))
     state, param, dem = K.new_arrays(len(names))
-    od = load_od(str(eds_path), 1)
     inc_per_rad = INC_PER_REV / (2 * math.pi)
     rng = np.random.default_rng(config.seed)
     targets = np.zeros((n, len(names)))
     for i, (name, axis) in enumerate(config.axes.items()):
         plant_params(param[i], axis, names)
         param[i, K.INC_PER_RAD] = inc_per_rad
-        for sub, col in GAIN_PARAMS.items():
-            param[i, col] = od[0x2000][sub].default
-        param[i, K.TMAX] = od[0x6072].default / 1000.0 * axis.motor.rated_torque_Nm
+        for gain, col in GAIN_PARAMS.items():
+            param[i, col] = factory().gains[gain]
+        param[i, K.TMAX] = factory().max_torque_permille / 1000.0 * axis.motor.rated_torque_Nm
         param[i, K.FE_WINDOW] = 1e9
         targets[:, i] = demand.get(name, np.zeros(n))
         state[i, K.Q] = state[i, K.ENC] = dem[i, K.P0] = dem[i, K.P1] = targets[0, i]
