@@ -136,9 +136,50 @@ class StreamResult:
     timing: Timing
 
 
-def _packer(ax: AxisLink, codec: PdoCodec, plan: Plan, ai: int, send) -> Callable[[int, int], None]:
+class _TorqueOffset:
+    """The plan's torque offsets of one axis [0x60B2 units] less the torque its velocity loop held
+    at rest when the current move started (``bias``, set by :class:`_Unloader`)."""
+
+    def __init__(self, values: list[int]):
+        self.values = values
+        self.bias = 0
+
+    def __getitem__(self, k: int) -> int:
+        return max(INT16[0], min(INT16[1], self.values[k] - self.bias))
+
+
+class _Unloader:
+    """Where the master sends the model torque, the drive's velocity integrator still holds the
+    torque it wound up at rest (against stiction, or the friction of the last move) and adds it to
+    the next move; the project's drive restarts its integrator when a move starts instead.  At
+    each move start the master measures what the loop holds (torque actual less the offset it
+    sends) and sends that much less with the move: the model alone carries it."""
+
+    def __init__(self, rec: Recording, axes: dict[str, AxisLink], plan: Plan, offsets: dict[str, _TorqueOffset]):
+        self.jobs = []                       # (start cycles, offset column, torque column, scaling)
+        for ai, a in enumerate(plan.axes):
+            if a not in offsets:
+                continue
+            moving = np.abs(np.diff(plan.demand[:, ai], prepend=plan.demand[0, ai])) > 0
+            starts = set(np.flatnonzero(moving & ~np.concatenate([[False], moving[:-1]])).tolist())
+            self.jobs.append((starts, offsets[a], rec.column(a, axes[a].cfg.scaling.torque_object),
+                              axes[a].cfg.scaling, rec.slots[a]))
+        self.rec = rec
+
+    def at(self, k: int) -> None:
+        row = k - 1 - FEEDBACK_LAG           # the newest row checked; at rest its torque is steady
+        for starts, offset, col, sc, slots in self.jobs:
+            if k in starts and row >= 1 and self.rec.got[row, slots].all():
+                raw = self.rec.raw[row, col]
+                held = sc.torque_from_current(raw) if sc.torque_feedback == "current" else sc.torque_from_device(raw)
+                offset.bias = int(sc.torque_to_device(held)) - offset[row - 1]
+
+
+def _packer(ax: AxisLink, codec: PdoCodec, plan: Plan, ai: int, send,
+            offsets: dict[str, _TorqueOffset]) -> Callable[[int, int], None]:
     """Send function of one RPDO for cycle k: the controlword, the setpoint from the plan (target
-    position or interpolation data record), the plan's feed-forward offsets (zero without)."""
+    position or interpolation data record), the plan's feed-forward offsets (zero without; the
+    torque offset through ``offsets``, which may hold back what the velocity loop already holds)."""
     sc = ax.cfg.scaling
     demand = plan.demand[:, ai]
     pos = sc.position_to_device(demand)
@@ -154,7 +195,8 @@ def _packer(ax: AxisLink, codec: PdoCodec, plan: Plan, ai: int, send) -> Callabl
         elif entry in SETPOINT_OBJECTS:
             columns.append(pos.tolist())
         elif index == 0x60B2 and plan.torque_ff_Nm is not None:
-            columns.append(np.clip(sc.torque_to_device(plan.torque_ff_Nm[:, ai]), *INT16).tolist())
+            offsets[ax.name] = _TorqueOffset(sc.torque_to_device(plan.torque_ff_Nm[:, ai]).tolist())
+            columns.append(offsets[ax.name])
         elif index == 0x60B1 and plan.velocity_ff_rad_s is not None:
             columns.append(np.clip(sc.velocity_to_device(plan.velocity_ff_rad_s[:, ai]), *INT32).tolist())
         else:
@@ -227,8 +269,10 @@ def stream(link: Link, axes: dict[str, AxisLink], plan: Plan, *, heartbeat_timeo
                 net.unsubscribe(cob)            # canopen's own PdoMap decoding is not needed here
             net.subscribe(cob, handler)
     send = net.send_message
-    packers = [(_packer(axes[a], c, plan, i, send), CW_ENABLE_IP if axes[a].mode == IP else CW_ENABLE)
+    offsets: dict[str, _TorqueOffset] = {}
+    packers = [(_packer(axes[a], c, plan, i, send, offsets), CW_ENABLE_IP if axes[a].mode == IP else CW_ENABLE)
                for i, a in enumerate(plan.axes) for c in axes[a].rpdos]
+    unloader = _Unloader(rec, axes, plan, offsets) if offsets else None
     sw_cols = [(a, rec.column(a, 0x6041)) for a in plan.axes]
     vel_cols = [(a, rec.column(a, 0x606C)) for a in plan.axes] if guard is not None else []
     misses = dict.fromkeys(plan.axes, 0)
@@ -268,6 +312,8 @@ def stream(link: Link, axes: dict[str, AxisLink], plan: Plan, *, heartbeat_timeo
                     break
                 if progress is not None and k % 50 == 0:
                     progress(k)
+            if unloader is not None:
+                unloader.at(k)
             for packer, cw in packers:
                 packer(k, cw)
             stamp = clock.now()

@@ -8,9 +8,10 @@ next SYNC period), taken at the segment's middle, sent as torque offset 0x60B2 w
 setpoint; where the drive has no velocity feed-forward of its own, the segment's velocity
 goes as velocity offset 0x60B1.  SI inside: rad, rad/s, rad/s², Nm.
 
-What an offset cannot do: the project's drive restarts its velocity integrator when a move
-starts, so the model alone carries the axis out of stiction; through 0x60B2 the integrator
-keeps the torque it wound up at rest and adds it to the next move's start.
+The project's drive also restarts its velocity integrator when a move starts, so the model
+alone carries the axis out of stiction; no object does that on another drive, so at each move
+start the streaming loop measures the torque the loop holds and sends that much less with the
+move (:class:`drive_bridge.master.stream._Unloader`).
 """
 from __future__ import annotations
 

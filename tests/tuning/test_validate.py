@@ -63,9 +63,8 @@ def test_ripple_compensation_from_the_traced_effect():
 # ---------------------------------------------------------------- from the master
 def test_master_feedforward_reaches_the_drives_own_on_the_same_trajectories():
     """The project's drive with its model feed-forward off, the master sending the model torque
-    as torque offset 0x60B2: well below the gains alone. The issue's target, within 1.5x of the
-    drive's own feed-forward, is not reached (3-4x here): the drive restarts its velocity
-    integrator when a move starts, which no offset can do (README, "Model feed-forward")."""
+    as torque offset 0x60B2 (less what the velocity loop holds when a move starts): within 1.5x
+    the following error of the drive's own feed-forward, and far below the gains alone."""
     config = load_bus_config(BUS_CONFIG).only(["y"])
     model = {"y": dict(PAPER["y"])}
     tuned = tuned_values()
@@ -81,8 +80,8 @@ def test_master_feedforward_reaches_the_drives_own_on_the_same_trajectories():
     assert how["drive"] == "drive" and how["master"] == "master: torque offset 0x60B2"
     fe = {(r.scenario, r.trajectory): r.axes["y"].fe_rms for r in runs}
     for traj in ("point_to_point", "path"):
-        assert fe[("master", traj)] < fe[("gains only", traj)] / 1.5, fe
-        assert fe[("master", traj)] < 5 * fe[("drive", traj)], fe
+        assert fe[("master", traj)] <= 1.5 * fe[("drive", traj)], fe
+        assert fe[("master", traj)] < fe[("gains only", traj)] / 4, fe
     assert drive.p[K.FF_EN] == 0.0                 # the last scenario ran with the drive's own model off
 
 
