@@ -40,15 +40,16 @@ class Bench:
 
     open: list["Bench"] = []
 
-    def __init__(self, config: SimConfig):
+    def __init__(self, config: SimConfig, eds: Path = EDS):
+        """Every drive built from ``eds`` (the project's drive by default, or a vendor file)."""
         Bench.open.append(self)
         channel = f"test-{next(_channels)}"
-        self.robot = SimRobot(config, channel)
+        self.robot = SimRobot(config, channel, eds=eds)
         self.link = LockstepLink(self.robot, channel)
         self.net = self.link.network
         self.nodes = {}
         for name, axis in config.axes.items():
-            node = canopen.RemoteNode(axis.node_id, canopen.import_od(str(EDS), axis.node_id))
+            node = canopen.RemoteNode(axis.node_id, canopen.import_od(str(eds), axis.node_id))
             self.net.add_node(node)
             self.nodes[name] = node
 

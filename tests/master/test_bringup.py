@@ -72,3 +72,25 @@ def test_scan_sees_each_vendor_drive_as_its_own_eds_describes(tmp_path, capsys):
     """--sim builds each node's drive from the EDS/DCF bus.yml names: the Nanotec's identity."""
     assert main(["scan", "--sim", "--config", str(_nanotec_y(tmp_path))]) == 0
     assert "axis y    CiA 402 drive  vendor 0x0000026C product 0x00000011" in capsys.readouterr().out
+
+
+def test_bring_up_streams_in_a_mode_the_drive_lists_or_refuses_naming_its_modes():
+    """0x6502 is read from the drive: CSP where listed and 0x607A mapped; a drive without a mode
+    whose setpoint object is mapped is refused before it moves, with the modes it has. (IP on
+    drives that have it: tests/commission/test_vendor_drives.py.)"""
+    from drive_bridge.config import load_bus_config
+    from drive_bridge.errors import DriveRefused
+    from drive_bridge.master.bringup import bring_up
+    from ..support import BUS_CONFIG, Bench, clean_config
+    cfg = load_bus_config(BUS_CONFIG).only(["y"])
+    bench = Bench(clean_config())
+    axes = bring_up(bench.link, cfg)
+    assert (axes["y"].mode, axes["y"].setpoint) == (8, (0x607A, 0))
+    bench.robot.drives["y"].sdo_fault = lambda op, index, sub: 0x25 if (op, index) == ("read", 0x6502) else None
+    with pytest.raises(DriveRefused) as exc:                   # PP, PV, homing only
+        bring_up(bench.link, cfg)
+    assert "profile position (1), profile velocity (3), homing (6)" in str(exc.value)
+    assert "nodes.y.rpdo" in str(exc.value)
+    bench.robot.drives["y"].sdo_fault = lambda op, index, sub: 0x45 if (op, index) == ("read", 0x6502) else None
+    with pytest.raises(DriveRefused, match="0x60C1:1"):      # IP listed, but its record is not mapped
+        bring_up(bench.link, cfg)

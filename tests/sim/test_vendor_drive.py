@@ -1,0 +1,108 @@
+"""Simulated drives built from the vendor EDS/DCF files (read in place): each behaves as that drive
+on the bus -- its identity, only the modes its 0x6502 lists, its feedback objects and units, no
+object its file lacks, its gain objects driving the same loops through the profile's scales."""
+from __future__ import annotations
+
+import math
+
+import canopen
+import pytest
+
+from drive_bridge.params.profile import load_profile
+from drive_bridge.params.read import sdo_variable
+from drive_bridge.resources import vendor_dir
+from drive_bridge.setpoint import supported_modes
+from drive_bridge.sim import kernel as K
+from drive_bridge.sim.vendors import SPECS
+
+from ..support import Bench, clean_config
+
+pytestmark = pytest.mark.skipif(not vendor_dir().is_dir(), reason="../shared/eds-vendor not present")
+VENDOR_FILES = sorted(n for n in SPECS if n != "drive_bridge_servo.eds")
+
+
+def bench(name: str) -> tuple[Bench, canopen.RemoteNode]:
+    b = Bench(clean_config(), eds=vendor_dir() / name)
+    return b, b.nodes["y"]
+
+
+@pytest.mark.parametrize("name", VENDOR_FILES)
+def test_identity_and_modes_are_the_files(name):
+    b, node = bench(name)
+    info = node.object_dictionary.device_information
+    for sub, want in ((1, info.vendor_number), (2, info.product_number), (3, info.revision_number)):
+        assert node.sdo[0x1018][sub].raw == (want or 0)
+    assert node.sdo[0x1000].raw & 0xFFFF == 402
+    bits = node.sdo[0x6502].raw
+    listed = supported_modes(bits)
+    assert listed == supported_modes(SPECS[name].supported_modes or node.object_dictionary[0x6502].default)
+    for mode in (8, 7, 3, 1):
+        if mode in listed:
+            node.sdo[0x6060].raw = mode
+            assert node.sdo[0x6061].raw == mode
+        else:                                   # a mode the drive does not list is refused
+            with pytest.raises(canopen.SdoAbortedError):
+                node.sdo[0x6060].raw = mode
+
+
+@pytest.mark.parametrize("name", VENDOR_FILES)
+def test_no_object_the_file_lacks(name):
+    b, node = bench(name)
+    od = node.object_dictionary
+    for index in (0x60B2, 0x1010, 0x6077, 0x6076):
+        if index not in od:
+            with pytest.raises(canopen.SdoAbortedError) as exc:
+                node.sdo.upload(index, 1 if index == 0x1010 else 0)
+            assert exc.value.code == 0x06020000            # object does not exist
+
+
+@pytest.mark.parametrize("name", VENDOR_FILES)
+def test_gains_through_the_profile_drive_the_loops(name):
+    b, node = bench(name)
+    profile = load_profile(SPECS[name].profile)
+    drive = b.robot.drives["y"]
+    for param, entry in profile.entries.items():
+        col = {"KpP": K.KPP, "FwF": K.FWF, "KpS": K.KPS, "KiS": K.KIS, "KpC": K.KPC, "KiC": K.KIC}[param]
+        value = drive.p[col] * 1.25
+        sdo_variable(node, entry).raw = entry.to_device(value)
+        assert drive.p[col] == pytest.approx(entry.to_si(entry.held(entry.to_device(value))), rel=1e-6)
+    if not profile.entries:                       # the iPOS: no gain objects, the factory loops run
+        assert drive.p[K.KPS] > 0
+
+
+def test_maxon_reports_velocity_in_rpm_and_current_in_mA():
+    b, node = bench("maxon_epos2_50-5.eds")
+    drive = b.robot.drives["y"]
+    drive.s[K.V] = 10.0                              # rad/s
+    drive.s[K.I_SUM], drive.s[K.I_COUNT] = 1.5, 1.0  # 1.5 A averaged
+    drive.s[K.Q] += 10.0 * 0.002
+    b.robot.advance(0)
+    b.robot.time += 0.002
+    drive.refresh_actuals()
+    assert node.sdo[0x6078].raw == pytest.approx(1500, abs=2)
+    assert node.sdo[0x606C].raw == pytest.approx(10.0 * 60 / (2 * math.pi), abs=2)
+
+
+@pytest.mark.parametrize("name", ["pilz_prbt_0_1.dcf", "technosoft_iPOS.eds"])
+def test_interpolated_position_follows_only_with_bit_4(name):
+    """IP: enabled with controlword 0x0F the drive holds (statusword bit 12 clear); bit 4 enables
+    interpolation, bit 12 confirms it, and the records move the axis."""
+    b, node = bench(name)
+    node.nmt.send_command(0x01)
+    node.sdo[0x60C2][1].raw, node.sdo[0x60C2][2].raw = 2, -3
+    node.sdo[0x6065].raw = 10**6
+    node.sdo[0x6060].raw = 7
+    for cw in (0x06, 0x07, 0x0F):
+        node.sdo[0x6040].raw = cw
+    start = node.sdo[0x6064].raw
+    inc_per_rad = b.robot.drives["y"].inc_per_rad
+    node.sdo[0x60C1][1].raw = start + round(0.5 * inc_per_rad)
+    for _ in range(20):
+        b.net.sync.transmit()
+    assert not node.sdo[0x6041].raw & 0x1000 and abs(node.sdo[0x6064].raw - start) < 0.01 * inc_per_rad
+    node.sdo[0x6040].raw = 0x1F
+    for k in range(1, 200):
+        node.sdo[0x60C1][1].raw = start + round(min(k * 0.005, 0.5) * inc_per_rad)
+        b.net.sync.transmit()
+    assert node.sdo[0x6041].raw & 0x1000
+    assert node.sdo[0x6064].raw - start == pytest.approx(0.5 * inc_per_rad, rel=0.01)
