@@ -111,8 +111,9 @@ class BusConfig:
         """The drive profile the nodes name (``profile`` in bus.yml); None when none does."""
         names = {n.profile for n in self.nodes.values()}
         if len(names) > 1:
-            raise ConfigError(self.path, "nodes", f"the nodes name different drive profiles ({sorted(map(str, names))}); "
-                              "one run commissions one drive model: split the bus into one file per model")
+            raise ConfigError(self.path, "nodes", f"the nodes name different drive profiles "
+                              f"({sorted(map(str, names))}); one run commissions one drive model: split the bus "
+                              f"into one file per model")
         return names.pop()
 
     def only(self, axes: list[str]) -> "BusConfig":

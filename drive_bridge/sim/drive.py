@@ -579,8 +579,8 @@ class SimDrive:
         timeout_ticks = max(1, round(self._od_or(0x6066, 0, factory().fe_timeout_ms) / 1000.0 / K.VELOCITY_TICK_S))
         if self.s[K.FE_COUNT] >= timeout_ticks:
             self.fault(ERR_FOLLOWING)
-        elif self.setpoint_armed and self.following and \
-                self.host.time - self.last_setpoint_time > SETPOINT_TIMEOUT_PERIODS * self._interpolation_period() + 1e-9:
+        elif self.setpoint_armed and self.following and self.host.time - self.last_setpoint_time > \
+                SETPOINT_TIMEOUT_PERIODS * self._interpolation_period() + 1e-9:
             self.fault(ERR_RPDO_TIMEOUT)
 
     def _interpolation_period(self) -> float:

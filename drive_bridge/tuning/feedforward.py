@@ -32,8 +32,9 @@ MODEL = set(MODEL_KEYS.values())          # J, c0, c1 and the effect terms
 def model_torque_at(p: dict[str, float], q: np.ndarray, v: np.ndarray, a: np.ndarray) -> np.ndarray:
     """The model torque [Nm] at positions ``q``, velocities ``v``, accelerations ``a``."""
     sg = np.sign(np.where(np.abs(v) > 1e-6, v, 0.0))
-    ripple = (p.get("periodic_amplitude", 0.0) * np.sin(2 * np.pi * q / p["periodic_period"] + p.get("periodic_phase", 0.0))
-              if p.get("periodic_period", 0.0) > 0 else 0.0)
+    period = p.get("periodic_period", 0.0)
+    ripple = (p.get("periodic_amplitude", 0.0) * np.sin(2 * np.pi * q / period + p.get("periodic_phase", 0.0))
+              if period > 0 else 0.0)
     return (p.get("J", 0.0) * a + (p.get("c1", 0.0) + p.get("dc1", 0.0) * sg) * v
             + (p.get("c0", 0.0) + p.get("dc0", 0.0) * sg) * sg + p.get("offset", 0.0) + p.get("cp", 0.0) * q + ripple)
 
