@@ -67,8 +67,16 @@ def test_campaign_levels_cycles_and_log_units(tmp_path):
     assert np.median(c["y_torque_Nm"][cruise]) == pytest.approx(0.323 + 0.0005 * v[cruise].mean(), rel=0.05)
 
 
-def test_decode_rebuilds_the_same_csv(tmp_path, capsys):
-    assert main(["record", "--sim", "--quick", "--axes", "x,z", "--out", str(tmp_path)]) == 0
+@pytest.mark.parametrize("config", [None, "maxon_epos2"])
+def test_decode_rebuilds_the_same_csv(tmp_path, capsys, config):
+    """Also for maxon's EPOS2: PVT records 0x20C1, velocity in rpm, current in mA."""
+    from drive_bridge.resources import data, vendor_dir
+    extra = []
+    if config:
+        if not vendor_dir().is_dir():
+            pytest.skip("../shared/eds-vendor not present")
+        extra = ["--config", str(data("config", "examples", f"{config}.yml"))]
+    assert main(["record", "--sim", "--quick", "--axes", "x,z", "--out", str(tmp_path)] + extra) == 0
     assert main(["decode", str(tmp_path / "trace.blf"), "--out", str(tmp_path / "decoded.csv")]) == 0
     assert (tmp_path / "decoded.csv").read_bytes() == (tmp_path / "log.csv").read_bytes()
 

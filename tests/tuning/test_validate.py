@@ -96,3 +96,23 @@ def test_master_feedforward_offsets_follow_the_interpolation_segment():
     v_mid = acc * (t[2:] - T / 2)
     np.testing.assert_allclose(velocity[2:], v_mid, rtol=1e-9)
     np.testing.assert_allclose(torque[2:], 1e-4 * acc + 5e-4 * v_mid + 0.3, rtol=1e-9)
+
+
+def test_feedforward_route_follows_what_the_drive_has():
+    """In the drive where the profile writes a model; from the master through the offsets the RPDOs
+    map (velocity offset only without a drive velocity feed-forward); else none, saying why."""
+    from types import SimpleNamespace as NS
+    from drive_bridge.tuning.feedforward import MasterFeedForward, route
+    model = {"J": 1e-4, "c0": 0.3, "c1": 5e-4}
+
+    def axis(mapped, in_eds=(0x60B2,)):
+        return NS(rpdos=[NS(objects=tuple(mapped))], cfg=NS(od=set(in_eds)))
+
+    gains = NS(entries={"KpS": 1, "FwF": 1})
+    no_fwf = NS(entries={"KpS": 1})
+    assert route(axis([0x6040, 0x607A, 0x60B2]), SIM, model) == "drive"
+    assert route(axis([0x6040, 0x607A, 0x60B2]), gains, model) == MasterFeedForward(model, True, False)
+    assert route(axis([0x6040, 0x607A, 0x60B1]), no_fwf, model) == MasterFeedForward(model, False, True)
+    assert route(axis([0x6040, 0x607A, 0x60B1]), gains, model).startswith("none: the torque offset 0x60B2 is not")
+    assert route(axis([0x6040, 0x60C1], in_eds=()), gains, model).startswith("none: the drive has neither")
+    assert route(axis([0x6040, 0x607A, 0x60B2]), gains, {}).startswith("none: no model")
