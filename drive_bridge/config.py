@@ -24,8 +24,8 @@ from .yamlconf import Section, finite_number, load_yaml
 #: objects the master must find in the PDO mapping: what it streams and what it logs
 REQUIRED_RPDO = {0x6040: "controlword"}
 REQUIRED_TPDO = {0x6064: "position actual", 0x606C: "velocity actual", 0x6041: "statusword"}
-#: the torque feedback the master logs, by scaling.torque_feedback
-TORQUE_OBJECTS = {"torque": (0x6077, "torque actual"), "current": (0x6078, "current actual")}
+#: what the master logs the torque from (scaling.torque_feedback): 0x6077, 0x6078, or a vendor object
+TORQUE_FEEDBACK = {"torque": "torque actual", "current": "current actual", "object": "the torque feedback object"}
 #: objects the master can fill in an RPDO / log from a TPDO
 RPDO_OBJECTS = {0x6040, 0x607A, 0x60C1, 0x20C1, 0x60B1, 0x60B2}
 TPDO_OBJECTS = {0x6064, 0x606C, 0x6077, 0x6041, 0x60F4, 0x6078}
@@ -189,9 +189,16 @@ def _node(path: Path, axis: str, data: dict) -> NodeConfig:
     od = load_od(dcf, node_id)
     sc = sec.section("scaling")
     feed = sc.get("feed_m_per_rev", float, None, low=1e-6, high=100.0)
-    feedback = sc.get("torque_feedback", str, "torque", choices=list(TORQUE_OBJECTS))
+    feedback = sc.get("torque_feedback", str, "torque", choices=list(TORQUE_FEEDBACK))
     velocity_unit = sc.get("velocity_unit", str, "inc/s", choices=["inc/s", "rpm"])
-    per_unit = kt = None
+    per_unit = kt = torque_index = torque_per_unit = None
+    if feedback == "object":                  # torque = a vendor object × its scale
+        torque_index = sc.get("torque_object", int, low=0x2000, high=0x5FFF)
+        var = od.get_variable(torque_index, 0)
+        if var is None or not var.pdo_mappable or not var.readable:
+            raise sc.error("torque_object", f"0x{torque_index:04X}:0 is not a readable, PDO-mappable object of the "
+                                            f"drive's EDS/DCF")
+        torque_per_unit = sc.get("torque_Nm_per_unit", float, low=1e-9, high=1e3)
     if feedback == "current":                 # torque = current actual (0x6078) × torque constant
         unit_ = sc.get("current_unit", str, "permille", choices=["permille", "mA"])
         per_unit = (sc.get("rated_current_A", float, low=1e-6, high=1e5) / 1000.0 if unit_ == "permille"
@@ -200,7 +207,8 @@ def _node(path: Path, axis: str, data: dict) -> NodeConfig:
     scaling = Scaling(increments_per_rev=sc.get("increments_per_rev", int, low=1, high=2**31 - 1),
                       rated_torque_Nm=sc.get("rated_torque_Nm", float, low=1e-6, high=1e6),
                       feed_m_per_rev=feed, torque_feedback=feedback, current_per_unit_A=per_unit,
-                      torque_constant_Nm_per_A=kt, velocity_unit=velocity_unit)
+                      torque_constant_Nm_per_A=kt, velocity_unit=velocity_unit, torque_index=torque_index,
+                      torque_per_unit_Nm=torque_per_unit)
     sc.done()
     unit = "m" if feed else "rad"
     lim = sec.section("limits")
@@ -235,7 +243,8 @@ def _node(path: Path, axis: str, data: dict) -> NodeConfig:
         heartbeat_producer_ms=sec.get("heartbeat_producer", int, 100, low=1, high=65535),
         following_error_window_rad=sec.get("following_error_window_rad", float, 0.6, low=1e-6, high=1e6),
         rpdo=_pdos(sec, "rpdo", od, RPDO_OBJECTS, REQUIRED_RPDO),
-        tpdo=_pdos(sec, "tpdo", od, TPDO_OBJECTS, {**REQUIRED_TPDO, **dict([TORQUE_OBJECTS[feedback]])}),
+        tpdo=_pdos(sec, "tpdo", od, TPDO_OBJECTS | {scaling.torque_object},
+                   {**REQUIRED_TPDO, scaling.torque_object: TORQUE_FEEDBACK[feedback]}),
         sdo=tuple(sdo), profile=sec.get("profile", str, None), motor=_motor(sec))
     sec.done()
     return cfg

@@ -54,10 +54,12 @@ def to_table(rec: Recording, scaling: dict[str, Scaling], period: float) -> tupl
         sc = scaling[axis]
         valid = rec.valid(axis)
         indices = [i for a, i in rec.columns if a == axis]
-        for index in sorted(indices, key=list(_COLUMNS).index):
-            suffix, conv, fmt = _COLUMNS[index]
-            if index == 0x6078 and sc.torque_feedback == "current":     # the axis's torque, from its current
-                suffix, conv, fmt = "torque_Nm", "torque_from_current", "%.6g"
+        order = list(_COLUMNS)
+        for index in sorted(indices, key=lambda i: order.index(0x6077 if i == sc.torque_object else i)):
+            if index == sc.torque_object:           # the axis's torque, from what the drive reports
+                suffix, conv, fmt = "torque_Nm", "torque_from_feedback", "%.6g"
+            else:
+                suffix, conv, fmt = _COLUMNS[index]
             raw = rec.raw[:, rec.column(axis, index)]
             values = getattr(sc, conv)(raw) if conv else raw.astype(float)
             names.append(f"{axis}_{suffix}")
@@ -99,6 +101,7 @@ def layout_meta(axes) -> dict:
                                  "torque_feedback": sc.torque_feedback,
                                  "current_per_unit_A": sc.current_per_unit_A,
                                  "torque_constant_Nm_per_A": sc.torque_constant_Nm_per_A,
+                                 "torque_index": sc.torque_index, "torque_per_unit_Nm": sc.torque_per_unit_Nm,
                                  "feed_m_per_rev": sc.feed_m_per_rev,
                                  "velocity_unit": sc.velocity_unit},
                      "operating_mode": {"mode": ax.mode, "name": MODE_NAMES.get(ax.mode, str(ax.mode)),
@@ -133,11 +136,12 @@ def decode_trace(trace: Path, meta_path: Path | None = None
         for codec in [c for cs in (*tpdos.values(), *rpdos.values()) for c in cs]:
             if codec.struct.size > 8 or len(codec.spans) != len(codec.entries) or not 0 < codec.cob_id < 0x800:
                 raise ValueError(f"PDO 0x{codec.cob_id:X}: its format does not fit its objects")
-        unknown = [i for cs in tpdos.values() for c in cs for i in c.objects if i not in _COLUMNS]
+        scaling = {a: Scaling(**v["scaling"]) for a, v in axes.items()}
+        unknown = [i for a, cs in tpdos.items() for c in cs for i in c.objects
+                   if i not in _COLUMNS and i != scaling[a].torque_object]
         if unknown:
             raise ValueError(f"TPDO object 0x{unknown[0]:04X} is not one the log has a column for")
         rec = Recording(tpdos, rpdos, sent)
-        scaling = {a: Scaling(**v["scaling"]) for a, v in axes.items()}
         for sc in scaling.values():
             if not (sc.increments_per_rev > 0 and sc.rated_torque_Nm > 0):
                 raise ValueError("scaling must be positive")

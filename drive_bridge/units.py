@@ -7,7 +7,8 @@ bus: positions in encoder increments, velocities in increments/s (or rpm, as max
 reports them), torque in
 per mille of the rated torque (0x6076) -- or, for a drive without a torque
 actual value, the current actual value (0x6078: per mille of the rated current
-0x6075, or mA) times the motor's torque constant.
+0x6075, or mA) times the motor's torque constant, or a vendor object with its
+scale (Nm per unit).
 """
 from __future__ import annotations
 
@@ -30,9 +31,12 @@ class Scaling:
     increments_per_rev: int
     rated_torque_Nm: float
     feed_m_per_rev: float | None = None
-    torque_feedback: str = "torque"             # "torque": 0x6077; "current": 0x6078 × torque constant
+    torque_feedback: str = "torque"             # "torque": 0x6077; "current": 0x6078 × torque constant;
+                                                # "object": the vendor object torque_index × torque_per_unit_Nm
     current_per_unit_A: float | None = None     # A per unit of 0x6078 (rated current / 1000, or 0.001 for mA)
     torque_constant_Nm_per_A: float | None = None
+    torque_index: int | None = None
+    torque_per_unit_Nm: float | None = None
     velocity_unit: str = "inc/s"                # of 0x606C and the other velocities: "inc/s" or "rpm"
 
     @property
@@ -72,11 +76,16 @@ class Scaling:
     def torque_from_device(self, per_mille):
         return np.asarray(per_mille, dtype=float) * (self.rated_torque_Nm / 1000.0)
 
-    def torque_from_current(self, current_units):
-        """0x6078 (per mille of rated current, or mA) -> Nm through the torque constant."""
-        return np.asarray(current_units, dtype=float) * (self.current_per_unit_A * self.torque_constant_Nm_per_A)
+    def torque_from_feedback(self, raw):
+        """The axis's torque feedback (its :attr:`torque_object`, device units) -> Nm."""
+        if self.torque_feedback == "current":       # per mille of rated current, or mA, × torque constant
+            return np.asarray(raw, dtype=float) * (self.current_per_unit_A * self.torque_constant_Nm_per_A)
+        if self.torque_feedback == "object":
+            return np.asarray(raw, dtype=float) * self.torque_per_unit_Nm
+        return self.torque_from_device(raw)
 
     @property
     def torque_object(self) -> int:
-        """The object the axis's torque is measured by: 0x6077, or 0x6078 for current feedback."""
-        return 0x6078 if self.torque_feedback == "current" else 0x6077
+        """The object the axis's torque is measured by: 0x6077, 0x6078 for current feedback, or the
+        configured vendor object."""
+        return {"current": 0x6078, "object": self.torque_index}.get(self.torque_feedback, 0x6077)

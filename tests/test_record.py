@@ -175,3 +175,29 @@ def test_torque_from_the_current_actual_value_for_drives_without_0x6077(tmp_path
     assert np.nanmax(np.abs(torque)) > 0.2 and np.allclose(torque, current, atol=1.3e-3, equal_nan=True)
     assert main(["decode", str(tmp_path / "current" / "trace.blf")]) == 0
     assert (tmp_path / "current" / "decoded.csv").read_bytes() == (tmp_path / "current" / "log.csv").read_bytes()
+
+
+def test_torque_from_a_vendor_object_with_its_scale(tmp_path):
+    """maxon's EPOS2 also reports its averaged current in 0x2027 (mA): logged as torque through
+    its configured scale (Nm per unit = torque constant / 1000), the same Nm as from 0x6078."""
+    from drive_bridge.resources import data, vendor_dir
+    if not vendor_dir().is_dir():
+        pytest.skip("../shared/eds-vendor not present")
+    src = data("config", "examples", "maxon_epos2.yml")
+    doc = yaml.safe_load(src.read_text())
+    doc["defaults"]["scaling"] = {"increments_per_rev": 16384, "rated_torque_Nm": 1.27, "velocity_unit": "rpm",
+                                  "torque_feedback": "object", "torque_object": 0x2027, "torque_Nm_per_unit": 0.2e-3}
+    doc["defaults"]["tpdo"][1]["mapping"][1] = {"index": 0x2027, "sub_index": 0}
+    cfg = tmp_path / "bus.yml"
+    cfg.write_text(yaml.safe_dump(doc))
+    out = {}
+    for name, path in (("object", cfg), ("current", src)):
+        assert main(["record", "--sim", "--quick", "--axes", "y", "--config", str(path),
+                     "--out", str(tmp_path / name)]) == 0
+        names, values = read_csv(tmp_path / name / "log.csv")
+        out[name] = values[:, names.index("y_torque_Nm")]
+    assert np.nanmax(np.abs(out["object"])) > 0.2 and np.allclose(out["object"], out["current"], equal_nan=True)
+    meta = yaml.safe_load((tmp_path / "object" / "meta.yaml").read_text())
+    assert meta["axes"]["y"]["scaling"]["torque_index"] == 0x2027
+    assert main(["decode", str(tmp_path / "object" / "trace.blf")]) == 0
+    assert (tmp_path / "object" / "decoded.csv").read_bytes() == (tmp_path / "object" / "log.csv").read_bytes()

@@ -171,8 +171,7 @@ class _Unloader:
         for starts, offset, col, sc, slots in self.jobs:
             if k in starts and row >= 1 and self.rec.got[row, slots].all():
                 raw = self.rec.raw[row, col]
-                held = sc.torque_from_current(raw) if sc.torque_feedback == "current" else sc.torque_from_device(raw)
-                offset.bias = int(sc.torque_to_device(held)) - offset[row - 1]
+                offset.bias = int(sc.torque_to_device(sc.torque_from_feedback(raw))) - offset[row - 1]
 
 
 def _packer(ax: AxisLink, codec: PdoCodec, plan: Plan, ai: int, send,

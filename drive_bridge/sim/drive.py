@@ -609,13 +609,13 @@ class SimDrive:
 
     def _live_objects(self) -> dict[int, Callable[[], int]]:
         """Objects whose value the drive measures or computes instead of storing."""
-        return {
+        current = {index: (lambda: self._current) for index in self.spec.current_objects}
+        return current | {
             0x6041: lambda: self.statusword,
             0x6061: lambda: self.mode,
             0x6064: lambda: self._position_inc,
             0x606C: lambda: self._velocity,
             0x6077: lambda: self._torque_pm,
-            0x6078: lambda: self._current,
             0x60F4: lambda: round(self.s[K.FERR] * self.inc_per_rad),
             0x603F: lambda: self.error_code,
             0x1001: lambda: 0x01 if self.state == FAULT else 0x00,

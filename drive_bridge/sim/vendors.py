@@ -26,13 +26,15 @@ class DriveSpec:
     ``increments_per_rev``: the encoder, where the file has no 0x608F default;
     ``velocity_unit``: of 0x606C and every velocity/acceleration object ("inc/s": inc/s and
     inc/s²; "rpm": rpm and rpm/s); ``current_unit`` of 0x6078 ("permille" of the rated current
-    0x6075, or "mA"); ``supported_modes``: 0x6502 where the file has no default."""
+    0x6075, or "mA") and of any vendor object in ``current_objects``; ``supported_modes``: 0x6502
+    where the file has no default."""
 
     profile: str
     increments_per_rev: int | None = None
     velocity_unit: str = "inc/s"
     current_unit: str = "permille"
     supported_modes: int | None = None
+    current_objects: tuple[int, ...] = (0x6078,)      # objects reporting the averaged current
 
 
 #: by EDS/DCF file name
@@ -41,7 +43,8 @@ SPECS = {
     # EPOS2: velocities in rpm (0x608C = 0xA4 in its EDS), current actual in mA; 0x6502 is left to
     # the drive: PP, PV, homing, IP and maxon's position/velocity/current modes (bits 16-18).
     # 16384 increments per revolution: a 4096-count encoder, quadrature (the simulation's choice).
-    "maxon_epos2_50-5.eds": DriveSpec("maxon_epos2", 16384, "rpm", "mA", 0x00070065),
+    # 0x2027 "Current Actual Value Averaged" reports the same averaged current.
+    "maxon_epos2_50-5.eds": DriveSpec("maxon_epos2", 16384, "rpm", "mA", 0x00070065, (0x6078, 0x2027)),
     # C5-E: 0x608F:1 has no default; 65536 increments per revolution (the simulation's choice).
     "nanotec_C5-E-2-09.eds": DriveSpec("nanotec_c5e", 65536),
     # iPOS: no 0x608F; 16384 increments per revolution (the simulation's choice).
