@@ -38,6 +38,7 @@ class AxisResult:
     ga_coef: np.ndarray
     ga_errors: Errors
     dropped: list[str] = field(default_factory=list)
+    sampling: dict = field(default_factory=dict)       # what the log's time stamps held (Log.sampling)
 
     def as_json(self) -> dict:
         return {
@@ -67,6 +68,7 @@ class AxisResult:
             "settings": {"cutoff_hz": self.settings.cutoff_hz, "decimation": self.settings.decimation,
                          "rate_hz": self.settings.rate_hz},
             "dropped": self.dropped,
+            "sampling": self.sampling,
         }
 
 
@@ -106,7 +108,7 @@ def identify_axis(log: Log, axis: str, val_log: Log | None = None, *, seed: int 
     return AxisResult(axis, log.axes[axis].kind, log.axes[axis].units, settings, how, est, val, base, model,
                       traced, errors(base, val), errors(model, val), noise_floor(noise_log, axis, vs if val_log else settings),
                       unexplained(model, val, settings.rate_hz / settings.decimation), ga_model.coef_,
-                      errors(ga_model, val), list(log.axes[axis].dropped))
+                      errors(ga_model, val), list(log.axes[axis].dropped), dict(log.sampling))
 
 
 def identify(path: str | Path, validate: str | Path | None = None, axes: list[str] | None = None, *,

@@ -8,6 +8,13 @@ stands for its ``log.csv``.  Everything wrong with the file is a
 :class:`~drive_bridge.errors.UserError` that says what and where; rows that
 cannot be used (NaN runs, time gaps) split the log into segments and are
 reported in :attr:`AxisLog.dropped`.
+
+Time is what the stamps say.  A step longer than ``GAP_FACTOR`` sample periods
+(the median step) is a gap; between gaps, stamps that are not evenly spaced
+(jitter beyond ``JITTER_TOLERANCE``) are resampled onto a uniform grid of the
+median period, position and torque through the same cubic spline, so that
+every later step sees evenly spaced samples that are true to their instants.
+:attr:`Log.sampling` says what the stamps held and what was done.
 """
 from __future__ import annotations
 
@@ -17,6 +24,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from scipy.interpolate import CubicSpline
 
 from ..errors import UserError
 from ..logs import LOG_NAME, META_NAME, TRACE_NAME
@@ -26,8 +34,8 @@ KINDS = {"rad": ("rotary", "torque_Nm", {"position": "rad", "torque": "Nm"}),
 MAX_POSITION = 1e7           # rad | m: beyond this a value is a corrupt row, not a position
 MAX_TORQUE = 1e7             # Nm | N
 MIN_SEGMENT = 64            # samples: shorter finite runs are dropped (the filters need room)
-GAP_TOLERANCE = 0.5         # a time step off the median by more than this fraction is a gap
-MAX_GAP_FRACTION = 0.01     # more gaps than this: the sampling is irregular, not gapped
+GAP_FACTOR = 5.0            # a time step longer than this many median periods is a gap
+JITTER_TOLERANCE = 1e-3     # steps within this fraction of the median period count as evenly spaced
 
 
 @dataclass
@@ -46,9 +54,11 @@ class AxisLog:
 @dataclass
 class Log:
     path: Path
-    t: np.ndarray                                # [s]
+    t: np.ndarray                                # [s], evenly spaced within segments (see sampling)
     dt: float                                    # median sample period [s]
     axes: dict[str, AxisLog]
+    #: what the time stamps held: period, jitter, gaps, and whether the log was resampled
+    sampling: dict = field(default_factory=dict)
 
 
 def _csv_path(path: Path) -> Path:
@@ -104,10 +114,12 @@ def read_log(path: str | Path) -> Log:
         raise UserError(f"{path}: time_s does not increase at row {bad + 3} "
                         f"(t = {t[bad]:.6f} then {t[bad + 1]:.6f}); sort the log or fix its time base")
     dt = float(np.median(dt_all))
-    gaps = np.flatnonzero(np.abs(dt_all - dt) > GAP_TOLERANCE * dt)
-    if len(gaps) > MAX_GAP_FRACTION * len(dt_all):
-        raise UserError(f"{path}: irregular sampling: {len(gaps)} of {len(dt_all)} time steps differ from the "
-                        f"median {dt * 1e3:.3f} ms by more than {GAP_TOLERANCE:.0%}; resample to a fixed rate")
+    for name in [n for n in header if n.endswith("_valid")]:     # a missing sample is missing data, in
+        invalid = col[name] == 0                                 # every column of its axis
+        for other in header:
+            if other.startswith(name[:-len("valid")]) and other != name:
+                col[other] = np.where(invalid, np.nan, col[other])
+    col, t, gaps, sampling = _uniform_time(col, t, dt)
     axes = {}
     for name in header:
         m = re.fullmatch(r"(.+)_position_(rad|m)", name)
@@ -125,9 +137,6 @@ def read_log(path: str | Path) -> Log:
                 raise UserError(f"{path}: {what} = {values[wild[0]]:.6g} at row {wild[0] + 2} is not a plausible "
                                 f"value (|x| > {limit:g}); fix or cut the log")
         dropped = []
-        if f"{axis}_valid" in col:
-            invalid = col[f"{axis}_valid"] == 0
-            q[invalid] = tau[invalid] = np.nan
         finite = np.isfinite(q) & np.isfinite(tau)
         nan_runs = _runs(~finite)
         if nan_runs:
@@ -154,4 +163,48 @@ def read_log(path: str | Path) -> Log:
     if not axes:
         raise UserError(f"{path}: no axis found: expected <axis>_position_rad with <axis>_torque_Nm, or "
                         f"<axis>_position_m with <axis>_force_N")
-    return Log(path, t, dt, axes)
+    return Log(path, t, dt, axes, sampling)
+
+
+def _uniform_time(col: dict[str, np.ndarray], t: np.ndarray, dt: float
+                  ) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray, dict]:
+    """The columns on evenly spaced instants: as they are where the stamps are (within
+    ``JITTER_TOLERANCE``), else resampled per gap-free span onto t0 + k·dt (cubic spline, every
+    column alike; a sample next to a missing value stays missing).  Returns the columns, the
+    time, the rows after which a gap lies, and the sampling report."""
+    steps = np.diff(t)
+    gap = steps > GAP_FACTOR * dt
+    inner = steps[~gap]
+    deviation = float(np.max(np.abs(inner - dt))) if len(inner) else 0.0
+    sampling = {"period_s": dt, "jitter_std_s": float(np.std(inner)) if len(inner) else 0.0,
+                "max_step_deviation_s": deviation, "gaps": int(gap.sum()), "resampled": False}
+    if deviation <= JITTER_TOLERANCE * dt:
+        return col, t, np.flatnonzero(gap), sampling
+    sampling["resampled"] = True
+    spans = _runs(np.ones(len(t), dtype=bool)) if not gap.any() else \
+        list(zip([0] + (np.flatnonzero(gap) + 1).tolist(), (np.flatnonzero(gap) + 1).tolist() + [len(t)]))
+    grids, gap_rows, out = [], [], {name: [] for name in col}
+    for a, b in spans:
+        grid = t[a] + np.arange(int(np.floor((t[b - 1] - t[a]) / dt + 1e-9)) + 1) * dt
+        if grids:
+            gap_rows.append(sum(len(g) for g in grids) - 1)
+        grids.append(grid)
+        for name, values in col.items():
+            out[name].append(_resample(t[a:b], values[a:b], grid))
+    new_t = np.concatenate(grids)
+    new = {name: np.concatenate(parts) for name, parts in out.items()}
+    new["time_s"] = new_t
+    return new, new_t, np.asarray(gap_rows, dtype=int), sampling
+
+
+def _resample(t: np.ndarray, values: np.ndarray, grid: np.ndarray) -> np.ndarray:
+    """``values`` at ``t`` onto ``grid`` by a cubic spline through the finite samples; a grid
+    instant between two samples of which one is missing is missing too."""
+    finite = np.isfinite(values)
+    if finite.sum() < 4:
+        return np.interp(grid, t, np.where(finite, values, np.nan))
+    out = CubicSpline(t[finite], values[finite])(grid)
+    right = np.clip(np.searchsorted(t, grid, side="left"), 0, len(t) - 1)
+    left = np.clip(right - 1, 0, len(t) - 1)
+    out[~(finite[left] & finite[right])] = np.nan
+    return out

@@ -48,7 +48,17 @@ def summary(results: dict[str, AxisResult]) -> str:
                          f"({u_['fraction']:.0%} of its variance); no effect in the library explains it")
         for d in r.dropped:
             lines.append(f"  dropped: {d}")
+        if r.sampling.get("resampled"):
+            lines.append(f"  {sampling_text(r.sampling)}")
     return "\n".join(lines)
+
+
+def sampling_text(s: dict) -> str:
+    """What the time stamps held and what was done about it, in one sentence."""
+    return (f"time stamps not evenly spaced (steps off the median {s['period_s'] * 1e3:.3f} ms by up to "
+            f"{s['max_step_deviation_s'] * 1e6:.0f} µs, std {s['jitter_std_s'] * 1e6:.0f} µs; {s['gaps']} gap(s) "
+            f"split the log): resampled onto a uniform {s['period_s'] * 1e3:.3f} ms grid, position and torque "
+            f"through the same cubic spline")
 
 
 def as_json(results: dict[str, AxisResult]) -> str:
@@ -154,6 +164,8 @@ def write_markdown(results: dict[str, AxisResult], out: Path, source: str) -> Pa
             md.append("")
         if r.dropped:
             md += ["Dropped from the log:", ""] + [f"- {d}" for d in r.dropped] + [""]
+        if r.sampling.get("resampled"):
+            md += [sampling_text(r.sampling)[0].upper() + sampling_text(r.sampling)[1:] + ".", ""]
     path = out / "identify.md"
     write_text(out / "identify.json", as_json(results))
     write_text(path, "\n".join(md))

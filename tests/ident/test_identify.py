@@ -14,6 +14,7 @@ import pytest
 from drive_bridge.cli import main
 from drive_bridge.config import load_bus_config
 from drive_bridge.ident import identify
+from drive_bridge.ident.logdata import read_log
 from drive_bridge.master.campaign import build_plan
 from drive_bridge.sim.config import Motor, SimAxis, SimConfig
 from drive_bridge.sim.plantlog import plant_log, write_log
@@ -179,11 +180,30 @@ def test_log_without_motion_is_refused(tmp_path, capsys):
     assert "does not move" in capsys.readouterr().err
 
 
-def test_irregular_time_is_refused(tmp_path, capsys):
-    t = np.cumsum(np.random.default_rng(0).uniform(0.001, 0.003, 3000))
-    write_log(tmp_path / "jitter.csv", {"time_s": t, "y_position_rad": np.sin(t), "y_torque_Nm": np.cos(t)})
-    assert main(["identify", str(tmp_path / "jitter.csv")]) == 2
-    assert "irregular sampling" in capsys.readouterr().err
+@pytest.mark.parametrize("kind", ["jitter", "irregular"])
+def test_time_is_what_the_stamps_say(tmp_path, capsys, kind):
+    """A 1 kHz log whose stamps wander ±50 µs, and a logger writing 0.7-8.8 ms apart, from the
+    independent closed-loop plant of tests/ident/generator.py: resampled onto a uniform grid from
+    the stamps (reported), never treated as evenly spaced; J, c0, c1 of the plant come back."""
+    from .generator import closed_loop_log, irregular, jittered
+    stamps = jittered(1000, 40, 50e-6) if kind == "jitter" else irregular(1000, 40, 0.7e-3, 8.8e-3)
+    path = write_log(tmp_path / f"{kind}.csv", closed_loop_log(stamps))
+    r = identify(path)["y"]
+    p = r.model.params_
+    assert p["J"] == pytest.approx(1e-4, rel=0.03) and p["c0"] == pytest.approx(0.3, rel=0.02)
+    assert p["c1"] == pytest.approx(5e-4, rel=0.10)
+    assert r.sampling["resampled"] and r.sampling["max_step_deviation_s"] >= 45e-6
+    assert (r.sampling["gaps"] > 0) == (kind == "irregular")
+    assert main(["identify", str(path), "--axis", "y"]) == 0
+    assert "resampled onto a uniform 1.0" in capsys.readouterr().out
+
+
+def test_evenly_stamped_logs_are_used_as_they_are(tmp_path):
+    from .generator import closed_loop_log
+    path = write_log(tmp_path / "even.csv", closed_loop_log(np.arange(20000) / 1000))
+    log = read_log(path)
+    assert not log.sampling["resampled"] and log.sampling["gaps"] == 0
+    assert np.array_equal(log.t, np.loadtxt(path, delimiter=",", skiprows=1)[:, 0])
 
 
 # ---------------------------------------------------------------- real data: EMPS

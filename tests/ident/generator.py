@@ -1,0 +1,61 @@
+"""An independent closed-loop plant for identification tests: none of ``drive_bridge.sim``.
+
+A rigid axis J·q̈ = τ − c1·q̇ − c0·sign(q̇) − extra(q, q̇, q̈, t) (sticking at rest while the
+net torque stays within c0) under a PI velocity / P
+position cascade tracking a sum of sines, integrated with semi-implicit Euler at ``fs_int``,
+sampled at the instants a logger stamped (``stamps``), position quantised to the encoder,
+torque to 1 mNm, with seeded Gaussian noise.  SI, motor side.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+
+def closed_loop_log(stamps: np.ndarray, *, J: float = 1e-4, c0: float = 0.3, c1: float = 5e-4,
+                    extra=None, noise_Nm: float = 0.004, increments_per_rev: int = 2**16,
+                    seed: int = 0, fs_int: float = 10_000.0) -> dict[str, np.ndarray]:
+    """Columns ``time_s`` (the stamps), ``y_position_rad``, ``y_torque_Nm``."""
+    T = 1.0 / fs_int
+    n = int(np.ceil(stamps[-1] / T)) + 2
+    t = np.arange(n) * T
+    w1, w2 = 2 * np.pi * 0.4, 2 * np.pi * 1.1
+    q_ref = 6.0 * np.sin(w1 * t) + 2.5 * np.sin(w2 * t + 0.3)
+    v_ref = 6.0 * w1 * np.cos(w1 * t) + 2.5 * w2 * np.cos(w2 * t + 0.3)
+    a_ref = -6.0 * w1**2 * np.sin(w1 * t) - 2.5 * w2**2 * np.sin(w2 * t + 0.3)
+    kp, kv, ki = 60.0, 0.08, 25.0
+    q = np.empty(n)
+    tau = np.empty(n)
+    qk, vk, integ = q_ref[0], v_ref[0], 0.0
+    for k in range(n):
+        e_v = kp * (q_ref[k] - qk) + v_ref[k] - vk
+        integ += ki * e_v * T
+        u = kv * (e_v + integ)
+        drive = u - (extra(qk, vk, a_ref[k], t[k]) if extra is not None else 0.0)
+        if vk == 0.0 and abs(drive) <= c0:
+            pass                                            # stuck
+        else:
+            s_dir = np.sign(vk) if vk != 0.0 else np.sign(drive)
+            v_new = vk + T / J * (drive - c1 * vk - c0 * s_dir)
+            vk = 0.0 if vk != 0.0 and v_new * vk < 0 else v_new      # crossed zero: sticks
+        qk += vk * T
+        q[k], tau[k] = qk, u
+    rng = np.random.default_rng(seed)
+    q_s = np.interp(stamps, t, q)
+    tau_s = np.interp(stamps, t, tau) + noise_Nm * rng.standard_normal(len(stamps))
+    inc = increments_per_rev / (2 * np.pi)
+    return {"time_s": stamps, "y_position_rad": np.floor(q_s * inc) / inc, "y_torque_Nm": np.round(tau_s, 3)}
+
+
+def jittered(rate_hz: float, duration_s: float, jitter_s: float, seed: int = 1) -> np.ndarray:
+    """Stamps of a logger at ``rate_hz`` whose time stamps wander ±``jitter_s`` around the grid."""
+    grid = np.arange(int(duration_s * rate_hz)) / rate_hz
+    return grid + np.random.default_rng(seed).uniform(-jitter_s, jitter_s, len(grid))
+
+
+def irregular(rate_hz: float, duration_s: float, lo_s: float, hi_s: float, seed: int = 2) -> np.ndarray:
+    """Stamps of a logger that writes when it can: steps mostly near 1/rate, now and then up to ``hi_s``."""
+    rng = np.random.default_rng(seed)
+    steps = np.where(rng.random(int(duration_s * rate_hz)) < 0.02, rng.uniform(2 / rate_hz, hi_s, int(duration_s * rate_hz)),
+                     rng.uniform(lo_s, 1.3 / rate_hz, int(duration_s * rate_hz)))
+    t = np.cumsum(steps)
+    return t[t < duration_s]
