@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..ident.trace import describe_unexplained
 from ..outputs import write_text
 from . import steps as S
 
@@ -107,8 +108,7 @@ def _axis(out: Path, axis: str, a: dict, traces) -> str:
                       f"<p class='evidence'>{_e(eff['evidence'])}</p>",
                       _file_img(out / S.OUTPUT["identify"] / f"{axis}_effect{k + 1}_{eff['name']}.png", eff["name"])]
         for un in a.get("unexplained") or []:
-            parts.append(f"<p>Unexplained: the residual still depends on {_e(un['depends_on'])} "
-                         f"({un['fraction']:.0%} of its variance).</p>")
+            parts.append(f"<p>Unexplained: {_e(describe_unexplained(un))}.</p>")
     if "gains_after" in a:
         before, after = a["gains_before"], a["gains_after"]
         parts += ["<h3>Gains</h3>", _table(["gain", "before", "after"],

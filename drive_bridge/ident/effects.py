@@ -106,7 +106,8 @@ class Effect:
 
 
 class Offset(Effect):
-    """A constant torque: gravity on a vertical axis, a measurement offset (paper's D)."""
+    """A constant torque: gravity on a vertical axis, a measurement offset (paper's D), or the
+    constant part of a direction asymmetry of Coulomb friction (dc0·s·s = dc0)."""
 
     name, depends_on, coef_names = "offset", "constant", ("offset",)
 

@@ -9,6 +9,7 @@ import numpy as np
 from ..outputs import write_text
 from .identify import AxisResult
 from .model import AxisModel
+from .trace import describe_unexplained
 
 UNITS = {"rotary": {"J": "kg·m²", "c0": "Nm", "c1": "Nm·s/rad", "offset": "Nm", "cp": "Nm/rad"},
          "linear": {"J": "kg", "c0": "N", "c1": "N·s/m", "offset": "N", "cp": "N/m"}}
@@ -44,8 +45,7 @@ def summary(results: dict[str, AxisResult]) -> str:
         lines.append(f"  GA (differential evolution) on the same data: validation RMSE {r.ga_errors.rmse:.4g} "
                      f"{tu}, J {r.ga_coef[0]:.6g}, c1 {r.ga_coef[1]:.6g}, c0 {r.ga_coef[2]:.6g}")
         for u_ in r.unexplained:
-            lines.append(f"  unexplained: residual depends on {u_['depends_on']} "
-                         f"({u_['fraction']:.0%} of its variance); no effect in the library explains it")
+            lines.append(f"  unexplained: {describe_unexplained(u_)}")
         for d in r.dropped:
             lines.append(f"  dropped: {d}")
         if r.sampling.get("resampled"):
@@ -160,7 +160,7 @@ def write_markdown(results: dict[str, AxisResult], out: Path, source: str) -> Pa
                    f"![{t.effect.name}]({png.name})", ""]
         if r.unexplained:
             md += ["Unexplained structure left in the residual:", ""]
-            md += [f"- depends on {x['depends_on']}: {x['fraction']:.0%} of the residual variance" for x in r.unexplained]
+            md += [f"- {describe_unexplained(x)}" for x in r.unexplained]
             md.append("")
         if r.dropped:
             md += ["Dropped from the log:", ""] + [f"- {d}" for d in r.dropped] + [""]

@@ -19,7 +19,15 @@ added when it is significant:
 Tracing stops when no candidate passes.  Structure left in the final residual
 that no effect explains is reported by what it depends on: the share of the
 validation residual's variance explained by its mean in bins of each variable
-(correlation ratio η², one-way ANOVA), and by a dominant frequency.
+(correlation ratio η², one-way ANOVA), and by a dominant frequency.  Each
+variable is tested on the residual as it is (``form: even``: the same torque in
+both directions, as gravity or cogging) and on the residual times the direction
+of motion (``form: odd``: a torque against the motion, as friction that changes
+along the stroke or with the load, which the raw residual averages away).  The
+list is ordered by the strength of the evidence (the ANOVA F statistic; a spectral peak,
+which mostly reflects the pace of the moves, comes last), and a
+variable an added effect already depends on is named with that effect and what
+of the residual remains.
 """
 from __future__ import annotations
 
@@ -65,7 +73,9 @@ def f_test(small: AxisModel, big: AxisModel) -> tuple[float, float]:
 
 def _evidence(e: Effect, params: dict, share: float, f: float, before, after) -> str:
     what = {
-        "offset": lambda: f"mean residual {params['offset']:+.4g}",
+        "offset": lambda: (f"a constant torque {params['offset']:+.4g}: a load (gravity on a vertical axis), a "
+                           f"measurement offset, or the constant part of a Coulomb friction that differs between the "
+                           f"directions ((c0 + dc0·s)·s = c0·s + dc0): the torque alone cannot tell them apart"),
         "position_linear": lambda: f"residual slope over position {params['cp']:+.4g}",
         "position_periodic": lambda: f"residual periodic in position, period {params['period']:.4g}, "
                                      f"amplitude {params['amplitude']:.3g}",
@@ -119,11 +129,11 @@ def trace(est: Samples, val: Samples, seed: int) -> tuple[AxisModel, AxisModel, 
     return base, model, traced
 
 
-def _eta2(x: np.ndarray, r: np.ndarray) -> tuple[float, float]:
-    """Share of var(r) explained by its mean in quantile bins of x, and the ANOVA p-value."""
+def _eta2(x: np.ndarray, r: np.ndarray) -> tuple[float, float, float]:
+    """Share of var(r) explained by its mean in quantile bins of x, the ANOVA p-value and F."""
     edges = np.unique(np.quantile(x, np.linspace(0, 1, BINS + 1)))
     if len(edges) < 3:
-        return 0.0, 1.0
+        return 0.0, 1.0, 0.0
     idx = np.clip(np.searchsorted(edges, x, side="right") - 1, 0, len(edges) - 2)
     counts = np.bincount(idx)
     means = np.bincount(idx, r) / np.maximum(counts, 1)
@@ -131,31 +141,65 @@ def _eta2(x: np.ndarray, r: np.ndarray) -> tuple[float, float]:
     total = float(np.sum((r - r.mean()) ** 2))
     k, n = int(np.count_nonzero(counts)), len(r)
     if total == 0 or k < 2 or n <= k:
-        return 0.0, 1.0
+        return 0.0, 1.0, 0.0
     f = (between / (k - 1)) / max((total - between) / (n - k), 1e-300)
-    return between / total, float(stats.f.sf(f, k - 1, n - k))
+    return between / total, float(stats.f.sf(f, k - 1, n - k)), float(f)
 
 
 def unexplained(model: AxisModel, s: Samples, rate_hz: float) -> list[dict]:
-    """What the residual on ``s`` still depends on (see the module docstring)."""
+    """What the residual on ``s`` still depends on (see the module docstring): per entry
+    ``depends_on``, ``form`` (even | odd), ``fraction`` of the residual variance, ``evidence``
+    (F statistic), and ``after`` (the added effects that depend on it already) where any does."""
     m = s.moving
     r = (s.tau - model.predict(s))[m]
     total = float(np.mean(r ** 2))
+    direction = np.sign(s.qd[m])
+    added = {}
+    for e in model.effects:
+        added.setdefault(e.depends_on, []).append(e.name)
     out = []
     if total > 0 and r.mean() ** 2 / total >= UNEXPLAINED_SHARE:
-        out.append({"depends_on": "constant", "fraction": float(r.mean() ** 2 / total)})
+        n = len(r)
+        f = n * r.mean() ** 2 / max(float(np.var(r)), 1e-300)
+        out.append({"depends_on": "constant", "form": "even", "fraction": round(float(r.mean() ** 2 / total), 4),
+                    "evidence": round(float(f), 1)})
     variables = {"position": s.q, "velocity": s.qd, "acceleration": s.qdd, "time": s.t,
                  "direction": np.sign(s.qd)}
     for o, (q, qd, qdd) in s.others.items():
         variables.update({f"{o}_position": q, f"{o}_velocity": qd, f"{o}_acceleration": qdd})
     for name, x in variables.items():
-        share, p = _eta2(x[m], r)
-        if share >= UNEXPLAINED_SHARE and p < P_VALUE:
-            out.append({"depends_on": name, "fraction": round(share, 4)})
+        found = []
+        for form, resid in (("even", r), ("odd", r * direction)):
+            if form == "odd" and name in ("direction", "velocity"):
+                continue                    # sign(q̇)·r over q̇ or its sign: the even test sees it already
+            share, p, f = _eta2(x[m], resid)
+            if share >= UNEXPLAINED_SHARE and p < P_VALUE:
+                found.append({"depends_on": name, "form": form, "fraction": round(share, 4),
+                              "evidence": round(f, 1)})
+        if found:
+            out.append(max(found, key=lambda d: d["evidence"]))
     if len(r) >= 256:
         f, pxx = signal.welch(r - r.mean(), fs=rate_hz, nperseg=256)
         peak = int(np.argmax(pxx[1:])) + 1
         band = float(pxx[max(1, peak - 1):peak + 2].sum() / pxx[1:].sum())
         if band >= 0.25:
-            out.append({"depends_on": "frequency", "fraction": round(band, 4), "frequency_hz": float(f[peak])})
-    return sorted(out, key=lambda d: -d["fraction"])
+            out.append({"depends_on": "frequency", "form": "even", "fraction": round(band, 4),
+                        "frequency_hz": float(f[peak]), "evidence": None})
+    for d in out:
+        if d["depends_on"] in added:
+            d["after"] = added[d["depends_on"]]
+    # by evidence; a spectral peak last: it mostly reflects the pace of the moves
+    return sorted(out, key=lambda d: -(d["evidence"] if d["evidence"] is not None else -1.0))
+
+
+def describe_unexplained(d: dict) -> str:
+    """One entry of :func:`unexplained` in words."""
+    what = ("the residual" if d.get("form", "even") == "even" else "the residual times the direction of motion "
+            "(a torque against the motion, friction-like)")
+    text = f"{what} depends on {d['depends_on']}"
+    if "frequency_hz" in d:
+        text += f" (a peak at {d['frequency_hz']:.3g} Hz)"
+    text += f": {d['fraction']:.0%} of its variance"
+    if d.get("after"):
+        text += f", what remains after {', '.join(d['after'])}"
+    return text

@@ -231,3 +231,27 @@ def test_emps_benchmark_offset_then_asymmetry(tmp_path):
     assert asym.relative_error_after < offset.relative_error_after
     assert asym.rmse_after < offset.rmse_after < offset.rmse_before
     assert asym.params["dc1"] == pytest.approx((166.7061 - 240.4236) / 2, rel=0.1)   # published Fv+ / Fv-
+
+
+@pytest.mark.parametrize("case, form", [("friction bump along the stroke", "odd"),
+                                        ("friction rising along the stroke", "odd"),
+                                        ("load bump along the stroke", "even")])
+def test_diagnosis_sees_friction_that_changes_along_the_stroke(tmp_path, case, form):
+    """Logs of the independent closed-loop plant with a position-dependent torque no library effect
+    models: against the motion (odd: its sign follows the direction, so the raw residual binned
+    by position averages it away) or the same both ways (even). The first unexplained dependence
+    is position, in the right form."""
+    from .generator import closed_loop_log
+    extra = {"friction bump along the stroke": lambda q, v, a, t: 0.12 * np.exp(-((q - 2) / 1.5) ** 2) * np.sign(v),
+             "friction rising along the stroke": lambda q, v, a, t: 0.01 * (q + 8) * np.sign(v),
+             "load bump along the stroke": lambda q, v, a, t: 0.12 * np.exp(-((q - 2) / 1.5) ** 2)}[case]
+    path = write_log(tmp_path / "log.csv", closed_loop_log(np.arange(40000) / 1000, extra=extra, seed=3))
+    first = identify(path)["y"].unexplained[0]
+    assert (first["depends_on"], first["form"]) == ("position", form), first
+
+
+def test_clean_closed_loop_log_leaves_nothing_unexplained(tmp_path):
+    from .generator import closed_loop_log
+    r = identify(write_log(tmp_path / "log.csv", closed_loop_log(np.arange(40000) / 1000, seed=3)))["y"]
+    assert r.effects == [] and r.unexplained == []
+    assert r.model.params_["J"] == pytest.approx(1e-4, rel=0.02) and r.model.params_["c0"] == pytest.approx(0.3, rel=0.01)
