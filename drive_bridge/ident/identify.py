@@ -17,6 +17,7 @@ from .signals import Samples, Settings, choose_settings, noise_floor, prepare
 from .trace import TracedEffect, trace, unexplained
 
 HOLDOUT_BLOCKS, HOLDOUT_EVERY = 10, 3      # without --validate: blocks 3, 6, 9 of 10 (by moving samples)
+CONSISTENT_SIGMAS = 3.0     # parts of the data whose J, c0 or c1 differ by more: the axis is flagged
 
 
 @dataclass
@@ -39,6 +40,7 @@ class AxisResult:
     ga_errors: Errors
     dropped: list[str] = field(default_factory=list)
     sampling: dict = field(default_factory=dict)       # what the log's time stamps held (Log.sampling)
+    consistency: dict = field(default_factory=dict)    # J, c0, c1 refitted on parts of the data (consistency())
 
     def as_json(self) -> dict:
         return {
@@ -69,6 +71,7 @@ class AxisResult:
                          "rate_hz": self.settings.rate_hz},
             "dropped": self.dropped,
             "sampling": self.sampling,
+            "consistency": self.consistency,
         }
 
 
@@ -84,6 +87,30 @@ def _holdout(s: Samples) -> tuple[Samples, Samples, str]:
     return (s.take(~held), s.take(held),
             f"held out of the same log: blocks {', '.join(str(b + 1) for b in sorted(set(block[held].tolist())))} "
             f"of {HOLDOUT_BLOCKS} by moving samples (t = {', '.join(spans)})")
+
+
+def consistency(model: AxisModel, est: Samples, val: Samples) -> dict:
+    """The final model's coefficients refitted (its effects' nonlinear parameters kept) on the
+    first and second half in time of the estimation samples and on the validation samples: J, c0
+    and c1 must agree between every two within ``CONSISTENT_SIGMAS`` of their combined reported
+    std.  ``consistent: false`` names each parameter that moved, its value per part and by how
+    many std (a payload change, a warm-up, a structure the model lacks)."""
+    moving_t = est.t[est.moving]
+    split = float(np.median(moving_t)) if len(moving_t) else 0.0
+    parts = {"first half": est.take(est.t < split), "second half": est.take(est.t >= split), "validation": val}
+    fits = {}
+    for name, part in parts.items():
+        if part.moving.sum() > 3 * len(model.coef_):
+            fits[name] = AxisModel(model.effects, seed=model.seed).fit(part)
+    moved = {}
+    for p in ("J", "c0", "c1"):
+        values = {n: (f.params_[p], f.param_std_[p]) for n, f in fits.items()}
+        worst = max(((abs(a[0] - b[0]) / np.hypot(a[1], b[1]), na, nb) for na, a in values.items()
+                     for nb, b in values.items() if na < nb and np.hypot(a[1], b[1]) > 0), default=(0.0, "", ""))
+        if worst[0] > CONSISTENT_SIGMAS:
+            moved[p] = {"values": {n: v[0] for n, v in values.items()}, "sigmas": round(float(worst[0]), 1),
+                        "between": [worst[1], worst[2]]}
+    return {"consistent": not moved, "parts": list(fits), "moved": moved}
 
 
 def identify_axis(log: Log, axis: str, val_log: Log | None = None, *, seed: int = 0,
@@ -103,12 +130,13 @@ def identify_axis(log: Log, axis: str, val_log: Log | None = None, *, seed: int 
         est, val, how = _holdout(samples)
         vs = settings
     base, model, traced = trace(est, val, seed)
+    agreement = consistency(model, est, val)
     noise_log = val_log if val_log is not None else log
     ga_model = AxisModel(model.effects, method="ga", seed=seed).fit(est)
     return AxisResult(axis, log.axes[axis].kind, log.axes[axis].units, settings, how, est, val, base, model,
                       traced, errors(base, val), errors(model, val), noise_floor(noise_log, axis, vs if val_log else settings),
                       unexplained(model, val, settings.rate_hz / settings.decimation), ga_model.coef_,
-                      errors(ga_model, val), list(log.axes[axis].dropped), dict(log.sampling))
+                      errors(ga_model, val), list(log.axes[axis].dropped), dict(log.sampling), agreement)
 
 
 def identify(path: str | Path, validate: str | Path | None = None, axes: list[str] | None = None, *,

@@ -4,7 +4,10 @@
 paper (eq. 2–3) on the moving samples, with the filtered torque as the
 observation; fitted values end in ``_`` (scikit-learn style), and only ``fit``
 sets them.  ``AxisModel(effects, method="ga", seed=...)`` fits the same
-structure with differential evolution (the paper's genetic algorithm).
+structure with differential evolution (the paper's genetic algorithm).  The
+covariance of the coefficients is heteroskedasticity- and autocorrelation-consistent
+(Newey-West): coloured or non-Gaussian residuals, and structure the model leaves
+in them, widen it instead of hiding behind the white-noise formula σ²(ΦᵀΦ)⁻¹.
 :func:`extend` adds an effect: its nonlinear parameters first, then every
 coefficient again.  Units follow the axis: J [kg·m² | kg], c1 [Nm·s/rad |
 N·s/m], c0 [Nm | N].
@@ -64,7 +67,7 @@ class AxisModel:
         resid = y - phi @ coef
         self.sigma_ = float(np.sqrt(float(resid @ resid) / max(1, n - p)))     # residual std
         gram_inv = np.linalg.pinv((phi / scale).T @ (phi / scale)) / np.outer(scale, scale)
-        self.cov_ = self.sigma_ ** 2 * gram_inv
+        self.cov_ = hac_covariance(phi, resid, gram_inv, n - p)
         self.cond_ = float(np.linalg.cond(phi))
         if self.method == "ga":
             coef = _differential_evolution(phi, y, coef, self.cov_, self.seed)
@@ -109,6 +112,35 @@ class AxisModel:
             if e is effect:
                 return e.params(self.coef_[sl])
         raise KeyError(effect)
+
+
+def hac_lags(resid: np.ndarray) -> int:
+    """Newey-West truncation lag: the Newey-West (1994) rule 4·(n/100)^(2/9), or longer while
+    the residual's autocorrelation stays above its white-noise band 2/√n (at most n/10)."""
+    n = len(resid)
+    rule = int(4 * (n / 100) ** (2 / 9))
+    r = resid - resid.mean()
+    denom = float(r @ r)
+    if denom <= 0:
+        return rule
+    band, cap = 2 / np.sqrt(n), max(1, n // 10)
+    lag = 1
+    while lag < cap and float(r[lag:] @ r[:-lag]) / denom > band:
+        lag += 1
+    return min(max(rule, lag), cap)
+
+
+def hac_covariance(phi: np.ndarray, resid: np.ndarray, gram_inv: np.ndarray, dof: int) -> np.ndarray:
+    """Newey-West (Bartlett-weighted) sandwich covariance of least-squares coefficients, with
+    the small-sample factor n/dof."""
+    n = len(resid)
+    u = phi * resid[:, None]
+    meat = u.T @ u
+    lags = hac_lags(resid)
+    for lag in range(1, lags + 1):
+        g = u[lag:].T @ u[:-lag]
+        meat += (1 - lag / (lags + 1)) * (g + g.T)
+    return gram_inv @ meat @ gram_inv * (n / max(1, dof))
 
 
 @dataclass

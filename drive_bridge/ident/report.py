@@ -50,7 +50,17 @@ def summary(results: dict[str, AxisResult]) -> str:
             lines.append(f"  dropped: {d}")
         if r.sampling.get("resampled"):
             lines.append(f"  {sampling_text(r.sampling)}")
+        if r.consistency and not r.consistency["consistent"]:
+            lines.append(f"  NOT CONSISTENT: {consistency_text(r.consistency)}")
     return "\n".join(lines)
+
+
+def consistency_text(c: dict) -> str:
+    """Which parameters moved between parts of the data, and by how much."""
+    return "; ".join(f"{p} differs between the {m['between'][0]} and the {m['between'][1]} by {m['sigmas']:.3g} std ("
+                     + ", ".join(f"{n} {v:.4g}" for n, v in m["values"].items()) + ")"
+                     for p, m in c["moved"].items()) + \
+        ": the data hold more than one value (a payload change, a warm-up, or structure the model lacks)"
 
 
 def sampling_text(s: dict) -> str:
@@ -166,6 +176,8 @@ def write_markdown(results: dict[str, AxisResult], out: Path, source: str) -> Pa
             md += ["Dropped from the log:", ""] + [f"- {d}" for d in r.dropped] + [""]
         if r.sampling.get("resampled"):
             md += [sampling_text(r.sampling)[0].upper() + sampling_text(r.sampling)[1:] + ".", ""]
+        if r.consistency and not r.consistency["consistent"]:
+            md += [f"**Not consistent:** {consistency_text(r.consistency)}.", ""]
     path = out / "identify.md"
     write_text(out / "identify.json", as_json(results))
     write_text(path, "\n".join(md))

@@ -13,8 +13,10 @@ import numpy as np
 
 def closed_loop_log(stamps: np.ndarray, *, J: float = 1e-4, c0: float = 0.3, c1: float = 5e-4,
                     extra=None, noise_Nm: float = 0.004, increments_per_rev: int = 2**16,
-                    seed: int = 0, fs_int: float = 10_000.0) -> dict[str, np.ndarray]:
-    """Columns ``time_s`` (the stamps), ``y_position_rad``, ``y_torque_Nm``."""
+                    seed: int = 0, fs_int: float = 10_000.0,
+                    payload: tuple[float, float] | None = None) -> dict[str, np.ndarray]:
+    """Columns ``time_s`` (the stamps), ``y_position_rad``, ``y_torque_Nm``; ``payload`` = (time [s],
+    inertia after it [kg·m²]): a payload change during the log."""
     T = 1.0 / fs_int
     n = int(np.ceil(stamps[-1] / T)) + 2
     t = np.arange(n) * T
@@ -26,7 +28,9 @@ def closed_loop_log(stamps: np.ndarray, *, J: float = 1e-4, c0: float = 0.3, c1:
     q = np.empty(n)
     tau = np.empty(n)
     qk, vk, integ = q_ref[0], v_ref[0], 0.0
+    J0 = J
     for k in range(n):
+        J = payload[1] if payload is not None and t[k] >= payload[0] else J0
         e_v = kp * (q_ref[k] - qk) + v_ref[k] - vk
         integ += ki * e_v * T
         u = kv * (e_v + integ)
