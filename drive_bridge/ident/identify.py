@@ -13,10 +13,12 @@ import numpy as np
 from ..errors import UserError
 from .logdata import Log, read_log
 from .model import AxisModel, Errors, errors
+from .resonance import find_mode
 from .signals import Samples, Settings, choose_settings, noise_floor, prepare
 from .trace import TracedEffect, trace, unexplained
 
 HOLDOUT_BLOCKS, HOLDOUT_EVERY = 10, 3      # without --validate: blocks 3, 6, 9 of 10 (by moving samples)
+MIN_CUTOFF_BANDWIDTHS = 3.0  # a cut-off moved below a mode stays at least this many motion bandwidths
 CONSISTENT_SIGMAS = 3.0     # parts of the data whose J, c0 or c1 differ by more: the axis is flagged
 
 
@@ -41,6 +43,8 @@ class AxisResult:
     dropped: list[str] = field(default_factory=list)
     sampling: dict = field(default_factory=dict)       # what the log's time stamps held (Log.sampling)
     consistency: dict = field(default_factory=dict)    # J, c0, c1 refitted on parts of the data (consistency())
+    #: a resonance in the whole-band residual (resonance.find_mode), and the cut-off it moved from
+    resonance: dict | None = None
 
     def as_json(self) -> dict:
         return {
@@ -72,6 +76,7 @@ class AxisResult:
             "dropped": self.dropped,
             "sampling": self.sampling,
             "consistency": self.consistency,
+            "resonance": self.resonance,
         }
 
 
@@ -115,6 +120,29 @@ def consistency(model: AxisModel, est: Samples, val: Samples) -> dict:
 
 def identify_axis(log: Log, axis: str, val_log: Log | None = None, *, seed: int = 0,
                   cutoff_hz: float | None = None, decimation: int | None = None) -> AxisResult:
+    """Identify one axis; a resonance close enough above the cut-off to bias the rigid fit moves
+    the cut-off below it (unless the cut-off was given), and the result says so."""
+    result = _identify_axis(log, axis, val_log, seed, cutoff_hz, decimation)
+    mode = find_mode(log, axis, result.model, result.settings)
+    if mode is None:
+        return result
+    settings = result.settings
+    below = mode["frequency_hz"] / 2
+    if cutoff_hz is None and not mode["mains"] and mode["frequency_hz"] < 2 * settings.cutoff_hz \
+            and below < settings.cutoff_hz \
+            and below >= MIN_CUTOFF_BANDWIDTHS * settings.motion_bandwidth_hz:
+        result = _identify_axis(log, axis, val_log, seed, below, None)
+        mode = {**mode, "cutoff_moved_from_hz": round(settings.cutoff_hz, 2)}
+    result.resonance = mode
+    result.unexplained.append({"depends_on": "frequency", "form": "even", "kind": "resonance",
+                               "fraction": mode["share"], "frequency_hz": mode["frequency_hz"],
+                               "damping": mode["damping"], "mains": mode["mains"], "evidence": None,
+                               **{k: v for k, v in mode.items() if k == "cutoff_moved_from_hz"}})
+    return result
+
+
+def _identify_axis(log: Log, axis: str, val_log: Log | None, seed: int, cutoff_hz: float | None,
+                   decimation: int | None) -> AxisResult:
     settings = choose_settings(log, axis, cutoff_hz, decimation)
     samples = prepare(log, axis, settings)
     if val_log is not None:

@@ -196,6 +196,16 @@ def describe_unexplained(d: dict) -> str:
     """One entry of :func:`unexplained` in words."""
     what = ("the residual" if d.get("form", "even") == "even" else "the residual times the direction of motion "
             "(a torque against the motion, friction-like)")
+    if d.get("kind") == "resonance" and d.get("mains"):
+        return (f"a narrow peak at {d['frequency_hz']:.3g} Hz holds {d['fraction']:.0%} of the residual over the "
+                f"log's whole band: the mains frequency, more likely electrical pickup in the torque measurement "
+                f"than a mechanical mode")
+    if d.get("kind") == "resonance":
+        moved = (f"; the cut-off was moved from {d['cutoff_moved_from_hz']:.3g} Hz below it"
+                 if d.get("cutoff_moved_from_hz") else "")
+        return (f"a resonance at {d['frequency_hz']:.3g} Hz (damping ratio ≈ {d['damping']:.2g}) holds "
+                f"{d['fraction']:.0%} of the residual over the log's whole band: a compliant transmission the "
+                f"rigid model lacks{moved}")
     text = f"{what} depends on {d['depends_on']}"
     if "frequency_hz" in d:
         text += f" (a peak at {d['frequency_hz']:.3g} Hz)"

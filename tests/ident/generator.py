@@ -14,9 +14,13 @@ import numpy as np
 def closed_loop_log(stamps: np.ndarray, *, J: float = 1e-4, c0: float = 0.3, c1: float = 5e-4,
                     extra=None, noise_Nm: float = 0.004, increments_per_rev: int = 2**16,
                     seed: int = 0, fs_int: float = 10_000.0,
-                    payload: tuple[float, float] | None = None) -> dict[str, np.ndarray]:
+                    payload: tuple[float, float] | None = None,
+                    coupling: tuple[float, float, float, float] | None = None) -> dict[str, np.ndarray]:
     """Columns ``time_s`` (the stamps), ``y_position_rad``, ``y_torque_Nm``; ``payload`` = (time [s],
-    inertia after it [kg·m²]): a payload change during the log."""
+    inertia after it [kg·m²]): a payload change during the log; ``coupling`` = (load inertia
+    [kg·m²], mode frequency [Hz], damping ratio, backlash [rad]): the load hangs on the motor
+    (inertia ``J``, which the friction acts on) through a spring-damper with a dead zone of
+    ± backlash/2; the encoder reads the motor."""
     T = 1.0 / fs_int
     n = int(np.ceil(stamps[-1] / T)) + 2
     t = np.arange(n) * T
@@ -29,12 +33,25 @@ def closed_loop_log(stamps: np.ndarray, *, J: float = 1e-4, c0: float = 0.3, c1:
     tau = np.empty(n)
     qk, vk, integ = q_ref[0], v_ref[0], 0.0
     J0 = J
+    if coupling is not None:
+        J_l, f_mode, zeta, lash = coupling
+        J_eff = J * J_l / (J + J_l)
+        k_s = (2 * np.pi * f_mode) ** 2 * J_eff
+        d_s = 2 * zeta * np.sqrt(k_s * J_eff)
+        ql, vl = qk, vk
     for k in range(n):
         J = payload[1] if payload is not None and t[k] >= payload[0] else J0
         e_v = kp * (q_ref[k] - qk) + v_ref[k] - vk
         integ += ki * e_v * T
         u = kv * (e_v + integ)
         drive = u - (extra(qk, vk, a_ref[k], t[k]) if extra is not None else 0.0)
+        if coupling is not None:                            # the load's reaction through the coupling
+            twist = qk - ql
+            twist = np.sign(twist) * max(0.0, abs(twist) - lash / 2)
+            f_c = k_s * twist + (d_s * (vk - vl) if twist != 0.0 else 0.0)
+            vl += T * f_c / J_l
+            ql += vl * T
+            drive -= f_c
         if vk == 0.0 and abs(drive) <= c0:
             pass                                            # stuck
         else:

@@ -282,3 +282,27 @@ def test_uncertainty_widens_with_structure_the_model_lacks(tmp_path):
         assert abs(p[name] - true) <= 3 * sd[name], (name, p[name], sd[name])
     clean = identify(write_log(tmp_path / "clean.csv", closed_loop_log(np.arange(40000) / 1000, seed=3)))["y"]
     assert clean.consistency["consistent"]
+
+
+def test_a_compliant_coupling_mode_is_reported_and_the_cut_off_moved_below_it(tmp_path, capsys):
+    """Load on the motor through a lightly damped coupling (40 Hz open loop, ζ 0.03) in the
+    independent plant: the whole-band residual shows the mode (closed loop it rings near 27 Hz);
+    it is reported with its frequency and damping, and the fit moves its cut-off below it."""
+    from .generator import closed_loop_log
+    cols = closed_loop_log(np.arange(40000) / 1000, seed=3, J=0.5e-4, coupling=(0.5e-4, 40.0, 0.03, 0.0))
+    path = write_log(tmp_path / "log.csv", cols)
+    r = identify(path)["y"]
+    mode = r.resonance
+    assert mode is not None and 20 < mode["frequency_hz"] < 45 and 0.005 < mode["damping"] < 0.1
+    assert mode["cutoff_moved_from_hz"] > r.settings.cutoff_hz and r.settings.cutoff_hz < mode["frequency_hz"]
+    assert r.model.params_["J"] == pytest.approx(1e-4, rel=0.03)                 # motor + load
+    assert any(u.get("kind") == "resonance" for u in r.unexplained)
+    assert main(["identify", str(path)]) == 0
+    assert "a resonance at" in capsys.readouterr().out
+
+
+def test_no_resonance_on_clean_logs(tmp_path):
+    from .generator import closed_loop_log, jittered
+    for name, stamps in (("even", np.arange(40000) / 1000), ("jitter", jittered(1000, 40, 50e-6))):
+        r = identify(write_log(tmp_path / f"{name}.csv", closed_loop_log(stamps, seed=3)))["y"]
+        assert r.resonance is None, (name, r.resonance)
