@@ -10,7 +10,8 @@ from ..outputs import write_json
 from ..params.read import drive_state
 from ..params.write import raise_for_failure, write_drives
 from ..session import Session
-from ..tuning.tune import GAINS, drive_model, read_identify_json, read_tune_json, tune_axes, tune_doc
+from ..tuning.tune import (GAINS, drive_model, read_identify_json, read_tune_json, tune_axes, tune_doc,
+                           unwritable_effects)
 from . import options
 from .bus import degraded_exit
 
@@ -91,7 +92,7 @@ def cmd_tune(args) -> int:
                 for a, t in results.items():
                     t.experiment = run_experiment(config, session.link, session.axes, a, session.profile,
                                                   t.before.get("KpS", t.design.KpS))
-    doc = tune_doc(results)
+    doc = tune_doc(results, unwritable_effects(args.ident))
     out = write_json(args.out, doc)
     if args.json:
         print(json.dumps(doc, default=float))

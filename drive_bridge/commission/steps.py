@@ -15,7 +15,7 @@ from ..params.read import drive_state
 from ..params.write import raise_for_failure, write_drives
 from ..progress import StepReporter
 from ..session import Session
-from ..tuning.tune import drive_model, read_identify_json, read_tune_json, tune_axes, tune_doc
+from ..tuning.tune import drive_model, read_identify_json, read_tune_json, tune_axes, tune_doc, unwritable_effects
 from ..tuning import validate as V
 from ..tuning.validate import degraded, run_scenarios, stopped
 
@@ -107,11 +107,14 @@ def tune(ctx: Context) -> str:
     missing = [a for a in ctx.config.nodes if a not in state]
     if missing:
         raise UserError(f"axis {missing[0]}: not in {ctx.out / OUTPUT['bringup']}; rerun the bringup step")
-    doc = tune_doc(tune_axes(models, {a: state[a] for a in ctx.config.nodes}))
+    doc = tune_doc(tune_axes(models, {a: state[a] for a in ctx.config.nodes}),
+                   unwritable_effects(ctx.require(IDENTIFY_JSON)))
     write_json(ctx.out / OUTPUT["tune"], doc)
     return "; ".join(f"{a}: KpS {d['gains_before'].get('KpS', float('nan')):.3g} → {d['gains']['KpS']:.3g}, "
                      f"KpP {d['gains']['KpP']:.0f}, PM {d['margins']['velocity']['phase_margin_deg']:.1f}°, "
-                     f"GM {d['margins']['velocity']['gain_margin_db']:.1f} dB" for a, d in doc["axes"].items())
+                     f"GM {d['margins']['velocity']['gain_margin_db']:.1f} dB"
+                     + (f", not writable: {', '.join(d['not_writable'])}" if d["not_writable"] else "")
+                     for a, d in doc["axes"].items())
 
 
 def write(ctx: Context) -> str:

@@ -21,6 +21,7 @@ import numpy as np
 from scipy import optimize
 
 from ..errors import InternalError
+from .dependence import dependences, variables
 from .signals import Samples
 
 
@@ -99,7 +100,7 @@ class Effect:
         return dict(zip(self.coef_names, map(float, coef)))
 
     def param_std(self, coef: np.ndarray, cov: np.ndarray) -> dict[str, float]:
-        return {k: float(math.sqrt(cov[i, i])) for i, k in enumerate(self.coef_names)}
+        return {k: float(math.sqrt(max(cov[i, i], 0.0))) for i, k in enumerate(self.coef_names)}
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}({', '.join(f'{k}={v!r}' for k, v in self.get_params().items())})"
@@ -243,6 +244,87 @@ class Drift(Effect):
         return {"amplitude": float(coef[0]), "time_constant_s": self.time_constant_}
 
 
+class Spline(Effect):
+    """A smooth torque in one variable that no named effect describes: a cubic B-spline over the
+    variable's range (interior ``knots`` at quantiles of the samples), ``even`` (the same torque
+    both ways: cogging, gravity, a spring) or ``odd`` (times the direction of motion: friction
+    that changes along the stroke, with the load, with temperature).
+
+    The spline never duplicates a term the model has by name: its basis is made orthogonal, over
+    the variable's range, to a constant and a straight line (even: the offset, cp·q, c1·q̇, J·q̈)
+    or to a constant (odd: c0·sign(q̇)), and reduced to a full-rank set (SVD), deterministically
+    from the constructor's parameters."""
+
+    GRID = 512
+
+    def __init__(self, variable: str, form: str, knots: tuple[float, ...], low: float, high: float):
+        self.variable, self.form, self.knots, self.low, self.high = variable, form, tuple(knots), low, high
+        self.name = f"spline_{form}_{variable}"
+        grid = np.linspace(low, high, self.GRID)
+        basis = self._basis(grid)
+        removed = np.column_stack([np.ones_like(grid), grid] if form == "even" else [np.ones_like(grid)])
+        self._removed_coef = np.linalg.lstsq(removed, basis, rcond=None)[0]
+        _, sv, vt = np.linalg.svd(basis - removed @ self._removed_coef, full_matrices=False)
+        self._reduce = vt[:int(np.sum(sv > 1e-9 * sv[0]))].T
+        self.coef_names = tuple(f"b{i + 1}" for i in range(self._reduce.shape[1]))
+
+    def get_params(self) -> dict:
+        return {"variable": self.variable, "form": self.form, "knots": self.knots, "low": self.low, "high": self.high}
+
+    @property
+    def depends_on(self) -> str:
+        return self.variable
+
+    def _basis(self, x: np.ndarray) -> np.ndarray:
+        from scipy.interpolate import BSpline
+        t = np.concatenate([[self.low] * 4, self.knots, [self.high] * 4])
+        return BSpline.design_matrix(np.clip(x, self.low, self.high), t, 3).toarray()
+
+    def shape(self, x: np.ndarray, coef: np.ndarray) -> np.ndarray:
+        """The fitted torque over ``x`` [Nm | N] (for moves in the positive direction when odd)."""
+        removed = np.column_stack([np.ones_like(x), x] if self.form == "even" else [np.ones_like(x)])
+        return (self._basis(x) - removed @ self._removed_coef) @ self._reduce @ coef
+
+    def _columns(self, s):
+        x = variables(s)[self.variable]
+        removed = np.column_stack([np.ones_like(x), np.clip(x, self.low, self.high)] if self.form == "even"
+                                  else [np.ones_like(x)])
+        cols = (self._basis(x) - removed @ self._removed_coef) @ self._reduce
+        return cols * s.sgn[:, None] if self.form == "odd" else cols
+
+    def params(self, coef):
+        return {"variable": self.variable, "form": self.form, "low": self.low, "high": self.high,
+                **{f"b{i + 1}": float(c) for i, c in enumerate(coef)}}
+
+
+SPLINE_KNOTS = (3, 6, 10)       # smoothness candidates: interior knots (validation chooses)
+SPLINE_SHARE = 0.15             # a variable the residual depends on by this share of its variance ...
+SPLINE_P = 1e-3                 # ... at this ANOVA p-value gets spline candidates
+
+
+def spline_candidates(present: list[Effect], s: Samples, residual: np.ndarray) -> list[Effect]:
+    """Even or odd splines in each variable the residual depends on (not the direction alone),
+    at each smoothness of ``SPLINE_KNOTS``."""
+    have = {e.name for e in present}
+    m = s.moving
+    out: list[Effect] = []
+    for d in dependences(s, residual, SPLINE_SHARE, SPLINE_P):
+        name = f"spline_{d['form']}_{d['depends_on']}"
+        if d["depends_on"] == "direction" or name in have:
+            continue
+        x = variables(s)[d["depends_on"]][m]
+        low, high = float(np.min(x)), float(np.max(x))
+        if not high > low:
+            continue
+        for k in SPLINE_KNOTS:
+            knots = np.unique(np.quantile(x, np.linspace(0, 1, k + 2)[1:-1]))
+            knots = knots[(knots > low) & (knots < high)]
+            if len(knots) < k:
+                break                       # the samples sit on a few values (a still axis, quantised)
+            out.append(Spline(d["depends_on"], d["form"], tuple(map(float, knots)), low, high))
+    return out
+
+
 def position_period(s: Samples, residual: np.ndarray) -> float | None:
     """Period [rad | m] of the strongest periodic component of ``residual`` over position.
 
@@ -301,4 +383,4 @@ def candidates(present: list[Effect], s: Samples, residual: np.ndarray) -> list[
         for form in CrossAxis.FORMS:
             if (src, form) not in coupled:
                 out.append(CrossAxis(src, form))
-    return out
+    return out + spline_candidates(present, s, residual)

@@ -100,7 +100,7 @@ class AxisModel:
 
     @property
     def param_std_(self) -> dict[str, float]:
-        sd = np.sqrt(np.diag(self.cov_))
+        sd = np.sqrt(np.maximum(np.diag(self.cov_), 0.0))
         out = {"J": float(sd[0]), "c0": float(sd[2]), "c1": float(sd[1])}
         for e, sl in self._blocks():
             for k, v in e.param_std(self.coef_[sl], self.cov_[sl, sl]).items():

@@ -102,7 +102,8 @@ def _variable(r: AxisResult, depends_on: str) -> tuple[np.ndarray, str]:
     pos = r.units["position"]
     table = {"position": (s.q, f"position [{pos}]"), "velocity": (s.qd, f"velocity [{pos}/s]"),
              "direction": (s.qd, f"velocity [{pos}/s]"), "time": (s.t, "time [s]"),
-             "constant": (s.qd, f"velocity [{pos}/s]"), "acceleration": (s.qdd, f"acceleration [{pos}/s²]")}
+             "constant": (s.qd, f"velocity [{pos}/s]"), "acceleration": (s.qdd, f"acceleration [{pos}/s²]"),
+             "abs_acceleration": (np.abs(s.qdd), f"|acceleration| [{pos}/s²]")}
     if depends_on in table:
         return table[depends_on]
     other, kind = depends_on.rsplit("_", 1)

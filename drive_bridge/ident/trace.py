@@ -36,15 +36,16 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import signal, stats
 
-from .effects import Effect, candidates
+from .dependence import dependences
+from .effects import Effect, Spline, candidates
 from .model import AxisModel, errors, extend
 from .signals import Samples
 
 P_VALUE = 1e-3
 MIN_GAIN = 0.01
+SPLINE_GAIN = 0.05            # a spline (many coefficients, no physics) must cut the validation error 5 %
 MAX_EFFECTS = 6
 UNEXPLAINED_SHARE = 0.05      # report a dependence that explains this share of the residual variance
-BINS = 20
 
 
 @dataclass
@@ -72,7 +73,16 @@ def f_test(small: AxisModel, big: AxisModel) -> tuple[float, float]:
 
 
 def _evidence(e: Effect, params: dict, share: float, f: float, before, after) -> str:
-    what = {
+    what = (f"a smooth torque in {e.variable} no named effect describes ({len(e.coef_names)}-coefficient spline, "
+            + ("the same in both directions" if e.form == "even" else "against the motion: friction-like") + ")"
+            if isinstance(e, Spline) else _named_evidence(e, params))
+    return (f"{what}; explains {share:.0%} of the residual variance (F = {f:.3g}); validation "
+            f"RMSE {before.rmse:.4g} -> {after.rmse:.4g}, relative error "
+            f"{before.relative_error:.2%} -> {after.relative_error:.2%}")
+
+
+def _named_evidence(e: Effect, params: dict) -> str:
+    return {
         "offset": lambda: (f"a constant torque {params['offset']:+.4g}: a load (gravity on a vertical axis), a "
                            f"measurement offset, or the constant part of a Coulomb friction that differs between the "
                            f"directions ((c0 + dc0·s)·s = c0·s + dc0): the torque alone cannot tell them apart"),
@@ -87,9 +97,6 @@ def _evidence(e: Effect, params: dict, share: float, f: float, before, after) ->
                               f"coefficient {params['coefficient']:+.3g}",
         "drift": lambda: f"Coulomb friction changes over time, time constant {params['time_constant_s']:.3g} s",
     }[e.name]()
-    return (f"{what}; explains {share:.0%} of the residual variance (F = {f:.3g}); validation "
-            f"RMSE {before.rmse:.4g} -> {after.rmse:.4g}, relative error "
-            f"{before.relative_error:.2%} -> {after.relative_error:.2%}")
 
 
 def trace(est: Samples, val: Samples, seed: int) -> tuple[AxisModel, AxisModel, list[TracedEffect]]:
@@ -102,12 +109,16 @@ def trace(est: Samples, val: Samples, seed: int) -> tuple[AxisModel, AxisModel, 
         resid = est.tau_f - model.predict(est)
         best = None
         for cand in candidates(model.effects, est, resid):
-            fitted = extend(model, cand, est)
+            try:
+                fitted = extend(model, cand, est)
+            except np.linalg.LinAlgError:
+                continue                          # the candidate's columns leave the problem singular
             if not np.all(np.isfinite(fitted.coef_)) or fitted.sse_ >= model.sse_:
                 continue
             new_err = errors(fitted, val)
-            if new_err.relative_error <= 0:
-                continue
+            if new_err.relative_error <= 0 or (isinstance(cand, Spline) and
+                                               new_err.relative_error > (1 - SPLINE_GAIN) * err.relative_error):
+                continue                          # a spline must earn its many coefficients
             score = 2 * np.log(err.relative_error / new_err.relative_error) / len(cand.coef_names)
             if best is None or score > best[0]:
                 best = (score, fitted, new_err, cand)
@@ -129,23 +140,6 @@ def trace(est: Samples, val: Samples, seed: int) -> tuple[AxisModel, AxisModel, 
     return base, model, traced
 
 
-def _eta2(x: np.ndarray, r: np.ndarray) -> tuple[float, float, float]:
-    """Share of var(r) explained by its mean in quantile bins of x, the ANOVA p-value and F."""
-    edges = np.unique(np.quantile(x, np.linspace(0, 1, BINS + 1)))
-    if len(edges) < 3:
-        return 0.0, 1.0, 0.0
-    idx = np.clip(np.searchsorted(edges, x, side="right") - 1, 0, len(edges) - 2)
-    counts = np.bincount(idx)
-    means = np.bincount(idx, r) / np.maximum(counts, 1)
-    between = float(np.sum(counts * (means - r.mean()) ** 2))
-    total = float(np.sum((r - r.mean()) ** 2))
-    k, n = int(np.count_nonzero(counts)), len(r)
-    if total == 0 or k < 2 or n <= k:
-        return 0.0, 1.0, 0.0
-    f = (between / (k - 1)) / max((total - between) / (n - k), 1e-300)
-    return between / total, float(stats.f.sf(f, k - 1, n - k)), float(f)
-
-
 def unexplained(model: AxisModel, s: Samples, rate_hz: float) -> list[dict]:
     """What the residual on ``s`` still depends on (see the module docstring): per entry
     ``depends_on``, ``form`` (even | odd), ``fraction`` of the residual variance, ``evidence``
@@ -153,7 +147,6 @@ def unexplained(model: AxisModel, s: Samples, rate_hz: float) -> list[dict]:
     m = s.moving
     r = (s.tau - model.predict(s))[m]
     total = float(np.mean(r ** 2))
-    direction = np.sign(s.qd[m])
     added = {}
     for e in model.effects:
         added.setdefault(e.depends_on, []).append(e.name)
@@ -163,21 +156,7 @@ def unexplained(model: AxisModel, s: Samples, rate_hz: float) -> list[dict]:
         f = n * r.mean() ** 2 / max(float(np.var(r)), 1e-300)
         out.append({"depends_on": "constant", "form": "even", "fraction": round(float(r.mean() ** 2 / total), 4),
                     "evidence": round(float(f), 1)})
-    variables = {"position": s.q, "velocity": s.qd, "acceleration": s.qdd, "time": s.t,
-                 "direction": np.sign(s.qd)}
-    for o, (q, qd, qdd) in s.others.items():
-        variables.update({f"{o}_position": q, f"{o}_velocity": qd, f"{o}_acceleration": qdd})
-    for name, x in variables.items():
-        found = []
-        for form, resid in (("even", r), ("odd", r * direction)):
-            if form == "odd" and name in ("direction", "velocity"):
-                continue                    # sign(q̇)·r over q̇ or its sign: the even test sees it already
-            share, p, f = _eta2(x[m], resid)
-            if share >= UNEXPLAINED_SHARE and p < P_VALUE:
-                found.append({"depends_on": name, "form": form, "fraction": round(share, 4),
-                              "evidence": round(f, 1)})
-        if found:
-            out.append(max(found, key=lambda d: d["evidence"]))
+    out += dependences(s, s.tau - model.predict(s), UNEXPLAINED_SHARE, P_VALUE)
     if len(r) >= 256:
         f, pxx = signal.welch(r - r.mean(), fs=rate_hz, nperseg=256)
         peak = int(np.argmax(pxx[1:])) + 1

@@ -84,6 +84,15 @@ def read_identify_json(path: str | Path) -> dict[str, dict[str, float]]:
     return out
 
 
+def unwritable_effects(path: str | Path) -> dict[str, list[str]]:
+    """axis -> the traced effects of an ``identify --json`` result that no drive model parameter
+    (nor the master's feed-forward, which sends the same model) can carry: reported, not dropped."""
+    axes = _axes_of(Path(path), "identify --json result")
+    writable = {key.split(".")[0] for key in MODEL_KEYS}
+    return {a: [e["name"] for e in r.get("effects") or [] if isinstance(e, dict) and e.get("name") not in writable]
+            for a, r in axes.items()}
+
+
 #: the largest J [kg·m² | kg], c0 [Nm | N], c1 [Nm·s/rad | N·s/m] a servo axis can have (linear axes too)
 PLAUSIBLE = {"J": 1e4, "c0": 1e5, "c1": 1e5}
 
@@ -126,9 +135,10 @@ def tune_axes(models: dict[str, dict[str, float]], state: dict[str, dict]) -> di
     return out
 
 
-def tune_doc(results: dict[str, AxisTuning]) -> dict:
-    """tune.json: per axis the model, gains before and after, margins, the parameters to write."""
-    return {"axes": {a: t.as_dict() for a, t in results.items()}}
+def tune_doc(results: dict[str, AxisTuning], unwritable: dict[str, list[str]] | None = None) -> dict:
+    """tune.json: per axis the model, gains before and after, margins, the parameters to write, and
+    the identified effects no drive parameter can carry (``not_writable``)."""
+    return {"axes": {a: {**t.as_dict(), "not_writable": (unwritable or {}).get(a, [])} for a, t in results.items()}}
 
 
 @dataclass

@@ -236,18 +236,23 @@ def test_emps_benchmark_offset_then_asymmetry(tmp_path):
 @pytest.mark.parametrize("case, form", [("friction bump along the stroke", "odd"),
                                         ("friction rising along the stroke", "odd"),
                                         ("load bump along the stroke", "even")])
-def test_diagnosis_sees_friction_that_changes_along_the_stroke(tmp_path, case, form):
+def test_an_effect_beyond_the_library_is_fitted_as_a_spline(tmp_path, case, form):
     """Logs of the independent closed-loop plant with a position-dependent torque no library effect
     models: against the motion (odd: its sign follows the direction, so the raw residual binned
-    by position averages it away) or the same both ways (even). The first unexplained dependence
-    is position, in the right form."""
+    by position averages it away) or the same both ways (even). The tracer adds a spline in
+    position of the right form, the error falls to the noise floor, and J, c0, c1 stay right."""
     from .generator import closed_loop_log
     extra = {"friction bump along the stroke": lambda q, v, a, t: 0.12 * np.exp(-((q - 2) / 1.5) ** 2) * np.sign(v),
              "friction rising along the stroke": lambda q, v, a, t: 0.01 * (q + 8) * np.sign(v),
              "load bump along the stroke": lambda q, v, a, t: 0.12 * np.exp(-((q - 2) / 1.5) ** 2)}[case]
     path = write_log(tmp_path / "log.csv", closed_loop_log(np.arange(40000) / 1000, extra=extra, seed=3))
-    first = identify(path)["y"].unexplained[0]
-    assert (first["depends_on"], first["form"]) == ("position", form), first
+    r = identify(path)["y"]
+    splines = [t.effect for t in r.effects if t.effect.name.startswith("spline")]
+    assert [(e.name, e.depends_on) for e in splines] == [(f"spline_{form}_position", "position")]
+    assert r.after.rmse < 1.7 * r.noise_floor < 0.2 * r.before.rmse
+    assert r.model.params_["J"] == pytest.approx(1e-4, rel=0.02)
+    if form == "even":                  # an odd term's mean over the stroke is Coulomb friction: c0 takes it
+        assert r.model.params_["c0"] == pytest.approx(0.3, rel=0.02)
 
 
 def test_clean_closed_loop_log_leaves_nothing_unexplained(tmp_path):
@@ -271,14 +276,16 @@ def test_a_payload_change_halfway_is_flagged_not_averaged(tmp_path, capsys):
 
 
 def test_uncertainty_widens_with_structure_the_model_lacks(tmp_path):
-    """Friction rising along the stroke (odd in position): J comes out 15 % low, and the reported
-    std (autocorrelation- and heteroskedasticity-consistent) covers the plant's J and c1 within 3 std
-    (c0 takes the ramp's mean, 0.08 Nm, as it should); on the clean log the halves agree."""
+    """Viscous friction that grows along the stroke (0.002·q·q̇: two variables at once, which no
+    effect and no one-variable spline models): the residual stays far above the noise floor, and
+    the reported std (autocorrelation- and heteroskedasticity-consistent) covers the plant's J, c0
+    and c1 within 3 std; on the clean log the halves agree."""
     from .generator import closed_loop_log
-    ramp = lambda q, v, a, t: 0.01 * (q + 8) * np.sign(v)                               # noqa: E731
-    r = identify(write_log(tmp_path / "ramp.csv", closed_loop_log(np.arange(40000) / 1000, seed=3, extra=ramp)))["y"]
+    qv = lambda q, v, a, t: 0.002 * q * v                                                # noqa: E731
+    r = identify(write_log(tmp_path / "qv.csv", closed_loop_log(np.arange(40000) / 1000, seed=3, extra=qv)))["y"]
+    assert r.after.rmse > 10 * r.noise_floor
     p, sd = r.model.params_, r.model.param_std_
-    for name, true in (("J", 1e-4), ("c1", 5e-4)):
+    for name, true in (("J", 1e-4), ("c0", 0.3), ("c1", 5e-4)):
         assert abs(p[name] - true) <= 3 * sd[name], (name, p[name], sd[name])
     clean = identify(write_log(tmp_path / "clean.csv", closed_loop_log(np.arange(40000) / 1000, seed=3)))["y"]
     assert clean.consistency["consistent"]

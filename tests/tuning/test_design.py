@@ -26,3 +26,17 @@ def test_design_meets_the_margins_where_the_factory_gains_do_not():
     assert velocity.gain_margin_db < GM_MIN_DB                       # scenario 1: 6.6 dB
     scenario3 = {**FACTORY, **{k: v for k, v in TABLE_III["scenario 3"].items() if k in FACTORY}}
     assert loop_margins(PAPER["y"]["J"], PAPER["y"]["c1"], scenario3, **MOTOR)[0].phase_margin_deg < 0  # unstable
+
+
+def test_effects_no_drive_parameter_carries_are_reported_not_dropped(tmp_path):
+    """tune.json names, per axis, the traced effects that neither the drive's model objects nor the
+    master's feed-forward can carry (Stribeck, a spline...), instead of dropping them silently."""
+    import json
+    from drive_bridge.tuning.tune import read_identify_json, unwritable_effects
+    path = tmp_path / "identify.json"
+    path.write_text(json.dumps({"axes": {"y": {
+        "params": {"J": 1e-4, "c0": 0.3, "c1": 5e-4, "offset.offset": 0.02, "stribeck.amplitude": 0.05,
+                   "stribeck.velocity": 10.0, "spline_odd_position.b1": 0.01, "spline_odd_position.form": "odd"},
+        "effects": [{"name": "offset"}, {"name": "stribeck"}, {"name": "spline_odd_position"}]}}}))
+    assert unwritable_effects(path) == {"y": ["stribeck", "spline_odd_position"]}
+    assert read_identify_json(path)["y"] == {"J": 1e-4, "c0": 0.3, "c1": 5e-4, "offset": 0.02}

@@ -1,0 +1,62 @@
+"""What a residual depends on: the correlation ratio η² of its means in bins of a variable
+(one-way ANOVA), on the residual as it is (``even``) and times the direction of motion
+(``odd``: a torque against the motion, friction-like).  Shared by the residual tracing (which
+effects to try) and its report (what is left unexplained)."""
+from __future__ import annotations
+
+import numpy as np
+from scipy import stats
+
+from .signals import Samples
+
+BINS = 20
+
+
+def eta2(x: np.ndarray, r: np.ndarray) -> tuple[float, float, float]:
+    """Share of var(r) explained by its mean in quantile bins of x, the ANOVA p-value and F."""
+    edges = np.unique(np.quantile(x, np.linspace(0, 1, BINS + 1)))
+    if len(edges) < 3:
+        return 0.0, 1.0, 0.0
+    idx = np.clip(np.searchsorted(edges, x, side="right") - 1, 0, len(edges) - 2)
+    counts = np.bincount(idx)
+    means = np.bincount(idx, r) / np.maximum(counts, 1)
+    between = float(np.sum(counts * (means - r.mean()) ** 2))
+    total = float(np.sum((r - r.mean()) ** 2))
+    k, n = int(np.count_nonzero(counts)), len(r)
+    if total == 0 or k < 2 or n <= k:
+        return 0.0, 1.0, 0.0
+    f = (between / (k - 1)) / max((total - between) / (n - k), 1e-300)
+    return between / total, float(stats.f.sf(f, k - 1, n - k)), float(f)
+
+
+def variables(s: Samples) -> dict[str, np.ndarray]:
+    """The candidate variables of a residual: position, velocity, acceleration, |acceleration|
+    (the transmitted inertial torque's size), time, direction, and the other axes' position,
+    velocity and acceleration."""
+    out = {"position": s.q, "velocity": s.qd, "acceleration": s.qdd, "abs_acceleration": np.abs(s.qdd),
+           "time": s.t, "direction": np.sign(s.qd)}
+    for o, (q, qd, qdd) in s.others.items():
+        out.update({f"{o}_position": q, f"{o}_velocity": qd, f"{o}_acceleration": qdd})
+    return out
+
+
+def dependences(s: Samples, residual: np.ndarray, min_share: float, p_value: float) -> list[dict]:
+    """Per variable, the stronger of its even and odd dependence passing ``min_share`` of the
+    residual variance at ANOVA p < ``p_value``: ``depends_on``, ``form``, ``fraction``, ``evidence``
+    (F), on the moving samples of ``s``."""
+    m = s.moving
+    r = residual[m]
+    direction = np.sign(s.qd[m])
+    out = []
+    for name, x in variables(s).items():
+        found = []
+        for form, resid in (("even", r), ("odd", r * direction)):
+            if form == "odd" and name in ("direction", "velocity"):
+                continue                    # sign(q̇)·r over q̇ or its sign: the even test sees it already
+            share, p, f = eta2(x[m], resid)
+            if share >= min_share and p < p_value:
+                found.append({"depends_on": name, "form": form, "fraction": round(share, 4),
+                              "evidence": round(f, 1)})
+        if found:
+            out.append(max(found, key=lambda d: d["evidence"]))
+    return out
