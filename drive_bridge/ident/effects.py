@@ -251,16 +251,18 @@ class Spline(Effect):
     that changes along the stroke, with the load, with temperature).
 
     The spline never duplicates a term the model has by name: its basis is made orthogonal, over
-    the variable's range, to a constant and a straight line (even: the offset, cp·q, c1·q̇, J·q̈)
-    or to a constant (odd: c0·sign(q̇)), and reduced to a full-rank set (SVD), deterministically
-    from the constructor's parameters."""
+    the variable's range (``grid``: evenly spaced points of it), to a constant and a
+    straight line (even: the offset, cp·q, c1·q̇, J·q̈) or to a constant (odd: c0·sign(q̇)), and
+    reduced to a full-rank set (SVD), deterministically from the constructor's parameters."""
 
     GRID = 512
 
-    def __init__(self, variable: str, form: str, knots: tuple[float, ...], low: float, high: float):
+    def __init__(self, variable: str, form: str, knots: tuple[float, ...], low: float, high: float,
+                 grid: tuple[float, ...]):
         self.variable, self.form, self.knots, self.low, self.high = variable, form, tuple(knots), low, high
+        self.grid = tuple(grid)
         self.name = f"spline_{form}_{variable}"
-        grid = np.linspace(low, high, self.GRID)
+        grid = np.asarray(self.grid)
         basis = self._basis(grid)
         removed = np.column_stack([np.ones_like(grid), grid] if form == "even" else [np.ones_like(grid)])
         self._removed_coef = np.linalg.lstsq(removed, basis, rcond=None)[0]
@@ -269,7 +271,12 @@ class Spline(Effect):
         self.coef_names = tuple(f"b{i + 1}" for i in range(self._reduce.shape[1]))
 
     def get_params(self) -> dict:
-        return {"variable": self.variable, "form": self.form, "knots": self.knots, "low": self.low, "high": self.high}
+        return {"variable": self.variable, "form": self.form, "knots": self.knots, "low": self.low, "high": self.high,
+                "grid": self.grid}
+
+    def __repr__(self) -> str:
+        return (f"Spline(variable={self.variable!r}, form={self.form!r}, knots={len(self.knots)}, "
+                f"low={self.low:.6g}, high={self.high:.6g})")
 
     @property
     def depends_on(self) -> str:
@@ -314,14 +321,19 @@ def spline_candidates(present: list[Effect], s: Samples, residual: np.ndarray) -
             continue
         x = variables(s)[d["depends_on"]][m]
         low, high = float(np.min(x)), float(np.max(x))
-        if not high > low:
-            continue
+        if not high > low or len(np.unique(x)) < 4 * (max(SPLINE_KNOTS) + 4):
+            continue                        # a still or coarsely quantised variable carries no smooth shape
         for k in SPLINE_KNOTS:
             knots = np.unique(np.quantile(x, np.linspace(0, 1, k + 2)[1:-1]))
             knots = knots[(knots > low) & (knots < high)]
             if len(knots) < k:
                 break                       # the samples sit on a few values (a still axis, quantised)
-            out.append(Spline(d["depends_on"], d["form"], tuple(map(float, knots)), low, high))
+            grid = np.linspace(low, high, Spline.GRID)
+            try:
+                out.append(Spline(d["depends_on"], d["form"], tuple(map(float, knots)), low, high,
+                                  tuple(map(float, grid))))
+            except (np.linalg.LinAlgError, ValueError):
+                break                       # a basis the variable's samples cannot carry
     return out
 
 

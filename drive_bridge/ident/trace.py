@@ -16,7 +16,8 @@ added when it is significant:
   F-test alone flags effects far too small to matter on long logs whose
   residual samples are correlated.
 
-Tracing stops when no candidate passes.  Structure left in the final residual
+Tracing stops when no candidate passes; effects whose joint fit leaves J, c0 or c1
+unphysical (negative) are taken back, the last added first.  Structure left in the final residual
 that no effect explains is reported by what it depends on: the share of the
 validation residual's variance explained by its mean in bins of each variable
 (correlation ratio η², one-way ANOVA), and by a dominant frequency.  Each
@@ -135,9 +136,18 @@ def trace(est: Samples, val: Samples, seed: int) -> tuple[AxisModel, AxisModel, 
                                    _evidence(cand, params, share, f, err, new_err), fitted.params_,
                                    fitted.relative_error_))
         model, err = fitted, new_err
+    while traced and not physical(model):  # effects that bought their fit with a negative friction or
+        traced.pop()                       # inertia go again, last first (a base model stays as it is)
+        model = AxisModel([t.effect for t in traced], seed=seed).fit(est)
     for t in traced:                      # every effect's parameters as the final joint fit has them
         t.params = model.effect_params(t.effect)
     return base, model, traced
+
+
+def physical(model: AxisModel) -> bool:
+    """J > 0 and c0, c1 ≥ 0: what the tuning and the drives take."""
+    p = model.params_
+    return p["J"] > 0 and p["c0"] >= 0 and p["c1"] >= 0
 
 
 def unexplained(model: AxisModel, s: Samples, rate_hz: float) -> list[dict]:
