@@ -179,7 +179,7 @@ def _differential_evolution(phi: np.ndarray, y: np.ndarray, centre: np.ndarray, 
     not O(n).
     """
     gram, b, yy = phi.T @ phi, phi.T @ y, float(y @ y)
-    half = np.maximum(0.5 * np.abs(centre), 10 * np.sqrt(np.diag(cov))) + 1e-12
+    half = np.maximum(0.5 * np.abs(centre), 10 * np.sqrt(np.maximum(np.diag(cov), 0.0))) + 1e-12
     lo, hi = centre - half, centre + half
 
     def sse(theta):                                    # theta: (p, S) population
