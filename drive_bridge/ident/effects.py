@@ -307,6 +307,7 @@ class Spline(Effect):
 SPLINE_KNOTS = (3, 6, 10)       # smoothness candidates: interior knots (validation chooses)
 SPLINE_SHARE = 0.15             # a variable the residual depends on by this share of its variance ...
 SPLINE_P = 1e-3                 # ... at this ANOVA p-value gets spline candidates
+STILL_SHARE = 0.01              # another axis whose RMS speed is below this share of the axis's own stands still
 
 
 def spline_candidates(present: list[Effect], s: Samples, residual: np.ndarray) -> list[Effect]:
@@ -314,11 +315,13 @@ def spline_candidates(present: list[Effect], s: Samples, residual: np.ndarray) -
     at each smoothness of ``SPLINE_KNOTS``."""
     have = {e.name for e in present}
     m = s.moving
+    own = float(np.sqrt(np.mean(s.qd[m] ** 2)))
+    still = {o for o, (_, qd, _) in s.others.items() if np.sqrt(np.mean(qd[m] ** 2)) < STILL_SHARE * own}
     out: list[Effect] = []
     for d in dependences(s, residual, SPLINE_SHARE, SPLINE_P):
         name = f"spline_{d['form']}_{d['depends_on']}"
-        if d["depends_on"] == "direction" or name in have:
-            continue
+        if d["depends_on"] == "direction" or name in have or d["depends_on"].rsplit("_", 1)[0] in still:
+            continue                        # (another axis standing still: its signals are numerical dust)
         x = variables(s)[d["depends_on"]][m]
         low, high = float(np.min(x)), float(np.max(x))
         if not high > low or len(np.unique(x)) < 4 * (max(SPLINE_KNOTS) + 4):
@@ -330,10 +333,13 @@ def spline_candidates(present: list[Effect], s: Samples, residual: np.ndarray) -
                 break                       # the samples sit on a few values (a still axis, quantised)
             grid = np.linspace(low, high, Spline.GRID)
             try:
-                out.append(Spline(d["depends_on"], d["form"], tuple(map(float, knots)), low, high,
-                                  tuple(map(float, grid))))
+                spline = Spline(d["depends_on"], d["form"], tuple(map(float, knots)), low, high,
+                                tuple(map(float, grid)))
             except (np.linalg.LinAlgError, ValueError):
                 break                       # a basis the variable's samples cannot carry
+            if not np.all(np.isfinite(spline.columns(s))):
+                break
+            out.append(spline)
     return out
 
 

@@ -6,7 +6,7 @@ observation; fitted values end in ``_`` (scikit-learn style), and only ``fit``
 sets them.  ``AxisModel(effects, method="ga", seed=...)`` fits the same
 structure with differential evolution (the paper's genetic algorithm).  The
 covariance of the coefficients is heteroskedasticity- and autocorrelation-consistent
-(Newey-West): coloured or non-Gaussian residuals, and structure the model leaves
+(batch means over the residual's correlation length): coloured or non-Gaussian residuals, and structure the model leaves
 in them, widen it instead of hiding behind the white-noise formula σ²(ΦᵀΦ)⁻¹.
 :func:`extend` adds an effect: its nonlinear parameters first, then every
 coefficient again.  Units follow the axis: J [kg·m² | kg], c1 [Nm·s/rad |
@@ -115,31 +115,33 @@ class AxisModel:
 
 
 def hac_lags(resid: np.ndarray) -> int:
-    """Newey-West truncation lag: the Newey-West (1994) rule 4·(n/100)^(2/9), or longer while
-    the residual's autocorrelation stays above its white-noise band 2/√n (at most n/10)."""
+    """Correlation length of the residual [samples]: the Newey-West (1994) rule 4·(n/100)^(2/9),
+    or longer while its autocorrelation stays above the white-noise band 2/√n (at most n/10)."""
     n = len(resid)
     rule = int(4 * (n / 100) ** (2 / 9))
     r = resid - resid.mean()
-    denom = float(r @ r)
-    if denom <= 0:
+    spectrum = np.fft.rfft(r, 2 * n)
+    acf = np.fft.irfft(spectrum * np.conj(spectrum))[:n]
+    if acf[0] <= 0:
         return rule
-    band, cap = 2 / np.sqrt(n), max(1, n // 10)
-    lag = 1
-    while lag < cap and float(r[lag:] @ r[:-lag]) / denom > band:
-        lag += 1
+    cap = max(1, n // 10)
+    below = np.flatnonzero(acf[1:cap + 1] / acf[0] <= 2 / np.sqrt(n))
+    lag = int(below[0]) + 1 if len(below) else cap
     return min(max(rule, lag), cap)
 
 
 def hac_covariance(phi: np.ndarray, resid: np.ndarray, gram_inv: np.ndarray, dof: int) -> np.ndarray:
-    """Newey-West (Bartlett-weighted) sandwich covariance of least-squares coefficients, with
-    the small-sample factor n/dof."""
-    n = len(resid)
+    """Autocorrelation- and heteroskedasticity-consistent sandwich covariance of least-squares
+    coefficients: the long-run covariance of the scores φ·e by batch means over blocks as long
+    as the residual's correlation length (one sample: White's estimator), with the small-sample
+    factor n/dof."""
+    n, p = phi.shape
     u = phi * resid[:, None]
-    meat = u.T @ u
-    lags = hac_lags(resid)
-    for lag in range(1, lags + 1):
-        g = u[lag:].T @ u[:-lag]
-        meat += (1 - lag / (lags + 1)) * (g + g.T)
+    b = hac_lags(resid) + 1
+    full = n // b
+    blocks = u[:full * b].reshape(full, b, p).sum(axis=1)
+    tail = u[full * b:].sum(axis=0)
+    meat = blocks.T @ blocks + np.outer(tail, tail)
     return gram_inv @ meat @ gram_inv * (n / max(1, dof))
 
 
