@@ -159,10 +159,10 @@ def _identify_axis(log: Log, axis: str, val_log: Log | None, seed: int, cutoff_h
         vs = settings
     base, model, traced = trace(est, val, seed)
     agreement = consistency(model, est, val)
-    noise_log = val_log if val_log is not None else log
+    floor = noise_floor(val_log, axis, vs) if val_log is not None else noise_floor(log, axis, settings)
     ga_model = AxisModel(model.effects, method="ga", seed=seed).fit(est)
     return AxisResult(axis, log.axes[axis].kind, log.axes[axis].units, settings, how, est, val, base, model,
-                      traced, errors(base, val), errors(model, val), noise_floor(noise_log, axis, vs if val_log else settings),
+                      traced, errors(base, val), errors(model, val), floor,
                       unexplained(model, val, settings.rate_hz / settings.decimation), ga_model.coef_,
                       errors(ga_model, val), list(log.axes[axis].dropped), dict(log.sampling), agreement)
 
