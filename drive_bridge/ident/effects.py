@@ -287,11 +287,6 @@ class Spline(Effect):
         t = np.concatenate([[self.low] * 4, self.knots, [self.high] * 4])
         return BSpline.design_matrix(np.clip(x, self.low, self.high), t, 3).toarray()
 
-    def shape(self, x: np.ndarray, coef: np.ndarray) -> np.ndarray:
-        """The fitted torque over ``x`` [Nm | N] (for moves in the positive direction when odd)."""
-        removed = np.column_stack([np.ones_like(x), x] if self.form == "even" else [np.ones_like(x)])
-        return (self._basis(x) - removed @ self._removed_coef) @ self._reduce @ coef
-
     def _columns(self, s):
         x = variables(s)[self.variable]
         removed = np.column_stack([np.ones_like(x), np.clip(x, self.low, self.high)] if self.form == "even"

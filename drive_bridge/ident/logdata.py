@@ -181,8 +181,8 @@ def _uniform_time(col: dict[str, np.ndarray], t: np.ndarray, dt: float
     if deviation <= JITTER_TOLERANCE * dt:
         return col, t, np.flatnonzero(gap), sampling
     sampling["resampled"] = True
-    spans = _runs(np.ones(len(t), dtype=bool)) if not gap.any() else \
-        list(zip([0] + (np.flatnonzero(gap) + 1).tolist(), (np.flatnonzero(gap) + 1).tolist() + [len(t)]))
+    cuts = (np.flatnonzero(gap) + 1).tolist()
+    spans = list(zip([0] + cuts, cuts + [len(t)]))
     grids, gap_rows, out = [], [], {name: [] for name in col}
     for a, b in spans:
         grid = t[a] + np.arange(int(np.floor((t[b - 1] - t[a]) / dt + 1e-9)) + 1) * dt

@@ -155,7 +155,8 @@ def unexplained(model: AxisModel, s: Samples, rate_hz: float) -> list[dict]:
     ``depends_on``, ``form`` (even | odd), ``fraction`` of the residual variance, ``evidence``
     (F statistic), and ``after`` (the added effects that depend on it already) where any does."""
     m = s.moving
-    r = (s.tau - model.predict(s))[m]
+    residual = s.tau - model.predict(s)
+    r = residual[m]
     total = float(np.mean(r ** 2))
     added = {}
     for e in model.effects:
@@ -166,7 +167,7 @@ def unexplained(model: AxisModel, s: Samples, rate_hz: float) -> list[dict]:
         f = n * r.mean() ** 2 / max(float(np.var(r)), 1e-300)
         out.append({"depends_on": "constant", "form": "even", "fraction": round(float(r.mean() ** 2 / total), 4),
                     "evidence": round(float(f), 1)})
-    out += dependences(s, s.tau - model.predict(s), UNEXPLAINED_SHARE, P_VALUE)
+    out += dependences(s, residual, UNEXPLAINED_SHARE, P_VALUE)
     if len(r) >= 256:
         f, pxx = signal.welch(r - r.mean(), fs=rate_hz, nperseg=256)
         peak = int(np.argmax(pxx[1:])) + 1

@@ -156,7 +156,7 @@ class _Unloader:
     sends) and sends that much less with the move: the model alone carries it."""
 
     def __init__(self, rec: Recording, axes: dict[str, AxisLink], plan: Plan, offsets: dict[str, _TorqueOffset]):
-        self.jobs = []                       # (start cycles, offset column, torque column, scaling)
+        self.jobs = []               # (move-start cycles, offset column, torque column, scaling, TPDO slots)
         for ai, a in enumerate(plan.axes):
             if a not in offsets:
                 continue

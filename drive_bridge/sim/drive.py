@@ -159,7 +159,7 @@ class SimDrive:
             if not encoder_var.default:
                 self._store(0x608F, 1, round(self.inc_per_rad * 2 * math.pi))
                 self._store(0x608F, 2, 1)
-        if self.spec.profile != "drive_bridge_servo":      # the project drive's EDS holds them already
+        if not self.spec.factory_in_file:
             f = factory()
             for (index, sub), (col, entry) in self.params.items():
                 if entry.parameter in f.gains:
@@ -264,7 +264,7 @@ class SimDrive:
     def _init_storage_missing(self) -> None:
         """What no parameter store holds: motor data, identity, device type, supported modes."""
         m = self.axis.motor
-        if 0x2002 in self.od and self.spec.profile == "drive_bridge_servo":
+        if self.spec.factory_in_file:
             for sub, name in _MOTOR_OBJECTS.items():
                 self._store(0x2002, sub, getattr(m, name))
         info = self.od.device_information

@@ -24,12 +24,14 @@ from ..resources import PROJECT_EDS
 class DriveSpec:
     """``profile``: the drive profile whose objects and scales hold the gains (and model);
     ``increments_per_rev``: the encoder, where the file has no 0x608F default;
-    ``velocity_unit``: of 0x606C and every velocity/acceleration object ("inc/s": inc/s and
+    ``factory_in_file``: the file itself holds the factory gains and the motor data (0x2002: the
+    project's drive); ``velocity_unit``: of 0x606C and every velocity/acceleration object ("inc/s": inc/s and
     inc/s²; "rpm": rpm and rpm/s); ``current_unit`` of 0x6078 ("permille" of the rated current
     0x6075, or "mA") and of any vendor object in ``current_objects``; ``supported_modes``: 0x6502
     where the file has no default."""
 
     profile: str
+    factory_in_file: bool = False
     increments_per_rev: int | None = None
     velocity_unit: str = "inc/s"
     current_unit: str = "permille"
@@ -39,18 +41,20 @@ class DriveSpec:
 
 #: by EDS/DCF file name
 SPECS = {
-    PROJECT_EDS.name: DriveSpec("drive_bridge_servo"),
+    PROJECT_EDS.name: DriveSpec("drive_bridge_servo", factory_in_file=True),
     # EPOS2: velocities in rpm (0x608C = 0xA4 in its EDS), current actual in mA; 0x6502 is left to
     # the drive: PP, PV, homing, IP and maxon's position/velocity/current modes (bits 16-18).
     # 16384 increments per revolution: a 4096-count encoder, quadrature (the simulation's choice).
     # 0x2027 "Current Actual Value Averaged" reports the same averaged current.
-    "maxon_epos2_50-5.eds": DriveSpec("maxon_epos2", 16384, "rpm", "mA", 0x00070065, (0x6078, 0x2027)),
+    "maxon_epos2_50-5.eds": DriveSpec("maxon_epos2", increments_per_rev=16384, velocity_unit="rpm",
+                                      current_unit="mA", supported_modes=0x00070065,
+                                      current_objects=(0x6078, 0x2027)),
     # C5-E: 0x608F:1 has no default; 65536 increments per revolution (the simulation's choice).
-    "nanotec_C5-E-2-09.eds": DriveSpec("nanotec_c5e", 65536),
+    "nanotec_C5-E-2-09.eds": DriveSpec("nanotec_c5e", increments_per_rev=65536),
     # iPOS: no 0x608F; 16384 increments per revolution (the simulation's choice).
-    "technosoft_iPOS.eds": DriveSpec("technosoft_ipos", 16384),
+    "technosoft_iPOS.eds": DriveSpec("technosoft_ipos", increments_per_rev=16384),
     # PRBT: no 0x608F; 2^20 increments per revolution (the simulation's choice).
-    "pilz_prbt_0_1.dcf": DriveSpec("pilz_prbt", 2**20),
+    "pilz_prbt_0_1.dcf": DriveSpec("pilz_prbt", increments_per_rev=2**20),
 }
 
 
