@@ -14,7 +14,8 @@ from ..errors import UserError
 from .logdata import Log, read_log
 from .model import AxisModel, Errors, errors
 from .resonance import find_mode
-from .signals import Samples, Settings, choose_settings, noise_floor, prepare
+from .reversal import find_backlash
+from .signals import Samples, Settings, choose_settings, noise_floor, prepare, whole_band
 from .trace import TracedEffect, trace, unexplained
 
 HOLDOUT_BLOCKS, HOLDOUT_EVERY = 10, 3      # without --validate: blocks 3, 6, 9 of 10 (by moving samples)
@@ -45,6 +46,8 @@ class AxisResult:
     consistency: dict = field(default_factory=dict)    # J, c0, c1 refitted on parts of the data (consistency())
     #: a resonance in the whole-band residual (resonance.find_mode), and the cut-off it moved from
     resonance: dict | None = None
+    #: residual energy concentrated after torque reversals (reversal.find_backlash)
+    backlash: dict | None = None
 
     def as_json(self) -> dict:
         return {
@@ -77,6 +80,7 @@ class AxisResult:
             "sampling": self.sampling,
             "consistency": self.consistency,
             "resonance": self.resonance,
+            "backlash": self.backlash,
         }
 
 
@@ -121,23 +125,31 @@ def consistency(model: AxisModel, est: Samples, val: Samples) -> dict:
 def identify_axis(log: Log, axis: str, val_log: Log | None = None, *, seed: int = 0,
                   cutoff_hz: float | None = None, decimation: int | None = None) -> AxisResult:
     """Identify one axis; a resonance close enough above the cut-off to bias the rigid fit moves
-    the cut-off below it (unless the cut-off was given), and the result says so."""
+    the cut-off below it (unless the cut-off was given), and the result says so; backlash or
+    impacts at torque reversal are reported (:mod:`.reversal`)."""
     result = _identify_axis(log, axis, val_log, seed, cutoff_hz, decimation)
-    mode = find_mode(log, axis, result.model, result.settings)
-    if mode is None:
-        return result
-    settings = result.settings
-    below = mode["frequency_hz"] / 2
-    if cutoff_hz is None and not mode["mains"] and mode["frequency_hz"] < 2 * settings.cutoff_hz \
-            and below < settings.cutoff_hz \
-            and below >= MIN_CUTOFF_BANDWIDTHS * settings.motion_bandwidth_hz:
-        result = _identify_axis(log, axis, val_log, seed, below, None)
-        mode = {**mode, "cutoff_moved_from_hz": round(settings.cutoff_hz, 2)}
-    result.resonance = mode
-    result.unexplained.append({"depends_on": "frequency", "form": "even", "kind": "resonance",
-                               "fraction": mode["share"], "frequency_hz": mode["frequency_hz"],
-                               "damping": mode["damping"], "mains": mode["mains"], "evidence": None,
-                               **{k: v for k, v in mode.items() if k == "cutoff_moved_from_hz"}})
+    wide = whole_band(log, axis, result.settings)
+    mode = find_mode(wide, wide.tau_f - result.model.predict(wide), result.settings)
+    if mode is not None:
+        settings = result.settings
+        below = mode["frequency_hz"] / 2
+        if cutoff_hz is None and not mode["mains"] and mode["frequency_hz"] < 2 * settings.cutoff_hz \
+                and below < settings.cutoff_hz \
+                and below >= MIN_CUTOFF_BANDWIDTHS * settings.motion_bandwidth_hz:
+            result = _identify_axis(log, axis, val_log, seed, below, None)
+            mode = {**mode, "cutoff_moved_from_hz": round(settings.cutoff_hz, 2)}
+        result.resonance = mode
+        result.unexplained.append({"depends_on": "frequency", "form": "even", "kind": "resonance",
+                                   "fraction": mode["share"], "frequency_hz": mode["frequency_hz"],
+                                   "damping": mode["damping"], "mains": mode["mains"], "evidence": None,
+                                   **{k: v for k, v in mode.items() if k == "cutoff_moved_from_hz"}})
+    predicted = result.model.predict(wide)
+    lash = find_backlash(wide, wide.tau_f - predicted, predicted, result.settings, seed)
+    if lash is not None:
+        result.backlash = lash
+        result.unexplained.append({"depends_on": f"{lash['reversal']}_reversal", "form": "even",
+                                   "kind": "backlash", "fraction": lash["share"], "evidence": None,
+                                   **{k: lash[k] for k in ("delay_ms", "ratio", "events")}})
     return result
 
 

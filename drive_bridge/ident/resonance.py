@@ -18,11 +18,8 @@ from __future__ import annotations
 import numpy as np
 from scipy import signal
 
-from .logdata import Log
-from .model import AxisModel
-from .signals import Settings, prepare
+from .signals import WIDE_BAND, Samples, Settings
 
-WIDE_BAND = 0.4             # the light low-pass of the whole-band residual, × the sample rate
 ABOVE_MOTION = 5.0          # a mode lies above this many motion bandwidths (below: the pace of the moves)
 PROMINENCE = 8.0           # its peak stands this many times above the residual's median level around it
 MIN_SHARE = 0.05            # ... and holds this share of the residual power (in its half-power band)
@@ -32,13 +29,11 @@ SPEED_GROUPS = ((0.15, 0.55), (0.65, 1.01))   # slow and fast moving samples, ×
 MAINS_HZ = (50.0, 60.0, 100.0, 120.0)         # ± 1 Hz: electrical pickup rather than a mode
 
 
-def find_mode(log: Log, axis: str, model: AxisModel, settings: Settings) -> dict | None:
-    """The dominant resonance in the whole-band residual of ``model``: frequency [Hz], damping
-    ratio, share of the residual power, prominence; None when there is none."""
+def find_mode(s: Samples, resid: np.ndarray, settings: Settings) -> dict | None:
+    """The dominant resonance in the whole-band residual ``resid`` at the samples ``s``
+    (:func:`~.signals.whole_band`): frequency [Hz], damping ratio, share of the residual power,
+    prominence; None when there is none."""
     fs = settings.rate_hz
-    wide = Settings(WIDE_BAND * fs, 1, fs, max(50, int(3 / WIDE_BAND)), settings.motion_bandwidth_hz)
-    s = prepare(log, axis, wide)
-    resid = s.tau_f - model.predict(s)
     r = resid[s.moving]
     speed = np.abs(s.qd) / max(float(np.max(np.abs(s.qd))), 1e-300)
     groups = tuple(s.moving & (speed >= lo) & (speed < hi) for lo, hi in SPEED_GROUPS)

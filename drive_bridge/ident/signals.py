@@ -25,6 +25,7 @@ CUTOFF_FACTOR = 25.0         # cut-off = 25 x the motion bandwidth (~5 x a close
 DECIMATION_MARGIN = 2.5      # decimated sample rate = 2.5 x the cut-off: nearly white residual samples
 MOVING_FRACTION = 0.02       # |velocity| below this share of its maximum: near zero, not fitted
 SETTLE_CYCLES = 1.0          # ... nor this many cut-off periods from it
+WIDE_BAND = 0.4              # the light low-pass of the whole-band samples, × the sample rate
 MIN_MOVING = 50              # decimated moving samples below this: nothing to identify
 
 
@@ -163,6 +164,14 @@ def prepare(log: Log, axis: str, settings: Settings) -> Samples:
                         f"and decimation (need {MIN_MOVING}); record longer or with more motion")
     return Samples(axis, cat["t"], cat["q"], cat["qd"], cat["qdd"], cat["sgn"], cat["tau_f"], cat["tau"],
                    moving, others)
+
+
+def whole_band(log: Log, axis: str, settings: Settings) -> Samples:
+    """Samples over the log's whole band (a light low-pass at ``WIDE_BAND`` × the sample rate, no
+    decimation), for what the fitted samples cannot show: resonances, transients at reversals."""
+    fs = settings.rate_hz
+    return prepare(log, axis, Settings(WIDE_BAND * fs, 1, fs, max(50, int(3 / WIDE_BAND)),
+                                       settings.motion_bandwidth_hz))
 
 
 def _settled(qd: np.ndarray, settings: Settings) -> np.ndarray:

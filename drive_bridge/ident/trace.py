@@ -196,6 +196,11 @@ def describe_unexplained(d: dict) -> str:
         return (f"a resonance at {d['frequency_hz']:.3g} Hz (damping ratio ≈ {d['damping']:.2g}) holds "
                 f"{d['fraction']:.0%} of the residual over the log's whole band: a compliant transmission the "
                 f"rigid model lacks{moved}")
+    if d.get("kind") == "backlash":
+        return (f"the residual gathers {d['ratio']:.2g}× its usual power about {d['delay_ms']:.3g} ms after each "
+                f"{d['depends_on'].replace('_', ' ')} ({d['events']} of them; {d['fraction']:.0%} of the residual "
+                f"over the log's whole band): backlash or an impact in the transmission, which the rigid model "
+                f"lacks")
     text = f"{what} depends on {d['depends_on']}"
     if "frequency_hz" in d:
         text += f" (a peak at {d['frequency_hz']:.3g} Hz)"

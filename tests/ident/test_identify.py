@@ -304,12 +304,39 @@ def test_a_compliant_coupling_mode_is_reported_and_the_cut_off_moved_below_it(tm
     assert mode["cutoff_moved_from_hz"] > r.settings.cutoff_hz and r.settings.cutoff_hz < mode["frequency_hz"]
     assert r.model.params_["J"] == pytest.approx(1e-4, rel=0.03)                 # motor + load
     assert any(u.get("kind") == "resonance" for u in r.unexplained)
+    assert r.backlash is None
     assert main(["identify", str(path)]) == 0
     assert "a resonance at" in capsys.readouterr().out
 
 
-def test_no_resonance_on_clean_logs(tmp_path):
+def test_no_resonance_or_backlash_on_clean_logs(tmp_path):
     from .generator import closed_loop_log, jittered
     for name, stamps in (("even", np.arange(40000) / 1000), ("jitter", jittered(1000, 40, 50e-6))):
         r = identify(write_log(tmp_path / f"{name}.csv", closed_loop_log(stamps, seed=3)))["y"]
         assert r.resonance is None, (name, r.resonance)
+        assert r.backlash is None, (name, r.backlash)
+
+
+@pytest.mark.parametrize("J_motor,coupling", [
+    (0.5e-4, (0.5e-4, 120.0, 0.2, 0.05)),          # half the inertia behind 0.05 rad of play
+    (0.7e-4, (0.3e-4, 200.0, 0.1, 0.06)),          # a stiffer, less damped coupling, a lighter load
+])
+def test_backlash_is_reported_at_torque_reversal(tmp_path, capsys, J_motor, coupling):
+    """Play in the independent plant's coupling: the motor crosses the gap without the load at
+    each reversal of the torque the coupling carries and strikes it when the gap closes.  The
+    residual's energy after the acceleration reversals is reported with the delay of the
+    impact; a stiff coupling without play (the same plant) reports nothing."""
+    from .generator import closed_loop_log
+    path = write_log(tmp_path / "log.csv", closed_loop_log(np.arange(40000) / 1000, seed=3, J=J_motor,
+                                                           coupling=coupling))
+    r = identify(path)["y"]
+    assert r.backlash is not None and r.backlash["reversal"] == "acceleration"
+    assert 20 < r.backlash["delay_ms"] < 150 and r.backlash["ratio"] > 2
+    entry = next(u for u in r.unexplained if u.get("kind") == "backlash")
+    assert entry["depends_on"] == "acceleration_reversal"
+    assert r.model.params_["J"] == pytest.approx(1e-4, rel=0.03)
+    assert main(["identify", str(path)]) == 0
+    assert "backlash or an impact" in capsys.readouterr().out
+    stiff = write_log(tmp_path / "stiff.csv", closed_loop_log(np.arange(40000) / 1000, seed=3, J=J_motor,
+                                                               coupling=(*coupling[:3], 0.0)))
+    assert identify(stiff)["y"].backlash is None
