@@ -17,6 +17,9 @@ def register(sub) -> None:
     p.add_argument("--json", action="store_true", help="print exactly one JSON object (automation)")
     p.add_argument("--out", help="directory for the Markdown report, its plots and identify.json")
     p.add_argument("--cutoff", type=float, help="low-pass cut-off [Hz] (default: from the data)")
+    p.add_argument("--torque-delay", type=float, metavar="MS",
+                   help="delay of the logged torque behind the position [ms] (default: estimated from the data; "
+                        "0: take the log's instants as they are)")
     p.add_argument("--decimate", type=int, help="decimation factor (default: from the cut-off)")
     options.seed(p)
     p.set_defaults(func=cmd_identify)
@@ -28,7 +31,8 @@ def cmd_identify(args) -> int:
     options.out_dir(args.out)
     progress = None if args.json else (lambda axis: print(f"identifying axis {axis} ...", file=sys.stderr))
     results = identify(args.log, args.validate, options.axes_list(args.axis), seed=args.seed,
-                       cutoff_hz=args.cutoff, decimation=args.decimate, progress=progress)
+                       cutoff_hz=args.cutoff, decimation=args.decimate, progress=progress,
+                       torque_delay_s=None if args.torque_delay is None else args.torque_delay / 1e3)
     if args.out:
         report = write_markdown(results, Path(args.out), str(args.log))
         if not args.json:

@@ -43,6 +43,14 @@ class Effect:
     depends_on: ClassVar[str]
     coef_names: ClassVar[tuple[str, ...]]
     nonlinear: ClassVar[tuple[str, ...]] = ()     # nonlinear parameters, learned by fit as <name>_
+    #: columns linear in the filtered signals (a constant, the position) are filtered as the
+    #: torque is already; any other column is computed at the log's rate and filtered alike
+    linear_in_signals: ClassVar[bool] = False
+    #: friction-like: ``_columns`` is a magnitude, the columns are it times the direction of
+    #: motion.  Magnitude and direction are filtered apart (the direction as the Coulomb column
+    #: is) and multiplied: filtered whole, the product's step at each reversal would let the
+    #: column fit the torque's transient there, which the fit leaves out for good reason
+    odd: ClassVar[bool] = False
 
     def get_params(self) -> dict:
         """The constructor's keyword parameters and their values."""
@@ -57,17 +65,26 @@ class Effect:
         return {}
 
     def _columns(self, s: Samples, **nonlinear: float) -> np.ndarray:
-        """Regressor columns (n × len(coef_names)) with the nonlinear parameters given."""
+        """Regressor columns (n × len(coef_names)) with the nonlinear parameters given (``odd``:
+        their magnitude)."""
         raise NotImplementedError
 
-    def columns(self, s: Samples) -> np.ndarray:
-        """Regressor columns (n × len(coef_names)) at the samples ``s``, with the fitted nonlinear parameters."""
+    def _signed(self, s: Samples, cols: np.ndarray) -> np.ndarray:
+        return cols * s.sgn[:, None] if self.odd else cols
+
+    def columns(self, s: Samples, logged: bool = False) -> np.ndarray:
+        """Regressor columns (n × len(coef_names)) at the samples ``s``, with the fitted nonlinear
+        parameters, filtered and decimated as the torque is (``logged``: as the torque as logged
+        is; :meth:`Samples.parallel`)."""
         learned = {}
         for k in self.nonlinear:
             if not hasattr(self, k + "_"):
                 raise NotFittedError(f"{self!r}: fit it before asking for its columns")
             learned[k] = getattr(self, k + "_")
-        return self._columns(s, **learned)
+        if self.linear_in_signals:
+            return self._signed(s, self._columns(s, **learned))
+        key = (type(self).__name__, str(self.get_params()), tuple(learned.values()))
+        return self._signed(s, s.parallel(key, lambda ch: self._columns(ch, **learned), logged))
 
     def fit(self, s: Samples, fixed: np.ndarray, y: np.ndarray, seed: int = 0) -> "Effect":
         """Learn the nonlinear parameters on samples ``s`` against the observation ``y``, with the
@@ -83,7 +100,7 @@ class Effect:
         bounds = self.bounds()
 
         def sse(x):
-            extra = self._columns(s, **dict(zip(self.nonlinear, x)))
+            extra = self._signed(s, self._columns(s, **dict(zip(self.nonlinear, x))))
             extra = extra - q @ (q.T @ extra)
             coef, *_ = np.linalg.lstsq(extra, y_perp, rcond=None)
             r = y_perp - extra @ coef
@@ -111,6 +128,7 @@ class Offset(Effect):
     constant part of a direction asymmetry of Coulomb friction (dc0·s·s = dc0)."""
 
     name, depends_on, coef_names = "offset", "constant", ("offset",)
+    linear_in_signals = True
 
     def _columns(self, s):
         return np.ones((len(s), 1))
@@ -120,6 +138,7 @@ class PositionLinear(Effect):
     """Torque proportional to position (the paper's cp): a spring, a cable carrier."""
 
     name, depends_on, coef_names = "position_linear", "position", ("cp",)
+    linear_in_signals = True
 
     def _columns(self, s):
         return s.q[:, None]
@@ -160,6 +179,7 @@ class Stribeck(Effect):
     ``velocity`` [rad/s | m/s] starts the search over [``low``, ``high``]; ``fit`` learns ``velocity_``."""
 
     name, depends_on, coef_names, nonlinear = "stribeck", "velocity", ("amplitude",), ("velocity",)
+    odd = True
 
     def __init__(self, velocity: float, low: float, high: float):
         self.velocity, self.low, self.high = velocity, low, high
@@ -168,7 +188,7 @@ class Stribeck(Effect):
         return {"velocity": (self.low, self.high)}
 
     def _columns(self, s, velocity):
-        return (np.exp(-(s.qd / velocity) ** 2) * np.sign(s.qd))[:, None]
+        return np.exp(-(s.qd / velocity) ** 2)[:, None]
 
     def params(self, coef):
         return {"amplitude": float(coef[0]), "velocity": self.velocity_}
@@ -215,9 +235,17 @@ class CrossAxis(Effect):
     def depends_on(self) -> str:
         return f"{self.source}_{'position' if self.form.startswith('position') else self.form}"
 
+    @property
+    def odd(self) -> bool:                        # the friction form: q_src times sign(q̇)
+        return self.form == "position_friction"
+
+    @property
+    def linear_in_signals(self) -> bool:          # q_src, q̇_src, q̈_src: filtered already
+        return True
+
     def _columns(self, s):
         q, qd, qdd = s.others[self.source]
-        col = {"position_friction": q * np.sign(s.qd), "position": q, "velocity": qd, "acceleration": qdd}
+        col = {"position_friction": q, "position": q, "velocity": qd, "acceleration": qdd}
         return col[self.form][:, None]
 
     def params(self, coef):
@@ -230,6 +258,7 @@ class Drift(Effect):
     ``time_constant`` [s] starts the search over [``low``, ``high``]; ``fit`` learns ``time_constant_``."""
 
     name, depends_on, coef_names, nonlinear = "drift", "time", ("amplitude",), ("time_constant",)
+    odd = True
 
     def __init__(self, time_constant: float, low: float, high: float):
         self.time_constant, self.low, self.high = time_constant, low, high
@@ -238,7 +267,7 @@ class Drift(Effect):
         return {"time_constant": (self.low, self.high)}
 
     def _columns(self, s, time_constant):
-        return (np.exp(-s.t / time_constant) * np.sign(s.qd))[:, None]
+        return np.exp(-s.t / time_constant)[:, None]
 
     def params(self, coef):
         return {"amplitude": float(coef[0]), "time_constant_s": self.time_constant_}
@@ -265,10 +294,11 @@ class Spline(Effect):
         grid = np.asarray(self.grid)
         basis = self._basis(grid)
         removed = np.column_stack([np.ones_like(grid), grid] if form == "even" else [np.ones_like(grid)])
-        self._removed_coef = np.linalg.lstsq(removed, basis, rcond=None)[0]
-        _, sv, vt = np.linalg.svd(basis - removed @ self._removed_coef, full_matrices=False)
-        self._reduce = vt[:int(np.sum(sv > 1e-9 * sv[0]))].T
-        self.coef_names = tuple(f"b{i + 1}" for i in range(self._reduce.shape[1]))
+        orthogonal = basis - removed @ np.linalg.lstsq(removed, basis, rcond=None)[0]
+        _, sv, vt = np.linalg.svd(orthogonal, full_matrices=False)
+        reduce = vt[:int(np.sum(sv > 1e-9 * sv[0]))].T
+        self._on_grid = orthogonal @ reduce                 # the columns at the grid points
+        self.coef_names = tuple(f"b{i + 1}" for i in range(reduce.shape[1]))
 
     def get_params(self) -> dict:
         return {"variable": self.variable, "form": self.form, "knots": self.knots, "low": self.low, "high": self.high,
@@ -288,11 +318,15 @@ class Spline(Effect):
         return BSpline.design_matrix(np.clip(x, self.low, self.high), t, 3).toarray()
 
     def _columns(self, s):
-        x = variables(s)[self.variable]
-        removed = np.column_stack([np.ones_like(x), np.clip(x, self.low, self.high)] if self.form == "even"
-                                  else [np.ones_like(x)])
-        cols = (self._basis(x) - removed @ self._removed_coef) @ self._reduce
-        return cols * s.sgn[:, None] if self.form == "odd" else cols
+        """The columns at the grid, linear between its points (512 over the range: far finer than
+        the knots), at the variable's values held within [low, high]."""
+        x = np.clip(variables(s)[self.variable], self.low, self.high)
+        grid = np.asarray(self.grid)
+        return np.column_stack([np.interp(x, grid, c) for c in self._on_grid.T])
+
+    @property
+    def odd(self) -> bool:
+        return self.form == "odd"
 
     def params(self, coef):
         return {"variable": self.variable, "form": self.form, "low": self.low, "high": self.high,

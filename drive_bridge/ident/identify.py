@@ -5,14 +5,14 @@
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import UserError
 from .logdata import Log, read_log
-from .model import AxisModel, Errors, errors
+from .model import MAX_DELAY_SAMPLES, AxisModel, Errors, errors, torque_delay
 from .resonance import find_mode
 from .reversal import find_backlash
 from .signals import Samples, Settings, choose_settings, noise_floor, prepare, whole_band
@@ -20,6 +20,8 @@ from .trace import TracedEffect, trace, unexplained
 
 HOLDOUT_BLOCKS, HOLDOUT_EVERY = 10, 3      # without --validate: blocks 3, 6, 9 of 10 (by moving samples)
 MIN_CUTOFF_BANDWIDTHS = 3.0  # a cut-off moved below a mode stays at least this many motion bandwidths
+DELAY_SIGMAS = 3.0          # a torque delay estimated beyond this many std is aligned (model.torque_delay)
+MAX_REALIGNMENTS = 3        # ... at most this many times while the tracing adds effects
 CONSISTENT_SIGMAS = 3.0     # parts of the data whose J, c0 or c1 differ by more: the axis is flagged
 
 
@@ -123,11 +125,13 @@ def consistency(model: AxisModel, est: Samples, val: Samples) -> dict:
 
 
 def identify_axis(log: Log, axis: str, val_log: Log | None = None, *, seed: int = 0,
-                  cutoff_hz: float | None = None, decimation: int | None = None) -> AxisResult:
+                  cutoff_hz: float | None = None, decimation: int | None = None,
+                  torque_delay_s: float | None = None) -> AxisResult:
     """Identify one axis; a resonance close enough above the cut-off to bias the rigid fit moves
     the cut-off below it (unless the cut-off was given), and the result says so; backlash or
     impacts at torque reversal are reported (:mod:`.reversal`)."""
-    result = _identify_axis(log, axis, val_log, seed, cutoff_hz, decimation)
+    given = None if torque_delay_s is None else (float(torque_delay_s), "given")
+    result = _identify_axis(log, axis, val_log, seed, cutoff_hz, decimation, given)
     wide = whole_band(log, axis, result.settings)
     mode = find_mode(wide, wide.tau_f - result.model.predict(wide), result.settings)
     if mode is not None:
@@ -136,7 +140,9 @@ def identify_axis(log: Log, axis: str, val_log: Log | None = None, *, seed: int 
         if cutoff_hz is None and not mode["mains"] and mode["frequency_hz"] < 2 * settings.cutoff_hz \
                 and below < settings.cutoff_hz \
                 and below >= MIN_CUTOFF_BANDWIDTHS * settings.motion_bandwidth_hz:
-            result = _identify_axis(log, axis, val_log, seed, below, None)
+            result = _identify_axis(log, axis, val_log, seed, below, None,
+                                    given or (0.0, "not estimated: the resonance shifts the torque's phase "
+                                                   "by more than a delay"))
             mode = {**mode, "cutoff_moved_from_hz": round(settings.cutoff_hz, 2)}
         result.resonance = mode
         result.unexplained.append({"depends_on": "frequency", "form": "even", "kind": "resonance",
@@ -154,35 +160,72 @@ def identify_axis(log: Log, axis: str, val_log: Log | None = None, *, seed: int 
 
 
 def _identify_axis(log: Log, axis: str, val_log: Log | None, seed: int, cutoff_hz: float | None,
-                   decimation: int | None) -> AxisResult:
-    settings = choose_settings(log, axis, cutoff_hz, decimation)
-    samples = prepare(log, axis, settings)
-    if val_log is not None:
-        if axis not in val_log.axes:
-            raise UserError(f"{val_log.path}: the validation log has no axis {axis!r} "
-                            f"(it has {', '.join(val_log.axes)})")
+                   decimation: int | None, delay: tuple[float, str] | None = None) -> AxisResult:
+    """One identification.  ``delay``: the torque's delay [s] behind the position and why it is
+    that (``given``, not estimated because ...); None: estimated with the model as the tracing
+    builds it (:func:`.model.torque_delay`), and where the torque is significantly late and
+    aligning the positions with it lowers the validation error of the torque as logged, they are
+    aligned and the tracing goes on with the aligned samples."""
+    if val_log is not None and axis not in val_log.axes:
+        raise UserError(f"{val_log.path}: the validation log has no axis {axis!r} (it has {', '.join(val_log.axes)})")
+    chosen = choose_settings(log, axis, cutoff_hz, decimation)
+
+    def aligned(d: float) -> tuple[Settings, Settings, Samples, Samples, str]:
+        settings = replace(chosen, torque_delay_s=d)
+        samples = prepare(log, axis, settings)
+        if val_log is None:
+            return (settings, settings) + _holdout(samples)
         vs = settings
         if abs(val_log.dt - log.dt) > 1e-9:
-            vs = choose_settings(val_log, axis, settings.cutoff_hz)
-        est, val = samples, prepare(val_log, axis, vs)
-        how = f"the validation log {val_log.path}"
-    else:
-        est, val, how = _holdout(samples)
-        vs = settings
-    base, model, traced = trace(est, val, seed)
+            vs = replace(choose_settings(val_log, axis, settings.cutoff_hz), torque_delay_s=d)
+        return settings, vs, samples, prepare(val_log, axis, vs), f"the validation log {val_log.path}"
+
+    state = {"sets": aligned(delay[0] if delay else 0.0), "moves": 0,
+             "timing": {"torque_delay_source": delay[1] if delay else "estimated"}}
+
+    def realign(model: AxisModel) -> tuple[Samples, Samples] | None:
+        if delay is not None or state["moves"] >= MAX_REALIGNMENTS:
+            return None
+        settings, _, est, _, _ = state["sets"]
+        d, std = torque_delay(model, est, log.dt)             # beyond the alignment made so far
+        total = settings.torque_delay_s + d
+        state["timing"].update(torque_delay_estimate_ms=round(1e3 * total, 4), torque_delay_std_ms=round(1e3 * std, 4))
+        if abs(total) > MAX_DELAY_SAMPLES * log.dt:
+            state["timing"]["torque_delay_note"] = (f"estimated beyond {MAX_DELAY_SAMPLES:g} log samples: no plain "
+                                                    f"delay (a compliance or a filter), left as it was")
+            return None
+        if abs(d) <= DELAY_SIGMAS * std:
+            return None
+        state["moves"] += 1
+        candidate = aligned(total)
+        refit = AxisModel(model.effects, seed=seed).fit(candidate[2])
+        if errors(refit, candidate[3]).rmse >= errors(model, state["sets"][3]).rmse:
+            state["timing"]["torque_delay_note"] = ("aligning the positions with it did not lower the validation "
+                                                    "error of the torque as logged: left as it was")
+            return None
+        state["timing"].pop("torque_delay_note", None)
+        state["sets"] = candidate
+        return candidate[2], candidate[3]
+
+    settings, vs, est, val, how = state["sets"]
+    base, model, traced = trace(est, val, seed, realign)
+    settings, vs, est, val, how = state["sets"]
     agreement = consistency(model, est, val)
     floor = noise_floor(val_log, axis, vs) if val_log is not None else noise_floor(log, axis, settings)
     ga_model = AxisModel(model.effects, method="ga", seed=seed).fit(est)
     return AxisResult(axis, log.axes[axis].kind, log.axes[axis].units, settings, how, est, val, base, model,
                       traced, errors(base, val), errors(model, val), floor,
                       unexplained(model, val, settings.rate_hz / settings.decimation), ga_model.coef_,
-                      errors(ga_model, val), list(log.axes[axis].dropped), dict(log.sampling), agreement)
+                      errors(ga_model, val), list(log.axes[axis].dropped),
+                      {**log.sampling, "torque_delay_ms": round(1e3 * settings.torque_delay_s, 4),
+                       "torque_aligned": settings.torque_delay_s != 0.0, **state["timing"]}, agreement)
 
 
 def identify(path: str | Path, validate: str | Path | None = None, axes: list[str] | None = None, *,
              seed: int = 0, cutoff_hz: float | None = None, decimation: int | None = None,
-             progress=None) -> dict[str, AxisResult]:
-    """Identify every axis of the log at ``path`` (or ``axes``); see the package docstring."""
+             progress=None, torque_delay_s: float | None = None) -> dict[str, AxisResult]:
+    """Identify every axis of the log at ``path`` (or ``axes``); see the package docstring.
+    ``torque_delay_s``: the logged torque's delay behind the position, None to estimate it."""
     log = read_log(path)
     val_log = read_log(validate) if validate else None
     names = axes or list(log.axes)
@@ -195,7 +238,8 @@ def identify(path: str | Path, validate: str | Path | None = None, axes: list[st
             progress(a)
         try:
             try:
-                results[a] = identify_axis(log, a, val_log, seed=seed, cutoff_hz=cutoff_hz, decimation=decimation)
+                results[a] = identify_axis(log, a, val_log, seed=seed, cutoff_hz=cutoff_hz, decimation=decimation,
+                                           torque_delay_s=torque_delay_s)
             except (np.linalg.LinAlgError, ValueError, FloatingPointError) as exc:
                 raise UserError(f"{log.path}: axis {a!r}: the log does not determine the model ({exc}); "
                                 f"it needs motion at several speeds and accelerations in both directions") from exc

@@ -46,8 +46,10 @@ class AxisModel:
         """The same model, unfitted, with ``effect`` added."""
         return AxisModel(self.effects + [effect], self.method, self.seed)
 
-    def design(self, s: Samples) -> np.ndarray:
-        return np.column_stack([base_columns(s)] + [e.columns(s) for e in self.effects])
+    def design(self, s: Samples, logged: bool = False) -> np.ndarray:
+        """Regressor matrix at ``s``: every column filtered as the torque the fit uses, or
+        (``logged``) as the torque as logged (the base columns are smooth: the same either way)."""
+        return np.column_stack([base_columns(s)] + [e.columns(s, logged) for e in self.effects])
 
     @property
     def coef_names(self) -> list[str]:
@@ -78,8 +80,9 @@ class AxisModel:
         self.relative_error_ = float(np.linalg.norm(resid) / np.linalg.norm(y))   # paper / EMPS measure
         return self
 
-    def predict(self, s: Samples) -> np.ndarray:
-        return self.design(s) @ self.coef_
+    def predict(self, s: Samples, logged: bool = False) -> np.ndarray:
+        """The filtered torque at ``s`` (``logged``: the torque as logged)."""
+        return self.design(s, logged) @ self.coef_
 
     # ---------------------------------------------------------------- reading the fit
     def _blocks(self):
@@ -145,6 +148,37 @@ def hac_covariance(phi: np.ndarray, resid: np.ndarray, gram_inv: np.ndarray, dof
     return gram_inv @ meat @ gram_inv * (n / max(1, dof))
 
 
+MAX_DELAY_SAMPLES = 3.0      # a torque delay estimated beyond this many log samples is held at it
+
+
+def torque_delay(model: AxisModel, s: Samples, dt: float) -> tuple[float, float]:
+    """Delay [s] of the logged torque behind the logged position, and its (HAC) std.
+
+    A drive that reports the current averaged since its last report, or filtered, or sampled
+    at another instant than the position, logs a torque that lags the position; the model
+    then fits J·q̈ against a torque that comes later, and anything fast in it (cogging at speed)
+    against the wrong phase.  ``model``'s columns are fitted again with one more, the filtered
+    torque's derivative: τ_f(t) ≈ τ_f(t + d) − d·τ̇_f(t), so d comes out of the same least
+    squares, to first order (d ≪ the period of the cut-off), beyond the alignment ``s`` already
+    has.  Estimated with the model's effects in it: a structure the columns lack (cogging at
+    speed) biases it, so it is estimated again as effects are added.  An estimate beyond
+    ±``MAX_DELAY_SAMPLES`` log samples is no plain delay (a compliant transmission or a filter
+    shifts the phase too): the caller leaves it alone."""
+    m = s.moving
+    dtau = s.parallel(("torque derivative",), lambda ch: np.gradient(ch.tau, dt))[:, 0]
+    phi = np.column_stack((model.design(s), -dtau))[m]
+    y = s.tau_f[m]
+    scale = np.sqrt(np.mean(phi ** 2, axis=0))
+    scale[scale == 0] = 1.0
+    coef, *_ = np.linalg.lstsq(phi / scale, y, rcond=None)
+    coef = coef / scale
+    resid = y - phi @ coef
+    gram_inv = np.linalg.pinv((phi / scale).T @ (phi / scale)) / np.outer(scale, scale)
+    cov = hac_covariance(phi, resid, gram_inv, len(y) - phi.shape[1])
+    limit = MAX_DELAY_SAMPLES * dt
+    return float(np.clip(coef[-1], -limit, limit)), float(np.sqrt(max(cov[-1, -1], 0.0)))
+
+
 @dataclass
 class Errors:
     """Errors of a model on one set of samples (moving samples only)."""
@@ -157,9 +191,9 @@ class Errors:
 
 def errors(model: AxisModel, s: Samples) -> Errors:
     m = s.moving
-    pred = model.predict(s)[m]
+    pred, logged = model.predict(s)[m], model.predict(s, logged=True)[m]
     tau, tau_f = s.tau[m], s.tau_f[m]
-    return Errors(float(np.sqrt(np.mean((tau - pred) ** 2))), float(np.sqrt(np.mean(tau ** 2))),
+    return Errors(float(np.sqrt(np.mean((tau - logged) ** 2))), float(np.sqrt(np.mean(tau ** 2))),
                   float(np.linalg.norm(tau_f - pred) / np.linalg.norm(tau_f)), int(m.sum()))
 
 

@@ -50,6 +50,8 @@ def summary(results: dict[str, AxisResult]) -> str:
             lines.append(f"  dropped: {d}")
         if r.sampling.get("resampled"):
             lines.append(f"  {sampling_text(r.sampling)}")
+        if r.sampling.get("torque_aligned") or r.sampling.get("torque_delay_note"):
+            lines.append(f"  {delay_text(r.sampling)}")
         if r.consistency and not r.consistency["consistent"]:
             lines.append(f"  NOT CONSISTENT: {consistency_text(r.consistency)}")
     return "\n".join(lines)
@@ -71,6 +73,19 @@ def sampling_text(s: dict) -> str:
             f"through the same cubic spline")
 
 
+def delay_text(s: dict) -> str:
+    """How the torque was (or was not) aligned with the position, in one sentence."""
+    if not s["torque_aligned"]:
+        d = s["torque_delay_estimate_ms"]
+        return (f"the logged torque {'lags' if d > 0 else 'leads'} the position by {abs(d):.3g} ms by the estimate "
+                f"(± {s['torque_delay_std_ms']:.2g} ms); {s['torque_delay_note']}")
+    d = s["torque_delay_ms"]
+    how = (f"estimated, ± {s['torque_delay_std_ms']:.2g} ms" if s["torque_delay_source"] == "estimated"
+           else "as given")
+    return (f"the logged torque {'lags' if d > 0 else 'leads'} the position by {abs(d):.3g} ms ({how}): the "
+            f"positions were read at the instants the torque stands for")
+
+
 def as_json(results: dict[str, AxisResult]) -> str:
     return json.dumps({"axes": {a: r.as_json() for a, r in results.items()}}, default=float)
 
@@ -84,7 +99,7 @@ def _plot_fit(r: AxisResult, path: Path) -> None:
     t = s.t
     fig, axes = plt.subplots(2, 1, figsize=(10, 6), sharex=True)
     for ax, model, title in ((axes[0], r.base, "base model J, c0, c1"), (axes[1], r.model, "final model")):
-        pred = np.where(m, model.predict(s), np.nan)
+        pred = np.where(m, model.predict(s, logged=True), np.nan)
         ax.plot(t, s.tau, ".", ms=1.5, color="0.6", label="measured (as logged)")
         ax.plot(t, pred, ".", ms=1.5, color="C0", label="predicted")
         err = r.before if model is r.base else r.after
@@ -177,6 +192,8 @@ def write_markdown(results: dict[str, AxisResult], out: Path, source: str) -> Pa
             md += ["Dropped from the log:", ""] + [f"- {d}" for d in r.dropped] + [""]
         if r.sampling.get("resampled"):
             md += [sampling_text(r.sampling)[0].upper() + sampling_text(r.sampling)[1:] + ".", ""]
+        if r.sampling.get("torque_aligned") or r.sampling.get("torque_delay_note"):
+            md += [delay_text(r.sampling)[0].upper() + delay_text(r.sampling)[1:] + ".", ""]
         if r.consistency and not r.consistency["consistent"]:
             md += [f"**Not consistent:** {consistency_text(r.consistency)}.", ""]
     path = out / "identify.md"

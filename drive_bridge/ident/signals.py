@@ -5,12 +5,16 @@ filtering); velocity and acceleration are central differences of the filtered
 position; the edges of every segment, where the filter has not settled, are
 cut; then everything is decimated (``scipy.signal.decimate``, zero phase).
 The torque as logged is kept at the decimated instants, for errors that mean
-what a user thinks they mean.  Units follow the log: rad, rad/s, rad/s², Nm
+what a user thinks they mean.  A regressor column that is not linear in the filtered signals
+(a cogging sine, a Stribeck curve, a spline) is computed at the log's rate and put through the
+same low-pass, edge cut and decimation as the torque (:class:`Parallel`): a torque component
+the low-pass attenuates is attenuated in its column alike, so its amplitude comes out as it is.  Units follow the log: rad, rad/s, rad/s², Nm
 (rotary) or m, m/s, m/s², N (linear).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import signal
@@ -31,13 +35,16 @@ MIN_MOVING = 50              # decimated moving samples below this: nothing to i
 
 @dataclass
 class Settings:
-    """How the samples were made: cut-off [Hz], decimation factor, log rate [Hz], edge cut."""
+    """How the samples were made: cut-off [Hz], decimation factor, log rate [Hz], edge cut, and
+    the delay [s] of the logged torque behind the logged position (:func:`.model.torque_delay`):
+    the positions are read that much earlier, at the instants the torque stands for."""
 
     cutoff_hz: float
     decimation: int
     rate_hz: float
     edge: int
     motion_bandwidth_hz: float
+    torque_delay_s: float = 0.0
 
 
 @dataclass
@@ -54,14 +61,120 @@ class Samples:
     tau: np.ndarray              # torque as logged (mean over each decimation interval)
     moving: np.ndarray           # |qd| above the near-zero threshold
     others: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]    # axis -> (q, qd, qdd)
+    source: "Parallel | None" = None    # the full-rate signals these samples were made from
+    index: np.ndarray | None = None     # ... and which of its samples these are
 
     def take(self, mask: np.ndarray) -> "Samples":
+        index = np.arange(len(self)) if self.index is None else self.index
         return Samples(self.axis, self.t[mask], self.q[mask], self.qd[mask], self.qdd[mask], self.sgn[mask],
                        self.tau_f[mask], self.tau[mask], self.moving[mask],
-                       {a: tuple(x[mask] for x in v) for a, v in self.others.items()})
+                       {a: tuple(x[mask] for x in v) for a, v in self.others.items()}, self.source, index[mask])
+
+    def parallel(self, key, columns: Callable[["Channels"], np.ndarray], logged: bool = False) -> np.ndarray:
+        """``columns`` (a function of the signals, n × k) at these samples, computed at the log's
+        rate and filtered and decimated as the torque is (``logged``: as the torque as logged
+        is, by the mean over each decimation interval); at the samples as they are when they
+        carry no source.  ``key`` names the function for the source's cache."""
+        if self.source is None:
+            return columns(self)
+        cols = self.source.columns(key, columns, logged)
+        return cols if self.index is None else cols[self.index]
 
     def __len__(self) -> int:
         return len(self.t)
+
+
+@dataclass
+class Channels:
+    """The signals of one segment at the log's rate, as the regressor columns read them: logged
+    position (what a position-periodic torque follows), velocity and acceleration of the
+    filtered position, the direction of motion unfiltered, the other axes alike, and the
+    torque as logged."""
+
+    t: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+    qdd: np.ndarray
+    sgn: np.ndarray
+    others: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]
+    tau: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+
+@dataclass
+class Parallel:
+    """Parallel filtering (IDIM: filter the regressor as the torque): a function of the full-rate
+    signals goes through the same low-pass, edge cut and decimation as the torque in
+    :func:`prepare`, segment by segment; the segments' signals and the results are cached (a
+    fitted model asks for the same columns many times)."""
+
+    log: Log
+    axis: str
+    settings: Settings
+    length: int                                     # the prepared samples' count
+    _cache: dict = field(default_factory=dict, repr=False)
+    _segments: list = field(default_factory=list, repr=False)
+
+    def columns(self, key, columns: Callable[[Channels], np.ndarray], logged: bool = False) -> np.ndarray:
+        if (key, logged) not in self._cache:
+            sos, r = self._sos(), self.settings.decimation
+            parts = []
+            for keep, ch in self.segments():
+                x = np.asarray(columns(ch), dtype=float).reshape(len(ch), -1)
+                if logged:
+                    parts.append(np.column_stack([_interval_mean(x[:, j], r)[keep][::r] for j in range(x.shape[1])]))
+                else:
+                    xf = signal.sosfiltfilt(sos, x, axis=0)[keep]
+                    parts.append(np.column_stack([_decimate(xf[:, j], self.settings) for j in range(x.shape[1])]))
+            self._cache[key, logged] = np.concatenate(parts)[:self.length]
+        return self._cache[key, logged]
+
+    def _sos(self) -> np.ndarray:
+        return signal.butter(FILTER_ORDER, self.settings.cutoff_hz, fs=self.settings.rate_hz, output="sos")
+
+    def segments(self) -> list[tuple[slice, Channels]]:
+        """(the part kept after the edge cut, the segment's signals) of each usable segment."""
+        if not self._segments:
+            sos, dt = self._sos(), self.log.dt
+            lag = self.settings.torque_delay_s / dt
+            for sl, keep in _usable(self.log, self.axis, self.settings):
+                q = _delayed(self.log.axes[self.axis].q[sl], lag)
+                qd = np.gradient(signal.sosfiltfilt(sos, q), dt)
+                others = {}
+                for o in self.log.axes:
+                    if o != self.axis:
+                        oq = _delayed(_filled(self.log.axes[o].q[sl]), lag)
+                        oqd = np.gradient(signal.sosfiltfilt(sos, oq), dt)
+                        others[o] = (oq, oqd, np.gradient(oqd, dt))
+                self._segments.append((keep, Channels(self.log.t[sl], q, qd, np.gradient(qd, dt), np.sign(qd),
+                                                      others, self.log.axes[self.axis].tau[sl])))
+        return self._segments
+
+
+def _usable(log: Log, axis: str, settings: Settings):
+    """(segment slice, the part kept after the edge cut) of each segment long enough to filter."""
+    r, edge = settings.decimation, settings.edge
+    for a, b in log.axes[axis].segments:
+        if b - a > 2 * edge + 3 * r * 9:
+            yield slice(a, b), slice(edge, b - a - edge)
+
+
+def _delayed(x: np.ndarray, samples: float) -> np.ndarray:
+    """A position read ``samples`` log samples earlier, x(t − d), linear between the samples
+    (a position is smooth at the log's rate), held at the ends: the position at the instants
+    the logged torque stands for."""
+    if samples == 0:
+        return x
+    k = np.arange(len(x), dtype=float)
+    return np.interp(k - samples, k, x)
+
+
+def _filled(q: np.ndarray) -> np.ndarray:
+    """Another axis's position with its missing samples interpolated."""
+    ok = np.isfinite(q)
+    return q if ok.all() else np.interp(np.arange(len(q)), np.flatnonzero(ok), q[ok])
 
 
 def motion_bandwidth(log: Log, axis: str) -> float:
@@ -122,14 +235,11 @@ def prepare(log: Log, axis: str, settings: Settings) -> Samples:
     ax = log.axes[axis]
     sos = signal.butter(FILTER_ORDER, settings.cutoff_hz, fs=settings.rate_hz, output="sos")
     r, edge, dt = settings.decimation, settings.edge, log.dt
+    lag = settings.torque_delay_s / dt
     parts: dict[str, list[np.ndarray]] = {k: [] for k in ("t", "q", "qd", "qdd", "sgn", "tau_f", "tau", "settled")}
     other_parts: dict[str, list[list[np.ndarray]]] = {o: [[], [], []] for o in log.axes if o != axis}
-    for a, b in ax.segments:
-        if b - a <= 2 * edge + 3 * r * 9:       # too short to filter, cut and decimate
-            continue
-        sl = slice(a, b)
-        keep = slice(edge, b - a - edge)
-        qf = signal.sosfiltfilt(sos, ax.q[sl])
+    for sl, keep in _usable(log, axis, settings):      # (too short to filter, cut and decimate: skipped)
+        qf = signal.sosfiltfilt(sos, _delayed(ax.q[sl], lag))
         channels = {"q": qf, "qd": np.gradient(qf, dt), "tau_f": signal.sosfiltfilt(sos, ax.tau[sl])}
         channels["qdd"] = np.gradient(channels["qd"], dt)
         # parallel filtering of the Coulomb column: the torque's step at a reversal is smoothed
@@ -141,10 +251,7 @@ def prepare(log: Log, axis: str, settings: Settings) -> Samples:
         parts["t"].append(log.t[sl][keep][::r])
         parts["tau"].append(_interval_mean(ax.tau[sl], r)[keep][::r])
         for o, lists in other_parts.items():
-            oq = log.axes[o].q[sl]
-            if not np.all(np.isfinite(oq)):
-                oq = np.interp(np.arange(len(oq)), np.flatnonzero(np.isfinite(oq)), oq[np.isfinite(oq)])
-            oqf = signal.sosfiltfilt(sos, oq)
+            oqf = signal.sosfiltfilt(sos, _delayed(_filled(log.axes[o].q[sl]), lag))
             oqd = np.gradient(oqf, dt)
             for i, x in enumerate((oqf, oqd, np.gradient(oqd, dt))):
                 lists[i].append(_decimate(x[keep], settings))
@@ -163,7 +270,7 @@ def prepare(log: Log, axis: str, settings: Settings) -> Samples:
         raise UserError(f"{log.path}: axis {axis!r}: only {int(moving.sum())} moving samples after filtering "
                         f"and decimation (need {MIN_MOVING}); record longer or with more motion")
     return Samples(axis, cat["t"], cat["q"], cat["qd"], cat["qdd"], cat["sgn"], cat["tau_f"], cat["tau"],
-                   moving, others)
+                   moving, others, Parallel(log, axis, settings, n))
 
 
 def whole_band(log: Log, axis: str, settings: Settings) -> Samples:
@@ -171,7 +278,7 @@ def whole_band(log: Log, axis: str, settings: Settings) -> Samples:
     decimation), for what the fitted samples cannot show: resonances, transients at reversals."""
     fs = settings.rate_hz
     return prepare(log, axis, Settings(WIDE_BAND * fs, 1, fs, max(50, int(3 / WIDE_BAND)),
-                                       settings.motion_bandwidth_hz))
+                                       settings.motion_bandwidth_hz, settings.torque_delay_s))
 
 
 def _settled(qd: np.ndarray, settings: Settings) -> np.ndarray:

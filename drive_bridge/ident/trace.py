@@ -32,6 +32,7 @@ of the residual remains.
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -100,11 +101,15 @@ def _named_evidence(e: Effect, params: dict) -> str:
     }[e.name]()
 
 
-def trace(est: Samples, val: Samples, seed: int) -> tuple[AxisModel, AxisModel, list[TracedEffect]]:
+def trace(est: Samples, val: Samples, seed: int,
+          realign: Callable[[AxisModel], tuple[Samples, Samples] | None] | None = None,
+          ) -> tuple[AxisModel, AxisModel, list[TracedEffect]]:
     """Base model, final model, and the effects added on the way (in order); ``seed`` seeds
-    the search of every effect's nonlinear parameters."""
-    base = AxisModel(seed=seed).fit(est)
-    model, traced = base, []
+    the search of every effect's nonlinear parameters.  ``realign(model)``, asked after the base
+    fit and after each added effect, may return new estimation and validation samples (the
+    torque aligned with the position anew): the model is refitted on them and tracing goes on."""
+    model, traced = AxisModel(seed=seed).fit(est), []
+    est, val, model = _realigned(realign, model, est, val)
     err = errors(model, val)
     for _ in range(MAX_EFFECTS):
         resid = est.tau_f - model.predict(est)
@@ -135,13 +140,23 @@ def trace(est: Samples, val: Samples, seed: int) -> tuple[AxisModel, AxisModel, 
                                    new_err.relative_error, f, p, share,
                                    _evidence(cand, params, share, f, err, new_err), fitted.params_,
                                    fitted.relative_error_))
-        model, err = fitted, new_err
+        est, val, model = _realigned(realign, fitted, est, val)
+        err = new_err if model is fitted else errors(model, val)
     while traced and not physical(model):  # effects that bought their fit with a negative friction or
         traced.pop()                       # inertia go again, last first (a base model stays as it is)
         model = AxisModel([t.effect for t in traced], seed=seed).fit(est)
     for t in traced:                      # every effect's parameters as the final joint fit has them
         t.params = model.effect_params(t.effect)
-    return base, model, traced
+    return AxisModel(seed=seed).fit(est), model, traced
+
+
+def _realigned(realign, model: AxisModel, est: Samples, val: Samples) -> tuple[Samples, Samples, AxisModel]:
+    """The samples ``realign(model)`` gives, and ``model`` refitted on them (as they were, and
+    ``model`` itself, when it gives none)."""
+    new = realign(model) if realign else None
+    if new is None:
+        return est, val, model
+    return new[0], new[1], AxisModel(model.effects, seed=model.seed).fit(new[0])
 
 
 def physical(model: AxisModel) -> bool:
@@ -155,7 +170,7 @@ def unexplained(model: AxisModel, s: Samples, rate_hz: float) -> list[dict]:
     ``depends_on``, ``form`` (even | odd), ``fraction`` of the residual variance, ``evidence``
     (F statistic), and ``after`` (the added effects that depend on it already) where any does."""
     m = s.moving
-    residual = s.tau - model.predict(s)
+    residual = s.tau - model.predict(s, logged=True)
     r = residual[m]
     total = float(np.mean(r ** 2))
     added = {}

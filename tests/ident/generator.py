@@ -15,12 +15,14 @@ def closed_loop_log(stamps: np.ndarray, *, J: float = 1e-4, c0: float = 0.3, c1:
                     extra=None, noise_Nm: float = 0.004, increments_per_rev: int = 2**16,
                     seed: int = 0, fs_int: float = 10_000.0,
                     payload: tuple[float, float] | None = None,
-                    coupling: tuple[float, float, float, float] | None = None) -> dict[str, np.ndarray]:
+                    coupling: tuple[float, float, float, float] | None = None,
+                    torque_lag_s: float = 0.0) -> dict[str, np.ndarray]:
     """Columns ``time_s`` (the stamps), ``y_position_rad``, ``y_torque_Nm``; ``payload`` = (time [s],
     inertia after it [kg·m²]): a payload change during the log; ``coupling`` = (load inertia
     [kg·m²], mode frequency [Hz], damping ratio, backlash [rad]): the load hangs on the motor
     (inertia ``J``, which the friction acts on) through a spring-damper with a dead zone of
-    ± backlash/2; the encoder reads the motor."""
+    ± backlash/2; the encoder reads the motor; ``torque_lag_s``: the torque logged is the one
+    that held that long before its stamp (a drive reporting a delayed or averaged current)."""
     T = 1.0 / fs_int
     n = int(np.ceil(stamps[-1] / T)) + 2
     t = np.arange(n) * T
@@ -62,7 +64,7 @@ def closed_loop_log(stamps: np.ndarray, *, J: float = 1e-4, c0: float = 0.3, c1:
         q[k], tau[k] = qk, u
     rng = np.random.default_rng(seed)
     q_s = np.interp(stamps, t, q)
-    tau_s = np.interp(stamps, t, tau) + noise_Nm * rng.standard_normal(len(stamps))
+    tau_s = np.interp(stamps - torque_lag_s, t, tau) + noise_Nm * rng.standard_normal(len(stamps))
     inc = increments_per_rev / (2 * np.pi)
     return {"time_s": stamps, "y_position_rad": np.floor(q_s * inc) / inc, "y_torque_Nm": np.round(tau_s, 3)}
 
