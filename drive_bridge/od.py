@@ -2,9 +2,11 @@
 from __future__ import annotations
 
 import io
+import struct
 from pathlib import Path
 
 import canopen
+from canopen.objectdictionary import datatypes
 
 from .errors import ConfigError
 
@@ -26,6 +28,40 @@ def load_od(path: str | Path, node_id: int) -> canopen.ObjectDictionary:
     source = io.StringIO(text)
     source.name = str(path)
     try:
-        return canopen.import_od(source, node_id)
+        od = canopen.import_od(source, node_id)
     except Exception as exc:  # canopen raises bare parser errors of several kinds
         raise ConfigError(path, "", f"not a readable EDS/DCF: {exc}") from exc
+    for var in variables(od):
+        if var.data_type in datatypes.FLOAT_TYPES:
+            for raw, value in (("default_raw", "default"), ("value_raw", "value")):
+                if getattr(var, value, None) is None and getattr(var, raw, None):
+                    setattr(var, value, float_from_bits(getattr(var, raw), var.data_type))
+    return od
+
+
+def variables(od: canopen.ObjectDictionary):
+    """Every variable of ``od``, sub-indices included."""
+    for obj in od.values():
+        if isinstance(obj, canopen.objectdictionary.ODVariable):
+            yield obj
+        else:
+            yield from obj.values()
+
+
+def float_from_bits(raw: str, data_type: int) -> float | None:
+    """A REAL32/REAL64 written as its IEEE 754 bit pattern (``0x43160000`` = 150.0), as Lely
+    and CiA 306 tools write them; None when ``raw`` is not an integer."""
+    try:
+        bits = int(raw.strip(), 0)
+    except ValueError:
+        return None
+    if data_type == datatypes.REAL32:
+        return struct.unpack(">f", (bits & 0xFFFFFFFF).to_bytes(4, "big"))[0]
+    return struct.unpack(">d", (bits & 0xFFFFFFFFFFFFFFFF).to_bytes(8, "big"))[0]
+
+
+def float_bits(value: float, data_type: int) -> str:
+    """``value`` as the IEEE 754 bit pattern an EDS/DCF holds for a REAL32/REAL64."""
+    if data_type == datatypes.REAL32:
+        return f"0x{struct.unpack('>I', struct.pack('>f', value))[0]:08X}"
+    return f"0x{struct.unpack('>Q', struct.pack('>d', value))[0]:016X}"

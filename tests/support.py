@@ -11,6 +11,7 @@ import canopen
 import numpy as np
 
 from drive_bridge.config import load_bus_config
+from drive_bridge.od import load_od
 from drive_bridge.paper import TABLE_II
 from drive_bridge.resources import DEFAULT_BUS_CONFIG, PROJECT_EDS
 from drive_bridge.sim.config import Motor, SimAxis, SimConfig
@@ -49,7 +50,7 @@ class Bench:
         self.net = self.link.network
         self.nodes = {}
         for name, axis in config.axes.items():
-            node = canopen.RemoteNode(axis.node_id, canopen.import_od(str(eds), axis.node_id))
+            node = canopen.RemoteNode(axis.node_id, load_od(eds, axis.node_id))
             self.net.add_node(node)
             self.nodes[name] = node
 

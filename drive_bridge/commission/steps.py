@@ -119,11 +119,13 @@ def tune(ctx: Context) -> str:
 
 def write(ctx: Context) -> str:
     tuned = read_tune_json(ctx.require(OUTPUT["tune"])).only(ctx.config)
-    nodes = {a: ctx.session.nodes[a] for a in tuned.parameters}
+    # brought up (PDO mapping, heartbeat, limits; drives stay disabled): what is stored and what
+    # the DCF reads back is the whole commissioning, not the gains alone
+    nodes = {a: ctx.session.axes[a].node for a in tuned.parameters}
     out, o = ctx.out / OUTPUT["write"], ctx.options
     outcome = write_drives(nodes, ctx.session.profile, tuned.parameters, backup_dir=out, dcf_dir=out,
                            inductance=tuned.inductance, force=o.force, pm_floor=o.pm_floor, gm_floor=o.gm_floor,
-                           allow_unverified_scales=o.writes_unverified)
+                           allow_unverified_scales=o.writes_unverified, bitrate=ctx.config.master.bitrate)
     write_json(ctx.out / WRITE_JSON, outcome.as_dict())
     raise_for_failure(outcome, out)
     results = outcome.results

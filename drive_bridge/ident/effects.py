@@ -253,21 +253,27 @@ class CrossAxis(Effect):
 
 
 class Drift(Effect):
-    """Coulomb friction that changes with time (warm-up): amplitude · exp(-t/time_constant) · sign(q̇).
+    """Coulomb friction that changes with time (warm-up):
+    amplitude · (exp(-t/time_constant) − its mean over [``start``, ``end``]) · sign(q̇).
 
+    Centred on the log's span [``start``, ``end``] [s], so c0 stays the Coulomb friction over the
+    log (not an extrapolation to the end of a warm-up the log may never reach).
     ``time_constant`` [s] starts the search over [``low``, ``high``]; ``fit`` learns ``time_constant_``."""
 
     name, depends_on, coef_names, nonlinear = "drift", "time", ("amplitude",), ("time_constant",)
     odd = True
 
-    def __init__(self, time_constant: float, low: float, high: float):
-        self.time_constant, self.low, self.high = time_constant, low, high
+    def __init__(self, time_constant: float, low: float, high: float, start: float = 0.0, end: float = 0.0):
+        self.time_constant, self.low, self.high, self.start, self.end = time_constant, low, high, start, end
 
     def bounds(self):
         return {"time_constant": (self.low, self.high)}
 
     def _columns(self, s, time_constant):
-        return np.exp(-s.t / time_constant)[:, None]
+        span = self.end - self.start
+        mean = (time_constant * (np.exp(-self.start / time_constant) - np.exp(-self.end / time_constant)) / span
+                if span > 0 else 0.0)
+        return (np.exp(-s.t / time_constant) - mean)[:, None]
 
     def params(self, coef):
         return {"amplitude": float(coef[0]), "time_constant_s": self.time_constant_}
@@ -424,7 +430,8 @@ def candidates(present: list[Effect], s: Samples, residual: np.ndarray) -> list[
         out.append(DirectionAsymmetry(with_dc0="offset" not in names))
     if "drift" not in names:
         duration = float(np.ptp(s.t))
-        out.append(Drift(duration / 5, low=duration / 100, high=3 * duration))
+        out.append(Drift(duration / 5, low=duration / 100, high=3 * duration, start=float(s.t.min()),
+                         end=float(s.t.max())))
     coupled = {(e.source, e.form) for e in present if isinstance(e, CrossAxis)}
     for src in s.others:
         for form in CrossAxis.FORMS:

@@ -16,7 +16,7 @@ from .model import MAX_DELAY_SAMPLES, AxisModel, Errors, errors, torque_delay
 from .resonance import find_mode
 from .reversal import find_backlash
 from .signals import Samples, Settings, choose_settings, noise_floor, prepare, whole_band
-from .trace import TracedEffect, trace, unexplained
+from .trace import MIN_GAIN, TracedEffect, trace, unexplained
 
 HOLDOUT_BLOCKS, HOLDOUT_EVERY = 10, 3      # without --validate: blocks 3, 6, 9 of 10 (by moving samples)
 MIN_CUTOFF_BANDWIDTHS = 3.0  # a cut-off moved below a mode stays at least this many motion bandwidths
@@ -57,6 +57,10 @@ class AxisResult:
             "samples": int(self.est.moving.sum()),
             "params": self.model.params_,
             "param_std": self.model.param_std_,
+            "uncertainty": {"method": "HAC (batch means over the residual's correlation length), widened to the "
+                                      "delete-one-block jackknife over 10 stretches in time where that is larger",
+                            "jackknife_over_hac": {k: round(float(self.model.jackknife_[i]), 3)
+                                                   for i, k in enumerate(("J", "c1", "c0"))}},
             "rmse_before": self.before.rmse,
             "rmse_after": self.after.rmse,
             "torque_rms": self.after.torque_rms,
@@ -164,8 +168,8 @@ def _identify_axis(log: Log, axis: str, val_log: Log | None, seed: int, cutoff_h
     """One identification.  ``delay``: the torque's delay [s] behind the position and why it is
     that (``given``, not estimated because ...); None: estimated with the model as the tracing
     builds it (:func:`.model.torque_delay`), and where the torque is significantly late and
-    aligning the positions with it lowers the validation error of the torque as logged, they are
-    aligned and the tracing goes on with the aligned samples."""
+    aligning the positions with it lowers the validation error of the torque as logged (by
+    ``MIN_GAIN``, as an effect must), they are aligned and the tracing goes on with them."""
     if val_log is not None and axis not in val_log.axes:
         raise UserError(f"{val_log.path}: the validation log has no axis {axis!r} (it has {', '.join(val_log.axes)})")
     chosen = choose_settings(log, axis, cutoff_hz, decimation)
@@ -199,9 +203,9 @@ def _identify_axis(log: Log, axis: str, val_log: Log | None, seed: int, cutoff_h
         state["moves"] += 1
         candidate = aligned(total)
         refit = AxisModel(model.effects, seed=seed).fit(candidate[2])
-        if errors(refit, candidate[3]).rmse >= errors(model, state["sets"][3]).rmse:
-            state["timing"]["torque_delay_note"] = ("aligning the positions with it did not lower the validation "
-                                                    "error of the torque as logged: left as it was")
+        if errors(refit, candidate[3]).rmse > (1 - MIN_GAIN) * errors(model, state["sets"][3]).rmse:
+            state["timing"]["torque_delay_note"] = (f"aligning the positions with it did not lower the validation "
+                                                    f"error of the torque as logged by {MIN_GAIN:.0%}: left as it was")
             return None
         state["timing"].pop("torque_delay_note", None)
         state["sets"] = candidate
@@ -210,6 +214,7 @@ def _identify_axis(log: Log, axis: str, val_log: Log | None, seed: int, cutoff_h
     settings, vs, est, val, how = state["sets"]
     base, model, traced = trace(est, val, seed, realign)
     settings, vs, est, val, how = state["sets"]
+    model.widen(est)
     agreement = consistency(model, est, val)
     floor = noise_floor(val_log, axis, vs) if val_log is not None else noise_floor(log, axis, settings)
     ga_model = AxisModel(model.effects, method="ga", seed=seed).fit(est)

@@ -23,6 +23,7 @@ from .effects import Effect
 from .signals import Samples
 
 BASE = ("J", "c1", "c0")
+JACKKNIFE_BLOCKS = 10       # stretches of the log in time for the delete-one-block jackknife (AxisModel.widen)
 
 
 def base_columns(s: Samples) -> np.ndarray:
@@ -78,6 +79,30 @@ class AxisModel:
         self.n_samples_ = n
         self.sse_ = float(resid @ resid)
         self.relative_error_ = float(np.linalg.norm(resid) / np.linalg.norm(y))   # paper / EMPS measure
+        return self
+
+    def widen(self, s: Samples, blocks: int = JACKKNIFE_BLOCKS) -> "AxisModel":
+        """Widen ``cov_`` to the delete-one-block jackknife over ``blocks`` stretches of ``s`` in
+        time (equal counts of moving samples) wherever that is larger, keeping the correlations:
+        the HAC estimate sees coloured noise and heteroskedasticity, the jackknife also a
+        structure the model lacks that changes over the log (heating, a payload, a stroke
+        covered unevenly).  ``jackknife_`` holds the ratio jackknife / HAC std per coefficient."""
+        order = np.minimum(np.cumsum(s.moving) * blocks // max(1, int(s.moving.sum())), blocks - 1)
+        coefs = []
+        for b in range(blocks):
+            part = s.take(order != b)
+            if part.moving.sum() > 3 * len(self.coef_):
+                coefs.append(AxisModel(self.effects, seed=self.seed).fit(part).coef_)
+        if len(coefs) < 3:
+            self.jackknife_ = np.ones(len(self.coef_))
+            return self
+        c = np.array(coefs)
+        k = len(c)
+        jack = np.sqrt((k - 1) / k * np.sum((c - c.mean(axis=0)) ** 2, axis=0))
+        hac = np.sqrt(np.maximum(np.diag(self.cov_), 1e-300))
+        self.jackknife_ = jack / hac
+        scale = np.maximum(self.jackknife_, 1.0)
+        self.cov_ = self.cov_ * np.outer(scale, scale)
         return self
 
     def predict(self, s: Samples, logged: bool = False) -> np.ndarray:

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import canopen
 
+from ..dcf import export_dcf
 from ..errors import BusError, DriveRefused, WriteInterrupted
 from ..outputs import write_json
 from ..signals import deferred, signal_name
@@ -337,14 +338,15 @@ def write_drives(nodes: dict[str, canopen.RemoteNode], profile: Profile, values:
                  backup_dir: str | Path | None, dcf_dir: str | Path | None = None, dry_run: bool = False,
                  inductance: dict[str, float | None] | None = None, force: bool = False,
                  pm_floor: float = PM_FLOOR_DEG, gm_floor: float = GM_FLOOR_DB,
-                 allow_unverified_scales: bool = False) -> WriteOutcome:
+                 allow_unverified_scales: bool = False, bitrate: int = 1_000_000) -> WriteOutcome:
     """The write step: every value checked, and each drive's gains checked against the model in
     its set (J, c1) with its motor ``inductance`` [H] (from the tune result, else the motor
     data objects the profile names) (margins of the values as written, floor
     ``pm_floor`` / ``gm_floor``; ``force`` writes a set below it and records that); then with
     ``dry_run`` each drive's old and new values, nothing written, else one transaction over
     every drive (:func:`write_all`, backups in ``backup_dir``) and, when every drive verified,
-    each commissioned node exported as a DCF to ``dcf_dir``.  A scale without a documented source
+    each commissioned node exported as a DCF to ``dcf_dir`` (:func:`~drive_bridge.dcf.export_dcf`,
+    the bus at ``bitrate``).  A scale without a documented source
     is written only with ``allow_unverified_scales`` (a dry run shows it).  Raises ValueRefused
     before anything is written."""
     require_profile_objects(nodes, profile)
@@ -373,7 +375,7 @@ def write_drives(nodes: dict[str, canopen.RemoteNode], profile: Profile, values:
     outcome = WriteOutcome(results, margins, forced, list(nodes), unverified)
     if dcf_dir is not None and not dry_run and outcome.ok:
         for a, r in results.items():
-            export_dcf(nodes[a], r, Path(dcf_dir) / f"{a}.dcf")
+            export_dcf(nodes[a], Path(dcf_dir) / f"{a}.dcf", bitrate)
     return outcome
 
 
@@ -393,16 +395,3 @@ def raise_for_failure(outcome: WriteOutcome, backup_dir) -> None:
     if failed is not None and failed.dry_run:
         raise BusError(f"dry run: {message}")
     raise DriveRefused(message)
-
-
-def export_dcf(node: canopen.RemoteNode, result: WriteResult, path: str | Path) -> Path:
-    """The node's object dictionary as a DCF with the written values as ParameterValue."""
-    od = node.object_dictionary
-    for w in result.objects:
-        var = od.get_variable(w.index, w.sub)
-        var.value = w.new_device if result.ok else w.old_device
-        var.value_raw = None
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    canopen.export_od(od, str(path), doc_type="dcf")
-    return path

@@ -24,10 +24,10 @@ import math
 import struct
 from typing import Callable, Protocol
 
-import canopen
 import numpy as np
 from canopen.sdo import SdoAbortedError
 
+from ..od import load_od
 from ..params.profile import load_profile
 from ..pdo import PdoCodec
 from ..setpoint import CSP, IP, SETPOINT_OBJECTS, position_of, supported_modes
@@ -114,7 +114,7 @@ class SimDrive:
         self.params = {(e.index, e.sub): ((GAIN_PARAMS | MODEL_PARAMS)[name], e)
                        for name, e in load_profile(self.spec.profile).entries.items()}
         # heartbeat and NMT run in simulation time here, not in canopen's timer thread
-        self.node = local_node(axis.node_id, canopen.import_od(str(eds_path), axis.node_id), self._send)
+        self.node = local_node(axis.node_id, load_od(eds_path, axis.node_id), self._send)
         self.node.add_write_callback(self._on_sdo_write)
         self.node.add_read_callback(self._on_sdo_read)
         self.od = self.node.object_dictionary

@@ -15,8 +15,8 @@ from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
 
-import canopen
 
+from ..od import load_od
 from ..resources import PROJECT_EDS
 
 
@@ -82,7 +82,7 @@ class Factory:
 
 @cache
 def factory() -> Factory:
-    od = canopen.import_od(str(PROJECT_EDS), 1)
+    od = load_od(PROJECT_EDS, 1)
     inc_per_rad = od[0x608F][1].default / od[0x608F][2].default / (2 * math.pi)
     names = ("KpP", "FwF", "KpS", "KiS", "KpC", "KiC")
     return Factory({n: float(od[0x2000][i + 1].default) for i, n in enumerate(names)}, od[0x6072].default,

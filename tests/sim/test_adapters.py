@@ -10,6 +10,7 @@ import canopen
 import pytest
 from can.interfaces.virtual import VirtualBus
 
+from drive_bridge.od import load_od
 from drive_bridge.resources import PROJECT_EDS
 from drive_bridge.sim.adapters import FastVirtualBus, LoopbackMulticastBus, local_node
 from drive_bridge.sim.process import GROUP, free_port
@@ -68,13 +69,13 @@ def test_canopen_local_node_registers_its_nmt_write_handler_through_add_write_ca
         def add_write_callback(self, callback):
             registered.append(callback)
             super().add_write_callback(callback)
-    node = Spy(5, canopen.import_od(str(PROJECT_EDS), 5))
+    node = Spy(5, load_od(PROJECT_EDS, 5))
     assert node.nmt.on_write in registered
 
 
 def test_local_node_answers_sdo_through_the_drive_and_leaves_heartbeats_to_it():
     sent = []
-    node = local_node(5, canopen.import_od(str(PROJECT_EDS), 5), lambda cob, data: sent.append((cob, data)))
+    node = local_node(5, load_od(PROJECT_EDS, 5), lambda cob, data: sent.append((cob, data)))
     node.set_data(0x1017, 0, struct.pack("<H", 100))      # canopen's NMT would start a timer thread here
     node.sdo.on_request(0x605, bytes([0x40, 0x17, 0x10, 0x00, 0, 0, 0, 0]), 0.0)   # upload 0x1017
     assert len(sent) == 1 and sent[0][0] == 0x585

@@ -1,0 +1,89 @@
+"""The commissioned node as a DCF (CiA 306) that Lely's dcfchk and dcfgen and canopen read.
+
+``[DeviceComissioning]`` holds the node-ID and the bitrate; ``$NODEID`` is resolved; every
+configuration object of the node — readable and writable, from the communication area
+(PDO communication and mapping, heartbeat, SYNC) to the profile and vendor objects
+(following-error window, software limits, interpolation period, gains, model) — carries as
+ParameterValue the value read back from the drive, so loading the DCF onto a replacement drive
+reproduces the commissioning, and the file never claims a value the drive did not report.
+Process data (what a PDO maps) and commands (controlword, mode of operation) are left out:
+they are not configuration.  REAL32/REAL64 values are written as their IEEE 754 bit patterns,
+descriptions that CiA 306 has no key for are dropped.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import canopen
+from canopen.objectdictionary import ODVariable, datatypes
+from canopen.sdo import SdoAbortedError, SdoCommunicationError
+
+from .od import float_bits, variables
+
+COMMANDS = {0x6040, 0x6060}                 # controlword, modes of operation: commands, not settings
+MAPPING = (range(0x1600, 0x1800), range(0x1A00, 0x1C00))
+NOT_VALUES = (datatypes.DOMAIN, datatypes.OCTET_STRING)
+
+
+def configuration(od: canopen.ObjectDictionary) -> list[ODVariable]:
+    """The node's configuration objects: readable and writable, 0x1000-0x9FFF, no command."""
+    return [v for v in variables(od)
+            if 0x1000 <= v.index <= 0x9FFF and v.index not in COMMANDS and v.readable and v.writable
+            and v.data_type not in NOT_VALUES]
+
+
+def read_back(node: canopen.RemoteNode, objects: list[ODVariable]) -> dict[tuple[int, int], object]:
+    """Each object's value as the drive reports it (SDO upload); objects the drive does not
+    have (an abort) are left out."""
+    values = {}
+    for var in objects:
+        try:
+            raw = node.sdo.upload(var.index, var.subindex)
+        except SdoAbortedError:
+            continue
+        values[var.index, var.subindex] = var.decode_raw(raw)
+    return values
+
+
+def mapped(values: dict[tuple[int, int], object]) -> set[tuple[int, int]]:
+    """The objects the PDO mappings in ``values`` map (process data)."""
+    out = set()
+    for (index, sub), v in values.items():
+        if sub and any(index in r for r in MAPPING) and isinstance(v, int) and v:
+            out.add((v >> 16, (v >> 8) & 0xFF))
+    return out
+
+
+def parameter_value(var: ODVariable, value) -> str:
+    """``value`` as a DCF entry of ``var``'s type."""
+    if var.data_type in datatypes.FLOAT_TYPES:
+        return float_bits(float(value), var.data_type)
+    if isinstance(value, int):
+        return f"0x{value:X}" if value >= 0 else str(value)
+    return str(value)
+
+
+def export_dcf(node: canopen.RemoteNode, path: str | Path, bitrate: int) -> Path:
+    """Read every configuration object back from ``node`` and write the DCF to ``path``."""
+    od = node.object_dictionary
+    objects = configuration(od)
+    try:
+        values = read_back(node, objects)
+    except SdoCommunicationError as exc:
+        raise SdoCommunicationError(f"node {node.id}: reading the configuration back for its DCF: {exc}") from exc
+    process = mapped(values)
+    for var in variables(od):
+        var.description = ""                       # not a CiA 306 key of an object
+        raw = getattr(var, "default_raw", None)
+        if raw and "$NODEID" in raw.upper() and var.default is not None:
+            var.default_raw = parameter_value(var, var.default)
+        key = (var.index, var.subindex)
+        if key in values and key not in process:
+            var.value, var.value_raw = values[key], parameter_value(var, values[key])
+        else:
+            var.value = var.value_raw = None
+    od.node_id, od.bitrate = node.id, bitrate
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    canopen.export_od(od, str(path), doc_type="dcf")
+    return path
