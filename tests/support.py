@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import itertools
 import os
+import shutil
+import sys
 from dataclasses import replace
 from pathlib import Path
 
@@ -79,3 +81,8 @@ def bus_yml_beside(tmp_path: Path, old: str = "", new: str = "") -> Path:
     cfg = tmp_path / "bus.yml"
     cfg.write_text(text.replace("../eds/", str(EDS.parent) + "/"))
     return cfg
+
+
+def tool(name: str) -> str | None:
+    """A third-party command (dcfchk, dcfgen, tshark) from the test environment or PATH; None when absent."""
+    return shutil.which(name, path=os.pathsep.join([os.path.dirname(sys.executable), os.environ.get("PATH", "")]))

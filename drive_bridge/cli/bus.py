@@ -1,4 +1,5 @@
-"""``scan``, ``record`` and ``decode``: the nodes on the bus, the excitation campaign, the raw trace."""
+"""``scan``, ``record``, ``decode`` and ``check-eds``: the nodes on the bus, the excitation campaign,
+the raw trace, the files that describe the nodes."""
 from __future__ import annotations
 
 import sys
@@ -34,6 +35,14 @@ def register(sub) -> None:
     p.add_argument("--meta", help="meta.yaml of the recording (default: beside the trace)")
     p.add_argument("--out", help="CSV to write (default: decoded.csv beside the trace)")
     p.set_defaults(func=cmd_decode)
+
+    p = sub.add_parser("check-eds", help="say what in an EDS/DCF is not CiA 306, and what drive-bridge can use",
+                       description="Check EDS/DCF files against CiA 306 (and with Lely's dcf-tools linter where "
+                                   "installed) and list what drive-bridge finds in them (modes, feedback objects, "
+                                   "PDOs). drive-bridge itself reads such files as they are. Exit 0: standard; "
+                                   "1: something non-standard found; 2: a file cannot be read at all.")
+    p.add_argument("files", nargs="+", metavar="FILE", help="EDS or DCF files")
+    p.set_defaults(func=cmd_check_eds)
 
 
 def cmd_scan(args) -> int:
@@ -113,3 +122,21 @@ def cmd_decode(args) -> int:
     if problem:
         raise UserError(f"{args.trace}: {problem}; the {len(values)} rows before it are in {out}")
     return 0
+
+
+def cmd_check_eds(args) -> int:
+    from ..edscheck import check
+    clean = True
+    for name in args.files:
+        report = check(name)
+        lely = ("Lely dcf-tools not installed (pip install dcf-tools)" if report.lely is None
+                else f"Lely dcf-tools: {len(report.lely)} finding(s)")
+        print(f"{report.path}: {'CiA 306' if report.standard else 'NOT standard'}; {lely}")
+        for line in report.findings:
+            print(f"  {line}")
+        for line in report.lely or ():
+            print(f"  lely: {line}")
+        for line in report.drive:
+            print(f"  drive-bridge: {line}")
+        clean &= report.standard
+    return 0 if clean else 1

@@ -3,7 +3,9 @@ summary.json, report.html, resume, --steps, and the failure paths."""
 from __future__ import annotations
 
 import json
+import math
 import shutil
+import subprocess
 from pathlib import Path
 
 import pytest
@@ -13,11 +15,13 @@ from drive_bridge.cli import main
 from drive_bridge.commission import STEPS, Options, commission
 from drive_bridge.config import load_bus_config
 from drive_bridge.connect import open_link
+from drive_bridge.edscheck import check as check_eds
+from drive_bridge.od import load_od
 from drive_bridge.progress import StepReporter
 from drive_bridge.sim import kernel as K
 from drive_bridge.sim.config import DEFAULT_CONFIG, load_sim_config
 
-from ..support import BUS_CONFIG, EDS, PAPER
+from ..support import BUS_CONFIG, EDS, PAPER, tool
 
 
 SIM = load_sim_config(DEFAULT_CONFIG)          # the shipped robot, hidden effects on
@@ -96,6 +100,29 @@ def test_gains_written_verified_and_validation_improved(run):
             assert val["fe_rms_after"] < val["fe_rms_before"] / 5, (a, traj, val)
             assert val["torque_rmse_after"] < 0.05
     assert (run["out"] / "write" / "x.dcf").exists() and (run["out"] / "write" / "x_backup.json").exists()
+
+
+def test_each_commissioned_node_has_a_complete_dcf_that_lely_and_canopen_read(run):
+    """The DCF of each commissioned node: NodeID and bitrate, $NODEID resolved, every setting
+    bring-up and write put on the drive as ParameterValue (as read back), no process data; Lely's
+    dcfchk passes it (when dcf-tools is installed) and canopen imports it with the same values."""
+    cfg = load_bus_config(run["cfg"])
+    for a, v in run["summary"]["axes"].items():
+        path = run["out"] / "write" / f"{a}.dcf"
+        assert "$NODEID" not in path.read_text().upper() and check_eds(path).findings == []
+        od = load_od(path, cfg.nodes[a].node_id)
+        assert od.node_id == cfg.nodes[a].node_id and od.bitrate == cfg.master.bitrate
+        ncfg, inc = cfg.nodes[a], 2 ** 20 / (2 * math.pi)
+        assert od[0x1017].value == ncfg.heartbeat_producer_ms
+        assert od[0x6065].value == round(ncfg.following_error_window_rad * inc)
+        assert od[0x607D][1].value == round(ncfg.limits.position_min * inc)
+        assert od[0x1800][1].value == 0x180 + ncfg.node_id and od[0x1400][1].value == 0x200 + ncfg.node_id
+        written = {w["parameter"]: w for w in v["written"]}
+        assert od[0x2000][3].value == pytest.approx(written["KpS"]["new"], rel=1e-6)       # REAL32, read back
+        assert od[0x6040].value is None and od[0x607A].value is None                       # commands, process data
+        if tool("dcfchk"):
+            check = subprocess.run([tool("dcfchk"), "-n", str(ncfg.node_id), str(path)], capture_output=True, text=True)
+            assert check.returncode == 0 and "Warning" not in check.stderr, check.stderr
 
 
 def test_report_is_one_self_contained_page(run):
