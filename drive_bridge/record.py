@@ -49,6 +49,16 @@ def record(config: BusConfig, link: Link, out_dir: str | Path, *,
     load = check_bus_load(config)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    trace = TraceRecorder(out / TRACE_NAME, background=link.threaded, epoch=link.epoch)
+    link.add_trace(trace)                    # from here: bring-up (when done here), streaming and stop
+    try:
+        return _record(config, link, out, load, t_start, on_plan, axes)
+    finally:
+        link.remove_trace(trace)
+        trace.stop()
+
+
+def _record(config, link, out, load, t_start, on_plan, axes) -> RecordResult:
     axes = axes or bring_up(link, config)
     start = {name: ax.position_rad() for name, ax in axes.items()}
     plan = build_plan(config.campaign, {n: a.cfg.limits for n, a in axes.items()}, start,
@@ -68,15 +78,9 @@ def record(config: BusConfig, link: Link, out_dir: str | Path, *,
         "trace": TRACE_NAME,
     }
     write_meta(out / META_NAME, meta)
-    trace = TraceRecorder(out / TRACE_NAME, background=link.threaded)
-    link.record(trace)
-    try:
-        result = stream(link, axes, plan, heartbeat_timeout=config.master.heartbeat_timeout_s,
-                        miss_limit=config.master.tpdo_miss_limit, state_timeout=config.master.state_timeout_s,
-                        progress=progress, timing_limits=config.master.timing)
-    finally:
-        link.record(None)
-        trace.stop()
+    result = stream(link, axes, plan, heartbeat_timeout=config.master.heartbeat_timeout_s,
+                    miss_limit=config.master.tpdo_miss_limit, state_timeout=config.master.state_timeout_s,
+                    progress=progress, timing_limits=config.master.timing)
     rec = result.recording
     samples = {a: int(len(rec.raw) - result.missing[a]) for a in plan.axes}
     meta["counts"].update({"cycles_sent": result.cycles_sent, "samples_received": samples,

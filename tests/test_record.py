@@ -2,7 +2,9 @@
 from __future__ import annotations
 
 import math
+import subprocess
 
+import can
 import numpy as np
 import pytest
 import yaml
@@ -11,7 +13,7 @@ from drive_bridge.cli import main
 from drive_bridge.record import record
 
 from .master.test_stream import run_record
-from .support import Bench, bus_yml_beside, clean_config, quick_config, read_csv
+from .support import Bench, bus_yml_beside, clean_config, quick_config, read_csv, tool
 
 
 SIM_CLEAN = """
@@ -81,11 +83,48 @@ def test_decode_rebuilds_the_same_csv(tmp_path, capsys, config):
     assert (tmp_path / "decoded.csv").read_bytes() == (tmp_path / "log.csv").read_bytes()
 
 
-def test_lockstep_records_are_identical(tmp_path):
+def test_lockstep_records_are_identical(tmp_path, monkeypatch):
+    """The trace's start is the wall clock's; SOURCE_DATE_EPOCH fixes it, and then the trace too is
+    identical byte for byte."""
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", "1795000000")
     for name in ("a", "b"):
         assert main(["record", "--sim", "--quick", "--axes", "z", "--out", str(tmp_path / name)]) == 0
     for f in ("log.csv", "trace.blf"):
         assert (tmp_path / "a" / f).read_bytes() == (tmp_path / "b" / f).read_bytes()
+
+
+@pytest.mark.parametrize("realtime", [False, True], ids=["lockstep", "wall clock"])
+def test_the_trace_reads_like_a_capture(tmp_path, realtime):
+    """From the bus's opening: scan and bring-up SDOs, NMT, then SYNC and PDOs, the stop; every
+    frame stamped (wall-clock time, also in lockstep), none zero, in time order; decode still
+    rebuilds log.csv byte for byte."""
+    import time
+    t0 = time.time()
+    args = ["record", "--sim", "--quick", "--axes", "z", "--out", str(tmp_path)] + (["--realtime"] if realtime else [])
+    assert main(args) == 0
+    with can.LogReader(str(tmp_path / "trace.blf")) as reader:
+        frames = list(reader)
+    stamps = np.array([f.timestamp for f in frames])
+    assert np.all(stamps > 0) and np.all(np.diff(stamps) >= 0)
+    assert t0 - 1 <= stamps[0] <= time.time() + 1                         # a real start time
+    ids = [f.arbitration_id for f in frames]
+    first_sync = ids.index(0x080)
+    assert 0x603 in ids[:first_sync] and 0x583 in ids[:first_sync]          # bring-up SDOs of node 3 first
+    assert 0x000 in ids[:first_sync]                                        # NMT
+    assert main(["decode", str(tmp_path / "trace.blf"), "--out", str(tmp_path / "decoded.csv")]) == 0
+    assert (tmp_path / "decoded.csv").read_bytes() == (tmp_path / "log.csv").read_bytes()
+    tshark = tool("tshark")
+    if tshark:                       # Wireshark's CANopen dissector: every frame, none malformed, real time
+        args = [tshark, "-r", str(tmp_path / "trace.blf"), "-d", "can.subdissector,canopen"]
+        fields = subprocess.run(args + ["-T", "fields", "-e", "frame.time_epoch", "-e", "frame.protocols"],
+                                capture_output=True, text=True, check=True).stdout.split("\n")
+        rows = [r.split("\t") for r in fields if r]
+        assert len(rows) == len(frames)
+        # (a SYNC without counter has no data byte: this dissector leaves it plain CAN)
+        assert all(p.endswith(":canopen") for (_, p), f in zip(rows, frames) if f.dlc)
+        assert abs(float(rows[0][0]) - stamps[0]) < 1e-3
+        malformed = subprocess.run(args + ["-Y", "_ws.malformed"], capture_output=True, text=True, check=True)
+        assert malformed.stdout.strip() == ""
 
 
 def test_together_moves_all_axes_at_once(tmp_path):

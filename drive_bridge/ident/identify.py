@@ -58,7 +58,7 @@ class AxisResult:
             "params": self.model.params_,
             "param_std": self.model.param_std_,
             "uncertainty": {"method": "HAC (batch means over the residual's correlation length), widened to the "
-                                      "delete-one-block jackknife over 10 stretches in time where that is larger",
+                                      "delete-one-block jackknife over 10 stretches in time where that is 1.5 times larger",
                             "jackknife_over_hac": {k: round(float(self.model.jackknife_[i]), 3)
                                                    for i, k in enumerate(("J", "c1", "c0"))}},
             "rmse_before": self.before.rmse,

@@ -24,6 +24,8 @@ from .signals import Samples
 
 BASE = ("J", "c1", "c0")
 JACKKNIFE_BLOCKS = 10       # stretches of the log in time for the delete-one-block jackknife (AxisModel.widen)
+JACKKNIFE_BEYOND = 1.5      # ... which replaces the HAC std where larger by this factor: a 10-block jackknife's
+                            # own scatter (~25 %) is no evidence of structure, twice that is
 
 
 def base_columns(s: Samples) -> np.ndarray:
@@ -83,7 +85,8 @@ class AxisModel:
 
     def widen(self, s: Samples, blocks: int = JACKKNIFE_BLOCKS) -> "AxisModel":
         """Widen ``cov_`` to the delete-one-block jackknife over ``blocks`` stretches of ``s`` in
-        time (equal counts of moving samples) wherever that is larger, keeping the correlations:
+        time (equal counts of moving samples) wherever that is larger by ``JACKKNIFE_BEYOND``,
+        keeping the correlations:
         the HAC estimate sees coloured noise and heteroskedasticity, the jackknife also a
         structure the model lacks that changes over the log (heating, a payload, a stroke
         covered unevenly).  ``jackknife_`` holds the ratio jackknife / HAC std per coefficient."""
@@ -101,7 +104,7 @@ class AxisModel:
         jack = np.sqrt((k - 1) / k * np.sum((c - c.mean(axis=0)) ** 2, axis=0))
         hac = np.sqrt(np.maximum(np.diag(self.cov_), 1e-300))
         self.jackknife_ = jack / hac
-        scale = np.maximum(self.jackknife_, 1.0)
+        scale = np.where(self.jackknife_ > JACKKNIFE_BEYOND, self.jackknife_, 1.0)
         self.cov_ = self.cov_ * np.outer(scale, scale)
         return self
 

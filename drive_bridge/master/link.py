@@ -53,19 +53,28 @@ class WallClock:
 TRACE_PRIORITY = 10           # SCHED_FIFO priority of the trace writer (the streaming threads: 50)
 
 
+REORDER_S = 0.1              # a background trace writes a frame once none older can still arrive
+
+
 class TraceRecorder(can.Listener):
     """Recorder of every frame sent and received, in a python-can log format.
 
-    With ``background`` (frames come from several threads) a frame is only
-    queued where it is seen, and a writer thread of its own formats and
-    compresses: the thread that sends setpoints never waits for the file.
+    Frames are written in time order with their time stamps plus ``epoch`` [s] (a lockstep
+    link's clock starts at 0: the trace then reads as captured at the run's wall-clock start).
+    With ``background`` (frames come from several threads) a frame is only queued where it is
+    seen, and a writer thread of its own sorts, formats and compresses: the thread that sends
+    setpoints never waits for the file.
     """
 
-    def __init__(self, path, *, background: bool = False, flush_every_s: float = 0.05):
+    def __init__(self, path, *, background: bool = False, flush_every_s: float = 0.05, epoch: float = 0.0):
+        if background and epoch:
+            raise ValueError("a background trace takes frames stamped with the wall clock (epoch 0)")
         self.writer = can.Logger(str(path))
         self._background = background
+        self._epoch = epoch
         if background:
             self._pending: deque[can.Message] = deque()
+            self._held: list[can.Message] = []
             self._stopping = threading.Event()
             self._flush_every_s = flush_every_s
             self._thread = threading.Thread(target=self._write_loop, name="trace-writer", daemon=True)
@@ -75,7 +84,20 @@ class TraceRecorder(can.Listener):
         if self._background:
             self._pending.append(msg)          # atomic: no lock shared with the sending thread
         else:
+            self._write(msg)
+
+    def _write(self, msg: can.Message) -> None:
+        if not self._epoch:
             self.writer.on_message_received(msg)
+            return
+        # on the one thread that holds the frame (a lockstep link): stamped for the file and back,
+        # cheaper than a copy of each of a campaign's millions of frames
+        stamp = msg.timestamp
+        msg.timestamp = stamp + self._epoch
+        try:
+            self.writer.on_message_received(msg)
+        finally:
+            msg.timestamp = stamp
 
     def _write_loop(self) -> None:
         # Below the threads that send setpoints and receive feedback, but above every ordinary
@@ -86,19 +108,41 @@ class TraceRecorder(can.Listener):
             except (AttributeError, OSError):
                 pass          # not on this platform: the writer still only runs every flush period
         while not self._stopping.wait(self._flush_every_s):
-            self._write_pending()
-        self._write_pending()
+            self._write_pending(final=False)
+        self._write_pending(final=True)
 
-    def _write_pending(self) -> None:
-        pending, write = self._pending, self.writer.on_message_received
+    def _write_pending(self, final: bool) -> None:
+        """Frames reach the queue from the sending and the receiving thread, not always in the
+        order of their stamps: they are held until ``REORDER_S`` past the newest, then written
+        sorted (all of them at the end)."""
+        pending, held = self._pending, self._held
         while pending:
-            write(pending.popleft())
+            held.append(pending.popleft())
+        if not held:
+            return
+        held.sort(key=lambda m: m.timestamp)
+        cut = len(held) if final else _first_after(held, held[-1].timestamp - REORDER_S)
+        for msg in held[:cut]:
+            self._write(msg)
+        del held[:cut]
 
     def stop(self) -> None:
         if self._background:
             self._stopping.set()
             self._thread.join()
         self.writer.stop()
+
+
+def _first_after(frames: list[can.Message], t: float) -> int:
+    """Index of the first of the time-sorted ``frames`` stamped after ``t``."""
+    lo, hi = 0, len(frames)
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if frames[mid].timestamp <= t:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
 
 
 class MasterNetwork(canopen.Network):
@@ -108,7 +152,7 @@ class MasterNetwork(canopen.Network):
     def __init__(self, bus: can.BusABC, clock: Clock):
         super().__init__(bus)
         self.clock = clock
-        self.trace: TraceRecorder | None = None
+        self.traces: tuple[TraceRecorder, ...] = ()
         self.after_send = None
 
     def send_message(self, can_id: int, data: bytes, remote: bool = False,
@@ -118,8 +162,8 @@ class MasterNetwork(canopen.Network):
         msg = can.Message(arbitration_id=can_id, data=data, is_extended_id=can_id > 0x7FF,
                           is_remote_frame=remote, is_rx=False,
                           timestamp=self.clock.now() if timestamp is None else timestamp)
-        if self.trace is not None:
-            self.trace.on_message_received(msg)
+        for trace in self.traces:
+            trace.on_message_received(msg)
         with self.send_lock:
             self.bus.send(msg)
         if self.after_send is not None:
@@ -133,15 +177,20 @@ class Link(Protocol):
     ``network`` is the canopen Network the master's nodes live on (every frame it sends is
     stamped with ``clock`` and traced); ``clock`` is the time the master waits on and stamps
     with; ``threaded`` says whether frames arrive on another thread (a trace must then be
-    written in the background).
+    written in the background); ``epoch`` [s] is what makes the clock's time a wall-clock
+    time (0 where the clock is the wall clock).
     """
 
     network: MasterNetwork
     clock: Clock
     threaded: bool
+    epoch: float
 
-    def record(self, trace: TraceRecorder | None) -> None:
-        """Send every frame from now on, sent and received, to ``trace`` (None stops)."""
+    def add_trace(self, trace: TraceRecorder) -> None:
+        """Send every frame from now on, sent and received, to ``trace`` too."""
+
+    def remove_trace(self, trace: TraceRecorder) -> None:
+        """Stop sending frames to ``trace``."""
 
     def close(self) -> None:
         """Close the bus (and whatever runs behind it)."""
@@ -163,6 +212,7 @@ class BusLink:
     """A python-can bus with canopen's Notifier thread and the wall clock."""
 
     threaded = True           # frames arrive on the Notifier thread
+    epoch = 0.0               # the clock is the wall clock
 
     def __init__(self, bus: can.BusABC):
         self.clock = WallClock()
@@ -185,13 +235,13 @@ class BusLink:
             kwargs["preserve_timestamps"] = False
         return cls(can.Bus(**kwargs))
 
-    def record(self, trace: TraceRecorder | None) -> None:
-        """Send every frame from now on to ``trace`` (None stops)."""
-        if self.network.trace is not None:
-            self.network.notifier.remove_listener(self.network.trace)
-        self.network.trace = trace
-        if trace is not None:
-            self.network.notifier.add_listener(trace)
+    def add_trace(self, trace: TraceRecorder) -> None:
+        self.network.traces += (trace,)
+        self.network.notifier.add_listener(trace)
+
+    def remove_trace(self, trace: TraceRecorder) -> None:
+        self.network.notifier.remove_listener(trace)
+        self.network.traces = tuple(t for t in self.network.traces if t is not trace)
 
     def close(self) -> None:
         self.network.disconnect()

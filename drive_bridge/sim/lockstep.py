@@ -4,9 +4,14 @@ After each frame the master sends, the drives handle everything on their bus
 (a SYNC advances them one period) and the replies are fed to the master's
 canopen Network at once, so an SDO request is answered before ``send``
 returns.  Time is the simulation's: it moves with SYNC and with
-``clock.sleep``, so runs are deterministic and faster than real time.
+``clock.sleep``, so runs are deterministic and faster than real time.  A trace
+reads as captured from the wall-clock time the link was opened (``epoch``; the
+``SOURCE_DATE_EPOCH`` convention fixes it, for traces identical run to run).
 """
 from __future__ import annotations
+
+import os
+import time
 
 from ..master.link import MasterNetwork, TraceRecorder
 from .robot import SimRobot
@@ -36,6 +41,7 @@ class LockstepLink:
     threaded = False          # every frame is seen on the calling thread
 
     def __init__(self, robot: SimRobot, channel: str = "drive-bridge"):
+        self.epoch = float(os.environ.get("SOURCE_DATE_EPOCH") or time.time())
         self.robot = robot
         self.clock = LockstepClock(self)
         self.bus = FastVirtualBus(channel=channel, preserve_timestamps=True)
@@ -46,18 +52,24 @@ class LockstepLink:
         robot.power_on()
         self.pump()
 
-    def record(self, trace: TraceRecorder | None) -> None:
-        self.network.trace = trace
+    def add_trace(self, trace: TraceRecorder) -> None:
+        self.network.traces += (trace,)
+
+    def remove_trace(self, trace: TraceRecorder) -> None:
+        self.network.traces = tuple(t for t in self.network.traces if t is not trace)
 
     def _after_send(self) -> None:
         self.robot.process()
         self.pump()
 
     def pump(self) -> None:
-        """Deliver every frame waiting for the master to its canopen Network."""
-        notify, trace = self._notify, self.network.trace
+        """Deliver every frame waiting for the master to its canopen Network (a frame the
+        drives sent without a time stamp gets the time the master sees it)."""
+        notify, traces, now = self._notify, self.network.traces, self.robot.time
         for msg in self.bus.drain():
-            if trace is not None:
+            if not msg.timestamp:
+                msg.timestamp = now
+            for trace in traces:
                 trace.on_message_received(msg)
             notify(msg.arbitration_id, msg.data, msg.timestamp)
 

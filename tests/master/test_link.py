@@ -29,14 +29,14 @@ def test_one_scenario_over_every_link(realtime, tmp_path):
         assert sorted(found.found) == [2] and found.unexpected == [1, 3] and not found.missing
         axes = bring_up(link, config)
         trace = TraceRecorder(tmp_path / "trace.blf", background=link.threaded)
-        link.record(trace)
+        link.add_trace(trace)
         t0 = link.clock.now()
         lim = config.nodes["y"].limits
         here = float(config.nodes["y"].scaling.position_from_device(axes["y"].node.sdo[0x6064].raw))
         demand = trapezoid(here, here + 2.0, 0.3 * lim.max_velocity, 0.3 * lim.max_acceleration, 0.002)
         m = motion.run(config, link, axes, {"y": np.concatenate([demand, np.full(100, demand[-1])])})
         elapsed = link.clock.now() - t0
-        link.record(None)
+        link.remove_trace(trace)
         trace.stop()
         assert m.aborted is None
         assert np.count_nonzero(np.isnan(m.position["y"])) <= 0.01 * len(m.position["y"])
