@@ -66,17 +66,32 @@ class NodeConfig:
     motor: tuple[float, float] | None = None     # winding R [Ω], L [H] where the drive does not report them
 
 
+DEFAULT_BITRATE = 1_000_000       # bit/s, when nothing names the bitrate
+
+
 @dataclass(frozen=True)
 class MasterConfig:
-    interface: str
-    channel: str
-    bitrate: int
+    """``interface``, ``channel`` and ``bitrate`` [bit/s] as bus.yml names them (None: not named;
+    :func:`drive_bridge.canconf.resolve` fills them from the command line and python-can's own
+    configuration); ``can_options``: interface-specific arguments for ``can.Bus``."""
+
+    interface: str | None
+    channel: str | int | None
+    bitrate: int | None
     sync_period_s: float
     heartbeat_timeout_s: float
     sdo_timeout_s: float
     state_timeout_s: float
     tpdo_miss_limit: int
     timing: TimingLimits = TimingLimits()
+    can_options: dict = field(default_factory=dict)
+    notes: tuple[str, ...] = ()               # where the interface came from, what was neutralised
+
+    @property
+    def nominal_bitrate(self) -> int:
+        """The bitrate the bus load is checked against: the configured one, else CANopen's 1 Mbit/s
+        (the bus may then be slower than the check assumes; the notes say so)."""
+        return self.bitrate or DEFAULT_BITRATE
 
 
 @dataclass(frozen=True)
@@ -287,9 +302,10 @@ def load_bus_config(path: str | Path) -> BusConfig:
     top = Section(path, "", load_yaml(path))
     m = top.section("master")
     master = MasterConfig(
-        interface=m.get("interface", str, "socketcan"),
-        channel=m.get("channel", str, "can0"),
-        bitrate=m.get("bitrate", int, 1_000_000, low=10_000, high=1_000_000),
+        interface=m.get("interface", str, None),
+        channel=m.get("channel", (str, int), None),
+        bitrate=m.get("bitrate", int, None, low=10_000, high=1_000_000),
+        can_options=m.get("can_options", dict, {}),
         sync_period_s=m.get("sync_period", int, 2000, low=500, high=100_000) * 1e-6,
         heartbeat_timeout_s=m.get("heartbeat_consumer_ms", int, 300, low=10, high=65535) / 1000.0,
         sdo_timeout_s=m.get("sdo_timeout_s", float, 0.5, low=0.01, high=60.0),

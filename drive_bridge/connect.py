@@ -14,11 +14,15 @@ from .master.link import BusLink, Link
 def open_link(config: BusConfig, sim: bool, realtime: bool = False, sim_config: str | None = None) -> Iterator[Link]:
     """The link the master talks through: the configured bus, or the simulated robot."""
     if not sim:
+        m = config.master
+        if m.interface is None:
+            raise UserError(f"{config.path}: no CAN interface named: give master.interface (and channel) in "
+                            f"bus.yml, -i/--interface and -c/--channel, or python-can's configuration "
+                            f"(CAN_INTERFACE, ~/.canrc)")
         try:
-            link = BusLink.open(config.master.interface, config.master.channel, config.master.bitrate)
+            link = BusLink.open(m.interface, m.channel, m.bitrate, m.can_options)
         except Exception as exc:       # python-can raises many kinds for a missing interface
-            raise UserError(f"{config.path}: cannot open bus {config.master.interface}:"
-                            f"{config.master.channel} ({exc})") from exc
+            raise UserError(f"{config.path}: cannot open bus {m.interface}:{m.channel} ({exc})") from exc
     else:
         from .sim.config import DEFAULT_CONFIG as SIM_DEFAULT, load_sim_config
         from .sim.kernel import VELOCITY_TICK_S
@@ -44,7 +48,7 @@ def open_link(config: BusConfig, sim: bool, realtime: bool = False, sim_config: 
         else:
             from .sim.lockstep import LockstepLink
             from .sim.robot import SimRobot
-            channel = f"{config.master.channel}-sim"          # closed again below, so reusable
+            channel = f"{config.master.channel or 'drive-bridge'}-sim"     # closed again below, so reusable
             robot = SimRobot(robot_cfg, channel, sync_period=config.master.sync_period_s, eds=eds)
             link = LockstepLink(robot, channel)
     try:

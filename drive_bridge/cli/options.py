@@ -2,9 +2,13 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from dataclasses import replace
 from pathlib import Path
 
+import can
+
+from ..canconf import resolve
 from ..config import BusConfig, load_bus_config
 from ..errors import UserError
 from ..resources import DEFAULT_BUS_CONFIG
@@ -18,9 +22,19 @@ def bus(p: argparse.ArgumentParser) -> None:
     p.add_argument("--sim", action="store_true", help="run against the simulated robot in-process")
     p.add_argument("--realtime", action="store_true", help="with --sim: wall clock instead of lockstep")
     p.add_argument("--sim-config", help="with --sim: simulator YAML (default: the shipped robot)")
+    p.add_argument("-i", "--interface", help="python-can interface (socketcan, pcan, kvaser, vector ...; default: "
+                                             "bus.yml master.interface, else python-can's configuration)")
+    p.add_argument("-c", "--channel", type=can_channel,
+                   help="python-can channel (can0, PCAN_USBBUS1, 0 ...; default as for --interface)")
+    p.add_argument("-b", "--bitrate", type=int, help="bitrate [bit/s] (default as for --interface)")
     p.add_argument("--accept-identity", type=int, action="append", default=[], metavar="NODE",
                    help="go on although node NODE's identity (0x1018) is not the one its EDS/DCF names "
                         "(recorded in the output; repeat for more nodes)")
+
+
+def can_channel(text: str) -> str | int:
+    """A channel as python-can's configuration files read it: digits are a number (kvaser, vector)."""
+    return can.util.cast_from_string(text)
 
 
 def drive(p: argparse.ArgumentParser, params: bool = True) -> None:
@@ -91,6 +105,11 @@ def config(args) -> BusConfig:
         cfg = replace(cfg, campaign=cfg.campaign.quick())
     if getattr(args, "together", False):
         cfg = replace(cfg, campaign=replace(cfg.campaign, together=True))
+    if not getattr(args, "sim", False):            # the simulated robot needs no CAN interface
+        cfg = resolve(cfg, getattr(args, "interface", None), getattr(args, "channel", None),
+                      getattr(args, "bitrate", None))
+        for note in cfg.master.notes:
+            print(f"drive-bridge: note: {note}", file=sys.stderr)
     return cfg
 
 

@@ -127,7 +127,7 @@ def cmd_write(args) -> int:
         outcome = write_drives(nodes, session.profile, {a: tuned.parameters[a] for a in nodes},
                                backup_dir=args.backup_dir, dcf_dir=args.dcf_dir, dry_run=args.dry_run,
                                inductance=tuned.inductance, force=o.force, pm_floor=o.pm_floor, gm_floor=o.gm_floor,
-                               allow_unverified_scales=o.writes_unverified, bitrate=config.master.bitrate)
+                               allow_unverified_scales=o.writes_unverified, bitrate=config.master.nominal_bitrate)
     if args.json:
         print(json.dumps(outcome.as_dict(), default=float))
     else:

@@ -125,7 +125,7 @@ def write(ctx: Context) -> str:
     out, o = ctx.out / OUTPUT["write"], ctx.options
     outcome = write_drives(nodes, ctx.session.profile, tuned.parameters, backup_dir=out, dcf_dir=out,
                            inductance=tuned.inductance, force=o.force, pm_floor=o.pm_floor, gm_floor=o.gm_floor,
-                           allow_unverified_scales=o.writes_unverified, bitrate=ctx.config.master.bitrate)
+                           allow_unverified_scales=o.writes_unverified, bitrate=ctx.config.master.nominal_bitrate)
     write_json(ctx.out / WRITE_JSON, outcome.as_dict())
     raise_for_failure(outcome, out)
     results = outcome.results

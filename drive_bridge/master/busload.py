@@ -38,7 +38,7 @@ def bus_load(config: BusConfig) -> BusLoad:
         for pdo in node.tpdo:
             bits += frame_bits(pdo_bytes(node.od, pdo.mapping)) / pdo.transmission
     per_s = bits / config.master.sync_period_s
-    return BusLoad(int(bits), per_s, per_s / config.master.bitrate)
+    return BusLoad(int(bits), per_s, per_s / config.master.nominal_bitrate)
 
 
 def check_bus_load(config: BusConfig) -> BusLoad:
@@ -46,7 +46,7 @@ def check_bus_load(config: BusConfig) -> BusLoad:
     load = bus_load(config)
     if load.load > MAX_LOAD:
         raise UserError(
-            f"{config.path}: the cyclic plan needs {load.describe()} of {config.master.bitrate / 1000:.0f} "
+            f"{config.path}: the cyclic plan needs {load.describe()} of {config.master.nominal_bitrate / 1000:.0f} "
             f"kbit/s, above the {MAX_LOAD:.0%} budget. Map fewer or shorter PDOs (nodes.<axis>.tpdo/rpdo), "
             f"send TPDOs every n-th SYNC (transmission: n), lengthen master.sync_period, "
             f"or raise master.bitrate.")

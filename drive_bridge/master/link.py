@@ -226,9 +226,11 @@ class BusLink:
         self.on_close = []                # callbacks after the bus is closed
 
     @classmethod
-    def open(cls, interface: str, channel: str, bitrate: int | None = None) -> "BusLink":
-        """Open a python-can bus (``bitrate`` where the interface takes one)."""
-        kwargs = {"interface": interface, "channel": channel}
+    def open(cls, interface: str, channel: str | int | None, bitrate: int | None = None,
+             options: dict | None = None) -> "BusLink":
+        """Open a python-can bus (``bitrate`` where the interface takes one; ``options``: the
+        interface's own arguments, :mod:`drive_bridge.canconf`)."""
+        kwargs = {**(options or {}), "interface": interface, "channel": channel, "receive_own_messages": False}
         if bitrate and interface != "virtual":
             kwargs["bitrate"] = bitrate
         if interface == "virtual":
