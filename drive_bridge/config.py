@@ -27,6 +27,22 @@ REQUIRED_TPDO = {0x6064: "position actual", 0x606C: "velocity actual", 0x6041: "
 #: what the master logs the torque from (scaling.torque_feedback): 0x6077, 0x6078, or a vendor object
 TORQUE_FEEDBACK = {"torque": "torque actual", "current": "current actual", "object": "the torque feedback object"}
 #: objects the master can fill in an RPDO / log from a TPDO
+TOP_KEYS = {"options", "master", "defaults", "nodes", "campaign"}
+TPDO_TRANSMISSION = set(range(0, 241)) | {252, 253, 254, 255}     # CiA 301: 241..251 reserved
+RPDO_TRANSMISSION = set(range(0, 241)) | {254, 255}
+#: keys of a ros2_canopen / Lely dcfgen bus.yml that drive-bridge accepts but does not use
+ROS_KEYS = {"driver", "package", "period", "enable_lazy_load", "position_mode", "velocity_mode", "switching_state",
+            "homing_mode", "scale_pos_to_dev", "scale_pos_from_dev", "scale_vel_to_dev", "scale_vel_from_dev",
+            "scale_eff_to_dev", "scale_eff_from_dev", "sdo_timeout_ms", "polling", "diagnostics", "namespace",
+            "offset_pos_to_dev", "offset_pos_from_dev", "use_interpolation", "ignore_offsets"}
+LELY_NODE_KEYS = {"dcf_path", "revision_number", "serial_number", "vendor_id", "product_code", "heartbeat_multiplier",
+                  "heartbeat_consumer", "error_behavior", "boot", "mandatory", "reset_communication", "software_file",
+                  "software_version", "restore_configuration", "configuration_file", "time_cob_id", "retry_factor",
+                  "guard_time", "life_time_factor"}
+LELY_MASTER_KEYS = {"vendor_id", "product_code", "revision_number", "serial_number", "sync_window", "sync_overflow",
+                    "time_cob_id", "emcy_inhibit_time", "heartbeat_multiplier", "heartbeat_consumer",
+                    "heartbeat_producer", "error_behavior", "nmt_inhibit_time", "start", "start_nodes",
+                    "start_all_nodes", "reset_all_nodes", "stop_all_nodes", "boot_time"}
 RPDO_OBJECTS = {0x6040, 0x607A, 0x60C1, 0x20C1, 0x60B1, 0x60B2}
 TPDO_OBJECTS = {0x6064, 0x606C, 0x6077, 0x6041, 0x60F4, 0x6078}
 
@@ -36,6 +52,8 @@ class PdoConfig:
     number: int                           # 1..4
     transmission: int
     mapping: tuple[tuple[int, int], ...]  # (index, subindex)
+    cob_id: int | None = None             # None: the predefined connection set (ros2_canopen's "auto")
+    event_timer_ms: int | None = None     # TPDO event timer (sub 5), where given
 
 
 @dataclass(frozen=True)
@@ -85,7 +103,8 @@ class MasterConfig:
     tpdo_miss_limit: int
     timing: TimingLimits = TimingLimits()
     can_options: dict = field(default_factory=dict)
-    notes: tuple[str, ...] = ()               # where the interface came from, what was neutralised
+    notes: tuple[str, ...] = ()               # where the interface came from, what was neutralised, ignored
+    node_id: int | None = None                # the master's own node-ID (a ros2_canopen / Lely bus.yml)
 
     @property
     def nominal_bitrate(self) -> int:
@@ -153,11 +172,21 @@ def _pdos(sec: Section, key: str, od: canopen.ObjectDictionary, allowed: set[int
         p = pdo_sec.section(num)
         enabled = p.get("enabled", bool, True)
         trans = p.get("transmission", int, 1, low=0, high=255)
-        if not 1 <= trans <= 240:
-            raise p.error("transmission", "the master streams one sample per SYNC: use 1..240 (synchronous)")
+        allowed_types = TPDO_TRANSMISSION if key == "tpdo" else RPDO_TRANSMISSION
+        if trans not in allowed_types:
+            raise p.error("transmission", f"0x{trans:02X} is reserved by CiA 301 for a {key.upper()}")
+        if key == "tpdo" and enabled and not 1 <= trans <= 240:
+            raise p.error("transmission", f"0x{trans:02X} is not synchronous: the master logs one sample per SYNC "
+                                          f"from each TPDO it reads (use 1..240)")
+        cob = p.get("cob_id", (int, str), "auto")
+        if cob != "auto" and (isinstance(cob, str) or not 0x181 <= cob <= 0x57F):
+            raise p.error("cob_id", f"must be 'auto' or an 11-bit PDO COB-ID 0x181..0x57F, got {cob!r}")
+        timer = p.get("event_timer", int, None, low=0, high=65535)
+        for lely_only in ("inhibit_time", "event_deadline", "sync_start"):
+            p.get(lely_only, int, None, low=0, high=65535)          # accepted as Lely takes them; not used
         mapping = []
         bits = 0
-        for n, entry in enumerate(p.get("mapping", list)):
+        for n, entry in enumerate(p.get("mapping", list, ... if enabled else [])):
             e = Section(sec.path, f"{p.key}.mapping[{n}]", entry)
             index = e.get("index", int, low=0, high=0xFFFF)
             sub = e.get("sub_index", int, 0, low=0, high=255)
@@ -181,7 +210,7 @@ def _pdos(sec: Section, key: str, od: canopen.ObjectDictionary, allowed: set[int
             raise p.error("mapping", f"{bits} bits do not fit in one 8-byte PDO")
         if enabled:
             seen.update(i for i, _ in mapping)
-            result.append(PdoConfig(num, trans, tuple(mapping)))
+            result.append(PdoConfig(num, trans, tuple(mapping), None if cob == "auto" else cob, timer))
     pdo_sec.done()
     missing = [f"0x{i:04X} ({name})" for i, name in required.items() if i not in seen]
     if key == "rpdo" and not any(e in SETPOINT_OBJECTS for p in result for e in p.mapping):
@@ -192,12 +221,17 @@ def _pdos(sec: Section, key: str, od: canopen.ObjectDictionary, allowed: set[int
     return tuple(result)
 
 
-def _node(path: Path, axis: str, data: dict) -> NodeConfig:
+def _node(path: Path, axis: str, data: dict, dcf_path: str | None = None, unused: set | None = None) -> NodeConfig:
     sec = Section(path, f"nodes.{axis}", data)
     node_id = sec.get("node_id", int, low=1, high=127)
     name = sec.get("dcf", str)
     vendor = name.startswith("vendor/")
     dcf = (vendor_dir() / name[len("vendor/"):] if vendor else path.parent / name).resolve()
+    if not vendor and not dcf.is_file() and dcf_path:       # ros2_canopen: beside bus.yml, or in options.dcf_path
+        dcf = (path.parent / dcf_path / name).resolve()
+    scale_pos = data.get("scale_pos_to_dev")
+    (unused if unused is not None else set()).update(sec.accept((ROS_KEYS | LELY_NODE_KEYS) - {"dcf_path"}))
+    sec.get("dcf_path", str, None)
     if not dcf.is_file():
         raise sec.error("dcf", f"EDS/DCF file not found: {dcf}" + (
             " (vendor/ files are read from $DRIVE_BRIDGE_VENDOR_EDS or ../shared/eds-vendor)" if vendor else ""))
@@ -219,7 +253,13 @@ def _node(path: Path, axis: str, data: dict) -> NodeConfig:
         per_unit = (sc.get("rated_current_A", float, low=1e-6, high=1e5) / 1000.0 if unit_ == "permille"
                     else 1e-3)
         kt = sc.get("torque_constant_Nm_per_A", float, low=1e-6, high=1e3)
-    scaling = Scaling(increments_per_rev=sc.get("increments_per_rev", int, low=1, high=2**31 - 1),
+    inc = sc.get("increments_per_rev", int, None, low=1, high=2**31 - 1)
+    if inc is None and finite_number(scale_pos) and scale_pos > 0 and not feed:
+        inc = round(scale_pos * 2 * math.pi)               # ros2_canopen: device units per rad
+    if inc is None:
+        raise sc.error("increments_per_rev", "missing (the encoder's increments per motor revolution; a "
+                                             "ros2_canopen scale_pos_to_dev of a rotary axis gives it)")
+    scaling = Scaling(increments_per_rev=inc,
                       rated_torque_Nm=sc.get("rated_torque_Nm", float, low=1e-6, high=1e6),
                       feed_m_per_rev=feed, torque_feedback=feedback, current_per_unit_A=per_unit,
                       torque_constant_Nm_per_A=kt, velocity_unit=velocity_unit, torque_index=torque_index,
@@ -300,31 +340,67 @@ def load_bus_config(path: str | Path) -> BusConfig:
     """Read and check ``bus.yml``; raises :class:`ConfigError` naming file and key."""
     path = Path(path)
     top = Section(path, "", load_yaml(path))
+    options = top.section("options", required=False)
+    dcf_path = options.get("dcf_path", str, None)
+    for key in ("heartbeat_multiplier", "retry_factor"):
+        options.get(key, (int, float), None)                    # Lely's, for the master it generates
+    options.done()
     m = top.section("master")
+    notes: list[str] = []
+    ros = bool(top.data.get("options")) or any(k in m.data for k in ("node_id", "driver", "package", "baudrate"))
+    bitrate = m.get("bitrate", int, None, low=10_000, high=1_000_000)
+    baud = m.get("baudrate", int, None, low=10, high=1000)        # Lely / ros2_canopen: kbit/s
+    if baud is not None and bitrate is not None and baud * 1000 != bitrate:
+        raise m.error("baudrate", f"{baud} kbit/s but master.bitrate is {bitrate} bit/s: give one")
+    ignored = m.accept({"driver", "package"} | LELY_MASTER_KEYS)
     master = MasterConfig(
         interface=m.get("interface", str, None),
         channel=m.get("channel", (str, int), None),
-        bitrate=m.get("bitrate", int, None, low=10_000, high=1_000_000),
+        bitrate=bitrate if bitrate is not None else (baud * 1000 if baud else None),
         can_options=m.get("can_options", dict, {}),
         sync_period_s=m.get("sync_period", int, 2000, low=500, high=100_000) * 1e-6,
         heartbeat_timeout_s=m.get("heartbeat_consumer_ms", int, 300, low=10, high=65535) / 1000.0,
         sdo_timeout_s=m.get("sdo_timeout_s", float, 0.5, low=0.01, high=60.0),
         state_timeout_s=m.get("state_timeout_s", float, 1.0, low=0.01, high=60.0),
         tpdo_miss_limit=m.get("tpdo_miss_limit", int, 3, low=1, high=100),
-        timing=_timing(m.section("timing", required=False)))
+        timing=_timing(m.section("timing", required=False)),
+        node_id=m.get("node_id", int, None, low=1, high=127))
     m.done()
+    if ignored:
+        notes.append(f"master: {', '.join(sorted(ignored))} (ros2_canopen / Lely keys drive-bridge does not use)")
     defaults = top.get("defaults", dict, {})
-    nodes_sec = top.section("nodes")
-    if not nodes_sec.keys():
-        raise nodes_sec.error("", "no nodes configured")
-    nodes = {}
-    for axis in nodes_sec.keys():
-        nodes_sec.get(axis, dict)
-        nodes[axis] = _node(path, str(axis), _merge(defaults, nodes_sec.data[axis]))
-    nodes_sec.done()
+    entries = {}
+    if "nodes" in top.data:
+        nodes_sec = top.section("nodes")
+        for axis in nodes_sec.keys():
+            entries[str(axis)] = nodes_sec.get(axis, dict)
+        nodes_sec.done()
+    for key in list(top.data):                  # Lely's / older ros2_canopen layout: slaves at the top level
+        if key not in TOP_KEYS and isinstance(top.data[key], dict) and \
+                ("node_id" in top.data[key] or "dcf" in top.data[key]):
+            entries[str(key)] = top.get(key, dict)
+    if not entries:
+        raise top.error("nodes", "no nodes configured")
+    ros = ros or any(k in e for e in entries.values() for k in ("driver", "package"))
+    nodes, unused = {}, set()
+    for axis, entry in entries.items():
+        if ros:                                 # ros2_canopen's merge: defaults replace a node's own entries
+            replaced = sorted(k for k in defaults if k in entry and entry[k] != defaults[k])
+            if replaced:
+                notes.append(f"nodes.{axis}: {', '.join(replaced)} replaced by defaults (ros2_canopen's merge "
+                             f"order; keep per-node keys out of defaults)")
+            merged = {**entry, **defaults}
+        else:
+            merged = _merge(defaults, entry)
+        nodes[axis] = _node(path, axis, merged, dcf_path, unused)
+    if unused:
+        notes.append(f"nodes: {', '.join(sorted(unused))} (ros2_canopen / Lely keys drive-bridge does not use)")
+    master = replace(master, notes=tuple(notes))
     ids = [n.node_id for n in nodes.values()]
     if len(set(ids)) != len(ids):
-        raise nodes_sec.error("", f"node ids must be unique, got {ids}")
+        raise top.error("nodes", f"node ids must be unique, got {ids}")
+    if master.node_id in ids:
+        raise m.error("node_id", f"{master.node_id} is also a node's")
     c = top.section("campaign", required=False)
     levels = lambda key, dflt: tuple(c.get(key, list, list(dflt)))  # noqa: E731
     campaign = CampaignConfig(

@@ -98,6 +98,12 @@ class Section:
             raise self.error(key, f"must be <= {high}, got {value!r}")
         return value
 
+    def accept(self, keys) -> set[str]:
+        """Mark ``keys`` as known without reading them (keys another tool reads); the ones present."""
+        found = {k for k in keys if k in self.data}
+        self._used.update(found)
+        return found
+
     def section(self, key: str, required: bool = True) -> "Section":
         value = self.get(key, dict, ... if required else {})
         return Section(self.path, self._name(key), value)

@@ -36,6 +36,15 @@ def register(sub) -> None:
     p.add_argument("--out", help="CSV to write (default: decoded.csv beside the trace)")
     p.set_defaults(func=cmd_decode)
 
+    p = sub.add_parser("export", help="write the bus for other tools: ros2_canopen's bus.yml and DCFs",
+                       description="ros2: bus.yml in ros2_canopen's format and one DCF per node in --out, for "
+                                   "ros2_canopen and Lely's dcfgen (the same node setup as drive-bridge's "
+                                   "bring-up: PDOs, heartbeat, interpolation period, limits).")
+    p.add_argument("target", choices=["ros2"], help="the format")
+    p.add_argument("--config", default=None, help="bus configuration (default: the shipped one)")
+    p.add_argument("--out", required=True, help="output directory")
+    p.set_defaults(func=cmd_export)
+
     p = sub.add_parser("check-eds", help="say what in an EDS/DCF is not CiA 306, and what drive-bridge can use",
                        description="Check EDS/DCF files against CiA 306 (and with Lely's dcf-tools linter where "
                                    "installed) and list what drive-bridge finds in them (modes, feedback objects, "
@@ -140,3 +149,13 @@ def cmd_check_eds(args) -> int:
             print(f"  drive-bridge: {line}")
         clean &= report.standard
     return 0 if clean else 1
+
+
+def cmd_export(args) -> int:
+    from ..config import load_bus_config
+    from ..resources import DEFAULT_BUS_CONFIG
+    from ..ros2 import export
+    options.out_dir(args.out)
+    paths = export(load_bus_config(args.config or DEFAULT_BUS_CONFIG), args.out)
+    print(f"wrote {', '.join(p.name for p in paths)} in {args.out}")
+    return 0

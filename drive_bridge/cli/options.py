@@ -108,8 +108,8 @@ def config(args) -> BusConfig:
     if not getattr(args, "sim", False):            # the simulated robot needs no CAN interface
         cfg = resolve(cfg, getattr(args, "interface", None), getattr(args, "channel", None),
                       getattr(args, "bitrate", None))
-        for note in cfg.master.notes:
-            print(f"drive-bridge: note: {note}", file=sys.stderr)
+    for note in cfg.master.notes:
+        print(f"drive-bridge: note: {note}", file=sys.stderr)
     return cfg
 
 

@@ -130,13 +130,15 @@ def _configure_pdos(node: canopen.RemoteNode, maps, configured: tuple[PdoConfig,
             continue
         pdo: PdoMap = maps[num]
         pdo.clear()
-        pdo.cob_id = base + 0x100 * (num - 1) + node.id
         pc = by_num.get(num)
+        pdo.cob_id = pc.cob_id if pc is not None and pc.cob_id else base + 0x100 * (num - 1) + node.id
         pdo.enabled = pc is not None
         if pc is not None:
             for index, sub in pc.mapping:
                 pdo.add_variable(index, sub)
             pdo.trans_type = pc.transmission
+            if pc.event_timer_ms is not None and base == 0x180:
+                pdo.event_timer = pc.event_timer_ms
         pdo.save()
         if pc is not None:
             codecs.append(PdoCodec.of(pdo.cob_id, node.object_dictionary, pc.mapping))

@@ -10,6 +10,7 @@ not for a vendor document.
 """
 from __future__ import annotations
 
+import configparser
 import math
 from dataclasses import dataclass
 from functools import cache
@@ -17,7 +18,7 @@ from pathlib import Path
 
 
 from ..od import load_od
-from ..resources import PROJECT_EDS
+from ..resources import PROJECT_EDS, vendor_dir
 
 
 @dataclass(frozen=True)
@@ -59,12 +60,29 @@ SPECS = {
 
 
 def spec_for(eds_path: str | Path) -> DriveSpec:
-    """The description of the drive an EDS/DCF is for; ValueError naming the known files."""
+    """The description of the drive an EDS/DCF is for: by its file name, else by the vendor and
+    product number of its [DeviceInfo] (a DCF exported from one of the files); ValueError naming
+    the known files."""
     name = Path(eds_path).name
-    try:
+    if name in SPECS:
         return SPECS[name]
-    except KeyError:
-        raise ValueError(f"the simulator has no drive for {name} (it has: {', '.join(SPECS)})") from None
+    ident = _identity(Path(eds_path))
+    for known, spec in SPECS.items():
+        path = PROJECT_EDS if known == PROJECT_EDS.name else vendor_dir() / known
+        if ident is not None and path.is_file() and _identity(path) == ident:
+            return spec
+    raise ValueError(f"the simulator has no drive for {name} (it has: {', '.join(SPECS)}, or a file with one of "
+                     f"their vendor and product numbers)")
+
+
+def _identity(path: Path) -> tuple[int, int] | None:
+    """(VendorNumber, ProductNumber) of an EDS/DCF's [DeviceInfo]; None when it has none."""
+    cfg = configparser.RawConfigParser(strict=False)
+    try:
+        cfg.read_string(path.read_bytes().decode("utf-8", errors="replace"))
+        return int(cfg["DeviceInfo"]["VendorNumber"], 0), int(cfg["DeviceInfo"]["ProductNumber"], 0)
+    except (OSError, KeyError, ValueError, configparser.Error):
+        return None
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,146 @@
+"""The bus as ros2_canopen and Lely's dcfgen take it: ``drive-bridge export ros2``.
+
+Writes ``bus.yml`` in ros2_canopen's format and one DCF per node beside it:
+
+* ``options.dcf_path`` is the directory itself; ``master`` has the master's node-ID, the
+  baudrate [kbit/s] and the SYNC period [µs], with ros2_canopen's master driver;
+* each node, under ``nodes`` and with no ``defaults`` (ros2_canopen's cogen writes ``defaults``
+  over a node's own entries: with none, nothing is lost), has its node-ID, its DCF, the CiA 402
+  driver, ``period`` [ms], ``position_mode`` (8 cyclic synchronous position, 7 interpolated
+  position), ``scale_pos_to_dev`` / ``scale_pos_from_dev`` (device increments per rad or m), its
+  heartbeat, every PDO (``enabled``, ``cob_id: auto`` or its number, ``transmission``,
+  ``mapping``; the drive's other PDOs 1-4 ``enabled: false``) and as ``sdo`` what drive-bridge's
+  bring-up writes (interpolation period, following-error window, software limits, the node's
+  own ``sdo`` list), so Lely's master configures the node as drive-bridge does;
+* drive-bridge's own keys (``scaling``, ``limits``, ``profile``, ``motor``) stay in each node
+  (dcfgen and ros2_canopen skip what they do not know); the campaign is drive-bridge's alone and
+  is not written.
+
+The DCFs describe the devices (their object dictionaries, CiA 306 clean: Lely's dcfchk passes
+them), with the node-ID and bitrate in ``[DeviceComissioning]`` and no ParameterValue: the
+configuration is the bus.yml's, which dcfgen turns into the SDOs the master sends at boot.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import canopen
+import yaml
+
+from .config import BusConfig, NodeConfig
+from .dcf import parameter_value
+from .od import variables
+from .yamlconf import load_yaml
+
+
+class Hex(int):
+    """An int written as 0x... (object indices, COB-IDs: how CANopen engineers read them)."""
+
+
+class _Dumper(yaml.SafeDumper):
+    pass
+
+
+_Dumper.add_representer(Hex, lambda d, v: d.represent_scalar("tag:yaml.org,2002:int", f"0x{int(v):04X}"))
+
+OWN_KEYS = ("scaling", "limits", "profile", "motor", "following_error_window_rad")
+MASTER_NODE_ID = 127
+
+
+def export(config: BusConfig, out: str | Path) -> list[Path]:
+    """Write ``bus.yml`` and ``<axis>.dcf`` for every node of ``config`` into ``out``."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    raw = _raw_nodes(config)
+    m = config.master
+    doc = {"options": {"dcf_path": "."},
+           "master": {"node_id": m.node_id or MASTER_NODE_ID, "driver": "ros2_canopen::MasterDriver",
+                      "package": "canopen_master_driver", "baudrate": m.nominal_bitrate // 1000,
+                      "sync_period": round(m.sync_period_s * 1e6),
+                      "heartbeat_consumer": True},
+           "nodes": {}}
+    written = []
+    for axis, n in config.nodes.items():
+        dcf = out / f"{axis}.dcf"
+        write_device_dcf(n, dcf, m.nominal_bitrate)
+        written.append(dcf)
+        doc["nodes"][axis] = _node(n, dcf.name, m.sync_period_s, raw.get(axis, {}))
+    bus = out / "bus.yml"
+    with open(bus, "w", encoding="utf-8") as f:
+        f.write("# Written by drive-bridge export ros2 from " + str(config.path) + "\n")
+        yaml.dump(doc, f, Dumper=_Dumper, sort_keys=False, default_flow_style=None)
+    return [bus] + written
+
+
+def _raw_nodes(config: BusConfig) -> dict[str, dict]:
+    """Each node's own drive-bridge keys as bus.yml has them (load units, as written)."""
+    doc = load_yaml(config.path)
+    defaults = doc.get("defaults") or {}
+    entries = dict(doc.get("nodes") or {})
+    entries.update({k: v for k, v in doc.items() if isinstance(v, dict) and k in config.nodes and k not in entries})
+    out = {}
+    for axis, entry in entries.items():
+        merged = {**defaults, **(entry or {})}
+        for key in OWN_KEYS:
+            if isinstance(defaults.get(key), dict) and isinstance((entry or {}).get(key), dict):
+                merged[key] = {**defaults[key], **entry[key]}
+        out[str(axis)] = {k: merged[k] for k in OWN_KEYS if k in merged}
+    return out
+
+
+def _node(n: NodeConfig, dcf_name: str, period_s: float, own: dict) -> dict:
+    inc_per_unit = n.scaling.inc_per_rad if not n.linear else n.scaling.increments_per_rev / n.scaling.feed_m_per_rev
+    mode = 8 if any((0x607A, 0) in p.mapping for p in n.rpdo) else 7
+    entry = {"node_id": n.node_id, "dcf": dcf_name, "driver": "ros2_canopen::Cia402Driver",
+             "package": "canopen_402_driver", "period": max(1, round(period_s * 1000)), "position_mode": mode,
+             "scale_pos_to_dev": float(inc_per_unit), "scale_pos_from_dev": float(1 / inc_per_unit),
+             "heartbeat_producer": n.heartbeat_producer_ms,
+             "rpdo": _pdos(n, n.rpdo, 0x1400), "tpdo": _pdos(n, n.tpdo, 0x1800),
+             "sdo": _sdo(n, period_s)}
+    entry.update(own)
+    return entry
+
+
+def _pdos(n: NodeConfig, pdos, comm: int) -> dict:
+    by_num = {p.number: p for p in pdos}
+    out = {}
+    for num in range(1, 5):
+        if comm + num - 1 not in n.od:
+            continue
+        p = by_num.get(num)
+        if p is None:
+            out[num] = {"enabled": False}
+            continue
+        out[num] = {"enabled": True, "cob_id": Hex(p.cob_id) if p.cob_id else "auto", "transmission": p.transmission,
+                    "mapping": [{"index": Hex(i), "sub_index": s} for i, s in p.mapping]}
+        if p.event_timer_ms is not None:
+            out[num]["event_timer"] = p.event_timer_ms
+    return out
+
+
+def _sdo(n: NodeConfig, period_s: float) -> list[dict]:
+    """What drive-bridge's bring-up writes besides PDOs and heartbeat, as ros2_canopen's ``sdo``."""
+    inc = n.scaling.inc_per_rad
+    values = [(index, sub, value) for index, sub, value in n.sdo]
+    if 0x60C2 in n.od:
+        values += [(0x60C2, 1, round(period_s * 1000)), (0x60C2, 2, -3)]
+    values += [(0x6065, 0, round(n.following_error_window_rad * inc)),
+               (0x607D, 1, round(n.limits.position_min * inc)), (0x607D, 2, round(n.limits.position_max * inc))]
+    return [{"index": Hex(i), "sub_index": s, "value": v} for i, s, v in values if n.od.get_variable(i, s) is not None]
+
+
+def write_device_dcf(n: NodeConfig, path: Path, bitrate: int) -> Path:
+    """The node's device description as a DCF: its object dictionary (``n.od``, changed in
+    place), CiA 306 clean, with the node-ID and bitrate, ``$NODEID`` resolved, REALs as bit
+    patterns, no ParameterValue."""
+    od = n.od
+    for var in variables(od):
+        var.description = ""
+        raw = getattr(var, "default_raw", None)
+        if var.default is not None and (raw is None or "$NODEID" in raw.upper() or
+                                        var.data_type in canopen.objectdictionary.datatypes.FLOAT_TYPES):
+            var.default_raw = parameter_value(var, var.default)
+        var.value = var.value_raw = None
+    od.node_id, od.bitrate = n.node_id, bitrate
+    canopen.export_od(od, str(path), doc_type="dcf")
+    return path
