@@ -12,7 +12,7 @@ from drive_bridge.resources import DEFAULT_BUS_CONFIG, data
 
 from .support import EDS, tool
 
-ROS2 = data("config", "examples", "ros2_canopen.yml")
+ROS2 = data("config", "ros2_canopen.yml")
 
 
 def test_a_ros2_canopen_bus_yml_is_read_as_it_is(tmp_path, capsys):
