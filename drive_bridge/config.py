@@ -43,8 +43,10 @@ LELY_MASTER_KEYS = {"vendor_id", "product_code", "revision_number", "serial_numb
                     "time_cob_id", "emcy_inhibit_time", "heartbeat_multiplier", "heartbeat_consumer",
                     "heartbeat_producer", "error_behavior", "nmt_inhibit_time", "start", "start_nodes",
                     "start_all_nodes", "reset_all_nodes", "stop_all_nodes", "boot_time"}
-RPDO_OBJECTS = {0x6040, 0x607A, 0x60C1, 0x20C1, 0x60B1, 0x60B2}
-TPDO_OBJECTS = {0x6064, 0x606C, 0x6077, 0x6041, 0x60F4, 0x6078}
+# what the master fills in an RPDO (0x6060: the streaming mode; 0x60FF, 0x6071: zero, as a
+# ros2_canopen CiA 402 mapping has them) and logs from a TPDO (0x6061: the mode the drive runs)
+RPDO_OBJECTS = {0x6040, 0x607A, 0x60C1, 0x20C1, 0x60B1, 0x60B2, 0x6060, 0x60FF, 0x6071}
+TPDO_OBJECTS = {0x6064, 0x606C, 0x6077, 0x6041, 0x60F4, 0x6078, 0x6061}
 
 
 @dataclass(frozen=True)

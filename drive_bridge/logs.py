@@ -33,6 +33,7 @@ _COLUMNS = {
     0x6041: ("statusword", None, "%.0f"),
     0x60F4: ("following_error_rad", "position_from_device", "%.9g"),
     0x6078: ("current_permille", None, "%.0f"),
+    0x6061: ("mode_display", None, "%.0f"),
 }
 
 

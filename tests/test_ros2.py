@@ -112,3 +112,30 @@ def test_export_ros2_round_trips_and_lely_dcfgen_takes_it(tmp_path, capsys):
         assert "NodeID=127" in master and "Baudrate=1000" in master
         assert "x: writing 4 bytes to 0x1801/1: 81 02 00 00" in r.stdout           # TPDO2 enabled
         assert "x: writing 4 bytes to 0x6065/0" in r.stdout and "x: writing 2 bytes to 0x1017/0: 64 00" in r.stdout
+
+
+def test_ros2_canopens_cia402_mapping_streams(tmp_path):
+    """ros2_canopen's CiA 402 example maps the mode of operation and a target velocity into its
+    RPDOs and the mode display into a TPDO: the master fills the mode it streams in and zero,
+    logs the mode display, and the identification reads the log (with the torque drive-bridge
+    needs mapped too)."""
+    doc = _ros2_doc()
+    doc["defaults"]["rpdo"] = {
+        1: {"enabled": True, "cob_id": "auto", "mapping": [{"index": 0x6040, "sub_index": 0},
+                                                         {"index": 0x6060, "sub_index": 0}]},
+        2: {"enabled": True, "cob_id": "auto", "mapping": [{"index": 0x607A, "sub_index": 0},
+                                                         {"index": 0x60FF, "sub_index": 0}]}}
+    doc["defaults"]["tpdo"] = {
+        1: {"enabled": True, "cob_id": "auto", "transmission": 1,
+            "mapping": [{"index": 0x6041, "sub_index": 0}, {"index": 0x6061, "sub_index": 0},
+                        {"index": 0x6077, "sub_index": 0}]},
+        2: {"enabled": True, "cob_id": "auto", "transmission": 1,
+            "mapping": [{"index": 0x6064, "sub_index": 0}, {"index": 0x606C, "sub_index": 0}]}}
+    path = _write(tmp_path, doc)
+    out = tmp_path / "rec"
+    assert main(["record", "--sim", "--quick", "--axes", "y", "--config", path, "--out", str(out)]) == 0
+    header = (out / "log.csv").read_text().splitlines()[0].split(",")
+    rows = [r.split(",") for r in (out / "log.csv").read_text().splitlines()[1:]]
+    mode = header.index("y_mode_display")
+    assert {r[mode] for r in rows if r[mode] != "nan"} == {"8"}          # cyclic synchronous position
+    assert main(["identify", str(out), "--json"]) == 0

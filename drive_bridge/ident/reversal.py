@@ -29,7 +29,7 @@ BINS = 8                # time bins after a reversal, over half the median time 
 LONGEST_S = 0.25        # ... and at most this long in all
 CONTROL_LEVEL = 0.3     # control instants: crossings of ±30 % of the signal's range
 PERMUTATIONS = 200      # relabellings of reversals and controls: the statistic's null distribution
-MIN_RATIO = 1.5         # the peak bin's mean residual power over the mean while moving
+MIN_RATIO = 1.5         # the peak bin's mean residual power after reversals over that after controls
 MIN_SHARE = 0.05        # the share of the residual power in excess near the peak
 
 

@@ -196,6 +196,8 @@ def _packer(ax: AxisLink, codec: PdoCodec, plan: Plan, ai: int, send,
         elif index == 0x60B2 and plan.torque_ff_Nm is not None:
             offsets[ax.name] = _TorqueOffset(sc.torque_to_device(plan.torque_ff_Nm[:, ai]).tolist())
             columns.append(offsets[ax.name])
+        elif index == 0x6060:                               # modes of operation, where an RPDO maps it
+            columns.append([ax.mode] * len(demand))
         elif index == 0x60B1 and plan.velocity_ff_rad_s is not None:
             columns.append(np.clip(sc.velocity_to_device(plan.velocity_ff_rad_s[:, ai]), *INT32).tolist())
         else:
