@@ -12,6 +12,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import canopen
+from canopen.objectdictionary import datatypes
 
 from .errors import ConfigError
 from .master.timing import TimingLimits
@@ -292,8 +293,13 @@ def _node(path: Path, axis: str, data: dict, dcf_path: str | None = None, unused
         index, sub = e.get("index", int, low=0, high=0xFFFF), e.get("sub_index", int, 0, low=0, high=255)
         value = e.get("value", (int, float), low=-2**63, high=2**64 - 1)
         e.done()
-        if od.get_variable(index, sub) is None:
+        var = od.get_variable(index, sub)
+        if var is None:
             raise e.error("index", f"0x{index:04X}:{sub} is not in the drive's EDS/DCF")
+        if var.data_type not in datatypes.FLOAT_TYPES:
+            if not float(value).is_integer():
+                raise e.error("value", f"0x{index:04X}:{sub} holds an integer, got {value!r}")
+            value = int(value)
         sdo.append((index, sub, value))
     cfg = NodeConfig(
         axis=axis, node_id=node_id, dcf=dcf, od=od, scaling=scaling, limits=limits, linear=bool(feed),

@@ -8,7 +8,8 @@ ParameterValue the value read back from the drive, so loading the DCF onto a rep
 reproduces the commissioning, and the file never claims a value the drive did not report.
 Process data (what a PDO maps) and commands (controlword, mode of operation) are left out:
 they are not configuration.  REAL32/REAL64 values are written as their IEEE 754 bit patterns,
-descriptions that CiA 306 has no key for are dropped.
+descriptions that CiA 306 has no key for are dropped, signed values a vendor wrote as two's
+complement are written as the negative numbers they are.
 """
 from __future__ import annotations
 
@@ -55,10 +56,14 @@ def mapped(values: dict[tuple[int, int], object]) -> set[tuple[int, int]]:
 
 
 def parameter_value(var: ODVariable, value) -> str:
-    """``value`` as a DCF entry of ``var``'s type."""
+    """``value`` as a DCF entry of ``var``'s type (a signed value that a vendor file wrote as its
+    two's complement, 0xFFFF for an INTEGER16 -1, as the negative number CiA 306 tools expect)."""
     if var.data_type in datatypes.FLOAT_TYPES:
         return float_bits(float(value), var.data_type)
     if isinstance(value, int):
+        bits = len(var)
+        if var.data_type in datatypes.SIGNED_TYPES and bits and value >= 1 << (bits - 1):
+            value -= 1 << bits
         return f"0x{value:X}" if value >= 0 else str(value)
     return str(value)
 
@@ -74,8 +79,7 @@ def export_dcf(node: canopen.RemoteNode, path: str | Path, bitrate: int) -> Path
     process = mapped(values)
     for var in variables(od):
         var.description = ""                       # not a CiA 306 key of an object
-        raw = getattr(var, "default_raw", None)
-        if raw and "$NODEID" in raw.upper() and var.default is not None:
+        if isinstance(var.default, (int, float)):         # resolved, REALs as bit patterns, signed as such
             var.default_raw = parameter_value(var, var.default)
         key = (var.index, var.subindex)
         if key in values and key not in process:

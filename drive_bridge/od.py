@@ -12,7 +12,9 @@ from .errors import ConfigError
 
 
 def load_od(path: str | Path, node_id: int) -> canopen.ObjectDictionary:
-    """Import an EDS or DCF; files that are not UTF-8 are read as Windows-1252.
+    """Import an EDS or DCF; files that are not UTF-8 are read as Windows-1252; REAL values
+    written as IEEE 754 bit patterns and signed values written as two's complement are read as
+    the numbers they are.
 
     Raises ConfigError naming the file when canopen cannot parse it.
     """
@@ -36,6 +38,12 @@ def load_od(path: str | Path, node_id: int) -> canopen.ObjectDictionary:
             for raw, value in (("default_raw", "default"), ("value_raw", "value")):
                 if getattr(var, value, None) is None and getattr(var, raw, None):
                     setattr(var, value, float_from_bits(getattr(var, raw), var.data_type))
+        elif var.data_type in datatypes.SIGNED_TYPES:      # a vendor's 0xFD for an INTEGER8 -3
+            bits = len(var)
+            for value in ("default", "value"):
+                v = getattr(var, value, None)
+                if isinstance(v, int) and bits and (1 << (bits - 1)) <= v < (1 << bits):
+                    setattr(var, value, v - (1 << bits))
     return od
 
 
@@ -65,3 +73,15 @@ def float_bits(value: float, data_type: int) -> str:
     if data_type == datatypes.REAL32:
         return f"0x{struct.unpack('>I', struct.pack('>f', value))[0]:08X}"
     return f"0x{struct.unpack('>Q', struct.pack('>d', value))[0]:016X}"
+
+
+def limits(var) -> tuple[float | None, float | None]:
+    """The (LowLimit, HighLimit) an EDS/DCF gives ``var``, signed types as the numbers they are
+    (a vendor may write an INTEGER8 -3 as 0xFD); None where it gives none."""
+    bits = len(var) if var.data_type in datatypes.SIGNED_TYPES else 0
+
+    def signed(x):
+        if x is None or not bits or isinstance(x, float) or x < 1 << (bits - 1):
+            return x
+        return x - (1 << bits)
+    return signed(getattr(var, "min", None)), signed(getattr(var, "max", None))

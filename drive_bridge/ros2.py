@@ -136,9 +136,7 @@ def write_device_dcf(n: NodeConfig, path: Path, bitrate: int) -> Path:
     od = n.od
     for var in variables(od):
         var.description = ""
-        raw = getattr(var, "default_raw", None)
-        if var.default is not None and (raw is None or "$NODEID" in raw.upper() or
-                                        var.data_type in canopen.objectdictionary.datatypes.FLOAT_TYPES):
+        if isinstance(var.default, (int, float)):         # resolved, REALs as bit patterns, signed as such
             var.default_raw = parameter_value(var, var.default)
         var.value = var.value_raw = None
     od.node_id, od.bitrate = n.node_id, bitrate

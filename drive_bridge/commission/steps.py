@@ -75,8 +75,9 @@ def bringup(ctx: Context) -> str:
 
 def campaign(ctx: Context) -> str:
     from ..record import record
-    result = record(ctx.config, ctx.session.link, ctx.out / OUTPUT["campaign"], on_plan=ctx.reporter.motion,
-                    axes=ctx.session.axes)
+    # brought up once more inside the campaign's trace (the bringup step's writes, the same again),
+    # so that it holds bring-up, streaming and stop as a capture from the bus's opening would
+    result = record(ctx.config, ctx.session.link, ctx.out / OUTPUT["campaign"], on_plan=ctx.reporter.motion)
     ctx.reporter.end_motion()
     if result.aborted is not None:
         raise result.aborted

@@ -8,6 +8,7 @@ from canopen.pdo.base import PdoMap
 
 from ..config import BusConfig, NodeConfig, PdoConfig
 from ..errors import BusError, DriveRefused
+from ..od import limits
 from ..pdo import PdoCodec
 from ..setpoint import IP, IP_SUB_MODE, MODE_NAMES, PVT, choose, describe_modes
 from .cia402 import Drive402
@@ -190,8 +191,7 @@ def bring_up(link: Link, config: BusConfig) -> dict[str, AxisLink]:
         _write(node, name, 0x607D, 1, round(limits.position_min * inc))
         _write(node, name, 0x607D, 2, round(limits.position_max * inc))
         if 0x60C2 in ncfg.od:
-            _write(node, name, 0x60C2, 1, round(period * 1000))
-            _write(node, name, 0x60C2, 2, -3)
+            _interpolation_period(node, name, ncfg, period)
         if 0x1006 in ncfg.od:
             _write(node, name, 0x1006, 0, round(period * 1e6))
         try:
@@ -238,7 +238,34 @@ def _streaming_mode(node, ncfg: NodeConfig, path) -> tuple[int, tuple[int, int]]
     return chosen
 
 
+def _interpolation_period(node, axis: str, ncfg: NodeConfig, period: float) -> None:
+    """0x60C2: the SYNC period as value × 10^index, in the first unit (ms, 0.1 ms ... µs) both
+    fit within the drive's EDS/DCF limits.  maxon's PVT records carry their own time: a drive
+    whose 0x60C2 cannot hold the period is left as it is for them; any other is refused."""
+    lo1, hi1 = limits(ncfg.od.get_variable(0x60C2, 1))
+    lo2, hi2 = limits(ncfg.od.get_variable(0x60C2, 2))
+    for exponent in (-3, -4, -5, -6):
+        value = period * 10 ** -exponent
+        if abs(value - round(value)) > 1e-6 or not 1 <= round(value) <= 255:
+            continue
+        if (lo1 is None or lo1 <= round(value)) and (hi1 is None or round(value) <= hi1) and \
+                (lo2 is None or lo2 <= exponent) and (hi2 is None or exponent <= hi2):
+            _write(node, axis, 0x60C2, 1, round(value))
+            _write(node, axis, 0x60C2, 2, exponent)
+            return
+    if any(entry == PVT for p in ncfg.rpdo for entry in p.mapping):
+        return
+    raise DriveRefused(f"axis {axis}: the drive's interpolation time period 0x60C2 cannot be "
+                       f"{period * 1e3:g} ms within the limits of its EDS/DCF (value {lo1}..{hi1}, "
+                       f"index {lo2}..{hi2}); set master.sync_period to a period it can hold")
+
+
 def _write(node, axis: str, index: int, sub: int, value) -> None:
+    """SDO download of ``value``, checked against the range the drive's EDS/DCF gives first."""
+    lo, hi = limits(node.object_dictionary.get_variable(index, sub))
+    if (lo is not None and value < lo) or (hi is not None and value > hi):
+        raise DriveRefused(f"axis {axis}: 0x{index:04X}:{sub} = {value} is outside the range its EDS/DCF gives "
+                           f"({lo}..{hi}); nothing was written to it")
     try:
         node.sdo.download(index, sub, node.object_dictionary.get_variable(index, sub).encode_raw(value))
     except canopen.SdoAbortedError as exc:

@@ -27,7 +27,7 @@ from typing import Callable, Protocol
 import numpy as np
 from canopen.sdo import SdoAbortedError
 
-from ..od import load_od
+from ..od import limits, load_od
 from ..params.profile import load_profile
 from ..pdo import PdoCodec
 from ..setpoint import CSP, IP, SETPOINT_OBJECTS, position_of, supported_modes
@@ -141,14 +141,17 @@ class SimDrive:
         return var.default if var is not None and var.default is not None else (self.spec.supported_modes or 0)
 
     def _init_storage(self) -> None:
-        """Factory state: zero where the file gives no value (a vendor file leaves many out), the
-        fixed values (identity, motor data), and the factory gains in the drive's units."""
+        """Factory state: zero, or the nearest value the file's limits allow, where the file gives
+        no value (a vendor file leaves many out), the fixed values (identity, motor data), and the
+        factory gains in the drive's units."""
         self.node.data_store.clear()
         for obj in self.od.values():
             for var in (obj.values() if hasattr(obj, "values") else [obj]):
                 if var.default is None and var.value is None and var.readable and \
                         var.data_type in var.STRUCT_TYPES and var.index not in self._live:
-                    self._store(var.index, var.subindex, 0)
+                    lo, hi = limits(var)
+                    value = max(0, lo) if lo is not None else 0
+                    self._store(var.index, var.subindex, min(value, hi) if hi is not None else value)
         self._init_storage_missing()
         m = self.axis.motor
         if 0x6076 in self.od:
