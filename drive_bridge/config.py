@@ -28,7 +28,7 @@ REQUIRED_TPDO = {0x6064: "position actual", 0x606C: "velocity actual", 0x6041: "
 #: what the master logs the torque from (scaling.torque_feedback): 0x6077, 0x6078, or a vendor object
 TORQUE_FEEDBACK = {"torque": "torque actual", "current": "current actual", "object": "the torque feedback object"}
 #: objects the master can fill in an RPDO / log from a TPDO
-TOP_KEYS = {"options", "master", "defaults", "nodes", "campaign"}
+TOP_KEYS = {"options", "master", "defaults", "nodes", "campaign", "acceptance"}
 TPDO_TRANSMISSION = set(range(0, 241)) | {252, 253, 254, 255}     # CiA 301: 241..251 reserved
 RPDO_TRANSMISSION = set(range(0, 241)) | {254, 255}
 #: keys of a ros2_canopen / Lely dcfgen bus.yml that drive-bridge accepts but does not use
@@ -135,6 +135,21 @@ class CampaignConfig:
 
 
 @dataclass(frozen=True)
+class Acceptance:
+    """What the commissioning's verdict checks (bus.yml ``acceptance``; see
+    :mod:`drive_bridge.commission.verdict`): loop margins [°, dB], the following-error
+    improvement over the factory set, the model's RMSE over the noise floor, the relative std
+    of J, c0, c1, and consistency."""
+
+    min_phase_margin_deg: float = 45.0
+    min_gain_margin_db: float = 8.0
+    min_fe_improvement: float = 2.0
+    max_rmse_over_noise: float = 2.0
+    max_relative_std: float = 0.05
+    require_consistent: bool = True
+
+
+@dataclass(frozen=True)
 class BusConfig:
     path: Path
     master: MasterConfig
@@ -142,6 +157,7 @@ class BusConfig:
     campaign: CampaignConfig
     #: node ids whose identity may differ from their EDS/DCF (--accept-identity: a deliberate override)
     accept_identity: frozenset[int] = frozenset()
+    acceptance: Acceptance = Acceptance()         # what the commissioning's verdict checks
 
     @property
     def profile(self) -> str | None:
@@ -424,5 +440,15 @@ def load_bus_config(path: str | Path) -> BusConfig:
         if not vals or len(vals) > 20 or not all(finite_number(v) and 0 < v <= 1 for v in vals):
             raise c.error(key, f"must be a list of fractions of the limit in (0, 1], got {list(vals)!r}")
     c.done()
+    a = top.section("acceptance", required=False)
+    d = Acceptance()
+    acceptance = Acceptance(
+        min_phase_margin_deg=a.get("min_phase_margin_deg", float, d.min_phase_margin_deg, low=0.0, high=90.0),
+        min_gain_margin_db=a.get("min_gain_margin_db", float, d.min_gain_margin_db, low=0.0, high=60.0),
+        min_fe_improvement=a.get("min_fe_improvement", float, d.min_fe_improvement, low=0.0, high=1e6),
+        max_rmse_over_noise=a.get("max_rmse_over_noise", float, d.max_rmse_over_noise, low=1.0, high=1e6),
+        max_relative_std=a.get("max_relative_std", float, d.max_relative_std, low=0.0, high=10.0),
+        require_consistent=a.get("require_consistent", bool, d.require_consistent))
+    a.done()
     top.done()
-    return BusConfig(path=path, master=master, nodes=nodes, campaign=campaign)
+    return BusConfig(path=path, master=master, nodes=nodes, campaign=campaign, acceptance=acceptance)

@@ -20,7 +20,8 @@ code   kind                meaning
 """
 from __future__ import annotations
 
-EXIT_CODES = {"ok": 0, "internal": 1, "user": 2, "bus": 3, "motion": 4, "degraded": 5, "interrupted": 130}
+EXIT_CODES = {"ok": 0, "internal": 1, "user": 2, "bus": 3, "motion": 4, "degraded": 5, "not_accepted": 6,
+              "interrupted": 130}
 
 
 class DriveBridgeError(Exception):

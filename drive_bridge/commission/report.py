@@ -163,10 +163,25 @@ def write_report(out: Path, summary: dict) -> Path:
         banner = "<div class='partial'><b>PARTIAL</b>: the steps run succeeded; some were not run.</div>"
     steps = _table(["step", "status", "duration [s]"],
                    [[_e(s["name"]), _e(s["status"]), _n(s["duration_s"], ".1f")] for s in summary["steps"]])
+    v = summary["verdict"]
+    css = {"PASS": "ok", "WARN": "partial", "INCOMPLETE": "partial", "FAIL": "failed"}
+    verdict_rows = [[f"<b>{_e(a)}</b>", f"<b>{_e(x['verdict'])}</b>",
+                     _e("; ".join(x["unmet"]) or ("not evaluated: " + ", ".join(x["not_evaluated"])
+                                                 if x["not_evaluated"] else "every criterion met"))]
+                    for a, x in v["axes"].items()]
+    acc = v["acceptance"]
+    verdict_html = (f"<div class='{css[v['overall']]}'><b>Verdict: {_e(v['overall'])}</b></div>"
+                    + _table(["axis", "verdict", "criteria not met"], verdict_rows)
+                    + f"<p class='evidence'>Criteria: velocity and position loop PM ≥ {acc['min_phase_margin_deg']:g}°, "
+                      f"GM ≥ {acc['min_gain_margin_db']:g} dB and following error ≥ {acc['min_fe_improvement']:g}× "
+                      f"better than the factory set on every validation trajectory (FAIL when not met); model "
+                      f"torque RMSE ≤ {acc['max_rmse_over_noise']:g}× the noise floor, relative std of J, c0, c1 ≤ "
+                      f"{acc['max_relative_std']:.0%}, identification consistent (WARN); bus.yml "
+                      f"<code>acceptance</code> sets them.</p>")
     vers = ", ".join(f"{_e(k)} {_e(v)}" for k, v in summary["versions"].items())
     traces_path = out / S.TRACES
     traces = np.load(traces_path) if traces_path.exists() else None
-    body = ["<h1>Commissioning report</h1>", banner,
+    body = ["<h1>Commissioning report</h1>", verdict_html, banner,
             f"<p>Bus configuration {_e(summary['config'])}{' (simulated robot)' if summary['simulated'] else ''}; "
             f"drive profile {_e(summary['profile'])}; run directory {_e(summary['out'])}.</p>", steps,
             *(_axis(out, a, v, traces) for a, v in summary["axes"].items() if v),

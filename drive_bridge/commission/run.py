@@ -26,6 +26,7 @@ from ..session import Options, Session
 from . import steps as S
 from .report import REPORT, write_report
 from .summary import build_summary
+from .verdict import headline
 
 STEPS = tuple(S.STEP_FUNCTIONS)
 STATE = "state.json"
@@ -137,7 +138,11 @@ def commission(config: BusConfig, out: str | Path, options: Options | None = Non
             _save(out, state)
             reporter.done(step, state["durations_s"][step], line)
     summary = build_summary(out, state, config, options)
-    if failure is None and summary["status"] == "degraded":
+    reporter.note(f"verdict: {headline(summary['verdict'])}")
+    if failure is None and summary["verdict"]["overall"] == "FAIL":
+        code = EXIT_CODES["not_accepted"]
+        reporter.note(f"the commissioning completed but did not pass its acceptance criteria (exit {code})")
+    elif failure is None and summary["status"] == "degraded":
         code = EXIT_CODES["degraded"]
         reporter.note(f"WARNING: timing degraded ({'; '.join(summary['timing_degraded'])}); the data are kept "
                       f"(exit {code})")

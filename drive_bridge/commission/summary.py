@@ -24,10 +24,12 @@ from ..yamlconf import load_yaml
 from ..params.profile import DEFAULT_PROFILE
 from ..paper import TABLE_II
 from . import steps as S
+from .verdict import verdict
 
 PACKAGES = ("python-can", "canopen", "numpy", "scipy", "control", "matplotlib", "numba", "PyYAML")
 IDENTIFY_FIELDS = ("units", "params", "param_std", "effects", "rmse_before", "rmse_after", "torque_rms",
-                   "noise_floor", "relative_error_before", "relative_error_after", "unexplained", "ga")
+                   "noise_floor", "relative_error_before", "relative_error_after", "unexplained", "ga",
+                   "consistency")
 
 
 def versions() -> dict[str, str]:
@@ -123,7 +125,8 @@ def build_summary(out: Path, state: dict, config: BusConfig, options) -> dict:
             entry["unsupported"] = write[a]["unsupported"]
             entry["stored"] = write[a]["stored"]
         axes[a] = entry
-    return {"status": status, "failed": failed, "timing_degraded": timing, "steps": steps,
+    return {"verdict": verdict(axes, config.acceptance), "status": status, "failed": failed,
+            "timing_degraded": timing, "steps": steps,
             "duration_s": sum(s["duration_s"] or 0.0 for s in steps),
             "versions": versions(), "config": str(config.path), "simulated": options.sim,
             "profile": options.profile or config.profile or DEFAULT_PROFILE, "out": str(out), "axes": axes}

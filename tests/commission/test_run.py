@@ -125,6 +125,38 @@ def test_each_commissioned_node_has_a_complete_dcf_that_lely_and_canopen_read(ru
             assert check.returncode == 0 and "Warning" not in check.stderr, check.stderr
 
 
+def test_the_summary_opens_with_a_verdict_and_the_exit_code_says_when_it_fails(run, tmp_path, capsys):
+    """Per axis PASS / WARN / FAIL against the acceptance criteria, each unmet one named with its
+    value; bus.yml's acceptance overrides the limits; a completed commissioning that fails them
+    exits 6 and the report opens with it."""
+    summary = run["summary"]
+    assert list(summary)[0] == "verdict"
+    v = summary["verdict"]
+    assert v["overall"] in ("PASS", "WARN") and set(v["axes"]) == {"x", "y", "z"}
+    for a, x in v["axes"].items():
+        names = {c["criterion"] for c in x["criteria"]}
+        assert {"velocity loop phase margin", "position loop gain margin", "relative std of J",
+                "model torque RMSE over the noise floor"} <= names
+        assert all(c["met"] is not None for c in x["criteria"]), x["not_evaluated"]
+        assert (x["verdict"] == "PASS") == (x["unmet"] == [])
+    out = tmp_path / "run"
+    shutil.copytree(run["out"], out)
+    doc = yaml.safe_load(run["cfg"].read_text())
+    doc["acceptance"] = {"min_phase_margin_deg": 80}
+    cfg = tmp_path / "strict.yml"
+    cfg.write_text(yaml.safe_dump(doc))
+    state = json.loads((out / "state.json").read_text())
+    state["config"] = str(cfg.resolve())                   # the same run, judged by stricter limits
+    (out / "state.json").write_text(json.dumps(state))
+    code = main(["commission", "--sim", "--config", str(cfg), "--out", str(out), "--steps", "tune"])
+    assert code == 6
+    strict = json.loads((out / "summary.json").read_text())["verdict"]
+    assert strict["overall"] == "FAIL" and strict["acceptance"]["min_phase_margin_deg"] == 80
+    assert any(u.startswith("velocity loop phase margin") and "needs ≥ 80" in u for u in strict["axes"]["y"]["unmet"])
+    assert "Verdict: FAIL" in (out / "report.html").read_text()
+    assert "did not pass its acceptance criteria (exit 6)" in capsys.readouterr().err
+
+
 def test_report_is_one_self_contained_page(run):
     html = (run["out"] / "report.html").read_text()
     assert "<b>OK</b>" in html and html.count("data:image/png;base64,") >= 3 * 3

@@ -1,0 +1,104 @@
+"""The verdict on a commissioning: does each axis meet what an engineer signs off on?
+
+Criteria per axis, with the field's usual defaults (``acceptance`` in bus.yml overrides them):
+
+* FAIL where unmet — the loops as written: velocity and position loop phase margin ≥ 45°,
+  gain margin ≥ 8 dB; the following error on every validation trajectory at least
+  ``min_fe_improvement`` times smaller than with the factory set;
+* WARN where unmet — the model: final validation torque RMSE within ``max_rmse_over_noise``
+  times the noise floor; relative std of J, c0 and c1 below ``max_relative_std``; the
+  identification consistent between parts of the data.
+
+An axis is FAIL if a FAIL criterion is unmet, else WARN if a WARN criterion is, else PASS; a
+criterion whose data the run did not produce (a step not run) is listed as not evaluated, and
+an axis with one is INCOMPLETE unless it already failed.  The overall verdict is the worst axis's.
+"""
+from __future__ import annotations
+
+from ..config import Acceptance
+
+ORDER = ("PASS", "WARN", "INCOMPLETE", "FAIL")
+
+
+def _criterion(name: str, severity: str, value, limit, ok: bool | None, unit: str = "") -> dict:
+    return {"criterion": name, "severity": severity, "value": value, "limit": limit, "unit": unit,
+            "met": ok}
+
+
+def axis_criteria(entry: dict, acc: Acceptance) -> list[dict]:
+    """The criteria of one axis of summary.json, each met, unmet or None (not evaluated)."""
+    out = []
+    margins = entry.get("margins") or {}
+    for loop in ("velocity", "position"):
+        m = margins.get(loop) or {}
+        pm, gm = m.get("phase_margin_deg"), m.get("gain_margin_db")
+        out.append(_criterion(f"{loop} loop phase margin", "FAIL", pm, f"≥ {acc.min_phase_margin_deg:g}",
+                              None if pm is None else pm >= acc.min_phase_margin_deg, "°"))
+        out.append(_criterion(f"{loop} loop gain margin", "FAIL", gm, f"≥ {acc.min_gain_margin_db:g}",
+                              None if gm is None else gm >= acc.min_gain_margin_db, "dB"))
+    validation = entry.get("validation") or {}
+    if not validation:
+        out.append(_criterion("following error improvement", "FAIL", None, f"≥ {acc.min_fe_improvement:g}×",
+                              None, "×"))
+    for traj, v in validation.items():
+        before, after = v.get("fe_rms_before"), v.get("fe_rms_after")
+        ratio = before / after if before and after else None
+        out.append(_criterion(f"following error improvement ({traj.replace('_', ' ')})", "FAIL",
+                              ratio, f"≥ {acc.min_fe_improvement:g}×",
+                              None if ratio is None else ratio >= acc.min_fe_improvement, "×"))
+    rmse, floor = entry.get("rmse_after"), entry.get("noise_floor")
+    ratio = rmse / floor if rmse is not None and floor else None
+    out.append(_criterion("model torque RMSE over the noise floor", "WARN", ratio, f"≤ {acc.max_rmse_over_noise:g}×",
+                          None if ratio is None else ratio <= acc.max_rmse_over_noise, "×"))
+    params, std = entry.get("params") or {}, entry.get("param_std") or {}
+    for p in ("J", "c0", "c1"):
+        rel = abs(std[p] / params[p]) if p in std and params.get(p) else None
+        out.append(_criterion(f"relative std of {p}", "WARN", rel, f"≤ {acc.max_relative_std:.0%}",
+                              None if rel is None else rel <= acc.max_relative_std, ""))
+    if acc.require_consistent:
+        c = entry.get("consistency")
+        out.append(_criterion("identification consistent between parts of the data", "WARN",
+                              None if c is None else c.get("consistent"), True,
+                              None if c is None else bool(c.get("consistent"))))
+    return out
+
+
+def axis_verdict(criteria: list[dict]) -> str:
+    if any(c["met"] is False and c["severity"] == "FAIL" for c in criteria):
+        return "FAIL"
+    if any(c["met"] is None for c in criteria):
+        return "INCOMPLETE"
+    return "WARN" if any(c["met"] is False for c in criteria) else "PASS"
+
+
+def verdict(axes: dict[str, dict], acc: Acceptance) -> dict:
+    """``{"overall": …, "axes": {axis: {"verdict", "unmet", "not_evaluated", "criteria"}}, "acceptance"}``."""
+    out = {}
+    for a, entry in axes.items():
+        criteria = axis_criteria(entry, acc)
+        out[a] = {"verdict": axis_verdict(criteria),
+                  "unmet": [describe(c) for c in criteria if c["met"] is False],
+                  "not_evaluated": [c["criterion"] for c in criteria if c["met"] is None],
+                  "criteria": criteria}
+    overall = max((v["verdict"] for v in out.values()), key=ORDER.index, default="INCOMPLETE")
+    return {"overall": overall, "axes": out, "acceptance": vars(acc)}
+
+
+def describe(c: dict) -> str:
+    """An unmet criterion in words: name, value, limit."""
+    v = c["value"]
+    shown = f"{v:.3g}{' ' + c['unit'] if c['unit'] and c['unit'] != '×' else ''}{'×' if c['unit'] == '×' else ''}" \
+        if isinstance(v, float) else str(v)
+    if c["criterion"].startswith("relative std") and isinstance(v, float):
+        shown = f"{v * 100:.3g} %"
+    return f"{c['criterion']} {shown} (needs {c['limit']}{'' if c['unit'] in ('', '×') else ' ' + c['unit']})"
+
+
+def headline(v: dict) -> str:
+    """One line: the overall verdict and each axis's, with what it misses."""
+    parts = []
+    for a, x in v["axes"].items():
+        why = "; ".join(x["unmet"]) or (f"not evaluated: {', '.join(x['not_evaluated'])}"
+                                        if x["verdict"] == "INCOMPLETE" else "")
+        parts.append(f"{a} {x['verdict']}" + (f" ({why})" if why else ""))
+    return f"{v['overall']}: " + ", ".join(parts)
