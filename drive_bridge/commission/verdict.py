@@ -87,6 +87,8 @@ def verdict(axes: dict[str, dict], acc: Acceptance) -> dict:
 def describe(c: dict) -> str:
     """An unmet criterion in words: name, value, limit."""
     v = c["value"]
+    if isinstance(v, bool):
+        return f"{c['criterion']}: no"
     shown = f"{v:.3g}{' ' + c['unit'] if c['unit'] and c['unit'] != '×' else ''}{'×' if c['unit'] == '×' else ''}" \
         if isinstance(v, float) else str(v)
     if c["criterion"].startswith("relative std") and isinstance(v, float):
