@@ -249,7 +249,7 @@ def _node(path: Path, axis: str, data: dict, dcf_path: str | None = None, unused
     if not vendor and not dcf.is_file() and dcf_path:       # ros2_canopen: beside bus.yml, or in options.dcf_path
         dcf = (path.parent / dcf_path / name).resolve()
     scale_pos = data.get("scale_pos_to_dev")
-    (unused if unused is not None else set()).update(sec.accept((ROS_KEYS | LELY_NODE_KEYS) - {"dcf_path"}))
+    ignored = sec.accept((ROS_KEYS | LELY_NODE_KEYS) - {"dcf_path"})
     sec.get("dcf_path", str, None)
     if not dcf.is_file():
         raise sec.error("dcf", f"EDS/DCF file not found: {dcf}" + (
@@ -273,11 +273,14 @@ def _node(path: Path, axis: str, data: dict, dcf_path: str | None = None, unused
                     else 1e-3)
         kt = sc.get("torque_constant_Nm_per_A", float, low=1e-6, high=1e3)
     inc = sc.get("increments_per_rev", int, None, low=1, high=2**31 - 1)
-    if inc is None and finite_number(scale_pos) and scale_pos > 0 and not feed:
-        inc = round(scale_pos * 2 * math.pi)               # ros2_canopen: device units per rad
+    if inc is None and finite_number(scale_pos) and scale_pos > 0:
+        inc = round(scale_pos * (feed or 2 * math.pi))     # ros2_canopen: device units per rad (or m)
+        ignored.discard("scale_pos_to_dev")
+    if unused is not None:
+        unused.update(ignored)
     if inc is None:
         raise sc.error("increments_per_rev", "missing (the encoder's increments per motor revolution; a "
-                                             "ros2_canopen scale_pos_to_dev of a rotary axis gives it)")
+                                             "ros2_canopen scale_pos_to_dev gives it)")
     scaling = Scaling(increments_per_rev=inc,
                       rated_torque_Nm=sc.get("rated_torque_Nm", float, low=1e-6, high=1e6),
                       feed_m_per_rev=feed, torque_feedback=feedback, current_per_unit_A=per_unit,

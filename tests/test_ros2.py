@@ -32,6 +32,7 @@ def test_a_ros2_canopen_bus_yml_is_read_as_it_is(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "master: driver, heartbeat_producer, package (ros2_canopen / Lely keys" in err
     assert "nodes: boot, driver, heartbeat_consumer, package, period, position_mode" in err
+    assert ros.nodes["x"].scaling.increments_per_rev == 2**20       # from x's scale_pos_to_dev [increments/m]
     assert main(["decode", str(tmp_path / "trace.blf"), "--out", str(tmp_path / "d.csv")]) == 0
     assert (tmp_path / "d.csv").read_bytes() == (tmp_path / "log.csv").read_bytes()
 
