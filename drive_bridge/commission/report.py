@@ -30,6 +30,9 @@ padding:.6em 1em}.partial{background:#fff5d6;border:1px solid #db5;padding:.6em 
 .evidence{color:#555;font-size:.92em}h2{border-bottom:2px solid #ddd;margin-top:1.6em}"""
 
 
+#: the cascade's gains, SI motor side (rotary; a linear axis reads m for rad)
+GAIN_UNITS = {"KpP": "1/s", "FwF": "1", "KpS": "Nm·s/rad", "KiS": "1/s", "KpC": "V/A", "KiC": "1/s"}
+
 def _e(x) -> str:
     return html.escape(str(x))
 
@@ -111,8 +114,9 @@ def _axis(out: Path, axis: str, a: dict, traces) -> str:
             parts.append(f"<p>Unexplained: {_e(describe_unexplained(un))}.</p>")
     if "gains_after" in a:
         before, after = a["gains_before"], a["gains_after"]
-        parts += ["<h3>Gains</h3>", _table(["gain", "before", "after"],
-                                           [[_e(g), _n(before.get(g)), _n(v)] for g, v in after.items()])]
+        parts += ["<h3>Gains</h3>", _table(["gain", "unit", "before", "after"],
+                                           [[_e(g), _e(GAIN_UNITS.get(g, "")), _n(before.get(g)), _n(v)]
+                                            for g, v in after.items()])]
         rows = []
         for loop in ("velocity", "position"):
             m, mb = a["margins"][loop], (a["margins_before"] or {}).get(loop)
@@ -121,6 +125,7 @@ def _axis(out: Path, axis: str, a: dict, traces) -> str:
                          _n(m["crossover_hz"], ".0f")])
         parts.append(_table(["loop", "PM before [°]", "PM after [°]", "GM before [dB]", "GM after [dB]",
                              "crossover after [Hz]"], rows))
+        parts.append(_file_img(out / S.LOOPS.format(axis=axis), f"axis {axis} loops: Bode plots and step response"))
     if a.get("validation"):
         rows = [[_e(t.replace("_", "-")), _n(v["fe_rms_before"] and v["fe_rms_before"] * 1e3, ".3g"),
                  _n(v["fe_rms_after"] * 1e3, ".3g"), _n(v["improvement"], ".1f") + "×",

@@ -26,6 +26,7 @@ IDENTIFY_JSON = "identify/identify.json"
 WRITE_JSON = "write/write.json"
 VALIDATE_JSON = f"{OUTPUT['validate']}/{V.VALIDATE_JSON}"
 TRACES = f"{OUTPUT['validate']}/{V.TRACES}"
+LOOPS = "loops_{axis}.png"              # the tune step's loop pictures, per axis
 
 
 class Context:
@@ -111,6 +112,10 @@ def tune(ctx: Context) -> str:
     doc = tune_doc(tune_axes(models, {a: state[a] for a in ctx.config.nodes}),
                    unwritable_effects(ctx.require(IDENTIFY_JSON)))
     write_json(ctx.out / OUTPUT["tune"], doc)
+    from ..tuning.loops import loop_figure
+    for a, d in doc["axes"].items():
+        loop_figure(d["model"]["J"], d["model"]["c1"], d["gains_before"] or None, d["gains"], d["motor"]["L"],
+                    ctx.out / LOOPS.format(axis=a), f"axis {a}: loops on the identified model")
     return "; ".join(f"{a}: KpS {d['gains_before'].get('KpS', float('nan')):.3g} → {d['gains']['KpS']:.3g}, "
                      f"KpP {d['gains']['KpP']:.0f}, PM {d['margins']['velocity']['phase_margin_deg']:.1f}°, "
                      f"GM {d['margins']['velocity']['gain_margin_db']:.1f} dB"

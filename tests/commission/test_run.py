@@ -159,7 +159,8 @@ def test_the_summary_opens_with_a_verdict_and_the_exit_code_says_when_it_fails(r
 
 def test_report_is_one_self_contained_page(run):
     html = (run["out"] / "report.html").read_text()
-    assert "<b>OK</b>" in html and html.count("data:image/png;base64,") >= 3 * 3
+    assert "<b>OK</b>" in html and html.count("data:image/png;base64,") >= 3 * 4
+    assert html.count("loops: Bode plots and step response") == 3 and "Nm·s/rad" in html
     for a in ("x", "y", "z"):
         assert f"<h2>Axis {a}</h2>" in html
     for text in ("position_periodic", "Objects written", "verified", "Table II", "PM after"):

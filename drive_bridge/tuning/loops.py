@@ -1,0 +1,83 @@
+"""The loop pictures a servo engineer looks at first, from the identified model and the gains.
+
+Per axis: the open-loop Bode plots of the velocity and the position loop with the gains before
+and after (the same loop models whose margins :mod:`.design` computes, python-control), the
+crossover and the phase and gain margins marked; and the closed-loop position step response of
+the model before and after.  Frequencies in Hz, magnitude in dB, phase in °, time in ms.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import control
+import numpy as np
+
+from .design import position_open_loop, velocity_open_loop
+
+
+def _loops(J: float, c1: float, gains: dict[str, float], L: float):
+    w_i = gains["KpC"] / L
+    return (velocity_open_loop(J, c1, gains["KpS"], gains["KiS"], w_i),
+            position_open_loop(J, c1, gains["KpS"], gains["KiS"], gains["KpP"], w_i))
+
+
+def loop_figure(J: float, c1: float, before: dict[str, float] | None, after: dict[str, float], L: float,
+                path: str | Path, title: str = "") -> Path:
+    """Write the Bode plots and the step responses of one axis to ``path`` (PNG)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    sets = [("after", after, "C0")] + ([("before", before, "C3")] if before else [])
+    f = np.logspace(0, 4, 600)                                       # 1 Hz .. 10 kHz
+    fig, ax = plt.subplots(2, 3, figsize=(13, 6.5), gridspec_kw={"width_ratios": [1, 1, 0.9]})
+    for name, gains, colour in sets:
+        for col, (loop, sys_) in enumerate(zip(("velocity", "position"), _loops(J, c1, gains, L))):
+            resp = sys_(2j * np.pi * f)
+            mag, phase = 20 * np.log10(np.abs(resp)), np.degrees(np.unwrap(np.angle(resp)))
+            gm, pm, wg, wc = control.margin(sys_)
+            ax[0, col].semilogx(f, mag, colour, label=f"{name}")
+            ax[1, col].semilogx(f, phase, colour, label=f"{name}")
+            if np.isfinite(wc) and wc > 0:
+                fc = wc / (2 * np.pi)
+                ax[1, col].plot([fc, fc], [-180, -180 + pm], colour, lw=3, alpha=0.6)
+                ax[1, col].annotate(f"PM {pm:.0f}° at {fc:.0f} Hz", (fc, -180 + pm), color=colour, fontsize=8,
+                                    xytext=(4, 4 if name == "after" else -12), textcoords="offset points")
+            if np.isfinite(gm) and gm > 0 and np.isfinite(wg):
+                fg = wg / (2 * np.pi)
+                ax[0, col].plot([fg, fg], [0, -20 * np.log10(gm)], colour, lw=3, alpha=0.6)
+                ax[0, col].annotate(f"GM {20 * np.log10(gm):.1f} dB at {fg:.0f} Hz", (fg, -20 * np.log10(gm)),
+                                    color=colour, fontsize=8, xytext=(4, -12 if name == "after" else 4),
+                                    textcoords="offset points")
+            ax[0, col].set_title(f"{loop} loop, open loop")
+        closed = control.feedback(_loops(J, c1, gains, L)[1], 1)
+        t = np.linspace(0, 0.05, 1000)
+        _, y = control.step_response(closed, t)
+        ax[0, 2].plot(t * 1e3, y, colour, label=name)
+    for col in range(2):
+        ax[0, col].axhline(0, color="0.5", lw=0.8)
+        ax[1, col].axhline(-180, color="0.5", lw=0.8)
+        ax[0, col].set_ylabel("magnitude [dB]")
+        ax[1, col].set_ylabel("phase [°]")
+        ax[1, col].set_xlabel("frequency [Hz]")
+        ax[0, col].set_ylim(-60, 60)
+        ax[1, col].set_ylim(-360, 0)
+        for r in range(2):
+            ax[r, col].grid(True, which="both", alpha=0.3)
+            ax[r, col].legend(loc="lower left", fontsize=8)
+    ax[0, 2].set_title("position step, closed loop (model)")
+    ax[0, 2].set_xlabel("time [ms]")
+    ax[0, 2].set_ylabel("position / step [1]")
+    ax[0, 2].grid(True, alpha=0.3)
+    ax[0, 2].legend(loc="lower right", fontsize=8)
+    ax[1, 2].axis("off")
+    ax[1, 2].text(0, 0.9, "\n".join(
+        [f"J = {J:.4g}, c1 = {c1:.4g} (identified), L = {L:.3g} H"] +
+        [f"{name}: KpP {g['KpP']:.4g} 1/s, KpS {g['KpS']:.4g}, KiS {g['KiS']:.4g} 1/s" for name, g, _ in sets]),
+        fontsize=8, va="top", family="monospace")
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout()
+    path = Path(path)
+    fig.savefig(path, dpi=80)
+    plt.close(fig)
+    return path
