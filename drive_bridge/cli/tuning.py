@@ -141,14 +141,15 @@ def _print_write(outcome, backup_dir, profile) -> None:
         print(f"FORCED: {reason}")
     if outcome.unverified_scales:
         print(f"UNVERIFIED SCALES (no documented source in the drive profile): {', '.join(outcome.unverified_scales)}")
+    width = max((len(w.parameter) for r in outcome.results.values() for w in r.objects), default=9)
     for a, r in outcome.results.items():
         print(f"axis {a} (node {r.node_id}, {r.drive}){' — dry run, nothing written' if r.dry_run else ''}:")
         for w in r.objects:
             state = "verified" if w.verified else ("" if r.dry_run else "NOT verified")
             if not profile.entries[w.parameter].verified:
                 state += " UNVERIFIED SCALE"
-            print(f"  {w.parameter:<9} 0x{w.index:04X}:{w.sub:<2} {_num(w.old_si):>11} -> {_num(w.new_si):<11} "
-                  f"{w.unit:<18} (device {w.old_device} -> {w.new_device}) {state}")
+            print(f"  {w.parameter:<{width}} 0x{w.index:04X}:{w.sub:<2} {_num(w.old_si):>11} -> {_num(w.new_si):<11} "
+                  f"{w.unit:<18} (device {_num(w.old_device)} -> {_num(w.new_device)}) {state}")
         for name in r.unsupported:
             print(f"  {name:<9} not supported by {r.drive}: not written")
         if r.stored:
@@ -162,8 +163,10 @@ def _print_write(outcome, backup_dir, profile) -> None:
         print(f"backups of the values before: {backup_dir}/")
 
 
-def _num(v) -> str:
-    return "?" if v is None else f"{v:.6g}"
+def _num(v, fmt: str = ".6g") -> str:
+    """A number for a table: its significant digits (a REAL32 read back as 0.11999999731779099
+    is 0.12), "–" where there is none."""
+    return "–" if v is None else (f"{v:{fmt}}" if isinstance(v, float) else str(v))
 
 
 def cmd_validate(args) -> int:
@@ -183,12 +186,14 @@ def cmd_validate(args) -> int:
     if args.json:
         print(json.dumps({"runs": [r.as_dict() for r in runs]}, default=float))
     else:
-        print(f"{'scenario':<28} {'trajectory':<15} {'axis':<4} {'FE rms [rad]':>12} {'FE max [rad]':>12} "
-              f"{'overshoot %':>11} {'settling s':>10} {'torque RMSE [Nm]':>16}")
+        print(f"{'scenario':<28} {'trajectory':<15} {'axis':<4} {'FE rms [mrad]':>13} {'FE max [mrad]':>13} "
+              f"{'overshoot [%]':>13} {'settling [ms]':>13} {'torque RMSE [Nm]':>16}")
         for r in runs:
             for a, m in r.axes.items():
-                print(f"{r.scenario:<28} {r.trajectory:<15} {a:<4} {m.fe_rms:>12.3g} {m.fe_max:>12.3g} "
-                      f"{_num(m.overshoot_pct):>11} {_num(m.settling_s):>10} {m.torque_rmse:>16.3g}")
+                settle = None if m.settling_s is None else m.settling_s * 1e3
+                print(f"{r.scenario:<28} {r.trajectory:<15} {a:<4} {_num(m.fe_rms * 1e3, '.3g'):>13} "
+                      f"{_num(m.fe_max * 1e3, '.3g'):>13} {_num(m.overshoot_pct, '.3g'):>13} {_num(settle, '.3g'):>13} "
+                      f"{_num(m.torque_rmse, '.3g'):>16}")
     stop = stopped(runs)
     if stop is not None:
         raise stop
