@@ -31,5 +31,14 @@ def write_text(path: str | Path, text: str) -> Path:
     return Path(path)
 
 
+SCHEMA_VERSION = 1
+
+
+def stamped(name: str, doc: dict) -> dict:
+    """``doc`` opening with ``schema`` ("drive-bridge/<name>") and ``schema_version``: the JSON
+    Schema it follows ships as ``drive_bridge/data/schemas/<name>.schema.json``."""
+    return {"schema": f"drive-bridge/{name}", "schema_version": SCHEMA_VERSION, **doc}
+
+
 def write_json(path: str | Path, doc) -> Path:
     return write_text(path, json.dumps(doc, indent=1, default=float))

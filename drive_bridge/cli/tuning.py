@@ -171,7 +171,7 @@ def _num(v, fmt: str = ".6g") -> str:
 
 def cmd_validate(args) -> int:
     from ..paper import TABLE_III
-    from ..tuning.validate import degraded, run_scenarios, stopped
+    from ..tuning.validate import degraded, run_scenarios, stopped, validate_doc
     options.out_dir(args.out)
     config = options.config(args)
     params = read_tune_json(args.params).parameters
@@ -184,7 +184,7 @@ def cmd_validate(args) -> int:
         runs = run_scenarios(config, session.link, session.axes, session.profile, scenarios, model,
                              out_dir=Path(args.out) if args.out else None)
     if args.json:
-        print(json.dumps({"runs": [r.as_dict() for r in runs]}, default=float))
+        print(json.dumps(validate_doc(runs), default=float))
     else:
         print(f"{'scenario':<28} {'trajectory':<15} {'axis':<4} {'FE rms [mrad]':>13} {'FE max [mrad]':>13} "
               f"{'overshoot [%]':>13} {'settling [ms]':>13} {'torque RMSE [Nm]':>16}")

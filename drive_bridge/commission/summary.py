@@ -20,9 +20,10 @@ from .. import __version__
 from ..config import BusConfig
 from ..errors import UserError
 from ..logs import META_NAME
-from ..yamlconf import load_yaml
-from ..params.profile import DEFAULT_PROFILE
+from ..outputs import stamped
 from ..paper import TABLE_II
+from ..params.profile import DEFAULT_PROFILE
+from ..yamlconf import load_yaml
 from . import steps as S
 from .verdict import verdict
 
@@ -125,8 +126,8 @@ def build_summary(out: Path, state: dict, config: BusConfig, options) -> dict:
             entry["unsupported"] = write[a]["unsupported"]
             entry["stored"] = write[a]["stored"]
         axes[a] = entry
-    return {"verdict": verdict(axes, config.acceptance), "status": status, "failed": failed,
+    return stamped("summary", {"verdict": verdict(axes, config.acceptance), "status": status, "failed": failed,
             "timing_degraded": timing, "steps": steps,
             "duration_s": sum(s["duration_s"] or 0.0 for s in steps),
             "versions": versions(), "config": str(config.path), "simulated": options.sim,
-            "profile": options.profile or config.profile or DEFAULT_PROFILE, "out": str(out), "axes": axes}
+            "profile": options.profile or config.profile or DEFAULT_PROFILE, "out": str(out), "axes": axes})

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..outputs import write_text
+from ..outputs import stamped, write_text
 from .identify import AxisResult
 from .model import AxisModel
 from .trace import describe_unexplained
@@ -87,7 +87,7 @@ def delay_text(s: dict) -> str:
 
 
 def as_json(results: dict[str, AxisResult]) -> str:
-    return json.dumps({"axes": {a: r.as_json() for a, r in results.items()}}, default=float)
+    return json.dumps(stamped("identify", {"axes": {a: r.as_json() for a, r in results.items()}}), default=float)
 
 
 def _plot_fit(r: AxisResult, path: Path) -> None:

@@ -14,7 +14,7 @@ import canopen
 
 from ..dcf import export_dcf
 from ..errors import BusError, DriveRefused, WriteInterrupted
-from ..outputs import write_json
+from ..outputs import stamped, write_json
 from ..signals import deferred, signal_name
 from .check import GM_FLOOR_DB, PM_FLOOR_DEG, ValueRefused, check_margins, check_set
 from .profile import Entry, Profile
@@ -329,9 +329,9 @@ class WriteOutcome:
 
     def as_dict(self) -> dict:
         """write.json / ``write --json``."""
-        return {"ok": self.ok, "forced": self.forced, "margins": self.margins,
-                "unverified_scales": self.unverified_scales,
-                "axes": {a: r.as_dict() for a, r in self.results.items()}}
+        return stamped("write", {"ok": self.ok, "forced": self.forced, "margins": self.margins,
+                                 "unverified_scales": self.unverified_scales,
+                                 "axes": {a: r.as_dict() for a, r in self.results.items()}})
 
 
 def write_drives(nodes: dict[str, canopen.RemoteNode], profile: Profile, values: dict[str, dict[str, float]], *,

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import UserError
+from ..outputs import stamped
 from .design import GainDesign, Margins, design_gains, loop_margins
 from .experiment import ExperimentResult
 from .feedforward import MODEL_KEYS
@@ -138,7 +139,8 @@ def tune_axes(models: dict[str, dict[str, float]], state: dict[str, dict]) -> di
 def tune_doc(results: dict[str, AxisTuning], unwritable: dict[str, list[str]] | None = None) -> dict:
     """tune.json: per axis the model, gains before and after, margins, the parameters to write, and
     the identified effects no drive parameter can carry (``not_writable``)."""
-    return {"axes": {a: {**t.as_dict(), "not_writable": (unwritable or {}).get(a, [])} for a, t in results.items()}}
+    return stamped("tune", {"axes": {a: {**t.as_dict(), "not_writable": (unwritable or {}).get(a, [])}
+                                     for a, t in results.items()}})
 
 
 @dataclass

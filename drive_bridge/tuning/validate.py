@@ -26,7 +26,7 @@ from ..errors import DriveRefused, MotionAborted
 from ..master.bringup import AxisLink
 from ..master.campaign import Plan
 from ..master.link import Link
-from ..outputs import write_json
+from ..outputs import stamped, write_json
 from ..params.check import ValueRefused, check_set
 from ..params.profile import Profile
 from ..params.read import read_parameters
@@ -164,7 +164,7 @@ def run_scenarios(config: BusConfig, link: Link, axes: dict[str, AxisLink], prof
             write_parameters(ax.node, profile, held[a], store=False, check=False)
     if out_dir is not None:
         out = Path(out_dir)
-        write_json(out / VALIDATE_JSON, {"runs": [r.as_dict() for r in runs]})
+        write_json(out / VALIDATE_JSON, validate_doc(runs))
         traces = {}
         for r in runs:
             m = r.motion
@@ -175,6 +175,11 @@ def run_scenarios(config: BusConfig, link: Link, axes: dict[str, AxisLink], prof
                 traces[key + "/torque"] = m.torque[a]
         np.savez_compressed(out / TRACES, **traces)
     return runs
+
+
+def validate_doc(runs: list[Run]) -> dict:
+    """validate.json / ``validate --json``."""
+    return stamped("validate", {"runs": [r.as_dict() for r in runs]})
 
 
 def degraded(runs: list[Run]) -> list[str]:

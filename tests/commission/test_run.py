@@ -18,11 +18,11 @@ from drive_bridge.connect import open_link
 from drive_bridge.edscheck import check as check_eds
 from drive_bridge.od import load_od
 from drive_bridge.progress import StepReporter
+from drive_bridge.resources import data
 from drive_bridge.sim import kernel as K
 from drive_bridge.sim.config import DEFAULT_CONFIG, load_sim_config
 
 from ..support import BUS_CONFIG, EDS, PAPER, tool
-
 
 SIM = load_sim_config(DEFAULT_CONFIG)          # the shipped robot, hidden effects on
 
@@ -130,7 +130,7 @@ def test_the_summary_opens_with_a_verdict_and_the_exit_code_says_when_it_fails(r
     value; bus.yml's acceptance overrides the limits; a completed commissioning that fails them
     exits 6 and the report opens with it."""
     summary = run["summary"]
-    assert list(summary)[0] == "verdict"
+    assert list(summary)[:3] == ["schema", "schema_version", "verdict"]
     v = summary["verdict"]
     assert v["overall"] in ("PASS", "WARN") and set(v["axes"]) == {"x", "y", "z"}
     for a, x in v["axes"].items():
@@ -155,6 +155,21 @@ def test_the_summary_opens_with_a_verdict_and_the_exit_code_says_when_it_fails(r
     assert any(u.startswith("velocity loop phase margin") and "needs ≥ 80" in u for u in strict["axes"]["y"]["unmet"])
     assert "Verdict: FAIL" in (out / "report.html").read_text()
     assert "did not pass its acceptance criteria (exit 6)" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("name,path", [("summary", "summary.json"), ("identify", "identify/identify.json"),
+                                       ("tune", "tune.json"), ("write", "write/write.json"),
+                                       ("validate", "validate/validate.json")])
+def test_every_json_output_follows_its_shipped_schema(run, name, path):
+    """Each JSON output names its schema and version, and the JSON Schema shipped in the package
+    for it accepts it (jsonschema, in the test extra)."""
+    jsonschema = pytest.importorskip("jsonschema")
+    doc = json.loads((run["out"] / path).read_text())
+    assert doc["schema"] == f"drive-bridge/{name}" and doc["schema_version"] == 1
+    schema = json.loads(data("schemas", f"{name}.schema.json").read_text())
+    jsonschema.validate(doc, schema)
+    with pytest.raises(jsonschema.ValidationError):
+        jsonschema.validate({**doc, "schema_version": 2}, schema)
 
 
 def test_report_is_one_self_contained_page(run):
