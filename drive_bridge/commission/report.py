@@ -64,19 +64,28 @@ def _validation_png(traces, axis: str, traj: str) -> bytes | None:
     keys = {sc: f"{sc}/{traj}/{axis}" for sc in ("before", "after")}
     if f"{keys['after']}/t" not in traces:
         return None
-    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(10, 5.5), sharex=True)
-    for sc, color in (("before", "C1"), ("after", "C0")):
+    fig, (fe_b, fe_a, pos, tq) = plt.subplots(4, 1, figsize=(10, 8.5), sharex=True)
+    for sc, color, ax in (("before", "C1", fe_b), ("after", "C0", fe_a)):
         k = keys[sc]
         if f"{k}/t" not in traces:
             continue
         t = traces[f"{k}/t"]
-        ax1.plot(t, (traces[f"{k}/demand"] - traces[f"{k}/position"]) * 1e3, color=color, lw=0.8, label=sc)
-        ax2.plot(t, traces[f"{k}/torque"], color=color, lw=0.8, label=sc)
-    ax1.set_ylabel("following error [mrad]")
-    ax2.set_ylabel("torque [Nm]")
-    ax2.set_xlabel("time [s]")
-    ax1.set_title(f"axis {axis}, {traj.replace('_', '-')}: before vs after commissioning")
-    ax1.legend(loc="upper right")
+        fe = (traces[f"{k}/demand"] - traces[f"{k}/position"]) * 1e3
+        ax.plot(t, fe, color=color, lw=0.8)
+        ax.set_ylabel(f"FE {sc} [mrad]")              # each on its own scale: the after trace has a shape
+        tq.plot(t, traces[f"{k}/torque"], color=color, lw=0.8, label=sc)
+        if sc == "after":
+            pos.plot(t, traces[f"{k}/demand"], color="0.5", lw=1.5, label="demand")
+            pos.plot(t, traces[f"{k}/position"], color=color, lw=0.8, ls="--", label="measured (after)")
+    pos.set_ylabel("position [rad]")
+    tq.set_ylabel("torque [Nm]")
+    tq.set_xlabel("time [s]")
+    for ax in (pos, tq):
+        ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8)
+    for ax in (fe_b, fe_a, pos, tq):
+        ax.grid(True, alpha=0.3)
+    fe_b.set_title(f"axis {axis}, {traj.replace('_', '-')}: following error before and after commissioning "
+                   f"(own scales), position and torque")
     fig.tight_layout()
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=80)
