@@ -19,7 +19,7 @@ import canopen
 from canopen.objectdictionary import ODVariable, datatypes
 from canopen.sdo import SdoAbortedError, SdoCommunicationError
 
-from .od import float_bits, variables
+from .od import float_bits, signed, variables
 
 COMMANDS = {0x6040, 0x6060}                 # controlword, modes of operation: commands, not settings
 MAPPING = (range(0x1600, 0x1800), range(0x1A00, 0x1C00))
@@ -61,9 +61,7 @@ def parameter_value(var: ODVariable, value) -> str:
     if var.data_type in datatypes.FLOAT_TYPES:
         return float_bits(float(value), var.data_type)
     if isinstance(value, int):
-        bits = len(var)
-        if var.data_type in datatypes.SIGNED_TYPES and bits and value >= 1 << (bits - 1):
-            value -= 1 << bits
+        value = signed(var, value)
         return f"0x{value:X}" if value >= 0 else str(value)
     return str(value)
 
@@ -71,22 +69,26 @@ def parameter_value(var: ODVariable, value) -> str:
 def export_dcf(node: canopen.RemoteNode, path: str | Path, bitrate: int) -> Path:
     """Read every configuration object back from ``node`` and write the DCF to ``path``."""
     od = node.object_dictionary
-    objects = configuration(od)
     try:
-        values = read_back(node, objects)
+        values = read_back(node, configuration(od))
     except SdoCommunicationError as exc:
         raise SdoCommunicationError(f"node {node.id}: reading the configuration back for its DCF: {exc}") from exc
     process = mapped(values)
+    return write_dcf(od, path, node.id, bitrate, {k: v for k, v in values.items() if k not in process})
+
+
+def write_dcf(od: canopen.ObjectDictionary, path: str | Path, node_id: int, bitrate: int,
+              values: dict[tuple[int, int], object]) -> Path:
+    """``od`` (changed in place) as a CiA 306 clean DCF at ``path``: the node-ID and bitrate,
+    defaults resolved (``$NODEID``, REALs as bit patterns, signed as such), no descriptions, and
+    ``values`` (by index and sub-index) as the only ParameterValues."""
     for var in variables(od):
         var.description = ""                       # not a CiA 306 key of an object
-        if isinstance(var.default, (int, float)):         # resolved, REALs as bit patterns, signed as such
+        if isinstance(var.default, (int, float)):
             var.default_raw = parameter_value(var, var.default)
-        key = (var.index, var.subindex)
-        if key in values and key not in process:
-            var.value, var.value_raw = values[key], parameter_value(var, values[key])
-        else:
-            var.value = var.value_raw = None
-    od.node_id, od.bitrate = node.id, bitrate
+        value = values.get((var.index, var.subindex))
+        var.value, var.value_raw = (None, None) if value is None else (value, parameter_value(var, value))
+    od.node_id, od.bitrate = node_id, bitrate
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     canopen.export_od(od, str(path), doc_type="dcf")

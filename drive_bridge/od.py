@@ -39,11 +39,7 @@ def load_od(path: str | Path, node_id: int) -> canopen.ObjectDictionary:
                 if getattr(var, value, None) is None and getattr(var, raw, None):
                     setattr(var, value, float_from_bits(getattr(var, raw), var.data_type))
         elif var.data_type in datatypes.SIGNED_TYPES:      # a vendor's 0xFD for an INTEGER8 -3
-            bits = len(var)
-            for value in ("default", "value"):
-                v = getattr(var, value, None)
-                if isinstance(v, int) and bits and (1 << (bits - 1)) <= v < (1 << bits):
-                    setattr(var, value, v - (1 << bits))
+            var.default, var.value = signed(var, var.default), signed(var, var.value)
     return od
 
 
@@ -75,13 +71,16 @@ def float_bits(value: float, data_type: int) -> str:
     return f"0x{struct.unpack('>Q', struct.pack('>d', value))[0]:016X}"
 
 
-def limits(var) -> tuple[float | None, float | None]:
-    """The (LowLimit, HighLimit) an EDS/DCF gives ``var``, signed types as the numbers they are
-    (a vendor may write an INTEGER8 -3 as 0xFD); None where it gives none."""
+def signed(var, value):
+    """``value`` of ``var`` as the number it is where a file wrote a signed type's value as its
+    two's complement (0xFD for an INTEGER8 -3); anything else as it is."""
     bits = len(var) if var.data_type in datatypes.SIGNED_TYPES else 0
+    if isinstance(value, int) and bits and (1 << (bits - 1)) <= value < (1 << bits):
+        return value - (1 << bits)
+    return value
 
-    def signed(x):
-        if x is None or not bits or isinstance(x, float) or x < 1 << (bits - 1):
-            return x
-        return x - (1 << bits)
-    return signed(getattr(var, "min", None)), signed(getattr(var, "max", None))
+
+def limits(var) -> tuple[float | None, float | None]:
+    """The (LowLimit, HighLimit) an EDS/DCF gives ``var``, signed types as the numbers they are;
+    None where it gives none."""
+    return signed(var, getattr(var, "min", None)), signed(var, getattr(var, "max", None))

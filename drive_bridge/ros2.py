@@ -24,12 +24,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import canopen
 import yaml
 
 from .config import BusConfig, NodeConfig
-from .dcf import parameter_value
-from .od import variables
+from .dcf import write_dcf
 from .yamlconf import load_yaml
 
 
@@ -62,7 +60,7 @@ def export(config: BusConfig, out: str | Path) -> list[Path]:
     written = []
     for axis, n in config.nodes.items():
         dcf = out / f"{axis}.dcf"
-        write_device_dcf(n, dcf, m.nominal_bitrate)
+        write_dcf(n.od, dcf, n.node_id, m.nominal_bitrate, {})      # the device: no ParameterValue
         written.append(dcf)
         doc["nodes"][axis] = _node(n, dcf.name, m.sync_period_s, raw.get(axis, {}))
     bus = out / "bus.yml"
@@ -129,16 +127,3 @@ def _sdo(n: NodeConfig, period_s: float) -> list[dict]:
     return [{"index": Hex(i), "sub_index": s, "value": v} for i, s, v in values if n.od.get_variable(i, s) is not None]
 
 
-def write_device_dcf(n: NodeConfig, path: Path, bitrate: int) -> Path:
-    """The node's device description as a DCF: its object dictionary (``n.od``, changed in
-    place), CiA 306 clean, with the node-ID and bitrate, ``$NODEID`` resolved, REALs as bit
-    patterns, no ParameterValue."""
-    od = n.od
-    for var in variables(od):
-        var.description = ""
-        if isinstance(var.default, (int, float)):         # resolved, REALs as bit patterns, signed as such
-            var.default_raw = parameter_value(var, var.default)
-        var.value = var.value_raw = None
-    od.node_id, od.bitrate = n.node_id, bitrate
-    canopen.export_od(od, str(path), doc_type="dcf")
-    return path
