@@ -28,6 +28,7 @@ import yaml
 
 from .config import BusConfig, NodeConfig
 from .dcf import write_dcf
+from .master.bringup import settings
 from .yamlconf import load_yaml
 
 
@@ -117,13 +118,10 @@ def _pdos(n: NodeConfig, pdos, comm: int) -> dict:
 
 
 def _sdo(n: NodeConfig, period_s: float) -> list[dict]:
-    """What drive-bridge's bring-up writes besides PDOs and heartbeat, as ros2_canopen's ``sdo``."""
-    inc = n.scaling.inc_per_rad
-    values = [(index, sub, value) for index, sub, value in n.sdo]
-    if 0x60C2 in n.od:
-        values += [(0x60C2, 1, round(period_s * 1000)), (0x60C2, 2, -3)]
-    values += [(0x6065, 0, round(n.following_error_window_rad * inc)),
-               (0x607D, 1, round(n.limits.position_min * inc)), (0x607D, 2, round(n.limits.position_max * inc))]
-    return [{"index": Hex(i), "sub_index": s, "value": v} for i, s, v in values if n.od.get_variable(i, s) is not None]
+    """What drive-bridge's bring-up writes besides PDOs (:func:`~drive_bridge.master.bringup.settings`),
+    as ros2_canopen's ``sdo``; the heartbeat is the node's ``heartbeat_producer`` and the
+    communication cycle the master's ``sync_period``."""
+    return [{"index": Hex(i), "sub_index": s, "value": v} for i, s, v in settings(n.axis, n, period_s)
+            if i not in (0x1017, 0x1006) and n.od.get_variable(i, s) is not None]
 
 

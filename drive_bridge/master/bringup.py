@@ -182,18 +182,8 @@ def bring_up(link: Link, config: BusConfig) -> dict[str, AxisLink]:
         ax = AxisLink(name, ncfg, node, Drive402(node, name, clock, config.master.state_timeout_s),
                       result.found[ncfg.node_id])
         node.nmt.send_command(0x80)                               # pre-operational
-        for index, sub, value in ncfg.sdo:
+        for index, sub, value in settings(name, ncfg, period):
             _write(node, name, index, sub, value)
-        limits = ncfg.limits
-        inc = ncfg.scaling.inc_per_rad
-        _write(node, name, 0x1017, 0, ncfg.heartbeat_producer_ms)
-        _write(node, name, 0x6065, 0, round(ncfg.following_error_window_rad * inc))
-        _write(node, name, 0x607D, 1, round(limits.position_min * inc))
-        _write(node, name, 0x607D, 2, round(limits.position_max * inc))
-        if 0x60C2 in ncfg.od:
-            _interpolation_period(node, name, ncfg, period)
-        if 0x1006 in ncfg.od:
-            _write(node, name, 0x1006, 0, round(period * 1e6))
         try:
             ax.rpdos = _configure_pdos(node, node.rpdo, ncfg.rpdo, 0x200)
             ax.tpdos = _configure_pdos(node, node.tpdo, ncfg.tpdo, 0x180)
@@ -238,7 +228,22 @@ def _streaming_mode(node, ncfg: NodeConfig, path) -> tuple[int, tuple[int, int]]
     return chosen
 
 
-def _interpolation_period(node, axis: str, ncfg: NodeConfig, period: float) -> None:
+def settings(axis: str, ncfg: NodeConfig, period: float) -> list[tuple[int, int, int | float]]:
+    """The SDO writes of a node's settings besides its PDOs, in order (also what ``export ros2``
+    gives Lely's master): the node's own ``sdo`` list, heartbeat, following-error window,
+    software limits, the interpolation period 0x60C2 and the communication cycle 0x1006."""
+    inc = ncfg.scaling.inc_per_rad
+    out = [*ncfg.sdo, (0x1017, 0, ncfg.heartbeat_producer_ms),
+           (0x6065, 0, round(ncfg.following_error_window_rad * inc)),
+           (0x607D, 1, round(ncfg.limits.position_min * inc)), (0x607D, 2, round(ncfg.limits.position_max * inc))]
+    if 0x60C2 in ncfg.od:
+        out += _interpolation_period(axis, ncfg, period)
+    if 0x1006 in ncfg.od:
+        out.append((0x1006, 0, round(period * 1e6)))
+    return out
+
+
+def _interpolation_period(axis: str, ncfg: NodeConfig, period: float) -> list[tuple[int, int, int]]:
     """0x60C2: the SYNC period as value × 10^index, in the first unit (ms, 0.1 ms ... µs) both
     fit within the drive's EDS/DCF limits.  maxon's PVT records carry their own time: a drive
     whose 0x60C2 cannot hold the period is left as it is for them; any other is refused."""
@@ -250,11 +255,9 @@ def _interpolation_period(node, axis: str, ncfg: NodeConfig, period: float) -> N
             continue
         if (lo1 is None or lo1 <= round(value)) and (hi1 is None or round(value) <= hi1) and \
                 (lo2 is None or lo2 <= exponent) and (hi2 is None or exponent <= hi2):
-            _write(node, axis, 0x60C2, 1, round(value))
-            _write(node, axis, 0x60C2, 2, exponent)
-            return
+            return [(0x60C2, 1, round(value)), (0x60C2, 2, exponent)]
     if any(entry == PVT for p in ncfg.rpdo for entry in p.mapping):
-        return
+        return []
     raise DriveRefused(f"axis {axis}: the drive's interpolation time period 0x60C2 cannot be "
                        f"{period * 1e3:g} ms within the limits of its EDS/DCF (value {lo1}..{hi1}, "
                        f"index {lo2}..{hi2}); set master.sync_period to a period it can hold")
