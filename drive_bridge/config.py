@@ -85,6 +85,8 @@ class NodeConfig:
     sdo: tuple[tuple[int, int, int | float], ...]
     profile: str | None = None            # the drive profile (params/profiles) of this node's drive
     motor: tuple[float, float] | None = None     # winding R [Ω], L [H] where the drive does not report them
+    #: the node's entry as bus.yml gives it, defaults merged in (load units, as written)
+    source: dict = field(default_factory=dict, repr=False, compare=False)
 
 
 DEFAULT_BITRATE = 1_000_000       # bit/s, when nothing names the bitrate
@@ -327,7 +329,7 @@ def _node(path: Path, axis: str, data: dict, dcf_path: str | None = None, unused
         rpdo=_pdos(sec, "rpdo", od, RPDO_OBJECTS, REQUIRED_RPDO),
         tpdo=_pdos(sec, "tpdo", od, TPDO_OBJECTS | {scaling.torque_object},
                    {**REQUIRED_TPDO, scaling.torque_object: TORQUE_FEEDBACK[feedback]}),
-        sdo=tuple(sdo), profile=sec.get("profile", str, None), motor=_motor(sec))
+        sdo=tuple(sdo), profile=sec.get("profile", str, None), motor=_motor(sec), source=data)
     sec.done()
     return cfg
 

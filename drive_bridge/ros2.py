@@ -29,7 +29,6 @@ import yaml
 from .config import BusConfig, NodeConfig
 from .dcf import write_dcf
 from .master.bringup import settings
-from .yamlconf import load_yaml
 
 
 class Hex(int):
@@ -50,7 +49,6 @@ def export(config: BusConfig, out: str | Path) -> list[Path]:
     """Write ``bus.yml`` and ``<axis>.dcf`` for every node of ``config`` into ``out``."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    raw = _raw_nodes(config)
     m = config.master
     doc = {"options": {"dcf_path": "."},
            "master": {"node_id": m.node_id or MASTER_NODE_ID, "driver": "ros2_canopen::MasterDriver",
@@ -63,28 +61,12 @@ def export(config: BusConfig, out: str | Path) -> list[Path]:
         dcf = out / f"{axis}.dcf"
         write_dcf(n.od, dcf, n.node_id, m.nominal_bitrate, {})      # the device: no ParameterValue
         written.append(dcf)
-        doc["nodes"][axis] = _node(n, dcf.name, m.sync_period_s, raw.get(axis, {}))
+        doc["nodes"][axis] = _node(n, dcf.name, m.sync_period_s, {k: n.source[k] for k in OWN_KEYS if k in n.source})
     bus = out / "bus.yml"
     with open(bus, "w", encoding="utf-8") as f:
         f.write("# Written by drive-bridge export ros2 from " + str(config.path) + "\n")
         yaml.dump(doc, f, Dumper=_Dumper, sort_keys=False, default_flow_style=None)
     return [bus] + written
-
-
-def _raw_nodes(config: BusConfig) -> dict[str, dict]:
-    """Each node's own drive-bridge keys as bus.yml has them (load units, as written)."""
-    doc = load_yaml(config.path)
-    defaults = doc.get("defaults") or {}
-    entries = dict(doc.get("nodes") or {})
-    entries.update({k: v for k, v in doc.items() if isinstance(v, dict) and k in config.nodes and k not in entries})
-    out = {}
-    for axis, entry in entries.items():
-        merged = {**defaults, **(entry or {})}
-        for key in OWN_KEYS:
-            if isinstance(defaults.get(key), dict) and isinstance((entry or {}).get(key), dict):
-                merged[key] = {**defaults[key], **entry[key]}
-        out[str(axis)] = {k: merged[k] for k in OWN_KEYS if k in merged}
-    return out
 
 
 def _node(n: NodeConfig, dcf_name: str, period_s: float, own: dict) -> dict:
