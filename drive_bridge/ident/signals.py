@@ -113,7 +113,7 @@ class Parallel:
     log: Log
     axis: str
     settings: Settings
-    length: int                                     # the prepared samples' count
+    length: int = 0                                 # the prepared samples' count (set by prepare)
     _cache: dict = field(default_factory=dict, repr=False)
     _segments: list = field(default_factory=list, repr=False)
 
@@ -231,29 +231,26 @@ def _decimate(x: np.ndarray, settings: Settings) -> np.ndarray:
 
 
 def prepare(log: Log, axis: str, settings: Settings) -> Samples:
-    """Filtered, differentiated, decimated samples of ``axis`` (all segments)."""
-    ax = log.axes[axis]
+    """Filtered, differentiated, decimated samples of ``axis`` (all segments), from the same
+    full-rate signals the regressor columns are made of (:class:`Parallel`)."""
     sos = signal.butter(FILTER_ORDER, settings.cutoff_hz, fs=settings.rate_hz, output="sos")
-    r, edge, dt = settings.decimation, settings.edge, log.dt
-    lag = settings.torque_delay_s / dt
+    r, edge = settings.decimation, settings.edge
+    source = Parallel(log, axis, settings)
     parts: dict[str, list[np.ndarray]] = {k: [] for k in ("t", "q", "qd", "qdd", "sgn", "tau_f", "tau", "settled")}
     other_parts: dict[str, list[list[np.ndarray]]] = {o: [[], [], []] for o in log.axes if o != axis}
-    for sl, keep in _usable(log, axis, settings):      # (too short to filter, cut and decimate: skipped)
-        qf = signal.sosfiltfilt(sos, _delayed(ax.q[sl], lag))
-        channels = {"q": qf, "qd": np.gradient(qf, dt), "tau_f": signal.sosfiltfilt(sos, ax.tau[sl])}
-        channels["qdd"] = np.gradient(channels["qd"], dt)
+    for keep, ch in source.segments():        # (too short to filter, cut and decimate: skipped)
         # parallel filtering of the Coulomb column: the torque's step at a reversal is smoothed
         # by the low-pass, so sign(q̇) gets the same filter (IDIM: filter W and τ alike)
-        channels["sgn"] = signal.sosfiltfilt(sos, np.sign(channels["qd"]))
+        channels = {"q": signal.sosfiltfilt(sos, ch.q), "qd": ch.qd, "tau_f": signal.sosfiltfilt(sos, ch.tau),
+                    "qdd": ch.qdd, "sgn": signal.sosfiltfilt(sos, ch.sgn)}
         for k, x in channels.items():
             parts[k].append(_decimate(x[keep], settings))
-        parts["settled"].append(_settled(channels["qd"], settings)[keep][::r])
-        parts["t"].append(log.t[sl][keep][::r])
-        parts["tau"].append(_interval_mean(ax.tau[sl], r)[keep][::r])
+        parts["settled"].append(_settled(ch.qd, settings)[keep][::r])
+        parts["t"].append(ch.t[keep][::r])
+        parts["tau"].append(_interval_mean(ch.tau, r)[keep][::r])
         for o, lists in other_parts.items():
-            oqf = signal.sosfiltfilt(sos, _delayed(_filled(log.axes[o].q[sl]), lag))
-            oqd = np.gradient(oqf, dt)
-            for i, x in enumerate((oqf, oqd, np.gradient(oqd, dt))):
+            oq, oqd, oqdd = ch.others[o]
+            for i, x in enumerate((signal.sosfiltfilt(sos, oq), oqd, oqdd)):
                 lists[i].append(_decimate(x[keep], settings))
     if not parts["t"]:
         raise UserError(f"{log.path}: axis {axis!r}: every usable run is shorter than the filter needs "
@@ -269,8 +266,9 @@ def prepare(log: Log, axis: str, settings: Settings) -> Samples:
     if moving.sum() < MIN_MOVING:
         raise UserError(f"{log.path}: axis {axis!r}: only {int(moving.sum())} moving samples after filtering "
                         f"and decimation (need {MIN_MOVING}); record longer or with more motion")
+    source.length = n
     return Samples(axis, cat["t"], cat["q"], cat["qd"], cat["qdd"], cat["sgn"], cat["tau_f"], cat["tau"],
-                   moving, others, Parallel(log, axis, settings, n))
+                   moving, others, source)
 
 
 def whole_band(log: Log, axis: str, settings: Settings) -> Samples:
