@@ -179,6 +179,20 @@ def hac_covariance(phi: np.ndarray, resid: np.ndarray, gram_inv: np.ndarray, dof
 MAX_DELAY_SAMPLES = 3.0      # a torque delay estimated beyond this many log samples is held at it
 
 
+class TorqueRate(Effect):
+    """The filtered torque's rate of change, negated, at the log's rate (``dt`` [s]): with it
+    in the model, its coefficient is the torque's delay [s] (:func:`torque_delay`); not an
+    effect of the library."""
+
+    name, depends_on, coef_names = "torque_delay", "time", ("delay_s",)
+
+    def __init__(self, dt: float):
+        self.dt = dt
+
+    def _columns(self, s):
+        return -np.gradient(s.tau, self.dt)[:, None]
+
+
 def torque_delay(model: AxisModel, s: Samples, dt: float) -> tuple[float, float]:
     """Delay [s] of the logged torque behind the logged position, and its (HAC) std.
 
@@ -192,17 +206,8 @@ def torque_delay(model: AxisModel, s: Samples, dt: float) -> tuple[float, float]
     speed) biases it, so it is estimated again as effects are added.  An estimate beyond
     ±``MAX_DELAY_SAMPLES`` log samples is no plain delay (a compliant transmission or a filter
     shifts the phase too): the caller leaves it alone."""
-    m = s.moving
-    dtau = s.parallel(("torque derivative",), lambda ch: np.gradient(ch.tau, dt))[:, 0]
-    phi = np.column_stack((model.design(s), -dtau))[m]
-    y = s.tau_f[m]
-    scale = np.sqrt(np.mean(phi ** 2, axis=0))
-    scale[scale == 0] = 1.0
-    coef, *_ = np.linalg.lstsq(phi / scale, y, rcond=None)
-    coef = coef / scale
-    resid = y - phi @ coef
-    gram_inv = np.linalg.pinv((phi / scale).T @ (phi / scale)) / np.outer(scale, scale)
-    cov = hac_covariance(phi, resid, gram_inv, len(y) - phi.shape[1])
+    lead = AxisModel(model.effects + [TorqueRate(dt)], seed=model.seed).fit(s)
+    coef, cov = lead.coef_, lead.cov_
     limit = MAX_DELAY_SAMPLES * dt
     return float(np.clip(coef[-1], -limit, limit)), float(np.sqrt(max(cov[-1, -1], 0.0)))
 
