@@ -179,18 +179,18 @@ def hac_covariance(phi: np.ndarray, resid: np.ndarray, gram_inv: np.ndarray, dof
 MAX_DELAY_SAMPLES = 3.0      # a torque delay estimated beyond this many log samples is held at it
 
 
-class TorqueRate(Effect):
-    """The filtered torque's rate of change, negated, at the log's rate (``dt`` [s]): with it
-    in the model, its coefficient is the torque's delay [s] (:func:`torque_delay`); not an
-    effect of the library."""
+class _TorqueRate:
+    """One more model column, not an effect of the library: the torque's rate of change,
+    negated, at the log's rate (``dt`` [s]) and filtered as the torque is; its coefficient is
+    the torque's delay [s] (:func:`torque_delay`)."""
 
-    name, depends_on, coef_names = "torque_delay", "time", ("delay_s",)
+    coef_names = ("delay_s",)
 
     def __init__(self, dt: float):
         self.dt = dt
 
-    def _columns(self, s):
-        return -np.gradient(s.tau, self.dt)[:, None]
+    def columns(self, s: Samples, logged: bool = False) -> np.ndarray:
+        return s.parallel(("torque rate", self.dt), lambda ch: -np.gradient(ch.tau, self.dt)[:, None], logged)
 
 
 def torque_delay(model: AxisModel, s: Samples, dt: float) -> tuple[float, float]:
@@ -206,7 +206,7 @@ def torque_delay(model: AxisModel, s: Samples, dt: float) -> tuple[float, float]
     speed) biases it, so it is estimated again as effects are added.  An estimate beyond
     ±``MAX_DELAY_SAMPLES`` log samples is no plain delay (a compliant transmission or a filter
     shifts the phase too): the caller leaves it alone."""
-    lead = AxisModel(model.effects + [TorqueRate(dt)], seed=model.seed).fit(s)
+    lead = AxisModel(model.effects + [_TorqueRate(dt)], seed=model.seed).fit(s)
     coef, cov = lead.coef_, lead.cov_
     limit = MAX_DELAY_SAMPLES * dt
     return float(np.clip(coef[-1], -limit, limit)), float(np.sqrt(max(cov[-1, -1], 0.0)))
