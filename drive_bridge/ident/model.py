@@ -176,7 +176,7 @@ def hac_covariance(phi: np.ndarray, resid: np.ndarray, gram_inv: np.ndarray, dof
     return gram_inv @ meat @ gram_inv * (n / max(1, dof))
 
 
-MAX_DELAY_SAMPLES = 3.0      # a torque delay estimated beyond this many log samples is held at it
+MAX_DELAY_SAMPLES = 3.0      # a torque delay estimated beyond this many log samples is no plain delay
 
 
 class _TorqueRate:
@@ -208,8 +208,7 @@ def torque_delay(model: AxisModel, s: Samples, dt: float) -> tuple[float, float]
     shifts the phase too): the caller leaves it alone."""
     lead = AxisModel(model.effects + [_TorqueRate(dt)], seed=model.seed).fit(s)
     coef, cov = lead.coef_, lead.cov_
-    limit = MAX_DELAY_SAMPLES * dt
-    return float(np.clip(coef[-1], -limit, limit)), float(np.sqrt(max(cov[-1, -1], 0.0)))
+    return float(coef[-1]), float(np.sqrt(max(cov[-1, -1], 0.0)))
 
 
 @dataclass
