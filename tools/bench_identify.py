@@ -45,6 +45,7 @@ def plan_for(axes, seconds_per_axis):
 
 
 def _sim_y_logs(seeds: int):
+    """The simulated Y axis's plant values, and its log once per noise seed."""
     sim = load_sim_config(SIM_DEFAULT)
     y = sim.axes["y"]
     y.effects, y.cp, y.D, y.torque_noise_Nm = {}, 0.0, 0.0, 0.0
@@ -52,34 +53,30 @@ def _sim_y_logs(seeds: int):
     plan = plan_for(["y"], 60.0)
     clean = plant_log(sim, {"y": plan.demand[:, 0]})
     rated = y.motor.rated_torque_Nm
-    for seed in range(seeds):
-        cols = dict(clean)
-        noise = 0.004 * np.random.default_rng(seed).standard_normal(len(cols["time_s"]))
-        cols["y_torque_Nm"] = np.round((clean["y_torque_Nm"] + noise) / rated * 1000) * rated / 1000
-        yield cols
-    return {"J": y.J, "c0": y.c0, "c1": y.c1}
+
+    def log(seed: int) -> dict:
+        noise = 0.004 * np.random.default_rng(seed).standard_normal(len(clean["time_s"]))
+        return {**clean, "y_torque_Nm": np.round((clean["y_torque_Nm"] + noise) / rated * 1000) * rated / 1000}
+    return {"J": y.J, "c0": y.c0, "c1": y.c1}, map(log, range(seeds))
 
 
 def _independent_logs(seeds: int):
+    """The independent plant's values, and its log once per noise seed."""
     from tests.ident.generator import closed_loop_log
-    for seed in range(seeds):
-        yield closed_loop_log(np.arange(40000) / 1000, seed=seed)
-    return {"J": 1e-4, "c0": 0.3, "c1": 5e-4}
+    return ({"J": 1e-4, "c0": 0.3, "c1": 5e-4},
+            (closed_loop_log(np.arange(40000) / 1000, seed=seed) for seed in range(seeds)))
 
 
 def crb(seeds: int) -> None:
     for name, logs in (("simulated Y axis, 60 s campaign, torque noise 0.004 Nm + quantisation", _sim_y_logs),
                        ("independent closed-loop plant, 40 s at 1 kHz, noise 0.004 Nm", _independent_logs)):
         estimates, bounds = [], []
-        gen = logs(seeds)
+        plant, cols = logs(seeds)
         with tempfile.TemporaryDirectory() as tmp:
-            try:
-                while True:
-                    r = identify(write_log(Path(tmp) / "log.csv", next(gen)), axes=["y"])["y"]
-                    estimates.append([r.model.params_[k] for k in ("J", "c1", "c0")])
-                    bounds.append([r.model.param_std_[k] for k in ("J", "c1", "c0")])
-            except StopIteration as stop:
-                plant = stop.value
+            for c in cols:
+                r = identify(write_log(Path(tmp) / "log.csv", c), axes=["y"])["y"]
+                estimates.append([r.model.params_[k] for k in ("J", "c1", "c0")])
+                bounds.append([r.model.param_std_[k] for k in ("J", "c1", "c0")])
         est, bound = np.array(estimates), np.mean(bounds, axis=0)
         print(f"{seeds} seeds, {name}")
         for i, k in enumerate(("J", "c1", "c0")):
