@@ -89,11 +89,14 @@ def describe(c: dict) -> str:
     v = c["value"]
     if isinstance(v, bool):
         return f"{c['criterion']}: no"
-    shown = f"{v:.3g}{' ' + c['unit'] if c['unit'] and c['unit'] != '×' else ''}{'×' if c['unit'] == '×' else ''}" \
-        if isinstance(v, float) else str(v)
-    if c["criterion"].startswith("relative std") and isinstance(v, float):
+    unit = c["unit"]
+    if not isinstance(v, float):
+        shown = str(v)
+    elif c["criterion"].startswith("relative std"):       # a fraction, shown in per cent as its limit is
         shown = f"{v * 100:.3g} %"
-    return f"{c['criterion']} {shown} (needs {c['limit']}{'' if c['unit'] in ('', '×') else ' ' + c['unit']})"
+    else:
+        shown = f"{v:.3g}" + ("×" if unit == "×" else f" {unit}" if unit else "")
+    return f"{c['criterion']} {shown} (needs {c['limit']}{f' {unit}' if unit not in ('', '×') else ''})"
 
 
 def headline(v: dict) -> str:

@@ -92,11 +92,17 @@ def current_gains(R: float, L: float) -> tuple[float, float, float]:
     return L * w_i, R / L, w_i
 
 
+def open_loops(J, c1, gains: dict[str, float], L: float):
+    """The velocity and the position loop, open, with given gains on the identified plant."""
+    w_i = gains["KpC"] / L
+    return (velocity_open_loop(J, c1, gains["KpS"], gains["KiS"], w_i),
+            position_open_loop(J, c1, gains["KpS"], gains["KiS"], gains["KpP"], w_i))
+
+
 def loop_margins(J, c1, gains: dict[str, float], R: float, L: float) -> tuple[Margins, Margins]:
     """Margins of given gains on the identified plant (e.g. the factory or the paper's sets)."""
-    w_i = gains["KpC"] / L
-    return (_margins(velocity_open_loop(J, c1, gains["KpS"], gains["KiS"], w_i)),
-            _margins(position_open_loop(J, c1, gains["KpS"], gains["KiS"], gains["KpP"], w_i)))
+    velocity, position = open_loops(J, c1, gains, L)
+    return _margins(velocity), _margins(position)
 
 
 def _largest(margins_of, lo: float, hi: float, pm_min: float, what: str) -> tuple[float, Margins]:

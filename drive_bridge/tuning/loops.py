@@ -12,13 +12,7 @@ from pathlib import Path
 import control
 import numpy as np
 
-from .design import position_open_loop, velocity_open_loop
-
-
-def _loops(J: float, c1: float, gains: dict[str, float], L: float):
-    w_i = gains["KpC"] / L
-    return (velocity_open_loop(J, c1, gains["KpS"], gains["KiS"], w_i),
-            position_open_loop(J, c1, gains["KpS"], gains["KiS"], gains["KpP"], w_i))
+from .design import open_loops
 
 
 def loop_figure(J: float, c1: float, before: dict[str, float] | None, after: dict[str, float], L: float,
@@ -31,7 +25,7 @@ def loop_figure(J: float, c1: float, before: dict[str, float] | None, after: dic
     f = np.logspace(0, 4, 600)                                       # 1 Hz .. 10 kHz
     fig, ax = plt.subplots(2, 3, figsize=(13, 6.5), gridspec_kw={"width_ratios": [1, 1, 0.9]})
     for name, gains, colour in sets:
-        for col, (loop, sys_) in enumerate(zip(("velocity", "position"), _loops(J, c1, gains, L))):
+        for col, (loop, sys_) in enumerate(zip(("velocity", "position"), open_loops(J, c1, gains, L))):
             resp = sys_(2j * np.pi * f)
             mag, phase = 20 * np.log10(np.abs(resp)), np.degrees(np.unwrap(np.angle(resp)))
             gm, pm, wg, wc = control.margin(sys_)
@@ -49,7 +43,7 @@ def loop_figure(J: float, c1: float, before: dict[str, float] | None, after: dic
                                     color=colour, fontsize=8, xytext=(4, -12 if name == "after" else 4),
                                     textcoords="offset points")
             ax[0, col].set_title(f"{loop} loop, open loop")
-        closed = control.feedback(_loops(J, c1, gains, L)[1], 1)
+        closed = control.feedback(open_loops(J, c1, gains, L)[1], 1)
         t = np.linspace(0, 0.05, 1000)
         _, y = control.step_response(closed, t)
         ax[0, 2].plot(t * 1e3, y, colour, label=name)
