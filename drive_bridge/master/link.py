@@ -9,6 +9,7 @@ runs one scenario over both).
 """
 from __future__ import annotations
 
+import bisect
 import os
 import sys
 import threading
@@ -121,7 +122,8 @@ class TraceRecorder(can.Listener):
         if not held:
             return
         held.sort(key=lambda m: m.timestamp)
-        cut = len(held) if final else _first_after(held, held[-1].timestamp - REORDER_S)
+        cut = len(held) if final else bisect.bisect_right(held, held[-1].timestamp - REORDER_S,
+                                                          key=lambda m: m.timestamp)
         for msg in held[:cut]:
             self._write(msg)
         del held[:cut]
@@ -131,18 +133,6 @@ class TraceRecorder(can.Listener):
             self._stopping.set()
             self._thread.join()
         self.writer.stop()
-
-
-def _first_after(frames: list[can.Message], t: float) -> int:
-    """Index of the first of the time-sorted ``frames`` stamped after ``t``."""
-    lo, hi = 0, len(frames)
-    while lo < hi:
-        mid = (lo + hi) // 2
-        if frames[mid].timestamp <= t:
-            lo = mid + 1
-        else:
-            hi = mid
-    return lo
 
 
 class MasterNetwork(canopen.Network):
