@@ -148,6 +148,8 @@ def identify_axis(log: Log, axis: str, val_log: Log | None = None, *, seed: int 
                                     given or (0.0, "not estimated: the resonance shifts the torque's phase "
                                                    "by more than a delay"))
             mode = {**mode, "cutoff_moved_from_hz": round(settings.cutoff_hz, 2)}
+            if result.settings.torque_delay_s != settings.torque_delay_s:
+                wide = whole_band(log, axis, result.settings)      # the positions as the new fit reads them
         result.resonance = mode
         result.unexplained.append({"depends_on": "frequency", "form": "even", "kind": "resonance",
                                    "fraction": mode["share"], "frequency_hz": mode["frequency_hz"],
