@@ -56,7 +56,7 @@ def loop_figure(J: float, c1: float, before: dict[str, float] | None, after: dic
         ax[0, col].set_ylim(-60, 60)
         ax[1, col].set_ylim(-360, 0)
         for r in range(2):
-            ax[r, col].grid(True, which="both", alpha=0.3)
+            ax[r, col].grid(True, alpha=0.3)
             ax[r, col].legend(loc="lower left", fontsize=8)
     ax[0, 2].set_title("position step, closed loop (model)")
     ax[0, 2].set_xlabel("time [ms]")
@@ -65,12 +65,12 @@ def loop_figure(J: float, c1: float, before: dict[str, float] | None, after: dic
     ax[0, 2].legend(loc="lower right", fontsize=8)
     ax[1, 2].axis("off")
     ax[1, 2].text(0, 0.9, "\n".join(
-        [f"J = {J:.4g}, c1 = {c1:.4g} (identified), L = {L:.3g} H"] +
-        [f"{name}: KpP {g['KpP']:.4g} 1/s, KpS {g['KpS']:.4g}, KiS {g['KiS']:.4g} 1/s" for name, g, _ in sets]),
+        [f"J = {J:.4g}, c1 = {c1:.4g} (identified)", f"L = {L:.3g} H"] +
+        [f"{name}: KpP {g['KpP']:.4g} 1/s, KpS {g['KpS']:.4g},\n       KiS {g['KiS']:.4g} 1/s" for name, g, _ in sets]),
         fontsize=8, va="top", family="monospace")
     if title:
         fig.suptitle(title)
-    fig.tight_layout()
+    fig.subplots_adjust(left=0.06, right=0.98, bottom=0.08, top=0.9, wspace=0.3, hspace=0.25)
     path = Path(path)
     fig.savefig(path, dpi=80)
     plt.close(fig)
