@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 from scipy import signal
@@ -119,7 +120,7 @@ class Parallel:
 
     def columns(self, key, columns: Callable[[Channels], np.ndarray], logged: bool = False) -> np.ndarray:
         if (key, logged) not in self._cache:
-            sos, r = self._sos(), self.settings.decimation
+            sos, r = self.sos, self.settings.decimation
             parts = []
             for keep, ch in self.segments():
                 x = np.asarray(columns(ch), dtype=float).reshape(len(ch), -1)
@@ -131,13 +132,15 @@ class Parallel:
             self._cache[key, logged] = np.concatenate(parts)[:self.length]
         return self._cache[key, logged]
 
-    def _sos(self) -> np.ndarray:
+    @cached_property
+    def sos(self) -> np.ndarray:
+        """The low-pass, designed once."""
         return signal.butter(FILTER_ORDER, self.settings.cutoff_hz, fs=self.settings.rate_hz, output="sos")
 
     def segments(self) -> list[tuple[slice, Channels]]:
         """(the part kept after the edge cut, the segment's signals) of each usable segment."""
         if not self._segments:
-            sos, dt = self._sos(), self.log.dt
+            sos, dt = self.sos, self.log.dt
             lag = self.settings.torque_delay_s / dt
             for sl, keep in _usable(self.log, self.axis, self.settings):
                 q = _delayed(self.log.axes[self.axis].q[sl], lag)
@@ -233,9 +236,9 @@ def _decimate(x: np.ndarray, settings: Settings) -> np.ndarray:
 def prepare(log: Log, axis: str, settings: Settings) -> Samples:
     """Filtered, differentiated, decimated samples of ``axis`` (all segments), from the same
     full-rate signals the regressor columns are made of (:class:`Parallel`)."""
-    sos = signal.butter(FILTER_ORDER, settings.cutoff_hz, fs=settings.rate_hz, output="sos")
     r, edge = settings.decimation, settings.edge
     source = Parallel(log, axis, settings)
+    sos = source.sos
     parts: dict[str, list[np.ndarray]] = {k: [] for k in ("t", "q", "qd", "qdd", "sgn", "tau_f", "tau", "settled")}
     other_parts: dict[str, list[list[np.ndarray]]] = {o: [[], [], []] for o in log.axes if o != axis}
     for keep, ch in source.segments():        # (too short to filter, cut and decimate: skipped)
