@@ -48,6 +48,10 @@ class Report:
     def standard(self) -> bool:
         return not self.findings and not self.lely
 
+    def as_dict(self) -> dict:
+        return {"path": str(self.path), "standard": self.standard, "findings": self.findings,
+                "lely": self.lely, "drive": self.drive}
+
 
 def check(path: str | Path) -> Report:
     """Check the EDS/DCF at ``path`` (ConfigError when canopen cannot read it at all)."""

@@ -4,6 +4,7 @@ stops the process (an exception, Ctrl-C, SIGTERM) while it is written."""
 from __future__ import annotations
 
 import json
+import math
 import os
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -31,7 +32,8 @@ def write_text(path: str | Path, text: str) -> Path:
     return Path(path)
 
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2          # 2 (2026-11-23): object addresses, identities and COB-IDs as hex strings,
+                            # floats to SIGNIFICANT digits, non-finite values as null
 
 
 def stamped(name: str, doc: dict) -> dict:
@@ -40,5 +42,47 @@ def stamped(name: str, doc: dict) -> dict:
     return {"schema": f"drive-bridge/{name}", "schema_version": SCHEMA_VERSION, **doc}
 
 
-def write_json(path: str | Path, doc) -> Path:
-    return write_text(path, json.dumps(doc, indent=1, default=float))
+SIGNIFICANT = 7     # digits of a float in a result: more than any measured or identified value here
+                    # holds, and a REAL32 drive value's 0.11999999731779099 reads 0.12
+
+
+def meaningful(x):
+    """``x`` (a result, nested) ready for JSON: floats to :data:`SIGNIFICANT` significant digits
+    (whole numbers, such as device increments, exactly), a non-finite float as ``None``, numpy
+    scalars and arrays as Python numbers and lists."""
+    if isinstance(x, dict):
+        return {k: meaningful(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [meaningful(v) for v in x]
+    if hasattr(x, "tolist"):                                # numpy scalar or array
+        return meaningful(x.tolist())
+    if isinstance(x, float):
+        if not math.isfinite(x):
+            return None
+        return x if x.is_integer() else float(f"{x:.{SIGNIFICANT}g}")
+    return x
+
+
+def json_text(doc, indent: int | None = None) -> str:
+    """A result as JSON text (:func:`meaningful`): what every JSON output and ``--json`` prints."""
+    return json.dumps(meaningful(doc), indent=indent, allow_nan=False)
+
+
+def hex_object(index: int, sub: int | None = None) -> str:
+    """An object dictionary address as CANopen writes it: "0x2000:3", or "0x1018" for a whole object."""
+    return f"0x{index:04X}" if sub is None else f"0x{index:04X}:{sub}"
+
+
+def hex32(value: int) -> str:
+    """An identity value, device type or COB-ID: "0x00000DB1"."""
+    return f"0x{value:08X}"
+
+
+def identity_hex(ident: dict) -> dict:
+    """A node's identity (0x1000, 0x1018 fields) as its JSON carries it, each in :func:`hex32`."""
+    return {k: hex32(v) for k, v in ident.items()}
+
+
+def write_json(path: str | Path, doc, exact: bool = False) -> Path:
+    """``doc`` as :func:`json_text`; ``exact`` keeps every float as it is (a backup to restore from)."""
+    return write_text(path, json.dumps(doc, indent=1, default=float) if exact else json_text(doc, indent=1))

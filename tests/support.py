@@ -86,3 +86,30 @@ def bus_yml_beside(tmp_path: Path, old: str = "", new: str = "") -> Path:
 def tool(name: str) -> str | None:
     """A third-party command (dcfchk, dcfgen, tshark) from the test environment or PATH; None when absent."""
     return shutil.which(name, path=os.pathsep.join([os.path.dirname(sys.executable), os.environ.get("PATH", "")]))
+
+
+def follows_schema(doc: dict, name: str) -> dict:
+    """``doc`` names schema ``drive-bridge/<name>`` at the current version and the JSON Schema the
+    package ships for it accepts it (jsonschema, in the test extra); every float in it carries at
+    most the digits a result means (drive_bridge.outputs.SIGNIFICANT)."""
+    import json
+
+    import jsonschema
+
+    from drive_bridge.outputs import SCHEMA_VERSION, SIGNIFICANT
+    from drive_bridge.resources import data
+    assert doc["schema"] == f"drive-bridge/{name}" and doc["schema_version"] == SCHEMA_VERSION
+    jsonschema.validate(doc, json.loads(data("schemas", f"{name}.schema.json").read_text()))
+
+    def floats(x):
+        if isinstance(x, dict):
+            for v in x.values():
+                yield from floats(v)
+        elif isinstance(x, list):
+            for v in x:
+                yield from floats(v)
+        elif isinstance(x, float):
+            yield x
+    for f in floats(doc):
+        assert f.is_integer() or float(f"{f:.{SIGNIFICANT}g}") == f, f"{f!r}: more digits than it means"
+    return doc

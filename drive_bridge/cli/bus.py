@@ -16,6 +16,7 @@ def register(sub) -> None:
                        description="Ask every node who is there: identity (0x1018) and device type (0x1000); "
                                    "a configured node that is missing or no CiA 402 drive ends with exit 3.")
     options.bus(p)
+    options.json_flag(p)
     p.set_defaults(func=cmd_scan)
 
     p = sub.add_parser("record", help="bring up the drives, run the excitation campaign, log torque, velocity, "
@@ -26,6 +27,7 @@ def register(sub) -> None:
     p.add_argument("--axes", help="comma-separated axes to move (default: all configured)")
     p.add_argument("--together", action="store_true", help="move all axes at once (exposes coupling)")
     p.add_argument("--out", required=True, help="output directory")
+    options.json_flag(p)
     p.set_defaults(func=cmd_record)
 
     p = sub.add_parser("decode", help="rebuild log.csv from a raw CAN trace",
@@ -34,6 +36,7 @@ def register(sub) -> None:
     p.add_argument("trace", help="trace file written by record (trace.blf)")
     p.add_argument("--meta", help="meta.yaml of the recording (default: beside the trace)")
     p.add_argument("--out", help="CSV to write (default: decoded.csv beside the trace)")
+    options.json_flag(p)
     p.set_defaults(func=cmd_decode)
 
     p = sub.add_parser("export", help="write the bus for other tools: ros2_canopen's bus.yml and DCFs",
@@ -43,6 +46,7 @@ def register(sub) -> None:
     p.add_argument("target", choices=["ros2"], help="the format")
     p.add_argument("--config", default=None, help="bus configuration (default: the shipped one)")
     p.add_argument("--out", required=True, help="output directory")
+    options.json_flag(p)
     p.set_defaults(func=cmd_export)
 
     p = sub.add_parser("check-eds", help="say what in an EDS/DCF is not CiA 306, and what drive-bridge can use",
@@ -51,6 +55,7 @@ def register(sub) -> None:
                                    "PDOs). drive-bridge itself reads such files as they are. Exit 0: standard; "
                                    "1: something non-standard found; 2: a file cannot be read at all.")
     p.add_argument("files", nargs="+", metavar="FILE", help="EDS or DCF files")
+    options.json_flag(p)
     p.set_defaults(func=cmd_check_eds)
 
 
@@ -58,6 +63,10 @@ def cmd_scan(args) -> int:
     config = options.config(args)
     with Session(config, options.session_options(args)) as session:
         result = scan(session.link, config)
+    if args.json:
+        options.print_json("scan", result.as_dict(config))
+        check_scan(result, config)
+        return 0
     by_id = {n.node_id: a for a, n in config.nodes.items()}
     for node_id, ident in sorted(result.found.items()):
         kind = "CiA 402 drive" if ident["device_type"] & 0xFFFF == 402 else f"device type 0x{ident['device_type']:08X}"
@@ -92,11 +101,14 @@ def cmd_record(args) -> int:
         finally:
             for bar in bars:
                 bar.close()
-    print(f"bus load {result.bus_load}; {result.cycles_sent} SYNC cycles in {result.wall_time_s:.1f} s")
-    for axis in result.plan.axes:
-        print(f"  axis {axis}: {result.samples[axis]} samples, {result.missing[axis]} missing")
-    print(timing_line(result.timing))
-    print(f"wrote {result.out_dir / 'log.csv'}, meta.yaml, trace.blf")
+    if args.json:
+        options.print_json("record", result.as_dict())
+    else:
+        print(f"bus load {result.bus_load}; {result.cycles_sent} SYNC cycles in {result.wall_time_s:.1f} s")
+        for axis in result.plan.axes:
+            print(f"  axis {axis}: {result.samples[axis]} samples, {result.missing[axis]} missing")
+        print(timing_line(result.timing))
+        print(f"wrote {result.out_dir / 'log.csv'}, meta.yaml, trace.blf")
     if result.aborted is not None:
         raise result.aborted
     return degraded_exit([] if not result.timing.degraded else result.timing.reasons)
@@ -127,7 +139,11 @@ def cmd_decode(args) -> int:
     if out.is_dir():
         raise UserError(f"--out {out} is a directory; name the CSV file to write")
     save_table(out, names, values, fmts)
-    print(f"wrote {out}: {len(values)} rows, {len(names)} columns")
+    if args.json:
+        options.print_json("decode", {"trace": str(args.trace), "out": str(out), "rows": len(values),
+                                      "columns": list(names), "problem": problem})
+    else:
+        print(f"wrote {out}: {len(values)} rows, {len(names)} columns")
     if problem:
         raise UserError(f"{args.trace}: {problem}; the {len(values)} rows before it are in {out}")
     return 0
@@ -135,9 +151,12 @@ def cmd_decode(args) -> int:
 
 def cmd_check_eds(args) -> int:
     from ..edscheck import check
-    clean = True
-    for name in args.files:
-        report = check(name)
+    reports = [check(name) for name in args.files]
+    clean = all(r.standard for r in reports)
+    if args.json:
+        options.print_json("check-eds", {"standard": clean, "files": [r.as_dict() for r in reports]})
+        return 0 if clean else 1
+    for report in reports:
         lely = ("Lely dcf-tools not installed (pip install dcf-tools)" if report.lely is None
                 else f"Lely dcf-tools: {len(report.lely)} finding(s)")
         print(f"{report.path}: {'CiA 306' if report.standard else 'NOT standard'}; {lely}")
@@ -147,7 +166,6 @@ def cmd_check_eds(args) -> int:
             print(f"  lely: {line}")
         for line in report.drive:
             print(f"  drive-bridge: {line}")
-        clean &= report.standard
     return 0 if clean else 1
 
 
@@ -157,5 +175,8 @@ def cmd_export(args) -> int:
     from ..ros2 import export
     options.out_dir(args.out)
     paths = export(load_bus_config(args.config or DEFAULT_BUS_CONFIG), args.out)
-    print(f"wrote {', '.join(p.name for p in paths)} in {args.out}")
+    if args.json:
+        options.print_json("export", {"target": args.target, "out": str(args.out), "files": [p.name for p in paths]})
+    else:
+        print(f"wrote {', '.join(p.name for p in paths)} in {args.out}")
     return 0

@@ -1,8 +1,6 @@
 """``commission``: the whole job in one command, resumable, ending in summary.json and report.html."""
 from __future__ import annotations
 
-import json
-
 from . import options
 
 
@@ -29,5 +27,5 @@ def cmd_commission(args) -> int:
     result = commission(options.config(args), args.out, options.session_options(args),
                         steps=options.axes_list(args.steps), restart=args.restart)
     if args.json:
-        print(json.dumps(result.summary, default=float))
+        options.print_json("summary", result.summary)
     return result.exit_code

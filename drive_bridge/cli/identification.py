@@ -14,7 +14,7 @@ def register(sub) -> None:
     p.add_argument("log", help="log CSV, or a record output directory")
     p.add_argument("--validate", help="a second log to validate on (default: held-out parts of LOG)")
     p.add_argument("--axis", help="axis name(s), comma-separated (default: every axis that moves)")
-    p.add_argument("--json", action="store_true", help="print exactly one JSON object (automation)")
+    options.json_flag(p)
     p.add_argument("--out", help="directory for the Markdown report, its plots and identify.json")
     p.add_argument("--cutoff", type=float, help="low-pass cut-off [Hz] (default: from the data)")
     p.add_argument("--torque-delay", type=float, metavar="MS",

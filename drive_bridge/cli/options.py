@@ -11,6 +11,7 @@ import can
 from ..canconf import resolve
 from ..config import BusConfig, load_bus_config
 from ..errors import UserError
+from ..outputs import json_text, stamped
 from ..resources import DEFAULT_BUS_CONFIG
 from ..session import Options
 
@@ -45,7 +46,20 @@ def drive(p: argparse.ArgumentParser, params: bool = True) -> None:
                         "configuration names, else drive_bridge_servo)")
     if params:
         p.add_argument("--params", required=True, help="tune result (tune.json)")
-    p.add_argument("--json", action="store_true", help="print the result as one JSON object")
+    json_flag(p)
+
+
+def json_flag(p: argparse.ArgumentParser) -> None:
+    """``--json``: every command has it."""
+    p.add_argument("--json", action="store_true",
+                   help="print the result as one JSON object on stdout (its schema ships in the package); "
+                        "messages go to stderr")
+
+
+def print_json(name: str, doc: dict) -> None:
+    """The one JSON object a ``--json`` command prints, stamped with its schema ``drive-bridge/<name>``
+    (``doc`` already stamped is printed as it is)."""
+    print(json_text(doc if "schema" in doc else stamped(name, doc)))
 
 
 def motor(p: argparse.ArgumentParser) -> None:

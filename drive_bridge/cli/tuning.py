@@ -2,7 +2,6 @@
 of gains and model, and the reference trajectories."""
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 from ..errors import UserError
@@ -95,7 +94,7 @@ def cmd_tune(args) -> int:
     doc = tune_doc(results, unwritable_effects(args.ident))
     out = write_json(args.out, doc)
     if args.json:
-        print(json.dumps(doc, default=float))
+        options.print_json("tune", doc)
         return 0
     for a, t in results.items():
         d = t.design
@@ -129,7 +128,7 @@ def cmd_write(args) -> int:
                                inductance=tuned.inductance, force=o.force, pm_floor=o.pm_floor, gm_floor=o.gm_floor,
                                allow_unverified_scales=o.writes_unverified, bitrate=config.master.nominal_bitrate)
     if args.json:
-        print(json.dumps(outcome.as_dict(), default=float))
+        options.print_json("write", outcome.as_dict())
     else:
         _print_write(outcome, args.backup_dir, session.profile)
     raise_for_failure(outcome, args.backup_dir)
@@ -184,7 +183,7 @@ def cmd_validate(args) -> int:
         runs = run_scenarios(config, session.link, session.axes, session.profile, scenarios, model,
                              out_dir=Path(args.out) if args.out else None)
     if args.json:
-        print(json.dumps(validate_doc(runs), default=float))
+        options.print_json("validate", validate_doc(runs))
     else:
         print(f"{'scenario':<28} {'trajectory':<15} {'axis':<4} {'FE rms [mrad]':>13} {'FE max [mrad]':>13} "
               f"{'overshoot [%]':>13} {'settling [ms]':>13} {'torque RMSE [Nm]':>16}")

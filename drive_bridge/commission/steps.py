@@ -10,7 +10,7 @@ from pathlib import Path
 from ..errors import UserError
 from ..master.bringup import scan as scan_bus
 from ..master.bringup import check_scan
-from ..outputs import write_json
+from ..outputs import stamped, write_json
 from ..params.read import drive_state
 from ..params.write import raise_for_failure, write_drives
 from ..progress import StepReporter
@@ -56,7 +56,7 @@ class Context:
 def scan(ctx: Context) -> str:
     config = ctx.config
     result = scan_bus(ctx.session.link, config)
-    write_json(ctx.out / OUTPUT["scan"], result.as_dict(config))
+    write_json(ctx.out / OUTPUT["scan"], stamped("scan", result.as_dict(config)))
     check_scan(result, config)
     extra = f"; not configured, left alone: nodes {result.unexpected}" if result.unexpected else ""
     extra += "".join(f"; identity of {a} ACCEPTED although it differs: {why}"
@@ -68,8 +68,11 @@ def scan(ctx: Context) -> str:
 def bringup(ctx: Context) -> str:
     profile = ctx.session.profile
     axes = ctx.session.axes
-    write_json(ctx.out / OUTPUT["bringup"], {"profile": profile.name, "drive": profile.drive,
-                                             "axes": drive_state(axes, profile, ctx.options.motor)})
+    state = drive_state(axes, profile, ctx.options.motor)
+    for a, ax in axes.items():
+        state[a]["process_data"] = ax.process_data()
+    write_json(ctx.out / OUTPUT["bringup"], stamped("bringup", {"profile": profile.name, "drive": profile.drive,
+                                                                "axes": state}))
     return (f"{len(axes)} drive(s) configured (PDO mapping, heartbeat, limits); the {len(profile.entries)} "
             f"parameters of profile {profile.name} read as the set before commissioning")
 

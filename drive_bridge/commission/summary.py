@@ -77,7 +77,7 @@ def _validation(runs: list[dict], axis: str) -> dict:
 
 
 def _written(w: dict) -> list[dict]:
-    return [{"parameter": o["parameter"], "object": f"0x{o['index']:04X}:{o['sub']}", "unit": o["unit"],
+    return [{"parameter": o["parameter"], "object": o["object"], "unit": o["unit"],
              "old": o["old_si"], "new": o["new_si"], "old_device": o["old_device"],
              "new_device": o["new_device"], "verified": o["verified"]} for o in w["objects"]]
 

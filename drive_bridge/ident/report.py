@@ -1,12 +1,11 @@
 """What ``identify`` tells: a terminal summary, the JSON contract, a Markdown report with plots."""
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 
-from ..outputs import stamped, write_text
+from ..outputs import json_text, stamped, write_text
 from .identify import AxisResult
 from .model import AxisModel
 from .trace import describe_unexplained
@@ -87,7 +86,7 @@ def delay_text(s: dict) -> str:
 
 
 def as_json(results: dict[str, AxisResult]) -> str:
-    return json.dumps(stamped("identify", {"axes": {a: r.as_json() for a, r in results.items()}}), default=float)
+    return json_text(stamped("identify", {"axes": {a: r.as_json() for a, r in results.items()}}))
 
 
 def _plot_fit(r: AxisResult, path: Path) -> None:

@@ -9,6 +9,7 @@ from canopen.pdo.base import PdoMap
 from ..config import BusConfig, NodeConfig, PdoConfig
 from ..errors import BusError, DriveRefused
 from ..od import limits
+from ..outputs import hex_object, identity_hex
 from ..pdo import PdoCodec
 from ..setpoint import IP, IP_SUB_MODE, MODE_NAMES, PVT, choose, describe_modes
 from .cia402 import Drive402
@@ -42,6 +43,15 @@ class AxisLink:
     nmt_state: int | None = None
     emcy: list[tuple[float, int]] = field(default_factory=list)   # (time, code)
 
+    def process_data(self) -> dict:
+        """How the master exchanges this axis' process data (bringup.json): the operating mode, the
+        setpoint object and each PDO's COB-ID and mapping, in hex as CANopen writes them."""
+        def pdos(codecs):
+            return [{"cob_id": f"0x{c.cob_id:03X}", "mapping": [hex_object(i, s) for i, s in c.entries]}
+                    for c in codecs]
+        return {"mode": self.mode, "mode_name": MODE_NAMES.get(self.mode, str(self.mode)),
+                "setpoint": hex_object(*self.setpoint), "rpdo": pdos(self.rpdos), "tpdo": pdos(self.tpdos)}
+
     def position_rad(self) -> float:
         """Position actual (0x6064) now [rad | rad motor side], read by SDO; BusError naming the axis."""
         try:
@@ -64,7 +74,7 @@ class ScanResult:
         """scan.json: the nodes found (by axis where configured), missing, unexpected, wrong type,
         identities that differ from the EDS/DCF (and those accepted with --accept-identity)."""
         by_id = {n.node_id: a for a, n in config.nodes.items()}
-        return {"found": {by_id.get(i, str(i)): {"node_id": i, **ident} for i, ident in self.found.items()},
+        return {"found": {by_id.get(i, str(i)): {"node_id": i, **identity_hex(ident)} for i, ident in self.found.items()},
                 "missing": self.missing, "unexpected": self.unexpected, "wrong_type": self.wrong_type,
                 "identity_mismatch": self.identity_mismatch, "identity_accepted": self.identity_accepted}
 

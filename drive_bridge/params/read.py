@@ -6,6 +6,7 @@ import canopen
 from canopen.sdo import SdoVariable
 
 from ..errors import BusError, UserError
+from ..outputs import identity_hex
 from .profile import Entry, Profile
 
 SDO_ERRORS = (canopen.SdoAbortedError, canopen.SdoCommunicationError)
@@ -84,6 +85,6 @@ def drive_state(axes: dict, profile: Profile, motor: tuple[float, float] | None 
     out = {}
     for a, ax in axes.items():
         R, L = motor_data(ax.node, profile, *(motor or ax.cfg.motor or (None, None)))
-        out[a] = {"node_id": ax.cfg.node_id, "identity": ax.identity, "motor": {"R": R, "L": L},
+        out[a] = {"node_id": ax.cfg.node_id, "identity": identity_hex(ax.identity), "motor": {"R": R, "L": L},
                   "parameters_before": read_parameters(ax.node, profile)}
     return out

@@ -14,7 +14,7 @@ import canopen
 
 from ..dcf import export_dcf
 from ..errors import BusError, DriveRefused, WriteInterrupted
-from ..outputs import stamped, write_json
+from ..outputs import hex_object, stamped, write_json
 from ..signals import deferred, signal_name
 from .check import GM_FLOOR_DB, PM_FLOOR_DEG, ValueRefused, check_margins, check_set
 from .profile import Entry, Profile
@@ -75,7 +75,10 @@ class WriteResult:
         return self.error is None
 
     def as_dict(self) -> dict:
+        """One drive in write.json: each object's address as "0x2000:3"."""
         d = asdict(self)
+        d["objects"] = [{"parameter": o.pop("parameter"), "object": hex_object(o.pop("index"), o.pop("sub")), **o}
+                        for o in d["objects"]]
         d["ok"] = self.ok
         return d
 
@@ -222,7 +225,7 @@ class _Transaction:
             return
         write_json(path, {"node_id": r.node_id, "drive": self.profile.drive, "profile": self.profile.name,
                           "objects": [{"parameter": w.parameter, "index": w.index, "sub": w.sub,
-                                       "device": w.old_device, "si": w.old_si} for w in r.objects]})
+                                       "device": w.old_device, "si": w.old_si} for w in r.objects]}, exact=True)
         r.backup = str(path)
 
     def _store(self, axis: str, r: WriteResult) -> None:

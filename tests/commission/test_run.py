@@ -22,7 +22,7 @@ from drive_bridge.resources import data
 from drive_bridge.sim import kernel as K
 from drive_bridge.sim.config import DEFAULT_CONFIG, load_sim_config
 
-from ..support import BUS_CONFIG, EDS, PAPER, tool
+from ..support import BUS_CONFIG, EDS, PAPER, follows_schema, tool
 
 SIM = load_sim_config(DEFAULT_CONFIG)          # the shipped robot, hidden effects on
 
@@ -157,19 +157,29 @@ def test_the_summary_opens_with_a_verdict_and_the_exit_code_says_when_it_fails(r
     assert "did not pass its acceptance criteria (exit 6)" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("name,path", [("summary", "summary.json"), ("identify", "identify/identify.json"),
-                                       ("tune", "tune.json"), ("write", "write/write.json"),
-                                       ("validate", "validate/validate.json")])
+@pytest.mark.parametrize("name,path", [("summary", "summary.json"), ("scan", "scan.json"), ("bringup", "bringup.json"),
+                                       ("identify", "identify/identify.json"), ("tune", "tune.json"),
+                                       ("write", "write/write.json"), ("validate", "validate/validate.json")])
 def test_every_json_output_follows_its_shipped_schema(run, name, path):
-    """Each JSON output names its schema and version, and the JSON Schema shipped in the package
-    for it accepts it (jsonschema, in the test extra)."""
+    """Each JSON output names its schema and version, the JSON Schema shipped in the package for
+    it accepts it (jsonschema, in the test extra) and refuses another version; its floats carry
+    the digits they mean."""
     jsonschema = pytest.importorskip("jsonschema")
-    doc = json.loads((run["out"] / path).read_text())
-    assert doc["schema"] == f"drive-bridge/{name}" and doc["schema_version"] == 1
+    doc = follows_schema(json.loads((run["out"] / path).read_text()), name)
     schema = json.loads(data("schemas", f"{name}.schema.json").read_text())
-    jsonschema.validate(doc, schema)
     with pytest.raises(jsonschema.ValidationError):
-        jsonschema.validate({**doc, "schema_version": 2}, schema)
+        jsonschema.validate({**doc, "schema_version": 1}, schema)
+
+
+def test_addresses_and_identities_are_hex_as_canopen_writes_them(run):
+    write = json.loads((run["out"] / "write" / "write.json").read_text())
+    assert {o["object"] for o in write["axes"]["y"]["objects"]} >= {"0x2000:1", "0x2000:3"}
+    bringup = json.loads((run["out"] / "bringup.json").read_text())["axes"]["y"]
+    assert bringup["identity"]["vendor_id"] == "0x00000DB1"
+    pd = bringup["process_data"]
+    assert pd["setpoint"] == "0x607A:0" and pd["tpdo"][0]["cob_id"] == "0x182"
+    assert "0x6064:0" in [m for p in pd["tpdo"] for m in p["mapping"]]
+    assert bringup["parameters_before"]["KpS"] == 0.12                 # a REAL32 0.11999999731779099
 
 
 def test_report_is_one_self_contained_page(run):

@@ -1,0 +1,51 @@
+"""``--json`` on every command: one object on stdout that follows the schema shipped for it, with
+object addresses, identities and COB-IDs as hex strings and floats rounded to what they mean."""
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from drive_bridge.cli import main
+
+from ..support import EDS, VENDOR_EDS, follows_schema
+
+pytest.importorskip("jsonschema")
+
+
+def _printed(capsys) -> dict:
+    out = capsys.readouterr().out
+    assert out.count("\n") == 1, out               # exactly one JSON object, nothing else on stdout
+    return json.loads(out)
+
+
+def test_scan_names_identities_in_hex(capsys):
+    assert main(["scan", "--sim", "--json"]) == 0
+    doc = follows_schema(_printed(capsys), "scan")
+    assert doc["found"]["x"]["vendor_id"] == "0x00000DB1" and doc["found"]["x"]["device_type"] == "0x00020192"
+    assert doc["found"]["x"]["node_id"] == 1
+
+
+def test_record_then_decode_then_identify(tmp_path, capsys):
+    assert main(["record", "--sim", "--quick", "--axes", "y", "--out", str(tmp_path), "--json"]) == 0
+    rec = follows_schema(_printed(capsys), "record")
+    assert rec["aborted"] is None and rec["axes"]["y"]["samples"] > 500 and rec["timing"]["clock"] == "lockstep"
+    assert main(["decode", str(tmp_path / "trace.blf"), "--json"]) == 0
+    dec = follows_schema(_printed(capsys), "decode")
+    assert dec["problem"] is None and dec["rows"] >= rec["axes"]["y"]["samples"] and (tmp_path / "decoded.csv").is_file()
+    assert main(["identify", str(tmp_path), "--json"]) == 0
+    ident = follows_schema(_printed(capsys), "identify")
+    assert ident["axes"]["y"]["params"]["J"] > 0
+
+
+def test_check_eds_and_export(tmp_path, capsys):
+    assert main(["check-eds", str(EDS), "--json"]) == 0
+    doc = follows_schema(_printed(capsys), "check-eds")
+    assert doc["standard"] and doc["files"][0]["path"] == str(EDS)
+    code = main(["check-eds", str(VENDOR_EDS / "pilz_prbt_0_1.dcf"), "--json"])
+    doc = follows_schema(_printed(capsys), "check-eds")
+    assert code == (0 if doc["standard"] else 1)                 # 1 where Lely's dcfchk is installed
+    assert any(line.startswith("modes (0x6502): profile position (1)") for line in doc["files"][0]["drive"])
+    assert main(["export", "ros2", "--out", str(tmp_path), "--json"]) == 0
+    doc = follows_schema(_printed(capsys), "export")
+    assert "bus.yml" in doc["files"] and all((tmp_path / f).is_file() for f in doc["files"])
