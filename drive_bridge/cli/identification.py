@@ -15,7 +15,7 @@ def register(sub) -> None:
     p.add_argument("--validate", help="a second log to validate on (default: held-out parts of LOG)")
     p.add_argument("--axis", help="axis name(s), comma-separated (default: every axis that moves)")
     options.json_flag(p)
-    p.add_argument("--out", help="directory for the Markdown report, its plots and identify.json")
+    p.add_argument("--out", help="directory for the report (identify.html, identify.md), its plots and identify.json")
     p.add_argument("--cutoff", type=float, help="low-pass cut-off [Hz] (default: from the data)")
     p.add_argument("--torque-delay", type=float, metavar="MS",
                    help="delay of the logged torque behind the position [ms] (default: estimated from the data; "
@@ -27,15 +27,15 @@ def register(sub) -> None:
 
 def cmd_identify(args) -> int:
     from ..ident import identify
-    from ..ident.report import as_json, summary, write_markdown
+    from ..ident.report import as_json, summary, write_report
     options.out_dir(args.out)
     progress = None if args.json else (lambda axis: print(f"identifying axis {axis} ...", file=sys.stderr))
     results = identify(args.log, args.validate, options.axes_list(args.axis), seed=args.seed,
                        cutoff_hz=args.cutoff, decimation=args.decimate, progress=progress,
                        torque_delay_s=None if args.torque_delay is None else args.torque_delay / 1e3)
     if args.out:
-        report = write_markdown(results, Path(args.out), str(args.log))
+        report = write_report(results, Path(args.out), str(args.log))
         if not args.json:
-            print(f"wrote {report} (plots and identify.json beside it)", file=sys.stderr)
+            print(f"wrote {report} and identify.html (plots and identify.json beside them)", file=sys.stderr)
     print(as_json(results) if args.json else summary(results))
     return 0

@@ -24,7 +24,7 @@ from ..outputs import write_json
 from ..progress import StepReporter
 from ..session import Options, Session
 from . import steps as S
-from .report import REPORT, write_report
+from .report import FIGURES, REPORT, REPORT_MD, write_report
 from .summary import build_summary
 from .verdict import headline
 
@@ -74,7 +74,8 @@ def _state(out: Path, config: BusConfig, restart: bool) -> dict:
 
 def _clear(out: Path) -> None:
     """Remove a previous run's outputs (only the names this tool writes)."""
-    for name in [*S.OUTPUT.values(), STATE, SUMMARY, REPORT, ERROR_LOG]:
+    loops = [p.name for p in out.glob(S.LOOPS.format(axis="*"))]
+    for name in [*S.OUTPUT.values(), STATE, SUMMARY, REPORT, REPORT_MD, FIGURES, ERROR_LOG, *loops]:
         p = out / name
         if p.is_dir():
             shutil.rmtree(p)
@@ -151,7 +152,7 @@ def commission(config: BusConfig, out: str | Path, options: Options | None = Non
     if failure is not None:
         reporter.note(f"stopped in step {failure['step']}. Everything recorded so far is in {out}; "
                       f"{resume_hint(state, steps is not None)} (--restart to start over).")
-    reporter.note(f"summary: {out / SUMMARY}; report: {out / REPORT}")
+    reporter.note(f"summary: {out / SUMMARY}; report: {out / REPORT} (and {REPORT_MD})")
     return CommissionResult(summary["status"], code, failure and failure["step"],
                             failure and failure["reason"], todo, out, summary)
 

@@ -97,10 +97,10 @@ def campaign(ctx: Context) -> str:
 
 def identify(ctx: Context) -> str:
     from ..ident import identify as identify_log
-    from ..ident.report import write_markdown
+    from ..ident.report import write_report
     source = ctx.require(OUTPUT["campaign"])
     results = identify_log(source, seed=ctx.options.seed, progress=lambda a: ctx.reporter.note(f"axis {a}"))
-    write_markdown(results, ctx.out / OUTPUT["identify"], str(source))
+    write_report(results, ctx.out / OUTPUT["identify"], str(source))
     return "; ".join(f"{a}: J {r.model.params_['J']:.4g}, " + (
         " + ".join(t.effect.name for t in r.effects) or "no effect") + f", RMSE {r.before.rmse:.3g} → "
         f"{r.after.rmse:.3g} {r.units['torque']}" for a, r in results.items())

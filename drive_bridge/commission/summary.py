@@ -6,8 +6,9 @@ wall-clock run missed its timing limits, named in ``timing_degraded``), ``steps`
 ``versions``.  Per axis: the identified parameters and effects (the fields of
 ``identify --json``; its ``validation`` is ``identify_validation`` here), the paper's
 values beside them, gains before/after with their margins, validation following error
-RMS [rad] before/after per trajectory, model torque RMSE [Nm], and every object written
-with ``verified``.
+RMS and max [rad], overshoot [%], settling [s] and model torque RMSE [Nm] (at the torque's lag
+[cycles], and between the demand's acceleration steps) before/after per trajectory, and every
+object written with ``verified``.
 """
 from __future__ import annotations
 
@@ -69,8 +70,13 @@ def _validation(runs: list[dict], axis: str) -> dict:
         out[traj] = {"fe_rms_before": mb and mb["fe_rms"], "fe_rms_after": ma["fe_rms"],
                      "improvement": (mb["fe_rms"] / ma["fe_rms"]) if mb and ma["fe_rms"] else None,
                      "fe_max_before": mb and mb["fe_max"], "fe_max_after": ma["fe_max"],
-                     "overshoot_pct_after": ma["overshoot_pct"], "settling_s_after": ma["settling_s"],
+                     "overshoot_pct_before": mb and mb["overshoot_pct"], "overshoot_pct_after": ma["overshoot_pct"],
+                     "settling_s_before": mb and mb["settling_s"], "settling_s_after": ma["settling_s"],
                      "torque_rmse_before": mb and mb["torque_rmse"], "torque_rmse_after": ma["torque_rmse"],
+                     "torque_rmse_between_steps_before": mb and mb.get("torque_rmse_between_steps"),
+                     "torque_rmse_between_steps_after": ma.get("torque_rmse_between_steps"),
+                     "torque_lag_cycles_before": mb and mb.get("torque_lag_cycles"),
+                     "torque_lag_cycles_after": ma.get("torque_lag_cycles"),
                      "aborted": a["aborted"] or (b and b["aborted"]),
                      "feedforward": a.get("feedforward", {}).get(axis)}
     return out

@@ -138,6 +138,13 @@ class AxisModel:
                 out[f"{e.name}.{k}"] = v
         return out
 
+    def effect_term(self, effect: Effect, s: Samples) -> np.ndarray:
+        """The torque ``effect`` contributes to the prediction at ``s`` (filtered as the fit's)."""
+        for e, sl in self._blocks():
+            if e is effect:
+                return e.columns(s, False) @ self.coef_[sl]
+        raise KeyError(effect)
+
     def effect_params(self, effect: Effect) -> dict:
         for e, sl in self._blocks():
             if e is effect:

@@ -1,13 +1,14 @@
-"""What ``identify`` tells: a terminal summary, the JSON contract, a Markdown report with plots."""
+"""What ``identify`` tells: a terminal summary, the JSON contract, and a report with plots (HTML and
+Markdown, :mod:`drive_bridge.document`)."""
 from __future__ import annotations
 
 from pathlib import Path
 
 import numpy as np
 
+from ..document import Document, Strong
 from ..outputs import json_text, stamped, write_text
 from .identify import AxisResult
-from .model import AxisModel
 from .trace import describe_unexplained
 
 UNITS = {"rotary": {"J": "kg·m²", "c0": "Nm", "c1": "Nm·s/rad", "offset": "Nm", "cp": "Nm/rad"},
@@ -89,25 +90,61 @@ def as_json(results: dict[str, AxisResult]) -> str:
     return json_text(stamped("identify", {"axes": {a: r.as_json() for a, r in results.items()}}))
 
 
+SPAN_S = 3.0        # length of each stretch of the validation the fit figure shows [s]
+SPANS = 3
+
+
+def _spans(t: np.ndarray, moving: np.ndarray) -> list[slice]:
+    """Up to :data:`SPANS` contiguous stretches of :data:`SPAN_S` (no gap in the time stamps) where
+    the axis moves: from the longest blocks of the validation, or spread over one block."""
+    dt = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
+    cuts = np.flatnonzero(np.diff(t) > 1.5 * dt) + 1
+    blocks = sorted((b for b in np.split(np.arange(len(t)), cuts) if len(b) > 1), key=len, reverse=True)
+    n = max(2, int(round(SPAN_S / dt)))
+    starts = []
+    if len(blocks) == 1 or len(blocks[0]) >= SPANS * n:
+        b = blocks[0]
+        starts = [b[0] + int(f * max(0, len(b) - n)) for f in np.linspace(0.1, 0.9, SPANS)] if len(b) > n else [b[0]]
+    else:
+        starts = [b[0] + max(0, (len(b) - n) // 2) for b in blocks[:SPANS]]
+    out = []
+    for i in sorted(starts):
+        sl = slice(i, min(i + n, len(t)))
+        if moving[sl].any():
+            out.append(sl)
+    return out or [slice(0, min(n, len(t)))]
+
+
 def _plot_fit(r: AxisResult, path: Path) -> None:
+    """Measured and predicted torque and the residual, before and after the traced effects, on a
+    few contiguous stretches of the validation samples (lines, not clouds: agreement is visible)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    s = r.val
-    m = s.moving
-    t = s.t
-    fig, axes = plt.subplots(2, 1, figsize=(10, 6), sharex=True)
-    for ax, model, title in ((axes[0], r.base, "base model J, c0, c1"), (axes[1], r.model, "final model")):
-        pred = np.where(m, model.predict(s, logged=True), np.nan)
-        ax.plot(t, s.tau, ".", ms=1.5, color="0.6", label="measured (as logged)")
-        ax.plot(t, pred, ".", ms=1.5, color="C0", label="predicted")
-        err = r.before if model is r.base else r.after
-        ax.set_title(f"axis {r.axis}, {title}: validation RMSE {err.rmse:.4g} {r.units['torque']}")
-        ax.set_ylabel(f"torque [{r.units['torque']}]")
-        ax.legend(loc="upper right", markerscale=6)
-    axes[1].set_xlabel("time [s]")
-    fig.tight_layout()
-    fig.savefig(path, dpi=90)
+    s, tu = r.val, r.units["torque"]
+    base = np.where(s.moving, r.base.predict(s, logged=True), np.nan)
+    final = np.where(s.moving, r.model.predict(s, logged=True), np.nan)
+    spans = _spans(s.t, s.moving)
+    fig, ax = plt.subplots(2, len(spans), figsize=(11, 6), sharey="row", squeeze=False,
+                           gridspec_kw={"height_ratios": [2, 1]})
+    for col, sl in enumerate(spans):
+        t = s.t[sl]
+        ax[0, col].plot(t, s.tau[sl], color="0.55", lw=1.6, label="measured (as logged)")
+        ax[0, col].plot(t, base[sl], color="C1", lw=0.9, ls="--", label="predicted, J, c0, c1")
+        ax[0, col].plot(t, final[sl], color="C0", lw=0.9, label="predicted, final model")
+        ax[1, col].plot(t, s.tau[sl] - base[sl], color="C1", lw=0.8, label="residual, J, c0, c1")
+        ax[1, col].plot(t, s.tau[sl] - final[sl], color="C0", lw=0.8, label="residual, final model")
+        ax[1, col].set_xlabel("time [s]")
+        for row in range(2):
+            ax[row, col].grid(True, alpha=0.3)
+    ax[0, 0].set_ylabel(f"torque [{tu}]")
+    ax[1, 0].set_ylabel(f"residual [{tu}]")
+    handles = [h for a_ in (ax[0, 0], ax[1, 0]) for h in a_.get_legend_handles_labels()[0]]
+    fig.legend(handles, [h.get_label() for h in handles], loc="lower center", ncol=5, fontsize=8, frameon=False)
+    fig.suptitle(f"axis {r.axis}, validation samples, {len(spans)} stretches of {SPAN_S:g} s: RMSE "
+                 f"{r.before.rmse:.4g} {tu} (J, c0, c1) → {r.after.rmse:.4g} {tu} (final model)")
+    fig.subplots_adjust(left=0.08, right=0.98, bottom=0.16, top=0.92, wspace=0.08, hspace=0.25)
+    fig.savefig(path, dpi=85)
     plt.close(fig)
 
 
@@ -126,76 +163,93 @@ def _variable(r: AxisResult, depends_on: str) -> tuple[np.ndarray, str]:
 
 
 def _plot_effect(r: AxisResult, k: int, path: Path) -> None:
+    """The effect's term in the final model (the parameters the table gives) over the variable it
+    depends on, with the partial residual: what the final model leaves, plus this term."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     t = r.effects[k]
-    before = AxisModel(r.model.effects[:k]).fit(r.est)
-    after = AxisModel(r.model.effects[:k + 1]).fit(r.est)
     s, m = r.est, r.est.moving
     x, label = _variable(r, t.effect.depends_on)
-    resid = (s.tau_f - before.predict(s))[m]
-    contribution = (after.predict(s) - before.predict(s))[m]
+    term = r.model.effect_term(t.effect, s)[m]
+    partial = (s.tau_f - r.model.predict(s))[m] + term
     fig, ax = plt.subplots(figsize=(8, 4.5))
-    ax.plot(x[m], resid, ".", ms=1.5, color="0.6", label=f"residual before {t.effect.name}")
-    order = np.argsort(x[m])
-    ax.plot(x[m][order], contribution[order], ".", ms=1.5, color="C3", label=f"{t.effect.name}, fitted")
+    ax.plot(x[m], partial, ".", ms=1.5, color="0.6", label="residual of the final model + this term")
+    order = np.argsort(x[m], kind="stable")
+    ax.plot(x[m][order], term[order], ".", ms=2, color="C3", label=f"{t.effect.name} in the final model")
+    p = ", ".join(f"{n} {_fmt(v)}" for n, v in t.params.items() if not isinstance(v, (list, dict)))
     ax.set_xlabel(label)
     ax.set_ylabel(f"torque [{r.units['torque']}]")
-    ax.set_title(f"axis {r.axis}: {t.effect.name} ({t.effect.depends_on})")
-    ax.legend(loc="upper right", markerscale=6)
-    fig.tight_layout()
+    ax.set_title(f"axis {r.axis}: {t.effect.name} ({t.effect.depends_on})" + (f": {p}" if len(p) < 70 else ""),
+                 fontsize=10)
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="upper left", bbox_to_anchor=(0, -0.14), ncol=2, markerscale=6, fontsize=8, frameon=False)
+    fig.subplots_adjust(left=0.1, right=0.97, bottom=0.24, top=0.9)
     fig.savefig(path, dpi=90)
     plt.close(fig)
 
 
-def write_markdown(results: dict[str, AxisResult], out: Path, source: str) -> Path:
-    """``out/identify.md`` with its plots beside it."""
-    out.mkdir(parents=True, exist_ok=True)
-    md = [f"# Identification of {source}", ""]
+def _sentence(text: str) -> str:
+    return text[0].upper() + text[1:] + "."
+
+
+def build_report(results: dict[str, AxisResult], out: Path, source: str) -> Document:
+    """The identification report (figures drawn into ``out``)."""
+    doc = Document(f"Identification of {source}")
     for axis, r in results.items():
         u, tu = UNITS[r.kind], r.units["torque"]
-        md += [f"## Axis {axis} ({r.kind})", "",
-               f"Cut-off {r.settings.cutoff_hz:.1f} Hz (motion bandwidth {r.settings.motion_bandwidth_hz:.2f} Hz), "
-               f"decimation {r.settings.decimation}, {int(r.est.moving.sum())} moving samples fitted. "
-               f"Validation: {r.validation}.", "",
-               "| parameter | LSE | std | rel. std | GA |", "| --- | --- | --- | --- | --- |"]
+        doc.heading(1, f"Axis {axis} ({r.kind})")
+        doc.para(f"Cut-off {r.settings.cutoff_hz:.1f} Hz (motion bandwidth {r.settings.motion_bandwidth_hz:.2f} Hz), "
+                 f"decimation {r.settings.decimation}, {int(r.est.moving.sum())} moving samples fitted. "
+                 f"Validation: {r.validation}.")
+        rows = []
         for i, name in enumerate(r.model.coef_names):
             v = r.model.coef_[i]
             sd = float(np.sqrt(r.model.cov_[i, i]))
-            md.append(f"| {name} {u.get(name, '')} | {v:.6g} | {sd:.2g} | {abs(sd / v) * 100 if v else 0:.2f} % "
-                      f"| {r.ga_coef[i]:.6g} |")
-        md += ["", f"Condition number {r.model.cond_:.1f}; residual std {r.model.sigma_:.4g} {tu}; "
-               f"GA validation RMSE {r.ga_errors.rmse:.4g} {tu} (LSE {r.after.rmse:.4g}).", "",
-               "| model | validation RMSE (logged torque) | relative error (filtered) |", "| --- | --- | --- |",
-               f"| J, c0, c1 | {r.before.rmse:.4g} {tu} | {r.before.relative_error:.2%} |"]
+            rows.append([name, u.get(name, ""), f"{v:.6g}", f"{sd:.2g}", f"{abs(sd / v) * 100 if v else 0:.2f} %",
+                         f"{r.ga_coef[i]:.6g}"])
+        doc.table(["coefficient", "unit", "LSE", "std", "rel. std", "GA"], rows)
+        doc.para(f"Condition number {r.model.cond_:.1f}; residual std {r.model.sigma_:.4g} {tu}; "
+                 f"GA validation RMSE {r.ga_errors.rmse:.4g} {tu} (LSE {r.after.rmse:.4g} {tu}).")
+        rows = [["J, c0, c1", f"{r.before.rmse:.4g}", f"{r.before.relative_error:.2%}"]]
         names = []
         for t in r.effects:
             names.append(t.effect.name)
-            md.append(f"| + {' + '.join(names)} | {t.rmse_after:.4g} {tu} | {t.relative_error_after:.2%} |")
-        md += ["", f"Measured torque RMS on the same samples {r.after.torque_rms:.4g} {tu}; "
-               f"noise floor {r.noise_floor:.3g} {tu}.", ""]
+            rows.append([f"+ {' + '.join(names)}", f"{t.rmse_after:.4g}", f"{t.relative_error_after:.2%}"])
+        doc.table(["model", f"validation RMSE, logged torque [{tu}]", "relative error, filtered torque"], rows)
+        doc.para(f"Measured torque RMS on the same samples {r.after.torque_rms:.4g} {tu}; "
+                 f"noise floor {r.noise_floor:.3g} {tu}.")
         fit_png = out / f"{axis}_fit.png"
         _plot_fit(r, fit_png)
-        md += [f"![measured vs predicted torque, axis {axis}]({fit_png.name})", ""]
+        doc.figure(fit_png, f"axis {axis}: measured and predicted torque and the residual")
         for k, t in enumerate(r.effects):
             png = out / f"{axis}_effect{k + 1}_{t.effect.name}.png"
             _plot_effect(r, k, png)
-            md += [f"### {t.effect.name} (depends on {t.effect.depends_on})", "", t.evidence, "",
-                   f"![{t.effect.name}]({png.name})", ""]
+            doc.heading(2, f"{t.effect.name} (depends on {t.effect.depends_on})")
+            doc.para(_sentence(t.evidence))
+            doc.figure(png, t.effect.name)
         if r.unexplained:
-            md += ["Unexplained structure left in the residual:", ""]
-            md += [f"- {describe_unexplained(x)}" for x in r.unexplained]
-            md.append("")
+            doc.para("Unexplained structure left in the residual:")
+            doc.bullets([describe_unexplained(x) for x in r.unexplained])
         if r.dropped:
-            md += ["Dropped from the log:", ""] + [f"- {d}" for d in r.dropped] + [""]
+            doc.para("Dropped from the log:")
+            doc.bullets(list(r.dropped))
         if r.sampling.get("resampled"):
-            md += [sampling_text(r.sampling)[0].upper() + sampling_text(r.sampling)[1:] + ".", ""]
+            doc.para(_sentence(sampling_text(r.sampling)))
         if r.sampling.get("torque_aligned") or r.sampling.get("torque_delay_note"):
-            md += [delay_text(r.sampling)[0].upper() + delay_text(r.sampling)[1:] + ".", ""]
+            doc.para(_sentence(delay_text(r.sampling)))
         if r.consistency and not r.consistency["consistent"]:
-            md += [f"**Not consistent:** {consistency_text(r.consistency)}.", ""]
-    path = out / "identify.md"
+            doc.para([Strong("Not consistent:"), f" {consistency_text(r.consistency)}."])
+    return doc
+
+
+REPORT, REPORT_MD = "identify.html", "identify.md"
+
+
+def write_report(results: dict[str, AxisResult], out: Path, source: str) -> Path:
+    """``out/identify.html`` (self-contained) and ``out/identify.md`` (its plots beside it), and
+    ``out/identify.json``; the Markdown's path."""
+    out.mkdir(parents=True, exist_ok=True)
+    doc = build_report(results, out, source)
     write_text(out / "identify.json", as_json(results))
-    write_text(path, "\n".join(md))
-    return path
+    return doc.write(out / REPORT, out / REPORT_MD)[1]

@@ -61,9 +61,9 @@ class TracedEffect:
     f_stat: float
     p_value: float
     share: float               # share of the residual variance (estimation) it explains
-    evidence: str
     model_params: dict         # every parameter of the model once this effect was added
     fit_relative_error: float  # relative error on the estimation samples once it was added
+    evidence: str = ""         # in words, once the final fit is known
 
 
 def f_test(small: AxisModel, big: AxisModel) -> tuple[float, float]:
@@ -74,13 +74,25 @@ def f_test(small: AxisModel, big: AxisModel) -> tuple[float, float]:
     return float(f), float(stats.f.sf(f, k, dof))
 
 
-def _evidence(e: Effect, params: dict, share: float, f: float, before, after) -> str:
+MOVED = 0.1                 # a parameter that moved by this share since its effect was added is said so
+
+
+def _evidence(t: TracedEffect) -> str:
+    """Why ``t`` was added, with its parameters as the final fit has them (the table's values) and
+    what they were when it was added where the effects added after it moved them."""
+    e = t.effect
     what = (f"a smooth torque in {e.variable} no named effect describes ({len(e.coef_names)}-coefficient spline, "
             + ("the same in both directions" if e.form == "even" else "against the motion: friction-like") + ")"
-            if isinstance(e, Spline) else _named_evidence(e, params))
-    return (f"{what}; explains {share:.0%} of the residual variance (F = {f:.3g}); validation "
-            f"RMSE {before.rmse:.4g} -> {after.rmse:.4g}, relative error "
-            f"{before.relative_error:.2%} -> {after.relative_error:.2%}")
+            if isinstance(e, Spline) else _named_evidence(e, t.params))
+    moved = [f"{k} {t.model_params[f'{e.name}.{k}']:+.4g}" for k, v in t.params.items()
+             if isinstance(v, float) and isinstance(t.model_params.get(f"{e.name}.{k}"), float)
+             and abs(v - t.model_params[f"{e.name}.{k}"]) > MOVED * abs(t.model_params[f"{e.name}.{k}"])
+             and not isinstance(e, Spline)]
+    since = (f" (when it was added: {', '.join(moved)}; the effects added after it took part of that)"
+             if moved else "")
+    return (f"{what}{since}; explains {t.share:.0%} of the residual variance (F = {t.f_stat:.3g}); validation "
+            f"RMSE {t.rmse_before:.4g} -> {t.rmse_after:.4g}, relative error "
+            f"{t.relative_error_before:.2%} -> {t.relative_error_after:.2%}")
 
 
 def _named_evidence(e: Effect, params: dict) -> str:
@@ -137,9 +149,7 @@ def trace(est: Samples, val: Samples, seed: int,
         share = 1.0 - fitted.sse_ / model.sse_
         params = fitted.effect_params(cand)
         traced.append(TracedEffect(cand, params, err.rmse, new_err.rmse, err.relative_error,
-                                   new_err.relative_error, f, p, share,
-                                   _evidence(cand, params, share, f, err, new_err), fitted.params_,
-                                   fitted.relative_error_))
+                                   new_err.relative_error, f, p, share, fitted.params_, fitted.relative_error_))
         est, val, model = _realigned(realign, fitted, est, val)
         err = new_err if model is fitted else errors(model, val)
     while traced and not physical(model):  # effects that bought their fit with a negative friction or
@@ -147,6 +157,7 @@ def trace(est: Samples, val: Samples, seed: int,
         model = AxisModel([t.effect for t in traced], seed=seed).fit(est)
     for t in traced:                      # every effect's parameters as the final joint fit has them
         t.params = model.effect_params(t.effect)
+        t.evidence = _evidence(t)
     return AxisModel(seed=seed).fit(est), model, traced
 
 

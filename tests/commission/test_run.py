@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import shutil
 import subprocess
 from pathlib import Path
@@ -182,8 +183,15 @@ def test_addresses_and_identities_are_hex_as_canopen_writes_them(run):
     assert bringup["parameters_before"]["KpS"] == 0.12                 # a REAL32 0.11999999731779099
 
 
-def test_report_is_one_self_contained_page(run):
+def test_report_is_one_self_contained_page_and_markdown_with_the_same_figures(run):
     html = (run["out"] / "report.html").read_text()
+    md = (run["out"] / "report.md").read_text()
+    links = re.findall(r"!\[[^]]*\]\(([^)]+)\)", md)
+    assert len(links) == html.count("data:image/png;base64,") and all((run["out"] / p).is_file() for p in links)
+    assert md.count("\n## Axis ") == 3 and "| parameter | object |" in md
+    summary = json.loads((run["out"] / "summary.json").read_text())
+    offset = next(e for e in summary["axes"]["y"]["effects"] if e["name"] == "offset")
+    assert f"a constant torque {offset['params']['offset']:+.4g}" in offset["evidence"]    # the table's value
     assert "<b>OK</b>" in html and html.count("data:image/png;base64,") >= 3 * 4
     assert html.count("loops: Bode plots and step response") == 3 and "Nm·s/rad" in html
     for a in ("x", "y", "z"):
@@ -288,3 +296,31 @@ def test_an_interrupted_step_is_never_completed_and_the_hint_says_what_a_rerun_d
     assert state["completed"] == ["scan", "bringup", "campaign"]     # identify and what depends on it: not done
     err = capsys.readouterr().err
     assert "run the same command again without --steps to resume at step identify" in err
+
+
+CHROMIUM = shutil.which("chromium")
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="Debian's chromium is not installed")
+def test_report_renders_in_headless_chromium(run, tmp_path):
+    """The report as the engineer's browser shows it: every image decodes and every section is
+    there (the page is loaded from a file, with nothing else to fetch)."""
+    html = (run["out"] / "report.html").read_text()
+    probe = ("<script>addEventListener('load',()=>{const i=[...document.images];document.body.dataset.images="
+             "i.length+':'+i.filter(x=>!(x.complete&&x.naturalWidth>0)).length})</script>")
+    page = tmp_path / "report.html"
+    page.write_text(html.replace("</body>", probe + "</body>"))
+    r = subprocess.run([CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+                        "--disable-background-networking", "--disable-component-update", "--disable-sync",
+                        f"--user-data-dir={tmp_path / 'profile'}", "--virtual-time-budget=10000", "--dump-dom",
+                        page.as_uri()], capture_output=True, text=True, timeout=180)
+    dom = r.stdout
+    loaded = re.search(r'data-images="(\d+):(\d+)"', dom)
+    assert loaded, r.stderr[-2000:]
+    assert int(loaded[1]) == html.count("data:image/png;base64,") >= 3 * 5 and loaded[2] == "0"
+    assert "Verdict: " in dom and "Commissioning report" in dom
+    for section in ("Identified model", "Traced effects", "Gains", "Validation on reference trajectories",
+                    "Objects written"):
+        assert dom.count(f">{section}</h3>") == 3, section
+    for axis in "xyz":
+        assert f">Axis {axis}</h2>" in dom

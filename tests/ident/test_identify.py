@@ -134,6 +134,9 @@ def test_cli_json_is_one_object_and_report_has_plots(tmp_path, capsys):
     assert "z" not in doc["axes"]               # z never moves in this log: not an axis to identify
     md = (tmp_path / "rep" / "identify.md").read_text()
     assert "y_fit.png" in md and (tmp_path / "rep" / "y_effect1_position_periodic.png").stat().st_size > 10000
+    html = (tmp_path / "rep" / "identify.html").read_text()       # the same report, one self-contained page
+    assert html.count("data:image/png;base64,") == md.count("](") == 2 and "src=\"http" not in html
+    assert "Axis y (rotary)" in html and "## Axis y (rotary)" in md
 
 
 def test_linear_axis_units_and_validation_log(tmp_path, capsys):

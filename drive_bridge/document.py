@@ -1,0 +1,150 @@
+"""A report as a list of blocks, rendered two ways with the same content: one self-contained HTML
+page (figures embedded as PNG data, nothing fetched) for a browser, and Markdown with the figures
+as PNG files beside it for a ticket or a wiki.
+
+Text is a string, or a list of strings and :class:`Strong` / :class:`Code` runs; every string is
+escaped for the format it goes to.
+"""
+from __future__ import annotations
+
+import base64
+import html
+import os
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .outputs import write_text
+
+CSS = """body{font-family:system-ui,sans-serif;max-width:1100px;margin:1.5em auto;padding:0 1em;color:#222}
+table{border-collapse:collapse;margin:.6em 0}td,th{border:1px solid #ccc;padding:.25em .6em;text-align:left}
+th{background:#f2f2f2}td.n{text-align:right}img{max-width:100%;margin:.4em 0}
+.ok{background:#e3f4e3;border:1px solid #7c7;padding:.6em 1em}.failed{background:#fbe3e3;border:1px solid #d77;
+padding:.6em 1em}.partial{background:#fff5d6;border:1px solid #db5;padding:.6em 1em}
+.note{color:#555;font-size:.92em}h2{border-bottom:2px solid #ddd;margin-top:1.6em}"""
+
+#: paragraph styles: a box in HTML (the verdict, the status), a quote in Markdown; or a note in grey
+STYLES = ("ok", "partial", "failed", "note")
+
+
+@dataclass(frozen=True)
+class Strong:
+    text: str
+
+
+@dataclass(frozen=True)
+class Code:
+    text: str
+
+
+_NUMBER = re.compile(r"^[+\-]?(\d[\d.,]*(e[+\-]?\d+)?|–)( ?(%|×|→ ?\S+))?$")
+
+
+def _numeric(text) -> bool:
+    """A cell that holds a number (right-aligned in HTML, as numbers are read)."""
+    return isinstance(text, str) and bool(_NUMBER.match(text.strip()))
+
+
+def _runs(text) -> list:
+    return [text] if isinstance(text, (str, Strong, Code)) else list(text)
+
+
+def _html(text) -> str:
+    out = []
+    for r in _runs(text):
+        if isinstance(r, Strong):
+            out.append(f"<b>{html.escape(r.text)}</b>")
+        elif isinstance(r, Code):
+            out.append(f"<code>{html.escape(r.text)}</code>")
+        else:
+            out.append(html.escape(str(r)))
+    return "".join(out)
+
+
+def _md(text, cell: bool = False) -> str:
+    out = []
+    for r in _runs(text):
+        s = r.text if isinstance(r, (Strong, Code)) else str(r)
+        if cell:
+            s = s.replace("|", "\\|").replace("\n", " ")
+        out.append(f"**{s}**" if isinstance(r, Strong) and s else f"`{s}`" if isinstance(r, Code) else s)
+    return "".join(out)
+
+
+@dataclass
+class Document:
+    """Blocks in reading order; ``html()`` and ``markdown()`` render them."""
+
+    title: str
+    blocks: list[tuple] = field(default_factory=list)
+
+    def heading(self, level: int, text) -> None:
+        self.blocks.append(("h", level, text))
+
+    def para(self, text, style: str | None = None) -> None:
+        if style is not None and style not in STYLES:
+            raise ValueError(f"style must be one of {STYLES}")
+        self.blocks.append(("p", text, style))
+
+    def bullets(self, items: list) -> None:
+        if items:
+            self.blocks.append(("ul", items))
+
+    def table(self, head: list, rows: list[list]) -> None:
+        self.blocks.append(("table", head, rows))
+
+    def figure(self, path: str | Path, alt: str) -> None:
+        """A PNG file (left out where it was not made)."""
+        if Path(path).is_file():
+            self.blocks.append(("img", Path(path), alt))
+
+    def figures(self) -> list[Path]:
+        return [b[1] for b in self.blocks if b[0] == "img"]
+
+    # ---------------------------------------------------------------- rendering
+    def html(self) -> str:
+        body = [f"<h1>{html.escape(self.title)}</h1>"]
+        for kind, *b in self.blocks:
+            if kind == "h":
+                body.append(f"<h{b[0] + 1}>{_html(b[1])}</h{b[0] + 1}>")
+            elif kind == "p":
+                cls = f" class='{b[1]}'" if b[1] else ""
+                body.append(f"<{'div' if b[1] in ('ok', 'partial', 'failed') else 'p'}{cls}>{_html(b[0])}"
+                            f"</{'div' if b[1] in ('ok', 'partial', 'failed') else 'p'}>")
+            elif kind == "ul":
+                body.append("<ul>" + "".join(f"<li>{_html(i)}</li>" for i in b[0]) + "</ul>")
+            elif kind == "table":
+                head = "".join(f"<th>{_html(c)}</th>" for c in b[0])
+                rows = "".join("<tr>" + "".join(f"<td{' class=n' if _numeric(c) else ''}>{_html(c)}</td>" for c in r)
+                               + "</tr>" for r in b[1])
+                body.append(f"<table><tr>{head}</tr>{rows}</table>")
+            else:
+                data = base64.b64encode(b[0].read_bytes()).decode()
+                body.append(f'<img alt="{html.escape(b[1])}" src="data:image/png;base64,{data}">')
+        return (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(self.title)}</title>"
+                f"<style>{CSS}</style></head><body>{''.join(body)}</body></html>")
+
+    def markdown(self, where: Path) -> str:
+        """Markdown for a file in the directory ``where``: figures linked by their path from there."""
+        md = [f"# {self.title}", ""]
+        for kind, *b in self.blocks:
+            if kind == "h":
+                md += [f"{'#' * (b[0] + 1)} {_md(b[1])}", ""]
+            elif kind == "p":
+                text = _md(b[0])
+                md += [f"> {text}" if b[1] in ("ok", "partial", "failed") else f"*{text}*" if b[1] == "note"
+                       else text, ""]
+            elif kind == "ul":
+                md += [f"- {_md(i)}" for i in b[0]] + [""]
+            elif kind == "table":
+                md += ["| " + " | ".join(_md(c, True) for c in b[0]) + " |",
+                       "|" + "|".join(" --- " for _ in b[0]) + "|"]
+                md += ["| " + " | ".join(_md(c, True) for c in r) + " |" for r in b[1]] + [""]
+            else:
+                md += [f"![{b[1]}]({Path(os.path.relpath(b[0], where)).as_posix()})", ""]
+        return "\n".join(md)
+
+    def write(self, html_path: str | Path, md_path: str | Path) -> tuple[Path, Path]:
+        """Both renderings; the Markdown's figures are the files the document names."""
+        write_text(html_path, self.html())
+        return Path(html_path), write_text(md_path, self.markdown(Path(md_path).parent))
