@@ -10,12 +10,14 @@ and after, with what got worse explained) and its plots, and the objects written
 """
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
 
 from ..document import Document, Strong
 from ..ident.trace import describe_unexplained
+from ..tuning.loops import predicted_following_error
 from . import steps as S
 from .worse import worse
 
@@ -38,21 +40,31 @@ def _milli(v, fmt=".3g") -> str:
     return _n(None if v is None else v * 1e3, fmt)
 
 
-def _validation_png(traces, axis: str, traj: str, path: Path) -> Path | None:
+def _validation_png(traces, axis: str, traj: str, path: Path, loop: dict | None) -> Path | None:
+    """Following error before and after (each on its own scale, with what the identified model and
+    the gains predict for it where ``loop`` gives them: tune.json's model, motor and gains, and
+    whether the after run fed the model torque forward), position, velocity, torque."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     keys = {sc: f"{sc}/{traj}/{axis}" for sc in ("before", "after")}
     if f"{keys['after']}/t" not in traces:
         return None
-    fig, (fe_b, fe_a, pos, vel, tq) = plt.subplots(5, 1, figsize=(10, 10), sharex=True)
+    fig, (fe_b, fe_a, pos, vel, tq) = plt.subplots(5, 1, figsize=(11, 10), sharex=True)
     for sc, color, ax in (("before", "C1", fe_b), ("after", "C0", fe_a)):
         k = keys[sc]
         if f"{k}/t" not in traces:
             continue
         t = traces[f"{k}/t"]
         fe = (traces[f"{k}/demand"] - traces[f"{k}/position"]) * 1e3
-        ax.plot(t, fe, color=color, lw=0.8)
+        ax.plot(t, fe, color=color, lw=0.8, label=f"measured, RMS {np.sqrt(np.nanmean(fe ** 2)):.3g} mrad")
+        if loop is not None:
+            gains = loop["gains_before" if sc == "before" else "gains"]
+            model_fe = 1e3 * predicted_following_error(loop["model"], gains, loop["motor"]["L"],
+                                                       sc == "after" and loop["feedforward"], t, traces[f"{k}/demand"])
+            ax.plot(t, model_fe, color="k", lw=0.7, ls="--",
+                    label=f"model, RMS {np.sqrt(np.mean(model_fe ** 2)):.3g} mrad")
+        ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8)
         ax.set_ylabel(f"FE {sc} [mrad]")              # each on its own scale: the after trace has a shape
         dt = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
         vel.plot(t, np.gradient(traces[f"{k}/position"], dt), color=color, lw=0.8, label=f"measured ({sc})")
@@ -71,7 +83,7 @@ def _validation_png(traces, axis: str, traj: str, path: Path) -> Path | None:
         ax.grid(True, alpha=0.3)
     fe_b.set_title(f"axis {axis}, {traj.replace('_', '-')}: following error before and after commissioning "
                    f"(own scales), position, velocity and torque")
-    fig.subplots_adjust(left=0.08, right=0.84, bottom=0.05, top=0.96, hspace=0.12)
+    fig.subplots_adjust(left=0.07, right=0.79, bottom=0.05, top=0.96, hspace=0.12)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=80)
     plt.close(fig)
@@ -125,6 +137,19 @@ def _gains(doc: Document, out: Path, axis: str, a: dict) -> None:
     doc.figure(out / S.LOOPS.format(axis=axis), f"axis {axis} loops: Bode plots and step response")
 
 
+def _loop(out: Path, axis: str, a: dict) -> dict | None:
+    """What predicts the following error of ``axis``: tune.json's model, motor and gains, and
+    whether the after runs fed the model torque forward."""
+    try:
+        t = json.loads((out / S.OUTPUT["tune"]).read_text())["axes"][axis]
+    except (OSError, ValueError, KeyError):
+        return None
+    if not t.get("motor", {}).get("L") or not t.get("gains_before"):
+        return None
+    ff = all((v.get("feedforward") or "none") != "none" for v in a["validation"].values())
+    return {**t, "feedforward": ff}
+
+
 def _validation(doc: Document, out: Path, axis: str, a: dict, traces) -> None:
     rows = [[t.replace("_", "-"), _milli(v["fe_rms_before"]), _milli(v["fe_rms_after"]),
              _n(v["improvement"], ".1f") + "×", _milli(v["fe_max_before"]), _milli(v["fe_max_after"]),
@@ -140,9 +165,15 @@ def _validation(doc: Document, out: Path, axis: str, a: dict, traces) -> None:
     if notes:
         doc.para([Strong("Worse after commissioning, and why:")])
         doc.bullets(notes)
+    loop = _loop(out, axis, a)
+    if loop is not None:
+        doc.para("The dashed lines: the following error the identified model and the gains predict along the same "
+                 "demand (the linear cascade with the model's other torques as a disturbance, "
+                 "drive_bridge/tuning/loops.py). After commissioning it gets the size, not the shape: what is left "
+                 "sits at the acceleration steps, where the drive's sampling decides.", "note")
     for t in a["validation"]:
         if traces is not None:
-            png = _validation_png(traces, axis, t, out / FIGURES / f"{axis}_{t}.png")
+            png = _validation_png(traces, axis, t, out / FIGURES / f"{axis}_{t}.png", loop)
             if png:
                 doc.figure(png, f"axis {axis} {t}: following error, position, velocity, torque")
 

@@ -99,6 +99,21 @@ def open_loops(J, c1, gains: dict[str, float], L: float):
             position_open_loop(J, c1, gains["KpS"], gains["KiS"], gains["KpP"], w_i))
 
 
+def following_error(J, c1, gains: dict[str, float], L: float, torque_feedforward: bool):
+    """Transfer functions from the position demand, and from a torque disturbance, to the
+    following error (demand − position) of the cascade on the identified plant: velocity
+    feed-forward FwF, and where ``torque_feedforward`` the model torque, which enters through the
+    current loop alone (the drive adds it in the tick it computes it: no velocity-difference delay)."""
+    w_i = gains["KpC"] / L
+    s, _ = _plant_paths(J, c1, w_i)
+    rigid = 1 / (J * s + max(c1, 0.0))
+    fed = 1 / (s / w_i + 1) * rigid if torque_feedforward else 0 * rigid
+    pc = velocity_open_loop(J, c1, gains["KpS"], gains["KiS"], w_i)
+    den = s * (1 + pc) + pc * gains["KpP"]
+    demand = s * (1 + pc * (1 - gains["FwF"]) - fed * (J * s + max(c1, 0.0))) / den
+    return control.minreal(demand, verbose=False), control.minreal((rigid - fed) / den, verbose=False)
+
+
 def loop_margins(J, c1, gains: dict[str, float], R: float, L: float) -> tuple[Margins, Margins]:
     """Margins of given gains on the identified plant (e.g. the factory or the paper's sets)."""
     velocity, position = open_loops(J, c1, gains, L)

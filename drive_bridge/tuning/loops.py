@@ -12,7 +12,8 @@ from pathlib import Path
 import control
 import numpy as np
 
-from .design import open_loops
+from .design import following_error, open_loops
+from .feedforward import model_torque
 
 
 def loop_figure(J: float, c1: float, before: dict[str, float] | None, after: dict[str, float], L: float,
@@ -75,3 +76,19 @@ def loop_figure(J: float, c1: float, before: dict[str, float] | None, after: dic
     fig.savefig(path, dpi=80)
     plt.close(fig)
     return path
+
+
+def predicted_following_error(model: dict[str, float], gains: dict[str, float], L: float, torque_feedforward: bool,
+                              t: np.ndarray, demand: np.ndarray) -> np.ndarray:
+    """The following error [rad] the identified ``model`` (J, c1 and what the drive model holds:
+    c0, offset, ...) predicts along ``demand`` [rad] at ``t`` [s] with ``gains``: the linear cascade
+    (:func:`.design.following_error`) driven by the demand and by the model's torque beyond J·q̈ + c1·q̇
+    along it (held from the start: the axis waits at rest holding it)."""
+    J, c1 = model["J"], model["c1"]
+    to_error, from_torque = following_error(J, c1, gains, L, torque_feedforward)
+    dt = float(np.median(np.diff(t)))
+    v = np.gradient(demand, dt)
+    rest = model_torque(model, demand, dt) - J * np.gradient(v, dt) - c1 * v
+    tt = t - t[0]
+    return (control.forced_response(to_error, tt, demand - demand[0]).outputs
+            + control.forced_response(from_torque, tt, rest - rest[0]).outputs)
