@@ -14,6 +14,8 @@ import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 from .outputs import write_text
 
 CSS = """body{font-family:system-ui,sans-serif;max-width:1100px;margin:1.5em auto;padding:0 1em;color:#222}
@@ -43,6 +45,15 @@ _NUMBER = re.compile(r"^[+\-]?(\d[\d.,]*(e[+\-]?\d+)?|–)( ?(%|×|→ ?\S+))?$"
 def _numeric(text) -> bool:
     """A cell that holds a number (right-aligned in HTML, as numbers are read)."""
     return isinstance(text, str) and bool(_NUMBER.match(text.strip()))
+
+
+def measured(value: float, std: float | None) -> str:
+    """``value`` with the digits its ``std`` supports: the last one at the std's second significant
+    digit (2 to 7 significant digits); 6 where there is no std."""
+    if std is None or not np.isfinite(std) or not std > 0 or not value or not np.isfinite(value):
+        return f"{value:.6g}"
+    digits = int(np.floor(np.log10(abs(value))) - np.floor(np.log10(std))) + 2
+    return f"{value:.{min(7, max(2, digits))}g}"
 
 
 def _runs(text) -> list:

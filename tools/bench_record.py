@@ -4,7 +4,8 @@
     python tools/bench_record.py realtime [--seconds 60]     # late cycles, lost samples, SYNC period p99
 
 Lockstep: the whole master (bring-up, canopen PDO dispatch, BLF trace, CSV) against the
-simulated drives; prints the real-time factor.  Realtime: the drives run against the wall
+simulated drives; prints the real-time factor, and as a ratio to the plain python-can pump of
+tools/reference.py measured in the same run, before and after (the bus itself, in Python here).  Realtime: the drives run against the wall
 clock in their own thread; the master streams at 500 Hz and the SYNC time stamps of the
 log give the period statistics.
 """
@@ -26,6 +27,7 @@ from drive_bridge.connect import open_link                 # noqa: E402
 from drive_bridge.config import load_bus_config          # noqa: E402
 from drive_bridge.record import record                   # noqa: E402
 from drive_bridge.resources import DEFAULT_BUS_CONFIG   # noqa: E402
+from tools.reference import pump, stamp                  # noqa: E402
 
 
 def campaign_config(seconds: float):
@@ -35,13 +37,19 @@ def campaign_config(seconds: float):
 
 def lockstep(seconds: float) -> None:
     cfg = campaign_config(seconds)
+    reference = [pump()]
     with tempfile.TemporaryDirectory() as out, open_link(cfg, sim=True) as link:
         t0 = time.perf_counter()
         result = record(cfg, link, out)
         wall = time.perf_counter() - t0
+    reference.append(pump())
     motion = result.cycles_sent * cfg.master.sync_period_s
+    speed, ref = motion / wall, float(np.mean(reference))
+    print(stamp())
     print(f"lockstep: {motion:.1f} s of campaign ({result.cycles_sent} SYNC cycles, 3 axes) in {wall:.2f} s "
-          f"-> {motion / wall:.1f}x real time; missing samples {sum(result.missing.values())}")
+          f"-> {speed:.1f}x real time; missing samples {sum(result.missing.values())}")
+    print(f"plain python-can pump (same frames per cycle): {reference[0]:.1f}x before, {reference[1]:.1f}x after "
+          f"-> master with drives at {speed / ref:.2f}x the pump")
 
 
 def realtime(seconds: float) -> None:

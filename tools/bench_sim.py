@@ -22,6 +22,7 @@ from drive_bridge.sim import kernel as K                   # noqa: E402
 from drive_bridge.sim.config import DEFAULT_CONFIG, load_sim_config   # noqa: E402
 from drive_bridge.sim.robot import SimRobot                # noqa: E402
 from drive_bridge.sim.adapters import FastVirtualBus           # noqa: E402
+from tools.reference import pump, stamp                   # noqa: E402
 
 PERIOD = 0.002
 
@@ -72,5 +73,10 @@ def bus(seconds: float = 60.0) -> float:
 
 
 if __name__ == "__main__":
-    print(f"kernel (3 axes, 8 kHz / 2 kHz): {kernel():.0f}x real time")
-    print(f"drives on the virtual bus, lockstep, answering SYNC: {bus():.1f}x real time")
+    print(stamp())
+    ref = pump()
+    print(f"plain python-can pump (tools/reference.py): {ref:.1f}x real time")
+    k = kernel()
+    print(f"kernel (3 axes, 8 kHz / 2 kHz): {k:.0f}x real time ({k / ref:.1f}x the pump)")
+    b = bus()
+    print(f"drives on the virtual bus, lockstep, answering SYNC: {b:.1f}x real time ({b / ref:.2f}x the pump)")

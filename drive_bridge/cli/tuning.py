@@ -186,13 +186,13 @@ def cmd_validate(args) -> int:
         options.print_json("validate", validate_doc(runs))
     else:
         print(f"{'scenario':<28} {'trajectory':<15} {'axis':<4} {'FE rms [mrad]':>13} {'FE max [mrad]':>13} "
-              f"{'overshoot [%]':>13} {'settling [ms]':>13} {'torque RMSE [Nm]':>16}")
+              f"{'overshoot [%]':>13} {'settling [ms]':>13} {'torque RMSE [mNm]':>17}")
         for r in runs:
             for a, m in r.axes.items():
                 settle = None if m.settling_s is None else m.settling_s * 1e3
                 print(f"{r.scenario:<28} {r.trajectory:<15} {a:<4} {_num(m.fe_rms * 1e3, '.3g'):>13} "
                       f"{_num(m.fe_max * 1e3, '.3g'):>13} {_num(m.overshoot_pct, '.3g'):>13} {_num(settle, '.3g'):>13} "
-                      f"{_num(m.torque_rmse, '.3g'):>16}")
+                      f"{_num(m.torque_rmse * 1e3, '.3g'):>17}")
     stop = stopped(runs)
     if stop is not None:
         raise stop

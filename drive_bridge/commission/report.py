@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..document import Document, Strong
+from ..document import Document, Strong, measured
 from ..ident.trace import describe_unexplained
 from ..tuning.loops import predicted_following_error
 from . import steps as S
@@ -96,7 +96,7 @@ def _model(doc: Document, out: Path, axis: str, a: dict) -> None:
     for k, v in a["params"].items():
         sd = a["param_std"].get(k)
         paper = (a.get("paper") or {}).get(k)
-        rows.append([k, _n(v, ".6g"), _n(sd, ".2g"), UNITS.get(k.split(".")[-1], ""),
+        rows.append([k, measured(v, sd) if isinstance(v, float) else _n(v), _n(sd, ".2g"), UNITS.get(k.split(".")[-1], ""),
                      _n(paper and paper["paper"], ".6g"),
                      _n(paper and paper["deviation_pct"], "+.1f") + (" %" if paper else "")])
     doc.heading(2, "Identified model")

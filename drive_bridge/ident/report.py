@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..document import Document, Strong
+from ..document import Document, Strong, measured
 from ..outputs import json_text, stamped, write_text
 from .identify import AxisResult
 from .trace import describe_unexplained
@@ -31,7 +31,7 @@ def summary(results: dict[str, AxisResult]) -> str:
         for k in ("J", "c0", "c1"):
             v = r.model.params_[k]
             rel = abs(std[k] / v) * 100 if v else float("inf")
-            lines.append(f"  {k:<3} = {v:.6g} ± {std[k]:.2g} {u[k]}  ({rel:.2f} %)")
+            lines.append(f"  {k:<3} = {measured(v, std[k])} ± {std[k]:.2g} {u[k]}  ({rel:.2f} %)")
         lines.append(f"  base model J, c0, c1: validation RMSE {r.before.rmse:.4g} {tu} "
                      f"(relative error {r.before.relative_error:.2%})")
         for t in r.effects:
@@ -206,8 +206,8 @@ def build_report(results: dict[str, AxisResult], out: Path, source: str) -> Docu
         for i, name in enumerate(r.model.coef_names):
             v = r.model.coef_[i]
             sd = float(np.sqrt(r.model.cov_[i, i]))
-            rows.append([name, u.get(name, ""), f"{v:.6g}", f"{sd:.2g}", f"{abs(sd / v) * 100 if v else 0:.2f} %",
-                         f"{r.ga_coef[i]:.6g}"])
+            rows.append([name, u.get(name, ""), measured(v, sd), f"{sd:.2g}", f"{abs(sd / v) * 100 if v else 0:.2f} %",
+                         measured(r.ga_coef[i], sd)])
         doc.table(["coefficient", "unit", "LSE", "std", "rel. std", "GA"], rows)
         doc.para(f"Condition number {r.model.cond_:.1f}; residual std {r.model.sigma_:.4g} {tu}; "
                  f"GA validation RMSE {r.ga_errors.rmse:.4g} {tu} (LSE {r.after.rmse:.4g} {tu}).")
