@@ -112,7 +112,8 @@ def coverage(cases: int, verbose: bool = False) -> None:
             cols = closed_loop_log(np.arange(40000) / 1000, seed=int(rng.integers(1 << 30)), extra=extra, **plant)
             r = identify(write_log(Path(tmp) / "log.csv", cols), axes=["y"])["y"]
             if verbose:
-                print(f"  case {case}: {kind}; effects {[e.effect.name for e in r.effects]}; " + ", ".join(
+                print(f"  case {case}: {kind}; effects {[e.effect.name for e in r.effects]}; "
+                      f"consistent {r.consistency.get('consistent')}; " + ", ".join(
                     f"{k} {(r.model.params_[k] - plant[k]) / r.model.param_std_[k]:+.1f} std" for k in inside))
             for k in inside:
                 z = abs(r.model.params_[k] - plant[k]) / r.model.param_std_[k]

@@ -1,6 +1,7 @@
 """What a residual depends on: the correlation ratio η² of its means in bins of a variable
-(one-way ANOVA), on the residual as it is (``even``) and times the direction of motion
-(``odd``: a torque against the motion, friction-like).  Shared by the residual tracing (which
+(one-way ANOVA), on the residual as it is (``even``), times the direction of motion (``odd``: a
+torque against the motion, friction-like) and, over the position, times the acceleration
+(``inertial``: an inertia that changes along the stroke).  Shared by the residual tracing (which
 effects to try) and its report (what is left unexplained)."""
 from __future__ import annotations
 
@@ -47,12 +48,15 @@ def dependences(s: Samples, residual: np.ndarray, min_share: float, p_value: flo
     m = s.moving
     r = residual[m]
     direction = np.sign(s.qd[m])
+    accel = s.qdd[m] / max(float(np.sqrt(np.mean(s.qdd[m] ** 2))), 1e-300)
     out = []
     for name, x in variables(s).items():
         found = []
-        for form, resid in (("even", r), ("odd", r * direction)):
+        for form, resid in (("even", r), ("odd", r * direction), ("inertial", r * accel)):
             if form == "odd" and name in ("direction", "velocity"):
                 continue                    # sign(q̇)·r over q̇ or its sign: the even test sees it already
+            if form == "inertial" and name != "position":
+                continue                    # an inertia changes with where the load is, not with speed
             share, p, f = eta2(x[m], resid)
             if share >= min_share and p < p_value:
                 found.append({"depends_on": name, "form": form, "fraction": round(share, 4),

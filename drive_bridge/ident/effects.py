@@ -282,12 +282,14 @@ class Drift(Effect):
 class Spline(Effect):
     """A smooth torque in one variable that no named effect describes: a cubic B-spline over the
     variable's range (interior ``knots`` at quantiles of the samples), ``even`` (the same torque
-    both ways: cogging, gravity, a spring) or ``odd`` (times the direction of motion: friction
-    that changes along the stroke, with the load, with temperature).
+    both ways: cogging, gravity, a spring), ``odd`` (times the direction of motion: friction
+    that changes along the stroke, with the load, with temperature) or ``inertial`` (times the
+    acceleration: an inertia that changes along the stroke, J(q) = J + spline(q)).
 
     The spline never duplicates a term the model has by name: its basis is made orthogonal, over
     the variable's range (``grid``: evenly spaced points of it), to a constant and a
-    straight line (even: the offset, cp·q, c1·q̇, J·q̈) or to a constant (odd: c0·sign(q̇)), and
+    straight line (even: the offset, cp·q, c1·q̇, J·q̈) or to a constant (odd: c0·sign(q̇);
+    inertial: J·q̈), and
     reduced to a full-rank set (SVD), deterministically from the constructor's parameters."""
 
     GRID = 512
@@ -328,7 +330,8 @@ class Spline(Effect):
         the knots), at the variable's values held within [low, high]."""
         x = np.clip(variables(s)[self.variable], self.low, self.high)
         grid = np.asarray(self.grid)
-        return np.column_stack([np.interp(x, grid, c) for c in self._on_grid.T])
+        cols = np.column_stack([np.interp(x, grid, c) for c in self._on_grid.T])
+        return cols * s.qdd[:, None] if self.form == "inertial" else cols
 
     @property
     def odd(self) -> bool:

@@ -173,13 +173,23 @@ def _plot_effect(r: AxisResult, k: int, path: Path) -> None:
     x, label = _variable(r, t.effect.depends_on)
     term = r.model.effect_term(t.effect, s)[m]
     partial = (s.tau_f - r.model.predict(s))[m] + term
+    ylabel = f"torque [{r.units['torque']}]"
+    if getattr(t.effect, "form", None) == "inertial":       # the inertia it adds: torque per acceleration
+        qdd = s.qdd[m]
+        keep = np.abs(qdd) > 0.5 * np.sqrt(np.mean(qdd ** 2))
+        x, m = x[m][keep], np.flatnonzero(m)[keep]
+        partial, term = partial[keep] / qdd[keep], term[keep] / qdd[keep]
+        ylabel = f"inertia added [{UNITS[r.kind]['J']}]"        # samples with |acceleration| > ½ RMS
+        xs = x
+    else:
+        xs = x[m]
     fig, ax = plt.subplots(figsize=(8, 4.5))
-    ax.plot(x[m], partial, ".", ms=1.5, color="0.6", label="residual of the final model + this term")
-    order = np.argsort(x[m], kind="stable")
-    ax.plot(x[m][order], term[order], ".", ms=2, color="C3", label=f"{t.effect.name} in the final model")
+    ax.plot(xs, partial, ".", ms=1.5, color="0.6", label="residual of the final model + this term")
+    order = np.argsort(xs, kind="stable")
+    ax.plot(xs[order], term[order], ".", ms=2, color="C3", label=f"{t.effect.name} in the final model")
     p = ", ".join(f"{n} {_fmt(v)}" for n, v in t.params.items() if not isinstance(v, (list, dict)))
     ax.set_xlabel(label)
-    ax.set_ylabel(f"torque [{r.units['torque']}]")
+    ax.set_ylabel(ylabel)
     ax.set_title(f"axis {r.axis}: {t.effect.name} ({t.effect.depends_on})" + (f": {p}" if len(p) < 70 else ""),
                  fontsize=10)
     ax.grid(True, alpha=0.3)

@@ -74,6 +74,8 @@ def f_test(small: AxisModel, big: AxisModel) -> tuple[float, float]:
     return float(f), float(stats.f.sf(f, k, dof))
 
 
+FORM_WORDS = {"even": "the same in both directions", "odd": "against the motion: friction-like",
+              "inertial": "in proportion to the acceleration: an inertia that changes along the stroke"}
 MOVED = 0.1                 # a parameter that moved by this share since its effect was added is said so
 
 
@@ -82,7 +84,7 @@ def _evidence(t: TracedEffect) -> str:
     what they were when it was added where the effects added after it moved them."""
     e = t.effect
     what = (f"a smooth torque in {e.variable} no named effect describes ({len(e.coef_names)}-coefficient spline, "
-            + ("the same in both directions" if e.form == "even" else "against the motion: friction-like") + ")"
+            + FORM_WORDS[e.form] + ")"
             if isinstance(e, Spline) else _named_evidence(e, t.params))
     moved = [f"{k} {t.model_params[f'{e.name}.{k}']:+.4g}" for k, v in t.params.items()
              if isinstance(v, float) and isinstance(t.model_params.get(f"{e.name}.{k}"), float)
@@ -125,7 +127,7 @@ def trace(est: Samples, val: Samples, seed: int,
     err = errors(model, val)
     for _ in range(MAX_EFFECTS):
         resid = est.tau_f - model.predict(est)
-        best = None
+        best = spline = None
         for cand in candidates(model.effects, est, resid):
             try:
                 fitted = extend(model, cand, est)
@@ -140,8 +142,12 @@ def trace(est: Samples, val: Samples, seed: int,
             score = 2 * np.log(err.relative_error / new_err.relative_error) / len(cand.coef_names)
             if best is None or score > best[0]:
                 best = (score, fitted, new_err, cand)
+            if isinstance(cand, Spline) and (spline is None or new_err.relative_error < spline[2].relative_error):
+                spline = (score, fitted, new_err, cand)
         if best is None:
             break
+        if spline is not None and spline[2].relative_error < (1 - SPLINE_GAIN) * best[2].relative_error:
+            best = spline                         # the named effect does not fit as well: the shape the data hold
         _, fitted, new_err, cand = best
         f, p = f_test(model, fitted)
         if p >= P_VALUE or new_err.relative_error > (1 - MIN_GAIN) * err.relative_error:
@@ -210,8 +216,9 @@ def unexplained(model: AxisModel, s: Samples, rate_hz: float) -> list[dict]:
 
 def describe_unexplained(d: dict) -> str:
     """One entry of :func:`unexplained` in words."""
-    what = ("the residual" if d.get("form", "even") == "even" else "the residual times the direction of motion "
-            "(a torque against the motion, friction-like)")
+    what = {"even": "the residual", "odd": "the residual times the direction of motion (a torque against the "
+            "motion, friction-like)", "inertial": "the residual times the acceleration (an inertia that changes "
+            "along the stroke)"}[d.get("form", "even")]
     if d.get("kind") == "resonance" and d.get("mains"):
         return (f"a narrow peak at {d['frequency_hz']:.3g} Hz holds {d['fraction']:.0%} of the residual over the "
                 f"log's whole band: the mains frequency, more likely electrical pickup in the torque measurement "

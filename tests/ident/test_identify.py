@@ -250,23 +250,31 @@ def test_emps_benchmark_offset_then_asymmetry(tmp_path):
 
 @pytest.mark.parametrize("case, form", [("friction bump along the stroke", "odd"),
                                         ("friction rising along the stroke", "odd"),
-                                        ("load bump along the stroke", "even")])
+                                        ("load bump along the stroke", "even"),
+                                        ("inertia bump along the stroke", "inertial")])
 def test_an_effect_beyond_the_library_is_fitted_as_a_spline(tmp_path, case, form):
     """Logs of the independent closed-loop plant with a position-dependent torque no library effect
     models: against the motion (odd: its sign follows the direction, so the raw residual binned
-    by position averages it away) or the same both ways (even). The tracer adds a spline in
+    by position averages it away), the same both ways (even) or in proportion to the acceleration
+    (inertial: a load whose inertia changes along the stroke). The tracer adds a spline in
     position of the right form, the error falls to the noise floor, and J, c0, c1 stay right."""
     from .generator import closed_loop_log
     extra = {"friction bump along the stroke": lambda q, v, a, t: 0.12 * np.exp(-((q - 2) / 1.5) ** 2) * np.sign(v),
              "friction rising along the stroke": lambda q, v, a, t: 0.01 * (q + 8) * np.sign(v),
-             "load bump along the stroke": lambda q, v, a, t: 0.12 * np.exp(-((q - 2) / 1.5) ** 2)}[case]
+             "load bump along the stroke": lambda q, v, a, t: 0.12 * np.exp(-((q - 2) / 1.5) ** 2),
+             "inertia bump along the stroke": lambda q, v, a, t: 8e-5 * np.exp(-((q - 2) / 1.5) ** 2) * a}[case]
     path = write_log(tmp_path / "log.csv", closed_loop_log(np.arange(40000) / 1000, extra=extra, seed=3))
     r = identify(path)["y"]
     splines = [t.effect for t in r.effects if t.effect.name.startswith("spline")]
     assert [(e.name, e.depends_on) for e in splines] == [(f"spline_{form}_position", "position")]
-    assert r.after.rmse < 1.7 * r.noise_floor < 0.2 * r.before.rmse
-    assert r.model.params_["J"] == pytest.approx(1e-4, rel=0.02)
-    if form == "even":                  # an odd term's mean over the stroke is Coulomb friction: c0 takes it
+    if form == "inertial":              # J(q) = J + spline(q): J is the inertia averaged over the stroke
+        grid = np.linspace(splines[0].low, splines[0].high, 512)
+        assert r.model.params_["J"] == pytest.approx(1e-4 + np.mean(8e-5 * np.exp(-((grid - 2) / 1.5) ** 2)), rel=0.02)
+        assert r.after.rmse < 0.85 * r.before.rmse
+    else:
+        assert r.after.rmse < 1.7 * r.noise_floor < 0.2 * r.before.rmse
+        assert r.model.params_["J"] == pytest.approx(1e-4, rel=0.02)
+    if form != "odd":                   # an odd term's mean over the stroke is Coulomb friction: c0 takes it
         assert r.model.params_["c0"] == pytest.approx(0.3, rel=0.02)
 
 
