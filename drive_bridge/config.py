@@ -61,12 +61,13 @@ class PdoConfig:
 
 @dataclass(frozen=True)
 class Limits:
-    """Axis limits, motor side: rad, rad/s, rad/s²."""
+    """Axis limits, motor side: rad, rad/s, rad/s², rad/s³ (jerk: None where not configured)."""
 
     position_min: float
     position_max: float
     max_velocity: float
     max_acceleration: float
+    max_jerk: float | None = None
 
 
 @dataclass(frozen=True)
@@ -127,13 +128,20 @@ class CampaignConfig:
     move_fraction: float = 0.8
     dwell_s: float = 0.05
     together: bool = False
+    #: "paper": the paper's trapezoids at velocity x acceleration levels (the reference);
+    #: "short": a multisine per axis designed for the identification, ``short_time_s`` per axis
+    design: str = "paper"
+    short_time_s: float = 30.0
 
     def quick(self) -> "CampaignConfig":
         """A few seconds of motion per axis, for demos and tests."""
         return replace(self, velocity_levels=self.velocity_levels[-2:],
                        acceleration_levels=self.acceleration_levels[-2:], cycles=1,
                        max_axis_time_s=min(self.max_axis_time_s, 5.0),
-                       move_fraction=min(self.move_fraction, 0.05))
+                       move_fraction=min(self.move_fraction, 0.05), short_time_s=min(self.short_time_s, 8.0))
+
+
+DESIGNS = ("paper", "short")
 
 
 @dataclass(frozen=True)
@@ -296,9 +304,11 @@ def _node(path: Path, axis: str, data: dict, dcf_path: str | None = None, unused
         raise lim.error("stroke_" + unit, f"must be [min, max] in {unit} with min < max, got {stroke!r}")
     vmax = lim.get(f"max_velocity_{unit}_s", float, low=1e-9, high=1e6)
     amax = lim.get(f"max_acceleration_{unit}_s2", float, low=1e-9, high=1e8)
+    jmax = lim.get(f"max_jerk_{unit}_s3", float, None, low=1e-9, high=1e12)
     lim.done()
     limits = Limits(float(scaling.load_to_motor(stroke[0])), float(scaling.load_to_motor(stroke[1])),
-                    float(scaling.load_to_motor(vmax)), float(scaling.load_to_motor(amax)))
+                    float(scaling.load_to_motor(vmax)), float(scaling.load_to_motor(amax)),
+                    None if jmax is None else float(scaling.load_to_motor(jmax)))
     if 0x6080 in od and od[0x6080].default:
         drive_max = od[0x6080].default * 2 * math.pi / 60.0
         if limits.max_velocity > drive_max * (1 + 1e-9):
@@ -439,7 +449,9 @@ def load_bus_config(path: str | Path) -> BusConfig:
         max_axis_time_s=c.get("max_axis_time_s", float, 300.0, low=0.1, high=3600.0),
         move_fraction=c.get("move_fraction", float, 0.8, low=0.01, high=1.0),
         dwell_s=c.get("dwell_s", float, 0.05, low=0.0, high=60.0),
-        together=c.get("together", bool, False))
+        together=c.get("together", bool, False),
+        design=c.get("design", str, "paper", choices=DESIGNS),
+        short_time_s=c.get("short_time_s", float, 30.0, low=5.0, high=600.0))
     for key in ("velocity_levels", "acceleration_levels"):
         vals = getattr(campaign, key)
         if not vals or len(vals) > 20 or not all(finite_number(v) and 0 < v <= 1 for v in vals):

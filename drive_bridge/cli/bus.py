@@ -23,6 +23,7 @@ def register(sub) -> None:
                                       "position", description="Bring-up, the excitation campaign and its logs "
                                                               "(log.csv, meta.yaml, trace.blf) in --out.")
     options.bus(p)
+    options.campaign(p)
     p.add_argument("--quick", action="store_true", help="a few seconds per axis (demo, tests)")
     p.add_argument("--axes", help="comma-separated axes to move (default: all configured)")
     p.add_argument("--together", action="store_true", help="move all axes at once (exposes coupling)")

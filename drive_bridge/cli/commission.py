@@ -15,6 +15,7 @@ def register(sub) -> None:
     p.add_argument("--steps", help=f"run only these steps, comma-separated ({', '.join(STEPS)}); "
                                    "default: resume after the last completed one")
     p.add_argument("--restart", action="store_true", help="start over: discard the previous run in --out")
+    options.campaign(p)
     p.add_argument("--quick", action="store_true", help="a few seconds of campaign per axis (demo)")
     options.seed(p)
     options.motor(p)

@@ -33,6 +33,14 @@ def bus(p: argparse.ArgumentParser) -> None:
                         "(recorded in the output; repeat for more nodes)")
 
 
+def campaign(p: argparse.ArgumentParser) -> None:
+    """Which excitation: the paper's campaign or the short designed one."""
+    from ..config import DESIGNS
+    p.add_argument("--campaign", choices=DESIGNS, help="paper: the paper's trapezoid campaign (the reference); "
+                   "short: a multisine per axis designed for the identification, campaign.short_time_s per axis "
+                   "(default: bus.yml campaign.design, else paper)")
+
+
 def can_channel(text: str) -> str | int:
     """A channel as python-can's configuration files read it: digits are a number (kvaser, vector)."""
     return can.util.cast_from_string(text)
@@ -107,7 +115,7 @@ def axes_list(text: str | None) -> list[str] | None:
 
 def config(args) -> BusConfig:
     """The bus configuration of ``--config``, restricted to ``--axes`` and with the campaign
-    options (``--quick``, ``--together``) applied."""
+    options (``--campaign``, ``--quick``, ``--together``) applied."""
     if getattr(args, "realtime", False) and not args.sim:
         raise UserError("--realtime only applies with --sim")
     cfg = load_bus_config(args.config)
@@ -115,6 +123,8 @@ def config(args) -> BusConfig:
         cfg = replace(cfg, accept_identity=frozenset(args.accept_identity))
     if getattr(args, "axes", None):
         cfg = cfg.only(axes_list(args.axes))
+    if getattr(args, "campaign", None):
+        cfg = replace(cfg, campaign=replace(cfg.campaign, design=args.campaign))
     if getattr(args, "quick", False):
         cfg = replace(cfg, campaign=cfg.campaign.quick())
     if getattr(args, "together", False):

@@ -1,7 +1,9 @@
-"""The excitation campaign of the paper: forward and backward trapezoidal moves
-at velocity x acceleration levels of each axis' limits, sampled once per SYNC.
+"""The excitation campaign: the paper's forward and backward trapezoidal moves at
+velocity x acceleration levels of each axis' limits (``design: paper``, the reference), or a
+short multisine per axis designed for the identification (``design: short``,
+:mod:`.excitation`); sampled once per SYNC.
 
-Everything is motor side SI (rad, rad/s, rad/s²); the plan is checked against
+Everything is motor side SI (rad, rad/s, rad/s², rad/s³); the plan is checked against
 the axis limits before anything moves, and a profile outside them is refused.
 """
 from __future__ import annotations
@@ -90,6 +92,8 @@ def _allocate(cycle_times: list[float], wanted: int, budget: float) -> list[int]
 def build_plan(cfg: CampaignConfig, limits: dict[str, Limits], start: dict[str, float],
                period: float) -> Plan:
     """Plan of the whole campaign for the axes in ``limits``, from positions ``start`` [rad]."""
+    if cfg.design == "short":
+        return short_plan(cfg, limits, start, period)
     axes = list(limits)
     dwell = round(cfg.dwell_s / period)
     levels = [(v, a) for v in cfg.velocity_levels for a in cfg.acceleration_levels]
@@ -147,8 +151,58 @@ def build_plan(cfg: CampaignConfig, limits: dict[str, Limits], start: dict[str, 
     return plan
 
 
+def short_plan(cfg: CampaignConfig, limits: dict[str, Limits], start: dict[str, float], period: float) -> Plan:
+    """The short campaign: per axis (or all at once with ``together``) an approach to the centre
+    of the stroke, the designed multisine, and the return, within ``short_time_s`` per axis."""
+    from .excitation import MARGIN, design_axis
+    axes = list(limits)
+    groups = [axes] if cfg.together else [[ax] for ax in axes]
+    columns = {ax: [] for ax in axes}
+    pos, segments, n = dict(start), [], 0
+    for group in groups:
+        centre = {ax: 0.5 * (limits[ax].position_min + limits[ax].position_max) for ax in group}
+        travel = {ax: _approach(limits[ax], pos[ax], centre[ax], period) for ax in group}
+        back = {ax: _approach(limits[ax], centre[ax], start[ax], period) for ax in group}
+        moving = max(len(travel[ax]) + len(back[ax]) for ax in group) * period
+        excite = cfg.short_time_s - moving
+        if excite < 6 * period * 100:
+            raise UserError(f"campaign.short_time_s {cfg.short_time_s:g} s leaves {excite:.1f} s of excitation "
+                            f"after the moves to and from the centre of the stroke; give it more time")
+        pieces = {"approach": travel,
+                  "excitation": {ax: design_axis(limits[ax], excite, period, cfg.move_fraction, seed=i)
+                                 for i, ax in enumerate(group)},
+                  "return": back}
+        for kind, piece in pieces.items():
+            length = max(len(p) for p in piece.values())
+            if length == 0:
+                continue
+            for ax in axes:
+                p = piece.get(ax, np.empty(0))
+                if len(p):
+                    pos[ax] = float(p[-1])
+                columns[ax].append(np.concatenate([p, np.full(length - len(p), pos[ax])]))
+            level = APPROACH_LEVEL if kind != "excitation" else MARGIN
+            segments.append(Segment(kind, tuple(group), level, level, 0, n, n + length))
+            n += length
+    plan = Plan(axes, np.column_stack([np.concatenate(columns[ax]) for ax in axes]), segments, period)
+    check_plan(plan, limits)
+    return plan
+
+
+def _approach(lim: Limits, p0: float, p1: float, period: float) -> np.ndarray:
+    """A move at the approach level: a trapezoid, or where a jerk limit is set, its positions
+    smoothed so that the acceleration ramps (an S-curve of the same travel)."""
+    move = trapezoid(p0, p1, APPROACH_LEVEL * lim.max_velocity, APPROACH_LEVEL * lim.max_acceleration, period)
+    if lim.max_jerk is None or len(move) == 0:
+        return move
+    ramp = max(1, int(np.ceil(1.25 * lim.max_acceleration / lim.max_jerk / period)))   # 1.25: room for sampling
+    padded = np.concatenate([np.full(ramp, p0), move, np.full(ramp, p1)])
+    return np.convolve(padded, np.ones(ramp) / ramp, "valid")
+
+
 def check_plan(plan: Plan, limits: dict[str, Limits], tolerance: float = 1e-6) -> None:
-    """Refuse a plan that leaves the stroke or exceeds velocity or acceleration limits."""
+    """Refuse a plan that leaves the stroke or exceeds velocity, acceleration or (where
+    configured) jerk limits."""
     T = plan.period
     for i, ax in enumerate(plan.axes):
         lim = limits[ax]
@@ -166,3 +220,9 @@ def check_plan(plan: Plan, limits: dict[str, Limits], tolerance: float = 1e-6) -
         if acc.size and acc.max() > lim.max_acceleration * (1 + 1e-3):
             raise UserError(f"axis {ax}: the profile reaches {acc.max():.4g} rad/s², above the limit "
                             f"{lim.max_acceleration:.4g} rad/s²; nothing was moved.")
+        jerk = np.abs(np.diff(p, 3)) / T**3
+        if lim.max_jerk is not None and jerk.size and jerk.max() > lim.max_jerk * (1 + 1e-3):
+            raise UserError(f"axis {ax}: the profile reaches a jerk of {jerk.max():.4g} rad/s³, above the limit "
+                            f"{lim.max_jerk:.4g} rad/s³; nothing was moved"
+                            + (" (the paper's trapezoids step the acceleration: campaign design: short keeps "
+                               "the jerk limit)" if any(s.kind == "level" for s in plan.segments) else "") + ".")

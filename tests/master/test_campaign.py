@@ -1,0 +1,85 @@
+"""The short campaign (``campaign: {design: short}``, ``--campaign short``): a multisine per axis
+designed for the identification, inside every limit before anything moves, and what it
+identifies on the simulated robot."""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+import yaml
+
+from drive_bridge.cli import main
+from drive_bridge.config import load_bus_config
+from drive_bridge.errors import UserError
+from drive_bridge.ident import identify
+from drive_bridge.master.campaign import build_plan
+from drive_bridge.resources import DEFAULT_BUS_CONFIG
+
+from ..support import PAPER, bus_yml_beside
+
+PERIOD = 0.002
+
+
+def _limits(jerk_share: float | None = None):
+    cfg = load_bus_config(DEFAULT_BUS_CONFIG)
+    limits = {a: n.limits for a, n in cfg.nodes.items()}
+    if jerk_share is not None:          # a jerk limit: this share of amax² / vmax (a sine at the corner)
+        limits = {a: replace(l, max_jerk=jerk_share * l.max_acceleration ** 2 / l.max_velocity)
+                  for a, l in limits.items()}
+    return cfg, limits
+
+
+@pytest.mark.parametrize("jerk_share", [None, 1.0], ids=["no jerk limit", "jerk limit"])
+def test_the_short_campaign_stays_inside_every_limit(jerk_share):
+    cfg, limits = _limits(jerk_share)
+    start = {"x": 1.0, "y": -20.0, "z": 5.0}
+    plan = build_plan(replace(cfg.campaign, design="short"), limits, start, PERIOD)
+    again = build_plan(replace(cfg.campaign, design="short"), limits, start, PERIOD)
+    assert np.array_equal(plan.demand, again.demand)                  # designed from a seed: the same plan
+    for i, a in enumerate(plan.axes):
+        lim, q = limits[a], plan.demand[:, i]
+        moving = [s for s in plan.segments if a in s.axes]
+        assert sum(s.end - s.start for s in moving) * PERIOD <= cfg.campaign.short_time_s + 1e-9
+        v, acc, jerk = (np.abs(np.diff(q, k)) / PERIOD ** k for k in (1, 2, 3))
+        assert lim.position_min <= q.min() and q.max() <= lim.position_max
+        assert v.max() <= lim.max_velocity and acc.max() <= lim.max_acceleration
+        if lim.max_jerk is not None:
+            assert jerk.max() <= lim.max_jerk
+        assert acc.max() > 0.2 * lim.max_acceleration and v.max() > 0.5 * lim.max_velocity   # it excites
+        half = 0.5 * (lim.position_max - lim.position_min) * cfg.campaign.move_fraction
+        centre = 0.5 * (lim.position_max + lim.position_min)
+        assert q.max() - centre > 0.85 * half and centre - q.min() > 0.85 * half        # the whole stroke
+        assert q[0] == pytest.approx(start[a], abs=1e-3) and q[-1] == pytest.approx(start[a])  # from and back
+
+
+def test_a_jerk_limit_refuses_the_papers_trapezoids_before_anything_moves():
+    cfg, limits = _limits(1.0)
+    with pytest.raises(UserError, match="jerk.*campaign design: short keeps the jerk limit"):
+        build_plan(cfg.campaign, limits, dict.fromkeys(limits, 0.0), PERIOD)
+
+
+def test_the_design_is_a_bus_yml_key_and_a_command_option(tmp_path, capsys):
+    bad = bus_yml_beside(tmp_path, "design: paper", "design: shortest")
+    assert main(["record", "--sim", "--config", str(bad), "--out", str(tmp_path / "o")]) == 2
+    assert "campaign.design" in capsys.readouterr().err and not (tmp_path / "o" / "log.csv").exists()
+    with pytest.raises(SystemExit):
+        main(["record", "--sim", "--campaign", "shortest", "--out", str(tmp_path / "o")])
+
+
+def test_the_short_campaign_finds_what_the_full_one_finds(tmp_path):
+    """On the shipped simulated robot, 30 s of motion per axis: every effect the full paper
+    campaign finds (X belt ripple; Y offset, position-proportional load, direction asymmetry;
+    Z gravity), J within 2 %, c0 within 1 % and Y, Z's c1 within 5 % of the plant's."""
+    assert main(["record", "--sim", "--campaign", "short", "--out", str(tmp_path)]) == 0
+    meta = yaml.safe_load((tmp_path / "meta.yaml").read_text())
+    assert meta["campaign"]["design"] == "short"
+    results = identify(tmp_path / "log.csv")
+    found = {a: [t.effect.name for t in r.effects] for a, r in results.items()}
+    assert found == {"x": ["position_periodic"], "y": ["offset", "position_linear", "direction_asymmetry"],
+                     "z": ["offset"]}
+    for a, r in results.items():
+        p = r.model.params_
+        assert p["J"] == pytest.approx(PAPER[a]["J"], rel=0.02) and p["c0"] == pytest.approx(PAPER[a]["c0"], rel=0.01)
+        if a != "x":                    # the slow belt axis: 8 rad/s at most, c1·q̇ below the noise
+            assert p["c1"] == pytest.approx(PAPER[a]["c1"], rel=0.05)
