@@ -118,37 +118,47 @@ def build_plan(cfg: CampaignConfig, limits: dict[str, Limits], start: dict[str, 
         times = [len(level_cycle(ax, v, a)) * period for v, a in levels]
         counts[ax] = _allocate(times, cfg.cycles, cfg.max_axis_time_s - travel)
 
-    groups = [axes] if cfg.together else [[ax] for ax in axes]
-    pos = dict(start)
-    columns = {ax: [] for ax in axes}
-    segments = []
-    n = 0
+    seq = _Sequence(axes, start, period)
+    for group in ([axes] if cfg.together else [[ax] for ax in axes]):
+        seq.add("approach", group, {ax: approach(ax, seq.pos[ax], ends[ax][0]) for ax in group},
+                APPROACH_LEVEL, APPROACH_LEVEL)
+        for li, (vf, af) in enumerate(levels):
+            pieces = {ax: np.tile(level_cycle(ax, vf, af), counts[ax][li]) for ax in group}
+            seq.add("level", group, pieces, vf, af, min(counts[ax][li] for ax in group))
+        seq.add("return", group, {ax: approach(ax, seq.pos[ax], start[ax]) for ax in group},
+                APPROACH_LEVEL, APPROACH_LEVEL)
+    return seq.plan(limits)
 
-    def add(kind: str, group: list[str], pieces: dict[str, np.ndarray], vf: float, af: float, cycles: int):
-        nonlocal n
+
+class _Sequence:
+    """Pieces of motion laid one after the other, each a segment of the plan; an axis without a
+    piece in a segment holds its position."""
+
+    def __init__(self, axes: list[str], start: dict[str, float], period: float):
+        self.axes, self.pos, self.period = axes, dict(start), period
+        self.columns: dict[str, list[np.ndarray]] = {ax: [] for ax in axes}
+        self.segments: list[Segment] = []
+        self.n = 0
+
+    def add(self, kind: str, group: list[str], pieces: dict[str, np.ndarray], vf: float, af: float,
+            cycles: int = 0) -> None:
         length = max(len(p) for p in pieces.values())
         if length == 0:
             return
-        for ax in axes:
+        for ax in self.axes:
             piece = pieces.get(ax, np.empty(0))
             if len(piece):
-                pos[ax] = float(piece[-1])
-            columns[ax].append(np.concatenate([piece, np.full(length - len(piece), pos[ax])]))
-        segments.append(Segment(kind, tuple(group), vf, af, cycles, n, n + length))
-        n += length
+                self.pos[ax] = float(piece[-1])
+            self.columns[ax].append(np.concatenate([piece, np.full(length - len(piece), self.pos[ax])]))
+        self.segments.append(Segment(kind, tuple(group), vf, af, cycles, self.n, self.n + length))
+        self.n += length
 
-    for group in groups:
-        add("approach", group, {ax: approach(ax, pos[ax], ends[ax][0]) for ax in group},
-            APPROACH_LEVEL, APPROACH_LEVEL, 0)
-        for li, (vf, af) in enumerate(levels):
-            pieces = {ax: np.tile(level_cycle(ax, vf, af), counts[ax][li]) for ax in group}
-            add("level", group, pieces, vf, af, min(counts[ax][li] for ax in group))
-        add("return", group, {ax: approach(ax, pos[ax], start[ax]) for ax in group},
-            APPROACH_LEVEL, APPROACH_LEVEL, 0)
-    demand = np.column_stack([np.concatenate(columns[ax]) for ax in axes])
-    plan = Plan(axes, demand, segments, period)
-    check_plan(plan, limits)
-    return plan
+    def plan(self, limits: dict[str, Limits]) -> Plan:
+        """The plan, checked against ``limits``."""
+        demand = np.column_stack([np.concatenate(self.columns[ax]) for ax in self.axes])
+        plan = Plan(self.axes, demand, self.segments, self.period)
+        check_plan(plan, limits)
+        return plan
 
 
 def short_plan(cfg: CampaignConfig, limits: dict[str, Limits], start: dict[str, float], period: float) -> Plan:
@@ -156,37 +166,21 @@ def short_plan(cfg: CampaignConfig, limits: dict[str, Limits], start: dict[str, 
     of the stroke, the designed multisine, and the return, within ``short_time_s`` per axis."""
     from .excitation import MARGIN, design_axis
     axes = list(limits)
-    groups = [axes] if cfg.together else [[ax] for ax in axes]
-    columns = {ax: [] for ax in axes}
-    pos, segments, n = dict(start), [], 0
-    for group in groups:
+    seq = _Sequence(axes, start, period)
+    for group in ([axes] if cfg.together else [[ax] for ax in axes]):
         centre = {ax: 0.5 * (limits[ax].position_min + limits[ax].position_max) for ax in group}
-        travel = {ax: _approach(limits[ax], pos[ax], centre[ax], period) for ax in group}
+        travel = {ax: _approach(limits[ax], seq.pos[ax], centre[ax], period) for ax in group}
         back = {ax: _approach(limits[ax], centre[ax], start[ax], period) for ax in group}
         moving = max(len(travel[ax]) + len(back[ax]) for ax in group) * period
         excite = cfg.short_time_s - moving
         if excite < 6 * period * 100:
             raise UserError(f"campaign.short_time_s {cfg.short_time_s:g} s leaves {excite:.1f} s of excitation "
                             f"after the moves to and from the centre of the stroke; give it more time")
-        pieces = {"approach": travel,
-                  "excitation": {ax: design_axis(limits[ax], excite, period, cfg.move_fraction, seed=i)
-                                 for i, ax in enumerate(group)},
-                  "return": back}
-        for kind, piece in pieces.items():
-            length = max(len(p) for p in piece.values())
-            if length == 0:
-                continue
-            for ax in axes:
-                p = piece.get(ax, np.empty(0))
-                if len(p):
-                    pos[ax] = float(p[-1])
-                columns[ax].append(np.concatenate([p, np.full(length - len(p), pos[ax])]))
-            level = APPROACH_LEVEL if kind != "excitation" else MARGIN
-            segments.append(Segment(kind, tuple(group), level, level, 0, n, n + length))
-            n += length
-    plan = Plan(axes, np.column_stack([np.concatenate(columns[ax]) for ax in axes]), segments, period)
-    check_plan(plan, limits)
-    return plan
+        seq.add("approach", group, travel, APPROACH_LEVEL, APPROACH_LEVEL)
+        seq.add("excitation", group, {ax: design_axis(limits[ax], excite, period, cfg.move_fraction, seed=i)
+                                      for i, ax in enumerate(group)}, MARGIN, MARGIN)
+        seq.add("return", group, back, APPROACH_LEVEL, APPROACH_LEVEL)
+    return seq.plan(limits)
 
 
 def _approach(lim: Limits, p0: float, p1: float, period: float) -> np.ndarray:
