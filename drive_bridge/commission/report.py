@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from ..document import Document, Strong, measured
+from ..ident.report import unit
 from ..ident.trace import describe_unexplained
 from ..tuning.loops import predicted_following_error
 from . import steps as S
@@ -24,8 +25,6 @@ from .worse import worse
 REPORT = "report.html"
 REPORT_MD = "report.md"
 FIGURES = "figures"                 # the validation plots the report draws (the others are the steps')
-UNITS = {"J": "kg·m²", "c0": "Nm", "c1": "Nm·s/rad", "offset": "Nm", "cp": "Nm/rad", "dc0": "Nm",
-         "dc1": "Nm·s/rad", "amplitude": "Nm", "period": "rad", "phase": "rad"}
 #: the cascade's gains, SI motor side (rotary; a linear axis reads m for rad)
 GAIN_UNITS = {"KpP": "1/s", "FwF": "1", "KpS": "Nm·s/rad", "KiS": "1/s", "KpC": "V/A", "KiC": "1/s"}
 
@@ -92,11 +91,12 @@ def _validation_png(traces, axis: str, traj: str, path: Path, loop: dict | None)
 
 def _model(doc: Document, out: Path, axis: str, a: dict) -> None:
     u = a["units"]["torque"]
+    kind = "rotary" if a["units"]["position"] == "rad" else "linear"
     rows = []
     for k, v in a["params"].items():
         sd = a["param_std"].get(k)
         paper = (a.get("paper") or {}).get(k)
-        rows.append([k, measured(v, sd) if isinstance(v, float) else _n(v), _n(sd, ".2g"), UNITS.get(k.split(".")[-1], ""),
+        rows.append([k, measured(v, sd) if isinstance(v, float) else _n(v), _n(sd, ".2g"), unit(k, kind),
                      _n(paper and paper["paper"], ".6g"),
                      _n(paper and paper["deviation_pct"], "+.1f") + (" %" if paper else "")])
     doc.heading(2, "Identified model")

@@ -2,6 +2,7 @@
 Markdown, :mod:`drive_bridge.document`)."""
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -11,8 +12,20 @@ from ..outputs import json_text, stamped, write_text
 from .identify import AxisResult
 from .trace import describe_unexplained
 
-UNITS = {"rotary": {"J": "kg·m²", "c0": "Nm", "c1": "Nm·s/rad", "offset": "Nm", "cp": "Nm/rad"},
-         "linear": {"J": "kg", "c0": "N", "c1": "N·s/m", "offset": "N", "cp": "N/m"}}
+def unit(name: str, kind: str) -> str:
+    """The unit of a parameter or coefficient (``J``, ``offset.offset``, ``spline_odd_position.b3``)
+    on a ``rotary`` or ``linear`` axis; "" where it has none or depends on the effect's form."""
+    q, f = ("rad", "Nm") if kind == "rotary" else ("m", "N")
+    inertia = "kg·m²" if kind == "rotary" else "kg"
+    last = name.split(".")[-1]
+    table = {"J": inertia, "c0": f, "c1": f"{f}·s/{q}", "offset": f, "cp": f"{f}/{q}", "dc0": f, "dc1": f"{f}·s/{q}",
+             "amplitude": f, "a_sin": f, "a_cos": f, "period": q, "phase": "rad", "velocity": f"{q}/s",
+             "time_constant_s": "s"}
+    if last in table:
+        return table[last]
+    if name.startswith("spline_") and re.fullmatch(r"b\d+", last):
+        return inertia if name.startswith("spline_inertial") else f
+    return ""
 
 
 def _fmt(v) -> str:
@@ -22,7 +35,6 @@ def _fmt(v) -> str:
 def summary(results: dict[str, AxisResult]) -> str:
     lines = []
     for axis, r in results.items():
-        u = UNITS[r.kind]
         tu = r.units["torque"]
         lines.append(f"axis {axis} ({r.kind}; cut-off {r.settings.cutoff_hz:.1f} Hz, decimation "
                      f"{r.settings.decimation}, {int(r.est.moving.sum())} moving samples fitted; "
@@ -31,7 +43,7 @@ def summary(results: dict[str, AxisResult]) -> str:
         for k in ("J", "c0", "c1"):
             v = r.model.params_[k]
             rel = abs(std[k] / v) * 100 if v else float("inf")
-            lines.append(f"  {k:<3} = {measured(v, std[k])} ± {std[k]:.2g} {u[k]}  ({rel:.2f} %)")
+            lines.append(f"  {k:<3} = {measured(v, std[k])} ± {std[k]:.2g} {unit(k, r.kind)}  ({rel:.2f} %)")
         lines.append(f"  base model J, c0, c1: validation RMSE {r.before.rmse:.4g} {tu} "
                      f"(relative error {r.before.relative_error:.2%})")
         for t in r.effects:
@@ -179,7 +191,7 @@ def _plot_effect(r: AxisResult, k: int, path: Path) -> None:
         keep = np.abs(qdd) > 0.5 * np.sqrt(np.mean(qdd ** 2))
         x, m = x[m][keep], np.flatnonzero(m)[keep]
         partial, term = partial[keep] / qdd[keep], term[keep] / qdd[keep]
-        ylabel = f"inertia added [{UNITS[r.kind]['J']}]"        # samples with |acceleration| > ½ RMS
+        ylabel = f"inertia added [{unit('J', r.kind)}]"        # samples with |acceleration| > ½ RMS
         xs = x
     else:
         xs = x[m]
@@ -207,7 +219,7 @@ def build_report(results: dict[str, AxisResult], out: Path, source: str) -> Docu
     """The identification report (figures drawn into ``out``)."""
     doc = Document(f"Identification of {source}")
     for axis, r in results.items():
-        u, tu = UNITS[r.kind], r.units["torque"]
+        tu = r.units["torque"]
         doc.heading(1, f"Axis {axis} ({r.kind})")
         doc.para(f"Cut-off {r.settings.cutoff_hz:.1f} Hz (motion bandwidth {r.settings.motion_bandwidth_hz:.2f} Hz), "
                  f"decimation {r.settings.decimation}, {int(r.est.moving.sum())} moving samples fitted. "
@@ -216,7 +228,7 @@ def build_report(results: dict[str, AxisResult], out: Path, source: str) -> Docu
         for i, name in enumerate(r.model.coef_names):
             v = r.model.coef_[i]
             sd = float(np.sqrt(r.model.cov_[i, i]))
-            rows.append([name, u.get(name, ""), measured(v, sd), f"{sd:.2g}", f"{abs(sd / v) * 100 if v else 0:.2f} %",
+            rows.append([name, unit(name, r.kind), measured(v, sd), f"{sd:.2g}", f"{abs(sd / v) * 100 if v else 0:.2f} %",
                          measured(r.ga_coef[i], sd)])
         doc.table(["coefficient", "unit", "LSE", "std", "rel. std", "GA"], rows)
         doc.para(f"Condition number {r.model.cond_:.1f}; residual std {r.model.sigma_:.4g} {tu}; "
