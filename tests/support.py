@@ -113,3 +113,16 @@ def follows_schema(doc: dict, name: str) -> dict:
     for f in floats(doc):
         assert f.is_integer() or float(f"{f:.{SIGNIFICANT}g}") == f, f"{f!r}: more digits than it means"
     return doc
+
+
+def decodes_to_the_log(out: Path) -> None:
+    """``decoded.csv`` (``decode`` of the run's trace) is the live ``log.csv``, except rows the live
+    log marked missing (a reply that reached the master after its row was written, on the wall
+    clock of an overloaded machine), which the trace recovers; meta.yaml counts them."""
+    import yaml
+    live, decoded = (out / "log.csv").read_text().splitlines(), (out / "decoded.csv").read_text().splitlines()
+    assert len(live) == len(decoded)
+    differ = [i for i, (a, b) in enumerate(zip(live, decoded)) if a != b]
+    assert all(live[i].endswith(",0") for i in differ), [live[i] for i in differ[:3]]
+    missing = yaml.safe_load((out / "meta.yaml").read_text())["counts"]["samples_missing"]
+    assert len(differ) <= sum(missing.values())

@@ -33,7 +33,8 @@ def register(sub) -> None:
 
     p = sub.add_parser("decode", help="rebuild log.csv from a raw CAN trace",
                        description="Rebuild the log of a recording from its CAN trace and meta.yaml "
-                                   "(byte-identical to the live log.csv).")
+                                   "(byte-identical to the live log.csv, except samples the live log "
+                                   "marked missing that the trace holds).")
     p.add_argument("trace", help="trace file written by record (trace.blf)")
     p.add_argument("--meta", help="meta.yaml of the recording (default: beside the trace)")
     p.add_argument("--out", help="CSV to write (default: decoded.csv beside the trace)")
