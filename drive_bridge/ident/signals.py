@@ -27,6 +27,8 @@ FILTER_ORDER = 4
 MOTION_POWER = 0.99          # the motion bandwidth holds this share of the velocity power
 CUTOFF_FACTOR = 25.0         # cut-off = 25 x the motion bandwidth (~5 x a closed-loop bandwidth,
                              # itself ~5 x the motion's; EMPS: 4.15 Hz -> 104 Hz, reference 100 Hz)
+MAX_CUTOFF_SHARE = 0.2       # ... at most this share of the log's rate: above it the derivatives of the
+                             # quantised position are noise (a multisine at 14 Hz on a 500 Hz log: 100 Hz)
 DECIMATION_MARGIN = 2.5      # decimated sample rate = 2.5 x the cut-off: nearly white residual samples
 MOVING_FRACTION = 0.02       # |velocity| below this share of its maximum: near zero, not fitted
 SETTLE_CYCLES = 1.0          # ... nor this many cut-off periods from it
@@ -198,7 +200,7 @@ def choose_settings(log: Log, axis: str, cutoff_hz: float | None = None,
     """Cut-off and decimation from the data (overridable)."""
     fs = 1.0 / log.dt
     bw = motion_bandwidth(log, axis)
-    fc = cutoff_hz if cutoff_hz else float(np.clip(CUTOFF_FACTOR * bw, 0.5, 0.4 * fs))
+    fc = cutoff_hz if cutoff_hz else float(np.clip(CUTOFF_FACTOR * bw, 0.5, MAX_CUTOFF_SHARE * fs))
     if not 0 < fc < fs / 2:
         raise UserError(f"cut-off {fc} Hz must be between 0 and the Nyquist frequency {fs / 2:g} Hz")
     r = decimation if decimation else max(1, int(fs / (DECIMATION_MARGIN * fc)))
