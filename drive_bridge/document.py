@@ -47,6 +47,15 @@ def _numeric(text) -> bool:
     return isinstance(text, str) and bool(_NUMBER.match(text.strip()))
 
 
+def number(value, fmt: str = ".6g") -> str:
+    """A number for a table or a sentence: a float in ``fmt`` (a REAL32 read back as
+    0.11999999731779099 is 0.12), anything else (a whole number, a name) as it is, "–" where
+    there is none."""
+    if value is None:
+        return "–"
+    return format(value, fmt) if isinstance(value, (float, np.floating)) else str(value)
+
+
 def measured(value: float, std: float | None) -> str:
     """``value`` with the digits its ``std`` supports: the last one at the std's second significant
     digit (2 to 7 significant digits); 6 where there is no std."""

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..document import number
 from ..errors import UserError
 from ..outputs import write_json
 from ..params.read import drive_state
@@ -147,8 +148,8 @@ def _print_write(outcome, backup_dir, profile) -> None:
             state = "verified" if w.verified else ("" if r.dry_run else "NOT verified")
             if not profile.entries[w.parameter].verified:
                 state += " UNVERIFIED SCALE"
-            print(f"  {w.parameter:<{width}} 0x{w.index:04X}:{w.sub:<2} {_num(w.old_si):>11} -> {_num(w.new_si):<11} "
-                  f"{w.unit:<18} (device {_num(w.old_device)} -> {_num(w.new_device)}) {state}")
+            print(f"  {w.parameter:<{width}} 0x{w.index:04X}:{w.sub:<2} {number(w.old_si):>11} -> {number(w.new_si):<11} "
+                  f"{w.unit:<18} (device {number(w.old_device)} -> {number(w.new_device)}) {state}")
         for name in r.unsupported:
             print(f"  {name:<9} not supported by {r.drive}: not written")
         if r.stored:
@@ -160,12 +161,6 @@ def _print_write(outcome, backup_dir, profile) -> None:
                   + (f"; backup of the old values: {r.backup}" if r.backup else ""))
     if backup_dir is not None and not all(r.dry_run for r in outcome.results.values()):
         print(f"backups of the values before: {backup_dir}/")
-
-
-def _num(v, fmt: str = ".6g") -> str:
-    """A number for a table: its significant digits (a REAL32 read back as 0.11999999731779099
-    is 0.12), "–" where there is none."""
-    return "–" if v is None else (f"{v:{fmt}}" if isinstance(v, float) else str(v))
 
 
 def cmd_validate(args) -> int:
@@ -190,9 +185,9 @@ def cmd_validate(args) -> int:
         for r in runs:
             for a, m in r.axes.items():
                 settle = None if m.settling_s is None else m.settling_s * 1e3
-                print(f"{r.scenario:<28} {r.trajectory:<15} {a:<4} {_num(m.fe_rms * 1e3, '.3g'):>13} "
-                      f"{_num(m.fe_max * 1e3, '.3g'):>13} {_num(m.overshoot_pct, '.3g'):>13} {_num(settle, '.3g'):>13} "
-                      f"{_num(m.torque_rmse * 1e3, '.3g'):>17}")
+                print(f"{r.scenario:<28} {r.trajectory:<15} {a:<4} {number(m.fe_rms * 1e3, '.3g'):>13} "
+                      f"{number(m.fe_max * 1e3, '.3g'):>13} {number(m.overshoot_pct, '.3g'):>13} {number(settle, '.3g'):>13} "
+                      f"{number(m.torque_rmse * 1e3, '.3g'):>17}")
     stop = stopped(runs)
     if stop is not None:
         raise stop

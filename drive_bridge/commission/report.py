@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..document import Document, Strong, measured
+from ..document import Document, Strong, measured, number
 from ..ident.report import unit
 from ..ident.trace import describe_unexplained
 from ..tuning.loops import predicted_following_error
@@ -29,14 +29,8 @@ FIGURES = "figures"                 # the validation plots the report draws (the
 GAIN_UNITS = {"KpP": "1/s", "FwF": "1", "KpS": "Nm·s/rad", "KiS": "1/s", "KpC": "V/A", "KiC": "1/s"}
 
 
-def _n(v, fmt=".4g") -> str:
-    if v is None:
-        return "–"
-    return format(v, fmt) if isinstance(v, (int, float)) else str(v)
-
-
 def _milli(v, fmt=".3g") -> str:
-    return _n(None if v is None else v * 1e3, fmt)
+    return number(None if v is None else v * 1e3, fmt)
 
 
 def _validation_png(traces, axis: str, traj: str, path: Path, loop: dict | None) -> Path | None:
@@ -96,25 +90,25 @@ def _model(doc: Document, out: Path, axis: str, a: dict) -> None:
     for k, v in a["params"].items():
         sd = a["param_std"].get(k)
         paper = (a.get("paper") or {}).get(k)
-        rows.append([k, measured(v, sd) if isinstance(v, float) else _n(v), _n(sd, ".2g"), unit(k, kind),
-                     _n(paper and paper["paper"], ".6g"),
-                     _n(paper and paper["deviation_pct"], "+.1f") + (" %" if paper else "")])
+        rows.append([k, measured(v, sd) if isinstance(v, float) else number(v, ".4g"), number(sd, ".2g"), unit(k, kind),
+                     number(paper and paper["paper"], ".6g"),
+                     number(paper and paper["deviation_pct"], "+.1f") + (" %" if paper else "")])
     doc.heading(2, "Identified model")
     doc.table(["parameter", "value", "std", "unit", "paper (Table II)", "deviation"], rows)
-    doc.para(f"Validation ({a['identify_validation']}): RMSE {_n(a['rmse_before'])} → {_n(a['rmse_after'])} {u} "
-             f"(relative error {_n(a['relative_error_before'] * 100, '.2f')} % → "
-             f"{_n(a['relative_error_after'] * 100, '.2f')} %); noise floor {_n(a['noise_floor'], '.3g')} {u}. "
-             f"Differential evolution on the same data: RMSE {_n(a['ga']['rmse'])} {u}.")
+    doc.para(f"Validation ({a['identify_validation']}): RMSE {number(a['rmse_before'], '.4g')} → {number(a['rmse_after'], '.4g')} {u} "
+             f"(relative error {number(a['relative_error_before'] * 100, '.2f')} % → "
+             f"{number(a['relative_error_after'] * 100, '.2f')} %); noise floor {number(a['noise_floor'], '.3g')} {u}. "
+             f"Differential evolution on the same data: RMSE {number(a['ga']['rmse'], '.4g')} {u}.")
     doc.figure(out / S.OUTPUT["identify"] / f"{axis}_fit.png", f"axis {axis}: measured and predicted torque")
     if not a["effects"]:
         doc.para("No effect found beyond J, c0, c1.")
     else:
         doc.heading(2, "Traced effects")
     for k, eff in enumerate(a["effects"]):
-        p = ", ".join(f"{n} = {_n(v, '.5g')}" for n, v in eff["params"].items())
+        p = ", ".join(f"{n} = {number(v, '.5g')}" for n, v in eff["params"].items())
         doc.heading(3, f"{k + 1}. {eff['name']} (depends on {eff['depends_on']})")
-        doc.para(f"{p}. Error after adding it: RMSE {_n(eff['rmse_after'])} {u}, relative error "
-                 f"{_n(eff['relative_error_after'] * 100, '.2f')} %.")
+        doc.para(f"{p}. Error after adding it: RMSE {number(eff['rmse_after'], '.4g')} {u}, relative error "
+                 f"{number(eff['relative_error_after'] * 100, '.2f')} %.")
         doc.para(eff["evidence"], "note")
         doc.figure(out / S.OUTPUT["identify"] / f"{axis}_effect{k + 1}_{eff['name']}.png", eff["name"])
     for un in a.get("unexplained") or []:
@@ -125,13 +119,13 @@ def _gains(doc: Document, out: Path, axis: str, a: dict) -> None:
     before, after = a["gains_before"], a["gains_after"]
     doc.heading(2, "Gains")
     doc.table(["gain", "unit", "before", "after"],
-              [[g, GAIN_UNITS.get(g, ""), _n(before.get(g)), _n(v)] for g, v in after.items()])
+              [[g, GAIN_UNITS.get(g, ""), number(before.get(g), ".4g"), number(v, ".4g")] for g, v in after.items()])
     rows = []
     for loop in ("velocity", "position"):
         m, mb = a["margins"][loop], (a["margins_before"] or {}).get(loop) or {}
-        rows.append([loop, _n(mb.get("phase_margin_deg"), ".1f"), _n(m["phase_margin_deg"], ".1f"),
-                     _n(mb.get("gain_margin_db"), ".1f"), _n(m["gain_margin_db"], ".1f"),
-                     _n(mb.get("crossover_hz"), ".0f"), _n(m["crossover_hz"], ".0f")])
+        rows.append([loop, number(mb.get("phase_margin_deg"), ".1f"), number(m["phase_margin_deg"], ".1f"),
+                     number(mb.get("gain_margin_db"), ".1f"), number(m["gain_margin_db"], ".1f"),
+                     number(mb.get("crossover_hz"), ".0f"), number(m["crossover_hz"], ".0f")])
     doc.table(["loop", "PM before [°]", "PM after [°]", "GM before [dB]", "GM after [dB]",
                "crossover before [Hz]", "crossover after [Hz]"], rows)
     doc.figure(out / S.LOOPS.format(axis=axis), f"axis {axis} loops: Bode plots and step response")
@@ -152,8 +146,8 @@ def _loop(out: Path, axis: str, a: dict) -> dict | None:
 
 def _validation(doc: Document, out: Path, axis: str, a: dict, traces) -> None:
     rows = [[t.replace("_", "-"), _milli(v["fe_rms_before"]), _milli(v["fe_rms_after"]),
-             _n(v["improvement"], ".1f") + "×", _milli(v["fe_max_before"]), _milli(v["fe_max_after"]),
-             _n(v.get("overshoot_pct_before"), ".2f"), _n(v["overshoot_pct_after"], ".2f"),
+             number(v["improvement"], ".1f") + "×", _milli(v["fe_max_before"]), _milli(v["fe_max_after"]),
+             number(v.get("overshoot_pct_before"), ".2f"), number(v["overshoot_pct_after"], ".2f"),
              _milli(v.get("settling_s_before"), ".0f"), _milli(v["settling_s_after"], ".0f"),
              _milli(v["torque_rmse_before"]), _milli(v["torque_rmse_after"])]
             for t, v in a["validation"].items()]
@@ -179,8 +173,8 @@ def _validation(doc: Document, out: Path, axis: str, a: dict, traces) -> None:
 
 
 def _written(doc: Document, a: dict) -> None:
-    rows = [[w["parameter"], w["object"], _n(w["old"], ".6g"), _n(w["new"], ".6g"), w["unit"],
-             f"{_n(w['old_device'], '.6g')} → {_n(w['new_device'], '.6g')}",
+    rows = [[w["parameter"], w["object"], number(w["old"], ".6g"), number(w["new"], ".6g"), w["unit"],
+             f"{number(w['old_device'], '.6g')} → {number(w['new_device'], '.6g')}",
              "verified" if w["verified"] else Strong("NOT verified")] for w in a["written"]]
     doc.heading(2, "Objects written")
     doc.table(["parameter", "object", "old", "new", "unit", "device units", "read back"], rows)
@@ -225,7 +219,7 @@ def build_report(out: Path, summary: dict) -> Document:
     doc.para(f"Bus configuration {summary['config']}{' (simulated robot)' if summary['simulated'] else ''}; "
              f"drive profile {summary['profile']}; run directory {summary['out']}.")
     doc.table(["step", "status", "duration [s]"],
-              [[s["name"], s["status"], _n(s["duration_s"], ".1f")] for s in summary["steps"]])
+              [[s["name"], s["status"], number(s["duration_s"], ".1f")] for s in summary["steps"]])
     traces_path = out / S.TRACES
     traces = np.load(traces_path) if traces_path.exists() else None
     for axis, a in summary["axes"].items():

@@ -7,10 +7,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..document import Document, Strong, measured
+from ..document import Document, Strong, measured, number
 from ..outputs import json_text, stamped, write_text
 from .identify import AxisResult
 from .trace import describe_unexplained
+
 
 def unit(name: str, kind: str) -> str:
     """The unit of a parameter or coefficient (``J``, ``offset.offset``, ``spline_odd_position.b3``)
@@ -28,10 +29,6 @@ def unit(name: str, kind: str) -> str:
     return ""
 
 
-def _fmt(v) -> str:
-    return f"{v:.6g}" if isinstance(v, (float, np.floating)) else str(v)
-
-
 def summary(results: dict[str, AxisResult]) -> str:
     lines = []
     for axis, r in results.items():
@@ -47,7 +44,7 @@ def summary(results: dict[str, AxisResult]) -> str:
         lines.append(f"  base model J, c0, c1: validation RMSE {r.before.rmse:.4g} {tu} "
                      f"(relative error {r.before.relative_error:.2%})")
         for t in r.effects:
-            p = ", ".join(f"{k} {_fmt(v)}" for k, v in t.params.items())
+            p = ", ".join(f"{k} {number(v)}" for k, v in t.params.items())
             lines.append(f"  + {t.effect.name} [{t.effect.depends_on}] ({p})")
             lines.append(f"      {t.evidence}")
         if not r.effects:
@@ -199,7 +196,7 @@ def _plot_effect(r: AxisResult, k: int, path: Path) -> None:
     ax.plot(xs, partial, ".", ms=1.5, color="0.6", label="residual of the final model + this term")
     order = np.argsort(xs, kind="stable")
     ax.plot(xs[order], term[order], ".", ms=2, color="C3", label=f"{t.effect.name} in the final model")
-    p = ", ".join(f"{n} {_fmt(v)}" for n, v in t.params.items() if not isinstance(v, (list, dict)))
+    p = ", ".join(f"{n} {number(v)}" for n, v in t.params.items() if not isinstance(v, (list, dict)))
     ax.set_xlabel(label)
     ax.set_ylabel(ylabel)
     ax.set_title(f"axis {r.axis}: {t.effect.name} ({t.effect.depends_on})" + (f": {p}" if len(p) < 70 else ""),
