@@ -16,6 +16,7 @@ from .master.campaign import Plan, build_plan
 from .master.link import Link, TraceRecorder
 from .master.stream import stream
 from .master.timing import Timing
+from .outputs import stamped
 from .signals import deferred
 
 
@@ -37,11 +38,12 @@ class RecordResult:
 
     def as_dict(self) -> dict:
         """``record --json``."""
-        return {"out": str(self.out_dir), "files": ["log.csv", "meta.yaml", "trace.blf"], "axes": {
-                    a: {"samples": self.samples[a], "missing": self.missing[a]} for a in self.plan.axes},
-                "motion_s": self.plan.duration, "cycles_sent": self.cycles_sent, "bus_load": self.bus_load,
-                "wall_time_s": self.wall_time_s, "timing": self.timing.as_dict(),
-                "aborted": None if self.aborted is None else str(self.aborted)}
+        return stamped("record", {
+            "out": str(self.out_dir), "files": ["log.csv", "meta.yaml", "trace.blf"],
+            "axes": {a: {"samples": self.samples[a], "missing": self.missing[a]} for a in self.plan.axes},
+            "motion_s": self.plan.duration, "cycles_sent": self.cycles_sent, "bus_load": self.bus_load,
+            "wall_time_s": self.wall_time_s, "timing": self.timing.as_dict(),
+            "aborted": None if self.aborted is None else str(self.aborted)})
 
 
 def record(config: BusConfig, link: Link, out_dir: str | Path, *,

@@ -7,6 +7,7 @@ from pathlib import Path
 
 from ..errors import EXIT_CODES
 from ..master.bringup import check_scan, scan
+from ..outputs import stamped
 from ..session import Session
 from . import options
 
@@ -66,7 +67,7 @@ def cmd_scan(args) -> int:
     with Session(config, options.session_options(args)) as session:
         result = scan(session.link, config)
     if args.json:
-        options.print_json("scan", result.as_dict(config))
+        options.print_json(result.as_dict(config))
         check_scan(result, config)
         return 0
     by_id = {n.node_id: a for a, n in config.nodes.items()}
@@ -104,7 +105,7 @@ def cmd_record(args) -> int:
             for bar in bars:
                 bar.close()
     if args.json:
-        options.print_json("record", result.as_dict())
+        options.print_json(result.as_dict())
     else:
         print(f"bus load {result.bus_load}; {result.cycles_sent} SYNC cycles in {result.wall_time_s:.1f} s")
         for axis in result.plan.axes:
@@ -142,8 +143,8 @@ def cmd_decode(args) -> int:
         raise UserError(f"--out {out} is a directory; name the CSV file to write")
     save_table(out, names, values, fmts)
     if args.json:
-        options.print_json("decode", {"trace": str(args.trace), "out": str(out), "rows": len(values),
-                                      "columns": list(names), "problem": problem})
+        options.print_json(stamped("decode", {"trace": str(args.trace), "out": str(out), "rows": len(values),
+                                              "columns": list(names), "problem": problem}))
     else:
         print(f"wrote {out}: {len(values)} rows, {len(names)} columns")
     if problem:
@@ -156,7 +157,7 @@ def cmd_check_eds(args) -> int:
     reports = [check(name) for name in args.files]
     clean = all(r.standard for r in reports)
     if args.json:
-        options.print_json("check-eds", {"standard": clean, "files": [r.as_dict() for r in reports]})
+        options.print_json(stamped("check-eds", {"standard": clean, "files": [r.as_dict() for r in reports]}))
         return 0 if clean else 1
     for report in reports:
         lely = ("Lely dcf-tools not installed (pip install dcf-tools)" if report.lely is None
@@ -178,7 +179,8 @@ def cmd_export(args) -> int:
     options.out_dir(args.out)
     paths = export(load_bus_config(args.config or DEFAULT_BUS_CONFIG), args.out)
     if args.json:
-        options.print_json("export", {"target": args.target, "out": str(args.out), "files": [p.name for p in paths]})
+        options.print_json(stamped("export", {"target": args.target, "out": str(args.out),
+                                              "files": [p.name for p in paths]}))
     else:
         print(f"wrote {', '.join(p.name for p in paths)} in {args.out}")
     return 0

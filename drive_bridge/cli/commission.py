@@ -28,5 +28,5 @@ def cmd_commission(args) -> int:
     result = commission(options.config(args), args.out, options.session_options(args),
                         steps=options.axes_list(args.steps), restart=args.restart)
     if args.json:
-        options.print_json("summary", result.summary)
+        options.print_json(result.summary)
     return result.exit_code

@@ -11,7 +11,7 @@ import can
 from ..canconf import resolve
 from ..config import BusConfig, load_bus_config
 from ..errors import UserError
-from ..outputs import json_text, stamped
+from ..outputs import json_text
 from ..resources import DEFAULT_BUS_CONFIG
 from ..session import Options
 
@@ -64,10 +64,10 @@ def json_flag(p: argparse.ArgumentParser) -> None:
                         "messages go to stderr")
 
 
-def print_json(name: str, doc: dict) -> None:
-    """The one JSON object a ``--json`` command prints, stamped with its schema ``drive-bridge/<name>``
-    (``doc`` already stamped is printed as it is)."""
-    print(json_text(doc if "schema" in doc else stamped(name, doc)))
+def print_json(doc: dict) -> None:
+    """The one JSON object a ``--json`` command prints: a result :func:`~drive_bridge.outputs.stamped`
+    with its schema."""
+    print(json_text(doc))
 
 
 def motor(p: argparse.ArgumentParser) -> None:

@@ -95,7 +95,7 @@ def cmd_tune(args) -> int:
     doc = tune_doc(results, unwritable_effects(args.ident))
     out = write_json(args.out, doc)
     if args.json:
-        options.print_json("tune", doc)
+        options.print_json(doc)
         return 0
     for a, t in results.items():
         d = t.design
@@ -129,7 +129,7 @@ def cmd_write(args) -> int:
                                inductance=tuned.inductance, force=o.force, pm_floor=o.pm_floor, gm_floor=o.gm_floor,
                                allow_unverified_scales=o.writes_unverified, bitrate=config.master.nominal_bitrate)
     if args.json:
-        options.print_json("write", outcome.as_dict())
+        options.print_json(outcome.as_dict())
     else:
         _print_write(outcome, args.backup_dir, session.profile)
     raise_for_failure(outcome, args.backup_dir)
@@ -178,7 +178,7 @@ def cmd_validate(args) -> int:
         runs = run_scenarios(config, session.link, session.axes, session.profile, scenarios, model,
                              out_dir=Path(args.out) if args.out else None)
     if args.json:
-        options.print_json("validate", validate_doc(runs))
+        options.print_json(validate_doc(runs))
     else:
         print(f"{'scenario':<28} {'trajectory':<15} {'axis':<4} {'FE rms [mrad]':>13} {'FE max [mrad]':>13} "
               f"{'overshoot [%]':>13} {'settling [ms]':>13} {'torque RMSE [mNm]':>17}")

@@ -56,7 +56,7 @@ class Context:
 def scan(ctx: Context) -> str:
     config = ctx.config
     result = scan_bus(ctx.session.link, config)
-    write_json(ctx.out / OUTPUT["scan"], stamped("scan", result.as_dict(config)))
+    write_json(ctx.out / OUTPUT["scan"], result.as_dict(config))
     check_scan(result, config)
     extra = f"; not configured, left alone: nodes {result.unexpected}" if result.unexpected else ""
     extra += "".join(f"; identity of {a} ACCEPTED although it differs: {why}"

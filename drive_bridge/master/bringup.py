@@ -9,7 +9,7 @@ from canopen.pdo.base import PdoMap
 from ..config import BusConfig, NodeConfig, PdoConfig
 from ..errors import BusError, DriveRefused
 from ..od import limits
-from ..outputs import hex_object, identity_hex
+from ..outputs import hex_object, identity_hex, stamped
 from ..pdo import PdoCodec
 from ..setpoint import IP, IP_SUB_MODE, MODE_NAMES, PVT, choose, describe_modes
 from .cia402 import Drive402
@@ -71,12 +71,14 @@ class ScanResult:
     identity_accepted: dict[str, str] = field(default_factory=dict)
 
     def as_dict(self, config: BusConfig) -> dict:
-        """scan.json: the nodes found (by axis where configured), missing, unexpected, wrong type,
-        identities that differ from the EDS/DCF (and those accepted with --accept-identity)."""
+        """scan.json / ``scan --json``: the nodes found (by axis where configured), missing,
+        unexpected, wrong type, identities that differ from the EDS/DCF (and those accepted with
+        --accept-identity)."""
         by_id = {n.node_id: a for a, n in config.nodes.items()}
-        return {"found": {by_id.get(i, str(i)): {"node_id": i, **identity_hex(ident)} for i, ident in self.found.items()},
-                "missing": self.missing, "unexpected": self.unexpected, "wrong_type": self.wrong_type,
-                "identity_mismatch": self.identity_mismatch, "identity_accepted": self.identity_accepted}
+        return stamped("scan", {
+            "found": {by_id.get(i, str(i)): {"node_id": i, **identity_hex(ident)} for i, ident in self.found.items()},
+            "missing": self.missing, "unexpected": self.unexpected, "wrong_type": self.wrong_type,
+            "identity_mismatch": self.identity_mismatch, "identity_accepted": self.identity_accepted})
 
 
 def _identity(node: canopen.RemoteNode, axis: str) -> dict:
