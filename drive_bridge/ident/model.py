@@ -138,18 +138,18 @@ class AxisModel:
                 out[f"{e.name}.{k}"] = v
         return out
 
-    def effect_term(self, effect: Effect, s: Samples) -> np.ndarray:
-        """The torque ``effect`` contributes to the prediction at ``s`` (filtered as the fit's)."""
+    def _coef_of(self, effect: Effect) -> np.ndarray:
         for e, sl in self._blocks():
             if e is effect:
-                return e.columns(s, False) @ self.coef_[sl]
+                return self.coef_[sl]
         raise KeyError(effect)
 
+    def effect_term(self, effect: Effect, s: Samples) -> np.ndarray:
+        """The torque ``effect`` contributes to the prediction at ``s`` (filtered as the fit's)."""
+        return effect.columns(s, False) @ self._coef_of(effect)
+
     def effect_params(self, effect: Effect) -> dict:
-        for e, sl in self._blocks():
-            if e is effect:
-                return e.params(self.coef_[sl])
-        raise KeyError(effect)
+        return effect.params(self._coef_of(effect))
 
 
 def hac_lags(resid: np.ndarray) -> int:
