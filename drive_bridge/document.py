@@ -2,8 +2,8 @@
 page (figures embedded as PNG data, nothing fetched) for a browser, and Markdown with the figures
 as PNG files beside it for a ticket or a wiki.
 
-Text is a string, or a list of strings and :class:`Strong` / :class:`Code` runs; every string is
-escaped for the format it goes to.
+Text is a string, or a list of strings and :class:`Strong` runs; every string is escaped for the
+format it goes to.
 """
 from __future__ import annotations
 
@@ -26,16 +26,12 @@ padding:.6em 1em}.partial{background:#fff5d6;border:1px solid #db5;padding:.6em 
 .note{color:#555;font-size:.92em}h2{border-bottom:2px solid #ddd;margin-top:1.6em}"""
 
 #: paragraph styles: a box in HTML (the verdict, the status), a quote in Markdown; or a note in grey
-STYLES = ("ok", "partial", "failed", "note")
+BOXES = ("ok", "partial", "failed")
+STYLES = (*BOXES, "note")
 
 
 @dataclass(frozen=True)
 class Strong:
-    text: str
-
-
-@dataclass(frozen=True)
-class Code:
     text: str
 
 
@@ -66,28 +62,21 @@ def measured(value: float, std: float | None) -> str:
 
 
 def _runs(text) -> list:
-    return [text] if isinstance(text, (str, Strong, Code)) else list(text)
+    return [text] if isinstance(text, (str, Strong)) else list(text)
 
 
 def _html(text) -> str:
-    out = []
-    for r in _runs(text):
-        if isinstance(r, Strong):
-            out.append(f"<b>{html.escape(r.text)}</b>")
-        elif isinstance(r, Code):
-            out.append(f"<code>{html.escape(r.text)}</code>")
-        else:
-            out.append(html.escape(str(r)))
-    return "".join(out)
+    return "".join(f"<b>{html.escape(r.text)}</b>" if isinstance(r, Strong) else html.escape(str(r))
+                   for r in _runs(text))
 
 
 def _md(text, cell: bool = False) -> str:
     out = []
     for r in _runs(text):
-        s = r.text if isinstance(r, (Strong, Code)) else str(r)
+        s = r.text if isinstance(r, Strong) else str(r)
         if cell:
             s = s.replace("|", "\\|").replace("\n", " ")
-        out.append(f"**{s}**" if isinstance(r, Strong) and s else f"`{s}`" if isinstance(r, Code) else s)
+        out.append(f"**{s}**" if isinstance(r, Strong) and s else s)
     return "".join(out)
 
 
@@ -118,9 +107,6 @@ class Document:
         if Path(path).is_file():
             self.blocks.append(("img", Path(path), alt))
 
-    def figures(self) -> list[Path]:
-        return [b[1] for b in self.blocks if b[0] == "img"]
-
     # ---------------------------------------------------------------- rendering
     def html(self) -> str:
         body = [f"<h1>{html.escape(self.title)}</h1>"]
@@ -128,9 +114,9 @@ class Document:
             if kind == "h":
                 body.append(f"<h{b[0] + 1}>{_html(b[1])}</h{b[0] + 1}>")
             elif kind == "p":
+                tag = "div" if b[1] in BOXES else "p"
                 cls = f" class='{b[1]}'" if b[1] else ""
-                body.append(f"<{'div' if b[1] in ('ok', 'partial', 'failed') else 'p'}{cls}>{_html(b[0])}"
-                            f"</{'div' if b[1] in ('ok', 'partial', 'failed') else 'p'}>")
+                body.append(f"<{tag}{cls}>{_html(b[0])}</{tag}>")
             elif kind == "ul":
                 body.append("<ul>" + "".join(f"<li>{_html(i)}</li>" for i in b[0]) + "</ul>")
             elif kind == "table":
@@ -152,7 +138,7 @@ class Document:
                 md += [f"{'#' * (b[0] + 1)} {_md(b[1])}", ""]
             elif kind == "p":
                 text = _md(b[0])
-                md += [f"> {text}" if b[1] in ("ok", "partial", "failed") else f"*{text}*" if b[1] == "note"
+                md += [f"> {text}" if b[1] in BOXES else f"*{text}*" if b[1] == "note"
                        else text, ""]
             elif kind == "ul":
                 md += [f"- {_md(i)}" for i in b[0]] + [""]
