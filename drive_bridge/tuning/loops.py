@@ -3,7 +3,9 @@
 Per axis: the open-loop Bode plots of the velocity and the position loop with the gains before
 and after (the same loop models whose margins :mod:`.design` computes, python-control), the
 crossover and the phase and gain margins marked; and the closed-loop position step response of
-the model before and after.  Frequencies in Hz, magnitude in dB, phase in °, time in ms.
+the model before and after.  Frequencies in Hz, magnitude in dB, phase in °, time in ms.  And the
+following error the same model predicts along a demand (:func:`predicted_following_error`), which
+the report draws beside the measured one.
 """
 from __future__ import annotations
 
@@ -26,7 +28,8 @@ def loop_figure(J: float, c1: float, before: dict[str, float] | None, after: dic
     f = np.logspace(0, 4, 600)                                       # 1 Hz .. 10 kHz
     fig, ax = plt.subplots(2, 3, figsize=(13, 6.5), gridspec_kw={"width_ratios": [1, 1, 0.9]})
     for name, gains, colour in sets:
-        for col, (loop, sys_) in enumerate(zip(("velocity", "position"), open_loops(J, c1, gains, L))):
+        loops = open_loops(J, c1, gains, L)
+        for col, (loop, sys_) in enumerate(zip(("velocity", "position"), loops)):
             resp = sys_(2j * np.pi * f)
             mag, phase = 20 * np.log10(np.abs(resp)), np.degrees(np.unwrap(np.angle(resp)))
             gm, pm, wg, wc = control.margin(sys_)
@@ -44,7 +47,7 @@ def loop_figure(J: float, c1: float, before: dict[str, float] | None, after: dic
                                     color=colour, fontsize=8, xytext=(4, -12 if name == "after" else 4),
                                     textcoords="offset points")
             ax[0, col].set_title(f"{loop} loop, open loop")
-        closed = control.feedback(open_loops(J, c1, gains, L)[1], 1)
+        closed = control.feedback(loops[1], 1)
         t = np.linspace(0, 0.05, 1000)
         _, y = control.step_response(closed, t)
         ax[0, 2].plot(t * 1e3, y, colour, label=name)
