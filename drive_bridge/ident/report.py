@@ -110,7 +110,6 @@ def _spans(t: np.ndarray, moving: np.ndarray) -> list[slice]:
     cuts = np.flatnonzero(np.diff(t) > 1.5 * dt) + 1
     blocks = sorted((b for b in np.split(np.arange(len(t)), cuts) if len(b) > 1), key=len, reverse=True)
     n = max(2, int(round(SPAN_S / dt)))
-    starts = []
     if len(blocks) == 1 or len(blocks[0]) >= SPANS * n:
         b = blocks[0]
         starts = [b[0] + int(f * max(0, len(b) - n)) for f in np.linspace(0.1, 0.9, SPANS)] if len(b) > n else [b[0]]
@@ -182,16 +181,12 @@ def _plot_effect(r: AxisResult, k: int, path: Path) -> None:
     x, label = _variable(r, t.effect.depends_on)
     term = r.model.effect_term(t.effect, s)[m]
     partial = (s.tau_f - r.model.predict(s))[m] + term
-    ylabel = f"torque [{r.units['torque']}]"
+    xs, ylabel = x[m], f"torque [{r.units['torque']}]"
     if getattr(t.effect, "form", None) == "inertial":       # the inertia it adds: torque per acceleration
         qdd = s.qdd[m]
-        keep = np.abs(qdd) > 0.5 * np.sqrt(np.mean(qdd ** 2))
-        x, m = x[m][keep], np.flatnonzero(m)[keep]
-        partial, term = partial[keep] / qdd[keep], term[keep] / qdd[keep]
-        ylabel = f"inertia added [{unit('J', r.kind)}]"        # samples with |acceleration| > ½ RMS
-        xs = x
-    else:
-        xs = x[m]
+        keep = np.abs(qdd) > 0.5 * np.sqrt(np.mean(qdd ** 2))        # samples with |acceleration| > ½ RMS
+        xs, partial, term = xs[keep], partial[keep] / qdd[keep], term[keep] / qdd[keep]
+        ylabel = f"inertia added [{unit('J', r.kind)}]"
     fig, ax = plt.subplots(figsize=(8, 4.5))
     ax.plot(xs, partial, ".", ms=1.5, color="0.6", label="residual of the final model + this term")
     order = np.argsort(xs, kind="stable")

@@ -86,10 +86,10 @@ def _evidence(t: TracedEffect) -> str:
     what = (f"a smooth torque in {e.variable} no named effect describes ({len(e.coef_names)}-coefficient spline, "
             + FORM_WORDS[e.form] + ")"
             if isinstance(e, Spline) else _named_evidence(e, t.params))
-    moved = [f"{k} {t.model_params[f'{e.name}.{k}']:+.4g}" for k, v in t.params.items()
-             if isinstance(v, float) and isinstance(t.model_params.get(f"{e.name}.{k}"), float)
-             and abs(v - t.model_params[f"{e.name}.{k}"]) > MOVED * abs(t.model_params[f"{e.name}.{k}"])
-             and not isinstance(e, Spline)]
+    added = {k: t.model_params.get(f"{e.name}.{k}") for k in t.params}
+    moved = [] if isinstance(e, Spline) else [
+        f"{k} {added[k]:+.4g}" for k, v in t.params.items()
+        if isinstance(v, float) and isinstance(added[k], float) and abs(v - added[k]) > MOVED * abs(added[k])]
     since = (f" (when it was added: {', '.join(moved)}; the effects added after it took part of that)"
              if moved else "")
     return (f"{what}{since}; explains {t.share:.0%} of the residual variance (F = {t.f_stat:.3g}); validation "
