@@ -74,7 +74,7 @@ def hex_object(index: int, sub: int | None = None) -> str:
 
 
 def hex32(value: int) -> str:
-    """An identity value, device type or COB-ID: "0x00000DB1"."""
+    """An identity value or the device type: "0x00000DB1"."""
     return f"0x{value:08X}"
 
 

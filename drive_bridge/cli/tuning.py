@@ -6,7 +6,7 @@ from pathlib import Path
 
 from ..document import number
 from ..errors import UserError
-from ..outputs import write_json
+from ..outputs import hex_object, write_json
 from ..params.read import drive_state
 from ..params.write import raise_for_failure, write_drives
 from ..session import Session
@@ -148,7 +148,7 @@ def _print_write(outcome, backup_dir, profile) -> None:
             state = "verified" if w.verified else ("" if r.dry_run else "NOT verified")
             if not profile.entries[w.parameter].verified:
                 state += " UNVERIFIED SCALE"
-            print(f"  {w.parameter:<{width}} 0x{w.index:04X}:{w.sub:<2} {number(w.old_si):>11} -> {number(w.new_si):<11} "
+            print(f"  {w.parameter:<{width}} {hex_object(w.index, w.sub):<9} {number(w.old_si):>11} -> {number(w.new_si):<11} "
                   f"{w.unit:<18} (device {number(w.old_device)} -> {number(w.new_device)}) {state}")
         for name in r.unsupported:
             print(f"  {name:<9} not supported by {r.drive}: not written")
