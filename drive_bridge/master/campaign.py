@@ -177,9 +177,16 @@ def short_plan(cfg: CampaignConfig, limits: dict[str, Limits], start: dict[str, 
         if excite < MIN_EXCITATION_CYCLES * period:
             raise UserError(f"campaign.short_time_s {cfg.short_time_s:g} s leaves {excite:.1f} s of excitation "
                             f"after the moves to and from the centre of the stroke; give it more time")
+        excitation = {}
+        for i, ax in enumerate(group):
+            try:
+                excitation[ax] = design_axis(limits[ax], excite, period, cfg.move_fraction, seed=i)
+            except ValueError as exc:
+                raise UserError(f"axis {ax}: {exc} in {excite:.1f} s of excitation; nothing was moved. Give "
+                                f"campaign.short_time_s more time, lower campaign.move_fraction, or use the "
+                                f"paper's campaign (design: paper)") from exc
         seq.add("approach", group, travel, APPROACH_LEVEL, APPROACH_LEVEL)
-        seq.add("excitation", group, {ax: design_axis(limits[ax], excite, period, cfg.move_fraction, seed=i)
-                                      for i, ax in enumerate(group)}, MARGIN, MARGIN)
+        seq.add("excitation", group, excitation, MARGIN, MARGIN)
         seq.add("return", group, back, APPROACH_LEVEL, APPROACH_LEVEL)
     return seq.plan(limits)
 

@@ -53,6 +53,13 @@ def test_the_short_campaign_stays_inside_every_limit(jerk_share):
         assert q[0] == pytest.approx(start[a], abs=1e-3) and q[-1] == pytest.approx(start[a])  # from and back
 
 
+def test_limits_no_multisine_can_cover_the_stroke_in_are_a_clear_refusal():
+    cfg, limits = _limits()
+    slow = {a: replace(l, max_velocity=l.max_velocity / 50) for a, l in limits.items()}
+    with pytest.raises(UserError, match=r"axis x: no multisine covers the stroke.*short_time_s more time"):
+        build_plan(replace(cfg.campaign, design="short", short_time_s=10), slow, dict.fromkeys(slow, 0.0), PERIOD)
+
+
 def test_a_jerk_limit_refuses_the_papers_trapezoids_before_anything_moves():
     cfg, limits = _limits(1.0)
     with pytest.raises(UserError, match="jerk.*campaign design: short keeps the jerk limit"):
