@@ -20,6 +20,7 @@ from ..ident.report import unit
 from ..ident.trace import describe_unexplained
 from ..tuning.loops import predicted_following_error
 from . import steps as S
+from .verdict import reasons
 from .worse import worse
 
 REPORT = "report.html"
@@ -187,9 +188,7 @@ def _verdict(doc: Document, v: dict) -> None:
     style = {"PASS": "ok", "WARN": "partial", "INCOMPLETE": "partial", "FAIL": "failed"}
     doc.para([Strong(f"Verdict: {v['overall']}")], style[v["overall"]])
     doc.table(["axis", "verdict", "criteria not met"],
-              [[Strong(a), Strong(x["verdict"]), "; ".join(x["unmet"]) or (
-                  "not evaluated: " + ", ".join(x["not_evaluated"]) if x["not_evaluated"] else "every criterion met")]
-               for a, x in v["axes"].items()])
+              [[Strong(a), Strong(x["verdict"]), reasons(x) or "every criterion met"] for a, x in v["axes"].items()])
     acc = v["acceptance"]
     doc.para(f"Criteria: velocity and position loop PM ≥ {acc['min_phase_margin_deg']:g}°, GM ≥ "
              f"{acc['min_gain_margin_db']:g} dB and following error ≥ {acc['min_fe_improvement']:g}× better than the "

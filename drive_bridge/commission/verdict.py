@@ -99,11 +99,12 @@ def describe(c: dict) -> str:
     return f"{c['criterion']} {shown} (needs {c['limit']}{f' {unit}' if unit not in ('', '×') else ''})"
 
 
+def reasons(x: dict) -> str:
+    """Why one axis has its verdict: the criteria it misses, else those not evaluated ("" for PASS)."""
+    return "; ".join(x["unmet"]) or (f"not evaluated: {', '.join(x['not_evaluated'])}" if x["not_evaluated"] else "")
+
+
 def headline(v: dict) -> str:
     """One line: the overall verdict and each axis's, with what it misses."""
-    parts = []
-    for a, x in v["axes"].items():
-        why = "; ".join(x["unmet"]) or (f"not evaluated: {', '.join(x['not_evaluated'])}"
-                                        if x["verdict"] == "INCOMPLETE" else "")
-        parts.append(f"{a} {x['verdict']}" + (f" ({why})" if why else ""))
-    return f"{v['overall']}: " + ", ".join(parts)
+    return f"{v['overall']}: " + ", ".join(f"{a} {x['verdict']}" + (f" ({reasons(x)})" if reasons(x) else "")
+                                           for a, x in v["axes"].items())
