@@ -84,7 +84,7 @@ class Effect:
         if self.linear_in_signals:
             return self._signed(s, self._columns(s, **learned))
         key = (type(self).__name__, str(self.get_params()), tuple(learned.values()))
-        return self._signed(s, s.parallel(key, lambda ch: self._columns(ch, **learned), logged))
+        return self._signed(s, s.parallel(key, lambda ch: self._columns(ch, **learned), logged, self.odd))
 
     def fit(self, s: Samples, fixed: np.ndarray, y: np.ndarray, seed: int = 0) -> "Effect":
         """Learn the nonlinear parameters on samples ``s`` against the observation ``y``, with the
@@ -289,7 +289,7 @@ class Spline(Effect):
     The spline never duplicates a term the model has by name: its basis is made orthogonal, over
     the variable's range (``grid``: evenly spaced points of it), to a constant and a
     straight line (even: the offset, cp·q, c1·q̇, J·q̈) or to a constant (odd: c0·sign(q̇);
-    inertial: J·q̈), and
+    inertial: J·q̈), over the axis's own velocity to its sign as well (c0·sign(q̇)), and
     reduced to a full-rank set (SVD), deterministically from the constructor's parameters."""
 
     GRID = 512
@@ -301,7 +301,12 @@ class Spline(Effect):
         self.name = f"spline_{form}_{variable}"
         grid = np.asarray(self.grid)
         basis = self._basis(grid)
-        removed = np.column_stack([np.ones_like(grid), grid] if form == "even" else [np.ones_like(grid)])
+        removed = [np.ones_like(grid)]
+        if form == "even":
+            removed.append(grid)
+        if variable == "velocity":                          # over its own velocity: a friction curve
+            removed.append(np.sign(grid))
+        removed = np.column_stack(removed)
         orthogonal = basis - removed @ np.linalg.lstsq(removed, basis, rcond=None)[0]
         _, sv, vt = np.linalg.svd(orthogonal, full_matrices=False)
         reduce = vt[:int(np.sum(sv > 1e-9 * sv[0]))].T
@@ -346,6 +351,16 @@ SPLINE_KNOTS = (3, 6, 10)       # smoothness candidates: interior knots (validat
 SPLINE_SHARE = 0.15             # a variable the residual depends on by this share of its variance ...
 SPLINE_P = 1e-3                 # ... at this ANOVA p-value gets spline candidates
 STILL_SHARE = 0.01              # another axis whose RMS speed is below this share of the axis's own stands still
+
+
+def shape_of(e: Effect) -> tuple[str, str]:
+    """(variable, form) of the torque ``e`` adds, as a spline names it: a torque over the axis's
+    own velocity, friction or not, is one even shape in the signed velocity."""
+    if isinstance(e, Spline):
+        return e.variable, e.form
+    if e.depends_on in ("velocity", "direction"):
+        return "velocity", "even"
+    return e.depends_on, "odd" if e.odd else "even"
 
 
 def spline_candidates(present: list[Effect], s: Samples, residual: np.ndarray) -> list[Effect]:

@@ -32,6 +32,7 @@ MAX_CUTOFF_SHARE = 0.2       # ... at most this share of the log's rate: above i
 DECIMATION_MARGIN = 2.5      # decimated sample rate = 2.5 x the cut-off: nearly white residual samples
 MOVING_FRACTION = 0.02       # |velocity| below this share of its maximum: near zero, not fitted
 SETTLE_CYCLES = 1.0          # ... nor this many cut-off periods from it
+STILL_SAMPLES = 3            # an encoder's position unchanged over this many log samples: standing still
 WIDE_BAND = 0.4              # the light low-pass of the whole-band samples, × the sample rate
 MIN_MOVING = 50              # decimated moving samples below this: nothing to identify
 
@@ -73,14 +74,16 @@ class Samples:
                        self.tau_f[mask], self.tau[mask], self.moving[mask],
                        {a: tuple(x[mask] for x in v) for a, v in self.others.items()}, self.source, index[mask])
 
-    def parallel(self, key, columns: Callable[["Channels"], np.ndarray], logged: bool = False) -> np.ndarray:
+    def parallel(self, key, columns: Callable[["Channels"], np.ndarray], logged: bool = False,
+                 odd: bool = False) -> np.ndarray:
         """``columns`` (a function of the signals, n × k) at these samples, computed at the log's
         rate and filtered and decimated as the torque is (``logged``: as the torque as logged
         is, by the mean over each decimation interval); at the samples as they are when they
-        carry no source.  ``key`` names the function for the source's cache."""
+        carry no source.  ``key`` names the function for the source's cache; ``odd``: the
+        magnitude of a column the direction ``sgn`` multiplies (which is zero at a standstill)."""
         if self.source is None:
             return columns(self)
-        cols = self.source.columns(key, columns, logged)
+        cols = self.source.columns(key, columns, logged, odd)
         return cols if self.index is None else cols[self.index]
 
     def __len__(self) -> int:
@@ -91,8 +94,9 @@ class Samples:
 class Channels:
     """The signals of one segment at the log's rate, as the regressor columns read them: logged
     position (what a position-periodic torque follows), velocity and acceleration of the
-    filtered position, the direction of motion unfiltered, the other axes alike, and the
-    torque as logged."""
+    filtered position, the direction of motion unfiltered, the other axes alike, the
+    torque as logged, and where the axis is moving: the torque, and every column, count only
+    there before the low-pass (:func:`standing`)."""
 
     t: np.ndarray
     q: np.ndarray
@@ -101,6 +105,7 @@ class Channels:
     sgn: np.ndarray
     others: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]
     tau: np.ndarray
+    gate: np.ndarray         # 0 where the encoder shows the axis standing still, else 1
 
     def __len__(self) -> int:
         return len(self.t)
@@ -120,8 +125,9 @@ class Parallel:
     _cache: dict = field(default_factory=dict, repr=False)
     _segments: list = field(default_factory=list, repr=False)
 
-    def columns(self, key, columns: Callable[[Channels], np.ndarray], logged: bool = False) -> np.ndarray:
-        if (key, logged) not in self._cache:
+    def columns(self, key, columns: Callable[[Channels], np.ndarray], logged: bool = False,
+                odd: bool = False) -> np.ndarray:
+        if (key, logged, odd) not in self._cache:
             sos, r = self.sos, self.settings.decimation
             parts = []
             for keep, ch in self.segments():
@@ -129,10 +135,10 @@ class Parallel:
                 if logged:
                     parts.append(np.column_stack([_interval_mean(x[:, j], r)[keep][::r] for j in range(x.shape[1])]))
                 else:
-                    xf = signal.sosfiltfilt(sos, x, axis=0)[keep]
+                    xf = signal.sosfiltfilt(sos, x if odd else x * ch.gate[:, None], axis=0)[keep]
                     parts.append(np.column_stack([_decimate(xf[:, j], self.settings) for j in range(x.shape[1])]))
-            self._cache[key, logged] = np.concatenate(parts)[:self.length]
-        return self._cache[key, logged]
+            self._cache[key, logged, odd] = np.concatenate(parts)[:self.length]
+        return self._cache[key, logged, odd]
 
     @cached_property
     def sos(self) -> np.ndarray:
@@ -146,16 +152,42 @@ class Parallel:
             lag = self.settings.torque_delay_s / dt
             for sl, keep in _usable(self.log, self.axis, self.settings):
                 q = _delayed(self.log.axes[self.axis].q[sl], lag)
-                qd = np.gradient(signal.sosfiltfilt(sos, q), dt)
+                qd = derivative(signal.sosfiltfilt(sos, q), dt)
                 others = {}
                 for o in self.log.axes:
                     if o != self.axis:
                         oq = _delayed(_filled(self.log.axes[o].q[sl]), lag)
-                        oqd = np.gradient(signal.sosfiltfilt(sos, oq), dt)
-                        others[o] = (oq, oqd, np.gradient(oqd, dt))
-                self._segments.append((keep, Channels(self.log.t[sl], q, qd, np.gradient(qd, dt), np.sign(qd),
-                                                      others, self.log.axes[self.axis].tau[sl])))
+                        oqd = derivative(signal.sosfiltfilt(sos, oq), dt)
+                        others[o] = (oq, oqd, derivative(oqd, dt))
+                raw = self.log.axes[self.axis].q[sl]
+                sgn = np.sign(_delayed(direction(raw, qd), lag))
+                gate = 1.0 - np.ceil(_delayed(standing(raw).astype(float), lag))
+                self._segments.append((keep, Channels(self.log.t[sl], q, qd, derivative(qd, dt), sgn,
+                                                      others, self.log.axes[self.axis].tau[sl], gate)))
         return self._segments
+
+
+def _central_difference(m: int) -> np.ndarray:
+    """Weights of x[i-m] ... x[i+m] in the central-difference first derivative of order 2m."""
+    k = np.arange(-m, m + 1, dtype=float)
+    unit = np.zeros(2 * m + 1)
+    unit[1] = 1.0
+    return np.linalg.solve(np.vander(k, increasing=True).T, unit)
+
+
+# order 16: within 1e-4 up to 0.2 × the sample rate (MAX_CUTOFF_SHARE), where np.gradient's
+# order 2 reads a derivative 24 % low there (and J with it high)
+_DERIVATIVE = _central_difference(8)
+
+
+def derivative(x: np.ndarray, dt: float) -> np.ndarray:
+    """Time derivative of the band-limited (filtered) signal ``x`` sampled every ``dt`` [s]
+    (the 8 samples at each end by np.gradient)."""
+    out = np.gradient(x, dt)
+    m = len(_DERIVATIVE) // 2
+    if len(x) > 2 * m:
+        out[m:-m] = np.convolve(x, _DERIVATIVE[::-1], mode="valid") / dt
+    return out
 
 
 def _usable(log: Log, axis: str, settings: Settings):
@@ -174,6 +206,61 @@ def _delayed(x: np.ndarray, samples: float) -> np.ndarray:
         return x
     k = np.arange(len(x), dtype=float)
     return np.interp(k - samples, k, x)
+
+
+def _on_counts(q: np.ndarray) -> bool:
+    """Whether the logged position ``q`` is an encoder's: on a grid of counts (as written, to
+    0.1 count), not noisy or interpolated."""
+    moved = np.abs(np.diff(q))
+    moved = moved[moved != 0]
+    if len(q) < 5 or not len(moved):
+        return False
+    counts = moved / np.mean(moved[moved < 1.5 * moved.min()])           # one count: the smallest step
+    small = counts[counts < 50]                     # (a large step's count carries the unit's rounding)
+    return len(small) >= 10 and bool(np.max(np.abs(small - np.round(small))) <= 0.1)
+
+
+def _in_runs(same: np.ndarray, length: int) -> np.ndarray:
+    """Samples within a run of ``length`` equal positions (``same``: the steps that are zero)."""
+    run = np.convolve(same.astype(float), np.ones(length - 1), mode="valid") == length - 1
+    out = np.zeros(len(same) + 1, dtype=bool)
+    for k in range(length):
+        out[k:k + len(run)] |= run
+    return out
+
+
+def direction(q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+    """Direction of motion (-1, 0, 1) at each sample of the logged position ``q``, for the
+    Coulomb column; ``qd``: the filtered velocity.
+
+    The filtered velocity's sign rings about a reversal and changes sign in the middle of the
+    time the axis sticks there, where friction is whatever holds it.  An encoder's position
+    tells the truth: the sign of its central difference, zero where it stays on one count for
+    ``STILL_SAMPLES`` samples; between two counts of a slow motion, and for a position that is
+    not an encoder's, the filtered velocity's sign.
+    """
+    fallback = np.sign(qd)
+    if not _on_counts(q):
+        return fallback
+    raw = np.sign(np.gradient(q))
+    return np.where(raw != 0, raw, np.where(_in_runs(np.diff(q) == 0, STILL_SAMPLES), 0.0, fallback))
+
+
+def standing(q: np.ndarray) -> np.ndarray:
+    """Samples where an encoder's position ``q`` shows the axis standing still: one count over
+    the five samples the velocity and acceleration columns reach (both are exactly zero there).
+
+    There the drive holds the axis with whatever torque static friction allows, no model's
+    torque; the torque and every column are set to zero there before the low-pass, so the
+    filtered torque and columns still agree next to a standstill (none where ``q`` is not an
+    encoder's).
+    """
+    if not _on_counts(q):
+        return np.zeros(len(q), dtype=bool)
+    same = np.diff(q) == 0
+    out = np.zeros(len(q), dtype=bool)
+    out[2:-2] = same[:-3] & same[1:-2] & same[2:-1] & same[3:]
+    return out
 
 
 def _filled(q: np.ndarray) -> np.ndarray:
@@ -246,8 +333,8 @@ def prepare(log: Log, axis: str, settings: Settings) -> Samples:
     for keep, ch in source.segments():        # (too short to filter, cut and decimate: skipped)
         # parallel filtering of the Coulomb column: the torque's step at a reversal is smoothed
         # by the low-pass, so sign(q̇) gets the same filter (IDIM: filter W and τ alike)
-        channels = {"q": signal.sosfiltfilt(sos, ch.q), "qd": ch.qd, "tau_f": signal.sosfiltfilt(sos, ch.tau),
-                    "qdd": ch.qdd, "sgn": signal.sosfiltfilt(sos, ch.sgn)}
+        channels = {"q": signal.sosfiltfilt(sos, ch.q), "qd": ch.qd, "tau_f": signal.sosfiltfilt(sos, ch.tau * ch.gate),
+                    "qdd": ch.qdd, "sgn": signal.sosfiltfilt(sos, ch.sgn * ch.gate)}
         for k, x in channels.items():
             parts[k].append(_decimate(x[keep], settings))
         parts["settled"].append(_settled(ch.qd, settings)[keep][::r])

@@ -16,6 +16,12 @@ added when it is significant:
   F-test alone flags effects far too small to matter on long logs whose
   residual samples are correlated.
 
+A spline (a shape no named effect has) must cut the validation error by ``SPLINE_GAIN``; it
+replaces the best named effect where its error is that much lower, except in a round where a
+named effect of its own shape (variable and form) passes: the named one comes first, as a
+spline in the signed velocity would otherwise take Stribeck friction, a direction asymmetry
+and part of c1 in one.
+
 Tracing stops when no candidate passes; effects whose joint fit leaves J, c0 or c1
 unphysical (negative) are taken back, the last added first.  Structure left in the final residual
 that no effect explains is reported by what it depends on: the share of the
@@ -39,7 +45,7 @@ import numpy as np
 from scipy import signal, stats
 
 from .dependence import dependences
-from .effects import Effect, Spline, candidates
+from .effects import Effect, Spline, candidates, shape_of
 from .model import AxisModel, errors, extend
 from .signals import Samples
 
@@ -128,7 +134,10 @@ def trace(est: Samples, val: Samples, seed: int,
     for _ in range(MAX_EFFECTS):
         resid = est.tau_f - model.predict(est)
         best = spline = None
-        for cand in candidates(model.effects, est, resid):
+        named = set()                             # shapes a named effect adds significantly this round
+        for cand in candidates(model.effects, est, resid):     # (the named ones first)
+            if isinstance(cand, Spline) and shape_of(cand) in named:
+                continue                          # a spline of that shape would take the named one's place
             try:
                 fitted = extend(model, cand, est)
             except np.linalg.LinAlgError:
@@ -139,6 +148,8 @@ def trace(est: Samples, val: Samples, seed: int,
             if new_err.relative_error <= 0 or (isinstance(cand, Spline) and
                                                new_err.relative_error > (1 - SPLINE_GAIN) * err.relative_error):
                 continue                          # a spline must earn its many coefficients
+            if not isinstance(cand, Spline) and _accepted(model, fitted, err, new_err):
+                named.add(shape_of(cand))
             score = 2 * np.log(err.relative_error / new_err.relative_error) / len(cand.coef_names)
             if best is None or score > best[0]:
                 best = (score, fitted, new_err, cand)
@@ -149,9 +160,9 @@ def trace(est: Samples, val: Samples, seed: int,
         if spline is not None and spline[2].relative_error < (1 - SPLINE_GAIN) * best[2].relative_error:
             best = spline                         # the named effect does not fit as well: the shape the data hold
         _, fitted, new_err, cand = best
-        f, p = f_test(model, fitted)
-        if p >= P_VALUE or new_err.relative_error > (1 - MIN_GAIN) * err.relative_error:
+        if not _accepted(model, fitted, err, new_err):
             break
+        f, p = f_test(model, fitted)
         share = 1.0 - fitted.sse_ / model.sse_
         params = fitted.effect_params(cand)
         traced.append(TracedEffect(cand, params, err.rmse, new_err.rmse, err.relative_error,
@@ -165,6 +176,12 @@ def trace(est: Samples, val: Samples, seed: int,
         t.params = model.effect_params(t.effect)
         t.evidence = _evidence(t)
     return AxisModel(seed=seed).fit(est), model, traced
+
+
+def _accepted(model: AxisModel, fitted: AxisModel, err, new_err) -> bool:
+    """Whether ``fitted`` (``model`` and one effect) earns the effect: significant, and the
+    validation error down by ``MIN_GAIN``."""
+    return f_test(model, fitted)[1] < P_VALUE and new_err.relative_error <= (1 - MIN_GAIN) * err.relative_error
 
 
 def _realigned(realign, model: AxisModel, est: Samples, val: Samples) -> tuple[Samples, Samples, AxisModel]:
