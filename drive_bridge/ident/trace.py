@@ -148,7 +148,7 @@ def trace(est: Samples, val: Samples, seed: int,
             if new_err.relative_error <= 0 or (isinstance(cand, Spline) and
                                                new_err.relative_error > (1 - SPLINE_GAIN) * err.relative_error):
                 continue                          # a spline must earn its many coefficients
-            if not isinstance(cand, Spline) and _accepted(model, fitted, err, new_err):
+            if not isinstance(cand, Spline) and _accepted(f_test(model, fitted)[1], err, new_err):
                 named.add(shape_of(cand))
             score = 2 * np.log(err.relative_error / new_err.relative_error) / len(cand.coef_names)
             if best is None or score > best[0]:
@@ -160,9 +160,9 @@ def trace(est: Samples, val: Samples, seed: int,
         if spline is not None and spline[2].relative_error < (1 - SPLINE_GAIN) * best[2].relative_error:
             best = spline                         # the named effect does not fit as well: the shape the data hold
         _, fitted, new_err, cand = best
-        if not _accepted(model, fitted, err, new_err):
-            break
         f, p = f_test(model, fitted)
+        if not _accepted(p, err, new_err):
+            break
         share = 1.0 - fitted.sse_ / model.sse_
         params = fitted.effect_params(cand)
         traced.append(TracedEffect(cand, params, err.rmse, new_err.rmse, err.relative_error,
@@ -178,10 +178,10 @@ def trace(est: Samples, val: Samples, seed: int,
     return AxisModel(seed=seed).fit(est), model, traced
 
 
-def _accepted(model: AxisModel, fitted: AxisModel, err, new_err) -> bool:
-    """Whether ``fitted`` (``model`` and one effect) earns the effect: significant, and the
-    validation error down by ``MIN_GAIN``."""
-    return f_test(model, fitted)[1] < P_VALUE and new_err.relative_error <= (1 - MIN_GAIN) * err.relative_error
+def _accepted(p_value: float, err, new_err) -> bool:
+    """Whether an effect earns its place: significant (``p_value`` of the partial F-test of the
+    model with it against the model without), and the validation error down by ``MIN_GAIN``."""
+    return p_value < P_VALUE and new_err.relative_error <= (1 - MIN_GAIN) * err.relative_error
 
 
 def _realigned(realign, model: AxisModel, est: Samples, val: Samples) -> tuple[Samples, Samples, AxisModel]:
