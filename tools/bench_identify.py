@@ -46,19 +46,16 @@ def plan_for(axes, seconds_per_axis):
 
 
 def _sim_y_logs(seeds: int):
-    """The simulated Y axis's plant values, and its log once per noise seed."""
+    """The simulated Y axis's plant values, and its log once per noise seed.  The noise is the
+    plant's own (``torque_noise_Nm`` with the config's seed): added before the drive rounds the
+    torque to per mille, as a drive's current measurement is; noise added to a log already
+    rounded would leave the rounding error of the noise-free torque, the same in every log."""
     sim = load_sim_config(SIM_DEFAULT)
     y = sim.axes["y"]
-    y.effects, y.cp, y.D, y.torque_noise_Nm = {}, 0.0, 0.0, 0.0
-    sim = replace(sim, axes={"y": y})
+    y.effects, y.cp, y.D, y.torque_noise_Nm = {}, 0.0, 0.0, 0.004
     plan = plan_for(["y"], 60.0)
-    clean = plant_log(sim, {"y": plan.demand[:, 0]})
-    rated = y.motor.rated_torque_Nm
-
-    def log(seed: int) -> dict:
-        noise = 0.004 * np.random.default_rng(seed).standard_normal(len(clean["time_s"]))
-        return {**clean, "y_torque_Nm": np.round((clean["y_torque_Nm"] + noise) / rated * 1000) * rated / 1000}
-    return {"J": y.J, "c0": y.c0, "c1": y.c1}, map(log, range(seeds))
+    return ({"J": y.J, "c0": y.c0, "c1": y.c1},
+            (plant_log(replace(sim, axes={"y": y}, seed=seed), {"y": plan.demand[:, 0]}) for seed in range(seeds)))
 
 
 def _independent_logs(seeds: int):

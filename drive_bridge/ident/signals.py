@@ -34,6 +34,8 @@ MOVING_FRACTION = 0.02       # |velocity| below this share of its maximum: near 
 SETTLE_CYCLES = 1.0          # ... nor this many cut-off periods from it
 STILL_SAMPLES = 3            # an encoder's position unchanged over this many log samples: standing still
 WIDE_BAND = 0.4              # the light low-pass of the whole-band samples, × the sample rate
+DELAY_HALF_TAPS = 16         # a position read between its samples: 32 taps of a windowed sinc ...
+DELAY_KAISER_BETA = 11.0     # ... Kaiser window (_fractional_delay)
 MIN_MOVING = 50              # decimated moving samples below this: nothing to identify
 
 
@@ -160,8 +162,8 @@ class Parallel:
                         oqd = derivative(signal.sosfiltfilt(sos, oq), dt)
                         others[o] = (oq, oqd, derivative(oqd, dt))
                 raw = self.log.axes[self.axis].q[sl]
-                sgn = np.sign(_delayed(direction(raw, qd), lag))
-                gate = 1.0 - np.ceil(_delayed(standing(raw).astype(float), lag))
+                sgn = np.sign(_delayed_steps(direction(raw, qd), lag))
+                gate = 1.0 - np.ceil(_delayed_steps(standing(raw).astype(float), lag))
                 self._segments.append((keep, Channels(self.log.t[sl], q, qd, derivative(qd, dt), sgn,
                                                       others, self.log.axes[self.axis].tau[sl], gate)))
         return self._segments
@@ -192,10 +194,39 @@ def _usable(log: Log, axis: str, settings: Settings):
             yield slice(a, b), slice(edge, b - a - edge)
 
 
+def _fractional_delay(frac: float) -> np.ndarray:
+    """Taps n = -15 … 16 of a Kaiser-windowed sinc (β 11) that reads a signal ``frac`` of a sample
+    (0 ≤ frac < 1) earlier: Σ h[n]·x[k − n] = x(k − frac) within 2.4e-6 up to 0.2 × the rate;
+    its gain at zero frequency is exactly 1."""
+    x = np.arange(1 - DELAY_HALF_TAPS, DELAY_HALF_TAPS + 1) - frac
+    h = np.sinc(x) * np.i0(DELAY_KAISER_BETA * np.sqrt(np.clip(1 - (x / DELAY_HALF_TAPS) ** 2, 0.0, None)))
+    return h / h.sum()
+
+
 def _delayed(x: np.ndarray, samples: float) -> np.ndarray:
-    """A position read ``samples`` log samples earlier, x(t − d), linear between the samples
-    (a position is smooth at the log's rate), held at the ends: the position at the instants
-    the logged torque stands for."""
+    """A position read ``samples`` log samples earlier, x(t − d), held at the ends: the position
+    at the instants the logged torque stands for.  Between the samples by a windowed sinc
+    (:func:`_fractional_delay`), within 2.4e-6 up to 0.2 × the rate, the highest cut-off a fit
+    uses (MAX_CUTOFF_SHARE): a straight line between the samples reads a signal at 0.05 × the
+    rate 1.2 % low half a sample off; J came out 0.1–0.25 % high, and a cogging was added, on
+    logs whose torque is averaged over each period."""
+    if samples == 0 or not np.isfinite(x).all():
+        return _delayed_steps(x, samples)
+    whole = int(np.floor(samples))
+    pad = DELAY_HALF_TAPS + abs(whole) + 1
+    padded = np.pad(x, pad, mode="edge")
+    read = np.convolve(padded, _fractional_delay(samples - whole))[DELAY_HALF_TAPS - 1:][:len(padded)]
+    out = read[pad - whole:pad - whole + len(x)]
+    at = np.arange(len(x)) - samples
+    out[at <= 0] = x[0]
+    out[at >= len(x) - 1] = x[-1]
+    return out
+
+
+def _delayed_steps(x: np.ndarray, samples: float) -> np.ndarray:
+    """A signal of steps (a direction, a gate) read ``samples`` log samples earlier, linear
+    between the samples (the caller rounds it), held at the ends: a spline would overshoot at
+    each step."""
     if samples == 0:
         return x
     k = np.arange(len(x), dtype=float)

@@ -238,8 +238,8 @@ def describe_unexplained(d: dict) -> str:
             "along the stroke)"}[d.get("form", "even")]
     if d.get("kind") == "resonance" and d.get("mains"):
         return (f"a narrow peak at {d['frequency_hz']:.3g} Hz holds {d['fraction']:.0%} of the residual over the "
-                f"log's whole band: the mains frequency, more likely electrical pickup in the torque measurement "
-                f"than a mechanical mode")
+                f"log's whole band: the mains frequency or its double, more likely electrical pickup in the torque "
+                f"measurement than a mechanical mode")
     if d.get("kind") == "resonance":
         moved = (f"; the cut-off was moved from {d['cutoff_moved_from_hz']:.3g} Hz below it"
                  if d.get("cutoff_moved_from_hz") else "")

@@ -82,3 +82,26 @@ def irregular(rate_hz: float, duration_s: float, lo_s: float, hi_s: float, seed:
                      rng.uniform(lo_s, 1.3 / rate_hz, int(duration_s * rate_hz)))
     t = np.cumsum(steps)
     return t[t < duration_s]
+
+
+def averaged_torque_log(duration_s: float, period_s: float = 0.002, *, J: float = 1e-4, c0: float = 0.3,
+                        c1: float = 5e-4, accel: float = 3000.0, noise_Nm: float = 0.002, seed: int = 0,
+                        fs_int: float = 32_000.0) -> dict[str, np.ndarray]:
+    """An axis made to follow trapezoidal moves (acceleration ±``accel`` for 0.1 s, then
+    0.3 s at speed, each second), its torque J·q̈ + c1·q̇ + c0·sign(q̇) computed at
+    ``fs_int`` and logged as a drive that reports its current averaged since the last report
+    does: the mean over each period, stamped with the period's end, when the position is read
+    (no quantisation of the position; Gaussian torque noise)."""
+    T = 1.0 / fs_int
+    sub = int(round(period_s * fs_int))
+    n = int(round(duration_s / period_s)) * sub
+    t = np.arange(1, n + 1) * T
+    phase = t % 1.0
+    a = np.select([phase < 0.1, phase < 0.4, phase < 0.6, phase < 0.9], [accel, 0.0, -accel, 0.0], accel)
+    v = np.cumsum(a) * T
+    v -= v.mean()
+    tau = J * a + c1 * v + c0 * np.sign(v)
+    q = np.cumsum(v) * T
+    ends = np.arange(sub - 1, n, sub)
+    noise = noise_Nm * np.random.default_rng(seed).standard_normal(len(ends))
+    return {"time_s": t[ends], "y_position_rad": q[ends], "y_torque_Nm": tau.reshape(-1, sub).mean(axis=1) + noise}

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from drive_bridge.ident.signals import derivative, direction, standing
+from drive_bridge.ident.signals import _delayed, derivative, direction, standing
 
 
 @pytest.mark.parametrize("share", [0.02, 0.1, 0.2])
@@ -17,6 +17,20 @@ def test_derivative_is_exact_up_to_the_highest_cut_off(share):
     w = 2 * np.pi * share / dt
     d = derivative(np.sin(w * t), dt)[30:-30]
     assert np.max(np.abs(d - w * np.cos(w * t[30:-30]))) < 1e-4 * w
+
+
+@pytest.mark.parametrize("share", [0.02, 0.1, 0.2])
+@pytest.mark.parametrize("lag", [0.3, 0.5, 1.7])
+def test_a_position_read_between_its_samples(share, lag):
+    """A sine at up to 0.2 × the rate read ``lag`` samples earlier: within 1e-5 of its amplitude
+    (a straight line between the samples reads it 1.2 % low at 0.05 ×, half a sample off), held
+    at the ends."""
+    k = np.arange(2000, dtype=float)
+    x = np.sin(2 * np.pi * share * k)
+    y = _delayed(x, lag)
+    inner = slice(50, -50)
+    assert np.max(np.abs(y[inner] - np.sin(2 * np.pi * share * (k[inner] - lag)))) < 1e-5
+    assert y[0] == x[0]
 
 
 def _encoder(q: np.ndarray, counts_per_rad: float = 10430.4) -> np.ndarray:
