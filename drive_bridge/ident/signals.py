@@ -225,8 +225,8 @@ def _delayed(x: np.ndarray, samples: float) -> np.ndarray:
 
 def _delayed_steps(x: np.ndarray, samples: float) -> np.ndarray:
     """A signal of steps (a direction, a gate) read ``samples`` log samples earlier, linear
-    between the samples (the caller rounds it), held at the ends: a spline would overshoot at
-    each step."""
+    between the samples (the caller rounds it), held at the ends: a sinc would ring at each
+    step."""
     if samples == 0:
         return x
     k = np.arange(len(x), dtype=float)
