@@ -153,7 +153,8 @@ class Parallel:
             sos, dt = self.sos, self.log.dt
             lag = self.settings.torque_delay_s / dt
             for sl, keep in _usable(self.log, self.axis, self.settings):
-                q = _delayed(self.log.axes[self.axis].q[sl], lag)
+                raw = self.log.axes[self.axis].q[sl]
+                q = _delayed(raw, lag)
                 qd = derivative(signal.sosfiltfilt(sos, q), dt)
                 others = {}
                 for o in self.log.axes:
@@ -161,8 +162,9 @@ class Parallel:
                         oq = _delayed(_filled(self.log.axes[o].q[sl]), lag)
                         oqd = derivative(signal.sosfiltfilt(sos, oq), dt)
                         others[o] = (oq, oqd, derivative(oqd, dt))
-                raw = self.log.axes[self.axis].q[sl]
-                sgn = np.sign(_delayed_steps(direction(raw, qd), lag))
+                # the direction at the log's own instants (its fallback, the filtered velocity's
+                # sign, too), then read at the torque's as the positions are
+                sgn = np.sign(_delayed_steps(direction(raw, _delayed(qd, -lag)), lag))
                 gate = 1.0 - np.ceil(_delayed_steps(standing(raw).astype(float), lag))
                 self._segments.append((keep, Channels(self.log.t[sl], q, qd, derivative(qd, dt), sgn,
                                                       others, self.log.axes[self.axis].tau[sl], gate)))
