@@ -106,5 +106,5 @@ def reasons(x: dict) -> str:
 
 def headline(v: dict) -> str:
     """One line: the overall verdict and each axis's, with what it misses."""
-    return f"{v['overall']}: " + ", ".join(f"{a} {x['verdict']}" + (f" ({reasons(x)})" if reasons(x) else "")
+    return f"{v['overall']}: " + ", ".join(f"{a} {x['verdict']}" + (f" ({why})" if (why := reasons(x)) else "")
                                            for a, x in v["axes"].items())

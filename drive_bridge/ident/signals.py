@@ -152,21 +152,22 @@ class Parallel:
         if not self._segments:
             sos, dt = self.sos, self.log.dt
             lag = self.settings.torque_delay_s / dt
+
+            def kinematics(position: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                """Position at the torque's instants, velocity and acceleration of it filtered."""
+                x = _delayed(position, lag)
+                xd = derivative(signal.sosfiltfilt(sos, x), dt)
+                return x, xd, derivative(xd, dt)
+
             for sl, keep in _usable(self.log, self.axis, self.settings):
                 raw = self.log.axes[self.axis].q[sl]
-                q = _delayed(raw, lag)
-                qd = derivative(signal.sosfiltfilt(sos, q), dt)
-                others = {}
-                for o in self.log.axes:
-                    if o != self.axis:
-                        oq = _delayed(_filled(self.log.axes[o].q[sl]), lag)
-                        oqd = derivative(signal.sosfiltfilt(sos, oq), dt)
-                        others[o] = (oq, oqd, derivative(oqd, dt))
+                q, qd, qdd = kinematics(raw)
+                others = {o: kinematics(_filled(self.log.axes[o].q[sl])) for o in self.log.axes if o != self.axis}
                 # the direction at the log's own instants (its fallback, the filtered velocity's
                 # sign, too), then read at the torque's as the positions are
                 sgn = np.sign(_delayed_steps(direction(raw, _delayed(qd, -lag)), lag))
                 gate = 1.0 - np.ceil(_delayed_steps(standing(raw).astype(float), lag))
-                self._segments.append((keep, Channels(self.log.t[sl], q, qd, derivative(qd, dt), sgn,
+                self._segments.append((keep, Channels(self.log.t[sl], q, qd, qdd, sgn,
                                                       others, self.log.axes[self.axis].tau[sl], gate)))
         return self._segments
 
@@ -247,9 +248,15 @@ def _on_counts(q: np.ndarray) -> bool:
     return len(small) >= 10 and bool(np.max(np.abs(small - np.round(small))) <= 0.1)
 
 
+def _runs(same: np.ndarray, length: int) -> np.ndarray:
+    """Whether ``length`` equal positions start at each sample that has that many (``same``: the
+    steps that are zero)."""
+    return np.convolve(same.astype(float), np.ones(length - 1), mode="valid") == length - 1
+
+
 def _in_runs(same: np.ndarray, length: int) -> np.ndarray:
     """Samples within a run of ``length`` equal positions (``same``: the steps that are zero)."""
-    run = np.convolve(same.astype(float), np.ones(length - 1), mode="valid") == length - 1
+    run = _runs(same, length)
     out = np.zeros(len(same) + 1, dtype=bool)
     for k in range(length):
         out[k:k + len(run)] |= run
@@ -284,9 +291,8 @@ def standing(q: np.ndarray) -> np.ndarray:
     """
     if not _on_counts(q):
         return np.zeros(len(q), dtype=bool)
-    same = np.diff(q) == 0
     out = np.zeros(len(q), dtype=bool)
-    out[2:-2] = same[:-3] & same[1:-2] & same[2:-1] & same[3:]
+    out[2:-2] = _runs(np.diff(q) == 0, 5)             # centred on the five samples
     return out
 
 
