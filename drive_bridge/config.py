@@ -42,7 +42,7 @@ LELY_NODE_KEYS = {"dcf_path", "revision_number", "serial_number", "vendor_id", "
                   "guard_time", "life_time_factor"}
 LELY_MASTER_KEYS = {"vendor_id", "product_code", "revision_number", "serial_number", "sync_window", "sync_overflow",
                     "time_cob_id", "emcy_inhibit_time", "heartbeat_multiplier", "heartbeat_consumer",
-                    "heartbeat_producer", "error_behavior", "nmt_inhibit_time", "start", "start_nodes",
+                    "error_behavior", "nmt_inhibit_time", "start", "start_nodes",
                     "start_all_nodes", "reset_all_nodes", "stop_all_nodes", "boot_time"}
 # what the master fills in an RPDO (0x6060: the streaming mode; 0x60FF, 0x6071: zero, as a
 # ros2_canopen CiA 402 mapping has them) and logs from a TPDO (0x6061: the mode the drive runs)
@@ -56,7 +56,8 @@ class PdoConfig:
     transmission: int
     mapping: tuple[tuple[int, int], ...]  # (index, subindex)
     cob_id: int | None = None             # None: the predefined connection set (ros2_canopen's "auto")
-    event_timer_ms: int | None = None     # TPDO event timer (sub 5), where given
+    event_timer_ms: int | None = None     # TPDO event timer (sub 5) [ms], where given (else 0: off)
+    inhibit_time_100us: int = 0           # TPDO inhibit time (sub 3) [100 µs]; 0 for synchronous PDOs
 
 
 @dataclass(frozen=True)
@@ -68,6 +69,28 @@ class Limits:
     max_velocity: float
     max_acceleration: float
     max_jerk: float | None = None
+
+
+HOLDING = ("brake", "enabled")
+DEFAULT_MASTER_NODE_ID = 127
+#: the drive's own limits are set this much beyond the configured ones (the campaign stays inside those)
+DRIVE_LIMIT_MARGIN = 1.25
+
+
+@dataclass(frozen=True)
+class DriveLimits:
+    """What bring-up writes into the drive besides the software position limits, SI motor side:
+    the velocity it may never exceed [rad/s], the quick-stop deceleration [rad/s²], the
+    following-error timeout [ms], the max torque [Nm] (None: the drive's own, read and
+    recorded), and how the axis is held when no motion runs (``holding``: ``brake`` -- the
+    drive's brake holds it with the power stage off; ``enabled`` -- the drive holds it at its
+    position, powered)."""
+
+    max_velocity: float
+    quick_stop_deceleration: float
+    following_error_timeout_ms: int
+    max_torque_Nm: float | None
+    holding: str = "enabled"
 
 
 @dataclass(frozen=True)
@@ -88,6 +111,10 @@ class NodeConfig:
     motor: tuple[float, float] | None = None     # winding R [Ω], L [H] where the drive does not report them
     #: the node's entry as bus.yml gives it, defaults merged in (load units, as written)
     source: dict = field(default_factory=dict, repr=False, compare=False)
+    drive_limits: DriveLimits | None = None
+    #: ``scaling: from_drive``: the position and velocity units (and the rated torque where bus.yml
+    #: gives none) are the drive's own, read at bring-up
+    units_from_drive: bool = False
 
 
 DEFAULT_BITRATE = 1_000_000       # bit/s, when nothing names the bitrate
@@ -111,6 +138,12 @@ class MasterConfig:
     can_options: dict = field(default_factory=dict)
     notes: tuple[str, ...] = ()               # where the interface came from, what was neutralised, ignored
     node_id: int | None = None                # the master's own node-ID (a ros2_canopen / Lely bus.yml)
+    heartbeat_period_s: float = 0.1           # the master's heartbeat, which every drive's consumer watches
+
+    @property
+    def heartbeat_node_id(self) -> int:
+        """The node-ID the master's heartbeat carries (bus.yml master.node_id, else 127)."""
+        return self.node_id if self.node_id is not None else DEFAULT_MASTER_NODE_ID
 
     @property
     def nominal_bitrate(self) -> int:
@@ -211,7 +244,8 @@ def _pdos(sec: Section, key: str, od: canopen.ObjectDictionary, allowed: set[int
         if cob != "auto" and (isinstance(cob, str) or not 0x181 <= cob <= 0x57F):
             raise p.error("cob_id", f"must be 'auto' or an 11-bit PDO COB-ID 0x181..0x57F, got {cob!r}")
         timer = p.get("event_timer", int, None, low=0, high=65535)
-        for lely_only in ("inhibit_time", "event_deadline", "sync_start"):
+        inhibit = p.get("inhibit_time", int, 0, low=0, high=65535)          # 100 µs, as CiA 301 and Lely
+        for lely_only in ("event_deadline", "sync_start"):
             p.get(lely_only, int, None, low=0, high=65535)          # accepted as Lely takes them; not used
         mapping = []
         bits = 0
@@ -239,7 +273,7 @@ def _pdos(sec: Section, key: str, od: canopen.ObjectDictionary, allowed: set[int
             raise p.error("mapping", f"{bits} bits do not fit in one 8-byte PDO")
         if enabled:
             seen.update(i for i, _ in mapping)
-            result.append(PdoConfig(num, trans, tuple(mapping), None if cob == "auto" else cob, timer))
+            result.append(PdoConfig(num, trans, tuple(mapping), None if cob == "auto" else cob, timer, inhibit))
     pdo_sec.done()
     missing = [f"0x{i:04X} ({name})" for i, name in required.items() if i not in seen]
     if key == "rpdo" and not any(e in SETPOINT_OBJECTS for p in result for e in p.mapping):
@@ -251,6 +285,8 @@ def _pdos(sec: Section, key: str, od: canopen.ObjectDictionary, allowed: set[int
 
 
 def _node(path: Path, axis: str, data: dict, dcf_path: str | None = None, unused: set | None = None) -> NodeConfig:
+    if data.get("scaling") == "from_drive":      # everything from the drive (a rotary axis)
+        data = {**data, "scaling": {"from_drive": True}}
     sec = Section(path, f"nodes.{axis}", data)
     node_id = sec.get("node_id", int, low=1, high=127)
     name = sec.get("dcf", str)
@@ -266,6 +302,7 @@ def _node(path: Path, axis: str, data: dict, dcf_path: str | None = None, unused
             " (vendor/ files are read from $DRIVE_BRIDGE_VENDOR_EDS or ../shared/eds-vendor)" if vendor else ""))
     od = load_od(dcf, node_id)
     sc = sec.section("scaling")
+    from_drive = sc.get("from_drive", bool, False)
     feed = sc.get("feed_m_per_rev", float, None, low=1e-6, high=100.0)
     feedback = sc.get("torque_feedback", str, "torque", choices=list(TORQUE_FEEDBACK))
     velocity_unit = sc.get("velocity_unit", str, "inc/s", choices=["inc/s", "rpm"])
@@ -283,22 +320,29 @@ def _node(path: Path, axis: str, data: dict, dcf_path: str | None = None, unused
                     else 1e-3)
         kt = sc.get("torque_constant_Nm_per_A", float, low=1e-6, high=1e3)
     inc = sc.get("increments_per_rev", int, None, low=1, high=2**31 - 1)
-    if inc is None and finite_number(scale_pos) and scale_pos > 0:
+    if inc is None and finite_number(scale_pos) and scale_pos > 0 and not from_drive:
         inc = round(scale_pos * (feed or 2 * math.pi))     # ros2_canopen: device units per rad (or m)
         ignored.discard("scale_pos_to_dev")
     if unused is not None:
         unused.update(ignored)
-    if inc is None:
+    if inc is None and not from_drive:
         raise sc.error("increments_per_rev", "missing (the encoder's increments per motor revolution; a "
-                                             "ros2_canopen scale_pos_to_dev gives it)")
-    scaling = Scaling(increments_per_rev=inc,
-                      rated_torque_Nm=sc.get("rated_torque_Nm", float, low=1e-6, high=1e6),
+                                             "ros2_canopen scale_pos_to_dev gives it; or from_drive: true takes "
+                                             "the drive's own units)")
+    if from_drive and inc is not None:
+        raise sc.error("increments_per_rev", "give it or from_drive: true, not both (from_drive takes the drive's "
+                                             "own position unit)")
+    scaling = Scaling(increments_per_rev=inc or 0,
+                      rated_torque_Nm=sc.get("rated_torque_Nm", float, 0.0 if from_drive else ..., low=1e-6, high=1e6),
                       feed_m_per_rev=feed, torque_feedback=feedback, current_per_unit_A=per_unit,
                       torque_constant_Nm_per_A=kt, velocity_unit=velocity_unit, torque_index=torque_index,
                       torque_per_unit_Nm=torque_per_unit)
     sc.done()
     unit = "m" if feed else "rad"
     lim = sec.section("limits")
+    qs = lim.get(f"quick_stop_deceleration_{unit}_s2", float, None, low=1e-9, high=1e8)
+    fe_timeout = lim.get("following_error_timeout_ms", int, 10, low=1, high=65535)
+    max_torque = lim.get("max_torque_Nm", float, None, low=1e-6, high=1e6)
     stroke = lim.get("stroke_" + unit, list)
     if len(stroke) != 2 or not all(finite_number(v) and abs(v) < 1e9 for v in stroke) or stroke[0] >= stroke[1]:
         raise lim.error("stroke_" + unit, f"must be [min, max] in {unit} with min < max, got {stroke!r}")
@@ -316,7 +360,7 @@ def _node(path: Path, axis: str, data: dict, dcf_path: str | None = None, unused
                             f"{vmax} {unit}/s is {limits.max_velocity * 60 / (2 * math.pi):.0f} rpm at the motor, "
                             f"above the drive's max motor speed 0x6080 = {od[0x6080].default} rpm")
     edge = max(abs(limits.position_min), abs(limits.position_max)) * scaling.inc_per_rad
-    if edge >= 2**31:
+    if edge >= 2**31:                     # with from_drive, bring-up checks it in the drive's units
         raise lim.error("stroke_" + unit, "does not fit the drive's 32-bit position range with this scaling")
     sdo = []
     for n, entry in enumerate(sec.get("sdo", list, [])):
@@ -332,6 +376,11 @@ def _node(path: Path, axis: str, data: dict, dcf_path: str | None = None, unused
                 raise e.error("value", f"0x{index:04X}:{sub} holds an integer, got {value!r}")
             value = int(value)
         sdo.append((index, sub, value))
+    drive_limits = DriveLimits(
+        max_velocity=DRIVE_LIMIT_MARGIN * limits.max_velocity,
+        quick_stop_deceleration=float(scaling.load_to_motor(qs)) if qs else 2 * limits.max_acceleration,
+        following_error_timeout_ms=fe_timeout, max_torque_Nm=max_torque,
+        holding=sec.get("holding", str, "enabled", choices=list(HOLDING)))
     cfg = NodeConfig(
         axis=axis, node_id=node_id, dcf=dcf, od=od, scaling=scaling, limits=limits, linear=bool(feed),
         heartbeat_producer_ms=sec.get("heartbeat_producer", int, 100, low=1, high=65535),
@@ -339,7 +388,8 @@ def _node(path: Path, axis: str, data: dict, dcf_path: str | None = None, unused
         rpdo=_pdos(sec, "rpdo", od, RPDO_OBJECTS, REQUIRED_RPDO),
         tpdo=_pdos(sec, "tpdo", od, TPDO_OBJECTS | {scaling.torque_object},
                    {**REQUIRED_TPDO, scaling.torque_object: TORQUE_FEEDBACK[feedback]}),
-        sdo=tuple(sdo), profile=sec.get("profile", str, None), motor=_motor(sec), source=data)
+        sdo=tuple(sdo), profile=sec.get("profile", str, None), motor=_motor(sec), source=data,
+        drive_limits=drive_limits, units_from_drive=from_drive)
     sec.done()
     return cfg
 
@@ -402,6 +452,7 @@ def load_bus_config(path: str | Path) -> BusConfig:
         sdo_timeout_s=m.get("sdo_timeout_s", float, 0.5, low=0.01, high=60.0),
         state_timeout_s=m.get("state_timeout_s", float, 1.0, low=0.01, high=60.0),
         tpdo_miss_limit=m.get("tpdo_miss_limit", int, 3, low=1, high=100),
+        heartbeat_period_s=m.get("heartbeat_producer", int, 100, low=10, high=100) / 1000.0,
         timing=_timing(m.section("timing", required=False)),
         node_id=m.get("node_id", int, None, low=1, high=127))
     m.done()

@@ -104,7 +104,9 @@ def layout_meta(axes) -> dict:
                                  "torque_constant_Nm_per_A": sc.torque_constant_Nm_per_A,
                                  "torque_index": sc.torque_index, "torque_per_unit_Nm": sc.torque_per_unit_Nm,
                                  "feed_m_per_rev": sc.feed_m_per_rev,
-                                 "velocity_unit": sc.velocity_unit},
+                                 "velocity_unit": sc.velocity_unit,
+                                 "velocity_units_per_rad_s": sc.velocity_units_per_rad_s},
+                     "units": ax.units, "drive_limits": ax.drive_limits,
                      "operating_mode": {"mode": ax.mode, "name": MODE_NAMES.get(ax.mode, str(ax.mode)),
                                         "setpoint_object": f"0x{ax.setpoint[0]:04X}:{ax.setpoint[1]}"},
                      "rpdo": _codec_meta(ax.rpdos), "tpdo": _codec_meta(ax.tpdos)}
@@ -143,6 +145,7 @@ def decode_trace(trace: Path, meta_path: Path | None = None
         if unknown:
             raise ValueError(f"TPDO object 0x{unknown[0]:04X} is not one the log has a column for")
         rec = Recording(tpdos, rpdos, sent)
+        rec.skip_syncs = int(counts.get("sync_before_plan", 0))
         for sc in scaling.values():
             if not (sc.increments_per_rev > 0 and sc.rated_torque_Nm > 0):
                 raise ValueError("scaling must be positive")

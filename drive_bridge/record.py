@@ -31,6 +31,7 @@ class RecordResult:
     bus_load: str
     wall_time_s: float
     timing: Timing
+    holding: dict[str, str] | None = None       # per axis, how it is held after the motion
 
     @property
     def ok(self) -> bool:
@@ -88,13 +89,17 @@ def _record(config, link, out, load, t_start, on_plan, axes) -> RecordResult:
         "trace": TRACE_NAME,
     }
     write_meta(out / META_NAME, meta)
+    def started(enable_cycles: int) -> None:        # decode skips the SYNCs that enabled the drives
+        meta["counts"]["sync_before_plan"] = enable_cycles
+        write_meta(out / META_NAME, meta)
     result = stream(link, axes, plan, heartbeat_timeout=config.master.heartbeat_timeout_s,
                     miss_limit=config.master.tpdo_miss_limit, state_timeout=config.master.state_timeout_s,
-                    progress=progress, timing_limits=config.master.timing)
+                    progress=progress, timing_limits=config.master.timing, on_start=started)
     rec = result.recording
     samples = {a: int(len(rec.raw) - result.missing[a]) for a in plan.axes}
     meta["counts"].update({"cycles_sent": result.cycles_sent, "samples_received": samples,
-                           "samples_missing": dict(result.missing)})
+                           "samples_missing": dict(result.missing), "sync_before_plan": result.sync_before_plan})
+    meta["holding"] = result.holding
     meta["status"] = "ok" if result.aborted is None else "aborted"
     meta["timing"] = result.timing.as_dict()
     if result.aborted is not None:
@@ -103,4 +108,4 @@ def _record(config, link, out, load, t_start, on_plan, axes) -> RecordResult:
         write_csv(out / LOG_NAME, rec, {n: axes[n].cfg.scaling for n in plan.axes}, plan.period)
         write_meta(out / META_NAME, meta)
     return RecordResult(out, plan, result.cycles_sent, samples, dict(result.missing), result.aborted,
-                        load.describe(), time.perf_counter() - t_start, result.timing)
+                        load.describe(), time.perf_counter() - t_start, result.timing, result.holding)

@@ -22,7 +22,8 @@ import numpy as np
 class Scaling:
     """Conversion for one axis.
 
-    increments_per_rev: encoder increments per motor revolution (0x608F).
+    increments_per_rev: device position units per motor revolution: encoder increments (0x608F),
+        or what the drive's own position unit (0x60A8) makes of a revolution.
     feed_m_per_rev: load travel per motor revolution (belt pulley or screw lead);
         None for a rotary axis.
     rated_torque_Nm: the drive's rated torque (0x6076 in mNm / 1000).
@@ -38,14 +39,20 @@ class Scaling:
     torque_index: int | None = None
     torque_per_unit_Nm: float | None = None
     velocity_unit: str = "inc/s"                # of 0x606C and the other velocities: "inc/s" or "rpm"
+    #: device velocity units per rad/s as the drive reports them (its 0x60A9, with ``scaling:
+    #: from_drive``); None: from ``velocity_unit``
+    velocity_units_per_rad_s: float | None = None
 
     @property
     def inc_per_rad(self) -> float:
+        """Device position units per motor rad (encoder increments, or the drive's position unit)."""
         return self.increments_per_rev / (2 * math.pi)
 
     @property
     def velocity_per_rad_s(self) -> float:
         """Device velocity units per rad/s."""
+        if self.velocity_units_per_rad_s is not None:
+            return self.velocity_units_per_rad_s
         return 60.0 / (2 * math.pi) if self.velocity_unit == "rpm" else self.inc_per_rad
 
     # --- load side (m) <-> motor side (rad) -----------------------------------------

@@ -14,8 +14,8 @@ BAD_CONFIGS = [
     ("    node_id: 2\n", "", "nodes.y.node_id: missing"),
     ("  bitrate: 1000000", "  bitrate: fast", "master.bitrate: must be int"),
     ("dcf: ../eds/drive_bridge_servo.eds", "dcf: ../eds/nope.eds", "nodes.x.dcf: EDS/DCF file not found"),
-    ("max_velocity_m_s: 0.230, max_acceleration_m_s2: 5.0}\n  z",
-     "max_velocity_m_s: 0.8, max_acceleration_m_s2: 5.0}\n  z",
+    ("max_velocity_m_s: 0.230, max_acceleration_m_s2: 5.0}\n    holding: brake\n  z",
+     "max_velocity_m_s: 0.8, max_acceleration_m_s2: 5.0}\n    holding: brake\n  z",
      "nodes.y.limits.max_velocity_m_s: 0.8 m/s is 4800 rpm at the motor, above the drive's max motor speed"),
     ("        - {index: 0x607A, sub_index: 0}", "", "nodes.x.rpdo: must map a position setpoint (0x607A"),
 ]

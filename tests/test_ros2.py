@@ -30,7 +30,8 @@ def test_a_ros2_canopen_bus_yml_is_read_as_it_is(tmp_path, capsys):
         assert r.rpdo[0].mapping == n.rpdo[0].mapping and r.rpdo[0].transmission == 0xFF
     assert main(["record", "--sim", "--quick", "--axes", "y", "--config", str(ROS2), "--out", str(tmp_path)]) == 0
     err = capsys.readouterr().err
-    assert "master: driver, heartbeat_producer, package (ros2_canopen / Lely keys" in err
+    assert "master: driver, package (ros2_canopen / Lely keys" in err     # heartbeat_producer is the master's
+    assert ros.master.heartbeat_period_s == 0.1
     assert "nodes: boot, driver, heartbeat_consumer, package, period, position_mode" in err
     assert ros.nodes["x"].scaling.increments_per_rev == 2**20       # from x's scale_pos_to_dev [increments/m]
     assert main(["decode", str(tmp_path / "trace.blf"), "--out", str(tmp_path / "d.csv")]) == 0

@@ -1,11 +1,17 @@
-"""``scan``, ``record``, ``decode`` and ``check-eds``: the nodes on the bus, the excitation campaign,
-the raw trace, the files that describe the nodes."""
+"""``scan``, ``record``, ``decode``, ``export``, ``sim`` and ``check-eds``: the nodes on the bus, the
+excitation campaign, the raw trace, the bus for other tools, the simulated drives as a process of
+their own, the files that describe the nodes."""
 from __future__ import annotations
 
 import sys
+import time
 from pathlib import Path
 
-from ..errors import EXIT_CODES
+import can
+
+from ..config import load_bus_config
+from ..errors import EXIT_CODES, UserError
+from ..resources import DEFAULT_BUS_CONFIG
 from ..master.bringup import check_scan, scan
 from ..outputs import stamped
 from ..session import Session
@@ -51,6 +57,24 @@ def register(sub) -> None:
     p.add_argument("--out", required=True, help="output directory")
     options.json_flag(p)
     p.set_defaults(func=cmd_export)
+
+    p = sub.add_parser("sim", help="run the simulated robot's drives on a CAN bus until stopped",
+                       description="The simulated drives as a process of their own, against the wall clock, on "
+                                   "any python-can bus (udp_multicast on a machine without CAN; socketcan vcan0 "
+                                   "where the kernel has it), for another master -- a PLC, ros2_canopen, your own "
+                                   "code, or drive-bridge in another process -- to be tested against. Each drive "
+                                   "is the one its node's EDS/DCF in --config describes. Runs until Ctrl-C or "
+                                   "SIGTERM; a master that dies meanwhile leaves the drives to their heartbeat "
+                                   "consumers.")
+    p.add_argument("--config", default=str(DEFAULT_BUS_CONFIG),
+                   help="bus configuration: the drives' node-IDs and EDS/DCFs, the SYNC period (default: shipped)")
+    p.add_argument("--sim-config", help="simulator YAML: the plant (default: the shipped robot)")
+    p.add_argument("-i", "--interface", default="udp_multicast", help="python-can interface (default udp_multicast)")
+    p.add_argument("-c", "--channel", type=options.can_channel,
+                   help="python-can channel (default: udp_multicast's group 239.74.163.2)")
+    p.add_argument("--port", type=int, help="udp_multicast port (default 43113)")
+    p.add_argument("-b", "--bitrate", type=int, help="bitrate [bit/s] where the interface takes one")
+    p.set_defaults(func=cmd_sim)
 
     p = sub.add_parser("check-eds", help="say what in an EDS/DCF is not CiA 306, and what drive-bridge can use",
                        description="Check EDS/DCF files against CiA 306 (and with Lely's dcf-tools linter where "
@@ -112,9 +136,46 @@ def cmd_record(args) -> int:
             print(f"  axis {axis}: {result.samples[axis]} samples, {result.missing[axis]} missing")
         print(timing_line(result.timing))
         print(f"wrote {result.out_dir / 'log.csv'}, meta.yaml, trace.blf")
+        print(holding_lines(result.holding))
     if result.aborted is not None:
         raise result.aborted
     return degraded_exit([] if not result.timing.degraded else result.timing.reasons)
+
+
+def cmd_sim(args) -> int:
+    from ..master.link import UDP_GROUP, UDP_PORT
+    from ..sim.config import DEFAULT_CONFIG
+    from ..sim.process import serve
+    config = load_bus_config(args.config)
+    eds = {a: str(n.dcf) for a, n in config.nodes.items()}
+    try:
+        if args.interface == "udp_multicast":
+            from ..sim.adapters import LoopbackMulticastBus
+            bus = LoopbackMulticastBus(args.channel or UDP_GROUP, args.port or UDP_PORT)
+        else:
+            bus = can.Bus(interface=args.interface, channel=args.channel, bitrate=args.bitrate,
+                          receive_own_messages=False)
+    except Exception as exc:           # python-can raises many kinds for a missing interface
+        raise UserError(f"cannot open bus {args.interface}:{args.channel} ({exc})") from exc
+    print(f"simulated drives of {args.sim_config or DEFAULT_CONFIG} on {args.interface}"
+          f"{':' + str(args.channel) if args.channel else ''}; Ctrl-C stops them", file=sys.stderr)
+
+    def until() -> None:
+        while True:
+            time.sleep(3600)
+    try:
+        serve(args.sim_config or DEFAULT_CONFIG, bus, config.master.sync_period_s, eds, until)
+    except KeyboardInterrupt:
+        print("simulated drives stopped", file=sys.stderr)
+    return 0
+
+
+def holding_lines(holding: dict[str, str] | None) -> str:
+    """The command's last lines: how each axis is held now (an axis held powered stays so until the
+    master's heartbeat stops with this command; then the drive quick-stops and holds by itself)."""
+    if not holding:
+        return "no axis was enabled"
+    return "\n".join(f"  axis {a}: {how}" for a, how in holding.items())
 
 
 def timing_line(t) -> str:

@@ -1,21 +1,32 @@
-"""Bring-up of the configured drives: scan, identity, NMT, heartbeat, EMCY, PDO mapping."""
+"""Bring-up of the configured drives: scan, identity, NMT, heartbeats both ways, EMCY, the drive's
+units, the limits and stop behaviour inside the drive, PDO mapping."""
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import canopen
 from canopen.pdo.base import PdoMap
 
-from ..config import BusConfig, NodeConfig, PdoConfig
+from ..config import BusConfig, MasterConfig, NodeConfig, PdoConfig
 from ..errors import BusError, DriveRefused
 from ..od import limits
 from ..outputs import hex_object, identity_hex, stamped
 from ..pdo import PdoCodec
-from ..setpoint import IP, IP_SUB_MODE, MODE_NAMES, PVT, choose, describe_modes
+from ..setpoint import IP, IP_SUB_MODE, MODE_NAMES, PVT, choose, describe_modes, supported_modes
 from .cia402 import Drive402
 from .link import Link
+from .units import read_units, reconcile
 
 CIA402_PROFILE = 402
+#: what bring-up sets a drive to do when it loses the master (0x6007) and on a quick stop (0x605A),
+#: and how it reacts to a fault (0x605E): quick stop; ramp down on the quick-stop deceleration,
+#: then stay in QUICK STOP ACTIVE, holding the axis; ramp down on the quick-stop deceleration
+ABORT_CONNECTION_QUICK_STOP = 3
+QUICK_STOP_RAMP_AND_HOLD = 6
+FAULT_REACTION_QUICK_STOP_RAMP = 2
+#: the drive's heartbeat consumer times out after this many of the master's heartbeat periods
+CONSUMER_PERIODS = 3
 EMCY_TEXT = {0x8611: "following error", 0x8250: "RPDO timeout (loss of setpoint)",
              0x8130: "heartbeat or life guard error", 0x8400: "velocity speed controller",
              0x2310: "continuous over-current", 0x3210: "DC link over-voltage", 0x4310: "drive temperature"}
@@ -37,11 +48,16 @@ class AxisLink:
     #: the operating mode the master streams in (8 CSP, 7 IP) and the object carrying its setpoints
     mode: int = 0
     setpoint: tuple[int, int] = (0x607A, 0)
+    modes: list[int] = field(default_factory=list)      # the operating modes the drive supports (0x6502)
     rpdos: list[PdoCodec] = field(default_factory=list)
     tpdos: list[PdoCodec] = field(default_factory=list)
     last_heartbeat: float | None = None
     nmt_state: int | None = None
     emcy: list[tuple[float, int]] = field(default_factory=list)   # (time, code)
+    #: what the drive said about its units (:mod:`.units`), and the limits and stop behaviour
+    #: written into it as read back ("0xIIII:S" -> value)
+    units: dict = field(default_factory=dict)
+    drive_limits: dict = field(default_factory=dict)
 
     def process_data(self) -> dict:
         """How the master exchanges this axis' process data (bringup.json): the operating mode, the
@@ -50,7 +66,8 @@ class AxisLink:
             return [{"cob_id": f"0x{c.cob_id:03X}", "mapping": [hex_object(i, s) for i, s in c.entries]}
                     for c in codecs]
         return {"mode": self.mode, "mode_name": MODE_NAMES.get(self.mode, str(self.mode)),
-                "setpoint": hex_object(*self.setpoint), "rpdo": pdos(self.rpdos), "tpdo": pdos(self.tpdos)}
+                "setpoint": hex_object(*self.setpoint), "rpdo": pdos(self.rpdos), "tpdo": pdos(self.tpdos),
+                "units": self.units, "drive_limits": self.drive_limits}
 
     def position_rad(self) -> float:
         """Position actual (0x6064) now [rad | rad motor side], read by SDO; BusError naming the axis."""
@@ -150,8 +167,11 @@ def _configure_pdos(node: canopen.RemoteNode, maps, configured: tuple[PdoConfig,
             for index, sub in pc.mapping:
                 pdo.add_variable(index, sub)
             pdo.trans_type = pc.transmission
-            if pc.event_timer_ms is not None and base == 0x180:
-                pdo.event_timer = pc.event_timer_ms
+            comm = node.object_dictionary[comm_base + num - 1]
+            if base == 0x180 and 3 in comm:       # as configured, never the EDS default (Nanotec's: 10 ms)
+                pdo.inhibit_time = pc.inhibit_time_100us
+            if base == 0x180 and 5 in comm:
+                pdo.event_timer = pc.event_timer_ms or 0
         pdo.save()
         if pc is not None:
             codecs.append(PdoCodec.of(pdo.cob_id, node.object_dictionary, pc.mapping))
@@ -189,20 +209,28 @@ def bring_up(link: Link, config: BusConfig) -> dict[str, AxisLink]:
     clock = link.clock
     axes: dict[str, AxisLink] = {}
     period = config.master.sync_period_s
+    link.start_heartbeat(config.master.heartbeat_node_id, config.master.heartbeat_period_s)
     for name, ncfg in config.nodes.items():
         node = net[ncfg.node_id]
-        ax = AxisLink(name, ncfg, node, Drive402(node, name, clock, config.master.state_timeout_s),
-                      result.found[ncfg.node_id])
         node.nmt.send_command(0x80)                               # pre-operational
-        for index, sub, value in settings(name, ncfg, period):
+        for index, sub, value in ncfg.sdo:                        # first: they may set the drive's units
             _write(node, name, index, sub, value)
+        units = read_units(node, name)
+        ncfg = reconcile(ncfg, units, config.path)
+        _check_range(ncfg, config.path)
+        ax = AxisLink(name, ncfg, node, Drive402(node, name, clock, config.master.state_timeout_s),
+                      result.found[ncfg.node_id], units=units.as_dict())
+        written = drive_settings(name, ncfg, period, config.master)
+        for index, sub, value in written:
+            _write(node, name, index, sub, value)
+        ax.drive_limits = _read_back(node, name, written)
         try:
             ax.rpdos = _configure_pdos(node, node.rpdo, ncfg.rpdo, 0x200)
             ax.tpdos = _configure_pdos(node, node.tpdo, ncfg.tpdo, 0x180)
         except canopen.SdoAbortedError as exc:
             raise DriveRefused(f"axis {name}: the drive refused the PDO mapping ({exc}); "
                                f"check nodes.{name}.rpdo / tpdo in {config.path}") from exc
-        ax.mode, ax.setpoint = _streaming_mode(node, ncfg, config.path)
+        ax.mode, ax.setpoint, ax.modes = _streaming_mode(node, ncfg, config.path)
         if ax.mode == IP:
             if 0x60C0 in ncfg.od:
                 _write(node, name, 0x60C0, 0, IP_SUB_MODE[ax.setpoint])
@@ -214,9 +242,10 @@ def bring_up(link: Link, config: BusConfig) -> dict[str, AxisLink]:
     return axes
 
 
-def _streaming_mode(node, ncfg: NodeConfig, path) -> tuple[int, tuple[int, int]]:
-    """The mode to stream in, from the modes the drive lists in 0x6502 (read from the drive; the
-    EDS/DCF default where the drive does not answer) and the setpoint objects the RPDOs map."""
+def _streaming_mode(node, ncfg: NodeConfig, path) -> tuple[int, tuple[int, int], list[int]]:
+    """The mode to stream in and its setpoint object, from the modes the drive lists in 0x6502
+    (read from the drive; the EDS/DCF default where the drive does not answer) and the setpoint
+    objects the RPDOs map; and every mode the drive lists."""
     axis = ncfg.axis
     bits = None
     if 0x6502 in ncfg.od:
@@ -237,17 +266,50 @@ def _streaming_mode(node, ncfg: NodeConfig, path) -> tuple[int, tuple[int, int]]
                            f"(0x6502 = 0x{bits:08X}); drive-bridge streams in {MODE_NAMES[8]} (8, RPDO maps "
                            f"0x607A) or {MODE_NAMES[7]} (7, RPDO maps 0x60C1:1 or 0x20C1); map the setpoint "
                            f"object of a mode the drive has in nodes.{axis}.rpdo of {path}")
-    return chosen
+    return (*chosen, supported_modes(bits))
 
 
-def settings(axis: str, ncfg: NodeConfig, period: float) -> list[tuple[int, int, int | float]]:
+def settings(axis: str, ncfg: NodeConfig, period: float,
+             master: MasterConfig | None = None) -> list[tuple[int, int, int | float]]:
     """The SDO writes of a node's settings besides its PDOs, in order (also what ``export ros2``
-    gives Lely's master): the node's own ``sdo`` list, heartbeat, following-error window,
-    software limits, the interpolation period 0x60C2 and the communication cycle 0x1006."""
-    inc = ncfg.scaling.inc_per_rad
-    out = [*ncfg.sdo, (0x1017, 0, ncfg.heartbeat_producer_ms),
-           (0x6065, 0, round(ncfg.following_error_window_rad * inc)),
-           (0x607D, 1, round(ncfg.limits.position_min * inc)), (0x607D, 2, round(ncfg.limits.position_max * inc))]
+    gives Lely's master): the node's own ``sdo`` list, then :func:`drive_settings`."""
+    return [*ncfg.sdo, *drive_settings(axis, ncfg, period, master)]
+
+
+def drive_settings(axis: str, ncfg: NodeConfig, period: float,
+                   master: MasterConfig | None = None) -> list[tuple[int, int, int | float]]:
+    """What bring-up writes after reading the drive's units, each where the drive's EDS/DCF has the
+    object: its heartbeat; the consumer of the master's heartbeat (0x1016:1, about 3 periods) and
+    what to do when it stops (0x6007: quick stop); quick stop as ramp-and-hold (0x605A), fault
+    reaction as a quick-stop ramp (0x605E); in the drive's units (once known), the following-error
+    window and timeout, software position limits, max profile velocity and max motor speed, the
+    quick-stop deceleration, the max torque where bus.yml gives one; the interpolation period
+    0x60C2 and the communication cycle 0x1006."""
+    od, sc, lim = ncfg.od, ncfg.scaling, ncfg.drive_limits
+
+    def has(index: int, sub: int = 0) -> bool:
+        var = od.get_variable(index, sub)
+        return var is not None and var.writable
+    out: list[tuple[int, int, int | float]] = [(0x1017, 0, ncfg.heartbeat_producer_ms)]
+    if master is not None and has(0x1016, 1):
+        ms = round(CONSUMER_PERIODS * master.heartbeat_period_s * 1000)
+        out.append((0x1016, 1, master.heartbeat_node_id << 16 | ms))
+    for index, value in ((0x6007, ABORT_CONNECTION_QUICK_STOP), (0x605A, QUICK_STOP_RAMP_AND_HOLD),
+                         (0x605E, FAULT_REACTION_QUICK_STOP_RAMP)):
+        if has(index):
+            out.append((index, 0, value))
+    if sc.increments_per_rev:               # the drive's units are known (from_drive: after bring-up read them)
+        inc, vel = sc.inc_per_rad, sc.velocity_per_rad_s
+        out += [(0x6065, 0, round(ncfg.following_error_window_rad * inc)),
+                (0x607D, 1, round(ncfg.limits.position_min * inc)), (0x607D, 2, round(ncfg.limits.position_max * inc))]
+        if lim is not None:
+            optional = [(0x6066, lim.following_error_timeout_ms),
+                        (0x6085, round(lim.quick_stop_deceleration * vel)),    # velocity units per second
+                        (0x607F, round(lim.max_velocity * vel)),
+                        (0x6080, math.ceil(lim.max_velocity * 60 / (2 * math.pi)))]          # rpm
+            if lim.max_torque_Nm is not None:
+                optional.append((0x6072, round(lim.max_torque_Nm / sc.rated_torque_Nm * 1000)))
+            out += [(index, 0, value) for index, value in optional if has(index)]
     if 0x60C2 in ncfg.od:
         out += _interpolation_period(axis, ncfg, period)
     if 0x1006 in ncfg.od:
@@ -273,6 +335,34 @@ def _interpolation_period(axis: str, ncfg: NodeConfig, period: float) -> list[tu
     raise DriveRefused(f"axis {axis}: the drive's interpolation time period 0x60C2 cannot be "
                        f"{period * 1e3:g} ms within the limits of its EDS/DCF (value {lo1}..{hi1}, "
                        f"index {lo2}..{hi2}); set master.sync_period to a period it can hold")
+
+
+def _check_range(ncfg: NodeConfig, path) -> None:
+    """The stroke must fit the drive's 32-bit position in its own units (known only now with from_drive)."""
+    edge = max(abs(ncfg.limits.position_min), abs(ncfg.limits.position_max)) * ncfg.scaling.inc_per_rad
+    if edge >= 2**31:
+        raise DriveRefused(f"axis {ncfg.axis}: limits.stroke of nodes.{ncfg.axis} in {path} does not fit the "
+                           f"drive's 32-bit position range in its units ({ncfg.scaling.inc_per_rad:.6g} per rad)")
+
+
+def _read_back(node, axis: str, written) -> dict[str, int | float]:
+    """Each setting as the drive now holds it; DriveRefused where it kept another value."""
+    out = {}
+    for index, sub, value in written:
+        var = node.object_dictionary.get_variable(index, sub)
+        if not var.readable:
+            continue
+        try:
+            held = var.decode_raw(node.sdo.upload(index, sub))
+        except canopen.SdoAbortedError:
+            continue                          # write-only on this drive: what was written stands
+        except canopen.SdoCommunicationError as exc:
+            raise BusError(f"axis {axis}: no SDO answer reading back 0x{index:04X}:{sub} ({exc})") from exc
+        if held != value:
+            raise DriveRefused(f"axis {axis}: 0x{index:04X}:{sub} was written {value} but the drive holds {held}; "
+                               f"it does not take the setting: nothing moves with a limit it did not keep")
+        out[hex_object(index, sub)] = held
+    return out
 
 
 def _write(node, axis: str, index: int, sub: int, value) -> None:

@@ -51,6 +51,8 @@ class WallClock:
             time.sleep(left)
 
 
+#: python-can udp_multicast's default group and port
+UDP_GROUP, UDP_PORT = "239.74.163.2", 43113
 TRACE_PRIORITY = 10           # SCHED_FIFO priority of the trace writer (the streaming threads: 50)
 
 
@@ -175,6 +177,7 @@ class Link(Protocol):
     clock: Clock
     threaded: bool
     epoch: float
+    bus_errors: "BusErrors"
 
     def add_trace(self, trace: TraceRecorder) -> None:
         """Send every frame from now on, sent and received, to ``trace`` too."""
@@ -182,8 +185,35 @@ class Link(Protocol):
     def remove_trace(self, trace: TraceRecorder) -> None:
         """Stop sending frames to ``trace``."""
 
+    def start_heartbeat(self, node_id: int, period: float) -> None:
+        """Produce the master's heartbeat (COB-ID 0x700 + ``node_id``, NMT state operational) every
+        ``period`` [s] until the link closes, independent of what the master is busy with: the
+        drives' heartbeat consumers stop the axes when it falls silent."""
+
+    def stop_heartbeat(self) -> None:
+        """Stop the master's heartbeat (the drives then stop as if the master had died)."""
+
     def close(self) -> None:
         """Close the bus (and whatever runs behind it)."""
+
+
+def heartbeat_frame(node_id: int, timestamp: float = 0.0) -> can.Message:
+    """The master's heartbeat: NMT state operational (0x05)."""
+    return can.Message(arbitration_id=0x700 + node_id, data=b"\x05", is_extended_id=False, timestamp=timestamp)
+
+
+class BusErrors(can.Listener):
+    """Counts error frames the interface reports (bus errors, error passive, bus-off where it
+    reports them as frames); the streaming loop stops the motion on the first."""
+
+    def __init__(self):
+        self.count = 0
+        self.last: can.Message | None = None
+
+    def on_message_received(self, msg: can.Message) -> None:
+        if msg.is_error_frame:
+            self.count += 1
+            self.last = msg
 
 
 class _ReceiverPriority(can.Listener):
@@ -213,13 +243,20 @@ class BusLink:
         self.network = MasterNetwork(self.bus, self.clock)
         self.network.connect()
         self.network.notifier.add_listener(_ReceiverPriority())
+        self.bus_errors = BusErrors()
+        self.network.notifier.add_listener(self.bus_errors)
         self.on_close = []                # callbacks after the bus is closed
+        self._heartbeat: can.broadcastmanager.CyclicSendTaskABC | None = None
 
     @classmethod
     def open(cls, interface: str, channel: str | int | None, bitrate: int | None = None,
              options: dict | None = None) -> "BusLink":
         """Open a python-can bus (``bitrate`` where the interface takes one; ``options``: the
         interface's own arguments, :mod:`drive_bridge.canconf`)."""
+        if interface == "udp_multicast":       # python-can's echoes every frame back to its sender
+            from ..sim.adapters import LoopbackMulticastBus
+            opts = dict(options or {})
+            return cls(LoopbackMulticastBus(channel or UDP_GROUP, opts.pop("port", UDP_PORT), **opts))
         kwargs = {**(options or {}), "interface": interface, "channel": channel, "receive_own_messages": False}
         if bitrate and interface != "virtual":
             kwargs["bitrate"] = bitrate
@@ -235,7 +272,19 @@ class BusLink:
         self.network.notifier.remove_listener(trace)
         self.network.traces = tuple(t for t in self.network.traces if t is not trace)
 
+    def start_heartbeat(self, node_id: int, period: float) -> None:
+        # python-can's periodic send: the kernel's broadcast manager on socketcan, a thread of
+        # its own elsewhere; either way it ends with this process, as a master's heartbeat must
+        self.stop_heartbeat()
+        self._heartbeat = self.bus.send_periodic(heartbeat_frame(node_id), period)
+
+    def stop_heartbeat(self) -> None:
+        if self._heartbeat is not None:
+            self._heartbeat.stop()
+            self._heartbeat = None
+
     def close(self) -> None:
+        self.stop_heartbeat()
         self.network.disconnect()
         for callback in self.on_close:
             callback()

@@ -2,6 +2,15 @@
 master's feed-forward offsets where the plan has them), feedback recorded per SYNC, safety on
 every cycle.
 
+Around the plan SYNC runs too.  Before it, the drives are enabled in the mapped controlword while
+the RPDOs already carry the plan's first setpoint, which is where each axis stands (its target
+0x607A was set to that by SDO first, so a CSP drive that takes its target on enable does not
+jump).  After it, each axis is left held (``holding: enabled``: powered at its position,
+profile position with halt; ``brake``: switched off onto its brake); after a fault or a signal,
+every axis gets a quick stop in the next cycle's controlword and SYNC runs until each stands
+still (SDO only where its feedback is gone), and an axis that holds ``enabled`` stays in QUICK
+STOP ACTIVE, powered.
+
 The sending loop does only light work: pack the RPDOs, send them and the SYNC,
 check the previous cycle's feedback.  Samples stay in device units in
 preallocated arrays; conversion to SI happens once, afterwards, in
@@ -19,14 +28,20 @@ import numpy as np
 from ..errors import GuardStop, Interrupted, MotionAborted
 from ..signals import signal_name
 from ..pdo import PdoCodec
-from ..setpoint import CW_ENABLE_IP, IP, PVT, SETPOINT_OBJECTS, SW_FOLLOWING, pack_pvt, position_of
+from ..setpoint import CSP as CSP_MODE, CW_ENABLE_IP, IP, PVT, SETPOINT_OBJECTS, SW_FOLLOWING, pack_pvt, position_of
 from .bringup import AxisLink, emcy_text
 from .campaign import Plan
-from .cia402 import CW_ENABLE, SW_FAULT, state_name
+from .cia402 import CW_ENABLE, CW_SHUTDOWN, CW_SWITCH_ON, SW_FAULT, state_name
 from .link import Link
 from .timing import Timing, TimingLimits, measure, raise_priority, restore_priority
 
 CW_QUICK_STOP_CMD = 0x000B          # enable voltage + switch on + enable operation, quick stop bit low
+CW_DISABLE_VOLTAGE = 0x0000
+CW_HALT = 0x010F                    # enable operation with halt (bit 8): a profile position drive holds
+PP = 1
+#: the controlword that takes a drive one step nearer OPERATION ENABLED from the state it shows
+ENABLE_STEP = {"SWITCH ON DISABLED": CW_SHUTDOWN, "READY TO SWITCH ON": CW_SWITCH_ON,
+               "SWITCHED ON": CW_ENABLE, "OPERATION ENABLED": CW_ENABLE, "QUICK STOP ACTIVE": CW_ENABLE}
 STANDSTILL = 0.002                  # quick stop complete below this fraction of the axis's max velocity ...
 STANDSTILL_MIN_RAD_S = 0.05         # ... or below this, whichever is larger (encoder differencing noise)
 SYNC_COB_ID = 0x080
@@ -76,6 +91,8 @@ class Recording:
         self.sync_index = -1          # row of the last SYNC sent (TPDOs after it belong to it)
         self.last_sync_time = -np.inf
         self.rows = 0                 # rows that have a SYNC
+        #: SYNCs still to come before the plan's first (decode: those that enabled the drives)
+        self.skip_syncs = 0
 
     def column(self, axis: str, index: int) -> int:
         return self.columns.index((axis, index))
@@ -106,6 +123,9 @@ class Recording:
         return out
 
     def on_sync(self, timestamp: float) -> None:
+        if self.skip_syncs > 0:
+            self.skip_syncs -= 1
+            return
         self.last_sync_time = timestamp
         self.sync_index += 1
         if self.sync_index < len(self.raw):
@@ -134,6 +154,54 @@ class StreamResult:
     aborted: MotionAborted | None
     missing: dict[str, int]           # samples (rows) missing per axis
     timing: Timing
+    #: per axis, how it is held now that the motion is over (for the command's last line)
+    holding: dict[str, str] | None = None
+    sync_before_plan: int = 0         # SYNC cycles that enabled the drives before the plan's first
+
+
+class _Feedback:
+    """The newest statusword and velocity actual of each axis from its TPDOs, and how many SYNC
+    cycles ago each arrived: what the cycles before and after the plan decide on."""
+
+    def __init__(self, axes: dict[str, AxisLink], names: list[str]):
+        self.status: dict[str, int | None] = dict.fromkeys(names)
+        self.velocity: dict[str, int | None] = dict.fromkeys(names)
+        self.age = dict.fromkeys(names, 0)        # SYNCs since the last statusword
+        self.handlers = []                          # (COB-ID, callback), for subscribe / unsubscribe
+        for a in names:
+            for codec in axes[a].tpdos:
+                picks = [(i, kind) for i, kind in ((0x6041, "status"), (0x606C, "velocity")) if i in codec.objects]
+                if picks:
+                    cols = [(codec.objects.index(i), kind) for i, kind in picks]
+                    self.handlers.append((codec.cob_id, self._handler(a, codec, cols)))
+
+    def _handler(self, axis, codec, cols):
+        unpack, size = codec.struct.unpack_from, codec.struct.size
+
+        def on_tpdo(can_id, data, ts):
+            if len(data) >= size:
+                values = unpack(data)
+                for col, kind in cols:
+                    getattr(self, kind)[axis] = values[col]
+                    if kind == "status":
+                        self.age[axis] = 0
+        return on_tpdo
+
+    def subscribe(self, net) -> None:
+        for cob, handler in self.handlers:
+            net.subscribe(cob, handler)
+
+    def unsubscribe(self, net) -> None:
+        for cob, handler in self.handlers:
+            net.unsubscribe(cob, handler)
+
+    def on_sync(self) -> None:
+        for a in self.age:
+            self.age[a] += 1
+
+    def state(self, axis: str) -> str | None:
+        sw = self.status[axis]
+        return None if sw is None else state_name(sw)
 
 
 class _TorqueOffset:
@@ -211,7 +279,8 @@ def _packer(ax: AxisLink, codec: PdoCodec, plan: Plan, ai: int, send,
 
 
 def quick_stop(link: Link, axes: dict[str, AxisLink], timeout: float) -> list[str]:
-    """Quick stop every axis by SDO, then wait until each stands still. Returns problems seen.
+    """Quick stop every axis by SDO, then wait until each stands still (the fallback where an axis's
+    cyclic feedback is gone, and for a master that no longer streams). Returns problems seen.
 
     An axis stands still when a fresh read shows it out of OPERATION ENABLED (quick stop active,
     switched off or faulted) and its measured velocity (0x606C) within ``STANDSTILL`` of its
@@ -250,13 +319,15 @@ def quick_stop(link: Link, axes: dict[str, AxisLink], timeout: float) -> list[st
 def stream(link: Link, axes: dict[str, AxisLink], plan: Plan, *, heartbeat_timeout: float, miss_limit: int,
            state_timeout: float, progress: Callable[[int], None] | None = None,
            guard: Callable[[dict[str, int]], str | None] | None = None,
-           timing_limits: TimingLimits = TimingLimits()) -> StreamResult:
-    """Enable the axes in CSP, stream ``plan`` one setpoint per SYNC, stop, return the recording.
+           timing_limits: TimingLimits = TimingLimits(),
+           on_start: Callable[[int], None] | None = None) -> StreamResult:
+    """Enable the axes without a jump, stream ``plan`` one setpoint per SYNC, hold, return the recording.
 
-    A fault (EMCY, fault bit, heartbeat loss, missing TPDOs) or Ctrl-C quick-stops every
-    axis; the recording up to that point is kept and the cause is in ``aborted``.  ``guard``
-    sees each checked cycle's actual velocity per axis (device units) and stops the run by
-    returning a reason.
+    A fault (EMCY, fault bit, heartbeat loss, missing TPDOs, a CAN error frame) or Ctrl-C
+    quick-stops every axis; the recording up to that point is kept and the cause is in
+    ``aborted``.  ``guard`` sees each checked cycle's actual velocity per axis (device units) and
+    stops the run by returning a reason.  ``on_start`` is told how many SYNC cycles enabling took,
+    once the plan's first goes out.
     """
     net, clock = link.network, link.clock
     n = len(plan.demand)
@@ -264,23 +335,25 @@ def stream(link: Link, axes: dict[str, AxisLink], plan: Plan, *, heartbeat_timeo
     for i, a in enumerate(plan.axes):        # what the RPDOs carry (decode reads it from the trace)
         rec.demand[:, i] = axes[a].cfg.scaling.position_to_device(plan.demand[:, i])
     tpdo_cobs = {c.cob_id for a in plan.axes for c in axes[a].tpdos}
-    for cob, handler in rec.handlers().items():
-        if cob in tpdo_cobs:
-            if net.subscribers.get(cob):
-                net.unsubscribe(cob)            # canopen's own PdoMap decoding is not needed here
-            net.subscribe(cob, handler)
+    handlers = {cob: h for cob, h in rec.handlers().items() if cob in tpdo_cobs}
+    for cob, handler in handlers.items():
+        if net.subscribers.get(cob):
+            net.unsubscribe(cob)            # canopen's own PdoMap decoding is not needed here
+        net.subscribe(cob, handler)
+    feedback = _Feedback(axes, plan.axes)
+    feedback.subscribe(net)
     send = net.send_message
     offsets: dict[str, _TorqueOffset] = {}
-    packers = [(_packer(axes[a], c, plan, i, send, offsets), CW_ENABLE_IP if axes[a].mode == IP else CW_ENABLE)
+    packers = [(a, _packer(axes[a], c, plan, i, send, offsets), CW_ENABLE_IP if axes[a].mode == IP else CW_ENABLE)
                for i, a in enumerate(plan.axes) for c in axes[a].rpdos]
     unloader = _Unloader(rec, axes, plan, offsets) if offsets else None
     sw_cols = [(a, rec.column(a, 0x6041)) for a in plan.axes]
     vel_cols = [(a, rec.column(a, 0x606C)) for a in plan.axes] if guard is not None else []
     misses = dict.fromkeys(plan.axes, 0)
+    cycles = _Cycles(link, packers, feedback, plan.period)
     aborted = None
     k = sent = 0
-    for a in plan.axes:
-        axes[a].node.nmt.send_command(0x01)                  # operational: PDOs flow
+    errors_at_start = link.bus_errors.count
     # The cycle collector stops every thread while it walks the heap (gen 2: tens of ms with
     # the object dictionaries loaded). Streaming frees its frames by reference counting, so
     # the collector is off while it runs and collects once afterwards.
@@ -289,16 +362,21 @@ def stream(link: Link, axes: dict[str, AxisLink], plan: Plan, *, heartbeat_timeo
     priority, undo = raise_priority() if link.threaded else ("lockstep (no wall clock)", None)
     try:
         emcy_from = {a: len(axes[a].emcy) for a in plan.axes}
+        for i, a in enumerate(plan.axes):
+            _prepare(axes[a], int(rec.demand[0, i]))
+            feedback.status[a] = axes[a].drive.statusword()      # where each starts from, read now
         for a in plan.axes:
-            axes[a].drive.set_mode(axes[a].mode)
-            axes[a].drive.enable()
+            axes[a].node.nmt.send_command(0x01)              # operational: PDOs flow
+        aborted = cycles.enable(state_timeout)
+        if aborted is None and on_start is not None:
+            on_start(cycles.count)
         t0 = clock.now()
         for a in plan.axes:                                  # heartbeat supervision starts now
             if axes[a].last_heartbeat is None:
                 axes[a].last_heartbeat = t0
         period = plan.period
         check_every = max(1, round(0.05 / period))
-        for k in range(n):
+        for k in range(n if aborted is None else 0):
             clock.wait_until(t0 + k * period)
             if k >= FEEDBACK_LAG + 1:
                 row = k - 1 - FEEDBACK_LAG
@@ -308,47 +386,216 @@ def stream(link: Link, axes: dict[str, AxisLink], plan: Plan, *, heartbeat_timeo
                     if reason:
                         aborted = GuardStop(reason)
                 if aborted is None and k % check_every == 0:
-                    aborted = _check_heartbeats(axes, plan.axes, clock.now(), heartbeat_timeout)
+                    aborted = _check_heartbeats(axes, plan.axes, clock.now(), heartbeat_timeout) or \
+                        _check_bus(link, errors_at_start)
                 if aborted is not None:
                     break
                 if progress is not None and k % 50 == 0:
                     progress(k)
             if unloader is not None:
                 unloader.at(k)
-            for packer, cw in packers:
+            for _, packer, cw in packers:
                 packer(k, cw)
             stamp = clock.now()
             rec.on_sync(stamp)
+            feedback.on_sync()
             send(SYNC_COB_ID, b"", False, stamp)
             sent = k + 1
             if stamp - (t0 + k * period) > period / 2:
                 t0 = stamp - k * period          # late: restart the schedule here, never burst SYNCs
         else:
-            k = n
-            for a in plan.axes:              # before the drives' loss-of-setpoint time-out
-                axes[a].drive.disable()
-            clock.sleep((FEEDBACK_LAG + 1) * period)
-            for row in range(max(0, n - 1 - FEEDBACK_LAG), n):
-                aborted = aborted or _check_row(rec, row, axes, sw_cols, plan.axes, misses, miss_limit, emcy_from)
+            if aborted is None:
+                k = n
+                clock.sleep((FEEDBACK_LAG + 1) * period)
+                for row in range(max(0, n - 1 - FEEDBACK_LAG), n):
+                    aborted = aborted or _check_row(rec, row, axes, sw_cols, plan.axes, misses, miss_limit,
+                                                    emcy_from)
     except KeyboardInterrupt as exc:
         aborted = Interrupted(signal=signal_name(exc))
+    except MotionAborted as exc:
+        aborted = exc
     except Exception as exc:          # a bus error mid-motion: still stop the axes
         aborted = MotionAborted(f"{type(exc).__name__}: {exc}")
     finally:
-        restore_priority(undo)
-        for cob in tpdo_cobs:
-            net.unsubscribe(cob)
-        gc.enable()
+        for cob, handler in handlers.items():
+            net.unsubscribe(cob, handler)
     rec.rows = min(rec.rows, sent)           # a row whose SYNC an interrupt kept from the bus is not one
     rec.truncate()
     missing = rec.missing()
-    if aborted is not None:
-        problems = quick_stop(link, {a: axes[a] for a in plan.axes}, max(state_timeout, 2.0))
-        if problems:
-            aborted = (Interrupted("; ".join(problems), aborted.signal) if isinstance(aborted, Interrupted) else
+    try:
+        last = max(0, min(sent, n) - 1)
+        if aborted is None:
+            holding, problems = cycles.hold(axes, last, state_timeout)
+        else:
+            holding, problems = cycles.stop(axes, last, max(state_timeout, 2.0), miss_limit)
+    finally:
+        feedback.unsubscribe(net)
+        restore_priority(undo)
+        gc.enable()
+    if problems:
+        aborted = aborted or MotionAborted("; ".join(problems))
+        if aborted.reason != "; ".join(problems):
+            aborted = (Interrupted("; ".join([aborted.reason, *problems]), aborted.signal)
+                       if isinstance(aborted, Interrupted) else
                        MotionAborted(aborted.reason + "; " + "; ".join(problems), aborted.axis, aborted.emcy))
     timing = measure(rec.sync_time, plan.period, missing, wall=link.threaded, priority=priority, limits=timing_limits)
-    return StreamResult(rec, sent, aborted, missing, timing)
+    return StreamResult(rec, sent, aborted, missing, timing, holding, cycles.enable_count)
+
+
+def _prepare(ax: AxisLink, target: int) -> None:
+    """Before SYNC starts: a fault reset (SDO), the target position set to where the axis stands
+    (CSP: a drive that takes 0x607A on enable must not jump), then the operating mode."""
+    ax.drive.reset_fault()
+    if ax.mode == CSP_MODE:
+        try:
+            actual = ax.node.sdo[0x6064].raw
+            tolerance = max(1, round(ax.cfg.following_error_window_rad * ax.cfg.scaling.inc_per_rad / 2))
+            if abs(actual - target) > tolerance:
+                raise MotionAborted(f"the axis stands at {actual} (0x6064), not at the plan's start {target}: it "
+                                    f"moved since the plan was made; nothing was enabled", ax.name)
+            ax.node.sdo[0x607A].raw = actual
+        except (canopen.SdoCommunicationError, canopen.SdoAbortedError) as exc:
+            raise MotionAborted(f"setting the target position 0x607A to the actual position before enabling "
+                                f"failed ({exc}); nothing was enabled", ax.name) from exc
+    ax.drive.set_mode(ax.mode)
+
+
+class _Cycles:
+    """SYNC cycles outside the plan: the RPDOs carry one plan row (where the axis is to stand) and a
+    controlword per axis, while the feedback decides when the drives are where they should be."""
+
+    def __init__(self, link: Link, packers, feedback: _Feedback, period: float):
+        self.link, self.packers, self.feedback, self.period = link, packers, feedback, period
+        self.count = 0                  # SYNCs sent so far outside the plan
+        self.enable_count = 0
+
+    def run(self, row: int, controlword: Callable[[str], int], done: Callable[[], bool], timeout: float) -> bool:
+        """Cycle until ``done()`` (True) or ``timeout`` [s] (False)."""
+        clock = self.link.clock
+        t0 = clock.now()
+        k = 0
+        while not done():
+            if clock.now() - t0 > timeout:
+                return False
+            clock.wait_until(t0 + k * self.period)
+            for axis, packer, _ in self.packers:
+                packer(row, controlword(axis))
+            self.feedback.on_sync()
+            self.link.network.send_message(SYNC_COB_ID, b"", False, clock.now())
+            self.count += 1
+            k += 1
+        return True
+
+    def enable(self, timeout: float) -> MotionAborted | None:
+        """Shutdown, switch on, enable operation (from QUICK STOP ACTIVE: enable operation) in the
+        controlword, a step each time the feedback shows the state before it."""
+        fb = self.feedback
+        axes = list(fb.status)
+        ok = self.run(0, lambda a: ENABLE_STEP.get(fb.state(a), CW_SHUTDOWN),
+                      lambda: all(fb.state(a) == "OPERATION ENABLED" and fb.age[a] <= 1 for a in axes), timeout)
+        self.enable_count = self.count
+        if ok:
+            return None
+        late = next(a for a in axes if fb.state(a) != "OPERATION ENABLED")
+        sw = fb.status[late]
+        return MotionAborted(f"did not reach OPERATION ENABLED within {timeout} s of enabling in the controlword "
+                             f"(it shows {fb.state(late) or 'no statusword'}" +
+                             (f", statusword 0x{sw:04X})" if sw is not None else ")"), late)
+
+    def _standing(self, ax: AxisLink, still: dict) -> bool:
+        fb, a = self.feedback, ax.name
+        v = fb.velocity[a]
+        stopped = fb.age[a] <= 1 and fb.state(a) != "OPERATION ENABLED" and v is not None and \
+            abs(float(ax.cfg.scaling.velocity_from_device(v))) <= max(STANDSTILL * ax.cfg.limits.max_velocity,
+                                                                      STANDSTILL_MIN_RAD_S)
+        still[a] = still[a] + 1 if stopped else 0
+        return still[a] >= 2
+
+    def stop(self, axes: dict[str, AxisLink], row: int, timeout: float, miss_limit: int
+             ) -> tuple[dict[str, str], list[str]]:
+        """Quick stop in every axis's controlword at once, SYNC until each stands still; then an axis
+        that holds on its brake has its voltage disabled, one that holds ``enabled`` stays in QUICK STOP
+        ACTIVE.  An axis whose feedback has stopped gets its quick stop by SDO."""
+        fb = self.feedback
+        names = list(fb.status)
+        still = dict.fromkeys(names, 0)
+        lost: set[str] = set()
+        problems: list[str] = []
+        start = self.count
+
+        def done() -> bool:
+            lost.update(a for a in names if fb.age[a] > miss_limit + FEEDBACK_LAG and self.count - start >= miss_limit)
+            return all(a in lost or self._standing(axes[a], still) for a in names)
+        try:
+            if not self.run(row, lambda a: CW_QUICK_STOP_CMD, done, timeout):
+                problems += [f"axis {a}: still moving {timeout} s after quick stop" for a in names
+                             if a not in lost and still[a] < 2]
+        except Exception:                            # the bus itself failed: SDO for every axis
+            lost.update(names)
+        if self.count == start:
+            lost.update(names)
+        if lost:
+            problems += quick_stop(self.link, {a: axes[a] for a in sorted(lost)}, timeout)
+        brake = [a for a in names if axes[a].cfg.drive_limits is not None and
+                 axes[a].cfg.drive_limits.holding == "brake" and a not in lost]
+        if brake:
+            try:
+                self.run(row, lambda a: CW_DISABLE_VOLTAGE if a in brake else CW_QUICK_STOP_CMD,
+                         lambda: all(fb.state(a) in ("SWITCH ON DISABLED", "FAULT") and fb.age[a] <= 1 for a in brake),
+                         timeout)
+            except Exception:
+                pass
+        return {a: _held(axes[a], fb.state(a)) for a in names}, problems
+
+    def hold(self, axes: dict[str, AxisLink], row: int, timeout: float) -> tuple[dict[str, str], list[str]]:
+        """After the plan: ``brake`` axes switched off (shutdown) onto their brake; ``enabled`` axes
+        kept powered at their position in profile position with halt (QUICK STOP ACTIVE where the
+        drive has no profile position mode)."""
+        fb = self.feedback
+        names = list(fb.status)
+        brake = [a for a in names if axes[a].cfg.drive_limits is not None and axes[a].cfg.drive_limits.holding == "brake"]
+        powered = [a for a in names if a not in brake]
+        pp = [a for a in powered if PP in axes[a].modes and  # an RPDO that sets the mode would undo it
+              not any(index == 0x6060 for c in axes[a].rpdos for index, _ in c.entries)]
+        problems = []
+        cw = {**{a: CW_SHUTDOWN for a in brake}, **{a: CW_HALT for a in pp},
+              **{a: CW_QUICK_STOP_CMD for a in powered if a not in pp}}
+        first = self.count
+        self.run(row, cw.__getitem__, lambda: self.count >= first + 2, 1.0)     # halt reaches the drives
+        for a in pp:
+            try:                                     # SYNC stops only after the drive left CSP
+                axes[a].node.sdo[0x6040].raw = CW_HALT
+                axes[a].drive.set_mode(PP)
+            except Exception as exc:                 # noqa: BLE001 - any failure: quick stop it instead
+                problems.append(f"axis {a}: could not hold it in profile position ({exc}); quick stop")
+                cw[a] = CW_QUICK_STOP_CMD
+        wanted = {a: ("READY TO SWITCH ON", "SWITCH ON DISABLED") if a in brake else
+                  ("OPERATION ENABLED",) if cw[a] == CW_HALT else ("QUICK STOP ACTIVE",) for a in names}
+        if not self.run(row, cw.__getitem__, lambda: all(fb.state(a) in wanted[a] and fb.age[a] <= 1 for a in names),
+                        timeout):
+            problems += [f"axis {a}: not held ({fb.state(a) or 'no statusword'} {timeout} s after the motion)"
+                         for a in names if fb.state(a) not in wanted[a]]
+        return {a: _held(axes[a], fb.state(a)) for a in names}, problems
+
+
+def _held(ax: AxisLink, state: str | None) -> str:
+    """How an axis is held, in words, for the command's last lines."""
+    if state in ("SWITCH ON DISABLED", "READY TO SWITCH ON", "SWITCHED ON"):
+        how = ax.cfg.drive_limits.holding if ax.cfg.drive_limits is not None else "brake"
+        return "switched off, on its brake" if how == "brake" else "switched off: NOT HELD"
+    if state == "OPERATION ENABLED":
+        return "powered, holding its position (profile position, halt)"
+    if state == "QUICK STOP ACTIVE":
+        return "powered, holding its position (quick stop active)"
+    return f"in {state or 'an unknown state'}"
+
+
+def _check_bus(link: Link, errors_at_start: int) -> MotionAborted | None:
+    errors = link.bus_errors
+    if errors.count > errors_at_start:
+        return MotionAborted(f"the CAN interface reported {errors.count - errors_at_start} error frame(s) "
+                             f"(bus errors, error passive or bus-off: check wiring, termination and bitrate)")
+    return None
 
 
 def _check_row(rec, row, axes, sw_cols, names, misses, miss_limit, emcy_from) -> MotionAborted | None:

@@ -53,6 +53,9 @@ class SimAxis:
     torque_noise_Nm: float = 0.0
     motor: Motor = field(default_factory=Motor)
     effects: dict = field(default_factory=dict)   # name -> {kernel param: value}; source as axis name
+    brake: bool = True            # a holding brake that holds the axis whenever the power stage is off
+    end_stops_rad: tuple[float, float] | None = None    # mechanical end stops, motor side
+    initial_position_rad: float = 0.0                   # where the axis stands at power-on
 
 
 @dataclass
@@ -60,6 +63,15 @@ class SimConfig:
     axes: dict[str, SimAxis]
     seed: int = 0
     path: Path | None = None
+
+
+def _end_stops(sec: Section) -> tuple[float, float] | None:
+    stops = sec.get("end_stops_rad", list, None)
+    if stops is None:
+        return None
+    if len(stops) != 2 or not all(isinstance(v, (int, float)) and abs(v) < 1e6 for v in stops) or stops[0] >= stops[1]:
+        raise sec.error("end_stops_rad", f"must be [low, high] in rad with low < high, got {stops!r}")
+    return float(stops[0]), float(stops[1])
 
 
 def load_sim_config(path: str | Path = DEFAULT_CONFIG) -> SimConfig:
@@ -97,7 +109,9 @@ def load_sim_config(path: str | Path = DEFAULT_CONFIG) -> SimConfig:
             c1=plant.get("c1", float, low=0.0, high=100.0), cp=plant.get("cp", float, 0.0, low=-100.0, high=100.0),
             D=plant.get("D", float, 0.0, low=-100.0, high=100.0),
             torque_noise_Nm=sec.get("torque_noise_Nm", float, 0.0, low=0.0, high=10.0),
-            motor=motor, effects=effects)
+            motor=motor, effects=effects, brake=sec.get("brake", bool, True),
+            end_stops_rad=_end_stops(sec), initial_position_rad=sec.get("initial_position_rad", float, 0.0,
+                                                                          low=-1e6, high=1e6))
         plant.done()
         sec.done()
     axes_sec.done()

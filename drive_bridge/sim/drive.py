@@ -27,6 +27,7 @@ from typing import Callable, Protocol
 import numpy as np
 from canopen.sdo import SdoAbortedError
 
+from ..factor import OBJECTS as FACTOR_OBJECTS, FactorGroup
 from ..od import limits, load_od
 from ..params.profile import load_profile
 from ..pdo import PdoCodec
@@ -50,6 +51,10 @@ LOAD_SIGNATURE = 0x64616F6C      # 'load'
 # EMCY error codes (CiA 301 / 402)
 ERR_FOLLOWING = 0x8611
 ERR_RPDO_TIMEOUT = 0x8250
+ERR_HEARTBEAT = 0x8130           # heartbeat consumer: a watched node fell silent
+ERR_PDO_LENGTH = 0x8210          # PDO not processed: shorter than its mapping
+#: 0x6007 abort connection option code -> what the drive does when the master is lost in OPERATION ENABLED
+ABORT_FAULT, ABORT_DISABLE, ABORT_QUICK_STOP = 1, 2, 3
 SETPOINT_TIMEOUT_PERIODS = 10     # CSP: no setpoint for this many interpolation periods -> fault
 
 ABORT_TOO_LOW = 0x06090032
@@ -71,6 +76,8 @@ def plant_params(p, axis: "SimAxis", axis_names: list[str]) -> None:
     p[K.J], p[K.C0], p[K.C1], p[K.CP], p[K.D] = axis.J, axis.c0, axis.c1, axis.cp, axis.D
     p[K.KT], p[K.R], p[K.L], p[K.VBUS] = m.kt, m.R, m.L, m.vbus
     p[K.CPL_SRC] = -1.0
+    p[K.BRAKE] = 1.0 if axis.brake else 0.0
+    p[K.END_LO], p[K.END_HI] = axis.end_stops_rad or (0.0, 0.0)
     for values in axis.effects.values():
         for name, value in values.items():
             p[getattr(K, name)] = float(axis_names.index(value)) if name == "CPL_SRC" else value
@@ -122,12 +129,12 @@ class SimDrive:
         self._live = self._live_objects()
         self.pdos = PdoMapping(self.od, self._od, self._getter)
         encoder = self.od.get_variable(0x608F, 1)
+        #: the encoder's increments per rad (what the kernel quantises the position with)
         if encoder is not None and encoder.default:
             self.inc_per_rad = self._od(0x608F, 1) / self._od(0x608F, 2) / (2 * math.pi)
         else:
             self.inc_per_rad = self.spec.increments_per_rev / (2 * math.pi)
-        #: device velocity units per rad/s (accelerations: the same per s)
-        self.vel_per_si = 60 / (2 * math.pi) if self.spec.velocity_unit == "rpm" else self.inc_per_rad
+        self.pos_per_rad = self.vel_per_si = self.inc_per_rad
         self.modes = [m for m in supported_modes(self._supported_bits()) if m in IMPLEMENTED_MODES]
         self.s, self.p, self.d = rows      # kernel rows of this axis (views)
         self.online = True                 # False: the drive has dropped off the bus
@@ -162,6 +169,7 @@ class SimDrive:
             if not encoder_var.default:
                 self._store(0x608F, 1, round(self.inc_per_rad * 2 * math.pi))
                 self._store(0x608F, 2, 1)
+        self._units()
         if not self.spec.factory_in_file:
             f = factory()
             for (index, sub), (col, entry) in self.params.items():
@@ -182,6 +190,15 @@ class SimDrive:
     def _od_or(self, index: int, sub: int, fallback):
         """An object's value, or ``fallback`` where the drive has no such object."""
         return self._od(index, sub) if self.od.get_variable(index, sub) is not None else fallback
+
+    def _units(self) -> None:
+        """Device units per rad and per rad/s from the factor group the drive holds (its EDS
+        defaults until the master writes it); where its objects do not say, the encoder's
+        increments and the velocity unit of :mod:`.vendors`."""
+        group = FactorGroup.read(lambda i, s: self._od(i, s) if self.od.get_variable(i, s) is not None else None)
+        self.pos_per_rad = group.position_per_rad or self.inc_per_rad
+        self.vel_per_si = group.velocity_per_rad_s or (
+            60 / (2 * math.pi) if self.spec.velocity_unit == "rpm" else self.pos_per_rad)
 
     def _od(self, index: int, sub: int = 0):
         """Current value of an object, as the SDO server would return it (cached)."""
@@ -208,7 +225,8 @@ class SimDrive:
         for (index, sub), (col, entry) in self.params.items():
             p[col] = entry.to_si(self._od(index, sub))
         p[K.TMAX] = self._od_or(0x6072, 0, factory().max_torque_permille) / 1000.0 * self.rated_torque
-        p[K.FE_WINDOW] = self._od(0x6065) / self.inc_per_rad
+        self._units()
+        p[K.FE_WINDOW] = self._od(0x6065) / self.pos_per_rad
         self.state = SWITCH_ON_DISABLED
         self.nmt_state = NMT_PREOP
         self.controlword = 0
@@ -236,6 +254,8 @@ class SimDrive:
         self.d[:] = 0.0
         self.d[K.P0] = self.d[K.P1] = self.s[K.ENC] = self._last_count / self.inc_per_rad
         self._rebuild_pdos()
+        self._heard = {}
+        self._consumers_changed()
         self._refresh_actuals(noise=False)
 
     # ------------------------------------------------------------------ NMT
@@ -282,10 +302,55 @@ class SimDrive:
             self._store(0x6502, 0, self.spec.supported_modes)
 
     def heartbeat_due(self, now: float) -> None:
+        """Its own heartbeat and its event-driven TPDOs, when due."""
         period = self._od(0x1017) / 1000.0
         if period > 0 and now >= self._hb_next - 1e-9:
             self._send(0x700 + self.node_id, bytes([self.nmt_state]))
             self._hb_next = max(self._hb_next + period, now)
+        if self.nmt_state == NMT_OPERATIONAL and self.pdos.events:
+            self.refresh_actuals()
+            for pdo in self.pdos.events:
+                data = pdo.codec.struct.pack(*[g() for g in pdo.getters])
+                if pdo.due(now, data):
+                    self._send(pdo.codec.cob_id, data)
+
+    # ------------------------------------------------------------------ heartbeat consumer
+    def _consumers_changed(self) -> None:
+        """0x1016: the nodes whose heartbeat the drive watches and for how long [s]; watching a
+        node starts with its first heartbeat (CiA 301)."""
+        self.consumers: dict[int, float] = {}
+        if self.od.get_variable(0x1016, 1) is not None:
+            for sub in range(1, len(self.od[0x1016])):
+                value = self._od(0x1016, sub)
+                if value >> 16 & 0x7F and value & 0xFFFF:
+                    self.consumers[value >> 16 & 0x7F] = (value & 0xFFFF) / 1000.0
+        self._heard = {n: t for n, t in getattr(self, "_heard", {}).items() if n in self.consumers}
+        self.host.routes_changed()
+
+    def on_heartbeat(self, node: int) -> None:
+        if node in self.consumers:
+            self._heard[node] = self.host.time
+
+    def supervise(self, now: float) -> None:
+        """A watched node silent for longer than its consumer time: EMCY 0x8130, the NMT state
+        falls back to pre-operational (0x1029's default) and, in OPERATION ENABLED, the drive does
+        what its abort connection option 0x6007 says (a drive without 0x6007 does nothing)."""
+        for node, last in list(self._heard.items()):
+            if now - last <= self.consumers[node] + 1e-9:
+                continue
+            del self._heard[node]                   # once; the node's next heartbeat watches it again
+            self._emcy(ERR_HEARTBEAT)
+            if self.nmt_state == NMT_OPERATIONAL:
+                self.nmt_state = NMT_PREOP
+            if self.state != ENABLED:
+                continue
+            option = self._od_or(0x6007, 0, 0)
+            if option == ABORT_FAULT:
+                self.fault(ERR_HEARTBEAT)
+            elif option == ABORT_DISABLE:
+                self._go(SWITCH_ON_DISABLED)
+            elif option == ABORT_QUICK_STOP:
+                self._go(QUICK_STOP)
 
     # ------------------------------------------------------------------ SDO hooks
     def _on_sdo_read(self, index: int, subindex: int, od) -> int | None:
@@ -316,6 +381,11 @@ class SimDrive:
         self._write(index, subindex, value)
         if index not in self._live:
             self._cache[(index, subindex)] = value      # LocalNode stores the bytes after this
+        if index in FACTOR_OBJECTS:                     # new units: every position value is read anew
+            self._units()
+            self.p[K.FE_WINDOW] = self._od(0x6065) / self.pos_per_rad
+        elif index == 0x1016:
+            self._consumers_changed()
 
     def _write(self, index: int, sub: int, value) -> None:
         """Apply a value written by SDO or RPDO; raise SdoAbortedError to refuse it."""
@@ -331,6 +401,9 @@ class SimDrive:
                 raise SdoAbortedError(ABORT_RANGE)
             if value != self.mode and self.state == ENABLED:
                 self._hold_position()
+                if value == CSP:
+                    self.mode = value
+                    self._take_target()
             self.mode = value
         elif index == 0x60B2:                               # torque offset [per mille of rated torque]
             self.d[K.T_OFF] = value / 1000.0 * self.rated_torque
@@ -353,7 +426,7 @@ class SimDrive:
         elif index == 0x1017:
             self._hb_next = self.host.time + value / 1000.0     # first beat one period from now
         elif index == 0x6065:
-            self.p[K.FE_WINDOW] = value / self.inc_per_rad
+            self.p[K.FE_WINDOW] = value / self.pos_per_rad
         elif index == 0x6072:
             self.p[K.TMAX] = value / 1000.0 * self.rated_torque
         elif index == 0x1010 and sub == 1:
@@ -393,6 +466,7 @@ class SimDrive:
             return
         codec, ttype = self.rpdos[cob_id]
         if len(data) < codec.struct.size:
+            self._emcy(ERR_PDO_LENGTH)                  # CiA 301: not processed, length error
             return
         if ttype <= 240:
             self.pending_rpdo.append((codec, data))     # synchronous: applied on the next SYNC
@@ -449,7 +523,7 @@ class SimDrive:
         if not cw & 0x10:
             self.setpoint_ack = False                       # the handshake: bit 12 follows bit 4 down
         if self.state == ENABLED and self.mode == PP and new_setpoint:
-            target = self._od(0x607A) / self.inc_per_rad
+            target = self._od(0x607A) / self.pos_per_rad
             self.pp_target = target if not cw & 0x40 else self.d[K.P1] + target
             self.pp_goal = self.pp_target
             self.setpoint_ack = True                        # statusword bit 12: set-point acknowledged
@@ -464,10 +538,18 @@ class SimDrive:
             self.s[K.V_INT] = self.s[K.I_INT] = 0.0
             self._hold_position()
             self.setpoint_armed = False
+            if self.mode == CSP:
+                self._take_target()
         elif state != QUICK_STOP:
             self.s[K.ENABLED] = 0.0
         self.target_reached = False        # bit 10 belongs to the state it was set in
         self.state = state
+
+    def _take_target(self) -> None:
+        """CSP from now on: the demand is the target position 0x607A as it stands, wherever the
+        axis is (a stale target makes it jump, as on a real drive)."""
+        self.setpoint_inc = self._od(0x607A)
+        self.d[K.P0] = self.d[K.P1] = self._limit(self.setpoint_inc / self.pos_per_rad)
 
     def _hold_position(self) -> None:
         self.d[K.P0] = self.d[K.P1] = self.s[K.ENC]
@@ -519,7 +601,7 @@ class SimDrive:
         self.internal_limit = False
         if self.following:
             if self.new_target:
-                d[K.P1] = self._limit(self.setpoint_inc / self.inc_per_rad)
+                d[K.P1] = self._limit(self.setpoint_inc / self.pos_per_rad)
             self.v_dem = (d[K.P1] - d[K.P0]) / T
         elif self.state == QUICK_STOP:
             self._ramp(0.0, self._od_or(0x6085, 0, factory().quick_stop_rad_s2 * self.vel_per_si) / self.vel_per_si, T)
@@ -559,7 +641,7 @@ class SimDrive:
         lo, hi = self._od(0x607D, 1), self._od(0x607D, 2)
         if lo >= hi:
             return position
-        lo, hi = lo / self.inc_per_rad, hi / self.inc_per_rad
+        lo, hi = lo / self.pos_per_rad, hi / self.pos_per_rad
         if position < lo or position > hi:
             self.internal_limit = True
             return min(max(position, lo), hi)
@@ -572,7 +654,7 @@ class SimDrive:
         if self.state not in (ENABLED, QUICK_STOP):
             return
         if self.state == ENABLED and self.mode == PP and self.pp_target is None and self.pp_goal is not None:
-            inside = abs(self.s[K.ENC] - self.pp_goal) * self.inc_per_rad <= self._od_or(0x6067, 0, 1000)
+            inside = abs(self.s[K.ENC] - self.pp_goal) * self.pos_per_rad <= self._od_or(0x6067, 0, 1000)
             if not inside:
                 self._in_window_since = None
             elif self._in_window_since is None:
@@ -608,7 +690,8 @@ class SimDrive:
         self._torque_pm = max(-32768, min(32767, round(torque / self.rated_torque * 1000)))
         per_unit = 1e-3 if self.spec.current_unit == "mA" else self.rated_current_A / 1000.0
         self._current = max(-32768, min(32767, round(current / per_unit)))
-        self._position_inc = max(-2**31, min(2**31 - 1, count))
+        position = count if self.pos_per_rad == self.inc_per_rad else round(count / self.inc_per_rad * self.pos_per_rad)
+        self._position_inc = max(-2**31, min(2**31 - 1, position))
 
     def _live_objects(self) -> dict[int, Callable[[], int]]:
         """Objects whose value the drive measures or computes instead of storing."""
@@ -619,7 +702,7 @@ class SimDrive:
             0x6064: lambda: self._position_inc,
             0x606C: lambda: self._velocity,
             0x6077: lambda: self._torque_pm,
-            0x60F4: lambda: round(self.s[K.FERR] * self.inc_per_rad),
+            0x60F4: lambda: round(self.s[K.FERR] * self.pos_per_rad),
             0x603F: lambda: self.error_code,
             0x1001: lambda: 0x01 if self.state == FAULT else 0x00,
         }

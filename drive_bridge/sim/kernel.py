@@ -15,7 +15,10 @@ Plant, per axis (``sign`` = direction of motion)::
     friction = (c1 + dc1*sign)*v + (c0*drift(t) + dc0*sign + cpl*q_src + S*exp(-(v/vs)^2))*sign
 
 with stiction at rest: the axis stays stopped while the driving torque is
-within the breakaway friction, and stops when its velocity crosses zero.
+within the breakaway friction, and stops when its velocity crosses zero.  With the power stage
+off, an axis with a holding brake (``BRAKE`` = 1) stands still; one without is moved by its load
+alone (a vertical axis whose load exceeds its friction falls).  Mechanical end stops
+``END_LO`` < ``END_HI`` (where set) stop the axis dead.
 
 Drive, per axis: the position demand between two CSP setpoints is the parabola
 through the last three (``A_FF`` is their second difference), so velocity and
@@ -48,8 +51,8 @@ N_STATE = 16
  KPP, FWF, KPS, KIS, KPC, KIC,
  FF_EN, FF_J, FF_C0, FF_C1, FF_OFF, FF_CP, FF_DC0, FF_DC1, FF_PER_AMP, FF_PER_PERIOD, FF_PER_PHASE,
  LOAD, PER_AMP, PER_PERIOD, PER_PHASE, STR_AMP, STR_VEL, ASYM_DC0, ASYM_DC1,
- CPL_SRC, CPL_COEF, DRIFT_FRAC, DRIFT_TAU, FE_WINDOW) = range(41)
-N_PARAM = 41
+ CPL_SRC, CPL_COEF, DRIFT_FRAC, DRIFT_TAU, FE_WINDOW, BRAKE, END_LO, END_HI) = range(44)
+N_PARAM = 44
 
 # --- demand columns (one row per axis, set once per SYNC period) ----------------------
 P0, P1, A_FF, V_OFF, T_OFF = range(5)
@@ -145,10 +148,11 @@ def advance(state, param, demand, tick0, n_ticks, ticks_per_period):
             for a in range(n_axes):
                 s = state[a]
                 p = param[a]
-                if s[ENABLED] == 0.0:    # power stage off, holding brake engaged
+                if s[ENABLED] == 0.0:    # power stage off: no current; the brake, if any, holds
                     s[I] = 0.0
                     s[I_INT] = 0.0
-                    s[V] = 0.0
+                    if p[BRAKE] != 0.0:
+                        s[V] = 0.0
                     continue
                 kt = p[KT]
                 e_i = s[TCMD] / kt - s[I]
@@ -167,7 +171,7 @@ def advance(state, param, demand, tick0, n_ticks, ticks_per_period):
             for a in range(n_axes):
                 s = state[a]
                 p = param[a]
-                if s[ENABLED] == 0.0:
+                if s[ENABLED] == 0.0 and p[BRAKE] != 0.0:
                     continue
                 q = s[Q]
                 v = s[V]
@@ -197,7 +201,15 @@ def advance(state, param, demand, tick0, n_ticks, ticks_per_period):
                     v_new = v + (net - friction) / p[J] * dt_c
                     if v_new * v < 0.0:      # crossed zero within the step: stick
                         v_new = 0.0
-                s[Q] = q + 0.5 * (v + v_new) * dt_c
+                q_new = q + 0.5 * (v + v_new) * dt_c
+                if p[END_LO] < p[END_HI]:           # a mechanical end stop: the axis stops dead there
+                    if q_new < p[END_LO]:
+                        q_new = p[END_LO]
+                        v_new = 0.0
+                    elif q_new > p[END_HI]:
+                        q_new = p[END_HI]
+                        v_new = 0.0
+                s[Q] = q_new
                 s[V] = v_new
         for a in range(n_axes):
             state[a, T] += dt_v
@@ -208,5 +220,6 @@ def new_arrays(n_axes: int):
     state = np.zeros((n_axes, N_STATE))
     param = np.zeros((n_axes, N_PARAM))
     param[:, CPL_SRC] = -1.0
+    param[:, BRAKE] = 1.0
     demand = np.zeros((n_axes, N_DEMAND))
     return state, param, demand

@@ -13,7 +13,7 @@ from __future__ import annotations
 import os
 import time
 
-from ..master.link import MasterNetwork, TraceRecorder
+from ..master.link import BusErrors, MasterNetwork, TraceRecorder, heartbeat_frame
 from .robot import SimRobot
 from .adapters import FastVirtualBus
 
@@ -49,6 +49,8 @@ class LockstepLink:
         self.network = MasterNetwork(self.bus, self.clock)
         self.network.after_send = self._after_send
         self._notify = self.network.notify
+        self.bus_errors = BusErrors()          # a virtual bus has none; the contract has them
+        self._heartbeat = None
         robot.power_on()
         self.pump()
 
@@ -73,6 +75,29 @@ class LockstepLink:
                 trace.on_message_received(msg)
             notify(msg.arbitration_id, msg.data, msg.timestamp)
 
+    def start_heartbeat(self, node_id: int, period: float) -> None:
+        """In simulation time: each beat is handed to the drives (and the trace) at the instant it
+        is due while the robot advances, however long the master waits."""
+        self.stop_heartbeat()
+        due = [self.robot.time]
+
+        def beat(now: float) -> None:
+            while now >= due[0] - 1e-9:
+                msg = heartbeat_frame(node_id, due[0])
+                for trace in self.network.traces:
+                    trace.on_message_received(msg)
+                self.robot.dispatch(msg)
+                due[0] += period
+        self._heartbeat = beat
+        self.robot.timers.append(beat)
+        beat(self.robot.time)
+
+    def stop_heartbeat(self) -> None:
+        if self._heartbeat is not None:
+            self.robot.timers.remove(self._heartbeat)
+            self._heartbeat = None
+
     def close(self) -> None:
+        self.stop_heartbeat()
         self.bus.shutdown()
         self.robot.shutdown()

@@ -1,9 +1,12 @@
 """The PDOs of a simulated drive as the master maps them, with CiA 301's rules for a mapping
-change: the COB-ID changes only while the PDO is invalid, the mapping only while the PDO is
-invalid and its sub-index 0 is 0, only PDO-mappable objects of the right direction, at most
-8 entries and 64 bits."""
+change: the COB-ID changes only while the PDO is invalid and never to a restricted CAN-ID, the
+mapping only while the PDO is invalid and its sub-index 0 is 0, only PDO-mappable objects of the
+right direction with their own length, at most 8 entries and 64 bits; no reserved transmission
+type.  Event-driven TPDOs (254, 255) go out on a change of their data (no sooner than the
+inhibit time after the last) and when their event timer runs out."""
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 from typing import Callable
 
 import canopen
@@ -17,6 +20,37 @@ ABORT_RANGE = 0x06090030
 ABORT_STATE = 0x08000022
 ABORT_NOT_MAPPABLE = 0x06040041
 ABORT_PDO_LENGTH = 0x06040042
+#: CiA 301 §7.3.5: CAN-IDs no PDO may use (NMT, SYNC/EMCY, TIME, SDO, NMT error control, LSS)
+RESTRICTED_IDS = (range(0x000, 0x080), range(0x101, 0x181), range(0x581, 0x600), range(0x601, 0x680),
+                  range(0x6E0, 0x700), range(0x701, 0x780), range(0x780, 0x800))
+RESERVED_TRANSMISSION = {"t": range(241, 252), "r": range(241, 254)}
+CAN_29BIT = 0x2000_0000
+
+
+def restricted(cob_id: int) -> bool:
+    """Whether a PDO COB-ID's CAN-ID is one CiA 301 reserves for other services."""
+    return any((cob_id & 0x7FF) in r for r in RESTRICTED_IDS)
+
+
+@dataclass
+class EventPdo:
+    """An event-driven TPDO: its codec, the getters of its objects, inhibit time and event timer [s]."""
+
+    codec: PdoCodec
+    getters: list[Callable[[], int]]
+    inhibit_s: float
+    timer_s: float
+    last_time: float = -float("inf")
+    last_data: bytes | None = field(default=None, repr=False)
+
+    def due(self, now: float, data: bytes) -> bool:
+        """Whether to send ``data`` now (and, if so, noted as sent)."""
+        if now - self.last_time < self.inhibit_s - 1e-9:
+            return False
+        if data == self.last_data and not (self.timer_s and now - self.last_time >= self.timer_s - 1e-9):
+            return False
+        self.last_time, self.last_data = now, data
+        return True
 
 
 class PdoMapping:
@@ -31,6 +65,7 @@ class PdoMapping:
         self.od, self._value, self._getter = od, value, getter
         self.rpdos: dict[int, tuple[PdoCodec, int]] = {}
         self.tpdos: list[tuple[PdoCodec, int, list[Callable[[], int]]]] = []
+        self.events: list[EventPdo] = []
 
     def check_write(self, index: int, sub: int, value: int) -> None:
         """Raise SdoAbortedError when a write to a PDO parameter breaks CiA 301's rules."""
@@ -41,6 +76,10 @@ class PdoMapping:
             if sub == 1 and not cob & PDO_INVALID and not value & PDO_INVALID and \
                     (value & 0x7FF) != (cob & 0x7FF):
                 raise SdoAbortedError(ABORT_RANGE)    # change the COB-ID only while invalid
+            if sub == 1 and (value & CAN_29BIT or (not value & PDO_INVALID and restricted(value))):
+                raise SdoAbortedError(ABORT_RANGE)    # a restricted CAN-ID, or 29-bit (not supported)
+            if sub == 2 and value in RESERVED_TRANSMISSION["t" if index >= 0x1800 else "r"]:
+                raise SdoAbortedError(ABORT_RANGE)    # reserved transmission type
             return
         if not cob & PDO_INVALID:
             raise SdoAbortedError(ABORT_STATE)        # map only while the PDO is invalid
@@ -48,7 +87,7 @@ class PdoMapping:
             bits = 0
             for n in range(1, value + 1):
                 entry = self._value(index, n)
-                if self._mappable(entry >> 16, (entry >> 8) & 0xFF, tpdo=index >= 0x1A00) is None:
+                if self._mappable(entry >> 16, (entry >> 8) & 0xFF, index >= 0x1A00, entry & 0xFF) is None:
                     raise SdoAbortedError(ABORT_NOT_MAPPABLE)
                 bits += entry & 0xFF
             if value > 8 or bits > 64:
@@ -56,18 +95,22 @@ class PdoMapping:
         else:
             if self._value(index, 0) != 0:
                 raise SdoAbortedError(ABORT_STATE)    # sub 0 must be 0 while entries change
-            if value and self._mappable(value >> 16, (value >> 8) & 0xFF, tpdo=index >= 0x1A00) is None:
+            if value and self._mappable(value >> 16, (value >> 8) & 0xFF, index >= 0x1A00, value & 0xFF) is None:
                 raise SdoAbortedError(ABORT_NOT_MAPPABLE)
 
-    def _mappable(self, index: int, sub: int, tpdo: bool) -> ODVariable | None:
+    def _mappable(self, index: int, sub: int, tpdo: bool, bits: int | None = None) -> ODVariable | None:
+        """The object an entry maps, None where it cannot be mapped so (not mappable, the wrong
+        direction, or ``bits`` other than its own length)."""
         var = self.od.get_variable(index, sub)
         if var is None or not var.pdo_mappable or (tpdo and not var.readable) or (not tpdo and not var.writable):
+            return None
+        if bits is not None and bits != len(var):
             return None
         return var
 
     def rebuild(self) -> None:
         """Compile the codecs of every valid PDO."""
-        self.rpdos, self.tpdos = {}, []
+        self.rpdos, self.tpdos, self.events = {}, [], []
         for n in range(4):
             for comm, mapping, table in ((0x1400 + n, 0x1600 + n, "r"), (0x1800 + n, 0x1A00 + n, "t")):
                 if comm not in self.od:                    # the drive has fewer PDOs
@@ -81,5 +124,9 @@ class PdoMapping:
                 ttype = self._value(comm, 2)
                 if table == "r":
                     self.rpdos[codec.cob_id] = (codec, ttype)
+                elif ttype in (254, 255):
+                    sub = lambda k: self._value(comm, k) if self.od.get_variable(comm, k) is not None else 0  # noqa: E731
+                    self.events.append(EventPdo(codec, [self._getter(i, s) for i, s in codec.entries],
+                                                sub(3) * 1e-4, sub(5) * 1e-3))
                 else:
                     self.tpdos.append((codec, ttype, [self._getter(i, s) for i, s in codec.entries]))

@@ -60,11 +60,12 @@ class SimProcess:
         self.bus.shutdown()
 
 
-def main(config_path: str, port: str, sync_period: str, eds: str = "{}") -> None:
+def serve(config_path, bus, sync_period: float, eds: dict, until) -> None:
+    """Run the simulated drives of ``config_path`` on ``bus`` against the wall clock; print
+    ``ready`` once they are on the bus; ``until()`` returns when they are to stop."""
     from .config import load_sim_config
     from .robot import SimRobot
-    robot = SimRobot(load_sim_config(config_path), bus=LoopbackMulticastBus(GROUP, int(port)),
-                     sync_period=float(sync_period), eds=json.loads(eds))
+    robot = SimRobot(load_sim_config(config_path), bus=bus, sync_period=sync_period, eds=eds)
     # Out of the cycle collector's reach: a full collection walking three object dictionaries
     # stops the drives for tens of ms, longer than the master's missing-feedback limit.
     gc.collect()
@@ -72,8 +73,15 @@ def main(config_path: str, port: str, sync_period: str, eds: str = "{}") -> None
     robot.start_realtime()
     robot.power_on()
     print("ready", flush=True)
-    sys.stdin.read()                     # until the master closes the pipe
-    robot.shutdown()
+    try:
+        until()
+    finally:
+        robot.shutdown()
+
+
+def main(config_path: str, port: str, sync_period: str, eds: str = "{}") -> None:
+    serve(config_path, LoopbackMulticastBus(GROUP, int(port)), float(sync_period), json.loads(eds),
+          sys.stdin.read)                # until the master closes the pipe
 
 
 if __name__ == "__main__":

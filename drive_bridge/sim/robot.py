@@ -56,9 +56,12 @@ class SimRobot:
         # compile (or load from numba's cache) now, not while a clock is running
         K.advance(self.state, self.param, self.demand, self._tick0, 0, self.ticks_per_period)
         self._routes: dict[int, callable] = {}
+        #: called with the time after each advance (a lockstep master's heartbeat, in simulation time)
+        self.timers: list = []
         self.drives: dict[str, SimDrive] = {}      # filled before the first routes_changed() counts
         names = list(config.axes)
         for i, (name, axis) in enumerate(config.axes.items()):
+            self.state[i, K.Q] = axis.initial_position_rad
             path = eds.get(name, PROJECT_EDS) if isinstance(eds, dict) else eds
             self.drives[name] = SimDrive(self, i, axis, str(path),
                                          (self.state[i], self.param[i], self.demand[i]), names)
@@ -79,10 +82,15 @@ class SimRobot:
     def routes_changed(self) -> None:
         """Rebuild the COB-ID -> handler table (after a PDO mapping change)."""
         routes = {0x000: self._on_nmt, 0x080: self._on_sync}
+        watchers: dict[int, list[SimDrive]] = {}
         for drive in self.drives.values():
             routes[0x600 + drive.node_id] = self._sdo_handler(drive)
             for cob_id in drive.rpdos:
                 routes[cob_id] = self._rpdo_handler(drive, cob_id)
+            for node in drive.consumers:
+                watchers.setdefault(node, []).append(drive)
+        for node, drives in watchers.items():
+            routes[0x700 + node] = self._heartbeat_handler(node, drives)
         self._routes = routes
 
     @staticmethod
@@ -97,6 +105,14 @@ class SimRobot:
         def handle(data: bytes) -> None:
             if drive.online:
                 drive.on_rpdo(cob_id, data)
+        return handle
+
+    @staticmethod
+    def _heartbeat_handler(node: int, drives: list[SimDrive]):
+        def handle(data: bytes) -> None:
+            for drive in drives:
+                if drive.online:
+                    drive.on_heartbeat(node)
         return handle
 
     def dispatch(self, msg: can.Message) -> None:
@@ -141,10 +157,14 @@ class SimRobot:
         K.advance(self.state, self.param, self.demand, self._tick0, n_ticks, self.ticks_per_period)
         self._tick0 += n_ticks
         self.time = float(self.state[0, K.T])
+        for timer in self.timers:
+            timer(self.time)
         for drive in self.drives.values():
             if drive.internal_profile and self._tick0[drive.index] >= self.ticks_per_period:
                 drive.next_period()
                 self._tick0[drive.index] = 0
+            if drive.online:
+                drive.supervise(self.time)
             drive.check_faults()
             if drive.online:
                 drive.heartbeat_due(self.time)

@@ -1,0 +1,164 @@
+"""The hazards of a real machine, each against strict simulated drives: enabling with a stale
+target, a vertical axis without a brake after a motion, a quick stop and Ctrl-C, a master that
+falls silent, a drive in units bus.yml does not assume.  Each test fails against a master that
+enables by SDO, ends a motion with Shutdown, quick-stops without 0x605A, sends no heartbeat, or
+takes its units from bus.yml alone."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from drive_bridge.master.bringup import bring_up
+from drive_bridge.master.cia402 import state_name
+from drive_bridge.sim import kernel as K
+from drive_bridge.tuning.motion import run
+
+from ..support import Bench, clean_config, quick_config
+
+Z = 2          # Z's row in the kernel arrays
+
+
+def _z_at(b) -> float:
+    return float(b.robot.state[Z, K.Q])
+
+
+@pytest.fixture
+def robot(shipped_sim_config):
+    """The shipped robot: Z has gravity above its friction, no brake, rests on its lower end stop."""
+    b = Bench(shipped_sim_config)
+    config = quick_config()
+    return b, config, bring_up(b.link, config)
+
+
+def test_enabling_with_a_stale_target_does_not_move_the_axis():
+    b = Bench(clean_config())
+    config = quick_config()
+    axes = bring_up(b.link, config)
+    start = axes["y"].position_rad()
+    axes["y"].node.sdo[0x607A].raw = axes["y"].node.sdo[0x6064].raw + 2_000_000      # left by an earlier program
+    motion = run(config, b.link, {"y": axes["y"]}, {"y": np.full(100, start)})
+    assert motion.aborted is None
+    assert np.max(np.abs(motion.position["y"] - start)) < 1e-4
+
+
+def test_z_holds_its_position_for_10_s_after_a_motion(robot):
+    b, config, axes = robot
+    x0 = axes["x"].position_rad()
+    motion = run(config, b.link, axes, {"x": np.full(50, x0 + 1.0), "z": np.full(50, 0.0)})
+    assert motion.aborted is None
+    assert state_name(axes["z"].drive.statusword()) == "OPERATION ENABLED"
+    held = _z_at(b)
+    assert abs(held) < 0.01                              # it got there ...
+    b.link.clock.sleep(10.0)
+    assert abs(_z_at(b) - held) < 1e-3                  # ... and stays, powered: no fall
+    assert state_name(axes["x"].drive.statusword()) == "READY TO SWITCH ON"     # holding: brake
+
+
+@pytest.mark.parametrize("how", ["guard", "ctrl-c"])
+def test_z_holds_its_position_for_10_s_after_a_quick_stop(robot, how):
+    b, config, axes = robot
+    calls = []
+
+    def guard(_velocities):
+        calls.append(1)
+        if len(calls) == 600:                            # mid-approach, Z moving up at 46 mm/s
+            if how == "ctrl-c":
+                raise KeyboardInterrupt
+            return "stop for the test"
+        return None
+    motion = run(config, b.link, axes, {"z": np.full(50, 0.0)}, guard=guard)
+    assert motion.aborted is not None
+    assert state_name(axes["z"].drive.statusword()) == "QUICK STOP ACTIVE"
+    stopped = _z_at(b)
+    assert stopped > -70.0                               # it stopped off its end stop
+    b.link.clock.sleep(0.5)                              # the stop settles (stiction, then the integrator)
+    held = _z_at(b)
+    assert abs(held - stopped) < 0.02
+    b.link.clock.sleep(10.0)
+    assert abs(_z_at(b) - held) < 1e-3
+
+
+def test_every_moving_drive_quick_stops_by_itself_when_the_master_heartbeat_stops(robot):
+    """Bring-up set each drive's heartbeat consumer (0x1016), abort connection option (0x6007:
+    quick stop) and quick stop option (0x605A: ramp and hold); the master then falls silent 1 s
+    into a motion of all three axes."""
+    b, config, axes = robot
+    emcy = {a: [] for a in axes}
+    for a, ax in axes.items():
+        ax.node.emcy.add_callback(lambda e, a=a: emcy[a].append((b.robot.time, e.code)))
+    silent, speeds = {}, []
+    b.robot.timers.append(lambda t: speeds.append((t, *np.abs(b.robot.state[:, K.V]))))
+
+    def guard(_velocities):
+        if b.robot.time > 1.0 and not silent:
+            b.link.stop_heartbeat()                       # as a SIGKILL would
+            silent["t"] = b.robot.time
+        return None
+    start = {a: ax.position_rad() for a, ax in axes.items()}
+    run(config, b.link, axes, {a: np.full(50, start[a] + 8.0) for a in axes}, guard=guard)
+    period = config.master.heartbeat_period_s
+    for a in axes:
+        t_emcy = min(t for t, code in emcy[a] if code == 0x8130)
+        assert t_emcy - silent["t"] <= 3 * period + 0.01, a
+    ramp = max(axes[a].cfg.limits.max_velocity * 0.2 / axes[a].cfg.drive_limits.quick_stop_deceleration
+               for a in axes)
+    still = next(t for t, *v in speeds if t > silent["t"] and max(v) < 0.05)
+    assert still - silent["t"] <= 3 * period + ramp + 0.05
+    assert state_name(axes["z"].drive.statusword()) == "QUICK STOP ACTIVE"      # and holds, powered
+    held = _z_at(b)
+    b.link.clock.sleep(5.0)
+    assert abs(_z_at(b) - held) < 1e-3
+
+
+def _nanotec(tmp_path, from_drive: bool):
+    """config/examples/nanotec_c5e.yml without the factor-group writes (the drive on factory units)."""
+    import yaml
+
+    from drive_bridge.resources import data
+    path = data("config", "examples", "nanotec_c5e.yml")
+    doc = yaml.safe_load(path.read_text())
+    doc["defaults"].pop("sdo", None)
+    if from_drive:
+        doc["defaults"]["scaling"] = {"from_drive": True, "rated_torque_Nm": 1.27}
+    out = tmp_path / "bus.yml"
+    out.write_text(yaml.safe_dump(doc))
+    return out
+
+
+def test_a_nanotec_on_factory_units_is_refused_before_anything_moves(tmp_path):
+    from drive_bridge.config import load_bus_config
+    from drive_bridge.errors import DriveRefused
+    from drive_bridge.resources import vendor_dir
+    eds = vendor_dir() / "nanotec_C5-E-2-09.eds"
+    if not eds.exists():
+        pytest.skip("../shared/eds-vendor not present")
+    config = load_bus_config(_nanotec(tmp_path, from_drive=False))
+    b = Bench(clean_config(), eds=eds)
+    writes = []
+    for drive in b.robot.drives.values():
+        drive.sdo_fault = lambda op, index, sub: writes.append((index, sub)) if op == "write" else None
+    with pytest.raises(DriveRefused) as exc:
+        bring_up(b.link, config)
+    msg = str(exc.value)
+    assert "0.1 °" in msg and "0xFF410000" in msg and "18.2× the planned stroke" in msg
+    assert "from_drive" in msg and "0x60A8" in msg
+    assert not [w for w in writes if w[0] in (0x607D, 0x6065, 0x6040) or 0x1400 <= w[0] < 0x1C00]
+
+
+def test_from_drive_commissions_a_nanotec_on_factory_units_with_the_planned_stroke(tmp_path):
+    from drive_bridge.config import load_bus_config
+    from drive_bridge.resources import vendor_dir
+    eds = vendor_dir() / "nanotec_C5-E-2-09.eds"
+    if not eds.exists():
+        pytest.skip("../shared/eds-vendor not present")
+    config = load_bus_config(_nanotec(tmp_path, from_drive=True))
+    b = Bench(clean_config(), eds=eds)
+    axes = bring_up(b.link, config)
+    assert axes["y"].cfg.scaling.inc_per_rad == pytest.approx(3600 / (2 * np.pi))
+    assert axes["y"].units["position_unit"].startswith("0.1 °")
+    start = axes["y"].position_rad()
+    target = start + 20.0                                     # rad, motor side
+    motion = run(config, b.link, {"y": axes["y"]}, {"y": np.full(100, target)})
+    assert motion.aborted is None
+    moved = float(b.robot.state[1, K.Q]) - start
+    assert moved == pytest.approx(20.0, rel=0.01)

@@ -1,0 +1,80 @@
+"""``drive-bridge sim``: the simulated drives as a process of their own on udp_multicast, and a
+master killed with SIGKILL mid-campaign: every drive stops through its own heartbeat consumer."""
+from __future__ import annotations
+
+import os
+import select
+import signal
+import subprocess
+import sys
+import time
+
+import canopen
+import yaml
+
+from drive_bridge.master.cia402 import state_name
+from drive_bridge.master.link import UDP_GROUP
+from drive_bridge.sim.adapters import LoopbackMulticastBus
+from drive_bridge.sim.process import free_port
+
+from ..support import bus_yml_beside
+
+
+def _wait_for(stream, text: str, timeout: float) -> str:
+    """Lines of ``stream`` up to the first that holds ``text``."""
+    seen, deadline = [], time.time() + timeout
+    while time.time() < deadline:
+        if select.select([stream], [], [], 0.5)[0]:
+            line = stream.readline()
+            seen.append(line)
+            if text in line:
+                return "".join(seen)
+    raise AssertionError(f"{text!r} did not come within {timeout} s; got {''.join(seen)!r}")
+
+
+def test_a_master_killed_mid_campaign_leaves_every_drive_stopped_by_its_heartbeat_consumer(tmp_path):
+    port = free_port()
+    cfg = bus_yml_beside(tmp_path)
+    doc = yaml.safe_load(cfg.read_text())
+    doc["master"].update(interface="udp_multicast", channel=UDP_GROUP, can_options={"port": port})
+    cfg.write_text(yaml.safe_dump(doc))
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    drives = subprocess.Popen([sys.executable, "-m", "drive_bridge", "sim", "--config", str(cfg), "--port", str(port)],
+                              stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, env=env)
+    monitor = None
+    try:
+        _wait_for(drives.stdout, "ready", 120)
+        monitor = canopen.Network(LoopbackMulticastBus(UDP_GROUP, port))
+        monitor.connect()
+        emcy = []
+        for node_id in (1, 2, 3):
+            monitor.subscribe(0x80 + node_id, lambda cob, data, ts: emcy.append((cob & 0x7F, data[0] | data[1] << 8,
+                                                                                   time.time())))
+        master = subprocess.Popen([sys.executable, "-m", "drive_bridge", "record", "--config", str(cfg), "--quick",
+                                   "--out", str(tmp_path / "run")], stdout=subprocess.DEVNULL,
+                                  stderr=subprocess.PIPE, text=True, env=env)
+        _wait_for(master.stderr, "campaign:", 120)
+        time.sleep(1.0)                                   # X is on its way to the campaign's start
+        master.send_signal(signal.SIGKILL)
+        killed = time.time()
+        master.wait()
+        node = monitor.add_node(1, None)                  # SDO only: no object dictionary needed
+        speeds = []
+        while time.time() < killed + 1.5:
+            raw = node.sdo.upload(0x606C, 0)
+            speeds.append((time.time(), abs(int.from_bytes(raw, "little", signed=True))))
+            time.sleep(0.01)
+        lost = [t for n, code, t in emcy if n == 1 and code == 0x8130]
+        assert lost and lost[0] - killed <= 3 * 0.1 + 0.1          # 3 heartbeat periods (+ the wall clock's slack)
+        stopped = next(t for t, v in speeds if t > lost[0] and v < 8000)     # < 0.05 rad/s in increments/s
+        assert stopped - killed <= 3 * 0.1 + 0.01 + 0.15          # ... plus the quick-stop ramp
+        statusword = int.from_bytes(node.sdo.upload(0x6041, 0), "little")
+        assert state_name(statusword) == "QUICK STOP ACTIVE"      # stopped, and holding
+    finally:
+        if monitor is not None:
+            monitor.disconnect()
+        drives.send_signal(signal.SIGINT)
+        try:
+            drives.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            drives.kill()
