@@ -28,6 +28,7 @@ import yaml
 
 from .config import BusConfig, NodeConfig
 from .dcf import write_dcf
+from .errors import UserError
 from .master.bringup import settings
 
 
@@ -61,7 +62,7 @@ def export(config: BusConfig, out: str | Path) -> list[Path]:
         dcf = out / f"{axis}.dcf"
         write_dcf(n.od, dcf, n.node_id, m.nominal_bitrate, {})      # the device: no ParameterValue
         written.append(dcf)
-        doc["nodes"][axis] = _node(n, dcf.name, m.sync_period_s, {k: n.source[k] for k in OWN_KEYS if k in n.source})
+        doc["nodes"][axis] = _node(n, dcf.name, m, {k: n.source[k] for k in OWN_KEYS if k in n.source})
     bus = out / "bus.yml"
     with open(bus, "w", encoding="utf-8") as f:
         f.write("# Written by drive-bridge export ros2 from " + str(config.path) + "\n")
@@ -69,7 +70,12 @@ def export(config: BusConfig, out: str | Path) -> list[Path]:
     return [bus] + written
 
 
-def _node(n: NodeConfig, dcf_name: str, period_s: float, own: dict) -> dict:
+def _node(n: NodeConfig, dcf_name: str, master, own: dict) -> dict:
+    if n.units_from_drive:
+        raise UserError(f"nodes.{n.axis}.scaling takes the units from the drive: ros2_canopen needs them in "
+                        f"scale_pos_to_dev; give increments_per_rev (and velocity_unit, rated_torque_Nm) as "
+                        f"bringup.json's units for the axis say, then export")
+    period_s = master.sync_period_s
     inc_per_unit = n.scaling.inc_per_rad if not n.linear else n.scaling.increments_per_rev / n.scaling.feed_m_per_rev
     mode = 8 if any((0x607A, 0) in p.mapping for p in n.rpdo) else 7
     entry = {"node_id": n.node_id, "dcf": dcf_name, "driver": "ros2_canopen::Cia402Driver",
@@ -77,7 +83,7 @@ def _node(n: NodeConfig, dcf_name: str, period_s: float, own: dict) -> dict:
              "scale_pos_to_dev": float(inc_per_unit), "scale_pos_from_dev": float(1 / inc_per_unit),
              "heartbeat_producer": n.heartbeat_producer_ms,
              "rpdo": _pdos(n, n.rpdo, 0x1400), "tpdo": _pdos(n, n.tpdo, 0x1800),
-             "sdo": _sdo(n, period_s)}
+             "sdo": _sdo(n, period_s, master)}
     entry.update(own)
     return entry
 
@@ -96,14 +102,16 @@ def _pdos(n: NodeConfig, pdos, comm: int) -> dict:
                     "mapping": [{"index": Hex(i), "sub_index": s} for i, s in p.mapping]}
         if p.event_timer_ms is not None:
             out[num]["event_timer"] = p.event_timer_ms
+        if comm == 0x1800:                       # as bring-up writes it (0: never the EDS default)
+            out[num]["inhibit_time"] = p.inhibit_time_100us
     return out
 
 
-def _sdo(n: NodeConfig, period_s: float) -> list[dict]:
+def _sdo(n: NodeConfig, period_s: float, master) -> list[dict]:
     """What drive-bridge's bring-up writes besides PDOs (:func:`~drive_bridge.master.bringup.settings`),
     as ros2_canopen's ``sdo``; the heartbeat is the node's ``heartbeat_producer`` and the
     communication cycle the master's ``sync_period``."""
-    return [{"index": Hex(i), "sub_index": s, "value": v} for i, s, v in settings(n.axis, n, period_s)
+    return [{"index": Hex(i), "sub_index": s, "value": v} for i, s, v in settings(n.axis, n, period_s, master)
             if i not in (0x1017, 0x1006) and n.od.get_variable(i, s) is not None]
 
 

@@ -90,6 +90,18 @@ class Session:
             self._nodes = {a: self.link.network[n.node_id] for a, n in self.config.nodes.items()}
         return self._nodes
 
+    def holding(self) -> dict[str, str]:
+        """How each brought-up axis is held now, read from the drives (empty where none was
+        brought up; an axis that does not answer says so)."""
+        from .master.stream import holding_of
+        out = {}
+        for name, ax in (self._axes or {}).items():
+            try:
+                out[name] = holding_of(ax, ax.drive.state())
+            except (canopen.SdoCommunicationError, canopen.SdoAbortedError) as exc:
+                out[name] = f"unknown: the drive does not answer ({exc})"
+        return out
+
     @property
     def axes(self) -> dict[str, AxisLink]:
         """The configured drives brought up: PDO mapping, heartbeat, limits (drives stay disabled)."""

@@ -138,6 +138,7 @@ def commission(config: BusConfig, out: str | Path, options: Options | None = Non
             state.setdefault("timing_degraded", {})[step] = ctx.degraded    # this run of the step replaces the last
             _save(out, state)
             reporter.done(step, state["durations_s"][step], line)
+        holding = session.holding()
     summary = build_summary(out, state, config, options)
     reporter.note(f"verdict: {headline(summary['verdict'])}")
     if failure is None and summary["verdict"]["overall"] == "FAIL":
@@ -153,6 +154,8 @@ def commission(config: BusConfig, out: str | Path, options: Options | None = Non
         reporter.note(f"stopped in step {failure['step']}. Everything recorded so far is in {out}; "
                       f"{resume_hint(state, steps is not None)} (--restart to start over).")
     reporter.note(f"summary: {out / SUMMARY}; report: {out / REPORT} (and {REPORT_MD})")
+    for axis, how in holding.items():            # last: what the person beside the machine must know
+        reporter.note(f"axis {axis}: {how}")
     return CommissionResult(summary["status"], code, failure and failure["step"],
                             failure and failure["reason"], todo, out, summary)
 

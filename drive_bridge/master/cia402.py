@@ -1,4 +1,5 @@
-"""CiA 402 power state machine of one drive, driven over SDO.
+"""CiA 402 power state machine of one drive over SDO: its state, a fault reset, the operating mode
+(enabling and stopping go in the cyclic controlword: :mod:`.stream`).
 
 canopen's BaseNode402 has fixed timeouts and a mode switch that can fail
 silently; here every wait uses the link clock and a configured timeout, the
@@ -78,18 +79,3 @@ class Drive402:
                 raise BusError(f"axis {self.axis}: mode {mode} requested, drive still shows {shown} "
                                f"in 0x6061 after {self.timeout} s")
             self.clock.sleep(0.005)
-
-    def enable(self) -> None:
-        """Fault reset if needed, disable voltage (from wherever a quick stop left it), then
-        Shutdown -> Switch on -> Enable operation."""
-        self.reset_fault()
-        if state_name(self.statusword()) != "SWITCH ON DISABLED":
-            self.node.sdo[0x6040].raw = 0x00
-            self._wait_for("SWITCH ON DISABLED", "disabling voltage before enabling (controlword 0x0000)")
-        for cw, target in ((CW_SHUTDOWN, "READY TO SWITCH ON"), (CW_SWITCH_ON, "SWITCHED ON"),
-                           (CW_ENABLE, "OPERATION ENABLED")):
-            self.node.sdo[0x6040].raw = cw
-            self._wait_for(target, f"enabling (controlword 0x{cw:04X})")
-
-    def disable(self) -> None:
-        self.node.sdo[0x6040].raw = CW_SHUTDOWN

@@ -545,7 +545,7 @@ class _Cycles:
                          timeout)
             except Exception:
                 pass
-        return {a: _held(axes[a], fb.state(a)) for a in names}, problems
+        return {a: holding_of(axes[a], fb.state(a)) for a in names}, problems
 
     def hold(self, axes: dict[str, AxisLink], row: int, timeout: float) -> tuple[dict[str, str], list[str]]:
         """After the plan: ``brake`` axes switched off (shutdown) onto their brake; ``enabled`` axes
@@ -575,11 +575,11 @@ class _Cycles:
                         timeout):
             problems += [f"axis {a}: not held ({fb.state(a) or 'no statusword'} {timeout} s after the motion)"
                          for a in names if fb.state(a) not in wanted[a]]
-        return {a: _held(axes[a], fb.state(a)) for a in names}, problems
+        return {a: holding_of(axes[a], fb.state(a)) for a in names}, problems
 
 
-def _held(ax: AxisLink, state: str | None) -> str:
-    """How an axis is held, in words, for the command's last lines."""
+def holding_of(ax: AxisLink, state: str | None) -> str:
+    """How an axis in CiA 402 ``state`` is held, in words, for the command's last lines."""
     if state in ("SWITCH ON DISABLED", "READY TO SWITCH ON", "SWITCHED ON"):
         how = ax.cfg.drive_limits.holding if ax.cfg.drive_limits is not None else "brake"
         return "switched off, on its brake" if how == "brake" else "switched off: NOT HELD"

@@ -18,7 +18,6 @@ import canopen
 from ..config import NodeConfig
 from ..errors import BusError, DriveRefused
 from ..factor import FactorGroup, describe
-from ..units import Scaling
 
 REL_TOLERANCE = 1e-6          # units agree when they differ by less than this, relatively
 TORQUE_TOLERANCE = 1e-3       # rated torque / current: the drive reports mNm / mA

@@ -339,18 +339,24 @@ class SimDrive:
             if now - last <= self.consumers[node] + 1e-9:
                 continue
             del self._heard[node]                   # once; the node's next heartbeat watches it again
-            self._emcy(ERR_HEARTBEAT)
             if self.nmt_state == NMT_OPERATIONAL:
                 self.nmt_state = NMT_PREOP
-            if self.state != ENABLED:
-                continue
-            option = self._od_or(0x6007, 0, 0)
-            if option == ABORT_FAULT:
-                self.fault(ERR_HEARTBEAT)
-            elif option == ABORT_DISABLE:
-                self._go(SWITCH_ON_DISABLED)
-            elif option == ABORT_QUICK_STOP:
-                self._go(QUICK_STOP)
+            self._connection_lost(ERR_HEARTBEAT, self._od_or(0x6007, 0, 0))
+
+    def _connection_lost(self, code: int, option: int) -> None:
+        """EMCY ``code``; in OPERATION ENABLED, what the abort connection option says."""
+        self.setpoint_armed = False
+        if self.state != ENABLED or option == ABORT_FAULT:
+            if self.state == ENABLED:
+                self.fault(code)
+            else:
+                self._emcy(code)
+            return
+        self._emcy(code)
+        if option == ABORT_DISABLE:
+            self._go(SWITCH_ON_DISABLED)
+        elif option == ABORT_QUICK_STOP:
+            self._go(QUICK_STOP)
 
     # ------------------------------------------------------------------ SDO hooks
     def _on_sdo_read(self, index: int, subindex: int, od) -> int | None:
@@ -666,7 +672,9 @@ class SimDrive:
             self.fault(ERR_FOLLOWING)
         elif self.setpoint_armed and self.following and self.host.time - self.last_setpoint_time > \
                 SETPOINT_TIMEOUT_PERIODS * self._interpolation_period() + 1e-9:
-            self.fault(ERR_RPDO_TIMEOUT)
+            # the master's stream is gone: the drive's connection-abort reaction (a fault where
+            # the drive has no 0x6007, or it is left at CiA 402's default)
+            self._connection_lost(ERR_RPDO_TIMEOUT, self._od_or(0x6007, 0, ABORT_FAULT))
 
     def _interpolation_period(self) -> float:
         return self._od(0x60C2, 1) * 10.0 ** self._od(0x60C2, 2)
