@@ -91,11 +91,14 @@ def test_export_ros2_round_trips_and_lely_dcfgen_takes_it(tmp_path, capsys):
     assert main(["export", "ros2", "--out", str(out)]) == 0
     text = (out / "bus.yml").read_text()
     assert "defaults" not in text and "index: 0x6040" in text
+    assert "inhibit_time: 0" in text and "index: 0x1016" in text         # as bring-up writes them
     own, back = load_bus_config(DEFAULT_BUS_CONFIG), load_bus_config(out / "bus.yml")
     for axis, n in own.nodes.items():
         b = back.nodes[axis]
-        assert (b.rpdo, b.tpdo, b.scaling, b.limits, b.heartbeat_producer_ms, b.following_error_window_rad) == \
-               (n.rpdo, n.tpdo, n.scaling, n.limits, n.heartbeat_producer_ms, n.following_error_window_rad)
+        assert (b.rpdo, b.tpdo, b.scaling, b.limits, b.heartbeat_producer_ms, b.following_error_window_rad,
+                b.drive_limits) == \
+               (n.rpdo, n.tpdo, n.scaling, n.limits, n.heartbeat_producer_ms, n.following_error_window_rad,
+                n.drive_limits)
     assert main(["scan", "--sim", "--config", str(out / "bus.yml")]) == 0     # the simulator knows the DCFs
     if tool("dcfchk"):
         for axis, n in own.nodes.items():

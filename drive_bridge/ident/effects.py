@@ -363,13 +363,21 @@ def shape_of(e: Effect) -> tuple[str, str]:
     return e.depends_on, "odd" if e.odd else "even"
 
 
+def standing_others(s: Samples) -> set[str]:
+    """The other axes of the log that stand still while this one moves (RMS speed below
+    ``STILL_SHARE`` of its own): their position is a constant there, their velocity and
+    acceleration numerical dust."""
+    m = s.moving
+    own = float(np.sqrt(np.mean(s.qd[m] ** 2)))
+    return {o for o, (_, qd, _) in s.others.items() if np.sqrt(np.mean(qd[m] ** 2)) < STILL_SHARE * own}
+
+
 def spline_candidates(present: list[Effect], s: Samples, residual: np.ndarray) -> list[Effect]:
     """Even or odd splines in each variable the residual depends on (not the direction alone),
     at each smoothness of ``SPLINE_KNOTS``."""
     have = {e.name for e in present}
     m = s.moving
-    own = float(np.sqrt(np.mean(s.qd[m] ** 2)))
-    still = {o for o, (_, qd, _) in s.others.items() if np.sqrt(np.mean(qd[m] ** 2)) < STILL_SHARE * own}
+    still = standing_others(s)
     out: list[Effect] = []
     for d in dependences(s, residual, SPLINE_SHARE, SPLINE_P):
         name = f"spline_{d['form']}_{d['depends_on']}"
@@ -451,7 +459,8 @@ def candidates(present: list[Effect], s: Samples, residual: np.ndarray) -> list[
         out.append(Drift(duration / 5, low=duration / 100, high=3 * duration, start=float(s.t.min()),
                          end=float(s.t.max())))
     coupled = {(e.source, e.form) for e in present if isinstance(e, CrossAxis)}
-    for src in s.others:
+    still = standing_others(s)                # a coupling with a constant is an offset by another name
+    for src in (o for o in s.others if o not in still):
         for form in CrossAxis.FORMS:
             if (src, form) not in coupled:
                 out.append(CrossAxis(src, form))
