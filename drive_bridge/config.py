@@ -47,7 +47,7 @@ LELY_MASTER_KEYS = {"vendor_id", "product_code", "revision_number", "serial_numb
 # what the master fills in an RPDO (0x6060: the streaming mode; 0x60FF, 0x6071: zero, as a
 # ros2_canopen CiA 402 mapping has them) and logs from a TPDO (0x6061: the mode the drive runs)
 RPDO_OBJECTS = {0x6040, 0x607A, 0x60C1, 0x20C1, 0x60B1, 0x60B2, 0x6060, 0x60FF, 0x6071}
-TPDO_OBJECTS = {0x6064, 0x606C, 0x6077, 0x6041, 0x60F4, 0x6078, 0x6061}
+TPDO_OBJECTS = {0x6064, 0x606C, 0x6077, 0x6041, 0x60F4, 0x6078, 0x6061, 0x20C4}
 
 
 @dataclass(frozen=True)
@@ -263,6 +263,8 @@ def _pdos(sec: Section, key: str, od: canopen.ObjectDictionary, allowed: set[int
                 raise e.error("index", f"0x{index:04X}:{sub} is not in the drive's EDS/DCF")
             if not var.pdo_mappable:
                 raise e.error("index", f"0x{index:04X} is not PDO-mappable in the drive's EDS/DCF")
+            if index == 0x20C4 and sub != 1:
+                raise e.error("sub_index", "0x20C4:1 is the interpolation buffer status the master checks")
             if index in (0x60C1, 0x20C1) and (index, sub) not in SETPOINT_OBJECTS:
                 raise e.error("sub_index", f"0x{index:04X}:{sub} carries no position setpoint (use "
                                            f"{'0x60C1:1' if index == 0x60C1 else '0x20C1:0'})")

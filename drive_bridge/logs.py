@@ -34,6 +34,7 @@ _COLUMNS = {
     0x60F4: ("following_error_rad", "position_from_device", "%.9g"),
     0x6078: ("current_permille", None, "%.0f"),
     0x6061: ("mode_display", None, "%.0f"),
+    0x20C4: ("ip_buffer_status", None, "%.0f"),         # maxon's interpolation buffer status (0x20C4:1)
 }
 
 

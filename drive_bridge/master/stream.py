@@ -344,13 +344,18 @@ def stream(link: Link, axes: dict[str, AxisLink], plan: Plan, *, heartbeat_timeo
     feedback.subscribe(net)
     send = net.send_message
     offsets: dict[str, _TorqueOffset] = {}
+    codecs = [c for a in plan.axes for c in axes[a].rpdos]
     packers = [(a, _packer(axes[a], c, plan, i, send, offsets), CW_ENABLE_IP if axes[a].mode == IP else CW_ENABLE)
                for i, a in enumerate(plan.axes) for c in axes[a].rpdos]
     unloader = _Unloader(rec, axes, plan, offsets) if offsets else None
     sw_cols = [(a, rec.column(a, 0x6041)) for a in plan.axes]
+    buffer_cols = {a: rec.column(a, 0x20C4) for a in plan.axes if (a, 0x20C4) in rec.columns}
     vel_cols = [(a, rec.column(a, 0x606C)) for a in plan.axes] if guard is not None else []
     misses = dict.fromkeys(plan.axes, 0)
-    cycles = _Cycles(link, packers, feedback, plan.period)
+    # around the plan, an interpolating drive's setpoint records stay off the bus: a FIFO (maxon's
+    # PVT) would keep them and play them when interpolation starts
+    cycles = _Cycles(link, [p for p, codec in zip(packers, codecs) if not _records_only(axes[p[0]], codec)],
+                     feedback, plan.period)
     aborted = None
     k = sent = 0
     errors_at_start = link.bus_errors.count
@@ -380,7 +385,8 @@ def stream(link: Link, axes: dict[str, AxisLink], plan: Plan, *, heartbeat_timeo
             clock.wait_until(t0 + k * period)
             if k >= FEEDBACK_LAG + 1:
                 row = k - 1 - FEEDBACK_LAG
-                aborted = _check_row(rec, row, axes, sw_cols, plan.axes, misses, miss_limit, emcy_from)
+                aborted = _check_buffer(rec, row, buffer_cols) or \
+                    _check_row(rec, row, axes, sw_cols, plan.axes, misses, miss_limit, emcy_from)
                 if aborted is None and guard is not None and rec.got[row].all():
                     reason = guard({a: int(rec.raw[row, c]) for a, c in vel_cols})
                     if reason:
@@ -389,6 +395,8 @@ def stream(link: Link, axes: dict[str, AxisLink], plan: Plan, *, heartbeat_timeo
                     aborted = _check_heartbeats(axes, plan.axes, clock.now(), heartbeat_timeout) or \
                         _check_bus(link, errors_at_start)
                 if aborted is not None:
+                    if aborted.axis in buffer_cols and aborted.emcy:   # the buffer status names what a vendor's
+                        aborted = _buffer_cause(axes[aborted.axis]) or aborted   # EMCY code may not
                     break
                 if progress is not None and k % 50 == 0:
                     progress(k)
@@ -442,10 +450,23 @@ def stream(link: Link, axes: dict[str, AxisLink], plan: Plan, *, heartbeat_timeo
     return StreamResult(rec, sent, aborted, missing, timing, holding, cycles.enable_count)
 
 
+def _records_only(ax: AxisLink, codec: PdoCodec) -> bool:
+    """An RPDO of an interpolating axis that carries setpoint records and no controlword."""
+    return ax.mode == IP and 0x6040 not in codec.objects and any(e in SETPOINT_OBJECTS for e in codec.entries)
+
+
 def _prepare(ax: AxisLink, target: int) -> None:
     """Before SYNC starts: a fault reset (SDO), the target position set to where the axis stands
-    (CSP: a drive that takes 0x607A on enable must not jump), then the operating mode."""
+    (CSP: a drive that takes 0x607A on enable must not jump), a record buffer emptied of whatever
+    an earlier run left in it (IP with 0x60C4), then the operating mode."""
     ax.drive.reset_fault()
+    if ax.mode == IP and ax.setpoint == PVT and 0x60C4 in ax.node.object_dictionary:
+        try:
+            ax.node.sdo[0x60C4][6].raw = 0
+            ax.node.sdo[0x60C4][6].raw = 1
+        except (canopen.SdoCommunicationError, canopen.SdoAbortedError) as exc:
+            raise MotionAborted(f"clearing the interpolation buffer (0x60C4:6) failed ({exc}); nothing was "
+                                f"enabled", ax.name) from exc
     if ax.mode == CSP_MODE:
         try:
             actual = ax.node.sdo[0x6064].raw
@@ -588,6 +609,37 @@ def holding_of(ax: AxisLink, state: str | None) -> str:
     if state == "QUICK STOP ACTIVE":
         return "powered, holding its position (quick stop active)"
     return f"in {state or 'an unknown state'}"
+
+
+#: maxon's interpolation buffer status 0x20C4:1: error bits (each aborts the drive's trajectory)
+#: (EPOS Application Note "Interpolation Position Mode", Dec 2008, p. 13)
+BUFFER_ERRORS = {0x0100: "its interpolation buffer ran empty (underflow: a record came late or not at all)",
+                 0x0200: "its interpolation buffer overflowed (more records than it takes)",
+                 0x0400: "an interpolated velocity above its maximal profile velocity 0x607F",
+                 0x0800: "an interpolated acceleration above its maximal profile acceleration 0x60C5"}
+
+
+def _check_buffer(rec: Recording, row: int, columns: dict[str, int]) -> MotionAborted | None:
+    """The drive's interpolation buffer status, where a TPDO maps it: an error bit stops the run."""
+    for axis, col in columns.items():
+        if rec.got[row, rec.slots[axis]].all() and (error := _buffer_status_error(axis, int(rec.raw[row, col]))):
+            return error
+    return None
+
+
+def _buffer_status_error(axis: str, status: int) -> MotionAborted | None:
+    for bit, what in BUFFER_ERRORS.items():
+        if status & bit:
+            return MotionAborted(f"the drive reports {what} (0x20C4:1 = 0x{status:04X})", axis)
+    return None
+
+
+def _buffer_cause(ax: AxisLink) -> MotionAborted | None:
+    """After an EMCY, the interpolation buffer status read by SDO: an error there is the cause."""
+    try:
+        return _buffer_status_error(ax.name, ax.node.sdo[0x20C4][1].raw)
+    except (canopen.SdoCommunicationError, canopen.SdoAbortedError):
+        return None
 
 
 def _check_bus(link: Link, errors_at_start: int) -> MotionAborted | None:

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import copy
 import math
+from collections import deque
 import struct
 from typing import Callable, Protocol
 
@@ -31,7 +32,7 @@ from ..factor import OBJECTS as FACTOR_OBJECTS, FactorGroup
 from ..od import limits, load_od
 from ..params.profile import load_profile
 from ..pdo import PdoCodec
-from ..setpoint import CSP, IP, SETPOINT_OBJECTS, position_of, supported_modes
+from ..setpoint import CSP, IP, PVT, SETPOINT_OBJECTS, position_of, supported_modes
 from . import kernel as K
 from .adapters import local_node
 from .cia402 import (ENABLED, FAULT, FAULT_REACTION, QUICK_STOP, STATUSWORD, SWITCH_ON_DISABLED,
@@ -53,6 +54,13 @@ ERR_FOLLOWING = 0x8611
 ERR_RPDO_TIMEOUT = 0x8250
 ERR_HEARTBEAT = 0x8130           # heartbeat consumer: a watched node fell silent
 ERR_PDO_LENGTH = 0x8210          # PDO not processed: shorter than its mapping
+#: maxon's PVT input FIFO (EPOS Application Note "Interpolation Position Mode", Dec 2008, pp. 13-16):
+#: 64 records; 0x20C4:1 buffer status bits; an underflow or overflow aborts the trajectory.  The EMCY
+#: codes are the simulation's choice (maxon's are not in ../shared)
+FIFO_RECORDS = 64
+IPB_UNDERFLOW_WARNING, IPB_OVERFLOW_WARNING, IPB_UNDERFLOW, IPB_OVERFLOW = 0x0001, 0x0002, 0x0100, 0x0200
+IPB_ENABLED, IPB_ACTIVE = 0x4000, 0x8000
+ERR_IP_UNDERFLOW, ERR_IP_OVERFLOW = 0xFF02, 0xFF03
 #: 0x6007 abort connection option code -> what the drive does when the master is lost in OPERATION ENABLED
 ABORT_FAULT, ABORT_DISABLE, ABORT_QUICK_STOP = 1, 2, 3
 SETPOINT_TIMEOUT_PERIODS = 10     # CSP: no setpoint for this many interpolation periods -> fault
@@ -138,6 +146,11 @@ class SimDrive:
         self.modes = [m for m in supported_modes(self._supported_bits()) if m in IMPLEMENTED_MODES]
         self.s, self.p, self.d = rows      # kernel rows of this axis (views)
         self.online = True                 # False: the drive has dropped off the bus
+        #: maxon's PVT input FIFO (records in device units), where the drive takes PVT records
+        self.fifo: deque[int] | None = deque() if self.od.get_variable(*PVT) is not None and \
+            self.od.get_variable(0x60C4, 6) is not None else None
+        self.fifo_enabled = False
+        self.ip_errors = 0                 # 0x20C4:1 error bits latched since the buffer was last cleared
         self._init_storage()
         self._saved = copy.deepcopy(self.node.data_store)
         self._power_up()
@@ -253,6 +266,9 @@ class SimDrive:
         self._velocity = 0
         self.d[:] = 0.0
         self.d[K.P0] = self.d[K.P1] = self.s[K.ENC] = self._last_count / self.inc_per_rad
+        if self.fifo is not None:
+            self.fifo.clear()
+            self.fifo_enabled, self.ip_errors = False, 0
         self._rebuild_pdos()
         self._heard = {}
         self._consumers_changed()
@@ -415,6 +431,18 @@ class SimDrive:
             self.d[K.T_OFF] = value / 1000.0 * self.rated_torque
         elif index == 0x60B1:                               # velocity offset [velocity unit]
             self.d[K.V_OFF] = value / self.vel_per_si
+        elif (index, sub) == PVT and self.fifo is not None:   # maxon: into the FIFO, taken one a period
+            if not self.fifo_enabled:
+                return                                      # access to the buffer disabled: dropped
+            if len(self.fifo) >= FIFO_RECORDS:
+                self._buffer_error(IPB_OVERFLOW, ERR_IP_OVERFLOW)
+                return
+            self.fifo.append(position_of(PVT, value))
+        elif index == 0x60C4 and sub == 6 and self.fifo is not None:     # buffer clear: 0 clear + disable, 1 enable
+            if value == 0:
+                self.fifo.clear()
+                self.ip_errors = 0
+            self.fifo_enabled = value == 1
         elif (index, sub) in SETPOINT_OBJECTS:
             if SETPOINT_OBJECTS[(index, sub)] == self.mode:     # 0x607A in PP is read on the set-point edge
                 self.setpoint_inc = position_of((index, sub), value)
@@ -606,6 +634,13 @@ class SimDrive:
         v_old = self.v_dem
         self.internal_limit = False
         if self.following:
+            if self.fifo is not None and self.mode == IP:
+                if self.fifo:
+                    self.setpoint_inc, self.new_target = self.fifo.popleft(), True
+                    self.last_setpoint_time = self.host.time
+                else:                                       # the FIFO ran dry while interpolating
+                    self._buffer_error(IPB_UNDERFLOW, ERR_IP_UNDERFLOW)
+                    return
             if self.new_target:
                 d[K.P1] = self._limit(self.setpoint_inc / self.pos_per_rad)
             self.v_dem = (d[K.P1] - d[K.P0]) / T
@@ -700,6 +735,8 @@ class SimDrive:
         self._current = max(-32768, min(32767, round(current / per_unit)))
         position = count if self.pos_per_rad == self.inc_per_rad else round(count / self.inc_per_rad * self.pos_per_rad)
         self._position_inc = max(-2**31, min(2**31 - 1, position))
+        if self.fifo is not None:                   # 0x20C4:1 as of this sample (its other sub-indices are settings)
+            self._store(0x20C4, 1, self._buffer_status())
 
     def _live_objects(self) -> dict[int, Callable[[], int]]:
         """Objects whose value the drive measures or computes instead of storing."""
@@ -714,6 +751,24 @@ class SimDrive:
             0x603F: lambda: self.error_code,
             0x1001: lambda: 0x01 if self.state == FAULT else 0x00,
         }
+
+    def _buffer_error(self, bit: int, code: int) -> None:
+        """An underflow or overflow: latched in 0x20C4:1 at once, and the trajectory aborted (a fault)."""
+        self.ip_errors |= bit
+        self._store(0x20C4, 1, self._buffer_status())
+        self.fault(code)
+
+    def _buffer_status(self) -> int:
+        """0x20C4:1, maxon's interpolation buffer status (sub-indices 2 and 3 the warning levels)."""
+        if self.fifo is None:
+            return 0
+        n = len(self.fifo)
+        status = self.ip_errors | (IPB_ENABLED if self.fifo_enabled else 0) | (IPB_ACTIVE if self.following else 0)
+        if n < self._od_or(0x20C4, 2, 4):
+            status |= IPB_UNDERFLOW_WARNING
+        if n > self._od_or(0x20C4, 3, 60):
+            status |= IPB_OVERFLOW_WARNING
+        return status
 
     def _send(self, cob_id: int, data: bytes) -> None:
         if self.online:

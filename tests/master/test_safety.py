@@ -162,3 +162,41 @@ def test_from_drive_commissions_a_nanotec_on_factory_units_with_the_planned_stro
     assert motion.aborted is None
     moved = float(b.robot.state[1, K.Q]) - start
     assert moved == pytest.approx(20.0, rel=0.01)
+
+
+def _epos2_bench():
+    from drive_bridge.config import load_bus_config
+    from drive_bridge.resources import data, vendor_dir
+    eds = vendor_dir() / "maxon_epos2_50-5.eds"
+    if not eds.exists():
+        pytest.skip("../shared/eds-vendor not present")
+    config = load_bus_config(data("config", "examples", "maxon_epos2.yml")).only(["y"])
+    b = Bench(clean_config(), eds=eds)
+    return b, config, bring_up(b.link, config)
+
+
+def test_records_an_earlier_program_left_in_the_buffer_are_not_played():
+    from drive_bridge.setpoint import pack_pvt
+    b, config, axes = _epos2_bench()
+    node = axes["y"].node
+    for _ in range(20):                                  # far away: a jump if the drive played them
+        node.sdo[0x20C1].raw = pack_pvt(node.sdo[0x6064].raw + 500_000, 0, 2)
+    start = axes["y"].position_rad()
+    motion = run(config, b.link, axes, {"y": np.full(100, start)})
+    assert motion.aborted is None and np.max(np.abs(motion.position["y"] - start)) < 1e-3
+
+
+def test_a_record_that_does_not_come_stops_the_run_naming_the_buffer_underflow():
+    b, config, axes = _epos2_bench()
+    cob = next(c.cob_id for c in axes["y"].rpdos if (0x20C1, 0) in c.entries)
+    calls = []
+
+    def guard(_velocities):                              # one record lost on the bus, mid-motion
+        calls.append(1)
+        if len(calls) == 300:
+            route = b.robot._routes[cob]
+            b.robot._routes[cob] = lambda data: b.robot._routes.__setitem__(cob, route)
+        return None
+    start = axes["y"].position_rad()
+    motion = run(config, b.link, axes, {"y": np.full(500, start + 5.0)}, guard=guard)
+    assert motion.aborted is not None and "interpolation buffer ran empty" in str(motion.aborted)

@@ -159,3 +159,53 @@ def test_the_nanotec_faithful_drive_starts_in_its_factory_units_and_changes_them
     node.sdo[0x60A8].raw = 0x00B50000                  # encoder increments
     drive.refresh_actuals()
     assert abs(node.sdo[0x6064].raw - 65536 / 6.283185307) <= 1
+
+
+def _epos2():
+    eds = VENDOR_EDS / "maxon_epos2_50-5.eds"
+    if not eds.exists():
+        pytest.skip("../shared/eds-vendor not present")
+    return Bench(clean_config(), eds=eds)
+
+
+def _interpolating(b, node):
+    """EPOS2-faithful drive y in interpolated position (PVT), buffer enabled, interpolation active."""
+    node.nmt.send_command(0x80)
+    node.sdo[0x60C4][6].raw = 0
+    node.sdo[0x60C4][6].raw = 1
+    node.sdo[0x6060].raw = 7
+    for cw in (0x06, 0x07, 0x0F, 0x1F):
+        node.sdo[0x6040].raw = cw
+
+
+def test_the_maxon_fifo_underflows_when_a_record_does_not_come():
+    from drive_bridge.setpoint import pack_pvt
+    b = _epos2()
+    node = b.nodes["y"]
+    codes = []
+    node.emcy.add_callback(lambda e: codes.append(e.code))
+    start = node.sdo[0x6064].raw
+    _interpolating(b, node)
+    for _ in range(3):                                    # one record a period: it keeps up
+        node.sdo[0x20C1].raw = pack_pvt(start, 0, 2)
+        b.net.sync.transmit()
+    assert not node.sdo[0x6041].raw & 0x0008 and node.sdo[0x20C4][1].raw & 0xC000 == 0xC000
+    b.net.sync.transmit()                                 # a period without a record
+    b.link.pump()
+    assert node.sdo[0x6041].raw & 0x0008 and node.sdo[0x20C4][1].raw & 0x0100 and 0xFF02 in codes
+
+
+def test_the_maxon_fifo_overflows_past_64_records_and_ignores_records_while_disabled():
+    from drive_bridge.setpoint import pack_pvt
+    b = _epos2()
+    node = b.nodes["y"]
+    node.sdo[0x20C1].raw = pack_pvt(10**6, 0, 2)           # buffer access not enabled: dropped
+    assert len(b.robot.drives["y"].fifo) == 0
+    node.sdo[0x60C4][6].raw = 1
+    for _ in range(64):
+        node.sdo[0x20C1].raw = pack_pvt(0, 0, 2)
+    b.robot.drives["y"].refresh_actuals()
+    assert node.sdo[0x20C4][1].raw & 0x0002                # above the overflow warning level (60)
+    node.sdo[0x20C1].raw = pack_pvt(0, 0, 2)
+    b.robot.drives["y"].refresh_actuals()
+    assert node.sdo[0x20C4][1].raw & 0x0200 and node.sdo[0x6041].raw & 0x0008
