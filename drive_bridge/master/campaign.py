@@ -17,6 +17,7 @@ from ..config import CampaignConfig, Limits
 from ..errors import UserError
 
 APPROACH_LEVEL = 0.2     # approach and return moves run at 20 % of the limits
+APPROACH_RAMP_S = 0.05   # ... and their acceleration ramps over this long where no jerk limit is set
 MIN_EXCITATION_CYCLES = 600     # the short campaign's multisine needs at least this long
 
 
@@ -109,8 +110,7 @@ def build_plan(cfg: CampaignConfig, limits: dict[str, Limits], start: dict[str, 
         return _cycle(*ends[ax], vf * lim.max_velocity, af * lim.max_acceleration, dwell, period)
 
     def approach(ax: str, p0: float, p1: float) -> np.ndarray:
-        lim = limits[ax]
-        return trapezoid(p0, p1, APPROACH_LEVEL * lim.max_velocity, APPROACH_LEVEL * lim.max_acceleration, period)
+        return approach_move(limits[ax], p0, p1, period)
 
     # cycles per level and axis, within the per-axis time cap (approach and return included)
     counts = {}
@@ -170,8 +170,8 @@ def short_plan(cfg: CampaignConfig, limits: dict[str, Limits], start: dict[str, 
     seq = _Sequence(axes, start, period)
     for group in ([axes] if cfg.together else [[ax] for ax in axes]):
         centre = {ax: 0.5 * (limits[ax].position_min + limits[ax].position_max) for ax in group}
-        travel = {ax: _approach(limits[ax], seq.pos[ax], centre[ax], period) for ax in group}
-        back = {ax: _approach(limits[ax], centre[ax], start[ax], period) for ax in group}
+        travel = {ax: approach_move(limits[ax], seq.pos[ax], centre[ax], period) for ax in group}
+        back = {ax: approach_move(limits[ax], centre[ax], start[ax], period) for ax in group}
         moving = max(len(travel[ax]) + len(back[ax]) for ax in group) * period
         excite = cfg.short_time_s - moving
         if excite < MIN_EXCITATION_CYCLES * period:
@@ -191,13 +191,15 @@ def short_plan(cfg: CampaignConfig, limits: dict[str, Limits], start: dict[str, 
     return seq.plan(limits)
 
 
-def _approach(lim: Limits, p0: float, p1: float, period: float) -> np.ndarray:
-    """A move at the approach level: a trapezoid, or where a jerk limit is set, its positions
-    smoothed so that the acceleration ramps (an S-curve of the same travel)."""
+def approach_move(lim: Limits, p0: float, p1: float, period: float) -> np.ndarray:
+    """A move at the approach level from wherever the axis stands: a trapezoid whose positions are
+    smoothed so that the acceleration ramps (an S-curve of the same travel) within the jerk limit
+    where one is set, else over ``APPROACH_RAMP_S``: no acceleration step at the start of motion."""
     move = trapezoid(p0, p1, APPROACH_LEVEL * lim.max_velocity, APPROACH_LEVEL * lim.max_acceleration, period)
-    if lim.max_jerk is None or len(move) == 0:
+    if len(move) == 0:
         return move
-    ramp = max(1, int(np.ceil(1.25 * lim.max_acceleration / lim.max_jerk / period)))   # 1.25: room for sampling
+    ramp_s = APPROACH_RAMP_S if lim.max_jerk is None else 1.25 * lim.max_acceleration / lim.max_jerk
+    ramp = max(1, int(np.ceil(ramp_s / period)))          # 1.25: room for sampling
     padded = np.concatenate([np.full(ramp, p0), move, np.full(ramp, p1)])
     return np.convolve(padded, np.ones(ramp) / ramp, "valid")
 

@@ -10,7 +10,7 @@ from ..config import BusConfig
 from ..errors import MotionAborted
 from ..logs import to_table
 from ..master.bringup import AxisLink
-from ..master.campaign import APPROACH_LEVEL, Plan, Segment, check_plan, trapezoid
+from ..master.campaign import APPROACH_LEVEL, Plan, Segment, approach_move, check_plan
 from ..master.link import Link
 from ..master.stream import stream
 from ..master.timing import Timing
@@ -45,8 +45,7 @@ def run(config: BusConfig, link: Link, axes: dict[str, AxisLink], demand: dict[s
     names = list(demand)
     limits = {a: axes[a].cfg.limits for a in names}
     start = {a: axes[a].position_rad() for a in names}
-    approach = {a: trapezoid(start[a], float(demand[a][0]), APPROACH_LEVEL * limits[a].max_velocity,
-                             APPROACH_LEVEL * limits[a].max_acceleration, period) for a in names}
+    approach = {a: approach_move(limits[a], start[a], float(demand[a][0]), period) for a in names}
     n_app = max(len(v) for v in approach.values()) + round(0.2 / period)       # then settle
     cols = [np.concatenate([approach[a], np.full(n_app - len(approach[a]), float(demand[a][0])), demand[a]])
             for a in names]                  # the approach ends at the first setpoint, then holds it

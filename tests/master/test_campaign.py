@@ -90,3 +90,21 @@ def test_the_short_campaign_finds_what_the_full_one_finds(tmp_path):
         assert p["J"] == pytest.approx(PAPER[a]["J"], rel=0.02) and p["c0"] == pytest.approx(PAPER[a]["c0"], rel=0.01)
         if a != "x":                    # the slow belt axis: 8 rad/s at most, c1·q̇ below the noise
             assert p["c1"] == pytest.approx(PAPER[a]["c1"], rel=0.05)
+
+
+@pytest.mark.parametrize("design", ["paper", "short"])
+def test_the_move_to_the_start_ramps_its_acceleration_from_wherever_the_axis_stands(design):
+    """Without a jerk limit too: no acceleration step when motion starts (the Z axis rests on its end stop)."""
+    from drive_bridge.master.campaign import APPROACH_LEVEL, APPROACH_RAMP_S
+    cfg, limits = _limits()
+    start = {a: lim.position_min for a, lim in limits.items()}
+    plan = build_plan(replace(cfg.campaign.quick(), design=design, short_time_s=30.0, move_fraction=0.3),
+                      limits, start, PERIOD)
+    for seg in (s for s in plan.segments if s.kind in ("approach", "return")):
+        for ax in seg.axes:
+            i = plan.axes.index(ax)
+            before = plan.demand[seg.start - 1, i] if seg.start else start[ax]     # at rest before it
+            p = np.concatenate([np.full(3, before), plan.demand[seg.start:seg.end, i]])
+            jerk = np.abs(np.diff(p, 3)) / PERIOD ** 3
+            bound = APPROACH_LEVEL * limits[ax].max_acceleration / APPROACH_RAMP_S
+            assert jerk.max() <= 1.05 * bound, (ax, seg.kind, jerk.max() / bound)
