@@ -29,6 +29,8 @@ CUTOFF_FACTOR = 25.0         # cut-off = 25 x the motion bandwidth (~5 x a close
                              # itself ~5 x the motion's; EMPS: 4.15 Hz -> 104 Hz, reference 100 Hz)
 MAX_CUTOFF_SHARE = 0.2       # ... at most this share of the log's rate: above it the derivatives of the
                              # quantised position are noise (a multisine at 14 Hz on a 500 Hz log: 100 Hz)
+QUANTISATION_SHARE = 1e-3    # ... and where the position is on counts, its acceleration noise below this
+QUANTISATION_BAND = 5.0      #     share of the motion's acceleration power (read below 5 x the bandwidth)
 DECIMATION_MARGIN = 2.5      # decimated sample rate = 2.5 x the cut-off: nearly white residual samples
 MOVING_FRACTION = 0.02       # |velocity| below this share of its maximum: near zero, not fitted
 SETTLE_CYCLES = 1.0          # ... nor this many cut-off periods from it
@@ -236,16 +238,21 @@ def _delayed_steps(x: np.ndarray, samples: float) -> np.ndarray:
     return np.interp(k - samples, k, x)
 
 
-def _on_counts(q: np.ndarray) -> bool:
-    """Whether the logged position ``q`` is an encoder's: on a grid of counts (as written, to
-    0.1 count), not noisy or interpolated."""
-    moved = np.abs(np.diff(q))
+def count_step(q: np.ndarray) -> float | None:
+    """The count of the logged position ``q`` where it is an encoder's (or a drive's position
+    unit): on a grid of counts (as written, to 0.1 count), not noisy or interpolated; else None."""
+    moved = np.abs(np.diff(q[np.isfinite(q)]))
     moved = moved[moved != 0]
     if len(q) < 5 or not len(moved):
-        return False
-    counts = moved / np.mean(moved[moved < 1.5 * moved.min()])           # one count: the smallest step
+        return None
+    step = float(np.mean(moved[moved < 1.5 * moved.min()]))             # one count: the smallest step
+    counts = moved / step
     small = counts[counts < 50]                     # (a large step's count carries the unit's rounding)
-    return len(small) >= 10 and bool(np.max(np.abs(small - np.round(small))) <= 0.1)
+    return step if len(small) >= 10 and bool(np.max(np.abs(small - np.round(small))) <= 0.1) else None
+
+
+def _on_counts(q: np.ndarray) -> bool:
+    return count_step(q) is not None
 
 
 def _runs(same: np.ndarray, length: int) -> np.ndarray:
@@ -315,12 +322,36 @@ def motion_bandwidth(log: Log, axis: str) -> float:
     return float(max(f[np.searchsorted(cum, MOTION_POWER * cum[-1])], f[1]))
 
 
+def quantisation_cutoff(log: Log, axis: str, bw: float) -> float:
+    """The highest cut-off [Hz] at which the acceleration a position quantised to its count
+    carries stays below ``QUANTISATION_SHARE`` of the motion's acceleration power: a coarse
+    position unit (a drive's 0.1°) otherwise puts noise into q̈, and the least squares read J low
+    by that share (errors in a regressor); inf for a position that is not on counts.
+
+    Quantisation is white up to the Nyquist frequency (variance count²/12); its acceleration's
+    power below ``fc`` is (2π)⁴·count²/12·fc⁵ / (5·fs/2).  The motion's acceleration power is
+    read from the velocity's spectrum below ``QUANTISATION_BAND`` × the motion bandwidth."""
+    ax = log.axes[axis]
+    a, b = max(ax.segments, key=lambda s: s[1] - s[0])
+    step = count_step(ax.q[a:b])
+    if step is None:
+        return np.inf
+    fs = 1.0 / log.dt
+    f, pxx = signal.welch(np.gradient(ax.q[a:b], log.dt), fs=fs, nperseg=min(b - a, 4096))
+    band = f <= QUANTISATION_BAND * bw
+    power = float(np.sum((2 * np.pi * f[band]) ** 2 * pxx[band]) * (f[1] - f[0]))
+    noise = (2 * np.pi) ** 4 * step ** 2 / 12 / (5 * fs / 2)
+    return float((QUANTISATION_SHARE * power / noise) ** 0.2)
+
+
 def choose_settings(log: Log, axis: str, cutoff_hz: float | None = None,
                     decimation: int | None = None) -> Settings:
-    """Cut-off and decimation from the data (overridable)."""
+    """Cut-off and decimation from the data (overridable): the cut-off follows the motion's
+    bandwidth, within a share of the rate and below what the position's quantisation allows."""
     fs = 1.0 / log.dt
     bw = motion_bandwidth(log, axis)
-    fc = cutoff_hz if cutoff_hz else float(np.clip(CUTOFF_FACTOR * bw, 0.5, MAX_CUTOFF_SHARE * fs))
+    fc = cutoff_hz if cutoff_hz else float(np.clip(min(CUTOFF_FACTOR * bw, quantisation_cutoff(log, axis, bw)),
+                                                   0.5, MAX_CUTOFF_SHARE * fs))
     if not 0 < fc < fs / 2:
         raise UserError(f"cut-off {fc} Hz must be between 0 and the Nyquist frequency {fs / 2:g} Hz")
     r = decimation if decimation else max(1, int(fs / (DECIMATION_MARGIN * fc)))

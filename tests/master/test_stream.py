@@ -88,3 +88,17 @@ def test_a_second_quick_stop_in_one_process_waits_until_the_axes_stand(tmp_path)
         assert "Ctrl-C" in result.aborted.reason
         for drive in bench.robot.drives.values():       # at the moment the stop returned
             assert abs(drive.s[K.V]) < 0.06, (run, drive.axis.name, drive.s[K.V])
+
+
+def test_a_can_error_frame_stops_every_axis(tmp_path):
+    """An error frame the interface reports (bus errors, error passive, bus-off) stops the motion
+    as a lost drive does."""
+    import can
+
+    def disturb(bench, k):
+        if k == 500:
+            bench.link.bus_errors.on_message_received(can.Message(is_error_frame=True))
+    bench, result = run_record(tmp_path, clean_config(), quick_config(together=True), on_progress=disturb)
+    assert not result.ok and "error frame" in result.aborted.reason
+    names, data = read_csv(tmp_path / "log.csv")
+    assert 500 <= len(data) < 700

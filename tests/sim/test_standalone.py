@@ -50,15 +50,17 @@ def test_a_master_killed_mid_campaign_leaves_every_drive_stopped_by_its_heartbea
         for node_id in (1, 2, 3):
             monitor.subscribe(0x80 + node_id, lambda cob, data, ts: emcy.append((cob & 0x7F, data[0] | data[1] << 8,
                                                                                    time.time())))
-        master = subprocess.Popen([sys.executable, "-m", "drive_bridge", "record", "--config", str(cfg), "--quick",
+        master = subprocess.Popen([sys.executable, "-m", "drive_bridge", "record", "--config", str(cfg), "--axes", "x",
                                    "--out", str(tmp_path / "run")], stdout=subprocess.DEVNULL,
                                   stderr=subprocess.PIPE, text=True, env=env)
         _wait_for(master.stderr, "campaign:", 120)
-        time.sleep(1.0)                                   # X is on its way to the campaign's start
+        node = monitor.add_node(1, None)                  # SDO only: no object dictionary needed
+        time.sleep(1.5)                                   # X is on its way to the campaign's start (6 s) ...
+        moving = abs(int.from_bytes(node.sdo.upload(0x606C, 0), "little", signed=True))
         master.send_signal(signal.SIGKILL)
         killed = time.time()
+        assert moving > 0.5 * 166886                      # ... at more than 0.5 rad/s when the master dies
         master.wait()
-        node = monitor.add_node(1, None)                  # SDO only: no object dictionary needed
         speeds = []
         while time.time() < killed + 1.5:
             raw = node.sdo.upload(0x606C, 0)
