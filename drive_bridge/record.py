@@ -44,7 +44,7 @@ class RecordResult:
             "axes": {a: {"samples": self.samples[a], "missing": self.missing[a]} for a in self.plan.axes},
             "motion_s": self.plan.duration, "cycles_sent": self.cycles_sent, "bus_load": self.bus_load,
             "wall_time_s": self.wall_time_s, "timing": self.timing.as_dict(),
-            "aborted": None if self.aborted is None else str(self.aborted)})
+            "aborted": None if self.aborted is None else str(self.aborted), "holding": self.holding})
 
 
 def record(config: BusConfig, link: Link, out_dir: str | Path, *,

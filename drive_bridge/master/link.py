@@ -277,6 +277,14 @@ class BusLink:
         # its own elsewhere; either way it ends with this process, as a master's heartbeat must
         self.stop_heartbeat()
         self._heartbeat = self.bus.send_periodic(heartbeat_frame(node_id), period)
+        thread = getattr(self._heartbeat, "thread", None)
+        if thread is not None and thread.native_id is not None:
+            # python-can's own thread: above ordinary processes, as the trace writer, or a load that
+            # preempts it while it holds the GIL holds up the thread that streams the setpoints
+            try:
+                os.sched_setscheduler(thread.native_id, os.SCHED_FIFO, os.sched_param(TRACE_PRIORITY))
+            except (AttributeError, OSError):
+                pass                          # not allowed here: it sends ten short frames a second
 
     def stop_heartbeat(self) -> None:
         if self._heartbeat is not None:

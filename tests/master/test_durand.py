@@ -19,10 +19,10 @@ from drive_bridge.record import record
 from drive_bridge.resources import data, vendor_dir
 from drive_bridge.tuning.design import design_gains
 
-from ..durand_drive import slaves
 from ..support import PAPER
 
 pytest.importorskip("durand")
+from ..durand_drive import slaves  # noqa: E402  (durand: the test extra)
 EXAMPLES = {"nanotec_c5e": "nanotec_C5-E-2-09.eds", "maxon_epos2": "maxon_epos2_50-5.eds"}
 
 

@@ -111,29 +111,27 @@ def test_every_moving_drive_quick_stops_by_itself_when_the_master_heartbeat_stop
 
 
 def _nanotec(tmp_path, from_drive: bool):
-    """config/examples/nanotec_c5e.yml without the factor-group writes (the drive on factory units)."""
+    """Simulated Nanotec-faithful drives on their factory units (0.1 °, rpm), and
+    config/examples/nanotec_c5e.yml without the factor-group writes: (config, bench)."""
     import yaml
 
-    from drive_bridge.resources import data
-    path = data("config", "examples", "nanotec_c5e.yml")
-    doc = yaml.safe_load(path.read_text())
+    from drive_bridge.config import load_bus_config
+    from drive_bridge.resources import data, vendor_dir
+    eds = vendor_dir() / "nanotec_C5-E-2-09.eds"
+    if not eds.exists():
+        pytest.skip("../shared/eds-vendor not present")
+    doc = yaml.safe_load(data("config", "examples", "nanotec_c5e.yml").read_text())
     doc["defaults"].pop("sdo", None)
     if from_drive:
         doc["defaults"]["scaling"] = {"from_drive": True, "rated_torque_Nm": 1.27}
     out = tmp_path / "bus.yml"
     out.write_text(yaml.safe_dump(doc))
-    return out
+    return load_bus_config(out), Bench(clean_config(), eds=eds)
 
 
 def test_a_nanotec_on_factory_units_is_refused_before_anything_moves(tmp_path):
-    from drive_bridge.config import load_bus_config
     from drive_bridge.errors import DriveRefused
-    from drive_bridge.resources import vendor_dir
-    eds = vendor_dir() / "nanotec_C5-E-2-09.eds"
-    if not eds.exists():
-        pytest.skip("../shared/eds-vendor not present")
-    config = load_bus_config(_nanotec(tmp_path, from_drive=False))
-    b = Bench(clean_config(), eds=eds)
+    config, b = _nanotec(tmp_path, from_drive=False)
     writes = []
     for drive in b.robot.drives.values():
         drive.sdo_fault = lambda op, index, sub: writes.append((index, sub)) if op == "write" else None
@@ -146,13 +144,7 @@ def test_a_nanotec_on_factory_units_is_refused_before_anything_moves(tmp_path):
 
 
 def test_from_drive_commissions_a_nanotec_on_factory_units_with_the_planned_stroke(tmp_path):
-    from drive_bridge.config import load_bus_config
-    from drive_bridge.resources import vendor_dir
-    eds = vendor_dir() / "nanotec_C5-E-2-09.eds"
-    if not eds.exists():
-        pytest.skip("../shared/eds-vendor not present")
-    config = load_bus_config(_nanotec(tmp_path, from_drive=True))
-    b = Bench(clean_config(), eds=eds)
+    config, b = _nanotec(tmp_path, from_drive=True)
     axes = bring_up(b.link, config)
     assert axes["y"].cfg.scaling.inc_per_rad == pytest.approx(3600 / (2 * np.pi))
     assert axes["y"].units["position_unit"].startswith("0.1 °")
