@@ -287,8 +287,8 @@ def _pdos(sec: Section, key: str, od: canopen.ObjectDictionary, allowed: set[int
 
 
 def _node(path: Path, axis: str, data: dict, dcf_path: str | None = None, unused: set | None = None) -> NodeConfig:
-    if data.get("scaling") == "from_drive":      # everything from the drive (a rotary axis)
-        data = {**data, "scaling": {"from_drive": True}}
+    if data.get("scaling") == "from_drive" or ("scaling" not in data and "scale_pos_to_dev" not in data):
+        data = {**data, "scaling": {"from_drive": True}}      # everything from the drive (a rotary axis)
     sec = Section(path, f"nodes.{axis}", data)
     node_id = sec.get("node_id", int, low=1, high=127)
     name = sec.get("dcf", str)

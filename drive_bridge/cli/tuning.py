@@ -13,7 +13,7 @@ from ..session import Session
 from ..tuning.tune import (GAINS, drive_model, read_identify_json, read_tune_json, tune_axes, tune_doc,
                            unwritable_effects)
 from . import options
-from .bus import degraded_exit
+from .bus import degraded_exit, holding_lines
 
 
 def register(sub) -> None:
@@ -92,6 +92,7 @@ def cmd_tune(args) -> int:
                 for a, t in results.items():
                     t.experiment = run_experiment(config, session.link, session.axes, a, session.profile,
                                                   t.before.get("KpS", t.design.KpS))
+                holding = session.holding()
     doc = tune_doc(results, unwritable_effects(args.ident))
     out = write_json(args.out, doc)
     if args.json:
@@ -114,6 +115,8 @@ def cmd_tune(args) -> int:
             print(f"  paper's procedure on the drive: KpS {e.KpS if e.KpS is None else round(e.KpS, 4)} after "
                   f"{len(e.steps)} steps (model-based: {d.KpS:.4g})")
     print(f"wrote {out}")
+    if args.experiment:
+        print(holding_lines(holding))
     return 0
 
 
@@ -177,6 +180,7 @@ def cmd_validate(args) -> int:
     with Session(config, options.session_options(args)) as session:
         runs = run_scenarios(config, session.link, session.axes, session.profile, scenarios, model,
                              out_dir=Path(args.out) if args.out else None)
+        holding = session.holding()
     if args.json:
         options.print_json(validate_doc(runs))
     else:
@@ -188,6 +192,7 @@ def cmd_validate(args) -> int:
                 print(f"{r.scenario:<28} {r.trajectory:<15} {a:<4} {number(m.fe_rms * 1e3, '.3g'):>13} "
                       f"{number(m.fe_max * 1e3, '.3g'):>13} {number(m.overshoot_pct, '.3g'):>13} {number(settle, '.3g'):>13} "
                       f"{number(m.torque_rmse * 1e3, '.3g'):>17}")
+        print(holding_lines(holding))
     stop = stopped(runs)
     if stop is not None:
         raise stop

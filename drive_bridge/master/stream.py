@@ -570,33 +570,37 @@ class _Cycles:
 
     def hold(self, axes: dict[str, AxisLink], row: int, timeout: float) -> tuple[dict[str, str], list[str]]:
         """After the plan: ``brake`` axes switched off (shutdown) onto their brake; ``enabled`` axes
-        kept powered at their position in profile position with halt (QUICK STOP ACTIVE where the
-        drive has no profile position mode)."""
+        kept powered at their position, in profile position with halt where the drive has that mode
+        (else in QUICK STOP ACTIVE).  A CSP drive leaves the setpoint stream first through a quick
+        stop that holds (0x605A = 6: no setpoint watchdog runs there, however long the SDOs that
+        follow take), an interpolating one by interpolation off; then SYNC stops and profile
+        position with halt is set by SDO (QUICK STOP ACTIVE → OPERATION ENABLED on a quick stop)."""
         fb = self.feedback
         names = list(fb.status)
         brake = [a for a in names if axes[a].cfg.drive_limits is not None and axes[a].cfg.drive_limits.holding == "brake"]
         powered = [a for a in names if a not in brake]
-        pp = [a for a in powered if PP in axes[a].modes and  # an RPDO that sets the mode would undo it
-              not any(index == 0x6060 for c in axes[a].rpdos for index, _ in c.entries)]
-        problems = []
-        cw = {**{a: CW_SHUTDOWN for a in brake}, **{a: CW_HALT for a in pp},
-              **{a: CW_QUICK_STOP_CMD for a in powered if a not in pp}}
-        first = self.count
-        self.run(row, cw.__getitem__, lambda: self.count >= first + 2, 1.0)     # halt reaches the drives
-        for a in pp:
-            try:                                     # SYNC stops only after the drive left CSP
-                axes[a].node.sdo[0x6040].raw = CW_HALT
-                axes[a].drive.set_mode(PP)
-            except Exception as exc:                 # noqa: BLE001 - any failure: quick stop it instead
-                problems.append(f"axis {a}: could not hold it in profile position ({exc}); quick stop")
-                cw[a] = CW_QUICK_STOP_CMD
+        pp = [a for a in powered if PP in axes[a].modes and
+              (axes[a].mode != CSP_MODE or 0x605A in axes[a].node.object_dictionary)]
+        cw = {**{a: CW_SHUTDOWN for a in brake}, **{a: CW_QUICK_STOP_CMD for a in powered},
+              **{a: CW_HALT for a in pp if axes[a].mode != CSP_MODE}}
         wanted = {a: ("READY TO SWITCH ON", "SWITCH ON DISABLED") if a in brake else
                   ("OPERATION ENABLED",) if cw[a] == CW_HALT else ("QUICK STOP ACTIVE",) for a in names}
+        problems = []
         if not self.run(row, cw.__getitem__, lambda: all(fb.state(a) in wanted[a] and fb.age[a] <= 1 for a in names),
                         timeout):
             problems += [f"axis {a}: not held ({fb.state(a) or 'no statusword'} {timeout} s after the motion)"
                          for a in names if fb.state(a) not in wanted[a]]
-        return {a: holding_of(axes[a], fb.state(a)) for a in names}, problems
+        state = {a: fb.state(a) for a in names}
+        for a in pp:                                 # SYNC has stopped: nothing here follows setpoints
+            drive = axes[a].drive
+            try:
+                drive.set_mode(PP)
+                axes[a].node.sdo[0x6040].raw = CW_HALT
+                state[a] = drive.state()
+            except Exception as exc:                 # noqa: BLE001 - any failure: it holds as it is
+                problems.append(f"axis {a}: could not hold it in profile position ({exc})")
+                state[a] = drive.state()
+        return {a: holding_of(axes[a], state[a]) for a in names}, problems
 
 
 def holding_of(ax: AxisLink, state: str | None) -> str:

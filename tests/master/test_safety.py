@@ -192,3 +192,25 @@ def test_a_record_that_does_not_come_stops_the_run_naming_the_buffer_underflow()
     start = axes["y"].position_rad()
     motion = run(config, b.link, axes, {"y": np.full(500, start + 5.0)}, guard=guard)
     assert motion.aborted is not None and "interpolation buffer ran empty" in str(motion.aborted)
+
+
+def test_a_node_without_scaling_takes_the_units_the_drive_reports(tmp_path):
+    """A ros2_canopen bus.yml has no drive-bridge scaling: where the drive reports its units (the
+    project's drive: 0x608F, 0x60A8/0x60A9 in increments, 0x6076), bring-up takes them."""
+    import yaml
+
+    from drive_bridge.config import load_bus_config
+    from ..support import bus_yml_beside
+    path = bus_yml_beside(tmp_path)
+    doc = yaml.safe_load(path.read_text())
+    doc["defaults"].pop("scaling")
+    doc["nodes"] = {"y": {"node_id": 2, "limits": {"stroke_rad": [-70.0, 70.0], "max_velocity_rad_s": 140.0,
+                                                     "max_acceleration_rad_s2": 3000.0}}}
+    path.write_text(yaml.safe_dump(doc))
+    config = load_bus_config(path)
+    assert config.nodes["y"].units_from_drive
+    b = Bench(clean_config())
+    axes = bring_up(b.link, config)
+    sc = axes["y"].cfg.scaling
+    assert sc.increments_per_rev == pytest.approx(2**20) and sc.velocity_per_rad_s == pytest.approx(2**20 / (2 * np.pi))
+    assert sc.rated_torque_Nm == pytest.approx(1.27) and axes["y"].units["assumed_from_bus_yml"] == []
