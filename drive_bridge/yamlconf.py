@@ -38,6 +38,11 @@ def load_yaml(path: str | Path) -> dict:
     return data
 
 
+def too_large(value: int) -> str:
+    """Why an integer no float can hold is refused (it is not printed: it may have thousands of digits)."""
+    return f"an integer of about 10^{int(value.bit_length() * math.log10(2))} is too large a number"
+
+
 def _short(value: Any) -> str:
     text = repr(value)
     return text if len(text) <= 60 else text[:57] + "..."
@@ -45,7 +50,12 @@ def _short(value: Any) -> str:
 
 def finite_number(value: Any) -> bool:
     """A real, finite number (bool is not a number here)."""
-    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return False
+    try:
+        return math.isfinite(value)
+    except OverflowError:                 # an integer too large for a float: no number drive-bridge can use
+        return False
 
 
 class Section:
@@ -84,7 +94,7 @@ class Section:
             try:
                 value = float(value)
             except OverflowError as exc:
-                raise self.error(key, f"{value:.3e} is too large a number") from exc
+                raise self.error(key, too_large(value)) from exc
         if isinstance(value, bool) and bool not in kinds or not isinstance(value, kinds):
             names = " or ".join(k.__name__ for k in kinds)
             raise self.error(key, f"must be {names}, got {_short(value)}")

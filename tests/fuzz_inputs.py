@@ -32,6 +32,7 @@ from drive_bridge.tuning.tune import read_identify_json, read_tune_json, tune_ax
 #: values nobody should write in a configuration, and some that look almost right
 HOSTILE = st.one_of(
     st.integers(min_value=-2**70, max_value=2**70), st.sampled_from([0, -1, 1, 2**31, 2**64, 10**400 // 10**300]),
+    st.sampled_from([10**400, -10**400, 10**309]),          # integers no float can hold
     st.floats(allow_nan=True, allow_infinity=True), st.sampled_from([float("nan"), float("inf"), -0.0, 1e308]),
     st.text(max_size=12), st.booleans(), st.none(),
     st.lists(st.integers(-5, 5), max_size=4), st.dictionaries(st.text(max_size=4), st.integers(), max_size=3),
@@ -149,13 +150,17 @@ NAMES = st.sampled_from(["J", "c0", "c1", "KpS", "KpP", "KiS", "KpC", "KiC", "Fw
 @st.composite
 def result_files(draw, kind: str) -> str:
     """identify.json or tune.json: hostile JSON, or the right shape with hostile values."""
-    if draw(st.integers(0, 3)) == 0:
+    shape = draw(st.integers(0, 4))
+    if shape == 0:
         return json.dumps(draw(JSON))
+    if shape == 1:                                          # nested deeper than any parser recurses
+        depth = draw(st.integers(500, 5000))
+        return '{"axes": ' + "[" * depth + "]" * depth + "}"
     field_ = "params" if kind == "identify" else "parameters"
     axes = draw(st.dictionaries(st.sampled_from(["x", "y", "z", "w", ""]), st.fixed_dictionaries({
         field_: st.one_of(
-            st.dictionaries(NAMES, st.one_of(st.floats(), st.integers(-10**40, 10**40), st.text(max_size=3)),
-                            max_size=8),
+            st.dictionaries(NAMES, st.one_of(st.floats(), st.integers(-10**40, 10**40), st.text(max_size=3),
+                                             st.sampled_from([10**400, -10**400])), max_size=8),
             st.fixed_dictionaries({"J": st.floats(1e-7, 1e-2), "c0": st.floats(0.0, 2.0),
                                    "c1": st.floats(0.0, 1e-2)}, optional={"KpS": st.floats(1e-3, 1.0)})),
         "motor": st.one_of(st.none(), st.fixed_dictionaries({"R": st.floats(), "L": st.floats()}))}),

@@ -30,6 +30,7 @@ def register(sub) -> None:
                                       "position", description="Bring-up, the excitation campaign and its logs "
                                                               "(log.csv, meta.yaml, trace.blf) in --out.")
     options.bus(p)
+    options.motion(p)
     options.campaign(p)
     p.add_argument("--quick", action="store_true", help="a few seconds per axis (demo, tests)")
     p.add_argument("--axes", help="comma-separated axes to move (default: all configured)")
@@ -114,6 +115,7 @@ def cmd_record(args) -> int:
     from ..record import record
     options.out_dir(args.out)
     config = options.config(args)
+    options.confirm_motion(args, config, "record")
     bars = []
 
     def on_plan(plan):

@@ -10,6 +10,7 @@ def register(sub) -> None:
                        description="Every step in one run directory (--out), resumable after the last completed "
                                    "step; summary.json and a self-contained report.html whatever happens.")
     options.drive(p, params=False)
+    options.motion(p)
     options.write_checks(p)
     p.add_argument("--out", required=True, help="run directory: every step's output, summary.json, report.html")
     p.add_argument("--steps", help=f"run only these steps, comma-separated ({', '.join(STEPS)}); "
@@ -25,8 +26,12 @@ def register(sub) -> None:
 def cmd_commission(args) -> int:
     from ..commission import commission
     options.out_dir(args.out)
-    result = commission(options.config(args), args.out, options.session_options(args),
-                        steps=options.axes_list(args.steps), restart=args.restart)
+    config = options.config(args)
+    steps = options.axes_list(args.steps)
+    if steps is None or {"campaign", "validate"} & set(steps):
+        options.confirm_motion(args, config, "commission")
+    result = commission(config, args.out, options.session_options(args),
+                        steps=steps, restart=args.restart)
     if args.json:
         options.print_json(result.summary)
     return result.exit_code

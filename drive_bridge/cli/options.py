@@ -57,6 +57,34 @@ def drive(p: argparse.ArgumentParser, params: bool = True) -> None:
     json_flag(p)
 
 
+def motion(p: argparse.ArgumentParser) -> None:
+    """``--yes``: a command that moves a real machine asks the person beside it first."""
+    p.add_argument("--yes", action="store_true",
+                   help="move the real axes without asking (automation; the person who gives it vouches that "
+                        "the machine's surroundings are clear); --sim never asks")
+
+
+def confirm_motion(args, config, what: str) -> None:
+    """Before a command that moves a real machine writes anything: ``--yes``, or a person at a
+    terminal who types ``yes``; otherwise UserError (nothing written, nothing moved).  --sim moves
+    nothing real and is never asked about."""
+    if args.sim or getattr(args, "yes", False):
+        return
+    axes = ", ".join(f"{a} (node {n.node_id})" for a, n in config.nodes.items())
+    if not sys.stdin.isatty():
+        raise UserError(f"{what} moves the real axes {axes} on {config.master.interface}:{config.master.channel}, "
+                        f"and no one at a terminal can confirm it: give --yes when the machine is clear to move "
+                        f"(nothing was written or moved)")
+    print(f"{what} will enable and move the real axes {axes} on {config.master.interface}:"
+          f"{config.master.channel}; each moves within the limits of {config.path}. Stand clear.", file=sys.stderr)
+    try:
+        answer = input("Type 'yes' to move: ")
+    except EOFError:
+        answer = ""
+    if answer.strip().lower() != "yes":
+        raise UserError(f"{what} not confirmed: nothing was written or moved")
+
+
 def json_flag(p: argparse.ArgumentParser) -> None:
     """``--json``: every command has it."""
     p.add_argument("--json", action="store_true",

@@ -24,6 +24,7 @@ def register(sub) -> None:
     p.add_argument("--ident", required=True, help="identify --json output (identify.json)")
     p.add_argument("--out", default="tune.json", help="where to write the result (default: %(default)s)")
     p.add_argument("--experiment", action="store_true", help="also run the paper's gain-raising procedure on the drive")
+    options.motion(p)
     p.add_argument("--offline", action="store_true",
                    help="design without a bus, from identify.json and the motor data given (--motor-R and "
                         "--motor-L, or --motor-file); the gains before are then unknown")
@@ -46,6 +47,7 @@ def register(sub) -> None:
                        description="Point-to-point moves and a 3-D path with each Table III scenario and the "
                                    "tuned set; the drives are left with the parameters they held before.")
     options.drive(p)
+    options.motion(p)
     p.add_argument("--out", help="directory for validate.json and the logged runs (traces.npz)")
     p.set_defaults(func=cmd_validate)
 
@@ -86,6 +88,8 @@ def cmd_tune(args) -> int:
     else:
         config = options.config(args)
         config = config.only(_axes_in(config, models, args.ident))
+        if args.experiment:
+            options.confirm_motion(args, config, "tune --experiment")
         with Session(config, options.session_options(args)) as session:
             results = tune_axes(models, drive_state(session.axes, session.profile, session.options.motor))
             if args.experiment:
@@ -174,6 +178,7 @@ def cmd_validate(args) -> int:
     params = read_tune_json(args.params).parameters
     names = _axes_in(config, params, args.params)
     config = config.only(names)
+    options.confirm_motion(args, config, "validate")
     model = {a: drive_model(params[a]) for a in names}
     scenarios = {n: {a: dict(g) for a in names} for n, g in TABLE_III.items()}
     scenarios["tuned + model feed-forward"] = {a: params[a] for a in names}

@@ -8,6 +8,7 @@ from pathlib import Path
 
 from ..errors import UserError
 from ..outputs import stamped
+from ..yamlconf import too_large
 from .design import GainDesign, Margins, design_gains, loop_margins
 from .experiment import ExperimentResult
 from .feedforward import MODEL_KEYS
@@ -55,6 +56,8 @@ def _axes_of(path: Path, what: str) -> dict:
         raise UserError(f"{path}: no such file ({what})") from exc
     except (OSError, ValueError) as exc:
         raise UserError(f"{path}: not a {what} (not readable JSON: {exc})") from exc
+    except RecursionError as exc:
+        raise UserError(f"{path}: not a {what} (nested too deeply)") from exc
     axes = doc.get("axes") if isinstance(doc, dict) else None
     if not isinstance(axes, dict) or not axes or not all(isinstance(v, dict) for v in axes.values()):
         raise UserError(f"{path}: not a {what}: it needs an 'axes' mapping of axis name to its result")
@@ -68,7 +71,10 @@ def _numbers(path: Path, where: str, values) -> dict[str, float]:
     for k, v in values.items():
         if isinstance(v, bool) or not isinstance(v, (int, float)):
             raise UserError(f"{path}: {where}.{k} = {v!r} is not a number")
-        out[k] = float(v)
+        try:
+            out[k] = float(v)
+        except OverflowError as exc:
+            raise UserError(f"{path}: {where}.{k}: {too_large(v)}") from exc
     return out
 
 

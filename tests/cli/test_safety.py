@@ -134,3 +134,29 @@ def _only_y(tmp_path):
     doc["nodes"] = {"y": doc["nodes"]["y"]}
     cfg.write_text(yaml.safe_dump(doc))
     return cfg
+
+
+@pytest.mark.parametrize("command", [["record"], ["commission"], ["validate", "--params", "TUNE"],
+                                     ["tune", "--ident", "IDENT", "--experiment"]])
+def test_a_real_bus_moves_only_when_a_person_confirms(tmp_path, capsys, monkeypatch, command):
+    """Without a terminal and without --yes, every command that moves a real machine is refused
+    before anything is written (nothing on the bus: the configured channel stays silent); at a
+    terminal, only 'yes' goes on."""
+    import can
+    ident = tmp_path / "identify.json"
+    ident.write_text(json.dumps({"axes": {"y": {"params": dict(TABLE_II["y"])}}}))
+    command = [{"TUNE": tune_json(tmp_path), "IDENT": str(ident)}.get(c, c) for c in command]
+    channel = f"real-{command[0]}"
+    listener = can.Bus(interface="virtual", channel=channel)
+    argv = command + ["-i", "virtual", "-c", channel] + \
+        (["--out", str(tmp_path / "out")] if command[0] in ("record", "commission") else [])
+    try:
+        assert main(argv) == 2
+        assert "--yes" in capsys.readouterr().err
+        monkeypatch.setattr("sys.stdin.isatty", lambda: True)
+        monkeypatch.setattr("builtins.input", lambda prompt: "no")
+        assert main(argv) == 2
+        assert "not confirmed: nothing was written or moved" in capsys.readouterr().err
+        assert listener.recv(0.05) is None                    # not one frame
+    finally:
+        listener.shutdown()

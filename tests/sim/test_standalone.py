@@ -50,7 +50,7 @@ def test_a_master_killed_mid_campaign_leaves_every_drive_stopped_by_its_heartbea
         for node_id in (1, 2, 3):
             monitor.subscribe(0x80 + node_id, lambda cob, data, ts: emcy.append((cob & 0x7F, data[0] | data[1] << 8,
                                                                                    time.time())))
-        master = subprocess.Popen([sys.executable, "-m", "drive_bridge", "record", "--config", str(cfg), "--axes", "x",
+        master = subprocess.Popen([sys.executable, "-m", "drive_bridge", "record", "--config", str(cfg), "--axes", "x", "--yes",
                                    "--out", str(tmp_path / "run")], stdout=subprocess.DEVNULL,
                                   stderr=subprocess.PIPE, text=True, env=env)
         _wait_for(master.stderr, "campaign:", 120)
