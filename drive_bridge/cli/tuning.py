@@ -2,11 +2,13 @@
 of gains and model, and the reference trajectories."""
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 from ..document import number
 from ..errors import UserError
 from ..outputs import hex_object, write_json
+from ..params.check import ValueRefused, gate
 from ..params.read import drive_state
 from ..params.write import raise_for_failure, write_drives
 from ..session import Session
@@ -48,6 +50,7 @@ def register(sub) -> None:
                                    "tuned set; the drives are left with the parameters they held before.")
     options.drive(p)
     options.motion(p)
+    options.write_checks(p)
     p.add_argument("--out", help="directory for validate.json and the logged runs (traces.npz)")
     p.set_defaults(func=cmd_validate)
 
@@ -175,19 +178,32 @@ def cmd_validate(args) -> int:
     from ..tuning.validate import degraded, run_scenarios, stopped, validate_doc
     options.out_dir(args.out)
     config = options.config(args)
-    params = read_tune_json(args.params).parameters
+    tuned = read_tune_json(args.params)
+    params = tuned.parameters
     names = _axes_in(config, params, args.params)
     config = config.only(names)
-    options.confirm_motion(args, config, "validate")
     model = {a: drive_model(params[a]) for a in names}
     scenarios = {n: {a: dict(g) for a in names} for n, g in TABLE_III.items()}
     scenarios["tuned + model feed-forward"] = {a: params[a] for a in names}
-    with Session(config, options.session_options(args)) as session:
+    with Session(config, options.session_options(args)) as session:   # the bus opens when first used
+        refused = {}
+        for name, sets in list(scenarios.items()):   # every set through write's gate, on the identified model
+            try:
+                gate(session.profile, {a: {**params[a], **sets[a]} for a in names}, tuned.inductance,
+                     force=args.force, pm_floor=args.min_phase_margin, gm_floor=args.min_gain_margin,
+                     allow_unverified_scales=args.allow_unverified_scales)
+            except ValueRefused as exc:
+                refused[name] = str(exc).replace("refused before anything was written: ", "")
+                del scenarios[name]
+                print(f"drive-bridge: {name} refused: {refused[name]}", file=sys.stderr)
+        if not scenarios:
+            raise UserError(f"every scenario was refused ({'; '.join(refused)}); nothing was written or moved")
+        options.confirm_motion(args, config, "validate")
         runs = run_scenarios(config, session.link, session.axes, session.profile, scenarios, model,
-                             out_dir=Path(args.out) if args.out else None)
+                             out_dir=Path(args.out) if args.out else None, refused=refused)
         holding = session.holding()
     if args.json:
-        options.print_json(validate_doc(runs))
+        options.print_json(validate_doc(runs, refused))
     else:
         print(f"{'scenario':<28} {'trajectory':<15} {'axis':<4} {'FE rms [mrad]':>13} {'FE max [mrad]':>13} "
               f"{'overshoot [%]':>13} {'settling [ms]':>13} {'torque RMSE [mNm]':>17}")

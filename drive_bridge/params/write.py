@@ -16,7 +16,7 @@ from ..dcf import export_dcf
 from ..errors import BusError, DriveRefused, WriteInterrupted
 from ..outputs import hex_object, stamped, write_json
 from ..signals import deferred, signal_name
-from .check import GM_FLOOR_DB, PM_FLOOR_DEG, ValueRefused, check_margins, check_set
+from .check import GM_FLOOR_DB, PM_FLOOR_DEG, ValueRefused, check_set, gate
 from .profile import Entry, Profile
 from .read import SDO_ERRORS, describe_sdo_error, motor_data, require_profile_objects, sdo_variable
 
@@ -354,28 +354,18 @@ def write_drives(nodes: dict[str, canopen.RemoteNode], profile: Profile, values:
     before anything is written."""
     require_profile_objects(nodes, profile)
     results = plan_writes(nodes, profile, values, dry_run=dry_run)     # every value first: ValueRefused
-    unverified = sorted({f"{k} ({profile.entries[k].where()})" for v in values.values() for k in v
-                         if k in profile.entries and not profile.entries[k].verified})
-    if unverified and not dry_run and not allow_unverified_scales:
-        raise ValueRefused(f"refused before anything was written: the {profile.drive} profile has no documented "
-                           f"source for the scale of {', '.join(unverified)} ({profile.path}); check them against "
-                           f"the drive's manual, or --allow-unverified-scales to write them anyway")
-    margins, refused, forced = {}, [], []
+    L = {}
     for a, node in nodes.items():
-        L = (inductance or {}).get(a)
-        if L is None and profile.motor is not None:          # the drive reports its motor data
+        L[a] = (inductance or {}).get(a)
+        if L[a] is None and profile.motor is not None:       # the drive reports its motor data
             try:
-                L = motor_data(node, profile)[1]
+                L[a] = motor_data(node, profile)[1]
             except BusError:
-                L = None
-        margins[a], reason = check_margins(profile, values[a], L, pm_floor=pm_floor, gm_floor=gm_floor)
-        if reason:
-            (forced if force else refused).append(f"axis {a}: {reason}")
-    if refused:
-        raise ValueRefused("refused before anything was written: " + "; ".join(refused)
-                           + " (--force writes it anyway and records that)")
+                L[a] = None
+    checked = gate(profile, values, L, force=force, pm_floor=pm_floor, gm_floor=gm_floor,
+                   allow_unverified_scales=allow_unverified_scales, dry_run=dry_run)
     _Transaction(nodes, profile, results, _backup_paths(nodes, backup_dir)).run(True, dry_run)
-    outcome = WriteOutcome(results, margins, forced, list(nodes), unverified)
+    outcome = WriteOutcome(results, checked.margins, checked.forced, list(nodes), checked.unverified)
     if dcf_dir is not None and not dry_run and outcome.ok:
         for a, r in results.items():
             export_dcf(nodes[a], Path(dcf_dir) / f"{a}.dcf", bitrate)

@@ -178,11 +178,12 @@ def run_scenarios(config: BusConfig, link: Link, axes: dict[str, AxisLink], prof
                   scenarios: dict[str, dict[str, dict[str, float]]], model: dict[str, dict[str, float]], *,
                   out_dir: str | Path | None = None,
                   on_plan: Callable[[Plan], Callable[[int], None] | None] | None = None,
-                  master_feedforward: set[str] = frozenset()) -> list[Run]:
+                  master_feedforward: set[str] = frozenset(), refused: dict[str, str] | None = None) -> list[Run]:
     """The validate step: :func:`validate` with the drives left holding the parameters they had
     before (every parameter a scenario sets, read first and written back, not stored), and,
     with ``out_dir``, ``validate.json`` and the logged runs (``traces.npz``) kept there.
-    A stopped run is in the result (see :func:`stopped`); the runs after it did not move."""
+    A stopped run is in the result (see :func:`stopped`); the runs after it did not move.
+    ``refused``: the scenarios the gain gate kept from the drives, and why (into validate.json)."""
     problems = [f"scenario {name}, axis {a}: {p}" for name, values in scenarios.items() for a, v in values.items()
                 for p in check_set(profile, axes[a].node.object_dictionary, v)]
     if problems:
@@ -197,7 +198,7 @@ def run_scenarios(config: BusConfig, link: Link, axes: dict[str, AxisLink], prof
             write_parameters(ax.node, profile, held[a], store=False, check=False)
     if out_dir is not None:
         out = Path(out_dir)
-        write_json(out / VALIDATE_JSON, validate_doc(runs))
+        write_json(out / VALIDATE_JSON, validate_doc(runs, refused))
         traces = {}
         for r in runs:
             m = r.motion
@@ -210,9 +211,10 @@ def run_scenarios(config: BusConfig, link: Link, axes: dict[str, AxisLink], prof
     return runs
 
 
-def validate_doc(runs: list[Run]) -> dict:
-    """validate.json / ``validate --json``."""
-    return stamped("validate", {"runs": [r.as_dict() for r in runs]})
+def validate_doc(runs: list[Run], refused: dict[str, str] | None = None) -> dict:
+    """validate.json / ``validate --json``: the runs, and the scenarios refused before anything
+    moved (scenario -> why)."""
+    return stamped("validate", {"runs": [r.as_dict() for r in runs], "refused": refused or {}})
 
 
 def degraded(runs: list[Run]) -> list[str]:

@@ -160,3 +160,20 @@ def test_a_real_bus_moves_only_when_a_person_confirms(tmp_path, capsys, monkeypa
         assert listener.recv(0.05) is None                    # not one frame
     finally:
         listener.shutdown()
+
+
+def test_validate_refuses_an_unstable_scenario_unless_forced(tmp_path, capsys):
+    """Every gain set validate writes passes write's gate on the identified model: the paper's
+    scenario 3 (a phase margin below zero on this plant) is refused by default, naming the margin;
+    --force runs it."""
+    args = ["validate", "--sim", "--params", tune_json(tmp_path), "--config", str(_only_y(tmp_path)), "--json"]
+    assert main(args + ["--out", str(tmp_path / "a")]) == 0
+    err = capsys.readouterr().err
+    assert "scenario 3 refused: axis y: velocity loop PM" in err and "--force" in err
+    doc = json.loads((tmp_path / "a" / "validate.json").read_text())
+    assert "scenario 3" in doc["refused"] and "scenario 3" not in {r["scenario"] for r in doc["runs"]}
+    assert {"scenario 1", "tuned + model feed-forward"} <= {r["scenario"] for r in doc["runs"]}
+    code = main(args + ["--out", str(tmp_path / "b"), "--force"])
+    doc = json.loads((tmp_path / "b" / "validate.json").read_text())
+    assert "scenario 3" in {r["scenario"] for r in doc["runs"]} and doc["refused"] == {}
+    assert code in (0, 4)                  # forced onto the drive, an unstable loop may end in a stop
