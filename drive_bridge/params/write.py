@@ -40,6 +40,12 @@ class ObjectWrite:
 
 #: what a drive's RAM or its stored (non-volatile) set holds after a transaction
 NEW, BACKUP, UNCHANGED, UNKNOWN = "new", "backup", "unchanged", "unknown"
+#: what a store makes permanent besides the objects written (CiA 301 0x1010 sub-indices): a backup and
+#: its restore cover only the objects written, so a stored set is "backup" for those alone
+STORE_SCOPE = {1: "every parameter the drive held in RAM (0x1010:1), not only the objects written: bring-up's "
+                  "PDO mapping and communication parameters, heartbeat consumer, limits and stop behaviour were "
+                  "made permanent with them, and a restore puts back only the objects written",
+               2: "the communication parameters (0x1010:2)", 3: "the application parameters (0x1010:3)"}
 
 
 @dataclass
@@ -63,6 +69,8 @@ class WriteResult:
     stored_set: str = UNCHANGED
     interrupted: str | None = None    # the signal that cut the transaction short (Ctrl-C, SIGTERM, SIGHUP)
     caused: bool = False              # this drive's failure ended the transaction
+    #: what a store sent to this drive made permanent besides the objects written (None: no store sent)
+    store_scope: str | None = None
 
     def holds(self) -> str:
         """What the drive is known to hold, in words."""
@@ -234,6 +242,7 @@ class _Transaction:
             r.notes.append(f"{self.profile.drive} has no store object: the values are not made non-volatile")
             return
         self.store_state[axis] = UNKNOWN              # sent: until it is confirmed, nobody knows
+        r.store_scope = STORE_SCOPE.get(save[1], f"what 0x{save[0]:04X}:{save[1]} stores")
         self.nodes[axis].sdo[save[0]][save[1]].raw = SAVE_SIGNATURE
         self.store_state[axis] = NEW
         r.stored, r.stored_set = True, NEW

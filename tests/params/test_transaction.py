@@ -138,3 +138,15 @@ def test_a_value_the_drive_must_not_hold_is_refused_before_any_drive_is_written(
         write_all(nodes, SIM, values)
     assert "axis y" in str(refused.value) and name in str(refused.value)
     assert {a: device(n) for a, n in nodes.items()} == before     # not even x was touched
+
+
+def test_write_json_says_what_a_store_made_permanent_beyond_the_backup(bench):
+    """0x1010:1 stores every parameter: bring-up's PDO mapping and settings too, which a restore
+    does not put back -- write.json says so instead of letting 'stored_set: backup' claim more."""
+    from drive_bridge.params.write import write_parameters
+    from .test_write import SIM, tuned_values
+    b = bench()
+    r = write_parameters(b.nodes["y"], SIM, tuned_values())
+    assert r.ok and r.stored
+    assert "PDO mapping" in r.store_scope and "a restore puts back only the objects written" in r.store_scope
+    assert r.as_dict()["store_scope"] == r.store_scope
