@@ -33,6 +33,9 @@ def register(sub) -> None:
     options.motion(p)
     options.campaign(p)
     p.add_argument("--quick", action="store_true", help="a few seconds per axis (demo, tests)")
+    p.add_argument("--dry-run", action="store_true",
+                   help="scan, read the drives' units and positions, plan and check the campaign, print it, and "
+                        "stop: nothing that changes a drive's behaviour is written, nothing moves")
     p.add_argument("--axes", help="comma-separated axes to move (default: all configured)")
     p.add_argument("--together", action="store_true", help="move all axes at once (exposes coupling)")
     p.add_argument("--out", required=True, help="output directory")
@@ -115,12 +118,15 @@ def cmd_record(args) -> int:
     from ..record import record
     options.out_dir(args.out)
     config = options.config(args)
+    if args.dry_run:
+        return _dry_run(args, config)
     options.confirm_motion(args, config, "record")
     bars = []
 
     def on_plan(plan):
         print(f"campaign: {', '.join(plan.axes)}, {len(plan.segments)} segments, "
               f"{plan.duration:.1f} s of motion", file=sys.stderr)
+        print(plan_lines(plan, config), file=sys.stderr)
         bars.append(CampaignProgress(plan))
         return bars[0]
 
@@ -169,6 +175,45 @@ def cmd_sim(args) -> int:
         serve(args.sim_config or DEFAULT_CONFIG, bus, config.master.sync_period_s, eds, until)
     except KeyboardInterrupt:
         print("simulated drives stopped", file=sys.stderr)
+    return 0
+
+
+def plan_lines(plan, config) -> str:
+    """The plan as the person beside the machine reads it: per axis, where it starts, the span it
+    covers, its peaks, inside which limits (the axis's own units: m for a linear axis)."""
+    from ..master.campaign import plan_summary
+    lines = []
+    for a, d in plan_summary(plan, {n: config.nodes[n].limits for n in plan.axes}).items():
+        sc, unit = config.nodes[a].scaling, "m" if config.nodes[a].linear else "rad"
+        k = 1.0 / float(sc.load_to_motor(1.0))                 # motor rad -> the axis's own unit
+        lim = d["limits"]
+        jerk = "" if lim["max_jerk_rad_s3"] is None else f" / {lim['max_jerk_rad_s3'] * k:.4g}"
+        lines.append(f"  {a}: from {d['start_rad'] * k:.4g} {unit}, spans {d['min_rad'] * k:.4g} .. "
+                     f"{d['max_rad'] * k:.4g} {unit} (stroke {lim['stroke_rad'][0] * k:.4g} .. "
+                     f"{lim['stroke_rad'][1] * k:.4g}); peaks {d['peak_velocity_rad_s'] * k:.4g} {unit}/s, "
+                     f"{d['peak_acceleration_rad_s2'] * k:.4g} {unit}/s², {d['peak_jerk_rad_s3'] * k:.4g} {unit}/s³ "
+                     f"(limits {lim['max_velocity_rad_s'] * k:.4g}, {lim['max_acceleration_rad_s2'] * k:.4g}{jerk})")
+    return "\n".join(lines)
+
+
+def _dry_run(args, config) -> int:
+    """``record --dry-run``: what the campaign would do, from where the axes stand, checked; nothing moves."""
+    from ..master.busload import check_bus_load
+    from ..master.campaign import build_plan
+    from ..master.bringup import plan_bring_up
+    load = check_bus_load(config)
+    with Session(config, options.session_options(args)) as session:
+        axes = plan_bring_up(session.link, config)
+        start = {name: ax.position_rad() for name, ax in axes.items()}
+    plan = build_plan(config.campaign, {n: a.cfg.limits for n, a in axes.items()}, start, config.master.sync_period_s)
+    print(f"dry run: campaign {', '.join(plan.axes)}, {len(plan.segments)} segments, {plan.duration:.1f} s of "
+          f"motion, bus load {load.describe()}")
+    print(plan_lines(plan, config))
+    for a, ax in axes.items():
+        assumed = ax.units.get("assumed_from_bus_yml") or []
+        print(f"  {a}: units as the drive reports them: {ax.units.get('position_unit') or 'not reported'}"
+              + (f"; assumed from bus.yml: {'; '.join(assumed)}" if assumed else ""))
+    print("nothing was written that changes a drive's behaviour, nothing moved")
     return 0
 
 

@@ -215,11 +215,8 @@ def bring_up(link: Link, config: BusConfig) -> dict[str, AxisLink]:
         node.nmt.send_command(0x80)                               # pre-operational
         for index, sub, value in ncfg.sdo:                        # first: they may set the drive's units
             _write(node, name, index, sub, value)
-        units = read_units(node, name)
-        ncfg = reconcile(ncfg, units, config.path)
-        _check_range(ncfg, config.path)
-        ax = AxisLink(name, ncfg, node, Drive402(node, name, clock, config.master.state_timeout_s),
-                      result.found[ncfg.node_id], units=units.as_dict())
+        ax = _axis(link, config, result, name, ncfg, {})
+        ncfg = ax.cfg
         written = drive_settings(name, ncfg, period, config.master)
         for index, sub, value in written:
             _write(node, name, index, sub, value)
@@ -238,6 +235,35 @@ def bring_up(link: Link, config: BusConfig) -> dict[str, AxisLink]:
                 _write(node, name, 0x60C4, 6, 0)
                 _write(node, name, 0x60C4, 6, 1)
         _watch(net, ax, clock)
+        axes[name] = ax
+    return axes
+
+
+def _axis(link: Link, config: BusConfig, result: ScanResult, name: str, ncfg: NodeConfig,
+          planned: dict[tuple[int, int], int | float]) -> AxisLink:
+    """An axis with the units its drive reports (``planned``: values the node's ``sdo`` list will
+    have written, read as the drive would hold them), checked against bus.yml and its stroke."""
+    node = link.network[ncfg.node_id]
+    units = read_units(node, name, planned)
+    ncfg = reconcile(ncfg, units, config.path)
+    _check_range(ncfg, config.path)
+    return AxisLink(name, ncfg, node, Drive402(node, name, link.clock, config.master.state_timeout_s),
+                    result.found[ncfg.node_id], units=units.as_dict())
+
+
+def plan_bring_up(link: Link, config: BusConfig) -> dict[str, AxisLink]:
+    """What :func:`bring_up` would do, read only (``--dry-run``): scan and its checks, the drive's
+    units reconciled with bus.yml (the node's ``sdo`` list taken as written), the streaming mode,
+    and in ``drive_limits`` the settings bring-up would write; nothing that changes a drive's
+    behaviour is sent."""
+    result = scan(link, config)
+    check_scan(result, config)
+    axes = {}
+    for name, ncfg in config.nodes.items():
+        ax = _axis(link, config, result, name, ncfg, {(i, s): v for i, s, v in ncfg.sdo})
+        ax.drive_limits = {hex_object(i, s): v for i, s, v in
+                           drive_settings(name, ax.cfg, config.master.sync_period_s, config.master)}
+        ax.mode, ax.setpoint, ax.modes = _streaming_mode(ax.node, ax.cfg, config.path)
         axes[name] = ax
     return axes
 

@@ -204,6 +204,22 @@ def approach_move(lim: Limits, p0: float, p1: float, period: float) -> np.ndarra
     return np.convolve(padded, np.ones(ramp) / ramp, "valid")
 
 
+def plan_summary(plan: Plan, limits: dict[str, Limits]) -> dict[str, dict]:
+    """Per axis what the plan does, motor side SI: where it starts, the span it covers, its peak
+    velocity, acceleration and jerk, and the limits it stays inside; the plan's duration [s]."""
+    T = plan.period
+    out = {}
+    for i, ax in enumerate(plan.axes):
+        p, lim = plan.demand[:, i], limits[ax]
+        peak = [float(np.max(np.abs(np.diff(p, k)))) / T ** k if len(p) > k else 0.0 for k in (1, 2, 3)]
+        out[ax] = {"start_rad": float(p[0]), "min_rad": float(p.min()), "max_rad": float(p.max()),
+                   "peak_velocity_rad_s": peak[0], "peak_acceleration_rad_s2": peak[1], "peak_jerk_rad_s3": peak[2],
+                   "limits": {"stroke_rad": [lim.position_min, lim.position_max],
+                              "max_velocity_rad_s": lim.max_velocity, "max_acceleration_rad_s2": lim.max_acceleration,
+                              "max_jerk_rad_s3": lim.max_jerk}, "duration_s": plan.duration}
+    return out
+
+
 def check_plan(plan: Plan, limits: dict[str, Limits], tolerance: float = 1e-6) -> None:
     """Refuse a plan that leaves the stroke or exceeds velocity, acceleration or (where
     configured) jerk limits."""

@@ -46,13 +46,16 @@ class DriveUnits:
                 "max_torque_permille": self.max_torque_permille, "assumed_from_bus_yml": self.assumed}
 
 
-def read_units(node: canopen.RemoteNode, axis: str) -> DriveUnits:
-    """Read every unit object the drive's EDS/DCF has (an object the drive refuses to read counts as absent)."""
+def read_units(node: canopen.RemoteNode, axis: str, planned: dict | None = None) -> DriveUnits:
+    """Read every unit object the drive's EDS/DCF has (an object the drive refuses to read counts as
+    absent); ``planned`` ((index, sub) -> value) stands for values about to be written."""
     od = node.object_dictionary
 
     def value(index: int, sub: int):
         if od.get_variable(index, sub) is None:
             return None
+        if planned and (index, sub) in planned:
+            return planned[(index, sub)]
         try:
             return od.get_variable(index, sub).decode_raw(node.sdo.upload(index, sub))
         except canopen.SdoAbortedError:

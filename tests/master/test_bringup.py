@@ -94,3 +94,34 @@ def test_bring_up_streams_in_a_mode_the_drive_lists_or_refuses_naming_its_modes(
     bench.robot.drives["y"].sdo_fault = lambda op, index, sub: 0x45 if (op, index) == ("read", 0x6502) else None
     with pytest.raises(DriveRefused, match="0x60C1:1"):      # IP listed, but its record is not mapped
         bring_up(bench.link, cfg)
+
+
+def test_a_dry_run_writes_nothing_and_plans_what_the_run_then_does(tmp_path, capsys):
+    """record --dry-run: scan, the drives' units, the plan from where the axes stand, every check,
+    and not one SDO write, NMT command or PDO; the plan it prints is the one the real run streams."""
+    import numpy as np
+
+    from drive_bridge.master.bringup import plan_bring_up
+    from drive_bridge.master.campaign import build_plan
+    from drive_bridge.record import record
+    from ..support import Bench, clean_config, quick_config
+    config = quick_config()
+    bench = Bench(clean_config())
+    writes = []
+    for drive in bench.robot.drives.values():
+        drive.sdo_fault = lambda op, index, sub: writes.append((index, sub)) if op == "write" else None
+    sent = []
+    bench.link.network.traces += (type("T", (), {"on_message_received": lambda self, m: sent.append(m)})(),)
+    axes = plan_bring_up(bench.link, config)
+    planned = build_plan(config.campaign, {n: a.cfg.limits for n, a in axes.items()},
+                         {n: a.position_rad() for n, a in axes.items()}, config.master.sync_period_s)
+    assert writes == [] and not [m for m in sent if m.arbitration_id in (0x000, 0x080)]
+    assert axes["y"].drive_limits["0x607D:2"] > 0 and axes["y"].mode == 8
+    for drive in bench.robot.drives.values():
+        drive.sdo_fault = None
+    done = record(config, bench.link, tmp_path)
+    assert done.ok and np.array_equal(done.plan.demand, planned.demand)
+    assert main(["record", "--sim", "--quick", "--dry-run", "--out", str(tmp_path / "cli")]) == 0
+    out = capsys.readouterr().out
+    assert "dry run: campaign x, y, z" in out and "z: from -0.12 m" in out and "nothing moved" in out
+    assert not (tmp_path / "cli" / "log.csv").exists()
