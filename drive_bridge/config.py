@@ -72,6 +72,7 @@ class Limits:
 
 
 HOLDING = ("brake", "enabled")
+REFERENCES = ("absolute", "here")
 DEFAULT_MASTER_NODE_ID = 127
 #: the drive's own limits are set this much beyond the configured ones (the campaign stays inside those)
 DRIVE_LIMIT_MARGIN = 1.25
@@ -115,6 +116,9 @@ class NodeConfig:
     #: ``scaling: from_drive``: the position and velocity units (and the rated torque where bus.yml
     #: gives none) are the drive's own, read at bring-up
     units_from_drive: bool = False
+    #: where the stroke is: ``absolute`` (positions as the drive counts them) or ``here`` (laid out
+    #: around the position the axis stands at when it is brought up)
+    reference: str = "absolute"
 
 
 DEFAULT_BITRATE = 1_000_000       # bit/s, when nothing names the bitrate
@@ -391,7 +395,8 @@ def _node(path: Path, axis: str, data: dict, dcf_path: str | None = None, unused
         tpdo=_pdos(sec, "tpdo", od, TPDO_OBJECTS | {scaling.torque_object},
                    {**REQUIRED_TPDO, scaling.torque_object: TORQUE_FEEDBACK[feedback]}),
         sdo=tuple(sdo), profile=sec.get("profile", str, None), motor=_motor(sec), source=data,
-        drive_limits=drive_limits, units_from_drive=from_drive)
+        drive_limits=drive_limits, units_from_drive=from_drive,
+        reference=sec.get("reference", str, "absolute", choices=list(REFERENCES)))
     sec.done()
     return cfg
 

@@ -1,6 +1,8 @@
 """``record``: bring up the drives, run the excitation campaign, write log.csv, meta.yaml, trace."""
 from __future__ import annotations
 
+import logging
+
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -18,6 +20,8 @@ from .master.stream import stream
 from .master.timing import Timing
 from .outputs import stamped
 from .signals import deferred
+
+log = logging.getLogger(__name__)
 
 
 @dataclass
@@ -89,6 +93,9 @@ def _record(config, link, out, load, t_start, on_plan, axes) -> RecordResult:
         "trace": TRACE_NAME,
     }
     write_meta(out / META_NAME, meta)
+    log.info("campaign planned: %s, %d segments, %.1f s of motion", ", ".join(plan.axes), len(plan.segments),
+             plan.duration)
+
     def started(enable_cycles: int) -> None:        # decode skips the SYNCs that enabled the drives
         meta["counts"]["sync_before_plan"] = enable_cycles
         write_meta(out / META_NAME, meta)

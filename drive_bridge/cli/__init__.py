@@ -30,18 +30,39 @@ def build_parser() -> argparse.ArgumentParser:
                                             "Exit codes: 0 ok, 1 internal error, 2 user mistake, 3 bus or drive, "
                                             "4 motion stopped, 130 Ctrl-C.")
     parser.add_argument("--version", action="version", version=f"drive-bridge {__version__}")
+    parser.add_argument("-v", "--verbose", action="count", default=0,
+                        help="-v: drive-bridge's log messages (bring-up, units, enabling, stopping, writing); "
+                             "-vv: also its debug messages and python-can's, canopen's and library warnings")
+    parser.add_argument("-q", "--quiet", action="store_true", help="log errors only")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for module in COMMANDS:
         module.register(sub)
     return parser
 
 
+def log_to_stderr(verbose: int, quiet: bool) -> logging.Handler:
+    """drive-bridge's log on stderr at warning level (-v info, -vv debug, -q errors only); python-can's
+    and canopen's only with -vv (at the default their lines are not for the person at the machine:
+    what matters is in drive-bridge's own message).  Returns the handler (to remove it again)."""
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(logging.Formatter("drive-bridge: %(levelname)s %(name)s: %(message)s"))
+    level = logging.ERROR if quiet else {0: logging.WARNING, 1: logging.INFO}.get(verbose, logging.DEBUG)
+    own = logging.getLogger("drive_bridge")
+    own.setLevel(level)
+    own.addHandler(handler)
+    for name in ("canopen", "can", "py.warnings"):
+        lib = logging.getLogger(name)
+        if verbose >= 2 and not quiet:
+            lib.setLevel(logging.INFO)
+            lib.addHandler(handler)
+        elif not lib.handlers:
+            lib.addHandler(logging.NullHandler())
+    return handler
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run one command; SIGTERM and SIGHUP end it like Ctrl-C (:mod:`drive_bridge.signals`)."""
-    for name in ("canopen", "can"):           # their log lines are not for the person at the machine:
-        logging.getLogger(name).addHandler(logging.NullHandler())      # what matters is in our message
     with signals.handled(), warnings.catch_warnings():
-        warnings.simplefilter("ignore")       # library warnings neither; the CLI says what went wrong
         try:
             return _run(argv)
         except KeyboardInterrupt as exc:      # a signal before or after a command's own handling
@@ -54,6 +75,21 @@ def main(argv: list[str] | None = None) -> int:
 
 def _run(argv: list[str] | None) -> int:
     args = build_parser().parse_args(argv)
+    if args.verbose >= 2 and not args.quiet:
+        logging.captureWarnings(True)         # library warnings as log lines
+    else:
+        warnings.simplefilter("ignore")       # library warnings are not for the person at the machine
+    handler = log_to_stderr(args.verbose, args.quiet)
+    try:
+        return _command(args)
+    finally:                                  # main() may run again in this process (tests, the API)
+        for name in ("drive_bridge", "canopen", "can", "py.warnings"):
+            logging.getLogger(name).removeHandler(handler)
+        logging.captureWarnings(False)
+
+
+def _command(args) -> int:
+    """Run the command, each error ending as :mod:`drive_bridge.errors` says."""
     try:
         return args.func(args)
     except MotionAborted as exc:

@@ -2,8 +2,10 @@
 units, the limits and stop behaviour inside the drive, PDO mapping."""
 from __future__ import annotations
 
+import logging
+
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import canopen
 from canopen.pdo.base import PdoMap
@@ -17,6 +19,8 @@ from ..setpoint import IP, IP_SUB_MODE, MODE_NAMES, PVT, choose, describe_modes,
 from .cia402 import Drive402
 from .link import Link
 from .units import read_units, reconcile
+
+log = logging.getLogger(__name__)
 
 CIA402_PROFILE = 402
 #: what bring-up sets a drive to do when it loses the master (0x6007) and on a quick stop (0x605A),
@@ -210,6 +214,7 @@ def bring_up(link: Link, config: BusConfig) -> dict[str, AxisLink]:
     axes: dict[str, AxisLink] = {}
     period = config.master.sync_period_s
     link.start_heartbeat(config.master.heartbeat_node_id, config.master.heartbeat_period_s)
+    log.info("master heartbeat: node %d every %g s", config.master.heartbeat_node_id, config.master.heartbeat_period_s)
     for name, ncfg in config.nodes.items():
         node = net[ncfg.node_id]
         node.nmt.send_command(0x80)                               # pre-operational
@@ -217,10 +222,14 @@ def bring_up(link: Link, config: BusConfig) -> dict[str, AxisLink]:
             _write(node, name, index, sub, value)
         ax = _axis(link, config, result, name, ncfg, {})
         ncfg = ax.cfg
+        log.info("axis %s: units %s per rad (%s); assumed from bus.yml: %s", name, f"{ncfg.scaling.inc_per_rad:.6g}",
+                 ax.units.get("position_unit") or "not reported", "; ".join(ax.units.get("assumed_from_bus_yml") or [])
+                 or "nothing")
         written = drive_settings(name, ncfg, period, config.master)
         for index, sub, value in written:
             _write(node, name, index, sub, value)
         ax.drive_limits = _read_back(node, name, written)
+        log.info("axis %s: limits and stop behaviour written and read back: %s", name, ax.drive_limits)
         try:
             ax.rpdos = _configure_pdos(node, node.rpdo, ncfg.rpdo, 0x200)
             ax.tpdos = _configure_pdos(node, node.tpdo, ncfg.tpdo, 0x180)
@@ -228,6 +237,8 @@ def bring_up(link: Link, config: BusConfig) -> dict[str, AxisLink]:
             raise DriveRefused(f"axis {name}: the drive refused the PDO mapping ({exc}); "
                                f"check nodes.{name}.rpdo / tpdo in {config.path}") from exc
         ax.mode, ax.setpoint, ax.modes = _streaming_mode(node, ncfg, config.path)
+        log.info("axis %s: streams in mode %d (%s), setpoint %s", name, ax.mode, MODE_NAMES.get(ax.mode, "?"),
+                 hex_object(*ax.setpoint))
         if ax.mode == IP:
             if 0x60C0 in ncfg.od:
                 _write(node, name, 0x60C0, 0, IP_SUB_MODE[ax.setpoint])
@@ -246,6 +257,14 @@ def _axis(link: Link, config: BusConfig, result: ScanResult, name: str, ncfg: No
     node = link.network[ncfg.node_id]
     units = read_units(node, name, planned)
     ncfg = reconcile(ncfg, units, config.path)
+    if ncfg.reference == "here":                 # the stroke around where the axis stands now
+        try:
+            here = float(ncfg.scaling.position_from_device(node.sdo[0x6064].raw))
+        except (canopen.SdoCommunicationError, canopen.SdoAbortedError) as exc:
+            raise BusError(f"axis {name}: reading its position (0x6064) for reference: here failed ({exc})") from exc
+        lim = ncfg.limits
+        ncfg = replace(ncfg, limits=replace(lim, position_min=lim.position_min + here,
+                                            position_max=lim.position_max + here))
     _check_range(ncfg, config.path)
     return AxisLink(name, ncfg, node, Drive402(node, name, link.clock, config.master.state_timeout_s),
                     result.found[ncfg.node_id], units=units.as_dict())
@@ -397,6 +416,7 @@ def _write(node, axis: str, index: int, sub: int, value) -> None:
     if (lo is not None and value < lo) or (hi is not None and value > hi):
         raise DriveRefused(f"axis {axis}: 0x{index:04X}:{sub} = {value} is outside the range its EDS/DCF gives "
                            f"({lo}..{hi}); nothing was written to it")
+    log.debug("axis %s: 0x%04X:%d = %s", axis, index, sub, value)
     try:
         node.sdo.download(index, sub, node.object_dictionary.get_variable(index, sub).encode_raw(value))
     except canopen.SdoAbortedError as exc:

@@ -18,6 +18,8 @@ preallocated arrays; conversion to SI happens once, afterwards, in
 """
 from __future__ import annotations
 
+import logging
+
 import gc
 from dataclasses import dataclass
 from typing import Callable
@@ -25,7 +27,7 @@ from typing import Callable
 import canopen
 import numpy as np
 
-from ..errors import GuardStop, Interrupted, MotionAborted
+from ..errors import GuardStop, Interrupted, MotionAborted, UserError
 from ..signals import signal_name
 from ..pdo import PdoCodec
 from ..setpoint import CSP as CSP_MODE, CW_ENABLE_IP, IP, PVT, SETPOINT_OBJECTS, SW_FOLLOWING, pack_pvt, position_of
@@ -34,6 +36,8 @@ from .campaign import Plan
 from .cia402 import CW_ENABLE, CW_SHUTDOWN, CW_SWITCH_ON, SW_FAULT, state_name
 from .link import Link
 from .timing import Timing, TimingLimits, measure, raise_priority, restore_priority
+
+log = logging.getLogger(__name__)
 
 CW_QUICK_STOP_CMD = 0x000B          # enable voltage + switch on + enable operation, quick stop bit low
 CW_DISABLE_VOLTAGE = 0x0000
@@ -334,6 +338,7 @@ def stream(link: Link, axes: dict[str, AxisLink], plan: Plan, *, heartbeat_timeo
     rec = Recording({a: axes[a].tpdos for a in plan.axes}, {a: axes[a].rpdos for a in plan.axes}, n)
     for i, a in enumerate(plan.axes):        # what the RPDOs carry (decode reads it from the trace)
         rec.demand[:, i] = axes[a].cfg.scaling.position_to_device(plan.demand[:, i])
+        _inside_drive_limits(axes[a], rec.demand[:, i])
     tpdo_cobs = {c.cob_id for a in plan.axes for c in axes[a].tpdos}
     handlers = {cob: h for cob, h in rec.handlers().items() if cob in tpdo_cobs}
     for cob, handler in handlers.items():
@@ -373,6 +378,8 @@ def stream(link: Link, axes: dict[str, AxisLink], plan: Plan, *, heartbeat_timeo
         for a in plan.axes:
             axes[a].node.nmt.send_command(0x01)              # operational: PDOs flow
         aborted = cycles.enable(state_timeout)
+        log.info("enabled in the controlword in %d SYNC cycles%s", cycles.count,
+                 f"; not: {aborted}" if aborted else "")
         if aborted is None and on_start is not None:
             on_start(cycles.count)
         t0 = clock.now()
@@ -432,6 +439,7 @@ def stream(link: Link, axes: dict[str, AxisLink], plan: Plan, *, heartbeat_timeo
     missing = rec.missing()
     try:
         last = max(0, min(sent, n) - 1)
+        log.info("%d of %d plan cycles sent; %s", sent, n, f"stopping: {aborted}" if aborted else "holding")
         if aborted is None:
             holding, problems = cycles.hold(axes, last, state_timeout)
         else:
@@ -448,6 +456,20 @@ def stream(link: Link, axes: dict[str, AxisLink], plan: Plan, *, heartbeat_timeo
                        MotionAborted(aborted.reason + "; " + "; ".join(problems), aborted.axis, aborted.emcy))
     timing = measure(rec.sync_time, plan.period, missing, wall=link.threaded, priority=priority, limits=timing_limits)
     return StreamResult(rec, sent, aborted, missing, timing, holding, cycles.enable_count)
+
+
+def _inside_drive_limits(ax: AxisLink, demand: np.ndarray) -> None:
+    """UserError before the first setpoint where the plan [device units] leaves the software
+    position limits the drive holds (0x607D, as bring-up read it back)."""
+    lo, hi = ax.drive_limits.get("0x607D:1"), ax.drive_limits.get("0x607D:2")
+    if lo is None or hi is None or lo >= hi or not len(demand):
+        return
+    if demand.min() < lo or demand.max() > hi:
+        sc = ax.cfg.scaling
+        raise UserError(f"axis {ax.name}: the motion spans {float(sc.position_from_device(demand.min())):.4f} .. "
+                        f"{float(sc.position_from_device(demand.max())):.4f} rad, outside the software position "
+                        f"limits the drive holds (0x607D: {float(sc.position_from_device(lo)):.4f} .. "
+                        f"{float(sc.position_from_device(hi)):.4f} rad); nothing was enabled or moved")
 
 
 def _records_only(ax: AxisLink, codec: PdoCodec) -> bool:

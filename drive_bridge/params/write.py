@@ -7,6 +7,8 @@ result lists every object with its old and new value in SI and device units.
 """
 from __future__ import annotations
 
+import logging
+
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -19,6 +21,8 @@ from ..signals import deferred, signal_name
 from .check import GM_FLOOR_DB, PM_FLOOR_DEG, ValueRefused, check_set, gate
 from .profile import Entry, Profile
 from .read import SDO_ERRORS, describe_sdo_error, motor_data, require_profile_objects, sdo_variable
+
+log = logging.getLogger(__name__)
 
 SAVE_SIGNATURE = 0x65766173         # "save"
 
@@ -241,6 +245,7 @@ class _Transaction:
         if save is None:
             r.notes.append(f"{self.profile.drive} has no store object: the values are not made non-volatile")
             return
+        log.info("axis %s: storing (0x%04X:%d 'save')", axis, *save)
         self.store_state[axis] = UNKNOWN              # sent: until it is confirmed, nobody knows
         r.store_scope = STORE_SCOPE.get(save[1], f"what 0x{save[0]:04X}:{save[1]} stores")
         self.nodes[axis].sdo[save[0]][save[1]].raw = SAVE_SIGNATURE

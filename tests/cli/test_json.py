@@ -49,3 +49,20 @@ def test_check_eds_and_export(tmp_path, capsys):
     assert main(["export", "ros2", "--out", str(tmp_path), "--json"]) == 0
     doc = follows_schema(_printed(capsys), "export")
     assert "bus.yml" in doc["files"] and all((tmp_path / f).is_file() for f in doc["files"])
+
+
+def test_verbose_shows_drive_bridge_log_lines_and_quiet_only_errors(tmp_path, capsys):
+    """-v: drive-bridge's log (bring-up, enabling, stopping) on stderr; by default and with -q, none;
+    python-can's and canopen's lines only with -vv."""
+    from drive_bridge.cli import main
+    args = ["record", "--sim", "--quick", "--axes", "y", "--out"]
+    assert main(["-v"] + args + [str(tmp_path / "a")]) == 0
+    err = capsys.readouterr().err
+    assert "INFO drive_bridge.master.bringup: axis y: units" in err and "INFO drive_bridge.master.stream" in err
+    assert " canopen." not in err                                  # python-can's and canopen's: -vv
+    assert main(["-vv"] + args + [str(tmp_path / "d")]) == 0
+    assert "INFO canopen.pdo" in capsys.readouterr().err
+    assert main(args + [str(tmp_path / "b")]) == 0
+    assert " INFO " not in capsys.readouterr().err
+    assert main(["-q"] + args + [str(tmp_path / "c")]) == 0
+    assert " INFO " not in capsys.readouterr().err

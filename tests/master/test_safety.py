@@ -214,3 +214,33 @@ def test_a_node_without_scaling_takes_the_units_the_drive_reports(tmp_path):
     sc = axes["y"].cfg.scaling
     assert sc.increments_per_rev == pytest.approx(2**20) and sc.velocity_per_rad_s == pytest.approx(2**20 / (2 * np.pi))
     assert sc.rated_torque_Nm == pytest.approx(1.27) and axes["y"].units["assumed_from_bus_yml"] == []
+
+
+def test_reference_here_lays_the_stroke_around_the_axis_and_the_drive_limits_bound_the_motion(tmp_path):
+    """reference: here: the stroke (and 0x607D) around where the axis stands at bring-up; a motion
+    that would leave the software position limits the drive holds is refused before the first
+    setpoint, with the numbers."""
+    import yaml
+
+    from drive_bridge.config import load_bus_config
+    from drive_bridge.errors import UserError
+    from ..support import bus_yml_beside
+    path = bus_yml_beside(tmp_path)
+    doc = yaml.safe_load(path.read_text())
+    doc["nodes"] = {"y": {**doc["nodes"]["y"], "reference": "here"}}
+    path.write_text(yaml.safe_dump(doc))
+    config = load_bus_config(path)
+    cfg = clean_config()
+    b = Bench(cfg)
+    b.robot.state[1, K.Q] = 100.0                      # far from the encoder's zero
+    b.robot.drives["y"].refresh_actuals()
+    axes = bring_up(b.link, config)
+    lim = axes["y"].cfg.limits
+    assert lim.position_min == pytest.approx(100.0 - 75.398, abs=1e-3) and lim.position_max == pytest.approx(175.398, abs=1e-3)
+    assert axes["y"].drive_limits["0x607D:2"] == round(lim.position_max * axes["y"].cfg.scaling.inc_per_rad)
+    motion = run(config, b.link, axes, {"y": np.full(50, 101.0)})
+    assert motion.aborted is None and float(b.robot.state[1, K.Q]) == pytest.approx(101.0, abs=1e-3)
+    axes["y"].drive_limits["0x607D:2"] = round(101.5 * axes["y"].cfg.scaling.inc_per_rad)   # the drive's, narrower
+    with pytest.raises(UserError, match="outside the software position limits the drive holds"):
+        run(config, b.link, axes, {"y": np.full(50, 102.0)})
+    assert float(b.robot.state[1, K.Q]) == pytest.approx(101.0, abs=1e-3)
