@@ -42,6 +42,21 @@ def register(sub) -> None:
     options.json_flag(p)
     p.set_defaults(func=cmd_record)
 
+    p = sub.add_parser("jog", help="move one axis slowly to a position (a safe start, away from an end stop)",
+                       description="One axis to --to POS or by --by DELTA (m for a linear axis, rad for a rotary "
+                                   "one), slowly, through the same bring-up, limits, stop and hold as every motion: "
+                                   "an S-curve from where it stands, inside its stroke; Ctrl-C stops it.")
+    options.bus(p)
+    options.motion(p)
+    p.add_argument("axis", help="the axis to move")
+    where = p.add_mutually_exclusive_group(required=True)
+    where.add_argument("--to", type=float, help="the position to go to [m | rad]")
+    where.add_argument("--by", type=float, help="the distance to go [m | rad]")
+    p.add_argument("--speed", type=float, help="peak speed [m/s | rad/s] (default: 10 %% of the axis's limit)")
+    p.add_argument("--dry-run", action="store_true", help="read where the axis stands, plan and check the move, "
+                                                          "print it and stop: nothing moves")
+    p.set_defaults(func=cmd_jog)
+
     p = sub.add_parser("decode", help="rebuild log.csv from a raw CAN trace",
                        description="Rebuild the log of a recording from its CAN trace and meta.yaml "
                                    "(byte-identical to the live log.csv, except samples the live log "
@@ -175,6 +190,57 @@ def cmd_sim(args) -> int:
         serve(args.sim_config or DEFAULT_CONFIG, bus, config.master.sync_period_s, eds, until)
     except KeyboardInterrupt:
         print("simulated drives stopped", file=sys.stderr)
+    return 0
+
+
+JOG_LEVEL = 0.1             # a jog's default speed and acceleration: this share of the axis's limits
+
+
+def cmd_jog(args) -> int:
+    import math
+
+    import numpy as np
+
+    from ..master.bringup import plan_bring_up
+    from ..master.campaign import Plan, Segment, approach_move, check_plan
+    from ..tuning.motion import run
+    config = options.config(args).only([args.axis])
+    ncfg = config.nodes[args.axis]
+    unit = "m" if ncfg.linear else "rad"
+    for name, value in (("--to", args.to), ("--by", args.by), ("--speed", args.speed)):
+        if value is not None and not math.isfinite(value):
+            raise UserError(f"{name} must be a finite number [{unit}], got {value}")
+    level = JOG_LEVEL
+    if args.speed is not None:
+        level = float(ncfg.scaling.load_to_motor(args.speed)) / ncfg.limits.max_velocity
+        if not 0 < level <= 1:
+            raise UserError(f"--speed {args.speed} {unit}/s must be above 0 and within the axis's limit "
+                            f"{ncfg.limits.max_velocity / float(ncfg.scaling.load_to_motor(1.0)):.4g} {unit}/s")
+    if not args.dry_run:
+        options.confirm_motion(args, config, f"jog {args.axis}")
+    with Session(config, options.session_options(args)) as session:
+        axes = plan_bring_up(session.link, config) if args.dry_run else session.axes
+        ax = axes[args.axis]
+        here = ax.position_rad()
+        target = float(ax.cfg.scaling.load_to_motor(args.to)) if args.to is not None else \
+            here + float(ax.cfg.scaling.load_to_motor(args.by))
+        move = approach_move(ax.cfg.limits, here, target, config.master.sync_period_s, level)
+        plan = Plan([args.axis], np.concatenate([[here], move])[:, None],
+                    [Segment("jog", (args.axis,), level, level, 0, 0, len(move) + 1)], config.master.sync_period_s)
+        check_plan(plan, {args.axis: ax.cfg.limits})
+        print(f"jog {args.axis}: {plan.duration:.1f} s", file=sys.stderr)
+        print(plan_lines(plan, config), file=sys.stderr)
+        if args.dry_run:
+            print("dry run: nothing moved")
+            return 0
+        motion = run(config, session.link, {args.axis: ax}, {args.axis: np.array([target])}, kind="jog",
+                     level=level, approach_level=level)
+        holding = session.holding()
+    k = 1.0 / float(ncfg.scaling.load_to_motor(1.0))
+    if motion.aborted is not None:
+        raise motion.aborted
+    print(f"{args.axis} at {float(motion.position[args.axis][-1]) * k:.6g} {unit}")
+    print(holding_lines(holding))
     return 0
 
 

@@ -191,11 +191,12 @@ def short_plan(cfg: CampaignConfig, limits: dict[str, Limits], start: dict[str, 
     return seq.plan(limits)
 
 
-def approach_move(lim: Limits, p0: float, p1: float, period: float) -> np.ndarray:
-    """A move at the approach level from wherever the axis stands: a trapezoid whose positions are
-    smoothed so that the acceleration ramps (an S-curve of the same travel) within the jerk limit
-    where one is set, else over ``APPROACH_RAMP_S``: no acceleration step at the start of motion."""
-    move = trapezoid(p0, p1, APPROACH_LEVEL * lim.max_velocity, APPROACH_LEVEL * lim.max_acceleration, period)
+def approach_move(lim: Limits, p0: float, p1: float, period: float, level: float = APPROACH_LEVEL) -> np.ndarray:
+    """A move at ``level`` of the limits (the approach level by default) from wherever the axis
+    stands: a trapezoid whose positions are smoothed so that the acceleration ramps (an S-curve of
+    the same travel) within the jerk limit where one is set, else over ``APPROACH_RAMP_S``: no
+    acceleration step at the start of motion."""
+    move = trapezoid(p0, p1, level * lim.max_velocity, level * lim.max_acceleration, period)
     if len(move) == 0:
         return move
     ramp_s = APPROACH_RAMP_S if lim.max_jerk is None else 1.25 * lim.max_acceleration / lim.max_jerk

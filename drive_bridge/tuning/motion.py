@@ -35,9 +35,11 @@ def run(config: BusConfig, link: Link, axes: dict[str, AxisLink], demand: dict[s
         guard: Callable[[dict[str, float]], str | None] | None = None,
         on_plan: Callable[[Plan], Callable[[int], None] | None] | None = None,
         kind: str = "trajectory", level: float = 1.0,
-        feedforward: dict[str, MasterFeedForward] | None = None) -> Motion:
+        feedforward: dict[str, MasterFeedForward] | None = None,
+        approach_level: float = APPROACH_LEVEL) -> Motion:
     """Approach the first setpoint of ``demand`` (axis -> positions per SYNC [rad]) at 20 % of the
-    limits, then stream it; ``guard`` sees each cycle's measured velocities and may stop the run.
+    limits (``approach_level``), then stream it; ``guard`` sees each cycle's measured velocities and may
+    stop the run.
     ``on_plan`` may return a progress callback (as in ``record``); ``kind`` and ``level`` (fraction
     of the limits) label the demand's segment for it.  ``feedforward`` (per axis) is the model
     feed-forward the master sends with every setpoint, the approach included."""
@@ -45,11 +47,11 @@ def run(config: BusConfig, link: Link, axes: dict[str, AxisLink], demand: dict[s
     names = list(demand)
     limits = {a: axes[a].cfg.limits for a in names}
     start = {a: axes[a].position_rad() for a in names}
-    approach = {a: approach_move(limits[a], start[a], float(demand[a][0]), period) for a in names}
+    approach = {a: approach_move(limits[a], start[a], float(demand[a][0]), period, approach_level) for a in names}
     n_app = max(len(v) for v in approach.values()) + round(0.2 / period)       # then settle
     cols = [np.concatenate([approach[a], np.full(n_app - len(approach[a]), float(demand[a][0])), demand[a]])
             for a in names]                  # the approach ends at the first setpoint, then holds it
-    plan = Plan(names, np.column_stack(cols), [Segment("approach", tuple(names), APPROACH_LEVEL, APPROACH_LEVEL,
+    plan = Plan(names, np.column_stack(cols), [Segment("approach", tuple(names), approach_level, approach_level,
                                                        0, 0, n_app),
                                                Segment(kind, tuple(names), level, level, 0, n_app,
                                                        n_app + len(demand[names[0]]))], period)

@@ -137,7 +137,7 @@ def _only_y(tmp_path):
 
 
 @pytest.mark.parametrize("command", [["record"], ["commission"], ["validate", "--params", "TUNE"],
-                                     ["tune", "--ident", "IDENT", "--experiment"]])
+                                     ["tune", "--ident", "IDENT", "--experiment"], ["jog", "y", "--by", "0.01"]])
 def test_a_real_bus_moves_only_when_a_person_confirms(tmp_path, capsys, monkeypatch, command):
     """Without a terminal and without --yes, every command that moves a real machine is refused
     before anything is written (nothing on the bus: the configured channel stays silent); at a
@@ -177,3 +177,17 @@ def test_validate_refuses_an_unstable_scenario_unless_forced(tmp_path, capsys):
     doc = json.loads((tmp_path / "b" / "validate.json").read_text())
     assert "scenario 3" in {r["scenario"] for r in doc["runs"]} and doc["refused"] == {}
     assert code in (0, 4)                  # forced onto the drive, an unstable loop may end in a stop
+
+
+def test_jog_moves_one_axis_slowly_inside_its_stroke_and_holds_it(tmp_path, capsys):
+    """jog: Z up from the end stop it rests on, at 10 % of its limits, and held there powered; a
+    jog past the stroke is refused before anything moves; --dry-run moves nothing."""
+    assert main(["jog", "z", "--sim", "--to", "0.05"]) == 0
+    out, err = capsys.readouterr()
+    assert "z at 0.05 m" in out and "axis z: powered, holding its position" in out
+    assert "peaks 0.023 m/s, 0.46 m/s²" in err                     # 10 % of 0.23 m/s and (ramped) 5 m/s²
+    assert main(["jog", "z", "--sim", "--by", "0.3"]) == 2
+    assert "outside the stroke" in capsys.readouterr().err
+    assert main(["jog", "y", "--sim", "--by", "0.01", "--dry-run"]) == 0
+    assert "dry run: nothing moved" in capsys.readouterr().out
+    assert main(["jog", "y", "--sim", "--by", "0.01", "--speed", "5"]) == 2      # above the axis's 0.23 m/s
