@@ -31,7 +31,7 @@ from ..errors import GuardStop, Interrupted, MotionAborted, UserError
 from ..signals import signal_name
 from ..pdo import PdoCodec
 from ..setpoint import CSP as CSP_MODE, CW_ENABLE_IP, IP, PVT, SETPOINT_OBJECTS, SW_FOLLOWING, pack_pvt, position_of
-from .bringup import AxisLink, emcy_text
+from .bringup import QUICK_STOP_RAMP_AND_HOLD, AxisLink, emcy_text
 from .campaign import Plan
 from .cia402 import CW_ENABLE, CW_SHUTDOWN, CW_SWITCH_ON, SW_FAULT, state_name
 from .link import Link
@@ -593,18 +593,22 @@ class _Cycles:
     def hold(self, axes: dict[str, AxisLink], row: int, timeout: float) -> tuple[dict[str, str], list[str]]:
         """After the plan: ``brake`` axes switched off (shutdown) onto their brake; ``enabled`` axes
         kept powered at their position, in profile position with halt where the drive has that mode
-        (else in QUICK STOP ACTIVE).  A CSP drive leaves the setpoint stream first through a quick
-        stop that holds (0x605A = 6: no setpoint watchdog runs there, however long the SDOs that
-        follow take), an interpolating one by interpolation off; then SYNC stops and profile
-        position with halt is set by SDO (QUICK STOP ACTIVE → OPERATION ENABLED on a quick stop)."""
+        (else in QUICK STOP ACTIVE, or interpolation off).  A CSP drive leaves the setpoint stream
+        through a quick stop that holds where bring-up set one (0x605A = 6: no setpoint watchdog runs
+        there, however long the SDOs that follow take), else its mode is switched by SDO right after
+        the last SYNC; an interpolating one stops interpolating.  Then SYNC stops and profile position
+        with halt is set by SDO (QUICK STOP ACTIVE → OPERATION ENABLED after a quick stop).  A CSP
+        drive with neither is not held once the master is gone, and that is said."""
         fb = self.feedback
         names = list(fb.status)
         brake = [a for a in names if axes[a].cfg.drive_limits is not None and axes[a].cfg.drive_limits.holding == "brake"]
         powered = [a for a in names if a not in brake]
-        pp = [a for a in powered if PP in axes[a].modes and
-              (axes[a].mode != CSP_MODE or 0x605A in axes[a].node.object_dictionary)]
-        cw = {**{a: CW_SHUTDOWN for a in brake}, **{a: CW_QUICK_STOP_CMD for a in powered},
-              **{a: CW_HALT for a in pp if axes[a].mode != CSP_MODE}}
+        # a quick stop that holds (0x605A = 6, as bring-up wrote it) leaves CSP with no setpoint
+        # watchdog left to run out; elsewhere halt, interpolation off, and (CSP) the mode switched fast
+        qs_hold = {a for a in powered if axes[a].drive_limits.get("0x605A:0") == QUICK_STOP_RAMP_AND_HOLD}
+        cw = {**{a: CW_SHUTDOWN for a in brake},
+              **{a: CW_QUICK_STOP_CMD if a in qs_hold and axes[a].mode == CSP_MODE else CW_HALT for a in powered}}
+        pp = [a for a in powered if PP in axes[a].modes]
         wanted = {a: ("READY TO SWITCH ON", "SWITCH ON DISABLED") if a in brake else
                   ("OPERATION ENABLED",) if cw[a] == CW_HALT else ("QUICK STOP ACTIVE",) for a in names}
         problems = []
@@ -613,7 +617,7 @@ class _Cycles:
             problems += [f"axis {a}: not held ({fb.state(a) or 'no statusword'} {timeout} s after the motion)"
                          for a in names if fb.state(a) not in wanted[a]]
         state = {a: fb.state(a) for a in names}
-        for a in pp:                                 # SYNC has stopped: nothing here follows setpoints
+        for a in pp:                                 # SYNC has stopped
             drive = axes[a].drive
             try:
                 drive.set_mode(PP)
@@ -622,6 +626,9 @@ class _Cycles:
             except Exception as exc:                 # noqa: BLE001 - any failure: it holds as it is
                 problems.append(f"axis {a}: could not hold it in profile position ({exc})")
                 state[a] = drive.state()
+        problems += [f"axis {a}: its drive has neither profile position nor a quick stop that holds: without the "
+                     f"master's setpoints it is not held (give it holding: brake)" for a in powered
+                     if a not in pp and cw[a] == CW_HALT and axes[a].mode == CSP_MODE]
         return {a: holding_of(axes[a], state[a]) for a in names}, problems
 
 
