@@ -134,8 +134,10 @@ def cmd_record(args) -> int:
     options.out_dir(args.out)
     config = options.config(args)
     if args.dry_run:
-        return _dry_run(args, config)
-    options.confirm_motion(args, config, "record")
+        print(campaign_preview(args, config))
+        print("nothing was written that changes a drive's behaviour, nothing moved")
+        return 0
+    options.confirm_motion(args, config, "record", lambda: campaign_preview(args, config))
     bars = []
 
     def on_plan(plan):
@@ -262,25 +264,25 @@ def plan_lines(plan, config) -> str:
     return "\n".join(lines)
 
 
-def _dry_run(args, config) -> int:
-    """``record --dry-run``: what the campaign would do, from where the axes stand, checked; nothing moves."""
+def campaign_preview(args, config) -> str:
+    """The campaign as it would run from where the axes stand, planned and checked over a read-only
+    bring-up (nothing that changes a drive's behaviour is written): for --dry-run and for the
+    question before a real run."""
+    from ..master.bringup import plan_bring_up
     from ..master.busload import check_bus_load
     from ..master.campaign import build_plan
-    from ..master.bringup import plan_bring_up
     load = check_bus_load(config)
     with Session(config, options.session_options(args)) as session:
         axes = plan_bring_up(session.link, config)
         start = {name: ax.position_rad() for name, ax in axes.items()}
     plan = build_plan(config.campaign, {n: a.cfg.limits for n, a in axes.items()}, start, config.master.sync_period_s)
-    print(f"dry run: campaign {', '.join(plan.axes)}, {len(plan.segments)} segments, {plan.duration:.1f} s of "
-          f"motion, bus load {load.describe()}")
-    print(plan_lines(plan, config))
+    lines = [f"campaign {', '.join(plan.axes)}: {len(plan.segments)} segments, {plan.duration:.1f} s of motion, "
+             f"bus load {load.describe()}", plan_lines(plan, config)]
     for a, ax in axes.items():
         assumed = ax.units.get("assumed_from_bus_yml") or []
-        print(f"  {a}: units as the drive reports them: {ax.units.get('position_unit') or 'not reported'}"
-              + (f"; assumed from bus.yml: {'; '.join(assumed)}" if assumed else ""))
-    print("nothing was written that changes a drive's behaviour, nothing moved")
-    return 0
+        lines.append(f"  {a}: units as the drive reports them: {ax.units.get('position_unit') or 'not reported'}"
+                     + (f"; assumed from bus.yml: {'; '.join(assumed)}" if assumed else ""))
+    return "\n".join(lines)
 
 
 def holding_lines(holding: dict[str, str] | None) -> str:

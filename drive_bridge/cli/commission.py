@@ -1,7 +1,7 @@
 """``commission``: the whole job in one command, resumable, ending in summary.json and report.html."""
 from __future__ import annotations
 
-from . import options
+from . import bus, options
 
 
 def register(sub) -> None:
@@ -29,7 +29,8 @@ def cmd_commission(args) -> int:
     config = options.config(args)
     steps = options.axes_list(args.steps)
     if steps is None or {"campaign", "validate"} & set(steps):
-        options.confirm_motion(args, config, "commission")
+        preview = (lambda: bus.campaign_preview(args, config)) if steps is None or "campaign" in steps else None
+        options.confirm_motion(args, config, "commission", preview)
     result = commission(config, args.out, options.session_options(args),
                         steps=steps, restart=args.restart)
     if args.json:

@@ -64,10 +64,11 @@ def motion(p: argparse.ArgumentParser) -> None:
                         "the machine's surroundings are clear); --sim never asks")
 
 
-def confirm_motion(args, config, what: str) -> None:
+def confirm_motion(args, config, what: str, preview=None) -> None:
     """Before a command that moves a real machine writes anything: ``--yes``, or a person at a
-    terminal who types ``yes``; otherwise UserError (nothing written, nothing moved).  --sim moves
-    nothing real and is never asked about."""
+    terminal who types ``yes`` after reading what will move (``preview()``: the plan, read without
+    writing anything); otherwise UserError (nothing written, nothing moved).  --sim moves nothing
+    real and is never asked about."""
     if args.sim or getattr(args, "yes", False):
         return
     axes = ", ".join(f"{a} (node {n.node_id})" for a, n in config.nodes.items())
@@ -75,6 +76,8 @@ def confirm_motion(args, config, what: str) -> None:
         raise UserError(f"{what} moves the real axes {axes} on {config.master.interface}:{config.master.channel}, "
                         f"and no one at a terminal can confirm it: give --yes when the machine is clear to move "
                         f"(nothing was written or moved)")
+    if preview is not None:
+        print(preview(), file=sys.stderr)
     print(f"{what} will enable and move the real axes {axes} on {config.master.interface}:"
           f"{config.master.channel}; each moves within the limits of {config.path}. Stand clear.", file=sys.stderr)
     try:

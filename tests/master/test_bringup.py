@@ -123,5 +123,5 @@ def test_a_dry_run_writes_nothing_and_plans_what_the_run_then_does(tmp_path, cap
     assert done.ok and np.array_equal(done.plan.demand, planned.demand)
     assert main(["record", "--sim", "--quick", "--dry-run", "--out", str(tmp_path / "cli")]) == 0
     out = capsys.readouterr().out
-    assert "dry run: campaign x, y, z" in out and "z: from -0.12 m" in out and "nothing moved" in out
+    assert "campaign x, y, z: 18 segments" in out and "z: from -0.12 m" in out and "nothing moved" in out
     assert not (tmp_path / "cli" / "log.csv").exists()

@@ -80,3 +80,26 @@ def test_a_master_killed_mid_campaign_leaves_every_drive_stopped_by_its_heartbea
             drives.wait(timeout=10)
         except subprocess.TimeoutExpired:
             drives.kill()
+
+
+def test_on_a_terminal_the_plan_is_shown_and_yes_moves(tmp_path, capsys, monkeypatch):
+    """A real bus (the simulated drives in their own process) at a terminal: the campaign's plan,
+    read over a read-only bring-up, is shown before the question; 'yes' runs it."""
+    from drive_bridge.cli import main
+    from drive_bridge.sim.config import DEFAULT_CONFIG
+    from drive_bridge.sim.process import SimProcess
+    drives = SimProcess(DEFAULT_CONFIG, 0.002)
+    try:
+        cfg = bus_yml_beside(tmp_path)
+        doc = yaml.safe_load(cfg.read_text())
+        doc["master"].update(interface="udp_multicast", channel=UDP_GROUP, can_options={"port": drives.port})
+        cfg.write_text(yaml.safe_dump(doc))
+        monkeypatch.setattr("sys.stdin.isatty", lambda: True)
+        monkeypatch.setattr("builtins.input", lambda prompt: "yes")
+        code = main(["record", "--config", str(cfg), "--quick", "--axes", "y", "--out", str(tmp_path / "run")])
+        err = capsys.readouterr().err
+        assert code in (0, 5)                      # 5: a loaded machine's timing, said
+        assert err.index("units as the drive reports them") < err.index("will enable and move the real axes")
+        assert (tmp_path / "run" / "log.csv").exists()
+    finally:
+        drives.shutdown()
