@@ -3,7 +3,6 @@ units, the limits and stop behaviour inside the drive, PDO mapping."""
 from __future__ import annotations
 
 import logging
-
 import math
 from dataclasses import dataclass, field, replace
 
@@ -14,6 +13,7 @@ from ..config import BusConfig, MasterConfig, NodeConfig, PdoConfig
 from ..errors import BusError, DriveRefused
 from ..od import limits
 from ..outputs import hex_object, identity_hex, stamped
+from ..params.read import read_if_readable
 from ..pdo import PdoCodec
 from ..setpoint import IP, IP_SUB_MODE, MODE_NAMES, PVT, choose, describe_modes, supported_modes
 from .cia402 import Drive402
@@ -394,15 +394,11 @@ def _read_back(node, axis: str, written) -> dict[str, int | float]:
     """Each setting as the drive now holds it; DriveRefused where it kept another value."""
     out = {}
     for index, sub, value in written:
-        var = node.object_dictionary.get_variable(index, sub)
-        if not var.readable:
+        if not node.object_dictionary.get_variable(index, sub).readable:
             continue
-        try:
-            held = var.decode_raw(node.sdo.upload(index, sub))
-        except canopen.SdoAbortedError:
+        held = read_if_readable(node, index, sub, f"axis {axis}'s setting back")
+        if held is None:
             continue                          # write-only on this drive: what was written stands
-        except canopen.SdoCommunicationError as exc:
-            raise BusError(f"axis {axis}: no SDO answer reading back 0x{index:04X}:{sub} ({exc})") from exc
         if held != value:
             raise DriveRefused(f"axis {axis}: 0x{index:04X}:{sub} was written {value} but the drive holds {held}; "
                                f"it does not take the setting: nothing moves with a limit it did not keep")

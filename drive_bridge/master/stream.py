@@ -18,9 +18,8 @@ preallocated arrays; conversion to SI happens once, afterwards, in
 """
 from __future__ import annotations
 
-import logging
-
 import gc
+import logging
 from dataclasses import dataclass
 from typing import Callable
 
@@ -282,6 +281,19 @@ def _packer(ax: AxisLink, codec: PdoCodec, plan: Plan, ai: int, send,
     return send_cycle
 
 
+def _at_rest(ax: AxisLink, statusword: int, velocity: int) -> bool:
+    """Out of OPERATION ENABLED (quick stop active, switched off or faulted) and its measured
+    velocity [device units] within ``STANDSTILL`` of its limit (or ``STANDSTILL_MIN_RAD_S``)."""
+    speed = abs(float(ax.cfg.scaling.velocity_from_device(velocity)))
+    return state_name(statusword) != "OPERATION ENABLED" and \
+        speed <= max(STANDSTILL * ax.cfg.limits.max_velocity, STANDSTILL_MIN_RAD_S)
+
+
+def _on_brake(ax: AxisLink) -> bool:
+    """Whether the axis is held by its brake (``holding: brake``) rather than powered."""
+    return ax.cfg.drive_limits is not None and ax.cfg.drive_limits.holding == "brake"
+
+
 def quick_stop(link: Link, axes: dict[str, AxisLink], timeout: float) -> list[str]:
     """Quick stop every axis by SDO, then wait until each stands still (the fallback where an axis's
     cyclic feedback is gone, and for a master that no longer streams). Returns problems seen.
@@ -304,13 +316,11 @@ def quick_stop(link: Link, axes: dict[str, AxisLink], timeout: float) -> list[st
         for name in list(pending):
             ax = axes[name]
             try:
-                sw = ax.node.sdo[0x6041].raw
-                speed[name] = abs(float(ax.cfg.scaling.velocity_from_device(ax.node.sdo[0x606C].raw)))
+                sw, velocity = ax.node.sdo[0x6041].raw, ax.node.sdo[0x606C].raw
             except (canopen.SdoCommunicationError, canopen.SdoAbortedError):
                 continue
-            stopped = state_name(sw) != "OPERATION ENABLED" and \
-                speed[name] <= max(STANDSTILL * ax.cfg.limits.max_velocity, STANDSTILL_MIN_RAD_S)
-            still[name] = still[name] + 1 if stopped else 0
+            speed[name] = abs(float(ax.cfg.scaling.velocity_from_device(velocity)))
+            still[name] = still[name] + 1 if _at_rest(ax, sw, velocity) else 0
             if still[name] >= 2:
                 pending.discard(name)
         if pending:
@@ -381,7 +391,7 @@ def stream(link: Link, axes: dict[str, AxisLink], plan: Plan, *, heartbeat_timeo
         log.info("enabled in the controlword in %d SYNC cycles%s", cycles.count,
                  f"; not: {aborted}" if aborted else "")
         if aborted is None and on_start is not None:
-            on_start(cycles.count)
+            on_start(cycles.enable_count)
         t0 = clock.now()
         for a in plan.axes:                                  # heartbeat supervision starts now
             if axes[a].last_heartbeat is None:
@@ -449,11 +459,13 @@ def stream(link: Link, axes: dict[str, AxisLink], plan: Plan, *, heartbeat_timeo
         restore_priority(undo)
         gc.enable()
     if problems:
-        aborted = aborted or MotionAborted("; ".join(problems))
-        if aborted.reason != "; ".join(problems):
-            aborted = (Interrupted("; ".join([aborted.reason, *problems]), aborted.signal)
-                       if isinstance(aborted, Interrupted) else
-                       MotionAborted(aborted.reason + "; " + "; ".join(problems), aborted.axis, aborted.emcy))
+        text = "; ".join(problems)
+        if aborted is None:
+            aborted = MotionAborted(text)
+        elif isinstance(aborted, Interrupted):           # its reason says it was interrupted already
+            aborted = Interrupted(text, aborted.signal)
+        else:
+            aborted = MotionAborted(f"{aborted.reason}; {text}", aborted.axis, aborted.emcy)
     timing = measure(rec.sync_time, plan.period, missing, wall=link.threaded, priority=priority, limits=timing_limits)
     return StreamResult(rec, sent, aborted, missing, timing, holding, cycles.enable_count)
 
@@ -547,10 +559,8 @@ class _Cycles:
 
     def _standing(self, ax: AxisLink, still: dict) -> bool:
         fb, a = self.feedback, ax.name
-        v = fb.velocity[a]
-        stopped = fb.age[a] <= 1 and fb.state(a) != "OPERATION ENABLED" and v is not None and \
-            abs(float(ax.cfg.scaling.velocity_from_device(v))) <= max(STANDSTILL * ax.cfg.limits.max_velocity,
-                                                                      STANDSTILL_MIN_RAD_S)
+        stopped = fb.age[a] <= 1 and fb.status[a] is not None and fb.velocity[a] is not None and \
+            _at_rest(ax, fb.status[a], fb.velocity[a])
         still[a] = still[a] + 1 if stopped else 0
         return still[a] >= 2
 
@@ -579,8 +589,7 @@ class _Cycles:
             lost.update(names)
         if lost:
             problems += quick_stop(self.link, {a: axes[a] for a in sorted(lost)}, timeout)
-        brake = [a for a in names if axes[a].cfg.drive_limits is not None and
-                 axes[a].cfg.drive_limits.holding == "brake" and a not in lost]
+        brake = [a for a in names if _on_brake(axes[a]) and a not in lost]
         if brake:
             try:
                 self.run(row, lambda a: CW_DISABLE_VOLTAGE if a in brake else CW_QUICK_STOP_CMD,
@@ -601,7 +610,7 @@ class _Cycles:
         drive with neither is not held once the master is gone, and that is said."""
         fb = self.feedback
         names = list(fb.status)
-        brake = [a for a in names if axes[a].cfg.drive_limits is not None and axes[a].cfg.drive_limits.holding == "brake"]
+        brake = [a for a in names if _on_brake(axes[a])]
         powered = [a for a in names if a not in brake]
         # a quick stop that holds (0x605A = 6, as bring-up wrote it) leaves CSP with no setpoint
         # watchdog left to run out; elsewhere halt, interpolation off, and (CSP) the mode switched fast
@@ -635,8 +644,7 @@ class _Cycles:
 def holding_of(ax: AxisLink, state: str | None) -> str:
     """How an axis in CiA 402 ``state`` is held, in words, for the command's last lines."""
     if state in ("SWITCH ON DISABLED", "READY TO SWITCH ON", "SWITCHED ON"):
-        how = ax.cfg.drive_limits.holding if ax.cfg.drive_limits is not None else "brake"
-        return "switched off, on its brake" if how == "brake" else "switched off: NOT HELD"
+        return "switched off, on its brake" if _on_brake(ax) else "switched off: NOT HELD"
     if state == "OPERATION ENABLED":
         return "powered, holding its position (profile position, halt)"
     if state == "QUICK STOP ACTIVE":

@@ -16,8 +16,9 @@ from dataclasses import dataclass, field, replace
 import canopen
 
 from ..config import NodeConfig
-from ..errors import BusError, DriveRefused
+from ..errors import DriveRefused
 from ..factor import FactorGroup, describe
+from ..params.read import read_if_readable
 
 REL_TOLERANCE = 1e-6          # units agree when they differ by less than this, relatively
 TORQUE_TOLERANCE = 1e-3       # rated torque / current: the drive reports mNm / mA
@@ -49,19 +50,10 @@ class DriveUnits:
 def read_units(node: canopen.RemoteNode, axis: str, planned: dict | None = None) -> DriveUnits:
     """Read every unit object the drive's EDS/DCF has (an object the drive refuses to read counts as
     absent); ``planned`` ((index, sub) -> value) stands for values about to be written."""
-    od = node.object_dictionary
-
     def value(index: int, sub: int):
-        if od.get_variable(index, sub) is None:
-            return None
-        if planned and (index, sub) in planned:
+        if planned and (index, sub) in planned and node.object_dictionary.get_variable(index, sub) is not None:
             return planned[(index, sub)]
-        try:
-            return od.get_variable(index, sub).decode_raw(node.sdo.upload(index, sub))
-        except canopen.SdoAbortedError:
-            return None
-        except canopen.SdoCommunicationError as exc:
-            raise BusError(f"axis {axis}: no SDO answer reading its units (0x{index:04X}:{sub}) ({exc})") from exc
+        return read_if_readable(node, index, sub, f"axis {axis}'s units")
 
     group = FactorGroup.read(value)
     torque, current, max_torque = value(0x6076, 0), value(0x6075, 0), value(0x6072, 0)

@@ -22,6 +22,20 @@ def sdo_object(node: canopen.RemoteNode, index: int, sub: int) -> SdoVariable:
     return SdoVariable(node.sdo, node.object_dictionary.get_variable(index, sub))
 
 
+def read_if_readable(node: canopen.RemoteNode, index: int, sub: int, what: str):
+    """Object ``index``:``sub`` as the drive holds it; None where its EDS/DCF has no such object or
+    the drive refuses the read (an abort: the object is not there to read); BusError naming
+    ``what`` where the drive does not answer."""
+    if node.object_dictionary.get_variable(index, sub) is None:
+        return None
+    try:
+        return sdo_object(node, index, sub).raw
+    except canopen.SdoAbortedError:
+        return None
+    except canopen.SdoCommunicationError as exc:
+        raise BusError(f"node {node.id}: no SDO answer reading {what} (0x{index:04X}:{sub}) ({exc})") from exc
+
+
 def describe_sdo_error(exc: Exception) -> str:
     """One phrase for an SDO failure: the abort code and its CiA 301 text, or the lost answer."""
     if isinstance(exc, canopen.SdoAbortedError):

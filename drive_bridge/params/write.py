@@ -8,7 +8,6 @@ result lists every object with its old and new value in SI and device units.
 from __future__ import annotations
 
 import logging
-
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
