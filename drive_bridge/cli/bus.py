@@ -7,8 +7,6 @@ import sys
 import time
 from pathlib import Path
 
-import can
-
 from ..config import load_bus_config
 from ..errors import EXIT_CODES, UserError
 from ..resources import DEFAULT_BUS_CONFIG
@@ -168,18 +166,13 @@ def cmd_record(args) -> int:
 
 
 def cmd_sim(args) -> int:
-    from ..master.link import UDP_GROUP, UDP_PORT
+    from ..master.link import open_bus
     from ..sim.config import DEFAULT_CONFIG
     from ..sim.process import serve
     config = load_bus_config(args.config)
     eds = {a: str(n.dcf) for a, n in config.nodes.items()}
     try:
-        if args.interface == "udp_multicast":
-            from ..sim.adapters import LoopbackMulticastBus
-            bus = LoopbackMulticastBus(args.channel or UDP_GROUP, args.port or UDP_PORT)
-        else:
-            bus = can.Bus(interface=args.interface, channel=args.channel, bitrate=args.bitrate,
-                          receive_own_messages=False)
+        bus = open_bus(args.interface, args.channel, args.bitrate, {"port": args.port} if args.port else None)
     except Exception as exc:           # python-can raises many kinds for a missing interface
         raise UserError(f"cannot open bus {args.interface}:{args.channel} ({exc})") from exc
     print(f"simulated drives of {args.sim_config or DEFAULT_CONFIG} on {args.interface}"

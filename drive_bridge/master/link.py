@@ -228,6 +228,22 @@ class _ReceiverPriority(can.Listener):
             self.granted = raise_priority()[0]
 
 
+def open_bus(interface: str, channel: str | int | None, bitrate: int | None = None,
+             options: dict | None = None) -> can.BusABC:
+    """A python-can bus that does not hand its own frames back (``bitrate`` where the interface
+    takes one; ``options``: the interface's own arguments, :mod:`drive_bridge.canconf`)."""
+    if interface == "udp_multicast":       # python-can's echoes every frame back to its sender
+        from ..sim.adapters import LoopbackMulticastBus
+        opts = dict(options or {})
+        return LoopbackMulticastBus(channel or UDP_GROUP, opts.pop("port", None) or UDP_PORT, **opts)
+    kwargs = {**(options or {}), "interface": interface, "channel": channel, "receive_own_messages": False}
+    if bitrate and interface != "virtual":
+        kwargs["bitrate"] = bitrate
+    if interface == "virtual":
+        kwargs["preserve_timestamps"] = False
+    return can.Bus(**kwargs)
+
+
 class BusLink:
     """A python-can bus with canopen's Notifier thread and the wall clock."""
 
@@ -251,18 +267,8 @@ class BusLink:
     @classmethod
     def open(cls, interface: str, channel: str | int | None, bitrate: int | None = None,
              options: dict | None = None) -> "BusLink":
-        """Open a python-can bus (``bitrate`` where the interface takes one; ``options``: the
-        interface's own arguments, :mod:`drive_bridge.canconf`)."""
-        if interface == "udp_multicast":       # python-can's echoes every frame back to its sender
-            from ..sim.adapters import LoopbackMulticastBus
-            opts = dict(options or {})
-            return cls(LoopbackMulticastBus(channel or UDP_GROUP, opts.pop("port", UDP_PORT), **opts))
-        kwargs = {**(options or {}), "interface": interface, "channel": channel, "receive_own_messages": False}
-        if bitrate and interface != "virtual":
-            kwargs["bitrate"] = bitrate
-        if interface == "virtual":
-            kwargs["preserve_timestamps"] = False
-        return cls(can.Bus(**kwargs))
+        """A link on :func:`open_bus`."""
+        return cls(open_bus(interface, channel, bitrate, options))
 
     def add_trace(self, trace: TraceRecorder) -> None:
         self.network.traces += (trace,)

@@ -18,9 +18,10 @@ import sys
 from pathlib import Path
 
 from ..errors import BusError
+from ..master.link import UDP_GROUP
 from .adapters import LoopbackMulticastBus
 
-GROUP = "239.74.163.2"           # python-can's default IPv4 group; each run gets its own port
+GROUP = UDP_GROUP               # python-can's default IPv4 group; each run gets its own port
 START_TIMEOUT_S = 120.0          # the child imports numpy/numba and loads the kernel
 
 
