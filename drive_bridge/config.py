@@ -70,6 +70,10 @@ class Limits:
     max_acceleration: float
     max_jerk: float | None = None
 
+    def fits_32_bits(self, per_rad: float) -> bool:
+        """Whether the stroke fits a drive's 32-bit position at ``per_rad`` device units per rad."""
+        return max(abs(self.position_min), abs(self.position_max)) * per_rad < 2**31
+
 
 HOLDING = ("brake", "enabled")
 REFERENCES = ("absolute", "here")
@@ -365,8 +369,7 @@ def _node(path: Path, axis: str, data: dict, dcf_path: str | None = None, unused
             raise lim.error(f"max_velocity_{unit}_s",
                             f"{vmax} {unit}/s is {limits.max_velocity * 60 / (2 * math.pi):.0f} rpm at the motor, "
                             f"above the drive's max motor speed 0x6080 = {od[0x6080].default} rpm")
-    edge = max(abs(limits.position_min), abs(limits.position_max)) * scaling.inc_per_rad
-    if edge >= 2**31:                     # with from_drive, bring-up checks it in the drive's units
+    if not limits.fits_32_bits(scaling.inc_per_rad):     # with from_drive, bring-up checks it in the drive's units
         raise lim.error("stroke_" + unit, "does not fit the drive's 32-bit position range with this scaling")
     sdo = []
     for n, entry in enumerate(sec.get("sdo", list, [])):

@@ -384,8 +384,7 @@ def _interpolation_period(axis: str, ncfg: NodeConfig, period: float) -> list[tu
 
 def _check_range(ncfg: NodeConfig, path) -> None:
     """The stroke must fit the drive's 32-bit position in its own units (known only now with from_drive)."""
-    edge = max(abs(ncfg.limits.position_min), abs(ncfg.limits.position_max)) * ncfg.scaling.inc_per_rad
-    if edge >= 2**31:
+    if not ncfg.limits.fits_32_bits(ncfg.scaling.inc_per_rad):
         raise DriveRefused(f"axis {ncfg.axis}: limits.stroke of nodes.{ncfg.axis} in {path} does not fit the "
                            f"drive's 32-bit position range in its units ({ncfg.scaling.inc_per_rad:.6g} per rad)")
 

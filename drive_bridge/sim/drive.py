@@ -212,6 +212,7 @@ class SimDrive:
         self.pos_per_rad = group.position_per_rad or self.inc_per_rad
         self.vel_per_si = group.velocity_per_rad_s or (
             60 / (2 * math.pi) if self.spec.velocity_unit == "rpm" else self.pos_per_rad)
+        self.p[K.FE_WINDOW] = self._od(0x6065) / self.pos_per_rad        # the window is in position units
 
     def _od(self, index: int, sub: int = 0):
         """Current value of an object, as the SDO server would return it (cached)."""
@@ -239,7 +240,6 @@ class SimDrive:
             p[col] = entry.to_si(self._od(index, sub))
         p[K.TMAX] = self._od_or(0x6072, 0, factory().max_torque_permille) / 1000.0 * self.rated_torque
         self._units()
-        p[K.FE_WINDOW] = self._od(0x6065) / self.pos_per_rad
         self.state = SWITCH_ON_DISABLED
         self.nmt_state = NMT_PREOP
         self.controlword = 0
@@ -340,7 +340,7 @@ class SimDrive:
                 value = self._od(0x1016, sub)
                 if value >> 16 & 0x7F and value & 0xFFFF:
                     self.consumers[value >> 16 & 0x7F] = (value & 0xFFFF) / 1000.0
-        self._heard = {n: t for n, t in getattr(self, "_heard", {}).items() if n in self.consumers}
+        self._heard = {n: t for n, t in self._heard.items() if n in self.consumers}
         self.host.routes_changed()
 
     def on_heartbeat(self, node: int) -> None:
@@ -362,13 +362,12 @@ class SimDrive:
     def _connection_lost(self, code: int, option: int) -> None:
         """EMCY ``code``; in OPERATION ENABLED, what the abort connection option says."""
         self.setpoint_armed = False
-        if self.state != ENABLED or option == ABORT_FAULT:
-            if self.state == ENABLED:
-                self.fault(code)
-            else:
-                self._emcy(code)
+        if self.state == ENABLED and option == ABORT_FAULT:
+            self.fault(code)                            # (its EMCY carries the code)
             return
         self._emcy(code)
+        if self.state != ENABLED:
+            return
         if option == ABORT_DISABLE:
             self._go(SWITCH_ON_DISABLED)
         elif option == ABORT_QUICK_STOP:
@@ -405,7 +404,6 @@ class SimDrive:
             self._cache[(index, subindex)] = value      # LocalNode stores the bytes after this
         if index in FACTOR_OBJECTS:                     # new units: every position value is read anew
             self._units()
-            self.p[K.FE_WINDOW] = self._od(0x6065) / self.pos_per_rad
         elif index == 0x1016:
             self._consumers_changed()
 
