@@ -40,6 +40,10 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+#: the loggers the CLI shows: drive-bridge's own, then (with -vv) its libraries' and their warnings
+LIBRARY_LOGGERS = ("canopen", "can", "py.warnings")
+
+
 def log_to_stderr(verbose: int, quiet: bool) -> logging.Handler:
     """drive-bridge's log on stderr at warning level (-v info, -vv debug, -q errors only); python-can's
     and canopen's only with -vv (at the default their lines are not for the person at the machine:
@@ -50,7 +54,7 @@ def log_to_stderr(verbose: int, quiet: bool) -> logging.Handler:
     own = logging.getLogger("drive_bridge")
     own.setLevel(level)
     own.addHandler(handler)
-    for name in ("canopen", "can", "py.warnings"):
+    for name in LIBRARY_LOGGERS:
         lib = logging.getLogger(name)
         if verbose >= 2 and not quiet:
             lib.setLevel(logging.INFO)
@@ -83,7 +87,7 @@ def _run(argv: list[str] | None) -> int:
     try:
         return _command(args)
     finally:                                  # main() may run again in this process (tests, the API)
-        for name in ("drive_bridge", "canopen", "can", "py.warnings"):
+        for name in ("drive_bridge", *LIBRARY_LOGGERS):
             logging.getLogger(name).removeHandler(handler)
         logging.captureWarnings(False)
 

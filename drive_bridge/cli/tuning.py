@@ -8,7 +8,7 @@ from pathlib import Path
 from ..document import number
 from ..errors import UserError
 from ..outputs import hex_object, write_json
-from ..params.check import ValueRefused, gate
+from ..params.check import screen
 from ..params.read import drive_state
 from ..params.write import raise_for_failure, write_drives
 from ..session import Session
@@ -188,14 +188,13 @@ def cmd_validate(args) -> int:
     with Session(config, options.session_options(args)) as session:   # the bus opens when first used
         refused = {}
         for name, sets in list(scenarios.items()):   # every set through write's gate, on the identified model
-            try:
-                gate(session.profile, {a: {**params[a], **sets[a]} for a in names}, tuned.inductance,
-                     force=args.force, pm_floor=args.min_phase_margin, gm_floor=args.min_gain_margin,
-                     allow_unverified_scales=args.allow_unverified_scales)
-            except ValueRefused as exc:
-                refused[name] = str(exc).replace("refused before anything was written: ", "")
+            _, why = screen(session.profile, {a: {**params[a], **sets[a]} for a in names}, tuned.inductance,
+                            force=args.force, pm_floor=args.min_phase_margin, gm_floor=args.min_gain_margin,
+                            allow_unverified_scales=args.allow_unverified_scales)
+            if why:
+                refused[name] = why
                 del scenarios[name]
-                print(f"drive-bridge: {name} refused: {refused[name]}", file=sys.stderr)
+                print(f"drive-bridge: {name} refused: {why}", file=sys.stderr)
         if not scenarios:
             raise UserError(f"every scenario was refused ({'; '.join(refused)}); nothing was written or moved")
         options.confirm_motion(args, config, "validate")

@@ -208,12 +208,10 @@ class BusErrors(can.Listener):
 
     def __init__(self):
         self.count = 0
-        self.last: can.Message | None = None
 
     def on_message_received(self, msg: can.Message) -> None:
         if msg.is_error_frame:
             self.count += 1
-            self.last = msg
 
 
 class _ReceiverPriority(can.Listener):

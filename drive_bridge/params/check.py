@@ -136,27 +136,33 @@ class GateResult:
     unverified: list[str]
 
 
-def gate(profile: Profile, values: dict[str, dict], inductance: dict[str, float | None], *, force: bool = False,
-         pm_floor: float = PM_FLOOR_DEG, gm_floor: float = GM_FLOOR_DB, allow_unverified_scales: bool = False,
-         dry_run: bool = False) -> GateResult:
+def screen(profile: Profile, values: dict[str, dict], inductance: dict[str, float | None], *, force: bool = False,
+           pm_floor: float = PM_FLOOR_DEG, gm_floor: float = GM_FLOOR_DB, allow_unverified_scales: bool = False,
+           dry_run: bool = False) -> tuple[GateResult, str | None]:
     """The one check every gain set passes before it reaches a drive (``write``, ``validate``):
     scales with a documented source (else only with ``allow_unverified_scales``; a dry run shows
     them), and the loop margins of each axis's set on its model (J, c1) with the motor inductance
-    ``inductance[axis]`` [H] above the floor (else only with ``force``, recorded).  ValueRefused
-    naming every problem (ranges are :func:`check_set`'s)."""
+    ``inductance[axis]`` [H] above the floor (else only with ``force``, recorded).  What passed,
+    and why the sets must not reach the drives (None: they may; ranges are :func:`check_set`'s)."""
     unverified = sorted({f"{k} ({profile.entries[k].where()})" for v in values.values() for k in v
                          if k in profile.entries and not profile.entries[k].verified})
     if unverified and not dry_run and not allow_unverified_scales:
-        raise ValueRefused(f"refused before anything was written: the {profile.drive} profile has no documented "
-                           f"source for the scale of {', '.join(unverified)} ({profile.path}); check them against "
-                           f"the drive's manual, or --allow-unverified-scales to write them anyway")
+        return GateResult({}, [], unverified), (
+            f"the {profile.drive} profile has no documented source for the scale of {', '.join(unverified)} "
+            f"({profile.path}); check them against the drive's manual, or --allow-unverified-scales to write "
+            f"them anyway")
     margins, refused, forced = {}, [], []
     for a, v in values.items():
         margins[a], reason = check_margins(profile, v, inductance.get(a), pm_floor=pm_floor, gm_floor=gm_floor)
         if reason:
             (forced if force else refused).append(f"axis {a}: {reason}")
-    if refused:
-        raise ValueRefused("refused before anything was written: " + "; ".join(refused)
-                           + " (--force writes it anyway and records that)")
-    return GateResult(margins, forced, unverified)
+    result = GateResult(margins, forced, unverified)
+    return result, ("; ".join(refused) + " (--force writes it anyway and records that)") if refused else None
 
+
+def gate(profile: Profile, values: dict[str, dict], inductance: dict[str, float | None], **checks) -> GateResult:
+    """:func:`screen`, refusing with ValueRefused before anything is written."""
+    result, refused = screen(profile, values, inductance, **checks)
+    if refused:
+        raise ValueRefused(f"refused before anything was written: {refused}")
+    return result
