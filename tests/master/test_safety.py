@@ -39,6 +39,17 @@ def test_enabling_with_a_stale_target_does_not_move_the_axis():
     motion = run(config, b.link, {"y": axes["y"]}, {"y": np.full(100, start)})
     assert motion.aborted is None
     assert np.max(np.abs(motion.position["y"] - start)) < 1e-4
+    # Z (holding: enabled) is held powered in profile position after a motion: switching it back to
+    # CSP takes 0x607A as it stands, before any RPDO flows
+    z0 = axes["z"].position_rad()
+    assert run(config, b.link, {"z": axes["z"]}, {"z": np.full(100, z0)}).aborted is None
+    assert state_name(axes["z"].drive.statusword()) == "OPERATION ENABLED"
+    axes["z"].node.sdo[0x607A].raw = axes["z"].node.sdo[0x6064].raw + 2_000_000
+    excursion = []                                      # every 2 ms of the run, enabling included
+    b.robot.timers.append(lambda t: excursion.append(abs(float(b.robot.state[2, K.Q]) - z0)))
+    motion = run(config, b.link, {"z": axes["z"]}, {"z": np.full(100, z0)})
+    assert motion.aborted is None
+    assert max(excursion) < 1e-4
 
 
 def test_z_holds_its_position_for_10_s_after_a_motion(robot):
