@@ -31,9 +31,7 @@ def register(sub) -> None:
     options.motion(p)
     options.campaign(p)
     p.add_argument("--quick", action="store_true", help="a few seconds per axis (demo, tests)")
-    p.add_argument("--dry-run", action="store_true",
-                   help="scan, read the drives' units and positions, plan and check the campaign, print it, and "
-                        "stop: nothing that changes a drive's behaviour is written, nothing moves")
+    options.dry_run(p)
     p.add_argument("--axes", help="comma-separated axes to move (default: all configured)")
     p.add_argument("--together", action="store_true", help="move all axes at once (exposes coupling)")
     p.add_argument("--out", required=True, help="output directory")
@@ -51,8 +49,7 @@ def register(sub) -> None:
     where.add_argument("--to", type=float, help="the position to go to [m | rad]")
     where.add_argument("--by", type=float, help="the distance to go [m | rad]")
     p.add_argument("--speed", type=float, help="peak speed [m/s | rad/s] (default: 10 %% of the axis's limit)")
-    p.add_argument("--dry-run", action="store_true", help="read where the axis stands, plan and check the move, "
-                                                          "print it and stop: nothing moves")
+    options.dry_run(p)
     p.set_defaults(func=cmd_jog)
 
     p = sub.add_parser("decode", help="rebuild log.csv from a raw CAN trace",
@@ -132,10 +129,8 @@ def cmd_record(args) -> int:
     options.out_dir(args.out)
     config = options.config(args)
     if args.dry_run:
-        print(campaign_preview(args, config))
-        print("nothing was written that changes a drive's behaviour, nothing moved")
-        return 0
-    options.confirm_motion(args, config, "record", lambda: campaign_preview(args, config))
+        return dry_run_end(preview(args, config, campaign_plans(config)))
+    options.confirm_motion(args, config, "record", lambda: preview(args, config, campaign_plans(config)))
     bars = []
 
     def on_plan(plan):
@@ -196,9 +191,7 @@ def cmd_jog(args) -> int:
 
     import numpy as np
 
-    from ..master.bringup import plan_bring_up
-    from ..master.campaign import Plan, Segment, approach_move, check_plan
-    from ..tuning.motion import run
+    from ..tuning import motion
     config = options.config(args).only([args.axis])
     ncfg = config.nodes[args.axis]
     unit = "m" if ncfg.linear else "rad"
@@ -211,30 +204,32 @@ def cmd_jog(args) -> int:
         if not 0 < level <= 1:
             raise UserError(f"--speed {args.speed} {unit}/s must be above 0 and within the axis's limit "
                             f"{ncfg.limits.max_velocity / float(ncfg.scaling.load_to_motor(1.0)):.4g} {unit}/s")
-    if not args.dry_run:
-        options.confirm_motion(args, config, f"jog {args.axis}")
-    with Session(config, options.session_options(args)) as session:
-        axes = plan_bring_up(session.link, config) if args.dry_run else session.axes
+
+    def target(ax) -> float:
+        """Where the jog goes [rad motor side], from where ``ax`` stands."""
+        if args.to is not None:
+            return float(ax.cfg.scaling.load_to_motor(args.to))
+        return ax.position_rad() + float(ax.cfg.scaling.load_to_motor(args.by))
+
+    def plans(axes):
         ax = axes[args.axis]
-        here = ax.position_rad()
-        target = float(ax.cfg.scaling.load_to_motor(args.to)) if args.to is not None else \
-            here + float(ax.cfg.scaling.load_to_motor(args.by))
-        move = approach_move(ax.cfg.limits, here, target, config.master.sync_period_s, level)
-        plan = Plan([args.axis], np.concatenate([[here], move])[:, None],
-                    [Segment("jog", (args.axis,), level, level, 0, 0, len(move) + 1)], config.master.sync_period_s)
-        check_plan(plan, {args.axis: ax.cfg.limits})
-        print(f"jog {args.axis}: {plan.duration:.1f} s", file=sys.stderr)
-        print(plan_lines(plan, config), file=sys.stderr)
-        if args.dry_run:
-            print("dry run: nothing moved")
-            return 0
-        motion = run(config, session.link, {args.axis: ax}, {args.axis: np.array([target])}, kind="jog",
-                     level=level, approach_level=level)
+        plan, _ = motion.plan(config, axes, {args.axis: np.array([target(ax)])}, {args.axis: ax.position_rad()},
+                              kind="jog", level=level, approach_level=level)
+        return [(f"jog {args.axis}", plan)]
+    if args.dry_run:
+        return dry_run_end(preview(args, config, plans))
+    options.confirm_motion(args, config, f"jog {args.axis}", lambda: preview(args, config, plans))
+    with Session(config, options.session_options(args)) as session:
+        ax = session.axes[args.axis]
+        def on_plan(plan):
+            print(f"jog {args.axis}: {plan.duration:.1f} s of motion\n{plan_lines(plan, config)}", file=sys.stderr)
+        moved = motion.run(config, session.link, {args.axis: ax}, {args.axis: np.array([target(ax)])}, kind="jog",
+                           level=level, approach_level=level, on_plan=on_plan)
         holding = session.holding()
     k = 1.0 / float(ncfg.scaling.load_to_motor(1.0))
-    if motion.aborted is not None:
-        raise motion.aborted
-    print(f"{args.axis} at {float(motion.position[args.axis][-1]) * k:.6g} {unit}")
+    if moved.aborted is not None:
+        raise moved.aborted
+    print(f"{args.axis} at {float(moved.position[args.axis][-1]) * k:.6g} {unit}")
     print(holding_lines(holding))
     return 0
 
@@ -257,25 +252,66 @@ def plan_lines(plan, config) -> str:
     return "\n".join(lines)
 
 
-def campaign_preview(args, config) -> str:
-    """The campaign as it would run from where the axes stand, planned and checked over a read-only
-    bring-up (nothing that changes a drive's behaviour is written): for --dry-run and for the
-    question before a real run."""
+def motion_preview(session, config, plans) -> str:
+    """Motion as it would run from where the axes stand, planned and checked over a read-only
+    bring-up of ``session`` (nothing that changes a drive's behaviour is written): for --dry-run
+    and for the question before a real run. ``plans(axes)`` gives (title, Plan) pairs, each checked
+    against the axes' limits as it is planned."""
     from ..master.bringup import plan_bring_up
     from ..master.busload import check_bus_load
-    from ..master.campaign import build_plan
     load = check_bus_load(config)
-    with Session(config, options.session_options(args)) as session:
-        axes = plan_bring_up(session.link, config)
-        start = {name: ax.position_rad() for name, ax in axes.items()}
-    plan = build_plan(config.campaign, {n: a.cfg.limits for n, a in axes.items()}, start, config.master.sync_period_s)
-    lines = [f"campaign {', '.join(plan.axes)}: {len(plan.segments)} segments, {plan.duration:.1f} s of motion, "
-             f"bus load {load.describe()}", plan_lines(plan, config)]
+    axes = plan_bring_up(session.link, config)
+    lines = [f"bus load {load.describe()}"]
+    for title, plan in plans(axes):
+        lines += [f"{title}: {plan.duration:.1f} s of motion", plan_lines(plan, config)]
     for a, ax in axes.items():
         assumed = ax.units.get("assumed_from_bus_yml") or []
         lines.append(f"  {a}: units as the drive reports them: {ax.units.get('position_unit') or 'not reported'}"
                      + (f"; assumed from bus.yml: {'; '.join(assumed)}" if assumed else ""))
     return "\n".join(lines)
+
+
+def campaign_plans(config):
+    """The campaign planned from where the axes stand, for :func:`motion_preview`."""
+    from ..master.campaign import build_plan
+
+    def plans(axes):
+        start = {name: ax.position_rad() for name, ax in axes.items()}
+        plan = build_plan(config.campaign, {n: a.cfg.limits for n, a in axes.items()}, start,
+                          config.master.sync_period_s)
+        return [(f"campaign {', '.join(plan.axes)}, {len(plan.segments)} segments", plan)]
+    return plans
+
+
+def validate_plans(config, scenarios: str):
+    """The validation's reference trajectories, one after the other from ``start`` (axis ->
+    [rad]; default: where the axes stand), each ``scenarios`` runs both, for :func:`motion_preview`."""
+    from ..tuning import motion
+    from ..tuning.validate import reference_demands
+
+    def plans(axes, start=None):
+        start = start or {name: ax.position_rad() for name, ax in axes.items()}
+        out = []
+        for traj, demand, _, level in reference_demands({a: ax.cfg.limits for a, ax in axes.items()},
+                                                       config.master.sync_period_s):
+            out.append((f"validate {traj}, with {scenarios}",
+                        motion.plan(config, axes, demand, start, kind=traj, level=level)[0]))
+            start = {a: float(d[-1]) for a, d in demand.items()}
+        return out
+    return plans
+
+
+def preview(args, config, plans) -> str:
+    """:func:`motion_preview` in a session of its own."""
+    with Session(config, options.session_options(args)) as session:
+        return motion_preview(session, config, plans)
+
+
+def dry_run_end(text: str) -> int:
+    """What ``--dry-run`` prints last: the plan, and that nothing moved."""
+    print(text)
+    print("dry run: nothing was written that changes a drive's behaviour, nothing moved")
+    return 0
 
 
 def holding_lines(holding: dict[str, str] | None) -> str:

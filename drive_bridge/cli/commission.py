@@ -12,6 +12,7 @@ def register(sub) -> None:
     options.drive(p, params=False)
     options.motion(p)
     options.write_checks(p)
+    options.dry_run(p)
     p.add_argument("--out", required=True, help="run directory: every step's output, summary.json, report.html")
     p.add_argument("--steps", help=f"run only these steps, comma-separated ({', '.join(STEPS)}); "
                                    "default: resume after the last completed one")
@@ -28,9 +29,16 @@ def cmd_commission(args) -> int:
     options.out_dir(args.out)
     config = options.config(args)
     steps = options.axes_list(args.steps)
-    if steps is None or {"campaign", "validate"} & set(steps):
-        preview = (lambda: bus.campaign_preview(args, config)) if steps is None or "campaign" in steps else None
-        options.confirm_motion(args, config, "commission", preview)
+    moving = [s for s in ("campaign", "validate") if steps is None or s in steps]
+    if moving or args.dry_run:
+        def plans(axes):
+            out = bus.campaign_plans(config)(axes) if "campaign" in moving else []
+            end = {a: float(out[0][1].demand[-1, i]) for i, a in enumerate(out[0][1].axes)} if out else None
+            return out + (bus.validate_plans(config, "each scenario the gain gate admits")(axes, end)
+                          if "validate" in moving else [])
+        if args.dry_run:
+            return bus.dry_run_end(bus.preview(args, config, plans))
+        options.confirm_motion(args, config, "commission", lambda: bus.preview(args, config, plans))
     result = commission(config, args.out, options.session_options(args),
                         steps=steps, restart=args.restart)
     if args.json:

@@ -64,18 +64,35 @@ def motion(p: argparse.ArgumentParser) -> None:
                         "the machine's surroundings are clear); --sim never asks")
 
 
+def dry_run(p: argparse.ArgumentParser) -> None:
+    """``--dry-run`` on a command that moves: everything up to the first setpoint, read only."""
+    p.add_argument("--dry-run", action="store_true",
+                   help="scan, read the drives' units and positions, plan and check every motion against the "
+                        "limits, print the plan and stop: nothing that changes a drive's behaviour is written, "
+                        "nothing moves")
+
+
+def asks(args, config, what: str) -> bool:
+    """Whether :func:`confirm_motion` will ask a person (not with --sim or --yes); UserError, before
+    anything is sent, when it would have to and no one is at a terminal."""
+    if args.sim or getattr(args, "yes", False) or getattr(args, "dry_run", False):
+        return False
+    if not sys.stdin.isatty():
+        axes = ", ".join(f"{a} (node {n.node_id})" for a, n in config.nodes.items())
+        raise UserError(f"{what} moves the real axes {axes} on {config.master.interface}:{config.master.channel}, "
+                        f"and no one at a terminal can confirm it: give --yes when the machine is clear to move "
+                        f"(nothing was written or moved)")
+    return True
+
+
 def confirm_motion(args, config, what: str, preview=None) -> None:
     """Before a command that moves a real machine writes anything: ``--yes``, or a person at a
     terminal who types ``yes`` after reading what will move (``preview()``: the plan, read without
     writing anything); otherwise UserError (nothing written, nothing moved).  --sim moves nothing
     real and is never asked about."""
-    if args.sim or getattr(args, "yes", False):
+    if not asks(args, config, what):
         return
     axes = ", ".join(f"{a} (node {n.node_id})" for a, n in config.nodes.items())
-    if not sys.stdin.isatty():
-        raise UserError(f"{what} moves the real axes {axes} on {config.master.interface}:{config.master.channel}, "
-                        f"and no one at a terminal can confirm it: give --yes when the machine is clear to move "
-                        f"(nothing was written or moved)")
     if preview is not None:
         print(preview(), file=sys.stderr)
     print(f"{what} will enable and move the real axes {axes} on {config.master.interface}:"

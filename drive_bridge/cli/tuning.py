@@ -8,14 +8,16 @@ from pathlib import Path
 from ..document import number
 from ..errors import UserError
 from ..outputs import hex_object, write_json
-from ..params.check import screen
+from ..master.bringup import plan_bring_up
+from ..params.check import ValueRefused, screen
 from ..params.read import drive_state
 from ..params.write import raise_for_failure, write_drives
 from ..session import Session
 from ..tuning.tune import (GAINS, drive_model, read_identify_json, read_tune_json, tune_axes, tune_doc,
                            unwritable_effects)
 from . import options
-from .bus import degraded_exit, holding_lines
+from ..tuning.experiment import RAISE
+from .bus import degraded_exit, dry_run_end, holding_lines, motion_preview, preview, validate_plans
 
 
 def register(sub) -> None:
@@ -25,8 +27,11 @@ def register(sub) -> None:
     options.drive(p, params=False)
     p.add_argument("--ident", required=True, help="identify --json output (identify.json)")
     p.add_argument("--out", default="tune.json", help="where to write the result (default: %(default)s)")
-    p.add_argument("--experiment", action="store_true", help="also run the paper's gain-raising procedure on the drive")
+    p.add_argument("--experiment", action="store_true", help="also run the paper's gain-raising procedure on the drive "
+                                                                "(each gain through the same gate as write's)")
     options.motion(p)
+    options.write_checks(p)
+    options.dry_run(p)
     p.add_argument("--offline", action="store_true",
                    help="design without a bus, from identify.json and the motor data given (--motor-R and "
                         "--motor-L, or --motor-file); the gains before are then unknown")
@@ -51,6 +56,7 @@ def register(sub) -> None:
     options.drive(p)
     options.motion(p)
     options.write_checks(p)
+    options.dry_run(p)
     p.add_argument("--out", help="directory for validate.json and the logged runs (traces.npz)")
     p.set_defaults(func=cmd_validate)
 
@@ -91,14 +97,30 @@ def cmd_tune(args) -> int:
     else:
         config = options.config(args)
         config = config.only(_axes_in(config, models, args.ident))
+        if args.dry_run and not args.experiment:
+            raise UserError("--dry-run shows the motion of --experiment; tune without it moves nothing")
         if args.experiment:
-            options.confirm_motion(args, config, "tune --experiment")
+            options.asks(args, config, "tune --experiment")               # before anything is sent
+            with Session(config, options.session_options(args)) as session:     # read only: the gains before
+                planned = tune_axes(models, drive_state(plan_bring_up(session.link, config), session.profile,
+                                                        session.options.motor))
+                admit = {a: _experiment_gate(args, session.profile, t) for a, t in planned.items()}
+                for a, t in planned.items():
+                    if why := admit[a](_experiment_start(t)):
+                        raise ValueRefused(f"axis {a}: the experiment's first gain KpS = {_experiment_start(t):.5g} "
+                                           f"is refused before anything was written: {why}")
+                plans = _experiment_plans(config)
+                if args.dry_run:
+                    return dry_run_end(motion_preview(session, config, plans) + "\n" + "\n".join(
+                        f"  {a}: KpS from {_experiment_start(t):.5g}, x{RAISE} per step while the gate admits it"
+                        for a, t in planned.items()))
+            options.confirm_motion(args, config, "tune --experiment", lambda: preview(args, config, plans))
         with Session(config, options.session_options(args)) as session:
             results = tune_axes(models, drive_state(session.axes, session.profile, session.options.motor))
             if args.experiment:
                 for a, t in results.items():
                     t.experiment = run_experiment(config, session.link, session.axes, a, session.profile,
-                                                  t.before.get("KpS", t.design.KpS))
+                                                  _experiment_start(t), _experiment_gate(args, session.profile, t))
                 holding = session.holding()
     doc = tune_doc(results, unwritable_effects(args.ident))
     out = write_json(args.out, doc)
@@ -120,11 +142,38 @@ def cmd_tune(args) -> int:
         if t.experiment is not None:
             e = t.experiment
             print(f"  paper's procedure on the drive: KpS {e.KpS if e.KpS is None else round(e.KpS, 4)} after "
-                  f"{len(e.steps)} steps (model-based: {d.KpS:.4g})")
+                  f"{len(e.steps)} steps (model-based: {d.KpS:.4g})" + (f"; {e.gated}" if e.gated else ""))
     print(f"wrote {out}")
     if args.experiment:
         print(holding_lines(holding))
     return 0
+
+
+def _experiment_start(t) -> float:
+    """The experiment's first KpS: the drive's own, else the designed one."""
+    return t.before.get("KpS", t.design.KpS)
+
+
+def _experiment_gate(args, profile, t):
+    """``admit(KpS)`` for the experiment on ``t``'s axis: the set the drive then runs (its gains
+    with that KpS, on the identified model) through the gate every gain set passes."""
+    def admit(kps: float) -> str | None:
+        return screen(profile, {t.axis: {**t.model, **t.before, "KpS": kps}}, {t.axis: t.motor["L"]},
+                      force=args.force, pm_floor=args.min_phase_margin, gm_floor=args.min_gain_margin,
+                      allow_unverified_scales=options.session_options(args).writes_unverified)[1]
+    return admit
+
+
+def _experiment_plans(config):
+    """The experiment's square wave on each axis in turn, each from where its axis stands."""
+    from ..tuning import motion
+    from ..tuning.experiment import demand_of
+
+    def plans(axes):
+        return [(f"tune --experiment {a}, each step", motion.plan(
+            config, {a: ax}, {a: demand_of(ax.cfg.limits, config.master.sync_period_s)[0]}, {a: ax.position_rad()},
+            kind="experiment")[0]) for a, ax in axes.items()]
+    return plans
 
 
 def cmd_write(args) -> int:
@@ -197,7 +246,10 @@ def cmd_validate(args) -> int:
                 print(f"drive-bridge: {name} refused: {why}", file=sys.stderr)
         if not scenarios:
             raise UserError(f"every scenario was refused ({'; '.join(refused)}); nothing was written or moved")
-        options.confirm_motion(args, config, "validate")
+        plans = validate_plans(config, f"each of {len(scenarios)} scenarios ({', '.join(scenarios)})")
+        if args.dry_run:
+            return dry_run_end(motion_preview(session, config, plans))
+        options.confirm_motion(args, config, "validate", lambda: motion_preview(session, config, plans))
         runs = run_scenarios(config, session.link, session.axes, session.profile, scenarios, model,
                              out_dir=Path(args.out) if args.out else None, refused=refused)
         holding = session.holding()

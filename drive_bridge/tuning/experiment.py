@@ -6,8 +6,11 @@ velocity gain KpS raised by 50 % per step until the logged velocity
 oscillates, then lowered by 10 % per step until it no longer does.
 Oscillation: on the flat parts of the square wave (after a settling time), the
 RMS of the velocity error exceeds ``OSCILLATION_RATIO`` of the step height.
-Guards: the drive's following-error window is tightened to ``FE_GUARD_RAD``
-for the experiment (the drive faults before the axis wanders), and a
+Every gain passes the gain gate first (as ``write`` and ``validate``'s do): the
+raising ends at the first gain whose loop margins on the identified model fall
+below the floor, unless forced.  Guards: the drive's following-error window is
+tightened to ``FE_GUARD_RAD`` for the experiment (the drive faults before the
+axis wanders), and a
 velocity beyond ``VELOCITY_GUARD`` × the highest demanded speed stops the run at once;
 the original window and gain are written back at the end.  Those two stops are
 the procedure's own (the fault is reset and the gain lowered); any other stop --
@@ -17,14 +20,16 @@ ends the experiment as a motion stop.
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
+from typing import Callable
 
 import numpy as np
 
-from ..config import BusConfig
+from ..config import BusConfig, Limits
 from ..errors import DriveRefused, GuardStop
 from ..master.bringup import AxisLink
 from ..master.campaign import APPROACH_LEVEL
 from ..master.link import Link
+from ..params.check import ValueRefused
 from ..params.profile import Profile
 from ..params.read import read_parameters
 from ..params.write import write_parameters
@@ -56,6 +61,8 @@ class ExperimentResult:
     axis: str
     KpS: float | None             # the last gain without oscillation
     steps: list[Step] = field(default_factory=list)
+    #: why the raising stopped before the velocity oscillated: the next gain the gate refused
+    gated: str | None = None
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -83,14 +90,28 @@ def _oscillation(m: motion.Motion, axis: str, vel: np.ndarray, period: float, v_
     return float(np.sqrt(np.mean(e ** 2)) / v_step) if e.size else float("inf")
 
 
-def run_experiment(config: BusConfig, link: Link, axes: dict[str, AxisLink], axis: str, profile: Profile,
-                   start_KpS: float) -> ExperimentResult:
-    ax = axes[axis]
-    lim = ax.cfg.limits
-    period = config.master.sync_period_s
+def demand_of(lim: Limits, period: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """What each step of the experiment runs on an axis of limits ``lim``: the square wave's position
+    demand [rad] around the stroke's centre, its velocity demand [rad/s], and the step height [rad/s]."""
     v_step = STEP_FRACTION * lim.max_velocity
     centre = 0.5 * (lim.position_min + lim.position_max)
     demand, vel = square_wave(v_step, lim.max_acceleration, period, centre - 0.5 * v_step * HALF_PERIOD_S * CYCLES)
+    return demand, vel, v_step
+
+
+def run_experiment(config: BusConfig, link: Link, axes: dict[str, AxisLink], axis: str, profile: Profile,
+                   start_KpS: float, admit: Callable[[float], str | None] | None = None) -> ExperimentResult:
+    """The procedure on ``axis`` from ``start_KpS``. ``admit(KpS)`` says why a gain must not reach
+    the drive (the gain gate, :func:`~drive_bridge.params.check.screen`; None: it may): a start it
+    refuses raises ValueRefused before anything is written, a raise it refuses ends the raising
+    there (``ExperimentResult.gated``); without ``admit`` every gain the ranges allow is tried."""
+    ax = axes[axis]
+    lim = ax.cfg.limits
+    period = config.master.sync_period_s
+    demand, vel, v_step = demand_of(lim, period)
+    if admit is not None and (why := admit(start_KpS)):
+        raise ValueRefused(f"axis {axis}: the experiment's first gain KpS = {start_KpS:.5g} is refused before "
+                           f"anything was written: {why}")
     inc = ax.cfg.scaling.inc_per_rad
     window = ax.node.sdo[0x6065].raw
     original = None
@@ -137,6 +158,9 @@ def run_experiment(config: BusConfig, link: Link, axes: dict[str, AxisLink], axi
         kps = start_KpS
         step = trial(kps)
         while not step.oscillating and len(result.steps) < MAX_STEPS:
+            if admit is not None and (why := admit(kps * RAISE)):
+                result.gated = f"KpS = {kps * RAISE:.5g} not tried: {why}"
+                break
             kps *= RAISE
             step = trial(kps)
         while step.oscillating and len(result.steps) < MAX_STEPS:

@@ -31,39 +31,51 @@ class Motion:
     timing: Timing
 
 
+def plan(config: BusConfig, axes: dict[str, AxisLink], demand: dict[str, np.ndarray], start: dict[str, float], *,
+         kind: str = "trajectory", level: float = 1.0, feedforward: dict[str, MasterFeedForward] | None = None,
+         approach_level: float = APPROACH_LEVEL) -> tuple[Plan, int]:
+    """The plan :func:`run` streams from ``start`` (axis -> position [rad]): the approach to the
+    first setpoint of ``demand`` at ``approach_level`` of the limits, 0.2 s settling there, then the
+    demand; checked against the axes' limits (UserError before anything moves). And the number of
+    cycles before the demand."""
+    period = config.master.sync_period_s
+    names = list(demand)
+    limits = {a: axes[a].cfg.limits for a in names}
+    approach = {a: approach_move(limits[a], start[a], float(demand[a][0]), period, approach_level) for a in names}
+    n_app = max(len(v) for v in approach.values()) + round(0.2 / period)       # then settle
+    cols = [np.concatenate([approach[a], np.full(n_app - len(approach[a]), float(demand[a][0])), demand[a]])
+            for a in names]                  # the approach ends at the first setpoint, then holds it
+    out = Plan(names, np.column_stack(cols), [Segment("approach", tuple(names), approach_level, approach_level,
+                                                      0, 0, n_app),
+                                              Segment(kind, tuple(names), level, level, 0, n_app,
+                                                      n_app + len(demand[names[0]]))], period)
+    if feedforward:
+        offsets = [feedforward[a].offsets(out.demand[:, i], period) if a in feedforward else
+                   (np.zeros(len(out.demand)),) * 2 for i, a in enumerate(names)]
+        out.torque_ff_Nm = np.column_stack([t for t, _ in offsets])
+        out.velocity_ff_rad_s = np.column_stack([v for _, v in offsets])
+    check_plan(out, limits)
+    return out, n_app
+
+
 def run(config: BusConfig, link: Link, axes: dict[str, AxisLink], demand: dict[str, np.ndarray], *,
         guard: Callable[[dict[str, float]], str | None] | None = None,
         on_plan: Callable[[Plan], Callable[[int], None] | None] | None = None,
         kind: str = "trajectory", level: float = 1.0,
         feedforward: dict[str, MasterFeedForward] | None = None,
         approach_level: float = APPROACH_LEVEL) -> Motion:
-    """Approach the first setpoint of ``demand`` (axis -> positions per SYNC [rad]) at 20 % of the
-    limits (``approach_level``), then stream it; ``guard`` sees each cycle's measured velocities and may
-    stop the run.
+    """Stream :func:`plan` from where the axes stand (``demand``: axis -> positions per SYNC
+    [rad]); ``guard`` sees each cycle's measured velocities and may stop the run.
     ``on_plan`` may return a progress callback (as in ``record``); ``kind`` and ``level`` (fraction
     of the limits) label the demand's segment for it.  ``feedforward`` (per axis) is the model
     feed-forward the master sends with every setpoint, the approach included."""
     period = config.master.sync_period_s
     names = list(demand)
-    limits = {a: axes[a].cfg.limits for a in names}
-    start = {a: axes[a].position_rad() for a in names}
-    approach = {a: approach_move(limits[a], start[a], float(demand[a][0]), period, approach_level) for a in names}
-    n_app = max(len(v) for v in approach.values()) + round(0.2 / period)       # then settle
-    cols = [np.concatenate([approach[a], np.full(n_app - len(approach[a]), float(demand[a][0])), demand[a]])
-            for a in names]                  # the approach ends at the first setpoint, then holds it
-    plan = Plan(names, np.column_stack(cols), [Segment("approach", tuple(names), approach_level, approach_level,
-                                                       0, 0, n_app),
-                                               Segment(kind, tuple(names), level, level, 0, n_app,
-                                                       n_app + len(demand[names[0]]))], period)
-    if feedforward:
-        offsets = [feedforward[a].offsets(plan.demand[:, i], period) if a in feedforward else
-                   (np.zeros(len(plan.demand)),) * 2 for i, a in enumerate(names)]
-        plan.torque_ff_Nm = np.column_stack([t for t, _ in offsets])
-        plan.velocity_ff_rad_s = np.column_stack([v for _, v in offsets])
-    check_plan(plan, limits)
+    plan_, n_app = plan(config, axes, demand, {a: axes[a].position_rad() for a in names}, kind=kind, level=level,
+                        feedforward=feedforward, approach_level=approach_level)
     m = config.master
-    progress = on_plan(plan) if on_plan else None
-    result = stream(link, {a: axes[a] for a in names}, plan, heartbeat_timeout=m.heartbeat_timeout_s,
+    progress = on_plan(plan_) if on_plan else None
+    result = stream(link, {a: axes[a] for a in names}, plan_, heartbeat_timeout=m.heartbeat_timeout_s,
                     miss_limit=m.tpdo_miss_limit, state_timeout=m.state_timeout_s, progress=progress,
                     timing_limits=m.timing, guard=guard and
                     (lambda raw: guard({a: float(axes[a].cfg.scaling.velocity_from_device(raw[a]))

@@ -21,7 +21,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..config import BusConfig
+from ..config import BusConfig, Limits
 from ..errors import DriveRefused, MotionAborted
 from ..master.bringup import AxisLink
 from ..master.campaign import Plan
@@ -129,6 +129,15 @@ def _torque_error(model: dict[str, float], demand: np.ndarray, torque: np.ndarra
     return best[0], rms, best[1], best[2]
 
 
+def reference_demands(limits: dict[str, Limits], period: float) -> list[tuple[str, dict[str, np.ndarray], dict | None,
+                                                                            float]]:
+    """What each scenario runs, in order: (trajectory, axis -> demand [rad] per SYNC, the moves
+    overshoot and settling are measured on, the share of the limits it runs at)."""
+    ptp, moves = trajectories.point_to_point(limits, period)
+    return [("point_to_point", ptp, moves, trajectories.PTP_LEVEL),
+            ("path", trajectories.path(limits, period), None, trajectories.PATH_LEVEL)]
+
+
 def validate(config: BusConfig, link: Link, axes: dict[str, AxisLink], profile: Profile,
              scenarios: dict[str, dict[str, dict[str, float]]],
              model: dict[str, dict[str, float]], *,
@@ -143,9 +152,7 @@ def validate(config: BusConfig, link: Link, axes: dict[str, AxisLink], profile: 
     ``master_feedforward`` (the drive's own model feed-forward then off).
     """
     period = config.master.sync_period_s
-    limits = {a: axes[a].cfg.limits for a in axes}
-    ptp, moves = trajectories.point_to_point(limits, period)
-    path = trajectories.path(limits, period)
+    demands = reference_demands({a: axes[a].cfg.limits for a in axes}, period)
     runs = []
     for name, values in scenarios.items():
         ff: dict[str, MasterFeedForward] = {}
@@ -161,8 +168,7 @@ def validate(config: BusConfig, link: Link, axes: dict[str, AxisLink], profile: 
             res = write_parameters(axes[a].node, profile, v, store=False)
             if not res.ok:
                 raise DriveRefused(f"scenario {name}, axis {a}: {res.error}")
-        for traj, demand, marks, level in (("point_to_point", ptp, moves, trajectories.PTP_LEVEL),
-                                           ("path", path, None, trajectories.PATH_LEVEL)):
+        for traj, demand, marks, level in demands:
             m = motion.run(config, link, axes, demand, on_plan=on_plan, kind=traj, level=level, feedforward=ff)
             runs.append(Run(name, traj, metrics(m, model, period, marks),
                             None if m.aborted is None else str(m.aborted), m, how))

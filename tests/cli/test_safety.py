@@ -136,36 +136,49 @@ def _only_y(tmp_path):
     return cfg
 
 
-@pytest.mark.parametrize("command", [["record"], ["commission"], ["validate", "--params", "TUNE"],
-                                     ["tune", "--ident", "IDENT", "--experiment"], ["jog", "y", "--by", "0.01"]])
+MOVING = [["record"], ["commission"], ["validate", "--params", "TUNE"], ["tune", "--ident", "IDENT", "--experiment"],
+          ["jog", "y", "--by", "0.01"]]
+
+
+def _moving_argv(tmp_path, command):
+    ident = tmp_path / "identify.json"
+    ident.write_text(json.dumps({"axes": {"y": {"params": dict(TABLE_II["y"])}}}))
+    out = {"record": "out", "commission": "out", "tune": "t.json", "validate": "val"}.get(command[0])
+    return [{"TUNE": tune_json(tmp_path), "IDENT": str(ident)}.get(c, c) for c in command] + \
+        (["--out", str(tmp_path / out)] if out else [])
+
+
+@pytest.mark.parametrize("command", MOVING)
+def test_every_moving_command_has_a_dry_run_that_plans_and_moves_nothing(tmp_path, capsys, command):
+    """--dry-run: the plan of every motion the command would run, from where the axes stand,
+    checked against the limits; then it stops (no log, no tune or validate result written)."""
+    assert main(_moving_argv(tmp_path, command) + ["--sim", "--dry-run", "--config", str(_only_y(tmp_path))]) == 0
+    out = capsys.readouterr().out
+    assert "y: from " in out and "peaks" in out and "(limits" in out and "bus load" in out
+    assert out.rstrip().endswith("dry run: nothing was written that changes a drive's behaviour, nothing moved")
+    assert not [p for p in ("out/log.csv", "out/summary.json", "t.json", "val/validate.json") if (tmp_path / p).exists()]
+
+
+@pytest.mark.parametrize("command", MOVING)
 def test_a_real_bus_moves_only_when_a_person_confirms(tmp_path, capsys, monkeypatch, command):
     """Without a terminal and without --yes, every command that moves a real machine is refused
     before anything is written (nothing on the bus: the configured channel stays silent); at a
     terminal, only 'yes' goes on."""
     import can
-    ident = tmp_path / "identify.json"
-    ident.write_text(json.dumps({"axes": {"y": {"params": dict(TABLE_II["y"])}}}))
-    command = [{"TUNE": tune_json(tmp_path), "IDENT": str(ident)}.get(c, c) for c in command]
     channel = f"real-{command[0]}"
     listener = can.Bus(interface="virtual", channel=channel)
-    argv = command + ["-i", "virtual", "-c", channel] + \
-        (["--out", str(tmp_path / "out")] if command[0] in ("record", "commission") else [])
+    argv = _moving_argv(tmp_path, command) + ["-i", "virtual", "-c", channel]
     try:
         assert main(argv) == 2
         assert "--yes" in capsys.readouterr().err
         assert listener.recv(0.05) is None                    # not one frame
         monkeypatch.setattr("sys.stdin.isatty", lambda: True)
         monkeypatch.setattr("builtins.input", lambda prompt: "no")
-        if command[0] in ("record", "commission"):            # the question comes with the plan, read first
-            assert main(argv) == 3 and "no answer from" in capsys.readouterr().err     # (no drive on this bus)
-            frames = []
-            while (msg := listener.recv(0.05)) is not None:
-                frames.append(msg)
-            assert frames and all(0x601 <= m.arbitration_id <= 0x67F and m.data[0] == 0x40 for m in frames)  # reads
-        else:
-            assert main(argv) == 2
-            assert "not confirmed: nothing was written or moved" in capsys.readouterr().err
-            assert listener.recv(0.05) is None
+        assert main(argv) == 3 and "no answer from" in capsys.readouterr().err     # (no drive on this bus)
+        frames = []                                          # the question comes with the plan, read first
+        while (msg := listener.recv(0.05)) is not None:
+            frames.append(msg)
+        assert frames and all(0x601 <= m.arbitration_id <= 0x67F and m.data[0] == 0x40 for m in frames)  # reads
     finally:
         listener.shutdown()
 
@@ -197,5 +210,5 @@ def test_jog_moves_one_axis_slowly_inside_its_stroke_and_holds_it(tmp_path, caps
     assert main(["jog", "z", "--sim", "--by", "0.3"]) == 2
     assert "outside the stroke" in capsys.readouterr().err
     assert main(["jog", "y", "--sim", "--by", "0.01", "--dry-run"]) == 0
-    assert "dry run: nothing moved" in capsys.readouterr().out
+    assert "dry run: nothing was written that changes a drive's behaviour, nothing moved" in capsys.readouterr().out
     assert main(["jog", "y", "--sim", "--by", "0.01", "--speed", "5"]) == 2      # above the axis's 0.23 m/s

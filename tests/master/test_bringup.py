@@ -123,5 +123,34 @@ def test_a_dry_run_writes_nothing_and_plans_what_the_run_then_does(tmp_path, cap
     assert done.ok and np.array_equal(done.plan.demand, planned.demand)
     assert main(["record", "--sim", "--quick", "--dry-run", "--out", str(tmp_path / "cli")]) == 0
     out = capsys.readouterr().out
-    assert "campaign x, y, z: 18 segments" in out and "z: from -0.12 m" in out and "nothing moved" in out
+    assert "campaign x, y, z, 18 segments" in out and "z: from -0.12 m" in out and "nothing moved" in out
     assert not (tmp_path / "cli" / "log.csv").exists()
+
+
+def test_validate_streams_the_trajectories_its_dry_run_planned(tmp_path):
+    """validate --dry-run's plans (read-only bring-up, not one write) are the ones each scenario
+    then streams, the approach from where the axes stand included."""
+    import numpy as np
+
+    from drive_bridge.cli.bus import validate_plans
+    from drive_bridge.master.bringup import bring_up, plan_bring_up
+    from drive_bridge.params.profile import load_profile
+    from drive_bridge.tuning.validate import run_scenarios
+    from ..support import Bench, clean_config, load_bus_config, BUS_CONFIG
+    config = load_bus_config(BUS_CONFIG).only(["y"])
+    bench = Bench(clean_config())
+    writes = []
+    bench.robot.drives["y"].sdo_fault = lambda op, index, sub: writes.append((index, sub)) if op == "write" else None
+    previewed = [plan for _, plan in validate_plans(config, "one scenario")(plan_bring_up(bench.link, config))]
+    assert writes == [] and len(previewed) == 2
+    bench.robot.drives["y"].sdo_fault = None
+    streamed = []
+    axes = bring_up(bench.link, config)
+    profile = load_profile("drive_bridge_servo")
+    runs = run_scenarios(config, bench.link, axes, profile, {"held": {"y": {}}}, {"y": {}},
+                         on_plan=lambda plan: streamed.append(plan))
+    assert not any(r.aborted for r in runs) and len(streamed) == 2
+    assert np.array_equal(previewed[0].demand, streamed[0].demand)
+    # the path starts where the axis came to rest after the first: that, to the encoder's resolution
+    assert np.max(np.abs(previewed[1].demand - streamed[1].demand)) < 1e-4
+    assert previewed[1].duration == streamed[1].duration
