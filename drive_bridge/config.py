@@ -76,10 +76,24 @@ class Limits:
 
 
 HOLDING = ("brake", "enabled")
-REFERENCES = ("absolute", "here")
+REFERENCES = ("absolute", "here", "home")
 DEFAULT_MASTER_NODE_ID = 127
 #: the drive's own limits are set this much beyond the configured ones (the campaign stays inside those)
 DRIVE_LIMIT_MARGIN = 1.25
+
+
+@dataclass(frozen=True)
+class Homing:
+    """``reference: home``: the drive's own homing (CiA 402 mode 6), run before the first motion:
+    ``method`` (0x6098, as the drive's manual numbers them for how the axis is wired), the speeds
+    searching for the switch and for zero [rad/s] (0x6099:1, :2), the acceleration [rad/s²] (0x609A),
+    and how long it may take [s]."""
+
+    method: int
+    switch_speed: float
+    zero_speed: float
+    acceleration: float
+    timeout_s: float
 
 
 @dataclass(frozen=True)
@@ -120,9 +134,11 @@ class NodeConfig:
     #: ``scaling: from_drive``: the position and velocity units (and the rated torque where bus.yml
     #: gives none) are the drive's own, read at bring-up
     units_from_drive: bool = False
-    #: where the stroke is: ``absolute`` (positions as the drive counts them) or ``here`` (laid out
-    #: around the position the axis stands at when it is brought up)
+    #: where the stroke is: ``absolute`` (positions as the drive counts them), ``here`` (laid out
+    #: around the position the axis stands at when it is brought up) or ``home`` (as the drive counts
+    #: them after its homing, ``homing``, has run)
     reference: str = "absolute"
+    homing: Homing | None = None
 
 
 DEFAULT_BITRATE = 1_000_000       # bit/s, when nothing names the bitrate
@@ -399,9 +415,43 @@ def _node(path: Path, axis: str, data: dict, dcf_path: str | None = None, unused
                    {**REQUIRED_TPDO, scaling.torque_object: TORQUE_FEEDBACK[feedback]}),
         sdo=tuple(sdo), profile=sec.get("profile", str, None), motor=_motor(sec), source=data,
         drive_limits=drive_limits, units_from_drive=from_drive,
-        reference=sec.get("reference", str, "absolute", choices=list(REFERENCES)))
+        reference=sec.get("reference", str, "absolute", choices=list(REFERENCES)),
+        homing=_homing(sec, od, scaling, limits, unit))
+    if (cfg.reference == "home") != (cfg.homing is not None):
+        raise sec.error("homing" if cfg.homing else "reference", "reference: home and a homing section go together: "
+                        "homing says how the drive finds its home (method, speeds), reference: home that it runs")
     sec.done()
     return cfg
+
+
+#: the CiA 402 homing objects a drive needs for ``reference: home``
+HOMING_OBJECTS = ((0x6098, 0), (0x6099, 1), (0x6099, 2), (0x609A, 0))
+
+
+def _homing(sec: Section, od, scaling: Scaling, limits: Limits, unit: str) -> Homing | None:
+    """``homing: {method, switch_speed_<unit>_s, zero_speed_<unit>_s, acceleration_<unit>_s2,
+    timeout_s}`` (speeds by default 5 % and 1 % of the axis's velocity limit, the acceleration 10 %
+    of its own), in load units as the limits are."""
+    h = sec.section("homing", required=False)
+    if not h.keys():
+        return None
+    method = h.get("method", int, low=-128, high=127)
+    missing = [f"0x{i:04X}:{s}" for i, s in HOMING_OBJECTS if od.get_variable(i, s) is None]
+    if missing:
+        raise h.error("method", f"the drive's EDS/DCF has no homing objects {', '.join(missing)}: it cannot home "
+                                f"over CANopen; use reference: here or absolute")
+    to_motor = lambda v: None if v is None else float(scaling.load_to_motor(v))      # noqa: E731
+    vmax, amax = limits.max_velocity, limits.max_acceleration
+    switch = to_motor(h.get(f"switch_speed_{unit}_s", float, None, low=1e-9, high=1e6)) or 0.05 * vmax
+    zero = to_motor(h.get(f"zero_speed_{unit}_s", float, None, low=1e-9, high=1e6)) or 0.01 * vmax
+    acc = to_motor(h.get(f"acceleration_{unit}_s2", float, None, low=1e-9, high=1e8)) or 0.1 * amax
+    for key, value, most in ((f"switch_speed_{unit}_s", switch, vmax), (f"zero_speed_{unit}_s", zero, vmax),
+                             (f"acceleration_{unit}_s2", acc, amax)):
+        if value > most * (1 + 1e-9):
+            raise h.error(key, "above the axis's own limit in limits")
+    out = Homing(method, switch, zero, acc, h.get("timeout_s", float, 120.0, low=0.1, high=3600.0))
+    h.done()
+    return out
 
 
 def _motor(sec: Section) -> tuple[float, float] | None:

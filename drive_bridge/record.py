@@ -14,6 +14,7 @@ from .logs import LOG_NAME, META_NAME, TRACE_NAME, layout_meta, write_csv, write
 from .master.bringup import AxisLink, bring_up
 from .master.busload import check_bus_load
 from .master.campaign import Plan, build_plan
+from .master.homing import home
 from .master.link import Link, TraceRecorder
 from .master.stream import stream
 from .master.timing import Timing
@@ -74,6 +75,7 @@ def record(config: BusConfig, link: Link, out_dir: str | Path, *,
 
 def _record(config, link, out, load, t_start, on_plan, axes) -> RecordResult:
     axes = axes or bring_up(link, config)
+    home(link, axes, config)                 # reference: home -- before the plan starts where it left them
     start = {name: ax.position_rad() for name, ax in axes.items()}
     plan = build_plan(config.campaign, {n: a.cfg.limits for n, a in axes.items()}, start,
                       config.master.sync_period_s)

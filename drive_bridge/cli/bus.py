@@ -191,6 +191,7 @@ def cmd_jog(args) -> int:
 
     import numpy as np
 
+    from ..master.homing import home
     from ..tuning import motion
     config = options.config(args).only([args.axis])
     ncfg = config.nodes[args.axis]
@@ -206,14 +207,14 @@ def cmd_jog(args) -> int:
                             f"{ncfg.limits.max_velocity / float(ncfg.scaling.load_to_motor(1.0)):.4g} {unit}/s")
 
     def target(ax) -> float:
-        """Where the jog goes [rad motor side], from where ``ax`` stands."""
+        """Where the jog goes [rad motor side], from where ``ax`` stands (homed first where it homes)."""
         if args.to is not None:
             return float(ax.cfg.scaling.load_to_motor(args.to))
-        return ax.position_rad() + float(ax.cfg.scaling.load_to_motor(args.by))
+        return ax.start_rad() + float(ax.cfg.scaling.load_to_motor(args.by))
 
     def plans(axes):
         ax = axes[args.axis]
-        plan, _ = motion.plan(config, axes, {args.axis: np.array([target(ax)])}, {args.axis: ax.position_rad()},
+        plan, _ = motion.plan(config, axes, {args.axis: np.array([target(ax)])}, {args.axis: ax.start_rad()},
                               kind="jog", level=level, approach_level=level)
         return [(f"jog {args.axis}", plan)]
     if args.dry_run:
@@ -221,6 +222,8 @@ def cmd_jog(args) -> int:
     options.confirm_motion(args, config, f"jog {args.axis}", lambda: preview(args, config, plans))
     with Session(config, options.session_options(args)) as session:
         ax = session.axes[args.axis]
+        home(session.link, {args.axis: ax}, config)
+
         def on_plan(plan):
             print(f"jog {args.axis}: {plan.duration:.1f} s of motion\n{plan_lines(plan, config)}", file=sys.stderr)
         moved = motion.run(config, session.link, {args.axis: ax}, {args.axis: np.array([target(ax)])}, kind="jog",
@@ -265,6 +268,11 @@ def motion_preview(session, config, plans) -> str:
     for title, plan in plans(axes):
         lines += [f"{title}: {plan.duration:.1f} s of motion", plan_lines(plan, config)]
     for a, ax in axes.items():
+        if (h := ax.cfg.homing) is not None:
+            k = 1.0 / float(ax.cfg.scaling.load_to_motor(1.0))
+            unit = "m" if ax.cfg.linear else "rad"
+            lines.append(f"  {a}: homes first (method {h.method}, {h.switch_speed * k:.4g} / {h.zero_speed * k:.4g} "
+                         f"{unit}/s, within {h.timeout_s:g} s); its motion starts at its home")
         assumed = ax.units.get("assumed_from_bus_yml") or []
         lines.append(f"  {a}: units as the drive reports them: {ax.units.get('position_unit') or 'not reported'}"
                      + (f"; assumed from bus.yml: {'; '.join(assumed)}" if assumed else ""))
@@ -276,7 +284,7 @@ def campaign_plans(config):
     from ..master.campaign import build_plan
 
     def plans(axes):
-        start = {name: ax.position_rad() for name, ax in axes.items()}
+        start = {name: ax.start_rad() for name, ax in axes.items()}
         plan = build_plan(config.campaign, {n: a.cfg.limits for n, a in axes.items()}, start,
                           config.master.sync_period_s)
         return [(f"campaign {', '.join(plan.axes)}, {len(plan.segments)} segments", plan)]
@@ -290,7 +298,7 @@ def validate_plans(config, scenarios: str):
     from ..tuning.validate import reference_demands
 
     def plans(axes, start=None):
-        start = start or {name: ax.position_rad() for name, ax in axes.items()}
+        start = start or {name: ax.start_rad() for name, ax in axes.items()}
         out = []
         for traj, demand, _, level in reference_demands({a: ax.cfg.limits for a, ax in axes.items()},
                                                        config.master.sync_period_s):

@@ -171,7 +171,7 @@ def _experiment_plans(config):
 
     def plans(axes):
         return [(f"tune --experiment {a}, each step", motion.plan(
-            config, {a: ax}, {a: demand_of(ax.cfg.limits, config.master.sync_period_s)[0]}, {a: ax.position_rad()},
+            config, {a: ax}, {a: demand_of(ax.cfg.limits, config.master.sync_period_s)[0]}, {a: ax.start_rad()},
             kind="experiment")[0]) for a, ax in axes.items()]
     return plans
 

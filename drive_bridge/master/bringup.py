@@ -62,6 +62,7 @@ class AxisLink:
     #: written into it as read back ("0xIIII:S" -> value)
     units: dict = field(default_factory=dict)
     drive_limits: dict = field(default_factory=dict)
+    homed: bool = False            # reference: home, and the drive's homing has run in this bring-up
 
     def process_data(self) -> dict:
         """How the master exchanges this axis' process data (bringup.json): the operating mode, the
@@ -72,6 +73,14 @@ class AxisLink:
         return {"mode": self.mode, "mode_name": MODE_NAMES.get(self.mode, str(self.mode)),
                 "setpoint": hex_object(*self.setpoint), "rpdo": pdos(self.rpdos), "tpdo": pdos(self.tpdos),
                 "units": self.units, "drive_limits": self.drive_limits}
+
+    def start_rad(self) -> float:
+        """Where a motion planned now starts [rad]: where the axis stands, or for an axis that homes
+        first, its home (the home offset 0x607C where the drive has one, else 0)."""
+        if self.cfg.homing is None or self.homed:
+            return self.position_rad()
+        offset = read_if_readable(self.node, 0x607C, 0, f"axis {self.name}'s home offset") or 0
+        return float(self.cfg.scaling.position_from_device(offset))
 
     def position_rad(self) -> float:
         """Position actual (0x6064) now [rad | rad motor side], read by SDO; BusError naming the axis."""
@@ -219,7 +228,7 @@ def bring_up(link: Link, config: BusConfig) -> dict[str, AxisLink]:
         node = net[ncfg.node_id]
         node.nmt.send_command(0x80)                               # pre-operational
         for index, sub, value in ncfg.sdo:                        # first: they may set the drive's units
-            _write(node, name, index, sub, value)
+            write_setting(node, name, index, sub, value)
         ax = _axis(link, config, result, name, ncfg, {})
         ncfg = ax.cfg
         log.info("axis %s: units %s per rad (%s); assumed from bus.yml: %s", name, f"{ncfg.scaling.inc_per_rad:.6g}",
@@ -227,8 +236,8 @@ def bring_up(link: Link, config: BusConfig) -> dict[str, AxisLink]:
                  or "nothing")
         written = drive_settings(name, ncfg, period, config.master)
         for index, sub, value in written:
-            _write(node, name, index, sub, value)
-        ax.drive_limits = _read_back(node, name, written)
+            write_setting(node, name, index, sub, value)
+        ax.drive_limits = read_back(node, name, written)
         log.info("axis %s: limits and stop behaviour written and read back: %s", name, ax.drive_limits)
         try:
             ax.rpdos = _configure_pdos(node, node.rpdo, ncfg.rpdo, 0x200)
@@ -241,10 +250,10 @@ def bring_up(link: Link, config: BusConfig) -> dict[str, AxisLink]:
                  hex_object(*ax.setpoint))
         if ax.mode == IP:
             if 0x60C0 in ncfg.od:
-                _write(node, name, 0x60C0, 0, IP_SUB_MODE[ax.setpoint])
+                write_setting(node, name, 0x60C0, 0, IP_SUB_MODE[ax.setpoint])
             if ax.setpoint == PVT and 0x60C4 in ncfg.od:          # clear the record buffer, then enable it
-                _write(node, name, 0x60C4, 6, 0)
-                _write(node, name, 0x60C4, 6, 1)
+                write_setting(node, name, 0x60C4, 6, 0)
+                write_setting(node, name, 0x60C4, 6, 1)
         _watch(net, ax, clock)
         axes[name] = ax
     return axes
@@ -389,7 +398,7 @@ def _check_range(ncfg: NodeConfig, path) -> None:
                            f"drive's 32-bit position range in its units ({ncfg.scaling.inc_per_rad:.6g} per rad)")
 
 
-def _read_back(node, axis: str, written) -> dict[str, int | float]:
+def read_back(node, axis: str, written) -> dict[str, int | float]:
     """Each setting as the drive now holds it; DriveRefused where it kept another value."""
     out = {}
     for index, sub, value in written:
@@ -405,7 +414,7 @@ def _read_back(node, axis: str, written) -> dict[str, int | float]:
     return out
 
 
-def _write(node, axis: str, index: int, sub: int, value) -> None:
+def write_setting(node, axis: str, index: int, sub: int, value) -> None:
     """SDO download of ``value``, checked against the range the drive's EDS/DCF gives first."""
     lo, hi = limits(node.object_dictionary.get_variable(index, sub))
     if (lo is not None and value < lo) or (hi is not None and value > hi):

@@ -1,5 +1,6 @@
-"""CiA 402 power state machine of one drive over SDO: its state, a fault reset, the operating mode
-(enabling and stopping go in the cyclic controlword: :mod:`.stream`).
+"""CiA 402 power state machine of one drive over SDO: its state, a fault reset, the operating mode,
+a command for a mode the drive runs on its own (homing); enabling and stopping a streamed motion go
+in the cyclic controlword (:mod:`.stream`).
 
 canopen's BaseNode402 has fixed timeouts and a mode switch that can fail
 silently; here every wait uses the link clock and a configured timeout, the
@@ -54,6 +55,12 @@ class Drive402:
                 raise BusError(f"axis {self.axis}: drive did not reach {target} within {self.timeout} s "
                                f"while {doing}; it shows {state_name(sw)} (statusword 0x{sw:04X})")
             self.clock.sleep(0.005)
+
+    def command(self, controlword: int, target: str, doing: str) -> None:
+        """Write ``controlword`` by SDO and wait for the state ``target`` (BusError naming what the
+        drive shows otherwise); for a mode the drive runs on its own, such as homing."""
+        self.node.sdo[0x6040].raw = controlword
+        self._wait_for(target, doing)
 
     def reset_fault(self) -> None:
         if not self.statusword() & SW_FAULT:

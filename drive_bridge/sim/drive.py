@@ -44,8 +44,14 @@ from .vendors import factory, spec_for
 # NMT states as sent in the heartbeat
 NMT_STOPPED, NMT_OPERATIONAL, NMT_PREOP = 0x04, 0x05, 0x7F
 
-PV, PP = 3, 1
-IMPLEMENTED_MODES = (PP, PV, IP, CSP)
+PV, PP, HM = 3, 1, 6
+IMPLEMENTED_MODES = (PP, PV, HM, IP, CSP)
+#: homing methods (0x6098) the simulated drive has: 17/18 search the negative/positive limit switch
+#: (set this far inside the axis's mechanical end stops, motor side) and leave it slowly, its edge
+#: being home; 35/37 take the position where the axis stands as home
+HOMING_SWITCH = {17: -1, 18: 1}
+HOMING_HERE = (35, 37)
+LIMIT_SWITCH_INSET_RAD = 0.5
 SAVE_SIGNATURE = 0x65766173      # 'save'
 LOAD_SIGNATURE = 0x64616F6C      # 'load'
 
@@ -257,6 +263,9 @@ class SimDrive:
         self.pp_target: float | None = None    # PP: the demand is still travelling to it
         self.pp_goal: float | None = None      # PP: the target of the last set-point accepted
         self.setpoint_ack = False
+        self.origin_rad = 0.0            # the plant position the drive counts as 0 (set by homing)
+        self.homing: str | None = None   # HM: the phase of a homing under way ("switch", "leave", "stop")
+        self.homing_attained = self.homing_error = False
         self._in_window_since: float | None = None
         s[K.ENABLED] = 0.0
         self._sync_count = 0
@@ -529,6 +538,8 @@ class SimDrive:
             sw |= 0x0400
         if self.internal_limit:
             sw |= 0x0800
+        if self.mode == HM:                # bit 12 homing attained, bit 13 homing error
+            return sw | (0x1000 if self.homing_attained else 0) | (0x2000 if self.homing_error else 0)
         if self.following or (self.state == ENABLED and self.mode == PP and self.setpoint_ack):
             sw |= 0x1000                   # CSP: follows the command value; IP: active; PP: set-point acknowledged
         if self.s[K.FE_COUNT] > 0:
@@ -556,11 +567,62 @@ class SimDrive:
             self.setpoint_ack = False                       # the handshake: bit 12 follows bit 4 down
         if self.state == ENABLED and self.mode == PP and new_setpoint:
             target = self._od(0x607A) / self.pos_per_rad
-            self.pp_target = target if not cw & 0x40 else self.d[K.P1] + target
+            self.pp_target = target + self.origin_rad if not cw & 0x40 else self.d[K.P1] + target
             self.pp_goal = self.pp_target
             self.setpoint_ack = True                        # statusword bit 12: set-point acknowledged
             self.target_reached = False
             self._in_window_since = None
+        if self.state == ENABLED and self.mode == HM:
+            if new_setpoint:
+                self._start_homing()
+            elif not cw & 0x10 and self.homing in ("switch", "leave"):
+                self.homing = "stop"                        # bit 4 down: homing interrupted, ramp to rest
+        elif self.homing:
+            self.homing = None                              # left OPERATION ENABLED: no homing goes on
+
+    def _start_homing(self) -> None:
+        """Bit 4 up in homing mode: the method 0x6098 says how home is found."""
+        method = self._od_or(0x6098, 0, 0)
+        self.homing_attained = self.homing_error = self.target_reached = False
+        if method in HOMING_HERE:
+            self.origin_rad = self.s[K.ENC] - self._od_or(0x607C, 0, 0) / self.pos_per_rad
+            self.homing_attained = self.target_reached = True
+        elif method in HOMING_SWITCH:
+            self.homing = "switch"
+        else:
+            self.homing_error = True                        # a method this drive does not have
+
+    def _on_switch(self, direction: int) -> bool:
+        """Whether the limit switch in ``direction`` is made (an axis without end stops has none)."""
+        stops = self.axis.end_stops_rad
+        if stops is None:
+            return False
+        q = self.s[K.ENC]
+        return q <= stops[0] + LIMIT_SWITCH_INSET_RAD if direction < 0 else q >= stops[1] - LIMIT_SWITCH_INSET_RAD
+
+    def _homing_period(self, T: float) -> None:
+        """One period of a homing on a limit switch: toward it at the switch speed 0x6099:1, off it at
+        the zero speed 0x6099:2 (its edge is home: the drive counts 0x607C there), then to rest; the
+        software position limits do not apply before home is known."""
+        direction = HOMING_SWITCH.get(self._od_or(0x6098, 0, 0), -1)
+        accel = self._od_or(0x609A, 0, 0) / self.vel_per_si
+        if self.homing == "switch":
+            self._ramp(direction * self._od_or(0x6099, 1, 0) / self.vel_per_si, accel, T, limit=False)
+            if self._on_switch(direction):
+                self.homing = "leave"
+        elif self.homing == "leave":
+            self._ramp(-direction * self._od_or(0x6099, 2, 0) / self.vel_per_si, accel, T, limit=False)
+            if not self._on_switch(direction):
+                stops = self.axis.end_stops_rad
+                edge = stops[0] + LIMIT_SWITCH_INSET_RAD if direction < 0 else stops[1] - LIMIT_SWITCH_INSET_RAD
+                self.origin_rad = edge - self._od_or(0x607C, 0, 0) / self.pos_per_rad
+                self.homing = "stop"
+                self.homing_attained = True
+        else:
+            self._ramp(0.0, accel, T, limit=False)
+            if self.v_dem == 0.0:
+                self.homing = None
+                self.target_reached = self.homing_attained
 
     def _go(self, state: int) -> None:
         if state == self.state:
@@ -581,7 +643,7 @@ class SimDrive:
         """CSP from now on: the demand is the target position 0x607A as it stands, wherever the
         axis is (a stale target makes it jump, as on a real drive)."""
         self.setpoint_inc = self._od(0x607A)
-        self.d[K.P0] = self.d[K.P1] = self._limit(self.setpoint_inc / self.pos_per_rad)
+        self.d[K.P0] = self.d[K.P1] = self._limit(self._plant(self.setpoint_inc))
 
     def _hold_position(self) -> None:
         self.d[K.P0] = self.d[K.P1] = self.s[K.ENC]
@@ -589,6 +651,7 @@ class SimDrive:
         self.v_dem = 0.0
         self.new_target = False
         self.pp_target = self.pp_goal = None
+        self.homing = None
 
     def fault(self, code: int) -> None:
         if self.state == FAULT:
@@ -609,8 +672,8 @@ class SimDrive:
     # ------------------------------------------------------------------ cyclic
     @property
     def internal_profile(self) -> bool:
-        """True when the drive generates its own demand (quick stop, PV, PP) on its own clock."""
-        return self.state == QUICK_STOP or (self.state == ENABLED and self.mode in (PV, PP))
+        """True when the drive generates its own demand (quick stop, PV, PP, homing) on its own clock."""
+        return self.state == QUICK_STOP or (self.state == ENABLED and self.mode in (PV, PP, HM))
 
     def on_sync(self) -> None:
         """SYNC: send TPDOs with the values at this instant, then latch new setpoints."""
@@ -640,7 +703,7 @@ class SimDrive:
                     self._buffer_error(IPB_UNDERFLOW, ERR_IP_UNDERFLOW)
                     return
             if self.new_target:
-                d[K.P1] = self._limit(self.setpoint_inc / self.pos_per_rad)
+                d[K.P1] = self._limit(self._plant(self.setpoint_inc))
             self.v_dem = (d[K.P1] - d[K.P0]) / T
         elif self.state == QUICK_STOP:
             self._ramp(0.0, self._od_or(0x6085, 0, factory().quick_stop_rad_s2 * self.vel_per_si) / self.vel_per_si, T)
@@ -662,6 +725,8 @@ class SimDrive:
                 d[K.P1] = self.pp_target
                 self.v_dem = 0.0
                 self.pp_target = None         # the demand is there; the axis is when it settles
+        elif self.state == ENABLED and self.mode == HM and self.homing:
+            self._homing_period(T)
         else:
             self.v_dem = 0.0
         # linear interpolation (IP sub-mode 0) has no acceleration within a period
@@ -669,18 +734,24 @@ class SimDrive:
         d[K.A_FF] = 0.0 if linear else (self.v_dem - v_old) / T
         self.new_target = False
 
-    def _ramp(self, v_target: float, accel: float, T: float) -> None:
-        """Move the demand velocity toward ``v_target`` at ``accel`` and integrate P1."""
+    def _ramp(self, v_target: float, accel: float, T: float, limit: bool = True) -> None:
+        """Move the demand velocity toward ``v_target`` at ``accel`` and integrate P1 (inside the
+        software position limits unless ``limit`` is False)."""
         dv = max(-accel * T, min(accel * T, v_target - self.v_dem))
         v_new = self.v_dem + dv
-        self.d[K.P1] = self._limit(self.d[K.P0] + 0.5 * (self.v_dem + v_new) * T)
+        p1 = self.d[K.P0] + 0.5 * (self.v_dem + v_new) * T
+        self.d[K.P1] = self._limit(p1) if limit else p1
         self.v_dem = v_new
+
+    def _plant(self, position: int) -> float:
+        """A position in the drive's units as the plant's [rad]: through the origin homing set."""
+        return position / self.pos_per_rad + self.origin_rad
 
     def _limit(self, position: float) -> float:
         lo, hi = self._od(0x607D, 1), self._od(0x607D, 2)
         if lo >= hi:
             return position
-        lo, hi = lo / self.pos_per_rad, hi / self.pos_per_rad
+        lo, hi = self._plant(lo), self._plant(hi)
         if position < lo or position > hi:
             self.internal_limit = True
             return min(max(position, lo), hi)
@@ -731,6 +802,7 @@ class SimDrive:
         self._torque_pm = max(-32768, min(32767, round(torque / self.rated_torque * 1000)))
         per_unit = 1e-3 if self.spec.current_unit == "mA" else self.rated_current_A / 1000.0
         self._current = max(-32768, min(32767, round(current / per_unit)))
+        count -= round(self.origin_rad * self.inc_per_rad)           # as the drive counts since homing
         position = count if self.pos_per_rad == self.inc_per_rad else round(count / self.inc_per_rad * self.pos_per_rad)
         self._position_inc = max(-2**31, min(2**31 - 1, position))
         if self.fifo is not None:                   # 0x20C4:1 as of this sample (its other sub-indices are settings)

@@ -11,6 +11,7 @@ from ..errors import MotionAborted
 from ..logs import to_table
 from ..master.bringup import AxisLink
 from ..master.campaign import APPROACH_LEVEL, Plan, Segment, approach_move, check_plan
+from ..master.homing import home
 from ..master.link import Link
 from ..master.stream import stream
 from ..master.timing import Timing
@@ -64,13 +65,15 @@ def run(config: BusConfig, link: Link, axes: dict[str, AxisLink], demand: dict[s
         kind: str = "trajectory", level: float = 1.0,
         feedforward: dict[str, MasterFeedForward] | None = None,
         approach_level: float = APPROACH_LEVEL) -> Motion:
-    """Stream :func:`plan` from where the axes stand (``demand``: axis -> positions per SYNC
+    """Stream :func:`plan` from where the axes stand, homed first where they home
+    (:mod:`~drive_bridge.master.homing`) (``demand``: axis -> positions per SYNC
     [rad]); ``guard`` sees each cycle's measured velocities and may stop the run.
     ``on_plan`` may return a progress callback (as in ``record``); ``kind`` and ``level`` (fraction
     of the limits) label the demand's segment for it.  ``feedforward`` (per axis) is the model
     feed-forward the master sends with every setpoint, the approach included."""
     period = config.master.sync_period_s
     names = list(demand)
+    home(link, {a: axes[a] for a in names}, config)          # reference: home, before the first motion
     plan_, n_app = plan(config, axes, demand, {a: axes[a].position_rad() for a in names}, kind=kind, level=level,
                         feedforward=feedforward, approach_level=approach_level)
     m = config.master

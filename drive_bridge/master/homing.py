@@ -1,0 +1,90 @@
+"""``reference: home``: the drive's own homing (CiA 402 homing mode 6), before an axis's first motion.
+
+The method (0x6098), speeds (0x6099:1 toward the switch, :2 toward zero) and acceleration
+(0x609A) of the node's ``homing`` section are written in the drive's units and read back; the
+drive is enabled in homing mode by SDO and started with controlword bit 4; the master then
+watches the statusword (bit 12 homing attained with bit 10 target reached: done; bit 13:
+homing error), the drive's heartbeat and the timeout.  Anything else -- a fault, an error, the
+timeout, Ctrl-C, SIGTERM -- quick-stops the axis where it is and ends the command as a motion
+stop; nothing streams until every axis that needs it is homed.  Afterwards the axis is held as
+any other: on its brake (``holding: brake``), or powered where homing left it.
+"""
+from __future__ import annotations
+
+import logging
+
+from ..config import BusConfig
+from ..errors import Interrupted, MotionAborted
+from ..signals import signal_name
+from .bringup import AxisLink, read_back, write_setting
+from .cia402 import CW_ENABLE, CW_SHUTDOWN, CW_SWITCH_ON, SW_FAULT
+from .link import Link
+from .stream import quick_stop
+
+log = logging.getLogger(__name__)
+
+HOMING_MODE = 6
+CW_START = CW_ENABLE | 0x10                  # enable operation with bit 4: start homing
+SW_TARGET_REACHED, SW_ATTAINED, SW_ERROR = 0x0400, 0x1000, 0x2000
+POLL_S = 0.01
+
+
+def to_home(axes: dict[str, AxisLink]) -> list[str]:
+    """The axes that home before they move (``reference: home``) and have not in this bring-up."""
+    return [a for a, ax in axes.items() if ax.cfg.homing is not None and not ax.homed]
+
+
+def home(link: Link, axes: dict[str, AxisLink], config: BusConfig) -> None:
+    """Home each axis of :func:`to_home`, one after the other; MotionAborted (the axis quick-stopped
+    and held) when one does not home."""
+    for name in to_home(axes):
+        _home(link, axes[name], config)
+
+
+def _home(link: Link, ax: AxisLink, config: BusConfig) -> None:
+    h, sc, node, drive = ax.cfg.homing, ax.cfg.scaling, ax.node, ax.drive
+    vel = sc.velocity_per_rad_s
+    settings = [(0x6098, 0, h.method), (0x6099, 1, round(h.switch_speed * vel)), (0x6099, 2, round(h.zero_speed * vel)),
+                (0x609A, 0, round(h.acceleration * vel))]
+    for index, sub, value in settings:
+        write_setting(node, ax.name, index, sub, value)
+    read_back(node, ax.name, settings)
+    log.info("axis %s: homing, method %d, %.4g / %.4g rad/s, %.4g rad/s², within %g s", ax.name, h.method,
+             h.switch_speed, h.zero_speed, h.acceleration, h.timeout_s)
+    drive.reset_fault()
+    drive.set_mode(HOMING_MODE)
+    clock = link.clock
+    try:
+        drive.command(CW_SHUTDOWN, "READY TO SWITCH ON", "enabling for homing")
+        drive.command(CW_SWITCH_ON, "SWITCHED ON", "enabling for homing")
+        drive.command(CW_ENABLE, "OPERATION ENABLED", "enabling for homing")
+        node.sdo[0x6040].raw = CW_START
+        deadline = clock.now() + h.timeout_s
+        while True:
+            clock.sleep(POLL_S)
+            sw = drive.statusword()
+            if sw & SW_FAULT:
+                raise MotionAborted(f"the drive faulted while homing (error code 0x{node.sdo[0x603F].raw:04X})",
+                                    ax.name)
+            if sw & SW_ERROR:
+                raise MotionAborted(f"the drive reports a homing error (statusword 0x{sw:04X}): check homing.method "
+                                    f"{h.method} against how the axis is wired", ax.name)
+            if sw & SW_ATTAINED and sw & SW_TARGET_REACHED:
+                break
+            if ax.last_heartbeat is not None and clock.now() - ax.last_heartbeat > config.master.heartbeat_timeout_s:
+                raise MotionAborted("its heartbeat stopped while homing", ax.name)
+            if clock.now() > deadline:
+                raise MotionAborted(f"not homed within homing.timeout_s = {h.timeout_s:g} s (statusword 0x{sw:04X})",
+                                    ax.name)
+        node.sdo[0x6040].raw = CW_ENABLE                     # bit 4 down: homing done, the drive holds
+        if ax.cfg.drive_limits is not None and ax.cfg.drive_limits.holding == "brake":
+            drive.command(CW_SHUTDOWN, "READY TO SWITCH ON", "putting the axis on its brake after homing")
+    except (KeyboardInterrupt, Exception) as exc:
+        problems = quick_stop(link, {ax.name: ax}, max(config.master.state_timeout_s, 2.0))
+        detail = "".join(f"; {p}" for p in problems)
+        if isinstance(exc, KeyboardInterrupt):
+            raise Interrupted(f"axis {ax.name} was homing{detail}", signal_name(exc)) from exc
+        reason = exc.reason if isinstance(exc, MotionAborted) else f"homing failed ({exc})"
+        raise MotionAborted(f"{reason}; quick-stopped{detail}", ax.name) from exc
+    ax.homed = True
+    log.info("axis %s: homed, at %.6g rad", ax.name, ax.position_rad())
