@@ -130,11 +130,13 @@ def write(ctx: Context) -> str:
     tuned = read_tune_json(ctx.require(OUTPUT["tune"])).only(ctx.config)
     # brought up (PDO mapping, heartbeat, limits; drives stay disabled): what is stored and what
     # the DCF reads back is the whole commissioning, not the gains alone
-    nodes = {a: ctx.session.axes[a].node for a in tuned.parameters}
+    axes = {a: ctx.session.axes[a] for a in tuned.parameters}
     out, o = ctx.out / OUTPUT["write"], ctx.options
-    outcome = write_drives(nodes, ctx.session.profile, tuned.parameters, backup_dir=out, dcf_dir=out,
-                           inductance=tuned.inductance, force=o.force, pm_floor=o.pm_floor, gm_floor=o.gm_floor,
-                           allow_unverified_scales=o.writes_unverified, bitrate=ctx.config.master.nominal_bitrate)
+    outcome = write_drives({a: ax.node for a, ax in axes.items()}, ctx.session.profile, tuned.parameters,
+                           backup_dir=out, dcf_dir=out, inductance=tuned.inductance, force=o.force,
+                           pm_floor=o.pm_floor, gm_floor=o.gm_floor, allow_unverified_scales=o.writes_unverified,
+                           bitrate=ctx.config.master.nominal_bitrate,
+                           settings_before={a: ax.before for a, ax in axes.items()})
     write_json(ctx.out / WRITE_JSON, outcome.as_dict())
     raise_for_failure(outcome, out)
     results = outcome.results

@@ -17,6 +17,7 @@ from ..params.read import read_if_readable
 from ..pdo import PdoCodec
 from ..setpoint import IP, IP_SUB_MODE, MODE_NAMES, PVT, choose, describe_modes, supported_modes
 from .cia402 import Drive402
+from .settings import pdo_objects, snapshot, write_setting
 from .link import Link
 from .units import read_units, reconcile
 
@@ -63,6 +64,9 @@ class AxisLink:
     units: dict = field(default_factory=dict)
     drive_limits: dict = field(default_factory=dict)
     homed: bool = False            # reference: home, and the drive's homing has run in this bring-up
+    #: every object bring-up overwrote, as the drive held it before ("0xIIII:S" -> raw value):
+    #: what a store of all parameters must put back to leave the stored set as it was
+    before: dict = field(default_factory=dict)
 
     def process_data(self) -> dict:
         """How the master exchanges this axis' process data (bringup.json): the operating mode, the
@@ -227,6 +231,7 @@ def bring_up(link: Link, config: BusConfig) -> dict[str, AxisLink]:
     for name, ncfg in config.nodes.items():
         node = net[ncfg.node_id]
         node.nmt.send_command(0x80)                               # pre-operational
+        before = snapshot(node, name, [(i, s) for i, s, _ in ncfg.sdo])
         for index, sub, value in ncfg.sdo:                        # first: they may set the drive's units
             write_setting(node, name, index, sub, value)
         ax = _axis(link, config, result, name, ncfg, {})
@@ -235,6 +240,11 @@ def bring_up(link: Link, config: BusConfig) -> dict[str, AxisLink]:
                  ax.units.get("position_unit") or "not reported", "; ".join(ax.units.get("assumed_from_bus_yml") or [])
                  or "nothing")
         written = drive_settings(name, ncfg, period, config.master)
+        before |= _unseen(snapshot(node, name, [(i, s) for i, s, _ in written]), before)
+        before |= _unseen(snapshot(node, name, pdo_objects(node.object_dictionary)), before)
+        if ncfg.rpdo and 0x60C0 in ncfg.od:
+            before |= _unseen(snapshot(node, name, [(0x60C0, 0)]), before)
+        ax.before = before
         for index, sub, value in written:
             write_setting(node, name, index, sub, value)
         ax.drive_limits = read_back(node, name, written)
@@ -257,6 +267,11 @@ def bring_up(link: Link, config: BusConfig) -> dict[str, AxisLink]:
         _watch(net, ax, clock)
         axes[name] = ax
     return axes
+
+
+def _unseen(values: dict[str, int], seen: dict[str, int]) -> dict[str, int]:
+    """The values of a snapshot whose objects an earlier snapshot does not hold (it keeps the first)."""
+    return {k: v for k, v in values.items() if k not in seen}
 
 
 def _axis(link: Link, config: BusConfig, result: ScanResult, name: str, ncfg: NodeConfig,
@@ -412,21 +427,6 @@ def read_back(node, axis: str, written) -> dict[str, int | float]:
                                f"it does not take the setting: nothing moves with a limit it did not keep")
         out[hex_object(index, sub)] = held
     return out
-
-
-def write_setting(node, axis: str, index: int, sub: int, value) -> None:
-    """SDO download of ``value``, checked against the range the drive's EDS/DCF gives first."""
-    lo, hi = limits(node.object_dictionary.get_variable(index, sub))
-    if (lo is not None and value < lo) or (hi is not None and value > hi):
-        raise DriveRefused(f"axis {axis}: 0x{index:04X}:{sub} = {value} is outside the range its EDS/DCF gives "
-                           f"({lo}..{hi}); nothing was written to it")
-    log.debug("axis %s: 0x%04X:%d = %s", axis, index, sub, value)
-    try:
-        node.sdo.download(index, sub, node.object_dictionary.get_variable(index, sub).encode_raw(value))
-    except canopen.SdoAbortedError as exc:
-        raise DriveRefused(f"axis {axis}: writing 0x{index:04X}:{sub} = {value} was refused ({exc})") from exc
-    except canopen.SdoCommunicationError as exc:
-        raise BusError(f"axis {axis}: no SDO answer writing 0x{index:04X}:{sub} ({exc})") from exc
 
 
 def _watch(net: canopen.Network, ax: AxisLink, clock) -> None:

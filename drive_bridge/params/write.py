@@ -8,6 +8,7 @@ result lists every object with its old and new value in SI and device units.
 from __future__ import annotations
 
 import logging
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -15,6 +16,7 @@ import canopen
 
 from ..dcf import export_dcf
 from ..errors import BusError, DriveRefused, WriteInterrupted
+from ..master.settings import address, put_back, snapshot
 from ..outputs import hex_object, stamped, write_json
 from ..signals import deferred, signal_name
 from .check import GM_FLOOR_DB, PM_FLOOR_DEG, ValueRefused, check_set, gate
@@ -43,12 +45,18 @@ class ObjectWrite:
 
 #: what a drive's RAM or its stored (non-volatile) set holds after a transaction
 NEW, BACKUP, UNCHANGED, UNKNOWN = "new", "backup", "unchanged", "unknown"
-#: what a store makes permanent besides the objects written (CiA 301 0x1010 sub-indices): a backup and
-#: its restore cover only the objects written, so a stored set is "backup" for those alone
+#: what a store makes permanent besides the objects written (CiA 301 0x1010 sub-indices)
 STORE_SCOPE = {1: "every parameter the drive held in RAM (0x1010:1), not only the objects written: bring-up's "
-                  "PDO mapping and communication parameters, heartbeat consumer, limits and stop behaviour were "
-                  "made permanent with them, and a restore puts back only the objects written",
+                  "PDO mapping and communication parameters, heartbeat consumer, limits and stop behaviour with them",
                2: "the communication parameters (0x1010:2)", 3: "the application parameters (0x1010:3)"}
+#: what a restore after a store puts back, with and without bring-up's snapshot of what it overwrote
+RESTORE_COVERS = {True: "the objects written, and every object bring-up overwrote (PDO mapping and communication "
+                        "parameters, heartbeat, limits, stop behaviour) as the drive held it when bring-up found it "
+                        "-- its stored set, unless something changed it since the drive was powered on: stored that "
+                        "way, then bring-up's values set again in RAM for the rest of the run",
+                  False: "only the objects written: this write did not bring the drives up, so the values the "
+                         "store made permanent for bring-up's PDO mapping, heartbeat, limits and stop behaviour "
+                         "(as an earlier bring-up left them in RAM) stay stored"}
 
 
 @dataclass
@@ -72,8 +80,10 @@ class WriteResult:
     stored_set: str = UNCHANGED
     interrupted: str | None = None    # the signal that cut the transaction short (Ctrl-C, SIGTERM, SIGHUP)
     caused: bool = False              # this drive's failure ended the transaction
-    #: what a store sent to this drive made permanent besides the objects written (None: no store sent)
+    #: what a store sent to this drive made permanent besides the objects written (None: no store sent),
+    #: and what a restore after it puts back
     store_scope: str | None = None
+    restore_covers: str | None = None
 
     def holds(self) -> str:
         """What the drive is known to hold, in words."""
@@ -138,7 +148,7 @@ def plan_writes(nodes: dict[str, canopen.RemoteNode], profile: Profile, values: 
 
 def write_all(nodes: dict[str, canopen.RemoteNode], profile: Profile, values: dict[str, dict[str, float]], *,
               backup_dir: str | Path | None = None, store: bool = True, dry_run: bool = False,
-              check: bool = True) -> dict[str, WriteResult]:
+              check: bool = True, settings_before: dict[str, dict[str, int]] | None = None) -> dict[str, WriteResult]:
     """Write every axis's ``values`` (axis -> name -> SI) as one transaction over all drives.
 
     Every value is checked before anything is written (``check``).  Then: backup (read every
@@ -146,10 +156,12 @@ def write_all(nodes: dict[str, canopen.RemoteNode], profile: Profile, values: di
     drive (``store``).  Any failure -- an SDO abort, a lost answer, a value the data type cannot
     hold, a read-back that differs, an exception, Ctrl-C, SIGTERM or SIGHUP, in any phase --
     restores the backup on every drive that was written, reads it back and compares, and
-    stores it again where the new set had been stored.  ``dry_run``: the backup phase only.
+    stores it again where the new set had been stored -- with ``settings_before`` (per axis what
+    bring-up overwrote, :attr:`~drive_bridge.master.bringup.AxisLink.before`) put back for that
+    store, so the stored set is the one the drive had.  ``dry_run``: the backup phase only.
     """
     results = plan_writes(nodes, profile, values, check=check, dry_run=dry_run)
-    _Transaction(nodes, profile, results, _backup_paths(nodes, backup_dir)).run(store, dry_run)
+    _Transaction(nodes, profile, results, _backup_paths(nodes, backup_dir), settings_before).run(store, dry_run)
     return results
 
 
@@ -168,9 +180,10 @@ def write_parameters(node: canopen.RemoteNode, profile: Profile, values: dict[st
 
 class _Transaction:
     def __init__(self, nodes, profile: Profile, results: dict[str, WriteResult],
-                 backup_paths: dict[str, Path | None]):
+                 backup_paths: dict[str, Path | None], settings_before: dict[str, dict[str, int]] | None = None):
         self.nodes, self.profile, self.results = nodes, profile, results
         self.backup_paths = backup_paths
+        self.settings_before = settings_before or {}
         self.store_state: dict[str, str] = dict.fromkeys(results, UNCHANGED)
         self.interrupted_in_restore: str | None = None     # a KeyboardInterrupt the restore finished despite
 
@@ -236,7 +249,8 @@ class _Transaction:
             return
         write_json(path, {"node_id": r.node_id, "drive": self.profile.drive, "profile": self.profile.name,
                           "objects": [{"parameter": w.parameter, "index": w.index, "sub": w.sub,
-                                       "device": w.old_device, "si": w.old_si} for w in r.objects]}, exact=True)
+                                       "device": w.old_device, "si": w.old_si} for w in r.objects],
+                          "settings_before_bring_up": self.settings_before.get(axis)}, exact=True)
         r.backup = str(path)
 
     def _store(self, axis: str, r: WriteResult) -> None:
@@ -247,6 +261,7 @@ class _Transaction:
         log.info("axis %s: storing (0x%04X:%d 'save')", axis, *save)
         self.store_state[axis] = UNKNOWN              # sent: until it is confirmed, nobody knows
         r.store_scope = STORE_SCOPE.get(save[1], f"what 0x{save[0]:04X}:{save[1]} stores")
+        r.restore_covers = RESTORE_COVERS[bool(self.settings_before.get(axis))]
         self.nodes[axis].sdo[save[0]][save[1]].raw = SAVE_SIGNATURE
         self.store_state[axis] = NEW
         r.stored, r.stored_set = True, NEW
@@ -287,6 +302,35 @@ class _Transaction:
             r.restored = back_ok
             self._restore_stored_set(a, r)
 
+    @contextmanager
+    def _as_before_bring_up(self, axis: str, r: WriteResult):
+        """Around the store of the backup: what bring-up overwrote as the drive held it before, then
+        bring-up's values again in RAM (the run still streams with them).  A put-back that fails is
+        noted and the store goes on (the backup of the objects written still stands)."""
+        before = self.settings_before.get(axis)
+        if not before:
+            yield
+            return
+        node = self.nodes[axis]
+        live = snapshot(node, axis, [address(k) for k in before])
+        try:
+            put_back(node, axis, before)
+        except (Exception, KeyboardInterrupt) as exc:
+            self._note_interrupt(exc)
+            r.restore_covers = RESTORE_COVERS[False].replace("this write did not bring the drives up",
+                                                             f"putting bring-up's settings back failed ({exc})")
+            r.notes.append(f"bring-up's settings could not be put back as they were before it ({exc}): they stay "
+                           f"stored as bring-up set them")
+        else:
+            r.notes.append(f"the {len(before)} objects bring-up overwrote were stored as the drive held them before it")
+        yield
+        try:
+            put_back(node, axis, live)
+        except (Exception, KeyboardInterrupt) as exc:
+            self._note_interrupt(exc)
+            r.notes.append(f"bring-up's settings could not be set again in RAM ({exc}): the drive runs with its "
+                           f"settings from before bring-up until it is brought up again")
+
     def _restore_object(self, axis: str, w: ObjectWrite) -> None:
         """Write one object's backup; an interrupt is not the drive's answer, so that object is
         tried once more before the restore goes on."""
@@ -317,7 +361,8 @@ class _Transaction:
             return
         try:
             save = self.profile.save
-            self.nodes[axis].sdo[save[0]][save[1]].raw = SAVE_SIGNATURE
+            with self._as_before_bring_up(axis, r):
+                self.nodes[axis].sdo[save[0]][save[1]].raw = SAVE_SIGNATURE
             r.stored_set = BACKUP
             r.notes.append("the backup was stored again")
         except (Exception, KeyboardInterrupt) as exc:
@@ -354,13 +399,15 @@ def write_drives(nodes: dict[str, canopen.RemoteNode], profile: Profile, values:
                  backup_dir: str | Path | None, dcf_dir: str | Path | None = None, dry_run: bool = False,
                  inductance: dict[str, float | None] | None = None, force: bool = False,
                  pm_floor: float = PM_FLOOR_DEG, gm_floor: float = GM_FLOOR_DB,
-                 allow_unverified_scales: bool = False, bitrate: int = 1_000_000) -> WriteOutcome:
+                 allow_unverified_scales: bool = False, bitrate: int = 1_000_000,
+                 settings_before: dict[str, dict[str, int]] | None = None) -> WriteOutcome:
     """The write step: every value checked, and each drive's gains checked against the model in
     its set (J, c1) with its motor ``inductance`` [H] (from the tune result, else the motor
     data objects the profile names) (margins of the values as written, floor
     ``pm_floor`` / ``gm_floor``; ``force`` writes a set below it and records that); then with
     ``dry_run`` each drive's old and new values, nothing written, else one transaction over
-    every drive (:func:`write_all`, backups in ``backup_dir``) and, when every drive verified,
+    every drive (:func:`write_all`, backups in ``backup_dir``, what bring-up overwrote in
+    ``settings_before``) and, when every drive verified,
     each commissioned node exported as a DCF to ``dcf_dir`` (:func:`~drive_bridge.dcf.export_dcf`,
     the bus at ``bitrate``).  A scale without a documented source
     is written only with ``allow_unverified_scales`` (a dry run shows it).  Raises ValueRefused
@@ -377,7 +424,7 @@ def write_drives(nodes: dict[str, canopen.RemoteNode], profile: Profile, values:
                 L[a] = None
     checked = gate(profile, values, L, force=force, pm_floor=pm_floor, gm_floor=gm_floor,
                    allow_unverified_scales=allow_unverified_scales, dry_run=dry_run)
-    _Transaction(nodes, profile, results, _backup_paths(nodes, backup_dir)).run(True, dry_run)
+    _Transaction(nodes, profile, results, _backup_paths(nodes, backup_dir), settings_before).run(True, dry_run)
     outcome = WriteOutcome(results, checked.margins, checked.forced, list(nodes), checked.unverified)
     if dcf_dir is not None and not dry_run and outcome.ok:
         for a, r in results.items():

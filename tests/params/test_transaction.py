@@ -148,5 +148,37 @@ def test_write_json_says_what_a_store_made_permanent_beyond_the_backup(bench):
     b = bench()
     r = write_parameters(b.nodes["y"], SIM, tuned_values())
     assert r.ok and r.stored
-    assert "PDO mapping" in r.store_scope and "a restore puts back only the objects written" in r.store_scope
-    assert r.as_dict()["store_scope"] == r.store_scope
+    assert "PDO mapping" in r.store_scope and r.restore_covers.startswith("only the objects written")
+    assert r.as_dict()["store_scope"] == r.store_scope and r.as_dict()["restore_covers"] == r.restore_covers
+
+
+def test_a_failed_write_after_bring_up_leaves_the_stored_set_as_bring_up_found_it(bench, tmp_path):
+    """0x1010:1 also stores bring-up's PDO mapping, heartbeat and limits. When the second drive's
+    store fails, the first drive's backup is stored again with everything bring-up overwrote put
+    back as bring-up found it (a power cycle shows the drive's own PDO mapping and settings), and
+    bring-up's values are set again in RAM for the rest of the run; the backup file holds them."""
+    import json
+
+    from drive_bridge.config import load_bus_config
+    from drive_bridge.master.bringup import bring_up
+    from drive_bridge.master.settings import address, snapshot
+    from ..support import BUS_CONFIG
+    b = bench()
+    axes = bring_up(b.link, load_bus_config(BUS_CONFIG).only(["x", "y"]))
+    node = axes["x"].node
+    found = axes["x"].before
+    keys = [address(k) for k in found]
+    live = snapshot(node, "x", keys)
+    changed = sorted(k for k in found if found[k] != live[k])
+    assert {"0x1016:1", "0x607D:2", "0x1A00:1"} <= set(changed)            # heartbeat, limits, TPDO mapping
+    b.robot.drives["y"].abort_writes[(0x1010, 1)] = 0x08000020
+    results = write_all({a: axes[a].node for a in ("x", "y")}, SIM, {a: new_values(a) for a in ("x", "y")},
+                        backup_dir=tmp_path, settings_before={a: axes[a].before for a in ("x", "y")})
+    r = results["x"]
+    assert results["y"].caused and r.stored_set == "backup" and "as the drive held it when bring-up found it" in \
+        r.restore_covers
+    assert snapshot(node, "x", keys) == live                                 # RAM: bring-up's, as before
+    assert json.loads((tmp_path / "x_backup.json").read_text())["settings_before_bring_up"] == found
+    node.nmt.send_command(0x81)                                              # power cycle: the stored set
+    b.link.clock.sleep(0.01)
+    assert snapshot(node, "x", keys) == found

@@ -1,0 +1,99 @@
+"""A drive's settings as raw objects: written with the range its EDS/DCF gives, read as a
+snapshot, and put back -- the PDO communication and mapping objects through CiA 301's procedure
+(the PDO invalid while it changes, its mapping count 0 while its entries do).
+
+Bring-up keeps a snapshot of everything it overwrites, so that a store (0x1010:1 saves every
+parameter) that must be undone can put the drive's stored set back as it was before bring-up.
+"""
+from __future__ import annotations
+
+import logging
+
+import canopen
+
+from ..errors import BusError, DriveRefused
+from ..od import limits
+from ..outputs import hex_object
+from ..params.read import read_if_readable
+
+log = logging.getLogger(__name__)
+
+PDO_COMM = (0x1400, 0x1800)                 # RPDO / TPDO communication parameters; mapping at +0x200
+PDO_INVALID = 0x80000000
+
+
+def write_setting(node, axis: str, index: int, sub: int, value) -> None:
+    """SDO download of ``value``, checked against the range the drive's EDS/DCF gives first."""
+    lo, hi = limits(node.object_dictionary.get_variable(index, sub))
+    if (lo is not None and value < lo) or (hi is not None and value > hi):
+        raise DriveRefused(f"axis {axis}: 0x{index:04X}:{sub} = {value} is outside the range its EDS/DCF gives "
+                           f"({lo}..{hi}); nothing was written to it")
+    log.debug("axis %s: 0x%04X:%d = %s", axis, index, sub, value)
+    try:
+        node.sdo.download(index, sub, node.object_dictionary.get_variable(index, sub).encode_raw(value))
+    except canopen.SdoAbortedError as exc:
+        raise DriveRefused(f"axis {axis}: writing 0x{index:04X}:{sub} = {value} was refused ({exc})") from exc
+    except canopen.SdoCommunicationError as exc:
+        raise BusError(f"axis {axis}: no SDO answer writing 0x{index:04X}:{sub} ({exc})") from exc
+
+
+def pdo_objects(od: canopen.ObjectDictionary) -> list[tuple[int, int]]:
+    """The communication (COB-ID, transmission type, inhibit time, event timer) and mapping
+    objects of PDOs 1-4 that the drive's EDS/DCF has writable."""
+    out = []
+    for base in PDO_COMM:
+        for num in range(4):
+            for index, subs in ((base + num, (1, 2, 3, 5)), (base + 0x200 + num, range(9))):
+                out += [(index, sub) for sub in subs
+                        if (var := od.get_variable(index, sub)) is not None and var.writable and var.readable]
+    return out
+
+
+def snapshot(node, axis: str, objects) -> dict[str, int]:
+    """``objects`` ((index, sub) pairs) as the drive holds them now, by address "0xIIII:S";
+    those it does not let be read and written are left out."""
+    out = {}
+    for index, sub in objects:
+        var = node.object_dictionary.get_variable(index, sub)
+        if var is None or not var.readable or not var.writable:
+            continue
+        value = read_if_readable(node, index, sub, f"axis {axis}'s setting")
+        if value is not None:
+            out[hex_object(index, sub)] = value
+    return out
+
+
+def address(key: str) -> tuple[int, int]:
+    """The (index, sub) of an address "0xIIII:S"."""
+    index, sub = key.split(":")
+    return int(index, 16), int(sub)
+
+
+def put_back(node, axis: str, values: dict[str, int]) -> None:
+    """Write a :func:`snapshot` back, in its order; each PDO it holds is made invalid first, its
+    mapping count set to 0 while the entries are written, and its COB-ID (valid or not, as it was)
+    written last.  DriveRefused / BusError at the first object the drive does not take."""
+    pdos: dict[int, dict[tuple[int, int], int]] = {}
+    for key, value in values.items():
+        index, sub = address(key)
+        comm = index - 0x200 if 0x1600 <= index <= 0x17FF or 0x1A00 <= index <= 0x1BFF else index
+        if 0x1400 <= comm <= 0x15FF or 0x1800 <= comm <= 0x19FF:
+            pdos.setdefault(comm, {})[(index, sub)] = value
+        else:
+            write_setting(node, axis, index, sub, value)
+    for comm, objects in pdos.items():
+        mapping = comm + 0x200
+        now = read_if_readable(node, comm, 1, f"axis {axis}'s PDO COB-ID")
+        if now is not None and not now & PDO_INVALID:
+            write_setting(node, axis, comm, 1, now | PDO_INVALID)
+        entries = sorted((sub, v) for (index, sub), v in objects.items() if index == mapping and sub > 0)
+        if (mapping, 0) in objects:
+            write_setting(node, axis, mapping, 0, 0)
+            for sub, v in entries:
+                write_setting(node, axis, mapping, sub, v)
+            write_setting(node, axis, mapping, 0, objects[(mapping, 0)])
+        for sub in (2, 3, 5):
+            if (comm, sub) in objects:
+                write_setting(node, axis, comm, sub, objects[(comm, sub)])
+        if (comm, 1) in objects:
+            write_setting(node, axis, comm, 1, objects[(comm, 1)])
