@@ -7,6 +7,7 @@ problem is a :class:`ConfigError` naming the file and the key.  Limits are SI
 """
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -21,6 +22,8 @@ from .resources import vendor_dir
 from .setpoint import SETPOINT_OBJECTS
 from .units import Scaling
 from .yamlconf import Section, finite_number, load_yaml
+
+log = logging.getLogger(__name__)
 
 #: objects the master must find in the PDO mapping: what it streams and what it logs
 REQUIRED_RPDO = {0x6040: "controlword"}
@@ -579,4 +582,6 @@ def load_bus_config(path: str | Path) -> BusConfig:
         require_consistent=a.get("require_consistent", bool, d.require_consistent))
     a.done()
     top.done()
+    log.debug("%s: nodes %s, SYNC every %g ms, campaign %s", path, ", ".join(f"{a} ({n.node_id})" for a, n in
+              nodes.items()), 1e3 * master.sync_period_s, campaign.design)
     return BusConfig(path=path, master=master, nodes=nodes, campaign=campaign, acceptance=acceptance)

@@ -2,12 +2,15 @@
 (``--sim``: the only place outside the tests that reaches into ``drive_bridge.sim``)."""
 from __future__ import annotations
 
+import logging
 from collections.abc import Iterator
 from contextlib import contextmanager
 
 from .config import BusConfig
 from .errors import UserError
 from .master.link import BusLink, Link
+
+log = logging.getLogger(__name__)
 
 
 @contextmanager
@@ -19,6 +22,7 @@ def open_link(config: BusConfig, sim: bool, realtime: bool = False, sim_config: 
             raise UserError(f"{config.path}: no CAN interface named: give master.interface (and channel) in "
                             f"bus.yml, -i/--interface and -c/--channel, or python-can's configuration "
                             f"(CAN_INTERFACE, ~/.canrc)")
+        log.info("bus %s:%s at %s bit/s", m.interface, m.channel, m.bitrate)
         try:
             link = BusLink.open(m.interface, m.channel, m.bitrate, m.can_options)
         except Exception as exc:       # python-can raises many kinds for a missing interface
@@ -40,6 +44,8 @@ def open_link(config: BusConfig, sim: bool, realtime: bool = False, sim_config: 
                 spec_for(path)
             except ValueError as exc:           # no simulated drive for this node's EDS/DCF
                 raise UserError(f"{config.path}: nodes.{axis}.dcf: --sim: {exc}") from exc
+        log.info("simulated robot %s, %s, drives %s", sim_config or SIM_DEFAULT, "wall clock" if realtime else
+                 "lockstep", ", ".join(f"{a}: {p.name}" for a, p in eds.items()))
         if realtime:
             from .sim.process import SimProcess
             drives = SimProcess(sim_config or SIM_DEFAULT, config.master.sync_period_s, eds)

@@ -11,6 +11,7 @@ traceback in ``error.log``).
 from __future__ import annotations
 
 import json
+import logging
 import shutil
 import time
 import traceback
@@ -27,6 +28,8 @@ from . import steps as S
 from .report import FIGURES, REPORT, REPORT_MD, write_report
 from .summary import build_summary
 from .verdict import headline
+
+log = logging.getLogger(__name__)
 
 STEPS = tuple(S.STEP_FUNCTIONS)
 STATE = "state.json"
@@ -117,6 +120,7 @@ def commission(config: BusConfig, out: str | Path, options: Options | None = Non
         ctx = S.Context(session, out, reporter)
         for step in todo:
             reporter.start(step, WHAT[step])
+            log.info("step %s: %s", step, WHAT[step])
             ctx.degraded = []
             # a step that runs again is not completed until it ends well, nor is any step after it:
             # their inputs are about to change
@@ -130,6 +134,7 @@ def commission(config: BusConfig, out: str | Path, options: Options | None = Non
                 failure = {"step": step, "reason": reason}
                 state["failed"] = failure
                 state["durations_s"][step] = time.perf_counter() - t0
+                log.warning("step %s failed after %.1f s: %s", step, state["durations_s"][step], reason)
                 reporter.failed(step, state["durations_s"][step], reason)
                 _save(out, state)
                 break
@@ -137,6 +142,7 @@ def commission(config: BusConfig, out: str | Path, options: Options | None = Non
             state["completed"] = [s for s in STEPS if s in state["completed"] or s == step]
             state.setdefault("timing_degraded", {})[step] = ctx.degraded    # this run of the step replaces the last
             _save(out, state)
+            log.info("step %s done in %.1f s: %s", step, state["durations_s"][step], line)
             reporter.done(step, state["durations_s"][step], line)
         holding = session.holding()
     summary = build_summary(out, state, config, options)

@@ -5,6 +5,7 @@
 """
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -17,6 +18,8 @@ from .resonance import find_mode
 from .reversal import find_backlash
 from .signals import Samples, Settings, choose_settings, noise_floor, prepare, whole_band
 from .trace import MIN_GAIN, TracedEffect, trace, unexplained
+
+logger = logging.getLogger(__name__)
 
 HOLDOUT_BLOCKS, HOLDOUT_EVERY = 10, 3      # without --validate: blocks 3, 6, 9 of 10 (by moving samples)
 MIN_CUTOFF_BANDWIDTHS = 3.0  # a cut-off moved below a mode stays at least this many motion bandwidths
@@ -220,6 +223,9 @@ def _identify_axis(log: Log, axis: str, val_log: Log | None, seed: int, cutoff_h
     agreement = consistency(model, est, val)
     floor = noise_floor(val_log, axis, vs) if val_log is not None else noise_floor(log, axis, settings)
     ga_model = AxisModel(model.effects, method="ga", seed=seed).fit(est)
+    logger.info("axis %s: %s; effects %s; cut-off %.3g Hz, torque delay %.3g ms", axis,
+                ", ".join(f"{k} {v:.6g}" for k, v in model.params_.items() if k in ("J", "c0", "c1")),
+                ", ".join(t.effect.name for t in traced) or "none", settings.cutoff_hz, 1e3 * settings.torque_delay_s)
     return AxisResult(axis, log.axes[axis].kind, log.axes[axis].units, settings, how, est, val, base, model,
                       traced, errors(base, val), errors(model, val), floor,
                       unexplained(model, val, settings.rate_hz / settings.decimation), ga_model.coef_,

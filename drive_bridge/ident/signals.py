@@ -13,6 +13,7 @@ the low-pass attenuates is attenuated in its column alike, so its amplitude come
 """
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -22,6 +23,8 @@ from scipy import signal
 
 from ..errors import UserError
 from .logdata import Log
+
+logger = logging.getLogger(__name__)
 
 FILTER_ORDER = 4
 MOTION_POWER = 0.99          # the motion bandwidth holds this share of the velocity power
@@ -356,6 +359,8 @@ def choose_settings(log: Log, axis: str, cutoff_hz: float | None = None,
         raise UserError(f"cut-off {fc} Hz must be between 0 and the Nyquist frequency {fs / 2:g} Hz")
     r = decimation if decimation else max(1, int(fs / (DECIMATION_MARGIN * fc)))
     edge = max(50, int(3 * fs / fc))             # the Butterworth's settling, both ends
+    logger.debug("axis %s: motion bandwidth %.3g Hz, cut-off %.3g Hz%s, decimation %d", axis, bw, fc,
+                 " (given)" if cutoff_hz else "", max(1, r))
     return Settings(fc, max(1, r), fs, edge, bw)
 
 

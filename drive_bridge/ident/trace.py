@@ -38,6 +38,7 @@ of the residual remains.
 """
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -48,6 +49,8 @@ from .dependence import dependences
 from .effects import Effect, Spline, candidates, shape_of
 from .model import AxisModel, errors, extend
 from .signals import Samples
+
+log = logging.getLogger(__name__)
 
 P_VALUE = 1e-3
 MIN_GAIN = 0.01
@@ -162,7 +165,11 @@ def trace(est: Samples, val: Samples, seed: int,
         _, fitted, new_err, cand = best
         f, p = f_test(model, fitted)
         if not _accepted(p, err, new_err):
+            log.debug("best candidate %s not accepted: p = %.3g, validation error %.4g -> %.4g", cand.name, p,
+                      err.relative_error, new_err.relative_error)
             break
+        log.info("effect %s added: p = %.3g, validation error %.4g -> %.4g", cand.name, p, err.relative_error,
+                 new_err.relative_error)
         share = 1.0 - fitted.sse_ / model.sse_
         params = fitted.effect_params(cand)
         traced.append(TracedEffect(cand, params, err.rmse, new_err.rmse, err.relative_error,
@@ -170,6 +177,7 @@ def trace(est: Samples, val: Samples, seed: int,
         est, val, model = _realigned(realign, fitted, est, val)
         err = new_err if model is fitted else errors(model, val)
     while traced and not physical(model):  # effects that bought their fit with a negative friction or
+        log.info("effect %s removed: the model with it is not physical", traced[-1].effect.name)
         traced.pop()                       # inertia go again, last first (a base model stays as it is)
         model = AxisModel([t.effect for t in traced], seed=seed).fit(est)
     for t in traced:                      # every effect's parameters as the final joint fit has them

@@ -8,6 +8,7 @@ the axis limits before anything moves, and a profile outside them is refused.
 """
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import asdict, dataclass
 
@@ -15,6 +16,8 @@ import numpy as np
 
 from ..config import CampaignConfig, Limits
 from ..errors import UserError
+
+log = logging.getLogger(__name__)
 
 APPROACH_LEVEL = 0.2     # approach and return moves run at 20 % of the limits
 APPROACH_RAMP_S = 0.05   # ... and their acceleration ramps over this long where no jerk limit is set
@@ -247,3 +250,5 @@ def check_plan(plan: Plan, limits: dict[str, Limits], tolerance: float = 1e-6) -
                             f"{lim.max_jerk:.4g} rad/s³; nothing was moved"
                             + (" (the paper's trapezoids step the acceleration: campaign design: short keeps "
                                "the jerk limit)" if any(s.kind == "level" for s in plan.segments) else "") + ".")
+        log.debug("axis %s: the plan spans %.4f .. %.4f rad, peaks %.4g rad/s, %.4g rad/s²: inside its limits",
+                  ax, lo, hi, v.max() if v.size else 0.0, acc.max() if acc.size else 0.0)

@@ -10,6 +10,7 @@ runs one scenario over both).
 from __future__ import annotations
 
 import bisect
+import logging
 import os
 import sys
 import threading
@@ -21,6 +22,8 @@ import can
 import canopen
 
 from .timing import raise_priority
+
+log = logging.getLogger(__name__)
 
 
 class Clock(Protocol):
@@ -287,8 +290,8 @@ class BusLink:
             # preempts it while it holds the GIL holds up the thread that streams the setpoints
             try:
                 os.sched_setscheduler(thread.native_id, os.SCHED_FIFO, os.sched_param(TRACE_PRIORITY))
-            except (AttributeError, OSError):
-                pass                          # not allowed here: it sends ten short frames a second
+            except (AttributeError, OSError) as exc:      # not allowed here: it sends ten short frames a second
+                log.debug("the heartbeat thread keeps its ordinary priority (%s)", exc)
 
     def stop_heartbeat(self) -> None:
         if self._heartbeat is not None:

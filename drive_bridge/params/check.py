@@ -9,6 +9,7 @@ values written) fall below a floor, unless forced.
 """
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import dataclass
 
@@ -19,6 +20,8 @@ from canopen.objectdictionary import datatypes
 from ..errors import UserError
 from ..tuning.design import loop_margins
 from .profile import Entry, Profile
+
+log = logging.getLogger(__name__)
 
 #: sign of each abstract parameter, whatever the drive: (lowest, lowest allowed itself, highest);
 #: a model term of 0 is "no feed-forward of that kind" (the factory model of a drive)
@@ -156,6 +159,8 @@ def screen(profile: Profile, values: dict[str, dict], inductance: dict[str, floa
         margins[a], reason = check_margins(profile, v, inductance.get(a), pm_floor=pm_floor, gm_floor=gm_floor)
         if reason:
             (forced if force else refused).append(f"axis {a}: {reason}")
+    for reason in forced:
+        log.warning("written below the margin floor (--force): %s", reason)
     result = GateResult(margins, forced, unverified)
     return result, ("; ".join(refused) + " (--force writes it anyway and records that)") if refused else None
 

@@ -20,9 +20,10 @@ a frame, the robot's noise source, and a call when its RPDO routes change.
 from __future__ import annotations
 
 import copy
+import logging
 import math
-from collections import deque
 import struct
+from collections import deque
 from typing import Callable, Protocol
 
 import numpy as np
@@ -40,6 +41,8 @@ from .cia402 import (ENABLED, FAULT, FAULT_REACTION, QUICK_STOP, STATUSWORD, SWI
 from .config import SimAxis
 from .pdo_map import ABORT_RANGE, PdoMapping
 from .vendors import factory, spec_for
+
+log = logging.getLogger(__name__)
 
 # NMT states as sent in the heartbeat
 NMT_STOPPED, NMT_OPERATIONAL, NMT_PREOP = 0x04, 0x05, 0x7F
@@ -637,6 +640,7 @@ class SimDrive:
         elif state != QUICK_STOP:
             self.s[K.ENABLED] = 0.0
         self.target_reached = False        # bit 10 belongs to the state it was set in
+        log.debug("simulated drive %s: state %d -> %d (mode %d)", self.axis.name, self.state, state, self.mode)
         self.state = state
 
     def _take_target(self) -> None:
@@ -663,6 +667,7 @@ class SimDrive:
         del self.error_history[8:]
         self.state = FAULT
         self.setpoint_armed = False
+        log.debug("simulated drive %s: FAULT 0x%04X", self.axis.name, code)
         self._emcy(code)
 
     def _emcy(self, code: int) -> None:

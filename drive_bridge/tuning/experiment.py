@@ -19,6 +19,7 @@ ends the experiment as a motion stop.
 """
 from __future__ import annotations
 
+import logging
 from dataclasses import asdict, dataclass, field
 from typing import Callable
 
@@ -34,6 +35,8 @@ from ..params.profile import Profile
 from ..params.read import read_parameters
 from ..params.write import write_parameters
 from . import motion
+
+log = logging.getLogger(__name__)
 
 STEP_FRACTION = 0.10
 ERR_FOLLOWING = 0x8611            # CiA 402 EMCY: following error
@@ -139,6 +142,8 @@ def run_experiment(config: BusConfig, link: Link, axes: dict[str, AxisLink], axi
         else:
             osc = _oscillation(m, axis, vel, period, v_step)
             step = Step(kps, osc, osc > OSCILLATION_RATIO, None)
+        log.info("axis %s: KpS %.5g: %s", axis, kps, step.aborted or f"velocity error {osc:.3g} of the step"
+                 + (" (oscillating)" if step.oscillating else ""))
         result.steps.append(step)
         return step
 
@@ -160,6 +165,7 @@ def run_experiment(config: BusConfig, link: Link, axes: dict[str, AxisLink], axi
         while not step.oscillating and len(result.steps) < MAX_STEPS:
             if admit is not None and (why := admit(kps * RAISE)):
                 result.gated = f"KpS = {kps * RAISE:.5g} not tried: {why}"
+                log.info("axis %s: %s", axis, result.gated)
                 break
             kps *= RAISE
             step = trial(kps)

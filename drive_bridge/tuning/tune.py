@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+import logging
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -12,6 +13,8 @@ from ..yamlconf import too_large
 from .design import GainDesign, Margins, design_gains, loop_margins
 from .experiment import ExperimentResult
 from .feedforward import MODEL_KEYS
+
+log = logging.getLogger(__name__)
 
 GAINS = ("KpP", "FwF", "KpS", "KiS", "KpC", "KiC")
 
@@ -126,6 +129,9 @@ def tune_axis(axis: str, model: dict[str, float], R: float, L: float, before: di
     except (KeyError, ValueError) as exc:
         raise UserError(f"axis {axis}: cannot design gains from the model {model}: {exc}") from exc
     margins = loop_margins(model["J"], model["c1"], before, R, L) if set(GAINS) <= set(before) else None
+    log.info("axis %s: %s; velocity loop PM %.1f° at %.0f Hz", axis,
+             ", ".join(f"{g} {v:.5g}" for g, v in design.gains().items()), design.velocity.phase_margin_deg,
+             design.velocity.crossover_hz)
     return AxisTuning(axis, model, design, before, margins, {"R": R, "L": L})
 
 

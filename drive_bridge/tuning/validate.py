@@ -15,6 +15,7 @@ records which, per axis, and why an axis had none.
 """
 from __future__ import annotations
 
+import logging
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Callable
@@ -33,6 +34,8 @@ from ..params.read import read_parameters
 from ..params.write import write_parameters
 from . import motion, trajectories
 from .feedforward import MODEL, MasterFeedForward, model_torque, route
+
+log = logging.getLogger(__name__)
 
 SETTLE_BAND = 0.02
 MAX_TORQUE_LAG = 3          # cycles the logged torque may lag the demand it answers (setpoint -> SYNC -> TPDO)
@@ -169,6 +172,8 @@ def validate(config: BusConfig, link: Link, axes: dict[str, AxisLink], profile: 
             if not res.ok:
                 raise DriveRefused(f"scenario {name}, axis {a}: {res.error}")
         for traj, demand, marks, level in demands:
+            log.info("scenario %s, %s: the model feed-forward %s", name, traj,
+                     "; ".join(f"{a} {h}" for a, h in how.items()))
             m = motion.run(config, link, axes, demand, on_plan=on_plan, kind=traj, level=level, feedforward=ff)
             runs.append(Run(name, traj, metrics(m, model, period, marks),
                             None if m.aborted is None else str(m.aborted), m, how))
