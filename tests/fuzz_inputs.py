@@ -279,9 +279,18 @@ def record_trace(out: Path) -> tuple[bytes, str]:
     return (out / "trace.blf").read_bytes(), (out / "meta.yaml").read_text()
 
 
+def _bus_base() -> dict:
+    """The shipped bus.yml with every per-node option in use: Z homes first, Y's stroke is laid out
+    around where it stands."""
+    doc = yaml.safe_load(DEFAULT_BUS_CONFIG.read_text())
+    doc["nodes"]["z"].update(reference="home", homing={"method": 17, "switch_speed_m_s": 0.01, "timeout_s": 60})
+    doc["nodes"]["y"]["reference"] = "here"
+    return doc
+
+
 def kinds(trace: bytes | None = None, meta: str | None = None) -> dict[str, Kind]:
     """Every kind of input (the trace kind only when a real trace and its meta.yaml are given)."""
-    out = [Kind("bus.yml", mutated_yaml(yaml.safe_load(DEFAULT_BUS_CONFIG.read_text())), _bus_yml),
+    out = [Kind("bus.yml", mutated_yaml(_bus_base()), _bus_yml),
            Kind("simulator YAML", mutated_yaml(yaml.safe_load(SIM_CONFIG.read_text())), _sim_yaml),
            Kind("EDS/DCF", mutated_eds(), _eds),
            Kind("drive profile", mutated_yaml(yaml.safe_load((PROFILE_DIR / "drive_bridge_servo.yaml").read_text())),
