@@ -9,15 +9,14 @@ from ..document import number
 from ..errors import UserError
 from ..outputs import hex_object, write_json
 from ..master.bringup import plan_bring_up
-from ..params.check import ValueRefused, screen
+from ..params.check import screen
 from ..params.read import drive_state
 from ..params.write import raise_for_failure, write_drives
 from ..session import Session
 from ..tuning.tune import (GAINS, drive_model, read_identify_json, read_tune_json, tune_axes, tune_doc,
                            unwritable_effects)
 from . import options
-from ..tuning.experiment import RAISE
-from .bus import degraded_exit, dry_run_end, holding_lines, motion_preview, preview, validate_plans
+from .bus import degraded_exit, dry_run_end, holding_lines, motion_preview, validate_plans
 
 
 def register(sub) -> None:
@@ -101,20 +100,10 @@ def cmd_tune(args) -> int:
             raise UserError("--dry-run shows the motion of --experiment; tune without it moves nothing")
         if args.experiment:
             options.asks(args, config, "tune --experiment")               # before anything is sent
-            with Session(config, options.session_options(args)) as session:     # read only: the gains before
-                planned = tune_axes(models, drive_state(plan_bring_up(session.link, config), session.profile,
-                                                        session.options.motor))
-                admit = {a: _experiment_gate(args, session.profile, t) for a, t in planned.items()}
-                for a, t in planned.items():
-                    if why := admit[a](_experiment_start(t)):
-                        raise ValueRefused(f"axis {a}: the experiment's first gain KpS = {_experiment_start(t):.5g} "
-                                           f"is refused before anything was written: {why}")
-                plans = _experiment_plans(config)
-                if args.dry_run:
-                    return dry_run_end(motion_preview(session, config, plans) + "\n" + "\n".join(
-                        f"  {a}: KpS from {_experiment_start(t):.5g}, x{RAISE} per step while the gate admits it"
-                        for a, t in planned.items()))
-            options.confirm_motion(args, config, "tune --experiment", lambda: preview(args, config, plans))
+            text = _experiment_preview(args, config, models)
+            if args.dry_run:
+                return dry_run_end(text)
+            options.confirm_motion(args, config, "tune --experiment", lambda: text)
         with Session(config, options.session_options(args)) as session:
             results = tune_axes(models, drive_state(session.axes, session.profile, session.options.motor))
             if args.experiment:
@@ -164,16 +153,24 @@ def _experiment_gate(args, profile, t):
     return admit
 
 
-def _experiment_plans(config):
-    """The experiment's square wave on each axis in turn, each from where its axis stands."""
+def _experiment_preview(args, config, models) -> str:
+    """What ``tune --experiment`` will do, read without writing anything: each axis's square wave
+    from where it stands, and its first gain, refused here already when the gate refuses it."""
     from ..tuning import motion
-    from ..tuning.experiment import demand_of
+    from ..tuning.experiment import RAISE, check_start, demand_of
 
     def plans(axes):
         return [(f"tune --experiment {a}, each step", motion.plan(
             config, {a: ax}, {a: demand_of(ax.cfg.limits, config.master.sync_period_s)[0]}, {a: ax.start_rad()},
             kind="experiment")[0]) for a, ax in axes.items()]
-    return plans
+    with Session(config, options.session_options(args)) as session:
+        planned = tune_axes(models, drive_state(plan_bring_up(session.link, config), session.profile,
+                                                session.options.motor))
+        for a, t in planned.items():
+            check_start(a, _experiment_start(t), _experiment_gate(args, session.profile, t))
+        return motion_preview(session, config, plans) + "\n" + "\n".join(
+            f"  {a}: KpS from {_experiment_start(t):.5g}, x{RAISE} per step while the gate admits it"
+            for a, t in planned.items())
 
 
 def cmd_write(args) -> int:

@@ -102,6 +102,13 @@ def demand_of(lim: Limits, period: float) -> tuple[np.ndarray, np.ndarray, float
     return demand, vel, v_step
 
 
+def check_start(axis: str, start_KpS: float, admit: Callable[[float], str | None] | None) -> None:
+    """ValueRefused, before anything is written, when the gate refuses the experiment's first gain."""
+    if admit is not None and (why := admit(start_KpS)):
+        raise ValueRefused(f"axis {axis}: the experiment's first gain KpS = {start_KpS:.5g} is refused before "
+                           f"anything was written: {why}")
+
+
 def run_experiment(config: BusConfig, link: Link, axes: dict[str, AxisLink], axis: str, profile: Profile,
                    start_KpS: float, admit: Callable[[float], str | None] | None = None) -> ExperimentResult:
     """The procedure on ``axis`` from ``start_KpS``. ``admit(KpS)`` says why a gain must not reach
@@ -112,9 +119,7 @@ def run_experiment(config: BusConfig, link: Link, axes: dict[str, AxisLink], axi
     lim = ax.cfg.limits
     period = config.master.sync_period_s
     demand, vel, v_step = demand_of(lim, period)
-    if admit is not None and (why := admit(start_KpS)):
-        raise ValueRefused(f"axis {axis}: the experiment's first gain KpS = {start_KpS:.5g} is refused before "
-                           f"anything was written: {why}")
+    check_start(axis, start_KpS, admit)
     inc = ax.cfg.scaling.inc_per_rad
     window = ax.node.sdo[0x6065].raw
     original = None
