@@ -17,8 +17,8 @@ from ..params.read import read_if_readable
 from ..pdo import PdoCodec
 from ..setpoint import IP, IP_SUB_MODE, MODE_NAMES, PVT, choose, describe_modes, supported_modes
 from .cia402 import Drive402
-from .settings import pdo_objects, snapshot, write_setting
 from .link import Link
+from .settings import pdo_objects, snapshot, write_setting
 from .units import read_units, reconcile
 
 log = logging.getLogger(__name__)

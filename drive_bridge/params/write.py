@@ -49,14 +49,15 @@ NEW, BACKUP, UNCHANGED, UNKNOWN = "new", "backup", "unchanged", "unknown"
 STORE_SCOPE = {1: "every parameter the drive held in RAM (0x1010:1), not only the objects written: bring-up's "
                   "PDO mapping and communication parameters, heartbeat consumer, limits and stop behaviour with them",
                2: "the communication parameters (0x1010:2)", 3: "the application parameters (0x1010:3)"}
-#: what a restore after a store puts back, with and without bring-up's snapshot of what it overwrote
-RESTORE_COVERS = {True: "the objects written, and every object bring-up overwrote (PDO mapping and communication "
-                        "parameters, heartbeat, limits, stop behaviour) as the drive held it when bring-up found it "
-                        "-- its stored set, unless something changed it since the drive was powered on: stored that "
-                        "way, then bring-up's values set again in RAM for the rest of the run",
-                  False: "only the objects written: this write did not bring the drives up, so the values the "
-                         "store made permanent for bring-up's PDO mapping, heartbeat, limits and stop behaviour "
-                         "(as an earlier bring-up left them in RAM) stay stored"}
+#: what a restore after a store puts back: with bring-up's snapshot of what it overwrote, everything;
+#: without it (for the reason given), the objects written only
+RESTORE_ALL = ("the objects written, and every object bring-up overwrote (PDO mapping and communication parameters, "
+               "heartbeat, limits, stop behaviour) as the drive held it when bring-up found it -- its stored set, "
+               "unless something changed it since the drive was powered on: stored that way, then bring-up's values "
+               "set again in RAM for the rest of the run")
+RESTORE_WRITTEN = ("only the objects written: {why}, so the values the store made permanent for bring-up's PDO "
+                   "mapping, heartbeat, limits and stop behaviour (as a bring-up left them in RAM) stay stored")
+NO_BRING_UP = "this write did not bring the drives up"
 
 
 @dataclass
@@ -261,7 +262,7 @@ class _Transaction:
         log.info("axis %s: storing (0x%04X:%d 'save')", axis, *save)
         self.store_state[axis] = UNKNOWN              # sent: until it is confirmed, nobody knows
         r.store_scope = STORE_SCOPE.get(save[1], f"what 0x{save[0]:04X}:{save[1]} stores")
-        r.restore_covers = RESTORE_COVERS[bool(self.settings_before.get(axis))]
+        r.restore_covers = RESTORE_ALL if self.settings_before.get(axis) else RESTORE_WRITTEN.format(why=NO_BRING_UP)
         self.nodes[axis].sdo[save[0]][save[1]].raw = SAVE_SIGNATURE
         self.store_state[axis] = NEW
         r.stored, r.stored_set = True, NEW
@@ -317,8 +318,7 @@ class _Transaction:
             put_back(node, axis, before)
         except (Exception, KeyboardInterrupt) as exc:
             self._note_interrupt(exc)
-            r.restore_covers = RESTORE_COVERS[False].replace("this write did not bring the drives up",
-                                                             f"putting bring-up's settings back failed ({exc})")
+            r.restore_covers = RESTORE_WRITTEN.format(why=f"putting bring-up's settings back failed ({exc})")
             r.notes.append(f"bring-up's settings could not be put back as they were before it ({exc}): they stay "
                            f"stored as bring-up set them")
         else:
