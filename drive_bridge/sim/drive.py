@@ -4,8 +4,9 @@ The SDO server and the object storage are canopen's ``LocalNode``; this module
 adds what a real drive does with those objects: NMT, heartbeat, EMCY, PDOs as
 the master maps them (:mod:`.pdo_map`; TPDOs sent on SYNC, synchronous RPDOs
 applied on SYNC), the CiA 402 state machine (:mod:`.cia402`), the operating modes CSP (8),
-IP (7), PV (3) and PP (1) where its 0x6502 lists them, and the safety functions
-(following-error window, software position limits, loss of setpoint).  The loops and the
+IP (7), PV (3), PP (1) and homing (6) where its 0x6502 lists them (positions counted from home
+once it has homed), and the safety functions (following-error window, software position limits,
+loss of setpoint).  The loops and the
 plant live in :mod:`.kernel`; this module converts between device units and SI at its edge.
 
 A drive is built from an EDS/DCF -- the project's own or a vendor's (:mod:`.vendors`) -- and
