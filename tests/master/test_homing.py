@@ -7,7 +7,7 @@ from dataclasses import replace
 import pytest
 
 from drive_bridge.config import load_bus_config
-from drive_bridge.errors import ConfigError, MotionAborted
+from drive_bridge.errors import ConfigError, MotionAborted, UserError
 from drive_bridge.master.bringup import bring_up
 from drive_bridge.master.homing import home
 from drive_bridge.record import record
@@ -37,9 +37,12 @@ def _bench(initial=END_STOPS[0]):
 
 def test_a_campaign_runs_in_the_frame_its_homing_set(tmp_path):
     """Method 17 (negative limit switch): Z leaves its lower switch, the switch's edge becomes 0,
-    and the stroke [0, 0.235] m of bus.yml lies inside the machine (in the encoder's frame at power-up
-    it would run 75 rad into the upper end stop)."""
+    and the stroke [0, 0.235] m of bus.yml lies inside the machine. In the encoder's frame at
+    power-up Z stands 75 rad below that stroke: without homing the plan is refused."""
     config = _config(tmp_path, "{method: 17}")
+    unhomed = replace(config, nodes={"z": replace(config.nodes["z"], reference="absolute", homing=None)})
+    with pytest.raises(UserError, match="outside the stroke"):
+        record(unhomed, _bench().link, tmp_path / "unhomed")
     bench = _bench()
     drive = bench.robot.drives["z"]
     result = record(config, bench.link, tmp_path / "rec")
