@@ -134,6 +134,22 @@ class Offset(Effect):
         return np.ones((len(s), 1))
 
 
+class Gravity(Effect):
+    """A weight on a rotary joint: a·cos q + b·sin q, one period per turn of the joint (the log's
+    position is the joint's angle, 0 wherever its zero is); ``amplitude`` is the largest gravity
+    torque, at ``angle`` (where the weight's arm is horizontal).  On a linear axis gravity is a
+    constant: the offset."""
+
+    name, depends_on, coef_names = "gravity", "position", ("a_cos", "b_sin")
+
+    def _columns(self, s):
+        return np.column_stack((np.cos(s.q), np.sin(s.q)))
+
+    def params(self, coef):
+        a, b = map(float, coef)
+        return {"a_cos": a, "b_sin": b, "amplitude": math.hypot(a, b), "angle": math.atan2(b, a)}
+
+
 class PositionLinear(Effect):
     """Torque proportional to position (the paper's cp): a spring, a cable carrier."""
 
@@ -372,8 +388,15 @@ def standing_others(s: Samples) -> set[str]:
     return {o for o, (_, qd, _) in s.others.items() if np.sqrt(np.mean(qd[m] ** 2)) < STILL_SHARE * own}
 
 
+#: variables no spline is tried in: the direction alone (c0 and the asymmetry have it), and the axis's own
+#: acceleration -- a rigid axis has no torque in it but J·q̈, and on a near-sinusoidal motion, whose
+#: acceleration is nearly proportional to position, a spline in it rebuilds J·q̈ and a gravity term alike
+#: and takes the inertia with it (a dependence on it stays in the unexplained list)
+OWN_ACCELERATION = ("direction", "acceleration")
+
+
 def spline_candidates(present: list[Effect], s: Samples, residual: np.ndarray) -> list[Effect]:
-    """Even or odd splines in each variable the residual depends on (not the direction alone),
+    """Even or odd splines in each variable the residual depends on (not in ``OWN_ACCELERATION``),
     at each smoothness of ``SPLINE_KNOTS``."""
     have = {e.name for e in present}
     m = s.moving
@@ -381,7 +404,7 @@ def spline_candidates(present: list[Effect], s: Samples, residual: np.ndarray) -
     out: list[Effect] = []
     for d in dependences(s, residual, SPLINE_SHARE, SPLINE_P):
         name = f"spline_{d['form']}_{d['depends_on']}"
-        if d["depends_on"] == "direction" or name in have or d["depends_on"].rsplit("_", 1)[0] in still:
+        if d["depends_on"] in OWN_ACCELERATION or name in have or d["depends_on"].rsplit("_", 1)[0] in still:
             continue                        # (another axis standing still: its signals are numerical dust)
         x = variables(s)[d["depends_on"]][m]
         low, high = float(np.min(x)), float(np.max(x))
@@ -441,6 +464,8 @@ def candidates(present: list[Effect], s: Samples, residual: np.ndarray) -> list[
     out: list[Effect] = []
     if "offset" not in names:
         out.append(Offset())
+    if s.rotary and "gravity" not in names:
+        out.append(Gravity())
     if "position_linear" not in names:
         out.append(PositionLinear())
     if "position_periodic" not in names:

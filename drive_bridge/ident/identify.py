@@ -13,6 +13,7 @@ import numpy as np
 
 from ..errors import UserError
 from .logdata import Log, read_log
+from .identifiable import undetermined
 from .model import MAX_DELAY_SAMPLES, AxisModel, Errors, errors, torque_delay
 from .resonance import find_mode
 from .reversal import find_backlash
@@ -26,6 +27,8 @@ MIN_CUTOFF_BANDWIDTHS = 3.0  # a cut-off moved below a mode stays at least this 
 DELAY_SIGMAS = 3.0          # a torque delay estimated beyond this many std is aligned (model.torque_delay)
 MAX_REALIGNMENTS = 3        # ... at most this many times while the tracing adds effects
 CONSISTENT_SIGMAS = 3.0     # parts of the data whose J, c0 or c1 differ by more: the axis is flagged
+DEGENERATE = 30.0           # a part whose refit has a J, c0 or c1 std this many times the whole fit's is degenerate,
+DEGENERATE_COND = 1e8       # ... as is one whose (column-scaled) regressors have a condition number above this
 
 
 @dataclass
@@ -53,6 +56,8 @@ class AxisResult:
     resonance: dict | None = None
     #: residual energy concentrated after torque reversals (reversal.find_backlash)
     backlash: dict | None = None
+    #: J, c0, c1 the data do not determine, and why (identifiable.undetermined)
+    undetermined: dict[str, str] = field(default_factory=dict)
 
     def as_json(self) -> dict:
         return {
@@ -88,6 +93,8 @@ class AxisResult:
             "dropped": self.dropped,
             "sampling": self.sampling,
             "consistency": self.consistency,
+            "identifiable": {p: p not in self.undetermined for p in ("J", "c0", "c1")},
+            "undetermined": self.undetermined,
             "resonance": self.resonance,
             "backlash": self.backlash,
         }
@@ -116,10 +123,22 @@ def consistency(model: AxisModel, est: Samples, val: Samples) -> dict:
     moving_t = est.t[est.moving]
     split = float(np.median(moving_t)) if len(moving_t) else 0.0
     parts = {"first half": est.take(est.t < split), "second half": est.take(est.t >= split), "validation": val}
-    fits = {}
+    fits, degenerate = {}, {}
     for name, part in parts.items():
         if part.moving.sum() > 3 * len(model.coef_):
-            fits[name] = AxisModel(model.effects, seed=model.seed).fit(part)
+            fit = AxisModel(model.effects, seed=model.seed).fit(part)
+            phi = fit.design(part)[part.moving]
+            scale = np.sqrt(np.mean(phi ** 2, axis=0))
+            cond = float(np.linalg.cond(phi / np.where(scale > 0, scale, 1.0)))
+            wide = [p for p in ("J", "c0", "c1") if not fit.param_std_[p] <= DEGENERATE * model.param_std_[p]]
+            if wide or not cond <= DEGENERATE_COND:      # the part cannot carry the model: named, not compared
+                degenerate[name] = ("its refit leaves " + (f"{', '.join(wide)} with a std over {DEGENERATE:g} times "
+                                                           f"the whole fit's" if wide else
+                                                           f"the model's columns dependent (condition number "
+                                                           f"{cond:.2g})")
+                                    + ": this part does not determine the model's terms")
+            else:
+                fits[name] = fit
     moved = {}
     for p in ("J", "c0", "c1"):
         values = {n: (f.params_[p], f.param_std_[p]) for n, f in fits.items()}
@@ -128,7 +147,7 @@ def consistency(model: AxisModel, est: Samples, val: Samples) -> dict:
         if worst[0] > CONSISTENT_SIGMAS:
             moved[p] = {"values": {n: v[0] for n, v in values.items()}, "sigmas": round(float(worst[0]), 1),
                         "between": [worst[1], worst[2]]}
-    return {"consistent": not moved, "parts": list(fits), "moved": moved}
+    return {"consistent": not moved, "parts": list(fits), "moved": moved, "degenerate": degenerate}
 
 
 def identify_axis(log: Log, axis: str, val_log: Log | None = None, *, seed: int = 0,
@@ -158,6 +177,7 @@ def identify_axis(log: Log, axis: str, val_log: Log | None = None, *, seed: int 
                                    "fraction": mode["share"], "frequency_hz": mode["frequency_hz"],
                                    "damping": mode["damping"], "mains": mode["mains"], "evidence": None,
                                    **{k: v for k, v in mode.items() if k == "cutoff_moved_from_hz"}})
+    result.undetermined = undetermined(result.model, result.est, result.after, result.consistency)
     predicted = result.model.predict(wide)
     lash = find_backlash(wide, wide.tau_f - predicted, predicted, result.settings, seed)
     if lash is not None:

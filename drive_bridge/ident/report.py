@@ -20,7 +20,7 @@ def unit(name: str, kind: str) -> str:
     inertia = "kg·m²" if kind == "rotary" else "kg"
     last = name.split(".")[-1]
     table = {"J": inertia, "c0": f, "c1": f"{f}·s/{q}", "offset": f, "cp": f"{f}/{q}", "dc0": f, "dc1": f"{f}·s/{q}",
-             "amplitude": f, "a_sin": f, "a_cos": f, "period": q, "phase": "rad", "velocity": f"{q}/s",
+             "amplitude": f, "a_sin": f, "a_cos": f, "b_sin": f, "angle": "rad", "period": q, "phase": "rad", "velocity": f"{q}/s",
              "time_constant_s": "s"}
     if last in table:
         return table[last]
@@ -40,7 +40,8 @@ def summary(results: dict[str, AxisResult]) -> str:
         for k in ("J", "c0", "c1"):
             v = r.model.params_[k]
             rel = abs(std[k] / v) * 100 if v else float("inf")
-            lines.append(f"  {k:<3} = {measured(v, std[k])} ± {std[k]:.2g} {unit(k, r.kind)}  ({rel:.2f} %)")
+            lines.append(f"  {k:<3} = {measured(v, std[k])} ± {std[k]:.2g} {unit(k, r.kind)}  ({rel:.2f} %)"
+                         + (f"  UNDETERMINED: {r.undetermined[k]}" if k in r.undetermined else ""))
         lines.append(f"  base model J, c0, c1: validation RMSE {r.before.rmse:.4g} {tu} "
                      f"(relative error {r.before.relative_error:.2%})")
         for t in r.effects:
@@ -63,6 +64,8 @@ def summary(results: dict[str, AxisResult]) -> str:
             lines.append(f"  {delay_text(r.sampling)}")
         if r.consistency and not r.consistency["consistent"]:
             lines.append(f"  NOT CONSISTENT: {consistency_text(r.consistency)}")
+        for part, why in (r.consistency or {}).get("degenerate", {}).items():
+            lines.append(f"  consistency: the {part} not compared: {why}")
     return "\n".join(lines)
 
 
@@ -254,6 +257,8 @@ def build_report(results: dict[str, AxisResult], out: Path, source: str) -> Docu
             doc.para(_sentence(delay_text(r.sampling)))
         if r.consistency and not r.consistency["consistent"]:
             doc.para([Strong("Not consistent:"), f" {consistency_text(r.consistency)}."])
+        for k, why in r.undetermined.items():
+            doc.para([Strong(f"{k} undetermined:"), f" {why}; it is not used to tune nor written to a drive."])
     return doc
 
 

@@ -74,12 +74,14 @@ class Samples:
     others: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]    # axis -> (q, qd, qdd)
     source: "Parallel | None" = None    # the full-rate signals these samples were made from
     index: np.ndarray | None = None     # ... and which of its samples these are
+    rotary: bool = False                # a joint whose position is its angle (one turn: 2π)
 
     def take(self, mask: np.ndarray) -> "Samples":
         index = np.arange(len(self)) if self.index is None else self.index
         return Samples(self.axis, self.t[mask], self.q[mask], self.qd[mask], self.qdd[mask], self.sgn[mask],
                        self.tau_f[mask], self.tau[mask], self.moving[mask],
-                       {a: tuple(x[mask] for x in v) for a, v in self.others.items()}, self.source, index[mask])
+                       {a: tuple(x[mask] for x in v) for a, v in self.others.items()}, self.source, index[mask],
+                       self.rotary)
 
     def parallel(self, key, columns: Callable[["Channels"], np.ndarray], logged: bool = False,
                  odd: bool = False) -> np.ndarray:
@@ -429,7 +431,7 @@ def prepare(log: Log, axis: str, settings: Settings) -> Samples:
                         f"and decimation (need {MIN_MOVING}); record longer or with more motion")
     source.length = n
     return Samples(axis, cat["t"], cat["q"], cat["qd"], cat["qdd"], cat["sgn"], cat["tau_f"], cat["tau"],
-                   moving, others, source)
+                   moving, others, source, rotary=log.axes[axis].kind == "rotary")
 
 
 def whole_band(log: Log, axis: str, settings: Settings) -> Samples:

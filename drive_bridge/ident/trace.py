@@ -47,6 +47,7 @@ from scipy import signal, stats
 
 from .dependence import dependences
 from .effects import Effect, Spline, candidates, shape_of
+from .identifiable import T_MIN
 from .model import AxisModel, errors, extend
 from .signals import Samples
 
@@ -111,6 +112,8 @@ def _named_evidence(e: Effect, params: dict) -> str:
         "offset": lambda: (f"a constant torque {params['offset']:+.4g}: a load (gravity on a vertical axis), a "
                            f"measurement offset, or the constant part of a Coulomb friction that differs between the "
                            f"directions ((c0 + dc0·s)·s = c0·s + dc0): the torque alone cannot tell them apart"),
+        "gravity": lambda: (f"a weight on the joint: {params['amplitude']:.4g} at most, where the arm is horizontal "
+                            f"(angle {params['angle']:+.3g} rad), one period per turn"),
         "position_linear": lambda: f"residual slope over position {params['cp']:+.4g}",
         "position_periodic": lambda: f"residual periodic in position, period {params['period']:.4g}, "
                                      f"amplitude {params['amplitude']:.3g}",
@@ -145,7 +148,7 @@ def trace(est: Samples, val: Samples, seed: int,
                 fitted = extend(model, cand, est)
             except np.linalg.LinAlgError:
                 continue                          # the candidate's columns leave the problem singular
-            if not np.all(np.isfinite(fitted.coef_)) or fitted.sse_ >= model.sse_:
+            if not np.all(np.isfinite(fitted.coef_)) or fitted.sse_ >= model.sse_ or hides_inertia(model, fitted):
                 continue
             new_err = errors(fitted, val)
             if new_err.relative_error <= 0 or (isinstance(cand, Spline) and
@@ -184,6 +187,15 @@ def trace(est: Samples, val: Samples, seed: int,
         t.params = model.effect_params(t.effect)
         t.evidence = _evidence(t)
     return AxisModel(seed=seed).fit(est), model, traced
+
+
+def hides_inertia(model: AxisModel, fitted: AxisModel) -> bool:
+    """Whether the effect ``fitted`` adds leaves J undetermined where ``model`` determined it: a
+    term the data cannot tell from J·q̈ (on a near-sinusoidal motion a gravity or a spline over
+    position is nearly proportional to the acceleration) would take the inertia with it."""
+    def determined(m: AxisModel) -> bool:
+        return abs(m.params_["J"]) >= T_MIN * m.param_std_["J"]
+    return determined(model) and not determined(fitted)
 
 
 def _accepted(p_value: float, err, new_err) -> bool:

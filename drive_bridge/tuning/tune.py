@@ -82,11 +82,19 @@ def _numbers(path: Path, where: str, values) -> dict[str, float]:
 
 
 def read_identify_json(path: str | Path) -> dict[str, dict[str, float]]:
-    """axis -> the drive-model subset of its identified parameters, from ``identify --json``."""
+    """axis -> the drive-model subset of its identified parameters, from ``identify --json``;
+    UserError for an axis whose J, c0 or c1 the identification says it could not determine."""
     path = Path(path)
     axes = _axes_of(path, "identify --json result")
     out = {}
     for a, r in axes.items():
+        unknown = r.get("undetermined")
+        if isinstance(unknown, dict) and unknown:
+            k, why = next(iter(unknown.items()))
+            raise UserError(f"{path}: axis {a}: the identification could not determine {', '.join(map(str, unknown))} "
+                            f"({k}: {why}); it is not used to tune or written to a drive. Record a log that "
+                            f"determines it (a richer excitation: several speeds and accelerations, both directions), "
+                            f"or leave the axis out of identify.json")
         params = r.get("params")
         if isinstance(params, dict):                  # text values (a cross-axis effect's source) are not numbers
             params = {k: v for k, v in params.items() if not isinstance(v, str)}

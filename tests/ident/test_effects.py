@@ -14,8 +14,8 @@ from drive_bridge.ident.signals import Samples
 
 
 def samples(seed: int = 0, n: int = 4000) -> Samples:
-    """A back-and-forth sweep with two speeds and an other axis "w" moving meanwhile (no plant:
-    the tests set the torque)."""
+    """A back-and-forth sweep of a rotary joint with two speeds and an other axis "w" moving
+    meanwhile (no plant: the tests set the torque)."""
     t = np.arange(n) * 0.002
     q = 3.0 * np.sin(2 * np.pi * 0.25 * t) + 0.4 * np.sin(2 * np.pi * 1.1 * t)
     qd, qdd = np.gradient(q, t), np.gradient(np.gradient(q, t), t)
@@ -23,7 +23,7 @@ def samples(seed: int = 0, n: int = 4000) -> Samples:
     noise = np.random.default_rng(seed).normal(0, 1e-3, n)
     tau = 1e-4 * qdd + 5e-4 * qd + 0.3 * np.sign(qd) + noise
     return Samples("y", t, q, qd, qdd, np.sign(qd), tau, tau, np.abs(qd) > 0.05,
-                   {"w": (w, np.gradient(w, t), np.gradient(np.gradient(w, t), t))})
+                   {"w": (w, np.gradient(w, t), np.gradient(np.gradient(w, t), t))}, rotary=True)
 
 
 S = samples()

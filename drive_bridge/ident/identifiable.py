@@ -1,0 +1,63 @@
+"""Whether the data determine J, c0 and c1: "cannot tell" as an answer.
+
+A parameter is undetermined, with the reason, when the model explains too little of the
+torque to vouch for any of its coefficients; when parts of the data give it values that differ
+beyond their std and by more than ``SPREAD_MAX`` of it
+(:func:`~drive_bridge.ident.identify.consistency`; a smaller disagreement stays a warning); or when it lies within ``T_MIN`` of its
+reported std of zero -- then the regressor column it is most nearly collinear with is named
+where that is what hides it.  An undetermined parameter is reported as such and never tuned
+with or written (:func:`~drive_bridge.tuning.tune.read_identify_json` refuses it).
+"""
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+
+from .model import BASE, AxisModel, Errors
+from .signals import Samples
+
+log = logging.getLogger(__name__)
+
+T_MIN = 3.0          # a parameter within this many of its std of zero is not determined
+COLLINEAR = 0.9      # |correlation| of its column with another's above which that one is named
+FIT_MAX = 0.5        # a model leaving more than this share of the torque (validation) vouches for nothing
+SPREAD_MAX = 0.25    # parts of the data that disagree (beyond their std) by more than this share of the value
+
+
+def undetermined(model: AxisModel, est: Samples, after: Errors, consistency: dict) -> dict[str, str]:
+    """Parameter (J, c0, c1) -> why the data do not determine it; absent where they do."""
+    out = {}
+    if after.relative_error > FIT_MAX:
+        reason = (f"the model leaves {after.relative_error:.0%} of the torque unexplained on the validation "
+                  f"samples: none of its coefficients can be vouched for")
+        return dict.fromkeys(BASE, reason)
+    moved = (consistency or {}).get("moved", {})
+    phi = model.design(est)[est.moving]
+    for i, p in enumerate(BASE):
+        value, std = model.params_[p], model.param_std_[p]
+        spread = np.ptp(list(moved[p]["values"].values())) if p in moved else 0.0
+        if spread > SPREAD_MAX * abs(value):
+            m = moved[p]
+            out[p] = ("the parts of the data disagree: " + ", ".join(f"{n} {v:.4g}" for n, v in m["values"].items())
+                      + f" ({m['sigmas']:.3g} std apart, a spread of {spread / abs(value) if value else np.inf:.0%})")
+        elif not abs(value) >= T_MIN * std:
+            out[p] = f"{value:.4g} ± {std:.2g} is within {abs(value) / std if std else 0.0:.2g} std of zero" + \
+                _collinear(phi, i, model.coef_names)
+    for p, why in out.items():
+        log.info("axis %s: %s undetermined: %s", est.axis, p, why)
+    return out
+
+
+def _collinear(phi: np.ndarray, i: int, names: list[str]) -> str:
+    """What column ``i`` of the design is most nearly collinear with, where that is close."""
+    best, r_best = None, 0.0
+    for j in range(phi.shape[1]):
+        if j == i or np.ptp(phi[:, j]) == 0 or np.ptp(phi[:, i]) == 0:
+            continue
+        r = float(np.corrcoef(phi[:, i], phi[:, j])[0, 1])
+        if abs(r) > abs(r_best):
+            best, r_best = names[j], r
+    if best is None or abs(r_best) < COLLINEAR:
+        return ""
+    return f": its column is nearly collinear with {best}'s (correlation {r_best:+.3f}), and the data cannot tell them apart"
