@@ -105,3 +105,41 @@ def averaged_torque_log(duration_s: float, period_s: float = 0.002, *, J: float 
     ends = np.arange(sub - 1, n, sub)
     noise = noise_Nm * np.random.default_rng(seed).standard_normal(len(ends))
     return {"time_s": t[ends], "y_position_rad": q[ends], "y_torque_Nm": tau.reshape(-1, sub).mean(axis=1) + noise}
+
+
+def joint_log(duration_s: float = 40.0, rate_hz: float = 200.0, *, J: float = 2.0, c0: float = 5.0, c1: float = 3.0,
+              gravity_Nm: float = 60.0, centre_rad: float = -1.0, sines: tuple[tuple[float, float], ...] =
+              ((0.6, 0.25), (0.3, 0.7)), noise_Nm: float = 0.2, seed: int = 0, clip_Nm: float | None = None,
+              torque_sign: float = 1.0, fs_int: float = 5_000.0) -> dict[str, np.ndarray]:
+    """A gravity-loaded rotary joint (a robot's shoulder: angle 0 with the arm horizontal), its own
+    plant, not ``closed_loop_log``'s: J·q̈ = τ − c1·q̇ − c0·sign(q̇) − G·cos q under a PD position
+    loop with the reference's inverse dynamics fed forward, tracking ``sines`` ((amplitude [rad],
+    frequency [Hz]), ...) around ``centre_rad``.  Columns ``time_s``, ``j_position_rad`` (a 1e-4 rad
+    grid), ``j_torque_Nm`` (noise, rounded to 1 mNm, clipped at ± ``clip_Nm`` as a drive's current
+    limit would, times ``torque_sign``)."""
+    T = 1.0 / fs_int
+    t = np.arange(int(duration_s * fs_int)) * T
+    ramp = np.minimum(t / 2.0, 1.0)                           # fade the motion in over 2 s
+    q_ref = centre_rad + ramp * sum(a * np.sin(2 * np.pi * f * t) for a, f in sines)
+    v_ref, a_ref = np.gradient(q_ref, T), np.gradient(np.gradient(q_ref, T), T)
+    wn = 2 * np.pi * 15.0
+    kp, kd = J * wn ** 2, 2 * 0.7 * J * wn
+    q, v = np.empty_like(t), np.empty_like(t)
+    tau = np.empty_like(t)
+    qk, vk = q_ref[0], 0.0
+    for k in range(len(t)):
+        u = J * a_ref[k] + c1 * v_ref[k] + c0 * np.sign(v_ref[k]) + gravity_Nm * np.cos(q_ref[k]) \
+            + kp * (q_ref[k] - qk) + kd * (v_ref[k] - vk)
+        if clip_Nm is not None:
+            u = float(np.clip(u, -clip_Nm, clip_Nm))
+        acc = (u - c1 * vk - c0 * np.sign(vk) - gravity_Nm * np.cos(qk)) / J
+        vk += acc * T
+        qk += vk * T
+        q[k], v[k], tau[k] = qk, vk, u
+    stamps = np.arange(int(duration_s * rate_hz)) / rate_hz
+    rng = np.random.default_rng(seed)
+    tau_s = np.interp(stamps, t, tau) + noise_Nm * rng.standard_normal(len(stamps))
+    if clip_Nm is not None:
+        tau_s = np.clip(tau_s, -clip_Nm, clip_Nm)
+    return {"time_s": stamps, "j_position_rad": np.round(np.interp(stamps, t, q), 4),
+            "j_torque_Nm": torque_sign * np.round(tau_s, 3)}
