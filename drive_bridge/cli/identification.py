@@ -21,6 +21,8 @@ def register(sub) -> None:
                    help="delay of the logged torque behind the position [ms] (default: estimated from the data; "
                         "0: take the log's instants as they are)")
     p.add_argument("--decimate", type=int, help="decimation factor (default: from the cut-off)")
+    p.add_argument("--torque-sign", type=int, choices=(1, -1), default=1,
+                   help="-1: the torque was logged with the opposite sign convention to the position (default: 1)")
     options.seed(p)
     p.set_defaults(func=cmd_identify)
 
@@ -32,7 +34,8 @@ def cmd_identify(args) -> int:
     progress = None if args.json else (lambda axis: print(f"identifying axis {axis} ...", file=sys.stderr))
     results = identify(args.log, args.validate, options.axes_list(args.axis), seed=args.seed,
                        cutoff_hz=args.cutoff, decimation=args.decimate, progress=progress,
-                       torque_delay_s=None if args.torque_delay is None else args.torque_delay / 1e3)
+                       torque_delay_s=None if args.torque_delay is None else args.torque_delay / 1e3,
+                       torque_sign=args.torque_sign)
     if args.out:
         report = write_report(results, Path(args.out), str(args.log))
         if not args.json:

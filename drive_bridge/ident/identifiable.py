@@ -3,10 +3,12 @@
 A parameter is undetermined, with the reason, when the model explains too little of the
 torque to vouch for any of its coefficients; when parts of the data give it values that differ
 beyond their std and by more than ``SPREAD_MAX`` of it
-(:func:`~drive_bridge.ident.identify.consistency`; a smaller disagreement stays a warning); or when it lies within ``T_MIN`` of its
-reported std of zero -- then the regressor column it is most nearly collinear with is named
-where that is what hides it.  An undetermined parameter is reported as such and never tuned
-with or written (:func:`~drive_bridge.tuning.tune.read_identify_json` refuses it).
+(:func:`~drive_bridge.ident.identify.consistency`; a smaller disagreement stays a warning); when it
+lies within ``T_MIN`` of its reported std of zero; or when it comes out negative beyond that,
+which no plant has.  The regressor column it is most nearly collinear with (on a joint, also the
+gravity the model may lack) is named where that is what hides it.  An undetermined parameter is
+reported as such and never tuned with or written (:func:`~drive_bridge.tuning.tune.read_identify_json`
+refuses it).
 """
 from __future__ import annotations
 
@@ -14,6 +16,7 @@ import logging
 
 import numpy as np
 
+from .effects import Gravity
 from .model import BASE, AxisModel, Errors
 from .signals import Samples
 
@@ -33,7 +36,10 @@ def undetermined(model: AxisModel, est: Samples, after: Errors, consistency: dic
                   f"samples: none of its coefficients can be vouched for")
         return dict.fromkeys(BASE, reason)
     moved = (consistency or {}).get("moved", {})
-    phi = model.design(est)[est.moving]
+    phi, names = model.design(est)[est.moving], list(model.coef_names)
+    if est.rotary and not any(isinstance(e, Gravity) for e in model.effects):
+        phi = np.column_stack([phi, Gravity().columns(est)[est.moving]])    # what a joint's weight would be
+        names += ["a joint's gravity (cos q)", "a joint's gravity (sin q)"]
     for i, p in enumerate(BASE):
         value, std = model.params_[p], model.param_std_[p]
         spread = np.ptp(list(moved[p]["values"].values())) if p in moved else 0.0
@@ -43,7 +49,10 @@ def undetermined(model: AxisModel, est: Samples, after: Errors, consistency: dic
                       + f" ({m['sigmas']:.3g} std apart, a spread of {spread / abs(value) if value else np.inf:.0%})")
         elif not abs(value) >= T_MIN * std:
             out[p] = f"{value:.4g} ± {std:.2g} is within {abs(value) / std if std else 0.0:.2g} std of zero" + \
-                _collinear(phi, i, model.coef_names)
+                _collinear(phi, i, names)
+        elif value < 0:
+            out[p] = (f"{value:.4g} ± {std:.2g} comes out negative, which no plant has: it stands in for a term "
+                      f"the model lacks" + _collinear(phi, i, names))
     for p, why in out.items():
         log.info("axis %s: %s undetermined: %s", est.axis, p, why)
     return out

@@ -13,11 +13,12 @@ import numpy as np
 
 from ..errors import UserError
 from .logdata import Log, read_log
-from .identifiable import undetermined
+from .effects import Gravity, Offset
+from .identifiable import T_MIN, undetermined
 from .model import MAX_DELAY_SAMPLES, AxisModel, Errors, errors, torque_delay
 from .resonance import find_mode
 from .reversal import find_backlash
-from .signals import Samples, Settings, choose_settings, noise_floor, prepare, whole_band
+from .signals import Samples, Settings, choose_settings, clipped_levels, noise_floor, prepare, whole_band
 from .trace import MIN_GAIN, TracedEffect, trace, unexplained
 
 logger = logging.getLogger(__name__)
@@ -177,6 +178,11 @@ def identify_axis(log: Log, axis: str, val_log: Log | None = None, *, seed: int 
                                    "fraction": mode["share"], "frequency_hz": mode["frequency_hz"],
                                    "damping": mode["damping"], "mains": mode["mains"], "evidence": None,
                                    **{k: v for k, v in mode.items() if k == "cutoff_moved_from_hz"}})
+    levels = clipped_levels(log.axes[axis].tau)
+    if levels:
+        result.sampling["torque_clipped"] = {"levels": levels,
+                                             "share": round(float(np.isin(log.axes[axis].tau, levels).mean()), 4)}
+    _check_sign(log, axis, result.model, result.est)
     result.undetermined = undetermined(result.model, result.est, result.after, result.consistency)
     predicted = result.model.predict(wide)
     lash = find_backlash(wide, wide.tau_f - predicted, predicted, result.settings, seed)
@@ -186,6 +192,21 @@ def identify_axis(log: Log, axis: str, val_log: Log | None = None, *, seed: int 
                                    "kind": "backlash", "fraction": lash["share"], "evidence": None,
                                    **{k: lash[k] for k in ("delay_ms", "ratio", "events")}})
     return result
+
+
+def _check_sign(log: Log, axis: str, model: AxisModel, est: Samples) -> None:
+    """UserError where the inertia and a friction come out negative beyond their std -- in the
+    final model, or in the base model with the load a joint may carry (an offset; on a rotary
+    joint its gravity), which the tracer may have dropped as unphysical: the torque and the
+    position were logged with opposite sign conventions (no plant has a negative inertia and a
+    friction that drives the motion)."""
+    load = [Offset(), Gravity()] if est.rotary else [Offset()]
+    for m in (model, AxisModel(load, seed=model.seed).fit(est)):
+        p, sd = m.params_, m.param_std_
+        if p["J"] < -T_MIN * sd["J"] and (p["c0"] < -T_MIN * sd["c0"] or p["c1"] < -T_MIN * sd["c1"]):
+            raise UserError(f"{log.path}: axis {axis}: J {p['J']:.4g}, c0 {p['c0']:.4g} and c1 {p['c1']:.4g} come "
+                            f"out negative: the torque and the position have opposite sign conventions? Give "
+                            f"--torque-sign -1 (identify) to read the torque the other way round")
 
 
 def _identify_axis(log: Log, axis: str, val_log: Log | None, seed: int, cutoff_hz: float | None,
@@ -256,11 +277,17 @@ def _identify_axis(log: Log, axis: str, val_log: Log | None, seed: int, cutoff_h
 
 def identify(path: str | Path, validate: str | Path | None = None, axes: list[str] | None = None, *,
              seed: int = 0, cutoff_hz: float | None = None, decimation: int | None = None,
-             progress=None, torque_delay_s: float | None = None) -> dict[str, AxisResult]:
+             progress=None, torque_delay_s: float | None = None, torque_sign: float = 1.0) -> dict[str, AxisResult]:
     """Identify every axis of the log at ``path`` (or ``axes``); see the package docstring.
-    ``torque_delay_s``: the logged torque's delay behind the position, None to estimate it."""
+    ``torque_delay_s``: the logged torque's delay behind the position, None to estimate it;
+    ``torque_sign`` -1: the torque was logged with the opposite sign convention to the position."""
     log = read_log(path)
     val_log = read_log(validate) if validate else None
+    if torque_sign not in (1.0, -1.0):
+        raise UserError(f"--torque-sign must be 1 or -1, got {torque_sign:g}")
+    for lg in (log, val_log) if val_log is not None else (log,):
+        for ax in lg.axes.values():
+            ax.tau = torque_sign * ax.tau
     names = axes or list(log.axes)
     for a in names:
         if a not in log.axes:

@@ -60,6 +60,8 @@ def summary(results: dict[str, AxisResult]) -> str:
             lines.append(f"  dropped: {d}")
         if r.sampling.get("resampled"):
             lines.append(f"  {sampling_text(r.sampling)}")
+        if r.sampling.get("torque_clipped"):
+            lines.append(f"  {clipped_text(r.sampling['torque_clipped'], tu)}")
         if r.sampling.get("torque_aligned") or r.sampling.get("torque_delay_note"):
             lines.append(f"  {delay_text(r.sampling)}")
         if r.consistency and not r.consistency["consistent"]:
@@ -83,6 +85,12 @@ def sampling_text(s: dict) -> str:
             f"{s['max_step_deviation_s'] * 1e6:.0f} µs, std {s['jitter_std_s'] * 1e6:.0f} µs; {s['gaps']} gap(s) "
             f"split the log): resampled onto a uniform {s['period_s'] * 1e3:.3f} ms grid, position and torque "
             f"through the same cubic spline")
+
+
+def clipped_text(c: dict, unit_: str) -> str:
+    """Where the logged torque was clipped and what was done about it, in one sentence."""
+    return (f"the logged torque is clipped at {' and '.join(f'{v:g}' for v in c['levels'])} {unit_} on "
+            f"{c['share']:.1%} of the samples: those (and one cut-off period around them) were not fitted")
 
 
 def delay_text(s: dict) -> str:
@@ -253,6 +261,8 @@ def build_report(results: dict[str, AxisResult], out: Path, source: str) -> Docu
             doc.bullets(list(r.dropped))
         if r.sampling.get("resampled"):
             doc.para(_sentence(sampling_text(r.sampling)))
+        if r.sampling.get("torque_clipped"):
+            doc.para(_sentence(clipped_text(r.sampling["torque_clipped"], tu)))
         if r.sampling.get("torque_aligned") or r.sampling.get("torque_delay_note"):
             doc.para(_sentence(delay_text(r.sampling)))
         if r.consistency and not r.consistency["consistent"]:

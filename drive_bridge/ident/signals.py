@@ -393,13 +393,39 @@ def _decimate(x: np.ndarray, settings: Settings) -> np.ndarray:
     return signal.decimate(x, r, ftype=signal.dlti(b, a), zero_phase=True)
 
 
+CLIP_SHARE = 0.002          # a torque level held by at least this share of the samples ...
+CLIP_RUN = 3                # ... in runs of identical values this long, at the log's extreme: clipped
+
+
+def clipped_levels(tau: np.ndarray) -> list[float]:
+    """The levels the logged torque is clipped at (a drive's current limit, a logger's range): its
+    highest or lowest value where the log holds it, identical, on at least ``CLIP_SHARE`` of the
+    samples and in runs of at least ``CLIP_RUN``; a measured torque at its peak does neither."""
+    out = []
+    for level in (float(np.max(tau)), float(np.min(tau))):
+        at = tau == level
+        if level != 0.0 and at.mean() >= CLIP_SHARE and _longest_run(at) >= CLIP_RUN:
+            out.append(level)
+    return out
+
+
+def _longest_run(flags: np.ndarray) -> int:
+    edges = np.diff(np.concatenate(([0], flags.astype(np.int8), [0])))
+    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    return int(np.max(ends - starts)) if len(starts) else 0
+
+
 def prepare(log: Log, axis: str, settings: Settings) -> Samples:
     """Filtered, differentiated, decimated samples of ``axis`` (all segments), from the same
-    full-rate signals the regressor columns are made of (:class:`Parallel`)."""
+    full-rate signals the regressor columns are made of (:class:`Parallel`); samples within one
+    cut-off period of a clipped torque (:func:`clipped_levels`) are not fitted."""
     r, edge = settings.decimation, settings.edge
     source = Parallel(log, axis, settings)
     sos = source.sos
-    parts: dict[str, list[np.ndarray]] = {k: [] for k in ("t", "q", "qd", "qdd", "sgn", "tau_f", "tau", "settled")}
+    levels = clipped_levels(log.axes[axis].tau)
+    spread = np.ones(2 * int(settings.rate_hz / settings.cutoff_hz) + 1)
+    parts: dict[str, list[np.ndarray]] = {k: [] for k in ("t", "q", "qd", "qdd", "sgn", "tau_f", "tau", "settled",
+                                                          "clean")}
     other_parts: dict[str, list[list[np.ndarray]]] = {o: [[], [], []] for o in log.axes if o != axis}
     for keep, ch in source.segments():        # (too short to filter, cut and decimate: skipped)
         # parallel filtering of the Coulomb column: the torque's step at a reversal is smoothed
@@ -409,6 +435,8 @@ def prepare(log: Log, axis: str, settings: Settings) -> Samples:
         for k, x in channels.items():
             parts[k].append(_decimate(x[keep], settings))
         parts["settled"].append(_settled(ch.qd, settings)[keep][::r])
+        clipped = np.convolve(np.isin(ch.tau, levels), spread, "same") > 0
+        parts["clean"].append(~(np.convolve(clipped, np.ones(r), "same") > 0)[keep][::r])
         parts["t"].append(ch.t[keep][::r])
         parts["tau"].append(_interval_mean(ch.tau, r)[keep][::r])
         for o, lists in other_parts.items():
@@ -423,7 +451,7 @@ def prepare(log: Log, axis: str, settings: Settings) -> Samples:
     cat = {k: v[:n] for k, v in cat.items()}
     others = {o: tuple(np.concatenate(x)[:n] for x in lists) for o, lists in other_parts.items()}
     vmax = np.max(np.abs(cat["qd"]))
-    moving = cat.pop("settled").astype(bool)
+    moving = cat.pop("settled").astype(bool) & cat.pop("clean").astype(bool)
     if vmax == 0 or np.ptp(cat["q"]) == 0:
         raise UserError(f"{log.path}: axis {axis!r} does not move")
     if moving.sum() < MIN_MOVING:

@@ -179,9 +179,9 @@ def trace(est: Samples, val: Samples, seed: int,
                                    new_err.relative_error, f, p, share, fitted.params_, fitted.relative_error_))
         est, val, model = _realigned(realign, fitted, est, val)
         err = new_err if model is fitted else errors(model, val)
-    while traced and not physical(model):  # effects that bought their fit with a negative friction or
+    while traced and not physical(model):  # effects that bought their fit with a negative friction go
         log.info("effect %s removed: the model with it is not physical", traced[-1].effect.name)
-        traced.pop()                       # inertia go again, last first (a base model stays as it is)
+        traced.pop()                       # again, last first (a base model stays as it is)
         model = AxisModel([t.effect for t in traced], seed=seed).fit(est)
     for t in traced:                      # every effect's parameters as the final joint fit has them
         t.params = model.effect_params(t.effect)
@@ -214,9 +214,12 @@ def _realigned(realign, model: AxisModel, est: Samples, val: Samples) -> tuple[S
 
 
 def physical(model: AxisModel) -> bool:
-    """J > 0 and c0, c1 ≥ 0: what the tuning and the drives take."""
-    p = model.params_
-    return p["J"] > 0 and p["c0"] >= 0 and p["c1"] >= 0
+    """No friction (c0, c1) negative beyond ``T_MIN`` of its std: an effect does not buy its fit
+    with a friction that drives the motion.  A value within its std of zero is one the data do
+    not determine, and an inertia that comes out negative stands in for a term the model lacks:
+    :mod:`.identifiable` says so of either, and the effects stay."""
+    p, sd = model.params_, model.param_std_
+    return all(p[k] > -T_MIN * sd[k] for k in ("c0", "c1"))
 
 
 def unexplained(model: AxisModel, s: Samples, rate_hz: float) -> list[dict]:

@@ -115,11 +115,11 @@ def joint_log(duration_s: float = 40.0, rate_hz: float = 200.0, *, J: float = 2.
     plant, not ``closed_loop_log``'s: J·q̈ = τ − c1·q̇ − c0·sign(q̇) − G·cos q under a PD position
     loop with the reference's inverse dynamics fed forward, tracking ``sines`` ((amplitude [rad],
     frequency [Hz]), ...) around ``centre_rad``.  Columns ``time_s``, ``j_position_rad`` (a 1e-4 rad
-    grid), ``j_torque_Nm`` (noise, rounded to 1 mNm, clipped at ± ``clip_Nm`` as a drive's current
-    limit would, times ``torque_sign``)."""
+    grid), ``j_torque_Nm`` (noise, rounded to 1 mNm, clipped at ± ``clip_Nm`` as a logger's range or
+    a current report that saturates while the drive's torque does not, times ``torque_sign``)."""
     T = 1.0 / fs_int
     t = np.arange(int(duration_s * fs_int)) * T
-    ramp = np.minimum(t / 2.0, 1.0)                           # fade the motion in over 2 s
+    ramp = 0.5 * (1 - np.cos(np.pi * np.minimum(t / 4.0, 1.0)))        # fade the motion in over 4 s
     q_ref = centre_rad + ramp * sum(a * np.sin(2 * np.pi * f * t) for a, f in sines)
     v_ref, a_ref = np.gradient(q_ref, T), np.gradient(np.gradient(q_ref, T), T)
     wn = 2 * np.pi * 15.0
@@ -130,8 +130,6 @@ def joint_log(duration_s: float = 40.0, rate_hz: float = 200.0, *, J: float = 2.
     for k in range(len(t)):
         u = J * a_ref[k] + c1 * v_ref[k] + c0 * np.sign(v_ref[k]) + gravity_Nm * np.cos(q_ref[k]) \
             + kp * (q_ref[k] - qk) + kd * (v_ref[k] - vk)
-        if clip_Nm is not None:
-            u = float(np.clip(u, -clip_Nm, clip_Nm))
         acc = (u - c1 * vk - c0 * np.sign(vk) - gravity_Nm * np.cos(qk)) / J
         vk += acc * T
         qk += vk * T
