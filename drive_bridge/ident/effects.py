@@ -164,12 +164,15 @@ class PositionPeriodic(Effect):
     """A sin(2π q / period + phase): cogging, belt-tooth or screw-lead ripple.
 
     ``period`` [rad | m] is the starting value (from the residual's spectrum over position);
-    ``fit`` searches ``period`` ± ``spread`` (the spectrum's resolution) and learns ``period_``."""
+    ``fit`` searches ``period`` ± ``spread`` (the spectrum's resolution) and learns ``period_``.
+    An axis may have several (a motor's torque ripple and a cogging at another period): the
+    ``order``-th is named ``position_periodic_<order>`` from the second on."""
 
-    name, depends_on, coef_names, nonlinear = "position_periodic", "position", ("a_sin", "a_cos"), ("period",)
+    depends_on, coef_names, nonlinear = "position", ("a_sin", "a_cos"), ("period",)
 
-    def __init__(self, period: float, spread: float = 0.1):
-        self.period, self.spread = period, spread
+    def __init__(self, period: float, spread: float = 0.1, order: int = 1):
+        self.period, self.spread, self.order = period, spread, order
+        self.name = "position_periodic" if order == 1 else f"position_periodic_{order}"
 
     def bounds(self):
         return {"period": ((1 - self.spread) * self.period, (1 + self.spread) * self.period)}
@@ -427,16 +430,20 @@ def spline_candidates(present: list[Effect], s: Samples, residual: np.ndarray) -
     return out
 
 
+MAX_PERIODIC = 3            # periodic terms at different periods an axis may carry
+
+
 def position_period(s: Samples, residual: np.ndarray) -> float | None:
     """Period [rad | m] of the strongest periodic component of ``residual`` over position.
 
-    The residual is averaged in bins of position (a uniform grid, whatever the
-    speed), gaps are interpolated, and the spectrum of that profile gives the
-    period; at least 3 periods must fit in the travelled range.
+    The residual is averaged in bins of position (a uniform grid, whatever the speed, as fine as
+    the slow passes' spacing -- the 10th percentile of the steps -- so that a short period is not
+    averaged away where the fast ones skip it), gaps are interpolated, and the spectrum of that
+    profile gives the period; at least 3 periods must fit in the travelled range.
     """
     q = s.q
     span = float(np.ptp(q))
-    step = float(np.median(np.abs(np.diff(q))))
+    step = float(np.percentile(np.abs(np.diff(q)), 10))   # the slow passes' spacing: a short period shows there
     if span <= 0 or step <= 0:
         return None
     n_bins = int(min(8192, max(64, span / step)))
@@ -468,10 +475,11 @@ def candidates(present: list[Effect], s: Samples, residual: np.ndarray) -> list[
         out.append(Gravity())
     if "position_linear" not in names:
         out.append(PositionLinear())
-    if "position_periodic" not in names:
+    periodic = [e for e in present if isinstance(e, PositionPeriodic)]
+    if len(periodic) < MAX_PERIODIC:
         period = position_period(s.take(m), residual[m])
-        if period:
-            out.append(PositionPeriodic(period))
+        if period and all(abs(period - e.period_) > e.spread * e.period_ for e in periodic):
+            out.append(PositionPeriodic(period, order=len(periodic) + 1))
     vmax = float(np.max(np.abs(s.qd[m])))
     vmin = float(np.min(np.abs(s.qd[m])))
     low, high = max(vmin, 0.01 * vmax), 0.5 * vmax

@@ -46,7 +46,7 @@ import numpy as np
 from scipy import signal, stats
 
 from .dependence import dependences
-from .effects import Effect, Spline, candidates, shape_of
+from .effects import Effect, PositionPeriodic, Spline, candidates, shape_of
 from .identifiable import T_MIN
 from .model import AxisModel, errors, extend
 from .signals import Samples
@@ -124,7 +124,7 @@ def _named_evidence(e: Effect, params: dict) -> str:
         "cross_axis": lambda: f"residual follows axis {params['source']} ({params['form']}), "
                               f"coefficient {params['coefficient']:+.3g}",
         "drift": lambda: f"Coulomb friction changes over time, time constant {params['time_constant_s']:.3g} s",
-    }[e.name]()
+    }["position_periodic" if isinstance(e, PositionPeriodic) else e.name]()
 
 
 def trace(est: Samples, val: Samples, seed: int,
