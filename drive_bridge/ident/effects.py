@@ -25,6 +25,11 @@ from .dependence import dependences, variables
 from .signals import Samples
 
 
+#: the effects a drive's model (or the master's feed-forward of it) carries: their terms are the drive
+#: model's parameters (:data:`drive_bridge.tuning.feedforward.MODEL_KEYS`); any other is reported, not written
+DRIVE_EFFECTS = ("offset", "position_linear", "direction_asymmetry", "position_periodic")
+
+
 class NotFittedError(InternalError):
     """An effect's columns were asked for before ``fit`` learned its nonlinear parameters."""
 

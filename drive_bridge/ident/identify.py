@@ -13,7 +13,7 @@ import numpy as np
 
 from ..errors import UserError
 from .logdata import Log, read_log
-from .effects import Gravity, Offset
+from .effects import DRIVE_EFFECTS, Gravity, Offset
 from .identifiable import T_MIN, undetermined
 from .model import MAX_DELAY_SAMPLES, AxisModel, Errors, errors, torque_delay
 from .resonance import find_mode
@@ -59,6 +59,12 @@ class AxisResult:
     backlash: dict | None = None
     #: J, c0, c1 the data do not determine, and why (identifiable.undetermined)
     undetermined: dict[str, str] = field(default_factory=dict)
+    #: the model refitted with only the effects a drive's model carries (effects.DRIVE_EFFECTS):
+    #: what is written, the best values within the structure the drive holds (the model itself
+    #: where every effect is one of those)
+    drive_model: AxisModel | None = None
+    drive_errors: Errors | None = None
+    drive_note: str | None = None              # why the drive gets the full model's values after all
 
     def as_json(self) -> dict:
         return {
@@ -94,6 +100,10 @@ class AxisResult:
             "dropped": self.dropped,
             "sampling": self.sampling,
             "consistency": self.consistency,
+            "drive_params": (self.drive_model or self.model).params_,
+            "drive_param_std": (self.drive_model or self.model).param_std_,
+            "drive_rmse": (self.drive_errors or self.after).rmse,
+            "drive_note": self.drive_note,
             "identifiable": {p: p not in self.undetermined for p in ("J", "c0", "c1")},
             "undetermined": self.undetermined,
             "resonance": self.resonance,
@@ -184,6 +194,17 @@ def identify_axis(log: Log, axis: str, val_log: Log | None = None, *, seed: int 
                                              "share": round(float(np.isin(log.axes[axis].tau, levels).mean()), 4)}
     _check_sign(log, axis, result.model, result.est)
     result.undetermined = undetermined(result.model, result.est, result.after, result.consistency)
+    held = [e for e in result.model.effects if e.name in DRIVE_EFFECTS]
+    if len(held) < len(result.model.effects):             # refit within what the drive holds
+        drive = AxisModel(held, seed=seed).fit(result.est).widen(result.est)
+        drive_errors = errors(drive, result.val)
+        lost = undetermined(drive, result.est, drive_errors, {})
+        if lost:                                           # the drive's structure cannot hold this machine
+            left = ", ".join(e.name for e in result.model.effects if e not in held)
+            result.drive_note = (f"refitted without {left}, which no drive model holds, the model leaves "
+                                 f"{', '.join(lost)} undetermined: the full model's values are what is written")
+        else:
+            result.drive_model, result.drive_errors = drive, drive_errors
     predicted = result.model.predict(wide)
     lash = find_backlash(wide, wide.tau_f - predicted, predicted, result.settings, seed)
     if lash is not None:

@@ -52,6 +52,8 @@ def summary(results: dict[str, AxisResult]) -> str:
             lines.append("  no effect found beyond J, c0, c1")
         lines.append(f"  final: validation RMSE {r.after.rmse:.4g} {tu} (measured torque RMS {r.after.torque_rms:.4g}, "
                      f"noise floor {r.noise_floor:.3g}); relative error {r.after.relative_error:.2%}")
+        if r.drive_model is not None or r.drive_note:
+            lines.append(f"  {drive_text(r)}")
         lines.append(f"  GA (differential evolution) on the same data: validation RMSE {r.ga_errors.rmse:.4g} "
                      f"{tu}, J {r.ga_coef[0]:.6g}, c1 {r.ga_coef[1]:.6g}, c0 {r.ga_coef[2]:.6g}")
         for u_ in r.unexplained:
@@ -69,6 +71,18 @@ def summary(results: dict[str, AxisResult]) -> str:
         for part, why in (r.consistency or {}).get("degenerate", {}).items():
             lines.append(f"  consistency: the {part} not compared: {why}")
     return "\n".join(lines)
+
+
+def drive_text(r: AxisResult) -> str:
+    """The values written: the model refitted within what a drive's model holds, beside the full one
+    (or why the full model's are)."""
+    if r.drive_model is None:
+        return f"for the drive: {r.drive_note}"
+    d, sd = r.drive_model.params_, r.drive_model.param_std_
+    held = ", ".join(e.name for e in r.drive_model.effects) or "no effect"
+    return (f"for the drive (its model holds J, c0, c1 and {held}; refitted without the rest): "
+            + ", ".join(f"{k} {measured(d[k], sd[k])} ± {sd[k]:.2g}" for k in ("J", "c0", "c1"))
+            + f"; validation RMSE {r.drive_errors.rmse:.4g} {r.units['torque']} (every term: {r.after.rmse:.4g})")
 
 
 def consistency_text(c: dict) -> str:
@@ -265,6 +279,8 @@ def build_report(results: dict[str, AxisResult], out: Path, source: str) -> Docu
             doc.para(_sentence(clipped_text(r.sampling["torque_clipped"], tu)))
         if r.sampling.get("torque_aligned") or r.sampling.get("torque_delay_note"):
             doc.para(_sentence(delay_text(r.sampling)))
+        if r.drive_model is not None or r.drive_note:
+            doc.para(_sentence(drive_text(r)))
         if r.consistency and not r.consistency["consistent"]:
             doc.para([Strong("Not consistent:"), f" {consistency_text(r.consistency)}."])
         for k, why in r.undetermined.items():

@@ -8,6 +8,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import UserError
+from ..ident.effects import DRIVE_EFFECTS
 from ..outputs import stamped
 from ..yamlconf import too_large
 from .design import GainDesign, Margins, design_gains, loop_margins
@@ -95,7 +96,7 @@ def read_identify_json(path: str | Path) -> dict[str, dict[str, float]]:
                             f"({k}: {why}); it is not used to tune or written to a drive. Record a log that "
                             f"determines it (a richer excitation: several speeds and accelerations, both directions), "
                             f"or leave the axis out of identify.json")
-        params = r.get("params")
+        params = r.get("drive_params", r.get("params"))       # what the drive's model holds, where identify says
         if isinstance(params, dict):                  # text values (a cross-axis effect's source) are not numbers
             params = {k: v for k, v in params.items() if not isinstance(v, str)}
         out[a] = model_from_identify(_numbers(path, f"axes.{a}.params", params))
@@ -106,7 +107,7 @@ def unwritable_effects(path: str | Path) -> dict[str, list[str]]:
     """axis -> the traced effects of an ``identify --json`` result that no drive model parameter
     (nor the master's feed-forward, which sends the same model) can carry: reported, not dropped."""
     axes = _axes_of(Path(path), "identify --json result")
-    writable = {key.split(".")[0] for key in MODEL_KEYS}
+    writable = set(DRIVE_EFFECTS)
     return {a: [e["name"] for e in r.get("effects") or [] if isinstance(e, dict) and e.get("name") not in writable]
             for a, r in axes.items()}
 
