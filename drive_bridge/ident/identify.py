@@ -53,6 +53,8 @@ class AxisResult:
     dropped: list[str] = field(default_factory=list)
     sampling: dict = field(default_factory=dict)       # what the log's time stamps held (Log.sampling)
     consistency: dict = field(default_factory=dict)    # J, c0, c1 refitted on parts of the data (consistency())
+    #: the speeds c0 and c1 hold for, and whether they depend on which (friction_range())
+    friction: dict = field(default_factory=dict)
     #: a resonance in the whole-band residual (resonance.find_mode), and the cut-off it moved from
     resonance: dict | None = None
     #: residual energy concentrated after torque reversals (reversal.find_backlash)
@@ -100,6 +102,7 @@ class AxisResult:
             "dropped": self.dropped,
             "sampling": self.sampling,
             "consistency": self.consistency,
+            "friction": self.friction,
             "drive_params": (self.drive_model or self.model).params_,
             "drive_param_std": (self.drive_model or self.model).param_std_,
             "drive_rmse": (self.drive_errors or self.after).rmse,
@@ -159,6 +162,38 @@ def consistency(model: AxisModel, est: Samples, val: Samples) -> dict:
             moved[p] = {"values": {n: v[0] for n, v in values.items()}, "sigmas": round(float(worst[0]), 1),
                         "between": [worst[1], worst[2]]}
     return {"consistent": not moved, "parts": list(fits), "moved": moved, "degenerate": degenerate}
+
+
+def friction_range(model: AxisModel, est: Samples) -> dict:
+    """The speeds c0 and c1 hold for (5th to 95th percentile of |q̇| while moving), and whether
+    they depend on which: the model refitted on the slower and on the faster half of the moving
+    samples.  Where c0 or c1 differ between the halves by more than ``CONSISTENT_SIGMAS`` combined
+    std, friction is not linear in velocity over the range: ``model``'s std of c0 and c1 is widened
+    by half the difference (the split depends on the speeds used), and ``linear`` is False."""
+    speed = np.abs(est.qd)
+    moving = speed[est.moving]
+    low, high = (float(x) for x in np.percentile(moving, [5, 95]))
+    split = float(np.median(moving))
+    out = {"velocity_range": [low, high], "linear": True}
+    halves = {}
+    for name, part in (("slower", est.take(speed < split)), ("faster", est.take(speed >= split))):
+        if part.moving.sum() > 3 * len(model.coef_):
+            fit = AxisModel(model.effects, seed=model.seed).fit(part)
+            if all(fit.param_std_[p] <= DEGENERATE * model.param_std_[p] for p in ("c0", "c1")):
+                halves[name] = fit
+    if len(halves) < 2:
+        return out
+    slow, fast = halves["slower"], halves["faster"]
+    out.update({n: {p: f.params_[p] for p in ("c0", "c1")} for n, f in halves.items()})
+    widen = {}
+    for p, i in (("c0", 2), ("c1", 1)):
+        gap = abs(slow.params_[p] - fast.params_[p])
+        if gap > CONSISTENT_SIGMAS * np.hypot(slow.param_std_[p], fast.param_std_[p]):
+            widen[p] = round(float(gap / np.hypot(slow.param_std_[p], fast.param_std_[p])), 1)
+            model.cov_[i, i] += (gap / 2) ** 2
+    if widen:
+        out.update(linear=False, sigmas=widen)
+    return out
 
 
 def identify_axis(log: Log, axis: str, val_log: Log | None = None, *, seed: int = 0,
@@ -283,6 +318,7 @@ def _identify_axis(log: Log, axis: str, val_log: Log | None, seed: int, cutoff_h
     settings, vs, est, val, how = state["sets"]
     model.widen(est)
     agreement = consistency(model, est, val)
+    friction = friction_range(model, est)
     floor = noise_floor(val_log, axis, vs) if val_log is not None else noise_floor(log, axis, settings)
     ga_model = AxisModel(model.effects, method="ga", seed=seed).fit(est)
     logger.info("axis %s: %s; effects %s; cut-off %.3g Hz, torque delay %.3g ms", axis,
@@ -293,7 +329,8 @@ def _identify_axis(log: Log, axis: str, val_log: Log | None, seed: int, cutoff_h
                       unexplained(model, val, settings.rate_hz / settings.decimation), ga_model.coef_,
                       errors(ga_model, val), list(log.axes[axis].dropped),
                       {**log.sampling, "torque_delay_ms": round(1e3 * settings.torque_delay_s, 4),
-                       "torque_aligned": settings.torque_delay_s != 0.0, **state["timing"]}, agreement)
+                       "torque_aligned": settings.torque_delay_s != 0.0, **state["timing"]}, agreement,
+                      friction=friction)
 
 
 def identify(path: str | Path, validate: str | Path | None = None, axes: list[str] | None = None, *,

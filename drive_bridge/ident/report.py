@@ -42,6 +42,8 @@ def summary(results: dict[str, AxisResult]) -> str:
             rel = abs(std[k] / v) * 100 if v else float("inf")
             lines.append(f"  {k:<3} = {measured(v, std[k])} ± {std[k]:.2g} {unit(k, r.kind)}  ({rel:.2f} %)"
                          + (f"  UNDETERMINED: {r.undetermined[k]}" if k in r.undetermined else ""))
+        if r.friction:
+            lines.append(f"  {friction_text(r)}")
         lines.append(f"  base model J, c0, c1: validation RMSE {r.before.rmse:.4g} {tu} "
                      f"(relative error {r.before.relative_error:.2%})")
         for t in r.effects:
@@ -83,6 +85,19 @@ def drive_text(r: AxisResult) -> str:
     return (f"for the drive (its model holds J, c0, c1 and {held}; refitted without the rest): "
             + ", ".join(f"{k} {measured(d[k], sd[k])} ± {sd[k]:.2g}" for k in ("J", "c0", "c1"))
             + f"; validation RMSE {r.drive_errors.rmse:.4g} {r.units['torque']} (every term: {r.after.rmse:.4g})")
+
+
+def friction_text(r: AxisResult) -> str:
+    """The speeds c0 and c1 hold for, and where friction is not linear in velocity over them."""
+    f = r.friction
+    q = "m" if r.kind == "linear" else "rad"
+    text = f"c0 and c1 hold for speeds {f['velocity_range'][0]:.3g} to {f['velocity_range'][1]:.3g} {q}/s"
+    if f["linear"]:
+        return text
+    halves = "; ".join(f"{n} half c0 {f[n]['c0']:.4g}, c1 {f[n]['c1']:.4g}" for n in ("slower", "faster"))
+    return (f"{text}; friction is NOT linear in velocity over them ({halves}: "
+            + ", ".join(f"{p} {s:g} std apart" for p, s in f["sigmas"].items())
+            + "): their std is widened by half the difference")
 
 
 def consistency_text(c: dict) -> str:
@@ -281,6 +296,8 @@ def build_report(results: dict[str, AxisResult], out: Path, source: str) -> Docu
             doc.para(_sentence(delay_text(r.sampling)))
         if r.drive_model is not None or r.drive_note:
             doc.para(_sentence(drive_text(r)))
+        if r.friction:
+            doc.para(_sentence(friction_text(r)))
         if r.consistency and not r.consistency["consistent"]:
             doc.para([Strong("Not consistent:"), f" {consistency_text(r.consistency)}."])
         for k, why in r.undetermined.items():

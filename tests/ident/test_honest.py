@@ -99,3 +99,22 @@ def test_two_ripples_at_different_periods_are_both_found(tmp_path):
         assert abs(t.params["period"] / period - 1) < 0.01
         amplitude = f"{t.effect.name}.amplitude"
         assert abs(r.model.params_[amplitude] - truth[period]) <= 3 * r.model.param_std_[amplitude]
+
+
+def test_friction_that_is_not_linear_in_velocity_says_over_which_speeds_c0_c1_hold(tmp_path):
+    """A drag growing with the square of the speed on the independent plant: c0 and c1 come with
+    the speeds they hold for, the slower and the faster half of the samples give them apart by
+    more than 3 std, and their std is widened to cover half that difference (before: c0/c1 with
+    a std that ignored how much the split depended on the speeds used)."""
+    import numpy as np
+
+    from .generator import closed_loop_log
+    r = identify(write_log(tmp_path / "drag.csv", closed_loop_log(
+        np.arange(30000) / 1000.0, extra=lambda q, v, a, t: 4e-6 * v * abs(v))))["y"]
+    f = r.friction
+    lo, hi = f["velocity_range"]
+    assert 0 < lo < hi and not f["linear"] and f["sigmas"]
+    for p in f["sigmas"]:
+        assert r.model.param_std_[p] >= abs(f["slower"][p] - f["faster"][p]) / 2
+    clean = identify(write_log(tmp_path / "clean.csv", closed_loop_log(np.arange(30000) / 1000.0)))["y"]
+    assert clean.friction["linear"]
