@@ -12,9 +12,9 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UserError
-from .logdata import Log, read_log
 from .effects import DRIVE_EFFECTS, Gravity, Offset
 from .identifiable import T_MIN, undetermined
+from .logdata import Log, read_log
 from .model import MAX_DELAY_SAMPLES, AxisModel, Errors, errors, torque_delay
 from .resonance import find_mode
 from .reversal import find_backlash
@@ -128,6 +128,25 @@ def _holdout(s: Samples) -> tuple[Samples, Samples, str]:
             f"of {HOLDOUT_BLOCKS} by moving samples (t = {', '.join(spans)})")
 
 
+def refit_part(model: AxisModel, part: Samples) -> tuple[AxisModel | None, str | None]:
+    """``model``'s effects refitted on a part of the data; (None, why) where the part cannot carry
+    them (its J, c0 or c1 std over ``DEGENERATE`` times the whole fit's, or its column-scaled
+    regressors dependent beyond ``DEGENERATE_COND``), (None, None) where it is too short."""
+    if part.moving.sum() <= 3 * len(model.coef_):
+        return None, None
+    fit = AxisModel(model.effects, seed=model.seed).fit(part)
+    phi = fit.design(part)[part.moving]
+    scale = np.sqrt(np.mean(phi ** 2, axis=0))
+    cond = float(np.linalg.cond(phi / np.where(scale > 0, scale, 1.0)))
+    wide = [p for p in ("J", "c0", "c1") if not fit.param_std_[p] <= DEGENERATE * model.param_std_[p]]
+    if not wide and cond <= DEGENERATE_COND:
+        return fit, None
+    return None, ("its refit leaves " + (f"{', '.join(wide)} with a std over {DEGENERATE:g} times the whole "
+                                         f"fit's" if wide else
+                                         f"the model's columns dependent (condition number {cond:.2g})")
+                  + ": this part does not determine the model's terms")
+
+
 def consistency(model: AxisModel, est: Samples, val: Samples) -> dict:
     """The final model's coefficients refitted (its effects' nonlinear parameters kept) on the
     first and second half in time of the estimation samples and on the validation samples: J, c0
@@ -139,20 +158,11 @@ def consistency(model: AxisModel, est: Samples, val: Samples) -> dict:
     parts = {"first half": est.take(est.t < split), "second half": est.take(est.t >= split), "validation": val}
     fits, degenerate = {}, {}
     for name, part in parts.items():
-        if part.moving.sum() > 3 * len(model.coef_):
-            fit = AxisModel(model.effects, seed=model.seed).fit(part)
-            phi = fit.design(part)[part.moving]
-            scale = np.sqrt(np.mean(phi ** 2, axis=0))
-            cond = float(np.linalg.cond(phi / np.where(scale > 0, scale, 1.0)))
-            wide = [p for p in ("J", "c0", "c1") if not fit.param_std_[p] <= DEGENERATE * model.param_std_[p]]
-            if wide or not cond <= DEGENERATE_COND:      # the part cannot carry the model: named, not compared
-                degenerate[name] = ("its refit leaves " + (f"{', '.join(wide)} with a std over {DEGENERATE:g} times "
-                                                           f"the whole fit's" if wide else
-                                                           f"the model's columns dependent (condition number "
-                                                           f"{cond:.2g})")
-                                    + ": this part does not determine the model's terms")
-            else:
-                fits[name] = fit
+        fit, why = refit_part(model, part)
+        if fit is not None:
+            fits[name] = fit
+        elif why:                                 # the part cannot carry the model: named, not compared
+            degenerate[name] = why
     moved = {}
     for p in ("J", "c0", "c1"):
         values = {n: (f.params_[p], f.param_std_[p]) for n, f in fits.items()}
@@ -175,12 +185,9 @@ def friction_range(model: AxisModel, est: Samples) -> dict:
     low, high = (float(x) for x in np.percentile(moving, [5, 95]))
     split = float(np.median(moving))
     out = {"velocity_range": [low, high], "linear": True}
-    halves = {}
-    for name, part in (("slower", est.take(speed < split)), ("faster", est.take(speed >= split))):
-        if part.moving.sum() > 3 * len(model.coef_):
-            fit = AxisModel(model.effects, seed=model.seed).fit(part)
-            if all(fit.param_std_[p] <= DEGENERATE * model.param_std_[p] for p in ("c0", "c1")):
-                halves[name] = fit
+    halves = {name: refit_part(model, part)[0]
+              for name, part in (("slower", est.take(speed < split)), ("faster", est.take(speed >= split)))}
+    halves = {name: fit for name, fit in halves.items() if fit is not None}
     if len(halves) < 2:
         return out
     slow, fast = halves["slower"], halves["faster"]
@@ -229,17 +236,7 @@ def identify_axis(log: Log, axis: str, val_log: Log | None = None, *, seed: int 
                                              "share": round(float(np.isin(log.axes[axis].tau, levels).mean()), 4)}
     _check_sign(log, axis, result.model, result.est)
     result.undetermined = undetermined(result.model, result.est, result.after, result.consistency)
-    held = [e for e in result.model.effects if e.name in DRIVE_EFFECTS]
-    if len(held) < len(result.model.effects):             # refit within what the drive holds
-        drive = AxisModel(held, seed=seed).fit(result.est).widen(result.est)
-        drive_errors = errors(drive, result.val)
-        lost = undetermined(drive, result.est, drive_errors, {})
-        if lost:                                           # the drive's structure cannot hold this machine
-            left = ", ".join(e.name for e in result.model.effects if e not in held)
-            result.drive_note = (f"refitted without {left}, which no drive model holds, the model leaves "
-                                 f"{', '.join(lost)} undetermined: the full model's values are what is written")
-        else:
-            result.drive_model, result.drive_errors = drive, drive_errors
+    _refit_for_the_drive(result, seed)
     predicted = result.model.predict(wide)
     lash = find_backlash(wide, wide.tau_f - predicted, predicted, result.settings, seed)
     if lash is not None:
@@ -248,6 +245,24 @@ def identify_axis(log: Log, axis: str, val_log: Log | None = None, *, seed: int 
                                    "kind": "backlash", "fraction": lash["share"], "evidence": None,
                                    **{k: lash[k] for k in ("delay_ms", "ratio", "events")}})
     return result
+
+
+def _refit_for_the_drive(result: AxisResult, seed: int) -> None:
+    """Where the model has effects no drive model carries, its refit with only those a drive holds
+    (``result.drive_model``) -- or, where that refit leaves J, c0 or c1 undetermined, why the full
+    model's values are written (``result.drive_note``)."""
+    held = [e for e in result.model.effects if e.name in DRIVE_EFFECTS]
+    if len(held) == len(result.model.effects):
+        return
+    drive = AxisModel(held, seed=seed).fit(result.est).widen(result.est)
+    drive_errors = errors(drive, result.val)
+    lost = undetermined(drive, result.est, drive_errors, {})
+    if lost:                                           # the drive's structure cannot hold this machine
+        left = ", ".join(e.name for e in result.model.effects if e not in held)
+        result.drive_note = (f"refitted without {left}, which no drive model holds, the model leaves "
+                             f"{', '.join(lost)} undetermined: the full model's values are what is written")
+    else:
+        result.drive_model, result.drive_errors = drive, drive_errors
 
 
 def _check_sign(log: Log, axis: str, model: AxisModel, est: Samples) -> None:
