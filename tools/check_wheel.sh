@@ -13,6 +13,6 @@ cd "$work"
 export DRIVE_BRIDGE_VENDOR_EDS="${DRIVE_BRIDGE_VENDOR_EDS:-$repo/../shared/eds-vendor}"
 venv/bin/drive-bridge --help > /dev/null
 venv/bin/drive-bridge scan --sim
-venv/bin/drive-bridge commission --sim --quick --out run
+venv/bin/drive-bridge commission --sim --campaign short --out run
 venv/bin/python "$repo/tools/smoke_installed.py" run
 echo "wheel check passed: $(ls dist)"

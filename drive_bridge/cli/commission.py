@@ -18,7 +18,8 @@ def register(sub) -> None:
                                    "default: resume after the last completed one")
     p.add_argument("--restart", action="store_true", help="start over: discard the previous run in --out")
     options.campaign(p)
-    p.add_argument("--quick", action="store_true", help="a few seconds of campaign per axis (demo)")
+    p.add_argument("--quick", action="store_true", help="a few seconds of campaign per axis (a demo: too short to "
+                                                          "determine every parameter, which tune then refuses)")
     options.seed(p)
     options.motor(p)
     p.set_defaults(func=cmd_commission)
