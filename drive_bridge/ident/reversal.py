@@ -10,7 +10,11 @@ smoothed at the fit's cut-off and counted when it swings past ``HYSTERESIS`` of 
 Any abrupt change of acceleration leaves a transient in the residual too (the loops' lag), so
 the reference is not the residual elsewhere but the same profile after control instants: the
 same signal crossing ``CONTROL_LEVEL`` of its range without changing sign (an acceleration
-starting or ending, as sharp as a reversal but with no gap to cross).  The largest ratio of
+starting or ending, as sharp as a reversal but with no gap to cross).  A swing that dwells at
+zero (a trapezoid's cruise between its acceleration and its deceleration) is no reversal: the
+load is carried by friction in between; nor is a loop's ringing after a short, sharp
+acceleration step (it swings less than ``HYSTERESIS``) -- on a rigid axis moved by trapezoids
+both read as play.  The largest ratio of
 the reversal profile to the control profile over the bins is compared with the same statistic
 for ``PERMUTATIONS`` random relabellings of reversals and controls (seeded): play is reported
 only where the reversals beat every relabelling, stand ``MIN_RATIO`` above the controls and
@@ -23,7 +27,8 @@ from scipy import signal
 
 from .signals import FILTER_ORDER, Samples, Settings
 
-HYSTERESIS = 0.05       # a reversal swings from below -5 % to above +5 % of the signal's range (or back)
+HYSTERESIS = 0.15       # a reversal swings from below -15 % to above +15 % of the signal's range (or back):
+                        # a loop's ringing after a short, sharp acceleration step swings less
 MIN_EVENTS = 20         # fewer reversals while moving: no telling
 BINS = 8                # time bins after a reversal, over half the median time between reversals
 LONGEST_S = 0.25        # ... and at most this long in all
@@ -33,18 +38,21 @@ MIN_RATIO = 1.5         # the peak bin's mean residual power after reversals ove
 MIN_SHARE = 0.05        # the share of the residual power in excess near the peak
 
 
-def reversals(x: np.ndarray, moving: np.ndarray, hysteresis: float = HYSTERESIS) -> np.ndarray:
+def reversals(x: np.ndarray, moving: np.ndarray, hysteresis: float = HYSTERESIS) -> tuple[np.ndarray, np.ndarray]:
     """Indices where ``x`` crosses zero on its way from below -h to above +h or back
-    (h = ``hysteresis`` × max |x|), kept where the axis moves."""
+    (h = ``hysteresis`` × max |x|), kept where the axis moves; and how many samples each swing
+    took from one threshold to the other."""
     h = hysteresis * float(np.max(np.abs(x)))
     state = np.where(x > h, 1, np.where(x < -h, -1, 0))
     idx = np.flatnonzero(state)
     if len(idx) < 2:
-        return np.zeros(0, dtype=int)
+        return np.zeros(0, dtype=int), np.zeros(0, dtype=int)
     swings = idx[1:][state[idx[1:]] != state[idx[:-1]]]          # first sample past the far threshold
     prior = idx[:-1][state[idx[1:]] != state[idx[:-1]]]          # last sample past the near one
     ev = np.array([a + int(np.argmin(np.abs(x[a:b + 1]))) for a, b in zip(prior, swings)], dtype=int)
-    return ev[moving[ev]] if len(ev) else ev
+    took = (swings - prior).astype(int)
+    keep = moving[ev] if len(ev) else np.zeros(0, dtype=bool)
+    return ev[keep], took[keep]
 
 
 def crossings(x: np.ndarray, level: float) -> np.ndarray:
@@ -85,11 +93,14 @@ def find_backlash(s: Samples, resid: np.ndarray, predicted: np.ndarray, settings
     found = []
     for name, x in (("acceleration", s.qdd), ("torque", predicted)):
         xf = signal.sosfiltfilt(sos, x)
-        ev = reversals(xf, m)
+        ev, took = reversals(xf, m)
         if len(ev) < MIN_EVENTS:
             continue
         gap = float(np.median(np.diff(ev)))
         width = max(1, int(min(gap / 2, LONGEST_S * settings.rate_hz) // BINS))
+        ev = ev[took <= BINS * width]           # a swing that dwells at zero (a trapezoid's cruise) is two
+        if len(ev) < MIN_EVENTS:                # steps with the load carried by friction between: no reversal
+            continue
         level = CONTROL_LEVEL * float(np.max(np.abs(xf)))
         ctl = np.concatenate((crossings(xf, level), crossings(xf, -level)))
         near = np.searchsorted(ev, ctl)

@@ -141,3 +141,46 @@ def joint_log(duration_s: float = 40.0, rate_hz: float = 200.0, *, J: float = 2.
         tau_s = np.clip(tau_s, -clip_Nm, clip_Nm)
     return {"time_s": stamps, "j_position_rad": np.round(np.interp(stamps, t, q), 4),
             "j_torque_Nm": torque_sign * np.round(tau_s, 3)}
+
+
+def trapezoid_log(acceleration: float, *, velocity: float = 20.0, stroke: float = 3.0, duration_s: float = 30.0,
+                  J: float = 1e-4, c0: float = 0.3, c1: float = 5e-4, noise_Nm: float = 0.004, seed: int = 0,
+                  fs_int: float = 10_000.0) -> dict[str, np.ndarray]:
+    """A rigid axis moved back and forth between ± ``stroke`` [rad] by trapezoids at ``velocity``
+    [rad/s] and ``acceleration`` [rad/s²] with 0.3 s of rest at each end (a short acceleration
+    phase at a high ``acceleration``), under the same PI velocity / P position cascade as
+    ``closed_loop_log`` with the inertia's torque fed forward; logged at 1 kHz like it."""
+    T = 1.0 / fs_int
+    rest = np.full(int(0.3 * fs_int), 0.0)
+    pieces, n = [rest - stroke], int(duration_s * fs_int)
+    while sum(len(p) for p in pieces) < n:
+        for a, b in ((-stroke, stroke), (stroke, -stroke)):
+            dist, v = abs(b - a), min(velocity, np.sqrt(abs(b - a) * acceleration))
+            t_acc = v / acceleration
+            t = np.arange(1, int(np.ceil((dist / v + t_acc) / T)) + 1) * T
+            t = np.minimum(t, dist / v + t_acc)
+            s = np.where(t < t_acc, 0.5 * acceleration * t ** 2,
+                         np.where(t <= dist / v, 0.5 * acceleration * t_acc ** 2 + v * (t - t_acc),
+                                  dist - 0.5 * acceleration * (dist / v + t_acc - t) ** 2))
+            pieces += [a + np.sign(b - a) * s, rest + b]
+    q_ref = np.concatenate(pieces)[:n]
+    v_ref = np.gradient(q_ref, T)
+    a_ref = np.gradient(v_ref, T)
+    q, tau = np.empty(n), np.empty(n)
+    qk, vk, integ = q_ref[0], 0.0, 0.0
+    for k in range(n):
+        e_v = 60.0 * (q_ref[k] - qk) + v_ref[k] - vk
+        integ += 25.0 * e_v * T
+        u = 0.08 * (e_v + integ) + J * a_ref[k]
+        if not (vk == 0.0 and abs(u) <= c0):
+            s_dir = np.sign(vk) if vk != 0.0 else np.sign(u)
+            v_new = vk + T / J * (u - c1 * vk - c0 * s_dir)
+            vk = 0.0 if vk != 0.0 and v_new * vk < 0 else v_new
+        qk += vk * T
+        q[k], tau[k] = qk, u
+    stamps = np.arange(int(duration_s * 1000)) / 1000.0
+    t = np.arange(n) * T
+    rng = np.random.default_rng(seed)
+    inc = 2 ** 16 / (2 * np.pi)
+    return {"time_s": stamps, "y_position_rad": np.floor(np.interp(stamps, t, q) * inc) / inc,
+            "y_torque_Nm": np.round(np.interp(stamps, t, tau) + noise_Nm * rng.standard_normal(len(stamps)), 3)}
