@@ -16,9 +16,10 @@ import logging
 from ..config import BusConfig
 from ..errors import Interrupted, MotionAborted
 from ..signals import signal_name
-from .bringup import AxisLink, read_back, write_setting
+from .bringup import AxisLink, read_back
 from .cia402 import CW_ENABLE, CW_SHUTDOWN, CW_SWITCH_ON, SW_FAULT
 from .link import Link
+from .settings import write_setting
 from .stream import quick_stop
 
 log = logging.getLogger(__name__)
