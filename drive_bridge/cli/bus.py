@@ -195,7 +195,7 @@ def cmd_jog(args) -> int:
     from ..tuning import motion
     config = options.config(args).only([args.axis])
     ncfg = config.nodes[args.axis]
-    unit = "m" if ncfg.linear else "rad"
+    k, unit = own_units(ncfg)
     for name, value in (("--to", args.to), ("--by", args.by), ("--speed", args.speed)):
         if value is not None and not math.isfinite(value):
             raise UserError(f"{name} must be a finite number [{unit}], got {value}")
@@ -204,7 +204,7 @@ def cmd_jog(args) -> int:
         level = float(ncfg.scaling.load_to_motor(args.speed)) / ncfg.limits.max_velocity
         if not 0 < level <= 1:
             raise UserError(f"--speed {args.speed} {unit}/s must be above 0 and within the axis's limit "
-                            f"{ncfg.limits.max_velocity / float(ncfg.scaling.load_to_motor(1.0)):.4g} {unit}/s")
+                            f"{ncfg.limits.max_velocity * k:.4g} {unit}/s")
 
     def target(ax) -> float:
         """Where the jog goes [rad motor side], from where ``ax`` stands (homed first where it homes)."""
@@ -229,12 +229,16 @@ def cmd_jog(args) -> int:
         moved = motion.run(config, session.link, {args.axis: ax}, {args.axis: np.array([target(ax)])}, kind="jog",
                            level=level, approach_level=level, on_plan=on_plan)
         holding = session.holding()
-    k = 1.0 / float(ncfg.scaling.load_to_motor(1.0))
     if moved.aborted is not None:
         raise moved.aborted
     print(f"{args.axis} at {float(moved.position[args.axis][-1]) * k:.6g} {unit}")
     print(holding_lines(holding))
     return 0
+
+
+def own_units(ncfg) -> tuple[float, str]:
+    """An axis's own unit (m for a linear axis, rad for a rotary one) and the factor from motor rad to it."""
+    return 1.0 / float(ncfg.scaling.load_to_motor(1.0)), "m" if ncfg.linear else "rad"
 
 
 def plan_lines(plan, config) -> str:
@@ -243,8 +247,7 @@ def plan_lines(plan, config) -> str:
     from ..master.campaign import plan_summary
     lines = []
     for a, d in plan_summary(plan, {n: config.nodes[n].limits for n in plan.axes}).items():
-        sc, unit = config.nodes[a].scaling, "m" if config.nodes[a].linear else "rad"
-        k = 1.0 / float(sc.load_to_motor(1.0))                 # motor rad -> the axis's own unit
+        k, unit = own_units(config.nodes[a])
         lim = d["limits"]
         jerk = "" if lim["max_jerk_rad_s3"] is None else f" / {lim['max_jerk_rad_s3'] * k:.4g}"
         lines.append(f"  {a}: from {d['start_rad'] * k:.4g} {unit}, spans {d['min_rad'] * k:.4g} .. "
@@ -269,8 +272,7 @@ def motion_preview(session, config, plans) -> str:
         lines += [f"{title}: {plan.duration:.1f} s of motion", plan_lines(plan, config)]
     for a, ax in axes.items():
         if (h := ax.cfg.homing) is not None:
-            k = 1.0 / float(ax.cfg.scaling.load_to_motor(1.0))
-            unit = "m" if ax.cfg.linear else "rad"
+            k, unit = own_units(ax.cfg)
             lines.append(f"  {a}: homes first (method {h.method}, {h.switch_speed * k:.4g} / {h.zero_speed * k:.4g} "
                          f"{unit}/s, within {h.timeout_s:g} s); its motion starts at its home")
         assumed = ax.units.get("assumed_from_bus_yml") or []

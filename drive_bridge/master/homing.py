@@ -20,7 +20,7 @@ from .bringup import AxisLink, read_back
 from .cia402 import CW_ENABLE, CW_SHUTDOWN, CW_SWITCH_ON, SW_FAULT
 from .link import Link
 from .settings import write_setting
-from .stream import quick_stop
+from .stream import check_heartbeats, quick_stop
 
 log = logging.getLogger(__name__)
 
@@ -72,8 +72,9 @@ def _home(link: Link, ax: AxisLink, config: BusConfig) -> None:
                                     f"{h.method} against how the axis is wired", ax.name)
             if sw & SW_ATTAINED and sw & SW_TARGET_REACHED:
                 break
-            if ax.last_heartbeat is not None and clock.now() - ax.last_heartbeat > config.master.heartbeat_timeout_s:
-                raise MotionAborted("its heartbeat stopped while homing", ax.name)
+            lost = check_heartbeats({ax.name: ax}, [ax.name], clock.now(), config.master.heartbeat_timeout_s)
+            if lost is not None:
+                raise lost
             if clock.now() > deadline:
                 raise MotionAborted(f"not homed within homing.timeout_s = {h.timeout_s:g} s (statusword 0x{sw:04X})",
                                     ax.name)

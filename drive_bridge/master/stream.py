@@ -409,7 +409,7 @@ def stream(link: Link, axes: dict[str, AxisLink], plan: Plan, *, heartbeat_timeo
                     if reason:
                         aborted = GuardStop(reason)
                 if aborted is None and k % check_every == 0:
-                    aborted = _check_heartbeats(axes, plan.axes, clock.now(), heartbeat_timeout) or \
+                    aborted = check_heartbeats(axes, plan.axes, clock.now(), heartbeat_timeout) or \
                         _check_bus(link, errors_at_start)
                 if aborted is not None:
                     if aborted.axis in buffer_cols and aborted.emcy:   # the buffer status names what a vendor's
@@ -713,7 +713,8 @@ def _check_row(rec, row, axes, sw_cols, names, misses, miss_limit, emcy_from) ->
     return None
 
 
-def _check_heartbeats(axes, names, now, timeout) -> MotionAborted | None:
+def check_heartbeats(axes, names, now, timeout) -> MotionAborted | None:
+    """The first of ``names`` whose drive's heartbeat has been silent longer than ``timeout`` [s]."""
     for name in names:
         last = axes[name].last_heartbeat
         if last is not None and now - last > timeout:

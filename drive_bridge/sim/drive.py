@@ -596,13 +596,17 @@ class SimDrive:
         else:
             self.homing_error = True                        # a method this drive does not have
 
-    def _on_switch(self, direction: int) -> bool:
-        """Whether the limit switch in ``direction`` is made (an axis without end stops has none)."""
+    def _switch_edge(self, direction: int) -> float | None:
+        """Where the limit switch in ``direction`` starts [rad, plant]; None on an axis without end stops."""
         stops = self.axis.end_stops_rad
         if stops is None:
-            return False
-        q = self.s[K.ENC]
-        return q <= stops[0] + LIMIT_SWITCH_INSET_RAD if direction < 0 else q >= stops[1] - LIMIT_SWITCH_INSET_RAD
+            return None
+        return stops[0] + LIMIT_SWITCH_INSET_RAD if direction < 0 else stops[1] - LIMIT_SWITCH_INSET_RAD
+
+    def _on_switch(self, direction: int) -> bool:
+        """Whether the limit switch in ``direction`` is made."""
+        edge = self._switch_edge(direction)
+        return edge is not None and (self.s[K.ENC] <= edge if direction < 0 else self.s[K.ENC] >= edge)
 
     def _homing_period(self, T: float) -> None:
         """One period of a homing on a limit switch: toward it at the switch speed 0x6099:1, off it at
@@ -617,9 +621,7 @@ class SimDrive:
         elif self.homing == "leave":
             self._ramp(-direction * self._od_or(0x6099, 2, 0) / self.vel_per_si, accel, T, limit=False)
             if not self._on_switch(direction):
-                stops = self.axis.end_stops_rad
-                edge = stops[0] + LIMIT_SWITCH_INSET_RAD if direction < 0 else stops[1] - LIMIT_SWITCH_INSET_RAD
-                self.origin_rad = edge - self._od_or(0x607C, 0, 0) / self.pos_per_rad
+                self.origin_rad = self._switch_edge(direction) - self._od_or(0x607C, 0, 0) / self.pos_per_rad
                 self.homing = "stop"
                 self.homing_attained = True
         else:
