@@ -400,11 +400,11 @@ def standing_others(s: Samples) -> set[str]:
 #: acceleration -- a rigid axis has no torque in it but J·q̈, and on a near-sinusoidal motion, whose
 #: acceleration is nearly proportional to position, a spline in it rebuilds J·q̈ and a gravity term alike
 #: and takes the inertia with it (a dependence on it stays in the unexplained list)
-OWN_ACCELERATION = ("direction", "acceleration")
+NO_SPLINE_IN = ("direction", "acceleration")
 
 
 def spline_candidates(present: list[Effect], s: Samples, residual: np.ndarray) -> list[Effect]:
-    """Even or odd splines in each variable the residual depends on (not in ``OWN_ACCELERATION``),
+    """Even or odd splines in each variable the residual depends on (not in ``NO_SPLINE_IN``),
     at each smoothness of ``SPLINE_KNOTS``."""
     have = {e.name for e in present}
     m = s.moving
@@ -412,7 +412,7 @@ def spline_candidates(present: list[Effect], s: Samples, residual: np.ndarray) -
     out: list[Effect] = []
     for d in dependences(s, residual, SPLINE_SHARE, SPLINE_P):
         name = f"spline_{d['form']}_{d['depends_on']}"
-        if d["depends_on"] in OWN_ACCELERATION or name in have or d["depends_on"].rsplit("_", 1)[0] in still:
+        if d["depends_on"] in NO_SPLINE_IN or name in have or d["depends_on"].rsplit("_", 1)[0] in still:
             continue                        # (another axis standing still: its signals are numerical dust)
         x = variables(s)[d["depends_on"]][m]
         low, high = float(np.min(x)), float(np.max(x))
