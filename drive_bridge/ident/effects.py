@@ -52,9 +52,10 @@ class Effect:
     #: torque is already; any other column is computed at the log's rate and filtered alike
     linear_in_signals: ClassVar[bool] = False
     #: friction-like: ``_columns`` is a magnitude, the columns are it times the direction of
-    #: motion.  Magnitude and direction are filtered apart (the direction as the Coulomb column
-    #: is) and multiplied: filtered whole, the product's step at each reversal would let the
-    #: column fit the torque's transient there, which the fit leaves out for good reason
+    #: motion, made at the log's rate and filtered whole, as the torque and the Coulomb column
+    #: are (the direction is zero at a standstill).  Filtered apart and multiplied, a magnitude
+    #: peaked at standstill (Stribeck) lost its step at each reversal to the low-pass while the
+    #: torque kept it: the mismatch, in the samples next to the reversals, read as inertia
     odd: ClassVar[bool] = False
 
     def get_params(self) -> dict:
@@ -89,7 +90,7 @@ class Effect:
         if self.linear_in_signals:
             return self._signed(s, self._columns(s, **learned))
         key = (type(self).__name__, str(self.get_params()), tuple(learned.values()))
-        return self._signed(s, s.parallel(key, lambda ch: self._columns(ch, **learned), logged, self.odd))
+        return s.parallel(key, lambda ch: self._signed(ch, self._columns(ch, **learned)), logged)
 
     def fit(self, s: Samples, fixed: np.ndarray, y: np.ndarray, seed: int = 0) -> "Effect":
         """Learn the nonlinear parameters on samples ``s`` against the observation ``y``, with the
@@ -198,7 +199,8 @@ class PositionPeriodic(Effect):
 
 
 class Stribeck(Effect):
-    """Extra friction near standstill: amplitude · exp(-(q̇/velocity)²) · sign(q̇).
+    """Extra friction near standstill: amplitude · exp(-(q̇/velocity)²) · sign(q̇), with q̇ over the
+    log's band: it changes within a filter period of each reversal.
 
     ``velocity`` [rad/s | m/s] starts the search over [``low``, ``high``]; ``fit`` learns ``velocity_``."""
 
@@ -212,7 +214,7 @@ class Stribeck(Effect):
         return {"velocity": (self.low, self.high)}
 
     def _columns(self, s, velocity):
-        return np.exp(-(s.qd / velocity) ** 2)[:, None]
+        return np.exp(-(s.qd_band / velocity) ** 2)[:, None]
 
     def params(self, coef):
         return {"amplitude": float(coef[0]), "velocity": self.velocity_}

@@ -17,7 +17,7 @@ from .identifiable import T_MIN, undetermined
 from .logdata import Log, read_log
 from .model import MAX_DELAY_SAMPLES, AxisModel, Errors, errors, torque_delay
 from .resonance import find_mode
-from .reversal import find_backlash
+from .reversal import find_reversal_transient
 from .signals import Samples, Settings, choose_settings, clipped_levels, noise_floor, prepare, whole_band
 from .trace import MIN_GAIN, TracedEffect, trace, unexplained
 
@@ -238,12 +238,18 @@ def identify_axis(log: Log, axis: str, val_log: Log | None = None, *, seed: int 
     result.undetermined = undetermined(result.model, result.est, result.after, result.consistency)
     _refit_for_the_drive(result, seed)
     predicted = result.model.predict(wide)
-    lash = find_backlash(wide, wide.tau_f - predicted, predicted, result.settings, seed)
-    if lash is not None:
-        result.backlash = lash
-        result.unexplained.append({"depends_on": f"{lash['reversal']}_reversal", "form": "even",
-                                   "kind": "backlash", "fraction": lash["share"], "evidence": None,
-                                   **{k: lash[k] for k in ("delay_ms", "ratio", "events")}})
+    found = find_reversal_transient(wide, wide.tau_f - predicted, predicted, result.settings, seed)
+    if found is not None:
+        standstill = found["reversal"] == "velocity"
+        if not standstill:
+            result.backlash = found
+        result.unexplained.append({"depends_on": f"{found['reversal']}_reversal",
+                                   "form": "odd" if standstill else "even",
+                                   "kind": "standstill_friction" if standstill else "backlash",
+                                   "fraction": found["share"], "evidence": None,
+                                   **{k: found[k] for k in ("delay_ms", "ratio", "events")},
+                                   **({"fitted_from": round(result.friction["velocity_range"][0], 4)}
+                                      if standstill else {})})
     return result
 
 

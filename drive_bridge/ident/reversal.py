@@ -1,4 +1,5 @@
-"""Backlash and impacts at torque reversal, in what the rigid model leaves.
+"""Backlash and impacts at torque reversal, in what the rigid model leaves -- told from friction
+at standstill, which gathers at the velocity's reversals instead.
 
 Where a transmission has play, the torque it carries changing sign opens the gap: the motor
 crosses it without the load and the load is struck when it closes.  The rigid model sees
@@ -18,7 +19,19 @@ both read as play.  The largest ratio of
 the reversal profile to the control profile over the bins is compared with the same statistic
 for ``PERMUTATIONS`` random relabellings of reversals and controls (seeded): play is reported
 only where the reversals beat every relabelling, stand ``MIN_RATIO`` above the controls and
-the excess holds ``MIN_SHARE`` of the residual power.  SI: s, the axis's torque unit.
+the excess holds ``MIN_SHARE`` of the residual power.
+
+Friction at standstill that the fitted samples do not reach (breakaway, Stribeck friction below
+the speeds fitted, stick-slip) leaves its transient at each reversal of the *velocity*, not of
+the transmitted torque; on a motion whose velocity reverses near an acceleration extreme it is
+still found after acceleration reversals, a quarter period later.  So the velocity's reversals
+are tested alike -- with two more conditions: the residual there acts against the motion
+(friction: its mean times the direction of motion, over each reversal's bins, above zero by
+``AGAINST_T`` standard errors; a step of the Coulomb column a sample early or late, as an averaged
+torque makes, leaves a residual with the motion instead), and it does so on the way into each
+reversal as on the way out (friction at low speed acts on both sides of a standstill; a mode the
+reversal excites, or an impact, only follows it) -- and whichever reversal holds the larger
+excess names the cause.  SI: s, the axis's torque unit.
 """
 from __future__ import annotations
 
@@ -36,6 +49,9 @@ CONTROL_LEVEL = 0.3     # control instants: crossings of ±30 % of the signal's 
 PERMUTATIONS = 200      # relabellings of reversals and controls: the statistic's null distribution
 MIN_RATIO = 1.5         # the peak bin's mean residual power after reversals over that after controls
 MIN_SHARE = 0.05        # the share of the residual power in excess near the peak
+STANDSTILL_SHARE = 0.1  # ... after the velocity's reversals: a rigid model fitted while moving leaves some
+                        # there on any axis that sticks (0.06 on the simulated Y), Stribeck friction more
+AGAINST_T = 5.0         # ... and acts against the motion by this many standard errors over the reversals
 
 
 def reversals(x: np.ndarray, moving: np.ndarray, hysteresis: float = HYSTERESIS) -> tuple[np.ndarray, np.ndarray]:
@@ -77,12 +93,24 @@ def _ratio(p: np.ndarray, c: np.ndarray, is_rev: np.ndarray) -> np.ndarray:
     return rev / np.maximum(ctl, 1e-300)
 
 
-def find_backlash(s: Samples, resid: np.ndarray, predicted: np.ndarray, settings: Settings,
-                  seed: int = 0) -> dict | None:
-    """Residual energy concentrated after torque reversals beyond what equally sharp changes
-    without reversal leave: which reversal (``acceleration``: the inertial torque, ``torque``:
-    the model's), the delay of the peak [ms], its ratio to the controls, the share of the
-    residual power in excess, the number of reversals; None when there is none."""
+def _against(resid: np.ndarray, s: Samples, ev: np.ndarray, width: int) -> float:
+    """How many standard errors (over the instants ``ev``) the residual times the direction of motion,
+    averaged over the moving samples of the ``width`` after each instant, stands above zero."""
+    against = np.where(s.moving, resid * np.sign(s.qd), np.nan)
+    means = [np.nanmean(against[e:e + width]) for e in ev[ev >= 0] if s.moving[e:e + width].any()]
+    if len(means) < 2:
+        return 0.0
+    spread = float(np.std(means, ddof=1))
+    return float(np.mean(means)) / spread * np.sqrt(len(means)) if spread > 0 else 0.0
+
+
+def find_reversal_transient(s: Samples, resid: np.ndarray, predicted: np.ndarray, settings: Settings,
+                            seed: int = 0) -> dict | None:
+    """Residual energy concentrated after reversals beyond what equally sharp changes without
+    reversal leave: which reversal (``acceleration``: the inertial torque, ``torque``: the
+    model's -- backlash; ``velocity``: friction at standstill), the delay of the peak [ms], its
+    ratio to the controls, the share of the residual power in excess, the number of reversals;
+    None when there is none."""
     m = s.moving
     power = np.concatenate(([0.0], np.cumsum(np.where(m, resid ** 2, 0.0))))
     count = np.concatenate(([0], np.cumsum(m)))
@@ -91,9 +119,9 @@ def find_backlash(s: Samples, resid: np.ndarray, predicted: np.ndarray, settings
     sos = signal.butter(FILTER_ORDER, settings.cutoff_hz, fs=settings.rate_hz, output="sos")
     rng = np.random.default_rng(seed)
     found = []
-    for name, x in (("acceleration", s.qdd), ("torque", predicted)):
+    for name, x in (("acceleration", s.qdd), ("torque", predicted), ("velocity", s.qd)):
         xf = signal.sosfiltfilt(sos, x)
-        ev, took = reversals(xf, m)
+        ev, took = reversals(xf, m if name != "velocity" else np.ones_like(m))   # (the velocity's: at rest)
         if len(ev) < MIN_EVENTS:
             continue
         gap = float(np.median(np.diff(ev)))
@@ -117,6 +145,9 @@ def find_backlash(s: Samples, resid: np.ndarray, predicted: np.ndarray, settings
         k = int(np.argmax(ratio))
         ctl_level = p[~is_rev, k].sum() / max(c[~is_rev, k].sum(), 1)
         excess = (p[is_rev, k].sum() - ctl_level * c[is_rev, k].sum()) / power[-1]
+        if name == "velocity" and (excess < STANDSTILL_SHARE or min(
+                _against(resid, s, ev + side * BINS * width, BINS * width) for side in (-1, 0)) < AGAINST_T):
+            continue
         if ratio[k] > null and ratio[k] >= MIN_RATIO and excess >= MIN_SHARE:
             found.append({"reversal": name, "delay_ms": round(1e3 * (k + 0.5) * width / settings.rate_hz, 1),
                           "ratio": round(float(ratio[k]), 2), "share": round(float(excess), 3),

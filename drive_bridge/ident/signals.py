@@ -76,6 +76,11 @@ class Samples:
     index: np.ndarray | None = None     # ... and which of its samples these are
     rotary: bool = False                # a joint whose position is its angle (one turn: 2π)
 
+    @property
+    def qd_band(self) -> np.ndarray:
+        """The velocity over the samples' whole band: the filtered one (see :class:`Channels`)."""
+        return self.qd
+
     def take(self, mask: np.ndarray) -> "Samples":
         index = np.arange(len(self)) if self.index is None else self.index
         return Samples(self.axis, self.t[mask], self.q[mask], self.qd[mask], self.qdd[mask], self.sgn[mask],
@@ -83,16 +88,14 @@ class Samples:
                        {a: tuple(x[mask] for x in v) for a, v in self.others.items()}, self.source, index[mask],
                        self.rotary)
 
-    def parallel(self, key, columns: Callable[["Channels"], np.ndarray], logged: bool = False,
-                 odd: bool = False) -> np.ndarray:
+    def parallel(self, key, columns: Callable[["Channels"], np.ndarray], logged: bool = False) -> np.ndarray:
         """``columns`` (a function of the signals, n × k) at these samples, computed at the log's
         rate and filtered and decimated as the torque is (``logged``: as the torque as logged
         is, by the mean over each decimation interval); at the samples as they are when they
-        carry no source.  ``key`` names the function for the source's cache; ``odd``: the
-        magnitude of a column the direction ``sgn`` multiplies (which is zero at a standstill)."""
+        carry no source.  ``key`` names the function for the source's cache."""
         if self.source is None:
             return columns(self)
-        cols = self.source.columns(key, columns, logged, odd)
+        cols = self.source.columns(key, columns, logged)
         return cols if self.index is None else cols[self.index]
 
     def __len__(self) -> int:
@@ -103,7 +106,9 @@ class Samples:
 class Channels:
     """The signals of one segment at the log's rate, as the regressor columns read them: logged
     position (what a position-periodic torque follows), velocity and acceleration of the
-    filtered position, the direction of motion unfiltered, the other axes alike, the
+    filtered position, the velocity over the log's band (``qd_band``: for a torque that changes
+    within a filter period of a reversal, as Stribeck friction does, which the filtered
+    velocity would smear), the direction of motion unfiltered, the other axes alike, the
     torque as logged, and where the axis is moving: the torque, and every column, count only
     there before the low-pass (:func:`standing`)."""
 
@@ -115,6 +120,7 @@ class Channels:
     others: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]
     tau: np.ndarray
     gate: np.ndarray         # 0 where the encoder shows the axis standing still, else 1
+    qd_band: np.ndarray      # the logged position's derivative (the differentiator's own band)
 
     def __len__(self) -> int:
         return len(self.t)
@@ -134,9 +140,8 @@ class Parallel:
     _cache: dict = field(default_factory=dict, repr=False)
     _segments: list = field(default_factory=list, repr=False)
 
-    def columns(self, key, columns: Callable[[Channels], np.ndarray], logged: bool = False,
-                odd: bool = False) -> np.ndarray:
-        if (key, logged, odd) not in self._cache:
+    def columns(self, key, columns: Callable[[Channels], np.ndarray], logged: bool = False) -> np.ndarray:
+        if (key, logged) not in self._cache:
             sos, r = self.sos, self.settings.decimation
             parts = []
             for keep, ch in self.segments():
@@ -144,10 +149,10 @@ class Parallel:
                 if logged:
                     parts.append(np.column_stack([_interval_mean(x[:, j], r)[keep][::r] for j in range(x.shape[1])]))
                 else:
-                    xf = signal.sosfiltfilt(sos, x if odd else x * ch.gate[:, None], axis=0)[keep]
+                    xf = signal.sosfiltfilt(sos, x * ch.gate[:, None], axis=0)[keep]
                     parts.append(np.column_stack([_decimate(xf[:, j], self.settings) for j in range(x.shape[1])]))
-            self._cache[key, logged, odd] = np.concatenate(parts)[:self.length]
-        return self._cache[key, logged, odd]
+            self._cache[key, logged] = np.concatenate(parts)[:self.length]
+        return self._cache[key, logged]
 
     @cached_property
     def sos(self) -> np.ndarray:
@@ -174,8 +179,8 @@ class Parallel:
                 # sign, too), then read at the torque's as the positions are
                 sgn = np.sign(_delayed_steps(direction(raw, _delayed(qd, -lag)), lag))
                 gate = 1.0 - np.ceil(_delayed_steps(standing(raw).astype(float), lag))
-                self._segments.append((keep, Channels(self.log.t[sl], q, qd, qdd, sgn,
-                                                      others, self.log.axes[self.axis].tau[sl], gate)))
+                self._segments.append((keep, Channels(self.log.t[sl], q, qd, qdd, sgn, others,
+                                                      self.log.axes[self.axis].tau[sl], gate, derivative(q, dt))))
         return self._segments
 
 

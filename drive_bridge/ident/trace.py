@@ -269,6 +269,11 @@ def describe_unexplained(d: dict) -> str:
         return (f"a resonance at {d['frequency_hz']:.3g} Hz (damping ratio ≈ {d['damping']:.2g}) holds "
                 f"{d['fraction']:.0%} of the residual over the log's whole band: a compliant transmission the "
                 f"rigid model lacks{moved}")
+    if d.get("kind") == "standstill_friction":
+        return (f"the residual gathers {d['ratio']:.2g}× its usual power about {d['delay_ms']:.3g} ms after each "
+                f"reversal of the velocity ({d['events']} of them; {d['fraction']:.0%} of the residual over the "
+                f"log's whole band): friction at standstill the model lacks (breakaway, Stribeck friction or "
+                f"stick-slip) at speeds below those fitted ({d['fitted_from']:.3g}/s and up), not play")
     if d.get("kind") == "backlash":
         return (f"the residual gathers {d['ratio']:.2g}× its usual power about {d['delay_ms']:.3g} ms after each "
                 f"{d['depends_on'].replace('_', ' ')} ({d['events']} of them; {d['fraction']:.0%} of the residual "

@@ -184,3 +184,47 @@ def trapezoid_log(acceleration: float, *, velocity: float = 20.0, stroke: float 
     inc = 2 ** 16 / (2 * np.pi)
     return {"time_s": stamps, "y_position_rad": np.floor(np.interp(stamps, t, q) * inc) / inc,
             "y_torque_Nm": np.round(np.interp(stamps, t, tau) + noise_Nm * rng.standard_normal(len(stamps)), 3)}
+
+
+def two_mass_log(duration_s: float = 40.0, *, J_motor: float = 0.6e-4, J_load: float = 0.4e-4,
+                 locked_hz: float = 45.0, zeta: float = 0.02, c0: float = 0.3, c1: float = 5e-4,
+                 velocity_loop_hz: float = 150.0, noise_Nm: float = 0.004, seed: int = 0,
+                 fs_int: float = 20_000.0) -> dict[str, np.ndarray]:
+    """A motor driving a load through a lightly damped spring, its velocity loop stiff: a PI on the
+    motor's velocity whose crossover ``velocity_loop_hz`` lies far above the mode, so the motor is
+    held and the load rings against it at its locked-motor frequency ``locked_hz`` (√(k/J_load)/2π,
+    damping ratio ``zeta``); a P position loop at an eighth of that, tracking three sines (0.3, 0.9,
+    2.3 Hz) faded in over 2 s.  Friction c1·q̇ + c0·sign(q̇) acts on the motor, which sticks while
+    the net torque stays within c0.  Its own structure and reference, not ``closed_loop_log``'s.
+    Columns as ``closed_loop_log``'s, logged at 1 kHz (the encoder's 2¹⁶ counts a turn)."""
+    T = 1.0 / fs_int
+    k = (2 * np.pi * locked_hz) ** 2 * J_load
+    d = 2 * zeta * np.sqrt(k * J_load)
+    n = int(duration_s * fs_int)
+    t = np.arange(n) * T
+    fade = 0.5 * (1 - np.cos(np.pi * np.minimum(t / 2.0, 1.0)))
+    q_ref = fade * sum(a * np.sin(2 * np.pi * f * t + i) for i, (a, f) in enumerate(((5.0, 0.3), (2.0, 0.9),
+                                                                                   (0.6, 2.3))))
+    v_ref = np.gradient(q_ref, T)
+    wc = 2 * np.pi * velocity_loop_hz
+    kv, ti, kp = J_motor * wc, 4 / wc, wc / 8
+    qm = vm = ql = vl = integ = 0.0
+    q, tau = np.empty(n), np.empty(n)
+    for i in range(n):
+        e = kp * (q_ref[i] - qm) + v_ref[i] - vm
+        integ += e * T / ti
+        u = kv * (e + integ)
+        spring = k * (qm - ql) + d * (vm - vl)
+        vl += T * spring / J_load
+        ql += T * vl
+        net = u - spring
+        if not (vm == 0.0 and abs(net) <= c0):
+            v_new = vm + T / J_motor * (net - c1 * vm - c0 * (np.sign(vm) if vm != 0.0 else np.sign(net)))
+            vm = 0.0 if vm != 0.0 and v_new * vm < 0 else v_new
+        qm += T * vm
+        q[i], tau[i] = qm, u
+    stamps = np.arange(int(duration_s * 1000)) / 1000.0
+    rng = np.random.default_rng(seed)
+    inc = 2 ** 16 / (2 * np.pi)
+    return {"time_s": stamps, "y_position_rad": np.floor(np.interp(stamps, t, q) * inc) / inc,
+            "y_torque_Nm": np.round(np.interp(stamps, t, tau) + noise_Nm * rng.standard_normal(len(stamps)), 3)}
