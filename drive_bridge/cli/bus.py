@@ -82,7 +82,8 @@ def register(sub) -> None:
                                    "consumers.")
     p.add_argument("--config", default=str(DEFAULT_BUS_CONFIG),
                    help="bus configuration: the drives' node-IDs and EDS/DCFs, the SYNC period (default: shipped)")
-    p.add_argument("--sim-config", help="simulator YAML: the plant (default: the shipped robot)")
+    p.add_argument("--sim-config", help="simulator YAML: the plant, or a shipped robot by name: robot (the "
+                   "default), compliant (Y on a lightly damped spring)")
     p.add_argument("-i", "--interface", default="udp_multicast", help="python-can interface (default udp_multicast)")
     p.add_argument("-c", "--channel", type=options.can_channel,
                    help="python-can channel (default: udp_multicast's group 239.74.163.2)")

@@ -6,7 +6,8 @@ from . import bus, options
 
 def register(sub) -> None:
     from ..commission import STEPS
-    p = sub.add_parser("commission", help="the whole job: scan, bring-up, campaign, identify, tune, write, validate",
+    p = sub.add_parser("commission", help="the whole job: scan, bring-up, campaign, identify, measure, tune, write, "
+                                          "validate",
                        description="Every step in one run directory (--out), resumable after the last completed "
                                    "step; summary.json and a self-contained report.html whatever happens.")
     options.drive(p, params=False)
@@ -30,11 +31,20 @@ def cmd_commission(args) -> int:
     options.out_dir(args.out)
     config = options.config(args)
     steps = options.axes_list(args.steps)
-    moving = [s for s in ("campaign", "validate") if steps is None or s in steps]
+    moving = [s for s in ("campaign", "measure", "validate") if steps is None or s in steps]
     if moving or args.dry_run:
+        from ..params.profile import DEFAULT_PROFILE, load_profile
+        profile = load_profile(options.session_options(args).profile or config.profile or DEFAULT_PROFILE)
+
         def plans(axes):
+            from ..tuning.measure import measure_plans
             out = bus.campaign_plans(config)(axes) if "campaign" in moving else []
             end = {a: float(out[0][1].demand[-1, i]) for i, a in enumerate(out[0][1].axes)} if out else None
+            if "measure" in moving:
+                measured = measure_plans(config, axes, profile,
+                                         end or {a: ax.start_rad() for a, ax in axes.items()})
+                end = {**(end or {}), **{p.axes[0]: float(p.demand[-1, 0]) for _, p in measured}} or None
+                out += measured
             return out + (bus.validate_plans(config, "each scenario the gain gate admits")(axes, end)
                           if "validate" in moving else [])
         if args.dry_run:

@@ -22,7 +22,8 @@ def bus(p: argparse.ArgumentParser) -> None:
                    help="bus configuration (default: the simulated robot's, shipped with drive-bridge)")
     p.add_argument("--sim", action="store_true", help="run against the simulated robot in-process")
     p.add_argument("--realtime", action="store_true", help="with --sim: wall clock instead of lockstep")
-    p.add_argument("--sim-config", help="with --sim: simulator YAML (default: the shipped robot)")
+    p.add_argument("--sim-config", help="with --sim: simulator YAML, or a shipped robot by name: robot (the default), "
+                   "compliant (Y on a lightly damped spring)")
     p.add_argument("-i", "--interface", help="python-can interface (socketcan, pcan, kvaser, vector ...; default: "
                                              "bus.yml master.interface, else python-can's configuration)")
     p.add_argument("-c", "--channel", type=can_channel,

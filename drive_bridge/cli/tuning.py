@@ -13,8 +13,8 @@ from ..params.check import screen
 from ..params.read import drive_state
 from ..params.write import raise_for_failure, write_drives
 from ..session import Session
-from ..tuning.tune import (GAINS, drive_model, read_identify_json, read_tune_json, tune_axes, tune_doc,
-                           unwritable_effects)
+from ..tuning.tune import (GAINS, drive_model, read_frf_json, read_identify_json, read_tune_json, tune_axes,
+                           tune_doc, unwritable_effects)
 from . import options
 from .bus import degraded_exit, dry_run_end, holding_lines, motion_preview, validate_plans
 
@@ -26,6 +26,8 @@ def register(sub) -> None:
     options.drive(p, params=False)
     p.add_argument("--ident", required=True, help="identify --json output (identify.json)")
     p.add_argument("--out", default="tune.json", help="where to write the result (default: %(default)s)")
+    p.add_argument("--frf", help="frf.json of commission's measure step: keep the margins on each axis's measured "
+                                 "response too (the worse counts)")
     p.add_argument("--experiment", action="store_true", help="also run the paper's gain-raising procedure on the drive "
                                                                 "(each gain through the same gate as write's)")
     options.motion(p)
@@ -89,10 +91,11 @@ def _motor_given(args, axes) -> dict[str, dict]:
 def cmd_tune(args) -> int:
     from ..tuning.experiment import run_experiment
     models = read_identify_json(args.ident)
+    frfs = read_frf_json(args.frf) if args.frf else None
     if args.offline:
         if args.experiment or args.sim:
             raise UserError("--offline designs without a bus: it does not go with --experiment or --sim")
-        results = tune_axes(models, _motor_given(args, list(models)))
+        results = tune_axes(models, _motor_given(args, list(models)), frfs)
     else:
         config = options.config(args)
         config = config.only(_axes_in(config, models, args.ident))
@@ -105,7 +108,7 @@ def cmd_tune(args) -> int:
                 return dry_run_end(text)
             options.confirm_motion(args, config, "tune --experiment", lambda: text)
         with Session(config, options.session_options(args)) as session:
-            results = tune_axes(models, drive_state(session.axes, session.profile, session.options.motor))
+            results = tune_axes(models, drive_state(session.axes, session.profile, session.options.motor), frfs)
             if args.experiment:
                 for a, t in results.items():
                     t.experiment = run_experiment(config, session.link, session.axes, a, session.profile,

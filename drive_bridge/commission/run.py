@@ -39,6 +39,8 @@ WHAT = {"scan": "find the configured drives on the bus",
         "bringup": "configure the drives, read their parameters as they are",
         "campaign": "excitation campaign, every axis (the robot moves)",
         "identify": "J, c0, c1 and residual tracing",
+        "measure": "each axis's frequency response through its drive: a slow sweep with a torque-offset "
+                   "multisine, soft gains (the robot moves)",
         "tune": "gains from the identified models, margins",
         "write": "transactional write: backup, write, verify, store",
         "validate": "reference trajectories, before vs after (the robot moves)"}

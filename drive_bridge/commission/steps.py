@@ -15,13 +15,14 @@ from ..params.read import drive_state
 from ..params.write import raise_for_failure, write_drives
 from ..progress import StepReporter
 from ..session import Session
-from ..tuning.tune import drive_model, read_identify_json, read_tune_json, tune_axes, tune_doc, unwritable_effects
+from ..tuning.tune import (drive_model, read_frf_json, read_identify_json, read_tune_json, tune_axes, tune_doc,
+                           unwritable_effects)
 from ..tuning import validate as V
 from ..tuning.validate import degraded, run_scenarios, stopped
 
 #: where each step keeps its output, relative to the run directory
 OUTPUT = {"scan": "scan.json", "bringup": "bringup.json", "campaign": "campaign", "identify": "identify",
-          "tune": "tune.json", "write": "write", "validate": "validate"}
+          "measure": "frf.json", "tune": "tune.json", "write": "write", "validate": "validate"}
 IDENTIFY_JSON = "identify/identify.json"
 WRITE_JSON = "write/write.json"
 VALIDATE_JSON = f"{OUTPUT['validate']}/{V.VALIDATE_JSON}"
@@ -106,19 +107,42 @@ def identify(ctx: Context) -> str:
         f"{r.after.rmse:.3g} {r.units['torque']}" for a, r in results.items())
 
 
+def measure(ctx: Context) -> str:
+    from ..tuning.measure import frf_doc, measure_axes
+    models = read_identify_json(ctx.require(IDENTIFY_JSON))
+    axes = ctx.session.axes
+    try:
+        frfs, skipped = measure_axes(ctx.config, ctx.session.link, axes, ctx.session.profile,
+                                     {a: models[a]["J"] for a in axes}, on_plan=ctx.reporter.motion)
+    finally:
+        ctx.reporter.end_motion()
+    write_json(ctx.out / OUTPUT["measure"], frf_doc(frfs, skipped))
+    return "; ".join([f"{a}: {int(f.reliable().sum())} bins from {f.frequency_hz[f.reliable()].min():.3g} to "
+                      f"{f.frequency_hz[f.reliable()].max():.3g} Hz" for a, f in frfs.items()]
+                     + [f"{a}: not measured, tuned on the model alone: {why}" for a, why in skipped.items()])
+
+
+def _measured(ctx: Context) -> dict | None:
+    """The axes' measured responses, where the measure step ran."""
+    path = ctx.out / OUTPUT["measure"]
+    return read_frf_json(path) if path.exists() else None
+
+
 def tune(ctx: Context) -> str:
     models = read_identify_json(ctx.require(IDENTIFY_JSON))
     state = ctx.read_json(OUTPUT["bringup"])["axes"]
     missing = [a for a in ctx.config.nodes if a not in state]
     if missing:
         raise UserError(f"axis {missing[0]}: not in {ctx.out / OUTPUT['bringup']}; rerun the bringup step")
-    doc = tune_doc(tune_axes(models, {a: state[a] for a in ctx.config.nodes}),
+    doc = tune_doc(tune_axes(models, {a: state[a] for a in ctx.config.nodes}, _measured(ctx)),
                    unwritable_effects(ctx.require(IDENTIFY_JSON)))
     write_json(ctx.out / OUTPUT["tune"], doc)
     from ..tuning.loops import loop_figure
+    frfs = _measured(ctx) or {}
     for a, d in doc["axes"].items():
         loop_figure(d["model"]["J"], d["model"]["c1"], d["gains_before"] or None, d["gains"], d["motor"]["L"],
-                    ctx.out / LOOPS.format(axis=a), f"axis {a}: loops on the identified model")
+                    ctx.out / LOOPS.format(axis=a), f"axis {a}: loops on the identified model"
+                    + (" (lines) and on the measured plant (points)" if a in frfs else ""), frfs.get(a))
     return "; ".join(f"{a}: KpS {d['gains_before'].get('KpS', float('nan')):.3g} → {d['gains']['KpS']:.3g}, "
                      f"KpP {d['gains']['KpP']:.0f}, PM {d['margins']['velocity']['phase_margin_deg']:.1f}°, "
                      f"GM {d['margins']['velocity']['gain_margin_db']:.1f} dB"
@@ -136,7 +160,7 @@ def write(ctx: Context) -> str:
                            backup_dir=out, dcf_dir=out, inductance=tuned.inductance, force=o.force,
                            pm_floor=o.pm_floor, gm_floor=o.gm_floor, allow_unverified_scales=o.writes_unverified,
                            bitrate=ctx.config.master.nominal_bitrate,
-                           settings_before={a: ax.before for a, ax in axes.items()})
+                           settings_before={a: ax.before for a, ax in axes.items()}, frf=_measured(ctx))
     write_json(ctx.out / WRITE_JSON, outcome.as_dict())
     raise_for_failure(outcome, out)
     results = outcome.results
@@ -173,4 +197,4 @@ def validate(ctx: Context) -> str:
 
 
 STEP_FUNCTIONS = {"scan": scan, "bringup": bringup, "campaign": campaign, "identify": identify,
-                  "tune": tune, "write": write, "validate": validate}
+                  "measure": measure, "tune": tune, "write": write, "validate": validate}

@@ -31,10 +31,11 @@ def worse(a: dict) -> list[str]:
     gb, ga = a.get("gains_before") or {}, a.get("gains_after") or {}
     for traj, v in (a.get("validation") or {}).items():
         name = traj.replace("_", "-")
-        if v.get("torque_rmse_before") and v["torque_rmse_after"] > v["torque_rmse_before"] * RISE:
+        # (a run that stopped has no 'after': nothing to compare)
+        if v.get("torque_rmse_before") and (v.get("torque_rmse_after") or 0.0) > v["torque_rmse_before"] * RISE:
             notes.append(_torque(name, v))
         for key, what in (("fe_rms", "following error RMS"), ("fe_max", "largest following error")):
-            if v.get(f"{key}_before") and v[f"{key}_after"] > v[f"{key}_before"] * RISE:
+            if v.get(f"{key}_before") and (v.get(f"{key}_after") or 0.0) > v[f"{key}_before"] * RISE:
                 notes.append(f"{name}: {what} {v[f'{key}_before'] * 1e3:.3g} → {v[f'{key}_after'] * 1e3:.3g} mrad: "
                              f"the new gains follow this trajectory worse than the factory set (the verdict says "
                              f"whether that fails the axis).")

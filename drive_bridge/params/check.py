@@ -18,7 +18,7 @@ import numpy as np
 from canopen.objectdictionary import datatypes
 
 from ..errors import UserError
-from ..tuning.design import loop_margins
+from ..tuning.design import Margins, loop_margins, measured_margins
 from .profile import Entry, Profile
 
 log = logging.getLogger(__name__)
@@ -89,7 +89,8 @@ def check_set(profile: Profile, od: canopen.ObjectDictionary, values: dict) -> l
 
 @dataclass
 class MarginCheck:
-    """The margins of the gains written, on the model they were designed for."""
+    """The margins of the gains written, on the model they were designed for (and on the plant's
+    measured response where there is one: the worse of the two)."""
 
     phase_margin_deg: float
     gain_margin_db: float
@@ -106,10 +107,13 @@ def written_si(profile: Profile, values: dict) -> dict[str, float]:
 
 
 def check_margins(profile: Profile, values: dict, L: float | None, *,
-                  pm_floor: float = PM_FLOOR_DEG, gm_floor: float = GM_FLOOR_DB) -> tuple[dict, str | None]:
+                  pm_floor: float = PM_FLOOR_DEG, gm_floor: float = GM_FLOOR_DB, frf=None) -> tuple[dict, str | None]:
     """Velocity- and position-loop margins of the gains in ``values``, as written, on the model
-    of the same set (J, c1) with motor inductance ``L`` [H]; and why the set must not be written
-    (None: it may).  A set without gains, or without J, cannot be checked: that is a reason too."""
+    of the same set (J, c1) with motor inductance ``L`` [H] and, where the axis's response was
+    measured (``frf``: :class:`~drive_bridge.ident.frf.Frf`), on that too -- the worse of the two; a
+    loop whose crossover lies above the band measured is not verified -- and why the set must not
+    be written (None: it may).  A set without gains, or without J, cannot be checked: that is a
+    reason too."""
     gains = ("KpP", "KpS", "KiS", "KpC")
     if not any(g in values for g in gains):
         return {}, None                                   # no gains in this set: nothing to check
@@ -118,14 +122,22 @@ def check_margins(profile: Profile, values: dict, L: float | None, *,
         what = ", ".join(missing) or ("the model's J" if not values.get("J") else "the motor inductance L")
         return {}, f"the loop margins cannot be checked without {what}"
     w = written_si(profile, {g: values[g] for g in gains})
-    velocity, position = loop_margins(values["J"], max(values.get("c1", 0.0), 0.0), w, 0.0, L)
+    model = loop_margins(values["J"], max(values.get("c1", 0.0), 0.0), w, 0.0, L)
+    measured = measured_margins(w, frf, w["KpC"] / L) if frf is not None else (None, None)
+    unverified = [name for name, m in zip(("velocity", "position"), measured) if frf is not None and m is None]
+    worse = [m if other is None else Margins(min(m.phase_margin_deg, other.phase_margin_deg),
+                                             min(m.gain_margin_db, other.gain_margin_db), m.crossover_hz)
+             for m, other in zip(model, measured)]
     out = {name: MarginCheck(m.phase_margin_deg, m.gain_margin_db,
-                             m.phase_margin_deg >= pm_floor and m.gain_margin_db >= gm_floor)
-           for name, m in (("velocity", velocity), ("position", position))}
+                             name not in unverified and m.phase_margin_deg >= pm_floor and m.gain_margin_db >= gm_floor)
+           for name, m in zip(("velocity", "position"), worse)}
+    where = "on the identified model" + (" and the measured response" if frf is not None else "")
     bad = [f"{name} loop PM {m.phase_margin_deg:.1f}° / GM {m.gain_margin_db:.1f} dB" for name, m in out.items()
-           if not m.ok]
-    reason = (f"{' and '.join(bad)} on the identified model, below the floor of {pm_floor:g}° / {gm_floor:g} dB"
-              if bad else None)
+           if not m.ok and name not in unverified]
+    reason = "; ".join(([f"{' and '.join(bad)} {where}, below the floor of {pm_floor:g}° / {gm_floor:g} dB"]
+                        if bad else []) +
+                       [f"the {name} loop crosses over above the band its response was measured in: not verified"
+                        for name in unverified]) or None
     return {k: v.as_dict() for k, v in out.items()}, reason
 
 
@@ -141,11 +153,12 @@ class GateResult:
 
 def screen(profile: Profile, values: dict[str, dict], inductance: dict[str, float | None], *, force: bool = False,
            pm_floor: float = PM_FLOOR_DEG, gm_floor: float = GM_FLOOR_DB, allow_unverified_scales: bool = False,
-           dry_run: bool = False) -> tuple[GateResult, str | None]:
+           dry_run: bool = False, frf: dict | None = None) -> tuple[GateResult, str | None]:
     """The one check every gain set passes before it reaches a drive (``write``, ``validate``):
     scales with a documented source (else only with ``allow_unverified_scales``; a dry run shows
     them), and the loop margins of each axis's set on its model (J, c1) with the motor inductance
-    ``inductance[axis]`` [H] above the floor (else only with ``force``, recorded).  What passed,
+    ``inductance[axis]`` [H] -- and on its measured response, where ``frf`` has one -- above the
+    floor (else only with ``force``, recorded).  What passed,
     and why the sets must not reach the drives (None: they may; ranges are :func:`check_set`'s)."""
     unverified = sorted({f"{k} ({profile.entries[k].where()})" for v in values.values() for k in v
                          if k in profile.entries and not profile.entries[k].verified})
@@ -156,7 +169,8 @@ def screen(profile: Profile, values: dict[str, dict], inductance: dict[str, floa
             f"them anyway")
     margins, refused, forced = {}, [], []
     for a, v in values.items():
-        margins[a], reason = check_margins(profile, v, inductance.get(a), pm_floor=pm_floor, gm_floor=gm_floor)
+        margins[a], reason = check_margins(profile, v, inductance.get(a), pm_floor=pm_floor, gm_floor=gm_floor,
+                                           frf=(frf or {}).get(a))
         if reason:
             (forced if force else refused).append(f"axis {a}: {reason}")
     for reason in forced:

@@ -400,10 +400,11 @@ def write_drives(nodes: dict[str, canopen.RemoteNode], profile: Profile, values:
                  inductance: dict[str, float | None] | None = None, force: bool = False,
                  pm_floor: float = PM_FLOOR_DEG, gm_floor: float = GM_FLOOR_DB,
                  allow_unverified_scales: bool = False, bitrate: int = 1_000_000,
-                 settings_before: dict[str, dict[str, int]] | None = None) -> WriteOutcome:
+                 settings_before: dict[str, dict[str, int]] | None = None, frf: dict | None = None) -> WriteOutcome:
     """The write step: every value checked, and each drive's gains checked against the model in
     its set (J, c1) with its motor ``inductance`` [H] (from the tune result, else the motor
-    data objects the profile names) (margins of the values as written, floor
+    data objects the profile names) and against its measured response where ``frf`` has one
+    (margins of the values as written, the worse of the two, floor
     ``pm_floor`` / ``gm_floor``; ``force`` writes a set below it and records that); then with
     ``dry_run`` each drive's old and new values, nothing written, else one transaction over
     every drive (:func:`write_all`, backups in ``backup_dir``, what bring-up overwrote in
@@ -423,7 +424,7 @@ def write_drives(nodes: dict[str, canopen.RemoteNode], profile: Profile, values:
             except BusError:
                 L[a] = None
     checked = gate(profile, values, L, force=force, pm_floor=pm_floor, gm_floor=gm_floor,
-                   allow_unverified_scales=allow_unverified_scales, dry_run=dry_run)
+                   allow_unverified_scales=allow_unverified_scales, dry_run=dry_run, frf=frf)
     _Transaction(nodes, profile, results, _backup_paths(nodes, backup_dir), settings_before).run(True, dry_run)
     outcome = WriteOutcome(results, checked.margins, checked.forced, list(nodes), checked.unverified)
     if dcf_dir is not None and not dry_run and outcome.ok:

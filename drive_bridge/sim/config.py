@@ -12,12 +12,15 @@ from pathlib import Path
 from ..yamlconf import Section, load_yaml
 
 DEFAULT_CONFIG = Path(__file__).with_name("robot.yaml")
+#: simulated robots shipped with the package, by the name ``--sim-config`` takes instead of a path
+SHIPPED = {"robot": DEFAULT_CONFIG, "compliant": Path(__file__).with_name("robot_compliant.yaml")}
 
 #: the range of each effect value the plant can run with (low, high)
 RANGES = {"torque_Nm": (-100.0, 100.0), "amplitude_Nm": (-100.0, 100.0), "period_rad": (1e-3, 1e6),
           "phase_rad": (-100.0, 100.0), "velocity_rad_s": (1e-6, 1e6), "dc0_Nm": (-100.0, 100.0),
           "dc1_Nm_s_rad": (-100.0, 100.0), "coefficient_Nm_per_rad": (-100.0, 100.0), "fraction": (-10.0, 10.0),
-          "time_constant_s": (1e-3, 1e9)}
+          "time_constant_s": (1e-3, 1e9), "load_share": (1e-3, 0.999), "stiffness_Nm_rad": (1e-3, 1e9),
+          "damping_Nm_s_rad": (0.0, 1e6)}
 #: effect name -> {yaml key: kernel parameter name}
 EFFECTS = {
     "load": {"torque_Nm": "LOAD"},
@@ -26,6 +29,8 @@ EFFECTS = {
     "direction_asymmetry": {"dc0_Nm": "ASYM_DC0", "dc1_Nm_s_rad": "ASYM_DC1"},
     "cross_axis": {"source": "CPL_SRC", "coefficient_Nm_per_rad": "CPL_COEF"},
     "drift": {"fraction": "DRIFT_FRAC", "time_constant_s": "DRIFT_TAU"},
+    # a compliant transmission: that share of J behind a spring-damper (a two-mass mode)
+    "compliance": {"load_share": "TM_SHARE", "stiffness_Nm_rad": "TM_K", "damping_Nm_s_rad": "TM_D"},
 }
 
 
@@ -75,8 +80,9 @@ def _end_stops(sec: Section) -> tuple[float, float] | None:
 
 
 def load_sim_config(path: str | Path = DEFAULT_CONFIG) -> SimConfig:
-    """Read and check a simulator YAML file (see ``robot.yaml`` for the format)."""
-    path = Path(path)
+    """Read and check a simulator YAML file (see ``robot.yaml`` for the format), or a shipped one
+    by its name in :data:`SHIPPED`."""
+    path = SHIPPED.get(str(path), Path(path))
     top = Section(path, "", load_yaml(path))
     seed = top.get("seed", int, 0, low=0, high=2**32 - 1)
     axes_sec = top.section("axes")

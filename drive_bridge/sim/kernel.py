@@ -15,7 +15,11 @@ Plant, per axis (``sign`` = direction of motion)::
     friction = (c1 + dc1*sign)*v + (c0*drift(t) + dc0*sign + cpl*q_src + S*exp(-(v/vs)^2))*sign
 
 with stiction at rest: the axis stays stopped while the driving torque is
-within the breakaway friction, and stops when its velocity crosses zero.  With the power stage
+within the breakaway friction, and stops when its velocity crosses zero.  A compliant
+transmission (``TM_SHARE`` > 0) hangs that share of J on the motor through a spring-damper
+(``TM_K`` [Nm/rad], ``TM_D`` [Nm·s/rad]): the motor (encoder, friction, load torque) keeps
+J·(1 − share) and also carries the spring's torque k·twist + d·(v − v_load); ``TWIST`` is the
+motor's angle less the load's (zero at power-on: the spring unloaded).  With the power stage
 off, an axis with a holding brake (``BRAKE`` = 1) stands still; one without is moved by its load
 alone (a vertical axis whose load exceeds its friction falls).  Mechanical end stops
 ``END_LO`` < ``END_HI`` (where set) stop the axis dead.
@@ -43,16 +47,17 @@ CURRENT_SUBSTEPS = 4          # current-loop ticks per velocity-loop tick (8 kHz
 VELOCITY_TICK_S = 0.0005      # velocity / position loop period
 
 # --- state columns -------------------------------------------------------------------
-Q, V, I, I_INT, V_INT, ENC, VMEAS, TCMD, PDEM, VDEM, FERR, FE_COUNT, T, ENABLED, I_SUM, I_COUNT = range(16)
-N_STATE = 16
+(Q, V, I, I_INT, V_INT, ENC, VMEAS, TCMD, PDEM, VDEM, FERR, FE_COUNT, T, ENABLED, I_SUM, I_COUNT,
+ TWIST, V_LOAD) = range(18)
+N_STATE = 18
 
 # --- parameter columns ---------------------------------------------------------------
 (J, C0, C1, CP, D, KT, R, L, VBUS, TMAX, INC_PER_RAD,
  KPP, FWF, KPS, KIS, KPC, KIC,
  FF_EN, FF_J, FF_C0, FF_C1, FF_OFF, FF_CP, FF_DC0, FF_DC1, FF_PER_AMP, FF_PER_PERIOD, FF_PER_PHASE,
  LOAD, PER_AMP, PER_PERIOD, PER_PHASE, STR_AMP, STR_VEL, ASYM_DC0, ASYM_DC1,
- CPL_SRC, CPL_COEF, DRIFT_FRAC, DRIFT_TAU, FE_WINDOW, BRAKE, END_LO, END_HI) = range(44)
-N_PARAM = 44
+ CPL_SRC, CPL_COEF, DRIFT_FRAC, DRIFT_TAU, FE_WINDOW, BRAKE, END_LO, END_HI, TM_SHARE, TM_K, TM_D) = range(47)
+N_PARAM = 47
 
 # --- demand columns (one row per axis, set once per SYNC period) ----------------------
 P0, P1, A_FF, V_OFF, T_OFF = range(5)
@@ -185,20 +190,27 @@ def advance(state, param, demand, tick0, n_ticks, ticks_per_period):
                 src = int(p[CPL_SRC])
                 if src >= 0:
                     c0 += p[CPL_COEF] * state[src, Q]
+                j_motor = p[J]
+                if p[TM_SHARE] > 0.0:               # the load on its spring-damper
+                    spring = p[TM_K] * s[TWIST] + p[TM_D] * (v - s[V_LOAD])
+                    s[V_LOAD] += spring / (p[J] * p[TM_SHARE]) * dt_c
+                    s[TWIST] += (v - s[V_LOAD]) * dt_c
+                    load += spring
+                    j_motor = p[J] * (1.0 - p[TM_SHARE])
                 net = p[KT] * s[I] - load
                 if v == 0.0:
                     sg = _sign(net)
                     breakaway = c0 + p[ASYM_DC0] * sg + p[STR_AMP]
                     if abs(net) <= breakaway:
                         continue
-                    v_new = (net - breakaway * sg) / p[J] * dt_c
+                    v_new = (net - breakaway * sg) / j_motor * dt_c
                 else:
                     sg = _sign(v)
                     c0_dir = c0 + p[ASYM_DC0] * sg
                     if p[STR_VEL] > 0.0:
                         c0_dir += p[STR_AMP] * math.exp(-(v / p[STR_VEL]) ** 2)
                     friction = (p[C1] + p[ASYM_DC1] * sg) * v + c0_dir * sg
-                    v_new = v + (net - friction) / p[J] * dt_c
+                    v_new = v + (net - friction) / j_motor * dt_c
                     if v_new * v < 0.0:      # crossed zero within the step: stick
                         v_new = 0.0
                 q_new = q + 0.5 * (v + v_new) * dt_c

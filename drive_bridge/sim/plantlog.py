@@ -20,24 +20,30 @@ from .vendors import factory
 INC_PER_REV = 2 ** 20
 
 
-def plant_log(config: SimConfig, demand: dict[str, np.ndarray], period: float = 0.002) -> dict[str, np.ndarray]:
+def plant_log(config: SimConfig, demand: dict[str, np.ndarray], period: float = 0.002,
+              torque_offset: dict[str, np.ndarray] | None = None,
+              gains: dict[str, dict[str, float]] | None = None) -> dict[str, np.ndarray]:
     """Columns ``time_s`` and per axis ``<axis>_position_rad``, ``_position_demand_rad``,
-    ``_torque_Nm`` of the plant following ``demand`` (axis -> positions per period [rad]).
-    Axes without a demand hold their start position."""
+    ``_torque_Nm`` of the plant following ``demand`` (axis -> positions per period [rad]), with
+    ``torque_offset`` (axis -> [Nm] per period) added to the torque command as 0x60B2 is, and the
+    ``gains`` given per axis (SI; else the factory's).  Axes without a demand hold their start
+    position."""
     names = list(config.axes)
     n = len(next(iter(demand.values())))
     state, param, dem = K.new_arrays(len(names))
     inc_per_rad = INC_PER_REV / (2 * math.pi)
     rng = np.random.default_rng(config.seed)
     targets = np.zeros((n, len(names)))
+    offsets = np.zeros((n, len(names)))
     for i, (name, axis) in enumerate(config.axes.items()):
         plant_params(param[i], axis, names)
         param[i, K.INC_PER_RAD] = inc_per_rad
         for gain, col in GAIN_PARAMS.items():
-            param[i, col] = factory().gains[gain]
+            param[i, col] = (gains or {}).get(name, factory().gains)[gain]
         param[i, K.TMAX] = factory().max_torque_permille / 1000.0 * axis.motor.rated_torque_Nm
         param[i, K.FE_WINDOW] = 1e9
         targets[:, i] = demand.get(name, np.zeros(n))
+        offsets[:, i] = (torque_offset or {}).get(name, np.zeros(n))
         state[i, K.Q] = state[i, K.ENC] = dem[i, K.P0] = dem[i, K.P1] = targets[0, i]
         state[i, K.ENABLED] = 1.0
     ticks = round(period / K.VELOCITY_TICK_S)
@@ -49,6 +55,7 @@ def plant_log(config: SimConfig, demand: dict[str, np.ndarray], period: float = 
         current[k] = [K.mean_current(row) for row in state]
         dem[:, K.P0] = dem[:, K.P1]
         dem[:, K.P1] = targets[k]
+        dem[:, K.T_OFF] = offsets[k]
         tick0[:] = 0
         K.advance(state, param, dem, tick0, ticks, ticks)
     cols = {"time_s": np.arange(n) * period}

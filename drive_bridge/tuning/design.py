@@ -13,15 +13,24 @@ and the sampling delays (zero-order hold ½ T plus the backward-difference
 velocity ½ T, T = 0.5 ms; a Padé approximant): the largest KpS whose open loop
 keeps the phase and gain margins, KiS = crossover / ``INTEGRAL_RATIO`` (6).
 Position P on the closed velocity loop, the same way.  FwF = 1 (the model
-feed-forward supplies the torque the velocity demand needs).  Units SI, motor
-side: KpS [Nm·s/rad], KiS [1/s], KpP [1/s], KpC [V/A], KiC [1/s].
+feed-forward supplies the torque the velocity demand needs).  Where the plant's
+response was measured through the drive (:mod:`drive_bridge.ident.frf`), every
+candidate gain must also keep the margins on the measured points (its gain
+crossover among them; above them the plant is the inertia their top shows): a
+compliant transmission's mode, which the rigid model lacks, then limits the
+crossover.  Units SI, motor side: KpS [Nm·s/rad],
+KiS [1/s], KpP [1/s], KpC [V/A], KiC [1/s].
 """
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
+from typing import TYPE_CHECKING
 
 import control
 import numpy as np
+
+if TYPE_CHECKING:
+    from ..ident.frf import Frf
 
 LOOP_TICK_S = 0.5e-3          # velocity / position loop period (2 kHz)
 CURRENT_RATE_HZ = 8000.0
@@ -86,6 +95,107 @@ def position_open_loop(J, c1, KpS, KiS, KpP, current_bw_rad_s):
     return KpP / s * closed_velocity
 
 
+def controller(gains: dict[str, float]):
+    """K(jω) of the drive's cascade as seen at its torque command [Nm per rad/s]: the velocity PI
+    around the measured velocity, the position P around that, the loop's delay (½ T hold + ½ T
+    velocity difference) -- what a torque offset added to the command sees close the loop."""
+    def k(w: np.ndarray) -> np.ndarray:
+        s = 1j * np.asarray(w, dtype=float)
+        return gains["KpS"] * (1 + gains["KiS"] / s) * (1 + gains["KpP"] / s) * np.exp(-s * LOOP_TICK_S)
+    return k
+
+
+def rigid_response(J: float, c1: float, current_bw_rad_s: float, w: np.ndarray) -> np.ndarray:
+    """G(jω) of the identified rigid plant: torque command → velocity through the closed current
+    loop [rad/s per Nm]."""
+    s = 1j * np.asarray(w, dtype=float)
+    return 1 / (s / current_bw_rad_s + 1) / (J * s + max(c1, 0.0))
+
+
+MEASURE_CROSSOVER_SHARE = 0.06   # the measurement's velocity loop crosses over at this share of the SYNC rate
+CROSSOVER_SHARE = 0.3            # a loop's gain crossover must lie below this share of the SYNC rate the plant was
+                                 # measured at: higher, the response of the offset's images above the Nyquist
+                                 # frequency, aliased, reads the plant's gain low (-0.6 dB at 0.3 on the rigid
+                                 # simulated axis, -2.6 dB at 0.4) and the margins high
+
+
+def measurement_gains(J: float, rate_hz: float) -> dict[str, float]:
+    """Soft gains for measuring the plant's response (:mod:`drive_bridge.ident.frf`): a velocity loop
+    crossing over at ``MEASURE_CROSSOVER_SHARE`` of the SYNC rate ``rate_hz`` on the rigid model
+    of inertia ``J`` (KiS a sixth of it), the position loop a sixth of that.  A stiffer loop on a
+    compliant machine may ring above the log's Nyquist frequency, where the log cannot see it and
+    its alias spoils the bins below; and the closer |K·G| is to 1 the better the plant is seen."""
+    wc = 2 * np.pi * MEASURE_CROSSOVER_SHARE * rate_hz
+    return {"KpP": wc / INTEGRAL_RATIO, "KpS": J * wc, "KiS": wc / INTEGRAL_RATIO}
+
+
+def measured_margins(gains: dict[str, float], frf: "Frf", current_bw_rad_s: float
+                     ) -> tuple[Margins | None, Margins | None]:
+    """Margins of the velocity and the position loop with ``gains`` on a measured plant
+    (:class:`drive_bridge.ident.frf.Frf`, its reliable bins): the velocity loop
+    KpS·(1 + KiS/jω)·e^(−jωT)·G(jω), the position loop KpP/jω around it closed.  Above the bins
+    measured the plant is taken as the inertia their top shows, behind the closed current loop
+    (``current_bw_rad_s``), up to the loops' Nyquist frequency: a gain margin beyond the band
+    counts on no mode there.  None for a loop whose gain crossover lies above ``CROSSOVER_SHARE``
+    of the SYNC rate (not verified)."""
+    return (measured_loop(gains, frf, "velocity", current_bw_rad_s),
+            measured_loop(gains, frf, "position", current_bw_rad_s))
+
+
+def open_loop_at(gains: dict[str, float], f: np.ndarray, g: np.ndarray, loop: str) -> np.ndarray:
+    """The open ``loop`` ("velocity" or "position") with ``gains`` on a plant whose response is
+    ``g`` [rad/s per Nm] at the frequencies ``f`` [Hz]: KpS·(1 + KiS/jω)·e^(−jωT)·G, and KpP/jω
+    around that closed."""
+    s = 2j * np.pi * np.asarray(f, dtype=float)
+    velocity = gains["KpS"] * (1 + gains["KiS"] / s) * np.exp(-s * LOOP_TICK_S) * g
+    return velocity if loop == "velocity" else gains["KpP"] / s * velocity / (1 + velocity)
+
+
+def measured_loop(gains: dict[str, float], frf: "Frf", loop: str, current_bw_rad_s: float) -> Margins | None:
+    """One loop's margins of :func:`measured_margins` (``loop``: "velocity" or "position")."""
+    ok = frf.reliable()
+    f, g = frf.frequency_hz[ok], frf.response[ok]
+    if len(f) < 2:
+        return None
+    top = f[-1]
+    beyond = np.geomspace(top, 0.5 / LOOP_TICK_S, 200)[1:]
+    inertia = rigid_response(1.0, 0.0, current_bw_rad_s, 2 * np.pi * np.append(beyond, top))
+    f, g = np.append(f, beyond), np.append(g, g[-1] * inertia[:-1] / inertia[-1])
+    open_loop = open_loop_at(gains, f, g, loop)
+    sure = np.flatnonzero(f <= CROSSOVER_SHARE * frf.rate_hz)
+    if not len(sure) or abs(open_loop[sure[-1]]) > 1:
+        return None                                      # its crossover lies above the bins measured well
+    return _margins_at_points(f, open_loop)
+
+
+def _margins_at_points(f: np.ndarray, loop: np.ndarray) -> Margins | None:
+    """Phase and gain margins of an open loop known at the frequencies ``f`` [Hz] (interpolated
+    linearly in log frequency between them): at each gain crossover the angle between the loop and
+    −1, at each phase crossover of −180° (± 360°) how far its gain stays below 1; the worst of each
+    where it crosses more than once (a mode's resonance and anti-resonance make several).  A loop
+    whose gain is below 1 throughout has its crossover below ``f``: no phase margin is measured
+    (infinite, crossover nan).  None where the gain still exceeds 1 at the highest frequency: its
+    crossover lies beyond."""
+    mag = np.log(np.abs(loop))
+    if mag[-1] > 0:
+        return None
+    phase = np.degrees(np.unwrap(np.angle(loop)))
+    x = np.log(f)
+    pm, wc = np.inf, np.nan
+    for i in np.flatnonzero(np.sign(mag[:-1]) != np.sign(mag[1:])):
+        r = mag[i] / (mag[i] - mag[i + 1])
+        to_minus_one = abs((phase[i] + r * (phase[i + 1] - phase[i])) % 360.0 - 180.0)
+        if to_minus_one < pm:
+            pm, wc = to_minus_one, float(np.exp(x[i] + r * (x[i + 1] - x[i])))
+    gm = np.inf
+    shifted = (phase + 180.0) / 360.0                # crossings of -180° (+ k·360°)
+    for i in np.flatnonzero(np.floor(shifted[:-1]) != np.floor(shifted[1:])):
+        edge = np.floor(max(shifted[i], shifted[i + 1]))
+        r = (edge - shifted[i]) / (shifted[i + 1] - shifted[i])
+        gm = min(gm, float(-20 / np.log(10) * (mag[i] + r * (mag[i + 1] - mag[i]))))
+    return Margins(float(pm), gm, wc)
+
+
 def current_gains(R: float, L: float) -> tuple[float, float, float]:
     """KpC [V/A], KiC [1/s] and the closed current-loop bandwidth [rad/s]."""
     w_i = 2 * np.pi * CURRENT_RATE_HZ / 8
@@ -139,15 +249,30 @@ def _largest(margins_of, lo: float, hi: float, pm_min: float, what: str) -> tupl
     return lo, best
 
 
-def design_gains(J: float, c1: float, R: float, L: float) -> GainDesign:
-    """Gains for the plant J [kg·m²], c1 [Nm·s/rad] and motor R [Ω], L [H]."""
+def design_gains(J: float, c1: float, R: float, L: float, frf: "Frf | None" = None) -> GainDesign:
+    """Gains for the plant J [kg·m²], c1 [Nm·s/rad] and motor R [Ω], L [H]; with a measured plant
+    ``frf`` (:class:`drive_bridge.ident.frf.Frf`) every candidate must keep the margins on it too
+    (the worse of the two counts), its crossover within the bins measured."""
     if not J > 0:
         raise ValueError(f"J must be positive to design a velocity loop, got {J}")
     KpC, KiC, w_i = current_gains(R, L)
     nyquist = np.pi / LOOP_TICK_S
-    wc, vm = _largest(lambda w: _margins(velocity_open_loop(J, c1, J * w, w / INTEGRAL_RATIO, w_i)),
+
+    def worse(model: Margins, gains: dict[str, float], loop: str) -> Margins:
+        """The worse of the model's and the measured margins; a loop not verified is refused."""
+        if frf is None:
+            return model
+        measured = measured_loop(gains, frf, loop, w_i)
+        if measured is None:
+            return Margins(-np.inf, -np.inf, model.crossover_hz)
+        return Margins(min(model.phase_margin_deg, measured.phase_margin_deg),
+                       min(model.gain_margin_db, measured.gain_margin_db), model.crossover_hz)
+
+    wc, vm = _largest(lambda w: worse(_margins(velocity_open_loop(J, c1, J * w, w / INTEGRAL_RATIO, w_i)),
+                                      {"KpS": J * w, "KiS": w / INTEGRAL_RATIO}, "velocity"),
                       20.0, nyquist, PM_DESIGN_DEG, "velocity")           # the velocity-loop crossover
     KpS, KiS = J * wc, wc / INTEGRAL_RATIO
-    KpP, pm = _largest(lambda k: _margins(position_open_loop(J, c1, KpS, KiS, k, w_i)),
+    KpP, pm = _largest(lambda k: worse(_margins(position_open_loop(J, c1, KpS, KiS, k, w_i)),
+                                       {"KpS": KpS, "KiS": KiS, "KpP": k}, "position"),
                        1.0, nyquist, PM_DESIGN_DEG + 5, "position")
     return GainDesign(float(KpP), 1.0, float(KpS), float(KiS), float(KpC), float(KiC), vm, pm)

@@ -5,7 +5,9 @@ and after (the same loop models whose margins :mod:`.design` computes, python-co
 crossover and the phase and gain margins marked; and the closed-loop position step response of
 the model before and after.  Frequencies in Hz, magnitude in dB, phase in °, time in ms.  And the
 following error the same model predicts along a demand (:func:`predicted_following_error`), which
-the report draws beside the measured one.
+the report draws beside the measured one.  Where the plant's response was measured through the
+drive (:mod:`drive_bridge.ident.frf`), the open loops on its reliable bins are drawn as points
+beside the model's curves.
 """
 from __future__ import annotations
 
@@ -14,13 +16,14 @@ from pathlib import Path
 import control
 import numpy as np
 
-from .design import following_error, open_loops
+from .design import following_error, open_loop_at, open_loops
 from .feedforward import model_torque
 
 
 def loop_figure(J: float, c1: float, before: dict[str, float] | None, after: dict[str, float], L: float,
-                path: str | Path, title: str = "") -> Path:
-    """Write the Bode plots and the step responses of one axis to ``path`` (PNG)."""
+                path: str | Path, title: str = "", frf=None) -> Path:
+    """Write the Bode plots and the step responses of one axis to ``path`` (PNG); ``frf``: the
+    plant's measured response (:class:`drive_bridge.ident.frf.Frf`), drawn as points."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -47,6 +50,14 @@ def loop_figure(J: float, c1: float, before: dict[str, float] | None, after: dic
                                     color=colour, fontsize=8, xytext=(4, -12 if name == "after" else 4),
                                     textcoords="offset points")
             ax[0, col].set_title(f"{loop} loop, open loop")
+            if frf is not None:
+                ok = frf.reliable()
+                fm = frf.frequency_hz[ok]
+                measured = open_loop_at(gains, fm, frf.response[ok], loop)
+                ax[0, col].semilogx(fm, 20 * np.log10(np.abs(measured)), ".", color=colour, ms=3,
+                                    label=f"{name}, on the measured plant")
+                ax[1, col].semilogx(fm, np.degrees(np.unwrap(np.angle(measured))) % 360 - 360, ".", color=colour,
+                                    ms=3, label=f"{name}, on the measured plant")
         closed = control.feedback(loops[1], 1)
         t = np.linspace(0, 0.05, 1000)
         _, y = control.step_response(closed, t)

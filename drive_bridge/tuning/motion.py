@@ -34,11 +34,13 @@ class Motion:
 
 def plan(config: BusConfig, axes: dict[str, AxisLink], demand: dict[str, np.ndarray], start: dict[str, float], *,
          kind: str = "trajectory", level: float = 1.0, feedforward: dict[str, MasterFeedForward] | None = None,
-         approach_level: float = APPROACH_LEVEL) -> tuple[Plan, int]:
+         approach_level: float = APPROACH_LEVEL, torque_offset: dict[str, np.ndarray] | None = None,
+         ) -> tuple[Plan, int]:
     """The plan :func:`run` streams from ``start`` (axis -> position [rad]): the approach to the
     first setpoint of ``demand`` at ``approach_level`` of the limits, 0.2 s settling there, then the
     demand; checked against the axes' limits (UserError before anything moves). And the number of
-    cycles before the demand."""
+    cycles before the demand.  ``torque_offset`` (axis -> [Nm] per setpoint of ``demand``) is sent
+    as torque offset 0x60B2 with the demand's setpoints, beside any ``feedforward``."""
     period = config.master.sync_period_s
     names = list(demand)
     limits = {a: axes[a].cfg.limits for a in names}
@@ -55,6 +57,11 @@ def plan(config: BusConfig, axes: dict[str, AxisLink], demand: dict[str, np.ndar
                    (np.zeros(len(out.demand)),) * 2 for i, a in enumerate(names)]
         out.torque_ff_Nm = np.column_stack([t for t, _ in offsets])
         out.velocity_ff_rad_s = np.column_stack([v for _, v in offsets])
+    if torque_offset:
+        added = np.zeros_like(out.demand)
+        for i, a in enumerate(names):
+            added[n_app:, i] = torque_offset.get(a, 0.0)
+        out.torque_ff_Nm = added if out.torque_ff_Nm is None else out.torque_ff_Nm + added
     check_plan(out, limits)
     return out, n_app
 
@@ -64,18 +71,19 @@ def run(config: BusConfig, link: Link, axes: dict[str, AxisLink], demand: dict[s
         on_plan: Callable[[Plan], Callable[[int], None] | None] | None = None,
         kind: str = "trajectory", level: float = 1.0,
         feedforward: dict[str, MasterFeedForward] | None = None,
-        approach_level: float = APPROACH_LEVEL) -> Motion:
+        approach_level: float = APPROACH_LEVEL, torque_offset: dict[str, np.ndarray] | None = None) -> Motion:
     """Stream :func:`plan` from where the axes stand, homed first where they home
     (:mod:`~drive_bridge.master.homing`) (``demand``: axis -> positions per SYNC
     [rad]); ``guard`` sees each cycle's measured velocities and may stop the run.
     ``on_plan`` may return a progress callback (as in ``record``); ``kind`` and ``level`` (fraction
     of the limits) label the demand's segment for it.  ``feedforward`` (per axis) is the model
-    feed-forward the master sends with every setpoint, the approach included."""
+    feed-forward the master sends with every setpoint, the approach included; ``torque_offset``
+    (per axis, per setpoint of ``demand`` [Nm]) is added to it over the demand."""
     period = config.master.sync_period_s
     names = list(demand)
     home(link, {a: axes[a] for a in names}, config)          # reference: home, before the first motion
     plan_, n_app = plan(config, axes, demand, {a: axes[a].position_rad() for a in names}, kind=kind, level=level,
-                        feedforward=feedforward, approach_level=approach_level)
+                        feedforward=feedforward, approach_level=approach_level, torque_offset=torque_offset)
     m = config.master
     progress = on_plan(plan_) if on_plan else None
     result = stream(link, {a: axes[a] for a in names}, plan_, heartbeat_timeout=m.heartbeat_timeout_s,

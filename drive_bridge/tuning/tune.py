@@ -11,7 +11,8 @@ from ..errors import UserError
 from ..ident.effects import DRIVE_EFFECTS
 from ..outputs import stamped
 from ..yamlconf import too_large
-from .design import GainDesign, Margins, design_gains, loop_margins
+from ..ident.frf import Frf
+from .design import GainDesign, Margins, design_gains, loop_margins, measured_margins
 from .experiment import ExperimentResult
 from .feedforward import MODEL_KEYS
 
@@ -29,6 +30,7 @@ class AxisTuning:
     before_margins: tuple[Margins, Margins] | None
     motor: dict[str, float]                 # R [Ω], L [H] the current loop was designed for
     experiment: ExperimentResult | None = None
+    frf: Frf | None = None                  # the plant's response measured through the drive, designed on too
 
     def parameters(self) -> dict[str, float]:
         """Everything to write: the designed gains, the model, and the model feed-forward on."""
@@ -40,7 +42,21 @@ class AxisTuning:
                 "margins_before": None if self.before_margins is None else
                 {"velocity": vars(self.before_margins[0]), "position": vars(self.before_margins[1])},
                 "experiment": None if self.experiment is None else self.experiment.as_dict(),
+                "measured": None if self.frf is None else self.measured(),
                 "parameters": self.parameters()}
+
+    def measured(self) -> dict:
+        """The margins before and after on the measured response, and the band they hold for [Hz]
+        (a loop whose crossover lies above it: None, not verified)."""
+        band = self.frf.frequency_hz[self.frf.reliable()]
+
+        def margins(gains: dict[str, float]) -> dict | None:
+            if not {"KpP", "KpS", "KiS", "KpC"} <= set(gains):
+                return None
+            v, p = measured_margins(gains, self.frf, gains["KpC"] / self.motor["L"])
+            return {"velocity": None if v is None else vars(v), "position": None if p is None else vars(p)}
+        return {"band_hz": [float(band.min()), float(band.max())] if len(band) else None,
+                "margins": margins(self.design.gains()), "margins_before": margins(self.before)}
 
 
 def model_from_identify(params: dict[str, float]) -> dict[str, float]:
@@ -80,6 +96,17 @@ def _numbers(path: Path, where: str, values) -> dict[str, float]:
         except OverflowError as exc:
             raise UserError(f"{path}: {where}.{k}: {too_large(v)}") from exc
     return out
+
+
+def read_frf_json(path: str | Path) -> dict[str, Frf]:
+    """axis -> its measured response, from frf.json (the measure step's)."""
+    path = Path(path)
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+        return {a: Frf.from_json(r) for a, r in doc["axes"].items()}
+    except (OSError, KeyError, TypeError, ValueError, AttributeError) as exc:
+        raise UserError(f"{path}: not a frequency response as the measure step writes it ({exc!r}); rerun the "
+                        f"measure step") from exc
 
 
 def read_identify_json(path: str | Path) -> dict[str, dict[str, float]]:
@@ -129,31 +156,36 @@ def check_model(axis: str, model: dict[str, float]) -> None:
                         f"again (longer or richer excitation) before tuning")
 
 
-def tune_axis(axis: str, model: dict[str, float], R: float, L: float, before: dict[str, float]) -> AxisTuning:
+def tune_axis(axis: str, model: dict[str, float], R: float, L: float, before: dict[str, float],
+              frf: Frf | None = None) -> AxisTuning:
+    """Gains for one axis from its identified ``model`` (and, where given, the margins kept on its
+    measured response ``frf`` too)."""
     check_model(axis, model)
     if not (math.isfinite(R) and math.isfinite(L) and R > 0 and L > 0):
         raise UserError(f"axis {axis}: motor R = {R} Ω, L = {L} H must be positive numbers")
     try:
-        design = design_gains(model["J"], model["c1"], R, L)
+        design = design_gains(model["J"], model["c1"], R, L, frf)
     except (KeyError, ValueError) as exc:
         raise UserError(f"axis {axis}: cannot design gains from the model {model}: {exc}") from exc
     margins = loop_margins(model["J"], model["c1"], before, R, L) if set(GAINS) <= set(before) else None
     log.info("axis %s: %s; velocity loop PM %.1f° at %.0f Hz", axis,
              ", ".join(f"{g} {v:.5g}" for g, v in design.gains().items()), design.velocity.phase_margin_deg,
              design.velocity.crossover_hz)
-    return AxisTuning(axis, model, design, before, margins, {"R": R, "L": L})
+    return AxisTuning(axis, model, design, before, margins, {"R": R, "L": L}, frf=frf)
 
 
-def tune_axes(models: dict[str, dict[str, float]], state: dict[str, dict]) -> dict[str, AxisTuning]:
+def tune_axes(models: dict[str, dict[str, float]], state: dict[str, dict],
+              frfs: dict[str, Frf] | None = None) -> dict[str, AxisTuning]:
     """The tune step: gains for every axis of ``state`` (what bring-up read:
-    :func:`~drive_bridge.params.read.drive_state`) from its identified model in ``models``."""
+    :func:`~drive_bridge.params.read.drive_state`) from its identified model in ``models`` and,
+    where ``frfs`` has it, its measured response."""
     out = {}
     for a, st in state.items():
         if a not in models:
             raise UserError(f"axis {a}: no identified model (identify.json has {', '.join(models) or 'no axis'})")
         before = st["parameters_before"]
         out[a] = tune_axis(a, models[a], st["motor"]["R"], st["motor"]["L"],
-                           {g: before[g] for g in GAINS if g in before})
+                           {g: before[g] for g in GAINS if g in before}, (frfs or {}).get(a))
     return out
 
 

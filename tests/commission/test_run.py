@@ -60,7 +60,7 @@ def test_a_subset_then_a_rerun_resumes_after_the_last_completed_step(run):
     assert run["codes"] == (0, 0)
     p = run["partial"]
     assert p["status"] == "partial" and p["failed"] is None
-    assert [s["status"] for s in p["steps"]] == ["done"] * 4 + ["not run"] * 3
+    assert [s["status"] for s in p["steps"]] == ["done"] * 4 + ["not run"] * 4
     s = run["summary"]
     assert s["status"] == "ok" and all(st["status"] == "done" for st in s["steps"])
     # the rerun did not move the robot again: the campaign's duration is the first run's
@@ -160,8 +160,9 @@ def test_the_summary_opens_with_a_verdict_and_the_exit_code_says_when_it_fails(r
 
 
 @pytest.mark.parametrize("name,path", [("summary", "summary.json"), ("scan", "scan.json"), ("bringup", "bringup.json"),
-                                       ("identify", "identify/identify.json"), ("tune", "tune.json"),
-                                       ("write", "write/write.json"), ("validate", "validate/validate.json")])
+                                       ("identify", "identify/identify.json"), ("frf", "frf.json"),
+                                       ("tune", "tune.json"), ("write", "write/write.json"),
+                                       ("validate", "validate/validate.json")])
 def test_every_json_output_follows_its_shipped_schema(run, name, path):
     """Each JSON output names its schema and version, the JSON Schema shipped in the package for
     it accepts it (jsonschema, in the test extra) and refuses another version; its floats carry
@@ -242,7 +243,7 @@ def test_a_refused_write_restores_every_drive_and_stores_nothing(run, tmp_path):
             assert d.p[K.KPS] == pytest.approx(0.12) and d.p[K.FF_EN] == 0.0    # the backup, FF off
     s = result.summary
     assert s["status"] == "failed" and s["failed"]["step"] == "write"
-    assert [st["status"] for st in s["steps"]][5:] == ["failed", "not run"]
+    assert [st["status"] for st in s["steps"]][6:] == ["failed", "not run"]
     assert not any(w["verified"] for a in s["axes"].values() for w in a.get("written", []))
     assert "FAILED" in (out / "report.html").read_text()
 

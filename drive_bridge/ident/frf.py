@@ -1,0 +1,118 @@
+"""The plant's frequency response measured through the drive, as the industrial auto-tuners do.
+
+The axis sweeps its stroke at a constant speed (friction then stays on one side: no reversal,
+no sticking) while the master adds a periodic torque offset to the drive's torque command
+(0x60B2, once per SYNC): a Schroeder-phased multisine with every bin from ``F_LOW_HZ`` to
+``F_HIGH_SHARE`` × the SYNC rate excited at the same amplitude.  With the drive's loops closed,
+the offset ``u`` reaches the measured velocity through ``T = G / (1 + K·G)``, where ``G`` is the
+plant from torque command to velocity (current loop, mechanics: a compliant transmission's
+resonance included) and ``K`` the drive's own controller as seen at the torque command (its
+velocity PI, the position P around it, the loop's delay: :func:`drive_bridge.tuning.design.controller`).
+``T`` is read per excited bin from the SYNC samples of the position (its DFT times jω, the
+constant sweep removed), averaged over the periods after the first (the loops' settling), and
+divided by the zero-order hold the offset is applied through; then ``G = T / (1 − K·T)``.
+Nothing of the logged torque is used: its reporting (averaged, filtered, delayed) differs from
+drive to drive, the position does not.  Each bin's coherence is the share of its power the
+excitation explains across the periods (1: no noise).  SI: Hz, rad/s per Nm.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+F_LOW_HZ = 2.0               # lowest excited frequency (below it the position loop holds the axis)
+F_HIGH_SHARE = 0.45          # highest, × the SYNC rate (0.5: Nyquist)
+TOP_SHARE = 0.4              # bins above this share of the SYNC rate are reported, not used for margins: the
+                             # offset's held steps have images above the Nyquist frequency whose response
+                             # aliases onto them (the rigid simulated axis: -2.6 dB at 0.4, -5.9 dB at 0.45)
+PERIOD_SAMPLES = 512         # one period of the excitation, in SYNC periods (1.02 s at 500 Hz: 0.98 Hz bins)
+PERIODS = 5                  # periods streamed; the first is the loops' settling and is not used
+MIN_COHERENCE = 0.8          # bins below it are reported, not used for margins
+MAX_LOOP_GAIN = 10.0         # nor the bins below the first whose loop gain |K·G| is under this: there the loop,
+                             # not the plant, sets the measured velocity, and G = T / (1 − K·T) divides by a
+                             # small difference (a 1 % error of K: 10 % of G).  A resonance above may exceed it
+                             # again: its peak is what the margins need
+
+
+@dataclass
+class Frf:
+    """``frequency_hz`` of the excited bins, the plant ``response`` G(jω) there [rad/s per Nm],
+    its ``coherence`` (0..1), the drive's ``loop_gain`` |K·G| with the gains it ran with, and the
+    SYNC rate it was measured at [Hz]."""
+
+    frequency_hz: np.ndarray
+    response: np.ndarray
+    coherence: np.ndarray
+    loop_gain: np.ndarray
+    rate_hz: float
+
+    def reliable(self) -> np.ndarray:
+        """The bins that measure the plant: coherence at least ``MIN_COHERENCE``, from the lowest
+        frequency whose loop gain stays at most ``MAX_LOOP_GAIN`` over the octave above it (one bin
+        alone may read low where a disturbance at a fixed frequency -- a belt's teeth at the sweep's
+        speed -- spoils it) up to ``TOP_SHARE`` of the SYNC rate."""
+        f = self.frequency_hz
+        high = self.loop_gain > MAX_LOOP_GAIN
+        starts = [fi for fi in f if not high[(f >= fi) & (f <= 2 * fi)].any()]
+        above = f >= (starts[0] if starts else np.inf)
+        return (self.coherence >= MIN_COHERENCE) & above & (f <= TOP_SHARE * self.rate_hz)
+
+    def as_json(self) -> dict:
+        return {"rate_hz": self.rate_hz, "frequency_hz": [round(float(f), 4) for f in self.frequency_hz],
+                "magnitude_db": [round(float(20 * np.log10(abs(g))), 3) for g in self.response],
+                "phase_deg": [round(float(np.degrees(np.angle(g))), 2) for g in self.response],
+                "coherence": [round(float(c), 4) for c in self.coherence],
+                "loop_gain": [round(float(x), 4) for x in self.loop_gain],
+                "reliable": [bool(r) for r in self.reliable()]}
+
+    @classmethod
+    def from_json(cls, doc: dict) -> "Frf":
+        mag = 10 ** (np.asarray(doc["magnitude_db"], dtype=float) / 20)
+        return cls(np.asarray(doc["frequency_hz"], dtype=float),
+                   mag * np.exp(1j * np.radians(np.asarray(doc["phase_deg"], dtype=float))),
+                   np.asarray(doc["coherence"], dtype=float), np.asarray(doc["loop_gain"], dtype=float),
+                   float(doc["rate_hz"]))
+
+
+def excited_bins(rate_hz: float, samples: int = PERIOD_SAMPLES) -> np.ndarray:
+    """DFT bins of one period that the excitation drives."""
+    f = np.fft.rfftfreq(samples, 1.0 / rate_hz)
+    return np.flatnonzero((f >= F_LOW_HZ) & (f <= F_HIGH_SHARE * rate_hz))
+
+
+def excitation(rate_hz: float, rms_Nm: float, samples: int = PERIOD_SAMPLES) -> np.ndarray:
+    """One period [Nm] of the torque offset: equal amplitudes on :func:`excited_bins`, Schroeder's
+    phases (a low crest factor, deterministic), ``rms_Nm`` in all."""
+    bins = excited_bins(rate_hz, samples)
+    k = np.arange(1, len(bins) + 1)
+    spectrum = np.zeros(samples // 2 + 1, dtype=complex)
+    spectrum[bins] = np.exp(-1j * np.pi * k * (k - 1) / len(bins))
+    u = np.fft.irfft(spectrum, samples)
+    return u * rms_Nm / np.sqrt(np.mean(u ** 2))
+
+
+def measure(position: np.ndarray, offset: np.ndarray, rate_hz: float,
+            controller: Callable[[np.ndarray], np.ndarray], samples: int = PERIOD_SAMPLES) -> Frf:
+    """G(jω) from the positions [rad] sampled at each SYNC while the periodic ``offset`` [Nm] was
+    applied (both from the first sample of a period, whole periods); ``controller(ω)``: the
+    drive's K(jω) with the gains it ran with [Nm per rad/s]."""
+    periods = len(position) // samples
+    if periods < 3 or len(offset) < periods * samples:
+        raise ValueError(f"the FRF needs at least three whole periods of {samples} samples, got {len(position)}")
+    bins = excited_bins(rate_hz, samples)
+    f = np.fft.rfftfreq(samples, 1.0 / rate_hz)[bins]
+    w = 2 * np.pi * f
+    q = position[:periods * samples].reshape(periods, samples)[1:]
+    sweep = (q[-1, 0] - q[0, 0]) / (len(q) - 1)                    # the constant speed's travel in one period
+    q = q - sweep * np.arange(samples) / samples
+    v = 1j * w * np.fft.rfft(q, axis=1)[:, bins]                  # velocity per period and bin
+    u = np.fft.rfft(offset[:samples])[bins]
+    hold = np.exp(-1j * w / (2 * rate_hz)) * np.sinc(f / rate_hz)     # the offset held over each SYNC period
+    t = v / (u * hold)
+    mean = t.mean(axis=0)
+    coherence = np.abs(mean) ** 2 / np.mean(np.abs(t) ** 2, axis=0)
+    k = controller(w)
+    g = mean / (1 - k * mean)
+    return Frf(f, g, coherence, np.abs(k * g), float(rate_hz))

@@ -1,0 +1,134 @@
+"""The measure step: each axis's frequency response through its drive (:mod:`drive_bridge.ident.frf`).
+
+One axis after the other sweeps ``SWEEP_SHARE`` of its stroke at a constant speed, centred,
+while the master sends the periodic torque offset (0x60B2, ``OFFSET_SHARE`` of the drive's rated
+torque RMS) with its setpoints.  For the run the drive holds the soft measurement gains
+(:func:`~drive_bridge.tuning.design.measurement_gains`: KpP, KpS, KiS, written to RAM, not stored);
+its own gains are written back whatever ends the run.  The response is computed from the positions
+and from the offsets as the drive received them (in its units), with the controller the drive
+holds as read back.  SI: rad, rad/s, Nm.
+"""
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+
+from ..config import BusConfig
+from ..errors import DriveRefused, UserError
+from ..ident.frf import PERIOD_SAMPLES, PERIODS, Frf, excitation, measure
+from ..master.bringup import AxisLink
+from ..master.link import Link
+from ..outputs import stamped
+from ..params.profile import Profile
+from ..params.read import read_parameters
+from ..params.write import write_parameters
+from . import motion
+from .design import controller, measurement_gains
+
+log = logging.getLogger(__name__)
+
+SWEEP_SHARE = 0.8            # of the stroke, centred
+OFFSET_SHARE = 0.04          # RMS torque offset, × the drive's rated torque
+SOFT = ("KpP", "KpS", "KiS")
+
+
+def sweep(ax: AxisLink, period: float) -> tuple[np.ndarray, slice, float]:
+    """The position demand [rad] of the measurement on ``ax``: from rest up to a constant speed at
+    half the axis's acceleration limit, ``PERIODS`` periods of the excitation at that speed, and
+    back to rest, over ``SWEEP_SHARE`` of the stroke, centred; the setpoints of the constant part,
+    and the speed [rad/s]."""
+    lim = ax.cfg.limits
+    n = PERIOD_SAMPLES * PERIODS
+    span = SWEEP_SHARE * (lim.position_max - lim.position_min)
+    acc = 0.5 * lim.max_acceleration
+    T = n * period                                   # speed · T + speed² / acc = span
+    speed = min((-T + np.sqrt(T * T + 4 * span / acc)) * acc / 2, lim.max_velocity)
+    ramp = int(np.ceil(speed / acc / period))
+    acc = speed / (ramp * period)
+    t = np.arange(1, ramp + 1) * period
+    up = 0.5 * acc * t ** 2
+    start = 0.5 * (lim.position_min + lim.position_max) - (speed * T + speed * ramp * period) / 2
+    steady = up[-1] + speed * period * np.arange(1, n + 1)
+    down = steady[-1] + speed * t - 0.5 * acc * t ** 2
+    return start + np.concatenate((up, steady, down)), slice(ramp, ramp + n), float(speed)
+
+
+def offset_of(ax: AxisLink, period: float, steady: slice, length: int) -> np.ndarray:
+    """The torque offset [Nm] per setpoint of a demand of ``length`` (the excitation over ``steady``,
+    nothing before or after), as the drive's units carry it."""
+    sc = ax.cfg.scaling
+    u = np.zeros(length)
+    u[steady] = np.tile(excitation(1.0 / period, OFFSET_SHARE * sc.rated_torque_Nm), PERIODS)
+    return sc.torque_from_device(sc.torque_to_device(u))
+
+
+def unmeasurable(ax: AxisLink, profile: Profile) -> str | None:
+    """Why the response of ``ax`` cannot be measured (None: it can)."""
+    if 0x60B2 not in {i for c in ax.rpdos for i in c.objects}:
+        return "the torque offset 0x60B2 is not in its RPDO mapping (map it in the node's rpdo in bus.yml)"
+    missing = [g for g in SOFT if g not in profile.entries]
+    if missing:
+        return f"the {profile.drive} profile has no object for {', '.join(missing)} (the measurement's soft gains)"
+    return None
+
+
+def measure_axes(config: BusConfig, link: Link, axes: dict[str, AxisLink], profile: Profile,
+                 inertia: dict[str, float], on_plan=None) -> tuple[dict[str, Frf], dict[str, str]]:
+    """The frequency response of each axis of ``axes`` that can be measured (``inertia``: its
+    identified J, for the soft gains; ``on_plan``: :func:`~drive_bridge.tuning.motion.run`'s
+    progress hook), and why each other one was not."""
+    period = config.master.sync_period_s
+    skipped = {a: why for a, ax in axes.items() if (why := unmeasurable(ax, profile))}
+    out = {}
+    for a, ax in axes.items():
+        if a in skipped:
+            continue
+        demand, steady, speed = sweep(ax, period)
+        u = offset_of(ax, period, steady, len(demand))
+        own = read_parameters(ax.node, profile, list(SOFT))
+        try:
+            result = write_parameters(ax.node, profile, measurement_gains(inertia[a], 1.0 / period), store=False)
+            if not result.ok:
+                raise DriveRefused(f"axis {a}: the measurement's gains: {result.error}")
+            held = read_parameters(ax.node, profile, list(SOFT))
+            log.info("axis %s: frequency response at %.3g rad/s with %s", a, speed,
+                     ", ".join(f"{g} {v:.4g}" for g, v in held.items()))
+            m = motion.run(config, link, {a: ax}, {a: demand}, kind="frequency response", torque_offset={a: u},
+                           on_plan=on_plan)
+        finally:
+            write_parameters(ax.node, profile, own, store=False)
+        if m.aborted is not None:
+            raise m.aborted
+        q = m.position[a][steady]
+        if len(q) < steady.stop - steady.start or not np.all(np.isfinite(q)):
+            raise DriveRefused(f"axis {a}: position samples missing during the frequency response")
+        if np.any(np.diff(q[PERIOD_SAMPLES:]) * np.sign(speed) < 0):
+            raise UserError(f"axis {a}: the axis went back during the frequency response (the torque offset "
+                            f"outweighed the sweep at {speed:.3g} rad/s): friction changed side and the response "
+                            f"is not the plant's; a longer stroke in the limits, or leave the measure step out")
+        out[a] = measure(q, u[steady], 1.0 / period, controller(held))
+    return out, skipped
+
+
+def measure_plans(config: BusConfig, axes: dict[str, AxisLink], profile: Profile, start: dict[str, float]) -> list:
+    """(title, Plan) of each axis's measurement from ``start``, one after the other, for the preview
+    (an axis that cannot be measured does not move)."""
+    period = config.master.sync_period_s
+    out = []
+    for a, ax in axes.items():
+        if unmeasurable(ax, profile):
+            continue
+        demand, steady, speed = sweep(ax, period)
+        out.append((f"measure {a}: frequency response, {speed:.3g} rad/s sweep with a torque-offset multisine "
+                    f"({OFFSET_SHARE:.0%} of rated torque RMS)",
+                    motion.plan(config, {a: ax}, {a: demand}, {a: start[a]}, kind="frequency response",
+                                torque_offset={a: offset_of(ax, period, steady, len(demand))})[0]))
+        start = {**start, a: float(demand[-1])}
+    return out
+
+
+def frf_doc(frfs: dict[str, Frf], skipped: dict[str, str]) -> dict:
+    """frf.json: per axis the measured response (:meth:`Frf.as_json`), and why an axis was not
+    measured."""
+    return stamped("frf", {"axes": {a: f.as_json() for a, f in frfs.items()}, "not_measured": skipped})
