@@ -347,3 +347,24 @@ def test_the_loop_model_predicts_the_measured_following_error(run):
                                                               sc == "after" and loop["feedforward"], t, demand) ** 2))
             assert (0.65 < model / measured < 1.35) if sc == "before" else (0.5 < model / measured < 2), \
                 (axis, sc, model, measured)
+
+
+def test_ctrl_c_during_the_measurement_stops_and_leaves_the_drive_its_own_gains(run, tmp_path, capsys):
+    """The measure step holds soft gains in the drive's RAM for its run: stopped in the middle of it
+    (Ctrl-C at the 300th SYNC of its motion), the axis stands still and the drive holds the gains
+    it had, not the measurement's; nothing of the step is kept as done."""
+    out = tmp_path / "run"
+    shutil.copytree(run["out"], out)
+    (out / "frf.json").unlink()
+    config = load_bus_config(run["cfg"]).only(["y"])
+    with open_link(config, sim=True) as link:
+        drive = link.robot.drives["y"]
+        own = drive.p[K.KPS]
+        result = commission(config, out, Options(sim=True), link=link, steps=["measure"],
+                            reporter=_Interrupting(list(STEPS)))
+        link.clock.sleep(0.01)
+        assert drive.s[K.V] == 0.0 and drive.state in (1, 7)           # standing still, disabled
+        assert drive.p[K.KPS] == pytest.approx(own) and own == pytest.approx(0.12)
+    assert result.exit_code == 4 and result.failed_step == "measure" and "Ctrl-C" in result.reason
+    assert not (out / "frf.json").exists()
+    capsys.readouterr()
