@@ -49,6 +49,7 @@ def register(sub) -> None:
     p.add_argument("--dry-run", action="store_true", help="print old -> new and write nothing")
     p.add_argument("--backup-dir", default="backup", help="where the backups go (default: %(default)s)")
     p.add_argument("--dcf-dir", help="export each commissioned node as a DCF here")
+    _frf_gate(p)
     p.set_defaults(func=cmd_write)
 
     p = sub.add_parser("validate", help="reference trajectories: Table III scenarios against the tuned set",
@@ -59,7 +60,13 @@ def register(sub) -> None:
     options.write_checks(p)
     options.dry_run(p)
     p.add_argument("--out", help="directory for validate.json and the logged runs (traces.npz)")
+    _frf_gate(p)
     p.set_defaults(func=cmd_validate)
+
+
+def _frf_gate(p) -> None:
+    p.add_argument("--frf", help="frf.json of commission's measure step: the gate also checks the margins on each "
+                                 "axis's measured response (the worse counts)")
 
 
 def _axes_in(config, names, path) -> list[str]:
@@ -186,7 +193,8 @@ def cmd_write(args) -> int:
         outcome = write_drives(nodes, session.profile, {a: tuned.parameters[a] for a in nodes},
                                backup_dir=args.backup_dir, dcf_dir=args.dcf_dir, dry_run=args.dry_run,
                                inductance=tuned.inductance, force=o.force, pm_floor=o.pm_floor, gm_floor=o.gm_floor,
-                               allow_unverified_scales=o.writes_unverified, bitrate=config.master.nominal_bitrate)
+                               allow_unverified_scales=o.writes_unverified, bitrate=config.master.nominal_bitrate,
+                               frf=read_frf_json(args.frf) if args.frf else None)
     if args.json:
         options.print_json(outcome.as_dict())
     else:
@@ -234,12 +242,13 @@ def cmd_validate(args) -> int:
     model = {a: drive_model(params[a]) for a in names}
     scenarios = {n: {a: dict(g) for a in names} for n, g in TABLE_III.items()}
     scenarios["tuned + model feed-forward"] = {a: params[a] for a in names}
+    frf = read_frf_json(args.frf) if args.frf else None
     with Session(config, options.session_options(args)) as session:   # the bus opens when first used
         refused = {}
         for name, sets in list(scenarios.items()):   # every set through write's gate, on the identified model
             _, why = screen(session.profile, {a: {**params[a], **sets[a]} for a in names}, tuned.inductance,
                             force=args.force, pm_floor=args.min_phase_margin, gm_floor=args.min_gain_margin,
-                            allow_unverified_scales=args.allow_unverified_scales)
+                            allow_unverified_scales=args.allow_unverified_scales, frf=frf)
             if why:
                 refused[name] = why
                 del scenarios[name]

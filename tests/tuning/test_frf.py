@@ -160,3 +160,29 @@ def test_tune_takes_the_measured_response_and_says_its_margins(tmp_path, capsys)
     (tmp_path / "bad.json").write_text(json.dumps({"axes": {"y": {"frequency_hz": [1.0]}}}))
     assert main(argv + ["--frf", str(tmp_path / "bad.json"), "--out", str(tmp_path / "t2.json")]) == 2
     assert "bad.json: not a frequency response" in capsys.readouterr().err and not (tmp_path / "t2.json").exists()
+
+
+def test_write_refuses_gains_the_measured_response_does_not_admit(tmp_path, capsys):
+    """``write --frf``: the rigid model's gains for the compliant axis keep the floor on the model, so
+    write admits them without the measured response and refuses them with it (exit 2, nothing
+    written): on the measured plant their velocity loop crosses over above what was measured."""
+    from drive_bridge.cli import main
+    from drive_bridge.tuning.measure import frf_doc
+    from drive_bridge.tuning.tune import tune_axes, tune_doc
+
+    from ..support import bus_yml_beside
+    share, k, d = two_mass()
+    frf = tmp_path / "frf.json"
+    frf.write_text(json.dumps(frf_doc({"y": measured({"compliance": {"TM_SHARE": share, "TM_K": k, "TM_D": d}})},
+                                      {})))
+    rigid = tune_axes({"y": {"J": J, "c0": 0.32, "c1": C1}}, {"y": {"motor": {"R": MOTOR.R, "L": MOTOR.L},
+                                                                     "parameters_before": {}}})
+    (tmp_path / "tune.json").write_text(json.dumps(tune_doc(rigid)))
+    cfg = bus_yml_beside(tmp_path)
+    argv = ["write", "--sim", "--config", str(cfg), "--params", str(tmp_path / "tune.json"), "--dry-run",
+            "--backup-dir", str(tmp_path / "b")]
+    assert main(argv) == 0
+    capsys.readouterr()
+    assert main(argv + ["--frf", str(frf)]) == 2
+    assert "axis y: the velocity loop crosses over above the band its response was measured in" in \
+        capsys.readouterr().err
