@@ -134,11 +134,11 @@ def tune(ctx: Context) -> str:
     missing = [a for a in ctx.config.nodes if a not in state]
     if missing:
         raise UserError(f"axis {missing[0]}: not in {ctx.out / OUTPUT['bringup']}; rerun the bringup step")
-    doc = tune_doc(tune_axes(models, {a: state[a] for a in ctx.config.nodes}, _measured(ctx)),
+    frfs = _measured(ctx) or {}
+    doc = tune_doc(tune_axes(models, {a: state[a] for a in ctx.config.nodes}, frfs),
                    unwritable_effects(ctx.require(IDENTIFY_JSON)))
     write_json(ctx.out / OUTPUT["tune"], doc)
     from ..tuning.loops import loop_figure
-    frfs = _measured(ctx) or {}
     for a, d in doc["axes"].items():
         loop_figure(d["model"]["J"], d["model"]["c1"], d["gains_before"] or None, d["gains"], d["motor"]["L"],
                     ctx.out / LOOPS.format(axis=a), f"axis {a}: loops on the identified model"

@@ -18,7 +18,7 @@ import numpy as np
 from canopen.objectdictionary import datatypes
 
 from ..errors import UserError
-from ..tuning.design import Margins, loop_margins, measured_margins
+from ..tuning.design import loop_margins, measured_margins
 from .profile import Entry, Profile
 
 log = logging.getLogger(__name__)
@@ -125,9 +125,7 @@ def check_margins(profile: Profile, values: dict, L: float | None, *,
     model = loop_margins(values["J"], max(values.get("c1", 0.0), 0.0), w, 0.0, L)
     measured = measured_margins(w, frf, w["KpC"] / L) if frf is not None else (None, None)
     unverified = [name for name, m in zip(("velocity", "position"), measured) if frf is not None and m is None]
-    worse = [m if other is None else Margins(min(m.phase_margin_deg, other.phase_margin_deg),
-                                             min(m.gain_margin_db, other.gain_margin_db), m.crossover_hz)
-             for m, other in zip(model, measured)]
+    worse = [m if other is None else m.worse(other) for m, other in zip(model, measured)]
     out = {name: MarginCheck(m.phase_margin_deg, m.gain_margin_db,
                              name not in unverified and m.phase_margin_deg >= pm_floor and m.gain_margin_db >= gm_floor)
            for name, m in zip(("velocity", "position"), worse)}

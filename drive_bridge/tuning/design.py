@@ -49,6 +49,12 @@ class Margins:
     def ok(self) -> bool:
         return self.phase_margin_deg >= PM_MIN_DEG and self.gain_margin_db >= GM_MIN_DB
 
+    def worse(self, other: "Margins") -> "Margins":
+        """The smaller phase and gain margin of the two, at this crossover (the model's and the
+        measured plant's margins of one loop)."""
+        return Margins(min(self.phase_margin_deg, other.phase_margin_deg),
+                       min(self.gain_margin_db, other.gain_margin_db), self.crossover_hz)
+
 
 @dataclass
 class GainDesign:
@@ -101,8 +107,13 @@ def controller(gains: dict[str, float]):
     velocity difference) -- what a torque offset added to the command sees close the loop."""
     def k(w: np.ndarray) -> np.ndarray:
         s = 1j * np.asarray(w, dtype=float)
-        return gains["KpS"] * (1 + gains["KiS"] / s) * (1 + gains["KpP"] / s) * np.exp(-s * LOOP_TICK_S)
+        return _velocity_pi(gains, s) * (1 + gains["KpP"] / s)
     return k
+
+
+def _velocity_pi(gains: dict[str, float], s: np.ndarray) -> np.ndarray:
+    """The velocity PI with the loop's delay, KpS·(1 + KiS/s)·e^(−sT), at the points ``s``."""
+    return gains["KpS"] * (1 + gains["KiS"] / s) * np.exp(-s * LOOP_TICK_S)
 
 
 def rigid_response(J: float, c1: float, current_bw_rad_s: float, w: np.ndarray) -> np.ndarray:
@@ -147,7 +158,7 @@ def open_loop_at(gains: dict[str, float], f: np.ndarray, g: np.ndarray, loop: st
     ``g`` [rad/s per Nm] at the frequencies ``f`` [Hz]: KpS·(1 + KiS/jω)·e^(−jωT)·G, and KpP/jω
     around that closed."""
     s = 2j * np.pi * np.asarray(f, dtype=float)
-    velocity = gains["KpS"] * (1 + gains["KiS"] / s) * np.exp(-s * LOOP_TICK_S) * g
+    velocity = _velocity_pi(gains, s) * g
     return velocity if loop == "velocity" else gains["KpP"] / s * velocity / (1 + velocity)
 
 
@@ -263,10 +274,7 @@ def design_gains(J: float, c1: float, R: float, L: float, frf: "Frf | None" = No
         if frf is None:
             return model
         measured = measured_loop(gains, frf, loop, w_i)
-        if measured is None:
-            return Margins(-np.inf, -np.inf, model.crossover_hz)
-        return Margins(min(model.phase_margin_deg, measured.phase_margin_deg),
-                       min(model.gain_margin_db, measured.gain_margin_db), model.crossover_hz)
+        return Margins(-np.inf, -np.inf, model.crossover_hz) if measured is None else model.worse(measured)
 
     wc, vm = _largest(lambda w: worse(_margins(velocity_open_loop(J, c1, J * w, w / INTEGRAL_RATIO, w_i)),
                                       {"KpS": J * w, "KiS": w / INTEGRAL_RATIO}, "velocity"),
