@@ -239,6 +239,11 @@ class BusConfig:
                               f"into one file per model")
         return names.pop()
 
+    @property
+    def torque_constants(self) -> dict[str, float | None]:
+        """axis -> its motor's torque constant [Nm/A] where the configuration gives one."""
+        return {a: n.scaling.torque_constant_Nm_per_A for a, n in self.nodes.items()}
+
     def only(self, axes: list[str]) -> "BusConfig":
         """The same configuration restricted to ``axes`` (errors name unknown ones)."""
         unknown = [a for a in axes if a not in self.nodes]

@@ -10,11 +10,12 @@ from ..errors import UserError
 from ..outputs import hex_object, write_json
 from ..master.bringup import plan_bring_up
 from ..params.check import screen
+from ..params.profile import DEFAULT_PROFILE, load_profile
 from ..params.read import drive_state
-from ..params.write import raise_for_failure, write_drives
+from ..params.write import bind_axes, raise_for_failure, write_drives
 from ..session import Session
-from ..tuning.tune import (GAINS, drive_model, read_frf_json, read_identify_json, read_tune_json, tune_axes,
-                           tune_doc, unwritable_effects)
+from ..tuning.tune import (GAINS, drive_model, read_frf_json, read_identify_json, read_resonances, read_tune_json,
+                           tune_axes, tune_doc, unwritable_effects)
 from . import options
 from .bus import degraded_exit, dry_run_end, holding_lines, motion_preview, validate_plans
 
@@ -102,7 +103,9 @@ def cmd_tune(args) -> int:
     if args.offline:
         if args.experiment or args.sim:
             raise UserError("--offline designs without a bus: it does not go with --experiment or --sim")
-        results = tune_axes(models, _motor_given(args, list(models)), frfs)
+        profile = load_profile(options.session_options(args).profile or DEFAULT_PROFILE)
+        results = tune_axes(models, _motor_given(args, list(models)), frfs, profile.controller,
+                            read_resonances(args.ident), profile.drive)
     else:
         config = options.config(args)
         config = config.only(_axes_in(config, models, args.ident))
@@ -115,11 +118,13 @@ def cmd_tune(args) -> int:
                 return dry_run_end(text)
             options.confirm_motion(args, config, "tune --experiment", lambda: text)
         with Session(config, options.session_options(args)) as session:
-            results = tune_axes(models, drive_state(session.axes, session.profile, session.options.motor), frfs)
+            results = tune_axes(models, drive_state(session.axes, session.profile, session.options.motor), frfs,
+                                session.profile.controller, read_resonances(args.ident), session.profile.drive)
             if args.experiment:
                 for a, t in results.items():
-                    t.experiment = run_experiment(config, session.link, session.axes, a, session.profile,
-                                                  _experiment_start(t), _experiment_gate(args, session.profile, t))
+                    profile = session.profile.for_axis(session.axes[a])
+                    t.experiment = run_experiment(config, session.link, session.axes, a, profile,
+                                                  _experiment_start(t), _experiment_gate(args, profile, t))
                 holding = session.holding()
     doc = tune_doc(results, unwritable_effects(args.ident))
     out = write_json(args.out, doc)
@@ -157,7 +162,7 @@ def _experiment_gate(args, profile, t):
     """``admit(KpS)`` for the experiment on ``t``'s axis: the set the drive then runs (its gains
     with that KpS, on the identified model) through the gate every gain set passes."""
     def admit(kps: float) -> str | None:
-        return screen(profile, {t.axis: {**t.model, **t.before, "KpS": kps}}, {t.axis: t.motor["L"]},
+        return screen({t.axis: profile}, {t.axis: {**t.model, **t.before, "KpS": kps}}, {t.axis: t.motor["L"]},
                       force=args.force, pm_floor=args.min_phase_margin, gm_floor=args.min_gain_margin,
                       allow_unverified_scales=options.session_options(args).writes_unverified)[1]
     return admit
@@ -175,9 +180,10 @@ def _experiment_preview(args, config, models) -> str:
             kind="experiment")[0]) for a, ax in axes.items()]
     with Session(config, options.session_options(args)) as session:
         planned = tune_axes(models, drive_state(plan_bring_up(session.link, config), session.profile,
-                                                session.options.motor))
+                                                session.options.motor), controller=session.profile.controller)
         for a, t in planned.items():
-            check_start(a, _experiment_start(t), _experiment_gate(args, session.profile, t))
+            profile = session.profile.bind(config.torque_constants[a], a)
+            check_start(a, _experiment_start(t), _experiment_gate(args, profile, t))
         return motion_preview(session, config, plans) + "\n" + "\n".join(
             f"  {a}: KpS from {_experiment_start(t):.5g}, x{RAISE} per step while the gate admits it"
             for a, t in planned.items())
@@ -194,7 +200,8 @@ def cmd_write(args) -> int:
                                backup_dir=args.backup_dir, dcf_dir=args.dcf_dir, dry_run=args.dry_run,
                                inductance=tuned.inductance, force=o.force, pm_floor=o.pm_floor, gm_floor=o.gm_floor,
                                allow_unverified_scales=o.writes_unverified, bitrate=config.master.nominal_bitrate,
-                               frf=read_frf_json(args.frf) if args.frf else None)
+                               frf=read_frf_json(args.frf) if args.frf else None,
+                               torque_constants=config.torque_constants)
     if args.json:
         options.print_json(outcome.as_dict())
     else:
@@ -246,7 +253,8 @@ def cmd_validate(args) -> int:
     with Session(config, options.session_options(args)) as session:   # the bus opens when first used
         refused = {}
         for name, sets in list(scenarios.items()):   # every set through write's gate, on the identified model
-            _, why = screen(session.profile, {a: {**params[a], **sets[a]} for a in names}, tuned.inductance,
+            _, why = screen(bind_axes(session.profile, names, config.torque_constants),
+                            {a: {**params[a], **sets[a]} for a in names}, tuned.inductance,
                             force=args.force, pm_floor=args.min_phase_margin, gm_floor=args.min_gain_margin,
                             allow_unverified_scales=args.allow_unverified_scales, frf=frf)
             if why:

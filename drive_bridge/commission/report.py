@@ -18,6 +18,7 @@ import numpy as np
 from ..document import Document, Strong, measured, number
 from ..ident.report import unit
 from ..ident.trace import describe_unexplained
+from ..params.controller import Controller
 from ..tuning.loops import predicted_following_error
 from . import steps as S
 from .verdict import reasons
@@ -55,7 +56,8 @@ def _validation_png(traces, axis: str, traj: str, path: Path, loop: dict | None)
         if loop is not None:
             gains = loop["gains_before" if sc == "before" else "gains"]
             model_fe = 1e3 * predicted_following_error(loop["model"], gains, loop["motor"]["L"],
-                                                       sc == "after" and loop["feedforward"], t, traces[f"{k}/demand"])
+                                                       sc == "after" and loop["feedforward"], t, traces[f"{k}/demand"],
+                                                       Controller.from_dict(loop.get("controller")).timing.tick_s)
             ax.plot(t, model_fe, color="k", lw=0.7, ls="--",
                     label=f"model, RMS {np.sqrt(np.mean(model_fe ** 2)):.3g} mrad")
         ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8)
@@ -130,16 +132,31 @@ def _gains(doc: Document, out: Path, axis: str, a: dict) -> None:
     doc.table(["loop", "PM before [°]", "PM after [°]", "GM before [dB]", "GM after [dB]",
                "crossover before [Hz]", "crossover after [Hz]"], rows)
     doc.figure(out / S.LOOPS.format(axis=axis), f"axis {axis} loops: Bode plots and step response")
+    tuned = _tuned(out, axis) or {}
+    c = Controller.from_dict(tuned.get("controller"))
+    rates = ", ".join(f"{k} {v:g} Hz" for k, v in c.rates_hz.items() if v)
+    doc.para(f"Designed for the drive's {c.structure.replace('_', ' ')} ({rates})"
+             + (f"; not documented: {', '.join(c.unverified())} (the profile's reading)" if c.unverified() else "")
+             + (". Written as the position PID that is this cascade (D = KpS, P = KpS·(KpP + KiS), "
+                "I = KpS·KiS·KpP), its feed-forward the model's c1 and J." if c.structure == "position_pid" else "."))
+    if tuned.get("mode"):
+        m = tuned["mode"]
+        doc.para(f"A mode at {number(m['frequency_hz'], '.1f')} Hz ({m['source']}): {m['handling']}.")
+
+
+def _tuned(out: Path, axis: str) -> dict | None:
+    """``axis`` in tune.json; None where it cannot be read."""
+    try:
+        return json.loads((out / S.OUTPUT["tune"]).read_text())["axes"][axis]
+    except (OSError, ValueError, KeyError):
+        return None
 
 
 def _loop(out: Path, axis: str, a: dict) -> dict | None:
     """What predicts the following error of ``axis``: tune.json's model, motor and gains, and
     whether the after runs fed the model torque forward."""
-    try:
-        t = json.loads((out / S.OUTPUT["tune"]).read_text())["axes"][axis]
-    except (OSError, ValueError, KeyError):
-        return None
-    if not t.get("motor", {}).get("L") or not t.get("gains_before"):
+    t = _tuned(out, axis)
+    if t is None or not t.get("motor", {}).get("L") or not t.get("gains_before"):
         return None
     ff = all((v.get("feedforward") or "none") != "none" for v in a["validation"].values())
     return {**t, "feedforward": ff}

@@ -15,8 +15,8 @@ from ..params.read import drive_state
 from ..params.write import raise_for_failure, write_drives
 from ..progress import StepReporter
 from ..session import Session
-from ..tuning.tune import (drive_model, read_frf_json, read_identify_json, read_tune_json, tune_axes, tune_doc,
-                           unwritable_effects)
+from ..tuning.tune import (drive_model, read_frf_json, read_identify_json, read_resonances, read_tune_json, tune_axes,
+                           tune_doc, unwritable_effects)
 from ..tuning import validate as V
 from ..tuning.validate import degraded, run_scenarios, stopped
 
@@ -135,14 +135,17 @@ def tune(ctx: Context) -> str:
     if missing:
         raise UserError(f"axis {missing[0]}: not in {ctx.out / OUTPUT['bringup']}; rerun the bringup step")
     frfs = _measured(ctx) or {}
-    doc = tune_doc(tune_axes(models, {a: state[a] for a in ctx.config.nodes}, frfs),
+    profile = ctx.session.profile
+    doc = tune_doc(tune_axes(models, {a: state[a] for a in ctx.config.nodes}, frfs, profile.controller,
+                             read_resonances(ctx.require(IDENTIFY_JSON)), profile.drive),
                    unwritable_effects(ctx.require(IDENTIFY_JSON)))
     write_json(ctx.out / OUTPUT["tune"], doc)
     from ..tuning.loops import loop_figure
     for a, d in doc["axes"].items():
         loop_figure(d["model"]["J"], d["model"]["c1"], d["gains_before"] or None, d["gains"], d["motor"]["L"],
                     ctx.out / LOOPS.format(axis=a), f"axis {a}: loops on the identified model"
-                    + (" (lines) and on the measured plant (points)" if a in frfs else ""), frfs.get(a))
+                    + (" (lines) and on the measured plant (points)" if a in frfs else ""), frfs.get(a),
+                    profile.controller.timing.tick_s)
     return "; ".join(f"{a}: KpS {d['gains_before'].get('KpS', float('nan')):.3g} → {d['gains']['KpS']:.3g}, "
                      f"KpP {d['gains']['KpP']:.0f}, PM {d['margins']['velocity']['phase_margin_deg']:.1f}°, "
                      f"GM {d['margins']['velocity']['gain_margin_db']:.1f} dB"
@@ -160,7 +163,8 @@ def write(ctx: Context) -> str:
                            backup_dir=out, dcf_dir=out, inductance=tuned.inductance, force=o.force,
                            pm_floor=o.pm_floor, gm_floor=o.gm_floor, allow_unverified_scales=o.writes_unverified,
                            bitrate=ctx.config.master.nominal_bitrate,
-                           settings_before={a: ax.before for a, ax in axes.items()}, frf=_measured(ctx))
+                           settings_before={a: ax.before for a, ax in axes.items()}, frf=_measured(ctx),
+                           torque_constants=ctx.config.torque_constants)
     write_json(ctx.out / WRITE_JSON, outcome.as_dict())
     raise_for_failure(outcome, out)
     results = outcome.results

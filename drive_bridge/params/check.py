@@ -26,9 +26,10 @@ log = logging.getLogger(__name__)
 #: sign of each abstract parameter, whatever the drive: (lowest, lowest allowed itself, highest);
 #: a model term of 0 is "no feed-forward of that kind" (the factory model of a drive)
 PHYSICAL = {"J": (0.0, True, None), "c0": (0.0, True, None), "c1": (0.0, True, None),
+            "PidI": (0.0, True, None), "PidFFv": (0.0, True, None), "PidFFa": (0.0, True, None),
             "periodic_amplitude": (0.0, True, None), "periodic_period": (0.0, True, None),
             "ff_enable": (0.0, True, 1.0), "FwF": (0.0, True, None),
-            **{g: (0.0, False, None) for g in ("KpP", "KpS", "KiS", "KpC", "KiC")}}
+            **{g: (0.0, False, None) for g in ("KpP", "KpS", "KiS", "KpC", "KiC", "PidP", "PidD")}}
 INTEGER_RANGES = {datatypes.UNSIGNED8: (0, 2**8 - 1), datatypes.UNSIGNED16: (0, 2**16 - 1),
                   datatypes.UNSIGNED32: (0, 2**32 - 1), datatypes.INTEGER8: (-2**7, 2**7 - 1),
                   datatypes.INTEGER16: (-2**15, 2**15 - 1), datatypes.INTEGER32: (-2**31, 2**31 - 1)}
@@ -101,9 +102,11 @@ class MarginCheck:
 
 
 def written_si(profile: Profile, values: dict) -> dict[str, float]:
-    """``values`` as the drive will hold them: through device units and back (rounding, REAL32)."""
-    return {name: float(e.to_si(e.held(e.to_device(v)))) if (e := profile.entries.get(name)) else float(v)
-            for name, v in values.items()}
+    """``values`` (the cascade's terms) as the drive will hold them: through its controller's
+    parameters and device units and back (rounding, REAL32)."""
+    held = {name: float(e.to_si(e.held(e.to_device(v)))) if (e := profile.entries.get(name)) else float(v)
+            for name, v in profile.controller.to_drive(values).items()}
+    return profile.controller.from_drive(held)
 
 
 def check_margins(profile: Profile, values: dict, L: float | None, *,
@@ -122,8 +125,11 @@ def check_margins(profile: Profile, values: dict, L: float | None, *,
         what = ", ".join(missing) or ("the model's J" if not values.get("J") else "the motor inductance L")
         return {}, f"the loop margins cannot be checked without {what}"
     w = written_si(profile, {g: values[g] for g in gains})
-    model = loop_margins(values["J"], max(values.get("c1", 0.0), 0.0), w, 0.0, L)
-    measured = measured_margins(w, frf, w["KpC"] / L) if frf is not None else (None, None)
+    if not {"KpP", "KiS"} <= set(w):
+        return {}, "the position PID written has no cascade to check the margins of (complex roots)"
+    tick = profile.controller.timing.tick_s
+    model = loop_margins(values["J"], max(values.get("c1", 0.0), 0.0), w, 0.0, L, tick)
+    measured = measured_margins(w, frf, w["KpC"] / L, tick) if frf is not None else (None, None)
     unverified = [name for name, m in zip(("velocity", "position"), measured) if frf is not None and m is None]
     worse = [m if other is None else m.worse(other) for m, other in zip(model, measured)]
     out = {name: MarginCheck(m.phase_margin_deg, m.gain_margin_db,
@@ -149,16 +155,27 @@ class GateResult:
     unverified: list[str]
 
 
-def screen(profile: Profile, values: dict[str, dict], inductance: dict[str, float | None], *, force: bool = False,
+def screen(profiles: dict[str, Profile], values: dict[str, dict], inductance: dict[str, float | None], *,
+           force: bool = False,
            pm_floor: float = PM_FLOOR_DEG, gm_floor: float = GM_FLOOR_DB, allow_unverified_scales: bool = False,
            dry_run: bool = False, frf: dict | None = None) -> tuple[GateResult, str | None]:
     """The one check every gain set passes before it reaches a drive (``write``, ``validate``):
     scales with a documented source (else only with ``allow_unverified_scales``; a dry run shows
     them), and the loop margins of each axis's set on its model (J, c1) with the motor inductance
     ``inductance[axis]`` [H] -- and on its measured response, where ``frf`` has one -- above the
-    floor (else only with ``force``, recorded).  What passed,
+    floor (else only with ``force``, recorded).  ``profiles``: each axis's, bound to its motor
+    (:func:`~.write.bind_axes`).  What passed,
     and why the sets must not reach the drives (None: they may; ranges are :func:`check_set`'s)."""
-    unverified = sorted({f"{k} ({profile.entries[k].where()})" for v in values.values() for k in v
+    profile = next(iter(profiles.values()))
+    drive_sets, unheld = {}, []
+    for a, v in values.items():
+        try:
+            drive_sets[a] = profiles[a].controller.to_drive(v)
+        except UserError as exc:
+            unheld.append(f"axis {a}: {exc}")
+    if unheld:
+        return GateResult({}, [], []), "; ".join(unheld)
+    unverified = sorted({f"{k} ({profile.entries[k].where()})" for v in drive_sets.values() for k in v
                          if k in profile.entries and not profile.entries[k].verified})
     if unverified and not dry_run and not allow_unverified_scales:
         return GateResult({}, [], unverified), (
@@ -167,7 +184,7 @@ def screen(profile: Profile, values: dict[str, dict], inductance: dict[str, floa
             f"them anyway")
     margins, refused, forced = {}, [], []
     for a, v in values.items():
-        margins[a], reason = check_margins(profile, v, inductance.get(a), pm_floor=pm_floor, gm_floor=gm_floor,
+        margins[a], reason = check_margins(profiles[a], v, inductance.get(a), pm_floor=pm_floor, gm_floor=gm_floor,
                                            frf=(frf or {}).get(a))
         if reason:
             (forced if force else refused).append(f"axis {a}: {reason}")
@@ -177,9 +194,10 @@ def screen(profile: Profile, values: dict[str, dict], inductance: dict[str, floa
     return result, ("; ".join(refused) + " (--force writes it anyway and records that)") if refused else None
 
 
-def gate(profile: Profile, values: dict[str, dict], inductance: dict[str, float | None], **checks) -> GateResult:
+def gate(profiles: dict[str, Profile], values: dict[str, dict], inductance: dict[str, float | None],
+         **checks) -> GateResult:
     """:func:`screen`, refusing with ValueRefused before anything is written."""
-    result, refused = screen(profile, values, inductance, **checks)
+    result, refused = screen(profiles, values, inductance, **checks)
     if refused:
         raise ValueRefused(f"refused before anything was written: {refused}")
     return result

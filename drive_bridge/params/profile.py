@@ -4,34 +4,39 @@ A profile is a YAML file (``profiles/*.yaml``): the drive's EDS/DCF (``package/�
 shipped in ``drive_bridge/data``, ``vendor/…`` in the vendor folder, read in place:
 ``$DRIVE_BRIDGE_VENDOR_EDS``, else ``../shared/eds-vendor`` or ``shared/eds-vendor``
 from the working directory), the store object, and per abstract parameter (J, c0, c1, offset,
-cp, dc0, dc1, periodic_amplitude/period/phase, ff_enable, KpP, FwF, KpS, KiS, KpC, KiC) its index, sub-index,
-data type and scaling: device value = scale × SI value, or 1 / SI value for
-``reciprocal`` (a reset time written for an integral rate), and optionally the
+cp, dc0, dc1, periodic_amplitude/period/phase, ff_enable, KpP, FwF, KpS, KiS, KpC, KiC, and a position
+PID's PidP, PidI, PidD, PidFFv, PidFFa) its index, sub-index,
+data type and scaling: device value = scale × SI value, or scale / SI value for
+``reciprocal`` (a reset time written for an integral rate); ``per_torque_constant`` where the
+drive holds the value in current rather than torque (device value = scale × SI value / kt, kt the
+axis's torque constant [Nm/A]: :meth:`Profile.bind`); and optionally the
 drive's range in SI (``min``, ``max``), and the ``source`` of its scale and unit (a document
 and section; ``source`` at the top covers every entry).  A scale without a source is
 unverified: shown as such in every write output, and written to a drive only with
 ``--allow-unverified-scales``.  A parameter a
 drive has no object for is simply absent: the writer reports it as not
-supported.
+supported.  The ``controller`` section declares the structure and loop rates the drive runs
+(:mod:`.controller`).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import canopen
 import numpy as np
 from canopen.objectdictionary import datatypes
 
-from ..errors import ConfigError
+from ..errors import ConfigError, UserError
 from ..od import load_od
 from ..resources import data, shipped, vendor_dir
 from ..yamlconf import Section, load_yaml
+from .controller import PID, Controller, load_controller
 
 PROFILE_DIR = shipped("params", "profiles")
 DEFAULT_PROFILE = "drive_bridge_servo"
 PARAMETERS = ("J", "c0", "c1", "offset", "cp", "dc0", "dc1", "periodic_amplitude", "periodic_period",
-              "periodic_phase", "ff_enable", "KpP", "FwF", "KpS", "KiS", "KpC", "KiC")
+              "periodic_phase", "ff_enable", "KpP", "FwF", "KpS", "KiS", "KpC", "KiC", *PID)
 TYPES = {name: getattr(datatypes, name) for name in
          ("UNSIGNED8", "UNSIGNED16", "UNSIGNED32", "INTEGER8", "INTEGER16", "INTEGER32", "REAL32", "REAL64")}
 
@@ -50,6 +55,7 @@ class Entry:
     min: float | None = None          # the drive's range [SI], where the profile states it
     max: float | None = None
     source: str | None = None         # the document (and section) the scale and unit come from
+    per_torque_constant: bool = False  # held in current: scale / kt (bound by Profile.bind)
 
     @property
     def verified(self) -> bool:
@@ -61,7 +67,7 @@ class Entry:
         return not self.type.startswith("REAL")
 
     def to_device(self, value: float):
-        raw = (1.0 / value if value else float("inf")) if self.reciprocal else value * self.scale
+        raw = (self.scale / value if value else float("inf")) if self.reciprocal else value * self.scale
         return round(raw) if self.is_integer else float(raw)
 
     def held(self, device):
@@ -72,7 +78,7 @@ class Entry:
         return float(np.float32(device)) if self.type == "REAL32" else float(device)
 
     def to_si(self, raw) -> float:
-        return (1.0 / raw if raw else float("inf")) if self.reciprocal else raw / self.scale
+        return (self.scale / raw if raw else float("inf")) if self.reciprocal else raw / self.scale
 
     def where(self) -> str:
         return f"0x{self.index:04X}:{self.sub}"
@@ -87,9 +93,29 @@ class Profile:
     entries: dict[str, Entry]
     save: tuple[int, int] | None
     motor: dict[str, tuple[int, int]] | None = None    # R [Ω], L [H]: (index, sub) where the drive reports them
+    controller: Controller = Controller()
 
     def object_dictionary(self, node_id: int) -> canopen.ObjectDictionary:
         return load_od(self.eds, node_id)
+
+    def for_axis(self, ax) -> "Profile":
+        """:meth:`bind` for a brought-up axis (:class:`~drive_bridge.master.bringup.AxisLink`), with
+        the torque constant of its bus configuration."""
+        return self.bind(ax.cfg.scaling.torque_constant_Nm_per_A, ax.name)
+
+    def bind(self, torque_constant: float | None, axis: str = "") -> "Profile":
+        """This profile for one axis whose motor has ``torque_constant`` [Nm/A]: the entries the
+        drive holds in current get their scale per Nm.  UserError where one needs it and it is
+        not given."""
+        current = [e for e in self.entries.values() if e.per_torque_constant]
+        if not current:
+            return self
+        if not torque_constant or not torque_constant > 0:
+            raise UserError(f"{'axis ' + axis + ': ' if axis else ''}the {self.drive} holds "
+                            f"{', '.join(e.parameter for e in current)} in current: give the motor's torque "
+                            f"constant (scaling.torque_constant_Nm_per_A in the bus configuration)")
+        return replace(self, entries={k: replace(e, scale=e.scale / torque_constant, per_torque_constant=False)
+                                      if e.per_torque_constant else e for k, e in self.entries.items()})
 
 
 def available() -> list[str]:
@@ -133,6 +159,7 @@ def load_profile(name_or_path: str | Path) -> Profile:
             motor[key] = (ms.get("index", int, low=0, high=0xFFFF), ms.get("sub", int, 0, low=0, high=255))
             ms.done()
     motor_sec.done()
+    controller = load_controller(top.section("controller", required=False))
     params = top.section("parameters")
     entries = {}
     od = load_od(eds, 1)
@@ -142,7 +169,8 @@ def load_profile(name_or_path: str | Path) -> Profile:
         sec = params.section(name)
         entry = Entry(name, sec.get("index", int), sec.get("sub", int, 0), sec.get("type", str),
                       sec.get("scale", float, 1.0), sec.get("reciprocal", bool, False), sec.get("unit", str, ""),
-                      sec.get("min", float, None), sec.get("max", float, None), sec.get("source", str, source))
+                      sec.get("min", float, None), sec.get("max", float, None), sec.get("source", str, source),
+                      sec.get("per_torque_constant", bool, False))
         if entry.min is not None and entry.max is not None and entry.min > entry.max:
             raise params.error(f"{name}.min", f"min {entry.min} is above max {entry.max}")
         sec.done()
@@ -165,4 +193,4 @@ def load_profile(name_or_path: str | Path) -> Profile:
         for key, (index, sub) in motor.items():
             if od.get_variable(index, sub) is None:
                 raise top.error(f"motor.{key}", f"{eds.name} has no object 0x{index:04X}:{sub}")
-    return Profile(path.stem, path, drive, eds, entries, save, motor)
+    return Profile(path.stem, path, drive, eds, entries, save, motor, controller)

@@ -46,12 +46,13 @@ def describe_sdo_error(exc: Exception) -> str:
 
 
 def read_parameters(node: canopen.RemoteNode, profile: Profile, names=None) -> dict[str, float]:
-    """The drive's current values [SI] of ``names`` (default: every parameter of ``profile``;
-    names the profile has no object for are left out).
+    """The drive's current values [SI] of ``names`` in the cascade's terms (default: every
+    parameter of ``profile``; names the profile has no object for are left out): its controller's
+    parameters read and turned into them (``profile`` bound to the axis's motor).
 
     Raises BusError naming the object when the drive does not answer or refuses a read."""
     out = {}
-    for name in names or profile.entries:
+    for name in profile.entries if names is None else profile.controller.drive_names(names):
         entry = profile.entries.get(name)
         if entry is None:
             continue
@@ -60,7 +61,8 @@ def read_parameters(node: canopen.RemoteNode, profile: Profile, names=None) -> d
         except SDO_ERRORS as exc:
             raise BusError(f"node {node.id}: reading {name} ({entry.where()}) failed: "
                            f"{describe_sdo_error(exc)}") from exc
-    return out
+    out = profile.controller.from_drive(out)
+    return out if names is None else {k: v for k, v in out.items() if k in names}
 
 
 def motor_data(node: canopen.RemoteNode, profile: Profile, R: float | None = None,
@@ -100,5 +102,5 @@ def drive_state(axes: dict, profile: Profile, motor: tuple[float, float] | None 
     for a, ax in axes.items():
         R, L = motor_data(ax.node, profile, *(motor or ax.cfg.motor or (None, None)))
         out[a] = {"node_id": ax.cfg.node_id, "identity": identity_hex(ax.identity), "motor": {"R": R, "L": L},
-                  "parameters_before": read_parameters(ax.node, profile)}
+                  "parameters_before": read_parameters(ax.node, profile.for_axis(ax))}
     return out

@@ -15,7 +15,7 @@ from pathlib import Path
 import canopen
 
 from ..dcf import export_dcf
-from ..errors import BusError, DriveRefused, WriteInterrupted
+from ..errors import BusError, DriveRefused, UserError, WriteInterrupted
 from ..master.settings import address, put_back, snapshot
 from ..outputs import hex_object, stamped, write_json
 from ..signals import deferred, signal_name
@@ -126,15 +126,27 @@ def _describe(exc: BaseException, phase: str, w: ObjectWrite | None, entry: Entr
     return f"{doing} failed: {type(exc).__name__}: {exc}"
 
 
-def plan_writes(nodes: dict[str, canopen.RemoteNode], profile: Profile, values: dict[str, dict[str, float]], *,
-                check: bool = True, dry_run: bool = False) -> dict[str, WriteResult]:
-    """The objects each drive will get; with ``check`` every value is checked first
-    (:func:`~drive_bridge.params.check.check_set`) and ValueRefused names every problem of every
-    drive before anything is written."""
+def bind_axes(profile: Profile, axes, torque_constants: dict[str, float | None] | None) -> dict[str, Profile]:
+    """``profile`` for each of ``axes``, with its motor's torque constant [Nm/A] where the drive
+    holds values in current (:meth:`~.profile.Profile.bind`)."""
+    return {a: profile.bind((torque_constants or {}).get(a), a) for a in axes}
+
+
+def plan_writes(nodes: dict[str, canopen.RemoteNode], profiles: dict[str, Profile],
+                values: dict[str, dict[str, float]], *, check: bool = True, dry_run: bool = False) -> dict[str, WriteResult]:
+    """The objects each drive will get (``values`` in the cascade's terms, as tune gives them, turned
+    into the parameters of the controller its profile declares); with ``check`` every value is
+    checked first (:func:`~drive_bridge.params.check.check_set`) and ValueRefused names every
+    problem of every drive before anything is written."""
     problems = []
     results = {}
     for axis, node in nodes.items():
-        vals = values[axis]
+        profile = profiles[axis]
+        try:
+            vals = profile.controller.to_drive(values[axis])
+        except UserError as exc:
+            problems.append(f"axis {axis}: {exc}")
+            continue
         if check:
             problems += [f"axis {axis}: {p}" for p in check_set(profile, node.object_dictionary, vals)]
         objects = [ObjectWrite(k, profile.entries[k].index, profile.entries[k].sub, profile.entries[k].unit,
@@ -149,7 +161,8 @@ def plan_writes(nodes: dict[str, canopen.RemoteNode], profile: Profile, values: 
 
 def write_all(nodes: dict[str, canopen.RemoteNode], profile: Profile, values: dict[str, dict[str, float]], *,
               backup_dir: str | Path | None = None, store: bool = True, dry_run: bool = False,
-              check: bool = True, settings_before: dict[str, dict[str, int]] | None = None) -> dict[str, WriteResult]:
+              check: bool = True, settings_before: dict[str, dict[str, int]] | None = None,
+              torque_constants: dict[str, float | None] | None = None) -> dict[str, WriteResult]:
     """Write every axis's ``values`` (axis -> name -> SI) as one transaction over all drives.
 
     Every value is checked before anything is written (``check``).  Then: backup (read every
@@ -160,9 +173,11 @@ def write_all(nodes: dict[str, canopen.RemoteNode], profile: Profile, values: di
     stores it again where the new set had been stored -- with ``settings_before`` (per axis what
     bring-up overwrote, :attr:`~drive_bridge.master.bringup.AxisLink.before`) put back for that
     store, so the stored set is the one the drive had.  ``dry_run``: the backup phase only.
+    ``torque_constants`` [Nm/A] per axis: where the drive holds values in current.
     """
-    results = plan_writes(nodes, profile, values, check=check, dry_run=dry_run)
-    _Transaction(nodes, profile, results, _backup_paths(nodes, backup_dir), settings_before).run(store, dry_run)
+    profiles = bind_axes(profile, nodes, torque_constants)
+    results = plan_writes(nodes, profiles, values, check=check, dry_run=dry_run)
+    _Transaction(nodes, profiles, results, _backup_paths(nodes, backup_dir), settings_before).run(store, dry_run)
     return results
 
 
@@ -173,23 +188,28 @@ def _backup_paths(nodes, backup_dir) -> dict[str, Path | None]:
 def write_parameters(node: canopen.RemoteNode, profile: Profile, values: dict[str, float], *,
                      dry_run: bool = False, store: bool = True, backup_path: str | Path | None = None,
                      check: bool = True) -> WriteResult:
-    """:func:`write_all` for one drive (``backup_path``: where its backup goes)."""
-    results = plan_writes({"": node}, profile, {"": values}, check=check, dry_run=dry_run)
-    _Transaction({"": node}, profile, results, {"": backup_path}).run(store, dry_run)
+    """:func:`write_all` for one drive (``backup_path``: where its backup goes; ``profile`` bound to
+    its motor: :meth:`~.profile.Profile.bind`)."""
+    results = plan_writes({"": node}, {"": profile}, {"": values}, check=check, dry_run=dry_run)
+    _Transaction({"": node}, {"": profile}, results, {"": backup_path}).run(store, dry_run)
     return results[""]
 
 
 class _Transaction:
-    def __init__(self, nodes, profile: Profile, results: dict[str, WriteResult],
+    def __init__(self, nodes, profiles: dict[str, Profile], results: dict[str, WriteResult],
                  backup_paths: dict[str, Path | None], settings_before: dict[str, dict[str, int]] | None = None):
-        self.nodes, self.profile, self.results = nodes, profile, results
+        self.nodes, self.profiles, self.results = nodes, profiles, results
+        self.profile = next(iter(profiles.values()))         # the drive model's (name, store object)
         self.backup_paths = backup_paths
         self.settings_before = settings_before or {}
         self.store_state: dict[str, str] = dict.fromkeys(results, UNCHANGED)
         self.interrupted_in_restore: str | None = None     # a KeyboardInterrupt the restore finished despite
 
     def _var(self, axis: str, w: ObjectWrite):
-        return sdo_variable(self.nodes[axis], self.profile.entries[w.parameter])
+        return sdo_variable(self.nodes[axis], self._entry(axis, w))
+
+    def _entry(self, axis: str, w: ObjectWrite) -> Entry:
+        return self.profiles[axis].entries[w.parameter]
 
     def run(self, store: bool, dry_run: bool) -> None:
         phase, where = "backup", (None, None)
@@ -198,7 +218,7 @@ class _Transaction:
                 for w in r.objects:
                     where = (a, w)
                     w.old_device = self._var(a, w).raw
-                    w.old_si = self.profile.entries[w.parameter].to_si(w.old_device)
+                    w.old_si = self._entry(a, w).to_si(w.old_device)
                 self._save_backup(a, r)
             if dry_run:
                 return
@@ -214,9 +234,9 @@ class _Transaction:
                 for w in r.objects:
                     where = (a, w)
                     back = self._var(a, w).raw
-                    w.verified = _same(self.profile.entries[w.parameter], back, w.new_device)
+                    w.verified = _same(self._entry(a, w), back, w.new_device)
                     if not w.verified:
-                        raise _Failed(f"{w.parameter} ({self.profile.entries[w.parameter].where()}) reads back "
+                        raise _Failed(f"{w.parameter} ({self._entry(a, w).where()}) reads back "
                                       f"{back}, not the {w.new_device} written")
             phase = "store"
             for a, r in self.results.items():
@@ -227,7 +247,7 @@ class _Transaction:
                 r.ram = NEW
         except (Exception, KeyboardInterrupt) as exc:
             axis, w = where
-            reason = _describe(exc, phase, w, None if w is None else self.profile.entries[w.parameter])
+            reason = _describe(exc, phase, w, None if w is None else self._entry(axis, w))
             if isinstance(exc, KeyboardInterrupt):
                 for r in self.results.values():
                     r.interrupted = signal_name(exc)
@@ -284,7 +304,7 @@ class _Transaction:
                     self._restore_object(a, w)
                 except (Exception, KeyboardInterrupt) as exc:
                     self._note_interrupt(exc)
-                    entry = self.profile.entries[w.parameter]
+                    entry = self._entry(a, w)
                     r.notes.append(f"restoring {w.parameter} failed: {_describe(exc, 'write', w, entry)}")
             back_ok = True
             for w in touched:
@@ -296,7 +316,7 @@ class _Transaction:
                     why = describe_sdo_error(exc) if isinstance(exc, SDO_ERRORS) else type(exc).__name__
                     r.notes.append(f"{w.parameter} could not be read back after restoring ({why})")
                     continue
-                if not _same(self.profile.entries[w.parameter], back, w.old_device):
+                if not _same(self._entry(a, w), back, w.old_device):
                     back_ok = False
                     r.notes.append(f"{w.parameter} reads {back} after restoring, not its backup {w.old_device}")
             r.ram = BACKUP if back_ok else UNKNOWN
@@ -400,7 +420,8 @@ def write_drives(nodes: dict[str, canopen.RemoteNode], profile: Profile, values:
                  inductance: dict[str, float | None] | None = None, force: bool = False,
                  pm_floor: float = PM_FLOOR_DEG, gm_floor: float = GM_FLOOR_DB,
                  allow_unverified_scales: bool = False, bitrate: int = 1_000_000,
-                 settings_before: dict[str, dict[str, int]] | None = None, frf: dict | None = None) -> WriteOutcome:
+                 settings_before: dict[str, dict[str, int]] | None = None, frf: dict | None = None,
+                 torque_constants: dict[str, float | None] | None = None) -> WriteOutcome:
     """The write step: every value checked, and each drive's gains checked against the model in
     its set (J, c1) with its motor ``inductance`` [H] (from the tune result, else the motor
     data objects the profile names) and against its measured response where ``frf`` has one
@@ -411,10 +432,12 @@ def write_drives(nodes: dict[str, canopen.RemoteNode], profile: Profile, values:
     ``settings_before``) and, when every drive verified,
     each commissioned node exported as a DCF to ``dcf_dir`` (:func:`~drive_bridge.dcf.export_dcf`,
     the bus at ``bitrate``).  A scale without a documented source
-    is written only with ``allow_unverified_scales`` (a dry run shows it).  Raises ValueRefused
-    before anything is written."""
+    is written only with ``allow_unverified_scales`` (a dry run shows it); ``torque_constants``
+    [Nm/A] per axis where the drive holds values in current.  Raises ValueRefused before anything
+    is written."""
     require_profile_objects(nodes, profile)
-    results = plan_writes(nodes, profile, values, dry_run=dry_run)     # every value first: ValueRefused
+    profiles = bind_axes(profile, nodes, torque_constants)
+    results = plan_writes(nodes, profiles, values, dry_run=dry_run)     # every value first: ValueRefused
     L = {}
     for a, node in nodes.items():
         L[a] = (inductance or {}).get(a)
@@ -423,9 +446,9 @@ def write_drives(nodes: dict[str, canopen.RemoteNode], profile: Profile, values:
                 L[a] = motor_data(node, profile)[1]
             except BusError:
                 L[a] = None
-    checked = gate(profile, values, L, force=force, pm_floor=pm_floor, gm_floor=gm_floor,
+    checked = gate(profiles, values, L, force=force, pm_floor=pm_floor, gm_floor=gm_floor,
                    allow_unverified_scales=allow_unverified_scales, dry_run=dry_run, frf=frf)
-    _Transaction(nodes, profile, results, _backup_paths(nodes, backup_dir), settings_before).run(True, dry_run)
+    _Transaction(nodes, profiles, results, _backup_paths(nodes, backup_dir), settings_before).run(True, dry_run)
     outcome = WriteOutcome(results, checked.margins, checked.forced, list(nodes), checked.unverified)
     if dcf_dir is not None and not dry_run and outcome.ok:
         for a, r in results.items():

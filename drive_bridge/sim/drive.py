@@ -81,11 +81,24 @@ ABORT_TOO_LOW = 0x06090032
 #: drive-profile parameter -> kernel parameter: the gains, and the model feed-forward of a drive
 #: that has one
 GAIN_PARAMS = {"KpP": K.KPP, "FwF": K.FWF, "KpS": K.KPS, "KiS": K.KIS, "KpC": K.KPC, "KiC": K.KIC}
+PID_PARAMS = {"PidP": K.PID_P, "PidI": K.PID_I, "PidD": K.PID_D, "PidFFv": K.PID_FFV, "PidFFa": K.PID_FFA}
 MODEL_PARAMS = {"ff_enable": K.FF_EN, "J": K.FF_J, "c0": K.FF_C0, "c1": K.FF_C1, "offset": K.FF_OFF,
                 "cp": K.FF_CP, "dc0": K.FF_DC0, "dc1": K.FF_DC1, "periodic_amplitude": K.FF_PER_AMP,
                 "periodic_period": K.FF_PER_PERIOD, "periodic_phase": K.FF_PER_PHASE}
 _MOTOR_OBJECTS = {1: "R", 2: "L", 3: "kt", 4: "vbus"}        # 0x2002 of the project's drive
 DEVICE_TYPE_SERVO = 0x00020192                                # CiA 402, servo drive
+
+
+def _loop_divider(controller, eds_path) -> int:
+    """Kernel ticks per tick of the drive's position/velocity loop: the simulator runs loops at
+    2 kHz / n and its current loop at 8 kHz; ValueError for a profile declaring other rates."""
+    inner = controller.timing
+    div = inner.tick_s / K.VELOCITY_TICK_S
+    if abs(div - round(div)) > 1e-9 or round(div) < 1 or \
+            inner.current_hz != K.CURRENT_SUBSTEPS / K.VELOCITY_TICK_S:
+        raise ValueError(f"{eds_path}: the simulator runs a drive's loops at 2 kHz / n and its current loop at 8 kHz, "
+                         f"not at {1 / inner.tick_s:g} Hz / {inner.current_hz:g} Hz as its profile declares")
+    return round(div)
 
 
 def plant_params(p, axis: "SimAxis", axis_names: list[str]) -> None:
@@ -135,9 +148,13 @@ class SimDrive:
         self.axis_names = axis_names
         self.node_id = axis.node_id
         self.spec = spec_for(eds_path)
+        profile = load_profile(self.spec.profile).bind(axis.motor.kt)     # current through its own motor
+        #: the controller the drive runs (its profile's): structure and rates
+        self.controller = profile.controller
+        self.loop_div = _loop_divider(self.controller, eds_path)
         #: (index, sub) -> (kernel parameter, profile entry) of every gain / model object the drive has
-        self.params = {(e.index, e.sub): ((GAIN_PARAMS | MODEL_PARAMS)[name], e)
-                       for name, e in load_profile(self.spec.profile).entries.items()}
+        self.params = {(e.index, e.sub): ((GAIN_PARAMS | PID_PARAMS | MODEL_PARAMS)[name], e)
+                       for name, e in profile.entries.items()}
         # heartbeat and NMT run in simulation time here, not in canopen's timer thread
         self.node = local_node(axis.node_id, load_od(eds_path, axis.node_id), self._send)
         self.node.add_write_callback(self._on_sdo_write)
@@ -195,9 +212,10 @@ class SimDrive:
         self._units()
         if not self.spec.factory_in_file:
             f = factory()
+            gains = self.controller.to_drive(self._factory_gains())
             for (index, sub), (col, entry) in self.params.items():
-                if entry.parameter in f.gains:
-                    self._store(index, sub, entry.to_device(f.gains[entry.parameter]))
+                if entry.parameter in gains:
+                    self._store(index, sub, entry.to_device(gains[entry.parameter]))
             for index, value in ((0x6072, f.max_torque_permille), (0x6066, f.fe_timeout_ms),
                                  (0x6085, f.quick_stop_rad_s2 * self.vel_per_si),
                                  (0x6081, f.profile_velocity_rad_s * self.vel_per_si),
@@ -205,6 +223,12 @@ class SimDrive:
                                  (0x6084, f.profile_acceleration_rad_s2 * self.vel_per_si)):
                 if index in self.od:
                     self._store(index, 0, round(value))
+
+    def _factory_gains(self) -> dict[str, float]:
+        """The factory cascade (the project drive's EDS defaults), its loops slowed with the drive's
+        loop rate: the same crossover share of the rate, the same margins."""
+        share = 1.0 / self.loop_div
+        return {k: v * share if k in ("KpP", "KpS", "KiS") else v for k, v in factory().gains.items()}
 
     def _store(self, index: int, sub: int, value) -> None:
         self.node.data_store.setdefault(index, {})[sub] = self.od.get_variable(index, sub).encode_raw(value)
@@ -242,8 +266,11 @@ class SimDrive:
         m = self.axis.motor
         self.rated_torque = self._od_or(0x6076, 0, m.rated_torque_Nm * 1000) / 1000.0
         self.rated_current_A = self._od_or(0x6075, 0, m.rated_torque_Nm / m.kt * 1000) / 1000.0
-        for name, col in GAIN_PARAMS.items():                 # a gain without an object keeps the factory value
-            p[col] = factory().gains[name]
+        p[K.STRUCT] = K.POSITION_PID if self.controller.structure == "position_pid" else K.CASCADE
+        p[K.LOOP_DIV] = self.loop_div
+        factory_gains = self.controller.to_drive(self._factory_gains())
+        for name, col in (GAIN_PARAMS | PID_PARAMS).items():  # a gain without an object keeps the factory value
+            p[col] = factory_gains.get(name, 0.0)
         for col in MODEL_PARAMS.values():
             p[col] = 0.0
         for (index, sub), (col, entry) in self.params.items():

@@ -24,7 +24,10 @@ off, an axis with a holding brake (``BRAKE`` = 1) stands still; one without is m
 alone (a vertical axis whose load exceeds its friction falls).  Mechanical end stops
 ``END_LO`` < ``END_HI`` (where set) stop the axis dead.
 
-Drive, per axis: the position demand between two CSP setpoints is the parabola
+Drive, per axis: its position and velocity loops run every ``LOOP_DIV``-th tick (a 1 kHz drive: 2),
+as the cascade above or (``STRUCT`` = ``POSITION_PID``) as a position PID on the following error
+whose D acts on its rate (demand velocity less measured) and whose output, with the velocity and
+acceleration feed-forward ``PID_FFV``·v + ``PID_FFA``·a, is the torque command.  The position demand between two CSP setpoints is the parabola
 through the last three (``A_FF`` is their second difference), so velocity and
 acceleration demand are exact for a constant acceleration.  The velocity
 feed-forward is the demand half a tick back, the instant the backward-difference
@@ -48,16 +51,18 @@ VELOCITY_TICK_S = 0.0005      # velocity / position loop period
 
 # --- state columns -------------------------------------------------------------------
 (Q, V, I, I_INT, V_INT, ENC, VMEAS, TCMD, PDEM, VDEM, FERR, FE_COUNT, T, ENABLED, I_SUM, I_COUNT,
- TWIST, V_LOAD) = range(18)
-N_STATE = 18
+ TWIST, V_LOAD, TICKS) = range(19)
+N_STATE = 19
 
 # --- parameter columns ---------------------------------------------------------------
 (J, C0, C1, CP, D, KT, R, L, VBUS, TMAX, INC_PER_RAD,
  KPP, FWF, KPS, KIS, KPC, KIC,
  FF_EN, FF_J, FF_C0, FF_C1, FF_OFF, FF_CP, FF_DC0, FF_DC1, FF_PER_AMP, FF_PER_PERIOD, FF_PER_PHASE,
  LOAD, PER_AMP, PER_PERIOD, PER_PHASE, STR_AMP, STR_VEL, ASYM_DC0, ASYM_DC1,
- CPL_SRC, CPL_COEF, DRIFT_FRAC, DRIFT_TAU, FE_WINDOW, BRAKE, END_LO, END_HI, TM_SHARE, TM_K, TM_D) = range(47)
-N_PARAM = 47
+ CPL_SRC, CPL_COEF, DRIFT_FRAC, DRIFT_TAU, FE_WINDOW, BRAKE, END_LO, END_HI, TM_SHARE, TM_K, TM_D,
+ STRUCT, LOOP_DIV, PID_P, PID_I, PID_D, PID_FFV, PID_FFA) = range(54)
+N_PARAM = 54
+CASCADE, POSITION_PID = 0.0, 1.0     # STRUCT: the controller structure the drive runs
 
 # --- demand columns (one row per axis, set once per SYNC period) ----------------------
 P0, P1, A_FF, V_OFF, T_OFF = range(5)
@@ -91,15 +96,20 @@ def advance(state, param, demand, tick0, n_ticks, ticks_per_period):
     ``P0`` to ``P1`` over ``ticks_per_period`` ticks and holds at ``P1`` after.
     """
     n_axes = state.shape[0]
-    dt_v = VELOCITY_TICK_S
-    dt_c = dt_v / CURRENT_SUBSTEPS
-    period = ticks_per_period * dt_v
+    dt_c = VELOCITY_TICK_S / CURRENT_SUBSTEPS
+    period = ticks_per_period * VELOCITY_TICK_S
     for k in range(n_ticks):
-        # ---------------- position + velocity loops (2 kHz) ----------------
+        # ---------------- position + velocity loops (2 kHz / LOOP_DIV) ----------------
         for a in range(n_axes):
             s = state[a]
             p = param[a]
             d = demand[a]
+            div = p[LOOP_DIV]
+            s[TICKS] += 1.0
+            if s[TICKS] < div:
+                continue                     # between two ticks of a slower loop: the command holds
+            s[TICKS] = 0.0
+            dt_v = VELOCITY_TICK_S * div
             inc = p[INC_PER_RAD]
             enc = math.floor(s[Q] * inc) / inc
             s[VMEAS] = (enc - s[ENC]) / dt_v
@@ -131,7 +141,7 @@ def advance(state, param, demand, tick0, n_ticks, ticks_per_period):
             else:
                 s[FE_COUNT] = 0.0
             # velocity demand half a tick back: the instant the backward-difference velocity is of
-            e_v = p[FWF] * (v_d - 0.5 * dt_v * a_d) + p[KPP] * ferr + d[V_OFF] - s[VMEAS]
+            v_back = v_d - 0.5 * dt_v * a_d
             t_ff = d[T_OFF]
             if p[FF_EN] != 0.0:
                 sg = _sign(v_d)
@@ -139,8 +149,14 @@ def advance(state, param, demand, tick0, n_ticks, ticks_per_period):
                          + (p[FF_C0] + p[FF_DC0] * sg) * sg + p[FF_OFF] + p[FF_CP] * p_d)
                 if p[FF_PER_PERIOD] > 0.0:
                     t_ff += p[FF_PER_AMP] * math.sin(2.0 * math.pi * p_d / p[FF_PER_PERIOD] + p[FF_PER_PHASE])
-            integ = s[V_INT] + p[KIS] * e_v * dt_v
-            t_cmd = p[KPS] * (e_v + integ) + t_ff
+            if p[STRUCT] == POSITION_PID:
+                integ = s[V_INT] + p[PID_I] * ferr * dt_v
+                t_cmd = (p[PID_P] * ferr + integ + p[PID_D] * (v_back + d[V_OFF] - s[VMEAS])
+                         + p[PID_FFV] * v_d + p[PID_FFA] * a_d + t_ff)
+            else:
+                e_v = p[FWF] * v_back + p[KPP] * ferr + d[V_OFF] - s[VMEAS]
+                integ = s[V_INT] + p[KIS] * e_v * dt_v
+                t_cmd = p[KPS] * (e_v + integ) + t_ff
             if t_cmd > p[TMAX]:
                 t_cmd = p[TMAX]
             elif t_cmd < -p[TMAX]:
@@ -224,7 +240,7 @@ def advance(state, param, demand, tick0, n_ticks, ticks_per_period):
                 s[Q] = q_new
                 s[V] = v_new
         for a in range(n_axes):
-            state[a, T] += dt_v
+            state[a, T] += VELOCITY_TICK_S
 
 
 def new_arrays(n_axes: int):
@@ -233,5 +249,6 @@ def new_arrays(n_axes: int):
     param = np.zeros((n_axes, N_PARAM))
     param[:, CPL_SRC] = -1.0
     param[:, BRAKE] = 1.0
+    param[:, LOOP_DIV] = 1.0
     demand = np.zeros((n_axes, N_DEMAND))
     return state, param, demand

@@ -32,12 +32,25 @@ import numpy as np
 if TYPE_CHECKING:
     from ..ident.frf import Frf
 
-LOOP_TICK_S = 0.5e-3          # velocity / position loop period (2 kHz)
-CURRENT_RATE_HZ = 8000.0
+LOOP_TICK_S = 0.5e-3          # the project drive's velocity / position loop period (2 kHz)
+CURRENT_RATE_HZ = 8000.0      # ... and its current loop's rate
 PM_MIN_DEG, GM_MIN_DB = 45.0, 8.0          # what must hold (industrial tuners' defaults)
 PM_DESIGN_DEG, GM_DESIGN_DB = 50.0, 9.0    # what the design aims at: room for model error
 INTEGRAL_RATIO = 6.0          # KiS = crossover / this
 PADE_ORDER = 3
+
+
+@dataclass(frozen=True)
+class Timing:
+    """The rates of the loops a design is for: ``tick_s`` the period of the loop closed around the
+    position and velocity [s] (the velocity loop of a cascade, a position PID), ``current_hz`` the
+    current loop's rate [Hz]."""
+
+    tick_s: float = LOOP_TICK_S
+    current_hz: float = CURRENT_RATE_HZ
+
+
+PROJECT = Timing()
 
 
 @dataclass
@@ -82,38 +95,38 @@ def _margins(open_loop) -> Margins:
     return Margins(float(pm), gm_db, float(wc / (2 * np.pi)))
 
 
-def _plant_paths(J: float, c1: float, current_bw_rad_s: float):
+def _plant_paths(J: float, c1: float, current_bw_rad_s: float, tick_s: float = LOOP_TICK_S):
     s = control.tf("s")
-    num, den = control.pade(LOOP_TICK_S, PADE_ORDER)             # ½ T hold + ½ T velocity difference
+    num, den = control.pade(tick_s, PADE_ORDER)             # ½ T hold + ½ T velocity difference
     delay = control.tf(num, den)
     current = 1 / (s / current_bw_rad_s + 1)
     return s, delay * current / (J * s + max(c1, 0.0))
 
 
-def velocity_open_loop(J, c1, KpS, KiS, current_bw_rad_s):
-    s, plant = _plant_paths(J, c1, current_bw_rad_s)
+def velocity_open_loop(J, c1, KpS, KiS, current_bw_rad_s, tick_s: float = LOOP_TICK_S):
+    s, plant = _plant_paths(J, c1, current_bw_rad_s, tick_s)
     return KpS * (1 + KiS / s) * plant
 
 
-def position_open_loop(J, c1, KpS, KiS, KpP, current_bw_rad_s):
-    s, _ = _plant_paths(J, c1, current_bw_rad_s)
-    closed_velocity = control.feedback(velocity_open_loop(J, c1, KpS, KiS, current_bw_rad_s), 1)
+def position_open_loop(J, c1, KpS, KiS, KpP, current_bw_rad_s, tick_s: float = LOOP_TICK_S):
+    s = control.tf("s")
+    closed_velocity = control.feedback(velocity_open_loop(J, c1, KpS, KiS, current_bw_rad_s, tick_s), 1)
     return KpP / s * closed_velocity
 
 
-def controller(gains: dict[str, float]):
+def controller(gains: dict[str, float], tick_s: float = LOOP_TICK_S):
     """K(jω) of the drive's cascade as seen at its torque command [Nm per rad/s]: the velocity PI
     around the measured velocity, the position P around that, the loop's delay (½ T hold + ½ T
     velocity difference) -- what a torque offset added to the command sees close the loop."""
     def k(w: np.ndarray) -> np.ndarray:
         s = 1j * np.asarray(w, dtype=float)
-        return _velocity_pi(gains, s) * (1 + gains["KpP"] / s)
+        return _velocity_pi(gains, s, tick_s) * (1 + gains["KpP"] / s)
     return k
 
 
-def _velocity_pi(gains: dict[str, float], s: np.ndarray) -> np.ndarray:
+def _velocity_pi(gains: dict[str, float], s: np.ndarray, tick_s: float) -> np.ndarray:
     """The velocity PI with the loop's delay, KpS·(1 + KiS/s)·e^(−sT), at the points ``s``."""
-    return gains["KpS"] * (1 + gains["KiS"] / s) * np.exp(-s * LOOP_TICK_S)
+    return gains["KpS"] * (1 + gains["KiS"] / s) * np.exp(-s * tick_s)
 
 
 def rigid_response(J: float, c1: float, current_bw_rad_s: float, w: np.ndarray) -> np.ndarray:
@@ -140,7 +153,7 @@ def measurement_gains(J: float, rate_hz: float) -> dict[str, float]:
     return {"KpP": wc / INTEGRAL_RATIO, "KpS": J * wc, "KiS": wc / INTEGRAL_RATIO}
 
 
-def measured_margins(gains: dict[str, float], frf: "Frf", current_bw_rad_s: float
+def measured_margins(gains: dict[str, float], frf: "Frf", current_bw_rad_s: float, tick_s: float = LOOP_TICK_S
                      ) -> tuple[Margins | None, Margins | None]:
     """Margins of the velocity and the position loop with ``gains`` on a measured plant
     (:class:`drive_bridge.ident.frf.Frf`, its reliable bins): the velocity loop
@@ -149,30 +162,32 @@ def measured_margins(gains: dict[str, float], frf: "Frf", current_bw_rad_s: floa
     (``current_bw_rad_s``), up to the loops' Nyquist frequency: a gain margin beyond the band
     counts on no mode there.  None for a loop whose gain crossover lies above ``CROSSOVER_SHARE``
     of the SYNC rate (not verified)."""
-    return (measured_loop(gains, frf, "velocity", current_bw_rad_s),
-            measured_loop(gains, frf, "position", current_bw_rad_s))
+    return (measured_loop(gains, frf, "velocity", current_bw_rad_s, tick_s),
+            measured_loop(gains, frf, "position", current_bw_rad_s, tick_s))
 
 
-def open_loop_at(gains: dict[str, float], f: np.ndarray, g: np.ndarray, loop: str) -> np.ndarray:
+def open_loop_at(gains: dict[str, float], f: np.ndarray, g: np.ndarray, loop: str,
+                 tick_s: float = LOOP_TICK_S) -> np.ndarray:
     """The open ``loop`` ("velocity" or "position") with ``gains`` on a plant whose response is
     ``g`` [rad/s per Nm] at the frequencies ``f`` [Hz]: KpS·(1 + KiS/jω)·e^(−jωT)·G, and KpP/jω
     around that closed."""
     s = 2j * np.pi * np.asarray(f, dtype=float)
-    velocity = _velocity_pi(gains, s) * g
+    velocity = _velocity_pi(gains, s, tick_s) * g
     return velocity if loop == "velocity" else gains["KpP"] / s * velocity / (1 + velocity)
 
 
-def measured_loop(gains: dict[str, float], frf: "Frf", loop: str, current_bw_rad_s: float) -> Margins | None:
+def measured_loop(gains: dict[str, float], frf: "Frf", loop: str, current_bw_rad_s: float,
+                  tick_s: float = LOOP_TICK_S) -> Margins | None:
     """One loop's margins of :func:`measured_margins` (``loop``: "velocity" or "position")."""
     ok = frf.reliable()
     f, g = frf.frequency_hz[ok], frf.response[ok]
     if len(f) < 2:
         return None
     top = f[-1]
-    beyond = np.geomspace(top, 0.5 / LOOP_TICK_S, 200)[1:]
+    beyond = np.geomspace(top, 0.5 / tick_s, 200)[1:]
     inertia = rigid_response(1.0, 0.0, current_bw_rad_s, 2 * np.pi * np.append(beyond, top))
     f, g = np.append(f, beyond), np.append(g, g[-1] * inertia[:-1] / inertia[-1])
-    open_loop = open_loop_at(gains, f, g, loop)
+    open_loop = open_loop_at(gains, f, g, loop, tick_s)
     sure = np.flatnonzero(f <= CROSSOVER_SHARE * frf.rate_hz)
     if not len(sure) or abs(open_loop[sure[-1]]) > 1:
         return None                                      # its crossover lies above the bins measured well
@@ -207,37 +222,40 @@ def _margins_at_points(f: np.ndarray, loop: np.ndarray) -> Margins | None:
     return Margins(float(pm), gm, wc)
 
 
-def current_gains(R: float, L: float) -> tuple[float, float, float]:
-    """KpC [V/A], KiC [1/s] and the closed current-loop bandwidth [rad/s]."""
-    w_i = 2 * np.pi * CURRENT_RATE_HZ / 8
+def current_gains(R: float, L: float, current_hz: float = CURRENT_RATE_HZ) -> tuple[float, float, float]:
+    """KpC [V/A], KiC [1/s] and the closed current-loop bandwidth [rad/s] (an eighth of the loop's
+    rate ``current_hz``)."""
+    w_i = 2 * np.pi * current_hz / 8
     return L * w_i, R / L, w_i
 
 
-def open_loops(J, c1, gains: dict[str, float], L: float):
+def open_loops(J, c1, gains: dict[str, float], L: float, tick_s: float = LOOP_TICK_S):
     """The velocity and the position loop, open, with given gains on the identified plant."""
     w_i = gains["KpC"] / L
-    return (velocity_open_loop(J, c1, gains["KpS"], gains["KiS"], w_i),
-            position_open_loop(J, c1, gains["KpS"], gains["KiS"], gains["KpP"], w_i))
+    return (velocity_open_loop(J, c1, gains["KpS"], gains["KiS"], w_i, tick_s),
+            position_open_loop(J, c1, gains["KpS"], gains["KiS"], gains["KpP"], w_i, tick_s))
 
 
-def following_error(J, c1, gains: dict[str, float], L: float, torque_feedforward: bool):
+def following_error(J, c1, gains: dict[str, float], L: float, torque_feedforward: bool,
+                    tick_s: float = LOOP_TICK_S):
     """Transfer functions from the position demand, and from a torque disturbance, to the
     following error (demand − position) of the cascade on the identified plant: velocity
     feed-forward FwF, and where ``torque_feedforward`` the model torque, which enters through the
     current loop alone (the drive adds it in the tick it computes it: no velocity-difference delay)."""
     w_i = gains["KpC"] / L
-    s, _ = _plant_paths(J, c1, w_i)
+    s = control.tf("s")
     rigid = 1 / (J * s + max(c1, 0.0))
     fed = 1 / (s / w_i + 1) * rigid if torque_feedforward else 0 * rigid
-    pc = velocity_open_loop(J, c1, gains["KpS"], gains["KiS"], w_i)
+    pc = velocity_open_loop(J, c1, gains["KpS"], gains["KiS"], w_i, tick_s)
     den = s * (1 + pc) + pc * gains["KpP"]
     demand = s * (1 + pc * (1 - gains["FwF"]) - fed * (J * s + max(c1, 0.0))) / den
     return control.minreal(demand, verbose=False), control.minreal((rigid - fed) / den, verbose=False)
 
 
-def loop_margins(J, c1, gains: dict[str, float], R: float, L: float) -> tuple[Margins, Margins]:
+def loop_margins(J, c1, gains: dict[str, float], R: float, L: float,
+                 tick_s: float = LOOP_TICK_S) -> tuple[Margins, Margins]:
     """Margins of given gains on the identified plant (e.g. the factory or the paper's sets)."""
-    velocity, position = open_loops(J, c1, gains, L)
+    velocity, position = open_loops(J, c1, gains, L, tick_s)
     return _margins(velocity), _margins(position)
 
 
@@ -260,27 +278,31 @@ def _largest(margins_of, lo: float, hi: float, pm_min: float, what: str) -> tupl
     return lo, best
 
 
-def design_gains(J: float, c1: float, R: float, L: float, frf: "Frf | None" = None) -> GainDesign:
-    """Gains for the plant J [kg·m²], c1 [Nm·s/rad] and motor R [Ω], L [H]; with a measured plant
-    ``frf`` (:class:`drive_bridge.ident.frf.Frf`) every candidate must keep the margins on it too
-    (the worse of the two counts), its crossover within the bins measured."""
+def design_gains(J: float, c1: float, R: float, L: float, frf: "Frf | None" = None,
+                 timing: Timing = PROJECT, max_crossover_hz: float | None = None) -> GainDesign:
+    """Gains for the plant J [kg·m²], c1 [Nm·s/rad] and motor R [Ω], L [H], for loops at the
+    drive's rates ``timing``; with a measured plant ``frf`` (:class:`drive_bridge.ident.frf.Frf`)
+    every candidate must keep the margins on it too (the worse of the two counts), its crossover
+    within the bins measured; the velocity crossover at most ``max_crossover_hz`` where given."""
     if not J > 0:
         raise ValueError(f"J must be positive to design a velocity loop, got {J}")
-    KpC, KiC, w_i = current_gains(R, L)
-    nyquist = np.pi / LOOP_TICK_S
+    KpC, KiC, w_i = current_gains(R, L, timing.current_hz)
+    T = timing.tick_s
+    nyquist = np.pi / T
 
     def worse(model: Margins, gains: dict[str, float], loop: str) -> Margins:
         """The worse of the model's and the measured margins; a loop not verified is refused."""
         if frf is None:
             return model
-        measured = measured_loop(gains, frf, loop, w_i)
+        measured = measured_loop(gains, frf, loop, w_i, T)
         return Margins(-np.inf, -np.inf, model.crossover_hz) if measured is None else model.worse(measured)
 
-    wc, vm = _largest(lambda w: worse(_margins(velocity_open_loop(J, c1, J * w, w / INTEGRAL_RATIO, w_i)),
+    wc, vm = _largest(lambda w: worse(_margins(velocity_open_loop(J, c1, J * w, w / INTEGRAL_RATIO, w_i, T)),
                                       {"KpS": J * w, "KiS": w / INTEGRAL_RATIO}, "velocity"),
-                      20.0, nyquist, PM_DESIGN_DEG, "velocity")           # the velocity-loop crossover
+                      20.0, min(nyquist, 2 * np.pi * (max_crossover_hz or np.inf)), PM_DESIGN_DEG,
+                      "velocity")                                          # the velocity-loop crossover
     KpS, KiS = J * wc, wc / INTEGRAL_RATIO
-    KpP, pm = _largest(lambda k: worse(_margins(position_open_loop(J, c1, KpS, KiS, k, w_i)),
+    KpP, pm = _largest(lambda k: worse(_margins(position_open_loop(J, c1, KpS, KiS, k, w_i, T)),
                                        {"KpS": KpS, "KiS": KiS, "KpP": k}, "position"),
                        1.0, nyquist, PM_DESIGN_DEG + 5, "position")
     return GainDesign(float(KpP), 1.0, float(KpS), float(KiS), float(KpC), float(KiC), vm, pm)

@@ -26,7 +26,7 @@ from typing import Callable
 import numpy as np
 
 from ..config import BusConfig, Limits
-from ..errors import DriveRefused, GuardStop
+from ..errors import DriveRefused, GuardStop, UserError
 from ..master.bringup import AxisLink
 from ..master.campaign import APPROACH_LEVEL
 from ..master.link import Link
@@ -116,6 +116,10 @@ def run_experiment(config: BusConfig, link: Link, axes: dict[str, AxisLink], axi
     refuses raises ValueRefused before anything is written, a raise it refuses ends the raising
     there (``ExperimentResult.gated``); without ``admit`` every gain the ranges allow is tried."""
     ax = axes[axis]
+    if profile.controller.structure != "cascade":
+        raise UserError(f"axis {axis}: the paper's procedure raises the velocity loop's KpS; the {profile.drive} "
+                        f"runs a {profile.controller.structure.replace('_', ' ')} in its streaming mode (tune "
+                        f"without --experiment)")
     lim = ax.cfg.limits
     period = config.master.sync_period_s
     demand, vel, v_step = demand_of(lim, period)

@@ -80,11 +80,13 @@ def route(ax: AxisLink, profile: Profile, model: dict[str, float], force_master:
     a :class:`MasterFeedForward`, or a sentence saying why it gets none and what that costs."""
     if not model:
         return "none: no model in this parameter set"
-    if "J" in profile.entries and not force_master:
-        return "drive"
+    held = [k for k in model if any(n in profile.entries for n in profile.controller.drive_names([k]))]
+    if "J" in held and not force_master:
+        left = [k for k, v in model.items() if k not in held and v]
+        return "drive" + (f" ({', '.join(held)}; no object for {', '.join(left)})" if left else "")
     mapped = {i for c in ax.rpdos for i in c.objects}
     torque = 0x60B2 in mapped
-    velocity = 0x60B1 in mapped and "FwF" not in profile.entries
+    velocity = 0x60B1 in mapped and not any(n in profile.entries for n in profile.controller.drive_names(["FwF"]))
     if torque or velocity:
         return MasterFeedForward(model, torque, velocity)
     if 0x60B2 in ax.cfg.od:

@@ -16,14 +16,15 @@ from pathlib import Path
 import control
 import numpy as np
 
-from .design import following_error, open_loop_at, open_loops
+from .design import LOOP_TICK_S, following_error, open_loop_at, open_loops
 from .feedforward import model_torque
 
 
 def loop_figure(J: float, c1: float, before: dict[str, float] | None, after: dict[str, float], L: float,
-                path: str | Path, title: str = "", frf=None) -> Path:
+                path: str | Path, title: str = "", frf=None, tick_s: float = LOOP_TICK_S) -> Path:
     """Write the Bode plots and the step responses of one axis to ``path`` (PNG); ``frf``: the
-    plant's measured response (:class:`drive_bridge.ident.frf.Frf`), drawn as points."""
+    plant's measured response (:class:`drive_bridge.ident.frf.Frf`), drawn as points; ``tick_s``:
+    the period of the drive's loop [s]."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -31,7 +32,7 @@ def loop_figure(J: float, c1: float, before: dict[str, float] | None, after: dic
     f = np.logspace(0, 4, 600)                                       # 1 Hz .. 10 kHz
     fig, ax = plt.subplots(2, 3, figsize=(13, 6.5), gridspec_kw={"width_ratios": [1, 1, 0.9]})
     for name, gains, colour in sets:
-        loops = open_loops(J, c1, gains, L)
+        loops = open_loops(J, c1, gains, L, tick_s)
         for col, (loop, sys_) in enumerate(zip(("velocity", "position"), loops)):
             resp = sys_(2j * np.pi * f)
             mag, phase = 20 * np.log10(np.abs(resp)), np.degrees(np.unwrap(np.angle(resp)))
@@ -53,7 +54,7 @@ def loop_figure(J: float, c1: float, before: dict[str, float] | None, after: dic
             if frf is not None:
                 ok = frf.reliable()
                 fm = frf.frequency_hz[ok]
-                measured = open_loop_at(gains, fm, frf.response[ok], loop)
+                measured = open_loop_at(gains, fm, frf.response[ok], loop, tick_s)
                 ax[0, col].semilogx(fm, 20 * np.log10(np.abs(measured)), ".", color=colour, ms=3,
                                     label=f"{name}, on the measured plant")
                 ax[1, col].semilogx(fm, np.degrees(np.unwrap(np.angle(measured))) % 360 - 360, ".", color=colour,
@@ -93,13 +94,13 @@ def loop_figure(J: float, c1: float, before: dict[str, float] | None, after: dic
 
 
 def predicted_following_error(model: dict[str, float], gains: dict[str, float], L: float, torque_feedforward: bool,
-                              t: np.ndarray, demand: np.ndarray) -> np.ndarray:
+                              t: np.ndarray, demand: np.ndarray, tick_s: float = LOOP_TICK_S) -> np.ndarray:
     """The following error [rad] the identified ``model`` (J, c1 and what the drive model holds:
     c0, offset, ...) predicts along ``demand`` [rad] at ``t`` [s] with ``gains``: the linear cascade
     (:func:`.design.following_error`) driven by the demand and by the model's torque beyond J·q̈ + c1·q̇
     along it (held from the start: the axis waits at rest holding it)."""
     J, c1 = model["J"], model["c1"]
-    to_error, from_torque = following_error(J, c1, gains, L, torque_feedforward)
+    to_error, from_torque = following_error(J, c1, gains, L, torque_feedforward, tick_s)
     dt = float(np.median(np.diff(t)))
     v = np.gradient(demand, dt)
     rest = model_torque(model, demand, dt) - J * np.gradient(v, dt) - c1 * v

@@ -67,7 +67,7 @@ def unmeasurable(ax: AxisLink, profile: Profile) -> str | None:
     """Why the response of ``ax`` cannot be measured (None: it can)."""
     if 0x60B2 not in {i for c in ax.rpdos for i in c.objects}:
         return "the torque offset 0x60B2 is not in its RPDO mapping (map it in the node's rpdo in bus.yml)"
-    missing = [g for g in SOFT if g not in profile.entries]
+    missing = [g for g in profile.controller.drive_names(SOFT) if g not in profile.entries]
     if missing:
         return f"the {profile.drive} profile has no object for {', '.join(missing)} (the measurement's soft gains)"
     return None
@@ -86,18 +86,19 @@ def measure_axes(config: BusConfig, link: Link, axes: dict[str, AxisLink], profi
             continue
         demand, steady, speed = sweep(ax, period)
         u = offset_of(ax, period, steady, len(demand))
-        own = read_parameters(ax.node, profile, list(SOFT))
+        bound = profile.for_axis(ax)
+        own = read_parameters(ax.node, bound, list(SOFT))
         try:
-            result = write_parameters(ax.node, profile, measurement_gains(inertia[a], 1.0 / period), store=False)
+            result = write_parameters(ax.node, bound, measurement_gains(inertia[a], 1.0 / period), store=False)
             if not result.ok:
                 raise DriveRefused(f"axis {a}: the measurement's gains: {result.error}")
-            held = read_parameters(ax.node, profile, list(SOFT))
+            held = read_parameters(ax.node, bound, list(SOFT))
             log.info("axis %s: frequency response at %.3g rad/s with %s", a, speed,
                      ", ".join(f"{g} {v:.4g}" for g, v in held.items()))
             m = motion.run(config, link, {a: ax}, {a: demand}, kind="frequency response", torque_offset={a: u},
                            on_plan=on_plan)
         finally:
-            write_parameters(ax.node, profile, own, store=False)
+            write_parameters(ax.node, bound, own, store=False)
         if m.aborted is not None:
             raise m.aborted
         q = m.position[a][steady]
@@ -107,7 +108,7 @@ def measure_axes(config: BusConfig, link: Link, axes: dict[str, AxisLink], profi
             raise UserError(f"axis {a}: the axis went back during the frequency response (the torque offset "
                             f"outweighed the sweep at {speed:.3g} rad/s): friction changed side and the response "
                             f"is not the plant's; a longer stroke in the limits, or leave the measure step out")
-        out[a] = measure(q, u[steady], 1.0 / period, controller(held))
+        out[a] = measure(q, u[steady], 1.0 / period, controller(held, profile.controller.timing.tick_s))
     return out, skipped
 
 

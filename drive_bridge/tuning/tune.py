@@ -4,6 +4,8 @@ from __future__ import annotations
 import json
 import logging
 import math
+
+import numpy as np
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -12,13 +14,20 @@ from ..ident.effects import DRIVE_EFFECTS
 from ..outputs import stamped
 from ..yamlconf import too_large
 from ..ident.frf import Frf
-from .design import GainDesign, Margins, design_gains, loop_margins, measured_margins
+from ..params.controller import Controller
+from .design import (GainDesign, Margins, controller as loop_controller, current_gains, design_gains, loop_margins,
+                     measured_margins, rigid_response)
 from .experiment import ExperimentResult
 from .feedforward import MODEL_KEYS
 
 log = logging.getLogger(__name__)
 
 GAINS = ("KpP", "FwF", "KpS", "KiS", "KpC", "KiC")
+MODE_SHARE = 1 / 3        # without a filter object, a mode the measured response does not cover keeps the
+                          # velocity crossover below this share of its frequency (rule of thumb for a rigid
+                          # design near a lightly damped mode: 1/3 ... 1/5)
+MODE_PEAK = 2.0           # a measured |G| this many times the rigid model's (6 dB) at its peak: a mode
+LOOP_RINGING = 2 ** 0.5   # an identified peak where the drive's own loop amplifies this much (3 dB) is the loop's
 
 
 @dataclass
@@ -31,6 +40,8 @@ class AxisTuning:
     motor: dict[str, float]                 # R [Ω], L [H] the current loop was designed for
     experiment: ExperimentResult | None = None
     frf: Frf | None = None                  # the plant's response measured through the drive, designed on too
+    controller: Controller = Controller()   # the structure and rates the gains are designed for
+    mode: dict | None = None                # a mode of the transmission, where one is known, and how it is met
 
     def parameters(self) -> dict[str, float]:
         """Everything to write: the designed gains, the model, and the model feed-forward on."""
@@ -43,6 +54,7 @@ class AxisTuning:
                 {"velocity": vars(self.before_margins[0]), "position": vars(self.before_margins[1])},
                 "experiment": None if self.experiment is None else self.experiment.as_dict(),
                 "measured": None if self.frf is None else self.measured(),
+                "controller": self.controller.as_dict(), "mode": self.mode,
                 "parameters": self.parameters()}
 
     def measured(self) -> dict:
@@ -53,7 +65,7 @@ class AxisTuning:
         def margins(gains: dict[str, float]) -> dict | None:
             if not {"KpP", "KpS", "KiS", "KpC"} <= set(gains):
                 return None
-            v, p = measured_margins(gains, self.frf, gains["KpC"] / self.motor["L"])
+            v, p = measured_margins(gains, self.frf, gains["KpC"] / self.motor["L"], self.controller.timing.tick_s)
             return {"velocity": None if v is None else vars(v), "position": None if p is None else vars(p)}
         return {"band_hz": [float(band.min()), float(band.max())] if len(band) else None,
                 "margins": margins(self.design.gains()), "margins_before": margins(self.before)}
@@ -130,6 +142,12 @@ def read_identify_json(path: str | Path) -> dict[str, dict[str, float]]:
     return out
 
 
+def read_resonances(path: str | Path) -> dict[str, dict | None]:
+    """axis -> the resonance an ``identify --json`` result reports for it (None: none)."""
+    return {a: r.get("resonance") if isinstance(r.get("resonance"), dict) else None
+            for a, r in _axes_of(Path(path), "identify --json result").items()}
+
+
 def unwritable_effects(path: str | Path) -> dict[str, list[str]]:
     """axis -> the traced effects of an ``identify --json`` result that no drive model parameter
     (nor the master's feed-forward, which sends the same model) can carry: reported, not dropped."""
@@ -156,36 +174,102 @@ def check_model(axis: str, model: dict[str, float]) -> None:
                         f"again (longer or richer excitation) before tuning")
 
 
+def measured_mode(frf: Frf, J: float, c1: float, current_bw_rad_s: float) -> float | None:
+    """The frequency [Hz] of a mode the measured response shows (its reliable bins): where |G|
+    stands at least ``MODE_PEAK`` times the rigid model's; None where it does not."""
+    ok = frf.reliable()
+    if not ok.any():
+        return None
+    f = frf.frequency_hz[ok]
+    ratio = np.abs(frf.response[ok] / rigid_response(J, c1, current_bw_rad_s, 2 * np.pi * f))
+    k = int(np.argmax(ratio))
+    return float(f[k]) if ratio[k] >= MODE_PEAK else None
+
+
+def loop_amplification(model: dict[str, float], gains: dict[str, float], current_bw_rad_s: float, tick_s: float,
+                       f_hz: float) -> float:
+    """How much the drive's loop with ``gains`` amplifies at ``f_hz`` on the rigid ``model``: the
+    larger of |1 / (1 + K·G)| and |K·G / (1 + K·G)|, broken at the torque command (whatever the
+    structure, the same loop).  Above 1 the loop rings there by itself."""
+    w = np.array([2 * np.pi * f_hz])
+    open_loop = loop_controller(gains, tick_s)(w) * rigid_response(model["J"], model["c1"], current_bw_rad_s, w)
+    return float(max(abs(1 / (1 + open_loop[0])), abs(open_loop[0] / (1 + open_loop[0]))))
+
+
+def _mode(axis: str, model: dict[str, float], resonance: dict | None, frf: Frf | None, controller: Controller,
+          L: float, drive: str, before: dict[str, float]) -> tuple[dict | None, float | None]:
+    """A mode of the axis's transmission (identified or measured) and how the design meets it:
+    the record for tune.json, and the velocity crossover cap [Hz] (None: none).  An identified
+    peak where the drive's own loop with its gains ``before`` peaks on the rigid model is that
+    loop ringing in the log, not the machine: no cap."""
+    w_i = current_gains(1.0, L, controller.timing.current_hz)[2]
+    measured = measured_mode(frf, model["J"], model["c1"], w_i) if frf is not None else None
+    if measured is not None:
+        source, f = "measured response", measured
+    elif resonance and not resonance.get("mains") and resonance.get("frequency_hz"):
+        source, f = "identification", float(resonance["frequency_hz"])
+    else:
+        return None, None
+    band = frf.frequency_hz[frf.reliable()] if frf is not None else np.array([])
+    no_filter = f"the {drive} profile names no notch or low-pass filter object"
+    if source == "identification" and {"KpP", "KpS", "KiS"} <= set(before):
+        gain = loop_amplification(model, before, w_i, controller.timing.tick_s, f)
+        if gain >= LOOP_RINGING:
+            return ({"frequency_hz": round(f, 2), "source": source, "filter": None,
+                     "handling": f"the drive's own loop with its gains before amplifies {20 * np.log10(gain):.1f} dB "
+                                 f"there on the rigid model: the log shows that loop ringing, not a mode of the "
+                                 f"machine (measure the response to tell them apart); no limit",
+                     "crossover_cap_hz": None}, None)
+    if len(band) and band.min() <= f <= band.max():
+        return ({"frequency_hz": round(f, 2), "source": source, "filter": None,
+                 "handling": f"{no_filter}; the response measured through the mode limits the crossover: the "
+                             f"margins hold on it", "crossover_cap_hz": None}, None)
+    cap = MODE_SHARE * f
+    log.info("axis %s: a mode at %.0f Hz (%s): velocity crossover kept below %.0f Hz", axis, f, source, cap)
+    return ({"frequency_hz": round(f, 2), "source": source, "filter": None,
+             "handling": f"{no_filter}; not measured through: the velocity crossover kept at most "
+                         f"{MODE_SHARE:.2g} × the mode", "crossover_cap_hz": round(cap, 2)}, cap)
+
+
 def tune_axis(axis: str, model: dict[str, float], R: float, L: float, before: dict[str, float],
-              frf: Frf | None = None) -> AxisTuning:
-    """Gains for one axis from its identified ``model`` (and, where given, the margins kept on its
-    measured response ``frf`` too)."""
+              frf: Frf | None = None, controller: Controller = Controller(), resonance: dict | None = None,
+              drive: str = "drive") -> AxisTuning:
+    """Gains for one axis from its identified ``model`` for the ``controller`` its drive runs (and,
+    where given, the margins kept on its measured response ``frf`` too; a mode -- ``resonance``
+    from identify, or one the response shows -- met as :func:`_mode` says)."""
     check_model(axis, model)
     if not (math.isfinite(R) and math.isfinite(L) and R > 0 and L > 0):
         raise UserError(f"axis {axis}: motor R = {R} Ω, L = {L} H must be positive numbers")
+    mode, cap = _mode(axis, model, resonance, frf, controller, L, drive, before)
+    timing = controller.timing
     try:
-        design = design_gains(model["J"], model["c1"], R, L, frf)
+        design = design_gains(model["J"], model["c1"], R, L, frf, timing, cap)
     except (KeyError, ValueError) as exc:
         raise UserError(f"axis {axis}: cannot design gains from the model {model}: {exc}") from exc
-    margins = loop_margins(model["J"], model["c1"], before, R, L) if set(GAINS) <= set(before) else None
+    margins = loop_margins(model["J"], model["c1"], before, R, L, timing.tick_s) \
+        if set(GAINS) <= set(before) else None
     log.info("axis %s: %s; velocity loop PM %.1f° at %.0f Hz", axis,
              ", ".join(f"{g} {v:.5g}" for g, v in design.gains().items()), design.velocity.phase_margin_deg,
              design.velocity.crossover_hz)
-    return AxisTuning(axis, model, design, before, margins, {"R": R, "L": L}, frf=frf)
+    return AxisTuning(axis, model, design, before, margins, {"R": R, "L": L}, frf=frf, controller=controller,
+                      mode=mode)
 
 
 def tune_axes(models: dict[str, dict[str, float]], state: dict[str, dict],
-              frfs: dict[str, Frf] | None = None) -> dict[str, AxisTuning]:
+              frfs: dict[str, Frf] | None = None, controller: Controller = Controller(),
+              resonances: dict[str, dict | None] | None = None, drive: str = "drive") -> dict[str, AxisTuning]:
     """The tune step: gains for every axis of ``state`` (what bring-up read:
-    :func:`~drive_bridge.params.read.drive_state`) from its identified model in ``models`` and,
-    where ``frfs`` has it, its measured response."""
+    :func:`~drive_bridge.params.read.drive_state`) from its identified model in ``models`` for the
+    ``controller`` of the ``drive``'s profile and, where ``frfs`` has it, its measured response
+    (``resonances``: identify's per axis)."""
     out = {}
     for a, st in state.items():
         if a not in models:
             raise UserError(f"axis {a}: no identified model (identify.json has {', '.join(models) or 'no axis'})")
         before = st["parameters_before"]
         out[a] = tune_axis(a, models[a], st["motor"]["R"], st["motor"]["L"],
-                           {g: before[g] for g in GAINS if g in before}, (frfs or {}).get(a))
+                           {g: before[g] for g in GAINS if g in before}, (frfs or {}).get(a), controller,
+                           (resonances or {}).get(a), drive)
     return out
 
 

@@ -22,7 +22,7 @@ EXAMPLES = data("config", "examples")
 EXPECTED = {
     "drive_bridge_servo": (8, "drive", True, True),
     "nanotec_c5e": (8, "master: torque offset 0x60B2", True, True),
-    "maxon_epos2": (7, "none", True, True),
+    "maxon_epos2": (7, "drive", True, True),
     "technosoft_ipos": (7, "none", False, False),
     "pilz_prbt": (7, "master: torque offset 0x60B2", True, False),
 }
@@ -71,6 +71,14 @@ def test_commission_runs_end_to_end_on_the_vendor_faithful_drive(drive, tmp_path
         assert val["feedforward"].startswith(ff)
         if writes or ff != "none":
             assert val["fe_rms_after"] < val["fe_rms_before"] / 2, (traj, val)
+    if drive == "maxon_epos2":      # its position PID (what runs in IP mode) and its feed-forward, not 0x60F9
+        written = {w["object"]: w for w in y["written"]}
+        assert {o[:6] for o in written} == {"0x60FB", "0x60F6"} and len(written) == 7
+        kt = yaml.safe_load(short(tmp_path, drive).read_text())["defaults"]["scaling"]["torque_constant_Nm_per_A"]
+        assert written["0x60FB:4"]["new_device"] == round(y["params"]["c1"] / kt * 1e6)     # µA per rad/s
+        assert written["0x60FB:5"]["new_device"] == round(y["params"]["J"] / kt * 1e6)
+        tune = json.loads((out / "tune.json").read_text())["axes"]["y"]
+        assert tune["controller"]["structure"] == "position_pid" and tune["controller"]["rates_hz"]["position"] == 1000
     dcf = out / "write" / "y.dcf"                  # the commissioned node, read back, CiA 306 clean
     assert check_eds(dcf).findings == []
     if tool("dcfchk"):

@@ -67,7 +67,7 @@ def test_scan_bring_up_campaign_write_and_store_against_durand_slaves(example, t
         p = PAPER["y"]
         values = {"y": {**design_gains(p["J"], p["c1"], R=0.8, L=0.002).gains(), **p}}
         outcome = write_drives({"y": axes["y"].node}, profile, values, backup_dir=None, force=True,
-                               allow_unverified_scales=True)
+                               allow_unverified_scales=True, torque_constants=config.torque_constants)
         assert outcome.ok and outcome.results["y"].stored == (profile.save is not None)
         assert aborts.seen == []
     finally:

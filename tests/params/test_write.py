@@ -147,14 +147,14 @@ needs_vendor_files = pytest.mark.skipif(not vendor_dir().exists(), reason="../sh
 @needs_vendor_files
 @pytest.mark.parametrize("name", VENDORS)
 def test_vendor_profile_writes_and_reads_back(name):
-    profile = load_profile(name)
+    profile = load_profile(name).bind(0.2)        # a drive holding gains in current: its motor's kt
     with vendor_node(profile) as (local, remote):
         values = tuned_values()
+        held = profile.controller.to_drive(values)   # the parameters of the controller the drive runs
         r = write_parameters(remote, profile, values)
         assert r.ok, r.error
-        assert {w.parameter for w in r.objects} == set(profile.entries) - {"ff_enable"} & set(values) | \
-            (set(profile.entries) & set(values))
-        assert set(r.unsupported) == set(values) - set(profile.entries)   # e.g. J, c0, c1: reported, not dropped
+        assert {w.parameter for w in r.objects} == set(profile.entries) & set(held)
+        assert set(r.unsupported) == set(held) - set(profile.entries)   # e.g. J, c0, c1: reported, not dropped
         for w in r.objects:
             e = profile.entries[w.parameter]
             raw = local.object_dictionary.get_variable(e.index, e.sub).decode_raw(local.get_data(e.index, e.sub))
@@ -174,12 +174,16 @@ def test_a_scale_without_a_documented_source_is_written_only_when_allowed(name):
     assert unverified, f"{name}: every scale has a source now: give this test a profile that has none"
     values = {"y": tuned_values()}
     with vendor_node(profile) as (local, remote):
+        kt = {"y": 0.2}                                   # a drive holding gains in current: its motor's kt
         with pytest.raises(ValueRefused, match="no documented source"):
-            write_drives({"y": remote}, profile, values, backup_dir=None, force=True)
-        dry = write_drives({"y": remote}, profile, values, backup_dir=None, dry_run=True, force=True)
+            write_drives({"y": remote}, profile, values, backup_dir=None, force=True, torque_constants=kt)
+        dry = write_drives({"y": remote}, profile, values, backup_dir=None, dry_run=True, force=True,
+                           torque_constants=kt)
         assert dry.ok and dry.unverified_scales and not any(w.written for w in dry.results["y"].objects)
-        done = write_drives({"y": remote}, profile, values, backup_dir=None, force=True, allow_unverified_scales=True)
-        assert done.ok and {u.split(" ")[0] for u in done.unverified_scales} == set(unverified) & set(values["y"])
+        done = write_drives({"y": remote}, profile, values, backup_dir=None, force=True, allow_unverified_scales=True,
+                            torque_constants=kt)
+        held = profile.controller.to_drive(values["y"])
+        assert done.ok and {u.split(" ")[0] for u in done.unverified_scales} == set(unverified) & set(held)
         assert done.as_dict()["unverified_scales"] == done.unverified_scales
 
 

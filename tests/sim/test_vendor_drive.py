@@ -59,15 +59,31 @@ def test_no_object_the_file_lacks(name):
 @pytest.mark.parametrize("name", VENDOR_FILES)
 def test_gains_through_the_profile_drive_the_loops(name):
     b, node = bench(name)
-    profile = load_profile(SPECS[name].profile)
+    profile = load_profile(SPECS[name].profile).bind(b.robot.config.axes["y"].motor.kt)
     drive = b.robot.drives["y"]
+    cols = {"KpP": K.KPP, "FwF": K.FWF, "KpS": K.KPS, "KiS": K.KIS, "KpC": K.KPC, "KiC": K.KIC, "PidP": K.PID_P,
+            "PidI": K.PID_I, "PidD": K.PID_D, "PidFFv": K.PID_FFV, "PidFFa": K.PID_FFA}
     for param, entry in profile.entries.items():
-        col = {"KpP": K.KPP, "FwF": K.FWF, "KpS": K.KPS, "KiS": K.KIS, "KpC": K.KPC, "KiC": K.KIC}[param]
-        value = drive.p[col] * 1.25
+        col = cols[param]
+        value = drive.p[col] * 1.25 or 1e-4
         sdo_variable(node, entry).raw = entry.to_device(value)
         assert drive.p[col] == pytest.approx(entry.to_si(entry.held(entry.to_device(value))), rel=1e-6)
     if not profile.entries:                       # the iPOS: no gain objects, the factory loops run
         assert drive.p[K.KPS] > 0
+
+
+def test_the_epos2_runs_its_position_pid_at_1_kHz_and_its_velocity_pi_is_not_in_the_loop():
+    """In its position modes the EPOS2 runs the position PID of its profile (0x60FB, current) at the
+    declared 1 kHz; 0x60F9 (the velocity PI) is held but drives nothing."""
+    b, node = bench("maxon_epos2_50-5.eds")
+    drive = b.robot.drives["y"]
+    assert drive.p[K.STRUCT] == K.POSITION_PID and drive.p[K.LOOP_DIV] == 2
+    before = drive.p.copy()
+    node.sdo[0x60F9][1].raw = 2 * node.sdo[0x60F9][1].raw + 1
+    assert (drive.p == before).all()
+    kt = b.robot.config.axes["y"].motor.kt
+    node.sdo[0x60FB][1].raw = 3000                    # 0.01 A/rad on the bus (the profile's reading)
+    assert drive.p[K.PID_P] == pytest.approx(3000 / 100 * kt)
 
 
 def test_maxon_reports_velocity_in_rpm_and_current_in_mA():

@@ -45,7 +45,7 @@ def test_every_gain_the_experiment_tries_passes_the_gain_gate():
     before = {"KpP": 150.0, "KpS": 0.12, "KiS": 20.0, "KpC": 12.566}
 
     def admit(kps):
-        return screen(SIM, {"y": {**model, **before, "KpS": kps}}, {"y": MOTOR["L"]}, allow_unverified_scales=True)[1]
+        return screen({"y": SIM}, {"y": {**model, **before, "KpS": kps}}, {"y": MOTOR["L"]}, allow_unverified_scales=True)[1]
     with open_link(config, sim=True) as link:
         axes = bring_up(link, config)
         result = run_experiment(config, link, axes, "y", SIM, 0.12, admit)

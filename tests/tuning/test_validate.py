@@ -108,8 +108,9 @@ def test_feedforward_route_follows_what_the_drive_has():
     def axis(mapped, in_eds=(0x60B2,)):
         return NS(rpdos=[NS(objects=tuple(mapped))], cfg=NS(od=set(in_eds)))
 
-    gains = NS(entries={"KpS": 1, "FwF": 1})
-    no_fwf = NS(entries={"KpS": 1})
+    from drive_bridge.params.controller import Controller
+    gains = NS(entries={"KpS": 1, "FwF": 1}, controller=Controller())
+    no_fwf = NS(entries={"KpS": 1}, controller=Controller())
     assert route(axis([0x6040, 0x607A, 0x60B2]), SIM, model) == "drive"
     assert route(axis([0x6040, 0x607A, 0x60B2]), gains, model) == MasterFeedForward(model, True, False)
     assert route(axis([0x6040, 0x607A, 0x60B1]), no_fwf, model) == MasterFeedForward(model, False, True)

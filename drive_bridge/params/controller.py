@@ -1,0 +1,142 @@
+"""The controller a drive runs in its streaming mode, as its profile declares it.
+
+A profile's ``controller`` section names the structure, the loop rates [Hz] and, per item, the
+document (and section) it comes from; an item without a source is unverified, shown as such in
+tune.json and the report.  Structures:
+
+``cascade``
+    position P (+ velocity feed-forward FwF) → velocity PI → current PI.  Parameters KpP [1/s],
+    FwF [1], KpS [Nm·s/rad], KiS [1/s], KpC [V/A], KiC [1/s].
+``position_pid``
+    position PID (+ velocity and acceleration feed-forward) → current PI, as maxon's EPOS2 runs
+    in its position modes.  Parameters PidP [Nm/rad], PidI [Nm/(rad·s)], PidD [Nm·s/rad],
+    PidFFv [Nm·s/rad], PidFFa [kg·m²], KpC, KiC (the profile turns torque into the drive's
+    current with the axis's torque constant).
+
+A position PID on the position error is exactly the cascade P–PI with FwF = 1 at the same rate
+(its D term acts on the error's rate, demand velocity less measured): D = KpS,
+P = KpS·(KpP + KiS), I = KpS·KiS·KpP.  So the tuner designs the cascade for the drive's rate and
+the PID drive is written the same loop; its feed-forward carries the model's viscous friction
+(PidFFv = c1) and inertia (PidFFa = J).  Back from a PID, KpP and KiS are the roots of
+x² − (P/D)·x + I/D (KpP the larger: the same loop either way); a PID with complex roots has no
+cascade and is reported without one.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from ..errors import UserError
+from ..tuning.design import CURRENT_RATE_HZ, LOOP_TICK_S, Timing
+
+STRUCTURES = ("cascade", "position_pid")
+CASCADE = ("KpP", "FwF", "KpS", "KiS")
+PID = ("PidP", "PidI", "PidD", "PidFFv", "PidFFa")
+RATES = ("position", "velocity", "current")
+PROJECT_SOURCE = "drive_bridge/sim/kernel.py: the project's drive"
+
+
+@dataclass(frozen=True)
+class Controller:
+    """What runs in the drive: ``structure`` (:data:`STRUCTURES`), the loop rates [Hz] (a
+    position PID has no velocity loop: None), and per item (``structure`` or a rate) its source
+    (absent: unverified)."""
+
+    structure: str = "cascade"
+    rates_hz: dict[str, float | None] = field(default_factory=lambda: {
+        "position": 1 / LOOP_TICK_S, "velocity": 1 / LOOP_TICK_S, "current": CURRENT_RATE_HZ})
+    sources: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def timing(self) -> Timing:
+        """The rates the design is for: the loop closed around the velocity (a cascade's velocity
+        loop, a position PID) and the current loop."""
+        inner = self.rates_hz["velocity"] if self.structure == "cascade" else self.rates_hz["position"]
+        return Timing(1.0 / inner, self.rates_hz["current"])
+
+    def unverified(self) -> list[str]:
+        """The items declared without a source."""
+        return [k for k in ("structure", *RATES) if k not in self.sources and
+                (k == "structure" or self.rates_hz.get(k) is not None)]
+
+    def as_dict(self) -> dict:
+        return {"structure": self.structure, "rates_hz": dict(self.rates_hz), "sources": dict(self.sources),
+                "unverified": self.unverified()}
+
+    @classmethod
+    def from_dict(cls, d: dict | None) -> "Controller":
+        """:meth:`as_dict` read back (tune.json's ``controller``); the project's cascade for None (a
+        tune.json written before the controller was recorded)."""
+        if not d:
+            return cls()
+        return cls(d["structure"], dict(d["rates_hz"]), dict(d.get("sources") or {}))
+
+    def to_drive(self, values: dict[str, float]) -> dict[str, float]:
+        """A parameter set in the cascade's terms (tune's) as this drive's parameters, SI: the
+        same for a cascade; for a position PID the gains and the model's J and c1 as the PID and
+        its feed-forward.  UserError for a set the drive's structure cannot hold."""
+        if self.structure == "cascade":
+            return dict(values)
+        out = {k: v for k, v in values.items() if k not in (*CASCADE, "J", "c1")}
+        gains = [g for g in ("KpP", "KpS", "KiS") if g in values]
+        if gains and len(gains) < 3:
+            raise UserError(f"a position PID holds KpP, KpS and KiS only together (given: {', '.join(gains)})")
+        if "FwF" in values and values["FwF"] != 1.0:
+            raise UserError(f"FwF = {values['FwF']:g}: a position PID acts on the error's rate, the whole demand "
+                            f"velocity (FwF = 1)")
+        if gains:
+            kpp, kps, kis = values["KpP"], values["KpS"], values["KiS"]
+            out.update(PidP=kps * (kpp + kis), PidI=kps * kis * kpp, PidD=kps)
+        if "c1" in values:
+            out["PidFFv"] = values["c1"]
+        if "J" in values:
+            out["PidFFa"] = values["J"]
+        return out
+
+    def drive_names(self, names) -> list[str]:
+        """The drive's parameters that hold ``names`` (the cascade's terms)."""
+        if self.structure == "cascade":
+            return list(names)
+        held = {"KpP": PID[:3], "KpS": PID[:3], "KiS": PID[:3], "FwF": PID[:3], "c1": ("PidFFv",), "J": ("PidFFa",)}
+        return list(dict.fromkeys(d for n in names for d in held.get(n, (n,))))
+
+    def from_drive(self, values: dict[str, float]) -> dict[str, float]:
+        """This drive's parameters, SI, in the cascade's terms (:meth:`to_drive` undone)."""
+        if self.structure == "cascade":
+            return dict(values)
+        out = {k: v for k, v in values.items() if k not in PID}
+        if "PidFFv" in values:
+            out["c1"] = values["PidFFv"]
+        if "PidFFa" in values:
+            out["J"] = values["PidFFa"]
+        if all(k in values for k in ("PidP", "PidI", "PidD")) and values["PidD"] > 0:
+            d = values["PidD"]
+            half, prod = values["PidP"] / d / 2, values["PidI"] / d
+            if half * half >= prod:
+                root = math.sqrt(half * half - prod)
+                out.update(KpP=half + root, KiS=half - root, KpS=d, FwF=1.0)
+        return out
+
+
+def load_controller(sec) -> Controller:
+    """The ``controller`` section of a profile (a :class:`~drive_bridge.yamlconf.Section`); the
+    project drive's cascade and rates, unverified, where the profile has none."""
+    if not sec.keys():
+        return Controller()
+    structure = sec.get("structure", str)
+    if structure not in STRUCTURES:
+        raise sec.error("structure", f"unknown controller structure {structure!r} (known: {', '.join(STRUCTURES)})")
+    rates = sec.section("rates_hz")
+    rates_hz: dict[str, float | None] = {}
+    for name in RATES:
+        needed = not (name == "velocity" and structure == "position_pid")
+        rates_hz[name] = rates.get(name, float, low=1.0, high=1e6) if needed else None
+    rates.done()
+    sources_sec = sec.section("sources", required=False)
+    sources = {k: sources_sec.get(k, str) for k in sources_sec.keys()}
+    unknown = set(sources) - {"structure", *RATES}
+    if unknown:
+        raise sources_sec.error(sorted(unknown)[0], f"not a controller item (items: structure, {', '.join(RATES)})")
+    sources_sec.done()
+    sec.done()
+    return Controller(structure, rates_hz, sources)
