@@ -340,7 +340,9 @@ def _node(path: Path, axis: str, data: dict, dcf_path: str | None = None, unused
     feed = sc.get("feed_m_per_rev", float, None, low=1e-6, high=100.0)
     feedback = sc.get("torque_feedback", str, "torque", choices=list(TORQUE_FEEDBACK))
     velocity_unit = sc.get("velocity_unit", str, "inc/s", choices=["inc/s", "rpm"])
-    per_unit = kt = torque_index = torque_per_unit = None
+    per_unit = torque_index = torque_per_unit = None
+    # the motor's torque constant: for current feedback, and for gains a drive holds in current
+    kt = sc.get("torque_constant_Nm_per_A", float, ... if feedback == "current" else None, low=1e-6, high=1e3)
     if feedback == "object":                  # torque = a vendor object × its scale
         torque_index = sc.get("torque_object", int, low=0x2000, high=0x5FFF)
         var = od.get_variable(torque_index, 0)
@@ -352,7 +354,6 @@ def _node(path: Path, axis: str, data: dict, dcf_path: str | None = None, unused
         unit_ = sc.get("current_unit", str, "permille", choices=["permille", "mA"])
         per_unit = (sc.get("rated_current_A", float, low=1e-6, high=1e5) / 1000.0 if unit_ == "permille"
                     else 1e-3)
-        kt = sc.get("torque_constant_Nm_per_A", float, low=1e-6, high=1e3)
     inc = sc.get("increments_per_rev", int, None, low=1, high=2**31 - 1)
     if inc is None and finite_number(scale_pos) and scale_pos > 0 and not from_drive:
         inc = round(scale_pos * (feed or 2 * math.pi))     # ros2_canopen: device units per rad (or m)

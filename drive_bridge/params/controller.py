@@ -30,6 +30,7 @@ from ..errors import UserError
 from ..tuning.design import CURRENT_RATE_HZ, LOOP_TICK_S, Timing
 
 STRUCTURES = ("cascade", "position_pid")
+GAINS = ("KpP", "FwF", "KpS", "KiS", "KpC", "KiC")   # a cascade's gains (tune's terms)
 CASCADE = ("KpP", "FwF", "KpS", "KiS")
 PID = ("PidP", "PidI", "PidD", "PidFFv", "PidFFa")
 RATES = ("position", "velocity", "current")

@@ -16,7 +16,9 @@ unverified: shown as such in every write output, and written to a drive only wit
 ``--allow-unverified-scales``.  A parameter a
 drive has no object for is simply absent: the writer reports it as not
 supported.  The ``controller`` section declares the structure and loop rates the drive runs
-(:mod:`.controller`).
+(:mod:`.controller`).  ``select`` names an object that must hold ``value`` for the profile's gain
+objects to run (Nanotec's 3212h:04): every set of gains written sets it (the parameter
+``gain_objects``), and a drive not on them is read through the profile ``otherwise`` names.
 """
 from __future__ import annotations
 
@@ -36,7 +38,8 @@ from .controller import PID, Controller, load_controller
 PROFILE_DIR = shipped("params", "profiles")
 DEFAULT_PROFILE = "drive_bridge_servo"
 PARAMETERS = ("J", "c0", "c1", "offset", "cp", "dc0", "dc1", "periodic_amplitude", "periodic_period",
-              "periodic_phase", "ff_enable", "KpP", "FwF", "KpS", "KiS", "KpC", "KiC", *PID)
+              "periodic_phase", "ff_enable", "KpP", "FwF", "KpS", "KiS", "KpC", "KiC", *PID, "gain_objects")
+SELECT = "gain_objects"       # the parameter of a profile's select object
 TYPES = {name: getattr(datatypes, name) for name in
          ("UNSIGNED8", "UNSIGNED16", "UNSIGNED32", "INTEGER8", "INTEGER16", "INTEGER32", "REAL32", "REAL64")}
 
@@ -83,6 +86,10 @@ class Entry:
     def where(self) -> str:
         return f"0x{self.index:04X}:{self.sub}"
 
+    @property
+    def index_sub(self) -> tuple[int, int]:
+        return self.index, self.sub
+
 
 @dataclass
 class Profile:
@@ -94,6 +101,9 @@ class Profile:
     save: tuple[int, int] | None
     motor: dict[str, tuple[int, int]] | None = None    # R [Ω], L [H]: (index, sub) where the drive reports them
     controller: Controller = Controller()
+    #: (object's entry, the value that selects the profile's gain objects, the profile that runs otherwise)
+    select: tuple[Entry, int, str | None] | None = None
+    torque_constant: float | None = None     # [Nm/A] of the axis it is bound to (bind)
 
     def object_dictionary(self, node_id: int) -> canopen.ObjectDictionary:
         return load_od(self.eds, node_id)
@@ -109,13 +119,36 @@ class Profile:
         not given."""
         current = [e for e in self.entries.values() if e.per_torque_constant]
         if not current:
-            return self
+            return replace(self, torque_constant=torque_constant)
         if not torque_constant or not torque_constant > 0:
             raise UserError(f"{'axis ' + axis + ': ' if axis else ''}the {self.drive} holds "
                             f"{', '.join(e.parameter for e in current)} in current: give the motor's torque "
                             f"constant (scaling.torque_constant_Nm_per_A in the bus configuration)")
-        return replace(self, entries={k: replace(e, scale=e.scale / torque_constant, per_torque_constant=False)
-                                      if e.per_torque_constant else e for k, e in self.entries.items()})
+        return replace(self, torque_constant=torque_constant,
+                       entries={k: replace(e, scale=e.scale / torque_constant, per_torque_constant=False)
+                                if e.per_torque_constant else e for k, e in self.entries.items()})
+
+    def otherwise(self) -> "Profile | None":
+        """The profile whose objects run while the select object does not select this one's (bound
+        to the same motor)."""
+        if self.select is None or self.select[2] is None:
+            return None
+        return load_profile(self.select[2]).bind(self.torque_constant)
+
+    def with_select(self, values: dict[str, float]) -> dict[str, float]:
+        """A drive's parameter set with the select object set where it writes a gain object of this
+        profile; a set that names ``gain_objects`` itself keeps its value.  UserError for a set that
+        would switch the drive onto the profile's gain objects without all of them (the others
+        would run with whatever those objects hold)."""
+        gains = [k for k in self.entries if k != SELECT]
+        if self.select is None or SELECT in values or not any(k in gains for k in values):
+            return values
+        missing = [k for k in gains if k not in values]
+        if missing:
+            raise UserError(f"setting {', '.join(k for k in gains if k in values)} switches the {self.drive} onto "
+                            f"the profile's gain objects ({self.select[0].where()} = {self.select[1]}): the set "
+                            f"needs all of them (missing: {', '.join(missing)})")
+        return {SELECT: float(self.select[1]), **values}
 
 
 def available() -> list[str]:
@@ -160,6 +193,20 @@ def load_profile(name_or_path: str | Path) -> Profile:
             ms.done()
     motor_sec.done()
     controller = load_controller(top.section("controller", required=False))
+    select_sec = top.section("select", required=False)
+    select = None
+    if select_sec.keys():
+        index, sub = select_sec.get("index", int, low=0, high=0xFFFF), select_sec.get("sub", int, 0, low=0, high=255)
+        value, otherwise = select_sec.get("value", int), select_sec.get("otherwise", str, None)
+        var = load_od(eds, 1).get_variable(index, sub)
+        if var is None:
+            raise select_sec.error("index", f"{eds.name} has no object 0x{index:04X}:{sub}")
+        type_name = next((n for n, t in TYPES.items() if t == var.data_type and not n.startswith("REAL")), None)
+        if type_name is None or "w" not in var.access_type:
+            raise select_sec.error("index", f"{eds.name}: 0x{index:04X}:{sub} is not a writable integer object")
+        select = (Entry(SELECT, index, sub, type_name, 1.0, False, "1: the profile's gain objects run",
+                        source=select_sec.get("source", str, None)), value, otherwise)
+    select_sec.done()
     params = top.section("parameters")
     entries = {}
     od = load_od(eds, 1)
@@ -169,7 +216,8 @@ def load_profile(name_or_path: str | Path) -> Profile:
         sec = params.section(name)
         entry = Entry(name, sec.get("index", int), sec.get("sub", int, 0), sec.get("type", str),
                       sec.get("scale", float, 1.0), sec.get("reciprocal", bool, False), sec.get("unit", str, ""),
-                      sec.get("min", float, None), sec.get("max", float, None), sec.get("source", str, source),
+                      sec.get("min", float, None), sec.get("max", float, None),
+                      sec.get("source", (str, type(None)), source),
                       sec.get("per_torque_constant", bool, False))
         if entry.min is not None and entry.max is not None and entry.min > entry.max:
             raise params.error(f"{name}.min", f"min {entry.min} is above max {entry.max}")
@@ -193,4 +241,6 @@ def load_profile(name_or_path: str | Path) -> Profile:
         for key, (index, sub) in motor.items():
             if od.get_variable(index, sub) is None:
                 raise top.error(f"motor.{key}", f"{eds.name} has no object 0x{index:04X}:{sub}")
-    return Profile(path.stem, path, drive, eds, entries, save, motor, controller)
+    if select is not None:
+        entries[SELECT] = select[0]
+    return Profile(path.stem, path, drive, eds, entries, save, motor, controller, select)

@@ -7,7 +7,7 @@ from canopen.sdo import SdoVariable
 
 from ..errors import BusError, UserError
 from ..outputs import identity_hex
-from .profile import Entry, Profile
+from .profile import SELECT, Entry, Profile
 
 SDO_ERRORS = (canopen.SdoAbortedError, canopen.SdoCommunicationError)
 
@@ -48,21 +48,34 @@ def describe_sdo_error(exc: Exception) -> str:
 def read_parameters(node: canopen.RemoteNode, profile: Profile, names=None) -> dict[str, float]:
     """The drive's current values [SI] of ``names`` in the cascade's terms (default: every
     parameter of ``profile``; names the profile has no object for are left out): its controller's
-    parameters read and turned into them (``profile`` bound to the axis's motor).
+    parameters read and turned into them (``profile`` bound to the axis's motor).  Where the
+    profile has a select object, its value too (``gain_objects``), and a drive not on the
+    profile's gain objects is read through the profile that runs there: what the drive runs.
 
     Raises BusError naming the object when the drive does not answer or refuses a read."""
     out = {}
+    if profile.select is not None:                      # a drive not on the profile's gain objects runs others
+        entry = profile.select[0]
+        out[entry.parameter] = selected = _read(node, entry)
+        if selected != profile.select[1] and (otherwise := profile.otherwise()) is not None:
+            profile = otherwise
     for name in profile.entries if names is None else profile.controller.drive_names(names):
         entry = profile.entries.get(name)
         if entry is None:
             continue
-        try:
-            out[name] = entry.to_si(sdo_variable(node, entry).raw)
-        except SDO_ERRORS as exc:
-            raise BusError(f"node {node.id}: reading {name} ({entry.where()}) failed: "
-                           f"{describe_sdo_error(exc)}") from exc
+        out[name] = _read(node, entry)
     out = profile.controller.from_drive(out)
-    return out if names is None else {k: v for k, v in out.items() if k in names}
+    return out if names is None else {k: v for k, v in out.items() if k in names or k == SELECT}
+
+
+def _read(node: canopen.RemoteNode, entry: Entry) -> float:
+    """``entry``'s value on ``node`` [SI]; BusError naming the object when the drive does not
+    answer or refuses."""
+    try:
+        return entry.to_si(sdo_variable(node, entry).raw)
+    except SDO_ERRORS as exc:
+        raise BusError(f"node {node.id}: reading {entry.parameter} ({entry.where()}) failed: "
+                       f"{describe_sdo_error(exc)}") from exc
 
 
 def motor_data(node: canopen.RemoteNode, profile: Profile, R: float | None = None,

@@ -32,7 +32,7 @@ from canopen.sdo import SdoAbortedError
 
 from ..factor import OBJECTS as FACTOR_OBJECTS, FactorGroup
 from ..od import limits, load_od
-from ..params.profile import load_profile
+from ..params.profile import SELECT, load_profile
 from ..pdo import PdoCodec
 from ..setpoint import CSP, IP, PVT, SETPOINT_OBJECTS, position_of, supported_modes
 from . import kernel as K
@@ -152,9 +152,15 @@ class SimDrive:
         #: the controller the drive runs (its profile's): structure and rates
         self.controller = profile.controller
         self.loop_div = _loop_divider(self.controller, eds_path)
-        #: (index, sub) -> (kernel parameter, profile entry) of every gain / model object the drive has
-        self.params = {(e.index, e.sub): ((GAIN_PARAMS | PID_PARAMS | MODEL_PARAMS)[name], e)
-                       for name, e in profile.entries.items()}
+        #: the object that selects the profile's gain objects (Nanotec's 3212h:04) and the value that does;
+        #: the other value runs the objects of the profile ``otherwise`` names
+        self.select = None if profile.select is None else profile.select[:2]
+        otherwise = profile.otherwise() or profile
+        #: selected or not -> {(index, sub): (kernel parameter, profile entry)} of the gain / model objects
+        self.gain_sets = {on: {(e.index, e.sub): ((GAIN_PARAMS | PID_PARAMS | MODEL_PARAMS)[name], e)
+                               for name, e in p.entries.items() if name != SELECT}
+                          for on, p in ((True, profile), (False, otherwise))}
+        self.params = self.gain_sets[True]       # the objects that run now (set at power-up)
         # heartbeat and NMT run in simulation time here, not in canopen's timer thread
         self.node = local_node(axis.node_id, load_od(eds_path, axis.node_id), self._send)
         self.node.add_write_callback(self._on_sdo_write)
@@ -213,9 +219,10 @@ class SimDrive:
         if not self.spec.factory_in_file:
             f = factory()
             gains = self.controller.to_drive(self._factory_gains())
-            for (index, sub), (col, entry) in self.params.items():
-                if entry.parameter in gains:
-                    self._store(index, sub, entry.to_device(gains[entry.parameter]))
+            for params in self.gain_sets.values():
+                for (index, sub), (col, entry) in params.items():
+                    if entry.parameter in gains:
+                        self._store(index, sub, entry.to_device(gains[entry.parameter]))
             for index, value in ((0x6072, f.max_torque_permille), (0x6066, f.fe_timeout_ms),
                                  (0x6085, f.quick_stop_rad_s2 * self.vel_per_si),
                                  (0x6081, f.profile_velocity_rad_s * self.vel_per_si),
@@ -223,6 +230,19 @@ class SimDrive:
                                  (0x6084, f.profile_acceleration_rad_s2 * self.vel_per_si)):
                 if index in self.od:
                     self._store(index, 0, round(value))
+
+    def _load_gains(self, selected: bool) -> None:
+        """The loops run the gain objects of the profile (``selected``) or of the one that runs
+        otherwise, as they hold them now."""
+        p = self.p
+        self.params = self.gain_sets[selected]
+        factory_gains = self.controller.to_drive(self._factory_gains())
+        for name, col in (GAIN_PARAMS | PID_PARAMS).items():  # a gain without an object keeps the factory value
+            p[col] = factory_gains.get(name, 0.0)
+        for col in MODEL_PARAMS.values():
+            p[col] = 0.0
+        for (index, sub), (col, entry) in self.params.items():
+            p[col] = entry.to_si(self._od(index, sub))
 
     def _factory_gains(self) -> dict[str, float]:
         """The factory cascade (the project drive's EDS defaults), its loops slowed with the drive's
@@ -268,13 +288,7 @@ class SimDrive:
         self.rated_current_A = self._od_or(0x6075, 0, m.rated_torque_Nm / m.kt * 1000) / 1000.0
         p[K.STRUCT] = K.POSITION_PID if self.controller.structure == "position_pid" else K.CASCADE
         p[K.LOOP_DIV] = self.loop_div
-        factory_gains = self.controller.to_drive(self._factory_gains())
-        for name, col in (GAIN_PARAMS | PID_PARAMS).items():  # a gain without an object keeps the factory value
-            p[col] = factory_gains.get(name, 0.0)
-        for col in MODEL_PARAMS.values():
-            p[col] = 0.0
-        for (index, sub), (col, entry) in self.params.items():
-            p[col] = entry.to_si(self._od(index, sub))
+        self._load_gains(self.select is None or self._od(*self.select[0].index_sub) == self.select[1])
         p[K.TMAX] = self._od_or(0x6072, 0, factory().max_torque_permille) / 1000.0 * self.rated_torque
         self._units()
         self.state = SWITCH_ON_DISABLED
@@ -488,6 +502,9 @@ class SimDrive:
                 self.last_setpoint_time = self.host.time
                 if self.following:
                     self.setpoint_armed = True
+        elif self.select is not None and (index, sub) == self.select[0].index_sub:
+            self._cache[(index, sub)] = value                   # stored after this call: the loops read it now
+            self._load_gains(value == self.select[1])
         elif (index, sub) in self.params:
             col, entry = self.params[(index, sub)]
             si = entry.to_si(value)

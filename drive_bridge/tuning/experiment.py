@@ -31,7 +31,8 @@ from ..master.bringup import AxisLink
 from ..master.campaign import APPROACH_LEVEL
 from ..master.link import Link
 from ..params.check import ValueRefused
-from ..params.profile import Profile
+from ..params.controller import GAINS
+from ..params.profile import SELECT, Profile
 from ..params.read import read_parameters
 from ..params.write import write_parameters
 from . import motion
@@ -138,7 +139,7 @@ def run_experiment(config: BusConfig, link: Link, axes: dict[str, AxisLink], axi
         return None
 
     def trial(kps: float) -> Step:
-        res = write_parameters(ax.node, profile, {"KpS": kps}, store=False)
+        res = write_parameters(ax.node, profile, {**running, "KpS": kps}, store=False)
         if not res.ok:
             raise DriveRefused(f"axis {axis}: {res.error}")
         m = motion.run(config, link, {axis: ax}, {axis: demand}, guard=guard)
@@ -163,12 +164,13 @@ def run_experiment(config: BusConfig, link: Link, axes: dict[str, AxisLink], axi
 
     def recover() -> None:
         """After a stop: settle the axis where it stands with the gain it had before the experiment."""
-        write_parameters(ax.node, profile, {"KpS": original}, store=False)
+        write_parameters(ax.node, profile, original, store=False)
         here = ax.position_rad()
         motion.run(config, link, {axis: ax}, {axis: np.full(round(RECOVER_S / period), here)})
 
     try:
-        original = read_parameters(ax.node, profile, ["KpS"])["KpS"]
+        original = read_parameters(ax.node, profile, list(GAINS))     # the whole set: a drive may switch gain objects
+        running = {k: v for k, v in original.items() if k != SELECT}
         kps = start_KpS
         step = trial(kps)
         while not step.oscillating and len(result.steps) < MAX_STEPS:
@@ -186,5 +188,5 @@ def run_experiment(config: BusConfig, link: Link, axes: dict[str, AxisLink], axi
     finally:
         ax.node.sdo[0x6065].raw = window
         if original is not None:
-            write_parameters(ax.node, profile, {"KpS": original}, store=False)
+            write_parameters(ax.node, profile, original, store=False)
     return result

@@ -20,7 +20,8 @@ from ..ident.frf import PERIOD_SAMPLES, PERIODS, Frf, excitation, measure
 from ..master.bringup import AxisLink
 from ..master.link import Link
 from ..outputs import stamped
-from ..params.profile import Profile
+from ..params.controller import GAINS
+from ..params.profile import SELECT, Profile
 from ..params.read import read_parameters
 from ..params.write import write_parameters
 from . import motion
@@ -87,9 +88,10 @@ def measure_axes(config: BusConfig, link: Link, axes: dict[str, AxisLink], profi
         demand, steady, speed = sweep(ax, period)
         u = offset_of(ax, period, steady, len(demand))
         bound = profile.for_axis(ax)
-        own = read_parameters(ax.node, bound, list(SOFT))
+        own = read_parameters(ax.node, bound, list(GAINS))      # the whole set: a drive may switch gain objects
+        soft = {k: v for k, v in own.items() if k != SELECT} | measurement_gains(inertia[a], 1.0 / period)
         try:
-            result = write_parameters(ax.node, bound, measurement_gains(inertia[a], 1.0 / period), store=False)
+            result = write_parameters(ax.node, bound, soft, store=False)
             if not result.ok:
                 raise DriveRefused(f"axis {a}: the measurement's gains: {result.error}")
             held = read_parameters(ax.node, bound, list(SOFT))

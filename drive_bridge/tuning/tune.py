@@ -14,7 +14,7 @@ from ..ident.effects import DRIVE_EFFECTS
 from ..outputs import stamped
 from ..yamlconf import too_large
 from ..ident.frf import Frf
-from ..params.controller import Controller
+from ..params.controller import GAINS, Controller
 from .design import (GainDesign, Margins, controller as loop_controller, current_gains, design_gains, loop_margins,
                      measured_margins, rigid_response)
 from .experiment import ExperimentResult
@@ -22,7 +22,6 @@ from .feedforward import MODEL_KEYS
 
 log = logging.getLogger(__name__)
 
-GAINS = ("KpP", "FwF", "KpS", "KiS", "KpC", "KiC")
 MODE_SHARE = 1 / 3        # without a filter object, a mode the measured response does not cover keeps the
                           # velocity crossover below this share of its frequency (rule of thumb for a rigid
                           # design near a lightly damped mode: 1/3 ... 1/5)

@@ -150,7 +150,7 @@ def test_vendor_profile_writes_and_reads_back(name):
     profile = load_profile(name).bind(0.2)        # a drive holding gains in current: its motor's kt
     with vendor_node(profile) as (local, remote):
         values = tuned_values()
-        held = profile.controller.to_drive(values)   # the parameters of the controller the drive runs
+        held = profile.with_select(profile.controller.to_drive(values))   # what the drive's controller holds
         r = write_parameters(remote, profile, values)
         assert r.ok, r.error
         assert {w.parameter for w in r.objects} == set(profile.entries) & set(held)

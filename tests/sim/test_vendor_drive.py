@@ -63,13 +63,32 @@ def test_gains_through_the_profile_drive_the_loops(name):
     drive = b.robot.drives["y"]
     cols = {"KpP": K.KPP, "FwF": K.FWF, "KpS": K.KPS, "KiS": K.KIS, "KpC": K.KPC, "KiC": K.KIC, "PidP": K.PID_P,
             "PidI": K.PID_I, "PidD": K.PID_D, "PidFFv": K.PID_FFV, "PidFFa": K.PID_FFA}
+    if profile.select is not None:           # the Nanotec's 321Ah-321Dh run once 3212h:04 selects them
+        sdo_variable(node, profile.select[0]).raw = profile.select[1]
     for param, entry in profile.entries.items():
+        if param == "gain_objects":
+            continue
         col = cols[param]
         value = drive.p[col] * 1.25 or 1e-4
         sdo_variable(node, entry).raw = entry.to_device(value)
         assert drive.p[col] == pytest.approx(entry.to_si(entry.held(entry.to_device(value))), rel=1e-6)
     if not profile.entries:                       # the iPOS: no gain objects, the factory loops run
         assert drive.p[K.KPS] > 0
+
+
+def test_the_nanotec_runs_321Ah_to_321Dh_only_once_3212h_04_selects_them():
+    """Strict as the drive: gains written to 321Bh change nothing while 3212h:04 = 0 (3210h runs);
+    setting it switches the loops to what 321Ah-321Dh hold, clearing it back to 3210h."""
+    b, node = bench("nanotec_C5-E-2-09.eds")
+    drive = b.robot.drives["y"]
+    kps = drive.p[K.KPS]
+    assert node.sdo[0x3212][4].raw == 0
+    node.sdo[0x321B][1].raw = 2 * node.sdo[0x321B][1].raw
+    assert drive.p[K.KPS] == kps
+    node.sdo[0x3212][4].raw = 1
+    assert drive.p[K.KPS] == pytest.approx(2 * kps, rel=1e-3)
+    node.sdo[0x3212][4].raw = 0
+    assert drive.p[K.KPS] == kps
 
 
 def test_the_epos2_runs_its_position_pid_at_1_kHz_and_its_velocity_pi_is_not_in_the_loop():
@@ -122,3 +141,25 @@ def test_interpolated_position_follows_only_with_bit_4(name):
         b.net.sync.transmit()
     assert node.sdo[0x6041].raw & 0x1000
     assert node.sdo[0x6064].raw - start == pytest.approx(0.5 * inc_per_rad, rel=0.01)
+
+
+def test_a_nanotec_on_3210h_is_read_as_it_runs_and_switched_only_with_the_whole_set():
+    """The master reads what runs (3210h through nanotec_c5e_3210 while 3212h:04 = 0), refuses a
+    partial set that would switch the drive onto 321Ah-321Dh, and a whole set switches it."""
+    from drive_bridge.params.read import read_parameters
+    from drive_bridge.params.write import write_parameters
+    from drive_bridge.sim.vendors import factory
+    b, node = bench("nanotec_C5-E-2-09.eds")
+    profile = load_profile("nanotec_c5e").bind(b.robot.config.axes["y"].motor.kt)
+    running = read_parameters(node, profile)
+    assert running["gain_objects"] == 0
+    for g in ("KpP", "KpS", "KiS", "KpC", "KiC", "FwF"):
+        assert running[g] == pytest.approx(factory().gains[g], rel=1e-3), g
+    from drive_bridge.params.check import ValueRefused
+    with pytest.raises(ValueRefused, match="needs all of them"):
+        write_parameters(node, profile, {"KpS": 2 * running["KpS"]}, store=False)
+    assert node.sdo[0x3212][4].raw == 0
+    whole = {k: v for k, v in running.items() if k != "gain_objects"} | {"KpS": 2 * running["KpS"]}
+    assert write_parameters(node, profile, whole, store=False).ok
+    assert node.sdo[0x3212][4].raw == 1
+    assert b.robot.drives["y"].p[K.KPS] == pytest.approx(2 * running["KpS"], rel=1e-3)
