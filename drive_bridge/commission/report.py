@@ -103,6 +103,10 @@ def _model(doc: Document, out: Path, axis: str, a: dict) -> None:
              f"{number(a['relative_error_after'] * 100, '.2f')} %); noise floor {number(a['noise_floor'], '.3g')} {u}. "
              f"Differential evolution on the same data: RMSE {number(a['ga']['rmse'], '.4g')} {u}.")
     doc.figure(out / S.OUTPUT["identify"] / f"{axis}_fit.png", f"axis {axis}: measured and predicted torque")
+    if (out / S.OUTPUT["identify"] / f"{axis}_response.png").exists():
+        doc.figure(out / S.OUTPUT["identify"] / f"{axis}_response.png",
+                   f"axis {axis}: the plant's response read from the campaign log beside the rigid model's "
+                   f"(reference; the measure step's response is the one the margins use)")
     if not a["effects"]:
         doc.para("No effect found beyond J, c0, c1.")
     else:

@@ -116,3 +116,68 @@ def measure(position: np.ndarray, offset: np.ndarray, rate_hz: float,
     k = controller(w)
     g = mean / (1 - k * mean)
     return Frf(f, g, coherence, np.abs(k * g), float(rate_hz))
+
+
+LOG_BANDS = 48               # log-spaced bands the log's response is reported in, 1 Hz .. Nyquist
+LOG_RESOLUTION_HZ = 0.5      # Welch resolution aimed at
+
+
+def log_response(t: np.ndarray, qd: np.ndarray, tau: np.ndarray, J: float, c1: float,
+                 reference: np.ndarray | None = None) -> dict | None:
+    """The plant's torque → velocity response read from a campaign log, for reference, in
+    ``LOG_BANDS`` log-spaced bands from 1 Hz to the Nyquist frequency, the rigid model's
+    |1/(J·jω + c1)| beside it.  ``tau``: the torque as logged, aligned with the position, less what
+    the identified model says is not J·q̈ + c1·q̇ (friction's sign, the traced effects); ``qd``: the
+    velocity; ``t``: their instants (Welch over each stretch of evenly spaced samples).  With the
+    position demand ``reference`` the response is its cross-spectrum with the velocity over its
+    cross-spectrum with the torque (the setpoints are the instrument: in closed loop the torque
+    also answers the loop's own measurement noise, which the plain ratio would mix in, drawing it
+    towards the inverse controller), its coherence the smaller of the demand's with each;
+    without, the plain cross- over auto-spectrum and its coherence (``method`` says which).
+    Where the setpoints do not move the axis -- above the campaign's band -- the coherence falls:
+    it says how little is left.  None for a log without a stretch long enough.  SI: Hz, rad/s per
+    Nm (m/s per N)."""
+    from scipy import signal
+    dt = float(np.median(np.diff(t)))
+    fs = 1.0 / dt
+    cuts = np.flatnonzero(np.diff(t) > 1.5 * dt) + 1
+    stretches = list(zip(np.r_[0, cuts], np.r_[cuts, len(t)]))
+    nper = int(2 ** np.ceil(np.log2(fs / LOG_RESOLUTION_HZ)))
+    longest = max(b - a for a, b in stretches)
+    while nper > 256 and nper > longest:
+        nper //= 2
+    x = tau if reference is None else reference
+    sums = np.zeros((5, nper // 2 + 1), dtype=complex)       # S_xx, S_vv, S_tt, S_xv, S_xt
+    f = None
+    for a, b in stretches:
+        if b - a < nper:
+            continue
+        sl = slice(a, b)
+        f = signal.welch(x[sl], fs, nperseg=nper)[0]
+        sums += (b - a) / nper * np.array([signal.welch(x[sl], fs, nperseg=nper)[1],
+                                            signal.welch(qd[sl], fs, nperseg=nper)[1],
+                                            signal.welch(tau[sl], fs, nperseg=nper)[1],
+                                            signal.csd(x[sl], qd[sl], fs, nperseg=nper)[1],
+                                            signal.csd(x[sl], tau[sl], fs, nperseg=nper)[1]])
+    if f is None:
+        return None
+    edges = np.geomspace(1.0, fs / 2, LOG_BANDS + 1)
+    out: dict[str, list] = {"frequency_hz": [], "magnitude": [], "phase_deg": [], "coherence": [], "model_magnitude": []}
+    for lo, hi in zip(edges[:-1], edges[1:]):
+        band = (f >= lo) & (f < hi) & (f > 0)
+        sxx, svv, stt, sxv, sxt = (complex(np.sum(row[band])) for row in sums)
+        if not band.any() or sxx.real <= 0 or svv.real <= 0 or stt.real <= 0 or sxt == 0:
+            continue
+        g = sxv / sxt
+        coh = min(abs(sxv) ** 2 / (sxx.real * svv.real), abs(sxt) ** 2 / (sxx.real * stt.real))
+        fc = float(np.sqrt(lo * hi))
+        out["frequency_hz"].append(round(fc, 3))
+        out["magnitude"].append(float(abs(g)))
+        out["phase_deg"].append(round(float(np.degrees(np.angle(g))), 2))
+        out["coherence"].append(round(float(coh), 4))
+        out["model_magnitude"].append(float(1 / abs(2j * np.pi * fc * J + max(c1, 0.0))))
+    method = ("the position demand as instrument: S(demand, velocity) / S(demand, torque)" if reference is not None
+              else "no position demand in the log: S(torque, velocity) / S(torque, torque), biased towards the "
+                   "inverse controller where the loop's own noise moves the axis")
+    return {"source": "the campaign log: the torque as logged, aligned and less the model's nonlinear terms, to the "
+                      "velocity", "method": method, **out}

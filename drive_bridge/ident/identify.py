@@ -13,6 +13,7 @@ import numpy as np
 
 from ..errors import UserError
 from .effects import DRIVE_EFFECTS, Gravity, Offset
+from .frf import log_response
 from .identifiable import T_MIN, undetermined
 from .logdata import Log, read_log
 from .model import MAX_DELAY_SAMPLES, AxisModel, Errors, errors, torque_delay
@@ -67,6 +68,8 @@ class AxisResult:
     drive_model: AxisModel | None = None
     drive_errors: Errors | None = None
     drive_note: str | None = None              # why the drive gets the full model's values after all
+    #: the plant's torque -> velocity response read from the log (frf.log_response), for reference
+    response: dict | None = None
 
     def as_json(self) -> dict:
         return {
@@ -111,6 +114,7 @@ class AxisResult:
             "undetermined": self.undetermined,
             "resonance": self.resonance,
             "backlash": self.backlash,
+            "response": self.response,
         }
 
 
@@ -237,7 +241,11 @@ def identify_axis(log: Log, axis: str, val_log: Log | None = None, *, seed: int 
     _check_sign(log, axis, result.model, result.est)
     result.undetermined = undetermined(result.model, result.est, result.after, result.consistency)
     _refit_for_the_drive(result, seed)
+    J, c1 = result.model.params_["J"], result.model.params_["c1"]
     predicted = result.model.predict(wide)
+    demand = log.axes[axis].demand
+    result.response = log_response(wide.t, wide.qd, wide.tau_f - (predicted - J * wide.qdd - c1 * wide.qd), J, c1,
+                                   None if demand is None else np.interp(wide.t, log.t, demand))
     found = find_reversal_transient(wide, wide.tau_f - predicted, predicted, result.settings, seed)
     if found is not None:
         standstill = found["reversal"] == "velocity"

@@ -49,6 +49,7 @@ class AxisLog:
     tau: np.ndarray
     segments: list[tuple[int, int]]              # [start, stop) row ranges that are usable
     dropped: list[str] = field(default_factory=list)
+    demand: np.ndarray | None = None             # the position demand, where the log has it
 
 
 @dataclass
@@ -159,7 +160,9 @@ def read_log(path: str | Path) -> Log:
         if not np.nanmax(tau) > np.nanmin(tau):
             raise UserError(f"{path}: axis {axis!r}: {tau_name} never changes ({np.nanmax(tau):g}): no torque was "
                             f"logged; check the TPDO mapping of the torque object")
-        axes[axis] = AxisLog(axis, kind, units, q, tau, segments, dropped)
+        demand = col.get(f"{axis}_position_demand_{unit}")
+        axes[axis] = AxisLog(axis, kind, units, q, tau, segments, dropped,
+                             None if demand is None or not np.isfinite(demand).any() else demand.copy())
     if not axes:
         raise UserError(f"{path}: no axis found: expected <axis>_position_rad with <axis>_torque_Nm, or "
                         f"<axis>_position_m with <axis>_force_N")

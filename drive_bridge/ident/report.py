@@ -9,6 +9,7 @@ import numpy as np
 
 from ..document import Document, Strong, measured, number
 from ..outputs import json_text, stamped, write_text
+from .frf import MIN_COHERENCE
 from .identify import AxisResult
 from .trace import describe_unexplained
 
@@ -196,6 +197,40 @@ def _plot_fit(r: AxisResult, path: Path) -> None:
     plt.close(fig)
 
 
+def plot_response(r: AxisResult, path: Path) -> bool:
+    """The log's torque → velocity response beside the rigid model's (magnitude, phase, coherence;
+    bands below ``MIN_COHERENCE`` hollow); False where the log has none."""
+    x = r.response
+    if not x or not x["frequency_hz"]:
+        return False
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    f, coh = np.array(x["frequency_hz"]), np.array(x["coherence"])
+    good = coh >= MIN_COHERENCE
+    fig, ax = plt.subplots(3, 1, figsize=(9, 7), sharex=True, gridspec_kw={"height_ratios": [2, 1.4, 1]})
+    mag = 20 * np.log10(np.array(x["magnitude"]))
+    ax[0].semilogx(f, 20 * np.log10(np.array(x["model_magnitude"])), "k-", lw=1, label="rigid model 1/(J·jω + c1)")
+    for sel, style, label in ((good, "o", "from the log"), (~good, "o", f"coherence < {MIN_COHERENCE:g}")):
+        face = "C0" if sel is good else "none"
+        ax[0].semilogx(f[sel], mag[sel], style, mfc=face, mec="C0", ms=4, ls="none", label=label)
+        ax[1].semilogx(f[sel], np.array(x["phase_deg"])[sel], style, mfc=face, mec="C0", ms=4, ls="none")
+    ax[1].axhline(-90, color="k", lw=1)
+    ax[2].semilogx(f, coh, "C0.-", lw=0.8)
+    ax[2].axhline(MIN_COHERENCE, color="0.5", lw=0.8, ls="--")
+    ax[0].set_ylabel("|G| [dB]")
+    ax[1].set_ylabel("phase [°]")
+    ax[2].set_ylabel("coherence")
+    ax[2].set_xlabel("frequency [Hz]")
+    ax[0].legend(fontsize=8)
+    for a in ax:
+        a.grid(True, which="both", alpha=0.3)
+    fig.suptitle(f"axis {r.axis}: torque → velocity read from the log")
+    fig.savefig(path, dpi=85)
+    plt.close(fig)
+    return True
+
+
 def _variable(r: AxisResult, depends_on: str) -> tuple[np.ndarray, str]:
     s = r.est
     pos = r.units["position"]
@@ -276,6 +311,11 @@ def build_report(results: dict[str, AxisResult], out: Path, source: str) -> Docu
         fit_png = out / f"{axis}_fit.png"
         _plot_fit(r, fit_png)
         doc.figure(fit_png, f"axis {axis}: measured and predicted torque and the residual")
+        if plot_response(r, out / f"{axis}_response.png"):
+            doc.figure(out / f"{axis}_response.png", f"axis {axis}: the plant's response read from the log "
+                                                     f"(the torque less the model's nonlinear terms, to the velocity), "
+                                                     f"beside the rigid model's; hollow: coherence below "
+                                                     f"{MIN_COHERENCE:g}")
         for k, t in enumerate(r.effects):
             png = out / f"{axis}_effect{k + 1}_{t.effect.name}.png"
             _plot_effect(r, k, png)

@@ -16,13 +16,16 @@ def closed_loop_log(stamps: np.ndarray, *, J: float = 1e-4, c0: float = 0.3, c1:
                     seed: int = 0, fs_int: float = 10_000.0,
                     payload: tuple[float, float] | None = None,
                     coupling: tuple[float, float, float, float] | None = None,
-                    torque_lag_s: float = 0.0) -> dict[str, np.ndarray]:
+                    torque_lag_s: float = 0.0, multisine_hz: tuple[float, float] | None = None
+                    ) -> dict[str, np.ndarray]:
     """Columns ``time_s`` (the stamps), ``y_position_rad``, ``y_torque_Nm``; ``payload`` = (time [s],
     inertia after it [kg·m²]): a payload change during the log; ``coupling`` = (load inertia
     [kg·m²], mode frequency [Hz], damping ratio, backlash [rad]): the load hangs on the motor
     (inertia ``J``, which the friction acts on) through a spring-damper with a dead zone of
     ± backlash/2; the encoder reads the motor; ``torque_lag_s``: the torque logged is the one
-    that held that long before its stamp (a drive reporting a delayed or averaged current)."""
+    that held that long before its stamp (a drive reporting a delayed or averaged current);
+    ``multisine_hz`` = (lowest, highest): the reference also carries a Schroeder-phased multisine
+    over that band (every 0.25 Hz, 0.2 rad/s each), and the log its ``y_position_demand_rad``."""
     T = 1.0 / fs_int
     n = int(np.ceil(stamps[-1] / T)) + 2
     t = np.arange(n) * T
@@ -30,6 +33,15 @@ def closed_loop_log(stamps: np.ndarray, *, J: float = 1e-4, c0: float = 0.3, c1:
     q_ref = 6.0 * np.sin(w1 * t) + 2.5 * np.sin(w2 * t + 0.3)
     v_ref = 6.0 * w1 * np.cos(w1 * t) + 2.5 * w2 * np.cos(w2 * t + 0.3)
     a_ref = -6.0 * w1**2 * np.sin(w1 * t) - 2.5 * w2**2 * np.sin(w2 * t + 0.3)
+    if multisine_hz is not None:
+        freqs = np.arange(multisine_hz[0], multisine_hz[1] + 1e-9, 0.25)
+        phases = -np.pi * np.arange(len(freqs)) ** 2 / len(freqs)
+        for f_k, ph in zip(freqs, phases):
+            w = 2 * np.pi * f_k
+            amp = 0.2 / w                                   # 0.2 rad/s of velocity per line
+            q_ref = q_ref + amp * np.sin(w * t + ph)
+            v_ref = v_ref + amp * w * np.cos(w * t + ph)
+            a_ref = a_ref - amp * w * w * np.sin(w * t + ph)
     kp, kv, ki = 60.0, 0.08, 25.0
     q = np.empty(n)
     tau = np.empty(n)
@@ -66,7 +78,10 @@ def closed_loop_log(stamps: np.ndarray, *, J: float = 1e-4, c0: float = 0.3, c1:
     q_s = np.interp(stamps, t, q)
     tau_s = np.interp(stamps - torque_lag_s, t, tau) + noise_Nm * rng.standard_normal(len(stamps))
     inc = increments_per_rev / (2 * np.pi)
-    return {"time_s": stamps, "y_position_rad": np.floor(q_s * inc) / inc, "y_torque_Nm": np.round(tau_s, 3)}
+    out = {"time_s": stamps, "y_position_rad": np.floor(q_s * inc) / inc, "y_torque_Nm": np.round(tau_s, 3)}
+    if multisine_hz is not None:
+        out["y_position_demand_rad"] = np.interp(stamps, t, q_ref)
+    return out
 
 
 def jittered(rate_hz: float, duration_s: float, jitter_s: float, seed: int = 1) -> np.ndarray:

@@ -135,7 +135,8 @@ def test_cli_json_is_one_object_and_report_has_plots(tmp_path, capsys):
     md = (tmp_path / "rep" / "identify.md").read_text()
     assert "y_fit.png" in md and (tmp_path / "rep" / "y_effect1_position_periodic.png").stat().st_size > 10000
     html = (tmp_path / "rep" / "identify.html").read_text()       # the same report, one self-contained page
-    assert html.count("data:image/png;base64,") == md.count("](") == 2 and "src=\"http" not in html
+    assert "y_response.png" in md                 # the plant's response read from the log, with the rigid model's
+    assert html.count("data:image/png;base64,") == md.count("](") == 3 and "src=\"http" not in html
     assert "Axis y (rotary)" in html and "## Axis y (rotary)" in md
 
 
