@@ -291,7 +291,10 @@ def design_gains(J: float, c1: float, R: float, L: float, frf: "Frf | None" = No
     nyquist = np.pi / T
 
     def worse(model: Margins, gains: dict[str, float], loop: str) -> Margins:
-        """The worse of the model's and the measured margins; a loop not verified is refused."""
+        """The worse of the model's and the measured margins; a loop not verified, or a velocity
+        loop crossing over above ``max_crossover_hz``, is refused."""
+        if loop == "velocity" and max_crossover_hz is not None and model.crossover_hz > max_crossover_hz:
+            return Margins(-np.inf, -np.inf, model.crossover_hz)
         if frf is None:
             return model
         measured = measured_loop(gains, frf, loop, w_i, T)
@@ -299,8 +302,7 @@ def design_gains(J: float, c1: float, R: float, L: float, frf: "Frf | None" = No
 
     wc, vm = _largest(lambda w: worse(_margins(velocity_open_loop(J, c1, J * w, w / INTEGRAL_RATIO, w_i, T)),
                                       {"KpS": J * w, "KiS": w / INTEGRAL_RATIO}, "velocity"),
-                      20.0, min(nyquist, 2 * np.pi * (max_crossover_hz or np.inf)), PM_DESIGN_DEG,
-                      "velocity")                                          # the velocity-loop crossover
+                      20.0, nyquist, PM_DESIGN_DEG, "velocity")           # the velocity-loop crossover
     KpS, KiS = J * wc, wc / INTEGRAL_RATIO
     KpP, pm = _largest(lambda k: worse(_margins(position_open_loop(J, c1, KpS, KiS, k, w_i, T)),
                                        {"KpS": KpS, "KiS": KiS, "KpP": k}, "position"),

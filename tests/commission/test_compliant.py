@@ -50,3 +50,6 @@ def test_the_compliant_axis_is_commissioned_with_gains_that_keep_the_margins_on_
     frf = json.loads((out / "frf.json").read_text())["axes"]["y"]
     above_inertia = [(m + 20 * math.log10(f), f) for m, f in zip(frf["magnitude_db"], frf["frequency_hz"]) if f > 20]
     assert 100 < max(above_inertia)[1] < 130                            # the resonance, in what was measured
+    mode = tune["mode"]                  # and tune says what it found and how the design met it
+    assert mode["source"] == "measured response" and 100 < mode["frequency_hz"] < 130, mode
+    assert mode["filter"] is None and mode["crossover_cap_hz"] is None and "measured" in mode["handling"]
