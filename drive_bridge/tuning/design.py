@@ -6,11 +6,12 @@ The drive's loops (see the README's control law)::
     torque   = KpS·(e_v + KiS·∫e_v) + model feed-forward  velocity PI, 2 kHz
     velocity = FwF·v_demand + KpP·(p_demand − p)         position P, 2 kHz
 
-Current PI: pole-zero cancellation of the motor's R/L (KiC = R/L) and
-KpC = L·ω_i for a closed current loop ω_i = 2π·1 kHz (an eighth of the 8 kHz rate).
+The rates are the drive's (:class:`Timing`, from its profile's controller: 2 kHz / 8 kHz on the
+project's drive, the defaults here).  Current PI: pole-zero cancellation of the motor's R/L
+(KiC = R/L) and KpC = L·ω_i for a closed current loop ω_i an eighth of the current loop's rate.
 Velocity PI on the identified plant 1/(J·s + c1) with the closed current loop
 and the sampling delays (zero-order hold ½ T plus the backward-difference
-velocity ½ T, T = 0.5 ms; a Padé approximant): the largest KpS whose open loop
+velocity ½ T, T the loop's period; a Padé approximant): the largest KpS whose open loop
 keeps the phase and gain margins, KiS = crossover / ``INTEGRAL_RATIO`` (6).
 Position P on the closed velocity loop, the same way.  FwF = 1 (the model
 feed-forward supplies the torque the velocity demand needs).  Where the plant's
