@@ -5,7 +5,6 @@ from __future__ import annotations
 import json
 import os
 import signal
-import threading
 
 import pytest
 import yaml
@@ -67,16 +66,23 @@ def test_tune_refuses_a_model_that_is_not_physical(tmp_path, capsys):
     assert "axis y" in err and "J = -0.0001" in err and not (tmp_path / "t.json").exists()
 
 
-def test_sigterm_in_motion_is_a_quick_stop_with_the_data_kept(tmp_path, capsys):
-    """What a service manager or `timeout` sends, in the middle of a campaign."""
+def test_sigterm_in_motion_is_a_quick_stop_with_the_data_kept(tmp_path, capsys, monkeypatch):
+    """What a service manager or `timeout` sends, in the middle of a campaign: sent once the
+    campaign has streamed a second of motion (its progress hook), whatever the machine's load (a
+    timer's 2 s fell into bring-up beside two CPU-bound loops: exit 130, nothing moving yet)."""
+    from drive_bridge.progress import CampaignProgress
     out = tmp_path / "rec"
-    timer = threading.Timer(2.0, os.kill, (os.getpid(), signal.SIGTERM))
-    timer.start()
-    try:
-        code = main(["record", "--sim", "--axes", "y,z", "--together", "--out", str(out)])
-    finally:
-        timer.cancel()
-    assert code == 4
+    shown = CampaignProgress.__call__
+    sent = []
+
+    def progress(self, k):
+        if k >= 500 and not sent:
+            sent.append(k)
+            os.kill(os.getpid(), signal.SIGTERM)
+        shown(self, k)
+    monkeypatch.setattr(CampaignProgress, "__call__", progress)
+    code = main(["record", "--sim", "--axes", "y,z", "--together", "--out", str(out)])
+    assert sent and code == 4
     err = capsys.readouterr().err
     assert "interrupted by SIGTERM" in err and "Traceback" not in err
     meta = yaml.safe_load((out / "meta.yaml").read_text())
