@@ -3,9 +3,7 @@ write, validate, or all of it with commission).
 
 Each command is a thin layer over the same core function the ``commission`` step of that name
 calls: it parses, calls and prints.  Errors end as :mod:`drive_bridge.errors` says: one line, no
-traceback, and the exit code of the error's kind (0 ok, 2 a user mistake, 3 the bus or a drive,
-4 motion stopped with the axes quick-stopped and the data kept, 130 Ctrl-C outside motion,
-1 a defect of drive-bridge).
+traceback, and the exit code of the error's kind (its ``EXIT_TABLE``, which ``--help`` prints).
 """
 from __future__ import annotations
 
@@ -16,7 +14,7 @@ import sys
 import warnings
 
 from .. import __version__, signals
-from ..errors import EXIT_CODES, DriveBridgeError, MotionAborted, exit_code
+from ..errors import EXIT_CODES, DriveBridgeError, MotionAborted, exit_code, exit_codes_text
 from . import bus, commission, identification, tuning
 
 #: the command modules, in the order of the job (``drive-bridge --help`` lists them this way)
@@ -26,9 +24,9 @@ COMMANDS = (bus, identification, tuning, commission)
 def build_parser() -> argparse.ArgumentParser:
     lines = __doc__.splitlines()
     parser = argparse.ArgumentParser(prog="drive-bridge", description=" ".join(lines[:2]),
-                                     epilog="Run 'drive-bridge COMMAND --help' for a command's options. "
-                                            "Exit codes: 0 ok, 1 internal error, 2 user mistake, 3 bus or drive, "
-                                            "4 motion stopped, 130 Ctrl-C.")
+                                     formatter_class=argparse.RawDescriptionHelpFormatter,
+                                     epilog="Run 'drive-bridge COMMAND --help' for a command's options.\n\n"
+                                            "exit codes:\n" + exit_codes_text())
     parser.add_argument("--version", action="version", version=f"drive-bridge {__version__}")
     parser.add_argument("-v", "--verbose", action="count", default=0,
                         help="-v: drive-bridge's log messages (bring-up, units, enabling, stopping, writing); "
