@@ -7,8 +7,9 @@ repo="$(cd "$(dirname "$0")/.." && pwd)"
 work="$(mktemp -d)"
 trap 'rm -rf "$work"' EXIT
 python3 -m pip wheel -q --no-deps -w "$work/dist" "$repo"
+listing="$(python3 -m zipfile -l "$work"/dist/drive_bridge-*.whl)"
 for f in drive_bridge/py.typed LICENSE; do                 # typed package, licence in the wheel
-  python3 -m zipfile -l "$work"/dist/drive_bridge-*.whl | grep -q "$f" || { echo "the wheel lacks $f" >&2; exit 1; }
+  grep -q "$f" <<< "$listing" || { echo "the wheel lacks $f" >&2; exit 1; }
 done
 python3 -m venv "$work/venv"
 "$work/venv/bin/pip" install -q "$work"/dist/drive_bridge-*.whl
