@@ -102,8 +102,14 @@ def test_the_trace_reads_like_a_capture(tmp_path, realtime):
     t0 = time.time()
     args = ["record", "--sim", "--quick", "--axes", "z", "--out", str(tmp_path)] + (["--realtime"] if realtime else [])
     code = main(args)
-    degraded = yaml.safe_load((tmp_path / "meta.yaml").read_text())["timing"]["degraded"]
-    assert code == (5 if degraded else 0) and (realtime or not degraded)   # a loaded machine: said, not hidden
+    meta = yaml.safe_load((tmp_path / "meta.yaml").read_text())
+    degraded = meta["timing"]["degraded"]
+    if realtime and code == 4:
+        # on the wall clock a loaded machine may lose three TPDOs in a row (CI, 2026-11-25: 3 of 3233
+        # missing, in a row): the master stops, as it must, and the trace still reads like a capture
+        assert meta["status"] == "aborted" and "no TPDO" in meta["abort"]["reason"]
+    else:
+        assert code == (5 if degraded else 0) and (realtime or not degraded)   # a loaded machine: said, not hidden
     with can.LogReader(str(tmp_path / "trace.blf")) as reader:
         frames = list(reader)
     stamps = np.array([f.timestamp for f in frames])
