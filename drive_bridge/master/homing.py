@@ -44,6 +44,8 @@ def home(link: Link, axes: dict[str, AxisLink], config: BusConfig) -> None:
 
 def _home(link: Link, ax: AxisLink, config: BusConfig) -> None:
     h, sc, node, drive = ax.cfg.homing, ax.cfg.scaling, ax.node, ax.drive
+    if h is None:
+        raise ValueError(f"axis {ax.name} has no homing configured")      # to_home only names axes that have
     vel = sc.velocity_per_rad_s
     settings = [(0x6098, 0, h.method), (0x6099, 1, round(h.switch_speed * vel)), (0x6099, 2, round(h.zero_speed * vel)),
                 (0x609A, 0, round(h.acceleration * vel))]

@@ -100,8 +100,14 @@ class Factory:
 @cache
 def factory() -> Factory:
     od = load_od(PROJECT_EDS, 1)
-    inc_per_rad = od[0x608F][1].default / od[0x608F][2].default / (2 * math.pi)
+
+    def default(index: int, sub: int = 0) -> int | float:
+        var = od.get_variable(index, sub)
+        if var is None or var.default is None:
+            raise ValueError(f"{PROJECT_EDS.name} has no default for 0x{index:04X}:{sub}")
+        return var.default
+    inc_per_rad = default(0x608F, 1) / default(0x608F, 2) / (2 * math.pi)
     names = ("KpP", "FwF", "KpS", "KiS", "KpC", "KiC")
-    return Factory({n: float(od[0x2000][i + 1].default) for i, n in enumerate(names)}, od[0x6072].default,
-                   od[0x6085].default / inc_per_rad, od[0x6081].default / inc_per_rad,
-                   od[0x6083].default / inc_per_rad, od[0x6066].default)
+    return Factory({n: float(default(0x2000, i + 1)) for i, n in enumerate(names)}, int(default(0x6072)),
+                   default(0x6085) / inc_per_rad, default(0x6081) / inc_per_rad,
+                   default(0x6083) / inc_per_rad, int(default(0x6066)))
