@@ -52,8 +52,11 @@ class Controller:
     def timing(self) -> Timing:
         """The rates the design is for: the loop closed around the velocity (a cascade's velocity
         loop, a position PID) and the current loop."""
-        inner = self.rates_hz["velocity"] if self.structure == "cascade" else self.rates_hz["position"]
-        return Timing(1.0 / inner, self.rates_hz["current"])
+        loop = "velocity" if self.structure == "cascade" else "position"
+        inner, current = self.rates_hz[loop], self.rates_hz["current"]
+        if not inner or not current:
+            raise ValueError(f"a {self.structure} controller needs its {loop} and current loop rates")
+        return Timing(1.0 / inner, current)
 
     def unverified(self) -> list[str]:
         """The items declared without a source."""

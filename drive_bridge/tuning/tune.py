@@ -59,12 +59,15 @@ class AxisTuning:
     def measured(self) -> dict:
         """The margins before and after on the measured response, and the band they hold for [Hz]
         (a loop whose crossover lies above it: None, not verified)."""
-        band = self.frf.frequency_hz[self.frf.reliable()]
+        frf = self.frf
+        if frf is None:
+            return {}
+        band = frf.frequency_hz[frf.reliable()]
 
         def margins(gains: dict[str, float]) -> dict | None:
             if not {"KpP", "KpS", "KiS", "KpC"} <= set(gains):
                 return None
-            v, p = measured_margins(gains, self.frf, gains["KpC"] / self.motor["L"], self.controller.timing.tick_s)
+            v, p = measured_margins(gains, frf, gains["KpC"] / self.motor["L"], self.controller.timing.tick_s)
             return {"velocity": None if v is None else vars(v), "position": None if p is None else vars(p)}
         return {"band_hz": [float(band.min()), float(band.max())] if len(band) else None,
                 "margins": margins(self.design.gains()), "margins_before": margins(self.before)}
