@@ -61,13 +61,13 @@ def pytest_collection_modifyitems(config, items):
                 item.add_marker(getattr(pytest.mark, marker))
 
 
-def _shared_skips(session) -> list:
-    reporter = session.config.pluginmanager.get_plugin("terminalreporter")
+def _shared_skips(reporter) -> list:
+    """The skip reports of tests that wanted ``../shared``."""
     return [r for r in (reporter.stats.get("skipped", []) if reporter else []) if SHARED in str(r.longrepr)]
 
 
 def pytest_terminal_summary(terminalreporter, exitstatus, config):
-    skipped = [r for r in terminalreporter.stats.get("skipped", []) if SHARED in str(r.longrepr)]
+    skipped = _shared_skips(terminalreporter)
     if skipped:
         terminalreporter.write_line(f"{len(skipped)} test(s) skipped: {SHARED} (the vendor files and real logs) is "
                                     f"not beside the repository", yellow=True)
@@ -76,5 +76,6 @@ def pytest_terminal_summary(terminalreporter, exitstatus, config):
 def pytest_sessionfinish(session, exitstatus):
     """With DRIVE_BRIDGE_REQUIRE_SHARED set (CI, where ../shared is beside the clone), a test
     skipped for want of it fails the run."""
-    if os.environ.get("DRIVE_BRIDGE_REQUIRE_SHARED") and _shared_skips(session):
+    reporter = session.config.pluginmanager.get_plugin("terminalreporter")
+    if os.environ.get("DRIVE_BRIDGE_REQUIRE_SHARED") and _shared_skips(reporter):
         session.exitstatus = pytest.ExitCode.TESTS_FAILED

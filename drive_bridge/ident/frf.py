@@ -153,8 +153,8 @@ def log_response(t: np.ndarray, qd: np.ndarray, tau: np.ndarray, J: float, c1: f
         if b - a < nper:
             continue
         sl = slice(a, b)
-        f = signal.welch(x[sl], fs, nperseg=nper)[0]
-        sums += (b - a) / nper * np.array([signal.welch(x[sl], fs, nperseg=nper)[1],
+        f, pxx = signal.welch(x[sl], fs, nperseg=nper)
+        sums += (b - a) / nper * np.array([pxx,
                                             signal.welch(qd[sl], fs, nperseg=nper)[1],
                                             signal.welch(tau[sl], fs, nperseg=nper)[1],
                                             signal.csd(x[sl], qd[sl], fs, nperseg=nper)[1],

@@ -166,17 +166,17 @@ def screen(profiles: dict[str, Profile], values: dict[str, dict], inductance: di
     floor (else only with ``force``, recorded).  ``profiles``: each axis's, bound to its motor
     (:func:`~.write.bind_axes`).  What passed,
     and why the sets must not reach the drives (None: they may; ranges are :func:`check_set`'s)."""
-    profile = next(iter(profiles.values()))
     drive_sets, unheld = {}, []
     for a, v in values.items():
         try:
-            drive_sets[a] = profiles[a].controller.to_drive(v)
+            drive_sets[a] = profiles[a].drive_values(v)
         except UserError as exc:
             unheld.append(f"axis {a}: {exc}")
     if unheld:
         return GateResult({}, [], []), "; ".join(unheld)
-    unverified = sorted({f"{k} ({profile.entries[k].where()})" for v in drive_sets.values() for k in v
-                         if k in profile.entries and not profile.entries[k].verified})
+    unverified = sorted({f"{k} ({e.where()})" for a, v in drive_sets.items() for k in v
+                         if (e := profiles[a].entries.get(k)) is not None and not e.verified})
+    profile = next(iter(profiles.values()))
     if unverified and not dry_run and not allow_unverified_scales:
         return GateResult({}, [], unverified), (
             f"the {profile.drive} profile has no documented source for the scale of {', '.join(unverified)} "

@@ -34,7 +34,6 @@ GAINS = ("KpP", "FwF", "KpS", "KiS", "KpC", "KiC")   # a cascade's gains (tune's
 CASCADE = ("KpP", "FwF", "KpS", "KiS")
 PID = ("PidP", "PidI", "PidD", "PidFFv", "PidFFa")
 RATES = ("position", "velocity", "current")
-PROJECT_SOURCE = "drive_bridge/sim/kernel.py: the project's drive"
 
 
 @dataclass(frozen=True)

@@ -102,8 +102,7 @@ class Profile:
     motor: dict[str, tuple[int, int]] | None = None    # R [Ω], L [H]: (index, sub) where the drive reports them
     controller: Controller = Controller()
     #: (object's entry, the value that selects the profile's gain objects, the profile that runs otherwise)
-    select: tuple[Entry, int, str | None] | None = None
-    torque_constant: float | None = None     # [Nm/A] of the axis it is bound to (bind)
+    select: "tuple[Entry, int, Profile | None] | None" = None
 
     def object_dictionary(self, node_id: int) -> canopen.ObjectDictionary:
         return load_od(self.eds, node_id)
@@ -115,25 +114,32 @@ class Profile:
 
     def bind(self, torque_constant: float | None, axis: str = "") -> "Profile":
         """This profile for one axis whose motor has ``torque_constant`` [Nm/A]: the entries the
-        drive holds in current get their scale per Nm.  UserError where one needs it and it is
-        not given."""
+        drive holds in current get their scale per Nm (the profile that runs otherwise too).
+        UserError where one needs it and it is not given."""
+        select = self.select
+        if select is not None and select[2] is not None:
+            select = (select[0], select[1], select[2].bind(torque_constant, axis))
         current = [e for e in self.entries.values() if e.per_torque_constant]
         if not current:
-            return replace(self, torque_constant=torque_constant)
+            return replace(self, select=select)
         if not torque_constant or not torque_constant > 0:
             raise UserError(f"{'axis ' + axis + ': ' if axis else ''}the {self.drive} holds "
                             f"{', '.join(e.parameter for e in current)} in current: give the motor's torque "
                             f"constant (scaling.torque_constant_Nm_per_A in the bus configuration)")
-        return replace(self, torque_constant=torque_constant,
+        return replace(self, select=select,
                        entries={k: replace(e, scale=e.scale / torque_constant, per_torque_constant=False)
                                 if e.per_torque_constant else e for k, e in self.entries.items()})
 
     def otherwise(self) -> "Profile | None":
         """The profile whose objects run while the select object does not select this one's (bound
         to the same motor)."""
-        if self.select is None or self.select[2] is None:
-            return None
-        return load_profile(self.select[2]).bind(self.torque_constant)
+        return None if self.select is None else self.select[2]
+
+    def drive_values(self, values: dict[str, float]) -> dict[str, float]:
+        """A parameter set in the cascade's terms (tune's) as this drive holds it: its controller's
+        parameters (:meth:`.controller.Controller.to_drive`) and the select object
+        (:meth:`with_select`).  UserError for a set the drive cannot hold."""
+        return self.with_select(self.controller.to_drive(values))
 
     def with_select(self, values: dict[str, float]) -> dict[str, float]:
         """A drive's parameter set with the select object set where it writes a gain object of this
@@ -193,23 +199,24 @@ def load_profile(name_or_path: str | Path) -> Profile:
             ms.done()
     motor_sec.done()
     controller = load_controller(top.section("controller", required=False))
+    od = load_od(eds, 1)
     select_sec = top.section("select", required=False)
     select = None
     if select_sec.keys():
         index, sub = select_sec.get("index", int, low=0, high=0xFFFF), select_sec.get("sub", int, 0, low=0, high=255)
         value, otherwise = select_sec.get("value", int), select_sec.get("otherwise", str, None)
-        var = load_od(eds, 1).get_variable(index, sub)
+        var = od.get_variable(index, sub)
         if var is None:
             raise select_sec.error("index", f"{eds.name} has no object 0x{index:04X}:{sub}")
         type_name = next((n for n, t in TYPES.items() if t == var.data_type and not n.startswith("REAL")), None)
         if type_name is None or "w" not in var.access_type:
             raise select_sec.error("index", f"{eds.name}: 0x{index:04X}:{sub} is not a writable integer object")
         select = (Entry(SELECT, index, sub, type_name, 1.0, False, "1: the profile's gain objects run",
-                        source=select_sec.get("source", str, None)), value, otherwise)
+                        source=select_sec.get("source", str, None)), value,
+                  None if otherwise is None else load_profile(otherwise))
     select_sec.done()
     params = top.section("parameters")
     entries = {}
-    od = load_od(eds, 1)
     for name in params.keys():
         if name not in PARAMETERS:
             raise params.error(name, f"unknown parameter (known: {', '.join(PARAMETERS)})")
@@ -221,6 +228,8 @@ def load_profile(name_or_path: str | Path) -> Profile:
                       sec.get("per_torque_constant", bool, False))
         if entry.min is not None and entry.max is not None and entry.min > entry.max:
             raise params.error(f"{name}.min", f"min {entry.min} is above max {entry.max}")
+        if entry.reciprocal and entry.per_torque_constant:        # bind scales by 1/kt: right for scale × SI only
+            raise params.error(f"{name}.per_torque_constant", "a reciprocal value (a reset time) holds no current")
         sec.done()
         if entry.type not in TYPES:
             raise params.error(f"{name}.type", f"unknown data type {entry.type!r} (known: {', '.join(TYPES)})")

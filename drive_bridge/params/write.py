@@ -143,7 +143,7 @@ def plan_writes(nodes: dict[str, canopen.RemoteNode], profiles: dict[str, Profil
     for axis, node in nodes.items():
         profile = profiles[axis]
         try:
-            vals = profile.with_select(profile.controller.to_drive(values[axis]))
+            vals = profile.drive_values(values[axis])
         except UserError as exc:
             problems.append(f"axis {axis}: {exc}")
             continue

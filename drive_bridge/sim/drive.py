@@ -152,6 +152,11 @@ class SimDrive:
         #: the controller the drive runs (its profile's): structure and rates
         self.controller = profile.controller
         self.loop_div = _loop_divider(self.controller, eds_path)
+        #: the factory gains in the drive's controller's terms: the project drive's cascade (its EDS
+        #: defaults) with its loops slowed by the drive's loop rate (the same crossover share of the
+        #: rate, the same margins)
+        self.factory_gains = self.controller.to_drive(
+            {k: v / self.loop_div if k in ("KpP", "KpS", "KiS") else v for k, v in factory().gains.items()})
         #: the object that selects the profile's gain objects (Nanotec's 3212h:04) and the value that does;
         #: the other value runs the objects of the profile ``otherwise`` names
         self.select = None if profile.select is None else profile.select[:2]
@@ -218,11 +223,10 @@ class SimDrive:
         self._units()
         if not self.spec.factory_in_file:
             f = factory()
-            gains = self.controller.to_drive(self._factory_gains())
             for params in self.gain_sets.values():
                 for (index, sub), (col, entry) in params.items():
-                    if entry.parameter in gains:
-                        self._store(index, sub, entry.to_device(gains[entry.parameter]))
+                    if entry.parameter in self.factory_gains:
+                        self._store(index, sub, entry.to_device(self.factory_gains[entry.parameter]))
             for index, value in ((0x6072, f.max_torque_permille), (0x6066, f.fe_timeout_ms),
                                  (0x6085, f.quick_stop_rad_s2 * self.vel_per_si),
                                  (0x6081, f.profile_velocity_rad_s * self.vel_per_si),
@@ -236,19 +240,12 @@ class SimDrive:
         otherwise, as they hold them now."""
         p = self.p
         self.params = self.gain_sets[selected]
-        factory_gains = self.controller.to_drive(self._factory_gains())
         for name, col in (GAIN_PARAMS | PID_PARAMS).items():  # a gain without an object keeps the factory value
-            p[col] = factory_gains.get(name, 0.0)
+            p[col] = self.factory_gains.get(name, 0.0)
         for col in MODEL_PARAMS.values():
             p[col] = 0.0
         for (index, sub), (col, entry) in self.params.items():
             p[col] = entry.to_si(self._od(index, sub))
-
-    def _factory_gains(self) -> dict[str, float]:
-        """The factory cascade (the project drive's EDS defaults), its loops slowed with the drive's
-        loop rate: the same crossover share of the rate, the same margins."""
-        share = 1.0 / self.loop_div
-        return {k: v * share if k in ("KpP", "KpS", "KiS") else v for k, v in factory().gains.items()}
 
     def _store(self, index: int, sub: int, value) -> None:
         self.node.data_store.setdefault(index, {})[sub] = self.od.get_variable(index, sub).encode_raw(value)

@@ -223,10 +223,14 @@ def _margins_at_points(f: np.ndarray, loop: np.ndarray) -> Margins | None:
     return Margins(float(pm), gm, wc)
 
 
+def current_bandwidth(current_hz: float = CURRENT_RATE_HZ) -> float:
+    """The closed current loop's bandwidth [rad/s] the design gives it: an eighth of its rate [Hz]."""
+    return 2 * np.pi * current_hz / 8
+
+
 def current_gains(R: float, L: float, current_hz: float = CURRENT_RATE_HZ) -> tuple[float, float, float]:
-    """KpC [V/A], KiC [1/s] and the closed current-loop bandwidth [rad/s] (an eighth of the loop's
-    rate ``current_hz``)."""
-    w_i = 2 * np.pi * current_hz / 8
+    """KpC [V/A], KiC [1/s] and the closed current-loop bandwidth [rad/s] (:func:`current_bandwidth`)."""
+    w_i = current_bandwidth(current_hz)
     return L * w_i, R / L, w_i
 
 

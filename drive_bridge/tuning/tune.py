@@ -15,7 +15,7 @@ from ..outputs import stamped
 from ..yamlconf import too_large
 from ..ident.frf import Frf
 from ..params.controller import GAINS, Controller
-from .design import (GainDesign, Margins, controller as loop_controller, current_gains, design_gains, loop_margins,
+from .design import (GainDesign, Margins, controller as loop_controller, current_bandwidth, design_gains, loop_margins,
                      measured_margins, rigid_response)
 from .experiment import ExperimentResult
 from .feedforward import MODEL_KEYS
@@ -199,12 +199,12 @@ def loop_amplification(model: dict[str, float], gains: dict[str, float], current
 
 
 def _mode(axis: str, model: dict[str, float], resonance: dict | None, frf: Frf | None, controller: Controller,
-          L: float, drive: str, before: dict[str, float]) -> tuple[dict | None, float | None]:
+          drive: str, before: dict[str, float]) -> tuple[dict | None, float | None]:
     """A mode of the axis's transmission (identified or measured) and how the design meets it:
     the record for tune.json, and the velocity crossover cap [Hz] (None: none).  An identified
     peak where the drive's own loop with its gains ``before`` peaks on the rigid model is that
     loop ringing in the log, not the machine: no cap."""
-    w_i = current_gains(1.0, L, controller.timing.current_hz)[2]
+    w_i = current_bandwidth(controller.timing.current_hz)
     measured = measured_mode(frf, model["J"], model["c1"], w_i) if frf is not None else None
     if measured is not None:
         source, f = "measured response", measured
@@ -212,25 +212,23 @@ def _mode(axis: str, model: dict[str, float], resonance: dict | None, frf: Frf |
         source, f = "identification", float(resonance["frequency_hz"])
     else:
         return None, None
+    def met(handling: str, cap: float | None = None) -> tuple[dict, float | None]:
+        return ({"frequency_hz": round(f, 2), "source": source, "filter": None, "handling": handling,
+                 "crossover_cap_hz": None if cap is None else round(cap, 2)}, cap)
     band = frf.frequency_hz[frf.reliable()] if frf is not None else np.array([])
     no_filter = f"the {drive} profile names no notch or low-pass filter object"
     if source == "identification" and {"KpP", "KpS", "KiS"} <= set(before):
         gain = loop_amplification(model, before, w_i, controller.timing.tick_s, f)
         if gain >= LOOP_RINGING:
-            return ({"frequency_hz": round(f, 2), "source": source, "filter": None,
-                     "handling": f"the drive's own loop with its gains before amplifies {20 * np.log10(gain):.1f} dB "
-                                 f"there on the rigid model: the log shows that loop ringing, not a mode of the "
-                                 f"machine (measure the response to tell them apart); no limit",
-                     "crossover_cap_hz": None}, None)
+            return met(f"the drive's own loop with its gains before amplifies {20 * np.log10(gain):.1f} dB there on "
+                       f"the rigid model: the log shows that loop ringing, not a mode of the machine (measure the "
+                       f"response to tell them apart); no limit")
     if len(band) and band.min() <= f <= band.max():
-        return ({"frequency_hz": round(f, 2), "source": source, "filter": None,
-                 "handling": f"{no_filter}; the response measured through the mode limits the crossover: the "
-                             f"margins hold on it", "crossover_cap_hz": None}, None)
+        return met(f"{no_filter}; the response measured through the mode limits the crossover: the margins hold on it")
     cap = MODE_SHARE * f
     log.info("axis %s: a mode at %.0f Hz (%s): velocity crossover kept below %.0f Hz", axis, f, source, cap)
-    return ({"frequency_hz": round(f, 2), "source": source, "filter": None,
-             "handling": f"{no_filter}; not measured through: the velocity crossover kept at most "
-                         f"{MODE_SHARE:.2g} × the mode", "crossover_cap_hz": round(cap, 2)}, cap)
+    return met(f"{no_filter}; not measured through: the velocity crossover kept at most {MODE_SHARE:.2g} × the mode",
+               cap)
 
 
 def tune_axis(axis: str, model: dict[str, float], R: float, L: float, before: dict[str, float],
@@ -242,7 +240,7 @@ def tune_axis(axis: str, model: dict[str, float], R: float, L: float, before: di
     check_model(axis, model)
     if not (math.isfinite(R) and math.isfinite(L) and R > 0 and L > 0):
         raise UserError(f"axis {axis}: motor R = {R} Ω, L = {L} H must be positive numbers")
-    mode, cap = _mode(axis, model, resonance, frf, controller, L, drive, before)
+    mode, cap = _mode(axis, model, resonance, frf, controller, drive, before)
     timing = controller.timing
     try:
         design = design_gains(model["J"], model["c1"], R, L, frf, timing, cap)

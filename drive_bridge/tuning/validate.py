@@ -195,18 +195,19 @@ def run_scenarios(config: BusConfig, link: Link, axes: dict[str, AxisLink], prof
     with ``out_dir``, ``validate.json`` and the logged runs (``traces.npz``) kept there.
     A stopped run is in the result (see :func:`stopped`); the runs after it did not move.
     ``refused``: the scenarios the gain gate kept from the drives, and why (into validate.json)."""
+    bound = {a: profile.for_axis(ax) for a, ax in axes.items()}       # each drive's, with its motor
     problems = [f"scenario {name}, axis {a}: {p}" for name, values in scenarios.items() for a, v in values.items()
-                for p in check_set(profile, axes[a].node.object_dictionary, profile.controller.to_drive(v))]
+                for p in check_set(bound[a], axes[a].node.object_dictionary, bound[a].drive_values(v))]
     if problems:
         raise ValueRefused("refused before anything moved: " + "; ".join(problems))
     names = sorted({k for values in scenarios.values() for v in values.values() for k in v} | {"ff_enable"})
-    held = {a: read_parameters(ax.node, profile.for_axis(ax), names) for a, ax in axes.items()}
+    held = {a: read_parameters(ax.node, bound[a], names) for a, ax in axes.items()}
     try:
         runs = validate(config, link, axes, profile, scenarios, model, on_plan=on_plan,
                         master_feedforward=master_feedforward)
     finally:
         for a, ax in axes.items():          # what the drive held, as it held it: not checked again
-            write_parameters(ax.node, profile.for_axis(ax), held[a], store=False, check=False)
+            write_parameters(ax.node, bound[a], held[a], store=False, check=False)
     if out_dir is not None:
         out = Path(out_dir)
         write_json(out / VALIDATE_JSON, validate_doc(runs, refused))

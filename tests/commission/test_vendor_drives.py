@@ -113,3 +113,21 @@ def test_a_value_outside_the_drives_eds_range_is_refused_before_it_is_written(tm
     assert main(["record", "--sim", "--quick", "--config", str(path), "--out", str(tmp_path / "r")]) == 3
     err = capsys.readouterr().err
     assert "0x60C2:1 = 5 is outside the range its EDS/DCF gives (1..1); nothing was written to it" in err
+
+
+def test_a_drive_holding_gains_in_current_needs_the_torque_constant(tmp_path, capsys):
+    """The Nanotec's velocity gain 321Bh is in mA: without the motor's torque constant the gains
+    cannot be turned into current, and the run stops at bring-up naming the key (exit 2), before
+    anything moves or is written."""
+    if not vendor_dir().is_dir():
+        pytest.skip("../shared/eds-vendor not present")
+    path = short(tmp_path, "nanotec_c5e")
+    doc = yaml.safe_load(path.read_text())
+    del doc["defaults"]["scaling"]["torque_constant_Nm_per_A"]
+    path.write_text(yaml.safe_dump(doc))
+    assert main(["commission", "--sim", "--config", str(path), "--out", str(tmp_path / "run")]) == 2
+    err = capsys.readouterr().err
+    assert "scaling.torque_constant_Nm_per_A" in err and "Traceback" not in err
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert summary["status"] == "failed" and summary["failed"]["step"] == "bringup"
+    assert not (tmp_path / "run" / "campaign").exists()                 # nothing moved

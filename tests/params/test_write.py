@@ -150,7 +150,7 @@ def test_vendor_profile_writes_and_reads_back(name):
     profile = load_profile(name).bind(0.2)        # a drive holding gains in current: its motor's kt
     with vendor_node(profile) as (local, remote):
         values = tuned_values()
-        held = profile.with_select(profile.controller.to_drive(values))   # what the drive's controller holds
+        held = profile.drive_values(values)       # what the drive's controller holds
         r = write_parameters(remote, profile, values)
         assert r.ok, r.error
         assert {w.parameter for w in r.objects} == set(profile.entries) & set(held)
@@ -182,7 +182,7 @@ def test_a_scale_without_a_documented_source_is_written_only_when_allowed(name):
         assert dry.ok and dry.unverified_scales and not any(w.written for w in dry.results["y"].objects)
         done = write_drives({"y": remote}, profile, values, backup_dir=None, force=True, allow_unverified_scales=True,
                             torque_constants=kt)
-        held = profile.controller.to_drive(values["y"])
+        held = profile.drive_values(values["y"])
         assert done.ok and {u.split(" ")[0] for u in done.unverified_scales} == set(unverified) & set(held)
         assert done.as_dict()["unverified_scales"] == done.unverified_scales
 
