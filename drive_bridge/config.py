@@ -17,7 +17,7 @@ from canopen.objectdictionary import datatypes
 
 from .errors import ConfigError
 from .master.timing import TimingLimits
-from .od import load_od
+from .od import default, load_od
 from .resources import vendor_dir
 from .setpoint import SETPOINT_OBJECTS
 from .units import Scaling
@@ -388,12 +388,12 @@ def _node(path: Path, axis: str, data: dict, dcf_path: str | None = None, unused
     limits = Limits(float(scaling.load_to_motor(stroke[0])), float(scaling.load_to_motor(stroke[1])),
                     float(scaling.load_to_motor(vmax)), float(scaling.load_to_motor(amax)),
                     None if jmax is None else float(scaling.load_to_motor(jmax)))
-    if 0x6080 in od and od[0x6080].default:
-        drive_max = od[0x6080].default * 2 * math.pi / 60.0
+    if default(od, 0x6080):
+        drive_max = default(od, 0x6080) * 2 * math.pi / 60.0
         if limits.max_velocity > drive_max * (1 + 1e-9):
             raise lim.error(f"max_velocity_{unit}_s",
                             f"{vmax} {unit}/s is {limits.max_velocity * 60 / (2 * math.pi):.0f} rpm at the motor, "
-                            f"above the drive's max motor speed 0x6080 = {od[0x6080].default} rpm")
+                            f"above the drive's max motor speed 0x6080 = {default(od, 0x6080)} rpm")
     if not limits.fits_32_bits(scaling.inc_per_rad):     # with from_drive, bring-up checks it in the drive's units
         raise lim.error("stroke_" + unit, "does not fit the drive's 32-bit position range with this scaling")
     sdo = []
@@ -437,7 +437,8 @@ def _node(path: Path, axis: str, data: dict, dcf_path: str | None = None, unused
 HOMING_OBJECTS = ((0x6098, 0), (0x6099, 1), (0x6099, 2), (0x609A, 0))
 
 
-def _homing(sec: Section, od, scaling: Scaling, limits: Limits, unit: str) -> Homing | None:
+def _homing(sec: Section, od: canopen.ObjectDictionary, scaling: Scaling, limits: Limits,
+            unit: str) -> Homing | None:
     """``homing: {method, switch_speed_<unit>_s, zero_speed_<unit>_s, acceleration_<unit>_s2,
     timeout_s}`` (speeds by default 5 % and 1 % of the axis's velocity limit, the acceleration 10 %
     of its own), in load units as the limits are."""
@@ -541,7 +542,8 @@ def load_bus_config(path: str | Path) -> BusConfig:
     if not entries:
         raise top.error("nodes", "no nodes configured")
     ros = ros or any(k in e for e in entries.values() for k in ("driver", "package"))
-    nodes, unused = {}, set()
+    nodes: dict[str, NodeConfig] = {}
+    unused: set[str] = set()
     for axis, entry in entries.items():
         if ros:                                 # ros2_canopen's merge: defaults replace a node's own entries
             replaced = sorted(k for k in defaults if k in entry and entry[k] != defaults[k])

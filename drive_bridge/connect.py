@@ -16,6 +16,7 @@ log = logging.getLogger(__name__)
 @contextmanager
 def open_link(config: BusConfig, sim: bool, realtime: bool = False, sim_config: str | None = None) -> Iterator[Link]:
     """The link the master talks through: the configured bus, or the simulated robot."""
+    link: Link
     if not sim:
         m = config.master
         if m.interface is None:
@@ -49,8 +50,9 @@ def open_link(config: BusConfig, sim: bool, realtime: bool = False, sim_config: 
         if realtime:
             from .sim.process import SimProcess
             drives = SimProcess(sim_config or SIM_DEFAULT, config.master.sync_period_s, eds)
-            link = BusLink(drives.bus)
-            link.on_close.append(drives.shutdown)
+            bus_link = BusLink(drives.bus)
+            bus_link.on_close.append(drives.shutdown)
+            link = bus_link
         else:
             from .sim.lockstep import LockstepLink
             from .sim.robot import SimRobot

@@ -14,6 +14,7 @@ complement are written as the negative numbers they are.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import canopen
 from canopen.objectdictionary import ODVariable, datatypes
@@ -33,10 +34,10 @@ def configuration(od: canopen.ObjectDictionary) -> list[ODVariable]:
             and v.data_type not in NOT_VALUES]
 
 
-def read_back(node: canopen.RemoteNode, objects: list[ODVariable]) -> dict[tuple[int, int], object]:
+def read_back(node: canopen.RemoteNode, objects: list[ODVariable]) -> dict[tuple[int, int], Any]:
     """Each object's value as the drive reports it (SDO upload); objects the drive does not
     have (an abort) are left out."""
-    values = {}
+    values: dict[tuple[int, int], Any] = {}
     for var in objects:
         try:
             raw = node.sdo.upload(var.index, var.subindex)
@@ -46,7 +47,7 @@ def read_back(node: canopen.RemoteNode, objects: list[ODVariable]) -> dict[tuple
     return values
 
 
-def mapped(values: dict[tuple[int, int], object]) -> set[tuple[int, int]]:
+def mapped(values: dict[tuple[int, int], Any]) -> set[tuple[int, int]]:
     """The objects the PDO mappings in ``values`` map (process data)."""
     out = set()
     for (index, sub), v in values.items():
@@ -55,7 +56,7 @@ def mapped(values: dict[tuple[int, int], object]) -> set[tuple[int, int]]:
     return out
 
 
-def parameter_value(var: ODVariable, value) -> str:
+def parameter_value(var: ODVariable, value: Any) -> str:
     """``value`` as a DCF entry of ``var``'s type (a signed value that a vendor file wrote as its
     two's complement, 0xFFFF for an INTEGER16 -1, as the negative number CiA 306 tools expect)."""
     if var.data_type in datatypes.FLOAT_TYPES:
@@ -74,20 +75,23 @@ def export_dcf(node: canopen.RemoteNode, path: str | Path, bitrate: int) -> Path
     except SdoCommunicationError as exc:
         raise SdoCommunicationError(f"node {node.id}: reading the configuration back for its DCF: {exc}") from exc
     process = mapped(values)
+    if node.id is None:
+        raise ValueError("a DCF is exported from a node with its node-ID")
     return write_dcf(od, path, node.id, bitrate, {k: v for k, v in values.items() if k not in process})
 
 
 def write_dcf(od: canopen.ObjectDictionary, path: str | Path, node_id: int, bitrate: int,
-              values: dict[tuple[int, int], object]) -> Path:
+              values: dict[tuple[int, int], Any]) -> Path:
     """``od`` (changed in place) as a CiA 306 clean DCF at ``path``: the node-ID and bitrate,
     defaults resolved (``$NODEID``, REALs as bit patterns, signed as such), no descriptions, and
     ``values`` (by index and sub-index) as the only ParameterValues."""
-    for var in variables(od):
+    for var in variables(od):                      # *_raw: the text canopen's exporter writes
         var.description = ""                       # not a CiA 306 key of an object
         if isinstance(var.default, (int, float)):
-            var.default_raw = parameter_value(var, var.default)
+            setattr(var, "default_raw", parameter_value(var, var.default))
         value = values.get((var.index, var.subindex))
-        var.value, var.value_raw = (None, None) if value is None else (value, parameter_value(var, value))
+        var.value = value
+        setattr(var, "value_raw", None if value is None else parameter_value(var, value))
     od.node_id, od.bitrate = node_id, bitrate
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)

@@ -11,8 +11,10 @@ import base64
 import html
 import os
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Union
 
 import numpy as np
 
@@ -35,15 +37,18 @@ class Strong:
     text: str
 
 
+#: a run of text: plain, bold (Strong), or several in a row
+Text = Union[str, Strong, Sequence[Union[str, Strong]]]
+
 _NUMBER = re.compile(r"^[+\-]?(\d[\d.,]*(e[+\-]?\d+)?|–)( ?(%|×|→ ?\S+))?$")
 
 
-def _numeric(text) -> bool:
+def _numeric(text: object) -> bool:
     """A cell that holds a number (right-aligned in HTML, as numbers are read)."""
     return isinstance(text, str) and bool(_NUMBER.match(text.strip()))
 
 
-def number(value, fmt: str = ".6g") -> str:
+def number(value: object, fmt: str = ".6g") -> str:
     """A number for a table or a sentence: a float in ``fmt`` (a REAL32 read back as
     0.11999999731779099 is 0.12), anything else (a whole number, a name) as it is, "–" where
     there is none."""
@@ -61,16 +66,16 @@ def measured(value: float, std: float | None) -> str:
     return f"{value:.{min(7, max(2, digits))}g}"
 
 
-def _runs(text) -> list:
+def _runs(text: Text) -> list:
     return [text] if isinstance(text, (str, Strong)) else list(text)
 
 
-def _html(text) -> str:
+def _html(text: Text) -> str:
     return "".join(f"<b>{html.escape(r.text)}</b>" if isinstance(r, Strong) else html.escape(str(r))
                    for r in _runs(text))
 
 
-def _md(text, cell: bool = False) -> str:
+def _md(text: Text, cell: bool = False) -> str:
     out = []
     for r in _runs(text):
         s = r.text if isinstance(r, Strong) else str(r)
@@ -87,10 +92,10 @@ class Document:
     title: str
     blocks: list[tuple] = field(default_factory=list)
 
-    def heading(self, level: int, text) -> None:
+    def heading(self, level: int, text: Text) -> None:
         self.blocks.append(("h", level, text))
 
-    def para(self, text, style: str | None = None) -> None:
+    def para(self, text: Text, style: str | None = None) -> None:
         if style is not None and style not in STYLES:
             raise ValueError(f"style must be one of {STYLES}")
         self.blocks.append(("p", text, style))

@@ -15,10 +15,11 @@ import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import canopen
 from canopen.objectdictionary import datatypes
 
 from .errors import ConfigError
-from .od import load_od
+from .od import default, load_od
 from .setpoint import describe_modes
 
 OBJECT_KEYS = {k.lower() for k in (
@@ -53,6 +54,13 @@ class Report:
                 "lely": self.lely, "drive": self.drive}
 
 
+class _CaseKeeping(configparser.RawConfigParser):
+    """An INI parser that keeps the keys' case (``DefaultValue``, ``ParameterName``), as CiA 306 spells them."""
+
+    def optionxform(self, optionstr: str) -> str:
+        return optionstr
+
+
 def check(path: str | Path) -> Report:
     """Check the EDS/DCF at ``path`` (ConfigError when canopen cannot read it at all)."""
     path = Path(path)
@@ -65,8 +73,7 @@ def check(path: str | Path) -> Report:
     except UnicodeDecodeError:
         text = raw.decode("cp1252", errors="replace")
         report.findings.append("not UTF-8 (read as Windows-1252)")
-    cfg = configparser.RawConfigParser(strict=False, interpolation=None)
-    cfg.optionxform = str
+    cfg = _CaseKeeping(strict=False, interpolation=None)
     try:
         cfg.read_string(text, str(path))
     except configparser.Error as exc:
@@ -157,14 +164,14 @@ def _lely(path: Path) -> list[str] | None:
     return [str(w.message) for w in caught]
 
 
-def _drive(od) -> list[str]:
+def _drive(od: canopen.ObjectDictionary) -> list[str]:
     out = []
     if 0x6502 not in od:
         out.append("modes: no 0x6502 (supported drive modes) in the file")
-    elif od[0x6502].default is None:
+    elif default(od, 0x6502) is None:
         out.append("modes: 0x6502 has no DefaultValue here; bring-up reads it from the drive")
     else:
-        out.append(f"modes (0x6502): {describe_modes(od[0x6502].default)}")
+        out.append(f"modes (0x6502): {describe_modes(default(od, 0x6502))}")
     for role, indices in ROLES.items():
         have = [f"0x{i:04X}" for i in indices if i in od]
         out.append(f"{role}: {', '.join(have) if have else 'none'}")

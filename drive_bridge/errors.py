@@ -7,6 +7,8 @@ its ``exit_code`` says how the command ended: :data:`EXIT_TABLE`, the table
 """
 from __future__ import annotations
 
+import os
+
 #: (code, kind, meaning) of every way a command ends
 EXIT_TABLE = (
     (0, "ok", "everything asked for was done"),
@@ -61,7 +63,7 @@ class UserError(DriveBridgeError):
 class ConfigError(UserError):
     """A configuration file is wrong; the message names the file and key."""
 
-    def __init__(self, path, key: str, problem: str):
+    def __init__(self, path: str | os.PathLike[str], key: str, problem: str):
         where = f"{path}: {key}" if key else f"{path}"
         super().__init__(f"{where}: {problem}")
         self.path = path

@@ -15,7 +15,9 @@ the same decoding to report in the units their object dictionary holds.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 #: angular unit codes -> units per revolution
 ANGLE_PER_REV = {0x41: 360.0, 0x42: 21600.0, 0x43: 1296000.0, 0x40: 400.0, 0x10: 2 * math.pi, 0xB4: 1.0}
@@ -35,8 +37,10 @@ def exponent(code: int) -> int:
     return b - 256 if b >= 128 else b
 
 
-def describe(code: int, velocity: bool = False) -> str:
-    """A unit code in words, as "0.1 °" or "rev/min"."""
+def describe(code: int | None, velocity: bool = False) -> str:
+    """A unit code in words, as "0.1 °" or "rev/min" (None: a unit the drive does not name)."""
+    if code is None:
+        return "a unit the drive does not name"
     e, unit, time = exponent(code), (code >> 16) & 0xFF, (code >> 8) & 0xFF
     name = UNIT_NAMES.get(unit, f"unit 0x{unit:02X}")
     if velocity:
@@ -62,9 +66,9 @@ class FactorGroup:
     velocity_unit: int | None = None             # 0x60A9
 
     @classmethod
-    def read(cls, value) -> "FactorGroup":
+    def read(cls, value: Callable[[int, int], Any]) -> "FactorGroup":
         """From ``value(index, sub)``, which returns None where the drive has no such object."""
-        def pair(index):
+        def pair(index: int) -> tuple[int, int] | None:
             a, b = value(index, 1), value(index, 2)
             return None if a is None or b is None else (int(a), int(b))
         return cls(pair(0x608F), pair(0x6091), pair(0x6092), value(0x60A8, 0), value(0x60A9, 0))

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import struct
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import can
 import numpy as np
@@ -22,11 +23,14 @@ from .pdo import PdoCodec
 from .setpoint import MODE_NAMES
 from .units import Scaling
 
+if TYPE_CHECKING:
+    from .master.bringup import AxisLink
+
 LOG_NAME, META_NAME, TRACE_NAME = "log.csv", "meta.yaml", "trace.blf"
 
 #: TPDO object -> (column suffix, converter name on Scaling or None for raw integers, format;
 #: integers as %.0f so that a missing sample can be written as nan)
-_COLUMNS = {
+_COLUMNS: dict[int, tuple[str, str | None, str]] = {     # object: column suffix, Scaling method, format
     0x6064: ("position_rad", "position_from_device", "%.9g"),
     0x606C: ("velocity_rad_s", "velocity_from_device", "%.9g"),
     0x6077: ("torque_Nm", "torque_from_device", "%.6g"),
@@ -58,10 +62,8 @@ def to_table(rec: Recording, scaling: dict[str, Scaling], period: float) -> tupl
         indices = [i for a, i in rec.columns if a == axis]
         order = list(_COLUMNS)
         for index in sorted(indices, key=lambda i: order.index(0x6077 if i == sc.torque_object else i)):
-            if index == sc.torque_object:           # the axis's torque, from what the drive reports
-                suffix, conv, fmt = "torque_Nm", "torque_from_feedback", "%.6g"
-            else:
-                suffix, conv, fmt = _COLUMNS[index]
+            suffix, conv, fmt = (("torque_Nm", "torque_from_feedback", "%.6g") if index == sc.torque_object
+                                 else _COLUMNS[index])      # the axis's torque: from what the drive reports
             raw = rec.raw[:, rec.column(axis, index)]
             values = getattr(sc, conv)(raw) if conv else raw.astype(float)
             names.append(f"{axis}_{suffix}")
@@ -91,7 +93,7 @@ def write_meta(path: Path, meta: dict) -> None:
     write_text(path, yaml.safe_dump(meta, sort_keys=False))
 
 
-def layout_meta(axes) -> dict:
+def layout_meta(axes: dict[str, AxisLink]) -> dict:
     """Per axis: scaling, the operating mode streamed in and the PDO layout (what decode needs to
     rebuild the log)."""
     out = {}

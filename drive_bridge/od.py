@@ -3,10 +3,12 @@ from __future__ import annotations
 
 import io
 import struct
+from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import canopen
-from canopen.objectdictionary import datatypes
+from canopen.objectdictionary import ODVariable, datatypes
 
 from .errors import ConfigError
 
@@ -35,15 +37,29 @@ def load_od(path: str | Path, node_id: int) -> canopen.ObjectDictionary:
         raise ConfigError(path, "", f"not a readable EDS/DCF: {exc}") from exc
     for var in variables(od):
         if var.data_type in datatypes.FLOAT_TYPES:
-            for raw, value in (("default_raw", "default"), ("value_raw", "value")):
-                if getattr(var, value, None) is None and getattr(var, raw, None):
-                    setattr(var, value, float_from_bits(getattr(var, raw), var.data_type))
+            for as_written, as_read in (("default_raw", "default"), ("value_raw", "value")):
+                if getattr(var, as_read, None) is None and getattr(var, as_written, None):
+                    setattr(var, as_read, float_from_bits(getattr(var, as_written), var.data_type))
         elif var.data_type in datatypes.SIGNED_TYPES:      # a vendor's 0xFD for an INTEGER8 -3
             var.default, var.value = signed(var, var.default), signed(var, var.value)
     return od
 
 
-def variables(od: canopen.ObjectDictionary):
+def variable(od: canopen.ObjectDictionary, index: int, sub: int = 0) -> ODVariable:
+    """Object ``index``:``sub`` of ``od``; KeyError naming it where ``od`` has none."""
+    var = od.get_variable(index, sub)
+    if var is None:
+        raise KeyError(f"0x{index:04X}:{sub} is not in the object dictionary")
+    return var
+
+
+def default(od: canopen.ObjectDictionary, index: int, sub: int = 0) -> Any:
+    """The default value ``od`` gives object ``index``:``sub``; None where it has no such object or no default."""
+    var = od.get_variable(index, sub)
+    return None if var is None else var.default
+
+
+def variables(od: canopen.ObjectDictionary) -> Iterator[ODVariable]:
     """Every variable of ``od``, sub-indices included."""
     for obj in od.values():
         if isinstance(obj, canopen.objectdictionary.ODVariable):
@@ -71,7 +87,7 @@ def float_bits(value: float, data_type: int) -> str:
     return f"0x{struct.unpack('>Q', struct.pack('>d', value))[0]:016X}"
 
 
-def signed(var, value):
+def signed(var: ODVariable, value: Any) -> Any:
     """``value`` of ``var`` as the number it is where a file wrote a signed type's value as its
     two's complement (0xFD for an INTEGER8 -3); anything else as it is."""
     bits = len(var) if var.data_type in datatypes.SIGNED_TYPES else 0
@@ -80,7 +96,7 @@ def signed(var, value):
     return value
 
 
-def limits(var) -> tuple[float | None, float | None]:
+def limits(var: ODVariable) -> tuple[float | None, float | None]:
     """The (LowLimit, HighLimit) an EDS/DCF gives ``var``, signed types as the numbers they are;
     None where it gives none."""
     return signed(var, getattr(var, "min", None)), signed(var, getattr(var, "max", None))

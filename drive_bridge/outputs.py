@@ -9,6 +9,7 @@ import os
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import Any
 
 
 @contextmanager
@@ -46,7 +47,7 @@ SIGNIFICANT = 7     # digits of a float in a result: more than any measured or i
                     # holds, and a REAL32 drive value's 0.11999999731779099 reads 0.12
 
 
-def meaningful(x):
+def meaningful(x: Any) -> Any:
     """``x`` (a result, nested) ready for JSON: floats to :data:`SIGNIFICANT` significant digits
     (whole numbers, such as device increments, exactly), a non-finite float as ``None``, numpy
     scalars and arrays as Python numbers and lists."""
@@ -63,7 +64,7 @@ def meaningful(x):
     return x
 
 
-def json_text(doc, indent: int | None = None) -> str:
+def json_text(doc: Any, indent: int | None = None) -> str:
     """A result as JSON text (:func:`meaningful`): what every JSON output and ``--json`` prints."""
     return json.dumps(meaningful(doc), indent=indent, allow_nan=False)
 
@@ -83,6 +84,6 @@ def identity_hex(ident: dict) -> dict:
     return {k: hex32(v) for k, v in ident.items()}
 
 
-def write_json(path: str | Path, doc, exact: bool = False) -> Path:
+def write_json(path: str | Path, doc: Any, exact: bool = False) -> Path:
     """``doc`` as :func:`json_text`; ``exact`` keeps every float as it is (a backup to restore from)."""
     return write_text(path, json.dumps(doc, indent=1, default=float) if exact else json_text(doc, indent=1))

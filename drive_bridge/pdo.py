@@ -4,11 +4,14 @@ their data types (canopen's own type table)."""
 from __future__ import annotations
 
 import struct
+from collections.abc import Iterable
 from dataclasses import dataclass
 from functools import cached_property
 
 import canopen
 from canopen.objectdictionary import ODVariable
+
+from .od import variable
 
 
 @dataclass(frozen=True)
@@ -20,12 +23,11 @@ class PdoCodec:
     struct: struct.Struct
 
     @classmethod
-    def of(cls, cob_id: int, od: canopen.ObjectDictionary, entries) -> "PdoCodec":
+    def of(cls, cob_id: int, od: canopen.ObjectDictionary, entries: Iterable[tuple[int, int]]) -> "PdoCodec":
         """The codec of ``entries`` ((index, sub-index) pairs) with their types from ``od``."""
         entries = tuple((int(i), int(s)) for i, s in entries)
-        variables = [od.get_variable(i, s) for i, s in entries]
-        return cls(cob_id, entries, struct.Struct("<" + "".join(
-            ODVariable.STRUCT_TYPES[v.data_type].format.lstrip("<") for v in variables)))
+        variables = [variable(od, i, s) for i, s in entries]
+        return cls(cob_id, entries, struct.Struct("<" + "".join(_struct_format(v) for v in variables)))
 
     @cached_property
     def objects(self) -> tuple[int, ...]:
@@ -51,3 +53,11 @@ class PdoCodec:
     def from_dict(cls, d: dict) -> "PdoCodec":
         subs = d.get("sub_indices", [0] * len(d["objects"]))
         return cls(d["cob_id"], tuple(zip(d["objects"], subs)), struct.Struct(d["format"]))
+
+
+def _struct_format(var: ODVariable) -> str:
+    """The struct format of a mapped object's data type; ValueError naming the object where the
+    type has no fixed size to map."""
+    if var.data_type is None or var.data_type not in ODVariable.STRUCT_TYPES:
+        raise ValueError(f"0x{var.index:04X}:{var.subindex} has no fixed-size data type to map into a PDO")
+    return ODVariable.STRUCT_TYPES[var.data_type].format.lstrip("<")

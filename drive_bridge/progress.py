@@ -4,6 +4,7 @@ from __future__ import annotations
 import bisect
 import sys
 import time
+from typing import TextIO
 
 from .master.campaign import Plan
 
@@ -11,7 +12,7 @@ from .master.campaign import Plan
 class CampaignProgress:
     """Callable(k) for the streaming loop; draws on a terminal, prints a line per segment otherwise."""
 
-    def __init__(self, plan: Plan, stream=None, width: int = 28):
+    def __init__(self, plan: Plan, stream: TextIO | None = None, width: int = 28):
         self.plan = plan
         self.stream = stream or sys.stderr
         self.tty = hasattr(self.stream, "isatty") and self.stream.isatty()
@@ -50,7 +51,7 @@ class StepReporter:
     """Progress of a multi-step run: a line when a step starts and when it ends, a
     :class:`CampaignProgress` bar for each motion inside a step, and notes in between."""
 
-    def __init__(self, steps: list[str], stream=None):
+    def __init__(self, steps: list[str], stream: TextIO | None = None):
         self.steps = steps
         self.stream = stream or sys.stderr
         self.bar: CampaignProgress | None = None

@@ -5,14 +5,14 @@ import logging
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
+from typing import Any, Callable
 
 from . import __version__
 from .config import BusConfig
 from .errors import MotionAborted
 from .logs import LOG_NAME, META_NAME, TRACE_NAME, layout_meta, write_csv, write_meta
 from .master.bringup import AxisLink, bring_up
-from .master.busload import check_bus_load
+from .master.busload import BusLoad, check_bus_load
 from .master.campaign import Plan, build_plan
 from .master.homing import home
 from .master.link import Link, TraceRecorder
@@ -73,14 +73,16 @@ def record(config: BusConfig, link: Link, out_dir: str | Path, *,
         trace.stop()
 
 
-def _record(config, link, out, load, t_start, on_plan, axes) -> RecordResult:
+def _record(config: BusConfig, link: Link, out: Path, load: BusLoad, t_start: float,
+            on_plan: Callable[[Plan], Callable[[int], None] | None] | None,
+            axes: dict[str, AxisLink] | None) -> RecordResult:
     axes = axes or bring_up(link, config)
     home(link, axes, config)                 # reference: home -- before the plan starts where it left them
     start = {name: ax.position_rad() for name, ax in axes.items()}
     plan = build_plan(config.campaign, {n: a.cfg.limits for n, a in axes.items()}, start,
                       config.master.sync_period_s)
     progress = on_plan(plan) if on_plan else None
-    meta = {
+    meta: dict[str, Any] = {
         "drive_bridge_version": __version__,
         "config_file": str(config.path.resolve()),
         "sync_period_s": plan.period,

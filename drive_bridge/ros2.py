@@ -23,10 +23,11 @@ configuration is the bus.yml's, which dcfgen turns into the SDOs the master send
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import yaml
 
-from .config import BusConfig, NodeConfig
+from .config import BusConfig, MasterConfig, NodeConfig, PdoConfig
 from .dcf import write_dcf
 from .errors import UserError
 from .master.bringup import settings
@@ -51,7 +52,7 @@ def export(config: BusConfig, out: str | Path) -> list[Path]:
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     m = config.master
-    doc = {"options": {"dcf_path": "."},
+    doc: dict[str, Any] = {"options": {"dcf_path": "."},
            "master": {"node_id": m.node_id or MASTER_NODE_ID, "driver": "ros2_canopen::MasterDriver",
                       "package": "canopen_master_driver", "baudrate": m.nominal_bitrate // 1000,
                       "sync_period": round(m.sync_period_s * 1e6),
@@ -70,13 +71,14 @@ def export(config: BusConfig, out: str | Path) -> list[Path]:
     return [bus] + written
 
 
-def _node(n: NodeConfig, dcf_name: str, master, own: dict) -> dict:
+def _node(n: NodeConfig, dcf_name: str, master: MasterConfig, own: dict) -> dict:
     if n.units_from_drive:
         raise UserError(f"nodes.{n.axis}.scaling takes the units from the drive: ros2_canopen needs them in "
                         f"scale_pos_to_dev; give increments_per_rev (and velocity_unit, rated_torque_Nm) as "
                         f"bringup.json's units for the axis say, then export")
     period_s = master.sync_period_s
-    inc_per_unit = n.scaling.inc_per_rad if not n.linear else n.scaling.increments_per_rev / n.scaling.feed_m_per_rev
+    feed = n.scaling.feed_m_per_rev                  # a linear axis: device units per m
+    inc_per_unit = n.scaling.inc_per_rad if feed is None else n.scaling.increments_per_rev / feed
     mode = 8 if any((0x607A, 0) in p.mapping for p in n.rpdo) else 7
     entry = {"node_id": n.node_id, "dcf": dcf_name, "driver": "ros2_canopen::Cia402Driver",
              "package": "canopen_402_driver", "period": max(1, round(period_s * 1000)), "position_mode": mode,
@@ -88,9 +90,9 @@ def _node(n: NodeConfig, dcf_name: str, master, own: dict) -> dict:
     return entry
 
 
-def _pdos(n: NodeConfig, pdos, comm: int) -> dict:
+def _pdos(n: NodeConfig, pdos: tuple[PdoConfig, ...], comm: int) -> dict:
     by_num = {p.number: p for p in pdos}
-    out = {}
+    out: dict[int, dict[str, Any]] = {}
     for num in range(1, 5):
         if comm + num - 1 not in n.od:
             continue
@@ -107,7 +109,7 @@ def _pdos(n: NodeConfig, pdos, comm: int) -> dict:
     return out
 
 
-def _sdo(n: NodeConfig, period_s: float, master) -> list[dict]:
+def _sdo(n: NodeConfig, period_s: float, master: MasterConfig) -> list[dict]:
     """What drive-bridge's bring-up writes besides PDOs (:func:`~drive_bridge.master.bringup.settings`),
     as ros2_canopen's ``sdo``; the heartbeat is the node's ``heartbeat_producer`` and the
     communication cycle the master's ``sync_period``."""

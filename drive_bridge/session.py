@@ -14,7 +14,7 @@ import canopen
 
 from .config import BusConfig
 from .connect import open_link
-from .master.bringup import AxisLink, bring_up, check_scan, scan
+from .master.bringup import AxisLink, bring_up, check_scan, remote_node, scan
 from .master.link import Link
 from .params.check import GM_FLOOR_DB, PM_FLOOR_DEG
 from .params.profile import DEFAULT_PROFILE, Profile, load_profile
@@ -61,7 +61,7 @@ class Session:
     def __enter__(self) -> "Session":
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
     def close(self) -> None:
@@ -87,7 +87,7 @@ class Session:
             return {a: ax.node for a, ax in self._axes.items()}
         if self._nodes is None:
             check_scan(scan(self.link, self.config), self.config)
-            self._nodes = {a: self.link.network[n.node_id] for a, n in self.config.nodes.items()}
+            self._nodes = {a: remote_node(self.link.network, n.node_id) for a, n in self.config.nodes.items()}
         return self._nodes
 
     def holding(self) -> dict[str, str]:

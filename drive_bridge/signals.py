@@ -10,9 +10,10 @@ from __future__ import annotations
 
 import signal
 import threading
+from collections.abc import Iterator
 from contextlib import contextmanager
 
-HANDLED = {signal.SIGINT: "Ctrl-C", signal.SIGTERM: "SIGTERM"}
+HANDLED: dict[int, str] = {signal.SIGINT: "Ctrl-C", signal.SIGTERM: "SIGTERM"}
 if hasattr(signal, "SIGHUP"):
     HANDLED[signal.SIGHUP] = "SIGHUP"
 
@@ -25,13 +26,18 @@ class Terminated(KeyboardInterrupt):
         self.name = name
 
 
-_state = {"deferring": 0, "pending": None}
+class _State:
+    deferring = 0                    # nested deferred() blocks open
+    pending: str | None = None       # the first signal they hold
 
 
-def _handler(signum, frame) -> None:
+_state = _State()
+
+
+def _handler(signum: int, frame: object) -> None:
     name = HANDLED.get(signum, f"signal {signum}")
-    if _state["deferring"]:
-        _state["pending"] = _state["pending"] or name
+    if _state.deferring:
+        _state.pending = _state.pending or name
         return
     raise Terminated(name)
 
@@ -42,7 +48,7 @@ def signal_name(exc: BaseException) -> str:
 
 
 @contextmanager
-def handled():
+def handled() -> Iterator[None]:
     """SIGINT, SIGTERM and SIGHUP raise :class:`Terminated` inside this block (main thread only)."""
     if threading.current_thread() is not threading.main_thread():
         yield
@@ -56,16 +62,16 @@ def handled():
 
 
 @contextmanager
-def deferred(raise_after: bool = True):
+def deferred(raise_after: bool = True) -> Iterator[dict[str, str | None]]:
     """Hold every handled signal until the block ends; then raise it (``raise_after``), or leave
     its name in the yielded dict's ``"signal"`` for the caller to report."""
-    held = {"signal": None}
-    _state["deferring"] += 1
+    held: dict[str, str | None] = {"signal": None}
+    _state.deferring += 1
     try:
         yield held
     finally:
-        _state["deferring"] -= 1
-        if not _state["deferring"]:
-            held["signal"], _state["pending"] = _state["pending"], None
+        _state.deferring -= 1
+        if not _state.deferring:
+            held["signal"], _state.pending = _state.pending, None
             if raise_after and held["signal"]:
                 raise Terminated(held["signal"])

@@ -14,8 +14,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TypeVar
 
 import numpy as np
+from numpy.typing import ArrayLike
+
+#: a value or the values of a signal (the same kind comes back)
+N = TypeVar("N", float, np.ndarray)
 
 
 @dataclass(frozen=True)
@@ -29,7 +34,7 @@ class Scaling:
     rated_torque_Nm: the drive's rated torque (0x6076 in mNm / 1000).
     """
 
-    increments_per_rev: int
+    increments_per_rev: float
     rated_torque_Nm: float
     feed_m_per_rev: float | None = None
     torque_feedback: str = "torque"             # "torque": 0x6077; "current": 0x6078 × torque constant;
@@ -56,43 +61,53 @@ class Scaling:
         return 60.0 / (2 * math.pi) if self.velocity_unit == "rpm" else self.inc_per_rad
 
     # --- load side (m) <-> motor side (rad) -----------------------------------------
-    def load_to_motor(self, value_m):
+    def load_to_motor(self, value_m: N) -> N:
         """m, m/s or m/s² of a linear axis to rad, rad/s or rad/s² of the motor."""
         if self.feed_m_per_rev is None:
             return value_m
         return value_m * (2 * math.pi / self.feed_m_per_rev)
 
     # --- SI <-> device --------------------------------------------------------------
-    def position_to_device(self, rad):
+    def position_to_device(self, rad: ArrayLike) -> np.ndarray:
         """rad -> increments (rounded to the nearest increment)."""
         return np.rint(np.asarray(rad) * self.inc_per_rad).astype(np.int64)
 
-    def position_from_device(self, increments):
+    def position_from_device(self, increments: ArrayLike) -> np.ndarray:
         return np.asarray(increments, dtype=float) / self.inc_per_rad
 
-    def velocity_to_device(self, rad_s):
+    def velocity_to_device(self, rad_s: ArrayLike) -> np.ndarray:
         return np.rint(np.asarray(rad_s) * self.velocity_per_rad_s).astype(np.int64)
 
-    def velocity_from_device(self, value):
+    def velocity_from_device(self, value: ArrayLike) -> np.ndarray:
         return np.asarray(value, dtype=float) / self.velocity_per_rad_s
 
-    def torque_to_device(self, Nm):
+    def torque_to_device(self, Nm: ArrayLike) -> np.ndarray:
         """Nm -> per mille of rated torque."""
         return np.rint(np.asarray(Nm) / self.rated_torque_Nm * 1000).astype(np.int64)
 
-    def torque_from_device(self, per_mille):
+    def torque_from_device(self, per_mille: ArrayLike) -> np.ndarray:
         return np.asarray(per_mille, dtype=float) * (self.rated_torque_Nm / 1000.0)
 
-    def torque_from_feedback(self, raw):
+    def torque_from_feedback(self, raw: ArrayLike) -> np.ndarray:
         """The axis's torque feedback (its :attr:`torque_object`, device units) -> Nm."""
-        if self.torque_feedback == "current":       # per mille of rated current, or mA, × torque constant
-            return np.asarray(raw, dtype=float) * (self.current_per_unit_A * self.torque_constant_Nm_per_A)
-        if self.torque_feedback == "object":
-            return np.asarray(raw, dtype=float) * self.torque_per_unit_Nm
-        return self.torque_from_device(raw)
+        return np.asarray(raw, dtype=float) * self.feedback_Nm_per_unit
+
+    @property
+    def feedback_Nm_per_unit(self) -> float:
+        """Nm per unit of the torque feedback: per mille of the rated torque; per mille of the rated
+        current, or mA, times the torque constant; or the vendor object's scale."""
+        if self.torque_feedback == "current" and self.current_per_unit_A and self.torque_constant_Nm_per_A:
+            return self.current_per_unit_A * self.torque_constant_Nm_per_A
+        if self.torque_feedback == "object" and self.torque_per_unit_Nm:
+            return self.torque_per_unit_Nm
+        if self.torque_feedback == "torque":
+            return self.rated_torque_Nm / 1000.0
+        raise ValueError(f"torque feedback {self.torque_feedback!r} without its scale")
 
     @property
     def torque_object(self) -> int:
         """The object the axis's torque is measured by: 0x6077, 0x6078 for current feedback, or the
         configured vendor object."""
-        return {"current": 0x6078, "object": self.torque_index}.get(self.torque_feedback, 0x6077)
+        if self.torque_feedback == "object" and self.torque_index is not None:
+            return self.torque_index
+        return 0x6078 if self.torque_feedback == "current" else 0x6077

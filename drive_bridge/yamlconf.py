@@ -3,7 +3,8 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Any, Mapping
+from collections.abc import Iterable, Mapping
+from typing import Any, TypeGuard
 
 import yaml
 
@@ -48,7 +49,7 @@ def _short(value: Any) -> str:
     return text if len(text) <= 60 else text[:57] + "..."
 
 
-def finite_number(value: Any) -> bool:
+def finite_number(value: Any) -> TypeGuard[float]:
     """A real, finite number (bool is not a number here)."""
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         return False
@@ -71,24 +72,26 @@ class Section:
         self.path = Path(path)
         self.key = key
         self.data = data
-        self._used: set[str] = set()
+        self._used: set[str | int] = set()
 
-    def _name(self, key: str) -> str:
+    def _name(self, key: str | int) -> str:
         if not key:
             return self.key
         return f"{self.key}.{key}" if self.key else str(key)
 
-    def error(self, key: str, problem: str) -> ConfigError:
+    def error(self, key: str | int, problem: str) -> ConfigError:
         return ConfigError(self.path, self._name(key), problem)
 
-    def get(self, key: str, kind: type | tuple, default: Any = ..., *, low=None, high=None,
-            choices=None) -> Any:
+    def get(self, key: str | int, kind: type | tuple[type, ...], default: Any = ..., *, low: float | None = None,
+            high: float | None = None, choices: Iterable[Any] | None = None) -> Any:
+        """``key``'s value, checked to be of ``kind`` (a float may be written as an int), finite, within
+        [``low``, ``high``] and one of ``choices``; ``default`` where it is absent (``...``: required)."""
         self._used.add(key)
         if key not in self.data:
             if default is ...:
                 raise self.error(key, "missing (required)")
             return default
-        value = self.data[key]
+        value: Any = self.data[key]
         kinds = kind if isinstance(kind, tuple) else (kind,)
         if float in kinds and isinstance(value, int) and not isinstance(value, bool):
             try:
@@ -102,27 +105,28 @@ class Section:
             raise self.error(key, f"must be a finite number, got {value!r}")
         if choices is not None and value not in choices:
             raise self.error(key, f"must be one of {', '.join(map(str, choices))}, got {value!r}")
-        if low is not None and value < low:
+        number: Any = value                   # of the kinds asked for: a number where a range is given
+        if low is not None and number < low:
             raise self.error(key, f"must be >= {low}, got {value!r}")
-        if high is not None and value > high:
+        if high is not None and number > high:
             raise self.error(key, f"must be <= {high}, got {value!r}")
         return value
 
-    def accept(self, keys) -> set[str]:
+    def accept(self, keys: Iterable[str]) -> set[str]:
         """Mark ``keys`` as known without reading them (keys another tool reads); the ones present."""
         found = {k for k in keys if k in self.data}
         self._used.update(found)
         return found
 
-    def section(self, key: str, required: bool = True) -> "Section":
+    def section(self, key: str | int, required: bool = True) -> "Section":
         value = self.get(key, dict, ... if required else {})
         return Section(self.path, self._name(key), value)
 
-    def keys(self):
+    def keys(self) -> list[Any]:
         return list(self.data.keys())
 
     def done(self) -> None:
         unknown = [k for k in self.data if k not in self._used]
         if unknown:
-            known = ", ".join(sorted(self._used)) or "none"
+            known = ", ".join(sorted(map(str, self._used))) or "none"
             raise self.error(str(unknown[0]), f"unknown key (known keys here: {known})")

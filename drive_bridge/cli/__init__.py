@@ -90,7 +90,7 @@ def _run(argv: list[str] | None) -> int:
         logging.captureWarnings(False)
 
 
-def _command(args) -> int:
+def _command(args: argparse.Namespace) -> int:
     """Run the command, each error ending as :mod:`drive_bridge.errors` says."""
     try:
         return args.func(args)

@@ -3,20 +3,28 @@ excitation campaign, the raw trace, the bus for other tools, the simulated drive
 their own, the files that describe the nodes."""
 from __future__ import annotations
 
+import argparse
+
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from ..config import load_bus_config
+from ..config import BusConfig, NodeConfig, load_bus_config
 from ..errors import EXIT_CODES, UserError
 from ..resources import DEFAULT_BUS_CONFIG
-from ..master.bringup import check_scan, scan
+from ..master.bringup import AxisLink, check_scan, scan
 from ..outputs import stamped
 from ..session import Session
 from . import options
 
+if TYPE_CHECKING:
+    from ..master.campaign import Plan
+    from ..master.timing import Timing
 
-def register(sub) -> None:
+
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser("scan", help="list the nodes on the bus and check them against the configuration",
                        description="Ask every node who is there: identity (0x1018) and device type (0x1000); "
                                    "a configured node that is missing or no CiA 402 drive ends with exit 3.")
@@ -101,7 +109,7 @@ def register(sub) -> None:
     p.set_defaults(func=cmd_check_eds)
 
 
-def cmd_scan(args) -> int:
+def cmd_scan(args: argparse.Namespace) -> int:
     config = options.config(args)
     with Session(config, options.session_options(args)) as session:
         result = scan(session.link, config)
@@ -124,7 +132,7 @@ def cmd_scan(args) -> int:
     return 0
 
 
-def cmd_record(args) -> int:
+def cmd_record(args: argparse.Namespace) -> int:
     from ..progress import CampaignProgress
     from ..record import record
     options.out_dir(args.out)
@@ -134,7 +142,7 @@ def cmd_record(args) -> int:
     options.confirm_motion(args, config, "record", lambda: preview(args, config, campaign_plans(config)))
     bars = []
 
-    def on_plan(plan):
+    def on_plan(plan: Plan) -> CampaignProgress:
         print(f"campaign: {', '.join(plan.axes)}, {len(plan.segments)} segments, "
               f"{plan.duration:.1f} s of motion", file=sys.stderr)
         print(plan_lines(plan, config), file=sys.stderr)
@@ -161,7 +169,7 @@ def cmd_record(args) -> int:
     return degraded_exit([] if not result.timing.degraded else result.timing.reasons)
 
 
-def cmd_sim(args) -> int:
+def cmd_sim(args: argparse.Namespace) -> int:
     from ..master.link import open_bus
     from ..sim.config import DEFAULT_CONFIG
     from ..sim.process import serve
@@ -187,7 +195,7 @@ def cmd_sim(args) -> int:
 JOG_LEVEL = 0.1             # a jog's default speed and acceleration: this share of the axis's limits
 
 
-def cmd_jog(args) -> int:
+def cmd_jog(args: argparse.Namespace) -> int:
     import math
 
     import numpy as np
@@ -207,13 +215,13 @@ def cmd_jog(args) -> int:
             raise UserError(f"--speed {args.speed} {unit}/s must be above 0 and within the axis's limit "
                             f"{ncfg.limits.max_velocity * k:.4g} {unit}/s")
 
-    def target(ax) -> float:
+    def target(ax: AxisLink) -> float:
         """Where the jog goes [rad motor side], from where ``ax`` stands (homed first where it homes)."""
         if args.to is not None:
             return float(ax.cfg.scaling.load_to_motor(args.to))
         return ax.start_rad() + float(ax.cfg.scaling.load_to_motor(args.by))
 
-    def plans(axes):
+    def plans(axes: dict[str, AxisLink]) -> list[tuple[str, Plan]]:
         ax = axes[args.axis]
         plan, _ = motion.plan(config, axes, {args.axis: np.array([target(ax)])}, {args.axis: ax.start_rad()},
                               kind="jog", level=level, approach_level=level)
@@ -225,7 +233,7 @@ def cmd_jog(args) -> int:
         ax = session.axes[args.axis]
         home(session.link, {args.axis: ax}, config)
 
-        def on_plan(plan):
+        def on_plan(plan: Plan) -> None:
             print(f"jog {args.axis}: {plan.duration:.1f} s of motion\n{plan_lines(plan, config)}", file=sys.stderr)
         moved = motion.run(config, session.link, {args.axis: ax}, {args.axis: np.array([target(ax)])}, kind="jog",
                            level=level, approach_level=level, on_plan=on_plan)
@@ -237,12 +245,12 @@ def cmd_jog(args) -> int:
     return 0
 
 
-def own_units(ncfg) -> tuple[float, str]:
+def own_units(ncfg: NodeConfig) -> tuple[float, str]:
     """An axis's own unit (m for a linear axis, rad for a rotary one) and the factor from motor rad to it."""
     return 1.0 / float(ncfg.scaling.load_to_motor(1.0)), "m" if ncfg.linear else "rad"
 
 
-def plan_lines(plan, config) -> str:
+def plan_lines(plan: Plan, config: BusConfig) -> str:
     """The plan as the person beside the machine reads it: per axis, where it starts, the span it
     covers, its peaks, inside which limits (the axis's own units: m for a linear axis)."""
     from ..master.campaign import plan_summary
@@ -259,7 +267,7 @@ def plan_lines(plan, config) -> str:
     return "\n".join(lines)
 
 
-def motion_preview(session, config, plans) -> str:
+def motion_preview(session: Session, config: BusConfig, plans: options.Plans) -> str:
     """Motion as it would run from where the axes stand, planned and checked over a read-only
     bring-up of ``session`` (nothing that changes a drive's behaviour is written): for --dry-run
     and for the question before a real run. ``plans(axes)`` gives (title, Plan) pairs, each checked
@@ -282,11 +290,11 @@ def motion_preview(session, config, plans) -> str:
     return "\n".join(lines)
 
 
-def campaign_plans(config):
+def campaign_plans(config: BusConfig) -> options.Plans:
     """The campaign planned from where the axes stand, for :func:`motion_preview`."""
     from ..master.campaign import build_plan
 
-    def plans(axes):
+    def plans(axes: dict[str, AxisLink]) -> list[tuple[str, Plan]]:
         start = {name: ax.start_rad() for name, ax in axes.items()}
         plan = build_plan(config.campaign, {n: a.cfg.limits for n, a in axes.items()}, start,
                           config.master.sync_period_s)
@@ -294,13 +302,13 @@ def campaign_plans(config):
     return plans
 
 
-def validate_plans(config, scenarios: str):
+def validate_plans(config: BusConfig, scenarios: str) -> Callable[..., list[tuple[str, Plan]]]:
     """The validation's reference trajectories, one after the other from ``start`` (axis ->
     [rad]; default: where the axes stand), each ``scenarios`` runs both, for :func:`motion_preview`."""
     from ..tuning import motion
     from ..tuning.validate import reference_demands
 
-    def plans(axes, start=None):
+    def plans(axes: dict[str, AxisLink], start: dict[str, float] | None = None) -> list[tuple[str, Plan]]:
         start = start or {name: ax.start_rad() for name, ax in axes.items()}
         out = []
         for traj, demand, _, level in reference_demands({a: ax.cfg.limits for a, ax in axes.items()},
@@ -312,7 +320,7 @@ def validate_plans(config, scenarios: str):
     return plans
 
 
-def preview(args, config, plans) -> str:
+def preview(args: argparse.Namespace, config: BusConfig, plans: options.Plans) -> str:
     """:func:`motion_preview` in a session of its own."""
     with Session(config, options.session_options(args)) as session:
         return motion_preview(session, config, plans)
@@ -333,7 +341,7 @@ def holding_lines(holding: dict[str, str] | None) -> str:
     return "\n".join(f"  axis {a}: {how}" for a, how in holding.items())
 
 
-def timing_line(t) -> str:
+def timing_line(t: Timing) -> str:
     """One line on how a run kept its clock."""
     if t.clock != "wall":
         return "timing: lockstep (simulation time, every SYNC on time)"
@@ -350,7 +358,7 @@ def degraded_exit(reasons: list[str]) -> int:
     return EXIT_CODES["degraded"]
 
 
-def cmd_decode(args) -> int:
+def cmd_decode(args: argparse.Namespace) -> int:
     from ..errors import UserError
     from ..logs import decode_trace, save_table
     names, values, fmts, _, problem = decode_trace(Path(args.trace), args.meta)
@@ -368,7 +376,7 @@ def cmd_decode(args) -> int:
     return 0
 
 
-def cmd_check_eds(args) -> int:
+def cmd_check_eds(args: argparse.Namespace) -> int:
     from ..edscheck import check
     reports = [check(name) for name in args.files]
     clean = all(r.standard for r in reports)
@@ -388,7 +396,7 @@ def cmd_check_eds(args) -> int:
     return 0 if clean else 1
 
 
-def cmd_export(args) -> int:
+def cmd_export(args: argparse.Namespace) -> int:
     from ..config import load_bus_config
     from ..resources import DEFAULT_BUS_CONFIG
     from ..ros2 import export

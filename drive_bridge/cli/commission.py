@@ -1,10 +1,18 @@
 """``commission``: the whole job in one command, resumable, ending in summary.json and report.html."""
 from __future__ import annotations
 
+import argparse
+
+from typing import TYPE_CHECKING
+
 from . import bus, options
 
+if TYPE_CHECKING:
+    from ..master.bringup import AxisLink
+    from ..master.campaign import Plan
 
-def register(sub) -> None:
+
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     from ..commission import STEPS
     p = sub.add_parser("commission", help="the whole job: scan, bring-up, campaign, identify, measure, tune, write, "
                                           "validate",
@@ -26,7 +34,7 @@ def register(sub) -> None:
     p.set_defaults(func=cmd_commission)
 
 
-def cmd_commission(args) -> int:
+def cmd_commission(args: argparse.Namespace) -> int:
     from ..commission import commission
     options.out_dir(args.out)
     config = options.config(args)
@@ -36,7 +44,7 @@ def cmd_commission(args) -> int:
         from ..params.profile import DEFAULT_PROFILE, load_profile
         profile = load_profile(options.session_options(args).profile or config.profile or DEFAULT_PROFILE)
 
-        def plans(axes):
+        def plans(axes: dict[str, AxisLink]) -> list[tuple[str, Plan]]:
             from ..tuning.measure import measure_plans
             out = bus.campaign_plans(config)(axes) if "campaign" in moving else []
             end = {a: float(out[0][1].demand[-1, i]) for i, a in enumerate(out[0][1].axes)} if out else None

@@ -1,13 +1,15 @@
 """``identify``: J, c0, c1 and the effects the residual points to, from a log."""
 from __future__ import annotations
 
+import argparse
+
 import sys
 from pathlib import Path
 
 from . import options
 
 
-def register(sub) -> None:
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser("identify", help="identify J, c0, c1 from a log and trace the residual to its effects",
                        description="Least squares and differential evolution on a log CSV (or a record "
                                    "directory), then residual tracing: effects found, added, error before -> after.")
@@ -27,7 +29,7 @@ def register(sub) -> None:
     p.set_defaults(func=cmd_identify)
 
 
-def cmd_identify(args) -> int:
+def cmd_identify(args: argparse.Namespace) -> int:
     from ..ident import identify
     from ..ident.report import as_json, summary, write_report
     options.out_dir(args.out)

@@ -3,8 +3,10 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import can
 
@@ -14,6 +16,13 @@ from ..errors import UserError
 from ..outputs import json_text
 from ..resources import DEFAULT_BUS_CONFIG
 from ..session import Options
+
+if TYPE_CHECKING:
+    from ..master.bringup import AxisLink
+    from ..master.campaign import Plan
+
+    #: the motion a command would run, planned from where the axes stand: (title, Plan) pairs
+    Plans = Callable[[dict[str, AxisLink]], list[tuple[str, Plan]]]
 
 
 def bus(p: argparse.ArgumentParser) -> None:
@@ -43,8 +52,10 @@ def campaign(p: argparse.ArgumentParser) -> None:
 
 
 def can_channel(text: str) -> str | int:
-    """A channel as python-can's configuration files read it: digits are a number (kvaser, vector)."""
-    return can.util.cast_from_string(text)
+    """A channel as python-can's configuration files read it: digits are a number (kvaser, vector);
+    anything else (a name, "1.5", "true") is the text as given."""
+    value = can.util.cast_from_string(text)
+    return value if isinstance(value, int) and not isinstance(value, bool) else text
 
 
 def drive(p: argparse.ArgumentParser, params: bool = True) -> None:
@@ -73,7 +84,7 @@ def dry_run(p: argparse.ArgumentParser) -> None:
                         "nothing moves")
 
 
-def asks(args, config, what: str) -> bool:
+def asks(args: argparse.Namespace, config: BusConfig, what: str) -> bool:
     """Whether :func:`confirm_motion` will ask a person (not with --sim or --yes); UserError, before
     anything is sent, when it would have to and no one is at a terminal."""
     if args.sim or getattr(args, "yes", False) or getattr(args, "dry_run", False):
@@ -86,7 +97,8 @@ def asks(args, config, what: str) -> bool:
     return True
 
 
-def confirm_motion(args, config, what: str, preview=None) -> None:
+def confirm_motion(args: argparse.Namespace, config: BusConfig, what: str,
+                   preview: Callable[[], str] | None = None) -> None:
     """Before a command that moves a real machine writes anything: ``--yes``, or a person at a
     terminal who types ``yes`` after reading what will move (``preview()``: the plan, read without
     writing anything); otherwise UserError (nothing written, nothing moved).  --sim moves nothing
@@ -162,7 +174,7 @@ def axes_list(text: str | None) -> list[str] | None:
     return [a.strip() for a in text.split(",") if a.strip()] if text else None
 
 
-def config(args) -> BusConfig:
+def config(args: argparse.Namespace) -> BusConfig:
     """The bus configuration of ``--config``, restricted to ``--axes`` and with the campaign
     options (``--campaign``, ``--quick``, ``--together``) applied."""
     if getattr(args, "realtime", False) and not args.sim:
@@ -170,8 +182,8 @@ def config(args) -> BusConfig:
     cfg = load_bus_config(args.config)
     if getattr(args, "accept_identity", None):
         cfg = replace(cfg, accept_identity=frozenset(args.accept_identity))
-    if getattr(args, "axes", None):
-        cfg = cfg.only(axes_list(args.axes))
+    if axes := axes_list(getattr(args, "axes", None)):
+        cfg = cfg.only(axes)
     if getattr(args, "campaign", None):
         cfg = replace(cfg, campaign=replace(cfg.campaign, design=args.campaign))
     if getattr(args, "quick", False):
@@ -186,11 +198,11 @@ def config(args) -> BusConfig:
     return cfg
 
 
-def session_options(args) -> Options:
+def session_options(args: argparse.Namespace) -> Options:
     """What a Session needs from the command line."""
-    given = (getattr(args, "motor_R", None), getattr(args, "motor_L", None))
+    R, L = getattr(args, "motor_R", None), getattr(args, "motor_L", None)
     return Options(sim=args.sim, realtime=args.realtime, sim_config=args.sim_config,
-                   profile=getattr(args, "profile", Options.profile), motor=given if all(given) else None,
+                   profile=getattr(args, "profile", Options.profile), motor=(R, L) if R and L else None,
                    seed=getattr(args, "seed", 0), force=getattr(args, "force", False),
                    pm_floor=getattr(args, "min_phase_margin", Options.pm_floor),
                    gm_floor=getattr(args, "min_gain_margin", Options.gm_floor),

@@ -2,8 +2,12 @@
 of gains and model, and the reference trajectories."""
 from __future__ import annotations
 
+import argparse
+
 import sys
+from collections.abc import Callable, Iterable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ..document import number
 from ..errors import UserError
@@ -17,10 +21,18 @@ from ..session import Session
 from ..tuning.tune import (GAINS, drive_model, read_frf_json, read_identify_json, read_resonances, read_tune_json,
                            tune_axes, tune_doc, unwritable_effects)
 from . import options
+
+if TYPE_CHECKING:
+    from ..config import BusConfig
+    from ..master.bringup import AxisLink
+    from ..master.campaign import Plan
+    from ..params.profile import Profile
+    from ..params.write import WriteOutcome
+    from ..tuning.tune import AxisTuning
 from .bus import degraded_exit, dry_run_end, holding_lines, motion_preview, validate_plans
 
 
-def register(sub) -> None:
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser("tune", help="design the cascade gains from identified models (margins with python-control)",
                        description="Gains from identify.json on the drives' motor data and present gains; "
                                    "--experiment also runs the paper's gain-raising procedure on the drive.")
@@ -65,12 +77,12 @@ def register(sub) -> None:
     p.set_defaults(func=cmd_validate)
 
 
-def _frf_gate(p) -> None:
+def _frf_gate(p: argparse.ArgumentParser) -> None:
     p.add_argument("--frf", help="frf.json of commission's measure step: the gate also checks the margins on each "
                                  "axis's measured response (the worse counts)")
 
 
-def _axes_in(config, names, path) -> list[str]:
+def _axes_in(config: BusConfig, names: Iterable[str], path: str | Path) -> list[str]:
     """The axes of a result file, every one of them configured (in ``config``'s order)."""
     unknown = [a for a in names if a not in config.nodes]
     if unknown:
@@ -78,7 +90,7 @@ def _axes_in(config, names, path) -> list[str]:
     return [a for a in config.nodes if a in names]
 
 
-def _motor_given(args, axes) -> dict[str, dict]:
+def _motor_given(args: argparse.Namespace, axes: Iterable[str]) -> dict[str, dict]:
     """Per axis the motor data of --motor-R/--motor-L or --motor-file, as drive_state gives it."""
     from ..yamlconf import Section, load_yaml
     if args.motor_file:
@@ -96,7 +108,7 @@ def _motor_given(args, axes) -> dict[str, dict]:
     return {a: {"motor": {"R": r, "L": ell}, "parameters_before": {}} for a, (r, ell) in motor.items()}
 
 
-def cmd_tune(args) -> int:
+def cmd_tune(args: argparse.Namespace) -> int:
     from ..tuning.experiment import run_experiment
     models = read_identify_json(args.ident)
     frfs = read_frf_json(args.frf) if args.frf else None
@@ -153,12 +165,12 @@ def cmd_tune(args) -> int:
     return 0
 
 
-def _experiment_start(t) -> float:
+def _experiment_start(t: AxisTuning) -> float:
     """The experiment's first KpS: the drive's own, else the designed one."""
     return t.before.get("KpS", t.design.KpS)
 
 
-def _experiment_gate(args, profile, t):
+def _experiment_gate(args: argparse.Namespace, profile: Profile, t: AxisTuning) -> Callable[[float], str | None]:
     """``admit(KpS)`` for the experiment on ``t``'s axis: the set the drive then runs (its gains
     with that KpS, on the identified model) through the gate every gain set passes."""
     def admit(kps: float) -> str | None:
@@ -168,13 +180,13 @@ def _experiment_gate(args, profile, t):
     return admit
 
 
-def _experiment_preview(args, config, models) -> str:
+def _experiment_preview(args: argparse.Namespace, config: BusConfig, models: dict[str, dict[str, float]]) -> str:
     """What ``tune --experiment`` will do, read without writing anything: each axis's square wave
     from where it stands, and its first gain, refused here already when the gate refuses it."""
     from ..tuning import motion
     from ..tuning.experiment import RAISE, check_start, demand_of
 
-    def plans(axes):
+    def plans(axes: dict[str, AxisLink]) -> list[tuple[str, Plan]]:
         return [(f"tune --experiment {a}, each step", motion.plan(
             config, {a: ax}, {a: demand_of(ax.cfg.limits, config.master.sync_period_s)[0]}, {a: ax.start_rad()},
             kind="experiment")[0]) for a, ax in axes.items()]
@@ -189,7 +201,7 @@ def _experiment_preview(args, config, models) -> str:
             for a, t in planned.items())
 
 
-def cmd_write(args) -> int:
+def cmd_write(args: argparse.Namespace) -> int:
     config = options.config(args)
     tuned = read_tune_json(args.params)
     config = config.only(_axes_in(config, tuned.parameters, args.params))
@@ -210,7 +222,7 @@ def cmd_write(args) -> int:
     return 0
 
 
-def _print_write(outcome, backup_dir, profile) -> None:
+def _print_write(outcome: WriteOutcome, backup_dir: str | None, profile: Profile) -> None:
     for reason in outcome.forced:
         print(f"FORCED: {reason}")
     if outcome.unverified_scales:
@@ -237,7 +249,7 @@ def _print_write(outcome, backup_dir, profile) -> None:
         print(f"backups of the values before: {backup_dir}/")
 
 
-def cmd_validate(args) -> int:
+def cmd_validate(args: argparse.Namespace) -> int:
     from ..paper import TABLE_III
     from ..tuning.validate import degraded, run_scenarios, stopped, validate_doc
     options.out_dir(args.out)

@@ -11,6 +11,7 @@ and after, with what got worse explained) and its plots, and the objects written
 from __future__ import annotations
 
 import json
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
@@ -31,11 +32,12 @@ FIGURES = "figures"                 # the validation plots the report draws (the
 GAIN_UNITS = {"KpP": "1/s", "FwF": "1", "KpS": "Nm·s/rad", "KiS": "1/s", "KpC": "V/A", "KiC": "1/s"}
 
 
-def _milli(v, fmt=".3g") -> str:
+def _milli(v: float | None, fmt: str = ".3g") -> str:
     return number(None if v is None else v * 1e3, fmt)
 
 
-def _validation_png(traces, axis: str, traj: str, path: Path, loop: dict | None) -> Path | None:
+def _validation_png(traces: Mapping[str, np.ndarray], axis: str, traj: str, path: Path,
+                    loop: dict | None) -> Path | None:
     """Following error before and after (each on its own scale, with what the identified model and
     the gains predict for it where ``loop`` gives them: tune.json's model, motor and gains, and
     whether the after run fed the model torque forward), position, velocity, torque."""
@@ -166,7 +168,7 @@ def _loop(out: Path, axis: str, a: dict) -> dict | None:
     return {**t, "feedforward": ff}
 
 
-def _validation(doc: Document, out: Path, axis: str, a: dict, traces) -> None:
+def _validation(doc: Document, out: Path, axis: str, a: dict, traces: Mapping[str, np.ndarray] | None) -> None:
     rows = [[t.replace("_", "-"), _milli(v["fe_rms_before"]), _milli(v["fe_rms_after"]),
              number(v["improvement"], ".1f") + "×", _milli(v["fe_max_before"]), _milli(v["fe_max_after"]),
              number(v.get("overshoot_pct_before"), ".2f"), number(v["overshoot_pct_after"], ".2f"),

@@ -17,6 +17,7 @@ import time
 import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from ..config import BusConfig
 from ..errors import EXIT_CODES, DriveBridgeError, MotionAborted, UserError, exit_code
@@ -63,7 +64,7 @@ class CommissionResult:
 
 def _state(out: Path, config: BusConfig, restart: bool) -> dict:
     path = out / STATE
-    fresh = {"config": str(config.path.resolve()), "completed": [], "durations_s": {}, "failed": None}
+    fresh: dict[str, Any] = {"config": str(config.path.resolve()), "completed": [], "durations_s": {}, "failed": None}
     if restart or not path.exists():
         return fresh
     try:
@@ -117,7 +118,8 @@ def commission(config: BusConfig, out: str | Path, options: Options | None = Non
     if not todo:
         reporter.note(f"every step is already completed in {out}; --restart to commission again")
     state["failed"] = None
-    code, failure = 0, None
+    code = 0
+    failure: dict[str, str] | None = None       # the step that stopped the run, and why
     with Session(config, options, link) as session:
         ctx = S.Context(session, out, reporter)
         for step in todo:
@@ -164,8 +166,8 @@ def commission(config: BusConfig, out: str | Path, options: Options | None = Non
     reporter.note(f"summary: {out / SUMMARY}; report: {out / REPORT} (and {REPORT_MD})")
     for axis, how in holding.items():            # last: what the person beside the machine must know
         reporter.note(f"axis {axis}: {how}")
-    return CommissionResult(summary["status"], code, failure and failure["step"],
-                            failure and failure["reason"], todo, out, summary)
+    return CommissionResult(summary["status"], code, None if failure is None else failure["step"],
+                            None if failure is None else failure["reason"], todo, out, summary)
 
 
 def resume_hint(state: dict, subset: bool) -> str:

@@ -23,6 +23,7 @@ from ..errors import UserError
 from ..logs import META_NAME
 from ..outputs import stamped
 from ..paper import TABLE_II
+from ..session import Options
 from ..params.profile import DEFAULT_PROFILE
 from ..yamlconf import load_yaml
 from . import steps as S
@@ -97,7 +98,7 @@ def _meta(out: Path) -> dict:
         return {}
 
 
-def build_summary(out: Path, state: dict, config: BusConfig, options) -> dict:
+def build_summary(out: Path, state: dict, config: BusConfig, options: Options) -> dict:
     failed = state.get("failed")
     completed = state["completed"]
     steps = [{"name": s, "status": "failed" if failed and failed["step"] == s else

@@ -15,12 +15,14 @@ an axis with one is INCOMPLETE unless it already failed.  The overall verdict is
 """
 from __future__ import annotations
 
+from typing import Any
+
 from ..config import Acceptance
 
 ORDER = ("PASS", "WARN", "INCOMPLETE", "FAIL")
 
 
-def _criterion(name: str, severity: str, value, limit, ok: bool | None, unit: str = "") -> dict:
+def _criterion(name: str, severity: str, value: Any, limit: Any, ok: bool | None, unit: str = "") -> dict:
     return {"criterion": name, "severity": severity, "value": value, "limit": limit, "unit": unit,
             "met": ok}
 

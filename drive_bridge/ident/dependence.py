@@ -5,10 +5,12 @@ torque against the motion, friction-like) and, over the position, times the acce
 effects to try) and its report (what is left unexplained)."""
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from scipy import stats
 
-from .signals import Samples
+from .signals import Samples, Signals
 
 BINS = 20
 
@@ -30,7 +32,7 @@ def eta2(x: np.ndarray, r: np.ndarray) -> tuple[float, float, float]:
     return between / total, float(stats.f.sf(f, k - 1, n - k)), float(f)
 
 
-def variables(s: Samples) -> dict[str, np.ndarray]:
+def variables(s: Signals) -> dict[str, np.ndarray]:
     """The candidate variables of a residual: position, velocity, acceleration, |acceleration|
     (the transmitted inertial torque's size), time, direction, and the other axes' position,
     velocity and acceleration."""
@@ -51,7 +53,7 @@ def dependences(s: Samples, residual: np.ndarray, min_share: float, p_value: flo
     accel = s.qdd[m] / max(float(np.sqrt(np.mean(s.qdd[m] ** 2))), 1e-300)
     out = []
     for name, x in variables(s).items():
-        found = []
+        found: list[dict[str, Any]] = []
         for form, resid in (("even", r), ("odd", r * direction), ("inertial", r * accel)):
             if form == "odd" and name in ("direction", "velocity"):
                 continue                    # sign(q̇)·r over q̇ or its sign: the even test sees it already

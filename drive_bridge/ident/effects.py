@@ -15,14 +15,14 @@ from __future__ import annotations
 
 import inspect
 import math
-from typing import ClassVar
+from typing import Callable, ClassVar
 
 import numpy as np
 from scipy import optimize
 
 from ..errors import InternalError
 from .dependence import dependences, variables
-from .signals import Samples
+from .signals import Samples, Signals
 
 
 #: the effects a drive's model (or the master's feed-forward of it) carries: their terms are the drive
@@ -44,19 +44,32 @@ class Effect:
     :class:`~drive_bridge.ident.model.AxisModel`.
     """
 
-    name: ClassVar[str]
-    depends_on: ClassVar[str]
-    coef_names: ClassVar[tuple[str, ...]]
+    name: str                                     # the effect's name in reports (may be per instance)
+    coef_names: tuple[str, ...]                   # its linear coefficients (may depend on the instance)
     nonlinear: ClassVar[tuple[str, ...]] = ()     # nonlinear parameters, learned by fit as <name>_
-    #: columns linear in the filtered signals (a constant, the position) are filtered as the
-    #: torque is already; any other column is computed at the log's rate and filtered alike
-    linear_in_signals: ClassVar[bool] = False
-    #: friction-like: ``_columns`` is a magnitude, the columns are it times the direction of
-    #: motion, made at the log's rate and filtered whole, as the torque and the Coulomb column
-    #: are (the direction is zero at a standstill).  Filtered apart and multiplied, a magnitude
-    #: peaked at standstill (Stribeck) lost its step at each reversal to the low-pass while the
-    #: torque kept it: the mismatch, in the samples next to the reversals, read as inertia
-    odd: ClassVar[bool] = False
+    #: regressor columns (n × len(coef_names)) at the signals, with the nonlinear parameters given
+    #: by keyword (``odd``: their magnitude)
+    _columns: Callable[..., np.ndarray]
+
+    @property
+    def depends_on(self) -> str:
+        """The variable the effect's residual depends on (see the module's docstring)."""
+        raise NotImplementedError
+
+    @property
+    def linear_in_signals(self) -> bool:
+        """Columns linear in the filtered signals (a constant, the position) are filtered as the
+        torque is already; any other column is computed at the log's rate and filtered alike."""
+        return False
+
+    @property
+    def odd(self) -> bool:
+        """Friction-like: ``_columns`` is a magnitude, the columns are it times the direction of
+        motion, made at the log's rate and filtered whole, as the torque and the Coulomb column
+        are (the direction is zero at a standstill).  Filtered apart and multiplied, a magnitude
+        peaked at standstill (Stribeck) lost its step at each reversal to the low-pass while the
+        torque kept it: the mismatch, in the samples next to the reversals, read as inertia."""
+        return False
 
     def get_params(self) -> dict:
         """The constructor's keyword parameters and their values."""
@@ -70,19 +83,14 @@ class Effect:
         """Search range of each nonlinear parameter."""
         return {}
 
-    def _columns(self, s: Samples, **nonlinear: float) -> np.ndarray:
-        """Regressor columns (n × len(coef_names)) with the nonlinear parameters given (``odd``:
-        their magnitude)."""
-        raise NotImplementedError
-
-    def _signed(self, s: Samples, cols: np.ndarray) -> np.ndarray:
+    def _signed(self, s: Signals, cols: np.ndarray) -> np.ndarray:
         return cols * s.sgn[:, None] if self.odd else cols
 
     def columns(self, s: Samples, logged: bool = False) -> np.ndarray:
         """Regressor columns (n × len(coef_names)) at the samples ``s``, with the fitted nonlinear
         parameters, filtered and decimated as the torque is (``logged``: as the torque as logged
         is; :meth:`Samples.parallel`)."""
-        learned = {}
+        learned: dict[str, float] = {}
         for k in self.nonlinear:
             if not hasattr(self, k + "_"):
                 raise NotFittedError(f"{self!r}: fit it before asking for its columns")
@@ -105,7 +113,7 @@ class Effect:
         y_perp = y - q @ (q.T @ y)
         bounds = self.bounds()
 
-        def sse(x):
+        def sse(x: np.ndarray) -> float:
             extra = self._signed(s, self._columns(s, **dict(zip(self.nonlinear, x))))
             extra = extra - q @ (q.T @ extra)
             coef, *_ = np.linalg.lstsq(extra, y_perp, rcond=None)
@@ -136,7 +144,7 @@ class Offset(Effect):
     name, depends_on, coef_names = "offset", "constant", ("offset",)
     linear_in_signals = True
 
-    def _columns(self, s):
+    def _columns(self, s: Signals) -> np.ndarray:
         return np.ones((len(s), 1))
 
 
@@ -148,10 +156,10 @@ class Gravity(Effect):
 
     name, depends_on, coef_names = "gravity", "position", ("a_cos", "b_sin")
 
-    def _columns(self, s):
+    def _columns(self, s: Signals) -> np.ndarray:
         return np.column_stack((np.cos(s.q), np.sin(s.q)))
 
-    def params(self, coef):
+    def params(self, coef: np.ndarray) -> dict[str, float | str]:
         a, b = map(float, coef)
         return {"a_cos": a, "b_sin": b, "amplitude": math.hypot(a, b), "angle": math.atan2(b, a)}
 
@@ -162,7 +170,7 @@ class PositionLinear(Effect):
     name, depends_on, coef_names = "position_linear", "position", ("cp",)
     linear_in_signals = True
 
-    def _columns(self, s):
+    def _columns(self, s: Signals) -> np.ndarray:
         return s.q[:, None]
 
 
@@ -175,23 +183,24 @@ class PositionPeriodic(Effect):
     ``order``-th is named ``position_periodic_<order>`` from the second on."""
 
     depends_on, coef_names, nonlinear = "position", ("a_sin", "a_cos"), ("period",)
+    period_: float
 
     def __init__(self, period: float, spread: float = 0.1, order: int = 1):
         self.period, self.spread, self.order = period, spread, order
         self.name = "position_periodic" if order == 1 else f"position_periodic_{order}"
 
-    def bounds(self):
+    def bounds(self) -> dict[str, tuple[float, float]]:
         return {"period": ((1 - self.spread) * self.period, (1 + self.spread) * self.period)}
 
-    def _columns(self, s, period):
+    def _columns(self, s: Signals, period: float) -> np.ndarray:
         x = 2 * np.pi * s.q / period
         return np.column_stack((np.sin(x), np.cos(x)))
 
-    def params(self, coef):
+    def params(self, coef: np.ndarray) -> dict[str, float | str]:
         a, b = coef
         return {"amplitude": float(math.hypot(a, b)), "period": self.period_, "phase": float(math.atan2(b, a))}
 
-    def param_std(self, coef, cov):
+    def param_std(self, coef: np.ndarray, cov: np.ndarray) -> dict[str, float]:
         a, b = coef
         amp = math.hypot(a, b) or 1.0
         return {"amplitude": float(math.sqrt(max(0.0, (a * a * cov[0, 0] + b * b * cov[1, 1]
@@ -206,17 +215,18 @@ class Stribeck(Effect):
 
     name, depends_on, coef_names, nonlinear = "stribeck", "velocity", ("amplitude",), ("velocity",)
     odd = True
+    velocity_: float
 
     def __init__(self, velocity: float, low: float, high: float):
         self.velocity, self.low, self.high = velocity, low, high
 
-    def bounds(self):
+    def bounds(self) -> dict[str, tuple[float, float]]:
         return {"velocity": (self.low, self.high)}
 
-    def _columns(self, s, velocity):
+    def _columns(self, s: Signals, velocity: float) -> np.ndarray:
         return np.exp(-(s.qd_band / velocity) ** 2)[:, None]
 
-    def params(self, coef):
+    def params(self, coef: np.ndarray) -> dict[str, float | str]:
         return {"amplitude": float(coef[0]), "velocity": self.velocity_}
 
 
@@ -231,12 +241,9 @@ class DirectionAsymmetry(Effect):
 
     def __init__(self, with_dc0: bool = True):
         self.with_dc0 = with_dc0
+        self.coef_names = ("dc1", "dc0") if with_dc0 else ("dc1",)
 
-    @property
-    def coef_names(self) -> tuple[str, ...]:
-        return ("dc1", "dc0") if self.with_dc0 else ("dc1",)
-
-    def _columns(self, s):
+    def _columns(self, s: Signals) -> np.ndarray:
         cols = [np.abs(s.qd)]
         if self.with_dc0:
             cols.append(np.ones(len(s)))
@@ -269,12 +276,12 @@ class CrossAxis(Effect):
     def linear_in_signals(self) -> bool:          # q_src, q̇_src, q̈_src: filtered already
         return True
 
-    def _columns(self, s):
+    def _columns(self, s: Signals) -> np.ndarray:
         q, qd, qdd = s.others[self.source]
         col = {"position_friction": q, "position": q, "velocity": qd, "acceleration": qdd}
         return col[self.form][:, None]
 
-    def params(self, coef):
+    def params(self, coef: np.ndarray) -> dict[str, float | str]:
         return {"source": self.source, "form": self.form, "coefficient": float(coef[0])}
 
 
@@ -288,20 +295,21 @@ class Drift(Effect):
 
     name, depends_on, coef_names, nonlinear = "drift", "time", ("amplitude",), ("time_constant",)
     odd = True
+    time_constant_: float
 
     def __init__(self, time_constant: float, low: float, high: float, start: float = 0.0, end: float = 0.0):
         self.time_constant, self.low, self.high, self.start, self.end = time_constant, low, high, start, end
 
-    def bounds(self):
+    def bounds(self) -> dict[str, tuple[float, float]]:
         return {"time_constant": (self.low, self.high)}
 
-    def _columns(self, s, time_constant):
+    def _columns(self, s: Signals, time_constant: float) -> np.ndarray:
         span = self.end - self.start
         mean = (time_constant * (np.exp(-self.start / time_constant) - np.exp(-self.end / time_constant)) / span
                 if span > 0 else 0.0)
         return (np.exp(-s.t / time_constant) - mean)[:, None]
 
-    def params(self, coef):
+    def params(self, coef: np.ndarray) -> dict[str, float | str]:
         return {"amplitude": float(coef[0]), "time_constant_s": self.time_constant_}
 
 
@@ -325,14 +333,14 @@ class Spline(Effect):
         self.variable, self.form, self.knots, self.low, self.high = variable, form, tuple(knots), low, high
         self.grid = tuple(grid)
         self.name = f"spline_{form}_{variable}"
-        grid = np.asarray(self.grid)
-        basis = self._basis(grid)
-        removed = [np.ones_like(grid)]
+        x = np.asarray(self.grid)
+        basis = self._basis(x)
+        terms = [np.ones_like(x)]
         if form == "even":
-            removed.append(grid)
+            terms.append(x)
         if variable == "velocity":                          # over its own velocity: a friction curve
-            removed.append(np.sign(grid))
-        removed = np.column_stack(removed)
+            terms.append(np.sign(x))
+        removed = np.column_stack(terms)
         orthogonal = basis - removed @ np.linalg.lstsq(removed, basis, rcond=None)[0]
         _, sv, vt = np.linalg.svd(orthogonal, full_matrices=False)
         reduce = vt[:int(np.sum(sv > 1e-9 * sv[0]))].T
@@ -356,7 +364,7 @@ class Spline(Effect):
         t = np.concatenate([[self.low] * 4, self.knots, [self.high] * 4])
         return BSpline.design_matrix(np.clip(x, self.low, self.high), t, 3).toarray()
 
-    def _columns(self, s):
+    def _columns(self, s: Signals) -> np.ndarray:
         """The columns at the grid, linear between its points (512 over the range: far finer than
         the knots), at the variable's values held within [low, high]."""
         x = np.clip(variables(s)[self.variable], self.low, self.high)
@@ -368,7 +376,7 @@ class Spline(Effect):
     def odd(self) -> bool:
         return self.form == "odd"
 
-    def params(self, coef):
+    def params(self, coef: np.ndarray) -> dict[str, float | str]:
         return {"variable": self.variable, "form": self.form, "low": self.low, "high": self.high,
                 **{f"b{i + 1}": float(c) for i, c in enumerate(coef)}}
 

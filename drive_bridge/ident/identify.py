@@ -6,13 +6,15 @@
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from ..errors import UserError
-from .effects import DRIVE_EFFECTS, Gravity, Offset
+from .effects import DRIVE_EFFECTS, Effect, Gravity, Offset
 from .frf import log_response
 from .identifiable import T_MIN, undetermined
 from .logdata import Log, read_log
@@ -189,9 +191,9 @@ def friction_range(model: AxisModel, est: Samples) -> dict:
     low, high = (float(x) for x in np.percentile(moving, [5, 95]))
     split = float(np.median(moving))
     out = {"velocity_range": [low, high], "linear": True}
-    halves = {name: refit_part(model, part)[0]
-              for name, part in (("slower", est.take(speed < split)), ("faster", est.take(speed >= split)))}
-    halves = {name: fit for name, fit in halves.items() if fit is not None}
+    fits = {name: refit_part(model, part)[0]
+            for name, part in (("slower", est.take(speed < split)), ("faster", est.take(speed >= split)))}
+    halves = {name: fit for name, fit in fits.items() if fit is not None}
     if len(halves) < 2:
         return out
     slow, fast = halves["slower"], halves["faster"]
@@ -285,7 +287,7 @@ def _check_sign(log: Log, axis: str, model: AxisModel, est: Samples) -> None:
     joint its gravity), which the tracer may have dropped as unphysical: the torque and the
     position were logged with opposite sign conventions (no plant has a negative inertia and a
     friction that drives the motion)."""
-    load = [Offset(), Gravity()] if est.rotary else [Offset()]
+    load: list[Effect] = [Offset(), Gravity()] if est.rotary else [Offset()]
     for m in (model, AxisModel(load, seed=model.seed).fit(est)):
         p, sd = m.params_, m.param_std_
         if p["J"] < -T_MIN * sd["J"] and (p["c0"] < -T_MIN * sd["c0"] or p["c1"] < -T_MIN * sd["c1"]):
@@ -315,36 +317,38 @@ def _identify_axis(log: Log, axis: str, val_log: Log | None, seed: int, cutoff_h
             vs = replace(choose_settings(val_log, axis, settings.cutoff_hz), torque_delay_s=d)
         return settings, vs, samples, prepare(val_log, axis, vs), f"the validation log {val_log.path}"
 
-    state = {"sets": aligned(delay[0] if delay else 0.0), "moves": 0,
-             "timing": {"torque_delay_source": delay[1] if delay else "estimated"}}
+    current = aligned(delay[0] if delay else 0.0)
+    moves = 0
+    timing: dict[str, Any] = {"torque_delay_source": delay[1] if delay else "estimated"}
 
     def realign(model: AxisModel) -> tuple[Samples, Samples] | None:
-        if delay is not None or state["moves"] >= MAX_REALIGNMENTS:
+        nonlocal current, moves
+        if delay is not None or moves >= MAX_REALIGNMENTS:
             return None
-        settings, _, est, _, _ = state["sets"]
+        settings, _, est, val, _ = current
         d, std = torque_delay(model, est, log.dt)             # beyond the alignment made so far
         total = settings.torque_delay_s + d
-        state["timing"].update(torque_delay_estimate_ms=round(1e3 * total, 4), torque_delay_std_ms=round(1e3 * std, 4))
+        timing.update(torque_delay_estimate_ms=round(1e3 * total, 4), torque_delay_std_ms=round(1e3 * std, 4))
         if abs(total) > MAX_DELAY_SAMPLES * log.dt:
-            state["timing"]["torque_delay_note"] = (f"estimated beyond {MAX_DELAY_SAMPLES:g} log samples: no plain "
-                                                    f"delay (a compliance or a filter), left as it was")
+            timing["torque_delay_note"] = (f"estimated beyond {MAX_DELAY_SAMPLES:g} log samples: no plain "
+                                           f"delay (a compliance or a filter), left as it was")
             return None
         if abs(d) <= DELAY_SIGMAS * std:
             return None
-        state["moves"] += 1
+        moves += 1
         candidate = aligned(total)
         refit = AxisModel(model.effects, seed=seed).fit(candidate[2])
-        if errors(refit, candidate[3]).rmse > (1 - MIN_GAIN) * errors(model, state["sets"][3]).rmse:
-            state["timing"]["torque_delay_note"] = (f"aligning the positions with it did not lower the validation "
-                                                    f"error of the torque as logged by {MIN_GAIN:.0%}: left as it was")
+        if errors(refit, candidate[3]).rmse > (1 - MIN_GAIN) * errors(model, val).rmse:
+            timing["torque_delay_note"] = (f"aligning the positions with it did not lower the validation "
+                                           f"error of the torque as logged by {MIN_GAIN:.0%}: left as it was")
             return None
-        state["timing"].pop("torque_delay_note", None)
-        state["sets"] = candidate
+        timing.pop("torque_delay_note", None)
+        current = candidate
         return candidate[2], candidate[3]
 
-    settings, vs, est, val, how = state["sets"]
+    settings, vs, est, val, how = current
     base, model, traced = trace(est, val, seed, realign)
-    settings, vs, est, val, how = state["sets"]
+    settings, vs, est, val, how = current
     model.widen(est)
     agreement = consistency(model, est, val)
     friction = friction_range(model, est)
@@ -358,13 +362,14 @@ def _identify_axis(log: Log, axis: str, val_log: Log | None, seed: int, cutoff_h
                       unexplained(model, val, settings.rate_hz / settings.decimation), ga_model.coef_,
                       errors(ga_model, val), list(log.axes[axis].dropped),
                       {**log.sampling, "torque_delay_ms": round(1e3 * settings.torque_delay_s, 4),
-                       "torque_aligned": settings.torque_delay_s != 0.0, **state["timing"]}, agreement,
+                       "torque_aligned": settings.torque_delay_s != 0.0, **timing}, agreement,
                       friction=friction)
 
 
 def identify(path: str | Path, validate: str | Path | None = None, axes: list[str] | None = None, *,
              seed: int = 0, cutoff_hz: float | None = None, decimation: int | None = None,
-             progress=None, torque_delay_s: float | None = None, torque_sign: float = 1.0) -> dict[str, AxisResult]:
+             progress: Callable[[str], object] | None = None, torque_delay_s: float | None = None,
+             torque_sign: float = 1.0) -> dict[str, AxisResult]:
     """Identify every axis of the log at ``path`` (or ``axes``); see the package docstring.
     ``torque_delay_s``: the logged torque's delay behind the position, None to estimate it;
     ``torque_sign`` -1: the torque was logged with the opposite sign convention to the position."""

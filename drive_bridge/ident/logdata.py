@@ -186,7 +186,9 @@ def _uniform_time(col: dict[str, np.ndarray], t: np.ndarray, dt: float
     sampling["resampled"] = True
     cuts = (np.flatnonzero(gap) + 1).tolist()
     spans = list(zip([0] + cuts, cuts + [len(t)]))
-    grids, gap_rows, out = [], [], {name: [] for name in col}
+    grids: list[np.ndarray] = []
+    gap_rows: list[int] = []
+    out: dict[str, list[np.ndarray]] = {name: [] for name in col}
     for a, b in spans:
         grid = t[a] + np.arange(int(np.floor((t[b - 1] - t[a]) / dt + 1e-9)) + 1) * dt
         if grids:

@@ -14,13 +14,15 @@ N·s/m], c0 [Nm | N].
 """
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from scipy import optimize
 
 from .effects import Effect
-from .signals import Samples, derivative
+from .signals import Samples, Signals, derivative
 
 BASE = ("J", "c1", "c0")
 JACKKNIFE_BLOCKS = 10       # stretches of the log in time for the delete-one-block jackknife (AxisModel.widen)
@@ -115,7 +117,7 @@ class AxisModel:
         return self.design(s, logged) @ self.coef_
 
     # ---------------------------------------------------------------- reading the fit
-    def _blocks(self):
+    def _blocks(self) -> Iterator[tuple[Effect, slice]]:
         i = len(BASE)
         for e in self.effects:
             k = len(e.coef_names)
@@ -123,9 +125,10 @@ class AxisModel:
             i += k
 
     @property
-    def params_(self) -> dict[str, float]:
-        """J, c0, c1 and every effect's parameters (``<effect>.<name>``)."""
-        out = {"J": float(self.coef_[0]), "c0": float(self.coef_[2]), "c1": float(self.coef_[1])}
+    def params_(self) -> dict[str, Any]:
+        """J, c0, c1 and every effect's parameters (``<effect>.<name>``: numbers, and the names
+        that say what an effect is, as a cross-axis coupling's source)."""
+        out: dict[str, Any] = {"J": float(self.coef_[0]), "c0": float(self.coef_[2]), "c1": float(self.coef_[1])}
         for e, sl in self._blocks():
             for k, v in e.params(self.coef_[sl]).items():
                 out[f"{e.name}.{k}"] = v
@@ -188,18 +191,18 @@ def hac_covariance(phi: np.ndarray, resid: np.ndarray, gram_inv: np.ndarray, dof
 MAX_DELAY_SAMPLES = 3.0      # a torque delay estimated beyond this many log samples is no plain delay
 
 
-class _TorqueRate:
+class _TorqueRate(Effect):
     """One more model column, not an effect of the library: the torque's rate of change,
     negated, at the log's rate (``dt`` [s]) and filtered as the torque is; its coefficient is
     the torque's delay [s] (:func:`torque_delay`)."""
 
-    coef_names = ("delay_s",)
+    name, depends_on, coef_names = "torque_rate", "time", ("delay_s",)
 
     def __init__(self, dt: float):
         self.dt = dt
 
-    def columns(self, s: Samples, logged: bool = False) -> np.ndarray:
-        return s.parallel(("torque rate", self.dt), lambda ch: -derivative(ch.tau, self.dt)[:, None], logged)
+    def _columns(self, s: Signals) -> np.ndarray:
+        return -derivative(s.tau, self.dt)[:, None]
 
 
 def torque_delay(model: AxisModel, s: Samples, dt: float) -> tuple[float, float]:
@@ -259,7 +262,7 @@ def _differential_evolution(phi: np.ndarray, y: np.ndarray, centre: np.ndarray, 
     half = np.maximum(0.5 * np.abs(centre), 10 * np.sqrt(np.maximum(np.diag(cov), 0.0))) + 1e-12
     lo, hi = centre - half, centre + half
 
-    def sse(theta):                                    # theta: (p, S) population
+    def sse(theta: np.ndarray) -> np.ndarray:          # theta: (p, S) population
         return yy - 2 * b @ theta + np.einsum("is,ij,js->s", theta, gram, theta)
 
     result = optimize.differential_evolution(sse, list(zip(lo, hi)), seed=seed, vectorized=True,

@@ -79,7 +79,7 @@ def summary(results: dict[str, AxisResult]) -> str:
 def drive_text(r: AxisResult) -> str:
     """The values written: the model refitted within what a drive's model holds, beside the full one
     (or why the full model's are)."""
-    if r.drive_model is None:
+    if r.drive_model is None or r.drive_errors is None:
         return f"for the drive: {r.drive_note}"
     d, sd = r.drive_model.params_, r.drive_model.param_std_
     held = ", ".join(e.name for e in r.drive_model.effects) or "no effect"
@@ -340,8 +340,8 @@ def build_report(results: dict[str, AxisResult], out: Path, source: str) -> Docu
             doc.para(_sentence(friction_text(r)))
         if r.consistency and not r.consistency["consistent"]:
             doc.para([Strong("Not consistent:"), f" {consistency_text(r.consistency)}."])
-        for k, why in r.undetermined.items():
-            doc.para([Strong(f"{k} undetermined:"), f" {why}; it is not used to tune nor written to a drive."])
+        for name, why in r.undetermined.items():
+            doc.para([Strong(f"{name} undetermined:"), f" {why}; it is not used to tune nor written to a drive."])
     return doc
 
 

@@ -35,6 +35,8 @@ excess names the cause.  SI: s, the axis's torque unit.
 """
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from scipy import signal
 
@@ -118,7 +120,7 @@ def find_reversal_transient(s: Samples, resid: np.ndarray, predicted: np.ndarray
         return None
     sos = signal.butter(FILTER_ORDER, settings.cutoff_hz, fs=settings.rate_hz, output="sos")
     rng = np.random.default_rng(seed)
-    found = []
+    found: list[dict[str, Any]] = []
     for name, x in (("acceleration", s.qdd), ("torque", predicted), ("velocity", s.qd)):
         xf = signal.sosfiltfilt(sos, x)
         ev, took = reversals(xf, m if name != "velocity" else np.ones_like(m))   # (the velocity's: at rest)

@@ -14,9 +14,10 @@ the low-pass attenuates is attenuated in its column alike, so its amplitude come
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from functools import cached_property
+from typing import Union
 
 import numpy as np
 from scipy import signal
@@ -88,7 +89,7 @@ class Samples:
                        {a: tuple(x[mask] for x in v) for a, v in self.others.items()}, self.source, index[mask],
                        self.rotary)
 
-    def parallel(self, key, columns: Callable[["Channels"], np.ndarray], logged: bool = False) -> np.ndarray:
+    def parallel(self, key: object, columns: Callable[[Signals], np.ndarray], logged: bool = False) -> np.ndarray:
         """``columns`` (a function of the signals, n × k) at these samples, computed at the log's
         rate and filtered and decimated as the torque is (``logged``: as the torque as logged
         is, by the mean over each decimation interval); at the samples as they are when they
@@ -126,6 +127,10 @@ class Channels:
         return len(self.t)
 
 
+#: what a regressor column is computed from: decimated samples, or a segment's signals at the log's rate
+Signals = Union[Samples, Channels]
+
+
 @dataclass
 class Parallel:
     """Parallel filtering (IDIM: filter the regressor as the torque): a function of the full-rate
@@ -140,7 +145,7 @@ class Parallel:
     _cache: dict = field(default_factory=dict, repr=False)
     _segments: list = field(default_factory=list, repr=False)
 
-    def columns(self, key, columns: Callable[[Channels], np.ndarray], logged: bool = False) -> np.ndarray:
+    def columns(self, key: object, columns: Callable[[Channels], np.ndarray], logged: bool = False) -> np.ndarray:
         if (key, logged) not in self._cache:
             sos, r = self.sos, self.settings.decimation
             parts = []
@@ -201,7 +206,7 @@ def derivative(x: np.ndarray, dt: float) -> np.ndarray:
     return out
 
 
-def _usable(log: Log, axis: str, settings: Settings):
+def _usable(log: Log, axis: str, settings: Settings) -> Iterator[tuple[slice, slice]]:
     """(segment slice, the part kept after the edge cut) of each segment long enough to filter."""
     r, edge = settings.decimation, settings.edge
     for a, b in log.axes[axis].segments:
@@ -454,7 +459,8 @@ def prepare(log: Log, axis: str, settings: Settings) -> Samples:
     cat = {k: np.concatenate(v) for k, v in parts.items()}
     n = min(len(v) for v in cat.values())        # decimate rounds up; t[::r] too: align
     cat = {k: v[:n] for k, v in cat.items()}
-    others = {o: tuple(np.concatenate(x)[:n] for x in lists) for o, lists in other_parts.items()}
+    others = {o: (np.concatenate(q)[:n], np.concatenate(qd)[:n], np.concatenate(qdd)[:n])
+              for o, (q, qd, qdd) in other_parts.items()}
     vmax = np.max(np.abs(cat["qd"]))
     moving = cat.pop("settled").astype(bool) & cat.pop("clean").astype(bool)
     if vmax == 0 or np.ptp(cat["q"]) == 0:

@@ -48,7 +48,7 @@ from scipy import signal, stats
 from .dependence import dependences
 from .effects import Effect, PositionPeriodic, Spline, candidates, shape_of
 from .identifiable import T_MIN
-from .model import AxisModel, errors, extend
+from .model import AxisModel, Errors, errors, extend
 from .signals import Samples
 
 log = logging.getLogger(__name__)
@@ -98,8 +98,8 @@ def _evidence(t: TracedEffect) -> str:
             if isinstance(e, Spline) else _named_evidence(e, t.params))
     added = {k: t.model_params.get(f"{e.name}.{k}") for k in t.params}
     moved = [] if isinstance(e, Spline) else [
-        f"{k} {added[k]:+.4g}" for k, v in t.params.items()
-        if isinstance(v, float) and isinstance(added[k], float) and abs(v - added[k]) > MOVED * abs(added[k])]
+        f"{k} {now:+.4g}" for k, v in t.params.items()
+        if isinstance(v, float) and isinstance(now := added[k], float) and abs(v - now) > MOVED * abs(now)]
     since = (f" (when it was added: {', '.join(moved)}; the effects added after it took part of that)"
              if moved else "")
     return (f"{what}{since}; explains {t.share:.0%} of the residual variance (F = {t.f_stat:.3g}); validation "
@@ -198,13 +198,14 @@ def hides_inertia(model: AxisModel, fitted: AxisModel) -> bool:
     return determined(model) and not determined(fitted)
 
 
-def _accepted(p_value: float, err, new_err) -> bool:
+def _accepted(p_value: float, err: Errors, new_err: Errors) -> bool:
     """Whether an effect earns its place: significant (``p_value`` of the partial F-test of the
     model with it against the model without), and the validation error down by ``MIN_GAIN``."""
     return p_value < P_VALUE and new_err.relative_error <= (1 - MIN_GAIN) * err.relative_error
 
 
-def _realigned(realign, model: AxisModel, est: Samples, val: Samples) -> tuple[Samples, Samples, AxisModel]:
+def _realigned(realign: Callable[[AxisModel], tuple[Samples, Samples] | None] | None, model: AxisModel,
+               est: Samples, val: Samples) -> tuple[Samples, Samples, AxisModel]:
     """The samples ``realign(model)`` gives, and ``model`` refitted on them (as they were, and
     ``model`` itself, when it gives none)."""
     new = realign(model) if realign else None
@@ -230,7 +231,7 @@ def unexplained(model: AxisModel, s: Samples, rate_hz: float) -> list[dict]:
     residual = s.tau - model.predict(s, logged=True)
     r = residual[m]
     total = float(np.mean(r ** 2))
-    added = {}
+    added: dict[str, list[str]] = {}
     for e in model.effects:
         added.setdefault(e.depends_on, []).append(e.name)
     out = []

@@ -4,20 +4,24 @@ from __future__ import annotations
 
 import logging
 import math
+import os
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import canopen
-from canopen.pdo.base import PdoMap
+from canopen.emcy import EmcyError
+from canopen.pdo.base import PdoBase, PdoMap
 
 from ..config import BusConfig, MasterConfig, NodeConfig, PdoConfig
-from ..errors import BusError, DriveRefused
-from ..od import limits
+from ..errors import BusError, DriveRefused, InternalError
+from ..od import default, limits, variable
 from ..outputs import hex_object, identity_hex, stamped
-from ..params.read import read_if_readable
+from ..params.read import read_if_readable, sdo_object
 from ..pdo import PdoCodec
 from ..setpoint import IP, IP_SUB_MODE, MODE_NAMES, PVT, choose, describe_modes, supported_modes
 from .cia402 import Drive402
-from .link import Link
+from .link import Clock, Link
 from .settings import pdo_objects, snapshot, write_setting
 from .units import read_units, reconcile
 
@@ -71,7 +75,7 @@ class AxisLink:
     def process_data(self) -> dict:
         """How the master exchanges this axis' process data (bringup.json): the operating mode, the
         setpoint object and each PDO's COB-ID and mapping, in hex as CANopen writes them."""
-        def pdos(codecs):
+        def pdos(codecs: list[PdoCodec]) -> list[dict[str, Any]]:
             return [{"cob_id": f"0x{c.cob_id:03X}", "mapping": [hex_object(i, s) for i, s in c.entries]}
                     for c in codecs]
         return {"mode": self.mode, "mode_name": MODE_NAMES.get(self.mode, str(self.mode)),
@@ -142,6 +146,14 @@ def identity_mismatch(ident: dict, od: canopen.ObjectDictionary) -> str | None:
     return f"the node is {node}; its EDS/DCF names {eds}"
 
 
+def remote_node(net: canopen.Network, node_id: int) -> canopen.RemoteNode:
+    """The master's view of node ``node_id``, as :func:`scan` added it to ``net``."""
+    node = net[node_id]
+    if not isinstance(node, canopen.RemoteNode):
+        raise InternalError(f"node {node_id} is on the network as a {type(node).__name__}, not a remote node")
+    return node
+
+
 def scan(link: Link, config: BusConfig) -> ScanResult:
     """Ask every node id who is there; compare with the configuration."""
     net = link.network
@@ -150,12 +162,16 @@ def scan(link: Link, config: BusConfig) -> ScanResult:
     link.clock.sleep(0.2)
     answered = set(net.scanner.nodes)
     by_id = {n.node_id: n for n in config.nodes.values()}
-    found, missing, wrong, mismatch, accepted = {}, [], [], {}, {}
+    found: dict[int, dict] = {}
+    missing: list[str] = []
+    wrong: list[str] = []
+    mismatch: dict[str, str] = {}
+    accepted: dict[str, str] = {}
     for axis, ncfg in config.nodes.items():
         if ncfg.node_id not in answered:
             missing.append(axis)
             continue
-        node = net.add_node(ncfg.node_id, ncfg.od) if ncfg.node_id not in net else net[ncfg.node_id]
+        node = net.add_node(ncfg.node_id, ncfg.od) if ncfg.node_id not in net else remote_node(net, ncfg.node_id)
         node.sdo.RESPONSE_TIMEOUT = config.master.sdo_timeout_s
         found[ncfg.node_id] = _identity(node, axis)
         if found[ncfg.node_id]["device_type"] & 0xFFFF != CIA402_PROFILE:
@@ -167,7 +183,8 @@ def scan(link: Link, config: BusConfig) -> ScanResult:
     return ScanResult(found, missing, unexpected, wrong, mismatch, accepted)
 
 
-def _configure_pdos(node: canopen.RemoteNode, maps, configured: tuple[PdoConfig, ...], base: int) -> list[PdoCodec]:
+def _configure_pdos(node: canopen.RemoteNode, node_id: int, maps: PdoBase, configured: tuple[PdoConfig, ...],
+                    base: int) -> list[PdoCodec]:
     """Map the configured PDOs and disable the drive's others (of PDOs 1-4, those its EDS/DCF has)."""
     codecs = []
     by_num = {p.number: p for p in configured}
@@ -178,16 +195,16 @@ def _configure_pdos(node: canopen.RemoteNode, maps, configured: tuple[PdoConfig,
         pdo: PdoMap = maps[num]
         pdo.clear()
         pc = by_num.get(num)
-        pdo.cob_id = pc.cob_id if pc is not None and pc.cob_id else base + 0x100 * (num - 1) + node.id
+        pdo.cob_id = pc.cob_id if pc is not None and pc.cob_id else base + 0x100 * (num - 1) + node_id
         pdo.enabled = pc is not None
         if pc is not None:
             for index, sub in pc.mapping:
                 pdo.add_variable(index, sub)
             pdo.trans_type = pc.transmission
-            comm = node.object_dictionary[comm_base + num - 1]
-            if base == 0x180 and 3 in comm:       # as configured, never the EDS default (Nanotec's: 10 ms)
-                pdo.inhibit_time = pc.inhibit_time_100us
-            if base == 0x180 and 5 in comm:
+            od = node.object_dictionary
+            if base == 0x180 and od.get_variable(comm_base + num - 1, 3):   # as configured, never the EDS
+                pdo.inhibit_time = pc.inhibit_time_100us                      # default (Nanotec's: 10 ms)
+            if base == 0x180 and od.get_variable(comm_base + num - 1, 5):
                 pdo.event_timer = pc.event_timer_ms or 0
         pdo.save()
         if pc is not None:
@@ -229,7 +246,7 @@ def bring_up(link: Link, config: BusConfig) -> dict[str, AxisLink]:
     link.start_heartbeat(config.master.heartbeat_node_id, config.master.heartbeat_period_s)
     log.info("master heartbeat: node %d every %g s", config.master.heartbeat_node_id, config.master.heartbeat_period_s)
     for name, ncfg in config.nodes.items():
-        node = net[ncfg.node_id]
+        node = remote_node(net, ncfg.node_id)
         node.nmt.send_command(0x80)                               # pre-operational
         before = snapshot(node, name, [(i, s) for i, s, _ in ncfg.sdo])
         for index, sub, value in ncfg.sdo:                        # first: they may set the drive's units
@@ -250,8 +267,8 @@ def bring_up(link: Link, config: BusConfig) -> dict[str, AxisLink]:
         ax.drive_limits = read_back(node, name, written)
         log.info("axis %s: limits and stop behaviour written and read back: %s", name, ax.drive_limits)
         try:
-            ax.rpdos = _configure_pdos(node, node.rpdo, ncfg.rpdo, 0x200)
-            ax.tpdos = _configure_pdos(node, node.tpdo, ncfg.tpdo, 0x180)
+            ax.rpdos = _configure_pdos(node, ncfg.node_id, node.rpdo, ncfg.rpdo, 0x200)
+            ax.tpdos = _configure_pdos(node, ncfg.node_id, node.tpdo, ncfg.tpdo, 0x180)
         except canopen.SdoAbortedError as exc:
             raise DriveRefused(f"axis {name}: the drive refused the PDO mapping ({exc}); "
                                f"check nodes.{name}.rpdo / tpdo in {config.path}") from exc
@@ -278,12 +295,12 @@ def _axis(link: Link, config: BusConfig, result: ScanResult, name: str, ncfg: No
           planned: dict[tuple[int, int], int | float]) -> AxisLink:
     """An axis with the units its drive reports (``planned``: values the node's ``sdo`` list will
     have written, read as the drive would hold them), checked against bus.yml and its stroke."""
-    node = link.network[ncfg.node_id]
+    node = remote_node(link.network, ncfg.node_id)
     units = read_units(node, name, planned)
     ncfg = reconcile(ncfg, units, config.path)
     if ncfg.reference == "here":                 # the stroke around where the axis stands now
         try:
-            here = float(ncfg.scaling.position_from_device(node.sdo[0x6064].raw))
+            here = float(ncfg.scaling.position_from_device(sdo_object(node, 0x6064, 0).raw))
         except (canopen.SdoCommunicationError, canopen.SdoAbortedError) as exc:
             raise BusError(f"axis {name}: reading its position (0x6064) for reference: here failed ({exc})") from exc
         lim = ncfg.limits
@@ -311,7 +328,8 @@ def plan_bring_up(link: Link, config: BusConfig) -> dict[str, AxisLink]:
     return axes
 
 
-def _streaming_mode(node, ncfg: NodeConfig, path) -> tuple[int, tuple[int, int], list[int]]:
+def _streaming_mode(node: canopen.RemoteNode, ncfg: NodeConfig, path: str | os.PathLike[str]
+                    ) -> tuple[int, tuple[int, int], list[int]]:
     """The mode to stream in and its setpoint object, from the modes the drive lists in 0x6502
     (read from the drive; the EDS/DCF default where the drive does not answer) and the setpoint
     objects the RPDOs map; and every mode the drive lists."""
@@ -319,9 +337,9 @@ def _streaming_mode(node, ncfg: NodeConfig, path) -> tuple[int, tuple[int, int],
     bits = None
     if 0x6502 in ncfg.od:
         try:
-            bits = node.sdo[0x6502].raw
+            bits = int(sdo_object(node, 0x6502, 0).raw)
         except canopen.SdoAbortedError:
-            bits = ncfg.od[0x6502].default
+            bits = default(ncfg.od, 0x6502)
         except canopen.SdoCommunicationError as exc:
             raise BusError(f"axis {axis}: no SDO answer reading its supported modes 0x6502 ({exc})") from exc
     if bits is None:
@@ -390,8 +408,8 @@ def _interpolation_period(axis: str, ncfg: NodeConfig, period: float) -> list[tu
     """0x60C2: the SYNC period as value × 10^index, in the first unit (ms, 0.1 ms ... µs) both
     fit within the drive's EDS/DCF limits.  maxon's PVT records carry their own time: a drive
     whose 0x60C2 cannot hold the period is left as it is for them; any other is refused."""
-    lo1, hi1 = limits(ncfg.od.get_variable(0x60C2, 1))
-    lo2, hi2 = limits(ncfg.od.get_variable(0x60C2, 2))
+    lo1, hi1 = limits(variable(ncfg.od, 0x60C2, 1))
+    lo2, hi2 = limits(variable(ncfg.od, 0x60C2, 2))
     for exponent in (-3, -4, -5, -6):
         value = period * 10 ** -exponent
         if abs(value - round(value)) > 1e-6 or not 1 <= round(value) <= 255:
@@ -406,18 +424,19 @@ def _interpolation_period(axis: str, ncfg: NodeConfig, period: float) -> list[tu
                        f"index {lo2}..{hi2}); set master.sync_period to a period it can hold")
 
 
-def _check_range(ncfg: NodeConfig, path) -> None:
+def _check_range(ncfg: NodeConfig, path: str | os.PathLike[str]) -> None:
     """The stroke must fit the drive's 32-bit position in its own units (known only now with from_drive)."""
     if not ncfg.limits.fits_32_bits(ncfg.scaling.inc_per_rad):
         raise DriveRefused(f"axis {ncfg.axis}: limits.stroke of nodes.{ncfg.axis} in {path} does not fit the "
                            f"drive's 32-bit position range in its units ({ncfg.scaling.inc_per_rad:.6g} per rad)")
 
 
-def read_back(node, axis: str, written) -> dict[str, int | float]:
+def read_back(node: canopen.RemoteNode, axis: str, written: Sequence[tuple[int, int, int | float]]
+              ) -> dict[str, int | float]:
     """Each setting as the drive now holds it; DriveRefused where it kept another value."""
     out = {}
     for index, sub, value in written:
-        if not node.object_dictionary.get_variable(index, sub).readable:
+        if not variable(node.object_dictionary, index, sub).readable:
             continue
         held = read_if_readable(node, index, sub, f"axis {axis}'s setting back")
         if held is None:
@@ -429,15 +448,15 @@ def read_back(node, axis: str, written) -> dict[str, int | float]:
     return out
 
 
-def _watch(net: canopen.Network, ax: AxisLink, clock) -> None:
+def _watch(net: canopen.Network, ax: AxisLink, clock: Clock) -> None:
     """Heartbeat consumer and EMCY listener of one axis (they only record; the loop decides)."""
-    def on_heartbeat(can_id, data, timestamp):
+    def on_heartbeat(can_id: int, data: bytearray, timestamp: float) -> None:
         ax.last_heartbeat = clock.now()
         ax.nmt_state = data[0] & 0x7F if data else None
 
-    def on_emcy(error):
+    def on_emcy(error: EmcyError) -> None:
         if error.code:
             ax.emcy.append((clock.now(), error.code))
 
-    net.subscribe(0x700 + ax.node.id, on_heartbeat)
+    net.subscribe(0x700 + ax.cfg.node_id, on_heartbeat)
     ax.node.emcy.add_callback(on_emcy)

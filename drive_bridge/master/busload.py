@@ -1,10 +1,14 @@
 """Bus-load budget of a cyclic plan: bits on the wire per second against the bitrate."""
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
+
+import canopen
 
 from ..config import BusConfig
 from ..errors import UserError
+from ..od import variable
 
 MAX_LOAD = 0.80
 
@@ -25,13 +29,14 @@ class BusLoad:
         return f"{self.load * 100:.1f} % ({self.bits_per_second / 1000:.0f} kbit/s)"
 
 
-def pdo_bytes(od, mapping) -> int:
-    return sum(len(od.get_variable(i, s)) for i, s in mapping) // 8
+def pdo_bytes(od: canopen.ObjectDictionary, mapping: Iterable[tuple[int, int]]) -> int:
+    """Bytes of a PDO that maps ``mapping`` ((index, sub-index) pairs)."""
+    return sum(len(variable(od, i, s)) for i, s in mapping) // 8
 
 
 def bus_load(config: BusConfig) -> BusLoad:
     """Load of one SYNC period: SYNC + every enabled RPDO and TPDO of every node."""
-    bits = frame_bits(0)                        # SYNC
+    bits: float = frame_bits(0)                 # SYNC
     for node in config.nodes.values():
         for pdo in node.rpdo:
             bits += frame_bits(pdo_bytes(node.od, pdo.mapping))

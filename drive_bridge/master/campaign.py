@@ -244,8 +244,8 @@ def check_plan(plan: Plan, limits: dict[str, Limits], tolerance: float = 1e-6) -
         if acc.size and acc.max() > lim.max_acceleration * (1 + 1e-3):
             raise UserError(f"axis {ax}: the profile reaches {acc.max():.4g} rad/s², above the limit "
                             f"{lim.max_acceleration:.4g} rad/s²; nothing was moved.")
-        jerk = np.abs(np.diff(p, 3)) / T**3 if lim.max_jerk is not None else np.empty(0)
-        if jerk.size and jerk.max() > lim.max_jerk * (1 + 1e-3):
+        jerk = np.abs(np.diff(p, 3)) / T**3
+        if lim.max_jerk is not None and jerk.size and jerk.max() > lim.max_jerk * (1 + 1e-3):
             raise UserError(f"axis {ax}: the profile reaches a jerk of {jerk.max():.4g} rad/s³, above the limit "
                             f"{lim.max_jerk:.4g} rad/s³; nothing was moved"
                             + (" (the paper's trapezoids step the acceleration: campaign design: short keeps "

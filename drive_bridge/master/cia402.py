@@ -13,6 +13,7 @@ import canopen
 from canopen.profiles.p402 import State402
 
 from ..errors import BusError, DriveRefused
+from .link import Clock
 
 CW_SHUTDOWN, CW_SWITCH_ON, CW_ENABLE = 0x06, 0x07, 0x0F
 CW_FAULT_RESET = 0x80
@@ -30,7 +31,7 @@ def state_name(statusword: int) -> str:
 class Drive402:
     """Power state machine of ``node`` with waits on ``clock`` bounded by ``timeout`` [s]."""
 
-    def __init__(self, node: canopen.RemoteNode, axis: str, clock, timeout: float):
+    def __init__(self, node: canopen.RemoteNode, axis: str, clock: Clock, timeout: float):
         self.node = node
         self.axis = axis
         self.clock = clock

@@ -16,11 +16,13 @@ import sys
 import threading
 import time
 from collections import deque
+from collections.abc import Callable
 from typing import Protocol, runtime_checkable
 
 import can
 import canopen
 
+from ..errors import BusError
 from .timing import raise_priority
 
 log = logging.getLogger(__name__)
@@ -72,7 +74,8 @@ class TraceRecorder(can.Listener):
     setpoints never waits for the file.
     """
 
-    def __init__(self, path, *, background: bool = False, flush_every_s: float = 0.05, epoch: float = 0.0):
+    def __init__(self, path: str | os.PathLike[str], *, background: bool = False, flush_every_s: float = 0.05,
+                 epoch: float = 0.0):
         if background and epoch:
             raise ValueError("a background trace takes frames stamped with the wall clock (epoch 0)")
         self.writer = can.Logger(str(path))
@@ -148,7 +151,7 @@ class MasterNetwork(canopen.Network):
         super().__init__(bus)
         self.clock = clock
         self.traces: tuple[TraceRecorder, ...] = ()
-        self.after_send = None
+        self.after_send: Callable[[], None] | None = None
 
     def send_message(self, can_id: int, data: bytes, remote: bool = False,
                      timestamp: float | None = None) -> None:
@@ -157,6 +160,8 @@ class MasterNetwork(canopen.Network):
         msg = can.Message(arbitration_id=can_id, data=data, is_extended_id=can_id > 0x7FF,
                           is_remote_frame=remote, is_rx=False,
                           timestamp=self.clock.now() if timestamp is None else timestamp)
+        if self.bus is None:
+            raise BusError("the CANopen network has no bus (not connected)")
         for trace in self.traces:
             trace.on_message_received(msg)
         with self.send_lock:
@@ -177,10 +182,13 @@ class Link(Protocol):
     """
 
     network: MasterNetwork
-    clock: Clock
     threaded: bool
     epoch: float
     bus_errors: "BusErrors"
+
+    @property
+    def clock(self) -> Clock:
+        """The time the master waits on and stamps with."""
 
     def add_trace(self, trace: TraceRecorder) -> None:
         """Send every frame from now on, sent and received, to ``trace`` too."""
@@ -209,7 +217,7 @@ class BusErrors(can.Listener):
     """Counts error frames the interface reports (bus errors, error passive, bus-off where it
     reports them as frames); the streaming loop stops the motion on the first."""
 
-    def __init__(self):
+    def __init__(self) -> None:
         self.count = 0
 
     def on_message_received(self, msg: can.Message) -> None:
@@ -221,7 +229,7 @@ class _ReceiverPriority(can.Listener):
     """Asks, from the receiving thread itself on its first frame, for the priority the sending
     thread gets while it streams (see :mod:`drive_bridge.master.timing`)."""
 
-    def __init__(self):
+    def __init__(self) -> None:
         self.granted: str | None = None
 
     def on_message_received(self, msg: can.Message) -> None:
@@ -236,7 +244,7 @@ def open_bus(interface: str, channel: str | int | None, bitrate: int | None = No
     if interface == "udp_multicast":       # python-can's echoes every frame back to its sender
         from ..sim.adapters import LoopbackMulticastBus
         opts = dict(options or {})
-        return LoopbackMulticastBus(channel or UDP_GROUP, opts.pop("port", None) or UDP_PORT, **opts)
+        return LoopbackMulticastBus(str(channel or UDP_GROUP), opts.pop("port", None) or UDP_PORT, **opts)
     kwargs = {**(options or {}), "interface": interface, "channel": channel, "receive_own_messages": False}
     if bitrate and interface != "virtual":
         kwargs["bitrate"] = bitrate
@@ -259,10 +267,13 @@ class BusLink:
         self.bus = bus
         self.network = MasterNetwork(self.bus, self.clock)
         self.network.connect()
-        self.network.notifier.add_listener(_ReceiverPriority())
+        if self.network.notifier is None:
+            raise BusError("canopen's network started no notifier")
+        self.notifier: can.Notifier = self.network.notifier
+        self.notifier.add_listener(_ReceiverPriority())
         self.bus_errors = BusErrors()
-        self.network.notifier.add_listener(self.bus_errors)
-        self.on_close = []                # callbacks after the bus is closed
+        self.notifier.add_listener(self.bus_errors)
+        self.on_close: list[Callable[[], None]] = []        # callbacks after the bus is closed
         self._heartbeat: can.broadcastmanager.CyclicSendTaskABC | None = None
 
     @classmethod
@@ -273,10 +284,10 @@ class BusLink:
 
     def add_trace(self, trace: TraceRecorder) -> None:
         self.network.traces += (trace,)
-        self.network.notifier.add_listener(trace)
+        self.notifier.add_listener(trace)
 
     def remove_trace(self, trace: TraceRecorder) -> None:
-        self.network.notifier.remove_listener(trace)
+        self.notifier.remove_listener(trace)
         self.network.traces = tuple(t for t in self.network.traces if t is not trace)
 
     def start_heartbeat(self, node_id: int, period: float) -> None:

@@ -8,11 +8,12 @@ parameter) that must be undone can put the drive's stored set back as it was bef
 from __future__ import annotations
 
 import logging
+from collections.abc import Iterable
 
 import canopen
 
 from ..errors import BusError, DriveRefused
-from ..od import limits
+from ..od import limits, variable
 from ..outputs import hex_object
 from ..params.read import read_if_readable
 
@@ -22,15 +23,15 @@ PDO_COMM = (0x1400, 0x1800)                 # RPDO / TPDO communication paramete
 PDO_INVALID = 0x80000000
 
 
-def write_setting(node, axis: str, index: int, sub: int, value) -> None:
+def write_setting(node: canopen.RemoteNode, axis: str, index: int, sub: int, value: int | float) -> None:
     """SDO download of ``value``, checked against the range the drive's EDS/DCF gives first."""
-    lo, hi = limits(node.object_dictionary.get_variable(index, sub))
+    lo, hi = limits(variable(node.object_dictionary, index, sub))
     if (lo is not None and value < lo) or (hi is not None and value > hi):
         raise DriveRefused(f"axis {axis}: 0x{index:04X}:{sub} = {value} is outside the range its EDS/DCF gives "
                            f"({lo}..{hi}); nothing was written to it")
     log.debug("axis %s: 0x%04X:%d = %s", axis, index, sub, value)
     try:
-        node.sdo.download(index, sub, node.object_dictionary.get_variable(index, sub).encode_raw(value))
+        node.sdo.download(index, sub, variable(node.object_dictionary, index, sub).encode_raw(value))
     except canopen.SdoAbortedError as exc:
         raise DriveRefused(f"axis {axis}: writing 0x{index:04X}:{sub} = {value} was refused ({exc})") from exc
     except canopen.SdoCommunicationError as exc:
@@ -49,7 +50,7 @@ def pdo_objects(od: canopen.ObjectDictionary) -> list[tuple[int, int]]:
     return out
 
 
-def snapshot(node, axis: str, objects) -> dict[str, int]:
+def snapshot(node: canopen.RemoteNode, axis: str, objects: Iterable[tuple[int, int]]) -> dict[str, int]:
     """``objects`` ((index, sub) pairs) as the drive holds them now, by address "0xIIII:S";
     those it does not let be read and written are left out."""
     out = {}
@@ -69,7 +70,7 @@ def address(key: str) -> tuple[int, int]:
     return int(index, 16), int(sub)
 
 
-def put_back(node, axis: str, values: dict[str, int]) -> None:
+def put_back(node: canopen.RemoteNode, axis: str, values: dict[str, int]) -> None:
     """Write a :func:`snapshot` back, in its order; each PDO it holds is made invalid first, its
     mapping count set to 0 while the entries are written, and its COB-ID (valid or not, as it was)
     written last.  DriveRefused / BusError at the first object the drive does not take."""

@@ -102,11 +102,12 @@ class Recording:
 
     def handlers(self) -> dict[int, Callable]:
         """COB-ID -> callback(can_id, data, timestamp) for every TPDO and RPDO of the plan."""
-        out = {}
+        out: dict[int, Callable[..., None]] = {}
         raw, got, sync_time = self.raw, self.got, self.sync_time
         for cob, codec, first, slot in self._tpdo_slots:
-            def on_tpdo(can_id, data, ts, first=first, last=first + len(codec.objects),
-                        unpack=codec.struct.unpack_from, size=codec.struct.size, slot=slot):
+            def on_tpdo(can_id: int, data: bytearray, ts: float, first: int = first,
+                        last: int = first + len(codec.objects), unpack: Callable = codec.struct.unpack_from,
+                        size: int = codec.struct.size, slot: int = slot) -> None:
                 row = back = self.sync_index
                 if ts < self.last_sync_time and row < len(raw):   # reached the bus before that SYNC
                     while back > 0 and back >= row - FEEDBACK_LAG and ts < sync_time[back]:
@@ -118,7 +119,8 @@ class Recording:
                     got[row, slot] = True
             out[cob] = on_tpdo
         for cob, codec, pos, ai, entry in self._rpdo_slots:
-            def on_rpdo(can_id, data, ts, unpack=codec.struct.unpack_from, pos=pos, ai=ai, entry=entry):
+            def on_rpdo(can_id: int, data: bytearray, ts: float, unpack: Callable = codec.struct.unpack_from,
+                        pos: int = pos, ai: int = ai, entry: tuple[int, int] = entry) -> None:
                 row = self.sync_index + 1
                 if row < len(raw):
                     self.demand[row, ai] = position_of(entry, unpack(data)[pos])
@@ -137,7 +139,7 @@ class Recording:
 
     def valid(self, axis: str) -> np.ndarray:
         """Per row: every TPDO of ``axis`` arrived (a complete sample)."""
-        return self.got[:, self.slots[axis]].all(axis=1)
+        return np.asarray(self.got[:, self.slots[axis]].all(axis=1))
 
     def missing(self) -> dict[str, int]:
         """Rows without a complete sample, per axis."""
@@ -178,10 +180,11 @@ class _Feedback:
                     cols = [(codec.objects.index(i), kind) for i, kind in picks]
                     self.handlers.append((codec.cob_id, self._handler(a, codec, cols)))
 
-    def _handler(self, axis, codec, cols):
+    def _handler(self, axis: str, codec: PdoCodec, cols: list[tuple[int, str]]
+                 ) -> Callable[[int, bytearray, float], None]:
         unpack, size = codec.struct.unpack_from, codec.struct.size
 
-        def on_tpdo(can_id, data, ts):
+        def on_tpdo(can_id: int, data: bytearray, ts: float) -> None:
             if len(data) >= size:
                 values = unpack(data)
                 for col, kind in cols:
@@ -190,11 +193,11 @@ class _Feedback:
                         self.age[axis] = 0
         return on_tpdo
 
-    def subscribe(self, net) -> None:
+    def subscribe(self, net: canopen.Network) -> None:
         for cob, handler in self.handlers:
             net.subscribe(cob, handler)
 
-    def unsubscribe(self, net) -> None:
+    def unsubscribe(self, net: canopen.Network) -> None:
         for cob, handler in self.handlers:
             net.unsubscribe(cob, handler)
 
@@ -245,7 +248,7 @@ class _Unloader:
                 offset.bias = int(sc.torque_to_device(sc.torque_from_feedback(raw))) - offset[row - 1]
 
 
-def _packer(ax: AxisLink, codec: PdoCodec, plan: Plan, ai: int, send,
+def _packer(ax: AxisLink, codec: PdoCodec, plan: Plan, ai: int, send: Callable[[int, bytes], None],
             offsets: dict[str, _TorqueOffset]) -> Callable[[int, int], None]:
     """Send function of one RPDO for cycle k: the controlword, the setpoint from the plan (target
     position or interpolation data record), the plan's feed-forward offsets (zero without; the
@@ -253,7 +256,7 @@ def _packer(ax: AxisLink, codec: PdoCodec, plan: Plan, ai: int, send,
     sc = ax.cfg.scaling
     demand = plan.demand[:, ai]
     pos = sc.position_to_device(demand)
-    columns = []
+    columns: list[list[int] | _TorqueOffset | None] = []     # per mapped object: its value per cycle
     for entry in codec.entries:
         index = entry[0]
         if index == 0x6040:
@@ -519,7 +522,8 @@ class _Cycles:
     """SYNC cycles outside the plan: the RPDOs carry one plan row (where the axis is to stand) and a
     controlword per axis, while the feedback decides when the drives are where they should be."""
 
-    def __init__(self, link: Link, packers, feedback: _Feedback, period: float):
+    def __init__(self, link: Link, packers: list[tuple[str, Callable[[int, int], None], int]], feedback: _Feedback,
+                 period: float):
         self.link, self.packers, self.feedback, self.period = link, packers, feedback, period
         self.count = 0                  # SYNCs sent so far outside the plan
         self.enable_count = 0
@@ -546,7 +550,7 @@ class _Cycles:
         controlword, a step each time the feedback shows the state before it."""
         fb = self.feedback
         axes = list(fb.status)
-        ok = self.run(0, lambda a: ENABLE_STEP.get(fb.state(a), CW_SHUTDOWN),
+        ok = self.run(0, lambda a: ENABLE_STEP.get(fb.state(a) or "", CW_SHUTDOWN),
                       lambda: all(fb.state(a) == "OPERATION ENABLED" and fb.age[a] <= 1 for a in axes), timeout)
         self.enable_count = self.count
         if ok:
@@ -559,8 +563,8 @@ class _Cycles:
 
     def _standing(self, ax: AxisLink, still: dict) -> bool:
         fb, a = self.feedback, ax.name
-        stopped = fb.age[a] <= 1 and fb.status[a] is not None and fb.velocity[a] is not None and \
-            _at_rest(ax, fb.status[a], fb.velocity[a])
+        status, velocity = fb.status[a], fb.velocity[a]
+        stopped = fb.age[a] <= 1 and status is not None and velocity is not None and _at_rest(ax, status, velocity)
         still[a] = still[a] + 1 if stopped else 0
         return still[a] >= 2
 
@@ -691,7 +695,8 @@ def _check_bus(link: Link, errors_at_start: int) -> MotionAborted | None:
     return None
 
 
-def _check_row(rec, row, axes, sw_cols, names, misses, miss_limit, emcy_from) -> MotionAborted | None:
+def _check_row(rec: Recording, row: int, axes: dict[str, AxisLink], sw_cols: list[tuple[str, int]], names: list[str],
+               misses: dict[str, int], miss_limit: int, emcy_from: dict[str, int]) -> MotionAborted | None:
     got = rec.got[row]
     for ai, name in enumerate(names):
         ax = axes[name]
@@ -713,7 +718,7 @@ def _check_row(rec, row, axes, sw_cols, names, misses, miss_limit, emcy_from) ->
     return None
 
 
-def check_heartbeats(axes, names, now, timeout) -> MotionAborted | None:
+def check_heartbeats(axes: dict[str, AxisLink], names: list[str], now: float, timeout: float) -> MotionAborted | None:
     """The first of ``names`` whose drive's heartbeat has been silent longer than ``timeout`` [s]."""
     for name in names:
         last = axes[name].last_heartbeat

@@ -63,7 +63,7 @@ def measure(sync_time: np.ndarray, period: float, missing: dict[str, int], *, wa
     return t
 
 
-def raise_priority(priority: int = RT_PRIORITY) -> tuple[str, object]:
+def raise_priority(priority: int = RT_PRIORITY) -> tuple[str, tuple[int, os.sched_param] | None]:
     """Ask for SCHED_FIFO ``priority`` for the calling thread; (what was granted, how to undo it:
     None when nothing was granted)."""
     if not hasattr(os, "sched_setscheduler"):
@@ -76,7 +76,7 @@ def raise_priority(priority: int = RT_PRIORITY) -> tuple[str, object]:
         return f"normal (SCHED_FIFO not granted: {exc.strerror}; run with CAP_SYS_NICE or as root for it)", None
 
 
-def restore_priority(undo) -> None:
+def restore_priority(undo: tuple[int, os.sched_param] | None) -> None:
     if undo is not None:
         try:
             os.sched_setscheduler(0, undo[0], undo[1])

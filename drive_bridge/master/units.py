@@ -11,7 +11,9 @@ report stays bus.yml's assumption and is said so (bring-up output, bringup.json,
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import canopen
 
@@ -47,10 +49,10 @@ class DriveUnits:
                 "max_torque_permille": self.max_torque_permille, "assumed_from_bus_yml": self.assumed}
 
 
-def read_units(node: canopen.RemoteNode, axis: str, planned: dict | None = None) -> DriveUnits:
+def read_units(node: canopen.RemoteNode, axis: str, planned: dict[tuple[int, int], Any] | None = None) -> DriveUnits:
     """Read every unit object the drive's EDS/DCF has (an object the drive refuses to read counts as
     absent); ``planned`` ((index, sub) -> value) stands for values about to be written."""
-    def value(index: int, sub: int):
+    def value(index: int, sub: int) -> Any:
         if planned and (index, sub) in planned and node.object_dictionary.get_variable(index, sub) is not None:
             return planned[(index, sub)]
         return read_if_readable(node, index, sub, f"axis {axis}'s units")
@@ -61,7 +63,7 @@ def read_units(node: canopen.RemoteNode, axis: str, planned: dict | None = None)
                       max_torque)
 
 
-def reconcile(ncfg: NodeConfig, units: DriveUnits, path) -> NodeConfig:
+def reconcile(ncfg: NodeConfig, units: DriveUnits, path: str | os.PathLike[str]) -> NodeConfig:
     """The node's configuration with the units the drive works in.
 
     With ``from_drive`` the drive's units replace what bus.yml leaves open; otherwise every unit the
@@ -72,14 +74,14 @@ def reconcile(ncfg: NodeConfig, units: DriveUnits, path) -> NodeConfig:
     if ncfg.units_from_drive:
         missing = [what for what, v in (("position units (0x60A8 with 0x608F, 0x6091, 0x6092)", pos),
                                         ("velocity units (0x60A9)", vel)) if v is None]
-        if not sc.rated_torque_Nm and units.rated_torque_Nm is None:
+        rated = sc.rated_torque_Nm or units.rated_torque_Nm
+        if not rated:
             missing.append("rated torque (0x6076)")
-        if missing:
+        if missing or pos is None or vel is None or not rated:
             raise DriveRefused(f"axis {axis}: nodes.{axis}.scaling in {path} takes the units from the drive, "
                                f"but the drive does not report its {', '.join(missing)}; give them in "
                                f"nodes.{axis}.scaling (increments_per_rev, velocity_unit, rated_torque_Nm)")
-        sc = replace(sc, increments_per_rev=pos * 2 * math.pi, velocity_units_per_rad_s=vel,
-                     rated_torque_Nm=sc.rated_torque_Nm or units.rated_torque_Nm)
+        sc = replace(sc, increments_per_rev=pos * 2 * math.pi, velocity_units_per_rad_s=vel, rated_torque_Nm=rated)
         units.assumed = [] if units.rated_torque_Nm is not None else [f"rated torque {sc.rated_torque_Nm} Nm"]
         return replace(ncfg, scaling=sc)
     problems, assumed = [], []
@@ -100,10 +102,12 @@ def reconcile(ncfg: NodeConfig, units: DriveUnits, path) -> NodeConfig:
     elif abs(units.rated_torque_Nm - sc.rated_torque_Nm) > TORQUE_TOLERANCE * sc.rated_torque_Nm:
         problems.append(f"rated torque 0x6076 = {units.rated_torque_Nm:g} Nm where bus.yml gives "
                         f"rated_torque_Nm {sc.rated_torque_Nm:g}")
-    if sc.torque_feedback == "current" and sc.current_per_unit_A != 1e-3 and units.rated_current_A is not None \
-            and abs(units.rated_current_A - sc.current_per_unit_A * 1000) > TORQUE_TOLERANCE * units.rated_current_A:
-        problems.append(f"rated current 0x6075 = {units.rated_current_A:g} A where bus.yml gives rated_current_A "
-                        f"{sc.current_per_unit_A * 1000:g}")
+    per_unit = sc.current_per_unit_A
+    rated_A = units.rated_current_A
+    if sc.torque_feedback == "current" and per_unit is not None and per_unit != 1e-3 and rated_A is not None \
+            and abs(rated_A - per_unit * 1000) > TORQUE_TOLERANCE * rated_A:
+        problems.append(f"rated current 0x6075 = {rated_A:g} A where bus.yml gives rated_current_A "
+                        f"{per_unit * 1000:g}")
     if problems:
         raise DriveRefused(
             f"axis {axis} (node {ncfg.node_id}): the drive reports {'; '.join(problems)}. Nothing of its limits, "

@@ -12,14 +12,19 @@ from __future__ import annotations
 import logging
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import canopen
 import numpy as np
 from canopen.objectdictionary import datatypes
 
 from ..errors import UserError
+from ..od import variable
 from ..tuning.design import loop_margins, measured_margins
 from .profile import Entry, Profile
+
+if TYPE_CHECKING:
+    from ..ident.frf import Frf
 
 log = logging.getLogger(__name__)
 
@@ -42,7 +47,7 @@ class ValueRefused(UserError):
     """A value that must not reach a drive; the message names the axis, parameter and range."""
 
 
-def check_value(entry: Entry, var: canopen.objectdictionary.ODVariable, value) -> str | None:
+def check_value(entry: Entry, var: canopen.objectdictionary.ODVariable, value: Any) -> str | None:
     """Why ``value`` [SI] of ``entry`` must not be written (None: it may)."""
     name, unit = entry.parameter, f" {entry.unit}" if entry.unit else ""
     try:
@@ -59,14 +64,14 @@ def check_value(entry: Entry, var: canopen.objectdictionary.ODVariable, value) -
     if name == "ff_enable" and value not in (0.0, 1.0):
         return f"ff_enable = {value:g} must be 0 or 1"
     if entry.min is not None and value < entry.min or entry.max is not None and value > entry.max:
-        lo, hi = ("" if x is None else f"{x:g}" for x in (entry.min, entry.max))
-        return f"{name} = {value:.6g}{unit} is outside the drive's range {lo}..{hi}{unit} (drive profile)"
+        shown = ("" if x is None else f"{x:g}" for x in (entry.min, entry.max))
+        return f"{name} = {value:.6g}{unit} is outside the drive's range {'..'.join(shown)}{unit} (drive profile)"
     device = entry.to_device(value)
     if isinstance(device, float) and not math.isfinite(device):
         return f"{name} = {value:.6g}{unit} has no value in device units"
     if var.data_type in REAL_MAX and abs(device) > REAL_MAX[var.data_type]:
         return f"{name} = {value:.6g}{unit} overflows {entry.where()}'s data type"
-    lo, hi = INTEGER_RANGES.get(var.data_type, (None, None))
+    lo, hi = INTEGER_RANGES.get(var.data_type, (None, None)) if var.data_type is not None else (None, None)
     if var.min is not None:
         lo = var.min
     if var.max is not None:
@@ -80,8 +85,8 @@ def check_value(entry: Entry, var: canopen.objectdictionary.ODVariable, value) -
 def check_set(profile: Profile, od: canopen.ObjectDictionary, values: dict) -> list[str]:
     """Every reason the parameter set ``values`` (name -> SI) must not be written to a drive of ``profile``."""
     problems = [p for name, v in values.items() if name in profile.entries
-                for p in [check_value(profile.entries[name], od.get_variable(profile.entries[name].index,
-                                                                                profile.entries[name].sub), v)] if p]
+                for p in [check_value(profile.entries[name], variable(od, profile.entries[name].index,
+                                                                             profile.entries[name].sub), v)] if p]
     amp, period = values.get("periodic_amplitude", 0.0), values.get("periodic_period", 0.0)
     if not problems and amp and not period:
         problems.append(f"periodic_amplitude = {amp:.6g} needs a periodic_period > 0 (0 switches the ripple off)")
@@ -110,7 +115,8 @@ def written_si(profile: Profile, values: dict) -> dict[str, float]:
 
 
 def check_margins(profile: Profile, values: dict, L: float | None, *,
-                  pm_floor: float = PM_FLOOR_DEG, gm_floor: float = GM_FLOOR_DB, frf=None) -> tuple[dict, str | None]:
+                  pm_floor: float = PM_FLOOR_DEG, gm_floor: float = GM_FLOOR_DB,
+                  frf: Frf | None = None) -> tuple[dict, str | None]:
     """Velocity- and position-loop margins of the gains in ``values``, as written, on the model
     of the same set (J, c1) with motor inductance ``L`` [H] and, where the axis's response was
     measured (``frf``: :class:`~drive_bridge.ident.frf.Frf`), on that too -- the worse of the two; a
@@ -182,7 +188,9 @@ def screen(profiles: dict[str, Profile], values: dict[str, dict], inductance: di
             f"the {profile.drive} profile has no documented source for the scale of {', '.join(unverified)} "
             f"({profile.path}); check them against the drive's manual, or --allow-unverified-scales to write "
             f"them anyway")
-    margins, refused, forced = {}, [], []
+    margins: dict[str, dict] = {}
+    refused: list[str] = []
+    forced: list[str] = []
     for a, v in values.items():
         margins[a], reason = check_margins(profiles[a], v, inductance.get(a), pm_floor=pm_floor, gm_floor=gm_floor,
                                            frf=(frf or {}).get(a))
@@ -195,7 +203,7 @@ def screen(profiles: dict[str, Profile], values: dict[str, dict], inductance: di
 
 
 def gate(profiles: dict[str, Profile], values: dict[str, dict], inductance: dict[str, float | None],
-         **checks) -> GateResult:
+         **checks: Any) -> GateResult:
     """:func:`screen`, refusing with ValueRefused before anything is written."""
     result, refused = screen(profiles, values, inductance, **checks)
     if refused:

@@ -24,9 +24,11 @@ cascade and is reported without one.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 from ..errors import UserError
+from ..yamlconf import Section
 from ..tuning.design import CURRENT_RATE_HZ, LOOP_TICK_S, Timing
 
 STRUCTURES = ("cascade", "position_pid")
@@ -96,7 +98,7 @@ class Controller:
             out["PidFFa"] = values["J"]
         return out
 
-    def drive_names(self, names) -> list[str]:
+    def drive_names(self, names: Iterable[str]) -> list[str]:
         """The drive's parameters that hold ``names`` (the cascade's terms)."""
         if self.structure == "cascade":
             return list(names)
@@ -121,7 +123,7 @@ class Controller:
         return out
 
 
-def load_controller(sec) -> Controller:
+def load_controller(sec: Section) -> Controller:
     """The ``controller`` section of a profile (a :class:`~drive_bridge.yamlconf.Section`); the
     project drive's cascade and rates, unverified, where the profile has none."""
     if not sec.keys():

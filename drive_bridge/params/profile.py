@@ -24,6 +24,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import canopen
 import numpy as np
@@ -34,6 +35,9 @@ from ..od import load_od
 from ..resources import data, shipped, vendor_dir
 from ..yamlconf import Section, load_yaml
 from .controller import PID, Controller, load_controller
+
+if TYPE_CHECKING:
+    from ..master.bringup import AxisLink
 
 PROFILE_DIR = shipped("params", "profiles")
 DEFAULT_PROFILE = "drive_bridge_servo"
@@ -69,18 +73,18 @@ class Entry:
     def is_integer(self) -> bool:
         return not self.type.startswith("REAL")
 
-    def to_device(self, value: float):
+    def to_device(self, value: float) -> int | float:
         raw = (self.scale / value if value else float("inf")) if self.reciprocal else value * self.scale
         return round(raw) if self.is_integer else float(raw)
 
-    def held(self, device):
+    def held(self, device: float) -> int | float:
         """A device value as the drive holds it: an integer, or a float rounded to the object's
         REAL32 (what a read-back returns)."""
         if self.is_integer:
             return int(device)
         return float(np.float32(device)) if self.type == "REAL32" else float(device)
 
-    def to_si(self, raw) -> float:
+    def to_si(self, raw: float) -> float:
         return (self.scale / raw if raw else float("inf")) if self.reciprocal else raw / self.scale
 
     def where(self) -> str:
@@ -107,7 +111,7 @@ class Profile:
     def object_dictionary(self, node_id: int) -> canopen.ObjectDictionary:
         return load_od(self.eds, node_id)
 
-    def for_axis(self, ax) -> "Profile":
+    def for_axis(self, ax: AxisLink) -> "Profile":
         """:meth:`bind` for a brought-up axis (:class:`~drive_bridge.master.bringup.AxisLink`), with
         the torque constant of its bus configuration."""
         return self.bind(ax.cfg.scaling.torque_constant_Nm_per_A, ax.name)

@@ -2,10 +2,14 @@
 state bring-up records before commissioning (the set a commissioning can be compared with)."""
 from __future__ import annotations
 
+from collections.abc import Collection
+from typing import Any
+
 import canopen
 from canopen.sdo import SdoVariable
 
 from ..errors import BusError, UserError
+from ..od import variable
 from ..outputs import identity_hex
 from .profile import SELECT, Entry, Profile
 
@@ -19,10 +23,10 @@ def sdo_variable(node: canopen.RemoteNode, entry: Entry) -> SdoVariable:
 
 def sdo_object(node: canopen.RemoteNode, index: int, sub: int) -> SdoVariable:
     """The SDO accessor of object ``index``:``sub`` on ``node``."""
-    return SdoVariable(node.sdo, node.object_dictionary.get_variable(index, sub))
+    return SdoVariable(node.sdo, variable(node.object_dictionary, index, sub))
 
 
-def read_if_readable(node: canopen.RemoteNode, index: int, sub: int, what: str):
+def read_if_readable(node: canopen.RemoteNode, index: int, sub: int, what: str) -> Any:
     """Object ``index``:``sub`` as the drive holds it; None where its EDS/DCF has no such object or
     the drive refuses the read (an abort: the object is not there to read); BusError naming
     ``what`` where the drive does not answer."""
@@ -45,7 +49,8 @@ def describe_sdo_error(exc: Exception) -> str:
     return f"{type(exc).__name__}: {exc}"
 
 
-def read_parameters(node: canopen.RemoteNode, profile: Profile, names=None) -> dict[str, float]:
+def read_parameters(node: canopen.RemoteNode, profile: Profile, names: Collection[str] | None = None
+                    ) -> dict[str, float]:
     """The drive's current values [SI] of ``names`` in the cascade's terms (default: every
     parameter of ``profile``; names the profile has no object for are left out): its controller's
     parameters read and turned into them (``profile`` bound to the axis's motor).  Where the
@@ -60,10 +65,8 @@ def read_parameters(node: canopen.RemoteNode, profile: Profile, names=None) -> d
         if selected != profile.select[1] and (otherwise := profile.otherwise()) is not None:
             profile = otherwise
     for name in profile.entries if names is None else profile.controller.drive_names(names):
-        entry = profile.entries.get(name)
-        if entry is None:
-            continue
-        out[name] = _read(node, entry)
+        if name in profile.entries:
+            out[name] = _read(node, profile.entries[name])
     out = profile.controller.from_drive(out)
     return out if names is None else {k: v for k, v in out.items() if k in names or k == SELECT}
 
@@ -72,7 +75,7 @@ def _read(node: canopen.RemoteNode, entry: Entry) -> float:
     """``entry``'s value on ``node`` [SI]; BusError naming the object when the drive does not
     answer or refuses."""
     try:
-        return entry.to_si(sdo_variable(node, entry).raw)
+        return entry.to_si(float(sdo_variable(node, entry).raw))
     except SDO_ERRORS as exc:
         raise BusError(f"node {node.id}: reading {entry.parameter} ({entry.where()}) failed: "
                        f"{describe_sdo_error(exc)}") from exc
@@ -86,7 +89,8 @@ def motor_data(node: canopen.RemoteNode, profile: Profile, R: float | None = Non
         return R, L
     if profile.motor is not None:
         try:
-            return tuple(float(sdo_object(node, *profile.motor[k]).raw) for k in ("R", "L"))
+            R, L = (float(sdo_object(node, *profile.motor[k]).raw) for k in ("R", "L"))
+            return R, L
         except SDO_ERRORS as exc:
             raise BusError(f"node {node.id}: reading its motor data failed: {describe_sdo_error(exc)}") from exc
     raise UserError(f"node {node.id}: the {profile.drive} profile names no motor data objects; give the motor's "

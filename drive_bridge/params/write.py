@@ -8,20 +8,22 @@ result lists every object with its old and new value in SI and device units.
 from __future__ import annotations
 
 import logging
+from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import Any
 
 import canopen
 
 from ..dcf import export_dcf
-from ..errors import BusError, DriveRefused, UserError, WriteInterrupted
+from ..errors import BusError, DriveRefused, InternalError, UserError, WriteInterrupted
 from ..master.settings import address, put_back, snapshot
 from ..outputs import hex_object, stamped, write_json
 from ..signals import deferred, signal_name
 from .check import GM_FLOOR_DB, PM_FLOOR_DEG, ValueRefused, check_set, gate
 from .profile import Entry, Profile
-from .read import SDO_ERRORS, describe_sdo_error, motor_data, require_profile_objects, sdo_variable
+from .read import SDO_ERRORS, describe_sdo_error, motor_data, require_profile_objects, sdo_object, sdo_variable
 
 log = logging.getLogger(__name__)
 
@@ -67,7 +69,7 @@ class WriteResult:
     (``new``, ``backup`` = as before, ``unchanged`` = never touched, ``unknown`` = could not
     be read back or confirmed): never more than was read back."""
 
-    node_id: int
+    node_id: int | None
     drive: str
     objects: list[ObjectWrite]
     unsupported: list[str]
@@ -105,7 +107,7 @@ class WriteResult:
         return d
 
 
-def _same(entry: Entry, a, b) -> bool:
+def _same(entry: Entry, a: Any, b: Any) -> bool:
     return entry.held(a) == entry.held(b)
 
 
@@ -114,7 +116,7 @@ class _Failed(Exception):
 
 
 def _describe(exc: BaseException, phase: str, w: ObjectWrite | None, entry: Entry | None) -> str:
-    what = "" if w is None else f" {w.parameter} ({entry.where()})"
+    what = "" if w is None or entry is None else f" {w.parameter} ({entry.where()})"
     if isinstance(exc, KeyboardInterrupt):
         return f"interrupted by {signal_name(exc)} during the {phase} phase"
     if isinstance(exc, _Failed):
@@ -126,7 +128,8 @@ def _describe(exc: BaseException, phase: str, w: ObjectWrite | None, entry: Entr
     return f"{doing} failed: {type(exc).__name__}: {exc}"
 
 
-def bind_axes(profile: Profile, axes, torque_constants: dict[str, float | None] | None) -> dict[str, Profile]:
+def bind_axes(profile: Profile, axes: Iterable[str],
+              torque_constants: dict[str, float | None] | None) -> dict[str, Profile]:
     """``profile`` for each of ``axes``, with its motor's torque constant [Nm/A] where the drive
     holds values in current (:meth:`~.profile.Profile.bind`)."""
     return {a: profile.bind((torque_constants or {}).get(a), a) for a in axes}
@@ -181,7 +184,7 @@ def write_all(nodes: dict[str, canopen.RemoteNode], profile: Profile, values: di
     return results
 
 
-def _backup_paths(nodes, backup_dir) -> dict[str, Path | None]:
+def _backup_paths(nodes: Iterable[str], backup_dir: str | Path | None) -> dict[str, Path | None]:
     return {a: None if backup_dir is None else Path(backup_dir) / f"{a}_backup.json" for a in nodes}
 
 
@@ -191,13 +194,15 @@ def write_parameters(node: canopen.RemoteNode, profile: Profile, values: dict[st
     """:func:`write_all` for one drive (``backup_path``: where its backup goes; ``profile`` bound to
     its motor: :meth:`~.profile.Profile.bind`)."""
     results = plan_writes({"": node}, {"": profile}, {"": values}, check=check, dry_run=dry_run)
-    _Transaction({"": node}, {"": profile}, results, {"": backup_path}).run(store, dry_run)
+    _Transaction({"": node}, {"": profile}, results, {"": None if backup_path is None else Path(backup_path)}
+                 ).run(store, dry_run)
     return results[""]
 
 
 class _Transaction:
-    def __init__(self, nodes, profiles: dict[str, Profile], results: dict[str, WriteResult],
-                 backup_paths: dict[str, Path | None], settings_before: dict[str, dict[str, int]] | None = None):
+    def __init__(self, nodes: dict[str, canopen.RemoteNode], profiles: dict[str, Profile],
+                 results: dict[str, WriteResult], backup_paths: dict[str, Path | None],
+                 settings_before: dict[str, dict[str, int]] | None = None):
         self.nodes, self.profiles, self.results = nodes, profiles, results
         self.profile = next(iter(profiles.values()))         # the drive model's (name, store object)
         self.backup_paths = backup_paths
@@ -205,19 +210,31 @@ class _Transaction:
         self.store_state: dict[str, str] = dict.fromkeys(results, UNCHANGED)
         self.interrupted_in_restore: str | None = None     # a KeyboardInterrupt the restore finished despite
 
-    def _var(self, axis: str, w: ObjectWrite):
-        return sdo_variable(self.nodes[axis], self._entry(axis, w))
+    def _get(self, axis: str, w: ObjectWrite) -> int | float:
+        """``w``'s object as the drive holds it [device units]."""
+        value = sdo_variable(self.nodes[axis], self._entry(axis, w)).raw
+        if not isinstance(value, (int, float)):
+            raise DriveRefused(f"axis {axis}: {w.parameter} ({self._entry(axis, w).where()}) reads {value!r}, "
+                               f"not a number")
+        return value
+
+    def _set(self, axis: str, w: ObjectWrite, value: int | float | None) -> None:
+        """Download ``value`` [device units] to ``w``'s object."""
+        if value is None:
+            raise InternalError(f"axis {axis}: {w.parameter} has no device value to write")
+        sdo_variable(self.nodes[axis], self._entry(axis, w)).raw = value
 
     def _entry(self, axis: str, w: ObjectWrite) -> Entry:
         return self.profiles[axis].entries[w.parameter]
 
     def run(self, store: bool, dry_run: bool) -> None:
-        phase, where = "backup", (None, None)
+        phase = "backup"
+        where: tuple[str | None, ObjectWrite | None] = (None, None)    # the axis and object at work
         try:
             for a, r in self.results.items():
                 for w in r.objects:
                     where = (a, w)
-                    w.old_device = self._var(a, w).raw
+                    w.old_device = self._get(a, w)
                     w.old_si = self._entry(a, w).to_si(w.old_device)
                 self._save_backup(a, r)
             if dry_run:
@@ -227,13 +244,13 @@ class _Transaction:
                 for w in r.objects:
                     where = (a, w)
                     w.attempted = True
-                    self._var(a, w).raw = w.new_device
+                    self._set(a, w, w.new_device)
                     w.written = True
             phase = "verify"
             for a, r in self.results.items():
                 for w in r.objects:
                     where = (a, w)
-                    back = self._var(a, w).raw
+                    back = self._get(a, w)
                     w.verified = _same(self._entry(a, w), back, w.new_device)
                     if not w.verified:
                         raise _Failed(f"{w.parameter} ({self._entry(a, w).where()}) reads back "
@@ -246,8 +263,8 @@ class _Transaction:
             for r in self.results.values():
                 r.ram = NEW
         except (Exception, KeyboardInterrupt) as exc:
-            axis, w = where
-            reason = _describe(exc, phase, w, None if w is None else self._entry(axis, w))
+            axis, at = where
+            reason = _describe(exc, phase, at, None if at is None or axis is None else self._entry(axis, at))
             if isinstance(exc, KeyboardInterrupt):
                 for r in self.results.values():
                     r.interrupted = signal_name(exc)
@@ -287,7 +304,7 @@ class _Transaction:
         self.store_state[axis] = NEW
         r.stored, r.stored_set = True, NEW
 
-    def _restore(self, failed_axis: str, reason: str) -> None:
+    def _restore(self, failed_axis: str | None, reason: str) -> None:
         """Write the backup to every drive written so far, read it back, and store it again where
         a store of the new set was sent; record what each drive is known to hold."""
         for a, r in self.results.items():
@@ -309,7 +326,7 @@ class _Transaction:
             back_ok = True
             for w in touched:
                 try:
-                    back = self._var(a, w).raw
+                    back = self._get(a, w)
                 except (Exception, KeyboardInterrupt) as exc:
                     self._note_interrupt(exc)
                     back_ok = False
@@ -324,7 +341,7 @@ class _Transaction:
             self._restore_stored_set(a, r)
 
     @contextmanager
-    def _as_before_bring_up(self, axis: str, r: WriteResult):
+    def _as_before_bring_up(self, axis: str, r: WriteResult) -> Iterator[None]:
         """Around the store of the backup: what bring-up overwrote as the drive held it before, then
         bring-up's values again in RAM (the run still streams with them).  A put-back that fails is
         noted and the store goes on (the backup of the objects written still stands)."""
@@ -355,10 +372,10 @@ class _Transaction:
         """Write one object's backup; an interrupt is not the drive's answer, so that object is
         tried once more before the restore goes on."""
         try:
-            self._var(axis, w).raw = w.old_device
+            self._set(axis, w, w.old_device)
         except KeyboardInterrupt as exc:
             self._note_interrupt(exc)
-            self._var(axis, w).raw = w.old_device
+            self._set(axis, w, w.old_device)
 
     def _note_interrupt(self, exc: BaseException) -> None:
         """The restore goes on through an interrupt (it is what makes the drive safe); remember it."""
@@ -381,8 +398,10 @@ class _Transaction:
             return
         try:
             save = self.profile.save
+            if save is None:
+                raise DriveRefused(f"the {self.profile.drive} profile names no object that stores the parameters")
             with self._as_before_bring_up(axis, r):
-                self.nodes[axis].sdo[save[0]][save[1]].raw = SAVE_SIGNATURE
+                sdo_object(self.nodes[axis], *save).raw = SAVE_SIGNATURE
             r.stored_set = BACKUP
             r.notes.append("the backup was stored again")
         except (Exception, KeyboardInterrupt) as exc:
@@ -456,7 +475,7 @@ def write_drives(nodes: dict[str, canopen.RemoteNode], profile: Profile, values:
     return outcome
 
 
-def raise_for_failure(outcome: WriteOutcome, backup_dir) -> None:
+def raise_for_failure(outcome: WriteOutcome, backup_dir: str | Path | None) -> None:
     """The error a failed write ends with: what failed, and per drive what it holds now."""
     if outcome.ok:
         return
@@ -465,7 +484,7 @@ def raise_for_failure(outcome: WriteOutcome, backup_dir) -> None:
     states = "; ".join(f"{a}: {r.holds()}" for a, r in outcome.results.items())
     message = (f"axis {axis}: {outcome.results[axis].error}" if axis else "not every drive was written") + \
         f" ({states}){where}"
-    failed = outcome.results.get(axis)
+    failed = outcome.results.get(axis) if axis else None
     interrupted = next((r.interrupted for r in outcome.results.values() if r.interrupted), None)
     if interrupted:
         raise WriteInterrupted(message)

@@ -31,7 +31,8 @@ what the SDO server sends its replies through.
 from __future__ import annotations
 
 import time
-from typing import Callable
+from collections.abc import Callable, Iterator
+from typing import Any
 
 import can
 import canopen
@@ -60,7 +61,7 @@ class FastVirtualBus(VirtualBus):
                 is_remote_frame=msg.is_remote_frame, dlc=msg.dlc, data=bytes(msg.data),
                 channel=self.channel_id, is_rx=bus_queue is not self.queue, check=False))
 
-    def drain(self):
+    def drain(self) -> Iterator[can.Message]:
         """Yield every frame waiting in the receive queue, oldest first."""
         pending = self.queue.queue           # the Queue's deque: popleft is atomic, no lock needed
         popleft = pending.popleft
@@ -78,7 +79,7 @@ class LoopbackMulticastBus(UdpMulticastBus):
     got around to reading the socket.
     """
 
-    def __init__(self, channel: str, port: int, **kwargs):
+    def __init__(self, channel: str, port: int, **kwargs: Any):
         super().__init__(channel, port, **kwargs)
         self._sent_ids: set[int] = set()
 
@@ -86,7 +87,7 @@ class LoopbackMulticastBus(UdpMulticastBus):
         self._sent_ids.add(msg.arbitration_id)
         super().send(msg, timeout)
 
-    def _recv_internal(self, timeout):
+    def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
         result = self._multicast.recv(timeout)
         if not result:
             return None, False
@@ -100,17 +101,18 @@ class _LocalNodeWithoutNmtTimer(canopen.LocalNode):
     """canopen's LocalNode whose NMT service does not handle writes to 0x1017 (it would start
     canopen's heartbeat timer thread; a simulated drive sends its heartbeat in simulation time)."""
 
-    def add_write_callback(self, callback) -> None:
+    def add_write_callback(self, callback: Callable[..., None]) -> None:
         nmt = getattr(self, "nmt", None)
         if nmt is not None and callback == nmt.on_write:
             return
         super().add_write_callback(callback)
 
 
-class _Replies:
+class _Replies(canopen.Network):
     """What canopen's SDO server sends its replies through: the drive's own ``send``."""
 
     def __init__(self, send: Callable[[int, bytes], None]):
+        super().__init__()
         self._send = send
 
     def send_message(self, can_id: int, data: bytes, remote: bool = False) -> None:

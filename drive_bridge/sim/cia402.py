@@ -51,6 +51,8 @@ def next_state(state: int, controlword: int, previous: int, quick_stop_option: i
     if state == FAULT:
         return SWITCH_ON_DISABLED if controlword & 0x80 and not previous & 0x80 else FAULT
     cmd = command(controlword)
+    if cmd is None:
+        return state
     if cmd == "enable operation" and state == QUICK_STOP and quick_stop_option not in QUICK_STOP_STAYS:
         return state
     return TRANSITIONS.get((cmd, state), state)

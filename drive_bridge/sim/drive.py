@@ -25,13 +25,16 @@ import logging
 import math
 import struct
 from collections import deque
-from typing import Callable, Protocol
+from pathlib import Path
+from typing import Any, Callable, Protocol
 
 import numpy as np
+from canopen.objectdictionary import ODVariable
 from canopen.sdo import SdoAbortedError
 
 from ..factor import OBJECTS as FACTOR_OBJECTS, FactorGroup
-from ..od import limits, load_od
+from ..od import default, limits, load_od, variable
+from ..params.controller import Controller
 from ..params.profile import SELECT, load_profile
 from ..pdo import PdoCodec
 from ..setpoint import CSP, IP, PVT, SETPOINT_OBJECTS, position_of, supported_modes
@@ -89,7 +92,7 @@ _MOTOR_OBJECTS = {1: "R", 2: "L", 3: "kt", 4: "vbus"}        # 0x2002 of the pro
 DEVICE_TYPE_SERVO = 0x00020192                                # CiA 402, servo drive
 
 
-def _loop_divider(controller, eds_path) -> int:
+def _loop_divider(controller: Controller, eds_path: str | Path) -> int:
     """Kernel ticks per tick of the drive's position/velocity loop: the simulator runs loops at
     2 kHz / n and its current loop at 8 kHz; ValueError for a profile declaring other rates."""
     inner = controller.timing
@@ -101,7 +104,7 @@ def _loop_divider(controller, eds_path) -> int:
     return round(div)
 
 
-def plant_params(p, axis: "SimAxis", axis_names: list[str]) -> None:
+def plant_params(p: np.ndarray, axis: "SimAxis", axis_names: list[str]) -> None:
     """Write the plant, motor and hidden effects of ``axis`` into its kernel parameter row ``p``."""
     m = axis.motor
     p[K.J], p[K.C0], p[K.C1], p[K.CP], p[K.D] = axis.J, axis.c0, axis.c1, axis.cp, axis.D
@@ -141,7 +144,7 @@ class SimDrive:
         #: injected faults, for tests: called as (kind "read" | "write", index, sub) before an SDO
         #: request is handled; it may raise (SdoAbortedError: the drive refuses), take the drive off
         #: the bus, or, for a read, return a value the drive answers instead of its own
-        self.sdo_fault: Callable[[str, int, int], object] | None = None
+        self.sdo_fault: Callable[[str, int, int], int | None] | None = None
         self.host = host
         self.index = index
         self.axis = axis
@@ -178,8 +181,11 @@ class SimDrive:
         #: the encoder's increments per rad (what the kernel quantises the position with)
         if encoder is not None and encoder.default:
             self.inc_per_rad = self._od(0x608F, 1) / self._od(0x608F, 2) / (2 * math.pi)
-        else:
+        elif self.spec.increments_per_rev is not None:
             self.inc_per_rad = self.spec.increments_per_rev / (2 * math.pi)
+        else:
+            raise ValueError(f"{self.spec.profile}: neither its EDS/DCF (0x608F) nor the simulator's description "
+                             f"gives the encoder's increments per revolution")
         self.pos_per_rad = self.vel_per_si = self.inc_per_rad
         self.modes = [m for m in supported_modes(self._supported_bits()) if m in IMPLEMENTED_MODES]
         self.s, self.p, self.d = rows      # kernel rows of this axis (views)
@@ -247,11 +253,11 @@ class SimDrive:
         for (index, sub), (col, entry) in self.params.items():
             p[col] = entry.to_si(self._od(index, sub))
 
-    def _store(self, index: int, sub: int, value) -> None:
-        self.node.data_store.setdefault(index, {})[sub] = self.od.get_variable(index, sub).encode_raw(value)
+    def _store(self, index: int, sub: int, value: Any) -> None:
+        self.node.data_store.setdefault(index, {})[sub] = variable(self.od, index, sub).encode_raw(value)
         self._cache[(index, sub)] = value
 
-    def _od_or(self, index: int, sub: int, fallback):
+    def _od_or(self, index: int, sub: int, fallback: Any) -> Any:
         """An object's value, or ``fallback`` where the drive has no such object."""
         return self._od(index, sub) if self.od.get_variable(index, sub) is not None else fallback
 
@@ -265,12 +271,12 @@ class SimDrive:
             60 / (2 * math.pi) if self.spec.velocity_unit == "rpm" else self.pos_per_rad)
         self.p[K.FE_WINDOW] = self._od(0x6065) / self.pos_per_rad        # the window is in position units
 
-    def _od(self, index: int, sub: int = 0):
+    def _od(self, index: int, sub: int = 0) -> Any:
         """Current value of an object, as the SDO server would return it (cached)."""
         try:
             return self._cache[(index, sub)]
         except KeyError:
-            value = self.od.get_variable(index, sub).decode_raw(self.node.get_data(index, sub))
+            value = variable(self.od, index, sub).decode_raw(self.node.get_data(index, sub))
             if index not in self._live:
                 self._cache[(index, sub)] = value
             return value
@@ -321,7 +327,7 @@ class SimDrive:
             self.fifo.clear()
             self.fifo_enabled, self.ip_errors = False, 0
         self._rebuild_pdos()
-        self._heard = {}
+        self._heard: dict[int, float] = {}
         self._consumers_changed()
         self._refresh_actuals(noise=False)
 
@@ -363,9 +369,9 @@ class SimDrive:
             if var is not None and var.default is None:
                 self._store(0x1018, sub, value or 0)
         self._store(0x1018, 4, self.axis.serial)
-        if self.od[0x1000].default is None:
+        if default(self.od, 0x1000) is None:
             self._store(0x1000, 0, DEVICE_TYPE_SERVO)
-        if 0x6502 in self.od and self.od[0x6502].default is None:
+        if 0x6502 in self.od and default(self.od, 0x6502) is None:
             self._store(0x6502, 0, self.spec.supported_modes)
 
     def heartbeat_due(self, now: float) -> None:
@@ -425,7 +431,7 @@ class SimDrive:
             self._go(QUICK_STOP)
 
     # ------------------------------------------------------------------ SDO hooks
-    def _on_sdo_read(self, index: int, subindex: int, od) -> int | None:
+    def _on_sdo_read(self, index: int, subindex: int, od: ODVariable) -> int | None:
         if self.sdo_fault is not None:
             answer = self.sdo_fault("read", index, subindex)
             if answer is not None:
@@ -443,7 +449,7 @@ class SimDrive:
             return self.error_history[subindex - 1] if subindex <= len(self.error_history) else 0
         return None
 
-    def _on_sdo_write(self, index: int, subindex: int, od, data: bytes) -> None:
+    def _on_sdo_write(self, index: int, subindex: int, od: ODVariable, data: bytes) -> None:
         if self.sdo_fault is not None:
             self.sdo_fault("write", index, subindex)
         code = self.abort_writes.get((index, subindex))
@@ -458,7 +464,7 @@ class SimDrive:
         elif index == 0x1016:
             self._consumers_changed()
 
-    def _write(self, index: int, sub: int, value) -> None:
+    def _write(self, index: int, sub: int, value: Any) -> None:
         """Apply a value written by SDO or RPDO; raise SdoAbortedError to refuse it."""
         if 0x1400 <= index <= 0x1BFF:
             self.pdos.check_write(index, sub, value)
@@ -818,8 +824,9 @@ class SimDrive:
                 self._in_window_since = None
             elif self._in_window_since is None:
                 self._in_window_since = self.host.time
-            self.target_reached = inside and \
-                self.host.time - self._in_window_since >= self._od_or(0x6068, 0, 10) / 1000.0 - 1e-9
+            since = self._in_window_since
+            self.target_reached = since is not None and \
+                self.host.time - since >= self._od_or(0x6068, 0, 10) / 1000.0 - 1e-9
         timeout_ticks = max(1, round(self._od_or(0x6066, 0, factory().fe_timeout_ms) / 1000.0 / K.VELOCITY_TICK_S))
         if self.s[K.FE_COUNT] >= timeout_ticks:
             self.fault(ERR_FOLLOWING)

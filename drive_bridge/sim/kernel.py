@@ -69,7 +69,7 @@ P0, P1, A_FF, V_OFF, T_OFF = range(5)
 N_DEMAND = 5
 
 
-def mean_current(state_row) -> float:
+def mean_current(state_row: np.ndarray) -> float:
     """Current [A] averaged since the last call (what a drive reports as actual torque/current
     is filtered over its report period, not one sample of the 8 kHz loop), then restart."""
     n = state_row[I_COUNT]
@@ -79,7 +79,7 @@ def mean_current(state_row) -> float:
 
 
 @njit(cache=True)
-def _sign(x):
+def _sign(x: float) -> float:
     if x > 0.0:
         return 1.0
     if x < 0.0:
@@ -88,7 +88,8 @@ def _sign(x):
 
 
 @njit(cache=True, nogil=True)
-def advance(state, param, demand, tick0, n_ticks, ticks_per_period):
+def advance(state: np.ndarray, param: np.ndarray, demand: np.ndarray, tick0: np.ndarray, n_ticks: int,
+            ticks_per_period: int) -> None:
     """Advance all axes by ``n_ticks`` velocity-loop ticks.
 
     ``tick0[a]`` is the number of ticks axis ``a`` has already done in the
@@ -243,7 +244,7 @@ def advance(state, param, demand, tick0, n_ticks, ticks_per_period):
             state[a, T] += VELOCITY_TICK_S
 
 
-def new_arrays(n_axes: int):
+def new_arrays(n_axes: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Zeroed (state, param, demand) arrays for ``n_axes`` axes."""
     state = np.zeros((n_axes, N_STATE))
     param = np.zeros((n_axes, N_PARAM))

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import os
 import time
+from collections.abc import Callable
 
 from ..master.link import BusErrors, MasterNetwork, TraceRecorder, heartbeat_frame
 from .robot import SimRobot
@@ -45,12 +46,14 @@ class LockstepLink:
         self.robot = robot
         self.clock = LockstepClock(self)
         self.bus = FastVirtualBus(channel=channel, preserve_timestamps=True)
+        if not isinstance(robot.bus, FastVirtualBus):
+            raise ValueError("a lockstep link runs the robot on its own in-process bus (robot.bus a FastVirtualBus)")
         self.bus.direct = robot.bus.direct = True       # one thread: hand frames over as they are
         self.network = MasterNetwork(self.bus, self.clock)
         self.network.after_send = self._after_send
         self._notify = self.network.notify
         self.bus_errors = BusErrors()          # a virtual bus has none; the contract has them
-        self._heartbeat = None
+        self._heartbeat: Callable[[float], None] | None = None
         robot.power_on()
         self.pump()
 

@@ -15,7 +15,11 @@ import select
 import socket
 import subprocess
 import sys
+from collections.abc import Callable, Mapping
 from pathlib import Path
+from typing import IO, cast
+
+import can
 
 from ..errors import BusError
 from ..master.link import UDP_GROUP
@@ -38,30 +42,32 @@ class SimProcess:
     its standard input closes (so it also stops when this process dies).
     """
 
-    def __init__(self, config_path: str | Path, sync_period: float, eds: dict[str, str] | None = None):
+    def __init__(self, config_path: str | Path, sync_period: float, eds: Mapping[str, str | Path] | None = None):
         self.port = free_port()
         self.bus = LoopbackMulticastBus(GROUP, self.port)      # the master's end, open before boot-up
         self.process = subprocess.Popen(
             [sys.executable, "-m", __name__, str(config_path), str(self.port), repr(sync_period),
              json.dumps({a: str(p) for a, p in (eds or {}).items()})],
             stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
-        ready = select.select([self.process.stdout], [], [], START_TIMEOUT_S)[0]
-        if not ready or self.process.stdout.readline().strip() != "ready":
+        self._stdin, self._stdout = cast(IO[str], self.process.stdin), cast(IO[str], self.process.stdout)  # PIPEs
+        ready = select.select([self._stdout], [], [], START_TIMEOUT_S)[0]
+        if not ready or self._stdout.readline().strip() != "ready":
             self.shutdown()
             raise BusError(f"simulated drives did not start within {START_TIMEOUT_S:.0f} s")
 
     def shutdown(self) -> None:
         if self.process.poll() is None:
-            self.process.stdin.close()
+            self._stdin.close()
             try:
                 self.process.wait(timeout=5)
             except subprocess.TimeoutExpired:
                 self.process.kill()
-        self.process.stdout.close()
+        self._stdout.close()
         self.bus.shutdown()
 
 
-def serve(config_path, bus, sync_period: float, eds: dict, until) -> None:
+def serve(config_path: str | Path, bus: can.BusABC, sync_period: float, eds: dict[str, str],
+          until: Callable[[], object]) -> None:
     """Run the simulated drives of ``config_path`` on ``bus`` against the wall clock; print
     ``ready`` once they are on the bus; ``until()`` returns when they are to stop."""
     from .config import load_sim_config

@@ -14,6 +14,7 @@ from __future__ import annotations
 import os
 import threading
 import time
+from collections.abc import Callable, Mapping
 from pathlib import Path
 
 import can
@@ -39,15 +40,15 @@ class SimRobot:
     """
 
     def __init__(self, config: SimConfig, channel: str = "drive-bridge", *, bus: can.BusABC | None = None,
-                 sync_period: float = 0.002, eds: str | Path | dict[str, str | Path] = PROJECT_EDS):
+                 sync_period: float = 0.002, eds: str | Path | Mapping[str, str | Path] = PROJECT_EDS):
         self.config = config
         self.sync_period = sync_period
         self.ticks_per_period = round(sync_period / K.VELOCITY_TICK_S)
         if abs(self.ticks_per_period * K.VELOCITY_TICK_S - sync_period) > 1e-9:
             raise ValueError(f"SYNC period {sync_period} s is not a multiple of the 0.5 ms loop tick")
         self.bus = bus if bus is not None else FastVirtualBus(channel=channel, preserve_timestamps=True)
-        self._stamp = lambda: self.time           # lockstep: frames carry simulation time
         self.time = 0.0
+        self._stamp = lambda: self.time           # lockstep: frames carry simulation time
         self._rng = np.random.default_rng(config.seed)
         self._noise = np.empty(0)
         self._noise_i = 0
@@ -55,14 +56,14 @@ class SimRobot:
         self._tick0 = np.zeros(len(config.axes), dtype=np.int64)
         # compile (or load from numba's cache) now, not while a clock is running
         K.advance(self.state, self.param, self.demand, self._tick0, 0, self.ticks_per_period)
-        self._routes: dict[int, callable] = {}
+        self._routes: dict[int, Callable[[bytes], None]] = {}
         #: called with the time after each advance (a lockstep master's heartbeat, in simulation time)
-        self.timers: list = []
+        self.timers: list[Callable[[float], None]] = []
         self.drives: dict[str, SimDrive] = {}      # filled before the first routes_changed() counts
         names = list(config.axes)
         for i, (name, axis) in enumerate(config.axes.items()):
             self.state[i, K.Q] = axis.initial_position_rad
-            path = eds.get(name, PROJECT_EDS) if isinstance(eds, dict) else eds
+            path = eds.get(name, PROJECT_EDS) if isinstance(eds, Mapping) else eds
             self.drives[name] = SimDrive(self, i, axis, str(path),
                                          (self.state[i], self.param[i], self.demand[i]), names)
         self.routes_changed()
@@ -94,21 +95,21 @@ class SimRobot:
         self._routes = routes
 
     @staticmethod
-    def _sdo_handler(drive: SimDrive):
+    def _sdo_handler(drive: SimDrive) -> Callable[[bytes], None]:
         def handle(data: bytes) -> None:
             if drive.online and drive.nmt_state != NMT_STOPPED:        # CiA 301: no SDO in Stopped
                 drive.node.sdo.on_request(0x600 + drive.node_id, data, 0.0)
         return handle
 
     @staticmethod
-    def _rpdo_handler(drive: SimDrive, cob_id: int):
+    def _rpdo_handler(drive: SimDrive, cob_id: int) -> Callable[[bytes], None]:
         def handle(data: bytes) -> None:
             if drive.online:
                 drive.on_rpdo(cob_id, data)
         return handle
 
     @staticmethod
-    def _heartbeat_handler(node: int, drives: list[SimDrive]):
+    def _heartbeat_handler(node: int, drives: list[SimDrive]) -> Callable[[bytes], None]:
         def handle(data: bytes) -> None:
             for drive in drives:
                 if drive.online:
@@ -140,8 +141,8 @@ class SimRobot:
             for msg in self.bus.drain():
                 self.dispatch(msg)
         else:
-            while (msg := self.bus.recv(0)) is not None:
-                self.dispatch(msg)
+            while (frame := self.bus.recv(0)) is not None:
+                self.dispatch(frame)
 
     def idle(self, duration: float) -> None:
         """Lockstep: let ``duration`` seconds pass without SYNC (drives hold, heartbeats go out)."""

@@ -24,6 +24,7 @@ KiS [1/s], KpP [1/s], KpC [V/A], KiC [1/s].
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from typing import TYPE_CHECKING
 
@@ -90,13 +91,14 @@ class GainDesign:
         return asdict(self)
 
 
-def _margins(open_loop) -> Margins:
+def _margins(open_loop: control.TransferFunction) -> Margins:
     gm, pm, _, wc = control.margin(open_loop)
     gm_db = float(20 * np.log10(gm)) if np.isfinite(gm) and gm > 0 else float("inf")
     return Margins(float(pm), gm_db, float(wc / (2 * np.pi)))
 
 
-def _plant_paths(J: float, c1: float, current_bw_rad_s: float, tick_s: float = LOOP_TICK_S):
+def _plant_paths(J: float, c1: float, current_bw_rad_s: float, tick_s: float = LOOP_TICK_S
+                 ) -> tuple[control.TransferFunction, control.TransferFunction]:
     s = control.tf("s")
     num, den = control.pade(tick_s, PADE_ORDER)             # ½ T hold + ½ T velocity difference
     delay = control.tf(num, den)
@@ -104,18 +106,20 @@ def _plant_paths(J: float, c1: float, current_bw_rad_s: float, tick_s: float = L
     return s, delay * current / (J * s + max(c1, 0.0))
 
 
-def velocity_open_loop(J, c1, KpS, KiS, current_bw_rad_s, tick_s: float = LOOP_TICK_S):
+def velocity_open_loop(J: float, c1: float, KpS: float, KiS: float, current_bw_rad_s: float,
+                       tick_s: float = LOOP_TICK_S) -> control.TransferFunction:
     s, plant = _plant_paths(J, c1, current_bw_rad_s, tick_s)
     return KpS * (1 + KiS / s) * plant
 
 
-def position_open_loop(J, c1, KpS, KiS, KpP, current_bw_rad_s, tick_s: float = LOOP_TICK_S):
+def position_open_loop(J: float, c1: float, KpS: float, KiS: float, KpP: float, current_bw_rad_s: float,
+                       tick_s: float = LOOP_TICK_S) -> control.TransferFunction:
     s = control.tf("s")
     closed_velocity = control.feedback(velocity_open_loop(J, c1, KpS, KiS, current_bw_rad_s, tick_s), 1)
     return KpP / s * closed_velocity
 
 
-def controller(gains: dict[str, float], tick_s: float = LOOP_TICK_S):
+def controller(gains: dict[str, float], tick_s: float = LOOP_TICK_S) -> Callable[[np.ndarray], np.ndarray]:
     """K(jω) of the drive's cascade as seen at its torque command [Nm per rad/s]: the velocity PI
     around the measured velocity, the position P around that, the loop's delay (½ T hold + ½ T
     velocity difference) -- what a torque offset added to the command sees close the loop."""
@@ -234,15 +238,16 @@ def current_gains(R: float, L: float, current_hz: float = CURRENT_RATE_HZ) -> tu
     return L * w_i, R / L, w_i
 
 
-def open_loops(J, c1, gains: dict[str, float], L: float, tick_s: float = LOOP_TICK_S):
+def open_loops(J: float, c1: float, gains: dict[str, float], L: float, tick_s: float = LOOP_TICK_S
+               ) -> tuple[control.TransferFunction, control.TransferFunction]:
     """The velocity and the position loop, open, with given gains on the identified plant."""
     w_i = gains["KpC"] / L
     return (velocity_open_loop(J, c1, gains["KpS"], gains["KiS"], w_i, tick_s),
             position_open_loop(J, c1, gains["KpS"], gains["KiS"], gains["KpP"], w_i, tick_s))
 
 
-def following_error(J, c1, gains: dict[str, float], L: float, torque_feedforward: bool,
-                    tick_s: float = LOOP_TICK_S):
+def following_error(J: float, c1: float, gains: dict[str, float], L: float, torque_feedforward: bool,
+                    tick_s: float = LOOP_TICK_S) -> tuple[control.TransferFunction, control.TransferFunction]:
     """Transfer functions from the position demand, and from a torque disturbance, to the
     following error (demand − position) of the cascade on the identified plant: velocity
     feed-forward FwF, and where ``torque_feedforward`` the model torque, which enters through the
@@ -257,17 +262,18 @@ def following_error(J, c1, gains: dict[str, float], L: float, torque_feedforward
     return control.minreal(demand, verbose=False), control.minreal((rigid - fed) / den, verbose=False)
 
 
-def loop_margins(J, c1, gains: dict[str, float], R: float, L: float,
+def loop_margins(J: float, c1: float, gains: dict[str, float], R: float, L: float,
                  tick_s: float = LOOP_TICK_S) -> tuple[Margins, Margins]:
     """Margins of given gains on the identified plant (e.g. the factory or the paper's sets)."""
     velocity, position = open_loops(J, c1, gains, L, tick_s)
     return _margins(velocity), _margins(position)
 
 
-def _largest(margins_of, lo: float, hi: float, pm_min: float, what: str) -> tuple[float, Margins]:
+def _largest(margins_of: Callable[[float], Margins], lo: float, hi: float, pm_min: float,
+             what: str) -> tuple[float, Margins]:
     """The largest x in [lo, hi] whose margins hold (they shrink as x grows), by bisection on
     log x to 0.1 %."""
-    def ok(x):
+    def ok(x: float) -> Margins | None:
         m = margins_of(x)
         return m if m.phase_margin_deg >= pm_min and m.gain_margin_db >= GM_DESIGN_DB else None
     best = ok(lo)

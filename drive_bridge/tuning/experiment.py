@@ -26,7 +26,7 @@ from typing import Callable
 import numpy as np
 
 from ..config import BusConfig, Limits
-from ..errors import DriveRefused, GuardStop, UserError
+from ..errors import DriveRefused, GuardStop, MotionAborted, UserError
 from ..master.bringup import AxisLink
 from ..master.campaign import APPROACH_LEVEL
 from ..master.link import Link
@@ -127,7 +127,7 @@ def run_experiment(config: BusConfig, link: Link, axes: dict[str, AxisLink], axi
     check_start(axis, start_KpS, admit)
     inc = ax.cfg.scaling.inc_per_rad
     window = ax.node.sdo[0x6065].raw
-    original = None
+    original: dict[str, float] | None = None         # the gains before, read before anything moves
     result = ExperimentResult(axis, None)
     ax.node.sdo[0x6065].raw = round(FE_GUARD_RAD * inc)
 
@@ -157,14 +157,15 @@ def run_experiment(config: BusConfig, link: Link, axes: dict[str, AxisLink], axi
         result.steps.append(step)
         return step
 
-    def _expected(stop) -> bool:
+    def _expected(stop: MotionAborted) -> bool:
         """The stops the procedure provokes: its velocity guard, or the following-error fault of
         its tightened window on the axis under test."""
         return isinstance(stop, GuardStop) or (stop.axis == axis and stop.emcy == ERR_FOLLOWING)
 
     def recover() -> None:
         """After a stop: settle the axis where it stands with the gain it had before the experiment."""
-        write_parameters(ax.node, profile, original, store=False)
+        if original is not None:
+            write_parameters(ax.node, profile, original, store=False)
         here = ax.position_rad()
         motion.run(config, link, {axis: ax}, {axis: np.full(round(RECOVER_S / period), here)})
 

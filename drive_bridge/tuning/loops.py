@@ -12,6 +12,7 @@ beside the model's curves.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import control
 import numpy as np
@@ -19,9 +20,12 @@ import numpy as np
 from .design import LOOP_TICK_S, following_error, open_loop_at, open_loops
 from .feedforward import model_torque
 
+if TYPE_CHECKING:
+    from ..ident.frf import Frf
+
 
 def loop_figure(J: float, c1: float, before: dict[str, float] | None, after: dict[str, float], L: float,
-                path: str | Path, title: str = "", frf=None, tick_s: float = LOOP_TICK_S) -> Path:
+                path: str | Path, title: str = "", frf: Frf | None = None, tick_s: float = LOOP_TICK_S) -> Path:
     """Write the Bode plots and the step responses of one axis to ``path`` (PNG); ``frf``: the
     plant's measured response (:class:`drive_bridge.ident.frf.Frf`), drawn as points; ``tick_s``:
     the period of the drive's loop [s]."""

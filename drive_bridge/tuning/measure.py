@@ -11,6 +11,7 @@ holds as read back.  SI: rad, rad/s, Nm.
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 
 import numpy as np
 
@@ -18,6 +19,7 @@ from ..config import BusConfig
 from ..errors import DriveRefused, UserError
 from ..ident.frf import PERIOD_SAMPLES, PERIODS, Frf, excitation, measure
 from ..master.bringup import AxisLink
+from ..master.campaign import Plan
 from ..master.link import Link
 from ..outputs import stamped
 from ..params.controller import GAINS
@@ -75,7 +77,8 @@ def unmeasurable(ax: AxisLink, profile: Profile) -> str | None:
 
 
 def measure_axes(config: BusConfig, link: Link, axes: dict[str, AxisLink], profile: Profile,
-                 inertia: dict[str, float], on_plan=None) -> tuple[dict[str, Frf], dict[str, str]]:
+                 inertia: dict[str, float], on_plan: Callable[[Plan], Callable[[int], None] | None] | None = None
+                 ) -> tuple[dict[str, Frf], dict[str, str]]:
     """The frequency response of each axis of ``axes`` that can be measured (``inertia``: its
     identified J, for the soft gains; ``on_plan``: :func:`~drive_bridge.tuning.motion.run`'s
     progress hook), and why each other one was not."""

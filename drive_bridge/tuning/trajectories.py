@@ -63,8 +63,10 @@ def path(limits: dict[str, Limits], period: float) -> dict[str, np.ndarray]:
             v = min(v, math.sqrt(d * acc)) if d else v
             times.append(d / v + v / acc if d else 0.0)
         lead = int(np.argmax(times))
-        shape = trapezoid(0.0, 1.0, *(1.0 / max(abs(p1[lead] - p0[lead]), 1e-12) * x for x in (
-            PATH_LEVEL * limits[axes[lead]].max_velocity, PATH_LEVEL * limits[axes[lead]].max_acceleration)), period)
+        per_stroke = 1.0 / max(abs(p1[lead] - p0[lead]), 1e-12)          # the lead axis's stroke: 1
+        lead_limits = limits[axes[lead]]
+        shape = trapezoid(0.0, 1.0, per_stroke * (PATH_LEVEL * lead_limits.max_velocity),
+                          per_stroke * (PATH_LEVEL * lead_limits.max_acceleration), period)
         for i in range(len(axes)):
             cols[i].append(p0[i] + (p1[i] - p0[i]) * shape)
             cols[i].append(np.full(rest // 2, p1[i]))

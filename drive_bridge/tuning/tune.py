@@ -5,10 +5,12 @@ import json
 import logging
 import math
 
-import numpy as np
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
+from ..config import BusConfig
 from ..errors import UserError
 from ..ident.effects import DRIVE_EFFECTS
 from ..outputs import stamped
@@ -98,7 +100,7 @@ def _axes_of(path: Path, what: str) -> dict:
     return axes
 
 
-def _numbers(path: Path, where: str, values) -> dict[str, float]:
+def _numbers(path: Path, where: str, values: object) -> dict[str, float]:
     if not isinstance(values, dict):
         raise UserError(f"{path}: {where} must be a mapping of names to numbers")
     out = {}
@@ -107,8 +109,8 @@ def _numbers(path: Path, where: str, values) -> dict[str, float]:
             raise UserError(f"{path}: {where}.{k} = {v!r} is not a number")
         try:
             out[k] = float(v)
-        except OverflowError as exc:
-            raise UserError(f"{path}: {where}.{k}: {too_large(v)}") from exc
+        except OverflowError as exc:                  # only an int overflows a float
+            raise UserError(f"{path}: {where}.{k}: {too_large(int(v))}") from exc
     return out
 
 
@@ -289,7 +291,7 @@ class TuneFile:
     parameters: dict[str, dict[str, float]]
     inductance: dict[str, float | None]
 
-    def only(self, config) -> "TuneFile":
+    def only(self, config: BusConfig) -> "TuneFile":
         """The axes of ``config``; an axis of the file that ``config`` does not have is an error."""
         unknown = [a for a in self.parameters if a not in config.nodes]
         if unknown:

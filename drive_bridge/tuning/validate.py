@@ -16,9 +16,10 @@ records which, per axis, and why an axis had none.
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable, Collection
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Callable
+from typing import Any
 
 import numpy as np
 
@@ -85,7 +86,8 @@ def metrics(m: motion.Motion, model: dict[str, dict[str, float]], period: float,
         fe = m.demand[a] - m.position[a]
         ok = np.isfinite(fe)
         if not ok.any():                       # stopped before the trajectory began: nothing to measure
-            out[a] = AxisMetrics(*([float("nan")] * 2), None, None, *([float("nan")] * 2))
+            nan = float("nan")
+            out[a] = AxisMetrics(nan, nan, None, None, nan, nan)
             continue
         over = settle = None
         if moves:
@@ -106,7 +108,7 @@ def metrics(m: motion.Motion, model: dict[str, dict[str, float]], period: float,
 
 
 def _torque_error(model: dict[str, float], demand: np.ndarray, torque: np.ndarray, ok: np.ndarray,
-                  period: float) -> tuple[float, float, int, float | None]:
+                  period: float) -> tuple[float, float, int | None, float | None]:
     """Model torque RMSE [Nm], torque RMS [Nm], the lag [cycles] the RMSE is taken at, and the
     RMSE between the acceleration steps, over the moving samples (at rest: stiction)."""
     pred = model_torque(model, demand, period)
@@ -145,7 +147,7 @@ def validate(config: BusConfig, link: Link, axes: dict[str, AxisLink], profile: 
              scenarios: dict[str, dict[str, dict[str, float]]],
              model: dict[str, dict[str, float]], *,
              on_plan: Callable[[Plan], Callable[[int], None] | None] | None = None,
-             master_feedforward: set[str] = frozenset()) -> list[Run]:
+             master_feedforward: Collection[str] = frozenset()) -> list[Run]:
     """Run every scenario (name -> axis -> parameter values) on both reference trajectories.
 
     ``model`` (axis -> J, c0, c1, ...) predicts the torque the metrics compare with; ``on_plan``
@@ -189,7 +191,8 @@ def run_scenarios(config: BusConfig, link: Link, axes: dict[str, AxisLink], prof
                   scenarios: dict[str, dict[str, dict[str, float]]], model: dict[str, dict[str, float]], *,
                   out_dir: str | Path | None = None,
                   on_plan: Callable[[Plan], Callable[[int], None] | None] | None = None,
-                  master_feedforward: set[str] = frozenset(), refused: dict[str, str] | None = None) -> list[Run]:
+                  master_feedforward: Collection[str] = frozenset(),
+                  refused: dict[str, str] | None = None) -> list[Run]:
     """The validate step: :func:`validate` with the drives left holding the parameters they had
     before (every parameter a scenario sets, read first and written back, not stored), and,
     with ``out_dir``, ``validate.json`` and the logged runs (``traces.npz``) kept there.
@@ -211,9 +214,11 @@ def run_scenarios(config: BusConfig, link: Link, axes: dict[str, AxisLink], prof
     if out_dir is not None:
         out = Path(out_dir)
         write_json(out / VALIDATE_JSON, validate_doc(runs, refused))
-        traces = {}
+        traces: dict[str, Any] = {}             # arrays by name (numpy's keywords: "allow_pickle" is not one)
         for r in runs:
             m = r.motion
+            if m is None:
+                continue
             for a in m.position:
                 key = f"{r.scenario}/{r.trajectory}/{a}"
                 traces[key + "/t"] = m.t
