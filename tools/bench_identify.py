@@ -3,6 +3,8 @@
     python tools/bench_identify.py crb [--seeds 50]       # estimator spread against the reported std
     python tools/bench_identify.py coverage [--cases 40]  # true values within 3 reported std?
     python tools/bench_identify.py speed                   # 3 axes, 300 s at 500 Hz, with residual tracing
+    python tools/bench_identify.py full [--log DIR] [--against REV] [--profile N]
+                                                           # the full paper campaign (867 s), where the time goes
 
 crb: a log measured 50 times with different torque-noise seeds, identified as a user would
 (``identify``: tracing, torque alignment); the standard deviation of J, c0, c1 over the seeds
@@ -14,10 +16,21 @@ structure no library effect or one-variable spline models (friction or torque de
 variables at once), amplitudes, plants and seeds drawn at random (seeded): the share of cases
 where the true J, c0, c1 lie within 3 reported std.  speed: the shipped robot (with its hidden
 effects), the default campaign cut to 100 s per axis, one axis after the other: 300 s of log.
+full: the log of the full paper campaign (``--log``: a record directory, as ``commission --sim``
+leaves in ``campaign/``; default: the shipped robot's plant run bus-free through the campaign,
+867 s at 500 Hz), identified as ``commission`` does; beside it the plain least squares of the same
+axes (the same-run reference), and with ``--against REV`` the same log identified by the code of
+git revision REV (a worktree, in a process of its own, the runs alternated): the speed-up measured
+in one run.  ``--profile N``: the N functions the time goes to (cProfile, internal time).
 """
 from __future__ import annotations
 
 import argparse
+import cProfile
+import json
+import os
+import pstats
+import subprocess
 import sys
 import tempfile
 import time
@@ -143,9 +156,87 @@ def speed() -> None:
         print(f"  {a}: {[e.effect.name for e in r.effects]}, RMSE {r.before.rmse:.4g} -> {r.after.rmse:.4g} Nm")
 
 
+def full_log(directory: Path) -> Path:
+    """The full paper campaign of the shipped robot, bus-free, as a log CSV in ``directory``."""
+    cfg = load_bus_config(DEFAULT_BUS_CONFIG)
+    sim = load_sim_config(SIM_DEFAULT)
+    plan = build_plan(cfg.campaign, {a: cfg.nodes[a].limits for a in sim.axes}, dict.fromkeys(sim.axes, 0.0),
+                      cfg.master.sync_period_s)
+    return write_log(directory / "log.csv", plant_log(sim, {a: plan.demand[:, i] for i, a in enumerate(plan.axes)}))
+
+
+TIMED = """import json, sys, time
+from drive_bridge.ident import identify
+t0 = time.perf_counter()
+results = identify(sys.argv[1], seed=0)
+print(json.dumps({"wall": time.perf_counter() - t0,
+                  "params": {a: {k: r.model.params_[k] for k in ("J", "c0", "c1")} for a, r in results.items()},
+                  "std": {a: {k: r.model.param_std_[k] for k in ("J", "c0", "c1")} for a, r in results.items()},
+                  "effects": {a: [t.effect.name for t in r.effects] for a, r in results.items()}}))
+"""
+
+
+def _timed(root: Path, log: Path) -> dict:
+    """One identification of ``log`` by the code under ``root``, in a process of its own."""
+    env = {**os.environ, "PYTHONPATH": str(root)}
+    out = subprocess.run([sys.executable, "-c", TIMED, str(log)], cwd=root, env=env, check=True,
+                         capture_output=True, text=True).stdout
+    return json.loads(out.strip().splitlines()[-1])
+
+
+def full(log_dir: str | None, against: str | None, profile: int, runs: int) -> None:
+    with tempfile.TemporaryDirectory() as tmp:
+        log = Path(log_dir) / "log.csv" if log_dir else full_log(Path(tmp))
+        other = None
+        if against:
+            other = Path(tmp) / "against"
+            subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", "-f", str(other), against],
+                           check=True, capture_output=True)
+        try:
+            mine, theirs = [], []
+            for _ in range(runs):                      # alternated: the machine's speed drifts
+                mine.append(_timed(ROOT, log))
+                if other is not None:
+                    theirs.append(_timed(other, log))
+        finally:
+            if other is not None:
+                subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(other)],
+                               capture_output=True)
+        from drive_bridge.ident.logdata import read_log
+        data = read_log(log)
+        plain = sum(min(least_squares(data.t, ax.q, ax.tau) for _ in range(5)) for ax in data.axes.values())
+        print(stamp())
+        best = min(r["wall"] for r in mine)
+        print(f"{log}: {len(data.t)} rows ({len(data.t) * data.dt:.0f} s), {len(data.axes)} axes")
+        walls = ", ".join(f"{r['wall']:.2f}" for r in mine)
+        print(f"identify (as commission runs it): {walls} s; a plain filter + "
+              f"3-column least squares of the same axes: {plain * 1e3:.0f} ms -> {best / plain:.0f}x that")
+        if theirs:
+            ref = min(r["wall"] for r in theirs)
+            walls = ", ".join(f"{r['wall']:.2f}" for r in theirs)
+            print(f"revision {against}: {walls} s -> this code takes "
+                  f"{best / ref:.2f}x its time")
+            worst = max(abs(mine[0]["params"][a][k] - theirs[0]["params"][a][k]) / theirs[0]["std"][a][k]
+                        for a in theirs[0]["params"] for k in ("J", "c0", "c1"))
+            print(f"  J, c0, c1 differ by at most {worst:.2g} of their std; effects "
+                  + ("the same" if mine[0]["effects"] == theirs[0]["effects"] else
+                     f"differ: {mine[0]['effects']} vs {theirs[0]['effects']}"))
+        for a, p in mine[0]["params"].items():
+            print(f"  {a}: J {p['J']:.6g}, c0 {p['c0']:.6g}, c1 {p['c1']:.6g}; effects {mine[0]['effects'][a]}")
+        if profile:
+            prof = cProfile.Profile()
+            prof.runcall(identify, log, seed=0)
+            print(f"where the time goes (cProfile, the {profile} largest internal times):")
+            pstats.Stats(prof).sort_stats("tottime").print_stats(profile)
+
+
 if __name__ == "__main__":
     parser = argparse.ArgumentParser()
-    parser.add_argument("mode", choices=["crb", "coverage", "speed"])
+    parser.add_argument("mode", choices=["crb", "coverage", "speed", "full"])
+    parser.add_argument("--log", help="full: a record directory (default: a plant log of the paper campaign)")
+    parser.add_argument("--against", help="full: a git revision whose identification is timed in the same run")
+    parser.add_argument("--profile", type=int, default=0, help="full: print the N largest internal times")
+    parser.add_argument("--runs", type=int, default=2, help="full: timed runs of each code")
     parser.add_argument("--seeds", type=int, default=50)
     parser.add_argument("--cases", type=int, default=42)
     parser.add_argument("--verbose", action="store_true", help="coverage: one line per case")
@@ -154,5 +245,7 @@ if __name__ == "__main__":
         crb(args.seeds)
     elif args.mode == "coverage":
         coverage(args.cases, args.verbose)
+    elif args.mode == "full":
+        full(args.log, args.against, args.profile, args.runs)
     else:
         speed()

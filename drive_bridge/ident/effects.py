@@ -116,7 +116,9 @@ class Effect:
         def sse(x: np.ndarray) -> float:
             extra = self._signed(s, self._columns(s, **dict(zip(self.nonlinear, x))))
             extra = extra - q @ (q.T @ extra)
-            coef, *_ = np.linalg.lstsq(extra, y_perp, rcond=None)
+            # the few extra columns' least squares through their Gram matrix (k × k): the n × k
+            # problem's SVD was most of the search's time
+            coef, *_ = np.linalg.lstsq(extra.T @ extra, extra.T @ y_perp, rcond=None)
             r = y_perp - extra @ coef
             return float(r @ r)
 

@@ -60,6 +60,9 @@ class Log:
     axes: dict[str, AxisLog]
     #: what the time stamps held: period, jitter, gaps, and whether the log was resampled
     sampling: dict = field(default_factory=dict)
+    #: each axis's filtered speed over a segment, by (axis, start, stop, cut-off), for the part
+    #: of the segment identification filters (:meth:`.signals.Parallel._active`)
+    speeds: dict = field(default_factory=dict, repr=False)
 
 
 def _csv_path(path: Path) -> Path:

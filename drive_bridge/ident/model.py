@@ -157,18 +157,26 @@ class AxisModel:
         return effect.params(self._coef_of(effect))
 
 
+DIRECT_LAGS = 64             # hac_lags: lags of the autocorrelation summed directly, beyond them by FFT
+
+
 def hac_lags(resid: np.ndarray) -> int:
     """Correlation length of the residual [samples]: the Newey-West (1994) rule 4·(n/100)^(2/9),
     or longer while its autocorrelation stays above the white-noise band 2/√n (at most n/10)."""
     n = len(resid)
     rule = int(4 * (n / 100) ** (2 / 9))
     r = resid - resid.mean()
-    spectrum = np.fft.rfft(r, 2 * n)
-    acf = np.fft.irfft(spectrum * np.conj(spectrum))[:n]
-    if acf[0] <= 0:
+    power = float(r @ r)
+    if power <= 0:
         return rule
     cap = max(1, n // 10)
-    below = np.flatnonzero(acf[1:cap + 1] / acf[0] <= 2 / np.sqrt(n))
+    band = 2 / np.sqrt(n) * power
+    for lag in range(1, min(cap, DIRECT_LAGS) + 1):      # the correlation is short: the first lags directly
+        if float(r[:-lag] @ r[lag:]) <= band:
+            return min(max(rule, lag), cap)
+    spectrum = np.fft.rfft(r, 2 * n)
+    acf = np.fft.irfft(spectrum * np.conj(spectrum))[:n]
+    below = np.flatnonzero(acf[1:cap + 1] <= band)
     lag = int(below[0]) + 1 if len(below) else cap
     return min(max(rule, lag), cap)
 

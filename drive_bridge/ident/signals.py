@@ -43,6 +43,7 @@ WIDE_BAND = 0.4              # the light low-pass of the whole-band samples, × 
 DELAY_HALF_TAPS = 16         # a position read between its samples: 32 taps of a windowed sinc ...
 DELAY_KAISER_BETA = 11.0     # ... Kaiser window (_fractional_delay)
 MIN_MOVING = 50              # decimated moving samples below this: nothing to identify
+ACTIVE_DECAY = 1e-12         # filtered around where the axis moves: the filters' transients decayed to this
 
 
 @dataclass
@@ -177,6 +178,7 @@ class Parallel:
                 return x, xd, derivative(xd, dt)
 
             for sl, keep in _usable(self.log, self.axis, self.settings):
+                sl, keep = self._active(sl, keep, lag)
                 raw = self.log.axes[self.axis].q[sl]
                 q, qd, qdd = kinematics(raw)
                 others = {o: kinematics(_filled(self.log.axes[o].q[sl])) for o in self.log.axes if o != self.axis}
@@ -187,6 +189,36 @@ class Parallel:
                 self._segments.append((keep, Channels(self.log.t[sl], q, qd, qdd, sgn, others,
                                                       self.log.axes[self.axis].tau[sl], gate, derivative(q, dt))))
         return self._segments
+
+    def _active(self, sl: slice, keep: slice, lag: float) -> tuple[slice, slice]:
+        """The part of segment ``sl`` around where the axis moves, and the part of that kept after
+        the edge cut: from a margin before the first sample above ``MOVING_FRACTION`` of the
+        segment's peak speed to as far after the last, on the decimation's grid.  What lies
+        beyond is standstill no fit uses (a campaign that moves the axes one after the other: two
+        thirds of each axis's log), and filtering it for every column was most of the
+        identification's time.  The margin holds the edge cut, two filters' settling (the
+        velocity's, then the columns': :func:`_settling_samples`), the torque delay and the reach
+        of the differentiator and the fractional delay, so that within the part every signal is
+        as it would be over the whole segment to ``ACTIVE_DECAY`` of its size.  The segment's
+        speed is kept with the log: the same for every torque delay."""
+        settings, r = self.settings, self.settings.decimation
+        key = (self.axis, sl.start, sl.stop, settings.cutoff_hz)
+        speed = self.log.speeds.get(key)
+        if speed is None:
+            speed = np.abs(derivative(signal.sosfiltfilt(self.sos, self.log.axes[self.axis].q[sl]), self.log.dt))
+            self.log.speeds[key] = speed
+        moving = np.flatnonzero(speed > MOVING_FRACTION * np.max(speed))
+        margin = (settings.edge + 2 * _settling_samples(settings) + int(np.ceil(abs(lag))) + DELAY_HALF_TAPS
+                  + len(_DERIVATIVE))
+        n = sl.stop - sl.start
+        if not len(moving):
+            return sl, keep
+        lo = max(0, int(moving[0]) - margin)
+        lo -= lo % r                                    # the same decimated samples as the whole segment's
+        hi = min(n, int(moving[-1]) + 1 + margin)
+        if (lo, hi) == (0, n) or hi - lo <= 2 * settings.edge + 3 * r * 9:
+            return sl, keep
+        return slice(sl.start + lo, sl.start + hi), slice(settings.edge, hi - lo - settings.edge)
 
 
 # A low-pass differentiator (Parks-McClellan, 51 taps): within 3e-5 of the derivative up to 0.2 ×
@@ -204,6 +236,17 @@ def derivative(x: np.ndarray, dt: float) -> np.ndarray:
     if len(x) > 2 * m:
         out[m:-m] = np.convolve(x, _DERIVATIVE, mode="valid") / dt
     return out
+
+
+def _settling_samples(settings: Settings) -> int:
+    """Log samples in which the transient of the low-pass and of the decimation's filter (where
+    :func:`_decimate` uses one) decays below ``ACTIVE_DECAY`` of its start: from their slowest poles."""
+    poles = [signal.sos2zpk(signal.butter(FILTER_ORDER, settings.cutoff_hz, fs=settings.rate_hz,
+                                          output="sos"))[1]]
+    if settings.decimation > 1 and settings.rate_hz / settings.decimation < 4 * settings.cutoff_hz:
+        poles.append(np.roots(signal.cheby1(8, 0.05, 0.8 / settings.decimation)[1]))
+    radius = max(float(np.max(np.abs(p))) for p in poles)
+    return int(np.ceil(np.log(ACTIVE_DECAY) / np.log(radius)))
 
 
 def _usable(log: Log, axis: str, settings: Settings) -> Iterator[tuple[slice, slice]]:
