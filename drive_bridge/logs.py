@@ -18,13 +18,13 @@ import yaml
 from .errors import UserError
 from .outputs import atomic, write_text
 from .yamlconf import load_yaml
-from .master.stream import SYNC_COB_ID, Recording
 from .pdo import PdoCodec
 from .setpoint import MODE_NAMES
 from .units import Scaling
 
-if TYPE_CHECKING:
+if TYPE_CHECKING:                 # the master is not imported to read a log (identification does)
     from .master.bringup import AxisLink
+    from .master.stream import Recording
 
 LOG_NAME, META_NAME, TRACE_NAME = "log.csv", "meta.yaml", "trace.blf"
 
@@ -122,6 +122,7 @@ def decode_trace(trace: Path, meta_path: Path | None = None
 
     A damaged or cut-short trace gives the rows before the damage and, last, what is wrong
     with it (None for a whole trace)."""
+    from .master.stream import SYNC_COB_ID, Recording
     trace = Path(trace)
     meta_path = Path(meta_path) if meta_path else trace.with_name(META_NAME)
     if not trace.is_file():

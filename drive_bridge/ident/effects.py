@@ -30,6 +30,9 @@ from .signals import Samples, Signals
 DRIVE_EFFECTS = ("offset", "position_linear", "direction_asymmetry", "position_periodic")
 
 
+SEARCH_SAMPLES = 8192       # an effect's nonlinear parameters searched on about this many samples (Effect.fit)
+
+
 class NotFittedError(InternalError):
     """An effect's columns were asked for before ``fit`` learned its nonlinear parameters."""
 
@@ -102,16 +105,34 @@ class Effect:
 
     def fit(self, s: Samples, fixed: np.ndarray, y: np.ndarray, seed: int = 0) -> "Effect":
         """Learn the nonlinear parameters on samples ``s`` against the observation ``y``, with the
-        columns ``fixed`` (the model so far) solved by least squares inside (variable projection),
-        by differential evolution seeded with ``seed``.  An effect without nonlinear parameters
+        columns ``fixed`` (the model so far) solved by least squares inside (variable projection):
+        differential evolution seeded with ``seed`` finds the minimum on every ``n //
+        SEARCH_SAMPLES``-th sample, L-BFGS-B polishes it on them all (on a log of up to
+        ``SEARCH_SAMPLES`` samples: scipy's own polish).  An effect without nonlinear parameters
         has nothing to learn."""
         if not self.nonlinear:
             return self
+        bounds = [self.bounds()[k] for k in self.nonlinear]
+        full = self._sse(s, fixed, y)
+        every = max(1, len(y) // SEARCH_SAMPLES)
+        search = full if every == 1 else self._sse(s.take(np.arange(len(y)) % every == 0), fixed[::every],
+                                                   y[::every])
+        x = optimize.differential_evolution(search, bounds, seed=seed, popsize=8, maxiter=25, tol=1e-6,
+                                            polish=False).x
+        polished = optimize.minimize(full, x, method="L-BFGS-B", bounds=bounds)
+        if polished.fun < full(x):
+            x = polished.x
+        for k, v in zip(self.nonlinear, x):
+            setattr(self, k + "_", float(v))
+        return self
+
+    def _sse(self, s: Samples, fixed: np.ndarray, y: np.ndarray) -> Callable[[np.ndarray], float]:
+        """The sum of squared errors of ``y`` with the columns ``fixed`` and this effect's at the
+        nonlinear parameters given, every coefficient solved (the fixed columns projected out once)."""
         scale = np.sqrt(np.mean(fixed ** 2, axis=0))
         scale[scale == 0] = 1.0
-        q, _ = np.linalg.qr(fixed / scale)                 # project the fixed columns out once
+        q, _ = np.linalg.qr(fixed / scale)
         y_perp = y - q @ (q.T @ y)
-        bounds = self.bounds()
 
         def sse(x: np.ndarray) -> float:
             extra = self._signed(s, self._columns(s, **dict(zip(self.nonlinear, x))))
@@ -121,12 +142,7 @@ class Effect:
             coef, *_ = np.linalg.lstsq(extra.T @ extra, extra.T @ y_perp, rcond=None)
             r = y_perp - extra @ coef
             return float(r @ r)
-
-        result = optimize.differential_evolution(sse, [bounds[k] for k in self.nonlinear], seed=seed,
-                                                 popsize=8, maxiter=25, tol=1e-6, polish=True)
-        for k, v in zip(self.nonlinear, result.x):
-            setattr(self, k + "_", float(v))
-        return self
+        return sse
 
     def params(self, coef: np.ndarray) -> dict[str, float | str]:
         """Physical parameters from the fitted coefficients (and the learned nonlinear ones)."""

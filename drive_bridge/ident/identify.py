@@ -23,6 +23,7 @@ from .resonance import find_mode
 from .reversal import find_reversal_transient
 from .signals import Samples, Settings, choose_settings, clipped_levels, noise_floor, prepare, whole_band
 from .trace import MIN_GAIN, TracedEffect, trace, unexplained
+from .workers import map_axes, workers
 
 logger = logging.getLogger(__name__)
 
@@ -72,6 +73,13 @@ class AxisResult:
     drive_note: str | None = None              # why the drive gets the full model's values after all
     #: the plant's torque -> velocity response read from the log (frf.log_response), for reference
     response: dict | None = None
+
+    def attach(self, log: Log) -> None:
+        """Give the samples back the log they were made of (a result from a worker process comes
+        without it: :meth:`.signals.Parallel.__getstate__`)."""
+        for s in (self.est, self.val):
+            if s.source is not None:
+                s.source.log = log
 
     def as_json(self) -> dict:
         return {
@@ -384,21 +392,33 @@ def identify(path: str | Path, validate: str | Path | None = None, axes: list[st
     for a in names:
         if a not in log.axes:
             raise UserError(f"{log.path}: no axis {a!r} in the log (it has {', '.join(log.axes)})")
-    results, skipped = {}, []
-    for a in names:
-        if progress:
-            progress(a)
-        try:
+    options = {"seed": seed, "cutoff_hz": cutoff_hz, "decimation": decimation, "torque_delay_s": torque_delay_s}
+    count = workers(log, names)
+    if count > 1:
+        for a in names:
+            if progress:
+                progress(a)
+        outcomes = map_axes(_determined, log, val_log, names, count, **options)
+    else:
+        outcomes = {}
+        for a in names:
+            if progress:
+                progress(a)
             try:
-                results[a] = identify_axis(log, a, val_log, seed=seed, cutoff_hz=cutoff_hz, decimation=decimation,
-                                           torque_delay_s=torque_delay_s)
-            except (np.linalg.LinAlgError, ValueError, FloatingPointError) as exc:
-                raise UserError(f"{log.path}: axis {a!r}: the log does not determine the model ({exc}); "
-                                f"it needs motion at several speeds and accelerations in both directions") from exc
-        except UserError as exc:
-            if axes:                          # asked for by name: its problem is the answer
-                raise
-            skipped.append(exc)
-    if not results:
-        raise skipped[0]
+                outcomes[a] = ("ok", _determined(log, a, val_log, **options))
+            except UserError as exc:
+                outcomes[a] = ("error", str(exc))
+    results = {a: r for a, (status, r) in outcomes.items() if status == "ok"}
+    failed = [UserError(message) for status, message in outcomes.values() if status == "error"]
+    if failed and (axes or not results):        # asked for by name: its problem is the answer
+        raise failed[0]
     return results
+
+
+def _determined(log: Log, axis: str, val_log: Log | None, **options: Any) -> AxisResult:
+    """:func:`identify_axis`, a log that cannot determine the model said so as a UserError."""
+    try:
+        return identify_axis(log, axis, val_log, **options)
+    except (np.linalg.LinAlgError, ValueError, FloatingPointError) as exc:
+        raise UserError(f"{log.path}: axis {axis!r}: the log does not determine the model ({exc}); "
+                        f"it needs motion at several speeds and accelerations in both directions") from exc

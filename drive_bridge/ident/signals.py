@@ -17,7 +17,7 @@ import logging
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import Union
+from typing import Any, Union
 
 import numpy as np
 from scipy import signal
@@ -145,6 +145,11 @@ class Parallel:
     length: int = 0                                 # the prepared samples' count (set by prepare)
     _cache: dict = field(default_factory=dict, repr=False)
     _segments: list = field(default_factory=list, repr=False)
+
+    def __getstate__(self) -> dict[str, Any]:
+        """Without the log and what was filtered from it (a result sent back from a worker process:
+        the receiver attaches its own log, :meth:`.identify.AxisResult.attach`)."""
+        return {**self.__dict__, "log": None, "_cache": {}, "_segments": []}
 
     def columns(self, key: object, columns: Callable[[Channels], np.ndarray], logged: bool = False) -> np.ndarray:
         if (key, logged) not in self._cache:

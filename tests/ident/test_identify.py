@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 import math
+import os
+import subprocess
 import sys
 from dataclasses import replace
 from pathlib import Path
@@ -479,3 +481,36 @@ def test_an_axis_is_filtered_only_around_where_it_moves(tmp_path, monkeypatch):
     assert [t.effect.name for t in part.effects] == [t.effect.name for t in whole.effects]
     for k in ("J", "c0", "c1"):
         assert abs(part.model.params_[k] - whole.model.params_[k]) <= 1e-6 * whole.model.param_std_[k], k
+
+
+PARALLEL_RUN = """import json, sys
+from drive_bridge.ident import identify
+from drive_bridge.ident.workers import workers
+from drive_bridge.ident.logdata import read_log
+results = identify(sys.argv[1], seed=0)
+print(json.dumps({"workers": workers(read_log(sys.argv[1]), ["x", "y"]),
+                  "params": {a: r.model.params_ for a, r in results.items()},
+                  "std": {a: r.model.param_std_ for a, r in results.items()},
+                  "predicted": {a: r.model.predict(r.val).tolist() for a, r in results.items()}}))
+"""
+
+
+def test_axes_identified_in_worker_processes_give_what_one_after_the_other_gives(tmp_path):
+    """The axes of a log identified side by side, each in a process of its own (as a large log's
+    are), give every parameter, std and prediction exactly as one axis after the other here: the
+    worker's result comes back without its signals and is given the caller's log again. Run in a
+    process of its own (a test worker runs threads, and a process with other threads never forks)."""
+    from .generator import closed_loop_log
+    stamps = np.arange(0.0, 12.0, 0.002)
+    x, y = closed_loop_log(stamps, seed=5), closed_loop_log(stamps, seed=6, c0=0.2)
+    path = write_log(tmp_path / "log.csv", {"time_s": stamps, "x_position_rad": x["y_position_rad"],
+                                            "x_torque_Nm": x["y_torque_Nm"], "y_position_rad": y["y_position_rad"],
+                                            "y_torque_Nm": y["y_torque_Nm"]})
+    runs = {}
+    for n in ("1", "2"):
+        out = subprocess.run([sys.executable, "-c", PARALLEL_RUN, str(path)], capture_output=True, text=True,
+                             env={**os.environ, "DRIVE_BRIDGE_WORKERS": n}, cwd=tmp_path, check=True)
+        runs[n] = json.loads(out.stdout)
+    assert runs["1"]["workers"] == 1 and runs["2"]["workers"] == 2
+    for key in ("params", "std", "predicted"):
+        assert runs["2"][key] == runs["1"][key], key
