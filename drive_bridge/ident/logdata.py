@@ -18,6 +18,7 @@ every later step sees evenly spaced samples that are true to their instants.
 """
 from __future__ import annotations
 
+import io
 import re
 import warnings
 from dataclasses import dataclass, field
@@ -28,6 +29,7 @@ from scipy.interpolate import CubicSpline
 
 from ..errors import UserError
 from ..logs import LOG_NAME, META_NAME, TRACE_NAME
+from .workers import fork_map, processes
 
 KINDS = {"rad": ("rotary", "torque_Nm", {"position": "rad", "torque": "Nm"}),
          "m": ("linear", "force_N", {"position": "m", "torque": "N"})}
@@ -35,6 +37,7 @@ MAX_POSITION = 1e7           # rad | m: beyond this a value is a corrupt row, no
 MAX_TORQUE = 1e7             # Nm | N
 MIN_SEGMENT = 64            # samples: shorter finite runs are dropped (the filters need room)
 GAP_FACTOR = 5.0            # a time step longer than this many median periods is a gap
+MIN_PARALLEL_BYTES = 8_000_000   # a CSV this large is parsed in parts, one process per core
 JITTER_TOLERANCE = 1e-3     # steps within this fraction of the median period count as evenly spaced
 
 
@@ -91,15 +94,50 @@ def _describe(runs: list[tuple[int, int]], t: np.ndarray, limit: int = 3) -> str
     return ", ".join(parts) + (f" and {len(runs) - limit} more" if len(runs) > limit else "")
 
 
+def _rows(path: Path) -> np.ndarray:
+    """The CSV's rows under its header as numbers: numpy's parser, over parts of a large file in
+    processes of their own (:func:`.workers.fork_map`: the same numbers); where a part does not
+    parse, the whole file again here, so that the error names its row."""
+    size = path.stat().st_size
+    count = processes() if size >= MIN_PARALLEL_BYTES else 1
+    if count > 1:
+        with open(path, "rb") as f:
+            f.readline()
+            cuts = [f.tell()]
+            for k in range(1, count):
+                f.seek(max(cuts[-1], cuts[0] + k * (size - cuts[0]) // count))
+                f.readline()                             # the part ends where a line does
+                cuts.append(f.tell())
+        cuts.append(size)
+        try:
+            parts = fork_map(_parse_part, [(path, a, b) for a, b in zip(cuts, cuts[1:]) if b > a], count)
+            return np.concatenate([p for p in parts if p.size])
+        except Exception:       # noqa: BLE001 -- any part that fails: the whole file says why, below
+            pass
+    return _parse_part((path, None, None))
+
+
+def _parse_part(part: tuple[Path, int | None, int | None]) -> np.ndarray:
+    """The rows between byte offsets ``start`` and ``stop`` of the CSV (None, None: every row under
+    its header)."""
+    path, start, stop = part
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")              # numpy's "input contained no data": said by the caller
+        if start is None or stop is None:
+            return np.loadtxt(path, delimiter=",", skiprows=1, dtype=float, ndmin=2)
+        with open(path, "rb") as f:
+            f.seek(start)
+            text = f.read(stop - start)
+        return np.loadtxt(io.BytesIO(text), delimiter=",", dtype=float, ndmin=2)
+
+
 def read_log(path: str | Path) -> Log:
     """Read and check a log; see the module docstring for the format."""
     path = _csv_path(Path(path))
     try:
         with open(path, encoding="utf-8") as f:
             header = f.readline().strip().split(",")
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")              # numpy's "input contained no data": said below
-            data = np.loadtxt(path, delimiter=",", skiprows=1, dtype=float, ndmin=2)
+        data = _rows(path)
     except (OSError, UnicodeDecodeError, ValueError, IndexError) as exc:
         raise UserError(f"{path}: not a readable CSV log ({exc})") from exc
     if "time_s" not in header:

@@ -8,10 +8,12 @@ from pathlib import Path
 import numpy as np
 
 from ..document import Document, Strong, measured, number
+from ..errors import InternalError
 from ..outputs import json_text, stamped, write_text
 from .frf import MIN_COHERENCE
 from .identify import AxisResult
 from .trace import describe_unexplained
+from .workers import fork_map, processes
 
 
 def unit(name: str, kind: str) -> str:
@@ -282,8 +284,45 @@ def _sentence(text: str) -> str:
     return text[0].upper() + text[1:] + "."
 
 
+def draw_figures(results: dict[str, AxisResult], out: Path) -> dict[str, bool]:
+    """Each axis's figures, drawn into ``out``: its fit, its response read from the log (where the
+    log shows one: True) and each effect's; the axes side by side where work is shared out."""
+    global _drawing
+    count = min(len(results), processes())
+    if count < 2:
+        return {a: _draw(r, out) for a, r in results.items()}
+    _drawing = (results, out)
+    try:
+        return dict(zip(results, fork_map(_draw_axis, list(results), count)))
+    finally:
+        _drawing = None
+
+
+_drawing: tuple[dict[str, AxisResult], Path] | None = None       # what the drawing processes draw
+
+
+def _draw_axis(axis: str) -> bool:
+    if _drawing is None:
+        raise InternalError("a drawing process without its results")
+    results, out = _drawing
+    return _draw(results[axis], out)
+
+
+def _draw(r: AxisResult, out: Path) -> bool:
+    _plot_fit(r, out / f"{r.axis}_fit.png")
+    for k, t in enumerate(r.effects):
+        _plot_effect(r, k, _effect_png(out, r.axis, k, t.effect.name))
+    return plot_response(r, out / f"{r.axis}_response.png")
+
+
+def _effect_png(out: Path, axis: str, k: int, name: str) -> Path:
+    return out / f"{axis}_effect{k + 1}_{name}.png"
+
+
 def build_report(results: dict[str, AxisResult], out: Path, source: str) -> Document:
-    """The identification report (figures drawn into ``out``)."""
+    """The identification report (figures drawn into ``out``: each axis's in a process of its own
+    where the work is shared out, :mod:`.workers`)."""
+    drawn = draw_figures(results, out)
     doc = Document(f"Identification of {source}")
     for axis, r in results.items():
         tu = r.units["torque"]
@@ -308,17 +347,14 @@ def build_report(results: dict[str, AxisResult], out: Path, source: str) -> Docu
         doc.table(["model", f"validation RMSE, logged torque [{tu}]", "relative error, filtered torque"], rows)
         doc.para(f"Measured torque RMS on the same samples {r.after.torque_rms:.4g} {tu}; "
                  f"noise floor {r.noise_floor:.3g} {tu}.")
-        fit_png = out / f"{axis}_fit.png"
-        _plot_fit(r, fit_png)
-        doc.figure(fit_png, f"axis {axis}: measured and predicted torque and the residual")
-        if plot_response(r, out / f"{axis}_response.png"):
+        doc.figure(out / f"{axis}_fit.png", f"axis {axis}: measured and predicted torque and the residual")
+        if drawn[axis]:
             doc.figure(out / f"{axis}_response.png", f"axis {axis}: the plant's response read from the log "
                                                      f"(the torque less the model's nonlinear terms, to the velocity), "
                                                      f"beside the rigid model's; hollow: coherence below "
                                                      f"{MIN_COHERENCE:g}")
         for k, t in enumerate(r.effects):
-            png = out / f"{axis}_effect{k + 1}_{t.effect.name}.png"
-            _plot_effect(r, k, png)
+            png = _effect_png(out, axis, k, t.effect.name)
             doc.heading(2, f"{t.effect.name} (depends on {t.effect.depends_on})")
             doc.para(_sentence(t.evidence))
             doc.figure(png, t.effect.name)

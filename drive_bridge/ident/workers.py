@@ -1,16 +1,17 @@
-"""The axes of one log identified side by side, one process per core.
+"""Work on a large log shared out to processes, one per core: its axes identified side by side,
+its CSV parsed in parts.
 
-Each axis's identification is independent of the others' and single-threaded Python and
-numpy, so the axes of a large log go to worker processes forked from this one: they find the
-log where it is (nothing is sent), and send back the result without the signals it was
-filtered from, which the caller's log gives again (:meth:`.signals.Parallel.__getstate__`).
-Results are the same as one axis after the other: every random search takes its seed.
+Each axis's identification is independent of the others' and single-threaded Python and numpy,
+so the axes of a large log go to worker processes forked from this one: they find the log where
+it is (nothing is sent), and send back the result without the signals it was filtered from,
+which the caller's log gives again (:meth:`.signals.Parallel.__getstate__`).  Results are the
+same as one axis after the other: every random search takes its seed.
 
 Each worker runs OpenBLAS with one thread: with its own two threads in each of two workers the
 run took three times as long.  Where that cannot be set (another BLAS library), where this
 process runs other threads (a fork copies only the calling one: a lock another thread holds
 would never be released in the child), in a daemon process (a pool's worker may not start
-processes) and for a small log, the axes are identified one after the other here.
+processes) and for a small log, the work is done here, one part after the other.
 """
 from __future__ import annotations
 
@@ -18,12 +19,14 @@ import ctypes
 import multiprocessing
 import os
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..errors import InternalError, UserError
-from .logdata import Log
+
+if TYPE_CHECKING:
+    from .logdata import Log
 
 #: a log of fewer rows times axes is identified one axis after the other: starting the workers
 #: costs more than they save
@@ -35,20 +38,35 @@ BLAS_THREADS = ("scipy_openblas_set_num_threads64_", "scipy_openblas_set_num_thr
 _shared: tuple[Log, Log | None] | None = None      # the log and validation log the workers read
 
 
-def workers(log: Log, axes: list[str]) -> int:
-    """How many processes identify ``axes`` of ``log`` (1: here, one after the other): one per
-    axis up to the cores, or up to the environment's ``DRIVE_BRIDGE_WORKERS`` (then whatever the
-    log's size; 1: never in parallel)."""
+def processes() -> int:
+    """How many processes work may be shared out to here: one per core, or the environment's
+    ``DRIVE_BRIDGE_WORKERS`` (1: none); 1 where this process may not fork (see the module)."""
     given = os.environ.get("DRIVE_BRIDGE_WORKERS")
     try:
         cap = int(given) if given else os.cpu_count() or 1
     except ValueError:
         raise UserError(f"DRIVE_BRIDGE_WORKERS={given!r}: give a number of processes (1: none)") from None
-    small = not given and len(log.t) * len(axes) < MIN_PARALLEL_SAMPLES
-    if (cap < 2 or len(axes) < 2 or small or multiprocessing.current_process().daemon
-            or threading.active_count() > 1 or not _blas_setters()):
+    if (cap < 2 or multiprocessing.current_process().daemon or threading.active_count() > 1
+            or not _blas_setters()):
         return 1
-    return min(len(axes), cap)
+    return cap
+
+
+def workers(log: Log, axes: list[str]) -> int:
+    """How many processes identify ``axes`` of ``log`` (1: here, one after the other): one per
+    axis up to :func:`processes`; for a small log only where ``DRIVE_BRIDGE_WORKERS`` asks."""
+    if len(axes) < 2 or (not os.environ.get("DRIVE_BRIDGE_WORKERS")
+                         and len(log.t) * len(axes) < MIN_PARALLEL_SAMPLES):
+        return 1
+    return min(len(axes), processes())
+
+
+def fork_map(func: Callable[..., Any], items: Sequence[Any], count: int) -> list[Any]:
+    """``func(item)`` for each of ``items`` in ``count`` processes forked from this one (each with
+    one BLAS thread), in the order of ``items``; ``func`` and the items are sent by pickle."""
+    with ProcessPoolExecutor(count, mp_context=multiprocessing.get_context("fork"),
+                             initializer=_one_blas_thread) as pool:
+        return list(pool.map(func, items))
 
 
 def map_axes(run: Callable[..., Any], log: Log, val_log: Log | None, axes: list[str], count: int,
@@ -58,10 +76,7 @@ def map_axes(run: Callable[..., Any], log: Log, val_log: Log | None, axes: list[
     global _shared
     _shared = (log, val_log)
     try:
-        with ProcessPoolExecutor(count, mp_context=multiprocessing.get_context("fork"),
-                                 initializer=_one_blas_thread) as pool:
-            futures = {a: pool.submit(_run, run, a, kwargs) for a in axes}
-            out = {a: f.result() for a, f in futures.items()}
+        out = dict(zip(axes, fork_map(_run, [(run, a, kwargs) for a in axes], count)))
     finally:
         _shared = None
     for status, result in out.values():
@@ -73,8 +88,11 @@ def map_axes(run: Callable[..., Any], log: Log, val_log: Log | None, axes: list[
 def _blas_setters() -> list[Callable[[int], None]]:
     """The thread-count setters of every OpenBLAS this process has loaded (numpy's and scipy's);
     none where one of them has no setter known here."""
-    with open("/proc/self/maps", encoding="utf-8", errors="replace") as f:
-        paths = sorted({line.split()[-1] for line in f if "openblas" in line.lower() and "/" in line})
+    try:
+        with open("/proc/self/maps", encoding="utf-8", errors="replace") as f:     # Linux
+            paths = sorted({line.split()[-1] for line in f if "openblas" in line.lower() and "/" in line})
+    except OSError:
+        return []
     setters = []
     for path in paths:
         lib = ctypes.CDLL(path)
@@ -90,7 +108,8 @@ def _one_blas_thread() -> None:
         setter(1)
 
 
-def _run(run: Callable[..., Any], axis: str, kwargs: dict[str, Any]) -> tuple[str, Any]:
+def _run(task: tuple[Callable[..., Any], str, dict[str, Any]]) -> tuple[str, Any]:
+    run, axis, kwargs = task
     if _shared is None:
         raise InternalError("a worker without its log")
     log, val_log = _shared

@@ -514,3 +514,40 @@ def test_axes_identified_in_worker_processes_give_what_one_after_the_other_gives
     assert runs["1"]["workers"] == 1 and runs["2"]["workers"] == 2
     for key in ("params", "std", "predicted"):
         assert runs["2"][key] == runs["1"][key], key
+
+
+PARTS_RUN = """import json, sys
+from pathlib import Path
+import numpy as np
+from drive_bridge.errors import UserError
+from drive_bridge.ident import logdata, workers
+logdata.MIN_PARALLEL_BYTES = 0
+good, bad = Path(sys.argv[1]), Path(sys.argv[2])
+out = {"processes": workers.processes(),
+       "same": bool(np.array_equal(logdata._rows(good), logdata._parse_part((good, None, None)), equal_nan=True))}
+for name, least in (("error", 0), ("whole_file_error", 10**12)):
+    logdata.MIN_PARALLEL_BYTES = least
+    try:
+        logdata.read_log(bad)
+    except UserError as exc:
+        out[name] = str(exc)
+print(json.dumps(out))
+"""
+
+
+def test_a_large_csv_parsed_in_parts_gives_the_same_rows_and_a_bad_row_is_named(tmp_path):
+    """A log's CSV parsed in parts, a process each (as a large one is), gives the rows the whole
+    file gives; a row that does not parse, in the last part, is named as the whole file names it.
+    Run in a process of its own (a test worker runs threads, and a process with threads never forks)."""
+    from .generator import closed_loop_log
+    good = write_log(tmp_path / "good.csv", closed_loop_log(np.arange(0.0, 6.0, 0.002), seed=7))
+    lines = good.read_text().splitlines()
+    lines[-5] = lines[-5].replace(",", ",x", 1)
+    bad = tmp_path / "bad.csv"
+    bad.write_text("\n".join(lines) + "\n")
+    out = subprocess.run([sys.executable, "-c", PARTS_RUN, str(good), str(bad)], capture_output=True, text=True,
+                         env={**os.environ, "DRIVE_BRIDGE_WORKERS": "2"}, cwd=tmp_path, check=True)
+    run = json.loads(out.stdout)
+    assert run["processes"] == 2 and run["same"]
+    assert "not a readable CSV log" in run["error"] and "x1." in run["error"]
+    assert run["error"] == run["whole_file_error"]
