@@ -23,7 +23,7 @@ from .resonance import find_mode
 from .reversal import find_reversal_transient
 from .signals import Samples, Settings, choose_settings, clipped_levels, noise_floor, prepare, whole_band
 from .trace import MIN_GAIN, TracedEffect, trace, unexplained
-from .workers import map_axes, workers
+from .workers import fork_map, workers
 
 logger = logging.getLogger(__name__)
 
@@ -394,31 +394,33 @@ def identify(path: str | Path, validate: str | Path | None = None, axes: list[st
             raise UserError(f"{log.path}: no axis {a!r} in the log (it has {', '.join(log.axes)})")
     options = {"seed": seed, "cutoff_hz": cutoff_hz, "decimation": decimation, "torque_delay_s": torque_delay_s}
     count = workers(log, names)
-    if count > 1:
+    if count > 1 and progress:               # side by side: every axis starts now
         for a in names:
-            if progress:
-                progress(a)
-        outcomes = map_axes(_determined, log, val_log, names, count, **options)
-    else:
-        outcomes = {}
-        for a in names:
-            if progress:
-                progress(a)
-            try:
-                outcomes[a] = ("ok", _determined(log, a, val_log, **options))
-            except UserError as exc:
-                outcomes[a] = ("error", str(exc))
+            progress(a)
+    outcomes = dict(zip(names, fork_map(_outcome, names, count,
+                                        (log, val_log, options, progress if count == 1 else None))))
     results = {a: r for a, (status, r) in outcomes.items() if status == "ok"}
+    if count > 1:
+        for r in results.values():
+            r.attach(log)
     failed = [UserError(message) for status, message in outcomes.values() if status == "error"]
     if failed and (axes or not results):        # asked for by name: its problem is the answer
         raise failed[0]
     return results
 
 
-def _determined(log: Log, axis: str, val_log: Log | None, **options: Any) -> AxisResult:
-    """:func:`identify_axis`, a log that cannot determine the model said so as a UserError."""
+def _outcome(shared: tuple[Log, Log | None, dict[str, Any], Callable[[str], object] | None],
+             axis: str) -> tuple[str, Any]:
+    """("ok", :func:`identify_axis`'s result) or ("error", why the log cannot give it: a UserError's
+    message, a log that cannot determine the model said so); ``progress(axis)`` first, where given."""
+    log, val_log, options, progress = shared
+    if progress:
+        progress(axis)
     try:
-        return identify_axis(log, axis, val_log, **options)
-    except (np.linalg.LinAlgError, ValueError, FloatingPointError) as exc:
-        raise UserError(f"{log.path}: axis {axis!r}: the log does not determine the model ({exc}); "
-                        f"it needs motion at several speeds and accelerations in both directions") from exc
+        try:
+            return "ok", identify_axis(log, axis, val_log, **options)
+        except (np.linalg.LinAlgError, ValueError, FloatingPointError) as exc:
+            raise UserError(f"{log.path}: axis {axis!r}: the log does not determine the model ({exc}); it "
+                            f"needs motion at several speeds and accelerations in both directions") from exc
+    except UserError as exc:
+        return "error", str(exc)

@@ -110,24 +110,22 @@ def _rows(path: Path) -> np.ndarray:
                 cuts.append(f.tell())
         cuts.append(size)
         try:
-            parts = fork_map(_parse_part, [(path, a, b) for a, b in zip(cuts, cuts[1:]) if b > a], count)
+            parts = fork_map(_parse_rows, [(a, b) for a, b in zip(cuts, cuts[1:]) if b > a], count, path)
             return np.concatenate([p for p in parts if p.size])
         except Exception:       # noqa: BLE001 -- any part that fails: the whole file says why, below
             pass
-    return _parse_part((path, None, None))
+    return _parse_rows(path, None)
 
 
-def _parse_part(part: tuple[Path, int | None, int | None]) -> np.ndarray:
-    """The rows between byte offsets ``start`` and ``stop`` of the CSV (None, None: every row under
-    its header)."""
-    path, start, stop = part
+def _parse_rows(path: Path, span: tuple[int, int] | None) -> np.ndarray:
+    """The rows of the CSV between the byte offsets ``span`` (None: every row under its header)."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")              # numpy's "input contained no data": said by the caller
-        if start is None or stop is None:
+        if span is None:
             return np.loadtxt(path, delimiter=",", skiprows=1, dtype=float, ndmin=2)
         with open(path, "rb") as f:
-            f.seek(start)
-            text = f.read(stop - start)
+            f.seek(span[0])
+            text = f.read(span[1] - span[0])
         return np.loadtxt(io.BytesIO(text), delimiter=",", dtype=float, ndmin=2)
 
 

@@ -8,7 +8,6 @@ from pathlib import Path
 import numpy as np
 
 from ..document import Document, Strong, measured, number
-from ..errors import InternalError
 from ..outputs import json_text, stamped, write_text
 from .frf import MIN_COHERENCE
 from .identify import AxisResult
@@ -287,24 +286,11 @@ def _sentence(text: str) -> str:
 def draw_figures(results: dict[str, AxisResult], out: Path) -> dict[str, bool]:
     """Each axis's figures, drawn into ``out``: its fit, its response read from the log (where the
     log shows one: True) and each effect's; the axes side by side where work is shared out."""
-    global _drawing
-    count = min(len(results), processes())
-    if count < 2:
-        return {a: _draw(r, out) for a, r in results.items()}
-    _drawing = (results, out)
-    try:
-        return dict(zip(results, fork_map(_draw_axis, list(results), count)))
-    finally:
-        _drawing = None
+    return dict(zip(results, fork_map(_draw_axis, list(results), min(len(results), processes()), (results, out))))
 
 
-_drawing: tuple[dict[str, AxisResult], Path] | None = None       # what the drawing processes draw
-
-
-def _draw_axis(axis: str) -> bool:
-    if _drawing is None:
-        raise InternalError("a drawing process without its results")
-    results, out = _drawing
+def _draw_axis(shared: tuple[dict[str, AxisResult], Path], axis: str) -> bool:
+    results, out = shared
     return _draw(results[axis], out)
 
 

@@ -16,7 +16,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
-from functools import cached_property
+from functools import cached_property, lru_cache
 from typing import Any, Union
 
 import numpy as np
@@ -213,7 +213,7 @@ class Parallel:
             speed = np.abs(derivative(signal.sosfiltfilt(self.sos, self.log.axes[self.axis].q[sl]), self.log.dt))
             self.log.speeds[key] = speed
         moving = np.flatnonzero(speed > MOVING_FRACTION * np.max(speed))
-        margin = (settings.edge + 2 * _settling_samples(settings) + int(np.ceil(abs(lag))) + DELAY_HALF_TAPS
+        margin = (settings.edge + 2 * _settling_samples(settings, self.sos) + int(np.ceil(abs(lag))) + DELAY_HALF_TAPS
                   + len(_DERIVATIVE))
         n = sl.stop - sl.start
         if not len(moving):
@@ -243,13 +243,14 @@ def derivative(x: np.ndarray, dt: float) -> np.ndarray:
     return out
 
 
-def _settling_samples(settings: Settings) -> int:
-    """Log samples in which the transient of the low-pass and of the decimation's filter (where
-    :func:`_decimate` uses one) decays below ``ACTIVE_DECAY`` of its start: from their slowest poles."""
-    poles = [signal.sos2zpk(signal.butter(FILTER_ORDER, settings.cutoff_hz, fs=settings.rate_hz,
-                                          output="sos"))[1]]
-    if settings.decimation > 1 and settings.rate_hz / settings.decimation < 4 * settings.cutoff_hz:
-        poles.append(np.roots(signal.cheby1(8, 0.05, 0.8 / settings.decimation)[1]))
+def _settling_samples(settings: Settings, sos: np.ndarray) -> int:
+    """Log samples in which the transient of the low-pass ``sos`` and of the decimation's filter
+    (where :func:`_decimate` uses one) decays below ``ACTIVE_DECAY`` of its start: from their
+    slowest poles."""
+    poles = [signal.sos2zpk(sos)[1]]
+    ba = _decimation_filter(settings)
+    if ba is not None:
+        poles.append(np.roots(ba[1]))
     radius = max(float(np.max(np.abs(p))) for p in poles)
     return int(np.ceil(np.log(ACTIVE_DECAY) / np.log(radius)))
 
@@ -443,12 +444,25 @@ def _decimate(x: np.ndarray, settings: Settings) -> np.ndarray:
     otherwise scipy's decimate, with its Chebyshev filter's DC gain set to 1 (an even-order
     Chebyshev I passes DC at its ripple minimum, and filtered twice that scales every signal
     by 0.989 while sign(q̇) stays ±1: c0 would come out 1 % low)."""
+    ba = _decimation_filter(settings)
+    if ba is None:
+        return x[::settings.decimation]
+    return signal.decimate(x, settings.decimation, ftype=signal.dlti(*ba), zero_phase=True)
+
+
+def _decimation_filter(settings: Settings) -> tuple[np.ndarray, np.ndarray] | None:
+    """The Chebyshev filter (b, a) :func:`_decimate` applies before it keeps every r-th sample, its
+    DC gain 1; None where the Butterworth already removed what would alias."""
     r = settings.decimation
     if r == 1 or settings.rate_hz / r >= 4 * settings.cutoff_hz:
-        return x[::r]
+        return None
+    return _chebyshev(r)
+
+
+@lru_cache(maxsize=None)
+def _chebyshev(r: int) -> tuple[np.ndarray, np.ndarray]:
     b, a = signal.cheby1(8, 0.05, 0.8 / r)
-    b = b * (np.sum(a) / np.sum(b))
-    return signal.decimate(x, r, ftype=signal.dlti(b, a), zero_phase=True)
+    return b * (np.sum(a) / np.sum(b)), a
 
 
 CLIP_SHARE = 0.002          # a torque level held by at least this share of the samples ...

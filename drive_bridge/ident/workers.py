@@ -23,7 +23,7 @@ from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from typing import TYPE_CHECKING, Any
 
-from ..errors import InternalError, UserError
+from ..errors import UserError
 
 if TYPE_CHECKING:
     from .logdata import Log
@@ -35,7 +35,7 @@ MIN_PARALLEL_SAMPLES = 500_000
 BLAS_THREADS = ("scipy_openblas_set_num_threads64_", "scipy_openblas_set_num_threads",
                 "openblas_set_num_threads64_", "openblas_set_num_threads")
 
-_shared: tuple[Log, Log | None] | None = None      # the log and validation log the workers read
+_shared: Any = None         # what the forked processes of fork_map find where it is
 
 
 def processes() -> int:
@@ -61,28 +61,20 @@ def workers(log: Log, axes: list[str]) -> int:
     return min(len(axes), processes())
 
 
-def fork_map(func: Callable[..., Any], items: Sequence[Any], count: int) -> list[Any]:
-    """``func(item)`` for each of ``items`` in ``count`` processes forked from this one (each with
-    one BLAS thread), in the order of ``items``; ``func`` and the items are sent by pickle."""
-    with ProcessPoolExecutor(count, mp_context=multiprocessing.get_context("fork"),
-                             initializer=_one_blas_thread) as pool:
-        return list(pool.map(func, items))
-
-
-def map_axes(run: Callable[..., Any], log: Log, val_log: Log | None, axes: list[str], count: int,
-             **kwargs: Any) -> dict[str, tuple[str, Any]]:
-    """``run(log, axis, val_log, **kwargs)`` for each of ``axes`` in ``count`` forked processes:
-    per axis ("ok", its result with ``log`` attached again) or ("error", a UserError's message)."""
+def fork_map(func: Callable[[Any, Any], Any], items: Sequence[Any], count: int, shared: Any = None) -> list[Any]:
+    """``func(shared, item)`` for each of ``items``, in their order: here, one after the other,
+    where ``count`` is 1; else in ``count`` processes forked from this one, each with one BLAS
+    thread, which find ``shared`` where it is (only ``func`` and the items are sent, by pickle)."""
+    if count < 2:
+        return [func(shared, item) for item in items]
     global _shared
-    _shared = (log, val_log)
+    _shared = shared
     try:
-        out = dict(zip(axes, fork_map(_run, [(run, a, kwargs) for a in axes], count)))
+        with ProcessPoolExecutor(count, mp_context=multiprocessing.get_context("fork"),
+                                 initializer=_one_blas_thread) as pool:
+            return list(pool.map(_call, [(func, item) for item in items]))
     finally:
         _shared = None
-    for status, result in out.values():
-        if status == "ok":
-            result.attach(log)
-    return out
 
 
 def _blas_setters() -> list[Callable[[int], None]]:
@@ -108,12 +100,6 @@ def _one_blas_thread() -> None:
         setter(1)
 
 
-def _run(task: tuple[Callable[..., Any], str, dict[str, Any]]) -> tuple[str, Any]:
-    run, axis, kwargs = task
-    if _shared is None:
-        raise InternalError("a worker without its log")
-    log, val_log = _shared
-    try:
-        return "ok", run(log, axis, val_log, **kwargs)
-    except UserError as exc:
-        return "error", str(exc)
+def _call(task: tuple[Callable[[Any, Any], Any], Any]) -> Any:
+    func, item = task
+    return func(_shared, item)

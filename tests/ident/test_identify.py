@@ -524,7 +524,7 @@ from drive_bridge.ident import logdata, workers
 logdata.MIN_PARALLEL_BYTES = 0
 good, bad = Path(sys.argv[1]), Path(sys.argv[2])
 out = {"processes": workers.processes(),
-       "same": bool(np.array_equal(logdata._rows(good), logdata._parse_part((good, None, None)), equal_nan=True))}
+       "same": bool(np.array_equal(logdata._rows(good), logdata._parse_rows(good, None), equal_nan=True))}
 for name, least in (("error", 0), ("whole_file_error", 10**12)):
     logdata.MIN_PARALLEL_BYTES = least
     try:
