@@ -8,6 +8,8 @@ the same CSV as the live run.
 from __future__ import annotations
 
 import struct
+from collections.abc import Callable
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -53,9 +55,11 @@ def _codecs(entries: list[dict]) -> list[PdoCodec]:
 def to_table(rec: Recording, scaling: dict[str, Scaling], period: float) -> tuple[list[str], np.ndarray, list[str]]:
     """Columns, values and formats of log.csv; missing samples are NaN with ``<axis>_valid`` = 0."""
     n = len(rec.raw)
-    names = ["time_s", "sync_time_s"]
-    cols = [np.arange(n) * period, np.round(rec.sync_time - (rec.sync_time[0] if n else 0.0), 6)]
-    fmts = ["%.6f", "%.6f"]
+    # each column made when it is written into the table (a list of them all, stacked, held the
+    # campaign's table twice: 70 MB more at the main job's peak)
+    spec: list[tuple[str, str, Callable[[], np.ndarray]]] = [
+        ("time_s", "%.6f", lambda: np.arange(n) * period),
+        ("sync_time_s", "%.6f", lambda: np.round(rec.sync_time - (rec.sync_time[0] if n else 0.0), 6))]
     for ai, axis in enumerate(rec.axes):
         sc = scaling[axis]
         valid = rec.valid(axis)
@@ -64,19 +68,22 @@ def to_table(rec: Recording, scaling: dict[str, Scaling], period: float) -> tupl
         for index in sorted(indices, key=lambda i: order.index(0x6077 if i == sc.torque_object else i)):
             suffix, conv, fmt = (("torque_Nm", "torque_from_feedback", "%.6g") if index == sc.torque_object
                                  else _COLUMNS[index])      # the axis's torque: from what the drive reports
-            raw = rec.raw[:, rec.column(axis, index)]
-            values = getattr(sc, conv)(raw) if conv else raw.astype(float)
-            names.append(f"{axis}_{suffix}")
-            cols.append(np.where(valid, values, np.nan))
-            fmts.append(fmt)
+            spec.append((f"{axis}_{suffix}", fmt,
+                         partial(_logged, rec.raw[:, rec.column(axis, index)],
+                                 getattr(sc, conv) if conv else None, valid)))
             if index == 0x6064:
-                names.append(f"{axis}_position_demand_rad")
-                cols.append(sc.position_from_device(rec.demand[:, ai]))
-                fmts.append("%.9g")
-        names.append(f"{axis}_valid")
-        cols.append(valid.astype(float))
-        fmts.append("%.0f")
-    return names, np.column_stack(cols) if n else np.empty((0, len(names))), fmts
+                spec.append((f"{axis}_position_demand_rad", "%.9g",
+                             partial(sc.position_from_device, rec.demand[:, ai])))
+        spec.append((f"{axis}_valid", "%.0f", partial(valid.astype, float)))
+    values = np.empty((n, len(spec)))
+    for j, (_, _, make) in enumerate(spec if n else []):
+        values[:, j] = make()
+    return [name for name, _, _ in spec], values, [fmt for _, fmt, _ in spec]
+
+
+def _logged(raw: np.ndarray, convert: Callable[[np.ndarray], np.ndarray] | None, valid: np.ndarray) -> np.ndarray:
+    """A logged object's column in SI (``convert``: from device units), NaN where the sample is missing."""
+    return np.where(valid, convert(raw) if convert else raw.astype(float), np.nan)
 
 
 def save_table(path: Path, names: list[str], values: np.ndarray, fmts: list[str]) -> None:

@@ -26,6 +26,7 @@ in one run.  ``--profile N``: the N functions the time goes to (cProfile, intern
 from __future__ import annotations
 
 import argparse
+import contextlib
 import cProfile
 import json
 import os
@@ -49,7 +50,7 @@ from drive_bridge.sim.config import load_sim_config                   # noqa: E4
 from drive_bridge.sim.plantlog import plant_log, write_log           # noqa: E402
 from drive_bridge.resources import DEFAULT_BUS_CONFIG   # noqa: E402
 from drive_bridge.sim.config import DEFAULT_CONFIG as SIM_DEFAULT   # noqa: E402
-from tools.reference import least_squares, stamp                    # noqa: E402
+from tools.reference import least_squares, stamp, worktree                   # noqa: E402
 
 
 def plan_for(axes, seconds_per_axis):
@@ -185,23 +186,14 @@ def _timed(root: Path, log: Path) -> dict:
 
 
 def full(log_dir: str | None, against: str | None, profile: int, runs: int) -> None:
-    with tempfile.TemporaryDirectory() as tmp:
+    with tempfile.TemporaryDirectory() as tmp, \
+            (worktree(ROOT, against) if against else contextlib.nullcontext()) as other:
         log = Path(log_dir) / "log.csv" if log_dir else full_log(Path(tmp))
-        other = None
-        if against:
-            other = Path(tmp) / "against"
-            subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", "-f", str(other), against],
-                           check=True, capture_output=True)
-        try:
-            mine, theirs = [], []
-            for _ in range(runs):                      # alternated: the machine's speed drifts
-                mine.append(_timed(ROOT, log))
-                if other is not None:
-                    theirs.append(_timed(other, log))
-        finally:
+        mine, theirs = [], []
+        for _ in range(runs):                      # alternated: the machine's speed drifts
+            mine.append(_timed(ROOT, log))
             if other is not None:
-                subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(other)],
-                               capture_output=True)
+                theirs.append(_timed(other, log))
         from drive_bridge.ident.logdata import read_log
         data = read_log(log)
         plain = sum(min(least_squares(data.t, ax.q, ax.tau) for _ in range(5)) for ax in data.axes.values())
@@ -224,9 +216,11 @@ def full(log_dir: str | None, against: str | None, profile: int, runs: int) -> N
         for a, p in mine[0]["params"].items():
             print(f"  {a}: J {p['J']:.6g}, c0 {p['c0']:.6g}, c1 {p['c1']:.6g}; effects {mine[0]['effects'][a]}")
         if profile:
+            os.environ["DRIVE_BRIDGE_WORKERS"] = "1"       # in this process: a profile sees no forked worker
             prof = cProfile.Profile()
             prof.runcall(identify, log, seed=0)
-            print(f"where the time goes (cProfile, the {profile} largest internal times):")
+            print(f"where the time goes (cProfile, the axes one after the other, the {profile} largest "
+                  f"internal times):")
             pstats.Stats(prof).sort_stats("tottime").print_stats(profile)
 
 

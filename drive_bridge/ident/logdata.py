@@ -155,10 +155,11 @@ def read_log(path: str | Path) -> Log:
                         f"(t = {t[bad]:.6f} then {t[bad + 1]:.6f}); sort the log or fix its time base")
     dt = float(np.median(dt_all))
     for name in [n for n in header if n.endswith("_valid")]:     # a missing sample is missing data, in
-        invalid = col[name] == 0                                 # every column of its axis
-        for other in header:
-            if other.startswith(name[:-len("valid")]) and other != name:
-                col[other] = np.where(invalid, np.nan, col[other])
+        invalid = col[name] == 0                                 # every column of its axis (in place:
+        if invalid.any():                                        # the table is this function's own)
+            for other in header:
+                if other.startswith(name[:-len("valid")]) and other != name:
+                    col[other][invalid] = np.nan
     col, t, gaps, sampling = _uniform_time(col, t, dt)
     axes = {}
     for name in header:
@@ -205,7 +206,7 @@ def read_log(path: str | Path) -> Log:
     if not axes:
         raise UserError(f"{path}: no axis found: expected <axis>_position_rad with <axis>_torque_Nm, or "
                         f"<axis>_position_m with <axis>_force_N")
-    return Log(path, t, dt, axes, sampling)
+    return Log(path, np.array(t), dt, axes, sampling)      # a copy: a column's view would keep the whole table
 
 
 def _uniform_time(col: dict[str, np.ndarray], t: np.ndarray, dt: float

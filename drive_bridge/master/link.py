@@ -23,6 +23,7 @@ import can
 import canopen
 
 from ..errors import BusError
+from .blf import BatchedBLFWriter
 from .timing import raise_priority
 
 log = logging.getLogger(__name__)
@@ -78,9 +79,12 @@ class TraceRecorder(can.Listener):
                  epoch: float = 0.0):
         if background and epoch:
             raise ValueError("a background trace takes frames stamped with the wall clock (epoch 0)")
-        self.writer = can.Logger(str(path))
+        blf = str(path).lower().endswith(".blf")
+        self.writer = BatchedBLFWriter(path, epoch=epoch) if blf else can.Logger(str(path))
         self._background = background
-        self._epoch = epoch
+        self._epoch = 0.0 if blf else epoch            # the BLF writer adds it itself
+        if not background and not self._epoch:
+            self.on_message_received = self.writer.on_message_received     # type: ignore[method-assign]
         if background:
             self._pending: deque[can.Message] = deque()
             self._held: list[can.Message] = []

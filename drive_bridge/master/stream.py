@@ -214,12 +214,12 @@ class _TorqueOffset:
     """The plan's torque offsets of one axis [0x60B2 units] less the torque its velocity loop held
     at rest when the current move started (``bias``, set by :class:`_Unloader`)."""
 
-    def __init__(self, values: list[int]):
+    def __init__(self, values: np.ndarray):
         self.values = values
         self.bias = 0
 
-    def __getitem__(self, k: int) -> int:
-        return max(INT16[0], min(INT16[1], self.values[k] - self.bias))
+    def at(self, k: int) -> int:
+        return max(INT16[0], min(INT16[1], self.values.item(k) - self.bias))
 
 
 class _Unloader:
@@ -245,7 +245,11 @@ class _Unloader:
         for starts, offset, col, sc, slots in self.jobs:
             if k in starts and row >= 1 and self.rec.got[row, slots].all():
                 raw = self.rec.raw[row, col]
-                offset.bias = int(sc.torque_to_device(sc.torque_from_feedback(raw))) - offset[row - 1]
+                offset.bias = int(sc.torque_to_device(sc.torque_from_feedback(raw))) - offset.at(row - 1)
+
+
+def _constant(value: int) -> Callable[[int], int]:
+    return lambda k: value
 
 
 def _packer(ax: AxisLink, codec: PdoCodec, plan: Plan, ai: int, send: Callable[[int, bytes], None],
@@ -256,31 +260,35 @@ def _packer(ax: AxisLink, codec: PdoCodec, plan: Plan, ai: int, send: Callable[[
     sc = ax.cfg.scaling
     demand = plan.demand[:, ai]
     pos = sc.position_to_device(demand)
-    columns: list[list[int] | _TorqueOffset | None] = []     # per mapped object: its value per cycle
+    # per mapped object: its value at cycle k (None: the controlword), as a Python int -- read from a
+    # numpy column at each cycle (a list of a campaign's Python ints would take ~17 MB per column)
+    values: list[Callable[[int], int] | None] = []
     for entry in codec.entries:
         index = entry[0]
         if index == 0x6040:
-            columns.append(None)
+            values.append(None)
         elif entry == PVT:       # position, velocity at that position, time to reach it [ms]
             vel = np.clip(sc.velocity_to_device(np.gradient(demand, plan.period)), -2**23, 2**23 - 1)
             ms = round(plan.period * 1000)
-            columns.append([pack_pvt(p, v, ms) for p, v in zip(pos.tolist(), vel.tolist())])
+            values.append(np.array([pack_pvt(p, v, ms) for p, v in zip(pos.tolist(), vel.tolist())],
+                                   dtype=np.uint64).item)
         elif entry in SETPOINT_OBJECTS:
-            columns.append(pos.tolist())
+            values.append(np.asarray(pos, dtype=np.int64).item)
         elif index == 0x60B2 and plan.torque_ff_Nm is not None:
-            offsets[ax.name] = _TorqueOffset(sc.torque_to_device(plan.torque_ff_Nm[:, ai]).tolist())
-            columns.append(offsets[ax.name])
+            offsets[ax.name] = _TorqueOffset(np.asarray(sc.torque_to_device(plan.torque_ff_Nm[:, ai]), dtype=np.int64))
+            values.append(offsets[ax.name].at)
         elif index == 0x6060:                               # modes of operation, where an RPDO maps it
-            columns.append([ax.mode] * len(demand))
+            values.append(_constant(ax.mode))
         elif index == 0x60B1 and plan.velocity_ff_rad_s is not None:
-            columns.append(np.clip(sc.velocity_to_device(plan.velocity_ff_rad_s[:, ai]), *INT32).tolist())
+            values.append(np.asarray(np.clip(sc.velocity_to_device(plan.velocity_ff_rad_s[:, ai]), *INT32),
+                                     dtype=np.int64).item)
         else:
-            columns.append([0] * len(demand))
+            values.append(_constant(0))
     pack = codec.struct.pack
     cob = codec.cob_id
 
     def send_cycle(k: int, cw: int) -> None:
-        send(cob, pack(*[cw if col is None else col[k] for col in columns]))
+        send(cob, pack(*[cw if value is None else value(k) for value in values]))
     return send_cycle
 
 
@@ -697,13 +705,13 @@ def _check_bus(link: Link, errors_at_start: int) -> MotionAborted | None:
 
 def _check_row(rec: Recording, row: int, axes: dict[str, AxisLink], sw_cols: list[tuple[str, int]], names: list[str],
                misses: dict[str, int], miss_limit: int, emcy_from: dict[str, int]) -> MotionAborted | None:
-    got = rec.got[row]
+    got = rec.got[row].tolist()                            # a few Python bools: cheaper than numpy's
     for ai, name in enumerate(names):
         ax = axes[name]
         if len(ax.emcy) > emcy_from[name]:                 # an EMCY of this run (not of an earlier one)
             code = ax.emcy[-1][1]
             return MotionAborted(f"drive sent {emcy_text(code)} (EMCY 0x{code:04X})", name, code)
-        if not got[rec.slots[name]].all():
+        if not all(got[slot] for slot in rec.slots[name]):
             misses[name] += 1
             if misses[name] >= miss_limit:
                 return MotionAborted(f"no TPDO for {misses[name]} consecutive SYNC cycles", name)

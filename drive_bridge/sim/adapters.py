@@ -1,4 +1,5 @@
-"""The one module that relies on internals of python-can and canopen (the simulator only).
+"""The simulator's reliance on internals of python-can and canopen (the master's one such place is
+its BLF trace writer, :mod:`drive_bridge.master.blf`, pinned by ``tests/master/test_blf.py``).
 
 Each behaviour relied on is pinned by ``tests/sim/test_adapters.py``, and
 pyproject.toml bounds both libraries above by the versions that test passed on.

@@ -259,6 +259,9 @@ class SimDrive:
 
     def _od_or(self, index: int, sub: int, fallback: Any) -> Any:
         """An object's value, or ``fallback`` where the drive has no such object."""
+        value = self._cache.get((index, sub))               # (held: the object exists)
+        if value is not None:
+            return value
         return self._od(index, sub) if self.od.get_variable(index, sub) is not None else fallback
 
     def _units(self) -> None:
@@ -408,6 +411,8 @@ class SimDrive:
         """A watched node silent for longer than its consumer time: EMCY 0x8130, the NMT state
         falls back to pre-operational (0x1029's default) and, in OPERATION ENABLED, the drive does
         what its abort connection option 0x6007 says (a drive without 0x6007 does nothing)."""
+        if not self._heard:
+            return
         for node, last in list(self._heard.items()):
             if now - last <= self.consumers[node] + 1e-9:
                 continue
@@ -593,7 +598,7 @@ class SimDrive:
             return sw | (0x1000 if self.homing_attained else 0) | (0x2000 if self.homing_error else 0)
         if self.following or (self.state == ENABLED and self.mode == PP and self.setpoint_ack):
             sw |= 0x1000                   # CSP: follows the command value; IP: active; PP: set-point acknowledged
-        if self.s[K.FE_COUNT] > 0:
+        if self.s.item(K.FE_COUNT) > 0:
             sw |= 0x2000
         return sw
 
@@ -746,7 +751,7 @@ class SimDrive:
     def next_period(self) -> None:
         """Set the demand P0 -> P1 of the interpolation period that starts now."""
         d, T = self.d, self.host.sync_period
-        d[K.P0] = d[K.P1]
+        d[K.P0] = p0 = d.item(K.P1)
         v_old = self.v_dem
         self.internal_limit = False
         if self.following:
@@ -757,9 +762,10 @@ class SimDrive:
                 else:                                       # the FIFO ran dry while interpolating
                     self._buffer_error(IPB_UNDERFLOW, ERR_IP_UNDERFLOW)
                     return
+            p1 = p0
             if self.new_target:
-                d[K.P1] = self._limit(self._plant(self.setpoint_inc))
-            self.v_dem = (d[K.P1] - d[K.P0]) / T
+                d[K.P1] = p1 = self._limit(self._plant(self.setpoint_inc))
+            self.v_dem = (p1 - p0) / T
         elif self.state == QUICK_STOP:
             self._ramp(0.0, self._od_or(0x6085, 0, factory().quick_stop_rad_s2 * self.vel_per_si) / self.vel_per_si, T)
             if self.v_dem == 0.0:
@@ -827,8 +833,9 @@ class SimDrive:
             since = self._in_window_since
             self.target_reached = since is not None and \
                 self.host.time - since >= self._od_or(0x6068, 0, 10) / 1000.0 - 1e-9
-        timeout_ticks = max(1, round(self._od_or(0x6066, 0, factory().fe_timeout_ms) / 1000.0 / K.VELOCITY_TICK_S))
-        if self.s[K.FE_COUNT] >= timeout_ticks:
+        over = self.s.item(K.FE_COUNT)                  # ticks outside the following error window
+        if over > 0 and over >= max(1, round(self._od_or(0x6066, 0, factory().fe_timeout_ms) / 1000.0
+                                              / K.VELOCITY_TICK_S)):
             self.fault(ERR_FOLLOWING)
         elif self.setpoint_armed and self.following and self.host.time - self.last_setpoint_time > \
                 SETPOINT_TIMEOUT_PERIODS * self._interpolation_period() + 1e-9:
@@ -845,14 +852,15 @@ class SimDrive:
         self._refresh_actuals(noise=True)
 
     def _refresh_actuals(self, noise: bool) -> None:
-        count = math.floor(self.s[K.Q] * self.inc_per_rad)
-        dt = self.host.time - self._last_refresh
+        now = self.host.time
+        count = math.floor(self.s.item(K.Q) * self.inc_per_rad)
+        dt = now - self._last_refresh
         if dt > 0:
             self._velocity = round((count - self._last_count) / dt / self.inc_per_rad * self.vel_per_si)
         self._last_count = count
-        self._last_refresh = self.host.time
+        self._last_refresh = now
         current = K.mean_current(self.s)
-        torque = self.p[K.KT] * current
+        torque = self.p.item(K.KT) * current
         if noise and self.axis.torque_noise_Nm:
             torque += self.axis.torque_noise_Nm * self.host.noise()
         self._torque_pm = max(-32768, min(32767, round(torque / self.rated_torque * 1000)))
