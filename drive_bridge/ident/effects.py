@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import inspect
 import math
+from collections.abc import Container, Iterator
 from typing import Callable, ClassVar
 
 import numpy as np
@@ -431,16 +432,19 @@ def standing_others(s: Samples) -> set[str]:
 NO_SPLINE_IN = ("direction", "acceleration")
 
 
-def spline_candidates(present: list[Effect], s: Samples, residual: np.ndarray) -> list[Effect]:
+def spline_candidates(present: list[Effect], s: Samples, residual: np.ndarray,
+                      taken: Container[tuple[str, str]] = ()) -> Iterator[Effect]:
     """Even or odd splines in each variable the residual depends on (not in ``NO_SPLINE_IN``),
-    at each smoothness of ``SPLINE_KNOTS``."""
+    at each smoothness of ``SPLINE_KNOTS``; made as they are asked for, and none of a shape
+    (:func:`shape_of`) in ``taken`` as it stands then (a named effect of that shape passed: its
+    columns are not even filtered)."""
     have = {e.name for e in present}
     m = s.moving
     still = standing_others(s)
-    out: list[Effect] = []
     for d in dependences(s, residual, SPLINE_SHARE, SPLINE_P):
         name = f"spline_{d['form']}_{d['depends_on']}"
-        if d["depends_on"] in NO_SPLINE_IN or name in have or d["depends_on"].rsplit("_", 1)[0] in still:
+        if d["depends_on"] in NO_SPLINE_IN or name in have or d["depends_on"].rsplit("_", 1)[0] in still \
+                or (d["depends_on"], d["form"]) in taken:
             continue                        # (another axis standing still: its signals are numerical dust)
         x = variables(s)[d["depends_on"]][m]
         low, high = float(np.min(x)), float(np.max(x))
@@ -459,8 +463,7 @@ def spline_candidates(present: list[Effect], s: Samples, residual: np.ndarray) -
                 break                       # a basis the variable's samples cannot carry
             if not np.all(np.isfinite(spline.columns(s))):
                 break
-            out.append(spline)
-    return out
+            yield spline
 
 
 MAX_PERIODIC = 3            # periodic terms at different periods an axis may carry
@@ -497,8 +500,10 @@ def position_period(s: Samples, residual: np.ndarray) -> float | None:
     return span / best
 
 
-def candidates(present: list[Effect], s: Samples, residual: np.ndarray) -> list[Effect]:
-    """Effects not yet in the model that the residual could reveal, unfitted, with starting values."""
+def candidates(present: list[Effect], s: Samples, residual: np.ndarray,
+               taken: Container[tuple[str, str]] = ()) -> Iterator[Effect]:
+    """Effects not yet in the model that the residual could reveal, unfitted, with starting values:
+    the named ones, then the splines (:func:`spline_candidates`, ``taken`` read as they are made)."""
     names = {e.name for e in present}
     m = s.moving
     out: list[Effect] = []
@@ -530,4 +535,5 @@ def candidates(present: list[Effect], s: Samples, residual: np.ndarray) -> list[
         for form in CrossAxis.FORMS:
             if (src, form) not in coupled:
                 out.append(CrossAxis(src, form))
-    return out + spline_candidates(present, s, residual)
+    yield from out
+    yield from spline_candidates(present, s, residual, taken)

@@ -140,10 +140,10 @@ def trace(est: Samples, val: Samples, seed: int,
     for _ in range(MAX_EFFECTS):
         resid = est.tau_f - model.predict(est)
         best = spline = None
-        named = set()                             # shapes a named effect adds significantly this round
-        for cand in candidates(model.effects, est, resid):     # (the named ones first)
-            if isinstance(cand, Spline) and shape_of(cand) in named:
-                continue                          # a spline of that shape would take the named one's place
+        # shapes a named effect adds significantly this round: no spline of one is made (it would take
+        # the named effect's place); the named candidates come first
+        named: set[tuple[str, str]] = set()
+        for cand in candidates(model.effects, est, resid, named):
             try:
                 fitted = extend(model, cand, est)
             except np.linalg.LinAlgError:
