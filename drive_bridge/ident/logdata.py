@@ -19,10 +19,12 @@ every later step sees evenly spaced samples that are true to their instants.
 from __future__ import annotations
 
 import io
+import mmap
 import re
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import BinaryIO
 
 import numpy as np
 from scipy.interpolate import CubicSpline
@@ -96,25 +98,59 @@ def _describe(runs: list[tuple[int, int]], t: np.ndarray, limit: int = 3) -> str
 
 def _rows(path: Path) -> np.ndarray:
     """The CSV's rows under its header as numbers: numpy's parser, over parts of a large file in
-    processes of their own (:func:`.workers.fork_map`: the same numbers); where a part does not
-    parse, the whole file again here, so that the error names its row."""
+    processes of their own (:func:`.workers.fork_map`: the same numbers), each writing its rows
+    into one table the processes share (nothing large is sent back, nothing held twice); where a
+    part does not parse, the whole file again here, so that the error names its row."""
     size = path.stat().st_size
     count = processes() if size >= MIN_PARALLEL_BYTES else 1
     if count > 1:
         with open(path, "rb") as f:
-            f.readline()
+            columns = f.readline().count(b",") + 1
             cuts = [f.tell()]
             for k in range(1, count):
                 f.seek(max(cuts[-1], cuts[0] + k * (size - cuts[0]) // count))
                 f.readline()                             # the part ends where a line does
                 cuts.append(f.tell())
-        cuts.append(size)
+            cuts.append(size)
+            spans, first = [], 0                         # (start, end, its first row in the table)
+            for a, b in zip(cuts, cuts[1:]):
+                if b > a:
+                    spans.append((a, b, first))
+                    first += _lines(f, a, b)             # at most this many rows (blank lines: fewer)
+        table = np.frombuffer(mmap.mmap(-1, max(1, first * columns * 8)), dtype=float)[:first * columns]
+        table = table.reshape(first, columns)
         try:
-            parts = fork_map(_parse_rows, [(a, b) for a, b in zip(cuts, cuts[1:]) if b > a], count, path)
-            return np.concatenate([p for p in parts if p.size])
+            got = fork_map(_parse_part, spans, count, (path, table))
         except Exception:       # noqa: BLE001 -- any part that fails: the whole file says why, below
             pass
+        else:
+            if all(n == next_first - start for n, (_, _, start), next_first in
+                   zip(got, spans, [s[2] for s in spans[1:]] + [first])):
+                return table                             # every part filled its rows up to the next one's
+            return np.concatenate([table[start:start + n] for n, (_, _, start) in zip(got, spans)])
     return _parse_rows(path, None)
+
+
+def _lines(f: BinaryIO, start: int, end: int, chunk: int = 1 << 22) -> int:
+    """The lines of ``f`` between the byte offsets (the last one counts without its newline)."""
+    f.seek(start)
+    lines, last = 0, b""
+    for at in range(start, end, chunk):
+        block = f.read(min(chunk, end - at))
+        lines += block.count(b"\n")
+        last = block[-1:]
+    return lines + (last != b"\n")
+
+
+def _parse_part(shared: tuple[Path, np.ndarray], span: tuple[int, int, int]) -> int:
+    """Parse the rows between the byte offsets ``span[:2]`` into the shared table from its row
+    ``span[2]`` on; how many there were."""
+    path, table = shared
+    rows = _parse_rows(path, span[:2])
+    if rows.size and rows.shape[1] != table.shape[1]:
+        raise ValueError(f"{rows.shape[1]} columns under a header of {table.shape[1]}")
+    table[span[2]:span[2] + len(rows)] = rows
+    return len(rows)
 
 
 def _parse_rows(path: Path, span: tuple[int, int] | None) -> np.ndarray:

@@ -522,9 +522,11 @@ import numpy as np
 from drive_bridge.errors import UserError
 from drive_bridge.ident import logdata, workers
 logdata.MIN_PARALLEL_BYTES = 0
-good, bad = Path(sys.argv[1]), Path(sys.argv[2])
+good, bad, blank = Path(sys.argv[1]), Path(sys.argv[2]), Path(sys.argv[3])
 out = {"processes": workers.processes(),
-       "same": bool(np.array_equal(logdata._rows(good), logdata._parse_rows(good, None), equal_nan=True))}
+       "same": bool(np.array_equal(logdata._rows(good), logdata._parse_rows(good, None), equal_nan=True)),
+       "same_blank": bool(np.array_equal(logdata._rows(blank), logdata._parse_rows(blank, None), equal_nan=True)),
+       "rows_blank": len(logdata._rows(blank))}
 for name, least in (("error", 0), ("whole_file_error", 10**12)):
     logdata.MIN_PARALLEL_BYTES = least
     try:
@@ -537,7 +539,8 @@ print(json.dumps(out))
 
 def test_a_large_csv_parsed_in_parts_gives_the_same_rows_and_a_bad_row_is_named(tmp_path):
     """A log's CSV parsed in parts, a process each (as a large one is), gives the rows the whole
-    file gives; a row that does not parse, in the last part, is named as the whole file names it.
+    file gives, also with blank lines in it (fewer rows than lines: the shared table is cut to the
+    rows); a row that does not parse, in the last part, is named as the whole file names it.
     Run in a process of its own (a test worker runs threads, and a process with threads never forks)."""
     from .generator import closed_loop_log
     good = write_log(tmp_path / "good.csv", closed_loop_log(np.arange(0.0, 6.0, 0.002), seed=7))
@@ -545,9 +548,13 @@ def test_a_large_csv_parsed_in_parts_gives_the_same_rows_and_a_bad_row_is_named(
     lines[-5] = lines[-5].replace(",", ",x", 1)
     bad = tmp_path / "bad.csv"
     bad.write_text("\n".join(lines) + "\n")
-    out = subprocess.run([sys.executable, "-c", PARTS_RUN, str(good), str(bad)], capture_output=True, text=True,
-                         env={**os.environ, "DRIVE_BRIDGE_WORKERS": "2"}, cwd=tmp_path, check=True)
+    rows = good.read_text().splitlines()
+    blank = tmp_path / "blank.csv"
+    blank.write_text("\n".join(rows[:100] + [""] + rows[100:]) + "\n\n")
+    out = subprocess.run([sys.executable, "-c", PARTS_RUN, str(good), str(bad), str(blank)], capture_output=True,
+                         text=True, env={**os.environ, "DRIVE_BRIDGE_WORKERS": "2"}, cwd=tmp_path, check=True)
     run = json.loads(out.stdout)
     assert run["processes"] == 2 and run["same"]
+    assert run["same_blank"] and run["rows_blank"] == len(rows) - 1
     assert "not a readable CSV log" in run["error"] and "x1." in run["error"]
     assert run["error"] == run["whole_file_error"]
