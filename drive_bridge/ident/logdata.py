@@ -112,22 +112,19 @@ def _rows(path: Path) -> np.ndarray:
                 f.readline()                             # the part ends where a line does
                 cuts.append(f.tell())
             cuts.append(size)
-            spans, first = [], 0                         # (start, end, its first row in the table)
-            for a, b in zip(cuts, cuts[1:]):
-                if b > a:
-                    spans.append((a, b, first))
-                    first += _lines(f, a, b)             # at most this many rows (blank lines: fewer)
-        table = np.frombuffer(mmap.mmap(-1, max(1, first * columns * 8)), dtype=float)[:first * columns]
-        table = table.reshape(first, columns)
+            spans = [(a, b) for a, b in zip(cuts, cuts[1:]) if b > a]
+            lines = [_lines(f, a, b) for a, b in spans]  # at most this many rows each (blank lines: fewer)
+        firsts = np.cumsum([0] + lines).tolist()         # each part's first row in the table
+        table = np.frombuffer(mmap.mmap(-1, max(1, firsts[-1] * columns * 8)), dtype=float)
+        table = table[:firsts[-1] * columns].reshape(firsts[-1], columns)
         try:
-            got = fork_map(_parse_part, spans, count, (path, table))
+            got = fork_map(_parse_part, [(a, b, first) for (a, b), first in zip(spans, firsts)], count, (path, table))
         except Exception:       # noqa: BLE001 -- any part that fails: the whole file says why, below
             pass
         else:
-            if all(n == next_first - start for n, (_, _, start), next_first in
-                   zip(got, spans, [s[2] for s in spans[1:]] + [first])):
+            if got == lines:
                 return table                             # every part filled its rows up to the next one's
-            return np.concatenate([table[start:start + n] for n, (_, _, start) in zip(got, spans)])
+            return np.concatenate([table[first:first + n] for n, first in zip(got, firsts)])
     return _parse_rows(path, None)
 
 

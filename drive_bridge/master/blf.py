@@ -65,7 +65,7 @@ class BatchedBLFWriter(can.BLFWriter):
         if not rows:
             return
         stamps, channels, flags, dlcs, ids, data = zip(*rows)
-        t = np.array(stamps, dtype=np.float64) + self.epoch if self.epoch else np.array(stamps, dtype=np.float64)
+        t = np.array(stamps, dtype=np.float64) + self.epoch
         if self.start_timestamp is None:
             self.start_timestamp = int(t[0] * 1000) / 1000
         self.stop_timestamp = float(t[-1])
