@@ -173,6 +173,8 @@ results = identify(sys.argv[1], seed=0)
 print(json.dumps({"wall": time.perf_counter() - t0,
                   "params": {a: {k: r.model.params_[k] for k in ("J", "c0", "c1")} for a, r in results.items()},
                   "std": {a: {k: r.model.param_std_[k] for k in ("J", "c0", "c1")} for a, r in results.items()},
+                  "ga": {a: {k: float(c) for k, c in zip(r.model.coef_names, r.ga_coef) if k in ("J", "c0", "c1")}
+                         for a, r in results.items()},
                   "effects": {a: [t.effect.name for t in r.effects] for a, r in results.items()}}))
 """
 
@@ -210,7 +212,10 @@ def full(log_dir: str | None, against: str | None, profile: int, runs: int) -> N
                   f"{best / ref:.2f}x its time")
             worst = max(abs(mine[0]["params"][a][k] - theirs[0]["params"][a][k]) / theirs[0]["std"][a][k]
                         for a in theirs[0]["params"] for k in ("J", "c0", "c1"))
-            print(f"  J, c0, c1 differ by at most {worst:.2g} of their std; effects "
+            worst_ga = max(abs(mine[0]["ga"][a][k] - theirs[0]["ga"][a][k]) / theirs[0]["std"][a][k]
+                           for a in theirs[0]["ga"] for k in ("J", "c0", "c1"))
+            print(f"  J, c0, c1 differ by at most {worst:.2g} of their std (the genetic algorithm's "
+                  f"{worst_ga:.2g}); effects "
                   + ("the same" if mine[0]["effects"] == theirs[0]["effects"] else
                      f"differ: {mine[0]['effects']} vs {theirs[0]['effects']}"))
         for a, p in mine[0]["params"].items():

@@ -19,8 +19,8 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy import optimize
 
+from . import evolution
 from .effects import Effect
 from .signals import Samples, Signals, derivative
 
@@ -273,6 +273,5 @@ def _differential_evolution(phi: np.ndarray, y: np.ndarray, centre: np.ndarray, 
     def sse(theta: np.ndarray) -> np.ndarray:          # theta: (p, S) population
         return yy - 2 * b @ theta + np.einsum("is,ij,js->s", theta, gram, theta)
 
-    result = optimize.differential_evolution(sse, list(zip(lo, hi)), seed=seed, vectorized=True,
-                                             popsize=30, maxiter=400, tol=1e-10, polish=False, updating="deferred")
-    return result.x
+    return evolution.differential_evolution(sse, list(zip(lo, hi)), seed, popsize=30, maxiter=400, tol=1e-10,
+                                            polish=False).x
