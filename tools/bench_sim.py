@@ -49,26 +49,31 @@ def bus(seconds: float = 60.0) -> float:
     master = FastVirtualBus(channel="bench-bus", preserve_timestamps=True)
     import can
     import struct
-    for drive in robot.drives.values():                     # NMT start, enable CSP (SDO-free shortcut)
+    for name, drive in robot.drives.items():                # NMT start, enable CSP (SDO-free shortcut)
         drive.on_nmt(bytes([1, 0]))
         drive.mode = 8
+        load = robot.config.axes[name].effects.get("load", {}).get("LOAD", 0.0)
+        drive._write(0x60B2, 0, round(load / drive.rated_torque * 1000))   # Z's weight held, as the master does
+        drive.refresh_actuals()
+        drive._write(0x607A, 0, drive._position_inc)        # the target preloaded where the axis stands
         for cw in (6, 7, 15):
             drive._write(0x6040, 0, cw)
     robot.process()
+    hold = {drive.node_id: drive._position_inc for drive in robot.drives.values()}
     n = round(seconds / PERIOD)
     frames = 0
     t0 = time.perf_counter()
     for k in range(n):
         for drive in robot.drives.values():
             master.send(can.Message(arbitration_id=0x200 + drive.node_id, is_extended_id=False,
-                                    data=struct.pack("<Hi", 0x0F, 0), timestamp=robot.time))
+                                    data=struct.pack("<Hi", 0x0F, hold[drive.node_id]), timestamp=robot.time))
         master.send(can.Message(arbitration_id=0x80, data=b"", is_extended_id=False, timestamp=robot.time))
         robot.process()
         frames += sum(1 for _ in master.drain())
     wall = time.perf_counter() - t0
     master.shutdown()
     robot.shutdown()
-    assert frames == 3 * n, frames                          # default mapping: TPDO1 per axis
+    assert frames == 3 * n, frames                          # default mapping: TPDO1 per axis, no EMCY
     return seconds / wall
 
 
