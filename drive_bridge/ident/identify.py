@@ -73,6 +73,8 @@ class AxisResult:
     drive_note: str | None = None              # why the drive gets the full model's values after all
     #: the plant's torque -> velocity response read from the log (frf.log_response), for reference
     response: dict | None = None
+    #: whether the GA converged before its generation limit (``ga_coef`` otherwise: where the search stood)
+    ga_converged: bool = True
 
     def attach(self, log: Log) -> None:
         """Give the samples back the log they were made of (a result from a worker process comes
@@ -80,6 +82,14 @@ class AxisResult:
         for s in (self.est, self.val):
             if s.source is not None:
                 s.source.log = log
+
+    @property
+    def ga_std_from_lse(self) -> float:
+        """How far the GA's coefficients lie from the least-squares minimum of the same cost, at
+        most, in the least-squares std (0 where every std is 0)."""
+        std = np.sqrt(np.maximum(np.diag(self.model.cov_), 0.0))
+        ok = std > 0
+        return float(np.max(np.abs(self.ga_coef - self.model.coef_)[ok] / std[ok])) if ok.any() else 0.0
 
     def as_json(self) -> dict:
         return {
@@ -109,7 +119,8 @@ class AxisResult:
             "condition_number": self.model.cond_,
             "residual_std": self.model.sigma_,
             "ga": {"params": dict(zip(self.model.coef_names, map(float, self.ga_coef))),
-                   "rmse": self.ga_errors.rmse},
+                   "rmse": self.ga_errors.rmse, "converged": self.ga_converged,
+                   "std_from_lse": self.ga_std_from_lse},
             "settings": {"cutoff_hz": self.settings.cutoff_hz, "decimation": self.settings.decimation,
                          "rate_hz": self.settings.rate_hz},
             "dropped": self.dropped,
@@ -371,7 +382,7 @@ def _identify_axis(log: Log, axis: str, val_log: Log | None, seed: int, cutoff_h
                       errors(ga_model, val), list(log.axes[axis].dropped),
                       {**log.sampling, "torque_delay_ms": round(1e3 * settings.torque_delay_s, 4),
                        "torque_aligned": settings.torque_delay_s != 0.0, **timing}, agreement,
-                      friction=friction)
+                      friction=friction, ga_converged=ga_model.converged_)
 
 
 def identify(path: str | Path, validate: str | Path | None = None, axes: list[str] | None = None, *,

@@ -78,8 +78,10 @@ class AxisModel:
         gram_inv = np.linalg.pinv((phi / scale).T @ (phi / scale)) / np.outer(scale, scale)
         self.cov_ = hac_covariance(phi, resid, gram_inv, n - p)
         self.cond_ = float(np.linalg.cond(phi))
+        self.converged_ = True          # "ga": whether the search converged before its generation limit
         if self.method == "ga":
-            coef = _differential_evolution(phi, y, coef, self.cov_, self.seed)
+            result = _differential_evolution(phi, y, coef, self.cov_, self.seed)
+            coef, self.converged_ = result.x, bool(result.success)
             resid = y - phi @ coef
         self.coef_ = coef
         self.n_samples_ = n
@@ -259,12 +261,12 @@ def extend(model: AxisModel, effect: Effect, s: Samples) -> AxisModel:
 
 
 def _differential_evolution(phi: np.ndarray, y: np.ndarray, centre: np.ndarray, cov: np.ndarray,
-                            seed: int) -> np.ndarray:
+                            seed: int) -> evolution.OptimizeResult:
     """Every coefficient by differential evolution around the least-squares estimate ``centre``.
 
     The search box is ``centre`` ± max(50 %, 10 std) per coefficient; the cost is the same sum
     of squared torque errors, evaluated from the Gram matrix so each generation costs O(p²),
-    not O(n).
+    not O(n).  The result's ``success`` says whether it converged within its generation limit.
     """
     gram, b, yy = phi.T @ phi, phi.T @ y, float(y @ y)
     half = np.maximum(0.5 * np.abs(centre), 10 * np.sqrt(np.maximum(np.diag(cov), 0.0))) + 1e-12
@@ -274,4 +276,4 @@ def _differential_evolution(phi: np.ndarray, y: np.ndarray, centre: np.ndarray, 
         return yy - 2 * b @ theta + np.einsum("is,ij,js->s", theta, gram, theta)
 
     return evolution.differential_evolution(sse, list(zip(lo, hi)), seed, popsize=30, maxiter=400, tol=1e-10,
-                                            polish=False).x
+                                            polish=False)

@@ -59,7 +59,7 @@ def summary(results: dict[str, AxisResult]) -> str:
         if r.drive_model is not None or r.drive_note:
             lines.append(f"  {drive_text(r)}")
         lines.append(f"  GA (differential evolution) on the same data: validation RMSE {r.ga_errors.rmse:.4g} "
-                     f"{tu}, J {r.ga_coef[0]:.6g}, c1 {r.ga_coef[1]:.6g}, c0 {r.ga_coef[2]:.6g}")
+                     f"{tu}, J {r.ga_coef[0]:.6g}, c1 {r.ga_coef[1]:.6g}, c0 {r.ga_coef[2]:.6g}; {ga_text(r)}")
         for u_ in r.unexplained:
             lines.append(f"  unexplained: {describe_unexplained(u_)}")
         for d in r.dropped:
@@ -87,6 +87,21 @@ def drive_text(r: AxisResult) -> str:
     return (f"for the drive (its model holds J, c0, c1 and {held}; refitted without the rest): "
             + ", ".join(f"{k} {measured(d[k], sd[k])} ± {sd[k]:.2g}" for k in ("J", "c0", "c1"))
             + f"; validation RMSE {r.drive_errors.rmse:.4g} {r.units['torque']} (every term: {r.after.rmse:.4g})")
+
+
+GA_WITHIN_STD = 1.0     # a GA result this close to the least-squares minimum (in its std) is the same estimate
+
+
+def ga_text(r: AxisResult) -> str:
+    """Whether the GA's values are an estimate: converged, or how far from the least-squares
+    minimum of the same cost its search stood when it reached its generation limit."""
+    far = r.ga_std_from_lse
+    if r.ga_converged:
+        return f"converged, within {far:.2g} std of the least-squares values"
+    if far <= GA_WITHIN_STD:
+        return f"stopped at its generation limit within {far:.2g} std of the least-squares values"
+    return (f"stopped at its generation limit up to {far:.2g} std from the least-squares minimum of the same "
+            f"cost: its values are where the search stood, not an estimate (the data leave coefficients collinear)")
 
 
 def friction_text(r: AxisResult) -> str:
@@ -324,7 +339,7 @@ def build_report(results: dict[str, AxisResult], out: Path, source: str) -> Docu
                          measured(r.ga_coef[i], sd)])
         doc.table(["coefficient", "unit", "LSE", "std", "rel. std", "GA"], rows)
         doc.para(f"Condition number {r.model.cond_:.1f}; residual std {r.model.sigma_:.4g} {tu}; "
-                 f"GA validation RMSE {r.ga_errors.rmse:.4g} {tu} (LSE {r.after.rmse:.4g} {tu}).")
+                 f"GA validation RMSE {r.ga_errors.rmse:.4g} {tu} (LSE {r.after.rmse:.4g} {tu}); {ga_text(r)}.")
         rows = [["J, c0, c1", f"{r.before.rmse:.4g}", f"{r.before.relative_error:.2%}"]]
         names = []
         for t in r.effects:
