@@ -29,13 +29,24 @@ from dataclasses import dataclass, field
 
 from ..errors import UserError
 from ..yamlconf import Section
-from ..tuning.design import CURRENT_RATE_HZ, LOOP_TICK_S, Timing
 
 STRUCTURES = ("cascade", "position_pid")
 GAINS = ("KpP", "FwF", "KpS", "KiS", "KpC", "KiC")   # a cascade's gains (tune's terms)
 CASCADE = ("KpP", "FwF", "KpS", "KiS")
 PID = ("PidP", "PidI", "PidD", "PidFFv", "PidFFa")
 RATES = ("position", "velocity", "current")
+LOOP_TICK_S = 0.5e-3          # the project drive's velocity / position loop period (2 kHz)
+CURRENT_RATE_HZ = 8000.0      # ... and its current loop's rate
+
+
+@dataclass(frozen=True)
+class Timing:
+    """The rates of the loops a design is for: ``tick_s`` the period of the loop closed around the
+    position and velocity [s] (the velocity loop of a cascade, a position PID), ``current_hz`` the
+    current loop's rate [Hz]."""
+
+    tick_s: float = LOOP_TICK_S
+    current_hz: float = CURRENT_RATE_HZ
 
 
 @dataclass(frozen=True)

@@ -31,25 +31,15 @@ from typing import TYPE_CHECKING
 import control
 import numpy as np
 
+from ..params.controller import CURRENT_RATE_HZ, LOOP_TICK_S, Timing
+
 if TYPE_CHECKING:
     from ..ident.frf import Frf
 
-LOOP_TICK_S = 0.5e-3          # the project drive's velocity / position loop period (2 kHz)
-CURRENT_RATE_HZ = 8000.0      # ... and its current loop's rate
 PM_MIN_DEG, GM_MIN_DB = 45.0, 8.0          # what must hold (industrial tuners' defaults)
 PM_DESIGN_DEG, GM_DESIGN_DB = 50.0, 9.0    # what the design aims at: room for model error
 INTEGRAL_RATIO = 6.0          # KiS = crossover / this
 PADE_ORDER = 3
-
-
-@dataclass(frozen=True)
-class Timing:
-    """The rates of the loops a design is for: ``tick_s`` the period of the loop closed around the
-    position and velocity [s] (the velocity loop of a cascade, a position PID), ``current_hz`` the
-    current loop's rate [Hz]."""
-
-    tick_s: float = LOOP_TICK_S
-    current_hz: float = CURRENT_RATE_HZ
 
 
 PROJECT = Timing()

@@ -103,3 +103,13 @@ def test_on_a_terminal_the_plan_is_shown_and_yes_moves(tmp_path, capsys, monkeyp
         assert (tmp_path / "run" / "log.csv").exists()
     finally:
         drives.shutdown()
+
+
+def test_the_simulator_starts_without_the_tuning_tools():
+    """Drives in a process of their own (``sim/process.py``, ``drive-bridge sim``'s core) import the
+    simulator only: not python-control, matplotlib or the tuning code (they had cost 2.4 s of every
+    start through the controller description's loop rates)."""
+    code = ("import sys, drive_bridge.sim.robot, drive_bridge.sim.process; "
+            "print(sorted(m for m in ('control', 'matplotlib.pyplot', 'drive_bridge.tuning.design') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"
