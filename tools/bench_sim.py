@@ -49,17 +49,18 @@ def bus(seconds: float = 60.0) -> float:
     master = FastVirtualBus(channel="bench-bus", preserve_timestamps=True)
     import can
     import struct
+    hold = {}
     for name, drive in robot.drives.items():                # NMT start, enable CSP (SDO-free shortcut)
         drive.on_nmt(bytes([1, 0]))
         drive.mode = 8
         load = robot.config.axes[name].effects.get("load", {}).get("LOAD", 0.0)
         drive._write(0x60B2, 0, round(load / drive.rated_torque * 1000))   # Z's weight held, as the master does
         drive.refresh_actuals()
-        drive._write(0x607A, 0, drive._position_inc)        # the target preloaded where the axis stands
+        hold[drive.node_id] = drive._position_inc
+        drive._write(0x607A, 0, hold[drive.node_id])        # the target preloaded where the axis stands
         for cw in (6, 7, 15):
             drive._write(0x6040, 0, cw)
     robot.process()
-    hold = {drive.node_id: drive._position_inc for drive in robot.drives.values()}
     n = round(seconds / PERIOD)
     frames = 0
     t0 = time.perf_counter()

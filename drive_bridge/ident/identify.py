@@ -87,7 +87,7 @@ class AxisResult:
     def ga_std_from_lse(self) -> float:
         """How far the GA's coefficients lie from the least-squares minimum of the same cost, at
         most, in the least-squares std (0 where every std is 0)."""
-        std = np.sqrt(np.maximum(np.diag(self.model.cov_), 0.0))
+        std = self.model.coef_std_
         ok = std > 0
         return float(np.max(np.abs(self.ga_coef - self.model.coef_)[ok] / std[ok])) if ok.any() else 0.0
 

@@ -137,8 +137,13 @@ class AxisModel:
         return out
 
     @property
+    def coef_std_(self) -> np.ndarray:
+        """The std of each coefficient (``coef_names`` order) from ``cov_``."""
+        return np.sqrt(np.maximum(np.diag(self.cov_), 0.0))
+
+    @property
     def param_std_(self) -> dict[str, float]:
-        sd = np.sqrt(np.maximum(np.diag(self.cov_), 0.0))
+        sd = self.coef_std_
         out = {"J": float(sd[0]), "c0": float(sd[2]), "c1": float(sd[1])}
         for e, sl in self._blocks():
             for k, v in e.param_std(self.coef_[sl], self.cov_[sl, sl]).items():

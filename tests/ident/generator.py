@@ -95,8 +95,9 @@ def closed_loop_log(stamps: np.ndarray, *, J: float = 1e-4, c0: float = 0.3, c1:
     J_eff = J * J_l / (J + J_l)
     k_s = (2 * np.pi * f_mode) ** 2 * J_eff
     d_s = 2 * zeta * np.sqrt(k_s * J_eff)
-    q, tau = _integrate(t, q_ref, v_ref, a_ref, T, J, c0, c1, kp, kv, ki, _compiled(extra),
-                        (float(payload[0]), float(payload[1])) if payload is not None else (np.inf, J), coupling is not None, J_l, k_s, d_s, lash)
+    after = (float(payload[0]), float(payload[1])) if payload is not None else (np.inf, J)
+    q, tau = _integrate(t, q_ref, v_ref, a_ref, T, J, c0, c1, kp, kv, ki, _compiled(extra), after,
+                        coupling is not None, J_l, k_s, d_s, lash)
     rng = np.random.default_rng(seed)
     q_s = np.interp(stamps, t, q)
     tau_s = np.interp(stamps - torque_lag_s, t, tau) + noise_Nm * rng.standard_normal(len(stamps))
