@@ -47,6 +47,7 @@ def kernel(seconds: float = 60.0) -> float:
 def bus(seconds: float = 60.0) -> float:
     robot = SimRobot(load_sim_config(DEFAULT_CONFIG), "bench-bus")
     master = FastVirtualBus(channel="bench-bus", preserve_timestamps=True)
+    master.direct = robot.bus.direct = True                 # one thread: frames handed over as the lockstep link does
     import can
     import struct
     hold = {}
@@ -54,12 +55,12 @@ def bus(seconds: float = 60.0) -> float:
         drive.on_nmt(bytes([1, 0]))
         drive.mode = 8
         load = robot.config.axes[name].effects.get("load", {}).get("LOAD", 0.0)
-        drive._write(0x60B2, 0, round(load / drive.rated_torque * 1000))   # Z's weight held, as the master does
+        drive.write(0x60B2, 0, round(load / drive.rated_torque * 1000))   # Z's weight held, as the master does
         drive.refresh_actuals()
         hold[drive.node_id] = drive._position_inc
-        drive._write(0x607A, 0, hold[drive.node_id])        # the target preloaded where the axis stands
+        drive.write(0x607A, 0, hold[drive.node_id])        # the target preloaded where the axis stands
         for cw in (6, 7, 15):
-            drive._write(0x6040, 0, cw)
+            drive.write(0x6040, 0, cw)
     robot.process()
     n = round(seconds / PERIOD)
     frames = 0

@@ -5,7 +5,9 @@ container's worth at a time with numpy instead of three ``struct`` calls and fou
 each: a campaign puts millions of frames on the bus, and the per-frame writer was a sixth of a
 lockstep cycle.  The file is byte for byte the one ``BLFWriter`` writes for the same frames
 (``tests/master/test_blf.py`` compares them); error and CAN FD frames still go through
-``BLFWriter`` itself, after the frames before them.
+``BLFWriter`` itself, after the frames before them.  A full container is compressed and written
+by a thread of its own, in order (zlib lets go of the GIL: on a second core the frames go on
+being packed meanwhile).
 
 Relies on these internals of python-can's ``BLFWriter`` (pinned by that test, bounded in
 pyproject.toml): the uncompressed ``_buffer`` (a list of bytes) and ``_buffer_size``, ``_flush``
@@ -15,11 +17,14 @@ pyproject.toml): the uncompressed ``_buffer`` (a list of bytes) and ``_buffer_si
 from __future__ import annotations
 
 import os
+import zlib
+from concurrent.futures import Future, ThreadPoolExecutor
 from typing import Any
 
 import can
 import numpy as np
-from can.io.blf import CAN_MESSAGE, CAN_MSG_EXT, DIR, REMOTE_FLAG, TIME_ONE_NANS
+from can.io.blf import (CAN_MESSAGE, CAN_MSG_EXT, DIR, LOG_CONTAINER, LOG_CONTAINER_STRUCT, NO_COMPRESSION,
+                        OBJ_HEADER_BASE_STRUCT, REMOTE_FLAG, TIME_ONE_NANS, ZLIB_DEFLATE)
 from can.util import channel2int
 
 #: one CAN_MESSAGE object: base header, header v1 (flags, client, version, time [ns]), the frame
@@ -40,6 +45,8 @@ class BatchedBLFWriter(can.BLFWriter):
         self._rows: list[tuple[float, int, int, int, int, bytes]] = []
         self._batch = self.max_container_size // _OBJECT.itemsize + 1
         self._channels: dict[Any, int] = {}
+        self._containers: ThreadPoolExecutor | None = ThreadPoolExecutor(1, thread_name_prefix="blf-container")
+        self._written: list[Future] = []
 
     def on_message_received(self, msg: can.Message) -> None:
         if msg.is_error_frame or msg.is_fd:
@@ -85,6 +92,33 @@ class BatchedBLFWriter(can.BLFWriter):
         while self._buffer_size >= self.max_container_size:
             self._flush()
 
+    def _flush(self) -> None:
+        """As BLFWriter's: the first ``max_container_size`` bytes held make a container, the rest
+        waits for the next; compressed and written by the container thread, in order."""
+        if self._containers is None or self.file.closed:
+            super()._flush()
+            return
+        buffer = b"".join(self._buffer)
+        if not buffer:
+            return
+        self._buffer = [buffer[self.max_container_size:]]
+        self._buffer_size = len(self._buffer[0])
+        chunk = buffer[:self.max_container_size]
+        self.uncompressed_size += OBJ_HEADER_BASE_STRUCT.size + LOG_CONTAINER_STRUCT.size + len(chunk)
+        for done in [f for f in self._written if f.done()]:
+            done.result()                  # a container that could not be written stops the trace here
+            self._written.remove(done)
+        self._written.append(self._containers.submit(self._write_container, chunk))
+
+    def _write_container(self, chunk: bytes) -> None:
+        if self.compression_level:
+            data, method = zlib.compress(chunk, self.compression_level), ZLIB_DEFLATE
+        else:
+            data, method = chunk, NO_COMPRESSION
+        size = OBJ_HEADER_BASE_STRUCT.size + LOG_CONTAINER_STRUCT.size + len(data)
+        self.file.write(OBJ_HEADER_BASE_STRUCT.pack(b"LOBJ", OBJ_HEADER_BASE_STRUCT.size, 1, size, LOG_CONTAINER)
+                        + LOG_CONTAINER_STRUCT.pack(method, len(chunk)) + data + b"\x00" * (size % 4))
+
     def _add_object(self, obj_type: int, data: bytes, timestamp: float | None = None) -> None:
         self._pack()                      # error and FD frames, markers: after the frames before them
         super()._add_object(obj_type, data, None if timestamp is None else timestamp + self.epoch)
@@ -94,4 +128,9 @@ class BatchedBLFWriter(can.BLFWriter):
 
     def stop(self) -> None:
         self._pack()
+        if self._containers is not None:
+            self._containers.shutdown(wait=True)
+            self._containers = None
+            for written in self._written:
+                written.result()
         super().stop()

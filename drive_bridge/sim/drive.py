@@ -38,7 +38,7 @@ from ..params.controller import Controller
 from ..params.profile import SELECT, load_profile
 from ..pdo import PdoCodec
 from ..setpoint import CSP, IP, PVT, SETPOINT_OBJECTS, position_of, supported_modes
-from . import kernel as K
+from . import cyclic as X, kernel as K
 from .adapters import local_node
 from .cia402 import (ENABLED, FAULT, FAULT_REACTION, QUICK_STOP, STATUSWORD, SWITCH_ON_DISABLED,
                      VOLTAGE_ENABLED, next_state)
@@ -133,13 +133,46 @@ class DriveHost(Protocol):
         """The drive's RPDO COB-IDs changed."""
 
 
+class _Held:
+    """A drive attribute held in its row of the drive array (:mod:`.cyclic`), where the compiled
+    SYNC path reads and writes it too."""
+
+    def __init__(self, column: int, kind: type):
+        self.column, self.kind = column, kind
+
+    def __get__(self, drive: "SimDrive", owner: type) -> Any:
+        return self.kind(drive.x.item(self.column))
+
+    def __set__(self, drive: "SimDrive", value: Any) -> None:
+        drive.x[self.column] = value
+
+
 class SimDrive:
     """A servo drive of one axis in ``host``.  ``index`` is the axis' row in the kernel arrays
-    ``rows`` (state, param, demand: views of this axis's rows); ``axis_names`` are every axis
-    of the robot in row order (a cross-axis effect names its source)."""
+    ``rows`` (state, param, demand, and the drive array of :mod:`.cyclic`: views of this axis's
+    rows); ``axis_names`` are every axis of the robot in row order (a cross-axis effect names its
+    source)."""
+
+    pos_per_rad = _Held(X.X_POS_PER_RAD, float)      # position unit per rad (motor side)
+    vel_per_si = _Held(X.X_VEL_PER_SI, float)        # velocity unit per rad/s
+    origin_rad = _Held(X.X_ORIGIN, float)            # the plant position the drive counts as 0 (homing)
+    rated_torque = _Held(X.X_RATED_TORQUE, float)    # [Nm] (0x6076)
+    v_dem = _Held(X.X_V_DEM, float)                  # demand velocity of the current period [rad/s]
+    setpoint_inc = _Held(X.X_SETPOINT, int)          # the last CSP target / IP record position [increments]
+    new_target = _Held(X.X_NEW_TARGET, bool)         # a CSP target / IP record arrived since the last SYNC
+    internal_limit = _Held(X.X_LIMITED, bool)        # the demand held at a software position limit
+    last_setpoint_time = _Held(X.X_SETPOINT_TIME, float)
+    setpoint_armed = _Held(X.X_ARMED, bool)          # loss-of-setpoint watchdog armed (CSP streaming started)
+    _last_count = _Held(X.X_LAST_COUNT, int)         # encoder count and time of the last sample
+    _last_refresh = _Held(X.X_LAST_TIME, float)
+    _velocity = _Held(X.X_VELOCITY, int)             # the actual values as their objects hold them
+    _torque_pm = _Held(X.X_TORQUE_PM, int)
+    _current = _Held(X.X_CURRENT, int)
+    _position_inc = _Held(X.X_POSITION, int)
 
     def __init__(self, host: DriveHost, index: int, axis: SimAxis, eds_path: str,
-                 rows: tuple[np.ndarray, np.ndarray, np.ndarray], axis_names: list[str]):
+                 rows: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray], axis_names: list[str]):
+        self.s, self.p, self.d, self.x = rows      # kernel and drive rows of this axis (views)
         self.abort_writes: dict[tuple[int, int], int] = {}   # injected SDO aborts, for tests
         #: injected faults, for tests: called as (kind "read" | "write", index, sub) before an SDO
         #: request is handled; it may raise (SdoAbortedError: the drive refuses), take the drive off
@@ -188,7 +221,6 @@ class SimDrive:
                              f"gives the encoder's increments per revolution")
         self.pos_per_rad = self.vel_per_si = self.inc_per_rad
         self.modes = [m for m in supported_modes(self._supported_bits()) if m in IMPLEMENTED_MODES]
-        self.s, self.p, self.d = rows      # kernel rows of this axis (views)
         self.online = True                 # False: the drive has dropped off the bus
         #: maxon's PVT input FIFO (records in device units), where the drive takes PVT records
         self.fifo: deque[int] | None = deque() if self.od.get_variable(*PVT) is not None and \
@@ -292,6 +324,8 @@ class SimDrive:
         m = self.axis.motor
         self.rated_torque = self._od_or(0x6076, 0, m.rated_torque_Nm * 1000) / 1000.0
         self.rated_current_A = self._od_or(0x6075, 0, m.rated_torque_Nm / m.kt * 1000) / 1000.0
+        self.x[X.X_CURRENT_UNIT] = 1e-3 if self.spec.current_unit == "mA" else self.rated_current_A / 1000.0
+        self.x[X.X_NOISE] = self.axis.torque_noise_Nm
         p[K.STRUCT] = K.POSITION_PID if self.controller.structure == "position_pid" else K.CASCADE
         p[K.LOOP_DIV] = self.loop_div
         self._load_gains(self.select is None or self._od(*self.select[0].index_sub) == self.select[1])
@@ -305,16 +339,16 @@ class SimDrive:
         self.error_history: list[int] = []
         self.internal_limit = False
         self.target_reached = False
-        self.new_target = False          # a CSP target / IP record arrived since the last SYNC
-        self.setpoint_inc = 0            # the last CSP target / IP record position [increments]
-        self.setpoint_armed = False      # loss-of-setpoint watchdog armed (CSP streaming started)
+        self.new_target = False
+        self.setpoint_inc = 0
+        self.setpoint_armed = False
         self.last_setpoint_time = 0.0
-        self.v_dem = 0.0                 # demand velocity of the current period [rad/s]
+        self.v_dem = 0.0
         self.pending_rpdo: list[tuple[PdoCodec, bytes]] = []
         self.pp_target: float | None = None    # PP: the demand is still travelling to it
         self.pp_goal: float | None = None      # PP: the target of the last set-point accepted
         self.setpoint_ack = False
-        self.origin_rad = 0.0            # the plant position the drive counts as 0 (set by homing)
+        self.origin_rad = 0.0
         self.homing: str | None = None   # HM: the phase of a homing under way ("switch", "leave", "stop")
         self.homing_attained = self.homing_error = False
         self._in_window_since: float | None = None
@@ -461,7 +495,7 @@ class SimDrive:
         if code is not None:
             raise SdoAbortedError(code)
         value = od.decode_raw(data)
-        self._write(index, subindex, value)
+        self.write(index, subindex, value)
         if index not in self._live:
             self._cache[(index, subindex)] = value      # LocalNode stores the bytes after this
         if index in FACTOR_OBJECTS:                     # new units: every position value is read anew
@@ -469,7 +503,7 @@ class SimDrive:
         elif index == 0x1016:
             self._consumers_changed()
 
-    def _write(self, index: int, sub: int, value: Any) -> None:
+    def write(self, index: int, sub: int, value: Any) -> None:
         """Apply a value written by SDO or RPDO; raise SdoAbortedError to refuse it."""
         if 0x1400 <= index <= 0x1BFF:
             self.pdos.check_write(index, sub, value)
@@ -571,17 +605,25 @@ class SimDrive:
             self._apply_rpdo(codec, data)
 
     def _apply_rpdo(self, codec: PdoCodec, data: bytes) -> None:
-        store, cache = self.node.data_store, self._cache
         for (index, sub), (lo, hi), value in zip(codec.entries, codec.spans, codec.struct.unpack_from(data)):
-            self._write(index, sub, value)
-            if index not in self._live:
-                store.setdefault(index, {})[sub] = data[lo:hi]
-                cache[(index, sub)] = value
+            self.write(index, sub, value)
+            self.keep(index, sub, data[lo:hi], value)
+
+    def keep(self, index: int, sub: int, raw: bytes, value: int) -> None:
+        """Hold a value a PDO wrote as the object's (SDO reads it so); a measured object keeps its own."""
+        if index not in self._live and self._cache.get((index, sub)) != value:   # (the cache holds the stored value)
+            self.node.data_store.setdefault(index, {})[sub] = raw
+            self._cache[(index, sub)] = value
+
+    def count_sync(self) -> int:
+        """One more SYNC: the count a synchronous TPDO's transmission type divides."""
+        self._sync_count += 1
+        return self._sync_count
 
     def send_tpdos(self) -> None:
-        self._sync_count += 1
+        count = self.count_sync()
         for codec, ttype, getters in self.pdos.tpdos:
-            if 1 <= ttype <= 240 and self._sync_count % ttype == 0:
+            if 1 <= ttype <= 240 and count % ttype == 0:
                 self._send(codec.cob_id, codec.struct.pack(*[g() for g in getters]))
 
     # ------------------------------------------------------------------ CiA 402
@@ -735,6 +777,13 @@ class SimDrive:
         """True when the drive generates its own demand (quick stop, PV, PP, homing) on its own clock."""
         return self.state == QUICK_STOP or (self.state == ENABLED and self.mode in (PV, PP, HM))
 
+    @property
+    def streaming(self) -> bool:
+        """Following the master's stream in CSP with its controlword held at enable operation:
+        the steady state whose SYNC :func:`.cyclic.steady_period` can run."""
+        return self.online and self.state == ENABLED and self.mode == CSP and self.controlword in (0x0F, 0x1F) \
+            and self.nmt_state == NMT_OPERATIONAL and self.fifo is None
+
     def on_sync(self) -> None:
         """SYNC: send TPDOs with the values at this instant, then latch new setpoints."""
         if not self.online:
@@ -751,22 +800,23 @@ class SimDrive:
     def next_period(self) -> None:
         """Set the demand P0 -> P1 of the interpolation period that starts now."""
         d, T = self.d, self.host.sync_period
-        d[K.P0] = p0 = d.item(K.P1)
-        v_old = self.v_dem
-        self.internal_limit = False
         if self.following:
             if self.fifo is not None and self.mode == IP:
                 if self.fifo:
                     self.setpoint_inc, self.new_target = self.fifo.popleft(), True
                     self.last_setpoint_time = self.host.time
                 else:                                       # the FIFO ran dry while interpolating
+                    d[K.P0] = d[K.P1]
+                    self.internal_limit = False
                     self._buffer_error(IPB_UNDERFLOW, ERR_IP_UNDERFLOW)
                     return
-            p1 = p0
-            if self.new_target:
-                d[K.P1] = p1 = self._limit(self._plant(self.setpoint_inc))
-            self.v_dem = (p1 - p0) / T
-        elif self.state == QUICK_STOP:
+            # linear interpolation (IP sub-mode 0) has no acceleration within a period
+            X.follow_period(d, self.x, T, *self.software_limits(), self.mode == IP and self._od_or(0x60C0, 0, 0) == 0)
+            return
+        d[K.P0] = d.item(K.P1)
+        v_old = self.v_dem
+        self.internal_limit = False
+        if self.state == QUICK_STOP:
             self._ramp(0.0, self._od_or(0x6085, 0, factory().quick_stop_rad_s2 * self.vel_per_si) / self.vel_per_si, T)
             if self.v_dem == 0.0:
                 self.target_reached = True
@@ -790,9 +840,7 @@ class SimDrive:
             self._homing_period(T)
         else:
             self.v_dem = 0.0
-        # linear interpolation (IP sub-mode 0) has no acceleration within a period
-        linear = self.following and self.mode == IP and self._od_or(0x60C0, 0, 0) == 0
-        d[K.A_FF] = 0.0 if linear else (self.v_dem - v_old) / T
+        d[K.A_FF] = (self.v_dem - v_old) / T
         self.new_target = False
 
     def _ramp(self, v_target: float, accel: float, T: float, limit: bool = True) -> None:
@@ -806,17 +854,15 @@ class SimDrive:
 
     def _plant(self, position: int) -> float:
         """A position in the drive's units as the plant's [rad]: through the origin homing set."""
-        return position / self.pos_per_rad + self.origin_rad
+        return X.plant_position(self.x, position)
 
     def _limit(self, position: float) -> float:
-        lo, hi = self._od(0x607D, 1), self._od(0x607D, 2)
-        if lo >= hi:
-            return position
-        lo, hi = self._plant(lo), self._plant(hi)
-        if position < lo or position > hi:
-            self.internal_limit = True
-            return min(max(position, lo), hi)
-        return position
+        """``position`` [rad, plant] inside the software position limits 0x607D."""
+        return X.soft_limit(self.x, position, *self.software_limits())
+
+    def software_limits(self) -> tuple[int, int]:
+        """0x607D: (min, max) [position unit]; no limits where min >= max."""
+        return self._od(0x607D, 1), self._od(0x607D, 2)
 
     def check_faults(self) -> None:
         """After the plant advanced: following error, loss of setpoint, and (profile position)
@@ -834,17 +880,31 @@ class SimDrive:
             self.target_reached = since is not None and \
                 self.host.time - since >= self._od_or(0x6068, 0, 10) / 1000.0 - 1e-9
         over = self.s.item(K.FE_COUNT)                  # ticks outside the following error window
-        if over > 0 and over >= max(1, round(self._od_or(0x6066, 0, factory().fe_timeout_ms) / 1000.0
-                                              / K.VELOCITY_TICK_S)):
+        if over > 0 and over >= self.following_error_ticks():
             self.fault(ERR_FOLLOWING)
         elif self.setpoint_armed and self.following and self.host.time - self.last_setpoint_time > \
-                SETPOINT_TIMEOUT_PERIODS * self._interpolation_period() + 1e-9:
+                self.setpoint_timeout():
             # the master's stream is gone: the drive's connection-abort reaction (a fault where
             # the drive has no 0x6007, or it is left at CiA 402's default)
             self._connection_lost(ERR_RPDO_TIMEOUT, self._od_or(0x6007, 0, ABORT_FAULT))
 
+    def following_error_ticks(self) -> int:
+        """Loop ticks outside the following error window that fault the drive (0x6066)."""
+        return max(1, round(self._od_or(0x6066, 0, factory().fe_timeout_ms) / 1000.0 / K.VELOCITY_TICK_S))
+
+    def setpoint_timeout(self) -> float:
+        """How long [s] the drive follows without a new setpoint before the stream counts as lost."""
+        return SETPOINT_TIMEOUT_PERIODS * self._interpolation_period() + 1e-9
+
     def _interpolation_period(self) -> float:
         return self._od(0x60C2, 1) * 10.0 ** self._od(0x60C2, 2)
+
+    def next_due(self) -> float:
+        """The earliest time [s] its heartbeat or a watched node's silence needs it (inf: never)."""
+        due = self._hb_next if self._od(0x1017) > 0 else math.inf
+        for node, last in self._heard.items():
+            due = min(due, last + self.consumers[node])
+        return due
 
     # ------------------------------------------------------------------ actual values
     def refresh_actuals(self) -> None:
@@ -852,23 +912,8 @@ class SimDrive:
         self._refresh_actuals(noise=True)
 
     def _refresh_actuals(self, noise: bool) -> None:
-        now = self.host.time
-        count = math.floor(self.s.item(K.Q) * self.inc_per_rad)
-        dt = now - self._last_refresh
-        if dt > 0:
-            self._velocity = round((count - self._last_count) / dt / self.inc_per_rad * self.vel_per_si)
-        self._last_count = count
-        self._last_refresh = now
-        current = K.mean_current(self.s)
-        torque = self.p.item(K.KT) * current
-        if noise and self.axis.torque_noise_Nm:
-            torque += self.axis.torque_noise_Nm * self.host.noise()
-        self._torque_pm = max(-32768, min(32767, round(torque / self.rated_torque * 1000)))
-        per_unit = 1e-3 if self.spec.current_unit == "mA" else self.rated_current_A / 1000.0
-        self._current = max(-32768, min(32767, round(current / per_unit)))
-        count -= round(self.origin_rad * self.inc_per_rad)           # as the drive counts since homing
-        position = count if self.pos_per_rad == self.inc_per_rad else round(count / self.inc_per_rad * self.pos_per_rad)
-        self._position_inc = max(-2**31, min(2**31 - 1, position))
+        sample = self.host.noise() if noise and self.axis.torque_noise_Nm else 0.0
+        X.actual_values(self.s, self.p, self.x, self.host.time, sample)
         if self.fifo is not None:                   # 0x20C4:1 as of this sample (its other sub-indices are settings)
             self._store(0x20C4, 1, self._buffer_status())
 

@@ -69,12 +69,14 @@ P0, P1, A_FF, V_OFF, T_OFF = range(5)
 N_DEMAND = 5
 
 
+@njit("float64(float64[::1])", cache=True)
 def mean_current(state_row: np.ndarray) -> float:
     """Current [A] averaged since the last call (what a drive reports as actual torque/current
     is filtered over its report period, not one sample of the 8 kHz loop), then restart."""
-    n = state_row.item(I_COUNT)                  # Python floats: cheaper than numpy's
-    mean = state_row.item(I_SUM) / n if n > 0 else state_row.item(I)
-    state_row[I_SUM] = state_row[I_COUNT] = 0.0
+    n = state_row[I_COUNT]
+    mean = state_row[I_SUM] / n if n > 0 else state_row[I]
+    state_row[I_SUM] = 0.0
+    state_row[I_COUNT] = 0.0
     return mean
 
 

@@ -21,10 +21,11 @@ import can
 import numpy as np
 
 from ..resources import PROJECT_EDS
-from . import kernel as K
+from . import cyclic as X, kernel as K
 from .config import SimConfig
 from .drive import NMT_STOPPED, SimDrive
 from .adapters import FastVirtualBus
+from .steady import SteadyStream
 
 NOISE_BLOCK = 4096
 REPLY_DELAY_S = 50e-6        # wall clock: a drive's reply follows the frame it answers
@@ -53,9 +54,11 @@ class SimRobot:
         self._noise = np.empty(0)
         self._noise_i = 0
         self.state, self.param, self.demand = K.new_arrays(len(config.axes))
+        self.drive_rows = np.zeros((len(config.axes), X.N_DRIVE))    # the drives' own values (.cyclic)
         self._tick0 = np.zeros(len(config.axes), dtype=np.int64)
         # compile (or load from numba's cache) now, not while a clock is running
         K.advance(self.state, self.param, self.demand, self._tick0, 0, self.ticks_per_period)
+        X.compile_all()
         self._routes: dict[int, Callable[[bytes], None]] = {}
         #: called with the time after each advance (a lockstep master's heartbeat, in simulation time)
         self.timers: list[Callable[[float], None]] = []
@@ -65,7 +68,9 @@ class SimRobot:
             self.state[i, K.Q] = axis.initial_position_rad
             path = eds.get(name, PROJECT_EDS) if isinstance(eds, Mapping) else eds
             self.drives[name] = SimDrive(self, i, axis, str(path),
-                                         (self.state[i], self.param[i], self.demand[i]), names)
+                                         (self.state[i], self.param[i], self.demand[i], self.drive_rows[i]), names)
+        #: lockstep: the drives' streaming SYNC compiled (None until laid out anew)
+        self._steady: SteadyStream | None = None
         self.routes_changed()
         self._thread: threading.Thread | None = None
         self._running = False
@@ -93,6 +98,12 @@ class SimRobot:
         for node, drives in watchers.items():
             routes[0x700 + node] = self._heartbeat_handler(node, drives)
         self._routes = routes
+        #: the frames that leave the drives' streaming layout as it is: SYNC and synchronous RPDOs,
+        #: and the heartbeats the drives watch (those move when a drive next has its own business)
+        self._streamed = {0x080} | {cob_id for drive in self.drives.values()
+                                    for cob_id, (_, ttype) in drive.rpdos.items() if ttype <= 240}
+        self._watched = {0x700 + node for node in watchers}
+        self._steady = None
 
     @staticmethod
     def _sdo_handler(drive: SimDrive) -> Callable[[bytes], None]:
@@ -119,6 +130,11 @@ class SimRobot:
     def dispatch(self, msg: can.Message) -> None:
         handler = self._routes.get(msg.arbitration_id)
         if handler is not None and not msg.is_remote_frame:
+            if msg.arbitration_id in self._watched:
+                if self._steady is not None:
+                    self._steady.stale = True
+            elif msg.arbitration_id not in self._streamed:
+                self._steady = None
             handler(bytes(msg.data))
 
     def _on_nmt(self, data: bytes) -> None:
@@ -128,7 +144,13 @@ class SimRobot:
 
     def _on_sync(self, _data: bytes) -> None:
         if self._thread is None:            # lockstep: the SYNC period passes now
-            self.advance(self.ticks_per_period)
+            self._run_plant(self.ticks_per_period)
+            if self._steady is None and all(drive.streaming for drive in self.drives.values()):
+                self._steady = SteadyStream(self)
+            if self._steady is not None and self._steady.period():
+                self._tick0[:] = 0          # every drive starts an interpolation period
+                return
+            self._supervise()
         for drive in self.drives.values():
             drive.on_sync()
             if not drive.internal_profile:      # a new interpolation period starts at SYNC
@@ -155,11 +177,22 @@ class SimRobot:
     # ------------------------------------------------------------------ plant
     def advance(self, n_ticks: int) -> None:
         """Run loops and plant for ``n_ticks`` velocity-loop ticks, then faults and heartbeats."""
+        self._run_plant(n_ticks)
+        self._supervise()
+
+    def _run_plant(self, n_ticks: int) -> None:
+        """Loops and plant for ``n_ticks`` velocity-loop ticks, and the timers at the time reached."""
         K.advance(self.state, self.param, self.demand, self._tick0, n_ticks, self.ticks_per_period)
         self._tick0 += n_ticks
         self.time = float(self.state[0, K.T])
         for timer in self.timers:
             timer(self.time)
+
+    def _supervise(self) -> None:
+        """What the drives do between SYNCs: their own profiles' periods, watching the nodes they
+        consume heartbeats of, their faults and their heartbeats."""
+        if self._steady is not None:
+            self._steady.stale = True
         for drive in self.drives.values():
             if drive.internal_profile and self._tick0[drive.index] >= self.ticks_per_period:
                 drive.next_period()
@@ -169,6 +202,18 @@ class SimRobot:
             drive.check_faults()
             if drive.online:
                 drive.heartbeat_due(self.time)
+
+    def reserve_noise(self, n: int) -> tuple[np.ndarray, int]:
+        """The noise samples drawn ahead, at least ``n`` of them from the index returned on: the
+        same sequence :meth:`noise` gives (the next block drawn early)."""
+        if self._noise.size - self._noise_i < n:
+            self._noise = np.concatenate((self._noise[self._noise_i:], self._rng.standard_normal(NOISE_BLOCK)))
+            self._noise_i = 0
+        return self._noise, self._noise_i
+
+    def take_noise(self, index: int) -> None:
+        """The samples before ``index`` of :meth:`reserve_noise`'s block have been used."""
+        self._noise_i = index
 
     def noise(self) -> float:
         """One standard-normal sample from the robot's seeded generator."""

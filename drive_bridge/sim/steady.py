@@ -1,0 +1,155 @@
+"""The SYNC of drives that stream, in one compiled call.
+
+While every drive follows the master in CSP with its controlword held
+(:attr:`SimDrive.streaming <drive_bridge.sim.drive.SimDrive.streaming>`), a SYNC does the same
+for each: sample the actual values, send the synchronous TPDOs, take the target the RPDOs
+brought, start the next interpolation period.  :class:`SteadyStream` lays the drives' PDOs out
+once and runs that SYNC as :func:`.cyclic.steady_period` (the Python drive's own functions for
+actual values and the period, compiled), sending the TPDO bytes it packed.  Whatever else may
+happen in a period -- a fault, a heartbeat due or a watched node's silence, a controlword that
+changes, an RPDO writing anything else, a TPDO mapping an object the compiled path does not
+know -- is the Python drive's: :meth:`SteadyStream.period` declines before changing anything, and
+the robot runs the SYNC as before.  Both give the same frames byte for byte
+(``tests/sim/test_steady.py``).
+"""
+from __future__ import annotations
+
+import math
+import struct
+from typing import TYPE_CHECKING, Callable
+
+import numpy as np
+
+from . import cyclic as X
+
+if TYPE_CHECKING:
+    from .robot import SimRobot
+
+#: TPDO objects whose value changes every period -> what steady_period computes for them
+#: (every other mapped object is constant while the drive streams, read when the plan is refreshed)
+MEASURED = {0x6041: X.SRC_STATUSWORD, 0x6064: X.SRC_POSITION, 0x606C: X.SRC_VELOCITY, 0x6077: X.SRC_TORQUE,
+            0x60F4: X.SRC_FOLLOWING_ERROR}
+#: what an RPDO of a streaming drive may write: the controlword (held), the CSP target and the
+#: torque and velocity offsets (the kernel reads those only as the plant advances: they are
+#: written as the Python drive writes them)
+STREAMED = {(0x6040, 0), (0x607A, 0), (0x60B2, 0), (0x60B1, 0)}
+OFFSETS = (0x60B2, 0x60B1)
+#: struct codes of the integer types a TPDO entry may have -> (signed, size in bytes)
+INTEGERS = {"b": (True, 1), "B": (False, 1), "h": (True, 2), "H": (False, 2), "i": (True, 4), "I": (False, 4),
+            "l": (True, 4), "L": (False, 4),
+            "q": (True, 8)}
+#: what the statusword's bits 11 (internal limit active) and 13 (following error) leave to the period
+STATUS_PER_PERIOD = 0x0800 | 0x2000
+
+
+class SteadyStream:
+    """The streaming SYNC of ``robot``'s drives: their PDOs laid out for
+    :func:`.cyclic.steady_period` (``supported`` False where one cannot be)."""
+
+    def __init__(self, robot: SimRobot):
+        self.robot = robot
+        self.drives = list(robot.drives.values())
+        self.stale = True              # the per-drive values (limits, times, constants) to be read anew
+        self._offsets: dict[tuple[int, int], int] = {}     # (axis, object) -> the offset it last wrote
+        self.supported = self._layout()
+
+    def _layout(self) -> bool:
+        entries: list[list[int]] = []
+        #: per drive: (row of ``out``, COB-ID, transmission type, length) of each synchronous TPDO
+        self.tpdos: list[list[tuple[int, int, int, int]]] = []
+        self._constants: list[tuple[int, Callable[[], int]]] = []      # (entry, its getter)
+        for a, drive in enumerate(self.drives):
+            written = {e for codec, _ in drive.rpdos.values() for e in codec.entries}
+            if drive.pdos.events or not written <= STREAMED or any(t > 240 for _, t in drive.rpdos.values()):
+                return False
+            current = set(drive.spec.current_objects)
+            mine: list[tuple[int, int, int, int]] = []
+            for codec, ttype, getters in drive.pdos.tpdos:
+                if not 1 <= ttype <= 240:
+                    continue
+                row = sum(len(t) for t in self.tpdos) + len(mine)
+                for (index, sub), (lo, hi), code, getter in zip(codec.entries, codec.spans,
+                                                                codec.struct.format.lstrip("<"), getters):
+                    if code not in INTEGERS or (index, sub) in written:
+                        return False
+                    signed, size = INTEGERS[code]
+                    bits = 8 * size
+                    low, high = (-(1 << bits - 1), (1 << bits - 1) - 1) if signed else (0, (1 << bits) - 1)
+                    source = X.SRC_CURRENT if index in current else MEASURED.get(index, X.SRC_CONST)
+                    if source == X.SRC_CONST:
+                        self._constants.append((len(entries), getter))
+                    entries.append([a, source, 0, row, lo, hi - lo, low, high])
+                mine.append((row, codec.cob_id, ttype, codec.struct.size))
+            self.tpdos.append(mine)
+        self.entries = np.array(entries, dtype=np.int64).reshape(-1, X.N_ENTRY)
+        self.out = np.zeros((max(1, sum(len(t) for t in self.tpdos)), 8), dtype=np.uint8)
+        self.axes = np.zeros((len(self.drives), X.N_AXIS))
+        self.noisy = sum(1 for drive in self.drives if drive.axis.torque_noise_Nm)
+        return True
+
+    def _refresh(self) -> None:
+        """Read what holds while the drives stream: limits, fault thresholds, the statusword's
+        steady bits, the constant TPDO objects and when a drive next has its own business."""
+        self.wake = math.inf
+        for a, drive in enumerate(self.drives):
+            axis = self.axes[a]
+            axis[X.A_LO], axis[X.A_HI] = drive.software_limits()
+            axis[X.A_FE_TICKS] = drive.following_error_ticks()
+            axis[X.A_TIMEOUT] = drive.setpoint_timeout()
+            axis[X.A_STATUS] = drive.statusword & ~STATUS_PER_PERIOD
+            self.wake = min(self.wake, drive.next_due())
+        for entry, getter in self._constants:
+            self.entries[entry, X.E_CONST] = getter()
+        self._offsets.clear()               # the Python drive may have written others since
+        self.stale = False
+
+    def period(self) -> bool:
+        """Run this SYNC of every drive (the plant has advanced to it); False, having changed
+        nothing, where it is the Python drive's to run."""
+        if not self.supported:
+            return False
+        for drive in self.drives:
+            if not drive.streaming:
+                return False
+        if self.stale:
+            self._refresh()
+        robot = self.robot
+        now = robot.time
+        if now >= self.wake - 1e-9:
+            return False
+        axes = self.axes
+        taken = []
+        for a, drive in enumerate(self.drives):
+            axes[a, X.A_HAS_SETPOINT] = 0.0
+            for codec, data in drive.pending_rpdo:
+                values = codec.struct.unpack_from(data)
+                for (index, _), value in zip(codec.entries, values):
+                    if index == 0x6040 and value != drive.controlword:
+                        return False
+                    if index == 0x607A:
+                        axes[a, X.A_SETPOINT] = value
+                        axes[a, X.A_HAS_SETPOINT] = 1.0
+                taken.append((a, drive, codec, data, values))
+        noise, index = robot.reserve_noise(self.noisy)
+        index = X.steady_period(robot.state, robot.param, robot.demand, robot.drive_rows, axes, self.entries,
+                                noise, index, now, robot.sync_period, self.out)
+        if index == X.SLOW:
+            return False
+        if index == X.OUT_OF_RANGE:
+            raise struct.error("a value the simulated drive sends does not fit its TPDO entry")
+        robot.take_noise(index)
+        offsets = self._offsets
+        for a, drive, codec, data, values in taken:
+            for (i, sub), (lo, hi), value in zip(codec.entries, codec.spans, values):
+                if i in OFFSETS and offsets.get((a, i)) != value:      # (the loops read them as they advance)
+                    drive.write(i, sub, value)
+                    offsets[(a, i)] = value
+                drive.keep(i, sub, data[lo:hi], value)
+        out, send = self.out, robot.send
+        for drive, tpdos in zip(self.drives, self.tpdos):
+            drive.pending_rpdo.clear()
+            count = drive.count_sync()
+            for row, cob_id, ttype, size in tpdos:
+                if count % ttype == 0:
+                    send(cob_id, out[row, :size].tobytes())
+        return True
