@@ -38,6 +38,7 @@ def kernel(seconds: float = 60.0) -> float:
     for k in range(1, n):
         robot.demand[:, K.P0] = demand[k - 1]
         robot.demand[:, K.P1] = demand[k]
+        tick0[:] = 0
         K.advance(robot.state, robot.param, robot.demand, tick0, 4, 4)
     wall = time.perf_counter() - t0
     robot.shutdown()

@@ -95,7 +95,7 @@ def advance(state: np.ndarray, param: np.ndarray, demand: np.ndarray, tick0: np.
     """Advance all axes by ``n_ticks`` velocity-loop ticks.
 
     ``tick0[a]`` is the number of ticks axis ``a`` has already done in the
-    current interpolation period; the position demand moves linearly from
+    current interpolation period (counted on by ``n_ticks`` here); the position demand moves from
     ``P0`` to ``P1`` over ``ticks_per_period`` ticks and holds at ``P1`` after.
     """
     n_axes = state.shape[0]
@@ -244,6 +244,8 @@ def advance(state: np.ndarray, param: np.ndarray, demand: np.ndarray, tick0: np.
                 s[V] = v_new
         for a in range(n_axes):
             state[a, T] += VELOCITY_TICK_S
+    for a in range(n_axes):
+        tick0[a] += n_ticks
 
 
 def new_arrays(n_axes: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -183,7 +183,6 @@ class SimRobot:
     def _run_plant(self, n_ticks: int) -> None:
         """Loops and plant for ``n_ticks`` velocity-loop ticks, and the timers at the time reached."""
         K.advance(self.state, self.param, self.demand, self._tick0, n_ticks, self.ticks_per_period)
-        self._tick0 += n_ticks
         self.time = float(self.state[0, K.T])
         for timer in self.timers:
             timer(self.time)

@@ -53,6 +53,7 @@ def _follow(struct: float, gains: dict[str, float]) -> np.ndarray:
     for k, x in enumerate(target):
         demand[0, K.P0], demand[0, K.P1] = demand[0, K.P1], x
         demand[0, K.A_FF] = (x - 2 * target[k - 1] + target[k - 2]) / 0.002 ** 2 if k >= 2 else 0.0
+        tick0[:] = 0
         K.advance(state, param, demand, tick0, 4, 4)
         fe.append(x - state[0, K.Q])
     return np.array(fe)
