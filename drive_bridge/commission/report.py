@@ -17,8 +17,10 @@ from pathlib import Path
 import numpy as np
 
 from ..document import Document, Strong, measured, number
+from ..figures import pyplot
 from ..ident.report import unit
 from ..ident.trace import describe_unexplained
+from ..ident.workers import fork_map, processes
 from ..params.controller import Controller
 from ..tuning.loops import predicted_following_error
 from . import steps as S
@@ -41,9 +43,7 @@ def _validation_png(traces: Mapping[str, np.ndarray], axis: str, traj: str, path
     """Following error before and after (each on its own scale, with what the identified model and
     the gains predict for it where ``loop`` gives them: tune.json's model, motor and gains, and
     whether the after run fed the model torque forward), position, velocity, torque."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
     keys = {sc: f"{sc}/{traj}/{axis}" for sc in ("before", "after")}
     if f"{keys['after']}/t" not in traces:
         return None
@@ -168,7 +168,28 @@ def _loop(out: Path, axis: str, a: dict) -> dict | None:
     return {**t, "feedforward": ff}
 
 
-def _validation(doc: Document, out: Path, axis: str, a: dict, traces: Mapping[str, np.ndarray] | None) -> None:
+def _validation_figures(out: Path, summary: dict) -> dict[tuple[str, str], Path | None]:
+    """(axis, trajectory) -> its validation figure, drawn into ``out``; side by side where work is
+    shared out (:func:`..ident.workers.fork_map`), each figure in a process of its own."""
+    path = out / S.TRACES
+    jobs = [(axis, t) for axis, a in summary["axes"].items() if a and a.get("validation") for t in a["validation"]]
+    if not jobs or not path.exists():
+        return {}
+    with np.load(path) as npz:
+        traces = dict(npz)                      # in memory: a forked process must not read the file's handle
+    loops = {axis: _loop(out, axis, summary["axes"][axis]) for axis, _ in jobs}
+    pyplot()
+    drawn = fork_map(_draw_validation, jobs, min(len(jobs), processes()), (traces, out, loops))
+    return dict(zip(jobs, drawn))
+
+
+def _draw_validation(shared: tuple[Mapping[str, np.ndarray], Path, dict], job: tuple[str, str]) -> Path | None:
+    traces, out, loops = shared
+    axis, traj = job
+    return _validation_png(traces, axis, traj, out / FIGURES / f"{axis}_{traj}.png", loops[axis])
+
+
+def _validation(doc: Document, out: Path, axis: str, a: dict, drawn: Mapping[tuple[str, str], Path | None]) -> None:
     rows = [[t.replace("_", "-"), _milli(v["fe_rms_before"]), _milli(v["fe_rms_after"]),
              number(v["improvement"], ".1f") + "×", _milli(v["fe_max_before"]), _milli(v["fe_max_after"]),
              number(v.get("overshoot_pct_before"), ".2f"), number(v["overshoot_pct_after"], ".2f"),
@@ -190,10 +211,9 @@ def _validation(doc: Document, out: Path, axis: str, a: dict, traces: Mapping[st
                  "drive_bridge/tuning/loops.py). After commissioning it gets the size, not the shape: what is left "
                  "sits at the acceleration steps, where the drive's sampling decides.", "note")
     for t in a["validation"]:
-        if traces is not None:
-            png = _validation_png(traces, axis, t, out / FIGURES / f"{axis}_{t}.png", loop)
-            if png:
-                doc.figure(png, f"axis {axis} {t}: following error, position, velocity, torque")
+        png = drawn.get((axis, t))
+        if png:
+            doc.figure(png, f"axis {axis} {t}: following error, position, velocity, torque")
 
 
 def _written(doc: Document, a: dict) -> None:
@@ -242,8 +262,7 @@ def build_report(out: Path, summary: dict) -> Document:
              f"drive profile {summary['profile']}; run directory {summary['out']}.")
     doc.table(["step", "status", "duration [s]"],
               [[s["name"], s["status"], number(s["duration_s"], ".1f")] for s in summary["steps"]])
-    traces_path = out / S.TRACES
-    traces = np.load(traces_path) if traces_path.exists() else None
+    drawn = _validation_figures(out, summary)
     for axis, a in summary["axes"].items():
         if not a:
             continue
@@ -253,7 +272,7 @@ def build_report(out: Path, summary: dict) -> Document:
         if "gains_after" in a:
             _gains(doc, out, axis, a)
         if a.get("validation"):
-            _validation(doc, out, axis, a, traces)
+            _validation(doc, out, axis, a, drawn)
         if "written" in a:
             _written(doc, a)
     doc.para(", ".join(f"{k} {v}" for k, v in summary["versions"].items()), "note")

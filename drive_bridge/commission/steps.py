@@ -8,6 +8,8 @@ import json
 from pathlib import Path
 
 from ..errors import UserError
+from ..figures import pyplot
+from ..ident.workers import fork_map, processes
 from ..master.bringup import scan as scan_bus
 from ..master.bringup import check_scan
 from ..outputs import stamped, write_json
@@ -140,17 +142,23 @@ def tune(ctx: Context) -> str:
                              read_resonances(ctx.require(IDENTIFY_JSON)), profile.drive),
                    unwritable_effects(ctx.require(IDENTIFY_JSON)))
     write_json(ctx.out / OUTPUT["tune"], doc)
-    from ..tuning.loops import loop_figure
-    for a, d in doc["axes"].items():
-        loop_figure(d["model"]["J"], d["model"]["c1"], d["gains_before"] or None, d["gains"], d["motor"]["L"],
-                    ctx.out / LOOPS.format(axis=a), f"axis {a}: loops on the identified model"
-                    + (" (lines) and on the measured plant (points)" if a in frfs else ""), frfs.get(a),
-                    profile.controller.timing.tick_s)
+    axes = list(doc["axes"])              # the figures side by side where work is shared out
+    pyplot()
+    fork_map(_loop_figure, axes, min(len(axes), processes()), (ctx.out, doc, frfs, profile.controller.timing.tick_s))
     return "; ".join(f"{a}: KpS {d['gains_before'].get('KpS', float('nan')):.3g} → {d['gains']['KpS']:.3g}, "
                      f"KpP {d['gains']['KpP']:.0f}, PM {d['margins']['velocity']['phase_margin_deg']:.1f}°, "
                      f"GM {d['margins']['velocity']['gain_margin_db']:.1f} dB"
                      + (f", not writable: {', '.join(d['not_writable'])}" if d["not_writable"] else "")
                      for a, d in doc["axes"].items())
+
+
+def _loop_figure(shared: tuple[Path, dict, dict, float], a: str) -> None:
+    from ..tuning.loops import loop_figure
+    out, doc, frfs, tick_s = shared
+    d = doc["axes"][a]
+    loop_figure(d["model"]["J"], d["model"]["c1"], d["gains_before"] or None, d["gains"], d["motor"]["L"],
+                out / LOOPS.format(axis=a), f"axis {a}: loops on the identified model"
+                + (" (lines) and on the measured plant (points)" if a in frfs else ""), frfs.get(a), tick_s)
 
 
 def write(ctx: Context) -> str:

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from ..document import Document, Strong, measured, number
+from ..figures import pyplot
 from ..outputs import json_text, stamped, write_text
 from .frf import MIN_COHERENCE
 from .identify import AxisResult
@@ -183,9 +184,7 @@ def _spans(t: np.ndarray, moving: np.ndarray) -> list[slice]:
 def _plot_fit(r: AxisResult, path: Path) -> None:
     """Measured and predicted torque and the residual, before and after the traced effects, on a
     few contiguous stretches of the validation samples (lines, not clouds: agreement is visible)."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
     s, tu = r.val, r.units["torque"]
     base = np.where(s.moving, r.base.predict(s, logged=True), np.nan)
     final = np.where(s.moving, r.model.predict(s, logged=True), np.nan)
@@ -219,9 +218,7 @@ def plot_response(r: AxisResult, path: Path) -> bool:
     x = r.response
     if not x or not x["frequency_hz"]:
         return False
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
     f, coh = np.array(x["frequency_hz"]), np.array(x["coherence"])
     good = coh >= MIN_COHERENCE
     fig, ax = plt.subplots(3, 1, figsize=(9, 7), sharex=True, gridspec_kw={"height_ratios": [2, 1.4, 1]})
@@ -264,9 +261,7 @@ def _variable(r: AxisResult, depends_on: str) -> tuple[np.ndarray, str]:
 def _plot_effect(r: AxisResult, k: int, path: Path) -> None:
     """The effect's term in the final model (the parameters the table gives) over the variable it
     depends on, with the partial residual: what the final model leaves, plus this term."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
     t = r.effects[k]
     s, m = r.est, r.est.moving
     x, label = _variable(r, t.effect.depends_on)
@@ -301,6 +296,7 @@ def _sentence(text: str) -> str:
 def draw_figures(results: dict[str, AxisResult], out: Path) -> dict[str, bool]:
     """Each axis's figures, drawn into ``out``: its fit, its response read from the log (where the
     log shows one: True) and each effect's; the axes side by side where work is shared out."""
+    pyplot()
     return dict(zip(results, fork_map(_draw_axis, list(results), min(len(results), processes()), (results, out))))
 
 

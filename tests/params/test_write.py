@@ -75,19 +75,19 @@ def test_an_sdo_abort_restores_the_backup_and_stores_nothing(bench, tmp_path):
 def test_a_drive_that_drops_off_mid_write_leaves_its_stored_set(bench):
     b = bench()
     node, drive = b.nodes["y"], b.robot.drives["y"]
-    write = drive._write
+    write = drive.write
 
     def unplug_after_J(index, sub, value):
         write(index, sub, value)
         if (index, sub) == (0x2001, 2):
             drive.online = False                                     # gone before it answers
-    drive._write = unplug_after_J
+    drive.write = unplug_after_J
     r = write_parameters(node, SIM, tuned_values())
     assert not r.ok and not r.stored and "no answer" in r.error and "writing J" in r.error and "0x2001:2" in r.error
     assert any("no store was sent" in n for n in r.notes)
     assert r.ram == "unknown" and r.stored_set == "unchanged"       # it could not be read back: never "restored"
     drive.online = True
-    drive._write = write
+    drive.write = write
     node.nmt.send_command(0x81)                                      # power cycle: the stored set is the old one
     b.link.clock.sleep(0.01)
     assert read_all(node, ["KpS", "J"]) == pytest.approx({"KpS": 0.12, "J": 0.0})
