@@ -76,3 +76,18 @@ def test_a_hand_written_file_with_the_usual_mistakes(tmp_path, capsys):
     assert main(["check-eds", str(path)]) == 1
     assert main(["check-eds", str(tmp_path / "missing.eds")]) == 2
     assert "no such EDS/DCF file" in capsys.readouterr().err
+
+
+def test_each_load_is_its_own_object_dictionary_and_a_changed_file_is_read_again(tmp_path):
+    """A file is parsed once per content and node id; every call still gets a dictionary of its own."""
+    path = tmp_path / "drive.eds"
+    path.write_bytes(EDS.read_bytes())
+    a, b = load_od(path, 2), load_od(path, 2)
+    assert a is not b and a[0x1017].default == b[0x1017].default
+    a[0x1017].default = 4321                                  # one user's change stays its own
+    assert b[0x1017].default != 4321 and load_od(path, 2)[0x1017].default != 4321
+    assert load_od(path, 3)[0x1400][1].default == 0x200 + 3   # $NODEID resolved for the node asked for
+    text = path.read_text()
+    at = text.index("[1017]")
+    path.write_text(text[:at] + text[at:].replace("DefaultValue=0", "DefaultValue=250", 1))
+    assert load_od(path, 2)[0x1017].default == 250            # the file changed: read again
