@@ -164,13 +164,19 @@ def test_wall_clock_campaign_against_drives_in_their_own_process(tmp_path, capsy
     """--realtime: the drives run in a child process on python-can's udp_multicast bus and the
     master streams at 500 Hz against the wall clock; the trace still decodes to the same CSV, and
     the run reports its timing as the log shows it -- degraded (exit 5) when a loaded machine
-    made it miss its limits, never a silent ok."""
+    made it miss its limits, never a silent ok.  A machine loaded past what 500 Hz of wall time
+    allows may starve the master for longer than the drive watches its heartbeat: then the drive's
+    own supervision stops the run, and the run says so."""
     out = tmp_path / "rt"
     code = main(["record", "--sim", "--realtime", "--quick", "--axes", "y", "--out", str(out)])
     captured = capsys.readouterr()
     names, data = read_csv(out / "log.csv")
     meta = yaml.safe_load((out / "meta.yaml").read_text())
     counts, timing = meta["counts"], meta["timing"]
+    if meta["status"] == "aborted" and "EMCY 0x8130" in meta["abort"]["reason"]:
+        assert code != 0 and meta["abort"]["axis"] == "y" and "heartbeat" in captured.err
+        assert counts["cycles_sent"] == len(data) < counts["cycles_planned"]
+        return
     assert counts["cycles_sent"] == counts["cycles_planned"] == len(data)
     gaps = np.diff(data[:, names.index("sync_time_s")])
     late = np.count_nonzero(gaps > 1.5 * 0.002) / len(gaps) * 100
@@ -181,7 +187,13 @@ def test_wall_clock_campaign_against_drives_in_their_own_process(tmp_path, capsy
     assert ("timing degraded" in captured.err) == timing["degraded"] and "timing: wall clock" in captured.out
     assert abs(np.median(gaps) - 0.002) < 1e-4                         # SYNC at 500 Hz of wall time
     demand, position = data[:, names.index("y_position_demand_rad")], data[:, names.index("y_position_rad")]
-    assert np.nanmax(np.abs(demand - position)) < 0.5                  # the drive followed
+    # the drive followed: where the SYNCs came on time (a late cycle or a missing sample leaves the
+    # rows after it comparing a demand with a position the drive reported while it caught up)
+    upset = np.flatnonzero(np.r_[False, gaps > 1.5 * 0.002] | (data[:, names.index("y_valid")] == 0))
+    steady = np.ones(len(data), bool)
+    for k in upset:
+        steady[k:k + 10] = False
+    assert steady.mean() > 0.5 and np.nanmax(np.abs(demand - position)[steady]) < 0.5
     assert main(["decode", str(out / "trace.blf")]) == 0
     decodes_to_the_log(out)
 

@@ -5,9 +5,11 @@ container's worth at a time with numpy instead of three ``struct`` calls and fou
 each: a campaign puts millions of frames on the bus, and the per-frame writer was a sixth of a
 lockstep cycle.  The file is byte for byte the one ``BLFWriter`` writes for the same frames
 (``tests/master/test_blf.py`` compares them); error and CAN FD frames still go through
-``BLFWriter`` itself, after the frames before them.  A full container is compressed and written
-by a thread of its own, in order (zlib lets go of the GIL: on a second core the frames go on
-being packed meanwhile).
+``BLFWriter`` itself, after the frames before them.  With ``container_thread`` a full container is
+compressed and written by a thread of its own, in order (zlib lets go of the GIL: on a second core
+the frames go on being packed meanwhile) -- for one thread that does everything (a lockstep link),
+not beside threads that keep time: an ordinary thread preempted while it holds the GIL would hold
+them up.
 
 Relies on these internals of python-can's ``BLFWriter`` (pinned by that test, bounded in
 pyproject.toml): the uncompressed ``_buffer`` (a list of bytes) and ``_buffer_size``, ``_flush``
@@ -37,15 +39,17 @@ _HEADER_SIZE = 32
 
 class BatchedBLFWriter(can.BLFWriter):
     """``BLFWriter`` that packs classic frames in batches; ``epoch`` [s] is added to every time stamp
-    it is given (a lockstep link's clock starts at 0)."""
+    it is given (a lockstep link's clock starts at 0); ``container_thread``: containers compressed
+    and written by a thread of their own."""
 
-    def __init__(self, file: str | os.PathLike[str], *, epoch: float = 0.0, **kwargs: Any):
+    def __init__(self, file: str | os.PathLike[str], *, epoch: float = 0.0, container_thread: bool = False,
+                 **kwargs: Any):
         super().__init__(file, **kwargs)
         self.epoch = epoch
         self._rows: list[tuple[float, int, int, int, int, bytes]] = []
         self._batch = self.max_container_size // _OBJECT.itemsize + 1
         self._channels: dict[Any, int] = {}
-        self._containers: ThreadPoolExecutor | None = ThreadPoolExecutor(1, thread_name_prefix="blf-container")
+        self._containers = ThreadPoolExecutor(1, thread_name_prefix="blf-container") if container_thread else None
         self._written: list[Future] = []
 
     def on_message_received(self, msg: can.Message) -> None:

@@ -80,7 +80,8 @@ class TraceRecorder(can.Listener):
         if background and epoch:
             raise ValueError("a background trace takes frames stamped with the wall clock (epoch 0)")
         blf = str(path).lower().endswith(".blf")
-        self.writer = BatchedBLFWriter(path, epoch=epoch) if blf else can.Logger(str(path))
+        self.writer = BatchedBLFWriter(path, epoch=epoch, container_thread=not background) if blf \
+            else can.Logger(str(path))
         self._background = background
         self._epoch = 0.0 if blf else epoch            # the BLF writer adds it itself
         if not background and not self._epoch:

@@ -35,9 +35,10 @@ def frames(seed: int, count: int) -> list[can.Message]:
 
 @pytest.mark.parametrize("count", [0, 5, 7001])
 @pytest.mark.parametrize("epoch", [0.0, 1_764_000_000.5])
-def test_batched_writer_writes_what_blfwriter_writes(tmp_path, count, epoch):
+@pytest.mark.parametrize("container_thread", [False, True], ids=["inline", "container-thread"])
+def test_batched_writer_writes_what_blfwriter_writes(tmp_path, count, epoch, container_thread):
     sent = frames(count, count)
-    ours = BatchedBLFWriter(tmp_path / "ours.blf", epoch=epoch)
+    ours = BatchedBLFWriter(tmp_path / "ours.blf", epoch=epoch, container_thread=container_thread)
     theirs = can.BLFWriter(tmp_path / "theirs.blf")
     for msg in sent:
         ours.on_message_received(msg)
