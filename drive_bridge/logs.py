@@ -97,7 +97,12 @@ def write_csv(path: Path, rec: Recording, scaling: dict[str, Scaling], period: f
 
 
 def write_meta(path: Path, meta: dict) -> None:
-    write_text(path, yaml.safe_dump(meta, sort_keys=False))
+    write_text(path, meta_text(meta))
+
+
+def meta_text(meta: dict) -> str:
+    """meta.yaml's content (YAML, in the dict's order)."""
+    return yaml.safe_dump(meta, sort_keys=False)
 
 
 def layout_meta(axes: dict[str, AxisLink]) -> dict:

@@ -10,7 +10,7 @@ from typing import Any, Callable
 from . import __version__
 from .config import BusConfig
 from .errors import MotionAborted
-from .logs import LOG_NAME, META_NAME, TRACE_NAME, layout_meta, write_csv, write_meta
+from .logs import LOG_NAME, META_NAME, TRACE_NAME, layout_meta, meta_text, write_csv, write_meta
 from .master.bringup import AxisLink, bring_up
 from .master.busload import BusLoad, check_bus_load
 from .master.campaign import Plan, build_plan
@@ -18,8 +18,10 @@ from .master.homing import home
 from .master.link import Link, TraceRecorder
 from .master.stream import stream
 from .master.timing import Timing
-from .outputs import stamped
+from .outputs import stamped, write_text
 from .signals import deferred
+
+ENABLING = -999_999_999      # meta.yaml's sync_before_plan while the drives are being enabled
 
 log = logging.getLogger(__name__)
 
@@ -99,9 +101,16 @@ def _record(config: BusConfig, link: Link, out: Path, load: BusLoad, t_start: fl
     log.info("campaign planned: %s, %d segments, %.1f s of motion", ", ".join(plan.axes), len(plan.segments),
              plan.duration)
 
-    def started(enable_cycles: int) -> None:        # decode skips the SYNCs that enabled the drives
+    # decode skips the SYNCs that enabled the drives: meta.yaml says how many as soon as streaming
+    # starts. The drives then follow and watch for setpoints (10 periods: 20 ms) -- no time for YAML
+    # (26 ms for a quick campaign's meta): it is dumped now, the count put in when it is known
+    meta["counts"]["sync_before_plan"] = ENABLING
+    starting = meta_text(meta)
+
+    def started(enable_cycles: int) -> None:
         meta["counts"]["sync_before_plan"] = enable_cycles
-        write_meta(out / META_NAME, meta)
+        write_text(out / META_NAME, starting.replace(f"sync_before_plan: {ENABLING}\n",
+                                                     f"sync_before_plan: {enable_cycles}\n", 1))
     result = stream(link, axes, plan, heartbeat_timeout=config.master.heartbeat_timeout_s,
                     miss_limit=config.master.tpdo_miss_limit, state_timeout=config.master.state_timeout_s,
                     progress=progress, timing_limits=config.master.timing, on_start=started)
