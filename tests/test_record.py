@@ -271,3 +271,37 @@ def test_torque_from_a_vendor_object_with_its_scale(tmp_path):
     assert meta["axes"]["y"]["scaling"]["torque_index"] == 0x2027
     assert main(["decode", str(tmp_path / "object" / "trace.blf")]) == 0
     assert (tmp_path / "object" / "decoded.csv").read_bytes() == (tmp_path / "object" / "log.csv").read_bytes()
+
+
+def test_streaming_starts_without_a_yaml_dump_while_the_drives_watch_for_setpoints(tmp_path, monkeypatch):
+    """Once enabled, the drives watch for setpoints (10 periods: 20 ms); meta.yaml learns how many
+    SYNCs enabling took right then, without a YAML dump (one took 26 ms: every 3-axis wall-clock run
+    stopped with loss of setpoint 0x8250 after two cycles), and what it says lets decode skip exactly
+    those SYNCs."""
+    import drive_bridge.record as recording
+    from drive_bridge import logs
+    in_window, dumped_there, told = [], [], []
+    dump = logs.yaml.safe_dump
+    monkeypatch.setattr(logs.yaml, "safe_dump", lambda *a, **k: (dumped_there.append(bool(in_window)), dump(*a, **k))[1])
+    stream = recording.stream
+
+    def watched_stream(*args, on_start, **kwargs):
+        def started(cycles: int) -> None:
+            in_window.append(True)
+            try:
+                on_start(cycles)
+            finally:
+                in_window.clear()
+            told.append((cycles, yaml.safe_load((tmp_path / "meta.yaml").read_text())["counts"]["sync_before_plan"]))
+        return stream(*args, on_start=started, **kwargs)
+    monkeypatch.setattr(recording, "stream", watched_stream)
+    bench = Bench(clean_config())
+    try:
+        result = record(quick_config(together=True), bench.link, tmp_path)
+    finally:
+        bench.close()
+    assert result.ok and dumped_there and True not in dumped_there       # meta dumped before and after, not then
+    meta = yaml.safe_load((tmp_path / "meta.yaml").read_text())
+    assert told and told[0][0] > 0 and told[0][0] == told[0][1] == meta["counts"]["sync_before_plan"]
+    assert main(["decode", str(tmp_path / "trace.blf")]) == 0
+    decodes_to_the_log(tmp_path)
