@@ -282,7 +282,8 @@ def test_streaming_starts_without_a_yaml_dump_while_the_drives_watch_for_setpoin
     from drive_bridge import logs
     in_window, dumped_there, told = [], [], []
     dump = logs.yaml.safe_dump
-    monkeypatch.setattr(logs.yaml, "safe_dump", lambda *a, **k: (dumped_there.append(bool(in_window)), dump(*a, **k))[1])
+    monkeypatch.setattr(logs.yaml, "safe_dump",
+                        lambda *a, **k: (dumped_there.append(bool(in_window)), dump(*a, **k))[1])
     stream = recording.stream
 
     def watched_stream(*args, on_start, **kwargs):
