@@ -5,7 +5,11 @@ process drawing a figure find matplotlib imported, instead of each importing it 
 """
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from types import ModuleType
+from typing import Any
+
+from .ident.workers import fork_map, processes
 
 
 def pyplot() -> ModuleType:
@@ -14,3 +18,10 @@ def pyplot() -> ModuleType:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     return plt
+
+
+def side_by_side(draw: Callable[[Any, Any], Any], items: Sequence[Any], shared: Any) -> list[Any]:
+    """``draw(shared, item)`` for each of ``items``, in processes of their own where work is shared
+    out (one per item up to :func:`~drive_bridge.ident.workers.processes`), matplotlib imported first."""
+    pyplot()
+    return fork_map(draw, items, min(len(items), processes()), shared)

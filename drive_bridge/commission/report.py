@@ -17,10 +17,9 @@ from pathlib import Path
 import numpy as np
 
 from ..document import Document, Strong, measured, number
-from ..figures import pyplot
+from ..figures import pyplot, side_by_side
 from ..ident.report import unit
 from ..ident.trace import describe_unexplained
-from ..ident.workers import fork_map, processes
 from ..params.controller import Controller
 from ..tuning.loops import predicted_following_error
 from . import steps as S
@@ -168,19 +167,16 @@ def _loop(out: Path, axis: str, a: dict) -> dict | None:
     return {**t, "feedforward": ff}
 
 
-def _validation_figures(out: Path, summary: dict) -> dict[tuple[str, str], Path | None]:
-    """(axis, trajectory) -> its validation figure, drawn into ``out``; side by side where work is
-    shared out (:func:`..ident.workers.fork_map`), each figure in a process of its own."""
+def _validation_figures(out: Path, summary: dict, loops: dict[str, dict | None]) -> dict[tuple[str, str], Path | None]:
+    """(axis, trajectory) -> its validation figure, drawn into ``out`` with what ``loops`` predict;
+    side by side where work is shared out (:func:`..figures.side_by_side`)."""
     path = out / S.TRACES
-    jobs = [(axis, t) for axis, a in summary["axes"].items() if a and a.get("validation") for t in a["validation"]]
+    jobs = [(axis, t) for axis in loops for t in summary["axes"][axis]["validation"]]
     if not jobs or not path.exists():
         return {}
     with np.load(path) as npz:
         traces = dict(npz)                      # in memory: a forked process must not read the file's handle
-    loops = {axis: _loop(out, axis, summary["axes"][axis]) for axis, _ in jobs}
-    pyplot()
-    drawn = fork_map(_draw_validation, jobs, min(len(jobs), processes()), (traces, out, loops))
-    return dict(zip(jobs, drawn))
+    return dict(zip(jobs, side_by_side(_draw_validation, jobs, (traces, out, loops))))
 
 
 def _draw_validation(shared: tuple[Mapping[str, np.ndarray], Path, dict], job: tuple[str, str]) -> Path | None:
@@ -189,7 +185,8 @@ def _draw_validation(shared: tuple[Mapping[str, np.ndarray], Path, dict], job: t
     return _validation_png(traces, axis, traj, out / FIGURES / f"{axis}_{traj}.png", loops[axis])
 
 
-def _validation(doc: Document, out: Path, axis: str, a: dict, drawn: Mapping[tuple[str, str], Path | None]) -> None:
+def _validation(doc: Document, axis: str, a: dict, loop: dict | None,
+                drawn: Mapping[tuple[str, str], Path | None]) -> None:
     rows = [[t.replace("_", "-"), _milli(v["fe_rms_before"]), _milli(v["fe_rms_after"]),
              number(v["improvement"], ".1f") + "×", _milli(v["fe_max_before"]), _milli(v["fe_max_after"]),
              number(v.get("overshoot_pct_before"), ".2f"), number(v["overshoot_pct_after"], ".2f"),
@@ -204,7 +201,6 @@ def _validation(doc: Document, out: Path, axis: str, a: dict, drawn: Mapping[tup
     if notes:
         doc.para([Strong("Worse after commissioning, and why:")])
         doc.bullets(notes)
-    loop = _loop(out, axis, a)
     if loop is not None:
         doc.para("The dashed lines: the following error the identified model and the gains predict along the same "
                  "demand (the linear cascade with the model's other torques as a disturbance, "
@@ -262,7 +258,8 @@ def build_report(out: Path, summary: dict) -> Document:
              f"drive profile {summary['profile']}; run directory {summary['out']}.")
     doc.table(["step", "status", "duration [s]"],
               [[s["name"], s["status"], number(s["duration_s"], ".1f")] for s in summary["steps"]])
-    drawn = _validation_figures(out, summary)
+    loops = {axis: _loop(out, axis, a) for axis, a in summary["axes"].items() if a and a.get("validation")}
+    drawn = _validation_figures(out, summary, loops)
     for axis, a in summary["axes"].items():
         if not a:
             continue
@@ -272,7 +269,7 @@ def build_report(out: Path, summary: dict) -> Document:
         if "gains_after" in a:
             _gains(doc, out, axis, a)
         if a.get("validation"):
-            _validation(doc, out, axis, a, drawn)
+            _validation(doc, axis, a, loops[axis], drawn)
         if "written" in a:
             _written(doc, a)
     doc.para(", ".join(f"{k} {v}" for k, v in summary["versions"].items()), "note")

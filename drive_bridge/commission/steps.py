@@ -8,8 +8,7 @@ import json
 from pathlib import Path
 
 from ..errors import UserError
-from ..figures import pyplot
-from ..ident.workers import fork_map, processes
+from ..figures import side_by_side
 from ..master.bringup import scan as scan_bus
 from ..master.bringup import check_scan
 from ..outputs import stamped, write_json
@@ -142,9 +141,7 @@ def tune(ctx: Context) -> str:
                              read_resonances(ctx.require(IDENTIFY_JSON)), profile.drive),
                    unwritable_effects(ctx.require(IDENTIFY_JSON)))
     write_json(ctx.out / OUTPUT["tune"], doc)
-    axes = list(doc["axes"])              # the figures side by side where work is shared out
-    pyplot()
-    fork_map(_loop_figure, axes, min(len(axes), processes()), (ctx.out, doc, frfs, profile.controller.timing.tick_s))
+    side_by_side(_loop_figure, list(doc["axes"]), (ctx.out, doc, frfs, profile.controller.timing.tick_s))
     return "; ".join(f"{a}: KpS {d['gains_before'].get('KpS', float('nan')):.3g} → {d['gains']['KpS']:.3g}, "
                      f"KpP {d['gains']['KpP']:.0f}, PM {d['margins']['velocity']['phase_margin_deg']:.1f}°, "
                      f"GM {d['margins']['velocity']['gain_margin_db']:.1f} dB"

@@ -8,12 +8,11 @@ from pathlib import Path
 import numpy as np
 
 from ..document import Document, Strong, measured, number
-from ..figures import pyplot
+from ..figures import pyplot, side_by_side
 from ..outputs import json_text, stamped, write_text
 from .frf import MIN_COHERENCE
 from .identify import AxisResult
 from .trace import describe_unexplained
-from .workers import fork_map, processes
 
 
 def unit(name: str, kind: str) -> str:
@@ -296,8 +295,7 @@ def _sentence(text: str) -> str:
 def draw_figures(results: dict[str, AxisResult], out: Path) -> dict[str, bool]:
     """Each axis's figures, drawn into ``out``: its fit, its response read from the log (where the
     log shows one: True) and each effect's; the axes side by side where work is shared out."""
-    pyplot()
-    return dict(zip(results, fork_map(_draw_axis, list(results), min(len(results), processes()), (results, out))))
+    return dict(zip(results, side_by_side(_draw_axis, list(results), (results, out))))
 
 
 def _draw_axis(shared: tuple[dict[str, AxisResult], Path], axis: str) -> bool:

@@ -912,7 +912,7 @@ class SimDrive:
         self._refresh_actuals(noise=True)
 
     def _refresh_actuals(self, noise: bool) -> None:
-        sample = self.host.noise() if noise and self.axis.torque_noise_Nm else 0.0
+        sample = self.host.noise() if noise and self.x.item(X.X_NOISE) else 0.0
         X.actual_values(self.s, self.p, self.x, self.host.time, sample)
         if self.fifo is not None:                   # 0x20C4:1 as of this sample (its other sub-indices are settings)
             self._store(0x20C4, 1, self._buffer_status())

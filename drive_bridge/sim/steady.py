@@ -58,6 +58,7 @@ class SteadyStream:
         #: per drive: (row of ``out``, COB-ID, transmission type, length) of each synchronous TPDO
         self.tpdos: list[list[tuple[int, int, int, int]]] = []
         self._constants: list[tuple[int, Callable[[], int]]] = []      # (entry, its getter)
+        row = 0
         for a, drive in enumerate(self.drives):
             written = {e for codec, _ in drive.rpdos.values() for e in codec.entries}
             if drive.pdos.events or not written <= STREAMED or any(t > 240 for _, t in drive.rpdos.values()):
@@ -67,7 +68,6 @@ class SteadyStream:
             for codec, ttype, getters in drive.pdos.tpdos:
                 if not 1 <= ttype <= 240:
                     continue
-                row = sum(len(t) for t in self.tpdos) + len(mine)
                 for (index, sub), (lo, hi), code, getter in zip(codec.entries, codec.spans,
                                                                 codec.struct.format.lstrip("<"), getters):
                     if code not in INTEGERS or (index, sub) in written:
@@ -80,11 +80,12 @@ class SteadyStream:
                         self._constants.append((len(entries), getter))
                     entries.append([a, source, 0, row, lo, hi - lo, low, high])
                 mine.append((row, codec.cob_id, ttype, codec.struct.size))
+                row += 1
             self.tpdos.append(mine)
         self.entries = np.array(entries, dtype=np.int64).reshape(-1, X.N_ENTRY)
-        self.out = np.zeros((max(1, sum(len(t) for t in self.tpdos)), 8), dtype=np.uint8)
+        self.out = np.zeros((max(1, row), 8), dtype=np.uint8)
         self.axes = np.zeros((len(self.drives), X.N_AXIS))
-        self.noisy = sum(1 for drive in self.drives if drive.axis.torque_noise_Nm)
+        self.noisy = int(np.count_nonzero(self.robot.drive_rows[:, X.X_NOISE]))     # noise samples a period
         return True
 
     def _refresh(self) -> None:
