@@ -23,6 +23,8 @@ EXIT_TABLE = (
     (5, "degraded", "done, but a wall-clock run missed its timing limits (late SYNCs, gaps, missing samples): the "
                     "data are kept, the warning says what was missed"),
     (6, "not_accepted", "commission completed, but an axis FAILs its acceptance criteria (the verdict)"),
+    (7, "unavailable", "a history command could not reach or use the history database (commission, write and "
+                       "identify never fail for it: their record waits in the outbox for 'history sync')"),
     (130, "interrupted", "Ctrl-C, SIGTERM or SIGHUP while nothing moved; a write in progress restores every drive "
                          "first (KeyboardInterrupt, WriteInterrupted)"),
 )

@@ -6,6 +6,7 @@ process drawing a figure find matplotlib imported, instead of each importing it 
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from pathlib import Path
 from types import ModuleType
 from typing import Any
 
@@ -18,6 +19,14 @@ def pyplot() -> ModuleType:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     return plt
+
+
+def save(fig: Any, path: Path) -> Path:
+    """``fig`` as a PNG at ``path`` (its folder made), then closed: the report figures' resolution."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=80)
+    pyplot().close(fig)
+    return path
 
 
 def side_by_side(draw: Callable[[Any, Any], Any], items: Sequence[Any], shared: Any) -> list[Any]:

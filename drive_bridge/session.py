@@ -26,7 +26,8 @@ class Options:
     the simulated robot, the drive ``profile``, ``motor`` (R [Ω], L [H]) for drives that do not
     report it, the ``seed`` of the evolutionary fits, and the margin floor a written gain set must
     keep (``pm_floor`` [°], ``gm_floor`` [dB]) unless ``force``; ``allow_unverified_scales`` writes
-    through drive-profile scales without a documented source."""
+    through drive-profile scales without a documented source; ``history`` keeps the run in the
+    history database ``db`` (:mod:`drive_bridge.history`)."""
 
     sim: bool = False
     realtime: bool = False
@@ -38,6 +39,8 @@ class Options:
     pm_floor: float = PM_FLOOR_DEG
     gm_floor: float = GM_FLOOR_DB
     allow_unverified_scales: bool = False
+    history: bool = True                  # keep the run in the history database (commission, write)
+    db: str | None = None                 # that database's URL (None: DRIVE_BRIDGE_DB, else the user's SQLite file)
 
     @property
     def writes_unverified(self) -> bool:
@@ -57,6 +60,7 @@ class Session:
         self._nodes: dict[str, canopen.RemoteNode] | None = None
         self._axes: dict[str, AxisLink] | None = None
         self._profile: Profile | None = None
+        self._identities: dict[str, dict] = {}
 
     def __enter__(self) -> "Session":
         return self
@@ -86,9 +90,19 @@ class Session:
         if self._axes is not None:
             return {a: ax.node for a, ax in self._axes.items()}
         if self._nodes is None:
-            check_scan(scan(self.link, self.config), self.config)
+            found = scan(self.link, self.config)
+            check_scan(found, self.config)
+            self._identities = {a: found.found[n.node_id] for a, n in self.config.nodes.items()}
             self._nodes = {a: remote_node(self.link.network, n.node_id) for a, n in self.config.nodes.items()}
         return self._nodes
+
+    @property
+    def identities(self) -> dict[str, dict]:
+        """Each configured axis's drive identity (0x1018 vendor, product, revision, serial) as the
+        scan or bring-up read it; empty before either."""
+        if self._axes is not None:
+            return {a: ax.identity for a, ax in self._axes.items()}
+        return self._identities
 
     def holding(self) -> dict[str, str]:
         """How each brought-up axis is held now, read from the drives (empty where none was

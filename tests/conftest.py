@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import os
+import tempfile
 
 import pytest
 
@@ -10,6 +11,24 @@ from drive_bridge.sim.config import DEFAULT_CONFIG, SimConfig, load_sim_config
 from .support import VENDOR_EDS, Bench, clean_config
 
 os.environ.setdefault("DRIVE_BRIDGE_VENDOR_EDS", str(VENDOR_EDS))     # vendor files, read in place
+# every run the tests commission is kept in a history database of the tests', never the user's
+os.environ["XDG_DATA_HOME"] = tempfile.mkdtemp(prefix="drive-bridge-tests-")
+os.environ.pop("DRIVE_BRIDGE_DB", None)
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _history_of_the_module(tmp_path_factory):
+    """A history (and outbox) of each test file's own: a commissioning in one file is no drive's
+    past in another (the module's fixtures run in it)."""
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("XDG_DATA_HOME", str(tmp_path_factory.mktemp("data")))
+        yield
+
+
+@pytest.fixture(autouse=True)
+def _history_of_the_test(tmp_path_factory, monkeypatch):
+    """... and of each test: only what a test commissions itself is in its history."""
+    monkeypatch.setenv("XDG_DATA_HOME", str(tmp_path_factory.mktemp("data")))
 
 
 @pytest.fixture
@@ -50,6 +69,12 @@ SLOW_MODULES = ("commission/", "master/test_campaign.py", "master/test_durand.py
 #: tests that run on the wall clock (their timing is the machine's), and that drive third-party tools
 REALTIME_MODULES = ("test_record.py", "sim/test_standalone.py", "master/test_link.py")
 THIRD_PARTY_MODULES = ("master/test_durand.py", "test_eds.py", "test_ros2.py")
+
+
+def pytest_xdist_auto_num_workers(config):
+    """``-n auto``: one worker more than cores. The suite is CPU-bound simulation but for its
+    wall-clock tests, which wait on the clock: another worker fills that time."""
+    return (os.cpu_count() or 1) + 1
 
 
 def pytest_collection_modifyitems(config, items):

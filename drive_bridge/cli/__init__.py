@@ -1,5 +1,5 @@
 """Command line of drive-bridge: commission CANopen servo axes (scan, record, identify, tune,
-write, validate, or all of it with commission).
+write, validate, or all of it with commission), and the history of what was commissioned.
 
 Each command is a thin layer over the same core function the ``commission`` step of that name
 calls: it parses, calls and prints.  Errors end as :mod:`drive_bridge.errors` says: one line, no
@@ -15,10 +15,10 @@ import warnings
 
 from .. import __version__, signals
 from ..errors import EXIT_CODES, DriveBridgeError, MotionAborted, exit_code, exit_codes_text
-from . import bus, commission, identification, tuning
+from . import bus, commission, history, identification, tuning
 
 #: the command modules, in the order of the job (``drive-bridge --help`` lists them this way)
-COMMANDS = (bus, identification, tuning, commission)
+COMMANDS = (bus, identification, tuning, commission, history)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -31,6 +31,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                                                           "determine every parameter, which tune then refuses)")
     options.seed(p)
     options.motor(p)
+    options.history(p)
     p.set_defaults(func=cmd_commission)
 
 

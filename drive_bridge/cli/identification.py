@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import argparse
-
+import json
 import sys
 from pathlib import Path
 
@@ -26,13 +26,16 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("--torque-sign", type=int, choices=(1, -1), default=1,
                    help="-1: the torque was logged with the opposite sign convention to the position (default: 1)")
     options.seed(p)
+    options.history(p, asked=True)
     p.set_defaults(func=cmd_identify)
 
 
 def cmd_identify(args: argparse.Namespace) -> int:
     from ..ident import identify
     from ..ident.report import as_json, summary, write_report
+    from ..history.record import now
     options.out_dir(args.out)
+    started = now()
     progress = None if args.json else (lambda axis: print(f"identifying axis {axis} ...", file=sys.stderr))
     results = identify(args.log, args.validate, options.axes_list(args.axis), seed=args.seed,
                        cutoff_hz=args.cutoff, decimation=args.decimate, progress=progress,
@@ -43,4 +46,9 @@ def cmd_identify(args: argparse.Namespace) -> int:
         if not args.json:
             print(f"wrote {report} and identify.html (plots and identify.json beside them)", file=sys.stderr)
     print(as_json(results) if args.json else summary(results))
+    if args.history:
+        from ..history import keep
+        from ..history.record import identify_record, new_run_id
+        record = identify_record(new_run_id(), started, json.loads(as_json(results)), args.log, args.out)
+        print(keep(record, args.db).line(), file=sys.stderr)
     return 0

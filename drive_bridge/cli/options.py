@@ -159,6 +159,24 @@ def _seed(text: str) -> int:
     return value
 
 
+def db(p: argparse.ArgumentParser) -> None:
+    """``--db``: the history database."""
+    p.add_argument("--db", metavar="URL", help="history database: sqlite:///PATH or postgresql://USER@HOST/DATABASE "
+                                               "(default: DRIVE_BRIDGE_DB, else history.sqlite in the user's data "
+                                               "directory); a password belongs in PGPASSWORD or ~/.pgpass, not here")
+
+
+def history(p: argparse.ArgumentParser, asked: bool = False) -> None:
+    """Whether the run is kept in the history database: by default (``--no-history`` not to), or
+    only when ``asked`` (``--history``)."""
+    if asked:
+        p.add_argument("--history", action="store_true", help="keep the identification in the history database")
+    else:
+        p.add_argument("--no-history", dest="history", action="store_false",
+                       help="do not keep this run in the history database")
+    db(p)
+
+
 def seed(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=_seed, default=0, help="seed of the evolutionary fits (default: 0)")
 
@@ -206,4 +224,5 @@ def session_options(args: argparse.Namespace) -> Options:
                    seed=getattr(args, "seed", 0), force=getattr(args, "force", False),
                    pm_floor=getattr(args, "min_phase_margin", Options.pm_floor),
                    gm_floor=getattr(args, "min_gain_margin", Options.gm_floor),
-                   allow_unverified_scales=getattr(args, "allow_unverified_scales", False))
+                   allow_unverified_scales=getattr(args, "allow_unverified_scales", False),
+                   history=getattr(args, "history", False), db=getattr(args, "db", None))

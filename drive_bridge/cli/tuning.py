@@ -63,6 +63,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("--backup-dir", default="backup", help="where the backups go (default: %(default)s)")
     p.add_argument("--dcf-dir", help="export each commissioned node as a DCF here")
     _frf_gate(p)
+    options.history(p)
     p.set_defaults(func=cmd_write)
 
     p = sub.add_parser("validate", help="reference trajectories: Table III scenarios against the tuned set",
@@ -205,7 +206,9 @@ def cmd_write(args: argparse.Namespace) -> int:
     config = options.config(args)
     tuned = read_tune_json(args.params)
     config = config.only(_axes_in(config, tuned.parameters, args.params))
+    from ..history.record import now
     o = options.session_options(args)
+    started = now()
     with Session(config, o) as session:
         nodes = session.nodes
         outcome = write_drives(nodes, session.profile, {a: tuned.parameters[a] for a in nodes},
@@ -214,10 +217,17 @@ def cmd_write(args: argparse.Namespace) -> int:
                                allow_unverified_scales=o.writes_unverified, bitrate=config.master.nominal_bitrate,
                                frf=read_frf_json(args.frf) if args.frf else None,
                                torque_constants=config.torque_constants)
+        identities = session.identities
     if args.json:
         options.print_json(outcome.as_dict())
     else:
         _print_write(outcome, args.backup_dir, session.profile)
+    if o.history and not args.dry_run:
+        from ..history import keep
+        from ..history.record import new_run_id, write_record
+        record = write_record(new_run_id(), started, outcome.as_dict(), identities, config.path, o.sim,
+                              args.backup_dir)
+        print(keep(record, o.db).line(), file=sys.stderr)
     raise_for_failure(outcome, args.backup_dir)
     return 0
 

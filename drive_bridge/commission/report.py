@@ -17,7 +17,8 @@ from pathlib import Path
 import numpy as np
 
 from ..document import Document, Strong, measured, number
-from ..figures import pyplot, side_by_side
+from ..figures import pyplot, save, side_by_side
+from ..history.since import history_note, report_section, trend_figures
 from ..ident.report import unit
 from ..ident.trace import describe_unexplained
 from ..params.controller import Controller
@@ -81,10 +82,7 @@ def _validation_png(traces: Mapping[str, np.ndarray], axis: str, traj: str, path
     fe_b.set_title(f"axis {axis}, {traj.replace('_', '-')}: following error before and after commissioning "
                    f"(own scales), position, velocity and torque")
     fig.subplots_adjust(left=0.07, right=0.79, bottom=0.05, top=0.96, hspace=0.12)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=80)
-    plt.close(fig)
-    return path
+    return save(fig, path)
 
 
 def _model(doc: Document, out: Path, axis: str, a: dict) -> None:
@@ -256,16 +254,19 @@ def build_report(out: Path, summary: dict) -> Document:
     _status(doc, summary)
     doc.para(f"Bus configuration {summary['config']}{' (simulated robot)' if summary['simulated'] else ''}; "
              f"drive profile {summary['profile']}; run directory {summary['out']}.")
+    history_note(doc, summary.get("history"))
     doc.table(["step", "status", "duration [s]"],
               [[s["name"], s["status"], number(s["duration_s"], ".1f")] for s in summary["steps"]])
     loops = {axis: _loop(out, axis, a) for axis, a in summary["axes"].items() if a and a.get("validation")}
     drawn = _validation_figures(out, summary, loops)
+    trends = trend_figures(out, summary.get("history"))
     for axis, a in summary["axes"].items():
         if not a:
             continue
         doc.heading(1, f"Axis {axis}")
         if "params" in a:
             _model(doc, out, axis, a)
+        report_section(doc, summary.get("history"), axis, trends)
         if "gains_after" in a:
             _gains(doc, out, axis, a)
         if a.get("validation"):

@@ -15,11 +15,12 @@ import logging
 import shutil
 import time
 import traceback
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 from ..config import BusConfig
+from ..history.record import new_run_id, now
 from ..errors import EXIT_CODES, DriveBridgeError, MotionAborted, UserError, exit_code
 from ..master.link import Link
 from ..outputs import write_json
@@ -64,7 +65,8 @@ class CommissionResult:
 
 def _state(out: Path, config: BusConfig, restart: bool) -> dict:
     path = out / STATE
-    fresh: dict[str, Any] = {"config": str(config.path.resolve()), "completed": [], "durations_s": {}, "failed": None}
+    fresh: dict[str, Any] = {"config": str(config.path.resolve()), "completed": [], "durations_s": {}, "failed": None,
+                             "run_id": new_run_id(), "started": now()}
     if restart or not path.exists():
         return fresh
     try:
@@ -75,6 +77,8 @@ def _state(out: Path, config: BusConfig, restart: bool) -> dict:
     if state.get("config") != fresh["config"]:
         raise UserError(f"{out} holds a run with {state.get('config')}, not {fresh['config']}; "
                         f"use --restart to start over there, or another --out")
+    state.setdefault("run_id", fresh["run_id"])        # a run directory of a drive-bridge before the history
+    state.setdefault("started", fresh["started"])
     return state
 
 
@@ -158,6 +162,10 @@ def commission(config: BusConfig, out: str | Path, options: Options | None = Non
         code = EXIT_CODES["degraded"]
         reporter.note(f"WARNING: timing degraded ({'; '.join(summary['timing_degraded'])}); the data are kept "
                       f"(exit {code})")
+    if options.history:
+        summary["history"] = _keep(out, state, summary, config, options, reporter)
+        if summary["history"]["interrupted"] and code == 0:
+            code = EXIT_CODES["interrupted"]
     write_json(out / SUMMARY, summary)
     write_report(out, summary)
     if failure is not None:
@@ -168,6 +176,26 @@ def commission(config: BusConfig, out: str | Path, options: Options | None = Non
         reporter.note(f"axis {axis}: {how}")
     return CommissionResult(summary["status"], code, None if failure is None else failure["step"],
                             None if failure is None else failure["reason"], todo, out, summary)
+
+
+def _keep(out: Path, state: dict, summary: dict, config: BusConfig, options: Options, reporter: StepReporter) -> dict:
+    """Keep the run in the history (one record per run directory: a resumed run replaces it) and
+    compare its drives with their past and their siblings: ``summary.json``'s ``history``."""
+    from ..history import keep
+    from ..history.record import commission_record
+    from ..history.since import since_last_time
+    record = commission_record(state["run_id"], state["started"], out, summary, config.path, options.sim)
+    kept = keep(record, options.db)
+    reporter.note(kept.line())
+    try:
+        history = since_last_time(record, kept, options.db)
+    except KeyboardInterrupt:           # the run is kept: the report is written without the comparison
+        kept.interrupted = True
+        history = since_last_time(record, replace(kept, stored=False, reason="interrupted (Ctrl-C)"), None)
+    for axis, entry in history["axes"].items():
+        for words in entry["named"]:
+            reporter.note(f"since last time: {words}")
+    return history
 
 
 def resume_hint(state: dict, subset: bool) -> str:

@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING
 import control
 import numpy as np
 
-from ..figures import pyplot
+from ..figures import pyplot, save
 from .design import LOOP_TICK_S, following_error, open_loop_at, open_loops
 from .feedforward import model_torque
 
@@ -93,10 +93,7 @@ def loop_figure(J: float, c1: float, before: dict[str, float] | None, after: dic
     if title:
         fig.suptitle(title)
     fig.subplots_adjust(left=0.06, right=0.98, bottom=0.08, top=0.9, wspace=0.3, hspace=0.25)
-    path = Path(path)
-    fig.savefig(path, dpi=80)
-    plt.close(fig)
-    return path
+    return save(fig, Path(path))
 
 
 def predicted_following_error(model: dict[str, float], gains: dict[str, float], L: float, torque_feedforward: bool,

@@ -1,0 +1,105 @@
+"""Nothing lost when the database is away: every record is first written to the local outbox (one
+JSON file per run id, beside the default database in the user's data directory), then sent; it
+leaves the outbox once the database holds it.  ``history sync`` sends what waits; a record sent
+twice is kept once (:meth:`~.store.HistoryStore.add` is idempotent by run id)."""
+from __future__ import annotations
+
+import json
+import logging
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import sqlalchemy as sa
+
+from ..outputs import write_text
+from .location import database_url, outbox_dir, shown
+from .store import HistoryStore, HistoryUnavailable
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class Kept:
+    """Where a record went: into the database, or into the outbox (and why)."""
+
+    run_id: str
+    database: str                     # the URL, password masked
+    stored: bool
+    reason: str | None = None         # why it waits in the outbox
+    outbox: Path | None = None
+    sent_from_outbox: list[str] = field(default_factory=list)   # earlier records sent with it
+    interrupted: bool = False         # Ctrl-C while it was sent: the record waits in the outbox
+
+    def line(self) -> str:
+        if self.stored:
+            extra = (f" (and {len(self.sent_from_outbox)} earlier record(s) from the outbox)"
+                     if self.sent_from_outbox else "")
+            return f"history: run {self.run_id} kept in {self.database}{extra}"
+        return (f"history: the database is unreachable ({self.reason}); run {self.run_id} waits in "
+                f"{self.outbox}: 'drive-bridge history sync' sends it")
+
+
+def _entry(path: Path) -> dict | None:
+    try:
+        doc = json.loads(path.read_text())
+        doc["record"]["run_id"], doc["database"]
+        return doc
+    except (OSError, ValueError, KeyError, TypeError):
+        log.warning("history outbox: %s is unreadable; left where it is", path)
+        return None
+
+
+def waiting(url: sa.URL | None = None) -> list[tuple[Path, dict]]:
+    """The outbox's entries (for the database ``url`` only, when given), oldest first."""
+    paths = sorted(outbox_dir().glob("*.json"), key=lambda p: p.stat().st_mtime) if outbox_dir().is_dir() else []
+    entries = [(p, e) for p in paths if (e := _entry(p)) is not None]
+    return [(p, e) for p, e in entries if url is None or e["database"] == shown(url)]
+
+
+def keep(record: dict, db: str | None = None) -> Kept:
+    """Keep ``record`` in the history database ``db`` (default :func:`~.location.database_url`),
+    through the outbox; never raises for the database, nor for Ctrl-C while sending: the result
+    says where the record is."""
+    url = database_url(db)
+    path = outbox_dir() / f"{record['run_id']}.json"
+    write_text(path, json.dumps({"database": shown(url), "record": record}, indent=1))
+    try:
+        store = HistoryStore(url)
+        try:
+            sent = send(store)
+        finally:
+            store.close()
+    except HistoryUnavailable as exc:
+        log.info("%s", exc)
+        return Kept(record["run_id"], shown(url), False, str(exc).split(": ", 1)[-1], path)
+    except KeyboardInterrupt:
+        return Kept(record["run_id"], shown(url), False, "interrupted (Ctrl-C) while it was sent", path,
+                    interrupted=True)
+    if record["run_id"] not in sent.sent + sent.already:
+        return Kept(record["run_id"], shown(url), False, sent.failed or "not sent", path)
+    return Kept(record["run_id"], shown(url), True,
+                sent_from_outbox=[r for r in sent.sent if r != record["run_id"]])
+
+
+@dataclass
+class Sent:
+    sent: list[str] = field(default_factory=list)        # run ids the database did not hold before
+    already: list[str] = field(default_factory=list)     # run ids it held already (a retry)
+    failed: str | None = None                            # why sending stopped
+    left: int = 0                                        # entries still waiting for this database
+
+
+def send(store: HistoryStore) -> Sent:
+    """Send the outbox's entries for ``store``'s database, oldest first; each leaves the outbox
+    once the database holds it.  Stops at the first failure (the database went away again)."""
+    out = Sent()
+    entries = waiting(store.url)
+    for i, (path, entry) in enumerate(entries):
+        run_id = entry["record"]["run_id"]
+        try:
+            (out.sent if store.add(entry["record"]) else out.already).append(run_id)
+        except HistoryUnavailable as exc:
+            out.failed, out.left = str(exc).split(": ", 1)[-1], len(entries) - i
+            break
+        path.unlink(missing_ok=True)
+    return out

@@ -1,0 +1,143 @@
+"""The record of one run as the history keeps it: a JSON document built from what the run left
+(the commissioning's run directory, a write's outcome, an identification's results), with the
+run id that makes keeping it idempotent.
+
+Parameters are SI, motor side, each with its std and whether the data determined it; drive
+identities are 0x1018's fields as hex strings.  Nothing in a record comes from the database URL: a record never
+holds a password.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import uuid
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any
+
+from .. import __version__
+from ..outputs import hex32
+
+SCHEMA = "drive-bridge/history-record"
+SCHEMA_VERSION = 1
+IDENTITY = ("vendor_id", "product_code", "revision", "serial")
+
+
+def new_run_id() -> str:
+    return uuid.uuid4().hex
+
+
+def now() -> str:
+    """The time of day as records keep it: UTC, ISO 8601."""
+    return datetime.now(timezone.utc).isoformat(timespec="seconds")
+
+
+def file_sha256(path: str | Path) -> str | None:
+    try:
+        return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+    except OSError:
+        return None
+
+
+def identity(found: dict | None) -> dict[str, str] | None:
+    """0x1018's fields of a scan result's entry (hex strings) or a bring-up's (numbers), as records
+    keep them: hex strings ("0x000003EA"), as every output of drive-bridge writes identities."""
+    if not found:
+        return None
+    return {k: hex32(int(found[k], 16) if isinstance(found[k], str) else int(found[k])) for k in IDENTITY
+            if k in found}
+
+
+def identity_number(value: str | None) -> int | None:
+    """An identity field of a record as a number (the database's columns)."""
+    return None if value is None else int(value, 16)
+
+
+def _parameters(ident: dict) -> dict[str, dict[str, Any]]:
+    """An identify.json axis's parameters: value, std, unit, determined."""
+    from ..ident.report import unit
+    kind = "rotary" if (ident.get("units") or {}).get("position", "rad") == "rad" else "linear"
+    std = ident.get("param_std") or {}
+    undetermined = ident.get("undetermined") or {}
+    return {name: {"value": value, "std": std.get(name), "unit": unit(name, kind),
+                   "determined": name not in undetermined and std.get(name) is not None}
+            for name, value in (ident.get("params") or {}).items() if value is not None}
+
+
+def identified(ident: dict) -> dict[str, Any]:
+    """What an axis of identify.json adds to the record."""
+    return {"parameters": _parameters(ident), "effects": [e["name"] for e in ident.get("effects") or []],
+            "undetermined": ident.get("undetermined") or {},
+            "consistent": (ident.get("consistency") or {}).get("consistent"),
+            "rmse_before": ident.get("rmse_before"), "rmse_after": ident.get("rmse_after"),
+            "noise_floor": ident.get("noise_floor")}
+
+
+def _following_error(validation: dict) -> dict[str, dict[str, Any]]:
+    return {traj: {k: v.get(k) for k in ("fe_rms_before", "fe_rms_after", "fe_max_before", "fe_max_after")}
+            for traj, v in validation.items()}
+
+
+def record(kind: str, run_id: str, started: str, axes: list[dict], *, config: str | Path | None, out: str | Path | None,
+           status: str | None, verdict: str | None, simulated: bool, failed: dict | None = None) -> dict:
+    """A record document; ``updated`` is now (a later record of the same run replaces an earlier one)."""
+    return {"schema": SCHEMA, "schema_version": SCHEMA_VERSION, "run_id": run_id, "kind": kind,
+            "started": started, "updated": now(), "version": __version__,
+            "config": None if config is None else {"path": str(Path(config).resolve()),
+                                                   "sha256": file_sha256(config)},
+            "out": None if out is None else str(Path(out).resolve()), "status": status, "verdict": verdict,
+            "simulated": simulated, "failed": failed, "axes": axes}
+
+
+def commission_record(run_id: str, started: str, out: Path, summary: dict, config_path: Path, simulated: bool) -> dict:
+    """The record of a commissioning from its run directory and summary (whatever steps ran)."""
+    found = _json(out / "scan.json").get("found", {})
+    ident = _json(out / "identify" / "identify.json").get("axes", {})
+    verdicts = summary["verdict"]["axes"]
+    axes = []
+    for a, s in summary["axes"].items():
+        entry: dict[str, Any] = {"axis": a, "node_id": (found.get(a) or {}).get("node_id"),
+                                 "drive": identity(found.get(a)), "verdict": verdicts.get(a, {}).get("verdict")}
+        if a in ident:
+            entry.update(identified(ident[a]))
+        if "gains_after" in s:
+            entry.update({"gains_before": s["gains_before"], "gains_after": s["gains_after"],
+                          "margins_before": s["margins_before"], "margins_after": s["margins"]})
+        if s.get("validation"):
+            entry["following_error"] = _following_error(s["validation"])
+        if "written" in s:
+            entry.update({"written": s["written"], "stored": s["stored"], "unsupported": s["unsupported"]})
+        axes.append(entry)
+    return record("commission", run_id, started, axes, config=config_path, out=out, status=summary["status"],
+                  verdict=summary["verdict"]["overall"], simulated=simulated, failed=summary.get("failed"))
+
+
+def write_record(run_id: str, started: str, outcome: dict, identities: dict[str, dict], config_path: Path,
+                 simulated: bool, out: str | Path | None) -> dict:
+    """The record of a ``write``: what was written and read back, and stored, per drive
+    (``outcome`` is the write result's JSON document)."""
+    axes = []
+    for a, w in outcome["axes"].items():
+        axes.append({"axis": a, "node_id": w["node_id"], "drive": identity(identities.get(a)),
+                     "written": [{"parameter": o["parameter"], "object": o["object"], "unit": o["unit"],
+                                  "old": o["old_si"], "new": o["new_si"], "verified": o["verified"]}
+                                 for o in w["objects"]],
+                     "stored": w["stored"], "unsupported": w["unsupported"], "dry_run": w["dry_run"],
+                     "margins_after": outcome.get("margins", {}).get(a)})
+    return record("write", run_id, started, axes, config=config_path, out=out,
+                  status="ok" if outcome["ok"] else "failed", verdict=None, simulated=simulated)
+
+
+def identify_record(run_id: str, started: str, doc: dict, source: str | Path, out: str | Path | None) -> dict:
+    """The record of an ``identify`` of a log (``doc``: its identify.json); no drive identity."""
+    axes = [{"axis": a, "node_id": None, "drive": None, "source": str(Path(source).resolve()), **identified(r)}
+            for a, r in doc["axes"].items()]
+    return record("identify", run_id, started, axes, config=None, out=out, status="ok", verdict=None,
+                  simulated=False)
+
+
+def _json(path: Path) -> dict:
+    try:
+        return json.loads(path.read_text())
+    except (OSError, ValueError):
+        return {}
