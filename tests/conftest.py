@@ -65,16 +65,10 @@ SLOW_MODULES = ("commission/", "master/test_campaign.py", "master/test_durand.py
                 "test_record.py", "test_fuzz.py", "sim/test_standalone.py", "cli/test_safety.py",
                 "tuning/test_frf.py", "tuning/test_validate.py", "tuning/test_experiment.py", "test_docs.py",
                 "params/test_write.py", "params/test_transaction.py", "sim/test_vendor_drive.py", "cli/test_json.py",
-                "test_ros2.py", "sim/test_strict.py")
+                "test_ros2.py", "sim/test_strict.py", "history/test_fleet.py", "history/test_outage.py")
 #: tests that run on the wall clock (their timing is the machine's), and that drive third-party tools
 REALTIME_MODULES = ("test_record.py", "sim/test_standalone.py", "master/test_link.py")
 THIRD_PARTY_MODULES = ("master/test_durand.py", "test_eds.py", "test_ros2.py")
-
-
-def pytest_xdist_auto_num_workers(config):
-    """``-n auto``: one worker more than cores. The suite is CPU-bound simulation but for its
-    wall-clock tests, which wait on the clock: another worker fills that time."""
-    return (os.cpu_count() or 1) + 1
 
 
 def pytest_collection_modifyitems(config, items):

@@ -8,15 +8,19 @@ work="$(mktemp -d)"
 trap 'rm -rf "$work"' EXIT
 python3 -m pip wheel -q --no-deps -w "$work/dist" "$repo"
 listing="$(python3 -m zipfile -l "$work"/dist/drive_bridge-*.whl)"
-for f in drive_bridge/py.typed LICENSE; do                 # typed package, licence in the wheel
+for f in drive_bridge/py.typed LICENSE drive_bridge/history/migrations/versions/0001_first.py; do   # typed package,
+                                                          # licence, the history's migrations in the wheel
   grep -q "$f" <<< "$listing" || { echo "the wheel lacks $f" >&2; exit 1; }
 done
 python3 -m venv "$work/venv"
 "$work/venv/bin/pip" install -q "$work"/dist/drive_bridge-*.whl
 cd "$work"
 export DRIVE_BRIDGE_VENDOR_EDS="${DRIVE_BRIDGE_VENDOR_EDS:-$repo/../shared/eds-vendor}"
+export XDG_DATA_HOME="$work/data"                         # the history database of this check only
 venv/bin/drive-bridge --help > /dev/null
 venv/bin/drive-bridge scan --sim
 venv/bin/drive-bridge commission --sim --campaign short --out run
 venv/bin/python "$repo/tools/smoke_installed.py" run
+venv/bin/drive-bridge history list | grep -q "^1 run(s) in sqlite:///$work/data/drive-bridge/history.sqlite" ||
+  { echo "the installed commission kept no history" >&2; exit 1; }
 echo "wheel check passed: $(ls dist)"
