@@ -201,6 +201,7 @@ class HistoryStore:
                            p.name, p.value, p.std, p.unit, p.determined)
                  .select_from(T.parameters.join(T.axes, sa.and_(p.run_id == a.run_id, p.axis == a.axis))
                               .join(T.runs, r.run_id == a.run_id))
+                 .where(a.serial.is_not(None))          # a log identified alone names no drive: not compared
                  .order_by(r.started_at, r.run_id))
         with self.engine.connect() as conn:
             return [ParameterRow(row.run_id, _aware(row.started_at), row.simulated, row.axis, row.vendor_id,

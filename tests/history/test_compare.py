@@ -58,6 +58,13 @@ def test_filters_an_undetermined_parameter_and_siblings_of_another_type(db):
     assert compare(History(store.parameters()), axis="x") == []
 
 
+def test_an_identification_of_a_log_names_no_drive_and_is_not_compared(db):
+    store = HistoryStore(db)
+    store.add(record(day(0), [axis("y", None, nominal())]))
+    store.add(record(day(1), [axis("y", None, nominal(2.0))]))
+    assert len(store.runs()) == 2 and compare(History(store.parameters())) == []
+
+
 def test_simulated_runs_are_compared_with_simulated_runs_only(db):
     store = HistoryStore(db)
     store.add(record(day(0), [axis("y", 9, nominal())]))
