@@ -108,6 +108,7 @@ def cmd_show(args: argparse.Namespace) -> int:
 
 def cmd_compare(args: argparse.Namespace) -> int:
     from ..history import History, compare
+    from ..history.compare import drive_name
     if not 0 <= args.threshold < 1000:
         raise UserError(f"--threshold {args.threshold}: give a percentage between 0 and 1000")
     store = _store(args)
@@ -129,8 +130,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     for c in comparisons:
         if (c.serial, c.axis) != key:
             key = (c.serial, c.axis)
-            print(f"{'serial ' + str(c.serial) if c.serial is not None else 'drive unknown'}, axis {c.axis} "
-                  f"(latest {c.when.date()}):")
+            print(f"{drive_name(c.serial)}, axis {c.axis} (latest {c.when.date()}):")
         change = ("first" if c.relative is None else f"{c.relative * 100:+.1f} % ({number(c.sigmas, '.2g')} σ)")
         sib = ("" if c.spreads is None else f"; {number(c.spreads, '.2g')} spread from {c.siblings} siblings")
         print(f"  {'*' if c.named else ' '} {c.name:<28} {measured(c.value, c.std):<24} {change}{sib}")
@@ -142,7 +142,7 @@ def cmd_sync(args: argparse.Namespace) -> int:
     from ..history.outbox import waiting
     store = _store(args)
     sent = send(store)
-    other = len(waiting()) - len(waiting(store.url))
+    other = sum(e["database"] != store.where for _, e in waiting())
     if args.json:
         options.print_json(stamped("history", {"verb": "sync", "database": store.where, "sent": sent.sent,
                                                "already": sent.already, "left": sent.left, "failed": sent.failed,

@@ -18,7 +18,6 @@ import numpy as np
 
 from ..document import Document, Strong, measured, number
 from ..figures import pyplot, save, side_by_side
-from ..history.since import history_note, report_section, trend_figures
 from ..ident.report import unit
 from ..ident.trace import describe_unexplained
 from ..params.controller import Controller
@@ -249,6 +248,7 @@ def _status(doc: Document, summary: dict) -> None:
 
 
 def build_report(out: Path, summary: dict) -> Document:
+    from ..history.since import history_note, report_section, trend_figures
     doc = Document("Commissioning report")
     _verdict(doc, summary["verdict"])
     _status(doc, summary)

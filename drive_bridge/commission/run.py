@@ -15,12 +15,11 @@ import logging
 import shutil
 import time
 import traceback
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from ..config import BusConfig
-from ..history.record import new_run_id, now
 from ..errors import EXIT_CODES, DriveBridgeError, MotionAborted, UserError, exit_code
 from ..master.link import Link
 from ..outputs import write_json
@@ -28,7 +27,7 @@ from ..progress import StepReporter
 from ..session import Options, Session
 from . import steps as S
 from .report import FIGURES, REPORT, REPORT_MD, write_report
-from .summary import build_summary
+from .summary import build_summary, history_record
 from .verdict import headline
 
 log = logging.getLogger(__name__)
@@ -64,6 +63,7 @@ class CommissionResult:
 
 
 def _state(out: Path, config: BusConfig, restart: bool) -> dict:
+    from ..history.record import new_run_id, now
     path = out / STATE
     fresh: dict[str, Any] = {"config": str(config.path.resolve()), "completed": [], "durations_s": {}, "failed": None,
                              "run_id": new_run_id(), "started": now()}
@@ -182,17 +182,12 @@ def _keep(out: Path, state: dict, summary: dict, config: BusConfig, options: Opt
     """Keep the run in the history (one record per run directory: a resumed run replaces it) and
     compare its drives with their past and their siblings: ``summary.json``'s ``history``."""
     from ..history import keep
-    from ..history.record import commission_record
     from ..history.since import since_last_time
-    record = commission_record(state["run_id"], state["started"], out, summary, config.path, options.sim)
+    record = history_record(out, state, summary, config, options.sim)
     kept = keep(record, options.db)
     reporter.note(kept.line())
-    try:
-        history = since_last_time(record, kept, options.db)
-    except KeyboardInterrupt:           # the run is kept: the report is written without the comparison
-        kept.interrupted = True
-        history = since_last_time(record, replace(kept, stored=False, reason="interrupted (Ctrl-C)"), None)
-    for axis, entry in history["axes"].items():
+    history = since_last_time(record, kept, options.db)
+    for entry in history["axes"].values():
         for words in entry["named"]:
             reporter.note(f"since last time: {words}")
     return history

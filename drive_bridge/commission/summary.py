@@ -98,6 +98,32 @@ def _meta(out: Path) -> dict:
         return {}
 
 
+def history_record(out: Path, state: dict, summary: dict, config: BusConfig, simulated: bool) -> dict:
+    """The history's record of the commissioning in ``out`` (whatever steps ran), from its summary,
+    its scan (the drives' identities) and its identification (what the data left undetermined)."""
+    from ..history.record import following_error, identified, identity, record
+    found = (_load(out, S.OUTPUT["scan"]) or {}).get("found", {})
+    ident = (_load(out, S.IDENTIFY_JSON) or {}).get("axes", {})
+    verdicts = summary["verdict"]["axes"]
+    axes = []
+    for a, s in summary["axes"].items():
+        entry: dict = {"axis": a, "node_id": (found.get(a) or {}).get("node_id"), "drive": identity(found.get(a)),
+                       "verdict": verdicts.get(a, {}).get("verdict")}
+        if a in ident:
+            entry.update(identified(ident[a]))
+        if "gains_after" in s:
+            entry.update({"gains_before": s["gains_before"], "gains_after": s["gains_after"],
+                          "margins_before": s["margins_before"], "margins_after": s["margins"]})
+        if s.get("validation"):
+            entry["following_error"] = following_error(s["validation"])
+        if "written" in s:
+            entry.update({"written": s["written"], "stored": s["stored"], "unsupported": s["unsupported"]})
+        axes.append(entry)
+    return record("commission", state["run_id"], state["started"], axes, config=config.path, out=out,
+                  status=summary["status"], verdict=summary["verdict"]["overall"], simulated=simulated,
+                  failed=summary.get("failed"))
+
+
 def build_summary(out: Path, state: dict, config: BusConfig, options: Options) -> dict:
     failed = state.get("failed")
     completed = state["completed"]

@@ -1,6 +1,7 @@
 """The record of one run as the history keeps it: a JSON document built from what the run left
-(the commissioning's run directory, a write's outcome, an identification's results), with the
-run id that makes keeping it idempotent.
+(a write's outcome, an identification's results; a commissioning's from its run directory,
+:func:`drive_bridge.commission.summary.history_record`), with the run id that makes keeping it
+idempotent.
 
 Parameters are SI, motor side, each with its std and whether the data determined it; drive
 identities are 0x1018's fields as hex strings.  Nothing in a record comes from the database URL: a record never
@@ -9,7 +10,6 @@ holds a password.
 from __future__ import annotations
 
 import hashlib
-import json
 import uuid
 from datetime import datetime, timezone
 from pathlib import Path
@@ -73,7 +73,7 @@ def identified(ident: dict) -> dict[str, Any]:
             "noise_floor": ident.get("noise_floor")}
 
 
-def _following_error(validation: dict) -> dict[str, dict[str, Any]]:
+def following_error(validation: dict) -> dict[str, dict[str, Any]]:
     return {traj: {k: v.get(k) for k in ("fe_rms_before", "fe_rms_after", "fe_max_before", "fe_max_after")}
             for traj, v in validation.items()}
 
@@ -87,29 +87,6 @@ def record(kind: str, run_id: str, started: str, axes: list[dict], *, config: st
                                                    "sha256": file_sha256(config)},
             "out": None if out is None else str(Path(out).resolve()), "status": status, "verdict": verdict,
             "simulated": simulated, "failed": failed, "axes": axes}
-
-
-def commission_record(run_id: str, started: str, out: Path, summary: dict, config_path: Path, simulated: bool) -> dict:
-    """The record of a commissioning from its run directory and summary (whatever steps ran)."""
-    found = _json(out / "scan.json").get("found", {})
-    ident = _json(out / "identify" / "identify.json").get("axes", {})
-    verdicts = summary["verdict"]["axes"]
-    axes = []
-    for a, s in summary["axes"].items():
-        entry: dict[str, Any] = {"axis": a, "node_id": (found.get(a) or {}).get("node_id"),
-                                 "drive": identity(found.get(a)), "verdict": verdicts.get(a, {}).get("verdict")}
-        if a in ident:
-            entry.update(identified(ident[a]))
-        if "gains_after" in s:
-            entry.update({"gains_before": s["gains_before"], "gains_after": s["gains_after"],
-                          "margins_before": s["margins_before"], "margins_after": s["margins"]})
-        if s.get("validation"):
-            entry["following_error"] = _following_error(s["validation"])
-        if "written" in s:
-            entry.update({"written": s["written"], "stored": s["stored"], "unsupported": s["unsupported"]})
-        axes.append(entry)
-    return record("commission", run_id, started, axes, config=config_path, out=out, status=summary["status"],
-                  verdict=summary["verdict"]["overall"], simulated=simulated, failed=summary.get("failed"))
 
 
 def write_record(run_id: str, started: str, outcome: dict, identities: dict[str, dict], config_path: Path,
@@ -135,9 +112,3 @@ def identify_record(run_id: str, started: str, doc: dict, source: str | Path, ou
     return record("identify", run_id, started, axes, config=None, out=out, status="ok", verdict=None,
                   simulated=False)
 
-
-def _json(path: Path) -> dict:
-    try:
-        return json.loads(path.read_text())
-    except (OSError, ValueError):
-        return {}

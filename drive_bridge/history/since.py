@@ -18,7 +18,8 @@ FIGURE = "figures/history_{axis}.png"
 
 def since_last_time(record: dict, kept: Kept, db: str | None) -> dict:
     """``summary.json``'s ``history``: where the record went and, per axis whose drive has history
-    in the database, its comparisons and the series of the trended parameters."""
+    in the database, its comparisons and the series of the trended parameters (none where Ctrl-C
+    came while the history was read back: ``interrupted``)."""
     doc: dict = {"database": kept.database, "run_id": kept.run_id, "kept": kept.stored,
                  "outbox": None if kept.outbox is None else str(kept.outbox), "reason": kept.reason,
                  "interrupted": kept.interrupted, "axes": {}}
@@ -32,6 +33,9 @@ def since_last_time(record: dict, kept: Kept, db: str | None) -> dict:
             store.close()
     except HistoryUnavailable as exc:
         doc["reason"] = f"the history could not be read back: {exc}"
+        return doc
+    except KeyboardInterrupt:           # the run is kept: the report is written without the comparison
+        doc.update(interrupted=True, reason="interrupted (Ctrl-C) while the history was read back")
         return doc
     for a in record["axes"]:
         drive = a.get("drive")
