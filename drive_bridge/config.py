@@ -160,7 +160,7 @@ class MasterConfig:
     heartbeat_timeout_s: float
     sdo_timeout_s: float
     state_timeout_s: float
-    tpdo_miss_limit: int
+    tpdo_miss_limit: int | None      # periods of missing feedback before a stop (None: as the drives wait)
     timing: TimingLimits = TimingLimits()
     can_options: dict = field(default_factory=dict)
     notes: tuple[str, ...] = ()               # where the interface came from, what was neutralised, ignored
@@ -521,7 +521,7 @@ def load_bus_config(path: str | Path) -> BusConfig:
         heartbeat_timeout_s=m.get("heartbeat_consumer_ms", int, 300, low=10, high=65535) / 1000.0,
         sdo_timeout_s=m.get("sdo_timeout_s", float, 0.5, low=0.01, high=60.0),
         state_timeout_s=m.get("state_timeout_s", float, 1.0, low=0.01, high=60.0),
-        tpdo_miss_limit=m.get("tpdo_miss_limit", int, 3, low=1, high=100),
+        tpdo_miss_limit=m.get("tpdo_miss_limit", int, None, low=1, high=10000),
         heartbeat_period_s=m.get("heartbeat_producer", int, 100, low=10, high=100) / 1000.0,
         timing=_timing(m.section("timing", required=False)),
         node_id=m.get("node_id", int, None, low=1, high=127))

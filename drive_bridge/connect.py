@@ -8,6 +8,7 @@ from contextlib import contextmanager
 
 from .config import BusConfig
 from .errors import UserError
+from .master.buses import BusSpec
 from .master.link import BusLink, Link
 
 log = logging.getLogger(__name__)
@@ -50,7 +51,8 @@ def open_link(config: BusConfig, sim: bool, realtime: bool = False, sim_config: 
         if realtime:
             from .sim.process import SimProcess
             drives = SimProcess(sim_config or SIM_DEFAULT, config.master.sync_period_s, eds)
-            bus_link = BusLink(drives.bus)
+            bus_link = BusLink(drives.bus, BusSpec("udp_multicast", drives.group, None, {"port": drives.port}))
+            bus_link.simulator = drives         # the drives' process (tests stall it to prove the supervision)
             bus_link.on_close.append(drives.shutdown)
             link = bus_link
         else:

@@ -134,7 +134,8 @@ def decode_trace(trace: Path, meta_path: Path | None = None
 
     A damaged or cut-short trace gives the rows before the damage and, last, what is wrong
     with it (None for a whole trace)."""
-    from .master.stream import SYNC_COB_ID, Recording
+    from .master.engine import SYNC_COB_ID
+    from .master.stream import Recording
     trace = Path(trace)
     meta_path = Path(meta_path) if meta_path else trace.with_name(META_NAME)
     if not trace.is_file():
@@ -162,6 +163,8 @@ def decode_trace(trace: Path, meta_path: Path | None = None
             raise ValueError(f"TPDO object 0x{unknown[0]:04X} is not one the log has a column for")
         rec = Recording(tpdos, rpdos, sent)
         rec.skip_syncs = int(counts.get("sync_before_plan", 0))
+        # periods a late master sent no SYNC in (the rows after them are those of their own time)
+        rec.skipped = {int(r) for r in ((meta.get("timing") or {}).get("engine") or {}).get("rows_skipped") or []}
         for sc in scaling.values():
             if not (sc.increments_per_rev > 0 and sc.rated_torque_Nm > 0):
                 raise ValueError("scaling must be positive")

@@ -15,10 +15,12 @@ from .master.bringup import AxisLink, bring_up
 from .master.busload import BusLoad, check_bus_load
 from .master.campaign import Plan, build_plan
 from .master.homing import home
+from .master.engine import Supervision
 from .master.link import Link, TraceRecorder
-from .master.stream import stream
+from .master.stream import stream, supervision_for
 from .master.timing import Timing
 from .outputs import stamped, write_text
+from .params.profile import setpoint_timeout_for
 from .signals import deferred
 
 ENABLING = -999_999_999      # meta.yaml's sync_before_plan while the drives are being enabled
@@ -51,6 +53,15 @@ class RecordResult:
             "motion_s": self.plan.duration, "cycles_sent": self.cycles_sent, "bus_load": self.bus_load,
             "wall_time_s": self.wall_time_s, "timing": self.timing.as_dict(),
             "aborted": None if self.aborted is None else str(self.aborted), "holding": self.holding})
+
+
+def stream_supervision(config: BusConfig, axes: dict[str, AxisLink]) -> Supervision:
+    """The limits a stream of ``axes`` is judged by: what bring-up wrote into the drives, the drive
+    profile's setpoint-loss timeout for their EDS/DCF, bus.yml's master section."""
+    m, period = config.master, config.master.sync_period_s
+    timeout, source = setpoint_timeout_for([ax.cfg.dcf for ax in axes.values()], period)
+    return supervision_for(axes, period, heartbeat_timeout=m.heartbeat_timeout_s, state_timeout=m.state_timeout_s,
+                           setpoint_timeout=timeout, setpoint_source=source, miss_limit=m.tpdo_miss_limit)
 
 
 def record(config: BusConfig, link: Link, out_dir: str | Path, *,
@@ -111,8 +122,7 @@ def _record(config: BusConfig, link: Link, out: Path, load: BusLoad, t_start: fl
         meta["counts"]["sync_before_plan"] = enable_cycles
         write_text(out / META_NAME, starting.replace(f"sync_before_plan: {ENABLING}\n",
                                                      f"sync_before_plan: {enable_cycles}\n", 1))
-    result = stream(link, axes, plan, heartbeat_timeout=config.master.heartbeat_timeout_s,
-                    miss_limit=config.master.tpdo_miss_limit, state_timeout=config.master.state_timeout_s,
+    result = stream(link, axes, plan, supervision=stream_supervision(config, {a: axes[a] for a in plan.axes}),
                     progress=progress, timing_limits=config.master.timing, on_start=started)
     rec = result.recording
     samples = {a: int(len(rec.raw) - result.missing[a]) for a in plan.axes}

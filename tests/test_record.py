@@ -178,7 +178,8 @@ def test_wall_clock_campaign_against_drives_in_their_own_process(tmp_path, capsy
         assert counts["cycles_sent"] == len(data) < counts["cycles_planned"]
         return
     assert counts["cycles_sent"] == counts["cycles_planned"] == len(data)
-    gaps = np.diff(data[:, names.index("sync_time_s")])
+    sync = data[:, names.index("sync_time_s")]
+    gaps = np.diff(sync[np.isfinite(sync)])                 # (a late master's skipped periods have no SYNC)
     late = np.count_nonzero(gaps > 1.5 * 0.002) / len(gaps) * 100
     assert timing["clock"] == "wall" and timing["late_cycles_pct"] == pytest.approx(late, abs=1e-3)
     assert timing["max_sync_gap_ms"] == pytest.approx(gaps.max() * 1e3, abs=2e-3)
@@ -189,7 +190,8 @@ def test_wall_clock_campaign_against_drives_in_their_own_process(tmp_path, capsy
     demand, position = data[:, names.index("y_position_demand_rad")], data[:, names.index("y_position_rad")]
     # the drive followed: where the SYNCs came on time (a late cycle or a missing sample leaves the
     # rows after it comparing a demand with a position the drive reported while it caught up)
-    upset = np.flatnonzero(np.r_[False, gaps > 1.5 * 0.002] | (data[:, names.index("y_valid")] == 0))
+    late_rows = np.flatnonzero(np.isfinite(sync))[1:][gaps > 1.5 * 0.002]
+    upset = np.union1d(late_rows, np.flatnonzero(data[:, names.index("y_valid")] == 0))
     steady = np.ones(len(data), bool)
     for k in upset:
         steady[k:k + 10] = False
@@ -204,7 +206,6 @@ def test_a_run_past_its_timing_limits_is_degraded_with_exit_5(tmp_path, capsys):
     loaded machine it would stop the run first, rightly, and this test is about the timing limits."""
     cfg = bus_yml_beside(tmp_path, "heartbeat_consumer_ms: 300  # a node silent this long is lost\n"
                          "  sdo_timeout_s: 0.5\n  state_timeout_s: 1.0\n"
-                         "  tpdo_miss_limit: 3          # consecutive SYNC cycles without feedback before a stop\n"
                          "  heartbeat_producer: 100",
                          "heartbeat_consumer_ms: 2000\n  sdo_timeout_s: 0.5\n  state_timeout_s: 1.0\n"
                          "  tpdo_miss_limit: 100\n  timing: {max_gap_periods: 1.0}\n  heartbeat_producer: 100")

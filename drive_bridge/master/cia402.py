@@ -9,13 +9,20 @@ drive showed.
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import canopen
 from canopen.profiles.p402 import State402
 
 from ..errors import BusError, DriveRefused
-from .link import Clock
+
+if TYPE_CHECKING:
+    from .link import Clock
 
 CW_SHUTDOWN, CW_SWITCH_ON, CW_ENABLE = 0x06, 0x07, 0x0F
+CW_QUICK_STOP = 0x000B               # enable voltage + switch on + enable operation, quick stop bit low
+CW_DISABLE_VOLTAGE = 0x0000
+CW_HALT = 0x010F                     # enable operation with halt (bit 8): a profile position drive holds
 CW_FAULT_RESET = 0x80
 SW_FAULT = 0x0008
 
@@ -31,7 +38,7 @@ def state_name(statusword: int) -> str:
 class Drive402:
     """Power state machine of ``node`` with waits on ``clock`` bounded by ``timeout`` [s]."""
 
-    def __init__(self, node: canopen.RemoteNode, axis: str, clock: Clock, timeout: float):
+    def __init__(self, node: canopen.RemoteNode, axis: str, clock: "Clock", timeout: float):
         self.node = node
         self.axis = axis
         self.clock = clock

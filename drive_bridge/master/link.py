@@ -23,7 +23,11 @@ import can
 import canopen
 
 from ..errors import BusError
+from ..signals import signal_name
 from .blf import BatchedBLFWriter
+from .buses import BusSpec
+from .coprocess import EngineError, EngineProcess, EngineThread, engine_for
+from .engine import ROWS_SENT, STOP_REQUEST, STOP_SIGNALS, Arrays, Job, Outcome, reporter
 from .timing import raise_priority
 
 log = logging.getLogger(__name__)
@@ -57,8 +61,6 @@ class WallClock:
             time.sleep(left)
 
 
-#: python-can udp_multicast's default group and port
-UDP_GROUP, UDP_PORT = "239.74.163.2", 43113
 TRACE_PRIORITY = 10           # SCHED_FIFO priority of the trace writer (the streaming threads: 50)
 
 
@@ -209,6 +211,11 @@ class Link(Protocol):
     def stop_heartbeat(self) -> None:
         """Stop the master's heartbeat (the drives then stop as if the master had died)."""
 
+    def run_cycles(self, job: Job, fill: Callable[[Arrays], None], progress: Callable[[int], None] | None,
+                   on_start: Callable[[int], None] | None) -> tuple[Outcome, Arrays, str]:
+        """Run the cyclic engine on ``job`` (``fill`` writes the setpoint table into its arrays before
+        it starts): its outcome, its arrays and where it ran (what was granted it)."""
+
     def close(self) -> None:
         """Close the bus (and whatever runs behind it)."""
 
@@ -230,62 +237,78 @@ class BusErrors(can.Listener):
             self.count += 1
 
 
-class _ReceiverPriority(can.Listener):
-    """Asks, from the receiving thread itself on its first frame, for the priority the sending
-    thread gets while it streams (see :mod:`drive_bridge.master.timing`)."""
-
-    def __init__(self) -> None:
-        self.granted: str | None = None
-
-    def on_message_received(self, msg: can.Message) -> None:
-        if self.granted is None:
-            self.granted = raise_priority()[0]
-
-
-def open_bus(interface: str, channel: str | int | None, bitrate: int | None = None,
-             options: dict | None = None) -> can.BusABC:
-    """A python-can bus that does not hand its own frames back (``bitrate`` where the interface
-    takes one; ``options``: the interface's own arguments, :mod:`drive_bridge.canconf`)."""
-    if interface == "udp_multicast":       # python-can's echoes every frame back to its sender
-        from ..sim.adapters import LoopbackMulticastBus
-        opts = dict(options or {})
-        return LoopbackMulticastBus(str(channel or UDP_GROUP), opts.pop("port", None) or UDP_PORT, **opts)
-    kwargs = {**(options or {}), "interface": interface, "channel": channel, "receive_own_messages": False}
-    if bitrate and interface != "virtual":
-        kwargs["bitrate"] = bitrate
-    if interface == "virtual":
-        kwargs["preserve_timestamps"] = False
-    return can.Bus(**kwargs)
-
-
 class BusLink:
-    """A python-can bus with canopen's Notifier thread and the wall clock."""
+    """A python-can bus with canopen's Notifier thread and the wall clock; the cyclic engine on a
+    handle of its own on the same bus (``spec``), in a process of its own where it can be."""
 
     threaded = True           # frames arrive on the Notifier thread
     epoch = 0.0               # the clock is the wall clock
+    POLL_S = 0.05             # how often the master drains the engine's trace ring and shows progress
 
-    def __init__(self, bus: can.BusABC):
+    def __init__(self, bus: can.BusABC, spec: BusSpec):
         self.clock = WallClock()
         # CPython hands the GIL over every 5 ms by default: longer than a SYNC period. The
         # receiving thread must get it within a fraction of a period.
         sys.setswitchinterval(min(sys.getswitchinterval(), 0.001))
         self.bus = bus
+        self.spec = spec
         self.network = MasterNetwork(self.bus, self.clock)
         self.network.connect()
         if self.network.notifier is None:
             raise BusError("canopen's network started no notifier")
         self.notifier: can.Notifier = self.network.notifier
-        self.notifier.add_listener(_ReceiverPriority())
         self.bus_errors = BusErrors()
         self.notifier.add_listener(self.bus_errors)
         self.on_close: list[Callable[[], None]] = []        # callbacks after the bus is closed
         self._heartbeat: can.broadcastmanager.CyclicSendTaskABC | None = None
+        #: the cyclic engine's host, started with the first stream and kept for the link's life
+        self.engine: EngineProcess | EngineThread | None = None
+        #: what runs the drives behind the bus, where the link started it (the simulated drives' process)
+        self.simulator: object | None = None
 
     @classmethod
     def open(cls, interface: str, channel: str | int | None, bitrate: int | None = None,
              options: dict | None = None) -> "BusLink":
-        """A link on :func:`open_bus`."""
-        return cls(open_bus(interface, channel, bitrate, options))
+        """A link on :func:`~.buses.open_bus`."""
+        spec = BusSpec(interface, channel, bitrate, dict(options or {}))
+        return cls(spec.open(), spec)
+
+    def run_cycles(self, job: Job, fill: Callable[[Arrays], None], progress: Callable[[int], None] | None,
+                   on_start: Callable[[int], None] | None) -> tuple[Outcome, Arrays, str]:
+        if self.engine is None:
+            self.engine = engine_for(self.spec)
+        engine = self.engine
+        traces = self.network.traces
+        for trace in traces:                 # the engine's ring carries every frame while it runs
+            self.notifier.remove_listener(trace)
+        try:
+            arrays, ring = engine.start(job, fill)
+            report = reporter(arrays, progress, on_start)
+            outcome = None
+            while outcome is None:
+                try:
+                    try:
+                        outcome = engine.result(self.POLL_S)
+                    finally:
+                        for msg in ring.take():
+                            for trace in traces:
+                                trace.on_message_received(msg)
+                    report()
+                except KeyboardInterrupt as exc:     # the engine stops the axes; wait for it to say so
+                    name = signal_name(exc)
+                    arrays.control[STOP_REQUEST] = STOP_SIGNALS.index(name) if name in STOP_SIGNALS else 1
+                except EngineError as exc:           # it is gone: the axes are stopped by SDO
+                    log.error("%s", exc)
+                    self.engine = None
+                    engine.close()
+                    outcome = Outcome(abort=("error", None, str(exc), None), lost=[a.name for a in job.axes],
+                                      rows_sent=int(arrays.control[ROWS_SENT]))
+            if ring.dropped:
+                log.warning("%d frames did not fit the engine's trace ring: the trace misses them", ring.dropped)
+            return outcome, arrays, engine.description
+        finally:
+            for trace in traces:
+                self.notifier.add_listener(trace)
 
     def add_trace(self, trace: TraceRecorder) -> None:
         self.network.traces += (trace,)
@@ -315,6 +338,9 @@ class BusLink:
             self._heartbeat = None
 
     def close(self) -> None:
+        if self.engine is not None:
+            self.engine.close()
+            self.engine = None
         self.stop_heartbeat()
         self.network.disconnect()
         for callback in self.on_close:

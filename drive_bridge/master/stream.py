@@ -1,4 +1,4 @@
-"""Cyclic streaming: one setpoint per SYNC (cyclic synchronous or interpolated position, with the
+"""Streaming a plan: one setpoint per SYNC (cyclic synchronous or interpolated position, with the
 master's feed-forward offsets where the plan has them), feedback recorded per SYNC, safety on
 every cycle.
 
@@ -11,15 +11,17 @@ every axis gets a quick stop in the next cycle's controlword and SYNC runs until
 still (SDO only where its feedback is gone), and an axis that holds ``enabled`` stays in QUICK
 STOP ACTIVE, powered.
 
-The sending loop does only light work: pack the RPDOs, send them and the SYNC,
-check the previous cycle's feedback.  Samples stay in device units in
-preallocated arrays; conversion to SI happens once, afterwards, in
-:mod:`drive_bridge.logs`.
+This module lays the plan out as a :class:`~.engine.Job` (what each RPDO field carries, per axis
+its constants in device units, the time limits the drives were given) and a setpoint table, hands
+them to the link's cyclic engine (:mod:`.engine`; on the wall clock in a process of its own,
+:mod:`.coprocess`), and turns the engine's outcome into the :class:`StreamResult`: the recording
+in device units (:class:`Recording`; SI once, afterwards, in :mod:`drive_bridge.logs`), why it
+stopped, how each axis is held, the run's timing.
 """
 from __future__ import annotations
 
-import gc
 import logging
+import math
 from dataclasses import dataclass
 from typing import Callable
 
@@ -27,50 +29,52 @@ import canopen
 import numpy as np
 
 from ..errors import GuardStop, Interrupted, MotionAborted, UserError
-from ..signals import signal_name
 from ..pdo import PdoCodec
-from ..setpoint import CSP as CSP_MODE, CW_ENABLE_IP, IP, PVT, SETPOINT_OBJECTS, SW_FOLLOWING, pack_pvt, position_of
+from ..setpoint import CSP as CSP_MODE, CW_ENABLE_IP, IP, PVT, SETPOINT_OBJECTS, pack_pvt, position_of
 from .bringup import QUICK_STOP_RAMP_AND_HOLD, AxisLink, emcy_text
 from .campaign import Plan
-from .cia402 import CW_ENABLE, CW_SHUTDOWN, CW_SWITCH_ON, SW_FAULT, state_name
+from .cia402 import CW_ENABLE, CW_HALT, CW_QUICK_STOP, state_name
+from .engine import (CONSTANT, CONTROLWORD, STOP_SIGNALS, TABLE, TORQUE_OFFSET, Arrays, AxisJob, Job,
+                     Outcome, RpdoJob, Supervision, TpdoJob)
 from .link import Link
-from .timing import Timing, TimingLimits, measure, raise_priority, restore_priority
+from .timing import Timing, TimingLimits, measure
 
 log = logging.getLogger(__name__)
 
-CW_QUICK_STOP_CMD = 0x000B          # enable voltage + switch on + enable operation, quick stop bit low
-CW_DISABLE_VOLTAGE = 0x0000
-CW_HALT = 0x010F                    # enable operation with halt (bit 8): a profile position drive holds
 PP = 1
-#: the controlword that takes a drive one step nearer OPERATION ENABLED from the state it shows
-ENABLE_STEP = {"SWITCH ON DISABLED": CW_SHUTDOWN, "READY TO SWITCH ON": CW_SWITCH_ON,
-               "SWITCHED ON": CW_ENABLE, "OPERATION ENABLED": CW_ENABLE, "QUICK STOP ACTIVE": CW_ENABLE}
 STANDSTILL = 0.002                  # quick stop complete below this fraction of the axis's max velocity ...
 STANDSTILL_MIN_RAD_S = 0.05         # ... or below this, whichever is larger (encoder differencing noise)
-SYNC_COB_ID = 0x080
-#: a cycle's feedback is checked this many SYNC periods after it was due, so that a
-#: reply the receiving thread hands over late still counts (and is in the log)
+#: decoding a trace: a TPDO is placed in the row of the newest SYNC before its time stamp, looking
+#: back at most this many rows (a reply the master took in after the next SYNC went out)
 FEEDBACK_LAG = 1
-#: rows after the first setpoint by which the drive must show statusword bit 12 (following / IP active)
-FOLLOW_GRACE_ROWS = 2
-INT16, INT32 = (-2**15, 2**15 - 1), (-2**31, 2**31 - 1)
+INT32 = (-2**31, 2**31 - 1)
+#: EMCY codes a drive sends when the master's stream stopped reaching it (loss of setpoints, the
+#: master's heartbeat): where the master's own SYNCs were late by more than the drive allows, the
+#: master was late, and the run says so
+MASTER_LOSS = {0x8250, 0x8130}
+#: the drive profile's setpoint-loss timeout is unknown: a drive is taken to stop on the master's
+#: heartbeat alone, within the consumer time bring-up wrote (0x1016:1)
+NO_TIMEOUT = None
 
 
 class Recording:
-    """Samples in device units, one row per SYNC cycle.
+    """Samples in device units, one row per SYNC period of the plan.
 
     ``raw`` holds the TPDO objects of every axis side by side (``columns``
     names them as (axis, index)); ``got`` says which TPDO of which row arrived;
-    ``demand`` is the target position sent before each SYNC; ``sync_time``
-    the SYNC's time stamp.  :meth:`handlers` gives the per-COB-ID callbacks
-    that fill it, used live on the bus and when decoding a trace.
+    ``demand`` is the position each drive took at the row's SYNC (what the last
+    RPDO before it carried); ``sync_time`` the SYNC's time stamp, NaN for a period
+    a late master sent no SYNC in (``skipped``).  :meth:`handlers` gives the
+    per-COB-ID callbacks that rebuild it from a trace (:mod:`drive_bridge.logs`);
+    live, the cyclic engine writes the same arrays (``arrays``, its own).
 
-    A TPDO belongs to the last SYNC sent before it; when the receiving thread
-    hands it over after the next SYNC went out, its frame time stamp (taken
-    when it reached the bus, before that SYNC) still places it in its own row.
+    A TPDO belongs to the last SYNC sent before it; when it is read after the
+    next SYNC went out, its frame time stamp (taken when it reached the bus,
+    before that SYNC) still places it in its own row.
     """
 
-    def __init__(self, tpdos: dict[str, list[PdoCodec]], rpdos: dict[str, list[PdoCodec]], n_cycles: int):
+    def __init__(self, tpdos: dict[str, list[PdoCodec]], rpdos: dict[str, list[PdoCodec]], n_cycles: int,
+                 arrays: Arrays | None = None):
         self.axes = list(tpdos)
         self.columns: list[tuple[str, int]] = []
         self._tpdo_slots: list[tuple[int, PdoCodec, int, int]] = []   # (cob, codec, first column, got column)
@@ -87,15 +91,21 @@ class Recording:
         #: per axis, the columns of ``got`` (its TPDOs): a row is complete when all of them arrived
         self.slots = {axis: [slot for _, _, first, slot in self._tpdo_slots if self.columns[first][0] == axis]
                       for axis in self.axes}
-        self.raw = np.zeros((n_cycles, len(self.columns)), dtype=np.int64)
-        self.got = np.zeros((n_cycles, len(self._tpdo_slots)), dtype=bool)
-        self.demand = np.zeros((n_cycles, len(self.axes)), dtype=np.int64)
-        self.sync_time = np.full(n_cycles, np.nan)
+        if arrays is not None:
+            self.raw, self.got, self.demand, self.sync_time = arrays.raw, arrays.got, arrays.demand, arrays.sync_time
+        else:
+            self.raw = np.zeros((n_cycles, len(self.columns)), dtype=np.int64)
+            self.got = np.zeros((n_cycles, len(self._tpdo_slots)), dtype=bool)
+            self.demand = np.zeros((n_cycles, len(self.axes)), dtype=np.int64)
+            self.sync_time = np.full(n_cycles, np.nan)
+        self.pending = [0] * len(self.axes)   # position the last RPDO carried, per axis (decode)
         self.sync_index = -1          # row of the last SYNC sent (TPDOs after it belong to it)
         self.last_sync_time = -np.inf
-        self.rows = 0                 # rows that have a SYNC
+        self.rows = 0                 # rows up to the last one with a SYNC
         #: SYNCs still to come before the plan's first (decode: those that enabled the drives)
         self.skip_syncs = 0
+        #: rows whose period got no SYNC (a late master sends the SYNC of the period it is in)
+        self.skipped: set[int] = set()
 
     def column(self, axis: str, index: int) -> int:
         return self.columns.index((axis, index))
@@ -110,7 +120,7 @@ class Recording:
                         size: int = codec.struct.size, slot: int = slot) -> None:
                 row = back = self.sync_index
                 if ts < self.last_sync_time and row < len(raw):   # reached the bus before that SYNC
-                    while back > 0 and back >= row - FEEDBACK_LAG and ts < sync_time[back]:
+                    while back > 0 and back >= row - FEEDBACK_LAG and not sync_time[back] <= ts:
                         back -= 1
                     if sync_time[back] <= ts:
                         row = back
@@ -121,9 +131,7 @@ class Recording:
         for cob, codec, pos, ai, entry in self._rpdo_slots:
             def on_rpdo(can_id: int, data: bytearray, ts: float, unpack: Callable = codec.struct.unpack_from,
                         pos: int = pos, ai: int = ai, entry: tuple[int, int] = entry) -> None:
-                row = self.sync_index + 1
-                if row < len(raw):
-                    self.demand[row, ai] = position_of(entry, unpack(data)[pos])
+                self.pending[ai] = position_of(entry, unpack(data)[pos])
             out[cob] = on_rpdo
         return out
 
@@ -133,8 +141,11 @@ class Recording:
             return
         self.last_sync_time = timestamp
         self.sync_index += 1
+        while self.sync_index in self.skipped:
+            self.sync_index += 1
         if self.sync_index < len(self.raw):
             self.sync_time[self.sync_index] = timestamp
+            self.demand[self.sync_index] = self.pending
             self.rows = self.sync_index + 1
 
     def valid(self, axis: str) -> np.ndarray:
@@ -142,7 +153,7 @@ class Recording:
         return np.asarray(self.got[:, self.slots[axis]].all(axis=1))
 
     def missing(self) -> dict[str, int]:
-        """Rows without a complete sample, per axis."""
+        """Rows without a complete sample, per axis (rows of periods without a SYNC included)."""
         return {axis: int(np.count_nonzero(~self.valid(axis)[:self.rows])) for axis in self.axes}
 
     def truncate(self) -> None:
@@ -162,134 +173,6 @@ class StreamResult:
     #: per axis, how it is held now that the motion is over (for the command's last line)
     holding: dict[str, str] | None = None
     sync_before_plan: int = 0         # SYNC cycles that enabled the drives before the plan's first
-
-
-class _Feedback:
-    """The newest statusword and velocity actual of each axis from its TPDOs, and how many SYNC
-    cycles ago each arrived: what the cycles before and after the plan decide on."""
-
-    def __init__(self, axes: dict[str, AxisLink], names: list[str]):
-        self.status: dict[str, int | None] = dict.fromkeys(names)
-        self.velocity: dict[str, int | None] = dict.fromkeys(names)
-        self.age = dict.fromkeys(names, 0)        # SYNCs since the last statusword
-        self.handlers = []                          # (COB-ID, callback), for subscribe / unsubscribe
-        for a in names:
-            for codec in axes[a].tpdos:
-                picks = [(i, kind) for i, kind in ((0x6041, "status"), (0x606C, "velocity")) if i in codec.objects]
-                if picks:
-                    cols = [(codec.objects.index(i), kind) for i, kind in picks]
-                    self.handlers.append((codec.cob_id, self._handler(a, codec, cols)))
-
-    def _handler(self, axis: str, codec: PdoCodec, cols: list[tuple[int, str]]
-                 ) -> Callable[[int, bytearray, float], None]:
-        unpack, size = codec.struct.unpack_from, codec.struct.size
-
-        def on_tpdo(can_id: int, data: bytearray, ts: float) -> None:
-            if len(data) >= size:
-                values = unpack(data)
-                for col, kind in cols:
-                    getattr(self, kind)[axis] = values[col]
-                    if kind == "status":
-                        self.age[axis] = 0
-        return on_tpdo
-
-    def subscribe(self, net: canopen.Network) -> None:
-        for cob, handler in self.handlers:
-            net.subscribe(cob, handler)
-
-    def unsubscribe(self, net: canopen.Network) -> None:
-        for cob, handler in self.handlers:
-            net.unsubscribe(cob, handler)
-
-    def on_sync(self) -> None:
-        for a in self.age:
-            self.age[a] += 1
-
-    def state(self, axis: str) -> str | None:
-        sw = self.status[axis]
-        return None if sw is None else state_name(sw)
-
-
-class _TorqueOffset:
-    """The plan's torque offsets of one axis [0x60B2 units] less the torque its velocity loop held
-    at rest when the current move started (``bias``, set by :class:`_Unloader`)."""
-
-    def __init__(self, values: np.ndarray):
-        self.values = values
-        self.bias = 0
-
-    def at(self, k: int) -> int:
-        return max(INT16[0], min(INT16[1], self.values.item(k) - self.bias))
-
-
-class _Unloader:
-    """Where the master sends the model torque, the drive's velocity integrator still holds the
-    torque it wound up at rest (against stiction, or the friction of the last move) and adds it to
-    the next move; the project's drive restarts its integrator when a move starts instead.  At
-    each move start the master measures what the loop holds (torque actual less the offset it
-    sends) and sends that much less with the move: the model alone carries it."""
-
-    def __init__(self, rec: Recording, axes: dict[str, AxisLink], plan: Plan, offsets: dict[str, _TorqueOffset]):
-        self.jobs = []               # (move-start cycles, offset column, torque column, scaling, TPDO slots)
-        for ai, a in enumerate(plan.axes):
-            if a not in offsets:
-                continue
-            moving = np.abs(np.diff(plan.demand[:, ai], prepend=plan.demand[0, ai])) > 0
-            starts = set(np.flatnonzero(moving & ~np.concatenate([[False], moving[:-1]])).tolist())
-            self.jobs.append((starts, offsets[a], rec.column(a, axes[a].cfg.scaling.torque_object),
-                              axes[a].cfg.scaling, rec.slots[a]))
-        self.rec = rec
-
-    def at(self, k: int) -> None:
-        row = k - 1 - FEEDBACK_LAG           # the newest row checked; at rest its torque is steady
-        for starts, offset, col, sc, slots in self.jobs:
-            if k in starts and row >= 1 and self.rec.got[row, slots].all():
-                raw = self.rec.raw[row, col]
-                offset.bias = int(sc.torque_to_device(sc.torque_from_feedback(raw))) - offset.at(row - 1)
-
-
-def _constant(value: int) -> Callable[[int], int]:
-    return lambda k: value
-
-
-def _packer(ax: AxisLink, codec: PdoCodec, plan: Plan, ai: int, send: Callable[[int, bytes], None],
-            offsets: dict[str, _TorqueOffset]) -> Callable[[int, int], None]:
-    """Send function of one RPDO for cycle k: the controlword, the setpoint from the plan (target
-    position or interpolation data record), the plan's feed-forward offsets (zero without; the
-    torque offset through ``offsets``, which may hold back what the velocity loop already holds)."""
-    sc = ax.cfg.scaling
-    demand = plan.demand[:, ai]
-    pos = sc.position_to_device(demand)
-    # per mapped object: its value at cycle k (None: the controlword), as a Python int -- read from a
-    # numpy column at each cycle (a list of a campaign's Python ints would take ~17 MB per column)
-    values: list[Callable[[int], int] | None] = []
-    for entry in codec.entries:
-        index = entry[0]
-        if index == 0x6040:
-            values.append(None)
-        elif entry == PVT:       # position, velocity at that position, time to reach it [ms]
-            vel = np.clip(sc.velocity_to_device(np.gradient(demand, plan.period)), -2**23, 2**23 - 1)
-            ms = round(plan.period * 1000)
-            values.append(np.array([pack_pvt(p, v, ms) for p, v in zip(pos.tolist(), vel.tolist())],
-                                   dtype=np.uint64).item)
-        elif entry in SETPOINT_OBJECTS:
-            values.append(np.asarray(pos, dtype=np.int64).item)
-        elif index == 0x60B2 and plan.torque_ff_Nm is not None:
-            offsets[ax.name] = _TorqueOffset(np.asarray(sc.torque_to_device(plan.torque_ff_Nm[:, ai]), dtype=np.int64))
-            values.append(offsets[ax.name].at)
-        elif index == 0x6060:                               # modes of operation, where an RPDO maps it
-            values.append(_constant(ax.mode))
-        elif index == 0x60B1 and plan.velocity_ff_rad_s is not None:
-            values.append(np.asarray(np.clip(sc.velocity_to_device(plan.velocity_ff_rad_s[:, ai]), *INT32),
-                                     dtype=np.int64).item)
-        else:
-            values.append(_constant(0))
-    pack = codec.struct.pack
-    cob = codec.cob_id
-
-    def send_cycle(k: int, cw: int) -> None:
-        send(cob, pack(*[cw if value is None else value(k) for value in values]))
-    return send_cycle
 
 
 def _at_rest(ax: AxisLink, statusword: int, velocity: int) -> bool:
@@ -316,7 +199,7 @@ def quick_stop(link: Link, axes: dict[str, AxisLink], timeout: float) -> list[st
     problems = []
     for name, ax in axes.items():
         try:
-            ax.node.sdo[0x6040].raw = CW_QUICK_STOP_CMD
+            ax.node.sdo[0x6040].raw = CW_QUICK_STOP
         except (canopen.SdoCommunicationError, canopen.SdoAbortedError) as exc:
             problems.append(f"axis {name}: quick stop not confirmed ({exc})")
     deadline = link.clock.now() + timeout
@@ -341,136 +224,168 @@ def quick_stop(link: Link, axes: dict[str, AxisLink], timeout: float) -> list[st
     return problems
 
 
-def stream(link: Link, axes: dict[str, AxisLink], plan: Plan, *, heartbeat_timeout: float, miss_limit: int,
-           state_timeout: float, progress: Callable[[int], None] | None = None,
-           guard: Callable[[dict[str, int]], str | None] | None = None,
+@dataclass(frozen=True)
+class VelocityGuard:
+    """A run's own limit on each axis's measured velocity [rad/s]: beyond it the run stops."""
+
+    limits: dict[str, float]
+
+    def reason(self, axis: str, velocity: float) -> str:
+        return f"axis {axis}: velocity {velocity:.3g} rad/s beyond the guard {self.limits[axis]:.3g} rad/s: stopped"
+
+
+def supervision_for(axes: dict[str, AxisLink], period: float, *, heartbeat_timeout: float, state_timeout: float,
+                    setpoint_timeout: float | None = NO_TIMEOUT, miss_limit: int | None = None,
+                    setpoint_source: str = "") -> Supervision:
+    """The time limits a stream is judged by, from what bring-up wrote into the drives and read back:
+    the SYNC period (0x1006), the synchronous window (0x1007, else the period), the master's
+    heartbeat consumer time (0x1016:1); and the drives' own setpoint-loss timeout where their
+    profile names one (``setpoint_timeout`` [s]).  A drive's feedback may be missing as long as a
+    drive waits for the master's setpoints before it stops on its own: the setpoint-loss timeout,
+    else the heartbeat consumer time.  ``miss_limit`` (bus.yml ``master.tpdo_miss_limit``) sets it
+    to that many periods instead."""
+    sources = {"period": "master.sync_period (0x1006 written)"}
+    windows = [ax.drive_limits.get("0x1007:0") for ax in axes.values()]
+    window = min((w for w in windows if w), default=None)
+    if window:
+        sources["window"] = "0x1007, as the drives hold it"
+    else:
+        sources["window"] = "the SYNC period (no synchronous window 0x1007 written)"
+    consumers = [ax.drive_limits.get("0x1016:1") for ax in axes.values()]
+    consumer_ms = min((c & 0xFFFF for c in consumers if c), default=None)
+    drive_stops = setpoint_timeout
+    if drive_stops is None:
+        drive_stops = (consumer_ms / 1000.0) if consumer_ms else heartbeat_timeout
+        sources["setpoint_timeout"] = ("the master's heartbeat consumer time the drives hold (0x1016:1): their "
+                                       "profile names no setpoint-loss timeout") if consumer_ms else \
+            "master.heartbeat_consumer_ms (no consumer time written, no setpoint-loss timeout in the profile)"
+    else:
+        sources["setpoint_timeout"] = setpoint_source or "the drive profile's setpoint-loss timeout"
+    if miss_limit is not None:
+        feedback = miss_limit * period
+        sources["feedback_timeout"] = f"master.tpdo_miss_limit: {miss_limit} periods"
+    else:
+        feedback = drive_stops
+        sources["feedback_timeout"] = "as long as the drives wait for setpoints (setpoint timeout)"
+    sources["heartbeat_timeout"] = "master.heartbeat_consumer_ms"
+    return Supervision(period, (window / 1e6) if window else period, feedback, drive_stops, heartbeat_timeout,
+                       state_timeout, max(state_timeout, 2.0), sources)
+
+
+def _job(axes: dict[str, AxisLink], plan: Plan, rec: Recording, supervision: Supervision,
+         guard: VelocityGuard | None) -> tuple[Job, list[np.ndarray]]:
+    """The plan as the engine runs it, and the setpoint table's columns."""
+    names = plan.axes
+    columns: list[np.ndarray] = []
+    rpdos: list[RpdoJob] = []
+    axis_jobs: list[AxisJob] = []
+    for ai, a in enumerate(names):
+        ax = axes[a]
+        sc = ax.cfg.scaling
+        demand = plan.demand[:, ai]
+        positions = sc.position_to_device(demand)
+        columns.append(np.asarray(positions, dtype=np.int64))
+        position_column = len(columns) - 1
+        torque_gain = 0.0
+        for codec in ax.rpdos:
+            fields: list[tuple[int, int]] = []
+            for entry in codec.entries:
+                index = entry[0]
+                if index == 0x6040:
+                    fields.append((CONTROLWORD, 0))
+                elif entry == PVT:       # position, velocity at that position, time to reach it [ms]
+                    vel = np.clip(sc.velocity_to_device(np.gradient(demand, plan.period)), -2**23, 2**23 - 1)
+                    ms = round(plan.period * 1000)
+                    records = np.array([pack_pvt(p, v, ms) for p, v in zip(positions.tolist(), vel.tolist())],
+                                       dtype=np.uint64)
+                    columns.append(records.view(np.int64))
+                    fields.append((TABLE, len(columns) - 1))
+                elif entry in SETPOINT_OBJECTS:
+                    fields.append((TABLE, position_column))
+                elif index == 0x60B2 and plan.torque_ff_Nm is not None:
+                    columns.append(np.asarray(sc.torque_to_device(plan.torque_ff_Nm[:, ai]), dtype=np.int64))
+                    fields.append((TORQUE_OFFSET, len(columns) - 1))
+                    torque_gain = sc.feedback_Nm_per_unit
+                elif index == 0x6060:                       # modes of operation, where an RPDO maps it
+                    fields.append((CONSTANT, ax.mode))
+                elif index == 0x60B1 and plan.velocity_ff_rad_s is not None:
+                    columns.append(np.asarray(np.clip(sc.velocity_to_device(plan.velocity_ff_rad_s[:, ai]), *INT32),
+                                              dtype=np.int64))
+                    fields.append((TABLE, len(columns) - 1))
+                else:
+                    fields.append((CONSTANT, 0))
+            # around the plan, an interpolating drive's setpoint records stay off the bus: a FIFO (maxon's
+            # PVT) would keep them and play them when interpolation starts
+            rpdos.append(RpdoJob(codec.cob_id, codec.struct.format, tuple(fields), ai, not _records_only(ax, codec)))
+        moving = np.abs(np.diff(demand, prepend=demand[0])) > 0
+        starts = np.flatnonzero(moving & ~np.concatenate([[False], moving[:-1]])) if torque_gain else np.empty(0, int)
+        cols = {index: rec.column(a, index) for index in (0x6041, 0x606C, sc.torque_object, 0x20C4)
+                if (a, index) in rec.columns}
+        powered = not _on_brake(ax)
+        standstill = max(STANDSTILL * ax.cfg.limits.max_velocity, STANDSTILL_MIN_RAD_S) * sc.velocity_per_rad_s
+        axis_jobs.append(AxisJob(
+            a, ax.cfg.node_id, tuple(rec.slots[a]), cols[0x6041], cols.get(0x606C, -1),
+            cols.get(sc.torque_object, -1), cols.get(0x20C4, -1), position_column,
+            CW_ENABLE_IP if ax.mode == IP else CW_ENABLE, ax.mode == IP, float(standstill), not powered,
+            powered and ax.drive_limits.get("0x605A:0") == QUICK_STOP_RAMP_AND_HOLD, ax.mode == CSP_MODE,
+            PP in ax.modes, float(torque_gain), float(sc.rated_torque_Nm), tuple(int(k) for k in starts),
+            math.inf if guard is None or a not in guard.limits else guard.limits[a] * sc.velocity_per_rad_s))
+    tpdos = [TpdoJob(cob, codec.struct.format, first, slot, names.index(rec.columns[first][0]))
+             for cob, codec, first, slot in rec._tpdo_slots]
+    job = Job(tuple(axis_jobs), tuple(rpdos), tuple(tpdos), len(plan.demand), len(rec.columns), len(columns),
+              supervision)
+    return job, columns
+
+
+def stream(link: Link, axes: dict[str, AxisLink], plan: Plan, *, supervision: Supervision,
+           progress: Callable[[int], None] | None = None, guard: VelocityGuard | None = None,
            timing_limits: TimingLimits = TimingLimits(),
            on_start: Callable[[int], None] | None = None) -> StreamResult:
     """Enable the axes without a jump, stream ``plan`` one setpoint per SYNC, hold, return the recording.
 
-    A fault (EMCY, fault bit, heartbeat loss, missing TPDOs, a CAN error frame) or Ctrl-C
-    quick-stops every axis; the recording up to that point is kept and the cause is in
-    ``aborted``.  ``guard`` sees each checked cycle's actual velocity per axis (device units) and
-    stops the run by returning a reason.  ``on_start`` is told how many SYNC cycles enabling took,
-    once the plan's first goes out.
+    A fault (EMCY, fault bit, heartbeat loss, feedback missing longer than ``supervision`` allows, a
+    CAN error frame), the ``guard`` or Ctrl-C quick-stops every axis; the recording up to that point
+    is kept and the cause is in ``aborted``.  ``on_start`` is told how many SYNC cycles enabling
+    took, once the plan's first goes out.
     """
-    net, clock = link.network, link.clock
+    net = link.network
     n = len(plan.demand)
-    rec = Recording({a: axes[a].tpdos for a in plan.axes}, {a: axes[a].rpdos for a in plan.axes}, n)
-    for i, a in enumerate(plan.axes):        # what the RPDOs carry (decode reads it from the trace)
-        rec.demand[:, i] = axes[a].cfg.scaling.position_to_device(plan.demand[:, i])
-        _inside_drive_limits(axes[a], rec.demand[:, i])
-    tpdo_cobs = {c.cob_id for a in plan.axes for c in axes[a].tpdos}
-    handlers = {cob: h for cob, h in rec.handlers().items() if cob in tpdo_cobs}
-    for cob, handler in handlers.items():
+    rec = Recording({a: axes[a].tpdos for a in plan.axes}, {a: axes[a].rpdos for a in plan.axes}, 0)
+    job, columns = _job(axes, plan, rec, supervision, guard)
+    for i, a in enumerate(plan.axes):
+        _inside_drive_limits(axes[a], columns[job.axes[i].position_column])
+    for cob in {c.cob_id for a in plan.axes for c in axes[a].tpdos}:
         if net.subscribers.get(cob):
             net.unsubscribe(cob)            # canopen's own PdoMap decoding is not needed here
-        net.subscribe(cob, handler)
-    feedback = _Feedback(axes, plan.axes)
-    feedback.subscribe(net)
-    send = net.send_message
-    offsets: dict[str, _TorqueOffset] = {}
-    codecs = [c for a in plan.axes for c in axes[a].rpdos]
-    packers = [(a, _packer(axes[a], c, plan, i, send, offsets), CW_ENABLE_IP if axes[a].mode == IP else CW_ENABLE)
-               for i, a in enumerate(plan.axes) for c in axes[a].rpdos]
-    unloader = _Unloader(rec, axes, plan, offsets) if offsets else None
-    sw_cols = [(a, rec.column(a, 0x6041)) for a in plan.axes]
-    buffer_cols = {a: rec.column(a, 0x20C4) for a in plan.axes if (a, 0x20C4) in rec.columns}
-    vel_cols = [(a, rec.column(a, 0x606C)) for a in plan.axes] if guard is not None else []
-    misses = dict.fromkeys(plan.axes, 0)
-    # around the plan, an interpolating drive's setpoint records stay off the bus: a FIFO (maxon's
-    # PVT) would keep them and play them when interpolation starts
-    cycles = _Cycles(link, [p for p, codec in zip(packers, codecs) if not _records_only(axes[p[0]], codec)],
-                     feedback, plan.period)
-    aborted = None
-    k = sent = 0
-    errors_at_start = link.bus_errors.count
-    # The cycle collector stops every thread while it walks the heap (gen 2: tens of ms with
-    # the object dictionaries loaded). Streaming frees its frames by reference counting, so
-    # the collector is off while it runs (on the wall clock after one collection beforehand, in
-    # lockstep, where no deadline waits, without: a full collection costs 0.1-0.3 s there).
-    if link.threaded:
-        gc.collect()
-    gc.disable()
-    priority, undo = raise_priority() if link.threaded else ("lockstep (no wall clock)", None)
+
+    def fill(arrays: Arrays) -> None:
+        for j, column in enumerate(columns):
+            arrays.table[:, j] = column
+    arrays: Arrays | None = None
+    host = ""
+    refused: MotionAborted | None = None
     try:
-        emcy_from = {a: len(axes[a].emcy) for a in plan.axes}
         for i, a in enumerate(plan.axes):
-            _prepare(axes[a], int(rec.demand[0, i]))
-            feedback.status[a] = axes[a].drive.statusword()      # where each starts from, read now
+            _prepare(axes[a], int(columns[job.axes[i].position_column][0]) if n else 0)
         for a in plan.axes:
             axes[a].node.nmt.send_command(0x01)              # operational: PDOs flow
-        aborted = cycles.enable(state_timeout)
-        log.info("enabled in the controlword in %d SYNC cycles%s", cycles.count,
-                 f"; not: {aborted}" if aborted else "")
-        if aborted is None and on_start is not None:
-            on_start(cycles.enable_count)
-        t0 = clock.now()
-        for a in plan.axes:                                  # heartbeat supervision starts now
-            if axes[a].last_heartbeat is None:
-                axes[a].last_heartbeat = t0
-        period = plan.period
-        check_every = max(1, round(0.05 / period))
-        for k in range(n if aborted is None else 0):
-            clock.wait_until(t0 + k * period)
-            if k >= FEEDBACK_LAG + 1:
-                row = k - 1 - FEEDBACK_LAG
-                aborted = _check_buffer(rec, row, buffer_cols) or \
-                    _check_row(rec, row, axes, sw_cols, plan.axes, misses, miss_limit, emcy_from)
-                if aborted is None and guard is not None and rec.got[row].all():
-                    reason = guard({a: int(rec.raw[row, c]) for a, c in vel_cols})
-                    if reason:
-                        aborted = GuardStop(reason)
-                if aborted is None and k % check_every == 0:
-                    aborted = check_heartbeats(axes, plan.axes, clock.now(), heartbeat_timeout) or \
-                        _check_bus(link, errors_at_start)
-                if aborted is not None:
-                    if aborted.axis in buffer_cols and aborted.emcy:   # the buffer status names what a vendor's
-                        aborted = _buffer_cause(axes[aborted.axis]) or aborted   # EMCY code may not
-                    break
-                if progress is not None and k % 50 == 0:
-                    progress(k)
-            if unloader is not None:
-                unloader.at(k)
-            for _, packer, cw in packers:
-                packer(k, cw)
-            stamp = clock.now()
-            rec.on_sync(stamp)
-            feedback.on_sync()
-            send(SYNC_COB_ID, b"", False, stamp)
-            sent = k + 1
-            if stamp - (t0 + k * period) > period / 2:
-                t0 = stamp - k * period          # late: restart the schedule here, never burst SYNCs
-        else:
-            if aborted is None:
-                k = n
-                clock.sleep((FEEDBACK_LAG + 1) * period)
-                for row in range(max(0, n - 1 - FEEDBACK_LAG), n):
-                    aborted = aborted or _check_row(rec, row, axes, sw_cols, plan.axes, misses, miss_limit,
-                                                    emcy_from)
-    except KeyboardInterrupt as exc:
-        aborted = Interrupted(signal=signal_name(exc))
-    except MotionAborted as exc:
-        aborted = exc
-    except Exception as exc:          # a bus error mid-motion: still stop the axes
-        aborted = MotionAborted(f"{type(exc).__name__}: {exc}")
-    finally:
-        for cob, handler in handlers.items():
-            net.unsubscribe(cob, handler)
-    rec.rows = min(rec.rows, sent)           # a row whose SYNC an interrupt kept from the bus is not one
+        outcome, arrays, host = link.run_cycles(job, fill, progress, on_start)
+    except KeyboardInterrupt as exc:                  # before the engine ran: stop by SDO
+        outcome = Outcome(abort=("interrupt", None, getattr(exc, "name", "Ctrl-C"), None), lost=list(plan.axes))
+    except MotionAborted as exc:                      # preparing a drive failed: nothing was enabled
+        refused = exc
+        outcome = Outcome(abort=("refused", exc.axis, exc.reason, None), lost=list(plan.axes))
+    except Exception as exc:          # a bus error before or around the motion: still stop the axes
+        outcome = Outcome(abort=("error", None, f"{type(exc).__name__}: {exc}", None), lost=list(plan.axes))
+    rec = Recording({a: axes[a].tpdos for a in plan.axes}, {a: axes[a].rpdos for a in plan.axes}, n, arrays)
+    rec.rows = outcome.rows_sent
+    if arrays is not None:
+        rec.skipped = set(np.flatnonzero(np.isnan(arrays.sync_time[:outcome.rows_sent])).tolist())
     rec.truncate()
     missing = rec.missing()
-    try:
-        last = max(0, min(sent, n) - 1)
-        log.info("%d of %d plan cycles sent; %s", sent, n, f"stopping: {aborted}" if aborted else "holding")
-        if aborted is None:
-            holding, problems = cycles.hold(axes, last, state_timeout)
-        else:
-            holding, problems = cycles.stop(axes, last, max(state_timeout, 2.0), miss_limit)
-    finally:
-        feedback.unsubscribe(net)
-        restore_priority(undo)
-        gc.enable()
+    aborted = refused or _aborted(outcome, axes, supervision, guard)
+    log.info("%d of %d plan cycles sent; %s", outcome.rows_sent, n, f"stopping: {aborted}" if aborted else "holding")
+    holding, problems = _after(link, axes, plan.axes, outcome, aborted is None, supervision)
     if problems:
         text = "; ".join(problems)
         if aborted is None:
@@ -479,9 +394,95 @@ def stream(link: Link, axes: dict[str, AxisLink], plan: Plan, *, heartbeat_timeo
             aborted = Interrupted(text, aborted.signal)
         else:
             aborted = MotionAborted(f"{aborted.reason}; {text}", aborted.axis, aborted.emcy)
-    timing = measure(rec.sync_time, plan.period, missing, wall=link.threaded, priority=priority, limits=timing_limits)
-    return StreamResult(rec, sent, aborted, missing, timing, holding, cycles.enable_count)
+    timing = measure(rec.sync_time, plan.period, missing, wall=link.threaded,
+                     priority=host or "lockstep (no wall clock)", limits=timing_limits)
+    timing.engine = {"host": host or "lockstep", "sync_source": outcome.sync_source,
+                     "late_cycles": outcome.late_cycles, "periods_skipped": outcome.periods_skipped,
+                     "rows_skipped": sorted(rec.skipped), "worst_wake_ms": round(outcome.worst_wake_ms, 3),
+                     "feedback_age_ms": _ages(arrays), "supervision": supervision.as_dict()}
+    return StreamResult(rec, outcome.rows_sent, aborted, missing, timing, holding, outcome.enable_cycles)
 
+
+def _ages(arrays: Arrays | None) -> dict[str, float]:
+    """How long after it reached the bus the engine had each TPDO: p50, p99 and max [ms]."""
+    from .engine import AGE_BIN_S
+    if arrays is None or not arrays.ages.sum():
+        return {}
+    counts = arrays.ages
+    cumulative = np.cumsum(counts) / counts.sum()
+    edges = (np.arange(len(counts)) + 1) * AGE_BIN_S * 1e3
+    return {"p50": round(float(edges[np.searchsorted(cumulative, 0.5)]), 2),
+            "p99": round(float(edges[np.searchsorted(cumulative, 0.99)]), 2),
+            "max": round(float(edges[np.flatnonzero(counts)[-1]]), 2)}
+
+
+def _aborted(outcome: Outcome, axes: dict[str, AxisLink], supervision: Supervision,
+             guard: VelocityGuard | None) -> MotionAborted | None:
+    """Why the engine stopped, in words (None: it did not)."""
+    if outcome.abort is None:
+        return None
+    kind, axis, detail, code = outcome.abort
+    if kind == "interrupt":
+        if detail == STOP_SIGNALS[-1]:
+            return MotionAborted(f"{detail}: the engine stopped the axes on its own")
+        return Interrupted(signal=detail or "Ctrl-C")
+    if kind == "emcy" and axis is not None and code is not None:
+        gap = outcome.largest_sync_gap_ms
+        if code in MASTER_LOSS and gap >= supervision.setpoint_timeout_s * 1e3:
+            return MotionAborted(
+                f"the master was late: its SYNCs stopped for {gap:.0f} ms, longer than the drives wait for "
+                f"setpoints ({supervision.setpoint_timeout_s * 1e3:.0f} ms); the drive stopped on its own "
+                f"({emcy_text(code)}, EMCY 0x{code:04X})", axis, code)
+        buffer = _buffer_cause(axes[axis]) if any(i == 0x20C4 for c in axes[axis].tpdos for i in c.objects) else None
+        return buffer or MotionAborted(f"drive sent {emcy_text(code)} (EMCY 0x{code:04X})", axis, code)
+    if kind == "silent":
+        return MotionAborted(f"no TPDO: {detail}", axis)
+    if kind == "guard" and axis is not None and guard is not None:
+        return GuardStop(guard.reason(axis, float(axes[axis].cfg.scaling.velocity_from_device(int(detail)))))
+    if kind == "buffer" and axis is not None:
+        return _buffer_status_error(axis, int(detail, 16)) or MotionAborted(detail, axis)
+    if kind == "heartbeat":
+        return MotionAborted(f"heartbeat lost (none for {detail} s)", axis)
+    if kind == "bus":
+        return MotionAborted(f"the CAN interface reported {detail} error frame(s) (bus errors, error passive or "
+                             f"bus-off: check wiring, termination and bitrate)")
+    return MotionAborted(detail, axis)
+
+
+def _after(link: Link, axes: dict[str, AxisLink], names: list[str], outcome: Outcome, completed: bool,
+           supervision: Supervision) -> tuple[dict[str, str], list[str]]:
+    """Once SYNC has stopped: an axis whose feedback was gone gets its quick stop by SDO; after a
+    completed plan, a powered axis is held in profile position with halt where its drive has that
+    mode, and a CSP axis that has neither that nor a quick stop that holds is said not to be held."""
+    problems = list(outcome.problems)
+    state = {a: None if (sw := outcome.statuswords.get(a)) is None else state_name(sw) for a in names}
+    if outcome.lost:
+        problems += quick_stop(link, {a: axes[a] for a in sorted(outcome.lost)}, supervision.stop_timeout_s)
+        for a in outcome.lost:
+            try:
+                state[a] = axes[a].drive.state()
+            except Exception:                        # noqa: BLE001 - it is said as it is
+                pass
+    if completed and not outcome.lost:
+        for a in names:
+            ax = axes[a]
+            if _on_brake(ax) or PP not in ax.modes:
+                continue
+            try:
+                ax.drive.set_mode(PP)
+                ax.node.sdo[0x6040].raw = CW_HALT
+                state[a] = ax.drive.state()
+            except Exception as exc:                 # noqa: BLE001 - any failure: it holds as it is
+                problems.append(f"axis {a}: could not hold it in profile position ({exc})")
+                try:
+                    state[a] = ax.drive.state()
+                except Exception:                    # noqa: BLE001
+                    pass
+        problems += [f"axis {a}: its drive has neither profile position nor a quick stop that holds: without the "
+                     f"master's setpoints it is not held (give it holding: brake)" for a in names
+                     if not _on_brake(axes[a]) and PP not in axes[a].modes and axes[a].mode == CSP_MODE
+                     and axes[a].drive_limits.get("0x605A:0") != QUICK_STOP_RAMP_AND_HOLD]
+    return {a: holding_of(axes[a], state[a]) for a in names}, problems
 
 def _inside_drive_limits(ax: AxisLink, demand: np.ndarray) -> None:
     """UserError before the first setpoint where the plan [device units] leaves the software
@@ -528,133 +529,6 @@ def _prepare(ax: AxisLink, target: int) -> None:
     ax.drive.set_mode(ax.mode)
 
 
-class _Cycles:
-    """SYNC cycles outside the plan: the RPDOs carry one plan row (where the axis is to stand) and a
-    controlword per axis, while the feedback decides when the drives are where they should be."""
-
-    def __init__(self, link: Link, packers: list[tuple[str, Callable[[int, int], None], int]], feedback: _Feedback,
-                 period: float):
-        self.link, self.packers, self.feedback, self.period = link, packers, feedback, period
-        self.count = 0                  # SYNCs sent so far outside the plan
-        self.enable_count = 0
-
-    def run(self, row: int, controlword: Callable[[str], int], done: Callable[[], bool], timeout: float) -> bool:
-        """Cycle until ``done()`` (True) or ``timeout`` [s] (False)."""
-        clock = self.link.clock
-        t0 = clock.now()
-        k = 0
-        while not done():
-            if clock.now() - t0 > timeout:
-                return False
-            clock.wait_until(t0 + k * self.period)
-            for axis, packer, _ in self.packers:
-                packer(row, controlword(axis))
-            self.feedback.on_sync()
-            self.link.network.send_message(SYNC_COB_ID, b"", False, clock.now())
-            self.count += 1
-            k += 1
-        return True
-
-    def enable(self, timeout: float) -> MotionAborted | None:
-        """Shutdown, switch on, enable operation (from QUICK STOP ACTIVE: enable operation) in the
-        controlword, a step each time the feedback shows the state before it."""
-        fb = self.feedback
-        axes = list(fb.status)
-        ok = self.run(0, lambda a: ENABLE_STEP.get(fb.state(a) or "", CW_SHUTDOWN),
-                      lambda: all(fb.state(a) == "OPERATION ENABLED" and fb.age[a] <= 1 for a in axes), timeout)
-        self.enable_count = self.count
-        if ok:
-            return None
-        late = next(a for a in axes if fb.state(a) != "OPERATION ENABLED")
-        sw = fb.status[late]
-        return MotionAborted(f"did not reach OPERATION ENABLED within {timeout} s of enabling in the controlword "
-                             f"(it shows {fb.state(late) or 'no statusword'}" +
-                             (f", statusword 0x{sw:04X})" if sw is not None else ")"), late)
-
-    def _standing(self, ax: AxisLink, still: dict) -> bool:
-        fb, a = self.feedback, ax.name
-        status, velocity = fb.status[a], fb.velocity[a]
-        stopped = fb.age[a] <= 1 and status is not None and velocity is not None and _at_rest(ax, status, velocity)
-        still[a] = still[a] + 1 if stopped else 0
-        return still[a] >= 2
-
-    def stop(self, axes: dict[str, AxisLink], row: int, timeout: float, miss_limit: int
-             ) -> tuple[dict[str, str], list[str]]:
-        """Quick stop in every axis's controlword at once, SYNC until each stands still; then an axis
-        that holds on its brake has its voltage disabled, one that holds ``enabled`` stays in QUICK STOP
-        ACTIVE.  An axis whose feedback has stopped gets its quick stop by SDO."""
-        fb = self.feedback
-        names = list(fb.status)
-        still = dict.fromkeys(names, 0)
-        lost: set[str] = set()
-        problems: list[str] = []
-        start = self.count
-
-        def done() -> bool:
-            lost.update(a for a in names if fb.age[a] > miss_limit + FEEDBACK_LAG and self.count - start >= miss_limit)
-            return all(a in lost or self._standing(axes[a], still) for a in names)
-        try:
-            if not self.run(row, lambda a: CW_QUICK_STOP_CMD, done, timeout):
-                problems += [f"axis {a}: still moving {timeout} s after quick stop" for a in names
-                             if a not in lost and still[a] < 2]
-        except Exception:                            # the bus itself failed: SDO for every axis
-            lost.update(names)
-        if self.count == start:
-            lost.update(names)
-        if lost:
-            problems += quick_stop(self.link, {a: axes[a] for a in sorted(lost)}, timeout)
-        brake = [a for a in names if _on_brake(axes[a]) and a not in lost]
-        if brake:
-            try:
-                self.run(row, lambda a: CW_DISABLE_VOLTAGE if a in brake else CW_QUICK_STOP_CMD,
-                         lambda: all(fb.state(a) in ("SWITCH ON DISABLED", "FAULT") and fb.age[a] <= 1 for a in brake),
-                         timeout)
-            except Exception:
-                pass
-        return {a: holding_of(axes[a], fb.state(a)) for a in names}, problems
-
-    def hold(self, axes: dict[str, AxisLink], row: int, timeout: float) -> tuple[dict[str, str], list[str]]:
-        """After the plan: ``brake`` axes switched off (shutdown) onto their brake; ``enabled`` axes
-        kept powered at their position, in profile position with halt where the drive has that mode
-        (else in QUICK STOP ACTIVE, or interpolation off).  A CSP drive leaves the setpoint stream
-        through a quick stop that holds where bring-up set one (0x605A = 6: no setpoint watchdog runs
-        there, however long the SDOs that follow take), else its mode is switched by SDO right after
-        the last SYNC; an interpolating one stops interpolating.  Then SYNC stops and profile position
-        with halt is set by SDO (QUICK STOP ACTIVE → OPERATION ENABLED after a quick stop).  A CSP
-        drive with neither is not held once the master is gone, and that is said."""
-        fb = self.feedback
-        names = list(fb.status)
-        brake = [a for a in names if _on_brake(axes[a])]
-        powered = [a for a in names if a not in brake]
-        # a quick stop that holds (0x605A = 6, as bring-up wrote it) leaves CSP with no setpoint
-        # watchdog left to run out; elsewhere halt, interpolation off, and (CSP) the mode switched fast
-        qs_hold = {a for a in powered if axes[a].drive_limits.get("0x605A:0") == QUICK_STOP_RAMP_AND_HOLD}
-        cw = {**{a: CW_SHUTDOWN for a in brake},
-              **{a: CW_QUICK_STOP_CMD if a in qs_hold and axes[a].mode == CSP_MODE else CW_HALT for a in powered}}
-        pp = [a for a in powered if PP in axes[a].modes]
-        wanted = {a: ("READY TO SWITCH ON", "SWITCH ON DISABLED") if a in brake else
-                  ("OPERATION ENABLED",) if cw[a] == CW_HALT else ("QUICK STOP ACTIVE",) for a in names}
-        problems = []
-        if not self.run(row, cw.__getitem__, lambda: all(fb.state(a) in wanted[a] and fb.age[a] <= 1 for a in names),
-                        timeout):
-            problems += [f"axis {a}: not held ({fb.state(a) or 'no statusword'} {timeout} s after the motion)"
-                         for a in names if fb.state(a) not in wanted[a]]
-        state = {a: fb.state(a) for a in names}
-        for a in pp:                                 # SYNC has stopped
-            drive = axes[a].drive
-            try:
-                drive.set_mode(PP)
-                axes[a].node.sdo[0x6040].raw = CW_HALT
-                state[a] = drive.state()
-            except Exception as exc:                 # noqa: BLE001 - any failure: it holds as it is
-                problems.append(f"axis {a}: could not hold it in profile position ({exc})")
-                state[a] = drive.state()
-        problems += [f"axis {a}: its drive has neither profile position nor a quick stop that holds: without the "
-                     f"master's setpoints it is not held (give it holding: brake)" for a in powered
-                     if a not in pp and cw[a] == CW_HALT and axes[a].mode == CSP_MODE]
-        return {a: holding_of(axes[a], state[a]) for a in names}, problems
-
-
 def holding_of(ax: AxisLink, state: str | None) -> str:
     """How an axis in CiA 402 ``state`` is held, in words, for the command's last lines."""
     if state in ("SWITCH ON DISABLED", "READY TO SWITCH ON", "SWITCHED ON"):
@@ -674,14 +548,6 @@ BUFFER_ERRORS = {0x0100: "its interpolation buffer ran empty (underflow: a recor
                  0x0800: "an interpolated acceleration above its maximal profile acceleration 0x60C5"}
 
 
-def _check_buffer(rec: Recording, row: int, columns: dict[str, int]) -> MotionAborted | None:
-    """The drive's interpolation buffer status, where a TPDO maps it: an error bit stops the run."""
-    for axis, col in columns.items():
-        if rec.got[row, rec.slots[axis]].all() and (error := _buffer_status_error(axis, int(rec.raw[row, col]))):
-            return error
-    return None
-
-
 def _buffer_status_error(axis: str, status: int) -> MotionAborted | None:
     for bit, what in BUFFER_ERRORS.items():
         if status & bit:
@@ -695,37 +561,6 @@ def _buffer_cause(ax: AxisLink) -> MotionAborted | None:
         return _buffer_status_error(ax.name, ax.node.sdo[0x20C4][1].raw)
     except (canopen.SdoCommunicationError, canopen.SdoAbortedError):
         return None
-
-
-def _check_bus(link: Link, errors_at_start: int) -> MotionAborted | None:
-    errors = link.bus_errors
-    if errors.count > errors_at_start:
-        return MotionAborted(f"the CAN interface reported {errors.count - errors_at_start} error frame(s) "
-                             f"(bus errors, error passive or bus-off: check wiring, termination and bitrate)")
-    return None
-
-
-def _check_row(rec: Recording, row: int, axes: dict[str, AxisLink], sw_cols: list[tuple[str, int]], names: list[str],
-               misses: dict[str, int], miss_limit: int, emcy_from: dict[str, int]) -> MotionAborted | None:
-    got = rec.got[row].tolist()                            # a few Python bools: cheaper than numpy's
-    for ai, name in enumerate(names):
-        ax = axes[name]
-        if len(ax.emcy) > emcy_from[name]:                 # an EMCY of this run (not of an earlier one)
-            code = ax.emcy[-1][1]
-            return MotionAborted(f"drive sent {emcy_text(code)} (EMCY 0x{code:04X})", name, code)
-        if not all(got[slot] for slot in rec.slots[name]):
-            misses[name] += 1
-            if misses[name] >= miss_limit:
-                return MotionAborted(f"no TPDO for {misses[name]} consecutive SYNC cycles", name)
-            continue
-        misses[name] = 0
-        sw = int(rec.raw[row, sw_cols[ai][1]])
-        if sw & SW_FAULT:
-            return MotionAborted(f"drive reports {state_name(sw)} (statusword 0x{sw:04X})", name)
-        if row >= FOLLOW_GRACE_ROWS and not sw & SW_FOLLOWING:
-            what = ("interpolation is not active" if ax.mode == IP else "the drive does not follow the setpoints")
-            return MotionAborted(f"{what} (statusword 0x{sw:04X}, bit 12 clear, in {state_name(sw)})", name)
-    return None
 
 
 def check_heartbeats(axes: dict[str, AxisLink], names: list[str], now: float, timeout: float) -> MotionAborted | None:

@@ -3,8 +3,8 @@
 Every run reports its timing: late cycles (a SYNC more than ``LATE_FACTOR`` periods after the
 one before), the largest SYNC gap and the samples missing.  A run past its limits is
 ``degraded``: its data are kept and usable with care, and the command ends with exit code 5.
-The thread that sends setpoints, and the one that receives feedback, ask the OS for a
-real-time (SCHED_FIFO) priority where it allows that; the report says whether it did.
+The cyclic engine's process (:mod:`.coprocess`) asks the OS for a real-time (SCHED_FIFO)
+priority and locked memory where it allows them; the report says what it got.
 """
 from __future__ import annotations
 
@@ -15,6 +15,7 @@ import numpy as np
 
 LATE_FACTOR = 1.5
 RT_PRIORITY = 50                    # SCHED_FIFO priority asked for (1..99); below kernel threads
+MCL_CURRENT, MCL_FUTURE = 1, 2
 
 
 @dataclass(frozen=True)
@@ -37,6 +38,10 @@ class Timing:
     priority: str                   # what the OS granted the sending thread
     degraded: bool = False
     reasons: list[str] = field(default_factory=list)
+    #: how the cyclic engine ran: its host (a process of its own, a thread, lockstep), where SYNC came
+    #: from, late cycles and skipped periods as it counted them, its worst wake-up, the feedback's age
+    #: when it had it, and the supervision limits it judged by
+    engine: dict = field(default_factory=dict)
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -76,9 +81,13 @@ def raise_priority(priority: int = RT_PRIORITY) -> tuple[str, tuple[int, os.sche
         return f"normal (SCHED_FIFO not granted: {exc.strerror}; run with CAP_SYS_NICE or as root for it)", None
 
 
-def restore_priority(undo: tuple[int, os.sched_param] | None) -> None:
-    if undo is not None:
-        try:
-            os.sched_setscheduler(0, undo[0], undo[1])
-        except OSError:
-            pass
+def lock_memory() -> str:
+    """Lock the process's memory, now and to come (mlockall), where the OS allows; what was granted."""
+    import ctypes
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        if libc.mlockall(MCL_CURRENT | MCL_FUTURE) != 0:
+            raise OSError(ctypes.get_errno(), os.strerror(ctypes.get_errno()))
+        return "memory locked"
+    except (AttributeError, OSError) as exc:
+        return f"memory not locked ({getattr(exc, 'strerror', exc)}; raise RLIMIT_MEMLOCK or run as root)"

@@ -22,6 +22,7 @@ objects to run (Nanotec's 3212h:04): every set of gains written sets it (the par
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -107,6 +108,9 @@ class Profile:
     controller: Controller = Controller()
     #: (object's entry, the value that selects the profile's gain objects, the profile that runs otherwise)
     select: "tuple[Entry, int, Profile | None] | None" = None
+    #: how long the drive follows without a new setpoint before it stops on its own, in interpolation
+    #: periods (0x60C2), and the source that says so (None: not documented)
+    setpoint_timeout: tuple[float, str] | None = None
 
     def object_dictionary(self, node_id: int) -> canopen.ObjectDictionary:
         return load_od(self.eds, node_id)
@@ -203,6 +207,7 @@ def load_profile(name_or_path: str | Path) -> Profile:
             ms.done()
     motor_sec.done()
     controller = load_controller(top.section("controller", required=False))
+    setpoint_timeout = _setpoint_timeout(top.section("supervision", required=False))
     od = load_od(eds, 1)
     select_sec = top.section("select", required=False)
     select = None
@@ -256,4 +261,36 @@ def load_profile(name_or_path: str | Path) -> Profile:
                 raise top.error(f"motor.{key}", f"{eds.name} has no object 0x{index:04X}:{sub}")
     if select is not None:
         entries[SELECT] = select[0]
-    return Profile(path.stem, path, drive, eds, entries, save, motor, controller, select)
+    return Profile(path.stem, path, drive, eds, entries, save, motor, controller, select, setpoint_timeout)
+
+
+def _setpoint_timeout(sec: Section) -> tuple[float, str] | None:
+    """``supervision``: the drive's setpoint-loss timeout [interpolation periods] and its source."""
+    if not sec.keys():
+        return None
+    out = (sec.get("setpoint_timeout_periods", float, low=1.0, high=1e6), sec.get("source", str))
+    sec.done()
+    return out
+
+
+@functools.lru_cache(maxsize=None)
+def _shipped_setpoint_timeouts() -> dict[str, tuple[str, float, str]]:
+    """EDS file name -> (profile, setpoint-loss timeout [periods], source), of every shipped profile
+    that names one (read from the YAML alone: no EDS needed)."""
+    out = {}
+    for name in available():
+        doc = load_yaml(PROFILE_DIR / f"{name}.yaml")
+        sup = doc.get("supervision") if isinstance(doc, dict) else None
+        if isinstance(sup, dict) and "setpoint_timeout_periods" in sup:
+            out[Path(str(doc["eds"])).name] = (name, float(sup["setpoint_timeout_periods"]), str(sup.get("source", "")))
+    return out
+
+
+def setpoint_timeout_for(dcfs: list[Path], period: float) -> tuple[float | None, str]:
+    """How long [s] the drives of ``dcfs`` (their EDS/DCF files) follow without a new setpoint before
+    they stop on their own, at interpolation period ``period`` [s]: the shortest a shipped profile
+    for one of those files names, and where it comes from; (None, "") where none names one."""
+    known = [_shipped_setpoint_timeouts().get(Path(d).name) for d in dcfs]
+    found = [(periods * period, f"drive profile {name}: {periods:g} interpolation periods ({source})")
+             for name, periods, source in (k for k in known if k is not None)]
+    return min(found) if found else (None, "")

@@ -22,7 +22,8 @@ from typing import IO, cast
 import can
 
 from ..errors import BusError
-from ..master.link import UDP_GROUP
+from ..master.buses import UDP_GROUP
+from ..master.timing import lock_memory
 from .adapters import LoopbackMulticastBus
 
 GROUP = UDP_GROUP               # python-can's default IPv4 group; each run gets its own port
@@ -43,7 +44,7 @@ class SimProcess:
     """
 
     def __init__(self, config_path: str | Path, sync_period: float, eds: Mapping[str, str | Path] | None = None):
-        self.port = free_port()
+        self.group, self.port = GROUP, free_port()
         self.bus = LoopbackMulticastBus(GROUP, self.port)      # the master's end, open before boot-up
         self.process = subprocess.Popen(
             [sys.executable, "-m", __name__, str(config_path), str(self.port), repr(sync_period),
@@ -77,6 +78,7 @@ def serve(config_path: str | Path, bus: can.BusABC, sync_period: float, eds: dic
     # stops the drives for tens of ms, longer than the master's missing-feedback limit.
     gc.collect()
     gc.freeze()
+    lock_memory()                       # where granted: no page fault holds the drives up
     robot.start_realtime()
     robot.power_on()
     print("ready", flush=True)
@@ -87,7 +89,7 @@ def serve(config_path: str | Path, bus: can.BusABC, sync_period: float, eds: dic
 
 
 def main(config_path: str, port: str, sync_period: str, eds: str = "{}") -> None:
-    serve(config_path, LoopbackMulticastBus(GROUP, int(port)), float(sync_period), json.loads(eds),
+    serve(config_path, LoopbackMulticastBus(GROUP, int(port), stamps="kernel"), float(sync_period), json.loads(eds),
           sys.stdin.read)                # until the master closes the pipe
 
 

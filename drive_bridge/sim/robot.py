@@ -29,7 +29,7 @@ from .steady import SteadyStream
 
 NOISE_BLOCK = 4096
 REPLY_DELAY_S = 50e-6        # wall clock: a drive's reply follows the frame it answers
-IDLE_WAKE_S = 0.005          # wall clock: longest sleep of the drives' thread between frames
+IDLE_WAKE_S = 0.002          # wall clock: the drives' thread wakes on this grid between frames
 
 
 class SimRobot:
@@ -233,23 +233,30 @@ class SimRobot:
         self._thread.start()
 
     def _run_realtime(self) -> None:
-        # Each frame is applied at the time it reached the bus: the plant first runs up to its
-        # time stamp. A thread that woke late therefore neither misses a setpoint nor sees one
-        # late, and its replies carry the bus time at which a drive would have sent them.
-        # Between frames the plant catches up every IDLE_WAKE_S (heartbeats, time-outs).
+        # Each frame is applied at the time it reached this process's socket (the kernel's stamp):
+        # the plant first runs up to it.  The time the drives then catch up to is read *before* the
+        # socket is drained, so a frame that waited in it while this process was held up (a stall of
+        # the simulator, not of the master) is applied at its own time and never found missing.
+        # Between frames the plant catches up on an absolute grid of IDLE_WAKE_S (heartbeats,
+        # profiles, time-outs); a late wake-up takes the next point of the grid, never a burst.
         try:                                    # the drives are hardware's stand-in: first in line for the CPU
             os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(60))
         except (AttributeError, OSError):
             pass                                # not allowed here: they run at normal priority
         t0 = time.time() - self.time            # wall-clock time of simulation time 0
+        wake = time.monotonic()
         while self._running:
-            msg = self.bus.recv(timeout=IDLE_WAKE_S)
+            msg = self.bus.recv(timeout=max(0.0, wake - time.monotonic()))
+            now = time.time()
             while msg is not None:
                 self._catch_up(msg.timestamp, t0)
                 self._bus_time = max(self._bus_time, msg.timestamp)
                 self.dispatch(msg)
                 msg = self.bus.recv(0)
-            self._catch_up(time.time(), t0)
+            self._catch_up(now, t0)
+            late = time.monotonic() - wake
+            if late >= 0:
+                wake += IDLE_WAKE_S * (1 + int(late // IDLE_WAKE_S))
 
     def _catch_up(self, now: float, t0: float) -> None:
         due = int((now - t0 - self.time) / K.VELOCITY_TICK_S)

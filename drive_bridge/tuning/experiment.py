@@ -30,6 +30,7 @@ from ..errors import DriveRefused, GuardStop, MotionAborted, UserError
 from ..master.bringup import AxisLink
 from ..master.campaign import APPROACH_LEVEL
 from ..master.link import Link
+from ..master.stream import VelocityGuard
 from ..params.check import ValueRefused
 from ..params.controller import GAINS
 from ..params.profile import SELECT, Profile
@@ -133,10 +134,7 @@ def run_experiment(config: BusConfig, link: Link, axes: dict[str, AxisLink], axi
 
     v_limit = VELOCITY_GUARD * max(v_step, APPROACH_LEVEL * lim.max_velocity)    # the approach runs at 20 %
 
-    def guard(v: dict[str, float]) -> str | None:
-        if abs(v[axis]) > v_limit:
-            return f"axis {axis}: velocity {v[axis]:.3g} rad/s beyond the guard {v_limit:.3g} rad/s: stopped"
-        return None
+    guard = VelocityGuard({axis: v_limit})
 
     def trial(kps: float) -> Step:
         res = write_parameters(ax.node, profile, {**running, "KpS": kps}, store=False)

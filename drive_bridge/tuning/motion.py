@@ -13,7 +13,8 @@ from ..master.bringup import AxisLink
 from ..master.campaign import APPROACH_LEVEL, Plan, Segment, approach_move, check_plan
 from ..master.homing import home
 from ..master.link import Link
-from ..master.stream import stream
+from ..master.stream import VelocityGuard, stream
+from ..record import stream_supervision
 from ..master.timing import Timing
 from .feedforward import MasterFeedForward
 
@@ -67,7 +68,7 @@ def plan(config: BusConfig, axes: dict[str, AxisLink], demand: dict[str, np.ndar
 
 
 def run(config: BusConfig, link: Link, axes: dict[str, AxisLink], demand: dict[str, np.ndarray], *,
-        guard: Callable[[dict[str, float]], str | None] | None = None,
+        guard: VelocityGuard | None = None,
         on_plan: Callable[[Plan], Callable[[int], None] | None] | None = None,
         kind: str = "trajectory", level: float = 1.0,
         feedforward: dict[str, MasterFeedForward] | None = None,
@@ -86,11 +87,9 @@ def run(config: BusConfig, link: Link, axes: dict[str, AxisLink], demand: dict[s
                         feedforward=feedforward, approach_level=approach_level, torque_offset=torque_offset)
     m = config.master
     progress = on_plan(plan_) if on_plan else None
-    result = stream(link, {a: axes[a] for a in names}, plan_, heartbeat_timeout=m.heartbeat_timeout_s,
-                    miss_limit=m.tpdo_miss_limit, state_timeout=m.state_timeout_s, progress=progress,
-                    timing_limits=m.timing, guard=guard and
-                    (lambda raw: guard({a: float(axes[a].cfg.scaling.velocity_from_device(raw[a]))
-                                        for a in names})))
+    result = stream(link, {a: axes[a] for a in names}, plan_,
+                    supervision=stream_supervision(config, {a: axes[a] for a in names}), progress=progress,
+                    timing_limits=m.timing, guard=guard)
     names_, values, _ = to_table(result.recording, {a: axes[a].cfg.scaling for a in names}, period)
     col = {n: values[:, i] for i, n in enumerate(names_)}
     rows = slice(n_app, max(n_app, len(values)))

@@ -47,7 +47,7 @@ def test_scan_bring_up_campaign_write_and_store_against_durand_slaves(example, t
     config = load_bus_config(data("config", "examples", f"{example}.yml")).only(["y"])
     channel, drives = slaves(eds, {"y": config.nodes["y"].node_id})
     # the wall clock on a loaded 2-core machine: generous feedback limits (the protocol is the test)
-    config = replace(config, master=replace(config.master, tpdo_miss_limit=100, heartbeat_timeout_s=5.0),
+    config = replace(config, master=replace(config.master, tpdo_miss_limit=1000, heartbeat_timeout_s=5.0),
                      campaign=replace(config.campaign, design="short", short_time_s=8.0, move_fraction=0.3))
     link = BusLink.open("virtual", channel)
     aborts = Aborts()

@@ -10,6 +10,7 @@ import pytest
 
 from drive_bridge.master.bringup import bring_up
 from drive_bridge.master.cia402 import state_name
+from drive_bridge.master.stream import VelocityGuard
 from drive_bridge.sim import kernel as K
 from drive_bridge.tuning.motion import run
 
@@ -68,20 +69,20 @@ def test_z_holds_its_position_for_10_s_after_a_motion(robot):
 @pytest.mark.parametrize("how", ["guard", "ctrl-c"])
 def test_z_holds_its_position_for_10_s_after_a_quick_stop(robot, how):
     b, config, axes = robot
-    calls = []
+    z0 = _z_at(b)
+    approach = 0.2 * axes["z"].cfg.limits.max_velocity          # the approach runs at 20 % of the limits
+    guard = VelocityGuard({"z": 0.5 * approach}) if how == "guard" else None
 
-    def guard(_velocities):
-        calls.append(1)
-        if len(calls) == 600:                            # mid-approach, Z moving up at 46 mm/s
-            if how == "ctrl-c":
+    def on_plan(plan):
+        def progress(k):
+            if how == "ctrl-c" and k >= 600:                 # mid-approach, Z moving up at 46 mm/s
                 raise KeyboardInterrupt
-            return "stop for the test"
-        return None
-    motion = run(config, b.link, axes, {"z": np.full(50, 0.0)}, guard=guard)
-    assert motion.aborted is not None
+        return progress
+    motion = run(config, b.link, axes, {"z": np.full(50, 0.0)}, guard=guard, on_plan=on_plan)
+    assert motion.aborted is not None and ("guard" in motion.aborted.reason) == (how == "guard")
     assert state_name(axes["z"].drive.statusword()) == "QUICK STOP ACTIVE"
     stopped = _z_at(b)
-    assert stopped > -70.0                               # it stopped off its end stop
+    assert stopped > z0 + 0.05                           # it stopped off its end stop
     b.link.clock.sleep(0.5)                              # the stop settles (stiction, then the integrator)
     held = _z_at(b)
     assert abs(held - stopped) < 0.02
@@ -100,13 +101,14 @@ def test_every_moving_drive_quick_stops_by_itself_when_the_master_heartbeat_stop
     silent, speeds = {}, []
     b.robot.timers.append(lambda t: speeds.append((t, *np.abs(b.robot.state[:, K.V]))))
 
-    def guard(_velocities):
-        if b.robot.time > 1.0 and not silent:
-            b.link.stop_heartbeat()                       # as a SIGKILL would
-            silent["t"] = b.robot.time
-        return None
+    def on_plan(plan):
+        def progress(k):
+            if b.robot.time > 1.0 and not silent:
+                b.link.stop_heartbeat()                   # as a SIGKILL would
+                silent["t"] = b.robot.time
+        return progress
     start = {a: ax.position_rad() for a, ax in axes.items()}
-    run(config, b.link, axes, {a: np.full(50, start[a] + 8.0) for a in axes}, guard=guard)
+    run(config, b.link, axes, {a: np.full(50, start[a] + 8.0) for a in axes}, on_plan=on_plan)
     period = config.master.heartbeat_period_s
     for a in axes:
         t_emcy = min(t for t, code in emcy[a] if code == 0x8130)
@@ -192,16 +194,17 @@ def test_records_an_earlier_program_left_in_the_buffer_are_not_played():
 def test_a_record_that_does_not_come_stops_the_run_naming_the_buffer_underflow():
     b, config, axes = _epos2_bench()
     cob = next(c.cob_id for c in axes["y"].rpdos if (0x20C1, 0) in c.entries)
-    calls = []
+    lost = []
 
-    def guard(_velocities):                              # one record lost on the bus, mid-motion
-        calls.append(1)
-        if len(calls) == 300:
-            route = b.robot._routes[cob]
-            b.robot._routes[cob] = lambda data: b.robot._routes.__setitem__(cob, route)
-        return None
+    def on_plan(plan):
+        def progress(k):                                 # one record lost on the bus, mid-motion
+            if k >= 300 and not lost:
+                lost.append(k)
+                route = b.robot._routes[cob]
+                b.robot._routes[cob] = lambda data: b.robot._routes.__setitem__(cob, route)
+        return progress
     start = axes["y"].position_rad()
-    motion = run(config, b.link, axes, {"y": np.full(500, start + 5.0)}, guard=guard)
+    motion = run(config, b.link, axes, {"y": np.full(500, start + 5.0)}, on_plan=on_plan)
     assert motion.aborted is not None and "interpolation buffer ran empty" in str(motion.aborted)
 
 

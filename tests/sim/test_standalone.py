@@ -13,7 +13,7 @@ import canopen
 import yaml
 
 from drive_bridge.master.cia402 import state_name
-from drive_bridge.master.link import UDP_GROUP
+from drive_bridge.master.buses import UDP_GROUP
 from drive_bridge.sim.adapters import LoopbackMulticastBus
 from drive_bridge.sim.process import free_port
 
@@ -52,12 +52,12 @@ def test_a_master_killed_mid_campaign_leaves_every_drive_stopped_by_its_heartbea
                                                                                    time.time())))
         master = subprocess.Popen([sys.executable, "-m", "drive_bridge", "record", "--config", str(cfg), "--axes", "x", "--yes",
                                    "--out", str(tmp_path / "run")], stdout=subprocess.DEVNULL,
-                                  stderr=subprocess.PIPE, text=True, env=env)
+                                  stderr=subprocess.PIPE, text=True, env=env, start_new_session=True)
         _wait_for(master.stderr, "campaign:", 120)
         node = monitor.add_node(1, None)                  # SDO only: no object dictionary needed
         time.sleep(1.5)                                   # X is on its way to the campaign's start (6 s) ...
         moving = abs(int.from_bytes(node.sdo.upload(0x606C, 0), "little", signed=True))
-        master.send_signal(signal.SIGKILL)
+        os.killpg(master.pid, signal.SIGKILL)            # the master and its cyclic engine, as a power cut would
         killed = time.time()
         assert moving > 0.5 * 166886                      # ... at more than 0.5 rad/s when the master dies
         master.wait()

@@ -1,0 +1,45 @@
+"""Opening a python-can bus, and what it takes to open the same bus again (:class:`BusSpec`): the
+cyclic engine opens a handle of its own on the master's bus (:mod:`.coprocess`)."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import can
+
+#: python-can udp_multicast's default group and port
+UDP_GROUP, UDP_PORT = "239.74.163.2", 43113
+
+
+@dataclass(frozen=True)
+class BusSpec:
+    """A python-can bus as :func:`open_bus` opens it: interface, channel, bitrate and the
+    interface's own arguments."""
+
+    interface: str
+    channel: str | int | None = None
+    bitrate: int | None = None
+    options: dict = field(default_factory=dict)
+
+    def open(self) -> can.BusABC:
+        return open_bus(self.interface, self.channel, self.bitrate, self.options)
+
+    @property
+    def in_process(self) -> bool:
+        """Whether only this process can reach the bus (python-can's virtual bus)."""
+        return self.interface == "virtual"
+
+
+def open_bus(interface: str, channel: str | int | None, bitrate: int | None = None,
+             options: dict | None = None) -> can.BusABC:
+    """A python-can bus that does not hand its own frames back (``bitrate`` where the interface
+    takes one; ``options``: the interface's own arguments, :mod:`drive_bridge.canconf`)."""
+    if interface == "udp_multicast":       # python-can's echoes every frame back to its sender
+        from ..sim.adapters import LoopbackMulticastBus
+        opts = dict(options or {})
+        return LoopbackMulticastBus(str(channel or UDP_GROUP), opts.pop("port", None) or UDP_PORT, **opts)
+    kwargs = {**(options or {}), "interface": interface, "channel": channel, "receive_own_messages": False}
+    if bitrate and interface != "virtual":
+        kwargs["bitrate"] = bitrate
+    if interface == "virtual":
+        kwargs["preserve_timestamps"] = False
+    return can.Bus(**kwargs)

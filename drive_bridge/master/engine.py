@@ -1,0 +1,652 @@
+"""The cyclic engine: SYNC, the RPDOs of each period, TPDO capture and the supervision decisions of
+a streamed motion, from enabling the drives to holding or stopping them.
+
+The engine knows nothing of canopen's objects, the configuration or the files: it runs a
+:class:`Job` (plain data: the PDO layouts, what each RPDO field carries, per-axis constants in
+device units, the limits written to the drives) over a :class:`Port` (how frames leave and
+arrive, and the time), writing into arrays made before motion (:class:`Arrays`).  The same code
+runs in lockstep (in the master's thread, simulated time) and on the wall clock (in a process of
+its own: :mod:`.coprocess`).
+
+Schedule.  Period ``k`` starts at ``t0 + k * period`` (an absolute monotonic schedule).  At its
+start the SYNC goes out, then, inside the synchronous window, the RPDOs the drives take at the
+next SYNC.  A cycle that starts late sends the SYNC of the period it is in, never the ones it
+missed: the plan rows of missed periods get no SYNC (``sync_time`` NaN), and the setpoints that
+follow are those of their own time.
+
+Supervision is judged in time.  A drive must answer a SYNC within the synchronous window
+(0x1007, or the period where none is written).  A row's feedback is judged once the bus shows
+that window has passed: a frame from the drives stamped later, or, where none comes, the
+engine's own clock past the heartbeat consumer time (then nothing is heard at all).  A drive
+whose feedback stays missing for longer than ``feedback_timeout_s`` stops the run; a late master
+(a cycle that did not start on time) is never counted as a drive's silence, and where the drives
+stop because the master's setpoints stopped longer than their own timeout, the run says the
+master was late.
+
+The cyclic path does not grow: every array is allocated before motion, no container is appended
+to, and it neither logs nor writes files (the host turns the outcome into words and files).
+"""
+from __future__ import annotations
+
+import math
+import struct
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+
+from ..setpoint import SW_FOLLOWING
+from .cia402 import CW_DISABLE_VOLTAGE, CW_ENABLE, CW_HALT, CW_QUICK_STOP, CW_SHUTDOWN, CW_SWITCH_ON, SW_FAULT, state_name
+
+#: the controlword that takes a drive one step nearer OPERATION ENABLED from the state it shows
+ENABLE_STEP = {"SWITCH ON DISABLED": CW_SHUTDOWN, "READY TO SWITCH ON": CW_SWITCH_ON,
+               "SWITCHED ON": CW_ENABLE, "OPERATION ENABLED": CW_ENABLE, "QUICK STOP ACTIVE": CW_ENABLE}
+SYNC_COB_ID = 0x080
+#: rows after the first setpoint by which the drive must show statusword bit 12 (following / IP active)
+FOLLOW_GRACE_ROWS = 2
+#: how often [s] the engine checks the drives' heartbeats, the bus's error frames and its stop request
+CHECK_EVERY_S = 0.05
+INT16 = (-2**15, 2**15 - 1)
+#: kinds of an RPDO field: the controlword, a column of the setpoint table, a constant, a column of
+#: the torque offsets (less what the velocity loop holds at rest, see :attr:`AxisJob.torque_Nm_per_raw`)
+CONTROLWORD, TABLE, CONSTANT, TORQUE_OFFSET = range(4)
+#: the engine's phases (shared with the host through ``Arrays.control``)
+ENABLING, STREAMING, HOLDING, STOPPING, SWITCHING_OFF, ENDED = range(6)
+#: slots of ``Arrays.control`` (int64): what the host reads while the engine runs, and its stop request
+PHASE, ROWS_SENT, STOP_REQUEST, ENABLE_CYCLES, RING_HEAD, RING_TAIL, RING_DROPPED, CONTROL_SLOTS = range(8)
+#: stop requests: none, from the host (Ctrl-C, SIGTERM, SIGHUP: which one in ``STOP_SIGNALS``), its loss
+STOP_SIGNALS = ("", "Ctrl-C", "SIGTERM", "SIGHUP", "the master's process ended")
+AGE_BIN_S, AGE_BINS = 1e-4, 1000     # histogram of feedback age: 0.1 ms bins up to 100 ms
+PROGRESS_ROWS = 50                  # the host's progress is told the plan row in steps of this many
+
+
+# ---------------------------------------------------------------------------------------- the job
+@dataclass(frozen=True)
+class RpdoJob:
+    """One RPDO: its COB-ID, struct format and what each field carries, ``(kind, argument)``."""
+
+    cob_id: int
+    format: str
+    fields: tuple[tuple[int, int], ...]
+    axis: int                       # index into :attr:`Job.axes`
+    around_plan: bool = True        # also sent while enabling, holding and stopping (not: IP records)
+
+
+@dataclass(frozen=True)
+class TpdoJob:
+    """One TPDO: its values go to ``raw[row, first:first + count]``, its arrival to ``got[row, slot]``."""
+
+    cob_id: int
+    format: str
+    first: int
+    slot: int
+    axis: int
+
+
+@dataclass(frozen=True)
+class AxisJob:
+    """What the engine needs of one axis, in the drive's units."""
+
+    name: str
+    node_id: int
+    slots: tuple[int, ...]          # its TPDOs' columns of ``got``: a row is complete when all arrived
+    statusword: int                 # column of ``raw``
+    velocity: int                   # column of ``raw`` (-1: not mapped)
+    torque: int = -1                # column of ``raw`` of the torque feedback (-1: not mapped)
+    buffer_status: int = -1         # column of maxon's interpolation buffer status 0x20C4:1 (-1: none)
+    position_column: int = -1       # column of the setpoint table that holds its position [increments]
+    enable_controlword: int = CW_ENABLE      # during the plan (interpolated position: + bit 4)
+    interpolating: bool = False
+    standstill: float = 0.0         # |velocity actual| at or below this is standing [velocity units]
+    on_brake: bool = False          # held switched off onto its brake
+    quick_stop_holds: bool = False  # 0x605A = 6: a quick stop holds the axis powered (leaves CSP safely)
+    csp: bool = True
+    has_profile_position: bool = False
+    #: where the master sends a torque offset: at each move start the torque the velocity loop holds
+    #: at rest (feedback [raw] x Nm per raw unit, in per mille of the rated torque) is taken out of the
+    #: offsets (0: not done)
+    torque_Nm_per_raw: float = 0.0
+    rated_torque_Nm: float = 1.0
+    move_starts: tuple[int, ...] = ()
+    velocity_guard: float = math.inf         # |velocity actual| beyond this stops the run [velocity units]
+
+
+@dataclass(frozen=True)
+class Supervision:
+    """The time limits the engine judges by, and what they come from (written into the drives at
+    bring-up, or the drive profile's own)."""
+
+    period_s: float                 # SYNC period = 0x1006
+    window_s: float                 # synchronous window 0x1007 (the period where none is written)
+    feedback_timeout_s: float       # a drive's feedback missing this long stops the run
+    setpoint_timeout_s: float       # the drives stop on their own after this long without setpoints
+    heartbeat_timeout_s: float      # a node silent this long is lost (the wall-clock backstop)
+    state_timeout_s: float          # enabling, holding
+    stop_timeout_s: float           # quick stop until standing still
+    sources: dict[str, str] = field(default_factory=dict)
+
+    def as_dict(self) -> dict:
+        """meta.yaml's ``supervision``: each limit in ms, and where it comes from."""
+        out: dict = {k: round(getattr(self, k) * 1e3, 3) for k in
+                     ("period_s", "window_s", "feedback_timeout_s", "setpoint_timeout_s", "heartbeat_timeout_s")}
+        out = {k.replace("_s", "_ms"): v for k, v in out.items()}
+        out["sources"] = dict(self.sources)
+        return out
+
+
+@dataclass(frozen=True)
+class Job:
+    """A streamed motion as plain data: what :class:`Engine` runs."""
+
+    axes: tuple[AxisJob, ...]
+    rpdos: tuple[RpdoJob, ...]
+    tpdos: tuple[TpdoJob, ...]
+    rows: int                       # plan rows (one SYNC each, on time)
+    columns: int                    # of ``raw``
+    table_columns: int              # of the setpoint table
+    supervision: Supervision
+
+
+class Arrays:
+    """Every array the engine writes or reads, made before motion by the host (plain memory in
+    lockstep, one shared mapping for an engine in its own process): the setpoint table (what the
+    RPDOs carry per plan row), the TPDO values and arrivals per row, the position each drive took at
+    each SYNC, the SYNC time stamps (NaN: no SYNC in that period), the torque held back per axis, the
+    feedback age histogram and the control slots the host reads and writes while the engine runs."""
+
+    table: np.ndarray
+    raw: np.ndarray
+    got: np.ndarray
+    demand: np.ndarray
+    sync_time: np.ndarray
+    torque_offset: np.ndarray
+    ages: np.ndarray
+    control: np.ndarray
+
+    def __init__(self, job: Job, allocate: Callable[[tuple[int, ...], type], np.ndarray]):
+        for name, shape, dtype in self.layout(job):
+            setattr(self, name, allocate(shape, dtype))
+        self.sync_time[:] = np.nan
+
+    @staticmethod
+    def layout(job: Job) -> list[tuple[str, tuple[int, ...], type]]:
+        """(name, shape, type) of each array, in the order they are allocated."""
+        n = job.rows
+        return [("table", (n, max(1, job.table_columns)), np.int64), ("raw", (n, max(1, job.columns)), np.int64),
+                ("got", (n, max(1, len(job.tpdos))), np.bool_), ("demand", (n, len(job.axes)), np.int64),
+                ("sync_time", (n,), np.float64), ("torque_offset", (len(job.axes),), np.int64),
+                ("ages", (AGE_BINS + 1,), np.int64), ("control", (CONTROL_SLOTS,), np.int64)]
+
+
+@dataclass
+class Outcome:
+    """How a run ended, for the host to turn into words: the rows sent, why it stopped (``abort``:
+    kind, axis, detail, EMCY code), each axis's last statusword, the axes whose feedback was gone
+    (the host stops those by SDO), problems while stopping or holding, and the run's timing."""
+
+    rows_sent: int = 0
+    enable_cycles: int = 0
+    abort: tuple[str, str | None, str, int | None] | None = None
+    statuswords: dict[str, int | None] = field(default_factory=dict)
+    lost: list[str] = field(default_factory=list)
+    problems: list[str] = field(default_factory=list)
+    late_cycles: int = 0            # cycles that started more than half a period late
+    periods_skipped: int = 0        # periods that got no SYNC (a late cycle sends the one it is in)
+    worst_wake_ms: float = 0.0      # the latest a cycle started after its deadline
+    largest_sync_gap_ms: float = 0.0
+    sync_source: str = ""
+
+
+def reporter(arrays: Arrays, progress: Callable[[int], None] | None,
+             on_start: Callable[[int], None] | None) -> Callable[[], None]:
+    """What the host calls now and then while the engine runs: ``on_start`` (once, with the SYNC
+    cycles enabling took) when the plan's first row has gone out, ``progress`` with the rows sent."""
+    started = [on_start is None]
+    shown = [-1]
+    control = arrays.control
+
+    def report() -> None:
+        if control[PHASE] != STREAMING:
+            return
+        rows = int(control[ROWS_SENT])
+        if not started[0] and rows > 0:
+            started[0] = True
+            on_start(int(control[ENABLE_CYCLES]))        # type: ignore[misc]
+        row = (rows - 1) // PROGRESS_ROWS * PROGRESS_ROWS
+        if progress is not None and row > shown[0]:
+            shown[0] = row
+            progress(row)
+    return report
+
+
+# ---------------------------------------------------------------------------------------- the port
+class Port(Protocol):
+    """How the engine reaches the bus.  ``receive`` is given the handler table once; frames that
+    arrive are handed to ``handlers[cob_id](data, timestamp)`` while the engine waits (``wait_until``)
+    or, in lockstep, as soon as the frame that caused them was sent."""
+
+    sync_source: str
+
+    def now(self) -> float:
+        """The time [s] frames are stamped in."""
+
+    def wait_until(self, deadline: float) -> None:
+        """Return at ``deadline``, handing over every frame that arrives meanwhile."""
+
+    def send(self, cob_id: int, data: bytes | bytearray, stamp: float) -> None:
+        """Send one frame stamped ``stamp`` [s] (taken just before, from :meth:`now`)."""
+
+    def receive(self, handlers: dict[int, Callable[[bytes | bytearray, float], None]],
+                on_error_frame: Callable[[], None]) -> None:
+        """From now on, hand received frames to ``handlers`` by COB-ID, error frames to ``on_error_frame``."""
+
+    def release(self) -> None:
+        """Hand no more frames to the handlers."""
+
+
+# ---------------------------------------------------------------------------------------- the engine
+class Engine:
+    """Runs one :class:`Job` over ``port``: enable, stream, then hold, or stop on the first fault."""
+
+    def __init__(self, job: Job, arrays: Arrays, port: Port, on_check: Callable[[], None] | None = None):
+        self.job, self.arrays, self.port = job, arrays, port
+        #: called every ``CHECK_EVERY_S`` of the engine's time (lockstep: the host's progress, on this thread)
+        self.on_check = on_check
+        sup = job.supervision
+        self.period = sup.period_s
+        n_axes = len(job.axes)
+        self.status: list[int | None] = [None] * n_axes
+        self.velocity: list[int | None] = [None] * n_axes
+        self.age = [0] * n_axes                  # SYNCs since each axis's last statusword
+        self.heard = [0.0] * n_axes              # engine time of each drive's last frame (any)
+        self.beat = [0.0] * n_axes               # engine time of each drive's last heartbeat
+        self.last_complete = [-math.inf] * n_axes      # SYNC time of each axis's last complete row
+        self.emcy: tuple[int, int] | None = None       # (axis, code) of the first EMCY of this run
+        self.bus_errors = 0
+        self.evidence = -math.inf               # newest time stamp of a frame from the drives
+        self.judged = 0                          # rows before this are judged
+        self.row = -1                            # plan row of the last SYNC (-1: none yet)
+        self.pending = [0] * n_axes             # position the last RPDO carried, per axis
+        self.outcome = Outcome(sync_source=port.sync_source)
+        self.phase = ENABLING
+        self.start = self.phase_start = self.next_check = self.t0 = 0.0
+        self.slot = 0                            # periods since the first SYNC
+        self.plan_slot = 0                       # the period of plan row 0
+        self.last_sync = -math.inf
+        self.enable_cycles = 0
+        self.still = [0] * n_axes                # fresh standstill readings in a row, per axis
+        self.check_due = False
+        self.fence = math.inf                    # time stamp of the first SYNC after the plan's rows
+        self._rpdos = [(r, struct.Struct(r.format), bytearray(struct.calcsize(r.format)),
+                        [0] * len(r.fields)) for r in job.rpdos]
+        self._starts = [set(a.move_starts) for a in job.axes]
+        self._node = {a.node_id: i for i, a in enumerate(job.axes)}
+
+    # ------------------------------------------------------------------ receiving
+    def handlers(self) -> dict[int, Callable[[bytes | bytearray, float], None]]:
+        """COB-ID -> handler of every frame the engine listens to."""
+        out: dict[int, Callable[[bytes | bytearray, float], None]] = {}
+        for tpdo in self.job.tpdos:
+            out[tpdo.cob_id] = self._tpdo_handler(tpdo)
+        for i, ax in enumerate(self.job.axes):
+            out[0x080 + ax.node_id] = self._emcy_handler(i)
+            out[0x700 + ax.node_id] = self._heartbeat_handler(i)
+        return out
+
+    def _tpdo_handler(self, tpdo: TpdoJob) -> Callable[[bytes | bytearray, float], None]:
+        unpack, size = struct.Struct(tpdo.format).unpack_from, struct.calcsize(tpdo.format)
+        first, slot, axis = tpdo.first, tpdo.slot, tpdo.axis
+        ax = self.job.axes[axis]
+        last = first + len(struct.Struct(tpdo.format).unpack(bytes(size)))
+        sw_at = ax.statusword - first if first <= ax.statusword < last else -1
+        vel_at = ax.velocity - first if first <= ax.velocity < last else -1
+        raw, got, sync_time, ages = self.arrays.raw, self.arrays.got, self.arrays.sync_time, self.arrays.ages
+        port = self.port
+
+        def on_tpdo(data: bytes | bytearray, stamp: float) -> None:
+            if len(data) < size:
+                return
+            values = unpack(data)
+            self.heard[axis] = port.now()
+            if stamp > self.evidence:
+                self.evidence = stamp
+            if sw_at >= 0:
+                self.status[axis] = values[sw_at]
+                self.age[axis] = 0
+            if vel_at >= 0:
+                self.velocity[axis] = values[vel_at]
+            if stamp >= self.fence:               # it answers a SYNC after the plan's last
+                return
+            row = self.row
+            # the row of the newest SYNC before the frame reached the bus, among rows not judged yet
+            while row >= self.judged and (sync_time[row] != sync_time[row] or stamp < sync_time[row]):
+                row -= 1
+            if row >= self.judged:
+                raw[row, first:last] = values
+                got[row, slot] = True
+                age = port.now() - stamp
+                ages[min(AGE_BINS, max(0, int(age / AGE_BIN_S)))] += 1
+        return on_tpdo
+
+    def _emcy_handler(self, axis: int) -> Callable[[bytes | bytearray, float], None]:
+        def on_emcy(data: bytes | bytearray, stamp: float) -> None:
+            self.heard[axis] = self.port.now()
+            code = int.from_bytes(data[:2], "little") if len(data) >= 2 else 0
+            if code and self.emcy is None:        # code 0: error reset, no error
+                self.emcy = (axis, code)
+        return on_emcy
+
+    def _heartbeat_handler(self, axis: int) -> Callable[[bytes | bytearray, float], None]:
+        def on_heartbeat(data: bytes | bytearray, stamp: float) -> None:
+            self.heard[axis] = self.beat[axis] = self.port.now()
+            if stamp > self.evidence:
+                self.evidence = stamp
+        return on_heartbeat
+
+    def _on_error_frame(self) -> None:
+        self.bus_errors += 1
+
+    # ------------------------------------------------------------------ sending
+    def _send_rpdos(self, row: int, controlwords: list[int], records: bool) -> None:
+        """The RPDOs the drives take at the next SYNC: ``row`` of the setpoint table, a controlword
+        per axis (``records``: also interpolation records, which a drive's FIFO would otherwise keep)."""
+        table, offsets = self.arrays.table, self.arrays.torque_offset
+        send, now = self.port.send, self.port.now
+        for rpdo, codec, buffer, values in self._rpdos:
+            if not (records or rpdo.around_plan):
+                continue
+            axis = rpdo.axis
+            for i, (kind, arg) in enumerate(rpdo.fields):
+                if kind == CONTROLWORD:
+                    values[i] = controlwords[axis]
+                elif kind == TABLE:
+                    values[i] = int(table[row, arg])
+                elif kind == TORQUE_OFFSET:
+                    values[i] = max(INT16[0], min(INT16[1], int(table[row, arg]) - int(offsets[axis])))
+                else:
+                    values[i] = arg
+            codec.pack_into(buffer, 0, *values)
+            send(rpdo.cob_id, buffer, now())
+        for axis, ax in enumerate(self.job.axes):
+            if ax.position_column >= 0:
+                self.pending[axis] = int(table[row, ax.position_column])
+
+    def _unload(self, row: int) -> None:
+        """Before the RPDOs of plan ``row``: at a move start, what the velocity loop holds at rest (the
+        torque actual less the offset sent, on the newest judged row) is taken out of the offsets."""
+        job, arrays = self.job, self.arrays
+        ref = row - 2                          # the newest row whose feedback has arrived (in lockstep, always)
+        if ref < 1:
+            return
+        for axis, ax in enumerate(job.axes):
+            if ax.torque_Nm_per_raw and row in self._starts[axis] and all(arrays.got[ref, s] for s in ax.slots):
+                sent = self._offset_column(axis)
+                held = round(float(arrays.raw[ref, ax.torque]) * ax.torque_Nm_per_raw / ax.rated_torque_Nm * 1000)
+                before = max(INT16[0], min(INT16[1], int(arrays.table[ref - 1, sent]) - int(arrays.torque_offset[axis])))
+                arrays.torque_offset[axis] = held - before
+
+    def _offset_column(self, axis: int) -> int:
+        for rpdo in self.job.rpdos:
+            for kind, arg in rpdo.fields:
+                if rpdo.axis == axis and kind == TORQUE_OFFSET:
+                    return arg
+        return -1
+
+    # ------------------------------------------------------------------ judging
+    def _judge(self, now: float) -> tuple[str, str | None, str, int | None] | None:
+        """Judge every row whose synchronous window the bus has passed; the first fault found."""
+        job, arrays, sup = self.job, self.arrays, self.job.supervision
+        sync_time, got, raw = arrays.sync_time, arrays.got, arrays.raw
+        evidence = max(self.evidence, now - sup.heartbeat_timeout_s)
+        while self.judged <= self.row:
+            r = self.judged
+            t = sync_time[r]
+            if t != t:                           # no SYNC in that period: nothing was asked of the drives
+                self.judged += 1
+                continue
+            if evidence < t + sup.window_s:
+                break
+            self.judged += 1
+            for axis, ax in enumerate(job.axes):
+                if not all(got[r, s] for s in ax.slots):
+                    silent = t - self.last_complete[axis]
+                    if silent > sup.feedback_timeout_s:
+                        return ("silent", ax.name, f"no feedback for {silent * 1e3:.0f} ms (its TPDOs missing "
+                                f"since the SYNC at row {r}; the limit is {sup.feedback_timeout_s * 1e3:.0f} ms)",
+                                None)
+                    continue
+                self.last_complete[axis] = t
+                sw = int(raw[r, ax.statusword])
+                if sw & SW_FAULT:
+                    return ("fault", ax.name, f"drive reports {state_name(sw)} (statusword 0x{sw:04X})", None)
+                if r >= FOLLOW_GRACE_ROWS and not sw & SW_FOLLOWING:
+                    what = "interpolation is not active" if ax.interpolating else \
+                        "the drive does not follow the setpoints"
+                    return ("following", ax.name, f"{what} (statusword 0x{sw:04X}, bit 12 clear, in "
+                            f"{state_name(sw)})", None)
+                if ax.buffer_status >= 0 and int(raw[r, ax.buffer_status]) & 0x0F00:
+                    return ("buffer", ax.name, f"0x{int(raw[r, ax.buffer_status]):04X}", None)
+                if ax.velocity >= 0 and abs(int(raw[r, ax.velocity])) > ax.velocity_guard:
+                    return ("guard", ax.name, str(int(raw[r, ax.velocity])), None)
+        return None
+
+    def _watch(self, now: float, stop_request: int) -> tuple[str, str | None, str, int | None] | None:
+        """What is judged in time rather than per row: EMCY, a node's heartbeat, error frames, a stop."""
+        if self.emcy is not None:
+            axis, code = self.emcy
+            return ("emcy", self.job.axes[axis].name, "", code)
+        if stop_request:
+            return ("interrupt", None, STOP_SIGNALS[min(stop_request, len(STOP_SIGNALS) - 1)], None)
+        if self.bus_errors:
+            return ("bus", None, str(self.bus_errors), None)
+        limit = self.job.supervision.heartbeat_timeout_s
+        for axis, ax in enumerate(self.job.axes):
+            if now - self.beat[axis] > limit:
+                return ("heartbeat", ax.name, f"{now - self.beat[axis]:.3f}", None)
+        return None
+
+    # ------------------------------------------------------------------ the loop
+    def run(self) -> Outcome:
+        """Enable, stream every row, hold; on a fault, a stop request (a signal included) or any
+        failure, quick-stop every axis in the controlword and cycle until each stands still (where
+        the cyclic path itself failed, every axis is left to the host to stop by SDO)."""
+        job, port, out, control = self.job, self.port, self.outcome, self.arrays.control
+        port.receive(self.handlers(), self._on_error_frame)
+        try:
+            self.start = self.phase_start = self.next_check = port.now()
+            self.heard = [self.start] * len(job.axes)
+            self.beat = [self.start] * len(job.axes)
+            self._enter(ENABLING, self.start)
+            self._send_rpdos(0, self._enable_words(), records=False)
+            self.t0 = port.now()
+            while True:
+                try:
+                    done = self._cycle()
+                    if self.check_due:                     # after the period's frames are out
+                        self.check_due = False
+                        self.on_check()                    # type: ignore[misc]
+                    if done:
+                        break
+                except KeyboardInterrupt as exc:           # lockstep: the signal arrives on this thread
+                    name = getattr(exc, "name", "Ctrl-C")
+                    control[STOP_REQUEST] = STOP_SIGNALS.index(name) if name in STOP_SIGNALS else 1
+        except Exception as exc:                            # noqa: BLE001 - stop the axes, say why
+            out.abort = out.abort or ("error", None, f"{type(exc).__name__}: {exc}", None)
+            out.lost = [a.name for a in job.axes]
+        finally:
+            port.release()
+            control[PHASE] = ENDED
+        out.statuswords = {a.name: self.status[i] for i, a in enumerate(job.axes)}
+        return out
+
+    def _enter(self, phase: int, now: float) -> None:
+        self.phase = phase
+        self.phase_start = now
+        self.arrays.control[PHASE] = phase
+
+    def _cycle(self) -> bool:
+        """One period: wait for its start, SYNC, judge, send the RPDOs of the next; True when done."""
+        job, arrays, port, out = self.job, self.arrays, self.port, self.outcome
+        period, control, n_axes = self.period, arrays.control, len(job.axes)
+        deadline = self.t0 + self.slot * period
+        port.wait_until(deadline)
+        now = port.now()
+        late = now - deadline
+        out.worst_wake_ms = max(out.worst_wake_ms, late * 1e3)
+        if late > period / 2:
+            out.late_cycles += 1
+        if late > period:                        # the period it is in: the missed ones get no SYNC
+            behind = int(late // period)
+            self.slot += behind
+            out.periods_skipped += behind
+        # ---- the SYNC of this period
+        row = self.slot - self.plan_slot if self.phase == STREAMING else -1
+        if row >= job.rows:                      # a late cycle past the plan's end
+            row = -1
+            self._enter(HOLDING, now)
+        for axis in range(n_axes):
+            self.age[axis] += 1
+        stamp = port.now()
+        if self.last_sync > -math.inf:
+            out.largest_sync_gap_ms = max(out.largest_sync_gap_ms, (stamp - self.last_sync) * 1e3)
+        self.last_sync = stamp
+        if row >= 0:                             # set before it goes: in lockstep the replies come at once
+            arrays.sync_time[row] = stamp
+            arrays.demand[row] = self.pending
+            self.row = row
+            out.rows_sent = row + 1
+            control[ROWS_SENT] = row + 1
+        elif self.phase == ENABLING:
+            self.enable_cycles += 1
+        elif self.row >= 0 and self.fence == math.inf:
+            self.fence = stamp                   # feedback from here on belongs to no plan row
+        port.send(SYNC_COB_ID, b"", stamp)
+        self.slot += 1
+        # ---- judge, then decide the next period
+        abort = None
+        if self.emcy is not None:                # an EMCY names the cause the statusword shows after it
+            abort = self._watch(now, 0)
+        if abort is None and self.phase in (STREAMING, HOLDING):
+            abort = self._judge(now)
+        if abort is None and (control[STOP_REQUEST] or now >= self.next_check):
+            self.next_check = now + CHECK_EVERY_S
+            abort = self._watch(now, int(control[STOP_REQUEST]))
+            self.check_due = self.on_check is not None
+        if abort is not None and self.phase in (ENABLING, STREAMING, HOLDING):
+            out.abort = abort
+            self._enter(STOPPING, now)
+        if self.phase == ENABLING:
+            return self._enabling(now)
+        if self.phase == STREAMING:
+            nxt = self.slot - self.plan_slot
+            if nxt < job.rows:
+                self._unload(nxt)
+                self._send_rpdos(nxt, [a.enable_controlword for a in job.axes], records=True)
+                return False
+            self._enter(HOLDING, now)            # the plan's last SYNC went out: hold from the next
+        if self.phase == HOLDING:
+            return self._holding(now)
+        if self.phase == STOPPING:
+            return self._stopping(now)
+        return self._switching_off(now)
+
+    def _enabling(self, now: float) -> bool:
+        job, out, sup = self.job, self.outcome, self.job.supervision
+        if self._all(lambda a: self._state(a) == "OPERATION ENABLED" and self.age[a] <= 1):
+            out.enable_cycles = self.enable_cycles
+            self.arrays.control[ENABLE_CYCLES] = self.enable_cycles
+            self._enter(STREAMING, now)
+            self.plan_slot = self.slot
+            self._unload(0)
+            self._send_rpdos(0, [a.enable_controlword for a in job.axes], records=True)
+        elif now - self.phase_start > sup.state_timeout_s:
+            late = next(a for a in range(len(job.axes)) if self._state(a) != "OPERATION ENABLED")
+            sw = self.status[late]
+            out.abort = ("enable", job.axes[late].name, f"did not reach OPERATION ENABLED within "
+                         f"{sup.state_timeout_s} s of enabling in the controlword (it shows "
+                         f"{self._state(late) or 'no statusword'}" +
+                         (f", statusword 0x{sw:04X})" if sw is not None else ")"), None)
+            self._enter(STOPPING, now)
+            return self._stopping(now)
+        else:
+            self._send_rpdos(0, self._enable_words(), records=False)
+        return False
+
+    def _holding(self, now: float) -> bool:
+        job, out, sup = self.job, self.outcome, self.job.supervision
+        wanted = self._hold_words()
+        if self.judged > self.row and self._all(lambda a: self._state(a) in _HELD[wanted[a]] and self.age[a] <= 1):
+            return True
+        if now - self.phase_start > sup.state_timeout_s:
+            out.problems += [f"axis {ax.name}: not held ({self._state(a) or 'no statusword'} {sup.state_timeout_s} s "
+                             f"after the motion)" for a, ax in enumerate(job.axes) if self._state(a) not in _HELD[wanted[a]]]
+            return True
+        self._send_rpdos(max(0, self.row), wanted, records=False)
+        return False
+
+    def _stopping(self, now: float) -> bool:
+        job, out, sup = self.job, self.outcome, self.job.supervision
+        if self._stopped(self.still, now - self.phase_start):
+            if not any(ax.on_brake and ax.name not in out.lost for ax in job.axes):
+                return True
+            self._enter(SWITCHING_OFF, now)
+            return self._switching_off(now)
+        if now - self.phase_start > sup.stop_timeout_s:
+            out.problems += [f"axis {ax.name}: still moving {sup.stop_timeout_s} s after quick stop"
+                             for a, ax in enumerate(job.axes) if ax.name not in out.lost and self.still[a] < 2]
+            return True
+        self._send_rpdos(max(0, self.row), [CW_QUICK_STOP] * len(job.axes), records=False)
+        return False
+
+    def _switching_off(self, now: float) -> bool:
+        """After a quick stop: an axis that holds on its brake has its voltage disabled."""
+        job, sup = self.job, self.job.supervision
+        brake = [a for a, ax in enumerate(job.axes) if ax.on_brake and ax.name not in self.outcome.lost]
+        if all(self._state(a) in ("SWITCH ON DISABLED", "FAULT") and self.age[a] <= 1 for a in brake) or \
+                now - self.phase_start > sup.state_timeout_s:
+            return True
+        self._send_rpdos(max(0, self.row), [CW_DISABLE_VOLTAGE if a in brake else CW_QUICK_STOP
+                                            for a in range(len(job.axes))], records=False)
+        return False
+
+    # ------------------------------------------------------------------ helpers
+    def _state(self, axis: int) -> str | None:
+        sw = self.status[axis]
+        return None if sw is None else state_name(sw)
+
+    def _all(self, test: Callable[[int], bool]) -> bool:
+        return all(test(a) for a in range(len(self.job.axes)))
+
+    def _enable_words(self) -> list[int]:
+        """Shutdown, switch on, enable operation: a step each time the feedback shows the state before."""
+        return [ENABLE_STEP.get(self._state(a) or "", CW_SHUTDOWN) for a in range(len(self.job.axes))]
+
+    def _hold_words(self) -> list[int]:
+        """After the plan: a brake axis shut down; a powered CSP axis whose quick stop holds leaves the
+        stream through it; any other halts (profile position with halt follows by SDO)."""
+        return [CW_SHUTDOWN if ax.on_brake else CW_QUICK_STOP if ax.quick_stop_holds and ax.csp else CW_HALT
+                for ax in self.job.axes]
+
+    def _stopped(self, still: list[int], elapsed: float) -> bool:
+        """Each axis standing still on two fresh statuswords in a row, or lost (its feedback gone longer
+        than the feedback timeout, judged after that long in the stop)."""
+        sup, out = self.job.supervision, self.outcome
+        for axis, ax in enumerate(self.job.axes):
+            if ax.name in out.lost:
+                continue
+            gone = self.port.now() - self.heard[axis] > sup.feedback_timeout_s or \
+                (self.status[axis] is None and elapsed > sup.feedback_timeout_s)
+            if gone and elapsed > sup.feedback_timeout_s:
+                out.lost.append(ax.name)
+                continue
+            sw, v = self.status[axis], self.velocity[axis]
+            at_rest = self.age[axis] <= 1 and sw is not None and state_name(sw) != "OPERATION ENABLED" and \
+                (v is None or abs(v) <= ax.standstill)
+            still[axis] = still[axis] + 1 if at_rest else 0
+        return all(ax.name in out.lost or still[a] >= 2 for a, ax in enumerate(self.job.axes))
+
+
+#: the states each hold controlword leaves an axis in
+_HELD = {CW_SHUTDOWN: ("READY TO SWITCH ON", "SWITCH ON DISABLED"), CW_HALT: ("OPERATION ENABLED",),
+         CW_QUICK_STOP: ("QUICK STOP ACTIVE",)}

@@ -1,0 +1,190 @@
+"""How the cyclic engine (:mod:`.engine`) reaches the bus.
+
+* :class:`LinkPort`: through a :class:`~.link.Link`'s canopen network and clock -- in lockstep,
+  where the simulated drives answer each frame before ``send`` returns;
+* :class:`BusPort`: a python-can bus of the engine's own, on the wall clock.  The engine waits
+  for its deadlines inside the bus's ``recv``, so frames are taken the moment they arrive, each
+  with the time stamp the interface gave it (the kernel's on socketcan and udp_multicast).  Every
+  frame sent and received goes into a :class:`TraceRing` that the master's process drains into
+  the trace file.
+
+The schedule is absolute and monotonic: a port's ``now`` is ``time.monotonic()`` moved once onto
+the wall clock's epoch (the epoch frame time stamps are in), so a step of the system clock during
+a run moves no deadline.
+"""
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from typing import TYPE_CHECKING
+
+import can
+import numpy as np
+
+if TYPE_CHECKING:
+    from .link import Link
+
+Handler = Callable[[bytes | bytearray, float], None]
+#: flag bits of a frame in the ring
+RX, ERROR, REMOTE, EXTENDED = 1, 2, 4, 8
+HEAD, TAIL, DROPPED = range(3)
+
+
+class TraceRing:
+    """Frames from the engine to the trace writer: one producer, one consumer, fixed size.
+
+    The producer writes a frame, then moves the head; the consumer reads up to the head, then moves
+    the tail.  A frame that finds the ring full is counted in ``DROPPED`` instead (the engine never
+    waits for the trace)."""
+
+    def __init__(self, capacity: int, allocate: Callable[[tuple[int, ...], type], np.ndarray]):
+        self.capacity = capacity
+        for name, shape, dtype in self.layout(capacity):
+            setattr(self, name, allocate(shape, dtype))
+
+    stamp: np.ndarray
+    cob_id: np.ndarray
+    flags: np.ndarray
+    dlc: np.ndarray
+    data: np.ndarray
+    counters: np.ndarray
+
+    @staticmethod
+    def layout(capacity: int) -> list[tuple[str, tuple[int, ...], type]]:
+        return [("stamp", (capacity,), np.float64), ("cob_id", (capacity,), np.uint32),
+                ("flags", (capacity,), np.uint8), ("dlc", (capacity,), np.uint8),
+                ("data", (capacity, 8), np.uint8), ("counters", (3,), np.int64)]
+
+    def put(self, stamp: float, cob_id: int, flags: int, data: bytes | bytearray) -> None:
+        counters = self.counters
+        head = int(counters[HEAD])
+        if head - int(counters[TAIL]) >= self.capacity:
+            counters[DROPPED] += 1
+            return
+        i = head % self.capacity
+        self.stamp[i] = stamp
+        self.cob_id[i] = cob_id
+        self.flags[i] = flags
+        n = len(data)
+        self.dlc[i] = n
+        if n:
+            self.data[i, :n] = memoryview(data)
+        counters[HEAD] = head + 1
+
+    def take(self) -> list[can.Message]:
+        """Every frame put since the last take, as python-can messages."""
+        counters = self.counters
+        head, tail = int(counters[HEAD]), int(counters[TAIL])
+        out = []
+        for j in range(tail, head):
+            i = j % self.capacity
+            flags, n = int(self.flags[i]), int(self.dlc[i])
+            out.append(can.Message(timestamp=float(self.stamp[i]), arbitration_id=int(self.cob_id[i]),
+                                   is_extended_id=bool(flags & EXTENDED), is_remote_frame=bool(flags & REMOTE),
+                                   is_error_frame=bool(flags & ERROR), is_rx=bool(flags & RX), dlc=n,
+                                   data=bytes(self.data[i, :n]), check=False))
+        counters[TAIL] = head
+        return out
+
+    @property
+    def dropped(self) -> int:
+        return int(self.counters[DROPPED])
+
+
+class LinkPort:
+    """The engine on a :class:`~.link.Link` (lockstep: frames are answered as they are sent)."""
+
+    sync_source = "lockstep (simulated time)"
+
+    def __init__(self, link: "Link"):
+        self.link = link
+        self.now = link.clock.now
+        self._subscribed: list[tuple[int, Callable[[int, bytearray, float], None]]] = []
+        self._errors = link.bus_errors.count
+        self._on_error: Callable[[], None] | None = None
+
+    def wait_until(self, deadline: float) -> None:
+        self.link.clock.wait_until(deadline)
+        if self._on_error is not None and self.link.bus_errors.count > self._errors:
+            self._errors = self.link.bus_errors.count
+            self._on_error()
+
+    def send(self, cob_id: int, data: bytes | bytearray, stamp: float) -> None:
+        self.link.network.send_message(cob_id, bytes(data), False, stamp)
+
+    def receive(self, handlers: dict[int, Handler], on_error_frame: Callable[[], None]) -> None:
+        net = self.link.network
+        for cob_id, handler in handlers.items():
+            def on_frame(can_id: int, data: bytearray, stamp: float, handler: Handler = handler) -> None:
+                handler(data, stamp)
+            net.subscribe(cob_id, on_frame)
+            self._subscribed.append((cob_id, on_frame))
+        self._on_error = on_error_frame
+
+    def release(self) -> None:
+        for cob_id, callback in self._subscribed:
+            self.link.network.unsubscribe(cob_id, callback)
+        self._subscribed.clear()
+        self._on_error = None
+
+
+class BusPort:
+    """The engine on a python-can bus of its own, on the wall clock; every frame into ``ring``."""
+
+    def __init__(self, bus: can.BusABC, ring: TraceRing | None, sync_source: str = "the engine's own loop"):
+        self.bus = bus
+        self.ring = ring
+        self.sync_source = sync_source
+        self._offset = time.time() - time.monotonic()
+        self._handlers: dict[int, Handler] = {}
+        self._on_error: Callable[[], None] | None = None
+        self._messages: dict[int, can.Message] = {}       # one per COB-ID sent, its data filled in place
+
+    def now(self) -> float:
+        return time.monotonic() + self._offset
+
+    def wait_until(self, deadline: float) -> None:
+        recv, monotonic, offset = self.bus.recv, time.monotonic, self._offset
+        while True:
+            left = deadline - monotonic() - offset
+            msg = recv(left if left > 0 else 0.0)
+            if msg is None:
+                if left <= 0:
+                    return
+                continue
+            self._dispatch(msg)
+
+    def _dispatch(self, msg: can.Message) -> None:
+        stamp = msg.timestamp or self.now()
+        if self.ring is not None:
+            flags = RX | (ERROR if msg.is_error_frame else 0) | (REMOTE if msg.is_remote_frame else 0) | \
+                (EXTENDED if msg.is_extended_id else 0)
+            self.ring.put(stamp, msg.arbitration_id, flags, msg.data)
+        if msg.is_error_frame:
+            if self._on_error is not None:
+                self._on_error()
+            return
+        handler = self._handlers.get(msg.arbitration_id)
+        if handler is not None and not msg.is_remote_frame:
+            handler(msg.data, stamp)
+
+    def send(self, cob_id: int, data: bytes | bytearray, stamp: float) -> None:
+        msg = self._messages.get(cob_id)
+        if msg is None or len(msg.data) != len(data):
+            msg = self._messages[cob_id] = can.Message(arbitration_id=cob_id, data=bytes(data),
+                                                        is_extended_id=cob_id > 0x7FF)
+        else:
+            msg.data[:] = data
+        msg.timestamp = stamp
+        if self.ring is not None:
+            self.ring.put(stamp, cob_id, EXTENDED if cob_id > 0x7FF else 0, data)
+        self.bus.send(msg)
+
+    def receive(self, handlers: dict[int, Handler], on_error_frame: Callable[[], None]) -> None:
+        self._handlers = dict(handlers)
+        self._on_error = on_error_frame
+
+    def release(self) -> None:
+        self._handlers = {}
+        self._on_error = None
+

@@ -1,0 +1,187 @@
+"""The cyclic engine's guards: a late cycle sends the setpoint of the period it is in (never a
+burst), a stall of the simulated drives' process is no fault of the master or the drives, a master
+stalled past the drives' timeout is caught by the drives and reported as the master's, and the
+cyclic path does not grow while it streams."""
+from __future__ import annotations
+
+import math
+import os
+import signal
+import time
+import tracemalloc
+
+import numpy as np
+import pytest
+
+from drive_bridge.connect import open_link
+from drive_bridge.master.bringup import bring_up
+from drive_bridge.master.engine import (CONTROLWORD, STREAMING, SYNC_COB_ID, TABLE, Arrays, AxisJob,
+                                        Engine, Job, RpdoJob, Supervision, TpdoJob)
+from drive_bridge.master.port import LinkPort
+from drive_bridge.record import record
+from drive_bridge.sim.lockstep import LockstepLink
+
+from ..support import Bench, clean_config, quick_config, read_csv
+
+PERIOD = 0.002
+
+
+class _LatePort(LinkPort):
+    """A lockstep port whose master wakes 3.5 periods late once, at its ``at``-th wait of the plan: the
+    drives run on without SYNC meanwhile, as they would while a real master is held up."""
+
+    def __init__(self, link, at: int):
+        super().__init__(link)
+        self.at, self.waits = at, 0
+
+    def wait_until(self, deadline):
+        self.waits += 1
+        if self.waits == self.at:
+            self.link.clock.sleep(3.5 * PERIOD)
+        super().wait_until(deadline)
+
+
+class _LateLink(LockstepLink):
+    def run_cycles(self, job, fill, progress, on_start):
+        arrays = Arrays(job, np.zeros)
+        fill(arrays)
+        self.port = _LatePort(self, at=400)
+        return Engine(job, arrays, self.port).run(), arrays, "lockstep, late once"
+
+
+def test_a_late_cycle_sends_the_setpoint_of_its_own_period_and_never_a_burst(tmp_path):
+    b = Bench(clean_config())
+    b.link.__class__ = _LateLink
+    config = quick_config().only(["y"])
+    axes = bring_up(b.link, config)
+    result = record(config, b.link, tmp_path, axes=axes)
+    assert result.ok, result.aborted
+    rec_time = np.loadtxt(tmp_path / "log.csv", delimiter=",", skiprows=1, usecols=(1,))
+    skipped = np.flatnonzero(np.isnan(rec_time))
+    assert len(skipped) == 3                                   # 3.5 periods late: 3 periods got no SYNC
+    late = skipped[-1] + 1                                     # the row of the late cycle's SYNC
+    stamps = rec_time[np.isfinite(rec_time)]
+    assert np.all(np.diff(stamps) >= PERIOD - 1e-9)            # one SYNC per period at most: no burst
+    names, data = read_csv(tmp_path / "log.csv")
+    demand = data[:, names.index("y_position_demand_rad")]
+    planned = result.plan.demand[:, 0]
+    sc = axes["y"].cfg.scaling
+    on_grid = lambda rad: float(sc.position_from_device(sc.position_to_device(rad)))   # noqa: E731
+    # the drive took at the late SYNC what it had (the row before the stall) ...
+    assert demand[late] == pytest.approx(on_grid(planned[skipped[0]]), abs=1e-7)    # (log.csv: 9 digits)
+    # ... and from the next SYNC on, the setpoint of each row's own time
+    for row in range(late + 1, late + 20):
+        assert demand[row] == pytest.approx(on_grid(planned[row]), abs=1e-7)
+    import yaml
+    meta = yaml.safe_load((tmp_path / "meta.yaml").read_text())
+    assert meta["timing"]["engine"]["rows_skipped"] == skipped.tolist()
+    assert meta["timing"]["engine"]["periods_skipped"] == 3
+    # decode rebuilds the same rows from the trace and meta.yaml
+    from drive_bridge.logs import decode_trace
+    _, decoded, _, _, problem = decode_trace(tmp_path / "trace.blf")
+    assert problem is None and np.array_equal(np.isnan(decoded[:, 1]), np.isnan(rec_time))
+
+
+class _Drives:
+    """A port with one perfect drive answering each SYNC at once from fixed bytes (nothing kept)."""
+
+    sync_source = "test"
+
+    def __init__(self):
+        self.t = 1000.0
+        self.handlers = {}
+        self.reply = (0x1237).to_bytes(2, "little") + bytes(6)        # OPERATION ENABLED, following
+
+    def now(self):
+        return self.t
+
+    def wait_until(self, deadline):
+        self.t = max(self.t, deadline)
+
+    def send(self, cob_id, data, stamp):
+        if cob_id == SYNC_COB_ID:
+            self.handlers[0x181](self.reply, stamp + 1e-4)
+            self.handlers[0x701](b"\x05", stamp + 1e-4)
+
+    def receive(self, handlers, on_error_frame):
+        self.handlers = handlers
+
+    def release(self):
+        self.handlers = {}
+
+
+def test_the_cyclic_path_does_not_grow_while_it_streams():
+    """Past its start, a stream of 6000 periods keeps no memory per period (tracemalloc: the Python
+    heap at row 1000 and at row 5000)."""
+    rows = 6000
+    sup = Supervision(PERIOD, PERIOD, 0.02, 0.02, 0.3, 1.0, 2.0)
+    job = Job((AxisJob("y", 1, (0,), statusword=0, velocity=-1, position_column=0),),
+              (RpdoJob(0x201, "<Hl", ((CONTROLWORD, 0), (TABLE, 0)), 0),),
+              (TpdoJob(0x181, "<Hhl", 0, 0, 0),), rows, 3, 1, sup)
+    arrays = Arrays(job, np.zeros)
+    arrays.table[:, 0] = np.arange(rows)
+    seen = {}
+
+    def check():
+        row = int(arrays.control[1])
+        if arrays.control[0] == STREAMING and row >= 1000 and "a" not in seen:
+            seen["a"] = tracemalloc.get_traced_memory()[0]
+        if arrays.control[0] == STREAMING and row >= 5000 and "b" not in seen:
+            seen["b"] = tracemalloc.get_traced_memory()[0]
+    tracemalloc.start()
+    try:
+        outcome = Engine(job, arrays, _Drives(), on_check=check).run()
+    finally:
+        tracemalloc.stop()
+    assert outcome.abort is None and outcome.rows_sent == rows
+    assert seen["b"] - seen["a"] < 2048, seen
+
+
+# ---------------------------------------------------------------- wall clock, drives in their own process
+def _stalling(pid_of, stalls, seconds):
+    """A progress hook that stops the process ``pid_of()`` names for ``seconds`` at each fraction of the
+    plan in ``stalls``."""
+    done = []
+
+    def on_plan(plan):
+        rows = [round(f * len(plan.demand)) for f in stalls]
+
+        def progress(k):
+            if len(done) < len(rows) and k >= rows[len(done)]:
+                pid = pid_of()
+                os.kill(pid, signal.SIGSTOP)
+                time.sleep(seconds)
+                os.kill(pid, signal.SIGCONT)
+                done.append(k)
+        return progress
+    return on_plan, done
+
+
+@pytest.mark.realtime
+def test_a_stalled_simulator_is_no_fault_of_the_master_or_the_drives(tmp_path):
+    """The simulated drives' process stopped for 30 ms (SIGSTOP, SIGCONT), three times, mid-stream:
+    the frames that waited are taken at the time they reached the bus, on both sides."""
+    config = quick_config().only(["y"])
+    with open_link(config, sim=True, realtime=True) as link:
+        on_plan, done = _stalling(lambda: link.simulator.process.pid, [0.2, 0.45, 0.7], 0.03)
+        result = record(config, link, tmp_path, on_plan=on_plan)
+    assert len(done) == 3
+    assert result.ok, result.aborted
+    # no sample is lost to the stalls: a row missing is one of a period the master itself was late in
+    assert result.missing["y"] == len(result.timing.engine["rows_skipped"])
+
+
+@pytest.mark.realtime
+def test_a_master_stalled_past_the_drives_timeout_is_caught_by_the_drives_and_said(tmp_path):
+    """The master's cyclic engine stopped for 80 ms mid-stream, four times the 20 ms the drive waits
+    for setpoints: the drive stops on its own (EMCY 0x8250), and the run says the master was late."""
+    config = quick_config().only(["y"])
+    with open_link(config, sim=True, realtime=True) as link:
+        on_plan, done = _stalling(lambda: link.engine.pid, [0.3], 0.08)
+        result = record(config, link, tmp_path, on_plan=on_plan)
+        state = link.network[config.nodes["y"].node_id].sdo[0x6041].raw
+    assert done
+    assert result.aborted is not None and result.aborted.axis == "y" and result.aborted.emcy == 0x8250
+    assert "the master was late" in result.aborted.reason and "20 ms" in result.aborted.reason
+    assert state & 0x6F in (0x07, 0x21, 0x40 & 0x6F) or state & 0x4F == 0x40       # quick-stopped or switched off
+    assert math.isfinite(result.timing.max_sync_gap_ms) and result.timing.max_sync_gap_ms >= 60
