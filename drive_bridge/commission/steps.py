@@ -111,12 +111,13 @@ def identify(ctx: Context) -> str:
 def measure(ctx: Context) -> str:
     from ..tuning.measure import frf_doc, measure_axes
     models = read_identify_json(ctx.require(IDENTIFY_JSON))
-    axes = ctx.session.axes
+    axes = {a: ax for a, ax in ctx.session.axes.items() if a in models}
     try:
         frfs, skipped = measure_axes(ctx.config, ctx.session.link, axes, ctx.session.profile,
                                      {a: models[a]["J"] for a in axes}, on_plan=ctx.reporter.motion)
     finally:
         ctx.reporter.end_motion()
+    skipped |= {a: "not identified (see the identify step)" for a in ctx.session.axes if a not in models}
     write_json(ctx.out / OUTPUT["measure"], frf_doc(frfs, skipped))
     return "; ".join([f"{a}: {int(f.reliable().sum())} bins from {f.frequency_hz[f.reliable()].min():.3g} to "
                       f"{f.frequency_hz[f.reliable()].max():.3g} Hz" for a, f in frfs.items()]

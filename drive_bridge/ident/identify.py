@@ -417,6 +417,8 @@ def identify(path: str | Path, validate: str | Path | None = None, axes: list[st
     failed = [UserError(message) for status, message in outcomes.values() if status == "error"]
     if failed and (axes or not results):        # asked for by name: its problem is the answer
         raise failed[0]
+    for error in failed:                        # the others answered: this one is said, not lost
+        logger.warning("%s", error)
     return results
 
 

@@ -376,7 +376,8 @@ def _filled(q: np.ndarray) -> np.ndarray:
 def motion_bandwidth(log: Log, axis: str) -> float:
     """Frequency [Hz] below which MOTION_POWER of the axis's velocity power lies."""
     ax = log.axes[axis]
-    a, b = max(ax.segments, key=lambda s: s[1] - s[0])
+    # the segment with the most motion (a log split by missing rows may hold a long standstill)
+    a, b = max(ax.segments, key=lambda s: int(np.count_nonzero(np.diff(ax.q[s[0]:s[1]]))))
     fs = 1.0 / log.dt
     v = np.gradient(ax.q[a:b], log.dt)
     f, pxx = signal.welch(v - v.mean(), fs=fs, nperseg=min(len(v), 4096))

@@ -17,7 +17,7 @@ from canopen.profiles.p402 import State402
 from ..errors import BusError, DriveRefused
 
 if TYPE_CHECKING:
-    from .link import Clock
+    from .timing import Clock
 
 CW_SHUTDOWN, CW_SWITCH_ON, CW_ENABLE = 0x06, 0x07, 0x0F
 CW_QUICK_STOP = 0x000B               # enable voltage + switch on + enable operation, quick stop bit low

@@ -59,6 +59,8 @@ PHASE, ROWS_SENT, STOP_REQUEST, ENABLE_CYCLES, RING_HEAD, RING_TAIL, RING_DROPPE
 STOP_SIGNALS = ("", "Ctrl-C", "SIGTERM", "SIGHUP", "the master's process ended")
 AGE_BIN_S, AGE_BINS = 1e-4, 1000     # histogram of feedback age: 0.1 ms bins up to 100 ms
 PROGRESS_ROWS = 50                  # the host's progress is told the plan row in steps of this many
+#: what a port hands each received frame to: (data, time stamp [s])
+Handler = Callable[[bytes | bytearray, float], None]
 
 
 # ---------------------------------------------------------------------------------------- the job
@@ -237,7 +239,7 @@ class Port(Protocol):
     def send(self, cob_id: int, data: bytes | bytearray, stamp: float) -> None:
         """Send one frame stamped ``stamp`` [s] (taken just before, from :meth:`now`)."""
 
-    def receive(self, handlers: dict[int, Callable[[bytes | bytearray, float], None]],
+    def receive(self, handlers: dict[int, Handler],
                 on_error_frame: Callable[[], None]) -> None:
         """From now on, hand received frames to ``handlers`` by COB-ID, error frames to ``on_error_frame``."""
 
@@ -284,9 +286,9 @@ class Engine:
         self._node = {a.node_id: i for i, a in enumerate(job.axes)}
 
     # ------------------------------------------------------------------ receiving
-    def handlers(self) -> dict[int, Callable[[bytes | bytearray, float], None]]:
+    def handlers(self) -> dict[int, Handler]:
         """COB-ID -> handler of every frame the engine listens to."""
-        out: dict[int, Callable[[bytes | bytearray, float], None]] = {}
+        out: dict[int, Handler] = {}
         for tpdo in self.job.tpdos:
             out[tpdo.cob_id] = self._tpdo_handler(tpdo)
         for i, ax in enumerate(self.job.axes):
@@ -294,7 +296,7 @@ class Engine:
             out[0x700 + ax.node_id] = self._heartbeat_handler(i)
         return out
 
-    def _tpdo_handler(self, tpdo: TpdoJob) -> Callable[[bytes | bytearray, float], None]:
+    def _tpdo_handler(self, tpdo: TpdoJob) -> Handler:
         unpack, size = struct.Struct(tpdo.format).unpack_from, struct.calcsize(tpdo.format)
         first, slot, axis = tpdo.first, tpdo.slot, tpdo.axis
         ax = self.job.axes[axis]
@@ -329,7 +331,7 @@ class Engine:
                 ages[min(AGE_BINS, max(0, int(age / AGE_BIN_S)))] += 1
         return on_tpdo
 
-    def _emcy_handler(self, axis: int) -> Callable[[bytes | bytearray, float], None]:
+    def _emcy_handler(self, axis: int) -> Handler:
         def on_emcy(data: bytes | bytearray, stamp: float) -> None:
             self.heard[axis] = self.port.now()
             code = int.from_bytes(data[:2], "little") if len(data) >= 2 else 0
@@ -337,7 +339,7 @@ class Engine:
                 self.emcy = (axis, code)
         return on_emcy
 
-    def _heartbeat_handler(self, axis: int) -> Callable[[bytes | bytearray, float], None]:
+    def _heartbeat_handler(self, axis: int) -> Handler:
         def on_heartbeat(data: bytes | bytearray, stamp: float) -> None:
             self.heard[axis] = self.beat[axis] = self.port.now()
             if stamp > self.evidence:

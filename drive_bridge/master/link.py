@@ -28,20 +28,9 @@ from .blf import BatchedBLFWriter
 from .buses import BusSpec
 from .coprocess import EngineError, EngineProcess, EngineThread, engine_for
 from .engine import ROWS_SENT, STOP_REQUEST, STOP_SIGNALS, Arrays, Job, Outcome, reporter
-from .timing import raise_priority
+from .timing import Clock, raise_priority
 
 log = logging.getLogger(__name__)
-
-
-class Clock(Protocol):
-    def now(self) -> float:
-        """Time stamp [s] used for frames and logs."""
-
-    def sleep(self, seconds: float) -> None:
-        """Let ``seconds`` pass (the link keeps receiving meanwhile)."""
-
-    def wait_until(self, deadline: float) -> None:
-        """Return when ``now() >= deadline``, yielding the CPU meanwhile."""
 
 
 class WallClock:

@@ -1,7 +1,5 @@
 """How the cyclic engine (:mod:`.engine`) reaches the bus.
 
-* :class:`LinkPort`: through a :class:`~.link.Link`'s canopen network and clock -- in lockstep,
-  where the simulated drives answer each frame before ``send`` returns;
 * :class:`BusPort`: a python-can bus of the engine's own, on the wall clock.  The engine waits
   for its deadlines inside the bus's ``recv``, so frames are taken the moment they arrive, each
   with the time stamp the interface gave it (the kernel's on socketcan and udp_multicast).  Every
@@ -16,15 +14,11 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from typing import TYPE_CHECKING
-
 import can
 import numpy as np
 
-if TYPE_CHECKING:
-    from .link import Link
+from .engine import Handler
 
-Handler = Callable[[bytes | bytearray, float], None]
 #: flag bits of a frame in the ring
 RX, ERROR, REMOTE, EXTENDED = 1, 2, 4, 8
 HEAD, TAIL, DROPPED = range(3)
@@ -89,43 +83,6 @@ class TraceRing:
     @property
     def dropped(self) -> int:
         return int(self.counters[DROPPED])
-
-
-class LinkPort:
-    """The engine on a :class:`~.link.Link` (lockstep: frames are answered as they are sent)."""
-
-    sync_source = "lockstep (simulated time)"
-
-    def __init__(self, link: "Link"):
-        self.link = link
-        self.now = link.clock.now
-        self._subscribed: list[tuple[int, Callable[[int, bytearray, float], None]]] = []
-        self._errors = link.bus_errors.count
-        self._on_error: Callable[[], None] | None = None
-
-    def wait_until(self, deadline: float) -> None:
-        self.link.clock.wait_until(deadline)
-        if self._on_error is not None and self.link.bus_errors.count > self._errors:
-            self._errors = self.link.bus_errors.count
-            self._on_error()
-
-    def send(self, cob_id: int, data: bytes | bytearray, stamp: float) -> None:
-        self.link.network.send_message(cob_id, bytes(data), False, stamp)
-
-    def receive(self, handlers: dict[int, Handler], on_error_frame: Callable[[], None]) -> None:
-        net = self.link.network
-        for cob_id, handler in handlers.items():
-            def on_frame(can_id: int, data: bytearray, stamp: float, handler: Handler = handler) -> None:
-                handler(data, stamp)
-            net.subscribe(cob_id, on_frame)
-            self._subscribed.append((cob_id, on_frame))
-        self._on_error = on_error_frame
-
-    def release(self) -> None:
-        for cob_id, callback in self._subscribed:
-            self.link.network.unsubscribe(cob_id, callback)
-        self._subscribed.clear()
-        self._on_error = None
 
 
 class BusPort:

@@ -10,12 +10,24 @@ from __future__ import annotations
 
 import os
 from dataclasses import asdict, dataclass, field
+from typing import Protocol
 
 import numpy as np
 
 LATE_FACTOR = 1.5
 RT_PRIORITY = 50                    # SCHED_FIFO priority asked for (1..99); below kernel threads
 MCL_CURRENT, MCL_FUTURE = 1, 2
+
+
+class Clock(Protocol):
+    def now(self) -> float:
+        """Time stamp [s] used for frames and logs."""
+
+    def sleep(self, seconds: float) -> None:
+        """Let ``seconds`` pass (the link keeps receiving meanwhile)."""
+
+    def wait_until(self, deadline: float) -> None:
+        """Return when ``now() >= deadline``, yielding the CPU meanwhile."""
 
 
 @dataclass(frozen=True)

@@ -16,9 +16,8 @@ from collections.abc import Callable
 
 import numpy as np
 
-from ..master.engine import Arrays, Engine, Job, Outcome, reporter
+from ..master.engine import Arrays, Engine, Handler, Job, Outcome, reporter
 from ..master.link import BusErrors, MasterNetwork, TraceRecorder, heartbeat_frame
-from ..master.port import LinkPort
 from .robot import SimRobot
 from .adapters import FastVirtualBus
 
@@ -38,6 +37,44 @@ class LockstepClock:
 
     def wait_until(self, deadline: float) -> None:
         """SYNC frames move time in lockstep; there is nothing to wait for."""
+
+
+class LinkPort:
+    """The cyclic engine on a link's canopen network and clock: in lockstep, the simulated drives
+    answer each frame before ``send`` returns (how the engine reaches the bus: :mod:`..master.port`)."""
+
+    sync_source = "lockstep (simulated time)"
+
+    def __init__(self, link: "LockstepLink"):
+        self.link = link
+        self.now = link.clock.now
+        self._subscribed: list[tuple[int, Callable[[int, bytearray, float], None]]] = []
+        self._errors = link.bus_errors.count
+        self._on_error: Callable[[], None] | None = None
+
+    def wait_until(self, deadline: float) -> None:
+        self.link.clock.wait_until(deadline)
+        if self._on_error is not None and self.link.bus_errors.count > self._errors:
+            self._errors = self.link.bus_errors.count
+            self._on_error()
+
+    def send(self, cob_id: int, data: bytes | bytearray, stamp: float) -> None:
+        self.link.network.send_message(cob_id, bytes(data), False, stamp)
+
+    def receive(self, handlers: dict[int, Handler], on_error_frame: Callable[[], None]) -> None:
+        net = self.link.network
+        for cob_id, handler in handlers.items():
+            def on_frame(can_id: int, data: bytearray, stamp: float, handler: Handler = handler) -> None:
+                handler(data, stamp)
+            net.subscribe(cob_id, on_frame)
+            self._subscribed.append((cob_id, on_frame))
+        self._on_error = on_error_frame
+
+    def release(self) -> None:
+        for cob_id, callback in self._subscribed:
+            self.link.network.unsubscribe(cob_id, callback)
+        self._subscribed.clear()
+        self._on_error = None
 
 
 class LockstepLink:

@@ -21,6 +21,7 @@ from ..ident.frf import PERIOD_SAMPLES, PERIODS, Frf, excitation, measure
 from ..master.bringup import AxisLink
 from ..master.campaign import Plan
 from ..master.link import Link
+from ..master.timing import TimingLimits
 from ..outputs import stamped
 from ..params.controller import GAINS
 from ..params.profile import SELECT, Profile
@@ -107,14 +108,36 @@ def measure_axes(config: BusConfig, link: Link, axes: dict[str, AxisLink], profi
         if m.aborted is not None:
             raise m.aborted
         q = m.position[a][steady]
-        if len(q) < steady.stop - steady.start or not np.all(np.isfinite(q)):
+        if len(q) < steady.stop - steady.start:
             raise DriveRefused(f"axis {a}: position samples missing during the frequency response")
+        q = _filled(a, q, config.master.timing)
         if np.any(np.diff(q[PERIOD_SAMPLES:]) * np.sign(speed) < 0):
             raise UserError(f"axis {a}: the axis went back during the frequency response (the torque offset "
                             f"outweighed the sweep at {speed:.3g} rad/s): friction changed side and the response "
                             f"is not the plant's; a longer stroke in the limits, or leave the measure step out")
         out[a] = measure(q, u[steady], 1.0 / period, controller(held, profile.controller.timing.tick_s))
     return out, skipped
+
+
+def _filled(axis: str, position: np.ndarray, limits: TimingLimits) -> np.ndarray:
+    """The sweep's positions with the samples a late master's skipped periods left out filled in
+    linearly, where they stay within the run's timing limits (no run longer than the largest SYNC gap
+    allowed, no more than the share of missing samples allowed); DriveRefused past them."""
+    missing = ~np.isfinite(position)
+    if not missing.any():
+        return position
+    edges = np.flatnonzero(np.diff(np.r_[0, missing.astype(np.int8), 0]))
+    longest = int(np.max(edges[1::2] - edges[::2]))
+    share = float(missing.mean() * 100)
+    if longest >= limits.max_gap_periods or share > limits.max_missing_pct:
+        raise DriveRefused(f"axis {axis}: position samples missing during the frequency response ({int(missing.sum())}, "
+                           f"up to {longest} in a row: past master.timing's limits)")
+    log.warning("axis %s: %d position samples of the frequency response missing (late SYNCs), filled in "
+                "linearly", axis, int(missing.sum()))
+    index = np.arange(len(position))
+    out = position.copy()
+    out[missing] = np.interp(index[missing], index[~missing], position[~missing])
+    return out
 
 
 def measure_plans(config: BusConfig, axes: dict[str, AxisLink], profile: Profile, start: dict[str, float]) -> list:

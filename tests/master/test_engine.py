@@ -17,9 +17,8 @@ from drive_bridge.connect import open_link
 from drive_bridge.master.bringup import bring_up
 from drive_bridge.master.engine import (CONTROLWORD, STREAMING, SYNC_COB_ID, TABLE, Arrays, AxisJob,
                                         Engine, Job, RpdoJob, Supervision, TpdoJob)
-from drive_bridge.master.port import LinkPort
 from drive_bridge.record import record
-from drive_bridge.sim.lockstep import LockstepLink
+from drive_bridge.sim.lockstep import LinkPort, LockstepLink
 
 from ..support import Bench, clean_config, quick_config, read_csv
 
