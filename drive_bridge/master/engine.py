@@ -195,6 +195,7 @@ class Outcome:
     problems: list[str] = field(default_factory=list)
     late_cycles: int = 0            # cycles that started more than half a period late
     periods_skipped: int = 0        # periods that got no SYNC (a late cycle sends the one it is in)
+    setpoints_late: int = 0         # interface-sent SYNCs the engine had sent no new setpoints before
     worst_wake_ms: float = 0.0      # the latest a cycle started after its deadline
     largest_sync_gap_ms: float = 0.0
     sync_source: str = ""
@@ -229,9 +230,21 @@ class Port(Protocol):
     or, in lockstep, as soon as the frame that caused them was sent."""
 
     sync_source: str
+    #: the interface sends SYNC itself (the kernel's broadcast manager, an adapter's periodic send): the
+    #: engine takes each SYNC as the bus shows it and sends the RPDOs after it
+    periodic_sync: bool
 
     def now(self) -> float:
         """The time [s] frames are stamped in."""
+
+    def start_sync(self, period: float) -> None:
+        """Let the interface send SYNC every ``period`` [s] (``periodic_sync`` only)."""
+
+    def wait_sync(self, timeout_at: float) -> None:
+        """Hand over frames until a SYNC has been seen, or until ``timeout_at`` (``periodic_sync`` only)."""
+
+    def stop_sync(self) -> None:
+        """Stop the interface's SYNC, where it was started (a no-op otherwise)."""
 
     def wait_until(self, deadline: float) -> None:
         """Return at ``deadline``, handing over every frame that arrives meanwhile."""
@@ -280,6 +293,7 @@ class Engine:
         self.still = [0] * n_axes                # fresh standstill readings in a row, per axis
         self.check_due = False
         self.fence = math.inf                    # time stamp of the first SYNC after the plan's rows
+        self.syncs_seen = 0
         self._rpdos = [(r, struct.Struct(r.format), bytearray(struct.calcsize(r.format)),
                         [0] * len(r.fields)) for r in job.rpdos]
         self._starts = [set(a.move_starts) for a in job.axes]
@@ -294,6 +308,8 @@ class Engine:
         for i, ax in enumerate(self.job.axes):
             out[0x080 + ax.node_id] = self._emcy_handler(i)
             out[0x700 + ax.node_id] = self._heartbeat_handler(i)
+        if self.port.periodic_sync:
+            out[SYNC_COB_ID] = self._on_sync_frame
         return out
 
     def _tpdo_handler(self, tpdo: TpdoJob) -> Handler:
@@ -462,6 +478,8 @@ class Engine:
             self._enter(ENABLING, self.start)
             self._send_rpdos(0, self._enable_words(), records=False)
             self.t0 = port.now()
+            if port.periodic_sync:
+                port.start_sync(self.period)
             while True:
                 try:
                     done = self._cycle()
@@ -477,6 +495,7 @@ class Engine:
             out.abort = out.abort or ("error", None, f"{type(exc).__name__}: {exc}", None)
             out.lost = [a.name for a in job.axes]
         finally:
+            port.stop_sync()
             port.release()
             control[PHASE] = ENDED
         out.statuswords = {a.name: self.status[i] for i, a in enumerate(job.axes)}
@@ -488,43 +507,36 @@ class Engine:
         self.arrays.control[PHASE] = phase
 
     def _cycle(self) -> bool:
-        """One period: wait for its start, SYNC, judge, send the RPDOs of the next; True when done."""
+        """One period: its SYNC (sent at its start, or seen on the bus where the interface sends it), judge,
+        send the RPDOs of the next; True when done."""
         job, arrays, port, out = self.job, self.arrays, self.port, self.outcome
-        period, control, n_axes = self.period, arrays.control, len(job.axes)
-        deadline = self.t0 + self.slot * period
-        port.wait_until(deadline)
-        now = port.now()
-        late = now - deadline
-        out.worst_wake_ms = max(out.worst_wake_ms, late * 1e3)
-        if late > period / 2:
-            out.late_cycles += 1
-        if late > period:                        # the period it is in: the missed ones get no SYNC
-            behind = int(late // period)
-            self.slot += behind
-            out.periods_skipped += behind
-        # ---- the SYNC of this period
-        row = self.slot - self.plan_slot if self.phase == STREAMING else -1
-        if row >= job.rows:                      # a late cycle past the plan's end
-            row = -1
-            self._enter(HOLDING, now)
-        for axis in range(n_axes):
-            self.age[axis] += 1
-        stamp = port.now()
-        if self.last_sync > -math.inf:
-            out.largest_sync_gap_ms = max(out.largest_sync_gap_ms, (stamp - self.last_sync) * 1e3)
-        self.last_sync = stamp
-        if row >= 0:                             # set before it goes: in lockstep the replies come at once
-            arrays.sync_time[row] = stamp
-            arrays.demand[row] = self.pending
-            self.row = row
-            out.rows_sent = row + 1
-            control[ROWS_SENT] = row + 1
-        elif self.phase == ENABLING:
-            self.enable_cycles += 1
-        elif self.row >= 0 and self.fence == math.inf:
-            self.fence = stamp                   # feedback from here on belongs to no plan row
-        port.send(SYNC_COB_ID, b"", stamp)
-        self.slot += 1
+        period, control = self.period, arrays.control
+        if port.periodic_sync:
+            seen = self.syncs_seen
+            port.wait_sync(self.last_sync + 3 * period if self.last_sync > -math.inf else port.now() + 1.0)
+            now = port.now()
+            if self.syncs_seen == seen:
+                raise RuntimeError(f"no SYNC from {port.sync_source} for {3 * period * 1e3:.0f} ms")
+            late = now - self.last_sync               # the RPDOs that follow go out this long after their SYNC
+            out.worst_wake_ms = max(out.worst_wake_ms, late * 1e3)
+            if late > job.supervision.window_s:
+                out.late_cycles += 1                  # past the window: the drives keep the setpoints they have
+            out.setpoints_late += self.syncs_seen - seen - 1  # SYNCs that came before their setpoints
+        else:
+            deadline = self.t0 + self.slot * period
+            port.wait_until(deadline)
+            now = port.now()
+            late = now - deadline
+            out.worst_wake_ms = max(out.worst_wake_ms, late * 1e3)
+            if late > period / 2:
+                out.late_cycles += 1
+            if late > period:                        # the period it is in: the missed ones get no SYNC
+                behind = int(late // period)
+                self.slot += behind
+                out.periods_skipped += behind
+            stamp = port.now()
+            self._on_sync(stamp)                     # (before it goes: in lockstep the replies come at once)
+            port.send(SYNC_COB_ID, b"", stamp)
         # ---- judge, then decide the next period
         abort = None
         if self.emcy is not None:                # an EMCY names the cause the statusword shows after it
@@ -552,6 +564,34 @@ class Engine:
         if self.phase == STOPPING:
             return self._stopping(now)
         return self._switching_off(now)
+
+    def _on_sync(self, stamp: float) -> None:
+        """A SYNC at ``stamp``: the row of the period (while streaming), the feedback's age."""
+        job, arrays, out = self.job, self.arrays, self.outcome
+        if self.phase == STREAMING and self.slot - self.plan_slot >= job.rows:
+            self._enter(HOLDING, stamp)              # a late cycle past the plan's end
+        row = self.slot - self.plan_slot if self.phase == STREAMING else -1
+        for axis in range(len(job.axes)):
+            self.age[axis] += 1
+        if self.last_sync > -math.inf:
+            out.largest_sync_gap_ms = max(out.largest_sync_gap_ms, (stamp - self.last_sync) * 1e3)
+        self.last_sync = stamp
+        self.syncs_seen += 1
+        if row >= 0:
+            arrays.sync_time[row] = stamp
+            arrays.demand[row] = self.pending
+            self.row = row
+            out.rows_sent = row + 1
+            arrays.control[ROWS_SENT] = row + 1
+        elif self.phase == ENABLING:
+            self.enable_cycles += 1
+        elif self.row >= 0 and self.fence == math.inf:
+            self.fence = stamp                       # feedback from here on belongs to no plan row
+        self.slot += 1
+
+    def _on_sync_frame(self, data: bytes | bytearray, stamp: float) -> None:
+        """The SYNC the interface sent, as the bus shows it (its receive stamp)."""
+        self._on_sync(stamp)
 
     def _enabling(self, now: float) -> bool:
         job, out, sup = self.job, self.outcome, self.job.supervision

@@ -53,7 +53,9 @@ class WallClock:
 TRACE_PRIORITY = 10           # SCHED_FIFO priority of the trace writer (the streaming threads: 50)
 
 
-REORDER_S = 0.1              # a background trace writes a frame once none older can still arrive
+REORDER_S = 0.5              # a background trace writes a frame once none older can still arrive: a
+#                              simulated drive held up (its process stalled) stamps its replies up to its
+#                              heartbeat consumer time in the past, and the master may drain the engine late
 
 
 class TraceRecorder(can.Listener):

@@ -17,7 +17,7 @@ from collections.abc import Callable
 import can
 import numpy as np
 
-from .engine import Handler
+from .engine import SYNC_COB_ID, Handler
 
 #: flag bits of a frame in the ring
 RX, ERROR, REMOTE, EXTENDED = 1, 2, 4, 8
@@ -85,13 +85,34 @@ class TraceRing:
         return int(self.counters[DROPPED])
 
 
-class BusPort:
-    """The engine on a python-can bus of its own, on the wall clock; every frame into ``ring``."""
+def periodic_send_of(bus: can.BusABC) -> str | None:
+    """What sends a periodic frame on ``bus`` where its interface does so itself (the kernel's broadcast
+    manager on socketcan, an adapter's own periodic send), else None (python-can's thread)."""
+    if type(bus)._send_periodic_internal is can.BusABC._send_periodic_internal:
+        return None
+    if "socketcan" in type(bus).__module__:
+        return "the kernel's broadcast manager (socketcan BCM)"
+    return f"the interface's own periodic send ({type(bus).__name__})"
 
-    def __init__(self, bus: can.BusABC, ring: TraceRing | None, sync_source: str = "the engine's own loop"):
+
+class BusPort:
+    """The engine on a python-can bus of its own, on the wall clock; every frame into ``ring``.
+
+    Where the interface sends periodic frames itself (:func:`periodic_send_of`), SYNC is left to it:
+    it leaves on time whatever the interpreter does, and the engine takes each SYNC as the bus shows
+    it (its receive stamp) and sends the RPDOs of the next period right after it.  Should the first
+    SYNC not come back within a few periods, the engine's own loop sends SYNC instead (said in
+    :attr:`sync_source`)."""
+
+    ECHO_PERIODS = 5          # periods to wait for the interface's first SYNC before taking over
+
+    def __init__(self, bus: can.BusABC, ring: TraceRing | None):
         self.bus = bus
         self.ring = ring
-        self.sync_source = sync_source
+        native = periodic_send_of(bus)
+        self.periodic_sync = native is not None
+        self.sync_source = native or "the engine's own loop"
+        self._task: can.broadcastmanager.CyclicSendTaskABC | None = None
         self._offset = time.time() - time.monotonic()
         self._handlers: dict[int, Handler] = {}
         self._on_error: Callable[[], None] | None = None
@@ -111,11 +132,52 @@ class BusPort:
                 continue
             self._dispatch(msg)
 
+    def start_sync(self, period: float) -> None:
+        self._task = self.bus.send_periodic(can.Message(arbitration_id=SYNC_COB_ID, data=b"", is_extended_id=False),
+                                            period)
+        handler = self._handlers.get(SYNC_COB_ID)
+        seen: list[float] = []
+
+        def first(data: bytes | bytearray, stamp: float) -> None:
+            seen.append(stamp)
+            if handler is not None:
+                handler(data, stamp)
+        self._handlers[SYNC_COB_ID] = first
+        try:
+            self.wait_sync(self.now() + self.ECHO_PERIODS * period)
+        finally:
+            if handler is not None:
+                self._handlers[SYNC_COB_ID] = handler
+        if not seen:                            # it does not show its own frames: the engine sends SYNC
+            self.stop_sync()
+            self.periodic_sync = False
+            self.sync_source = (f"the engine's own loop ({self.sync_source} did not show its SYNC within "
+                                f"{self.ECHO_PERIODS} periods)")
+
+    def wait_sync(self, timeout_at: float) -> None:
+        recv, offset = self.bus.recv, self._offset
+        while True:
+            left = timeout_at - time.monotonic() - offset
+            msg = recv(left if left > 0 else 0.0)
+            if msg is None:
+                if left <= 0:
+                    return
+                continue
+            self._dispatch(msg)
+            if msg.arbitration_id == SYNC_COB_ID and not msg.is_error_frame:
+                return
+
+    def stop_sync(self) -> None:
+        if self._task is not None:
+            self._task.stop()
+            self._task = None
+
     def _dispatch(self, msg: can.Message) -> None:
         stamp = msg.timestamp or self.now()
-        if self.ring is not None:
-            flags = RX | (ERROR if msg.is_error_frame else 0) | (REMOTE if msg.is_remote_frame else 0) | \
-                (EXTENDED if msg.is_extended_id else 0)
+        if self.ring is not None:                # (the interface's SYNC is the master's: not a received frame)
+            own = self.periodic_sync and msg.arbitration_id == SYNC_COB_ID and not msg.is_error_frame
+            flags = (0 if own else RX) | (ERROR if msg.is_error_frame else 0) | \
+                (REMOTE if msg.is_remote_frame else 0) | (EXTENDED if msg.is_extended_id else 0)
             self.ring.put(stamp, msg.arbitration_id, flags, msg.data)
         if msg.is_error_frame:
             if self._on_error is not None:

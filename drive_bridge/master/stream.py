@@ -398,6 +398,7 @@ def stream(link: Link, axes: dict[str, AxisLink], plan: Plan, *, supervision: Su
                      priority=host or "lockstep (no wall clock)", limits=timing_limits)
     timing.engine = {"host": host or "lockstep", "sync_source": outcome.sync_source,
                      "late_cycles": outcome.late_cycles, "periods_skipped": outcome.periods_skipped,
+                     "setpoints_late": outcome.setpoints_late,
                      "rows_skipped": sorted(rec.skipped), "worst_wake_ms": round(outcome.worst_wake_ms, 3),
                      "feedback_age_ms": _ages(arrays), "supervision": supervision.as_dict()}
     return StreamResult(rec, outcome.rows_sent, aborted, missing, timing, holding, outcome.enable_cycles)

@@ -44,6 +44,7 @@ class LinkPort:
     answer each frame before ``send`` returns (how the engine reaches the bus: :mod:`..master.port`)."""
 
     sync_source = "lockstep (simulated time)"
+    periodic_sync = False
 
     def __init__(self, link: "LockstepLink"):
         self.link = link
@@ -69,6 +70,15 @@ class LinkPort:
             net.subscribe(cob_id, on_frame)
             self._subscribed.append((cob_id, on_frame))
         self._on_error = on_error_frame
+
+    def start_sync(self, period: float) -> None:
+        raise NotImplementedError("in lockstep the engine sends SYNC itself")
+
+    def wait_sync(self, timeout_at: float) -> None:
+        raise NotImplementedError("in lockstep the engine sends SYNC itself")
+
+    def stop_sync(self) -> None:
+        """The engine sends SYNC itself: nothing to stop."""
 
     def release(self) -> None:
         for cob_id, callback in self._subscribed:

@@ -85,6 +85,7 @@ class _Drives:
     """A port with one perfect drive answering each SYNC at once from fixed bytes (nothing kept)."""
 
     sync_source = "test"
+    periodic_sync = False
 
     def __init__(self):
         self.t = 1000.0
@@ -104,6 +105,9 @@ class _Drives:
 
     def receive(self, handlers, on_error_frame):
         self.handlers = handlers
+
+    def stop_sync(self):
+        pass
 
     def release(self):
         self.handlers = {}
