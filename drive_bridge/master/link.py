@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import bisect
 import logging
+import math
 import os
 import sys
 import threading
@@ -77,6 +78,8 @@ class TraceRecorder(can.Listener):
             else can.Logger(str(path))
         self._background = background
         self._epoch = 0.0 if blf else epoch            # the BLF writer adds it itself
+        #: frames stamped up to this came already from elsewhere (the cyclic engine's ring): not again
+        self.seen_until = -math.inf
         if not background and not self._epoch:
             self.on_message_received = self.writer.on_message_received     # type: ignore[method-assign]
         if background:
@@ -89,7 +92,8 @@ class TraceRecorder(can.Listener):
 
     def on_message_received(self, msg: can.Message) -> None:
         if self._background:
-            self._pending.append(msg)          # atomic: no lock shared with the sending thread
+            if msg.timestamp > self.seen_until:
+                self._pending.append(msg)      # atomic: no lock shared with the sending thread
         else:
             self._write(msg)
 
@@ -272,6 +276,7 @@ class BusLink:
         traces = self.network.traces
         for trace in traces:                 # the engine's ring carries every frame while it runs
             self.notifier.remove_listener(trace)
+        last = -math.inf                     # the newest stamp the ring handed over
         try:
             arrays, ring = engine.start(job, fill)
             report = reporter(arrays, progress, on_start)
@@ -282,6 +287,7 @@ class BusLink:
                         outcome = engine.result(self.POLL_S)
                     finally:
                         for msg in ring.take():
+                            last = max(last, msg.timestamp)
                             for trace in traces:
                                 trace.on_message_received(msg)
                     report()
@@ -298,7 +304,8 @@ class BusLink:
                 log.warning("%d frames did not fit the engine's trace ring: the trace misses them", ring.dropped)
             return outcome, arrays, engine.description
         finally:
-            for trace in traces:
+            for trace in traces:              # what this bus still holds of the engine's run is in the trace
+                trace.seen_until = max(trace.seen_until, last)
                 self.notifier.add_listener(trace)
 
     def add_trace(self, trace: TraceRecorder) -> None:
