@@ -176,7 +176,10 @@ def cmd_sim(args: argparse.Namespace) -> int:
     config = load_bus_config(args.config)
     eds = {a: str(n.dcf) for a, n in config.nodes.items()}
     try:
-        bus = open_bus(args.interface, args.channel, args.bitrate, {"port": args.port} if args.port else None)
+        options: dict = {"port": args.port} if args.port else {}
+        if args.interface == "udp_multicast":           # the drives judge the master by arrival: the kernel's stamp
+            options["stamps"] = "kernel"
+        bus = open_bus(args.interface, args.channel, args.bitrate, options)
     except Exception as exc:           # python-can raises many kinds for a missing interface
         raise UserError(f"cannot open bus {args.interface}:{args.channel} ({exc})") from exc
     print(f"simulated drives of {args.sim_config or DEFAULT_CONFIG} on {args.interface}"

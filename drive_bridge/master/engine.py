@@ -297,7 +297,6 @@ class Engine:
         self._rpdos = [(r, struct.Struct(r.format), bytearray(struct.calcsize(r.format)),
                         [0] * len(r.fields)) for r in job.rpdos]
         self._starts = [set(a.move_starts) for a in job.axes]
-        self._node = {a.node_id: i for i, a in enumerate(job.axes)}
 
     # ------------------------------------------------------------------ receiving
     def handlers(self) -> dict[int, Handler]:
