@@ -276,7 +276,7 @@ class Engine:
         self.age = [0] * n_axes                  # SYNCs since each axis's last statusword
         self.heard = [0.0] * n_axes              # engine time of each drive's last frame (any)
         self.beat = [0.0] * n_axes               # engine time of each drive's last heartbeat
-        self.last_complete = [-math.inf] * n_axes      # SYNC time of each axis's last complete row
+        self.last_complete = [math.inf] * n_axes       # SYNC time of each axis's last complete row
         self.emcy: tuple[int, int] | None = None       # (axis, code) of the first EMCY of this run
         self.bus_errors = 0
         self.evidence = -math.inf               # newest time stamp of a frame from the drives
@@ -577,6 +577,8 @@ class Engine:
         self.last_sync = stamp
         self.syncs_seen += 1
         if row >= 0:
+            if row == 0:                             # a drive's silence counts from the plan's first SYNC
+                self.last_complete = [stamp] * len(job.axes)
             arrays.sync_time[row] = stamp
             arrays.demand[row] = self.pending
             self.row = row

@@ -39,7 +39,9 @@ def test_one_scenario_over_every_link(realtime, tmp_path):
         link.remove_trace(trace)
         trace.stop()
         assert m.aborted is None
-        assert np.count_nonzero(np.isnan(m.position["y"])) <= 0.01 * len(m.position["y"])
+        # on the wall clock a period the master was late in has no SYNC and no sample: counted, and the rest
+        skipped = m.timing.engine.get("periods_skipped", 0)
+        assert np.count_nonzero(np.isnan(m.position["y"])) <= 0.01 * len(m.position["y"]) + skipped
         assert abs(np.nanmax(m.position["y"]) - (here + 2.0)) < 0.01          # it arrived
         assert elapsed >= len(demand) * 0.002                                   # the link's clock moved
         assert quick_stop(link, axes, 1.0) == []
