@@ -71,14 +71,19 @@ def to_table(rec: Recording, scaling: dict[str, Scaling], period: float) -> tupl
             spec.append((f"{axis}_{suffix}", fmt,
                          partial(_logged, rec.raw[:, rec.column(axis, index)],
                                  getattr(sc, conv) if conv else None, valid)))
-            if index == 0x6064:
+            if index == 0x6064:               # (NaN in a period without a SYNC: no setpoint was taken)
                 spec.append((f"{axis}_position_demand_rad", "%.9g",
-                             partial(sc.position_from_device, rec.demand[:, ai])))
+                             partial(_demanded, sc, rec.demand[:, ai], rec.sync_time)))
         spec.append((f"{axis}_valid", "%.0f", partial(valid.astype, float)))
     values = np.empty((n, len(spec)))
     for j, (_, _, make) in enumerate(spec if n else []):
         values[:, j] = make()
     return [name for name, _, _ in spec], values, [fmt for _, fmt, _ in spec]
+
+
+def _demanded(sc: Scaling, demand: np.ndarray, sync_time: np.ndarray) -> np.ndarray:
+    """The position demand [SI] of each row, NaN where the row's period had no SYNC."""
+    return np.where(np.isfinite(sync_time), sc.position_from_device(demand), np.nan)
 
 
 def _logged(raw: np.ndarray, convert: Callable[[np.ndarray], np.ndarray] | None, valid: np.ndarray) -> np.ndarray:

@@ -43,6 +43,7 @@ from .cia402 import CW_DISABLE_VOLTAGE, CW_ENABLE, CW_HALT, CW_QUICK_STOP, CW_SH
 ENABLE_STEP = {"SWITCH ON DISABLED": CW_SHUTDOWN, "READY TO SWITCH ON": CW_SWITCH_ON,
                "SWITCHED ON": CW_ENABLE, "OPERATION ENABLED": CW_ENABLE, "QUICK STOP ACTIVE": CW_ENABLE}
 SYNC_COB_ID = 0x080
+HEARTBEAT_OPERATIONAL = b"\x05"     # the master's heartbeat: NMT state operational
 #: rows after the first setpoint by which the drive must show statusword bit 12 (following / IP active)
 FOLLOW_GRACE_ROWS = 2
 #: how often [s] the engine checks the drives' heartbeats, the bus's error frames and its stop request
@@ -148,6 +149,9 @@ class Job:
     columns: int                    # of ``raw``
     table_columns: int              # of the setpoint table
     supervision: Supervision
+    #: the master's heartbeat (COB-ID, period [s]) where the engine is to produce it while it runs (the
+    #: link's own is a thread of the master's process there, which the master's other work can hold up)
+    heartbeat: tuple[int, float] | None = None
 
 
 class Arrays:
@@ -294,6 +298,7 @@ class Engine:
         self.check_due = False
         self.fence = math.inf                    # time stamp of the first SYNC after the plan's rows
         self.syncs_seen = 0
+        self.next_beat = -math.inf               # when the master's heartbeat is due (job.heartbeat)
         self._rpdos = [(r, struct.Struct(r.format), bytearray(struct.calcsize(r.format)),
                         [0] * len(r.fields)) for r in job.rpdos]
         self._starts = [set(a.move_starts) for a in job.axes]
@@ -536,6 +541,10 @@ class Engine:
             stamp = port.now()
             self._on_sync(stamp)                     # (before it goes: in lockstep the replies come at once)
             port.send(SYNC_COB_ID, b"", stamp)
+        if job.heartbeat is not None and now >= self.next_beat:   # the master's heartbeat, no burst when late
+            cob_id, beat = job.heartbeat
+            port.send(cob_id, HEARTBEAT_OPERATIONAL, port.now())
+            self.next_beat = max(self.next_beat + beat, now)
         # ---- judge, then decide the next period
         abort = None
         if self.emcy is not None:                # an EMCY names the cause the statusword shows after it

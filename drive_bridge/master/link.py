@@ -17,6 +17,7 @@ import sys
 import threading
 import time
 from collections import deque
+from dataclasses import replace
 from collections.abc import Callable
 from typing import Protocol, runtime_checkable
 
@@ -256,6 +257,7 @@ class BusLink:
         self.notifier.add_listener(self.bus_errors)
         self.on_close: list[Callable[[], None]] = []        # callbacks after the bus is closed
         self._heartbeat: can.broadcastmanager.CyclicSendTaskABC | None = None
+        self._beat: tuple[int, float] | None = None      # the master's heartbeat: node id, period [s]
         #: the cyclic engine's host, started with the first stream and kept for the link's life
         self.engine: EngineProcess | EngineThread | None = None
         #: what runs the drives behind the bus, where the link started it (the simulated drives' process)
@@ -273,6 +275,12 @@ class BusLink:
         if self.engine is None:
             self.engine = engine_for(self.spec)
         engine = self.engine
+        beat = self._beat
+        if beat is not None and isinstance(self._heartbeat, can.broadcastmanager.ThreadBasedCyclicSendTask):
+            # a thread of this process that the master's other work can hold up (300 ms once: every drive
+            # stopped): the engine beats while it runs
+            self.stop_heartbeat()
+            job = replace(job, heartbeat=(0x700 + beat[0], beat[1]))
         traces = self.network.traces
         for trace in traces:                 # the engine's ring carries every frame while it runs
             self.notifier.remove_listener(trace)
@@ -304,6 +312,8 @@ class BusLink:
                 log.warning("%d frames did not fit the engine's trace ring: the trace misses them", ring.dropped)
             return outcome, arrays, engine.description
         finally:
+            if job.heartbeat is not None and beat is not None:
+                self.start_heartbeat(*beat)
             for trace in traces:              # what this bus still holds of the engine's run is in the trace
                 trace.seen_until = max(trace.seen_until, last)
                 self.notifier.add_listener(trace)
@@ -320,6 +330,7 @@ class BusLink:
         # python-can's periodic send: the kernel's broadcast manager on socketcan, a thread of
         # its own elsewhere; either way it ends with this process, as a master's heartbeat must
         self.stop_heartbeat()
+        self._beat = (node_id, period)
         self._heartbeat = self.bus.send_periodic(heartbeat_frame(node_id), period)
         thread = getattr(self._heartbeat, "thread", None)
         if thread is not None and thread.native_id is not None:
@@ -331,6 +342,7 @@ class BusLink:
                 log.debug("the heartbeat thread keeps its ordinary priority (%s)", exc)
 
     def stop_heartbeat(self) -> None:
+        self._beat = None
         if self._heartbeat is not None:
             self._heartbeat.stop()
             self._heartbeat = None
