@@ -188,3 +188,32 @@ def test_a_master_stalled_past_the_drives_timeout_is_caught_by_the_drives_and_sa
     assert "the master was late" in result.aborted.reason and "20 ms" in result.aborted.reason
     assert state & 0x6F in (0x07, 0x21, 0x40 & 0x6F) or state & 0x4F == 0x40       # quick-stopped or switched off
     assert math.isfinite(result.timing.max_sync_gap_ms) and result.timing.max_sync_gap_ms >= 60
+
+
+@pytest.mark.realtime
+def test_the_masters_heartbeat_goes_on_while_the_masters_process_is_held_up(tmp_path):
+    """The master's process held up longer than the drives watch its heartbeat (a sort that keeps the
+    interpreter lock, mid-stream): the engine beats in its own process, so no drive stops."""
+    import can
+    config = quick_config().only(["y"])
+    held = []
+
+    def on_plan(plan):
+        def progress(k):
+            if k >= 0.3 * len(plan.demand) and not held:
+                numbers = [(i * 7919) % 4000037 for i in range(4_000_000)]
+                t0 = time.perf_counter()
+                numbers.sort()                                   # C, the interpreter lock kept throughout
+                held.append(time.perf_counter() - t0)
+        return progress
+    with open_link(config, sim=True, realtime=True) as link:
+        result = record(config, link, tmp_path, on_plan=on_plan)
+    consumer = 3 * config.master.heartbeat_period_s
+    assert held and held[0] > consumer, held                     # held up past the drives' consumer time
+    assert result.ok, result.aborted
+    with can.LogReader(str(tmp_path / "trace.blf")) as reader:
+        frames = list(reader)
+    syncs = [f.timestamp for f in frames if f.arbitration_id == 0x080]
+    beats = np.array([f.timestamp for f in frames if f.arbitration_id == 0x700 + config.master.heartbeat_node_id
+                      and syncs[0] <= f.timestamp <= syncs[-1]])
+    assert len(beats) > 10 and np.diff(beats).max() < consumer
