@@ -122,6 +122,10 @@ class BusPort:
         return time.monotonic() + self._offset
 
     def wait_until(self, deadline: float) -> None:
+        self._receive_until(deadline, sync=False)
+
+    def _receive_until(self, deadline: float, sync: bool) -> None:
+        """Hand over every frame that arrives until ``deadline`` (``sync``: or until a SYNC came)."""
         recv, monotonic, offset = self.bus.recv, time.monotonic, self._offset
         while True:
             left = deadline - monotonic() - offset
@@ -131,6 +135,8 @@ class BusPort:
                     return
                 continue
             self._dispatch(msg)
+            if sync and msg.arbitration_id == SYNC_COB_ID and not msg.is_error_frame:
+                return
 
     def start_sync(self, period: float) -> None:
         self._task = self.bus.send_periodic(can.Message(arbitration_id=SYNC_COB_ID, data=b"", is_extended_id=False),
@@ -155,17 +161,7 @@ class BusPort:
                                 f"{self.ECHO_PERIODS} periods)")
 
     def wait_sync(self, timeout_at: float) -> None:
-        recv, offset = self.bus.recv, self._offset
-        while True:
-            left = timeout_at - time.monotonic() - offset
-            msg = recv(left if left > 0 else 0.0)
-            if msg is None:
-                if left <= 0:
-                    return
-                continue
-            self._dispatch(msg)
-            if msg.arbitration_id == SYNC_COB_ID and not msg.is_error_frame:
-                return
+        self._receive_until(timeout_at, sync=True)
 
     def stop_sync(self) -> None:
         if self._task is not None:
