@@ -40,7 +40,8 @@ from typing import cast
 import numpy as np
 
 from .buses import BusSpec
-from .engine import STOP_REQUEST, STOP_SIGNALS, Arrays, Engine, Job, Outcome
+from ..signals import HANDLED
+from .engine import STOP_REQUEST, Arrays, Engine, Job, Outcome, stop_code
 from .port import BusPort, TraceRing
 from .timing import RT_PRIORITY, lock_memory, raise_priority
 
@@ -264,12 +265,10 @@ def _serve(sock: socket.socket) -> None:
     control: list[np.ndarray] = []      # the running job's control slots (for the signal handler)
 
     def stop(signum: int, frame: object) -> None:
-        names = {signal.SIGINT: "Ctrl-C", signal.SIGTERM: "SIGTERM", getattr(signal, "SIGHUP", -1): "SIGHUP"}
         if control:
-            control[0][STOP_REQUEST] = STOP_SIGNALS.index(names.get(signum, "SIGTERM"))
-    for signum in (signal.SIGINT, signal.SIGTERM, getattr(signal, "SIGHUP", None)):
-        if signum is not None:
-            signal.signal(signum, stop)
+            control[0][STOP_REQUEST] = stop_code(HANDLED.get(signum, "SIGTERM"))
+    for signum in HANDLED:
+        signal.signal(signum, stop)
     granted = _real_time()
     gc.collect()
     gc.freeze()

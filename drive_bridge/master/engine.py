@@ -55,9 +55,9 @@ CONTROLWORD, TABLE, CONSTANT, TORQUE_OFFSET = range(4)
 #: the engine's phases (shared with the host through ``Arrays.control``)
 ENABLING, STREAMING, HOLDING, STOPPING, SWITCHING_OFF, ENDED = range(6)
 #: slots of ``Arrays.control`` (int64): what the host reads while the engine runs, and its stop request
-PHASE, ROWS_SENT, STOP_REQUEST, ENABLE_CYCLES, RING_HEAD, RING_TAIL, RING_DROPPED, CONTROL_SLOTS = range(8)
-#: stop requests: none, from the host (Ctrl-C, SIGTERM, SIGHUP: which one in ``STOP_SIGNALS``), its loss
-STOP_SIGNALS = ("", "Ctrl-C", "SIGTERM", "SIGHUP", "the master's process ended")
+PHASE, ROWS_SENT, STOP_REQUEST, ENABLE_CYCLES, CONTROL_SLOTS = range(5)
+#: stop requests in ``STOP_REQUEST``: none, or the signal that asked for it
+STOP_SIGNALS = ("", "Ctrl-C", "SIGTERM", "SIGHUP")
 AGE_BIN_S, AGE_BINS = 1e-4, 1000     # histogram of feedback age: 0.1 ms bins up to 100 ms
 PROGRESS_ROWS = 50                  # the host's progress is told the plan row in steps of this many
 #: what a port hands each received frame to: (data, time stamp [s])
@@ -105,7 +105,6 @@ class AxisJob:
     on_brake: bool = False          # held switched off onto its brake
     quick_stop_holds: bool = False  # 0x605A = 6: a quick stop holds the axis powered (leaves CSP safely)
     csp: bool = True
-    has_profile_position: bool = False
     #: where the master sends a torque offset: at each move start the torque the velocity loop holds
     #: at rest (feedback [raw] x Nm per raw unit, in per mille of the rated torque) is taken out of the
     #: offsets (0: not done)
@@ -205,6 +204,11 @@ class Outcome:
     sync_source: str = ""
 
 
+def stop_code(signal_name: str) -> int:
+    """The ``STOP_REQUEST`` value of a stop asked for by ``signal_name`` (Ctrl-C, SIGTERM, SIGHUP)."""
+    return STOP_SIGNALS.index(signal_name) if signal_name in STOP_SIGNALS else 1
+
+
 def reporter(arrays: Arrays, progress: Callable[[int], None] | None,
              on_start: Callable[[int], None] | None) -> Callable[[], None]:
     """What the host calls now and then while the engine runs: ``on_start`` (once, with the SYNC
@@ -302,6 +306,9 @@ class Engine:
         self._rpdos = [(r, struct.Struct(r.format), bytearray(struct.calcsize(r.format)),
                         [0] * len(r.fields)) for r in job.rpdos]
         self._starts = [set(a.move_starts) for a in job.axes]
+        #: per axis, the setpoint table's column of the torque offsets it is sent (-1: none)
+        self._offset_columns = [next((arg for r in job.rpdos if r.axis == axis for kind, arg in r.fields
+                                      if kind == TORQUE_OFFSET), -1) for axis in range(n_axes)]
 
     # ------------------------------------------------------------------ receiving
     def handlers(self) -> dict[int, Handler]:
@@ -403,17 +410,10 @@ class Engine:
             return
         for axis, ax in enumerate(job.axes):
             if ax.torque_Nm_per_raw and row in self._starts[axis] and all(arrays.got[ref, s] for s in ax.slots):
-                sent = self._offset_column(axis)
+                sent = self._offset_columns[axis]
                 held = round(float(arrays.raw[ref, ax.torque]) * ax.torque_Nm_per_raw / ax.rated_torque_Nm * 1000)
                 before = max(INT16[0], min(INT16[1], int(arrays.table[ref - 1, sent]) - int(arrays.torque_offset[axis])))
                 arrays.torque_offset[axis] = held - before
-
-    def _offset_column(self, axis: int) -> int:
-        for rpdo in self.job.rpdos:
-            for kind, arg in rpdo.fields:
-                if rpdo.axis == axis and kind == TORQUE_OFFSET:
-                    return arg
-        return -1
 
     # ------------------------------------------------------------------ judging
     def _judge(self, now: float) -> tuple[str, str | None, str, int | None] | None:
@@ -493,8 +493,7 @@ class Engine:
                     if done:
                         break
                 except KeyboardInterrupt as exc:           # lockstep: the signal arrives on this thread
-                    name = getattr(exc, "name", "Ctrl-C")
-                    control[STOP_REQUEST] = STOP_SIGNALS.index(name) if name in STOP_SIGNALS else 1
+                    control[STOP_REQUEST] = stop_code(getattr(exc, "name", "Ctrl-C"))
         except Exception as exc:                            # noqa: BLE001 - stop the axes, say why
             out.abort = out.abort or ("error", None, f"{type(exc).__name__}: {exc}", None)
             out.lost = [a.name for a in job.axes]
@@ -639,7 +638,7 @@ class Engine:
 
     def _stopping(self, now: float) -> bool:
         job, out, sup = self.job, self.outcome, self.job.supervision
-        if self._stopped(self.still, now - self.phase_start):
+        if self._stopped(now - self.phase_start):
             if not any(ax.on_brake and ax.name not in out.lost for ax in job.axes):
                 return True
             self._enter(SWITCHING_OFF, now)
@@ -680,10 +679,10 @@ class Engine:
         return [CW_SHUTDOWN if ax.on_brake else CW_QUICK_STOP if ax.quick_stop_holds and ax.csp else CW_HALT
                 for ax in self.job.axes]
 
-    def _stopped(self, still: list[int], elapsed: float) -> bool:
+    def _stopped(self, elapsed: float) -> bool:
         """Each axis standing still on two fresh statuswords in a row, or lost (its feedback gone longer
         than the feedback timeout, judged after that long in the stop)."""
-        sup, out = self.job.supervision, self.outcome
+        sup, out, still = self.job.supervision, self.outcome, self.still
         for axis, ax in enumerate(self.job.axes):
             if ax.name in out.lost:
                 continue

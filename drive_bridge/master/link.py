@@ -29,7 +29,7 @@ from ..signals import signal_name
 from .blf import BatchedBLFWriter
 from .buses import BusSpec
 from .coprocess import EngineError, EngineProcess, EngineThread, engine_for
-from .engine import ROWS_SENT, STOP_REQUEST, STOP_SIGNALS, Arrays, Job, Outcome, reporter
+from .engine import ROWS_SENT, STOP_REQUEST, Arrays, Job, Outcome, reporter, stop_code
 from .timing import Clock, raise_priority
 
 log = logging.getLogger(__name__)
@@ -300,8 +300,7 @@ class BusLink:
                                 trace.on_message_received(msg)
                     report()
                 except KeyboardInterrupt as exc:     # the engine stops the axes; wait for it to say so
-                    name = signal_name(exc)
-                    arrays.control[STOP_REQUEST] = STOP_SIGNALS.index(name) if name in STOP_SIGNALS else 1
+                    arrays.control[STOP_REQUEST] = stop_code(signal_name(exc))
                 except EngineError as exc:           # it is gone: the axes are stopped by SDO
                     log.error("%s", exc)
                     self.engine = None

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
+
 import can
 import numpy as np
 
@@ -106,7 +107,7 @@ class BusPort:
 
     ECHO_PERIODS = 5          # periods to wait for the interface's first SYNC before taking over
 
-    def __init__(self, bus: can.BusABC, ring: TraceRing | None):
+    def __init__(self, bus: can.BusABC, ring: TraceRing):
         self.bus = bus
         self.ring = ring
         native = periodic_send_of(bus)
@@ -170,11 +171,11 @@ class BusPort:
 
     def _dispatch(self, msg: can.Message) -> None:
         stamp = msg.timestamp or self.now()
-        if self.ring is not None:                # (the interface's SYNC is the master's: not a received frame)
-            own = self.periodic_sync and msg.arbitration_id == SYNC_COB_ID and not msg.is_error_frame
-            flags = (0 if own else RX) | (ERROR if msg.is_error_frame else 0) | \
-                (REMOTE if msg.is_remote_frame else 0) | (EXTENDED if msg.is_extended_id else 0)
-            self.ring.put(stamp, msg.arbitration_id, flags, msg.data)
+        # (the interface's SYNC is the master's own frame, not a received one)
+        own = self.periodic_sync and msg.arbitration_id == SYNC_COB_ID and not msg.is_error_frame
+        flags = (0 if own else RX) | (ERROR if msg.is_error_frame else 0) | \
+            (REMOTE if msg.is_remote_frame else 0) | (EXTENDED if msg.is_extended_id else 0)
+        self.ring.put(stamp, msg.arbitration_id, flags, msg.data)
         if msg.is_error_frame:
             if self._on_error is not None:
                 self._on_error()
@@ -191,8 +192,7 @@ class BusPort:
         else:
             msg.data[:] = data
         msg.timestamp = stamp
-        if self.ring is not None:
-            self.ring.put(stamp, cob_id, EXTENDED if cob_id > 0x7FF else 0, data)
+        self.ring.put(stamp, cob_id, EXTENDED if cob_id > 0x7FF else 0, data)
         self.bus.send(msg)
 
     def receive(self, handlers: dict[int, Handler], on_error_frame: Callable[[], None]) -> None:

@@ -34,7 +34,7 @@ from ..setpoint import CSP as CSP_MODE, CW_ENABLE_IP, IP, PVT, SETPOINT_OBJECTS,
 from .bringup import QUICK_STOP_RAMP_AND_HOLD, AxisLink, emcy_text
 from .campaign import Plan
 from .cia402 import CW_ENABLE, CW_HALT, CW_QUICK_STOP, state_name
-from .engine import (CONSTANT, CONTROLWORD, STOP_SIGNALS, TABLE, TORQUE_OFFSET, Arrays, AxisJob, Job,
+from .engine import (AGE_BIN_S, CONSTANT, CONTROLWORD, TABLE, TORQUE_OFFSET, Arrays, AxisJob, Job,
                      Outcome, RpdoJob, Supervision, TpdoJob)
 from .link import Link
 from .timing import Timing, TimingLimits, measure
@@ -328,7 +328,7 @@ def _job(axes: dict[str, AxisLink], plan: Plan, rec: Recording, supervision: Sup
             cols.get(sc.torque_object, -1), cols.get(0x20C4, -1), position_column,
             CW_ENABLE_IP if ax.mode == IP else CW_ENABLE, ax.mode == IP, float(standstill), not powered,
             powered and ax.drive_limits.get("0x605A:0") == QUICK_STOP_RAMP_AND_HOLD, ax.mode == CSP_MODE,
-            PP in ax.modes, float(torque_gain), float(sc.rated_torque_Nm), tuple(int(k) for k in starts),
+            float(torque_gain), float(sc.rated_torque_Nm), tuple(int(k) for k in starts),
             math.inf if guard is None or a not in guard.limits else guard.limits[a] * sc.velocity_per_rad_s))
     tpdos = [TpdoJob(cob, codec.struct.format, first, slot, names.index(rec.columns[first][0]))
              for cob, codec, first, slot in rec._tpdo_slots]
@@ -406,7 +406,6 @@ def stream(link: Link, axes: dict[str, AxisLink], plan: Plan, *, supervision: Su
 
 def _ages(arrays: Arrays | None) -> dict[str, float]:
     """How long after it reached the bus the engine had each TPDO: p50, p99 and max [ms]."""
-    from .engine import AGE_BIN_S
     if arrays is None or not arrays.ages.sum():
         return {}
     counts = arrays.ages
@@ -424,8 +423,6 @@ def _aborted(outcome: Outcome, axes: dict[str, AxisLink], supervision: Supervisi
         return None
     kind, axis, detail, code = outcome.abort
     if kind == "interrupt":
-        if detail == STOP_SIGNALS[-1]:
-            return MotionAborted(f"{detail}: the engine stopped the axes on its own")
         return Interrupted(signal=detail or "Ctrl-C")
     if kind == "emcy" and axis is not None and code is not None:
         gap = outcome.largest_sync_gap_ms
