@@ -39,6 +39,8 @@ MAX_POSITION = 1e7           # rad | m: beyond this a value is a corrupt row, no
 MAX_TORQUE = 1e7             # Nm | N
 MIN_SEGMENT = 64            # samples: shorter finite runs are dropped (the filters need room)
 GAP_FACTOR = 5.0            # a time step longer than this many median periods is a gap
+MAX_FILLED = 5              # samples: a shorter run of missing samples is filled, not a cut (the filters
+                            # would cut far more at each edge than the run holds)
 MIN_PARALLEL_BYTES = 8_000_000   # a CSV this large is parsed in parts, one process per core
 JITTER_TOLERANCE = 1e-3     # steps within this fraction of the median period count as evenly spaced
 
@@ -89,6 +91,14 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
     """[start, stop) of the True runs of ``mask``."""
     edges = np.flatnonzero(np.diff(np.concatenate(([0], mask.view(np.int8), [0]))))
     return list(zip(edges[::2].tolist(), edges[1::2].tolist()))
+
+
+def _short_holes(finite: np.ndarray, gaps: np.ndarray) -> list[tuple[int, int]]:
+    """[start, stop) of the runs of missing samples no longer than ``MAX_FILLED``, with a finite
+    sample on either side and no time gap at or around them."""
+    gap_rows = set((np.asarray(gaps) + 1).tolist())
+    return [(a, b) for a, b in _runs(~finite)
+            if b - a <= MAX_FILLED and a > 0 and b < len(finite) and not gap_rows & set(range(a, b + 1))]
 
 
 def _describe(runs: list[tuple[int, int]], t: np.ndarray, limit: int = 3) -> str:
@@ -212,6 +222,18 @@ def read_log(path: str | Path) -> Log:
                                 f"value (|x| > {limit:g}); fix or cut the log")
         dropped = []
         finite = np.isfinite(q) & np.isfinite(tau)
+        short = _short_holes(finite, gaps)
+        if short:
+            for values in (q, tau):
+                values[~finite] = CubicSpline(t[finite], values[finite])(t[~finite])
+            holes = np.zeros(len(q), dtype=bool)
+            for a, b in short:
+                holes[a:b] = True
+            finite |= holes
+            q[~finite] = tau[~finite] = np.nan
+            dropped.append(f"filled, not dropped: {int(holes.sum())} samples missing in {len(short)} run(s) of at "
+                           f"most {MAX_FILLED} (a late master's skipped periods, say), by a cubic spline through "
+                           f"their neighbours: {_describe(short, t)}")
         nan_runs = _runs(~finite)
         if nan_runs:
             dropped.append(f"{int((~finite).sum())} samples without a value in {len(nan_runs)} run(s): "

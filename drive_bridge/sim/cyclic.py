@@ -74,16 +74,19 @@ def soft_limit(x: np.ndarray, position: float, lo: float, hi: float) -> float:
 def follow_period(d: np.ndarray, x: np.ndarray, T: float, lo: float, hi: float, linear: bool) -> None:
     """The interpolation period that starts now, following the master (CSP, IP): the demand
     moves from where it is to the newest setpoint ``x[X_SETPOINT]`` [position unit] inside the
-    software limits (``lo``, ``hi``), or stays; over ``T`` [s], with the acceleration feed-forward
-    of the velocity change (none for linear interpolation)."""
+    software limits (``lo``, ``hi``); over ``T`` [s], with the acceleration feed-forward of the
+    velocity change (none for linear interpolation).  A period without a new setpoint (its SYNC or
+    RPDO missing) goes on at the last period's velocity, a substitute setpoint as drives make them
+    (SEW's FCB19 extrapolates at constant speed) until the setpoint timeout stops the drive."""
     p0 = d[P1]
     d[P0] = p0
     v_old = x[X_V_DEM]
     x[X_LIMITED] = 0.0
-    p1 = p0
     if x[X_NEW_TARGET] != 0.0:
         p1 = soft_limit(x, plant_position(x, x[X_SETPOINT]), lo, hi)
-        d[P1] = p1
+    else:
+        p1 = soft_limit(x, p0 + v_old * T, lo, hi)
+    d[P1] = p1
     x[X_V_DEM] = (p1 - p0) / T
     d[A_FF] = 0.0 if linear else (x[X_V_DEM] - v_old) / T
     x[X_NEW_TARGET] = 0.0

@@ -786,14 +786,25 @@ class SimDrive:
 
     def on_sync(self) -> None:
         """SYNC: send TPDOs with the values at this instant, then latch new setpoints."""
-        if not self.online:
-            return
-        if self.nmt_state == NMT_OPERATIONAL:
+        self.sample_sync()
+        self.start_period(self.pending_rpdo)
+
+    def sample_sync(self) -> None:
+        """A SYNC received: the synchronous TPDOs, with the actual values at this instant."""
+        if self.online and self.nmt_state == NMT_OPERATIONAL:
             self.refresh_actuals()
             self.send_tpdos()
-            for codec, data in self.pending_rpdo:
+
+    def start_period(self, rpdos: list[tuple[PdoCodec, bytes]]) -> None:
+        """A SYNC period starts: the synchronous RPDOs received for it (``rpdos``, emptied) take
+        effect and the interpolation period's demand is set."""
+        if not self.online:
+            rpdos.clear()
+            return
+        if self.nmt_state == NMT_OPERATIONAL:
+            for codec, data in rpdos:
                 self._apply_rpdo(codec, data)
-        self.pending_rpdo.clear()
+        rpdos.clear()
         if not self.internal_profile:
             self.next_period()
 

@@ -11,6 +11,7 @@ Two clocks drive the same code:
 """
 from __future__ import annotations
 
+import math
 import os
 import threading
 import time
@@ -24,12 +25,20 @@ from ..resources import PROJECT_EDS
 from . import cyclic as X, kernel as K
 from .config import SimConfig
 from .drive import NMT_STOPPED, SimDrive
+from ..pdo import PdoCodec
 from .adapters import FastVirtualBus
 from .steady import SteadyStream
 
 NOISE_BLOCK = 4096
+SYNC_COB_ID = 0x080
 REPLY_DELAY_S = 50e-6        # wall clock: a drive's reply follows the frame it answers
 IDLE_WAKE_S = 0.002          # wall clock: the drives' thread wakes on this grid between frames
+#: wall clock: how much of a SYNC's phase error against the drives' loop grid one SYNC corrects
+SYNC_LOCK_GAIN = 0.1
+#: ... for errors within this fraction of a period (a late master's SYNC does not move the grid)
+SYNC_LOCK_RANGE = 0.25
+#: wall clock: after this long without SYNC [s] the next one sets the loop grid's phase at once
+SYNC_RELOCK_S = 0.1
 
 
 class SimRobot:
@@ -49,6 +58,15 @@ class SimRobot:
             raise ValueError(f"SYNC period {sync_period} s is not a multiple of the 0.5 ms loop tick")
         self.bus = bus if bus is not None else FastVirtualBus(channel=channel, preserve_timestamps=True)
         self.time = 0.0
+        # wall clock: the time of simulation time 0 [s]; the drives' grid (ticks into the period,
+        # boundaries passed), the boundary of the last SYNC, when it came, the RPDOs armed by it
+        self._t0 = 0.0
+        self._bus_time = 0.0                      # wall clock: the latest frame's stamp [s]
+        self._phase = 0
+        self._boundary = 0
+        self._sync_tag = -2
+        self._last_sync = -math.inf
+        self._armed: list[list[tuple[PdoCodec, bytes]]] = [[] for _ in config.axes]
         self._stamp = lambda: self.time           # lockstep: frames carry simulation time
         self._rng = np.random.default_rng(config.seed)
         self._noise = np.empty(0)
@@ -87,7 +105,7 @@ class SimRobot:
 
     def routes_changed(self) -> None:
         """Rebuild the COB-ID -> handler table (after a PDO mapping change)."""
-        routes = {0x000: self._on_nmt, 0x080: self._on_sync}
+        routes = {0x000: self._on_nmt, SYNC_COB_ID: self._on_sync}
         watchers: dict[int, list[SimDrive]] = {}
         for drive in self.drives.values():
             routes[0x600 + drive.node_id] = self._sdo_handler(drive)
@@ -100,7 +118,7 @@ class SimRobot:
         self._routes = routes
         #: the frames that leave the drives' streaming layout as it is: SYNC and synchronous RPDOs,
         #: and the heartbeats the drives watch (those move when a drive next has its own business)
-        self._streamed = {0x080} | {cob_id for drive in self.drives.values()
+        self._streamed = {SYNC_COB_ID} | {cob_id for drive in self.drives.values()
                                     for cob_id, (_, ttype) in drive.rpdos.items() if ttype <= 240}
         self._watched = {0x700 + node for node in watchers}
         self._steady = None
@@ -143,14 +161,14 @@ class SimRobot:
                 drive.on_nmt(data)
 
     def _on_sync(self, _data: bytes) -> None:
-        if self._thread is None:            # lockstep: the SYNC period passes now
-            self._run_plant(self.ticks_per_period)
-            if self._steady is None and all(drive.streaming for drive in self.drives.values()):
-                self._steady = SteadyStream(self)
-            if self._steady is not None and self._steady.period():
-                self._tick0[:] = 0          # every drive starts an interpolation period
-                return
-            self._supervise()
+        # lockstep: the SYNC period passes now (on the wall clock SYNC is :meth:`_sync_received`'s)
+        self._run_plant(self.ticks_per_period)
+        if self._steady is None and all(drive.streaming for drive in self.drives.values()):
+            self._steady = SteadyStream(self)
+        if self._steady is not None and self._steady.period():
+            self._tick0[:] = 0          # every drive starts an interpolation period
+            return
+        self._supervise()
         for drive in self.drives.values():
             drive.on_sync()
             if not drive.internal_profile:      # a new interpolation period starts at SYNC
@@ -243,26 +261,107 @@ class SimRobot:
             os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(60))
         except (AttributeError, OSError):
             pass                                # not allowed here: they run at normal priority
-        t0 = time.time() - self.time            # wall-clock time of simulation time 0
+        self.clock_from(time.time())
         wake = time.monotonic()
         while self._running:
             msg = self.bus.recv(timeout=max(0.0, wake - time.monotonic()))
             now = time.time()
             while msg is not None:
-                self._catch_up(msg.timestamp, t0)
-                self._bus_time = max(self._bus_time, msg.timestamp)
-                self.dispatch(msg)
+                self.take(msg)
                 msg = self.bus.recv(0)
-            self._catch_up(now, t0)
+            self.run_until(now)
             late = time.monotonic() - wake
             if late >= 0:
                 wake += IDLE_WAKE_S * (1 + int(late // IDLE_WAKE_S))
 
-    def _catch_up(self, now: float, t0: float) -> None:
-        due = int((now - t0 - self.time) / K.VELOCITY_TICK_S)
-        if due > 0:
-            self.advance(due)
-            self._bus_time = max(self._bus_time, t0 + self.time)
+    def clock_from(self, now: float) -> None:
+        """Wall clock: the simulation time reached is the wall-clock time ``now`` [s]."""
+        self._t0 = now - self.time
+
+    def take(self, msg: can.Message) -> None:
+        """Wall clock: a frame received at ``msg.timestamp`` [s]; the loops run up to it first."""
+        self._bus_time = max(self._bus_time, msg.timestamp)
+        if msg.arbitration_id == SYNC_COB_ID and not msg.is_remote_frame:
+            self._sync_received(msg.timestamp)
+        else:
+            self.run_until(msg.timestamp)
+            self.dispatch(msg)
+
+    def run_until(self, now: float) -> None:
+        """Wall clock: the loops and plant run up to ``now`` [s] (whole ticks)."""
+        self._run_ticks(int((now - self._t0 - self.time) / K.VELOCITY_TICK_S))
+
+    # The drives' loops run on a grid of their own, locked to the SYNCs they receive as a drive's
+    # phase-locked loop is: a SYNC period starts on the grid's period boundary, with the RPDOs that
+    # came after the SYNC before it; the SYNC itself takes the actual values when it arrives.  A late
+    # SYNC, or one the master skipped, does not shorten or stretch the drives' periods: the setpoints
+    # of a period whose SYNC has not come yet take effect on time.
+
+    def _run_ticks(self, n_ticks: int) -> None:
+        """Loops and plant for ``n_ticks`` velocity-loop ticks, each period boundary in its place."""
+        while n_ticks > 0:
+            step = min(n_ticks, self.ticks_per_period - self._phase)
+            self.advance(step)
+            n_ticks -= step
+            self._phase += step
+            if self._phase == self.ticks_per_period:
+                self._phase = 0
+                self._boundary += 1
+                self._period_starts()
+        self._bus_time = max(self._bus_time, self._t0 + self.time)
+
+    def _sync_received(self, stamp: float) -> None:
+        """A SYNC received at ``stamp`` [s, wall clock]: its period's RPDOs armed, the actual values
+        sampled on the tick it falls on, the grid's phase pulled towards it."""
+        relock = stamp - self._last_sync > SYNC_RELOCK_S
+        self._last_sync = stamp
+        self.run_until(stamp)
+        period = self.ticks_per_period * K.VELOCITY_TICK_S
+        since = stamp - (self._t0 + self.time) + self._phase * K.VELOCITY_TICK_S   # since the last boundary
+        if relock:                                      # the first SYNC after a pause sets the grid
+            self._t0, self._phase, since = stamp - self.time, 0, 0.0
+        # a master's SYNC is late, never early, but for jitter: the SYNC of the boundary passed last
+        # unless that one had its SYNC already
+        early = self._sync_tag == self._boundary and not relock
+        self._sync_tag = self._boundary + 1 if early or relock else self._boundary
+        for drive, armed in zip(self.drives.values(), self._armed):
+            armed.extend(drive.pending_rpdo)
+            drive.pending_rpdo.clear()
+        if relock:
+            for drive in self.drives.values():
+                drive.sample_sync()
+            self._boundary += 1
+            self._period_starts()
+            return
+        nearest = round((stamp - self._t0 - self.time) / K.VELOCITY_TICK_S)   # the tick it falls on
+        if not early:                   # a late SYNC's period began at the boundary passed: not the next
+            nearest = min(nearest, self.ticks_per_period - 1 - self._phase)
+        self._run_ticks(nearest)
+        for drive in self.drives.values():
+            drive.sample_sync()
+        error = since - period if early else since      # [s] against its own boundary
+        if abs(error) < SYNC_LOCK_RANGE * period:
+            self._t0 += SYNC_LOCK_GAIN * error
+
+    def _period_starts(self) -> None:
+        """A period boundary of the drives' grid: the period of the SYNC received for it (or of the
+        one before, the master's SYNC not here yet) starts with its RPDOs.  None: a drive following
+        the master starts a period without a new setpoint (:func:`.cyclic.follow_period`: a substitute
+        at the last velocity until its setpoint timeout), the others hold."""
+        if self._sync_tag == self._boundary - 1:        # the SYNC late or skipped: its RPDOs are due
+            for drive, armed in zip(self.drives.values(), self._armed):
+                armed.extend(drive.pending_rpdo)
+                drive.pending_rpdo.clear()
+        elif self._sync_tag != self._boundary:
+            for drive in self.drives.values():
+                if drive.online and drive.following:
+                    drive.next_period()
+                    self._tick0[drive.index] = 0
+            return
+        for drive, armed in zip(self.drives.values(), self._armed):
+            drive.start_period(armed)
+            if not drive.internal_profile:
+                self._tick0[drive.index] = 0
 
     def shutdown(self) -> None:
         self._running = False

@@ -170,6 +170,29 @@ def test_record_directory_and_nan_runs(tmp_path, capsys):
     assert "dropped: 40 samples without a value in 1 run(s): rows 3001-3040" in out
 
 
+def test_a_late_masters_skipped_periods_are_filled_not_cut(tmp_path, capsys):
+    """Short runs of missing samples scattered through the log (a wall-clock master's skipped
+    periods) are filled through their neighbours: cutting the log at each would cost the filters'
+    edges many times what is missing.  The numbers stay those of the complete log."""
+    log = log_of(tmp_path)
+    complete = identify(log, axes=["y"])["y"]
+    text = log.read_text().splitlines()
+    holes = np.random.default_rng(5).choice(np.arange(200, len(text) - 200), 60, replace=False)
+    for row in holes:
+        for k in range(row, row + 1 + row % 3):        # runs of 1 to 3 samples
+            parts = text[k].split(",")
+            parts[1] = parts[3] = "nan"
+            text[k] = ",".join(parts)
+    holey = tmp_path / "holey.csv"
+    holey.write_text("\n".join(text) + "\n")
+    assert main(["identify", str(holey), "--axis", "y"]) == 0
+    out = capsys.readouterr().out
+    assert "filled, not dropped:" in out and "samples without a value" not in out
+    filled = identify(holey, axes=["y"])["y"]
+    for k in ("J", "c0", "c1"):
+        assert filled.model.params_[k] == pytest.approx(complete.model.params_[k], rel=0.01), k
+
+
 @pytest.mark.parametrize("content, message", [
     ("time_s,y_position_rad\n0,0\n0.002,0\n", "axis 'y' has y_position_rad but no y_torque_Nm column"),
     ("t,y_position_rad,y_torque_Nm\n0,0,0\n1,0,0\n", "no time_s column"),
