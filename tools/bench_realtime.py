@@ -6,9 +6,13 @@ starts it, beside the machine's own floor measured in the same run.
 
 The floor: a plain Python loop at SCHED_FIFO on the same 2 ms absolute schedule (as cyclictest
 measures: sleep to the next deadline, note how late it woke), in a process of its own, for
-``--floor-seconds`` right before the runs of each condition.  Then per run: its verdict, the
-campaign's late cycles, SYNC period p99 and max, the largest SYNC gap in periods, the age of the
-feedback when the engine had it (p99, max), the samples missing and whether any motion aborted.
+``--floor-seconds`` right before the runs of each condition, and again *during* each run.  Per
+run: its verdict, the campaign's late cycles, SYNC period p99 and max, the largest SYNC gap in
+periods, the age of the feedback when the engine had it (p99, max), the samples missing, whether
+any motion aborted -- and each late SYNC of the campaign (a gap over 1.5 periods, from the
+trace's stamps) set against the floor of the same moment (one plain loop pinned to each CPU):
+"shared" where a plain loop was held up as long at the same time (the CPU taken from under every
+process: this VM's host), "ours" where none was.  The largest of ours is what the engine adds.
 ``loaded``: two CPU-bound processes beside it (the floor measured beside them too).
 ``--against REV`` runs git revision REV the same way, alternated with this code.
 The acceptance (issue 42): every run PASS, 0 aborts, 0 samples missing, late cycles <= 0.1 %
@@ -56,6 +60,73 @@ print(json.dumps({"granted": granted, "late": late}))
 """
 
 
+RUN_FLOOR = """import json, os, signal, sys, time
+period = float(sys.argv[1])
+os.sched_setaffinity(0, {int(sys.argv[2])})
+try:
+    os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(50))
+except OSError:
+    pass
+stop = []
+signal.signal(signal.SIGTERM, lambda *_: stop.append(1))
+offset = time.time() - time.monotonic()
+late, held = [], []
+t0 = time.monotonic() + period
+k = 0
+sys.stdout.write("ready\\n")
+sys.stdout.flush()
+while not stop:
+    deadline = t0 + k * period
+    left = deadline - time.monotonic()
+    if left > 0:
+        time.sleep(left)
+    woke = time.monotonic() - deadline
+    late.append(woke)
+    if woke > period / 2:
+        held.append((deadline + offset, woke))
+    k += 1
+print(json.dumps({"late": late, "held": held}))
+"""
+
+
+@contextlib.contextmanager
+def floor_during() -> Iterator[dict]:
+    """The floor measured while the block runs, one plain loop pinned to each CPU (a stall of one
+    virtual CPU shows in its own): the wake-ups [ms] and when a loop was held up."""
+    procs = [subprocess.Popen([sys.executable, "-c", RUN_FLOOR, str(PERIOD_S), str(cpu)], stdout=subprocess.PIPE,
+                              text=True) for cpu in sorted(os.sched_getaffinity(0))]
+    for proc in procs:
+        assert proc.stdout is not None
+        proc.stdout.readline()
+    result: dict = {}
+    try:
+        yield result
+    finally:
+        for proc in procs:
+            proc.terminate()
+        data = [json.loads(proc.communicate()[0]) for proc in procs]
+        late = np.concatenate([d["late"] for d in data]) * 1e3
+        result.update(max=float(late.max()), over_3ms_pct=float(np.mean(late > 3.0) * 100),
+                      held=sorted((t, w * 1e3) for d in data for t, w in d["held"]))
+
+
+def against_floor(trace: Path, held: list[tuple[float, float]]) -> dict:
+    """Each late SYNC of the campaign's trace [ms late] as shared with the floor (the plain loop
+    was held up as long, at the same moment) or ours."""
+    import can
+    syncs = np.array([m.timestamp for m in can.BLFReader(str(trace)) if m.arbitration_id == 0x080])
+    starts = np.array([t for t, _ in held])
+    stalls = np.array([w for _, w in held])
+    shared, ours = [], []
+    for i in np.flatnonzero(np.diff(syncs) > 1.5 * PERIOD_S):
+        late_ms = (syncs[i + 1] - syncs[i]) * 1e3 - PERIOD_S * 1e3
+        # the floor's stalls that began within this gap: the longest of them
+        inside = stalls[(starts >= syncs[i] - PERIOD_S) & (starts <= syncs[i + 1])]
+        (shared if inside.size and inside.max() >= late_ms - PERIOD_S * 1e3 else ours).append(late_ms)
+    return {"late_syncs": len(shared) + len(ours), "shared": len(shared), "ours": len(ours),
+            "ours_max_ms": max(ours, default=0.0), "shared_max_ms": max(shared, default=0.0)}
+
+
 def floor(seconds: float) -> dict:
     """The machine's own floor: how late a plain SCHED_FIFO loop wakes on a 2 ms schedule [ms]."""
     out = subprocess.run([sys.executable, "-c", FLOOR, str(seconds), str(PERIOD_S)], capture_output=True,
@@ -85,10 +156,13 @@ def commission(code: Path, campaign: str) -> dict:
         out = Path(tmp) / "run"
         env = {**os.environ, "PYTHONPATH": str(code), "XDG_DATA_HOME": tmp}
         t0 = time.perf_counter()
-        proc = subprocess.run([sys.executable, "-m", "drive_bridge", "commission", "--sim", "--realtime", "--campaign",
-                               campaign, "--out", str(out), "--no-history"], cwd=code, env=env,
-                              capture_output=True, text=True)
+        with floor_during() as beside:
+            proc = subprocess.run([sys.executable, "-m", "drive_bridge", "commission", "--sim", "--realtime",
+                                   "--campaign", campaign, "--out", str(out), "--no-history"], cwd=code, env=env,
+                                  capture_output=True, text=True)
         wall = time.perf_counter() - t0
+        trace = out / "campaign" / "trace.blf"
+        matched = against_floor(trace, beside["held"]) if trace.exists() else {}
         summary = json.loads((out / "summary.json").read_text()) if (out / "summary.json").exists() else {}
         meta_path = out / "campaign" / "meta.yaml"
         meta = yaml.safe_load(meta_path.read_text()) if meta_path.exists() else {}
@@ -107,6 +181,7 @@ def commission(code: Path, campaign: str) -> dict:
             "max_ms": float(gaps.max()), "gap_periods": float(gaps.max()) / (PERIOD_S * 1e3),
             "age": engine.get("feedback_age_ms", {}), "missing": sum((timing.get("samples_missing") or {}).values()),
             "skipped": engine.get("periods_skipped"), "host": engine.get("host", timing.get("priority")),
+            "floor": beside, "matched": matched,
             "aborts": aborts or ([proc.stderr.strip().splitlines()[-1]] if proc.returncode not in (0, 5, 6)
                                  and proc.stderr.strip() else [])}
 
@@ -117,7 +192,10 @@ def line(name: str, r: dict) -> str:
             f"SYNC period p99 {r['p99_ms']:.2f} ms, max {r['max_ms']:.2f} ms ({r['gap_periods']:.1f} periods), "
             f"feedback age p99 {age.get('p99', '?')} ms max {age.get('max', '?')} ms, samples missing "
             f"{r['missing']}, periods skipped {r['skipped']}, aborts {len(r['aborts'])}"
-            + (f" ({'; '.join(str(a) for a in r['aborts'])})" if r["aborts"] else ""))
+            + (f" ({'; '.join(str(a) for a in r['aborts'])})" if r["aborts"] else "")
+            + f"\n    the floor during the run: max {r['floor']['max']:.2f} ms, {r['floor']['over_3ms_pct']:.3f} % over 3 ms"
+            + (f"; late SYNCs {m['late_syncs']}: {m['shared']} shared with the floor (up to {m['shared_max_ms']:.1f} ms "
+               f"late), {m['ours']} ours (up to {m['ours_max_ms']:.1f} ms late)" if (m := r["matched"]) else ""))
 
 
 def main() -> None:
