@@ -187,8 +187,9 @@ def commission(code: Path, campaign: str) -> dict:
             "age": engine.get("feedback_age_ms", {}), "missing": sum((timing.get("samples_missing") or {}).values()),
             "skipped": engine.get("periods_skipped"), "host": engine.get("host", timing.get("priority")),
             "floor": beside, "matched": matched,
-            "aborts": aborts or ([proc.stderr.strip().splitlines()[-1]] if proc.returncode not in (0, 5, 6)
-                                 and proc.stderr.strip() else [])}
+            "aborts": aborts
+            or [line.strip() for line in (proc.stdout + proc.stderr).splitlines() if "FAILED:" in line]
+            or ([proc.stderr.strip().splitlines()[-1]] if proc.returncode not in (0, 5, 6) and proc.stderr.strip() else [])}
 
 
 def line(name: str, r: dict) -> str:
