@@ -1,6 +1,6 @@
 """matplotlib as the figures the tool writes use it: the Agg backend (files, no display).
 
-:func:`pyplot` before work is forked out (:func:`drive_bridge.ident.workers.fork_map`) lets every
+:func:`pyplot` before work is forked out (:func:`drive_bridge.forking.fork_map`) lets every
 process drawing a figure find matplotlib imported, instead of each importing it again.
 """
 from __future__ import annotations
@@ -10,7 +10,7 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any
 
-from .ident.workers import fork_map, processes
+from .forking import fork_map, processes
 
 
 def pyplot() -> ModuleType:
@@ -31,6 +31,6 @@ def save(fig: Any, path: Path) -> Path:
 
 def side_by_side(draw: Callable[[Any, Any], Any], items: Sequence[Any], shared: Any) -> list[Any]:
     """``draw(shared, item)`` for each of ``items``, in processes of their own where work is shared
-    out (one per item up to :func:`~drive_bridge.ident.workers.processes`), matplotlib imported first."""
+    out (one per item up to :func:`~drive_bridge.forking.processes`), matplotlib imported first."""
     pyplot()
     return fork_map(draw, items, min(len(items), processes()), shared)

@@ -21,7 +21,8 @@ from .errors import UserError
 from .outputs import atomic, write_text
 from .yamlconf import load_yaml
 from .pdo import PdoCodec
-from .setpoint import MODE_NAMES
+from .cia.p301 import SYNC_COB_ID
+from .cia.p402 import MODE_NAMES
 from .units import Scaling
 
 if TYPE_CHECKING:                 # the master is not imported to read a log (identification does)
@@ -139,7 +140,6 @@ def decode_trace(trace: Path, meta_path: Path | None = None
 
     A damaged or cut-short trace gives the rows before the damage and, last, what is wrong
     with it (None for a whole trace)."""
-    from .master.engine import SYNC_COB_ID
     from .master.stream import Recording
     trace = Path(trace)
     meta_path = Path(meta_path) if meta_path else trace.with_name(META_NAME)

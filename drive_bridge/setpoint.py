@@ -10,17 +10,13 @@ simulated drives.
 """
 from __future__ import annotations
 
-CSP, IP = 8, 7
-MODE_NAMES = {1: "profile position", 2: "velocity", 3: "profile velocity", 4: "profile torque", 6: "homing",
-              7: "interpolated position", 8: "cyclic synchronous position", 9: "cyclic synchronous velocity",
-              10: "cyclic synchronous torque"}
+from .cia.p402 import CSP, IP, MODE_NAMES
+
 PVT = (0x20C1, 0)
 #: object that carries a position setpoint -> the mode it is streamed in
 SETPOINT_OBJECTS = {(0x607A, 0): CSP, (0x60C1, 1): IP, PVT: IP}
 #: interpolation sub-mode (0x60C0) of each interpolated-position setpoint object
 IP_SUB_MODE = {(0x60C1, 1): 0, PVT: -1}
-CW_ENABLE_IP = 0x1F                  # enable operation + bit 4: enable interpolation
-SW_FOLLOWING = 0x1000                # bit 12: CSP follows the setpoints / IP active
 
 
 def supported_modes(bits: int) -> list[int]:

@@ -24,8 +24,11 @@ SW_VOLTAGE_ENABLED = 0x0010
 SW_REMOTE = 0x0200
 SW_TARGET_REACHED = 0x0400
 SW_INTERNAL_LIMIT = 0x0800
-SW_FOLLOWING = 0x1000                # bit 12: CSP follows the setpoints / IP active / homing attained
-SW_FOLLOWING_ERROR = 0x2000          # bit 13: following error / homing error
+# bits 12 and 13 mean what the operating mode says
+SW_FOLLOWING = 0x1000                # CSP follows the setpoints / IP active / PP set-point acknowledged
+SW_FOLLOWING_ERROR = 0x2000          # CSP, PP: following error
+SW_HOMING_ATTAINED = 0x1000          # homing
+SW_HOMING_ERROR = 0x2000             # homing
 
 #: the power states, the drive's side
 NOT_READY, SWITCH_ON_DISABLED, READY, SWITCHED_ON, ENABLED, QUICK_STOP, FAULT_REACTION, FAULT = range(8)

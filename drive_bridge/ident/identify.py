@@ -6,6 +6,7 @@
 from __future__ import annotations
 
 import logging
+import os
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -14,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import UserError
+from ..forking import fork_map, processes
 from .effects import DRIVE_EFFECTS, Effect, Gravity, Offset
 from .frf import log_response
 from .identifiable import T_MIN, undetermined
@@ -23,7 +25,6 @@ from .resonance import find_mode
 from .reversal import find_reversal_transient
 from .signals import Samples, Settings, choose_settings, clipped_levels, noise_floor, prepare, whole_band
 from .trace import MIN_GAIN, TracedEffect, trace, unexplained
-from .workers import fork_map, workers
 
 logger = logging.getLogger(__name__)
 
@@ -33,6 +34,9 @@ DELAY_SIGMAS = 3.0          # a torque delay estimated beyond this many std is a
 MAX_REALIGNMENTS = 3        # ... at most this many times while the tracing adds effects
 CONSISTENT_SIGMAS = 3.0     # parts of the data whose J, c0 or c1 differ by more: the axis is flagged
 DEGENERATE = 30.0           # a part whose refit has a J, c0 or c1 std this many times the whole fit's is degenerate,
+#: a log of fewer rows times axes is identified one axis after the other: starting the workers
+#: costs more than they save
+MIN_PARALLEL_SAMPLES = 500_000
 DEGENERATE_COND = 1e8       # ... as is one whose (column-scaled) regressors have a condition number above this
 
 
@@ -383,6 +387,15 @@ def _identify_axis(log: Log, axis: str, val_log: Log | None, seed: int, cutoff_h
                       {**log.sampling, "torque_delay_ms": round(1e3 * settings.torque_delay_s, 4),
                        "torque_aligned": settings.torque_delay_s != 0.0, **timing}, agreement,
                       friction=friction, ga_converged=ga_model.converged_)
+
+
+def workers(log: Log, axes: list[str]) -> int:
+    """How many processes identify ``axes`` of ``log`` (1: here, one after the other): one per
+    axis up to :func:`processes`; for a small log only where ``DRIVE_BRIDGE_WORKERS`` asks."""
+    if len(axes) < 2 or (not os.environ.get("DRIVE_BRIDGE_WORKERS")
+                         and len(log.t) * len(axes) < MIN_PARALLEL_SAMPLES):
+        return 1
+    return min(len(axes), processes())
 
 
 def identify(path: str | Path, validate: str | Path | None = None, axes: list[str] | None = None, *,

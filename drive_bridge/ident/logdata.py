@@ -31,7 +31,7 @@ from scipy.interpolate import CubicSpline
 
 from ..errors import UserError
 from ..logs import LOG_NAME, META_NAME, TRACE_NAME
-from .workers import fork_map, processes
+from ..forking import fork_map, processes
 
 KINDS = {"rad": ("rotary", "torque_Nm", {"position": "rad", "torque": "Nm"}),
          "m": ("linear", "force_N", {"position": "m", "torque": "N"})}

@@ -17,32 +17,19 @@ from ..config import BusConfig, MasterConfig, NodeConfig, PdoConfig
 from ..errors import BusError, DriveRefused, InternalError
 from ..od import default, limits, variable
 from ..outputs import hex_object, identity_hex, stamped
-from ..params.read import read_if_readable, sdo_object
 from ..pdo import PdoCodec
-from ..setpoint import IP, IP_SUB_MODE, MODE_NAMES, PVT, choose, describe_modes, supported_modes
+from ..cia.p402 import ABORT_QUICK_STOP, FAULT_REACTION_QUICK_STOP_RAMP, IP, MODE_NAMES, QUICK_STOP_RAMP_AND_HOLD
+from ..cia.sdo import pdo_objects, read_if_readable, sdo_object, snapshot, write_setting
+from ..setpoint import IP_SUB_MODE, PVT, choose, describe_modes, supported_modes
 from .cia402 import Drive402
 from .link import Clock, Link
-from .settings import pdo_objects, snapshot, write_setting
 from .units import read_units, reconcile
 
 log = logging.getLogger(__name__)
 
 CIA402_PROFILE = 402
-#: what bring-up sets a drive to do when it loses the master (0x6007) and on a quick stop (0x605A),
-#: and how it reacts to a fault (0x605E): quick stop; ramp down on the quick-stop deceleration,
-#: then stay in QUICK STOP ACTIVE, holding the axis; ramp down on the quick-stop deceleration
-ABORT_CONNECTION_QUICK_STOP = 3
-QUICK_STOP_RAMP_AND_HOLD = 6
-FAULT_REACTION_QUICK_STOP_RAMP = 2
 #: the drive's heartbeat consumer times out after this many of the master's heartbeat periods
 CONSUMER_PERIODS = 3
-EMCY_TEXT = {0x8611: "following error", 0x8250: "RPDO timeout (loss of setpoint)",
-             0x8130: "heartbeat or life guard error", 0x8400: "velocity speed controller",
-             0x2310: "continuous over-current", 0x3210: "DC link over-voltage", 0x4310: "drive temperature"}
-
-
-def emcy_text(code: int) -> str:
-    return EMCY_TEXT.get(code, f"EMCY 0x{code:04X}")
 
 
 @dataclass
@@ -89,6 +76,11 @@ class AxisLink:
             return self.position_rad()
         offset = read_if_readable(self.node, 0x607C, 0, f"axis {self.name}'s home offset") or 0
         return float(self.cfg.scaling.position_from_device(offset))
+
+    @property
+    def torque_constant(self) -> float | None:
+        """Its motor's torque constant [Nm/A] from the bus configuration (None: not given)."""
+        return self.cfg.scaling.torque_constant_Nm_per_A
 
     def position_rad(self) -> float:
         """Position actual (0x6064) now [rad | rad motor side], read by SDO; BusError naming the axis."""
@@ -381,7 +373,10 @@ def drive_settings(axis: str, ncfg: NodeConfig, period: float,
     if master is not None and has(0x1016, 1):
         ms = round(CONSUMER_PERIODS * master.heartbeat_period_s * 1000)
         out.append((0x1016, 1, master.heartbeat_node_id << 16 | ms))
-    for index, value in ((0x6007, ABORT_CONNECTION_QUICK_STOP), (0x605A, QUICK_STOP_RAMP_AND_HOLD),
+    # when it loses the master (0x6007): quick stop; on a quick stop (0x605A): ramp down on the
+    # quick-stop deceleration, then stay in QUICK STOP ACTIVE, holding the axis; on a fault
+    # (0x605E): ramp down on the quick-stop deceleration
+    for index, value in ((0x6007, ABORT_QUICK_STOP), (0x605A, QUICK_STOP_RAMP_AND_HOLD),
                          (0x605E, FAULT_REACTION_QUICK_STOP_RAMP)):
         if has(index):
             out.append((index, 0, value))

@@ -12,28 +12,12 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 import canopen
-from canopen.profiles.p402 import State402
 
+from ..cia.p402 import CW_FAULT_RESET, SW_FAULT, state_name
 from ..errors import BusError, DriveRefused
 
 if TYPE_CHECKING:
     from .timing import Clock
-
-CW_SHUTDOWN, CW_SWITCH_ON, CW_ENABLE = 0x06, 0x07, 0x0F
-CW_QUICK_STOP = 0x000B               # enable voltage + switch on + enable operation, quick stop bit low
-CW_DISABLE_VOLTAGE = 0x0000
-CW_HALT = 0x010F                     # enable operation with halt (bit 8): a profile position drive holds
-CW_FAULT_RESET = 0x80
-SW_FAULT = 0x0008
-
-
-def state_name(statusword: int) -> str:
-    """Name of the CiA 402 state a statusword shows."""
-    for name, (mask, value) in State402.SW_MASK.items():
-        if statusword & mask == value:
-            return name
-    return f"UNKNOWN (0x{statusword:04X})"
-
 
 class Drive402:
     """Power state machine of ``node`` with waits on ``clock`` bounded by ``timeout`` [s]."""

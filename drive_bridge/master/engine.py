@@ -36,13 +36,13 @@ from typing import Protocol
 
 import numpy as np
 
-from ..setpoint import SW_FOLLOWING
-from .cia402 import CW_DISABLE_VOLTAGE, CW_ENABLE, CW_HALT, CW_QUICK_STOP, CW_SHUTDOWN, CW_SWITCH_ON, SW_FAULT, state_name
+from ..cia.p301 import SYNC_COB_ID
+from ..cia.p402 import (CW_DISABLE_VOLTAGE, CW_ENABLE, CW_HALT, CW_QUICK_STOP, CW_SHUTDOWN, CW_SWITCH_ON, SW_FAULT,
+                        SW_FOLLOWING, state_name)
 
 #: the controlword that takes a drive one step nearer OPERATION ENABLED from the state it shows
 ENABLE_STEP = {"SWITCH ON DISABLED": CW_SHUTDOWN, "READY TO SWITCH ON": CW_SWITCH_ON,
                "SWITCHED ON": CW_ENABLE, "OPERATION ENABLED": CW_ENABLE, "QUICK STOP ACTIVE": CW_ENABLE}
-SYNC_COB_ID = 0x080
 HEARTBEAT_OPERATIONAL = b"\x05"     # the master's heartbeat: NMT state operational
 #: rows after the first setpoint by which the drive must show statusword bit 12 (following / IP active)
 FOLLOW_GRACE_ROWS = 2

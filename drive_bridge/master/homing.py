@@ -17,16 +17,15 @@ from ..config import BusConfig
 from ..errors import Interrupted, MotionAborted
 from ..signals import signal_name
 from .bringup import AxisLink, read_back
-from .cia402 import CW_ENABLE, CW_SHUTDOWN, CW_SWITCH_ON, SW_FAULT
+from ..cia.p402 import (CW_ENABLE, CW_SHUTDOWN, CW_SWITCH_ON, HM, SW_FAULT, SW_HOMING_ATTAINED, SW_HOMING_ERROR,
+                        SW_TARGET_REACHED)
 from .link import Link
-from .settings import write_setting
+from ..cia.sdo import write_setting
 from .stream import check_heartbeats, quick_stop
 
 log = logging.getLogger(__name__)
 
-HOMING_MODE = 6
 CW_START = CW_ENABLE | 0x10                  # enable operation with bit 4: start homing
-SW_TARGET_REACHED, SW_ATTAINED, SW_ERROR = 0x0400, 0x1000, 0x2000
 POLL_S = 0.01
 
 
@@ -55,7 +54,7 @@ def _home(link: Link, ax: AxisLink, config: BusConfig) -> None:
     log.info("axis %s: homing, method %d, %.4g / %.4g rad/s, %.4g rad/s², within %g s", ax.name, h.method,
              h.switch_speed, h.zero_speed, h.acceleration, h.timeout_s)
     drive.reset_fault()
-    drive.set_mode(HOMING_MODE)
+    drive.set_mode(HM)
     clock = link.clock
     try:
         drive.command(CW_SHUTDOWN, "READY TO SWITCH ON", "enabling for homing")
@@ -69,10 +68,10 @@ def _home(link: Link, ax: AxisLink, config: BusConfig) -> None:
             if sw & SW_FAULT:
                 raise MotionAborted(f"the drive faulted while homing (error code 0x{node.sdo[0x603F].raw:04X})",
                                     ax.name)
-            if sw & SW_ERROR:
+            if sw & SW_HOMING_ERROR:
                 raise MotionAborted(f"the drive reports a homing error (statusword 0x{sw:04X}): check homing.method "
                                     f"{h.method} against how the axis is wired", ax.name)
-            if sw & SW_ATTAINED and sw & SW_TARGET_REACHED:
+            if sw & SW_HOMING_ATTAINED and sw & SW_TARGET_REACHED:
                 break
             lost = check_heartbeats({ax.name: ax}, [ax.name], clock.now(), config.master.heartbeat_timeout_s)
             if lost is not None:

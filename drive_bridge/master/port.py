@@ -18,7 +18,8 @@ from collections.abc import Callable
 import can
 import numpy as np
 
-from .engine import SYNC_COB_ID, Handler
+from ..cia.p301 import SYNC_COB_ID
+from .engine import Handler
 
 #: flag bits of a frame in the ring
 RX, ERROR, REMOTE, EXTENDED = 1, 2, 4, 8

@@ -30,10 +30,12 @@ import numpy as np
 
 from ..errors import GuardStop, Interrupted, MotionAborted, UserError
 from ..pdo import PdoCodec
-from ..setpoint import CSP as CSP_MODE, CW_ENABLE_IP, IP, PVT, SETPOINT_OBJECTS, pack_pvt, position_of
-from .bringup import QUICK_STOP_RAMP_AND_HOLD, AxisLink, emcy_text
+from ..cia.p301 import MASTER_LOSS, emcy_text
+from ..cia.p402 import (CSP, CW_ENABLE, CW_ENABLE_IP, CW_HALT, CW_QUICK_STOP, IP, PP, QUICK_STOP_RAMP_AND_HOLD,
+                        state_name)
+from ..setpoint import PVT, SETPOINT_OBJECTS, pack_pvt, position_of
+from .bringup import AxisLink
 from .campaign import Plan
-from .cia402 import CW_ENABLE, CW_HALT, CW_QUICK_STOP, state_name
 from .engine import (AGE_BIN_S, CONSTANT, CONTROLWORD, TABLE, TORQUE_OFFSET, Arrays, AxisJob, Job,
                      Outcome, RpdoJob, Supervision, TpdoJob)
 from .link import Link
@@ -41,7 +43,6 @@ from .timing import Timing, TimingLimits, measure
 
 log = logging.getLogger(__name__)
 
-PP = 1
 STANDSTILL = 0.002                  # quick stop complete below this fraction of the axis's max velocity ...
 STANDSTILL_MIN_RAD_S = 0.05         # ... or below this, whichever is larger (encoder differencing noise)
 #: decoding a trace: a TPDO is placed in the row of the newest SYNC before its time stamp, looking
@@ -51,7 +52,6 @@ INT32 = (-2**31, 2**31 - 1)
 #: EMCY codes a drive sends when the master's stream stopped reaching it (loss of setpoints, the
 #: master's heartbeat): where the master's own SYNCs were late by more than the drive allows, the
 #: master was late, and the run says so
-MASTER_LOSS = {0x8250, 0x8130}
 #: the drive profile's setpoint-loss timeout is unknown: a drive is taken to stop on the master's
 #: heartbeat alone, within the consumer time bring-up wrote (0x1016:1)
 NO_TIMEOUT = None
@@ -327,7 +327,7 @@ def _job(axes: dict[str, AxisLink], plan: Plan, rec: Recording, supervision: Sup
             a, ax.cfg.node_id, tuple(rec.slots[a]), cols[0x6041], cols.get(0x606C, -1),
             cols.get(sc.torque_object, -1), cols.get(0x20C4, -1), position_column,
             CW_ENABLE_IP if ax.mode == IP else CW_ENABLE, ax.mode == IP, float(standstill), not powered,
-            powered and ax.drive_limits.get("0x605A:0") == QUICK_STOP_RAMP_AND_HOLD, ax.mode == CSP_MODE,
+            powered and ax.drive_limits.get("0x605A:0") == QUICK_STOP_RAMP_AND_HOLD, ax.mode == CSP,
             float(torque_gain), float(sc.rated_torque_Nm), tuple(int(k) for k in starts),
             math.inf if guard is None or a not in guard.limits else guard.limits[a] * sc.velocity_per_rad_s))
     tpdos = [TpdoJob(cob, codec.struct.format, first, slot, names.index(rec.columns[first][0]))
@@ -478,7 +478,7 @@ def _after(link: Link, axes: dict[str, AxisLink], names: list[str], outcome: Out
                     pass
         problems += [f"axis {a}: its drive has neither profile position nor a quick stop that holds: without the "
                      f"master's setpoints it is not held (give it holding: brake)" for a in names
-                     if not _on_brake(axes[a]) and PP not in axes[a].modes and axes[a].mode == CSP_MODE
+                     if not _on_brake(axes[a]) and PP not in axes[a].modes and axes[a].mode == CSP
                      and axes[a].drive_limits.get("0x605A:0") != QUICK_STOP_RAMP_AND_HOLD]
     return {a: holding_of(axes[a], state[a]) for a in names}, problems
 
@@ -513,7 +513,7 @@ def _prepare(ax: AxisLink, target: int) -> None:
         except (canopen.SdoCommunicationError, canopen.SdoAbortedError) as exc:
             raise MotionAborted(f"clearing the interpolation buffer (0x60C4:6) failed ({exc}); nothing was "
                                 f"enabled", ax.name) from exc
-    if ax.mode == CSP_MODE:
+    if ax.mode == CSP:
         try:
             actual = ax.node.sdo[0x6064].raw
             tolerance = max(1, round(ax.cfg.following_error_window_rad * ax.cfg.scaling.inc_per_rad / 2))

@@ -20,7 +20,7 @@ import canopen
 from ..config import NodeConfig
 from ..errors import DriveRefused
 from ..factor import FactorGroup, describe
-from ..params.read import read_if_readable
+from ..cia.sdo import read_if_readable
 
 REL_TOLERANCE = 1e-6          # units agree when they differ by less than this, relatively
 TORQUE_TOLERANCE = 1e-3       # rated torque / current: the drive reports mNm / mA

@@ -25,7 +25,7 @@ from __future__ import annotations
 import functools
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import canopen
 import numpy as np
@@ -37,8 +37,17 @@ from ..resources import data, shipped, vendor_dir
 from ..yamlconf import Section, load_yaml
 from .controller import PID, Controller, load_controller
 
-if TYPE_CHECKING:
-    from ..master.bringup import AxisLink
+
+class MotorAxis(Protocol):
+    """What :meth:`Profile.for_axis` reads of an axis (a brought-up one is
+    :class:`~drive_bridge.master.bringup.AxisLink`)."""
+
+    @property
+    def name(self) -> str: ...
+
+    @property
+    def torque_constant(self) -> float | None:
+        """Its motor's torque constant [Nm/A] (None: not given)."""
 
 PROFILE_DIR = shipped("params", "profiles")
 DEFAULT_PROFILE = "drive_bridge_servo"
@@ -115,10 +124,9 @@ class Profile:
     def object_dictionary(self, node_id: int) -> canopen.ObjectDictionary:
         return load_od(self.eds, node_id)
 
-    def for_axis(self, ax: AxisLink) -> "Profile":
-        """:meth:`bind` for a brought-up axis (:class:`~drive_bridge.master.bringup.AxisLink`), with
-        the torque constant of its bus configuration."""
-        return self.bind(ax.cfg.scaling.torque_constant_Nm_per_A, ax.name)
+    def for_axis(self, ax: MotorAxis) -> "Profile":
+        """:meth:`bind` for an axis, with its motor's torque constant."""
+        return self.bind(ax.torque_constant, ax.name)
 
     def bind(self, torque_constant: float | None, axis: str = "") -> "Profile":
         """This profile for one axis whose motor has ``torque_constant`` [Nm/A]: the entries the

@@ -3,50 +3,18 @@ state bring-up records before commissioning (the set a commissioning can be comp
 from __future__ import annotations
 
 from collections.abc import Collection
-from typing import Any
 
 import canopen
 from canopen.sdo import SdoVariable
 
+from ..cia.sdo import SDO_ERRORS, describe_sdo_error, sdo_object
 from ..errors import BusError, UserError
-from ..od import variable
 from ..outputs import identity_hex
 from .profile import SELECT, Entry, Profile
-
-SDO_ERRORS = (canopen.SdoAbortedError, canopen.SdoCommunicationError)
-
 
 def sdo_variable(node: canopen.RemoteNode, entry: Entry) -> SdoVariable:
     """The SDO accessor of ``entry``'s object on ``node`` (canopen's own lookup)."""
     return sdo_object(node, entry.index, entry.sub)
-
-
-def sdo_object(node: canopen.RemoteNode, index: int, sub: int) -> SdoVariable:
-    """The SDO accessor of object ``index``:``sub`` on ``node``."""
-    return SdoVariable(node.sdo, variable(node.object_dictionary, index, sub))
-
-
-def read_if_readable(node: canopen.RemoteNode, index: int, sub: int, what: str) -> Any:
-    """Object ``index``:``sub`` as the drive holds it; None where its EDS/DCF has no such object or
-    the drive refuses the read (an abort: the object is not there to read); BusError naming
-    ``what`` where the drive does not answer."""
-    if node.object_dictionary.get_variable(index, sub) is None:
-        return None
-    try:
-        return sdo_object(node, index, sub).raw
-    except canopen.SdoAbortedError:
-        return None
-    except canopen.SdoCommunicationError as exc:
-        raise BusError(f"node {node.id}: no SDO answer reading {what} (0x{index:04X}:{sub}) ({exc})") from exc
-
-
-def describe_sdo_error(exc: Exception) -> str:
-    """One phrase for an SDO failure: the abort code and its CiA 301 text, or the lost answer."""
-    if isinstance(exc, canopen.SdoAbortedError):
-        return f"SDO abort 0x{exc.code:08X}: {canopen.SdoAbortedError.CODES.get(exc.code, 'unknown abort code')}"
-    if isinstance(exc, canopen.SdoCommunicationError):
-        return f"no answer ({exc}): the node may have dropped off the bus"
-    return f"{type(exc).__name__}: {exc}"
 
 
 def read_parameters(node: canopen.RemoteNode, profile: Profile, names: Collection[str] | None = None

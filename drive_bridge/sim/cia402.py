@@ -1,7 +1,7 @@
 """The CiA 402 power state machine of a simulated drive (the drive's side), as tables.
 
-canopen's :class:`~canopen.profiles.p402.State402` describes the master's side
-(which controlword leads from one state to the next); this is the drive's: the
+The states and their statusword bits are the protocol floor's (:mod:`drive_bridge.cia.p402`);
+this is the drive's side of the machine: the
 device control commands decoded from the controlword as CiA 402 defines them
 (bits 7, 3, 2, 1, 0), and the transition each command makes from each state.
 A fault reset is the rising edge of bit 7 in FAULT.  Quick stop returns to
@@ -10,13 +10,7 @@ OPERATION ENABLED on "enable operation" only when the quick stop option code
 """
 from __future__ import annotations
 
-NOT_READY, SWITCH_ON_DISABLED, READY, SWITCHED_ON, ENABLED, QUICK_STOP, FAULT_REACTION, FAULT = range(8)
-
-#: statusword bits 0-3, 5, 6 of each state
-STATUSWORD = {NOT_READY: 0x00, SWITCH_ON_DISABLED: 0x40, READY: 0x21, SWITCHED_ON: 0x23,
-              ENABLED: 0x27, QUICK_STOP: 0x07, FAULT_REACTION: 0x0F, FAULT: 0x08}
-#: states in which the power stage has voltage (statusword bit 4)
-VOLTAGE_ENABLED = (READY, SWITCHED_ON, ENABLED, QUICK_STOP, FAULT_REACTION)
+from ..cia.p402 import ENABLED, FAULT, QUICK_STOP, QUICK_STOP_STAYS, READY, SWITCH_ON_DISABLED, SWITCHED_ON
 
 #: device control commands: (name, mask, value) of the controlword
 COMMANDS = (("disable voltage", 0x82, 0x00),
@@ -38,7 +32,6 @@ TRANSITIONS = {
     ("enable operation", SWITCHED_ON): ENABLED,
     ("enable operation", QUICK_STOP): ENABLED,
 }
-QUICK_STOP_STAYS = (5, 6, 7, 8)            # 0x605A option codes that stay in QUICK STOP ACTIVE
 
 
 def command(controlword: int) -> str | None:

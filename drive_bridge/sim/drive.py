@@ -37,21 +37,22 @@ from ..od import default, limits, load_od, variable
 from ..params.controller import Controller
 from ..params.profile import SELECT, load_profile
 from ..pdo import PdoCodec
-from ..setpoint import CSP, IP, PVT, SETPOINT_OBJECTS, position_of, supported_modes
+from ..cia.p301 import (ERR_FOLLOWING, ERR_HEARTBEAT, ERR_PDO_LENGTH, ERR_RPDO_TIMEOUT, NMT_OPERATIONAL, NMT_PREOP,
+                        NMT_STOPPED)
+from ..cia.p402 import (ABORT_DISABLE, ABORT_FAULT, ABORT_QUICK_STOP, CSP, ENABLED, FAULT, FAULT_REACTION, HM, IP, PP,
+                        PV, QUICK_STOP, STATUSWORD, SW_FOLLOWING, SW_FOLLOWING_ERROR, SW_HOMING_ATTAINED, SW_HOMING_ERROR,
+                        SW_INTERNAL_LIMIT, SW_REMOTE, SW_TARGET_REACHED, SW_VOLTAGE_ENABLED, SWITCH_ON_DISABLED,
+                        VOLTAGE_ENABLED)
+from ..setpoint import PVT, SETPOINT_OBJECTS, position_of, supported_modes
 from . import cyclic as X, kernel as K
 from .adapters import local_node
-from .cia402 import (ENABLED, FAULT, FAULT_REACTION, QUICK_STOP, STATUSWORD, SWITCH_ON_DISABLED,
-                     VOLTAGE_ENABLED, next_state)
+from .cia402 import next_state
 from .config import SimAxis
 from .pdo_map import ABORT_RANGE, PdoMapping
 from .vendors import factory, spec_for
 
 log = logging.getLogger(__name__)
 
-# NMT states as sent in the heartbeat
-NMT_STOPPED, NMT_OPERATIONAL, NMT_PREOP = 0x04, 0x05, 0x7F
-
-PV, PP, HM = 3, 1, 6
 IMPLEMENTED_MODES = (PP, PV, HM, IP, CSP)
 #: homing methods (0x6098) the simulated drive has: 17/18 search the negative/positive limit switch
 #: (set this far inside the axis's mechanical end stops, motor side) and leave it slowly, its edge
@@ -62,11 +63,6 @@ LIMIT_SWITCH_INSET_RAD = 0.5
 SAVE_SIGNATURE = 0x65766173      # 'save'
 LOAD_SIGNATURE = 0x64616F6C      # 'load'
 
-# EMCY error codes (CiA 301 / 402)
-ERR_FOLLOWING = 0x8611
-ERR_RPDO_TIMEOUT = 0x8250
-ERR_HEARTBEAT = 0x8130           # heartbeat consumer: a watched node fell silent
-ERR_PDO_LENGTH = 0x8210          # PDO not processed: shorter than its mapping
 #: maxon's PVT input FIFO (EPOS Application Note "Interpolation Position Mode", Dec 2008, pp. 13-16):
 #: 64 records; 0x20C4:1 buffer status bits; an underflow or overflow aborts the trajectory.  The EMCY
 #: codes are the simulation's choice (maxon's are not in ../shared)
@@ -74,8 +70,6 @@ FIFO_RECORDS = 64
 IPB_UNDERFLOW_WARNING, IPB_OVERFLOW_WARNING, IPB_UNDERFLOW, IPB_OVERFLOW = 0x0001, 0x0002, 0x0100, 0x0200
 IPB_ENABLED, IPB_ACTIVE = 0x4000, 0x8000
 ERR_IP_UNDERFLOW, ERR_IP_OVERFLOW = 0xFF02, 0xFF03
-#: 0x6007 abort connection option code -> what the drive does when the master is lost in OPERATION ENABLED
-ABORT_FAULT, ABORT_DISABLE, ABORT_QUICK_STOP = 1, 2, 3
 SETPOINT_TIMEOUT_PERIODS = 10     # CSP: no setpoint for this many interpolation periods -> fault
 
 ABORT_TOO_LOW = 0x06090032
@@ -629,19 +623,19 @@ class SimDrive:
     # ------------------------------------------------------------------ CiA 402
     @property
     def statusword(self) -> int:
-        sw = STATUSWORD[self.state] | 0x0200
+        sw = STATUSWORD[self.state] | SW_REMOTE
         if self.state in VOLTAGE_ENABLED:
-            sw |= 0x0010
+            sw |= SW_VOLTAGE_ENABLED
         if self.target_reached:
-            sw |= 0x0400
+            sw |= SW_TARGET_REACHED
         if self.internal_limit:
-            sw |= 0x0800
+            sw |= SW_INTERNAL_LIMIT
         if self.mode == HM:                # bit 12 homing attained, bit 13 homing error
-            return sw | (0x1000 if self.homing_attained else 0) | (0x2000 if self.homing_error else 0)
+            return sw | (SW_HOMING_ATTAINED if self.homing_attained else 0) | (SW_HOMING_ERROR if self.homing_error else 0)
         if self.following or (self.state == ENABLED and self.mode == PP and self.setpoint_ack):
-            sw |= 0x1000                   # CSP: follows the command value; IP: active; PP: set-point acknowledged
+            sw |= SW_FOLLOWING             # CSP: follows the command value; IP: active; PP: set-point acknowledged
         if self.s.item(K.FE_COUNT) > 0:
-            sw |= 0x2000
+            sw |= SW_FOLLOWING_ERROR
         return sw
 
     @property

@@ -24,13 +24,13 @@ import numpy as np
 from ..resources import PROJECT_EDS
 from . import cyclic as X, kernel as K
 from .config import SimConfig
-from .drive import NMT_STOPPED, SimDrive
+from ..cia.p301 import NMT_STOPPED, SYNC_COB_ID
+from .drive import SimDrive
 from ..pdo import PdoCodec
 from .adapters import FastVirtualBus
 from .steady import SteadyStream
 
 NOISE_BLOCK = 4096
-SYNC_COB_ID = 0x080
 REPLY_DELAY_S = 50e-6        # wall clock: a drive's reply follows the frame it answers
 IDLE_WAKE_S = 0.002          # wall clock: the drives' thread wakes on this grid between frames
 #: wall clock: how much of a SYNC's phase error against the drives' loop grid one SYNC corrects

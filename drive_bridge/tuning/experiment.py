@@ -25,6 +25,7 @@ from typing import Callable
 
 import numpy as np
 
+from ..cia.p301 import ERR_FOLLOWING
 from ..config import BusConfig, Limits
 from ..errors import DriveRefused, GuardStop, MotionAborted, UserError
 from ..master.bringup import AxisLink
@@ -41,7 +42,6 @@ from . import motion
 log = logging.getLogger(__name__)
 
 STEP_FRACTION = 0.10
-ERR_FOLLOWING = 0x8611            # CiA 402 EMCY: following error
 HALF_PERIOD_S = 0.15
 CYCLES = 2
 RAISE, LOWER = 1.5, 0.9

@@ -508,7 +508,7 @@ def test_an_axis_is_filtered_only_around_where_it_moves(tmp_path, monkeypatch):
 
 PARALLEL_RUN = """import json, sys
 from drive_bridge.ident import identify
-from drive_bridge.ident.workers import workers
+from drive_bridge.ident.identify import workers
 from drive_bridge.ident.logdata import read_log
 results = identify(sys.argv[1], seed=0)
 print(json.dumps({"workers": workers(read_log(sys.argv[1]), ["x", "y"]),
@@ -543,10 +543,11 @@ PARTS_RUN = """import json, sys
 from pathlib import Path
 import numpy as np
 from drive_bridge.errors import UserError
-from drive_bridge.ident import logdata, workers
+from drive_bridge import forking
+from drive_bridge.ident import logdata
 logdata.MIN_PARALLEL_BYTES = 0
 good, bad, blank = Path(sys.argv[1]), Path(sys.argv[2]), Path(sys.argv[3])
-out = {"processes": workers.processes(),
+out = {"processes": forking.processes(),
        "same": bool(np.array_equal(logdata._rows(good), logdata._parse_rows(good, None), equal_nan=True)),
        "same_blank": bool(np.array_equal(logdata._rows(blank), logdata._parse_rows(blank, None), equal_nan=True)),
        "rows_blank": len(logdata._rows(blank))}

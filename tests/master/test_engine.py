@@ -15,8 +15,9 @@ import pytest
 
 from drive_bridge.connect import open_link
 from drive_bridge.master.bringup import bring_up
-from drive_bridge.master.cia402 import state_name
-from drive_bridge.master.engine import (CONTROLWORD, STREAMING, SYNC_COB_ID, TABLE, Arrays, AxisJob,
+from drive_bridge.cia.p402 import state_name
+from drive_bridge.cia.p301 import SYNC_COB_ID
+from drive_bridge.master.engine import (CONTROLWORD, STREAMING, TABLE, Arrays, AxisJob,
                                         Engine, Job, RpdoJob, Supervision, TpdoJob)
 from drive_bridge.record import record
 from drive_bridge.sim.lockstep import LinkPort, LockstepLink

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from drive_bridge.master.bringup import bring_up
-from drive_bridge.master.cia402 import state_name
+from drive_bridge.cia.p402 import state_name
 from drive_bridge.master.stream import VelocityGuard
 from drive_bridge.sim import kernel as K
 from drive_bridge.tuning.motion import run

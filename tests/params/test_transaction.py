@@ -161,7 +161,7 @@ def test_a_failed_write_after_bring_up_leaves_the_stored_set_as_bring_up_found_i
 
     from drive_bridge.config import load_bus_config
     from drive_bridge.master.bringup import bring_up
-    from drive_bridge.master.settings import address, snapshot
+    from drive_bridge.cia.sdo import address, snapshot
     from ..support import BUS_CONFIG
     b = bench()
     axes = bring_up(b.link, load_bus_config(BUS_CONFIG).only(["x", "y"]))

@@ -12,7 +12,7 @@ import time
 import canopen
 import yaml
 
-from drive_bridge.master.cia402 import state_name
+from drive_bridge.cia.p402 import state_name
 from drive_bridge.master.buses import UDP_GROUP
 from drive_bridge.sim.adapters import LoopbackMulticastBus
 from drive_bridge.sim.process import free_port

@@ -74,7 +74,7 @@ def test_csp_enable_with_the_target_preloaded_does_not_move(bench):
 @pytest.mark.parametrize("option, state", [(3, "QUICK STOP ACTIVE"), (1, "FAULT"), (2, "SWITCH ON DISABLED"),
                                            (0, "OPERATION ENABLED")])
 def test_the_heartbeat_consumer_acts_when_the_master_falls_silent(bench, option, state):
-    from drive_bridge.master.cia402 import state_name
+    from drive_bridge.cia.p402 import state_name
     b = bench()
     node = b.nodes["x"]
     node.sdo[0x1016][1].raw = 127 << 16 | 300

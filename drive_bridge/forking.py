@@ -1,17 +1,15 @@
-"""Work on a large log shared out to processes, one per core: its axes identified side by side,
-its CSV parsed in parts.
+"""Work shared out to processes forked from this one, one per core: the axes of a large log
+identified side by side, its CSV parsed in parts, figures drawn side by side.
 
-Each axis's identification is independent of the others' and single-threaded Python and numpy,
-so the axes of a large log go to worker processes forked from this one: they find the log where
-it is (nothing is sent), and send back the result without the signals it was filtered from,
-which the caller's log gives again (:meth:`.signals.Parallel.__getstate__`).  Results are the
-same as one axis after the other: every random search takes its seed.
+Each part is independent of the others and single-threaded Python and numpy, so it goes to a
+worker process forked from this one: the worker finds what it works on where it is (nothing is
+sent but the function and the item), and results are the same as one part after the other.
 
 Each worker runs OpenBLAS with one thread: with its own two threads in each of two workers the
 run took three times as long.  Where that cannot be set (another BLAS library), where this
 process runs other threads (a fork copies only the calling one: a lock another thread holds
 would never be released in the child), in a daemon process (a pool's worker may not start
-processes) and for a small log, the work is done here, one part after the other.
+processes) and for a small job, the work is done here, one part after the other.
 """
 from __future__ import annotations
 
@@ -21,16 +19,10 @@ import os
 import threading
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-from ..errors import UserError
+from .errors import UserError
 
-if TYPE_CHECKING:
-    from .logdata import Log
-
-#: a log of fewer rows times axes is identified one axis after the other: starting the workers
-#: costs more than they save
-MIN_PARALLEL_SAMPLES = 500_000
 #: the functions that set OpenBLAS's thread count, as numpy's and scipy's wheels name them
 BLAS_THREADS = ("scipy_openblas_set_num_threads64_", "scipy_openblas_set_num_threads",
                 "openblas_set_num_threads64_", "openblas_set_num_threads")
@@ -50,15 +42,6 @@ def processes() -> int:
             or not _blas_setters()):
         return 1
     return cap
-
-
-def workers(log: Log, axes: list[str]) -> int:
-    """How many processes identify ``axes`` of ``log`` (1: here, one after the other): one per
-    axis up to :func:`processes`; for a small log only where ``DRIVE_BRIDGE_WORKERS`` asks."""
-    if len(axes) < 2 or (not os.environ.get("DRIVE_BRIDGE_WORKERS")
-                         and len(log.t) * len(axes) < MIN_PARALLEL_SAMPLES):
-        return 1
-    return min(len(axes), processes())
 
 
 def fork_map(func: Callable[[Any, Any], Any], items: Sequence[Any], count: int, shared: Any = None) -> list[Any]:

@@ -1,6 +1,9 @@
-"""A drive's settings as raw objects: written with the range its EDS/DCF gives, read as a
-snapshot, and put back -- the PDO communication and mapping objects through CiA 301's procedure
-(the PDO invalid while it changes, its mapping count 0 while its entries do).
+"""SDO on the protocol floor: a drive's objects read and written with canopen, each failure in
+the project's words (:class:`~drive_bridge.errors.BusError` where the drive does not answer,
+:class:`~drive_bridge.errors.DriveRefused` where it aborts a write); its settings as raw objects,
+written inside the range its EDS/DCF gives, read as a snapshot and put back -- the PDO
+communication and mapping objects through CiA 301's procedure (the PDO invalid while it changes,
+its mapping count 0 while its entries do).
 
 Bring-up keeps a snapshot of everything it overwrites, so that a store (0x1010:1 saves every
 parameter) that must be undone can put the drive's stored set back as it was before bring-up.
@@ -9,15 +12,46 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Iterable
+from typing import Any
 
 import canopen
+from canopen.sdo import SdoVariable
 
 from ..errors import BusError, DriveRefused
 from ..od import limits, variable
 from ..outputs import hex_object
-from ..params.read import read_if_readable
 
 log = logging.getLogger(__name__)
+
+SDO_ERRORS = (canopen.SdoAbortedError, canopen.SdoCommunicationError)
+
+
+def sdo_object(node: canopen.RemoteNode, index: int, sub: int) -> SdoVariable:
+    """The SDO accessor of object ``index``:``sub`` on ``node``."""
+    return SdoVariable(node.sdo, variable(node.object_dictionary, index, sub))
+
+
+def read_if_readable(node: canopen.RemoteNode, index: int, sub: int, what: str) -> Any:
+    """Object ``index``:``sub`` as the drive holds it; None where its EDS/DCF has no such object or
+    the drive refuses the read (an abort: the object is not there to read); BusError naming
+    ``what`` where the drive does not answer."""
+    if node.object_dictionary.get_variable(index, sub) is None:
+        return None
+    try:
+        return sdo_object(node, index, sub).raw
+    except canopen.SdoAbortedError:
+        return None
+    except canopen.SdoCommunicationError as exc:
+        raise BusError(f"node {node.id}: no SDO answer reading {what} (0x{index:04X}:{sub}) ({exc})") from exc
+
+
+def describe_sdo_error(exc: Exception) -> str:
+    """One phrase for an SDO failure: the abort code and its CiA 301 text, or the lost answer."""
+    if isinstance(exc, canopen.SdoAbortedError):
+        return f"SDO abort 0x{exc.code:08X}: {canopen.SdoAbortedError.CODES.get(exc.code, 'unknown abort code')}"
+    if isinstance(exc, canopen.SdoCommunicationError):
+        return f"no answer ({exc}): the node may have dropped off the bus"
+    return f"{type(exc).__name__}: {exc}"
 
 PDO_COMM = (0x1400, 0x1800)                 # RPDO / TPDO communication parameters; mapping at +0x200
 PDO_INVALID = 0x80000000
