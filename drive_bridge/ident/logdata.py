@@ -9,7 +9,8 @@ stands for its ``log.csv``.  Everything wrong with the file is a
 cannot be used (NaN runs, time gaps) split the log into segments and are
 reported in :attr:`AxisLog.dropped`.
 
-Time is what the stamps say.  A step longer than ``GAP_FACTOR`` sample periods
+Time is what the stamps say (in drive-bridge's own records, ``sync_time_s``: when each row's
+SYNC went out, a late one's included).  A step longer than ``GAP_FACTOR`` sample periods
 (the median step) is a gap; between gaps, stamps that are not evenly spaced
 (jitter beyond ``JITTER_TOLERANCE``) are resampled onto a uniform grid of the
 median period, position and torque through the same cubic spline, so that
@@ -57,6 +58,7 @@ class AxisLog:
     segments: list[tuple[int, int]]              # [start, stop) row ranges that are usable
     dropped: list[str] = field(default_factory=list)
     demand: np.ndarray | None = None             # the position demand, where the log has it
+    filled: np.ndarray | None = None             # True where a short run of missing samples was filled
 
 
 @dataclass
@@ -191,6 +193,12 @@ def read_log(path: str | Path) -> Log:
     if not np.all(np.isfinite(t)):
         bad = int(np.flatnonzero(~np.isfinite(t))[0])
         raise UserError(f"{path}: time_s is not a number at row {bad + 2}")
+    if "sync_time_s" in col:
+        # drive-bridge's own record: each row was sampled at its SYNC, and a late SYNC's row stands
+        # for a later instant than its period's: the SYNC's stamp is the row's time where it has one
+        stamped = np.where(np.isfinite(col["sync_time_s"]), col["sync_time_s"], t)
+        if np.all(np.diff(stamped) > 0):
+            t = stamped
     dt_all = np.diff(t)
     if np.any(dt_all <= 0):
         bad = int(np.flatnonzero(dt_all <= 0)[0])
@@ -223,6 +231,7 @@ def read_log(path: str | Path) -> Log:
         dropped = []
         finite = np.isfinite(q) & np.isfinite(tau)
         short = _short_holes(finite, gaps)
+        filled: np.ndarray | None = None
         if short:
             for values in (q, tau):
                 values[~finite] = CubicSpline(t[finite], values[finite])(t[~finite])
@@ -230,10 +239,12 @@ def read_log(path: str | Path) -> Log:
             for a, b in short:
                 holes[a:b] = True
             finite |= holes
+            filled = holes
             q[~finite] = tau[~finite] = np.nan
             dropped.append(f"filled, not dropped: {int(holes.sum())} samples missing in {len(short)} run(s) of at "
                            f"most {MAX_FILLED} (a late master's skipped periods, say), by a cubic spline through "
-                           f"their neighbours: {_describe(short, t)}")
+                           f"their neighbours for the filters; the samples within one cut-off period of them are "
+                           f"not fitted: {_describe(short, t)}")
         nan_runs = _runs(~finite)
         if nan_runs:
             dropped.append(f"{int((~finite).sum())} samples without a value in {len(nan_runs)} run(s): "
@@ -257,7 +268,8 @@ def read_log(path: str | Path) -> Log:
                             f"logged; check the TPDO mapping of the torque object")
         demand = col.get(f"{axis}_position_demand_{unit}")
         axes[axis] = AxisLog(axis, kind, units, q, tau, segments, dropped,
-                             None if demand is None or not np.isfinite(demand).any() else demand.copy())
+                             None if demand is None or not np.isfinite(demand).any() else demand.copy(),
+                             filled)
     if not axes:
         raise UserError(f"{path}: no axis found: expected <axis>_position_rad with <axis>_torque_Nm, or "
                         f"<axis>_position_m with <axis>_force_N")

@@ -305,8 +305,10 @@ def _delayed_steps(x: np.ndarray, samples: float) -> np.ndarray:
 def count_step(q: np.ndarray) -> float | None:
     """The count of the logged position ``q`` where it is an encoder's (or a drive's position
     unit): on a grid of counts (as written, to 0.1 count), not noisy or interpolated; else None."""
-    moved = np.abs(np.diff(q[np.isfinite(q)]))
-    moved = moved[moved != 0]
+    finite = q[np.isfinite(q)]
+    moved = np.abs(np.diff(finite))
+    # (a step below the float's resolution at the position is rounding, not a count)
+    moved = moved[moved > 16 * np.finfo(float).eps * max(1.0, float(np.max(np.abs(finite), initial=0.0)))]
     if len(q) < 5 or not len(moved):
         return None
     step = float(np.mean(moved[moved < 1.5 * moved.min()]))             # one count: the smallest step
@@ -491,11 +493,13 @@ def _longest_run(flags: np.ndarray) -> int:
 def prepare(log: Log, axis: str, settings: Settings) -> Samples:
     """Filtered, differentiated, decimated samples of ``axis`` (all segments), from the same
     full-rate signals the regressor columns are made of (:class:`Parallel`); samples within one
-    cut-off period of a clipped torque (:func:`clipped_levels`) are not fitted."""
+    cut-off period of a clipped torque (:func:`clipped_levels`) or of a filled sample
+    (:attr:`.logdata.AxisLog.filled`: what the axis did there is not known) are not fitted."""
     r, edge = settings.decimation, settings.edge
     source = Parallel(log, axis, settings)
     sos = source.sos
     levels = clipped_levels(log.axes[axis].tau)
+    filled = log.axes[axis].filled
     spread = np.ones(2 * int(settings.rate_hz / settings.cutoff_hz) + 1)
     parts: dict[str, list[np.ndarray]] = {k: [] for k in ("t", "q", "qd", "qdd", "sgn", "tau_f", "tau", "settled",
                                                           "clean")}
@@ -508,7 +512,11 @@ def prepare(log: Log, axis: str, settings: Settings) -> Samples:
         for k, x in channels.items():
             parts[k].append(_decimate(x[keep], settings))
         parts["settled"].append(_settled(ch.qd, settings)[keep][::r])
-        clipped = np.convolve(np.isin(ch.tau, levels), spread, "same") > 0
+        unknown = np.isin(ch.tau, levels)
+        if filled is not None:
+            start = int(np.searchsorted(log.t, ch.t[0]))
+            unknown |= filled[start:start + len(ch.t)]
+        clipped = np.convolve(unknown, spread, "same") > 0
         parts["clean"].append(~(np.convolve(clipped, np.ones(r), "same") > 0)[keep][::r])
         parts["t"].append(ch.t[keep][::r])
         parts["tau"].append(_interval_mean(ch.tau, r)[keep][::r])

@@ -334,11 +334,20 @@ class SimRobot:
             self._period_starts()
             return
         nearest = round((stamp - self._t0 - self.time) / K.VELOCITY_TICK_S)   # the tick it falls on
-        if not early:                   # a late SYNC's period began at the boundary passed: not the next
-            nearest = min(nearest, self.ticks_per_period - 1 - self._phase)
-        self._run_ticks(nearest)
-        for drive in self.drives.values():
-            drive.sample_sync()
+        to_boundary = self.ticks_per_period - self._phase
+        if early and nearest >= to_boundary:
+            # on the boundary's tick: sampled before its period starts, as a SYNC is in lockstep
+            self.advance(to_boundary)
+            self._bus_time = max(self._bus_time, self._t0 + self.time)
+            for drive in self.drives.values():
+                drive.sample_sync()
+            self._phase, self._boundary = 0, self._boundary + 1
+            self._period_starts()
+            self._run_ticks(nearest - to_boundary)
+        else:                           # (a late SYNC's period began at the boundary passed: not the next)
+            self._run_ticks(nearest if early else min(nearest, to_boundary - 1))
+            for drive in self.drives.values():
+                drive.sample_sync()
         error = since - period if early else since      # [s] against its own boundary
         if abs(error) < SYNC_LOCK_RANGE * period:
             self._t0 += SYNC_LOCK_GAIN * error

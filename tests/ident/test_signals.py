@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from drive_bridge.ident.signals import _delayed, derivative, direction, standing
+from drive_bridge.ident.signals import _delayed, count_step, derivative, direction, standing
 
 
 @pytest.mark.parametrize("share", [0.02, 0.1, 0.2])
@@ -68,3 +68,11 @@ def test_derivative_passes_nothing_above_0_3_of_the_rate():
     for share in (0.3, 0.4, 0.49):
         w = 2 * np.pi * share / dt
         assert np.max(np.abs(derivative(np.sin(w * t), dt)[30:-30])) < 1e-3 * w
+
+
+def test_steps_below_the_floats_resolution_are_not_counts():
+    """A position resampled through a spline where the axis stands at 0 moves by denormal steps
+    (5e-324): no encoder count, and no quantisation noise to divide by (identify crashed with a
+    ZeroDivisionError on such a log: a wall-clock record taken on its SYNC stamps)."""
+    assert count_step(np.arange(1000) * 5e-324) is None
+    assert count_step(np.round(np.cumsum(np.ones(1000)) * 0.25, 2)) == pytest.approx(0.25)
