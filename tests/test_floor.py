@@ -20,8 +20,8 @@ def imports(path: Path) -> set[str]:
         if isinstance(node, ast.Import):
             found |= {alias.name.split(".")[0] for alias in node.names}
         elif isinstance(node, ast.ImportFrom):
-            found.add("." * node.level + (node.module or "").split(".")[0] if node.level == 0 else
-                      "." * node.level + (node.module or ""))
+            module = node.module or ""
+            found.add("." * node.level + module if node.level else module.split(".")[0])
     return found
 
 

@@ -4,8 +4,9 @@ starts it, beside the machine's own floor measured in the same run.
     python tools/bench_realtime.py [--campaign short|paper] [--runs 3] [--load idle|loaded|both]
                                    [--floor-seconds 30] [--against REV]
 
-The floor: a plain Python loop at SCHED_FIFO on the same 2 ms absolute schedule (as cyclictest
-measures: sleep to the next deadline, note how late it woke), in a process of its own, for
+The floor: a plain Python loop pinned to each CPU at SCHED_FIFO on the same 2 ms absolute
+schedule (as cyclictest measures: sleep to the next deadline, note how late it woke), each in a
+process of its own, for
 ``--floor-seconds`` right before the runs of each condition, and again *during* each run.  Per
 run: its verdict, the campaign's late cycles, SYNC period p99 and max, the largest SYNC gap in
 periods, the age of the feedback when the engine had it (p99, max), the samples missing, whether
@@ -42,33 +43,14 @@ from tools.reference import stamp, worktree              # noqa: E402
 
 PERIOD_S = 0.002
 
-FLOOR = """import json, os, sys, time
-seconds, period = float(sys.argv[1]), float(sys.argv[2])
+FLOOR = """import json, os, signal, sys, time
+period = float(sys.argv[1])
+os.sched_setaffinity(0, {int(sys.argv[2])})
 try:
     os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(50))
     granted = "SCHED_FIFO 50"
 except OSError as exc:
     granted = f"normal ({exc.strerror})"
-n = int(seconds / period)
-late = [0.0] * n
-t0 = time.monotonic() + period
-for k in range(n):
-    deadline = t0 + k * period
-    left = deadline - time.monotonic()
-    if left > 0:
-        time.sleep(left)            # clock_nanosleep on CLOCK_MONOTONIC
-    late[k] = time.monotonic() - deadline
-print(json.dumps({"granted": granted, "late": late}))
-"""
-
-
-RUN_FLOOR = """import json, os, signal, sys, time
-period = float(sys.argv[1])
-os.sched_setaffinity(0, {int(sys.argv[2])})
-try:
-    os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(50))
-except OSError:
-    pass
 stop = []
 signal.signal(signal.SIGTERM, lambda *_: stop.append(1))
 offset = time.time() - time.monotonic()
@@ -87,7 +69,7 @@ while not stop:
     if woke > period / 2:
         held.append((deadline + offset, woke))
     k += 1
-print(json.dumps({"late": late, "held": held}))
+print(json.dumps({"granted": granted, "late": late, "held": held}))
 """
 
 
@@ -95,7 +77,7 @@ print(json.dumps({"late": late, "held": held}))
 def floor_during() -> Iterator[dict]:
     """The floor measured while the block runs, one plain loop pinned to each CPU (a stall of one
     virtual CPU shows in its own): the wake-ups [ms] and when a loop was held up."""
-    procs = [subprocess.Popen([sys.executable, "-c", RUN_FLOOR, str(PERIOD_S), str(cpu)], stdout=subprocess.PIPE,
+    procs = [subprocess.Popen([sys.executable, "-c", FLOOR, str(PERIOD_S), str(cpu)], stdout=subprocess.PIPE,
                               text=True) for cpu in sorted(os.sched_getaffinity(0))]
     for proc in procs:
         assert proc.stdout is not None
@@ -108,7 +90,9 @@ def floor_during() -> Iterator[dict]:
             proc.terminate()
         data = [json.loads(proc.communicate()[0]) for proc in procs]
         late = np.concatenate([d["late"] for d in data]) * 1e3
-        result.update(max=float(late.max()), over_3ms_pct=float(np.mean(late > 3.0) * 100),
+        result.update(granted=data[0]["granted"], p99=float(np.percentile(late, 99)),
+                      p999=float(np.percentile(late, 99.9)), max=float(late.max()),
+                      over_3ms_pct=float(np.mean(late > 3.0) * 100),
                       held=[[(t, w * 1e3) for t, w in d["held"]] for d in data])
 
 
@@ -133,14 +117,11 @@ def against_floor(trace: Path, held: list[list[tuple[float, float]]]) -> dict:
 
 
 def floor(seconds: float) -> dict:
-    """The machine's own floor: how late a plain SCHED_FIFO loop wakes on a 2 ms schedule [ms]."""
-    out = subprocess.run([sys.executable, "-c", FLOOR, str(seconds), str(PERIOD_S)], capture_output=True,
-                         text=True, check=True).stdout
-    result = json.loads(out)
-    late = np.array(result["late"]) * 1e3
-    return {"granted": result["granted"], "p99": float(np.percentile(late, 99)),
-            "p999": float(np.percentile(late, 99.9)), "max": float(late.max()),
-            "over_3ms_pct": float(np.mean(late > 3.0) * 100)}
+    """The machine's own floor: how late the plain loops wake on a 2 ms schedule [ms], for
+    ``seconds`` with nothing of ours running."""
+    with floor_during() as result:
+        time.sleep(seconds)
+    return result
 
 
 @contextlib.contextmanager

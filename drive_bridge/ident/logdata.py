@@ -233,15 +233,13 @@ def read_log(path: str | Path) -> Log:
         short = _short_holes(finite, gaps)
         filled: np.ndarray | None = None
         if short:
-            for values in (q, tau):
-                values[~finite] = CubicSpline(t[finite], values[finite])(t[~finite])
-            holes = np.zeros(len(q), dtype=bool)
+            filled = np.zeros(len(q), dtype=bool)
             for a, b in short:
-                holes[a:b] = True
-            finite |= holes
-            filled = holes
-            q[~finite] = tau[~finite] = np.nan
-            dropped.append(f"filled, not dropped: {int(holes.sum())} samples missing in {len(short)} run(s) of at "
+                filled[a:b] = True
+            for values in (q, tau):
+                values[filled] = CubicSpline(t[finite], values[finite])(t[filled])
+            finite |= filled
+            dropped.append(f"filled, not dropped: {int(filled.sum())} samples missing in {len(short)} run(s) of at "
                            f"most {MAX_FILLED} (a late master's skipped periods, say), by a cubic spline through "
                            f"their neighbours for the filters; the samples within one cut-off period of them are "
                            f"not fitted: {_describe(short, t)}")

@@ -305,10 +305,23 @@ class SimRobot:
             n_ticks -= step
             self._phase += step
             if self._phase == self.ticks_per_period:
-                self._phase = 0
-                self._boundary += 1
-                self._period_starts()
+                self._next_boundary()
         self._bus_time = max(self._bus_time, self._t0 + self.time)
+
+    def _next_boundary(self) -> None:
+        """The grid's next period boundary is here: its period starts."""
+        self._phase, self._boundary = 0, self._boundary + 1
+        self._period_starts()
+
+    def _arm(self) -> None:
+        """The RPDOs received since the last SYNC are the next period's."""
+        for drive, armed in zip(self.drives.values(), self._armed):
+            armed.extend(drive.pending_rpdo)
+            drive.pending_rpdo.clear()
+
+    def _sample(self) -> None:
+        for drive in self.drives.values():
+            drive.sample_sync()
 
     def _sync_received(self, stamp: float) -> None:
         """A SYNC received at ``stamp`` [s, wall clock]: its period's RPDOs armed, the actual values
@@ -319,19 +332,15 @@ class SimRobot:
         period = self.ticks_per_period * K.VELOCITY_TICK_S
         since = stamp - (self._t0 + self.time) + self._phase * K.VELOCITY_TICK_S   # since the last boundary
         if relock:                                      # the first SYNC after a pause sets the grid
-            self._t0, self._phase, since = stamp - self.time, 0, 0.0
+            self._t0 = stamp - self.time
         # a master's SYNC is late, never early, but for jitter: the SYNC of the boundary passed last
         # unless that one had its SYNC already
         early = self._sync_tag == self._boundary and not relock
         self._sync_tag = self._boundary + 1 if early or relock else self._boundary
-        for drive, armed in zip(self.drives.values(), self._armed):
-            armed.extend(drive.pending_rpdo)
-            drive.pending_rpdo.clear()
+        self._arm()
         if relock:
-            for drive in self.drives.values():
-                drive.sample_sync()
-            self._boundary += 1
-            self._period_starts()
+            self._sample()
+            self._next_boundary()
             return
         nearest = round((stamp - self._t0 - self.time) / K.VELOCITY_TICK_S)   # the tick it falls on
         to_boundary = self.ticks_per_period - self._phase
@@ -339,15 +348,12 @@ class SimRobot:
             # on the boundary's tick: sampled before its period starts, as a SYNC is in lockstep
             self.advance(to_boundary)
             self._bus_time = max(self._bus_time, self._t0 + self.time)
-            for drive in self.drives.values():
-                drive.sample_sync()
-            self._phase, self._boundary = 0, self._boundary + 1
-            self._period_starts()
+            self._sample()
+            self._next_boundary()
             self._run_ticks(nearest - to_boundary)
         else:                           # (a late SYNC's period began at the boundary passed: not the next)
             self._run_ticks(nearest if early else min(nearest, to_boundary - 1))
-            for drive in self.drives.values():
-                drive.sample_sync()
+            self._sample()
         error = since - period if early else since      # [s] against its own boundary
         if abs(error) < SYNC_LOCK_RANGE * period:
             self._t0 += SYNC_LOCK_GAIN * error
@@ -358,9 +364,7 @@ class SimRobot:
         the master starts a period without a new setpoint (:func:`.cyclic.follow_period`: a substitute
         at the last velocity until its setpoint timeout), the others hold."""
         if self._sync_tag == self._boundary - 1:        # the SYNC late or skipped: its RPDOs are due
-            for drive, armed in zip(self.drives.values(), self._armed):
-                armed.extend(drive.pending_rpdo)
-                drive.pending_rpdo.clear()
+            self._arm()
         elif self._sync_tag != self._boundary:
             for drive in self.drives.values():
                 if drive.online and drive.following:

@@ -70,3 +70,29 @@ def test_a_skipped_period_is_bridged_at_the_last_velocity(bench):
     # the axis went on at its speed through the gap: off the on-time motion by far less than the
     # distance it covers in the gap (a drive that held would fall behind by about all of it)
     assert np.max(np.abs(bridged - on_time[kept])) < 0.1 * speed * len(skipped) * PERIOD
+
+
+def test_a_master_gone_at_speed_is_bridged_only_until_the_setpoint_timeout(bench):
+    """The substitute setpoint is no licence to run on: a drive whose stream stops at speed goes on
+    at its last velocity for the setpoint timeout, then stops itself with EMCY 0x8250."""
+    move = smooth_move(20.0, 0.6, hold=0.05)
+    cut = 150                                                # the stream ends here, mid-move
+    b = bench()
+    node = started(b)
+    robot = b.robot
+    p0 = node.sdo[0x6064].raw
+    sent: list[tuple[int, bytes]] = []
+    robot.send = lambda cob_id, data: sent.append((cob_id, data))
+    robot.clock_from(START)
+    for k, target in enumerate(move[:cut]):
+        stamp = START + k * PERIOD
+        robot.take(frame(0x080, stamp))
+        robot.take(frame(0x200 + node.id, stamp + RPDO_AFTER_SYNC,
+                         struct.pack("<Hi", 0x0F, p0 + round(target * INC_PER_RAD))))
+    gone = START + cut * PERIOD
+    robot.run_until(gone + (SETPOINT_TIMEOUT_PERIODS - 2) * PERIOD)
+    assert not any(cob_id == 0x080 + node.id for cob_id, _ in sent)         # bridged: no EMCY yet
+    robot.run_until(gone + (SETPOINT_TIMEOUT_PERIODS + 2) * PERIOD)
+    emcy = [struct.unpack_from("<H", data)[0] for cob_id, data in sent if cob_id == 0x080 + node.id]
+    assert 0x8250 in emcy
+    assert robot.drives["x"].statusword & 0x6F != 0x27                       # no longer OPERATION ENABLED
