@@ -16,7 +16,6 @@ import canopen
 from canopen.objectdictionary import datatypes
 
 from .errors import ConfigError
-from .master.timing import TimingLimits
 from .od import default, load_od
 from .resources import vendor_dir
 from .setpoint import SETPOINT_OBJECTS
@@ -51,6 +50,15 @@ LELY_MASTER_KEYS = {"vendor_id", "product_code", "revision_number", "serial_numb
 # ros2_canopen CiA 402 mapping has them) and logs from a TPDO (0x6061: the mode the drive runs)
 RPDO_OBJECTS = {0x6040, 0x607A, 0x60C1, 0x20C1, 0x60B1, 0x60B2, 0x6060, 0x60FF, 0x6071}
 TPDO_OBJECTS = {0x6064, 0x606C, 0x6077, 0x6041, 0x60F4, 0x6078, 0x6061, 0x20C4}
+
+
+@dataclass(frozen=True)
+class TimingLimits:
+    """Limits of a wall-clock run (bus.yml ``master.timing``)."""
+
+    max_late_pct: float = 1.0       # late cycles [% of all]
+    max_gap_periods: float = 5.0    # largest SYNC gap [periods]
+    max_missing_pct: float = 0.5    # samples missing, any axis [% of rows]
 
 
 @dataclass(frozen=True)
@@ -207,7 +215,7 @@ DESIGNS = ("paper", "short")
 @dataclass(frozen=True)
 class Acceptance:
     """What the commissioning's verdict checks (bus.yml ``acceptance``; see
-    :mod:`drive_bridge.commission.verdict`): loop margins [°, dB], the following-error
+    :mod:`drive_bridge.commissioning.verdict`): loop margins [°, dB], the following-error
     improvement over the factory set, the model's RMSE over the noise floor, the relative std
     of J, c0, c1, and consistency."""
 

@@ -8,7 +8,7 @@ from contextlib import contextmanager
 
 from .config import BusConfig
 from .errors import UserError
-from .master.buses import BusSpec
+from .cia.buses import BusSpec
 from .master.link import BusLink, Link
 
 log = logging.getLogger(__name__)

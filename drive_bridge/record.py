@@ -7,7 +7,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
-from . import __version__
+from .version import __version__
 from .config import BusConfig
 from .errors import MotionAborted
 from .logs import LOG_NAME, META_NAME, TRACE_NAME, layout_meta, meta_text, write_csv, write_meta

@@ -59,25 +59,6 @@ def shipped_sim_config():
 
 #: what a skip for missing shared data says (every such skip's reason names the folder)
 SHARED = "../shared"
-#: tests that take more than a few seconds: left out by ``pytest -m "not slow"`` (CI runs everything)
-SLOW_MODULES = ("commission/", "master/test_campaign.py", "master/test_durand.py", "master/test_link.py",
-                "master/test_safety.py", "ident/test_realdata.py", "ident/test_identify.py", "ident/test_honest.py",
-                "test_record.py", "test_fuzz.py", "sim/test_standalone.py", "cli/test_safety.py",
-                "tuning/test_frf.py", "tuning/test_validate.py", "tuning/test_experiment.py", "test_docs.py",
-                "params/test_write.py", "params/test_transaction.py", "sim/test_vendor_drive.py", "cli/test_json.py",
-                "test_ros2.py", "sim/test_strict.py", "history/test_fleet.py", "history/test_outage.py")
-#: tests that run on the wall clock (their timing is the machine's), and that drive third-party tools
-REALTIME_MODULES = ("test_record.py", "sim/test_standalone.py", "master/test_link.py")
-THIRD_PARTY_MODULES = ("master/test_durand.py", "test_eds.py", "test_ros2.py")
-
-
-def pytest_collection_modifyitems(config, items):
-    for item in items:
-        path = item.nodeid.split("::")[0].removeprefix("tests/")
-        for marker, modules in (("slow", SLOW_MODULES), ("realtime", REALTIME_MODULES),
-                                ("third_party", THIRD_PARTY_MODULES)):
-            if any(path == m or (m.endswith("/") and path.startswith(m)) for m in modules):
-                item.add_marker(getattr(pytest.mark, marker))
 
 
 def _shared_skips(reporter) -> list:

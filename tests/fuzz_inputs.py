@@ -27,7 +27,7 @@ from drive_bridge.params.profile import PROFILE_DIR, load_profile
 from drive_bridge.resources import DEFAULT_BUS_CONFIG, PROJECT_EDS
 from drive_bridge.sim.config import DEFAULT_CONFIG as SIM_CONFIG
 from drive_bridge.sim.config import load_sim_config
-from drive_bridge.tuning.tune import read_identify_json, read_tune_json, tune_axes
+from drive_bridge.tuning.tune import read_identify_json, read_tune_json, tune
 
 #: values nobody should write in a configuration, and some that look almost right
 HOSTILE = st.one_of(
@@ -212,7 +212,7 @@ def _csv(text, tmp: Path):
 
 def _identify_json(text, tmp: Path):
     models = read_identify_json(_write(tmp, "identify.json", text))
-    return tune_axes(models, {a: {"motor": {"R": 0.8, "L": 0.002}, "parameters_before": {}} for a in models})
+    return tune(models, {a: {"motor": {"R": 0.8, "L": 0.002}, "parameters_before": {}} for a in models})
 
 
 def _tune_json(text, tmp: Path):

@@ -10,6 +10,8 @@ import pytest
 from drive_bridge.cli import build_parser
 from drive_bridge.errors import EXIT_TABLE
 
+pytestmark = pytest.mark.slow
+
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
 EXAMPLES = sorted(p for p in DOCS.rglob("*.md") if "```python" in p.read_text(encoding="utf-8"))

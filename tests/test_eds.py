@@ -12,6 +12,8 @@ from drive_bridge.od import float_bits, float_from_bits, load_od
 
 from .support import EDS, VENDOR_EDS, tool
 
+pytestmark = pytest.mark.third_party
+
 DCFCHK = tool("dcfchk")
 
 

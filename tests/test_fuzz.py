@@ -12,6 +12,8 @@ from drive_bridge.errors import DriveBridgeError
 
 from .fuzz_inputs import kinds, record_trace
 
+pytestmark = pytest.mark.slow
+
 
 @pytest.fixture(scope="module")
 def trace(tmp_path_factory):

@@ -15,6 +15,8 @@ from drive_bridge.record import record
 from .master.test_stream import run_record
 from .support import Bench, bus_yml_beside, clean_config, decodes_to_the_log, quick_config, read_csv, tool
 
+pytestmark = [pytest.mark.slow, pytest.mark.realtime]
+
 
 SIM_CLEAN = """
 seed: 3
@@ -27,7 +29,7 @@ axes:
 
 def test_profile_outside_the_stroke_is_refused_before_motion(tmp_path):
     bench = Bench(clean_config())
-    bench.robot.state[0, 0] = 30.0                        # X stands beyond its stroke (13.1 rad)
+    bench.robot.plant.state[0, 0] = 30.0                        # X stands beyond its stroke (13.1 rad)
     try:
         with pytest.raises(Exception, match="outside the stroke"):
             record(quick_config().only(["x"]), bench.link, tmp_path)

@@ -12,6 +12,8 @@ from drive_bridge.resources import DEFAULT_BUS_CONFIG, data
 
 from .support import EDS, tool
 
+pytestmark = [pytest.mark.slow, pytest.mark.third_party]
+
 ROS2 = data("config", "ros2_canopen.yml")
 
 

@@ -29,17 +29,17 @@ PERIOD = 0.002
 
 def kernel(seconds: float = 60.0) -> float:
     robot = SimRobot(load_sim_config(DEFAULT_CONFIG), "bench-kernel")
-    robot.state[:, K.ENABLED] = 1.0
+    robot.plant.state[:, K.ENABLED] = 1.0
     n = round(seconds / PERIOD)
     demand = np.sin(np.arange(n) * PERIOD * 2 * np.pi) * 5.0
     tick0 = np.zeros(3, dtype=np.int64)
-    K.advance(robot.state, robot.param, robot.demand, tick0, 1, 4)
+    K.advance(robot.plant.state, robot.plant.param, robot.plant.demand, tick0, 1, 4)
     t0 = time.perf_counter()
     for k in range(1, n):
-        robot.demand[:, K.P0] = demand[k - 1]
-        robot.demand[:, K.P1] = demand[k]
+        robot.plant.demand[:, K.P0] = demand[k - 1]
+        robot.plant.demand[:, K.P1] = demand[k]
         tick0[:] = 0
-        K.advance(robot.state, robot.param, robot.demand, tick0, 4, 4)
+        K.advance(robot.plant.state, robot.plant.param, robot.plant.demand, tick0, 4, 4)
     wall = time.perf_counter() - t0
     robot.shutdown()
     return seconds / wall

@@ -13,7 +13,8 @@ import os
 import sys
 import warnings
 
-from .. import __version__, signals
+from .. import signals
+from ..version import __version__
 from ..errors import EXIT_CODES, DriveBridgeError, MotionAborted, exit_code, exit_codes_text
 from . import bus, commission, history, identification, tuning
 

@@ -170,7 +170,7 @@ def cmd_record(args: argparse.Namespace) -> int:
 
 
 def cmd_sim(args: argparse.Namespace) -> int:
-    from ..master.buses import open_bus
+    from ..cia.buses import open_bus
     from ..sim.config import DEFAULT_CONFIG
     from ..sim.process import serve
     config = load_bus_config(args.config)

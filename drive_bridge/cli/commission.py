@@ -13,7 +13,7 @@ if TYPE_CHECKING:
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    from ..commission import STEPS
+    from ..commissioning import STEPS
     p = sub.add_parser("commission", help="the whole job: scan, bring-up, campaign, identify, measure, tune, write, "
                                           "validate",
                        description="Every step in one run directory (--out), resumable after the last completed "
@@ -36,7 +36,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 
 
 def cmd_commission(args: argparse.Namespace) -> int:
-    from ..commission import commission
+    from ..commissioning import commission
     options.out_dir(args.out)
     config = options.config(args)
     steps = options.axes_list(args.steps)

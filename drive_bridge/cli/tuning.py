@@ -19,7 +19,7 @@ from ..params.read import drive_state
 from ..params.write import bind_axes, raise_for_failure, write_drives
 from ..session import Session
 from ..tuning.tune import (GAINS, drive_model, read_frf_json, read_identify_json, read_resonances, read_tune_json,
-                           tune_axes, tune_doc, unwritable_effects)
+                           tune, tune_doc, unwritable_effects)
 from . import options
 
 if TYPE_CHECKING:
@@ -117,7 +117,7 @@ def cmd_tune(args: argparse.Namespace) -> int:
         if args.experiment or args.sim:
             raise UserError("--offline designs without a bus: it does not go with --experiment or --sim")
         profile = load_profile(options.session_options(args).profile or DEFAULT_PROFILE)
-        results = tune_axes(models, _motor_given(args, list(models)), frfs, profile.controller,
+        results = tune(models, _motor_given(args, list(models)), frfs, profile.controller,
                             read_resonances(args.ident), profile.drive)
     else:
         config = options.config(args)
@@ -131,7 +131,7 @@ def cmd_tune(args: argparse.Namespace) -> int:
                 return dry_run_end(text)
             options.confirm_motion(args, config, "tune --experiment", lambda: text)
         with Session(config, options.session_options(args)) as session:
-            results = tune_axes(models, drive_state(session.axes, session.profile, session.options.motor), frfs,
+            results = tune(models, drive_state(session.axes, session.profile, session.options.motor), frfs,
                                 session.profile.controller, read_resonances(args.ident), session.profile.drive)
             if args.experiment:
                 for a, t in results.items():
@@ -192,7 +192,7 @@ def _experiment_preview(args: argparse.Namespace, config: BusConfig, models: dic
             config, {a: ax}, {a: demand_of(ax.cfg.limits, config.master.sync_period_s)[0]}, {a: ax.start_rad()},
             kind="experiment")[0]) for a, ax in axes.items()]
     with Session(config, options.session_options(args)) as session:
-        planned = tune_axes(models, drive_state(plan_bring_up(session.link, config), session.profile,
+        planned = tune(models, drive_state(plan_bring_up(session.link, config), session.profile,
                                                 session.options.motor), controller=session.profile.controller)
         for a, t in planned.items():
             profile = session.profile.bind(config.torque_constants[a], a)

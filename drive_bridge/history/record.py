@@ -1,6 +1,6 @@
 """The record of one run as the history keeps it: a JSON document built from what the run left
 (a write's outcome, an identification's results; a commissioning's from its run directory,
-:func:`drive_bridge.commission.summary.history_record`), with the run id that makes keeping it
+:func:`drive_bridge.commissioning.summary.history_record`), with the run id that makes keeping it
 idempotent.
 
 Parameters are SI, motor side, each with its std and whether the data determined it; drive
@@ -15,7 +15,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
-from .. import __version__
+from ..version import __version__
 from ..outputs import hex32
 
 SCHEMA = "drive-bridge/history-record"

@@ -7,7 +7,7 @@ no sticking) while the master adds a periodic torque offset to the drive's torqu
 the offset ``u`` reaches the measured velocity through ``T = G / (1 + K·G)``, where ``G`` is the
 plant from torque command to velocity (current loop, mechanics: a compliant transmission's
 resonance included) and ``K`` the drive's own controller as seen at the torque command (its
-velocity PI, the position P around it, the loop's delay: :func:`drive_bridge.tuning.design.controller`).
+velocity PI, the position P around it, the loop's delay: :func:`drive_bridge.params.cascade.controller`).
 ``T`` is read per excited bin from the SYNC samples of the position (its DFT times jω, the
 constant sweep removed), averaged over the periods after the first (the loops' settling), and
 divided by the zero-order hold the offset is applied through; then ``G = T / (1 − K·T)``.

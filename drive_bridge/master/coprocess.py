@@ -39,7 +39,7 @@ from typing import cast
 
 import numpy as np
 
-from .buses import BusSpec
+from ..cia.buses import BusSpec
 from ..signals import HANDLED
 from .engine import STOP_REQUEST, Arrays, Engine, Job, Outcome, stop_code
 from .port import BusPort, TraceRing

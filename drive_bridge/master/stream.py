@@ -39,7 +39,8 @@ from .campaign import Plan
 from .engine import (AGE_BIN_S, CONSTANT, CONTROLWORD, TABLE, TORQUE_OFFSET, Arrays, AxisJob, Job,
                      Outcome, RpdoJob, Supervision, TpdoJob)
 from .link import Link
-from .timing import Timing, TimingLimits, measure
+from ..config import TimingLimits
+from .timing import Timing, measure
 
 log = logging.getLogger(__name__)
 

@@ -14,6 +14,8 @@ from typing import Protocol
 
 import numpy as np
 
+from ..config import TimingLimits
+
 LATE_FACTOR = 1.5
 RT_PRIORITY = 50                    # SCHED_FIFO priority asked for (1..99); below kernel threads
 MCL_CURRENT, MCL_FUTURE = 1, 2
@@ -28,15 +30,6 @@ class Clock(Protocol):
 
     def wait_until(self, deadline: float) -> None:
         """Return when ``now() >= deadline``, yielding the CPU meanwhile."""
-
-
-@dataclass(frozen=True)
-class TimingLimits:
-    """Limits of a wall-clock run (bus.yml ``master.timing``)."""
-
-    max_late_pct: float = 1.0       # late cycles [% of all]
-    max_gap_periods: float = 5.0    # largest SYNC gap [periods]
-    max_missing_pct: float = 0.5    # samples missing, any axis [% of rows]
 
 
 @dataclass

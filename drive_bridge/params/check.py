@@ -20,7 +20,7 @@ from canopen.objectdictionary import datatypes
 
 from ..errors import UserError
 from ..od import variable
-from ..tuning.design import loop_margins, measured_margins
+from .cascade import loop_margins, measured_margins
 from .profile import Entry, Profile
 
 if TYPE_CHECKING:

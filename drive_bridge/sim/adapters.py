@@ -1,5 +1,6 @@
-"""The simulator's reliance on internals of python-can and canopen (the master's one such place is
-its BLF trace writer, :mod:`drive_bridge.master.blf`, pinned by ``tests/master/test_blf.py``).
+"""The simulator's reliance on internals of python-can and canopen (the master's are its BLF trace
+writer, :mod:`drive_bridge.master.blf`, pinned by ``tests/master/test_blf.py``, and the echo-free
+multicast bus, :mod:`drive_bridge.cia.multicast`).
 
 Each behaviour relied on is pinned by ``tests/sim/test_adapters.py``, and
 pyproject.toml bounds both libraries above by the versions that test passed on.
@@ -19,10 +20,6 @@ sending it.  Relies on: ``VirtualBus.channel`` (the receivers' queues of the
 channel), ``.queue`` (its own, a ``queue.Queue``), ``.channel_id``,
 ``._check_if_open()``.
 
-:class:`LoopbackMulticastBus` -- python-can's ``udp_multicast`` bus for the
-wall-clock simulator's process.  Relies on ``UdpMulticastBus._multicast.recv``
-(and its ``_socket``) and ``can.interfaces.udp_multicast.utils.unpack_message``.
-
 :func:`local_node` -- canopen's ``LocalNode`` (the SDO server and object
 store of a simulated drive) without canopen's heartbeat timer, attached to a
 drive's own way of sending.  Relies on ``LocalNode.__init__`` registering
@@ -31,15 +28,11 @@ what the SDO server sends its replies through.
 """
 from __future__ import annotations
 
-import socket
 import time
 from collections.abc import Callable, Iterator
-from typing import Any
 
 import can
 import canopen
-from can.interfaces.udp_multicast import UdpMulticastBus
-from can.interfaces.udp_multicast.utils import unpack_message
 from can.interfaces.virtual import VirtualBus
 
 
@@ -69,58 +62,6 @@ class FastVirtualBus(VirtualBus):
         popleft = pending.popleft
         while pending:
             yield popleft()
-
-
-class LoopbackMulticastBus(UdpMulticastBus):
-    """udp_multicast bus that drops the echo of its own frames, with the time stamp chosen.
-
-    Multicast loops every datagram back to its sender.  In CANopen each COB-ID
-    has exactly one producer, so a frame whose COB-ID this bus has sent itself
-    is its own echo.
-
-    ``stamps``: ``"kernel"`` -- when the frame reached this socket (SO_TIMESTAMPNS), as a CAN
-    controller stamps what it receives; what a simulated drive judges the master's frames by, so
-    that a stall of the simulator's own process does not look like a late master.  ``"sender"`` --
-    the time its sender put it on the bus (python-can packs it into the datagram): what the master
-    reads the simulated drives' frames by, since a simulated drive stamps each reply with the time
-    its hardware would have sent it, whenever its process got round to it.
-
-    The receive buffer is raised (to ``RECEIVE_BUFFER`` bytes where the OS allows): the default
-    holds a few hundred frames, a few tens of ms of a 3-axis stream.
-    """
-
-    RECEIVE_BUFFER = 4 << 20
-
-    def __init__(self, channel: str, port: int, stamps: str = "sender", **kwargs: Any):
-        if stamps not in ("sender", "kernel"):
-            raise ValueError(f"stamps must be 'sender' or 'kernel', not {stamps!r}")
-        super().__init__(channel, port, **kwargs)
-        self._sent_ids: set[int] = set()
-        self._kernel_stamps = stamps == "kernel"
-        sock = self._multicast._socket
-        for option in (getattr(socket, "SO_RCVBUFFORCE", None), socket.SO_RCVBUF):
-            if option is None:
-                continue
-            try:
-                sock.setsockopt(socket.SOL_SOCKET, option, self.RECEIVE_BUFFER)
-                break
-            except OSError:
-                continue
-
-    def send(self, msg: can.Message, timeout: float | None = None) -> None:
-        self._sent_ids.add(msg.arbitration_id)
-        super().send(msg, timeout)
-
-    def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
-        while True:
-            result = self._multicast.recv(timeout)
-            if not result:
-                return None, False
-            msg = unpack_message(result[0], replace={"timestamp": result[2]} if self._kernel_stamps else None,
-                                 check=True)
-            if msg.arbitration_id not in self._sent_ids:
-                return msg, False
-            timeout = 0.0            # an echo: the next frame already waiting, if any (recv(0) drains past echoes)
 
 
 class _LocalNodeWithoutNmtTimer(canopen.LocalNode):

@@ -49,6 +49,7 @@ from .adapters import local_node
 from .cia402 import next_state
 from .config import SimAxis
 from .pdo_map import ABORT_RANGE, PdoMapping
+from .plant import Plant
 from .vendors import factory, spec_for
 
 log = logging.getLogger(__name__)
@@ -114,14 +115,8 @@ def plant_params(p: np.ndarray, axis: "SimAxis", axis_names: list[str]) -> None:
 class DriveHost(Protocol):
     """What a simulated drive needs of the robot it sits in."""
 
-    time: float                 # simulation time [s]
-    sync_period: float          # SYNC period the drives interpolate over [s]
-
     def send(self, cob_id: int, data: bytes) -> None:
         """Put a frame on the bus, stamped with the robot's clock."""
-
-    def noise(self) -> float:
-        """One standard-normal sample of the robot's seeded generator."""
 
     def routes_changed(self) -> None:
         """The drive's RPDO COB-IDs changed."""
@@ -142,9 +137,9 @@ class _Held:
 
 
 class SimDrive:
-    """A servo drive of one axis in ``host``.  ``index`` is the axis' row in the kernel arrays
-    ``rows`` (state, param, demand, and the drive array of :mod:`.cyclic`: views of this axis's
-    rows); ``axis_names`` are every axis of the robot in row order (a cross-axis effect names its
+    """A servo drive of one axis in ``host``.  ``index`` is the axis' row in the ``plant``'s arrays
+    (:meth:`.plant.Plant.rows`: state, param, demand, and the drive array of :mod:`.cyclic`, views
+    of this axis's rows; the plant's clock and seeded noise are the drive's); ``axis_names`` are every axis of the robot in row order (a cross-axis effect names its
     source)."""
 
     pos_per_rad = _Held(X.X_POS_PER_RAD, float)      # position unit per rad (motor side)
@@ -164,9 +159,10 @@ class SimDrive:
     _current = _Held(X.X_CURRENT, int)
     _position_inc = _Held(X.X_POSITION, int)
 
-    def __init__(self, host: DriveHost, index: int, axis: SimAxis, eds_path: str,
-                 rows: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray], axis_names: list[str]):
-        self.s, self.p, self.d, self.x = rows      # kernel and drive rows of this axis (views)
+    def __init__(self, host: DriveHost, index: int, axis: SimAxis, eds_path: str, plant: Plant,
+                 axis_names: list[str]):
+        self.plant = plant
+        self.s, self.p, self.d, self.x = plant.rows(index)      # kernel and drive rows of this axis (views)
         self.abort_writes: dict[tuple[int, int], int] = {}   # injected SDO aborts, for tests
         #: injected faults, for tests: called as (kind "read" | "write", index, sub) before an SDO
         #: request is handled; it may raise (SdoAbortedError: the drive refuses), take the drive off
@@ -350,7 +346,7 @@ class SimDrive:
         self._sync_count = 0
         self._hb_next = 0.0
         self._last_count = math.floor(s[K.Q] * self.inc_per_rad)
-        self._last_refresh = self.host.time
+        self._last_refresh = self.plant.time
         self._velocity = 0
         self.d[:] = 0.0
         self.d[K.P0] = self.d[K.P1] = self.s[K.ENC] = self._last_count / self.inc_per_rad
@@ -366,7 +362,7 @@ class SimDrive:
     def boot(self) -> None:
         self.nmt_state = NMT_PREOP
         self._send(0x700 + self.node_id, b"\x00")
-        self._hb_next = self.host.time + self._od(0x1017) / 1000.0
+        self._hb_next = self.plant.time + self._od(0x1017) / 1000.0
 
     def on_nmt(self, data: bytes) -> None:
         if len(data) < 2 or data[1] not in (0, self.node_id):
@@ -433,7 +429,7 @@ class SimDrive:
 
     def on_heartbeat(self, node: int) -> None:
         if node in self.consumers:
-            self._heard[node] = self.host.time
+            self._heard[node] = self.plant.time
 
     def supervise(self, now: float) -> None:
         """A watched node silent for longer than its consumer time: EMCY 0x8130, the NMT state
@@ -471,7 +467,7 @@ class SimDrive:
                 return answer
         live = self._live.get(index)
         if live is not None:
-            if self._last_refresh != self.host.time:
+            if self._last_refresh != self.plant.time:
                 self.refresh_actuals()
             return live()
         if index in (0x1010, 0x1011) and subindex == 1:
@@ -535,7 +531,7 @@ class SimDrive:
             if SETPOINT_OBJECTS[(index, sub)] == self.mode:     # 0x607A in PP is read on the set-point edge
                 self.setpoint_inc = position_of((index, sub), value)
                 self.new_target = True
-                self.last_setpoint_time = self.host.time
+                self.last_setpoint_time = self.plant.time
                 if self.following:
                     self.setpoint_armed = True
         elif self.select is not None and (index, sub) == self.select[0].index_sub:
@@ -549,7 +545,7 @@ class SimDrive:
                 raise SdoAbortedError(ABORT_TOO_LOW if si < 0 else ABORT_RANGE)
             self.p[col] = si
         elif index == 0x1017:
-            self._hb_next = self.host.time + value / 1000.0     # first beat one period from now
+            self._hb_next = self.plant.time + value / 1000.0     # first beat one period from now
         elif index == 0x6065:
             self.p[K.FE_WINDOW] = value / self.pos_per_rad
         elif index == 0x6072:
@@ -804,12 +800,12 @@ class SimDrive:
 
     def next_period(self) -> None:
         """Set the demand P0 -> P1 of the interpolation period that starts now."""
-        d, T = self.d, self.host.sync_period
+        d, T = self.d, self.plant.sync_period
         if self.following:
             if self.fifo is not None and self.mode == IP:
                 if self.fifo:
                     self.setpoint_inc, self.new_target = self.fifo.popleft(), True
-                    self.last_setpoint_time = self.host.time
+                    self.last_setpoint_time = self.plant.time
                 else:                                       # the FIFO ran dry while interpolating
                     d[K.P0] = d[K.P1]
                     self.internal_limit = False
@@ -880,14 +876,14 @@ class SimDrive:
             if not inside:
                 self._in_window_since = None
             elif self._in_window_since is None:
-                self._in_window_since = self.host.time
+                self._in_window_since = self.plant.time
             since = self._in_window_since
             self.target_reached = since is not None and \
-                self.host.time - since >= self._od_or(0x6068, 0, 10) / 1000.0 - 1e-9
+                self.plant.time - since >= self._od_or(0x6068, 0, 10) / 1000.0 - 1e-9
         over = self.s.item(K.FE_COUNT)                  # ticks outside the following error window
         if over > 0 and over >= self.following_error_ticks():
             self.fault(ERR_FOLLOWING)
-        elif self.setpoint_armed and self.following and self.host.time - self.last_setpoint_time > \
+        elif self.setpoint_armed and self.following and self.plant.time - self.last_setpoint_time > \
                 self.setpoint_timeout():
             # the master's stream is gone: the drive's connection-abort reaction (a fault where
             # the drive has no 0x6007, or it is left at CiA 402's default)
@@ -917,8 +913,8 @@ class SimDrive:
         self._refresh_actuals(noise=True)
 
     def _refresh_actuals(self, noise: bool) -> None:
-        sample = self.host.noise() if noise and self.x.item(X.X_NOISE) else 0.0
-        X.actual_values(self.s, self.p, self.x, self.host.time, sample)
+        sample = self.plant.noise() if noise and self.x.item(X.X_NOISE) else 0.0
+        X.actual_values(self.s, self.p, self.x, self.plant.time, sample)
         if self.fifo is not None:                   # 0x20C4:1 as of this sample (its other sub-indices are settings)
             self._store(0x20C4, 1, self._buffer_status())
 

@@ -22,9 +22,8 @@ from typing import IO, cast
 import can
 
 from ..errors import BusError
-from ..master.buses import UDP_GROUP
+from ..cia.multicast import UDP_GROUP, LoopbackMulticastBus
 from ..master.timing import lock_memory
-from .adapters import LoopbackMulticastBus
 
 GROUP = UDP_GROUP               # python-can's default IPv4 group; each run gets its own port
 START_TIMEOUT_S = 120.0          # the child imports numpy/numba and loads the kernel

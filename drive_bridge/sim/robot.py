@@ -19,7 +19,6 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 
 import can
-import numpy as np
 
 from ..resources import PROJECT_EDS
 from . import cyclic as X, kernel as K
@@ -28,9 +27,9 @@ from ..cia.p301 import NMT_STOPPED, SYNC_COB_ID
 from .drive import SimDrive
 from ..pdo import PdoCodec
 from .adapters import FastVirtualBus
+from .plant import Plant
 from .steady import SteadyStream
 
-NOISE_BLOCK = 4096
 REPLY_DELAY_S = 50e-6        # wall clock: a drive's reply follows the frame it answers
 IDLE_WAKE_S = 0.002          # wall clock: the drives' thread wakes on this grid between frames
 #: wall clock: how much of a SYNC's phase error against the drives' loop grid one SYNC corrects
@@ -52,12 +51,8 @@ class SimRobot:
     def __init__(self, config: SimConfig, channel: str = "drive-bridge", *, bus: can.BusABC | None = None,
                  sync_period: float = 0.002, eds: str | Path | Mapping[str, str | Path] = PROJECT_EDS):
         self.config = config
-        self.sync_period = sync_period
-        self.ticks_per_period = round(sync_period / K.VELOCITY_TICK_S)
-        if abs(self.ticks_per_period * K.VELOCITY_TICK_S - sync_period) > 1e-9:
-            raise ValueError(f"SYNC period {sync_period} s is not a multiple of the 0.5 ms loop tick")
+        self.plant = Plant(len(config.axes), sync_period, config.seed)
         self.bus = bus if bus is not None else FastVirtualBus(channel=channel, preserve_timestamps=True)
-        self.time = 0.0
         # wall clock: the time of simulation time 0 [s]; the drives' grid (ticks into the period,
         # boundaries passed), the boundary of the last SYNC, when it came, the RPDOs armed by it
         self._t0 = 0.0
@@ -67,15 +62,9 @@ class SimRobot:
         self._sync_tag = -2
         self._last_sync = -math.inf
         self._armed: list[list[tuple[PdoCodec, bytes]]] = [[] for _ in config.axes]
-        self._stamp = lambda: self.time           # lockstep: frames carry simulation time
-        self._rng = np.random.default_rng(config.seed)
-        self._noise = np.empty(0)
-        self._noise_i = 0
-        self.state, self.param, self.demand = K.new_arrays(len(config.axes))
-        self.drive_rows = np.zeros((len(config.axes), X.N_DRIVE))    # the drives' own values (.cyclic)
-        self._tick0 = np.zeros(len(config.axes), dtype=np.int64)
+        self._stamp = lambda: self.plant.time           # lockstep: frames carry simulation time
         # compile (or load from numba's cache) now, not while a clock is running
-        K.advance(self.state, self.param, self.demand, self._tick0, 0, self.ticks_per_period)
+        self.plant.advance(0)
         X.compile_all()
         self._routes: dict[int, Callable[[bytes], None]] = {}
         #: called with the time after each advance (a lockstep master's heartbeat, in simulation time)
@@ -83,15 +72,24 @@ class SimRobot:
         self.drives: dict[str, SimDrive] = {}      # filled before the first routes_changed() counts
         names = list(config.axes)
         for i, (name, axis) in enumerate(config.axes.items()):
-            self.state[i, K.Q] = axis.initial_position_rad
+            self.plant.state[i, K.Q] = axis.initial_position_rad
             path = eds.get(name, PROJECT_EDS) if isinstance(eds, Mapping) else eds
-            self.drives[name] = SimDrive(self, i, axis, str(path),
-                                         (self.state[i], self.param[i], self.demand[i], self.drive_rows[i]), names)
+            self.drives[name] = SimDrive(self, i, axis, str(path), self.plant, names)
         #: lockstep: the drives' streaming SYNC compiled (None until laid out anew)
         self._steady: SteadyStream | None = None
         self.routes_changed()
         self._thread: threading.Thread | None = None
         self._running = False
+
+    @property
+    def time(self) -> float:
+        """The simulation time [s] (the plant's clock)."""
+        return self.plant.time
+
+    @property
+    def sync_period(self) -> float:
+        """The SYNC period the drives interpolate over [s]."""
+        return self.plant.sync_period
 
     # ------------------------------------------------------------------ bus
     def power_on(self) -> None:
@@ -162,17 +160,17 @@ class SimRobot:
 
     def _on_sync(self, _data: bytes) -> None:
         # lockstep: the SYNC period passes now (on the wall clock SYNC is :meth:`_sync_received`'s)
-        self._run_plant(self.ticks_per_period)
+        self._run_plant(self.plant.ticks_per_period)
         if self._steady is None and all(drive.streaming for drive in self.drives.values()):
-            self._steady = SteadyStream(self)
+            self._steady = SteadyStream(self.plant, list(self.drives.values()), self.send)
         if self._steady is not None and self._steady.period():
-            self._tick0[:] = 0          # every drive starts an interpolation period
+            self.plant.tick0[:] = 0          # every drive starts an interpolation period
             return
         self._supervise()
         for drive in self.drives.values():
             drive.on_sync()
             if not drive.internal_profile:      # a new interpolation period starts at SYNC
-                self._tick0[drive.index] = 0
+                self.plant.tick0[drive.index] = 0
 
     # ------------------------------------------------------------------ lockstep
     def process(self) -> None:
@@ -188,7 +186,7 @@ class SimRobot:
         """Lockstep: let ``duration`` seconds pass without SYNC (drives hold, heartbeats go out)."""
         ticks = max(1, round(duration / K.VELOCITY_TICK_S))
         while ticks > 0:                    # in SYNC-period steps so heartbeats go out on time
-            step = min(ticks, self.ticks_per_period)
+            step = min(ticks, self.plant.ticks_per_period)
             self.advance(step)
             ticks -= step
 
@@ -200,10 +198,9 @@ class SimRobot:
 
     def _run_plant(self, n_ticks: int) -> None:
         """Loops and plant for ``n_ticks`` velocity-loop ticks, and the timers at the time reached."""
-        K.advance(self.state, self.param, self.demand, self._tick0, n_ticks, self.ticks_per_period)
-        self.time = float(self.state[0, K.T])
+        self.plant.advance(n_ticks)
         for timer in self.timers:
-            timer(self.time)
+            timer(self.plant.time)
 
     def _supervise(self) -> None:
         """What the drives do between SYNCs: their own profiles' periods, watching the nodes they
@@ -211,34 +208,14 @@ class SimRobot:
         if self._steady is not None:
             self._steady.stale = True
         for drive in self.drives.values():
-            if drive.internal_profile and self._tick0[drive.index] >= self.ticks_per_period:
+            if drive.internal_profile and self.plant.tick0[drive.index] >= self.plant.ticks_per_period:
                 drive.next_period()
-                self._tick0[drive.index] = 0
+                self.plant.tick0[drive.index] = 0
             if drive.online:
-                drive.supervise(self.time)
+                drive.supervise(self.plant.time)
             drive.check_faults()
             if drive.online:
-                drive.heartbeat_due(self.time)
-
-    def reserve_noise(self, n: int) -> tuple[np.ndarray, int]:
-        """The noise samples drawn ahead, at least ``n`` of them from the index returned on: the
-        same sequence :meth:`noise` gives (the next block drawn early)."""
-        if self._noise.size - self._noise_i < n:
-            self._noise = np.concatenate((self._noise[self._noise_i:], self._rng.standard_normal(NOISE_BLOCK)))
-            self._noise_i = 0
-        return self._noise, self._noise_i
-
-    def take_noise(self, index: int) -> None:
-        """The samples before ``index`` of :meth:`reserve_noise`'s block have been used."""
-        self._noise_i = index
-
-    def noise(self) -> float:
-        """One standard-normal sample from the robot's seeded generator."""
-        if self._noise_i >= self._noise.size:
-            self._noise = self._rng.standard_normal(NOISE_BLOCK)
-            self._noise_i = 0
-        self._noise_i += 1
-        return float(self._noise[self._noise_i - 1])
+                drive.heartbeat_due(self.plant.time)
 
     # ------------------------------------------------------------------ wall clock
     def start_realtime(self) -> None:
@@ -276,7 +253,7 @@ class SimRobot:
 
     def clock_from(self, now: float) -> None:
         """Wall clock: the simulation time reached is the wall-clock time ``now`` [s]."""
-        self._t0 = now - self.time
+        self._t0 = now - self.plant.time
 
     def take(self, msg: can.Message) -> None:
         """Wall clock: a frame received at ``msg.timestamp`` [s]; the loops run up to it first."""
@@ -289,7 +266,7 @@ class SimRobot:
 
     def run_until(self, now: float) -> None:
         """Wall clock: the loops and plant run up to ``now`` [s] (whole ticks)."""
-        self._run_ticks(int((now - self._t0 - self.time) / K.VELOCITY_TICK_S))
+        self._run_ticks(int((now - self._t0 - self.plant.time) / K.VELOCITY_TICK_S))
 
     # The drives' loops run on a grid of their own, locked to the SYNCs they receive as a drive's
     # phase-locked loop is: a SYNC period starts on the grid's period boundary, with the RPDOs that
@@ -300,13 +277,13 @@ class SimRobot:
     def _run_ticks(self, n_ticks: int) -> None:
         """Loops and plant for ``n_ticks`` velocity-loop ticks, each period boundary in its place."""
         while n_ticks > 0:
-            step = min(n_ticks, self.ticks_per_period - self._phase)
+            step = min(n_ticks, self.plant.ticks_per_period - self._phase)
             self.advance(step)
             n_ticks -= step
             self._phase += step
-            if self._phase == self.ticks_per_period:
+            if self._phase == self.plant.ticks_per_period:
                 self._next_boundary()
-        self._bus_time = max(self._bus_time, self._t0 + self.time)
+        self._bus_time = max(self._bus_time, self._t0 + self.plant.time)
 
     def _next_boundary(self) -> None:
         """The grid's next period boundary is here: its period starts."""
@@ -329,10 +306,10 @@ class SimRobot:
         relock = stamp - self._last_sync > SYNC_RELOCK_S
         self._last_sync = stamp
         self.run_until(stamp)
-        period = self.ticks_per_period * K.VELOCITY_TICK_S
-        since = stamp - (self._t0 + self.time) + self._phase * K.VELOCITY_TICK_S   # since the last boundary
+        period = self.plant.ticks_per_period * K.VELOCITY_TICK_S
+        since = stamp - (self._t0 + self.plant.time) + self._phase * K.VELOCITY_TICK_S   # since the last boundary
         if relock:                                      # the first SYNC after a pause sets the grid
-            self._t0 = stamp - self.time
+            self._t0 = stamp - self.plant.time
         # a master's SYNC is late, never early, but for jitter: the SYNC of the boundary passed last
         # unless that one had its SYNC already
         early = self._sync_tag == self._boundary and not relock
@@ -342,12 +319,12 @@ class SimRobot:
             self._sample()
             self._next_boundary()
             return
-        nearest = round((stamp - self._t0 - self.time) / K.VELOCITY_TICK_S)   # the tick it falls on
-        to_boundary = self.ticks_per_period - self._phase
+        nearest = round((stamp - self._t0 - self.plant.time) / K.VELOCITY_TICK_S)   # the tick it falls on
+        to_boundary = self.plant.ticks_per_period - self._phase
         if early and nearest >= to_boundary:
             # on the boundary's tick: sampled before its period starts, as a SYNC is in lockstep
             self.advance(to_boundary)
-            self._bus_time = max(self._bus_time, self._t0 + self.time)
+            self._bus_time = max(self._bus_time, self._t0 + self.plant.time)
             self._sample()
             self._next_boundary()
             self._run_ticks(nearest - to_boundary)
@@ -369,12 +346,12 @@ class SimRobot:
             for drive in self.drives.values():
                 if drive.online and drive.following:
                     drive.next_period()
-                    self._tick0[drive.index] = 0
+                    self.plant.tick0[drive.index] = 0
             return
         for drive, armed in zip(self.drives.values(), self._armed):
             drive.start_period(armed)
             if not drive.internal_profile:
-                self._tick0[drive.index] = 0
+                self.plant.tick0[drive.index] = 0
 
     def shutdown(self) -> None:
         self._running = False

@@ -21,9 +21,10 @@ from typing import TYPE_CHECKING, Callable
 import numpy as np
 
 from . import cyclic as X
+from .plant import Plant
 
 if TYPE_CHECKING:
-    from .robot import SimRobot
+    from .drive import SimDrive
 
 #: TPDO objects whose value changes every period -> what steady_period computes for them
 #: (every other mapped object is constant while the drive streams, read when the plan is refreshed)
@@ -43,12 +44,14 @@ STATUS_PER_PERIOD = 0x0800 | 0x2000
 
 
 class SteadyStream:
-    """The streaming SYNC of ``robot``'s drives: their PDOs laid out for
-    :func:`.cyclic.steady_period` (``supported`` False where one cannot be)."""
+    """The streaming SYNC of the ``drives`` of ``plant`` (in its row order), sending through
+    ``send`` (COB-ID, data): their PDOs laid out for :func:`.cyclic.steady_period` (``supported``
+    False where one cannot be)."""
 
-    def __init__(self, robot: SimRobot):
-        self.robot = robot
-        self.drives = list(robot.drives.values())
+    def __init__(self, plant: Plant, drives: list[SimDrive], send: Callable[[int, bytes], None]):
+        self.plant = plant
+        self.drives = drives
+        self.send = send
         self.stale = True              # the per-drive values (limits, times, constants) to be read anew
         self._offsets: dict[tuple[int, int], int] = {}     # (axis, object) -> the offset it last wrote
         self.supported = self._layout()
@@ -85,7 +88,7 @@ class SteadyStream:
         self.entries = np.array(entries, dtype=np.int64).reshape(-1, X.N_ENTRY)
         self.out = np.zeros((max(1, row), 8), dtype=np.uint8)
         self.axes = np.zeros((len(self.drives), X.N_AXIS))
-        self.noisy = int(np.count_nonzero(self.robot.drive_rows[:, X.X_NOISE]))     # noise samples a period
+        self.noisy = int(np.count_nonzero(self.plant.drive_rows[:, X.X_NOISE]))     # noise samples a period
         return True
 
     def _refresh(self) -> None:
@@ -114,8 +117,8 @@ class SteadyStream:
                 return False
         if self.stale:
             self._refresh()
-        robot = self.robot
-        now = robot.time
+        plant = self.plant
+        now = plant.time
         if now >= self.wake - 1e-9:
             return False
         axes = self.axes
@@ -131,14 +134,14 @@ class SteadyStream:
                         axes[a, X.A_SETPOINT] = value
                         axes[a, X.A_HAS_SETPOINT] = 1.0
                 taken.append((a, drive, codec, data, values))
-        noise, index = robot.reserve_noise(self.noisy)
-        index = X.steady_period(robot.state, robot.param, robot.demand, robot.drive_rows, axes, self.entries,
-                                noise, index, now, robot.sync_period, self.out)
+        noise, index = plant.reserve_noise(self.noisy)
+        index = X.steady_period(plant.state, plant.param, plant.demand, plant.drive_rows, axes, self.entries,
+                                noise, index, now, plant.sync_period, self.out)
         if index == X.SLOW:
             return False
         if index == X.OUT_OF_RANGE:
             raise struct.error("a value the simulated drive sends does not fit its TPDO entry")
-        robot.take_noise(index)
+        plant.take_noise(index)
         offsets = self._offsets
         for a, drive, codec, data, values in taken:
             for (i, sub), (lo, hi), value in zip(codec.entries, codec.spans, values):
@@ -146,7 +149,7 @@ class SteadyStream:
                     drive.write(i, sub, value)
                     offsets[(a, i)] = value
                 drive.keep(i, sub, data[lo:hi], value)
-        out, send = self.out, robot.send
+        out, send = self.out, self.send
         for drive, tpdos in zip(self.drives, self.tpdos):
             drive.pending_rpdo.clear()
             count = drive.count_sync()

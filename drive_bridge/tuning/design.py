@@ -1,4 +1,4 @@
-"""Model-based design of the cascade gains (python-control computes every margin).
+"""Model-based design of the cascade gains (the loops and their margins: :mod:`drive_bridge.params.cascade`).
 
 The drive's loops (see the README's control law)::
 
@@ -28,37 +28,18 @@ from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from typing import TYPE_CHECKING
 
-import control
 import numpy as np
 
-from ..params.controller import CURRENT_RATE_HZ, LOOP_TICK_S, Timing
+from ..params.cascade import Margins, margins_of, measured_loop, position_open_loop, velocity_open_loop
+from ..params.controller import CURRENT_RATE_HZ, Timing
 
 if TYPE_CHECKING:
     from ..ident.frf import Frf
 
-PM_MIN_DEG, GM_MIN_DB = 45.0, 8.0          # what must hold (industrial tuners' defaults)
 PM_DESIGN_DEG, GM_DESIGN_DB = 50.0, 9.0    # what the design aims at: room for model error
 INTEGRAL_RATIO = 6.0          # KiS = crossover / this
-PADE_ORDER = 3
-
 
 PROJECT = Timing()
-
-
-@dataclass
-class Margins:
-    phase_margin_deg: float
-    gain_margin_db: float
-    crossover_hz: float
-
-    def ok(self) -> bool:
-        return self.phase_margin_deg >= PM_MIN_DEG and self.gain_margin_db >= GM_MIN_DB
-
-    def worse(self, other: "Margins") -> "Margins":
-        """The smaller phase and gain margin of the two, at this crossover (the model's and the
-        measured plant's margins of one loop)."""
-        return Margins(min(self.phase_margin_deg, other.phase_margin_deg),
-                       min(self.gain_margin_db, other.gain_margin_db), self.crossover_hz)
 
 
 @dataclass
@@ -81,61 +62,21 @@ class GainDesign:
         return asdict(self)
 
 
-def _margins(open_loop: control.TransferFunction) -> Margins:
-    gm, pm, _, wc = control.margin(open_loop)
-    gm_db = float(20 * np.log10(gm)) if np.isfinite(gm) and gm > 0 else float("inf")
-    return Margins(float(pm), gm_db, float(wc / (2 * np.pi)))
 
 
-def _plant_paths(J: float, c1: float, current_bw_rad_s: float, tick_s: float = LOOP_TICK_S
-                 ) -> tuple[control.TransferFunction, control.TransferFunction]:
-    s = control.tf("s")
-    num, den = control.pade(tick_s, PADE_ORDER)             # ½ T hold + ½ T velocity difference
-    delay = control.tf(num, den)
-    current = 1 / (s / current_bw_rad_s + 1)
-    return s, delay * current / (J * s + max(c1, 0.0))
 
 
-def velocity_open_loop(J: float, c1: float, KpS: float, KiS: float, current_bw_rad_s: float,
-                       tick_s: float = LOOP_TICK_S) -> control.TransferFunction:
-    s, plant = _plant_paths(J, c1, current_bw_rad_s, tick_s)
-    return KpS * (1 + KiS / s) * plant
 
 
-def position_open_loop(J: float, c1: float, KpS: float, KiS: float, KpP: float, current_bw_rad_s: float,
-                       tick_s: float = LOOP_TICK_S) -> control.TransferFunction:
-    s = control.tf("s")
-    closed_velocity = control.feedback(velocity_open_loop(J, c1, KpS, KiS, current_bw_rad_s, tick_s), 1)
-    return KpP / s * closed_velocity
 
 
-def controller(gains: dict[str, float], tick_s: float = LOOP_TICK_S) -> Callable[[np.ndarray], np.ndarray]:
-    """K(jω) of the drive's cascade as seen at its torque command [Nm per rad/s]: the velocity PI
-    around the measured velocity, the position P around that, the loop's delay (½ T hold + ½ T
-    velocity difference) -- what a torque offset added to the command sees close the loop."""
-    def k(w: np.ndarray) -> np.ndarray:
-        s = 1j * np.asarray(w, dtype=float)
-        return _velocity_pi(gains, s, tick_s) * (1 + gains["KpP"] / s)
-    return k
 
 
-def _velocity_pi(gains: dict[str, float], s: np.ndarray, tick_s: float) -> np.ndarray:
-    """The velocity PI with the loop's delay, KpS·(1 + KiS/s)·e^(−sT), at the points ``s``."""
-    return gains["KpS"] * (1 + gains["KiS"] / s) * np.exp(-s * tick_s)
 
 
-def rigid_response(J: float, c1: float, current_bw_rad_s: float, w: np.ndarray) -> np.ndarray:
-    """G(jω) of the identified rigid plant: torque command → velocity through the closed current
-    loop [rad/s per Nm]."""
-    s = 1j * np.asarray(w, dtype=float)
-    return 1 / (s / current_bw_rad_s + 1) / (J * s + max(c1, 0.0))
 
 
 MEASURE_CROSSOVER_SHARE = 0.06   # the measurement's velocity loop crosses over at this share of the SYNC rate
-CROSSOVER_SHARE = 0.3            # a loop's gain crossover must lie below this share of the SYNC rate the plant was
-                                 # measured at: higher, the response of the offset's images above the Nyquist
-                                 # frequency, aliased, reads the plant's gain low (-0.6 dB at 0.3 on the rigid
-                                 # simulated axis, -2.6 dB at 0.4) and the margins high
 
 
 def measurement_gains(J: float, rate_hz: float) -> dict[str, float]:
@@ -148,73 +89,12 @@ def measurement_gains(J: float, rate_hz: float) -> dict[str, float]:
     return {"KpP": wc / INTEGRAL_RATIO, "KpS": J * wc, "KiS": wc / INTEGRAL_RATIO}
 
 
-def measured_margins(gains: dict[str, float], frf: "Frf", current_bw_rad_s: float, tick_s: float = LOOP_TICK_S
-                     ) -> tuple[Margins | None, Margins | None]:
-    """Margins of the velocity and the position loop with ``gains`` on a measured plant
-    (:class:`drive_bridge.ident.frf.Frf`, its reliable bins): the velocity loop
-    KpS·(1 + KiS/jω)·e^(−jωT)·G(jω), the position loop KpP/jω around it closed.  Above the bins
-    measured the plant is taken as the inertia their top shows, behind the closed current loop
-    (``current_bw_rad_s``), up to the loops' Nyquist frequency: a gain margin beyond the band
-    counts on no mode there.  None for a loop whose gain crossover lies above ``CROSSOVER_SHARE``
-    of the SYNC rate (not verified)."""
-    return (measured_loop(gains, frf, "velocity", current_bw_rad_s, tick_s),
-            measured_loop(gains, frf, "position", current_bw_rad_s, tick_s))
 
 
-def open_loop_at(gains: dict[str, float], f: np.ndarray, g: np.ndarray, loop: str,
-                 tick_s: float = LOOP_TICK_S) -> np.ndarray:
-    """The open ``loop`` ("velocity" or "position") with ``gains`` on a plant whose response is
-    ``g`` [rad/s per Nm] at the frequencies ``f`` [Hz]: KpS·(1 + KiS/jω)·e^(−jωT)·G, and KpP/jω
-    around that closed."""
-    s = 2j * np.pi * np.asarray(f, dtype=float)
-    velocity = _velocity_pi(gains, s, tick_s) * g
-    return velocity if loop == "velocity" else gains["KpP"] / s * velocity / (1 + velocity)
 
 
-def measured_loop(gains: dict[str, float], frf: "Frf", loop: str, current_bw_rad_s: float,
-                  tick_s: float = LOOP_TICK_S) -> Margins | None:
-    """One loop's margins of :func:`measured_margins` (``loop``: "velocity" or "position")."""
-    ok = frf.reliable()
-    f, g = frf.frequency_hz[ok], frf.response[ok]
-    if len(f) < 2:
-        return None
-    top = f[-1]
-    beyond = np.geomspace(top, 0.5 / tick_s, 200)[1:]
-    inertia = rigid_response(1.0, 0.0, current_bw_rad_s, 2 * np.pi * np.append(beyond, top))
-    f, g = np.append(f, beyond), np.append(g, g[-1] * inertia[:-1] / inertia[-1])
-    open_loop = open_loop_at(gains, f, g, loop, tick_s)
-    sure = np.flatnonzero(f <= CROSSOVER_SHARE * frf.rate_hz)
-    if not len(sure) or abs(open_loop[sure[-1]]) > 1:
-        return None                                      # its crossover lies above the bins measured well
-    return _margins_at_points(f, open_loop)
 
 
-def _margins_at_points(f: np.ndarray, loop: np.ndarray) -> Margins | None:
-    """Phase and gain margins of an open loop known at the frequencies ``f`` [Hz] (interpolated
-    linearly in log frequency between them): at each gain crossover the angle between the loop and
-    −1, at each phase crossover of −180° (± 360°) how far its gain stays below 1; the worst of each
-    where it crosses more than once (a mode's resonance and anti-resonance make several).  A loop
-    whose gain is below 1 throughout has its crossover below ``f``: no phase margin is measured
-    (infinite, crossover nan).  None where the gain still exceeds 1 at the highest frequency: its
-    crossover lies beyond."""
-    mag = np.log(np.abs(loop))
-    if mag[-1] > 0:
-        return None
-    phase = np.degrees(np.unwrap(np.angle(loop)))
-    x = np.log(f)
-    pm, wc = np.inf, np.nan
-    for i in np.flatnonzero(np.sign(mag[:-1]) != np.sign(mag[1:])):
-        r = mag[i] / (mag[i] - mag[i + 1])
-        to_minus_one = abs((phase[i] + r * (phase[i + 1] - phase[i])) % 360.0 - 180.0)
-        if to_minus_one < pm:
-            pm, wc = to_minus_one, float(np.exp(x[i] + r * (x[i + 1] - x[i])))
-    gm = np.inf
-    shifted = (phase + 180.0) / 360.0                # crossings of -180° (+ k·360°)
-    for i in np.flatnonzero(np.floor(shifted[:-1]) != np.floor(shifted[1:])):
-        edge = np.floor(max(shifted[i], shifted[i + 1]))
-        r = (edge - shifted[i]) / (shifted[i + 1] - shifted[i])
-        gm = min(gm, float(-20 / np.log(10) * (mag[i] + r * (mag[i + 1] - mag[i]))))
-    return Margins(float(pm), gm, wc)
 
 
 def current_bandwidth(current_hz: float = CURRENT_RATE_HZ) -> float:
@@ -228,43 +108,18 @@ def current_gains(R: float, L: float, current_hz: float = CURRENT_RATE_HZ) -> tu
     return L * w_i, R / L, w_i
 
 
-def open_loops(J: float, c1: float, gains: dict[str, float], L: float, tick_s: float = LOOP_TICK_S
-               ) -> tuple[control.TransferFunction, control.TransferFunction]:
-    """The velocity and the position loop, open, with given gains on the identified plant."""
-    w_i = gains["KpC"] / L
-    return (velocity_open_loop(J, c1, gains["KpS"], gains["KiS"], w_i, tick_s),
-            position_open_loop(J, c1, gains["KpS"], gains["KiS"], gains["KpP"], w_i, tick_s))
 
 
-def following_error(J: float, c1: float, gains: dict[str, float], L: float, torque_feedforward: bool,
-                    tick_s: float = LOOP_TICK_S) -> tuple[control.TransferFunction, control.TransferFunction]:
-    """Transfer functions from the position demand, and from a torque disturbance, to the
-    following error (demand − position) of the cascade on the identified plant: velocity
-    feed-forward FwF, and where ``torque_feedforward`` the model torque, which enters through the
-    current loop alone (the drive adds it in the tick it computes it: no velocity-difference delay)."""
-    w_i = gains["KpC"] / L
-    s = control.tf("s")
-    rigid = 1 / (J * s + max(c1, 0.0))
-    fed = 1 / (s / w_i + 1) * rigid if torque_feedforward else 0 * rigid
-    pc = velocity_open_loop(J, c1, gains["KpS"], gains["KiS"], w_i, tick_s)
-    den = s * (1 + pc) + pc * gains["KpP"]
-    demand = s * (1 + pc * (1 - gains["FwF"]) - fed * (J * s + max(c1, 0.0))) / den
-    return control.minreal(demand, verbose=False), control.minreal((rigid - fed) / den, verbose=False)
 
 
-def loop_margins(J: float, c1: float, gains: dict[str, float], R: float, L: float,
-                 tick_s: float = LOOP_TICK_S) -> tuple[Margins, Margins]:
-    """Margins of given gains on the identified plant (e.g. the factory or the paper's sets)."""
-    velocity, position = open_loops(J, c1, gains, L, tick_s)
-    return _margins(velocity), _margins(position)
 
 
-def _largest(margins_of: Callable[[float], Margins], lo: float, hi: float, pm_min: float,
+def _largest(margins_at: Callable[[float], Margins], lo: float, hi: float, pm_min: float,
              what: str) -> tuple[float, Margins]:
     """The largest x in [lo, hi] whose margins hold (they shrink as x grows), by bisection on
     log x to 0.1 %."""
     def ok(x: float) -> Margins | None:
-        m = margins_of(x)
+        m = margins_at(x)
         return m if m.phase_margin_deg >= pm_min and m.gain_margin_db >= GM_DESIGN_DB else None
     best = ok(lo)
     if best is None:
@@ -301,11 +156,11 @@ def design_gains(J: float, c1: float, R: float, L: float, frf: "Frf | None" = No
         measured = measured_loop(gains, frf, loop, w_i, T)
         return Margins(-np.inf, -np.inf, model.crossover_hz) if measured is None else model.worse(measured)
 
-    wc, vm = _largest(lambda w: worse(_margins(velocity_open_loop(J, c1, J * w, w / INTEGRAL_RATIO, w_i, T)),
+    wc, vm = _largest(lambda w: worse(margins_of(velocity_open_loop(J, c1, J * w, w / INTEGRAL_RATIO, w_i, T)),
                                       {"KpS": J * w, "KiS": w / INTEGRAL_RATIO}, "velocity"),
                       20.0, nyquist, PM_DESIGN_DEG, "velocity")           # the velocity-loop crossover
     KpS, KiS = J * wc, wc / INTEGRAL_RATIO
-    KpP, pm = _largest(lambda k: worse(_margins(position_open_loop(J, c1, KpS, KiS, k, w_i, T)),
+    KpP, pm = _largest(lambda k: worse(margins_of(position_open_loop(J, c1, KpS, KiS, k, w_i, T)),
                                        {"KpS": KpS, "KiS": KiS, "KpP": k}, "position"),
                        1.0, nyquist, PM_DESIGN_DEG + 5, "position")
     return GainDesign(float(KpP), 1.0, float(KpS), float(KiS), float(KpC), float(KiC), vm, pm)

@@ -18,7 +18,8 @@ import control
 import numpy as np
 
 from ..figures import pyplot, save
-from .design import LOOP_TICK_S, following_error, open_loop_at, open_loops
+from ..params.cascade import following_error, open_loop_at, open_loops
+from ..params.controller import LOOP_TICK_S
 from .feedforward import model_torque
 
 if TYPE_CHECKING:
@@ -100,7 +101,7 @@ def predicted_following_error(model: dict[str, float], gains: dict[str, float], 
                               t: np.ndarray, demand: np.ndarray, tick_s: float = LOOP_TICK_S) -> np.ndarray:
     """The following error [rad] the identified ``model`` (J, c1 and what the drive model holds:
     c0, offset, ...) predicts along ``demand`` [rad] at ``t`` [s] with ``gains``: the linear cascade
-    (:func:`.design.following_error`) driven by the demand and by the model's torque beyond J·q̈ + c1·q̇
+    (:func:`drive_bridge.params.cascade.following_error`) driven by the demand and by the model's torque beyond J·q̈ + c1·q̇
     along it (held from the start: the axis waits at rest holding it)."""
     J, c1 = model["J"], model["c1"]
     to_error, from_torque = following_error(J, c1, gains, L, torque_feedforward, tick_s)

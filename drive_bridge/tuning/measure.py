@@ -21,14 +21,15 @@ from ..ident.frf import PERIOD_SAMPLES, PERIODS, Frf, excitation, measure
 from ..master.bringup import AxisLink
 from ..master.campaign import Plan
 from ..master.link import Link
-from ..master.timing import TimingLimits
+from ..config import TimingLimits
 from ..outputs import stamped
 from ..params.controller import GAINS
 from ..params.profile import SELECT, Profile
 from ..params.read import read_parameters
+from ..params.cascade import controller
 from ..params.write import write_parameters
 from . import motion
-from .design import controller, measurement_gains
+from .design import measurement_gains
 
 log = logging.getLogger(__name__)
 

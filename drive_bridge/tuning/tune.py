@@ -16,9 +16,9 @@ from ..ident.effects import DRIVE_EFFECTS
 from ..outputs import stamped
 from ..yamlconf import too_large
 from ..ident.frf import Frf
+from ..params.cascade import Margins, controller as loop_controller, loop_margins, measured_margins, rigid_response
 from ..params.controller import GAINS, Controller
-from .design import (GainDesign, Margins, controller as loop_controller, current_bandwidth, design_gains, loop_margins,
-                     measured_margins, rigid_response)
+from .design import GainDesign, current_bandwidth, design_gains
 from .experiment import ExperimentResult
 from .feedforward import MODEL_KEYS
 
@@ -257,7 +257,7 @@ def tune_axis(axis: str, model: dict[str, float], R: float, L: float, before: di
                       mode=mode)
 
 
-def tune_axes(models: dict[str, dict[str, float]], state: dict[str, dict],
+def tune(models: dict[str, dict[str, float]], state: dict[str, dict],
               frfs: dict[str, Frf] | None = None, controller: Controller = Controller(),
               resonances: dict[str, dict | None] | None = None, drive: str = "drive") -> dict[str, AxisTuning]:
     """The tune step: gains for every axis of ``state`` (what bring-up read:

@@ -10,6 +10,8 @@ from drive_bridge.cli import main
 
 from ..support import EDS, VENDOR_EDS, follows_schema
 
+pytestmark = pytest.mark.slow
+
 pytest.importorskip("jsonschema")
 
 

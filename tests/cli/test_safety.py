@@ -16,6 +16,8 @@ from drive_bridge.tuning.design import design_gains
 
 from ..support import read_csv
 
+pytestmark = pytest.mark.slow
+
 MOTOR = {"R": 0.8, "L": 0.002}
 
 

@@ -17,6 +17,8 @@ from drive_bridge.sim.config import DEFAULT_CONFIG
 
 from ..support import BUS_CONFIG, EDS, follows_schema
 
+pytestmark = pytest.mark.slow
+
 #: machine -> the Y axis's Coulomb friction [Nm] at each visit (the plant's 0.323, and B's rising 30 %)
 FLEET = {"A": (0.323, 0.323), "B": (0.323, 0.42), "C": (0.323, 0.323), "D": (0.323, 0.323)}
 AXES = ("x", "y")

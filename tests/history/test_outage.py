@@ -11,7 +11,7 @@ import pytest
 import sqlalchemy as sa
 
 from drive_bridge.cli import main
-from drive_bridge.commission import Options, commission
+from drive_bridge.commissioning import Options, commission
 from drive_bridge.config import load_bus_config
 from drive_bridge.history import HistoryStore
 from drive_bridge.history.location import outbox_dir
@@ -20,6 +20,8 @@ from drive_bridge.progress import StepReporter
 from .conftest import SERVER, fresh_database, no_server, start_server
 from .records import axis, day, nominal, record
 from ..support import BUS_CONFIG
+
+pytestmark = pytest.mark.slow
 
 
 class Outage:

@@ -15,6 +15,8 @@ from drive_bridge.tuning.tune import read_identify_json
 
 from .generator import joint_log
 
+pytestmark = pytest.mark.slow
+
 J, G = 2.0, 60.0
 
 

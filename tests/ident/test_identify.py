@@ -23,6 +23,8 @@ from drive_bridge.sim.plantlog import plant_log, write_log
 
 from ..support import BUS_CONFIG, ROOT, SHARED
 
+pytestmark = pytest.mark.slow
+
 
 EMPS = SHARED / "data" / "emps"
 

@@ -11,7 +11,7 @@ from drive_bridge.ident.report import ga_text
 from ..support import SHARED
 
 REAL = SHARED / "data" / "realdata"
-pytestmark = pytest.mark.skipif(not REAL.is_dir(), reason="../shared/data/realdata not present")
+pytestmark = [pytest.mark.slow, pytest.mark.skipif(not REAL.is_dir(), reason="../shared/data/realdata not present")]
 
 
 def fit(name: str, est: str, val: str | None = None):

@@ -77,7 +77,7 @@ def test_scan_sees_each_vendor_drive_as_its_own_eds_describes(tmp_path, capsys):
 def test_bring_up_streams_in_a_mode_the_drive_lists_or_refuses_naming_its_modes():
     """0x6502 is read from the drive: CSP where listed and 0x607A mapped; a drive without a mode
     whose setpoint object is mapped is refused before it moves, with the modes it has. (IP on
-    drives that have it: tests/commission/test_vendor_drives.py.)"""
+    drives that have it: tests/commissioning/test_vendor_drives.py.)"""
     from drive_bridge.config import load_bus_config
     from drive_bridge.errors import DriveRefused
     from drive_bridge.master.bringup import bring_up

@@ -18,6 +18,8 @@ from drive_bridge.resources import DEFAULT_BUS_CONFIG
 
 from ..support import PAPER, bus_yml_beside
 
+pytestmark = pytest.mark.slow
+
 PERIOD = 0.002
 
 

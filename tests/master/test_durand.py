@@ -21,6 +21,8 @@ from drive_bridge.tuning.design import design_gains
 
 from ..support import PAPER
 
+pytestmark = [pytest.mark.slow, pytest.mark.third_party]
+
 pytest.importorskip("durand")
 from ..durand_drive import slaves  # noqa: E402  (durand: the test extra)
 EXAMPLES = {"nanotec_c5e": "nanotec_C5-E-2-09.eds", "maxon_epos2": "maxon_epos2_50-5.eds"}

@@ -16,6 +16,8 @@ from drive_bridge.tuning import motion
 
 from ..support import BUS_CONFIG
 
+pytestmark = [pytest.mark.slow, pytest.mark.realtime]
+
 
 @pytest.mark.parametrize("realtime", [False, True], ids=["lockstep", "process"])
 def test_one_scenario_over_every_link(realtime, tmp_path):

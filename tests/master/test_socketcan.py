@@ -63,7 +63,7 @@ def test_sync_from_the_broadcast_manager_and_error_frames(tmp_path):
     probe.parent.mkdir(exist_ok=True)
     probe.write_text(textwrap.dedent("""
         import json, sys, can, numpy as np
-        from drive_bridge.master.buses import open_bus
+        from drive_bridge.cia.buses import open_bus
         from drive_bridge.master.port import BusPort, TraceRing
         port = BusPort(open_bus("socketcan", "vcan0"), TraceRing(4096, np.zeros))
         stamps, errors = [], []

@@ -13,6 +13,8 @@ from drive_bridge.tuning.design import design_gains
 
 from ..support import PAPER
 
+pytestmark = pytest.mark.slow
+
 SIM = load_profile("drive_bridge_servo")
 NAMES = ("KpP", "KpS", "KiS", "J", "c0", "c1", "ff_enable")
 

@@ -20,6 +20,8 @@ from drive_bridge.tuning.design import design_gains
 
 from ..support import PAPER
 
+pytestmark = pytest.mark.slow
+
 
 SIM = load_profile("drive_bridge_servo")
 

@@ -270,7 +270,7 @@ def constant_velocity_torque(bench, effect=None, axis="x", v=2.0, z_offset=0.0):
     cfg = clean_config(effects={axis: {effect: EFFECTS[effect]}} if effect else None)
     b = bench(cfg)
     if z_offset:
-        b.robot.state[2, 0] = z_offset                      # park Z (the coupling source)
+        b.robot.plant.state[2, 0] = z_offset                      # park Z (the coupling source)
     node = started(b, axis)
     t = np.arange(0, 1.0, 0.002)
     fwd = v * t

@@ -2,6 +2,8 @@
 master killed with SIGKILL mid-campaign: every drive stops through its own heartbeat consumer."""
 from __future__ import annotations
 
+import pytest
+
 import os
 import select
 import signal
@@ -13,11 +15,12 @@ import canopen
 import yaml
 
 from drive_bridge.cia.p402 import state_name
-from drive_bridge.master.buses import UDP_GROUP
-from drive_bridge.sim.adapters import LoopbackMulticastBus
+from drive_bridge.cia.multicast import UDP_GROUP, LoopbackMulticastBus
 from drive_bridge.sim.process import free_port
 
 from ..support import bus_yml_beside
+
+pytestmark = [pytest.mark.slow, pytest.mark.realtime]
 
 
 def _wait_for(stream, text: str, timeout: float) -> str:

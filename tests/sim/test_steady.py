@@ -14,7 +14,7 @@ from ..support import Bench, clean_config, quick_config
 
 def _heavy_y(bench, k):
     if k == 300:                                   # Y suddenly carries more than its drive can: following error
-        bench.robot.param[1, K.LOAD] = 5.0
+        bench.robot.plant.param[1, K.LOAD] = 5.0
 
 
 def _silent_z(bench, k):

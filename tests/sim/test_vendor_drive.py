@@ -17,7 +17,7 @@ from drive_bridge.sim.vendors import SPECS
 
 from ..support import Bench, clean_config
 
-pytestmark = pytest.mark.skipif(not vendor_dir().is_dir(), reason="../shared/eds-vendor not present")
+pytestmark = [pytest.mark.slow, pytest.mark.skipif(not vendor_dir().is_dir(), reason="../shared/eds-vendor not present")]
 VENDOR_FILES = sorted(n for n in SPECS if n != "drive_bridge_servo.eds")
 
 
@@ -112,7 +112,7 @@ def test_maxon_reports_velocity_in_rpm_and_current_in_mA():
     drive.s[K.I_SUM], drive.s[K.I_COUNT] = 1.5, 1.0  # 1.5 A averaged
     drive.s[K.Q] += 10.0 * 0.002
     b.robot.advance(0)
-    b.robot.time += 0.002
+    b.robot.plant.time += 0.002
     drive.refresh_actuals()
     assert node.sdo[0x6078].raw == pytest.approx(1500, abs=2)
     assert node.sdo[0x606C].raw == pytest.approx(10.0 * 60 / (2 * math.pi), abs=2)

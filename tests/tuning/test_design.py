@@ -4,7 +4,8 @@ from __future__ import annotations
 import pytest
 
 from drive_bridge.paper import TABLE_III
-from drive_bridge.tuning.design import GM_MIN_DB, PM_MIN_DEG, design_gains, loop_margins
+from drive_bridge.params.cascade import GM_MIN_DB, PM_MIN_DEG, loop_margins
+from drive_bridge.tuning.design import design_gains
 
 from ..support import PAPER
 

@@ -12,6 +12,8 @@ from drive_bridge.tuning.experiment import run_experiment
 
 from ..support import BUS_CONFIG, PAPER
 
+pytestmark = pytest.mark.slow
+
 
 SIM = load_profile("drive_bridge_servo")
 

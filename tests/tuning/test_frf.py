@@ -1,5 +1,5 @@
 """The plant's response measured through the drive (drive_bridge.ident.frf) and the margins on it
-(design.measured_margins), on the simulated Y axis run bus-free (plant_log): the soft measurement
+(params.cascade.measured_margins), on the simulated Y axis run bus-free (plant_log): the soft measurement
 gains, a constant 10 rad/s sweep, the torque-offset multisine.  The compliant axis is checked
 against its true two-mass plant, computed here from the simulator's parameters (not measured)."""
 from __future__ import annotations
@@ -14,14 +14,19 @@ from drive_bridge.ident.frf import PERIODS, Frf, excitation, measure
 from drive_bridge.sim.config import Motor, load_sim_config
 from drive_bridge.sim.plantlog import plant_log
 from drive_bridge.sim.vendors import factory
-from drive_bridge.tuning import design as D
+from drive_bridge.params.cascade import (GM_MIN_DB, PM_MIN_DEG, Margins, controller, margins_at_points, measured_margins,
+                                         rigid_response, velocity_open_loop)
+from drive_bridge.params.controller import LOOP_TICK_S
+from drive_bridge.tuning.design import PM_DESIGN_DEG, current_gains, design_gains, measurement_gains
 
 from ..ident.test_identify import sim_config
+
+pytestmark = pytest.mark.slow
 
 RATE = 500.0
 J, C1 = 1e-4, 5e-4
 MOTOR = Motor()
-W_I = D.current_gains(MOTOR.R, MOTOR.L)[2]
+W_I = current_gains(MOTOR.R, MOTOR.L)[2]
 SHARE, RESONANCE_HZ, ZETA = 0.5, 120.0, 0.02          # the shipped compliant robot's Y
 
 
@@ -33,15 +38,15 @@ def two_mass(share=SHARE, resonance_hz=RESONANCE_HZ, zeta=ZETA) -> tuple[float, 
 
 
 def measured(effects: dict | None = None) -> Frf:
-    soft = {**factory().gains, **D.measurement_gains(J, RATE)}
+    soft = {**factory().gains, **measurement_gains(J, RATE)}
     u = np.tile(excitation(RATE, 0.05), PERIODS)
     n = len(u)
     cols = plant_log(sim_config(effects), {"y": -60 + 10 * np.arange(1, n + 1) / RATE, "z": np.zeros(n)},
                      torque_offset={"y": u}, gains={"y": soft})
-    return measure(cols["y_position_rad"], u, RATE, D.controller(soft))
+    return measure(cols["y_position_rad"], u, RATE, controller(soft))
 
 
-def true_margins(gains: dict[str, float], share: float, k: float, d: float) -> tuple[D.Margins, D.Margins]:
+def true_margins(gains: dict[str, float], share: float, k: float, d: float) -> tuple[Margins, Margins]:
     """The velocity and position loops' margins with ``gains`` on the true two-mass plant (motor
     J·(1 − share), load J·share on k, d; friction c1 on the motor), the drive's loop as the
     design models it, on a dense grid up to the loops' Nyquist frequency."""
@@ -50,13 +55,13 @@ def true_margins(gains: dict[str, float], share: float, k: float, d: float) -> t
     jm, jl = J * (1 - share), J * share
     spring = jl * s ** 2 + d * s + k
     plant = 1 / (s / W_I + 1) * spring / ((jm * s + C1) * spring + jl * s * (d * s + k))
-    velocity = gains["KpS"] * (1 + gains["KiS"] / s) * np.exp(-s * D.LOOP_TICK_S) * plant
+    velocity = gains["KpS"] * (1 + gains["KiS"] / s) * np.exp(-s * LOOP_TICK_S) * plant
     position = gains["KpP"] / s * velocity / (1 + velocity)
-    return D._margins_at_points(f, velocity), D._margins_at_points(f, position)
+    return margins_at_points(f, velocity), margins_at_points(f, position)
 
 
-def floor_kept(m: D.Margins | None) -> bool:
-    return m is not None and m.phase_margin_deg >= D.PM_MIN_DEG and m.gain_margin_db >= D.GM_MIN_DB
+def floor_kept(m: Margins | None) -> bool:
+    return m is not None and m.phase_margin_deg >= PM_MIN_DEG and m.gain_margin_db >= GM_MIN_DB
 
 
 def test_the_measured_response_of_the_rigid_axis_matches_its_model_up_to_half_the_nyquist_frequency():
@@ -67,7 +72,7 @@ def test_the_measured_response_of_the_rigid_axis_matches_its_model_up_to_half_th
     ok = frf.reliable()
     assert frf.frequency_hz[ok].min() < 10.0 and frf.frequency_hz[ok].max() >= 0.4 * RATE - 1
     band = ok & (frf.frequency_hz <= RATE / 4)
-    ratio = frf.response[band] / D.rigid_response(J, C1, W_I, 2 * np.pi * frf.frequency_hz[band])
+    ratio = frf.response[band] / rigid_response(J, C1, W_I, 2 * np.pi * frf.frequency_hz[band])
     assert np.max(np.abs(20 * np.log10(np.abs(ratio)))) < 1.0
     assert np.max(np.abs(np.degrees(np.angle(ratio)))) < 10.0
     assert frf.coherence[band].min() > 0.99
@@ -80,28 +85,28 @@ def test_on_a_compliant_axis_the_rigid_design_rings_and_the_design_on_the_measur
     plant, in both loops."""
     share, k, d = two_mass()
     frf = measured({"compliance": {"TM_SHARE": share, "TM_K": k, "TM_D": d}})
-    rigid = D.design_gains(J, C1, MOTOR.R, MOTOR.L)
+    rigid = design_gains(J, C1, MOTOR.R, MOTOR.L)
     assert rigid.velocity.ok() and rigid.position.ok()
     assert not floor_kept(true_margins(rigid.gains(), share, k, d)[0])
-    assert not floor_kept(D.measured_margins(rigid.gains(), frf, W_I)[0])
-    on_measured = D.design_gains(J, C1, MOTOR.R, MOTOR.L, frf=frf)
+    assert not floor_kept(measured_margins(rigid.gains(), frf, W_I)[0])
+    on_measured = design_gains(J, C1, MOTOR.R, MOTOR.L, frf=frf)
     for loop in true_margins(on_measured.gains(), share, k, d):
         assert floor_kept(loop), loop
 
 
 def test_the_design_on_the_measured_response_of_a_rigid_axis_keeps_the_margins_on_it():
     frf = measured()
-    gains = D.design_gains(J, C1, MOTOR.R, MOTOR.L, frf=frf).gains()
+    gains = design_gains(J, C1, MOTOR.R, MOTOR.L, frf=frf).gains()
     for loop in true_margins(gains, 1e-6, 1e6, 0.0):          # (a load of nothing on a stiff spring: rigid)
         assert floor_kept(loop), loop
 
 
 def test_margins_on_points_agree_with_python_control():
     """The margins read off a loop's frequency points are python-control's for a rigid loop."""
-    gains = D.design_gains(J, C1, MOTOR.R, MOTOR.L).gains()
-    loop = D.velocity_open_loop(J, C1, gains["KpS"], gains["KiS"], W_I)
+    gains = design_gains(J, C1, MOTOR.R, MOTOR.L).gains()
+    loop = velocity_open_loop(J, C1, gains["KpS"], gains["KiS"], W_I)
     f = np.geomspace(1.0, 999.0, 3000)
-    points = D._margins_at_points(f, np.asarray(loop(2j * np.pi * f)).ravel())
+    points = margins_at_points(f, np.asarray(loop(2j * np.pi * f)).ravel())
     gm, pm, _, wc = control.margin(loop)
     assert points.phase_margin_deg == pytest.approx(pm, abs=0.2)
     assert points.gain_margin_db == pytest.approx(20 * np.log10(gm), abs=0.1)
@@ -110,7 +115,7 @@ def test_margins_on_points_agree_with_python_control():
 
 def test_a_loop_above_one_at_the_top_of_the_band_is_not_verified():
     f = np.geomspace(10.0, 200.0, 100)
-    assert D._margins_at_points(f, 1e4 / (2j * np.pi * f)) is None
+    assert margins_at_points(f, 1e4 / (2j * np.pi * f)) is None
 
 
 def test_the_frf_survives_its_json():
@@ -154,8 +159,8 @@ def test_tune_takes_the_measured_response_and_says_its_margins(tmp_path, capsys)
             "--motor-L", str(MOTOR.L)]
     assert main(argv + ["--frf", str(tmp_path / "frf.json"), "--out", str(tmp_path / "t.json")]) == 0
     y = json.loads((tmp_path / "t.json").read_text())["axes"]["y"]
-    assert y["gains"]["KpS"] < D.design_gains(J, C1, MOTOR.R, MOTOR.L).KpS
-    assert y["measured"]["margins"]["velocity"]["phase_margin_deg"] >= D.PM_DESIGN_DEG
+    assert y["gains"]["KpS"] < design_gains(J, C1, MOTOR.R, MOTOR.L).KpS
+    assert y["measured"]["margins"]["velocity"]["phase_margin_deg"] >= PM_DESIGN_DEG
     capsys.readouterr()
     (tmp_path / "bad.json").write_text(json.dumps({"axes": {"y": {"frequency_hz": [1.0]}}}))
     assert main(argv + ["--frf", str(tmp_path / "bad.json"), "--out", str(tmp_path / "t2.json")]) == 2
@@ -168,14 +173,14 @@ def test_write_refuses_gains_the_measured_response_does_not_admit(tmp_path, caps
     written): on the measured plant their velocity loop crosses over above what was measured."""
     from drive_bridge.cli import main
     from drive_bridge.tuning.measure import frf_doc
-    from drive_bridge.tuning.tune import tune_axes, tune_doc
+    from drive_bridge.tuning.tune import tune, tune_doc
 
     from ..support import bus_yml_beside
     share, k, d = two_mass()
     frf = tmp_path / "frf.json"
     frf.write_text(json.dumps(frf_doc({"y": measured({"compliance": {"TM_SHARE": share, "TM_K": k, "TM_D": d}})},
                                       {})))
-    rigid = tune_axes({"y": {"J": J, "c0": 0.32, "c1": C1}}, {"y": {"motor": {"R": MOTOR.R, "L": MOTOR.L},
+    rigid = tune({"y": {"J": J, "c0": 0.32, "c1": C1}}, {"y": {"motor": {"R": MOTOR.R, "L": MOTOR.L},
                                                                      "parameters_before": {}}})
     (tmp_path / "tune.json").write_text(json.dumps(tune_doc(rigid)))
     cfg = bus_yml_beside(tmp_path)

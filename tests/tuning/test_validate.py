@@ -1,6 +1,8 @@
 """Validation on the reference trajectories: the tuned set against Table III, ripple compensation."""
 from __future__ import annotations
 
+import pytest
+
 from drive_bridge.config import load_bus_config
 from drive_bridge.connect import open_link
 from drive_bridge.master.bringup import bring_up
@@ -13,6 +15,8 @@ from drive_bridge.tuning.validate import validate
 
 from ..params.test_write import tuned_values
 from ..support import BUS_CONFIG, PAPER
+
+pytestmark = pytest.mark.slow
 
 
 SIM = load_profile("drive_bridge_servo")

@@ -19,6 +19,8 @@ from ..support import bus_yml_beside
 from ..tuning.test_frf import floor_kept, true_margins
 from .test_run import SHORT_CAMPAIGN
 
+pytestmark = pytest.mark.slow
+
 
 @pytest.fixture(scope="module")
 def commissioned(tmp_path_factory):

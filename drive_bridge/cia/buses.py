@@ -1,13 +1,13 @@
 """Opening a python-can bus, and what it takes to open the same bus again (:class:`BusSpec`): the
-cyclic engine opens a handle of its own on the master's bus (:mod:`.coprocess`)."""
+master's cyclic engine opens a handle of its own on the master's bus
+(:mod:`drive_bridge.master.coprocess`)."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
 import can
 
-#: python-can udp_multicast's default group and port
-UDP_GROUP, UDP_PORT = "239.74.163.2", 43113
+from .multicast import INTERFACE as MULTICAST_NOECHO, UDP_GROUP, UDP_PORT
 
 
 @dataclass(frozen=True)
@@ -33,10 +33,10 @@ def open_bus(interface: str, channel: str | int | None, bitrate: int | None = No
              options: dict | None = None) -> can.BusABC:
     """A python-can bus that does not hand its own frames back (``bitrate`` where the interface
     takes one; ``options``: the interface's own arguments, :mod:`drive_bridge.canconf`)."""
-    if interface == "udp_multicast":       # python-can's echoes every frame back to its sender
-        from ..sim.adapters import LoopbackMulticastBus
+    if interface in ("udp_multicast", MULTICAST_NOECHO):   # python-can's echoes every frame to its sender
         opts = dict(options or {})
-        return LoopbackMulticastBus(str(channel or UDP_GROUP), opts.pop("port", None) or UDP_PORT, **opts)
+        return can.Bus(interface=MULTICAST_NOECHO, channel=str(channel or UDP_GROUP),
+                       port=opts.pop("port", None) or UDP_PORT, **opts)
     kwargs = {**(options or {}), "interface": interface, "channel": channel, "receive_own_messages": False}
     if bitrate and interface != "virtual":
         kwargs["bitrate"] = bitrate

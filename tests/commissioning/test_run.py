@@ -14,7 +14,7 @@ import pytest
 import yaml
 
 from drive_bridge.cli import main
-from drive_bridge.commission import STEPS, Options, commission
+from drive_bridge.commissioning import STEPS, Options, commission
 from drive_bridge.config import load_bus_config
 from drive_bridge.connect import open_link
 from drive_bridge.edscheck import check as check_eds
@@ -25,6 +25,8 @@ from drive_bridge.sim import kernel as K
 from drive_bridge.sim.config import DEFAULT_CONFIG, load_sim_config
 
 from ..support import BUS_CONFIG, EDS, PAPER, follows_schema, tool
+
+pytestmark = pytest.mark.slow
 
 SIM = load_sim_config(DEFAULT_CONFIG)          # the shipped robot, hidden effects on
 
@@ -333,7 +335,7 @@ def test_the_loop_model_predicts_the_measured_following_error(run):
     the motor's L) predicts the following error the simulated drives' real loops produce on the
     validation demand: the factory set's within 35 % RMS, the commissioned set's within 2x (its
     error sits at the acceleration steps, where the sampling decides)."""
-    from drive_bridge.commission.report import _loop
+    from drive_bridge.commissioning.report import _loop
     from drive_bridge.tuning.loops import predicted_following_error
     out, summary = run["out"], json.loads((run["out"] / "summary.json").read_text())
     traces = np.load(out / "validate" / "traces.npz")

@@ -17,6 +17,8 @@ from drive_bridge.resources import data, vendor_dir
 
 from ..support import tool
 
+pytestmark = pytest.mark.slow
+
 EXAMPLES = data("config", "examples")
 #: drive -> (mode streamed in, model feed-forward route, gains written, stored)
 EXPECTED = {

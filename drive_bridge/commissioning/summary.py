@@ -17,7 +17,7 @@ import platform
 from importlib import metadata
 from pathlib import Path
 
-from .. import __version__
+from ..version import __version__
 from ..config import BusConfig
 from ..errors import UserError
 from ..logs import META_NAME

@@ -16,8 +16,9 @@ from ..params.read import drive_state
 from ..params.write import raise_for_failure, write_drives
 from ..progress import StepReporter
 from ..session import Session
-from ..tuning.tune import (drive_model, read_frf_json, read_identify_json, read_resonances, read_tune_json, tune_axes,
-                           tune_doc, unwritable_effects)
+from ..tuning import tune as gain_tuning
+from ..tuning.tune import (drive_model, read_frf_json, read_identify_json, read_resonances, read_tune_json, tune_doc,
+                           unwritable_effects)
 from ..tuning import validate as V
 from ..tuning.validate import degraded, run_scenarios, stopped
 
@@ -138,7 +139,7 @@ def tune(ctx: Context) -> str:
         raise UserError(f"axis {missing[0]}: not in {ctx.out / OUTPUT['bringup']}; rerun the bringup step")
     frfs = _measured(ctx) or {}
     profile = ctx.session.profile
-    doc = tune_doc(tune_axes(models, {a: state[a] for a in ctx.config.nodes}, frfs, profile.controller,
+    doc = tune_doc(gain_tuning.tune(models, {a: state[a] for a in ctx.config.nodes}, frfs, profile.controller,
                              read_resonances(ctx.require(IDENTIFY_JSON)), profile.drive),
                    unwritable_effects(ctx.require(IDENTIFY_JSON)))
     write_json(ctx.out / OUTPUT["tune"], doc)

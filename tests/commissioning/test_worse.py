@@ -1,7 +1,7 @@
 """What got worse after commissioning is named with its values and the reason the data give."""
 from __future__ import annotations
 
-from drive_bridge.commission.worse import worse
+from drive_bridge.commissioning.worse import worse
 
 
 def _val(**kw) -> dict:
