@@ -1,4 +1,5 @@
 """Sphinx configuration of drive-bridge's documentation (MyST Markdown; ``sphinx-build -W`` in CI)."""
+
 from __future__ import annotations
 
 import sys
@@ -17,7 +18,7 @@ source_suffix = {".md": "markdown"}
 exclude_patterns = ["_build"]
 myst_heading_anchors = 3
 myst_enable_extensions = ["colon_fence"]
-suppress_warnings = ["myst.header"]     # the moved README sections start one level down
+suppress_warnings = ["myst.header"]  # the moved README sections start one level down
 html_theme = "alabaster"
 html_static_path: list[str] = []
 autodoc_member_order = "bysource"

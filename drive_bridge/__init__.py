@@ -16,6 +16,7 @@ command line):
 :func:`commission`     scan → bring-up → campaign → identify → tune → write → validate
 =====================  ==================================================================
 """
+
 from __future__ import annotations
 
 import importlib
@@ -35,8 +36,17 @@ _PUBLIC = {
     "commission": "drive_bridge.commissioning.run",
 }
 
-__all__ = ["Options", "Session", "__version__", "commission", "identify", "load_bus_config", "open_link", "tune",
-           "write_drives"]
+__all__ = [
+    "Options",
+    "Session",
+    "__version__",
+    "commission",
+    "identify",
+    "load_bus_config",
+    "open_link",
+    "tune",
+    "write_drives",
+]
 
 if TYPE_CHECKING:
     from .commissioning.run import commission

@@ -1,4 +1,5 @@
 """``python -m drive_bridge``: the drive-bridge command line."""
+
 import sys
 
 from .cli import main

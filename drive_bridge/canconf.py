@@ -9,6 +9,7 @@ app_name, fd, data_bitrate ...), except what would change how the master works:
 ``receive_own_messages`` would put each SYNC and RPDO on the master's own bus twice, so it is
 set False with a note.
 """
+
 from __future__ import annotations
 
 from dataclasses import replace
@@ -18,8 +19,12 @@ import can
 from .config import BusConfig
 from .errors import ConfigError
 
-NEUTRALISED = {"receive_own_messages": (False, "the master would receive its own SYNC and RPDO frames "
-                                               "and count them twice")}
+NEUTRALISED = {
+    "receive_own_messages": (
+        False,
+        "the master would receive its own SYNC and RPDO frames and count them twice",
+    )
+}
 LINK_KEYS = ("interface", "channel", "bitrate")
 
 
@@ -36,8 +41,12 @@ def python_can_config() -> dict:
     return out
 
 
-def resolve(config: BusConfig, interface: str | None = None, channel: str | int | None = None,
-            bitrate: int | None = None) -> BusConfig:
+def resolve(
+    config: BusConfig,
+    interface: str | None = None,
+    channel: str | int | None = None,
+    bitrate: int | None = None,
+) -> BusConfig:
     """``config`` with its master's interface, channel, bitrate and bus arguments filled in as
     the module docstring says, and notes on where they came from."""
     m = config.master
@@ -48,14 +57,16 @@ def resolve(config: BusConfig, interface: str | None = None, channel: str | int 
     merged = {**own, **m.can_options, **{k: v for k, v in given.items() if v is not None}}
     if merged.get("interface") is not None:
         try:
-            merged = can.util.load_config(config=merged)          # python-can checks the interface name
+            merged = can.util.load_config(config=merged)  # python-can checks the interface name
         except (can.CanError, ValueError) as exc:
             raise ConfigError(config.path, "master.interface", f"python-can refuses it: {exc}") from exc
     notes = list(m.notes)
     taken = [k for k in LINK_KEYS if given[k] is None and merged.get(k) is not None]
     if taken:
-        notes.append(f"{', '.join(f'{k} {merged[k]!r}' for k in taken)} from python-can's configuration "
-                     f"(CAN_INTERFACE / CAN_CHANNEL / CAN_BITRATE, ~/.canrc, /etc/can.conf)")
+        notes.append(
+            f"{', '.join(f'{k} {merged[k]!r}' for k in taken)} from python-can's configuration "
+            f"(CAN_INTERFACE / CAN_CHANNEL / CAN_BITRATE, ~/.canrc, /etc/can.conf)"
+        )
     from_cli = [k for k in LINK_KEYS if cli[k] is not None]
     if from_cli:
         notes.append(f"{', '.join(f'{k} {cli[k]!r}' for k in from_cli)} from the command line")
@@ -72,8 +83,15 @@ def resolve(config: BusConfig, interface: str | None = None, channel: str | int 
     try:
         bit = None if bit is None else int(bit)
     except (TypeError, ValueError) as exc:
-        raise ConfigError(config.path, "master.bitrate", f"python-can's configuration gives bitrate {bit!r}, "
-                                                         f"not a number") from exc
-    master = replace(m, interface=merged.get("interface"), channel=merged.get("channel"), bitrate=bit,
-                     can_options=options, notes=tuple(notes))
+        raise ConfigError(
+            config.path, "master.bitrate", f"python-can's configuration gives bitrate {bit!r}, not a number"
+        ) from exc
+    master = replace(
+        m,
+        interface=merged.get("interface"),
+        channel=merged.get("channel"),
+        bitrate=bit,
+        can_options=options,
+        notes=tuple(notes),
+    )
     return replace(config, master=master)

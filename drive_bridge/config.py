@@ -5,6 +5,7 @@
 problem is a :class:`ConfigError` naming the file and the key.  Limits are SI
 (m for linear axes, rad for rotary), converted to the motor side here.
 """
+
 from __future__ import annotations
 
 import logging
@@ -28,24 +29,81 @@ log = logging.getLogger(__name__)
 REQUIRED_RPDO = {0x6040: "controlword"}
 REQUIRED_TPDO = {0x6064: "position actual", 0x606C: "velocity actual", 0x6041: "statusword"}
 #: what the master logs the torque from (scaling.torque_feedback): 0x6077, 0x6078, or a vendor object
-TORQUE_FEEDBACK = {"torque": "torque actual", "current": "current actual", "object": "the torque feedback object"}
+TORQUE_FEEDBACK = {
+    "torque": "torque actual",
+    "current": "current actual",
+    "object": "the torque feedback object",
+}
 #: objects the master can fill in an RPDO / log from a TPDO
 TOP_KEYS = {"options", "master", "defaults", "nodes", "campaign", "acceptance"}
-TPDO_TRANSMISSION = set(range(0, 241)) | {252, 253, 254, 255}     # CiA 301: 241..251 reserved
+TPDO_TRANSMISSION = set(range(0, 241)) | {252, 253, 254, 255}  # CiA 301: 241..251 reserved
 RPDO_TRANSMISSION = set(range(0, 241)) | {254, 255}
 #: keys of a ros2_canopen / Lely dcfgen bus.yml that drive-bridge accepts but does not use
-ROS_KEYS = {"driver", "package", "period", "enable_lazy_load", "position_mode", "velocity_mode", "switching_state",
-            "homing_mode", "scale_pos_to_dev", "scale_pos_from_dev", "scale_vel_to_dev", "scale_vel_from_dev",
-            "scale_eff_to_dev", "scale_eff_from_dev", "sdo_timeout_ms", "polling", "diagnostics", "namespace",
-            "offset_pos_to_dev", "offset_pos_from_dev", "use_interpolation", "ignore_offsets"}
-LELY_NODE_KEYS = {"dcf_path", "revision_number", "serial_number", "vendor_id", "product_code", "heartbeat_multiplier",
-                  "heartbeat_consumer", "error_behavior", "boot", "mandatory", "reset_communication", "software_file",
-                  "software_version", "restore_configuration", "configuration_file", "time_cob_id", "retry_factor",
-                  "guard_time", "life_time_factor"}
-LELY_MASTER_KEYS = {"vendor_id", "product_code", "revision_number", "serial_number", "sync_window", "sync_overflow",
-                    "time_cob_id", "emcy_inhibit_time", "heartbeat_multiplier", "heartbeat_consumer",
-                    "error_behavior", "nmt_inhibit_time", "start", "start_nodes",
-                    "start_all_nodes", "reset_all_nodes", "stop_all_nodes", "boot_time"}
+ROS_KEYS = {
+    "driver",
+    "package",
+    "period",
+    "enable_lazy_load",
+    "position_mode",
+    "velocity_mode",
+    "switching_state",
+    "homing_mode",
+    "scale_pos_to_dev",
+    "scale_pos_from_dev",
+    "scale_vel_to_dev",
+    "scale_vel_from_dev",
+    "scale_eff_to_dev",
+    "scale_eff_from_dev",
+    "sdo_timeout_ms",
+    "polling",
+    "diagnostics",
+    "namespace",
+    "offset_pos_to_dev",
+    "offset_pos_from_dev",
+    "use_interpolation",
+    "ignore_offsets",
+}
+LELY_NODE_KEYS = {
+    "dcf_path",
+    "revision_number",
+    "serial_number",
+    "vendor_id",
+    "product_code",
+    "heartbeat_multiplier",
+    "heartbeat_consumer",
+    "error_behavior",
+    "boot",
+    "mandatory",
+    "reset_communication",
+    "software_file",
+    "software_version",
+    "restore_configuration",
+    "configuration_file",
+    "time_cob_id",
+    "retry_factor",
+    "guard_time",
+    "life_time_factor",
+}
+LELY_MASTER_KEYS = {
+    "vendor_id",
+    "product_code",
+    "revision_number",
+    "serial_number",
+    "sync_window",
+    "sync_overflow",
+    "time_cob_id",
+    "emcy_inhibit_time",
+    "heartbeat_multiplier",
+    "heartbeat_consumer",
+    "error_behavior",
+    "nmt_inhibit_time",
+    "start",
+    "start_nodes",
+    "start_all_nodes",
+    "reset_all_nodes",
+    "stop_all_nodes",
+    "boot_time",
+}
 # what the master fills in an RPDO (0x6060: the streaming mode; 0x60FF, 0x6071: zero, as a
 # ros2_canopen CiA 402 mapping has them) and logs from a TPDO (0x6061: the mode the drive runs)
 RPDO_OBJECTS = {0x6040, 0x607A, 0x60C1, 0x20C1, 0x60B1, 0x60B2, 0x6060, 0x60FF, 0x6071}
@@ -56,19 +114,19 @@ TPDO_OBJECTS = {0x6064, 0x606C, 0x6077, 0x6041, 0x60F4, 0x6078, 0x6061, 0x20C4}
 class TimingLimits:
     """Limits of a wall-clock run (bus.yml ``master.timing``)."""
 
-    max_late_pct: float = 1.0       # late cycles [% of all]
-    max_gap_periods: float = 5.0    # largest SYNC gap [periods]
-    max_missing_pct: float = 0.5    # samples missing, any axis [% of rows]
+    max_late_pct: float = 1.0  # late cycles [% of all]
+    max_gap_periods: float = 5.0  # largest SYNC gap [periods]
+    max_missing_pct: float = 0.5  # samples missing, any axis [% of rows]
 
 
 @dataclass(frozen=True)
 class PdoConfig:
-    number: int                           # 1..4
+    number: int  # 1..4
     transmission: int
     mapping: tuple[tuple[int, int], ...]  # (index, subindex)
-    cob_id: int | None = None             # None: the predefined connection set (ros2_canopen's "auto")
-    event_timer_ms: int | None = None     # TPDO event timer (sub 5) [ms], where given (else 0: off)
-    inhibit_time_100us: int = 0           # TPDO inhibit time (sub 3) [100 µs]; 0 for synchronous PDOs
+    cob_id: int | None = None  # None: the predefined connection set (ros2_canopen's "auto")
+    event_timer_ms: int | None = None  # TPDO event timer (sub 5) [ms], where given (else 0: off)
+    inhibit_time_100us: int = 0  # TPDO inhibit time (sub 3) [100 µs]; 0 for synchronous PDOs
 
 
 @dataclass(frozen=True)
@@ -137,8 +195,8 @@ class NodeConfig:
     rpdo: tuple[PdoConfig, ...]
     tpdo: tuple[PdoConfig, ...]
     sdo: tuple[tuple[int, int, int | float], ...]
-    profile: str | None = None            # the drive profile (params/profiles) of this node's drive
-    motor: tuple[float, float] | None = None     # winding R [Ω], L [H] where the drive does not report them
+    profile: str | None = None  # the drive profile (params/profiles) of this node's drive
+    motor: tuple[float, float] | None = None  # winding R [Ω], L [H] where the drive does not report them
     #: the node's entry as bus.yml gives it, defaults merged in (load units, as written)
     source: dict = field(default_factory=dict, repr=False, compare=False)
     drive_limits: DriveLimits | None = None
@@ -152,7 +210,7 @@ class NodeConfig:
     homing: Homing | None = None
 
 
-DEFAULT_BITRATE = 1_000_000       # bit/s, when nothing names the bitrate
+DEFAULT_BITRATE = 1_000_000  # bit/s, when nothing names the bitrate
 
 
 @dataclass(frozen=True)
@@ -168,12 +226,12 @@ class MasterConfig:
     heartbeat_timeout_s: float
     sdo_timeout_s: float
     state_timeout_s: float
-    tpdo_miss_limit: int | None      # periods of missing feedback before a stop (None: as the drives wait)
+    tpdo_miss_limit: int | None  # periods of missing feedback before a stop (None: as the drives wait)
     timing: TimingLimits = TimingLimits()
     can_options: dict = field(default_factory=dict)
-    notes: tuple[str, ...] = ()               # where the interface came from, what was neutralised, ignored
-    node_id: int | None = None                # the master's own node-ID (a ros2_canopen / Lely bus.yml)
-    heartbeat_period_s: float = 0.1           # the master's heartbeat, which every drive's consumer watches
+    notes: tuple[str, ...] = ()  # where the interface came from, what was neutralised, ignored
+    node_id: int | None = None  # the master's own node-ID (a ros2_canopen / Lely bus.yml)
+    heartbeat_period_s: float = 0.1  # the master's heartbeat, which every drive's consumer watches
 
     @property
     def heartbeat_node_id(self) -> int:
@@ -201,12 +259,17 @@ class CampaignConfig:
     design: str = "paper"
     short_time_s: float = 30.0
 
-    def quick(self) -> "CampaignConfig":
+    def quick(self) -> CampaignConfig:
         """A few seconds of motion per axis, for demos and tests."""
-        return replace(self, velocity_levels=self.velocity_levels[-2:],
-                       acceleration_levels=self.acceleration_levels[-2:], cycles=1,
-                       max_axis_time_s=min(self.max_axis_time_s, 5.0),
-                       move_fraction=min(self.move_fraction, 0.05), short_time_s=min(self.short_time_s, 8.0))
+        return replace(
+            self,
+            velocity_levels=self.velocity_levels[-2:],
+            acceleration_levels=self.acceleration_levels[-2:],
+            cycles=1,
+            max_axis_time_s=min(self.max_axis_time_s, 5.0),
+            move_fraction=min(self.move_fraction, 0.05),
+            short_time_s=min(self.short_time_s, 8.0),
+        )
 
 
 DESIGNS = ("paper", "short")
@@ -235,16 +298,20 @@ class BusConfig:
     campaign: CampaignConfig
     #: node ids whose identity may differ from their EDS/DCF (--accept-identity: a deliberate override)
     accept_identity: frozenset[int] = frozenset()
-    acceptance: Acceptance = Acceptance()         # what the commissioning's verdict checks
+    acceptance: Acceptance = Acceptance()  # what the commissioning's verdict checks
 
     @property
     def profile(self) -> str | None:
         """The drive profile the nodes name (``profile`` in bus.yml); None when none does."""
         names = {n.profile for n in self.nodes.values()}
         if len(names) > 1:
-            raise ConfigError(self.path, "nodes", f"the nodes name different drive profiles "
-                              f"({sorted(map(str, names))}); one run commissions one drive model: split the bus "
-                              f"into one file per model")
+            raise ConfigError(
+                self.path,
+                "nodes",
+                f"the nodes name different drive profiles "
+                f"({sorted(map(str, names))}); one run commissions one drive model: split the bus "
+                f"into one file per model",
+            )
         return names.pop()
 
     @property
@@ -252,17 +319,19 @@ class BusConfig:
         """axis -> its motor's torque constant [Nm/A] where the configuration gives one."""
         return {a: n.scaling.torque_constant_Nm_per_A for a, n in self.nodes.items()}
 
-    def only(self, axes: list[str]) -> "BusConfig":
+    def only(self, axes: list[str]) -> BusConfig:
         """The same configuration restricted to ``axes`` (errors name unknown ones)."""
         unknown = [a for a in axes if a not in self.nodes]
         if unknown:
-            raise ConfigError(self.path, "nodes", f"no axis named {unknown[0]!r} "
-                              f"(configured: {', '.join(self.nodes)})")
+            raise ConfigError(
+                self.path, "nodes", f"no axis named {unknown[0]!r} (configured: {', '.join(self.nodes)})"
+            )
         return replace(self, nodes={a: self.nodes[a] for a in axes})
 
 
-def _pdos(sec: Section, key: str, od: canopen.ObjectDictionary, allowed: set[int],
-          required: dict[int, str]) -> tuple[PdoConfig, ...]:
+def _pdos(
+    sec: Section, key: str, od: canopen.ObjectDictionary, allowed: set[int], required: dict[int, str]
+) -> tuple[PdoConfig, ...]:
     pdo_sec = sec.section(key)
     result = []
     seen: set[int] = set()
@@ -278,15 +347,18 @@ def _pdos(sec: Section, key: str, od: canopen.ObjectDictionary, allowed: set[int
         if trans not in allowed_types:
             raise p.error("transmission", f"0x{trans:02X} is reserved by CiA 301 for a {key.upper()}")
         if key == "tpdo" and enabled and not 1 <= trans <= 240:
-            raise p.error("transmission", f"0x{trans:02X} is not synchronous: the master logs one sample per SYNC "
-                                          f"from each TPDO it reads (use 1..240)")
+            raise p.error(
+                "transmission",
+                f"0x{trans:02X} is not synchronous: the master logs one sample per SYNC "
+                f"from each TPDO it reads (use 1..240)",
+            )
         cob = p.get("cob_id", (int, str), "auto")
         if cob != "auto" and (isinstance(cob, str) or not 0x181 <= cob <= 0x57F):
             raise p.error("cob_id", f"must be 'auto' or an 11-bit PDO COB-ID 0x181..0x57F, got {cob!r}")
         timer = p.get("event_timer", int, None, low=0, high=65535)
-        inhibit = p.get("inhibit_time", int, 0, low=0, high=65535)          # 100 µs, as CiA 301 and Lely
+        inhibit = p.get("inhibit_time", int, 0, low=0, high=65535)  # 100 µs, as CiA 301 and Lely
         for lely_only in ("event_deadline", "sync_start"):
-            p.get(lely_only, int, None, low=0, high=65535)          # accepted as Lely takes them; not used
+            p.get(lely_only, int, None, low=0, high=65535)  # accepted as Lely takes them; not used
         mapping = []
         bits = 0
         for n, entry in enumerate(p.get("mapping", list, ... if enabled else [])):
@@ -295,9 +367,12 @@ def _pdos(sec: Section, key: str, od: canopen.ObjectDictionary, allowed: set[int
             sub = e.get("sub_index", int, 0, low=0, high=255)
             e.done()
             if index not in allowed:
-                raise e.error("index", f"0x{index:04X} is not an object the master can "
-                              f"{'send' if key == 'rpdo' else 'log'} (use: "
-                              f"{', '.join(f'0x{i:04X}' for i in sorted(allowed))})")
+                raise e.error(
+                    "index",
+                    f"0x{index:04X} is not an object the master can "
+                    f"{'send' if key == 'rpdo' else 'log'} (use: "
+                    f"{', '.join(f'0x{i:04X}' for i in sorted(allowed))})",
+                )
             var = od.get_variable(index, sub)
             if var is None:
                 raise e.error("index", f"0x{index:04X}:{sub} is not in the drive's EDS/DCF")
@@ -306,8 +381,11 @@ def _pdos(sec: Section, key: str, od: canopen.ObjectDictionary, allowed: set[int
             if index == 0x20C4 and sub != 1:
                 raise e.error("sub_index", "0x20C4:1 is the interpolation buffer status the master checks")
             if index in (0x60C1, 0x20C1) and (index, sub) not in SETPOINT_OBJECTS:
-                raise e.error("sub_index", f"0x{index:04X}:{sub} carries no position setpoint (use "
-                                           f"{'0x60C1:1' if index == 0x60C1 else '0x20C1:0'})")
+                raise e.error(
+                    "sub_index",
+                    f"0x{index:04X}:{sub} carries no position setpoint (use "
+                    f"{'0x60C1:1' if index == 0x60C1 else '0x20C1:0'})",
+                )
             bits += len(var)
             mapping.append((index, sub))
         p.done()
@@ -315,33 +393,46 @@ def _pdos(sec: Section, key: str, od: canopen.ObjectDictionary, allowed: set[int
             raise p.error("mapping", f"{bits} bits do not fit in one 8-byte PDO")
         if enabled:
             seen.update(i for i, _ in mapping)
-            result.append(PdoConfig(num, trans, tuple(mapping), None if cob == "auto" else cob, timer, inhibit))
+            result.append(
+                PdoConfig(num, trans, tuple(mapping), None if cob == "auto" else cob, timer, inhibit)
+            )
     pdo_sec.done()
     missing = [f"0x{i:04X} ({name})" for i, name in required.items() if i not in seen]
     if key == "rpdo" and not any(e in SETPOINT_OBJECTS for p in result for e in p.mapping):
-        missing.append("a position setpoint (0x607A target position for cyclic synchronous position, or "
-                       "0x60C1:1 / maxon's 0x20C1 interpolation data record for interpolated position)")
+        missing.append(
+            "a position setpoint (0x607A target position for cyclic synchronous position, or "
+            "0x60C1:1 / maxon's 0x20C1 interpolation data record for interpolated position)"
+        )
     if missing:
         raise pdo_sec.error("", f"must map {', '.join(missing)}")
     return tuple(result)
 
 
-def _node(path: Path, axis: str, data: dict, dcf_path: str | None = None, unused: set | None = None) -> NodeConfig:
+def _node(
+    path: Path, axis: str, data: dict, dcf_path: str | None = None, unused: set | None = None
+) -> NodeConfig:
     if data.get("scaling") == "from_drive" or ("scaling" not in data and "scale_pos_to_dev" not in data):
-        data = {**data, "scaling": {"from_drive": True}}      # everything from the drive (a rotary axis)
+        data = {**data, "scaling": {"from_drive": True}}  # everything from the drive (a rotary axis)
     sec = Section(path, f"nodes.{axis}", data)
     node_id = sec.get("node_id", int, low=1, high=127)
     name = sec.get("dcf", str)
     vendor = name.startswith("vendor/")
-    dcf = (vendor_dir() / name[len("vendor/"):] if vendor else path.parent / name).resolve()
-    if not vendor and not dcf.is_file() and dcf_path:       # ros2_canopen: beside bus.yml, or in options.dcf_path
+    dcf = (vendor_dir() / name[len("vendor/") :] if vendor else path.parent / name).resolve()
+    if not vendor and not dcf.is_file() and dcf_path:  # ros2_canopen: beside bus.yml, or in options.dcf_path
         dcf = (path.parent / dcf_path / name).resolve()
     scale_pos = data.get("scale_pos_to_dev")
     ignored = sec.accept((ROS_KEYS | LELY_NODE_KEYS) - {"dcf_path"})
     sec.get("dcf_path", str, None)
     if not dcf.is_file():
-        raise sec.error("dcf", f"EDS/DCF file not found: {dcf}" + (
-            " (vendor/ files are read from $DRIVE_BRIDGE_VENDOR_EDS or ../shared/eds-vendor)" if vendor else ""))
+        raise sec.error(
+            "dcf",
+            f"EDS/DCF file not found: {dcf}"
+            + (
+                " (vendor/ files are read from $DRIVE_BRIDGE_VENDOR_EDS or ../shared/eds-vendor)"
+                if vendor
+                else ""
+            ),
+        )
     od = load_od(dcf, node_id)
     sc = sec.section("scaling")
     from_drive = sc.get("from_drive", bool, False)
@@ -351,35 +442,49 @@ def _node(path: Path, axis: str, data: dict, dcf_path: str | None = None, unused
     per_unit = torque_index = torque_per_unit = None
     # the motor's torque constant: for current feedback, and for gains a drive holds in current
     kt = sc.get("torque_constant_Nm_per_A", float, ... if feedback == "current" else None, low=1e-6, high=1e3)
-    if feedback == "object":                  # torque = a vendor object × its scale
+    if feedback == "object":  # torque = a vendor object × its scale
         torque_index = sc.get("torque_object", int, low=0x2000, high=0x5FFF)
         var = od.get_variable(torque_index, 0)
         if var is None or not var.pdo_mappable or not var.readable:
-            raise sc.error("torque_object", f"0x{torque_index:04X}:0 is not a readable, PDO-mappable object of the "
-                                            f"drive's EDS/DCF")
+            raise sc.error(
+                "torque_object",
+                f"0x{torque_index:04X}:0 is not a readable, PDO-mappable object of the drive's EDS/DCF",
+            )
         torque_per_unit = sc.get("torque_Nm_per_unit", float, low=1e-9, high=1e3)
-    if feedback == "current":                 # torque = current actual (0x6078) × torque constant
+    if feedback == "current":  # torque = current actual (0x6078) × torque constant
         unit_ = sc.get("current_unit", str, "permille", choices=["permille", "mA"])
-        per_unit = (sc.get("rated_current_A", float, low=1e-6, high=1e5) / 1000.0 if unit_ == "permille"
-                    else 1e-3)
+        per_unit = (
+            sc.get("rated_current_A", float, low=1e-6, high=1e5) / 1000.0 if unit_ == "permille" else 1e-3
+        )
     inc = sc.get("increments_per_rev", int, None, low=1, high=2**31 - 1)
     if inc is None and finite_number(scale_pos) and scale_pos > 0 and not from_drive:
-        inc = round(scale_pos * (feed or 2 * math.pi))     # ros2_canopen: device units per rad (or m)
+        inc = round(scale_pos * (feed or 2 * math.pi))  # ros2_canopen: device units per rad (or m)
         ignored.discard("scale_pos_to_dev")
     if unused is not None:
         unused.update(ignored)
     if inc is None and not from_drive:
-        raise sc.error("increments_per_rev", "missing (the encoder's increments per motor revolution; a "
-                                             "ros2_canopen scale_pos_to_dev gives it; or from_drive: true takes "
-                                             "the drive's own units)")
+        raise sc.error(
+            "increments_per_rev",
+            "missing (the encoder's increments per motor revolution; a "
+            "ros2_canopen scale_pos_to_dev gives it; or from_drive: true takes "
+            "the drive's own units)",
+        )
     if from_drive and inc is not None:
-        raise sc.error("increments_per_rev", "give it or from_drive: true, not both (from_drive takes the drive's "
-                                             "own position unit)")
-    scaling = Scaling(increments_per_rev=inc or 0,
-                      rated_torque_Nm=sc.get("rated_torque_Nm", float, 0.0 if from_drive else ..., low=1e-6, high=1e6),
-                      feed_m_per_rev=feed, torque_feedback=feedback, current_per_unit_A=per_unit,
-                      torque_constant_Nm_per_A=kt, velocity_unit=velocity_unit, torque_index=torque_index,
-                      torque_per_unit_Nm=torque_per_unit)
+        raise sc.error(
+            "increments_per_rev",
+            "give it or from_drive: true, not both (from_drive takes the drive's own position unit)",
+        )
+    scaling = Scaling(
+        increments_per_rev=inc or 0,
+        rated_torque_Nm=sc.get("rated_torque_Nm", float, 0.0 if from_drive else ..., low=1e-6, high=1e6),
+        feed_m_per_rev=feed,
+        torque_feedback=feedback,
+        current_per_unit_A=per_unit,
+        torque_constant_Nm_per_A=kt,
+        velocity_unit=velocity_unit,
+        torque_index=torque_index,
+        torque_per_unit_Nm=torque_per_unit,
+    )
     sc.done()
     unit = "m" if feed else "rad"
     lim = sec.section("limits")
@@ -387,28 +492,40 @@ def _node(path: Path, axis: str, data: dict, dcf_path: str | None = None, unused
     fe_timeout = lim.get("following_error_timeout_ms", int, 10, low=1, high=65535)
     max_torque = lim.get("max_torque_Nm", float, None, low=1e-6, high=1e6)
     stroke = lim.get("stroke_" + unit, list)
-    if len(stroke) != 2 or not all(finite_number(v) and abs(v) < 1e9 for v in stroke) or stroke[0] >= stroke[1]:
+    if (
+        len(stroke) != 2
+        or not all(finite_number(v) and abs(v) < 1e9 for v in stroke)
+        or stroke[0] >= stroke[1]
+    ):
         raise lim.error("stroke_" + unit, f"must be [min, max] in {unit} with min < max, got {stroke!r}")
     vmax = lim.get(f"max_velocity_{unit}_s", float, low=1e-9, high=1e6)
     amax = lim.get(f"max_acceleration_{unit}_s2", float, low=1e-9, high=1e8)
     jmax = lim.get(f"max_jerk_{unit}_s3", float, None, low=1e-9, high=1e12)
     lim.done()
-    limits = Limits(float(scaling.load_to_motor(stroke[0])), float(scaling.load_to_motor(stroke[1])),
-                    float(scaling.load_to_motor(vmax)), float(scaling.load_to_motor(amax)),
-                    None if jmax is None else float(scaling.load_to_motor(jmax)))
+    limits = Limits(
+        float(scaling.load_to_motor(stroke[0])),
+        float(scaling.load_to_motor(stroke[1])),
+        float(scaling.load_to_motor(vmax)),
+        float(scaling.load_to_motor(amax)),
+        None if jmax is None else float(scaling.load_to_motor(jmax)),
+    )
     if default(od, 0x6080):
         drive_max = default(od, 0x6080) * 2 * math.pi / 60.0
         if limits.max_velocity > drive_max * (1 + 1e-9):
-            raise lim.error(f"max_velocity_{unit}_s",
-                            f"{vmax} {unit}/s is {limits.max_velocity * 60 / (2 * math.pi):.0f} rpm at the motor, "
-                            f"above the drive's max motor speed 0x6080 = {default(od, 0x6080)} rpm")
-    if not limits.fits_32_bits(scaling.inc_per_rad):     # with from_drive, bring-up checks it in the drive's units
+            raise lim.error(
+                f"max_velocity_{unit}_s",
+                f"{vmax} {unit}/s is {limits.max_velocity * 60 / (2 * math.pi):.0f} rpm at the motor, "
+                f"above the drive's max motor speed 0x6080 = {default(od, 0x6080)} rpm",
+            )
+    if not limits.fits_32_bits(
+        scaling.inc_per_rad
+    ):  # with from_drive, bring-up checks it in the drive's units
         raise lim.error("stroke_" + unit, "does not fit the drive's 32-bit position range with this scaling")
     sdo = []
     for n, entry in enumerate(sec.get("sdo", list, [])):
         e = Section(path, f"nodes.{axis}.sdo[{n}]", entry)
         index, sub = e.get("index", int, low=0, high=0xFFFF), e.get("sub_index", int, 0, low=0, high=255)
-        value = e.get("value", (int, float), low=-2**63, high=2**64 - 1)
+        value = e.get("value", (int, float), low=-(2**63), high=2**64 - 1)
         e.done()
         var = od.get_variable(index, sub)
         if var is None:
@@ -421,22 +538,43 @@ def _node(path: Path, axis: str, data: dict, dcf_path: str | None = None, unused
     drive_limits = DriveLimits(
         max_velocity=DRIVE_LIMIT_MARGIN * limits.max_velocity,
         quick_stop_deceleration=float(scaling.load_to_motor(qs)) if qs else 2 * limits.max_acceleration,
-        following_error_timeout_ms=fe_timeout, max_torque_Nm=max_torque,
-        holding=sec.get("holding", str, "enabled", choices=list(HOLDING)))
+        following_error_timeout_ms=fe_timeout,
+        max_torque_Nm=max_torque,
+        holding=sec.get("holding", str, "enabled", choices=list(HOLDING)),
+    )
     cfg = NodeConfig(
-        axis=axis, node_id=node_id, dcf=dcf, od=od, scaling=scaling, limits=limits, linear=bool(feed),
+        axis=axis,
+        node_id=node_id,
+        dcf=dcf,
+        od=od,
+        scaling=scaling,
+        limits=limits,
+        linear=bool(feed),
         heartbeat_producer_ms=sec.get("heartbeat_producer", int, 100, low=1, high=65535),
         following_error_window_rad=sec.get("following_error_window_rad", float, 0.6, low=1e-6, high=1e6),
         rpdo=_pdos(sec, "rpdo", od, RPDO_OBJECTS, REQUIRED_RPDO),
-        tpdo=_pdos(sec, "tpdo", od, TPDO_OBJECTS | {scaling.torque_object},
-                   {**REQUIRED_TPDO, scaling.torque_object: TORQUE_FEEDBACK[feedback]}),
-        sdo=tuple(sdo), profile=sec.get("profile", str, None), motor=_motor(sec), source=data,
-        drive_limits=drive_limits, units_from_drive=from_drive,
+        tpdo=_pdos(
+            sec,
+            "tpdo",
+            od,
+            TPDO_OBJECTS | {scaling.torque_object},
+            {**REQUIRED_TPDO, scaling.torque_object: TORQUE_FEEDBACK[feedback]},
+        ),
+        sdo=tuple(sdo),
+        profile=sec.get("profile", str, None),
+        motor=_motor(sec),
+        source=data,
+        drive_limits=drive_limits,
+        units_from_drive=from_drive,
         reference=sec.get("reference", str, "absolute", choices=list(REFERENCES)),
-        homing=_homing(sec, od, scaling, limits, unit))
+        homing=_homing(sec, od, scaling, limits, unit),
+    )
     if (cfg.reference == "home") != (cfg.homing is not None):
-        raise sec.error("homing" if cfg.homing else "reference", "reference: home and a homing section go together: "
-                        "homing says how the drive finds its home (method, speeds), reference: home that it runs")
+        raise sec.error(
+            "homing" if cfg.homing else "reference",
+            "reference: home and a homing section go together: "
+            "homing says how the drive finds its home (method, speeds), reference: home that it runs",
+        )
     sec.done()
     return cfg
 
@@ -445,8 +583,9 @@ def _node(path: Path, axis: str, data: dict, dcf_path: str | None = None, unused
 HOMING_OBJECTS = ((0x6098, 0), (0x6099, 1), (0x6099, 2), (0x609A, 0))
 
 
-def _homing(sec: Section, od: canopen.ObjectDictionary, scaling: Scaling, limits: Limits,
-            unit: str) -> Homing | None:
+def _homing(
+    sec: Section, od: canopen.ObjectDictionary, scaling: Scaling, limits: Limits, unit: str
+) -> Homing | None:
     """``homing: {method, switch_speed_<unit>_s, zero_speed_<unit>_s, acceleration_<unit>_s2,
     timeout_s}`` (speeds by default 5 % and 1 % of the axis's velocity limit, the acceleration 10 %
     of its own), in load units as the limits are."""
@@ -456,15 +595,21 @@ def _homing(sec: Section, od: canopen.ObjectDictionary, scaling: Scaling, limits
     method = h.get("method", int, low=-128, high=127)
     missing = [f"0x{i:04X}:{s}" for i, s in HOMING_OBJECTS if od.get_variable(i, s) is None]
     if missing:
-        raise h.error("method", f"the drive's EDS/DCF has no homing objects {', '.join(missing)}: it cannot home "
-                                f"over CANopen; use reference: here or absolute")
-    to_motor = lambda v: None if v is None else float(scaling.load_to_motor(v))      # noqa: E731
+        raise h.error(
+            "method",
+            f"the drive's EDS/DCF has no homing objects {', '.join(missing)}: it cannot home "
+            f"over CANopen; use reference: here or absolute",
+        )
+    to_motor = lambda v: None if v is None else float(scaling.load_to_motor(v))  # noqa: E731
     vmax, amax = limits.max_velocity, limits.max_acceleration
     switch = to_motor(h.get(f"switch_speed_{unit}_s", float, None, low=1e-9, high=1e6)) or 0.05 * vmax
     zero = to_motor(h.get(f"zero_speed_{unit}_s", float, None, low=1e-9, high=1e6)) or 0.01 * vmax
     acc = to_motor(h.get(f"acceleration_{unit}_s2", float, None, low=1e-9, high=1e8)) or 0.1 * amax
-    for key, value, most in ((f"switch_speed_{unit}_s", switch, vmax), (f"zero_speed_{unit}_s", zero, vmax),
-                             (f"acceleration_{unit}_s2", acc, amax)):
+    for key, value, most in (
+        (f"switch_speed_{unit}_s", switch, vmax),
+        (f"zero_speed_{unit}_s", zero, vmax),
+        (f"acceleration_{unit}_s2", acc, amax),
+    ):
         if value > most * (1 + 1e-9):
             raise h.error(key, "above the axis's own limit in limits")
     out = Homing(method, switch, zero, acc, h.get("timeout_s", float, 120.0, low=0.1, high=3600.0))
@@ -486,9 +631,11 @@ def _motor(sec: Section) -> tuple[float, float] | None:
 def _timing(sec: Section) -> TimingLimits:
     """``master.timing``: when a wall-clock run counts as degraded."""
     d = TimingLimits()
-    limits = TimingLimits(sec.get("max_late_pct", float, d.max_late_pct, low=0.0, high=100.0),
-                          sec.get("max_gap_periods", float, d.max_gap_periods, low=1.0, high=1e6),
-                          sec.get("max_missing_pct", float, d.max_missing_pct, low=0.0, high=100.0))
+    limits = TimingLimits(
+        sec.get("max_late_pct", float, d.max_late_pct, low=0.0, high=100.0),
+        sec.get("max_gap_periods", float, d.max_gap_periods, low=1.0, high=1e6),
+        sec.get("max_missing_pct", float, d.max_missing_pct, low=0.0, high=100.0),
+    )
     sec.done()
     return limits
 
@@ -510,13 +657,15 @@ def load_bus_config(path: str | Path) -> BusConfig:
     options = top.section("options", required=False)
     dcf_path = options.get("dcf_path", str, None)
     for key in ("heartbeat_multiplier", "retry_factor"):
-        options.get(key, (int, float), None)                    # Lely's, for the master it generates
+        options.get(key, (int, float), None)  # Lely's, for the master it generates
     options.done()
     m = top.section("master")
     notes: list[str] = []
-    ros = bool(top.data.get("options")) or any(k in m.data for k in ("node_id", "driver", "package", "baudrate"))
+    ros = bool(top.data.get("options")) or any(
+        k in m.data for k in ("node_id", "driver", "package", "baudrate")
+    )
     bitrate = m.get("bitrate", int, None, low=10_000, high=1_000_000)
-    baud = m.get("baudrate", int, None, low=10, high=1000)        # Lely / ros2_canopen: kbit/s
+    baud = m.get("baudrate", int, None, low=10, high=1000)  # Lely / ros2_canopen: kbit/s
     if baud is not None and bitrate is not None and baud * 1000 != bitrate:
         raise m.error("baudrate", f"{baud} kbit/s but master.bitrate is {bitrate} bit/s: give one")
     ignored = m.accept({"driver", "package"} | LELY_MASTER_KEYS)
@@ -532,10 +681,13 @@ def load_bus_config(path: str | Path) -> BusConfig:
         tpdo_miss_limit=m.get("tpdo_miss_limit", int, None, low=1, high=10000),
         heartbeat_period_s=m.get("heartbeat_producer", int, 100, low=10, high=100) / 1000.0,
         timing=_timing(m.section("timing", required=False)),
-        node_id=m.get("node_id", int, None, low=1, high=127))
+        node_id=m.get("node_id", int, None, low=1, high=127),
+    )
     m.done()
     if ignored:
-        notes.append(f"master: {', '.join(sorted(ignored))} (ros2_canopen / Lely keys drive-bridge does not use)")
+        notes.append(
+            f"master: {', '.join(sorted(ignored))} (ros2_canopen / Lely keys drive-bridge does not use)"
+        )
     defaults = top.get("defaults", dict, {})
     entries = {}
     if "nodes" in top.data:
@@ -543,9 +695,12 @@ def load_bus_config(path: str | Path) -> BusConfig:
         for axis in nodes_sec.keys():
             entries[str(axis)] = nodes_sec.get(axis, dict)
         nodes_sec.done()
-    for key in list(top.data):                  # Lely's / older ros2_canopen layout: slaves at the top level
-        if key not in TOP_KEYS and isinstance(top.data[key], dict) and \
-                ("node_id" in top.data[key] or "dcf" in top.data[key]):
+    for key in list(top.data):  # Lely's / older ros2_canopen layout: slaves at the top level
+        if (
+            key not in TOP_KEYS
+            and isinstance(top.data[key], dict)
+            and ("node_id" in top.data[key] or "dcf" in top.data[key])
+        ):
             entries[str(key)] = top.get(key, dict)
     if not entries:
         raise top.error("nodes", "no nodes configured")
@@ -553,17 +708,21 @@ def load_bus_config(path: str | Path) -> BusConfig:
     nodes: dict[str, NodeConfig] = {}
     unused: set[str] = set()
     for axis, entry in entries.items():
-        if ros:                                 # ros2_canopen's merge: defaults replace a node's own entries
+        if ros:  # ros2_canopen's merge: defaults replace a node's own entries
             replaced = sorted(k for k in defaults if k in entry and entry[k] != defaults[k])
             if replaced:
-                notes.append(f"nodes.{axis}: {', '.join(replaced)} replaced by defaults (ros2_canopen's merge "
-                             f"order; keep per-node keys out of defaults)")
+                notes.append(
+                    f"nodes.{axis}: {', '.join(replaced)} replaced by defaults (ros2_canopen's merge "
+                    f"order; keep per-node keys out of defaults)"
+                )
             merged = {**entry, **defaults}
         else:
             merged = _merge(defaults, entry)
         nodes[axis] = _node(path, axis, merged, dcf_path, unused)
     if unused:
-        notes.append(f"nodes: {', '.join(sorted(unused))} (ros2_canopen / Lely keys drive-bridge does not use)")
+        notes.append(
+            f"nodes: {', '.join(sorted(unused))} (ros2_canopen / Lely keys drive-bridge does not use)"
+        )
     master = replace(master, notes=tuple(notes))
     ids = [n.node_id for n in nodes.values()]
     if len(set(ids)) != len(ids):
@@ -581,7 +740,8 @@ def load_bus_config(path: str | Path) -> BusConfig:
         dwell_s=c.get("dwell_s", float, 0.05, low=0.0, high=60.0),
         together=c.get("together", bool, False),
         design=c.get("design", str, "paper", choices=DESIGNS),
-        short_time_s=c.get("short_time_s", float, 30.0, low=5.0, high=600.0))
+        short_time_s=c.get("short_time_s", float, 30.0, low=5.0, high=600.0),
+    )
     for key in ("velocity_levels", "acceleration_levels"):
         vals = getattr(campaign, key)
         if not vals or len(vals) > 20 or not all(finite_number(v) and 0 < v <= 1 for v in vals):
@@ -595,9 +755,15 @@ def load_bus_config(path: str | Path) -> BusConfig:
         min_fe_improvement=a.get("min_fe_improvement", float, d.min_fe_improvement, low=0.0, high=1e6),
         max_rmse_over_noise=a.get("max_rmse_over_noise", float, d.max_rmse_over_noise, low=1.0, high=1e6),
         max_relative_std=a.get("max_relative_std", float, d.max_relative_std, low=0.0, high=10.0),
-        require_consistent=a.get("require_consistent", bool, d.require_consistent))
+        require_consistent=a.get("require_consistent", bool, d.require_consistent),
+    )
     a.done()
     top.done()
-    log.debug("%s: nodes %s, SYNC every %g ms, campaign %s", path, ", ".join(f"{a} ({n.node_id})" for a, n in
-              nodes.items()), 1e3 * master.sync_period_s, campaign.design)
+    log.debug(
+        "%s: nodes %s, SYNC every %g ms, campaign %s",
+        path,
+        ", ".join(f"{a} ({n.node_id})" for a, n in nodes.items()),
+        1e3 * master.sync_period_s,
+        campaign.design,
+    )
     return BusConfig(path=path, master=master, nodes=nodes, campaign=campaign, acceptance=acceptance)

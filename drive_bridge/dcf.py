@@ -11,6 +11,7 @@ they are not configuration.  REAL32/REAL64 values are written as their IEEE 754 
 descriptions that CiA 306 has no key for are dropped, signed values a vendor wrote as two's
 complement are written as the negative numbers they are.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -22,16 +23,22 @@ from canopen.sdo import SdoAbortedError, SdoCommunicationError
 
 from .od import float_bits, signed, variables
 
-COMMANDS = {0x6040, 0x6060}                 # controlword, modes of operation: commands, not settings
+COMMANDS = {0x6040, 0x6060}  # controlword, modes of operation: commands, not settings
 MAPPING = (range(0x1600, 0x1800), range(0x1A00, 0x1C00))
 NOT_VALUES = (datatypes.DOMAIN, datatypes.OCTET_STRING)
 
 
 def configuration(od: canopen.ObjectDictionary) -> list[ODVariable]:
     """The node's configuration objects: readable and writable, 0x1000-0x9FFF, no command."""
-    return [v for v in variables(od)
-            if 0x1000 <= v.index <= 0x9FFF and v.index not in COMMANDS and v.readable and v.writable
-            and v.data_type not in NOT_VALUES]
+    return [
+        v
+        for v in variables(od)
+        if 0x1000 <= v.index <= 0x9FFF
+        and v.index not in COMMANDS
+        and v.readable
+        and v.writable
+        and v.data_type not in NOT_VALUES
+    ]
 
 
 def read_back(node: canopen.RemoteNode, objects: list[ODVariable]) -> dict[tuple[int, int], Any]:
@@ -73,25 +80,32 @@ def export_dcf(node: canopen.RemoteNode, path: str | Path, bitrate: int) -> Path
     try:
         values = read_back(node, configuration(od))
     except SdoCommunicationError as exc:
-        raise SdoCommunicationError(f"node {node.id}: reading the configuration back for its DCF: {exc}") from exc
+        raise SdoCommunicationError(
+            f"node {node.id}: reading the configuration back for its DCF: {exc}"
+        ) from exc
     process = mapped(values)
     if node.id is None:
         raise ValueError("a DCF is exported from a node with its node-ID")
     return write_dcf(od, path, node.id, bitrate, {k: v for k, v in values.items() if k not in process})
 
 
-def write_dcf(od: canopen.ObjectDictionary, path: str | Path, node_id: int, bitrate: int,
-              values: dict[tuple[int, int], Any]) -> Path:
+def write_dcf(
+    od: canopen.ObjectDictionary,
+    path: str | Path,
+    node_id: int,
+    bitrate: int,
+    values: dict[tuple[int, int], Any],
+) -> Path:
     """``od`` (changed in place) as a CiA 306 clean DCF at ``path``: the node-ID and bitrate,
     defaults resolved (``$NODEID``, REALs as bit patterns, signed as such), no descriptions, and
     ``values`` (by index and sub-index) as the only ParameterValues."""
-    for var in variables(od):                      # *_raw: the text canopen's exporter writes
-        var.description = ""                       # not a CiA 306 key of an object
+    for var in variables(od):  # *_raw: the text canopen's exporter writes
+        var.description = ""  # not a CiA 306 key of an object
         if isinstance(var.default, (int, float)):
-            setattr(var, "default_raw", parameter_value(var, var.default))
+            setattr(var, "default_raw", parameter_value(var, var.default))  # noqa: B010 (not in canopen's types)
         value = values.get((var.index, var.subindex))
         var.value = value
-        setattr(var, "value_raw", None if value is None else parameter_value(var, value))
+        setattr(var, "value_raw", None if value is None else parameter_value(var, value))  # noqa: B010
     od.node_id, od.bitrate = node_id, bitrate
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)

@@ -5,6 +5,7 @@ as PNG files beside it for a ticket or a wiki.
 Text is a string, or a list of strings and :class:`Strong` runs; every string is escaped for the
 format it goes to.
 """
+
 from __future__ import annotations
 
 import base64
@@ -14,7 +15,6 @@ import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Union
 
 import numpy as np
 
@@ -38,7 +38,7 @@ class Strong:
 
 
 #: a run of text: plain, bold (Strong), or several in a row
-Text = Union[str, Strong, Sequence[Union[str, Strong]]]
+Text = str | Strong | Sequence[str | Strong]
 
 _NUMBER = re.compile(r"^[+\-]?(\d[\d.,]*(e[+\-]?\d+)?|–)( ?(%|×|→ ?\S+))?$")
 
@@ -71,8 +71,9 @@ def _runs(text: Text) -> list:
 
 
 def _html(text: Text) -> str:
-    return "".join(f"<b>{html.escape(r.text)}</b>" if isinstance(r, Strong) else html.escape(str(r))
-                   for r in _runs(text))
+    return "".join(
+        f"<b>{html.escape(r.text)}</b>" if isinstance(r, Strong) else html.escape(str(r)) for r in _runs(text)
+    )
 
 
 def _md(text: Text, cell: bool = False) -> str:
@@ -126,14 +127,20 @@ class Document:
                 body.append("<ul>" + "".join(f"<li>{_html(i)}</li>" for i in b[0]) + "</ul>")
             elif kind == "table":
                 head = "".join(f"<th>{_html(c)}</th>" for c in b[0])
-                rows = "".join("<tr>" + "".join(f"<td{' class=n' if _numeric(c) else ''}>{_html(c)}</td>" for c in r)
-                               + "</tr>" for r in b[1])
+                rows = "".join(
+                    "<tr>"
+                    + "".join(f"<td{' class=n' if _numeric(c) else ''}>{_html(c)}</td>" for c in r)
+                    + "</tr>"
+                    for r in b[1]
+                )
                 body.append(f"<table><tr>{head}</tr>{rows}</table>")
             else:
                 data = base64.b64encode(b[0].read_bytes()).decode()
                 body.append(f'<img alt="{html.escape(b[1])}" src="data:image/png;base64,{data}">')
-        return (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(self.title)}</title>"
-                f"<style>{CSS}</style></head><body>{''.join(body)}</body></html>")
+        return (
+            f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(self.title)}</title>"
+            f"<style>{CSS}</style></head><body>{''.join(body)}</body></html>"
+        )
 
     def markdown(self, where: Path) -> str:
         """Markdown for a file in the directory ``where``: figures linked by their path from there."""
@@ -143,13 +150,14 @@ class Document:
                 md += [f"{'#' * (b[0] + 1)} {_md(b[1])}", ""]
             elif kind == "p":
                 text = _md(b[0])
-                md += [f"> {text}" if b[1] in BOXES else f"*{text}*" if b[1] == "note"
-                       else text, ""]
+                md += [f"> {text}" if b[1] in BOXES else f"*{text}*" if b[1] == "note" else text, ""]
             elif kind == "ul":
                 md += [f"- {_md(i)}" for i in b[0]] + [""]
             elif kind == "table":
-                md += ["| " + " | ".join(_md(c, True) for c in b[0]) + " |",
-                       "|" + "|".join(" --- " for _ in b[0]) + "|"]
+                md += [
+                    "| " + " | ".join(_md(c, True) for c in b[0]) + " |",
+                    "|" + "|".join(" --- " for _ in b[0]) + "|",
+                ]
                 md += ["| " + " | ".join(_md(c, True) for c in r) + " |" for r in b[1]] + [""]
             else:
                 md += [f"![{b[1]}]({Path(os.path.relpath(b[0], where)).as_posix()})", ""]

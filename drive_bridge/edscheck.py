@@ -7,6 +7,7 @@ parse as their data type, ``$NODEID`` in another form than ``$NODEID+value``, ob
 not described (or the reverse), mandatory objects missing, text that is not UTF-8.  Where Lely's
 ``dcf-tools`` are installed their linter runs too, and its findings are listed beside ours.
 """
+
 from __future__ import annotations
 
 import configparser
@@ -22,10 +23,27 @@ from .errors import ConfigError
 from .od import default, load_od
 from .setpoint import describe_modes
 
-OBJECT_KEYS = {k.lower() for k in (
-    "ParameterName", "ObjectType", "DataType", "AccessType", "DefaultValue", "PDOMapping", "LowLimit",
-    "HighLimit", "SubNumber", "CompactSubObj", "ObjFlags", "ParameterValue", "Denotation", "UploadFile",
-    "DownloadFile", "ParameterRefd")}
+OBJECT_KEYS = {
+    k.lower()
+    for k in (
+        "ParameterName",
+        "ObjectType",
+        "DataType",
+        "AccessType",
+        "DefaultValue",
+        "PDOMapping",
+        "LowLimit",
+        "HighLimit",
+        "SubNumber",
+        "CompactSubObj",
+        "ObjFlags",
+        "ParameterValue",
+        "Denotation",
+        "UploadFile",
+        "DownloadFile",
+        "ParameterRefd",
+    )
+}
 LISTS = ("MandatoryObjects", "OptionalObjects", "ManufacturerObjects")
 MANDATORY = (0x1000, 0x1001, 0x1018)
 OBJECT = re.compile(r"^([0-9A-F]{4})(sub([0-9A-F]+))?$", re.IGNORECASE)
@@ -33,25 +51,36 @@ NODEID = re.compile(r"^\$NODEID\s*\+\s*(0x[0-9A-F]+|[0-9]+)$", re.IGNORECASE)
 VALUE_KEYS = ("DefaultValue", "ParameterValue", "LowLimit", "HighLimit")
 INTEGER_TYPES = {*datatypes.INTEGER_TYPES, datatypes.BOOLEAN}
 #: what drive-bridge reads or writes, by the role it plays
-ROLES = {"controlword": [0x6040], "statusword": [0x6041], "modes of operation": [0x6060, 0x6061],
-         "position actual": [0x6064], "velocity actual": [0x606C],
-         "torque or current actual": [0x6077, 0x6078], "store parameters": [0x1010]}
+ROLES = {
+    "controlword": [0x6040],
+    "statusword": [0x6041],
+    "modes of operation": [0x6060, 0x6061],
+    "position actual": [0x6064],
+    "velocity actual": [0x606C],
+    "torque or current actual": [0x6077, 0x6078],
+    "store parameters": [0x1010],
+}
 
 
 @dataclass
 class Report:
     path: Path
-    findings: list[str] = field(default_factory=list)        # what is not CiA 306
-    lely: list[str] | None = None                            # Lely's dcfchk lint; None: not installed
-    drive: list[str] = field(default_factory=list)           # what drive-bridge finds it can use
+    findings: list[str] = field(default_factory=list)  # what is not CiA 306
+    lely: list[str] | None = None  # Lely's dcfchk lint; None: not installed
+    drive: list[str] = field(default_factory=list)  # what drive-bridge finds it can use
 
     @property
     def standard(self) -> bool:
         return not self.findings and not self.lely
 
     def as_dict(self) -> dict:
-        return {"path": str(self.path), "standard": self.standard, "findings": self.findings,
-                "lely": self.lely, "drive": self.drive}
+        return {
+            "path": str(self.path),
+            "standard": self.standard,
+            "findings": self.findings,
+            "lely": self.lely,
+            "drive": self.drive,
+        }
 
 
 class _CaseKeeping(configparser.RawConfigParser):
@@ -83,8 +112,7 @@ def check(path: str | Path) -> Report:
     try:
         report.drive = _drive(load_od(path, 1))
     except ConfigError as exc:
-        report.findings.append(f"canopen cannot import it ({exc.problem}); drive-bridge "
-                               f"cannot use it either")
+        report.findings.append(f"canopen cannot import it ({exc.problem}); drive-bridge cannot use it either")
     return report
 
 
@@ -95,8 +123,11 @@ def _cia306(cfg: configparser.RawConfigParser) -> list[str]:
     listed = set()
     for name in LISTS:
         if name in cfg:
-            listed |= {int(v, 0) for k, v in cfg[name].items() if k.lower() != "supportedobjects"
-                       and _int(v) is not None}
+            listed |= {
+                int(v, 0)
+                for k, v in cfg[name].items()
+                if k.lower() != "supportedobjects" and _int(v) is not None
+            }
     described = set()
     for section in cfg.sections():
         m = OBJECT.match(section)
@@ -141,8 +172,11 @@ def _value_problem(value: str, dtype: int) -> str | None:
     if "$NODEID" in value.upper():
         return None if NODEID.match(value) else "$NODEID in another form than $NODEID+value"
     if dtype in datatypes.FLOAT_TYPES:
-        return None if _int(value) is not None else \
-            "a decimal REAL: CiA 306 tools (Lely) read a REAL as its IEEE 754 bit pattern (0x...)"
+        return (
+            None
+            if _int(value) is not None
+            else "a decimal REAL: CiA 306 tools (Lely) read a REAL as its IEEE 754 bit pattern (0x...)"
+        )
     if dtype in INTEGER_TYPES and _int(value) is None:
         return "not an integer (decimal, 0x hexadecimal or 0 octal)"
     return None
@@ -159,7 +193,7 @@ def _lely(path: Path) -> list[str] | None:
         warnings.simplefilter("always")
         try:
             lint(parse_file(str(path)))
-        except Exception as exc:           # its parser on a file it cannot take: that is the finding
+        except Exception as exc:  # its parser on a file it cannot take: that is the finding
             return [f"dcf-tools could not read it: {exc}"]
     return [str(w.message) for w in caught]
 

@@ -5,6 +5,7 @@ message is one line naming the file, key, axis or object and what to do, and
 its ``exit_code`` says how the command ended: :data:`EXIT_TABLE`, the table
 ``drive-bridge --help`` prints and the documentation's exit-code page is made from.
 """
+
 from __future__ import annotations
 
 import os
@@ -12,21 +13,48 @@ import os
 #: (code, kind, meaning) of every way a command ends
 EXIT_TABLE = (
     (0, "ok", "everything asked for was done"),
-    (1, "internal", "a defect of drive-bridge (any unexpected exception); commission keeps the traceback in "
-                    "error.log"),
-    (2, "user", "bad configuration, argument or input file: one line naming the file and key (UserError, "
-                "ConfigError)"),
-    (3, "bus", "a node is missing or no CiA 402 drive, does not answer, or refuses a value: SDO abort, failed "
-               "transaction (BusError, DriveRefused)"),
-    (4, "motion", "motion stopped by a fault, Ctrl-C, SIGTERM or SIGHUP: every axis quick-stopped and held, the "
-                  "data recorded so far written (MotionAborted, Interrupted)"),
-    (5, "degraded", "done, but a wall-clock run missed its timing limits (late SYNCs, gaps, missing samples): the "
-                    "data are kept, the warning says what was missed"),
+    (
+        1,
+        "internal",
+        "a defect of drive-bridge (any unexpected exception); commission keeps the traceback in error.log",
+    ),
+    (
+        2,
+        "user",
+        "bad configuration, argument or input file: one line naming the file and key (UserError, "
+        "ConfigError)",
+    ),
+    (
+        3,
+        "bus",
+        "a node is missing or no CiA 402 drive, does not answer, or refuses a value: SDO abort, failed "
+        "transaction (BusError, DriveRefused)",
+    ),
+    (
+        4,
+        "motion",
+        "motion stopped by a fault, Ctrl-C, SIGTERM or SIGHUP: every axis quick-stopped and held, the "
+        "data recorded so far written (MotionAborted, Interrupted)",
+    ),
+    (
+        5,
+        "degraded",
+        "done, but a wall-clock run missed its timing limits (late SYNCs, gaps, missing samples): the "
+        "data are kept, the warning says what was missed",
+    ),
     (6, "not_accepted", "commission completed, but an axis FAILs its acceptance criteria (the verdict)"),
-    (7, "unavailable", "a history command could not reach or use the history database (commission, write and "
-                       "identify never fail for it: their record waits in the outbox for 'history sync')"),
-    (130, "interrupted", "Ctrl-C, SIGTERM or SIGHUP while nothing moved; a write in progress restores every drive "
-                         "first (KeyboardInterrupt, WriteInterrupted)"),
+    (
+        7,
+        "unavailable",
+        "a history command could not reach or use the history database (commission, write and "
+        "identify never fail for it: their record waits in the outbox for 'history sync')",
+    ),
+    (
+        130,
+        "interrupted",
+        "Ctrl-C, SIGTERM or SIGHUP while nothing moved; a write in progress restores every drive "
+        "first (KeyboardInterrupt, WriteInterrupted)",
+    ),
 )
 EXIT_CODES = {kind: code for code, kind, _ in EXIT_TABLE}
 
@@ -34,8 +62,11 @@ EXIT_CODES = {kind: code for code, kind, _ in EXIT_TABLE}
 def exit_codes_text(width: int = 100) -> str:
     """The exit-code table as lines of text at most ``width`` long (``drive-bridge --help``)."""
     import textwrap
-    return "\n".join(textwrap.fill(meaning, width, initial_indent=f"  {code:>3}  {kind:<13} ",
-                                    subsequent_indent=" " * 21) for code, kind, meaning in EXIT_TABLE)
+
+    return "\n".join(
+        textwrap.fill(meaning, width, initial_indent=f"  {code:>3}  {kind:<13} ", subsequent_indent=" " * 21)
+        for code, kind, meaning in EXIT_TABLE
+    )
 
 
 class DriveBridgeError(Exception):
@@ -101,7 +132,7 @@ class MotionAborted(DriveBridgeError):
         super().__init__(f"axis {axis}: {reason}" if axis else reason)
         self.reason = reason
         self.axis = axis
-        self.emcy = emcy                  # the EMCY error code that caused the stop, if one did
+        self.emcy = emcy  # the EMCY error code that caused the stop, if one did
 
 
 class GuardStop(MotionAborted):

@@ -12,6 +12,7 @@ Everything here is motor side: device units per motor radian and per motor rad/s
 reads these objects at bring-up (:mod:`drive_bridge.master.units`); the simulated drives use
 the same decoding to report in the units their object dictionary holds.
 """
+
 from __future__ import annotations
 
 import math
@@ -24,8 +25,17 @@ ANGLE_PER_REV = {0x41: 360.0, 0x42: 21600.0, 0x43: 1296000.0, 0x40: 400.0, 0x10:
 INCREMENT, METRE, NONE = 0xB5, 0x01, 0x00
 #: time unit codes -> seconds
 TIME_S = {0x03: 1.0, 0x47: 60.0, 0x48: 3600.0}
-UNIT_NAMES = {0x41: "°", 0x42: "′", 0x43: "″", 0x40: "gon", 0x10: "rad", 0xB4: "rev", INCREMENT: "inc",
-              METRE: "m", NONE: "(dimensionless)"}
+UNIT_NAMES = {
+    0x41: "°",
+    0x42: "′",
+    0x43: "″",
+    0x40: "gon",
+    0x10: "rad",
+    0xB4: "rev",
+    INCREMENT: "inc",
+    METRE: "m",
+    NONE: "(dimensionless)",
+}
 TIME_NAMES = {0x03: "s", 0x47: "min", 0x48: "h"}
 #: the objects of the factor group: index -> sub-indices read
 OBJECTS = {0x608F: (1, 2), 0x6091: (1, 2), 0x6092: (1, 2), 0x60A8: (0,), 0x60A9: (0,)}
@@ -45,7 +55,7 @@ def describe(code: int | None, velocity: bool = False) -> str:
     name = UNIT_NAMES.get(unit, f"unit 0x{unit:02X}")
     if velocity:
         name += "/" + TIME_NAMES.get(time, f"time 0x{time:02X}")
-    return (f"{10.0 ** e:g} " if e else "") + name + f" (0x{code:08X})"
+    return (f"{10.0**e:g} " if e else "") + name + f" (0x{code:08X})"
 
 
 def _ratio(pair: tuple[int, int] | None) -> float | None:
@@ -59,23 +69,25 @@ def _ratio(pair: tuple[int, int] | None) -> float | None:
 class FactorGroup:
     """The factor group as a drive holds it (None: the drive has no such object)."""
 
-    encoder: tuple[int, int] | None = None       # 0x608F: increments, motor revolutions
-    gear: tuple[int, int] | None = None          # 0x6091: motor revolutions, shaft revolutions
-    feed: tuple[int, int] | None = None          # 0x6092: feed [position units], shaft revolutions
-    position_unit: int | None = None             # 0x60A8
-    velocity_unit: int | None = None             # 0x60A9
+    encoder: tuple[int, int] | None = None  # 0x608F: increments, motor revolutions
+    gear: tuple[int, int] | None = None  # 0x6091: motor revolutions, shaft revolutions
+    feed: tuple[int, int] | None = None  # 0x6092: feed [position units], shaft revolutions
+    position_unit: int | None = None  # 0x60A8
+    velocity_unit: int | None = None  # 0x60A9
 
     @classmethod
-    def read(cls, value: Callable[[int, int], Any]) -> "FactorGroup":
+    def read(cls, value: Callable[[int, int], Any]) -> FactorGroup:
         """From ``value(index, sub)``, which returns None where the drive has no such object."""
+
         def pair(index: int) -> tuple[int, int] | None:
             a, b = value(index, 1), value(index, 2)
             return None if a is None or b is None else (int(a), int(b))
+
         return cls(pair(0x608F), pair(0x6091), pair(0x6092), value(0x60A8, 0), value(0x60A9, 0))
 
     def _per_motor_rad(self, unit: int, scale: float) -> float | None:
         """Device units of ``unit`` × ``scale`` per motor radian; None where the group cannot say."""
-        gear = _ratio(self.gear)                  # motor revolutions per shaft revolution
+        gear = _ratio(self.gear)  # motor revolutions per shaft revolution
         if gear is None:
             return None
         if unit == INCREMENT:
@@ -84,7 +96,7 @@ class FactorGroup:
             return self.encoder[0] / self.encoder[1] / (2 * math.pi) / scale
         if unit in ANGLE_PER_REV:
             return ANGLE_PER_REV[unit] / scale / gear / (2 * math.pi)
-        if unit == METRE:                         # the feed constant is in position units already
+        if unit == METRE:  # the feed constant is in position units already
             feed = _ratio(self.feed)
             return None if self.feed is None or feed is None else feed / gear / (2 * math.pi)
         return None
@@ -104,7 +116,7 @@ class FactorGroup:
         if code is None or (code >> 8) & 0xFF not in TIME_S:
             return None
         unit = (code >> 16) & 0xFF
-        if unit == METRE:             # the feed constant is in position units: from those to these
+        if unit == METRE:  # the feed constant is in position units: from those to these
             pos = self.position_unit
             if pos is None or (pos >> 16) & 0xFF != METRE:
                 return None

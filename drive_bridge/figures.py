@@ -3,6 +3,7 @@
 :func:`pyplot` before work is forked out (:func:`drive_bridge.forking.fork_map`) lets every
 process drawing a figure find matplotlib imported, instead of each importing it again.
 """
+
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
@@ -16,8 +17,10 @@ from .forking import fork_map, processes
 def pyplot() -> ModuleType:
     """``matplotlib.pyplot`` on the Agg backend."""
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
     return plt
 
 

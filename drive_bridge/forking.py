@@ -11,6 +11,7 @@ process runs other threads (a fork copies only the calling one: a lock another t
 would never be released in the child), in a daemon process (a pool's worker may not start
 processes) and for a small job, the work is done here, one part after the other.
 """
+
 from __future__ import annotations
 
 import ctypes
@@ -24,10 +25,14 @@ from typing import Any
 from .errors import UserError
 
 #: the functions that set OpenBLAS's thread count, as numpy's and scipy's wheels name them
-BLAS_THREADS = ("scipy_openblas_set_num_threads64_", "scipy_openblas_set_num_threads",
-                "openblas_set_num_threads64_", "openblas_set_num_threads")
+BLAS_THREADS = (
+    "scipy_openblas_set_num_threads64_",
+    "scipy_openblas_set_num_threads",
+    "openblas_set_num_threads64_",
+    "openblas_set_num_threads",
+)
 
-_shared: Any = None         # what the forked processes of fork_map find where it is
+_shared: Any = None  # what the forked processes of fork_map find where it is
 
 
 def processes() -> int:
@@ -38,13 +43,19 @@ def processes() -> int:
         cap = int(given) if given else os.cpu_count() or 1
     except ValueError:
         raise UserError(f"DRIVE_BRIDGE_WORKERS={given!r}: give a number of processes (1: none)") from None
-    if (cap < 2 or multiprocessing.current_process().daemon or threading.active_count() > 1
-            or not _blas_setters()):
+    if (
+        cap < 2
+        or multiprocessing.current_process().daemon
+        or threading.active_count() > 1
+        or not _blas_setters()
+    ):
         return 1
     return cap
 
 
-def fork_map(func: Callable[[Any, Any], Any], items: Sequence[Any], count: int, shared: Any = None) -> list[Any]:
+def fork_map(
+    func: Callable[[Any, Any], Any], items: Sequence[Any], count: int, shared: Any = None
+) -> list[Any]:
     """``func(shared, item)`` for each of ``items``, in their order: here, one after the other,
     where ``count`` is 1; else in ``count`` processes forked from this one, each with one BLAS
     thread, which find ``shared`` where it is (only ``func`` and the items are sent, by pickle)."""
@@ -53,8 +64,9 @@ def fork_map(func: Callable[[Any, Any], Any], items: Sequence[Any], count: int, 
     global _shared
     _shared = shared
     try:
-        with ProcessPoolExecutor(count, mp_context=multiprocessing.get_context("fork"),
-                                 initializer=_one_blas_thread) as pool:
+        with ProcessPoolExecutor(
+            count, mp_context=multiprocessing.get_context("fork"), initializer=_one_blas_thread
+        ) as pool:
             return list(pool.map(_call, [(func, item) for item in items]))
     finally:
         _shared = None
@@ -64,7 +76,7 @@ def _blas_setters() -> list[Callable[[int], None]]:
     """The thread-count setters of every OpenBLAS this process has loaded (numpy's and scipy's);
     none where one of them has no setter known here."""
     try:
-        with open("/proc/self/maps", encoding="utf-8", errors="replace") as f:     # Linux
+        with open("/proc/self/maps", encoding="utf-8", errors="replace") as f:  # Linux
             paths = sorted({line.split()[-1] for line in f if "openblas" in line.lower() and "/" in line})
     except OSError:
         return []

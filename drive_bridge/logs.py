@@ -5,6 +5,7 @@ device units through the axis scaling; :func:`decode_trace` refills the same
 Recording from the trace and the PDO layout in meta.yaml, so decoding gives
 the same CSV as the live run.
 """
+
 from __future__ import annotations
 
 import struct
@@ -17,15 +18,15 @@ import can
 import numpy as np
 import yaml
 
-from .errors import UserError
-from .outputs import atomic, write_text
-from .yamlconf import load_yaml
-from .pdo import PdoCodec
 from .cia.p301 import SYNC_COB_ID
 from .cia.p402 import MODE_NAMES
+from .errors import UserError
+from .outputs import atomic, write_text
+from .pdo import PdoCodec
 from .units import Scaling
+from .yamlconf import load_yaml
 
-if TYPE_CHECKING:                 # the master is not imported to read a log (identification does)
+if TYPE_CHECKING:  # the master is not imported to read a log (identification does)
     from .master.bringup import AxisLink
     from .master.stream import Recording
 
@@ -33,7 +34,7 @@ LOG_NAME, META_NAME, TRACE_NAME = "log.csv", "meta.yaml", "trace.blf"
 
 #: TPDO object -> (column suffix, converter name on Scaling or None for raw integers, format;
 #: integers as %.0f so that a missing sample can be written as nan)
-_COLUMNS: dict[int, tuple[str, str | None, str]] = {     # object: column suffix, Scaling method, format
+_COLUMNS: dict[int, tuple[str, str | None, str]] = {  # object: column suffix, Scaling method, format
     0x6064: ("position_rad", "position_from_device", "%.9g"),
     0x606C: ("velocity_rad_s", "velocity_from_device", "%.9g"),
     0x6077: ("torque_Nm", "torque_from_device", "%.6g"),
@@ -41,7 +42,7 @@ _COLUMNS: dict[int, tuple[str, str | None, str]] = {     # object: column suffix
     0x60F4: ("following_error_rad", "position_from_device", "%.9g"),
     0x6078: ("current_permille", None, "%.0f"),
     0x6061: ("mode_display", None, "%.0f"),
-    0x20C4: ("ip_buffer_status", None, "%.0f"),         # maxon's interpolation buffer status (0x20C4:1)
+    0x20C4: ("ip_buffer_status", None, "%.0f"),  # maxon's interpolation buffer status (0x20C4:1)
 }
 
 
@@ -53,28 +54,48 @@ def _codecs(entries: list[dict]) -> list[PdoCodec]:
     return [PdoCodec.from_dict(e) for e in entries]
 
 
-def to_table(rec: Recording, scaling: dict[str, Scaling], period: float) -> tuple[list[str], np.ndarray, list[str]]:
+def to_table(
+    rec: Recording, scaling: dict[str, Scaling], period: float
+) -> tuple[list[str], np.ndarray, list[str]]:
     """Columns, values and formats of log.csv; missing samples are NaN with ``<axis>_valid`` = 0."""
     n = len(rec.raw)
     # each column made when it is written into the table (a list of them all, stacked, held the
     # campaign's table twice: 70 MB more at the main job's peak)
     spec: list[tuple[str, str, Callable[[], np.ndarray]]] = [
         ("time_s", "%.6f", lambda: np.arange(n) * period),
-        ("sync_time_s", "%.6f", lambda: np.round(rec.sync_time - (rec.sync_time[0] if n else 0.0), 6))]
+        ("sync_time_s", "%.6f", lambda: np.round(rec.sync_time - (rec.sync_time[0] if n else 0.0), 6)),
+    ]
     for ai, axis in enumerate(rec.axes):
         sc = scaling[axis]
         valid = rec.valid(axis)
         indices = [i for a, i in rec.columns if a == axis]
         order = list(_COLUMNS)
         for index in sorted(indices, key=lambda i: order.index(0x6077 if i == sc.torque_object else i)):
-            suffix, conv, fmt = (("torque_Nm", "torque_from_feedback", "%.6g") if index == sc.torque_object
-                                 else _COLUMNS[index])      # the axis's torque: from what the drive reports
-            spec.append((f"{axis}_{suffix}", fmt,
-                         partial(_logged, rec.raw[:, rec.column(axis, index)],
-                                 getattr(sc, conv) if conv else None, valid)))
-            if index == 0x6064:               # (NaN in a period without a SYNC: no setpoint was taken)
-                spec.append((f"{axis}_position_demand_rad", "%.9g",
-                             partial(_demanded, sc, rec.demand[:, ai], rec.sync_time)))
+            suffix, conv, fmt = (
+                ("torque_Nm", "torque_from_feedback", "%.6g")
+                if index == sc.torque_object
+                else _COLUMNS[index]
+            )  # the axis's torque: from what the drive reports
+            spec.append(
+                (
+                    f"{axis}_{suffix}",
+                    fmt,
+                    partial(
+                        _logged,
+                        rec.raw[:, rec.column(axis, index)],
+                        getattr(sc, conv) if conv else None,
+                        valid,
+                    ),
+                )
+            )
+            if index == 0x6064:  # (NaN in a period without a SYNC: no setpoint was taken)
+                spec.append(
+                    (
+                        f"{axis}_position_demand_rad",
+                        "%.9g",
+                        partial(_demanded, sc, rec.demand[:, ai], rec.sync_time),
+                    )
+                )
         spec.append((f"{axis}_valid", "%.0f", partial(valid.astype, float)))
     values = np.empty((n, len(spec)))
     for j, (_, _, make) in enumerate(spec if n else []):
@@ -87,7 +108,9 @@ def _demanded(sc: Scaling, demand: np.ndarray, sync_time: np.ndarray) -> np.ndar
     return np.where(np.isfinite(sync_time), sc.position_from_device(demand), np.nan)
 
 
-def _logged(raw: np.ndarray, convert: Callable[[np.ndarray], np.ndarray] | None, valid: np.ndarray) -> np.ndarray:
+def _logged(
+    raw: np.ndarray, convert: Callable[[np.ndarray], np.ndarray] | None, valid: np.ndarray
+) -> np.ndarray:
     """A logged object's column in SI (``convert``: from device units), NaN where the sample is missing."""
     return np.where(valid, convert(raw) if convert else raw.astype(float), np.nan)
 
@@ -117,37 +140,51 @@ def layout_meta(axes: dict[str, AxisLink]) -> dict:
     out = {}
     for name, ax in axes.items():
         sc = ax.cfg.scaling
-        out[name] = {"node_id": ax.cfg.node_id, "identity": ax.identity,
-                     "scaling": {"increments_per_rev": sc.increments_per_rev,
-                                 "rated_torque_Nm": sc.rated_torque_Nm,
-                                 "torque_feedback": sc.torque_feedback,
-                                 "current_per_unit_A": sc.current_per_unit_A,
-                                 "torque_constant_Nm_per_A": sc.torque_constant_Nm_per_A,
-                                 "torque_index": sc.torque_index, "torque_per_unit_Nm": sc.torque_per_unit_Nm,
-                                 "feed_m_per_rev": sc.feed_m_per_rev,
-                                 "velocity_unit": sc.velocity_unit,
-                                 "velocity_units_per_rad_s": sc.velocity_units_per_rad_s},
-                     "units": ax.units, "drive_limits": ax.drive_limits,
-                     "operating_mode": {"mode": ax.mode, "name": MODE_NAMES.get(ax.mode, str(ax.mode)),
-                                        "setpoint_object": f"0x{ax.setpoint[0]:04X}:{ax.setpoint[1]}"},
-                     "rpdo": _codec_meta(ax.rpdos), "tpdo": _codec_meta(ax.tpdos)}
+        out[name] = {
+            "node_id": ax.cfg.node_id,
+            "identity": ax.identity,
+            "scaling": {
+                "increments_per_rev": sc.increments_per_rev,
+                "rated_torque_Nm": sc.rated_torque_Nm,
+                "torque_feedback": sc.torque_feedback,
+                "current_per_unit_A": sc.current_per_unit_A,
+                "torque_constant_Nm_per_A": sc.torque_constant_Nm_per_A,
+                "torque_index": sc.torque_index,
+                "torque_per_unit_Nm": sc.torque_per_unit_Nm,
+                "feed_m_per_rev": sc.feed_m_per_rev,
+                "velocity_unit": sc.velocity_unit,
+                "velocity_units_per_rad_s": sc.velocity_units_per_rad_s,
+            },
+            "units": ax.units,
+            "drive_limits": ax.drive_limits,
+            "operating_mode": {
+                "mode": ax.mode,
+                "name": MODE_NAMES.get(ax.mode, str(ax.mode)),
+                "setpoint_object": f"0x{ax.setpoint[0]:04X}:{ax.setpoint[1]}",
+            },
+            "rpdo": _codec_meta(ax.rpdos),
+            "tpdo": _codec_meta(ax.tpdos),
+        }
     return out
 
 
-def decode_trace(trace: Path, meta_path: Path | None = None
-                 ) -> tuple[list[str], np.ndarray, list[str], dict, str | None]:
+def decode_trace(
+    trace: Path, meta_path: Path | None = None
+) -> tuple[list[str], np.ndarray, list[str], dict, str | None]:
     """Rebuild the log table from a raw trace and the meta.yaml beside it.
 
     A damaged or cut-short trace gives the rows before the damage and, last, what is wrong
     with it (None for a whole trace)."""
     from .master.stream import Recording
+
     trace = Path(trace)
     meta_path = Path(meta_path) if meta_path else trace.with_name(META_NAME)
     if not trace.is_file():
         raise UserError(f"{trace}: trace file not found")
     if not meta_path.is_file():
-        raise UserError(f"{meta_path}: not found; decode needs the meta.yaml written with the trace "
-                        f"(give it with --meta)")
+        raise UserError(
+            f"{meta_path}: not found; decode needs the meta.yaml written with the trace (give it with --meta)"
+        )
     meta = load_yaml(meta_path)
     try:
         axes = meta["axes"]
@@ -159,22 +196,40 @@ def decode_trace(trace: Path, meta_path: Path | None = None
         tpdos = {a: _codecs(v["tpdo"]) for a, v in axes.items()}
         rpdos = {a: _codecs(v["rpdo"]) for a, v in axes.items()}
         for codec in [c for cs in (*tpdos.values(), *rpdos.values()) for c in cs]:
-            if codec.struct.size > 8 or len(codec.spans) != len(codec.entries) or not 0 < codec.cob_id < 0x800:
+            if (
+                codec.struct.size > 8
+                or len(codec.spans) != len(codec.entries)
+                or not 0 < codec.cob_id < 0x800
+            ):
                 raise ValueError(f"PDO 0x{codec.cob_id:X}: its format does not fit its objects")
         scaling = {a: Scaling(**v["scaling"]) for a, v in axes.items()}
-        unknown = [i for a, cs in tpdos.items() for c in cs for i in c.objects
-                   if i not in _COLUMNS and i != scaling[a].torque_object]
+        unknown = [
+            i
+            for a, cs in tpdos.items()
+            for c in cs
+            for i in c.objects
+            if i not in _COLUMNS and i != scaling[a].torque_object
+        ]
         if unknown:
             raise ValueError(f"TPDO object 0x{unknown[0]:04X} is not one the log has a column for")
         rec = Recording(tpdos, rpdos, sent)
         rec.skip_syncs = int(counts.get("sync_before_plan", 0))
         # periods a late master sent no SYNC in (the rows after them are those of their own time)
-        rec.skipped = {int(r) for r in ((meta.get("timing") or {}).get("engine") or {}).get("rows_skipped") or []}
+        rec.skipped = {
+            int(r) for r in ((meta.get("timing") or {}).get("engine") or {}).get("rows_skipped") or []
+        }
         for sc in scaling.values():
             if not (sc.increments_per_rev > 0 and sc.rated_torque_Nm > 0):
                 raise ValueError("scaling must be positive")
-    except (KeyError, TypeError, ValueError, AttributeError, struct.error, UnicodeDecodeError,
-            yaml.YAMLError) as exc:
+    except (
+        KeyError,
+        TypeError,
+        ValueError,
+        AttributeError,
+        struct.error,
+        UnicodeDecodeError,
+        yaml.YAMLError,
+    ) as exc:
         raise UserError(f"{meta_path}: not a drive-bridge record meta.yaml (missing or bad {exc})") from exc
     handlers = rec.handlers()
     frames, last, problem = 0, None, None
@@ -188,14 +243,16 @@ def decode_trace(trace: Path, meta_path: Path | None = None
                     if handler is not None:
                         handler(msg.arbitration_id, msg.data, msg.timestamp)
                 frames, last = frames + 1, msg.timestamp
-    except Exception as exc:          # python-can's readers raise many kinds on a damaged file
+    except Exception as exc:  # python-can's readers raise many kinds on a damaged file
         where = f"after {frames} frames" + (f" (t = {last:.6f} s)" if last is not None else "")
         problem = f"the trace is damaged {where}: {type(exc).__name__}: {exc}"
     if problem is None and rec.rows < sent and meta.get("status") != "running":
         problem = f"the trace holds {rec.rows} of the {sent} SYNC cycles meta.yaml counts: it was cut short"
     if problem is None and meta.get("status") == "running":
-        problem = (f"the recording never ended (meta.yaml status 'running': the process was killed); "
-                   f"{rec.rows} SYNC cycles decoded")
+        problem = (
+            f"the recording never ended (meta.yaml status 'running': the process was killed); "
+            f"{rec.rows} SYNC cycles decoded"
+        )
     rec.truncate()
     names, values, fmts = to_table(rec, scaling, period)
     return names, values, fmts, meta, problem

@@ -1,4 +1,5 @@
 """Reading EDS/DCF files with canopen, around the traps of real vendor files."""
+
 from __future__ import annotations
 
 import functools
@@ -53,7 +54,7 @@ def _parse(path: Path, raw: bytes, node_id: int) -> canopen.ObjectDictionary:
             for as_written, as_read in (("default_raw", "default"), ("value_raw", "value")):
                 if getattr(var, as_read, None) is None and getattr(var, as_written, None):
                     setattr(var, as_read, float_from_bits(getattr(var, as_written), var.data_type))
-        elif var.data_type in datatypes.SIGNED_TYPES:      # a vendor's 0xFD for an INTEGER8 -3
+        elif var.data_type in datatypes.SIGNED_TYPES:  # a vendor's 0xFD for an INTEGER8 -3
             var.default, var.value = signed(var, var.default), signed(var, var.value)
     return od
 

@@ -1,6 +1,7 @@
 """Writing the files the tool leaves behind (log.csv, meta.yaml, JSON results, reports): each to
 a temporary name beside it, then renamed, so a file is either complete or absent -- whatever
 stops the process (an exception, Ctrl-C, SIGTERM) while it is written."""
+
 from __future__ import annotations
 
 import json
@@ -33,8 +34,8 @@ def write_text(path: str | Path, text: str) -> Path:
     return Path(path)
 
 
-SCHEMA_VERSION = 2          # 2 (2026-11-23): object addresses, identities and COB-IDs as hex strings,
-                            # floats to SIGNIFICANT digits, non-finite values as null
+SCHEMA_VERSION = 2  # 2 (2026-11-23): object addresses, identities and COB-IDs as hex strings,
+# floats to SIGNIFICANT digits, non-finite values as null
 
 
 def stamped(name: str, doc: dict) -> dict:
@@ -43,8 +44,8 @@ def stamped(name: str, doc: dict) -> dict:
     return {"schema": f"drive-bridge/{name}", "schema_version": SCHEMA_VERSION, **doc}
 
 
-SIGNIFICANT = 7     # digits of a float in a result: more than any measured or identified value here
-                    # holds, and a REAL32 drive value's 0.11999999731779099 reads 0.12
+SIGNIFICANT = 7  # digits of a float in a result: more than any measured or identified value here
+# holds, and a REAL32 drive value's 0.11999999731779099 reads 0.12
 
 
 def meaningful(x: Any) -> Any:
@@ -55,7 +56,7 @@ def meaningful(x: Any) -> Any:
         return {k: meaningful(v) for k, v in x.items()}
     if isinstance(x, (list, tuple)):
         return [meaningful(v) for v in x]
-    if hasattr(x, "tolist"):                                # numpy scalar or array
+    if hasattr(x, "tolist"):  # numpy scalar or array
         return meaningful(x.tolist())
     if isinstance(x, float):
         if not math.isfinite(x):

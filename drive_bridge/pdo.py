@@ -1,6 +1,7 @@
 """One PDO's layout and codec, shared by the master (bring-up, streaming, decoding a trace) and
 the simulated drives: the COB-ID, the mapped objects in order, and the little-endian struct of
 their data types (canopen's own type table)."""
+
 from __future__ import annotations
 
 import struct
@@ -19,11 +20,11 @@ class PdoCodec:
     """Packs and unpacks one PDO; built once per mapping."""
 
     cob_id: int
-    entries: tuple[tuple[int, int], ...]      # (index, sub-index) in mapping order
+    entries: tuple[tuple[int, int], ...]  # (index, sub-index) in mapping order
     struct: struct.Struct
 
     @classmethod
-    def of(cls, cob_id: int, od: canopen.ObjectDictionary, entries: Iterable[tuple[int, int]]) -> "PdoCodec":
+    def of(cls, cob_id: int, od: canopen.ObjectDictionary, entries: Iterable[tuple[int, int]]) -> PdoCodec:
         """The codec of ``entries`` ((index, sub-index) pairs) with their types from ``od``."""
         entries = tuple((int(i), int(s)) for i, s in entries)
         variables = [variable(od, i, s) for i, s in entries]
@@ -46,11 +47,15 @@ class PdoCodec:
 
     def as_dict(self) -> dict:
         """How meta.yaml records it (enough to decode a trace without the EDS)."""
-        return {"cob_id": self.cob_id, "format": self.struct.format, "objects": list(self.objects),
-                "sub_indices": [s for _, s in self.entries]}
+        return {
+            "cob_id": self.cob_id,
+            "format": self.struct.format,
+            "objects": list(self.objects),
+            "sub_indices": [s for _, s in self.entries],
+        }
 
     @classmethod
-    def from_dict(cls, d: dict) -> "PdoCodec":
+    def from_dict(cls, d: dict) -> PdoCodec:
         subs = d.get("sub_indices", [0] * len(d["objects"]))
         return cls(d["cob_id"], tuple(zip(d["objects"], subs)), struct.Struct(d["format"]))
 

@@ -1,4 +1,5 @@
 """Progress for a person at the machine: a bar with axis, level and time left."""
+
 from __future__ import annotations
 
 import bisect
@@ -25,16 +26,20 @@ class CampaignProgress:
         plan = self.plan
         i = max(0, bisect.bisect_right(self._starts, k) - 1)
         seg = plan.segments[i]
-        what = (f"{','.join(seg.axes):<5} {seg.kind:<8} v {seg.velocity_fraction:>4.0%} "
-                f"a {seg.acceleration_fraction:>4.0%}")
+        what = (
+            f"{','.join(seg.axes):<5} {seg.kind:<8} v {seg.velocity_fraction:>4.0%} "
+            f"a {seg.acceleration_fraction:>4.0%}"
+        )
         n = len(plan.demand)
         frac = k / n if n else 1.0
         if self.tty:
             elapsed = time.monotonic() - self._t0
             left = elapsed / frac * (1 - frac) if frac > 0 else 0.0
             bar = "#" * round(frac * self.width)
-            self.stream.write(f"\r  {what} [{bar:<{self.width}}] {frac:4.0%}  "
-                              f"{(n - k) * plan.period:6.1f} s of motion, ~{left:5.1f} s left ")
+            self.stream.write(
+                f"\r  {what} [{bar:<{self.width}}] {frac:4.0%}  "
+                f"{(n - k) * plan.period:6.1f} s of motion, ~{left:5.1f} s left "
+            )
             self.stream.flush()
         elif i != self._last_segment:
             self.stream.write(f"  {what}  at {k * plan.period:7.2f} s of {n * plan.period:.2f} s\n")

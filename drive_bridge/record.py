@@ -1,29 +1,31 @@
 """``record``: bring up the drives, run the excitation campaign, write log.csv, meta.yaml, trace."""
+
 from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
-from .version import __version__
 from .config import BusConfig
 from .errors import MotionAborted
 from .logs import LOG_NAME, META_NAME, TRACE_NAME, layout_meta, meta_text, write_csv, write_meta
 from .master.bringup import AxisLink, bring_up
 from .master.busload import BusLoad, check_bus_load
 from .master.campaign import Plan, build_plan
-from .master.homing import home
 from .master.engine import Supervision
+from .master.homing import home
 from .master.link import Link, TraceRecorder
 from .master.stream import stream, supervision_for
 from .master.timing import Timing
 from .outputs import stamped, write_text
 from .params.profile import setpoint_timeout_for
 from .signals import deferred
+from .version import __version__
 
-ENABLING = -999_999_999      # meta.yaml's sync_before_plan while the drives are being enabled
+ENABLING = -999_999_999  # meta.yaml's sync_before_plan while the drives are being enabled
 
 log = logging.getLogger(__name__)
 
@@ -33,13 +35,13 @@ class RecordResult:
     out_dir: Path
     plan: Plan
     cycles_sent: int
-    samples: dict[str, int]          # rows with a complete sample, per axis
+    samples: dict[str, int]  # rows with a complete sample, per axis
     missing: dict[str, int]
     aborted: MotionAborted | None
     bus_load: str
     wall_time_s: float
     timing: Timing
-    holding: dict[str, str] | None = None       # per axis, how it is held after the motion
+    holding: dict[str, str] | None = None  # per axis, how it is held after the motion
 
     @property
     def ok(self) -> bool:
@@ -47,12 +49,21 @@ class RecordResult:
 
     def as_dict(self) -> dict:
         """``record --json``."""
-        return stamped("record", {
-            "out": str(self.out_dir), "files": ["log.csv", "meta.yaml", "trace.blf"],
-            "axes": {a: {"samples": self.samples[a], "missing": self.missing[a]} for a in self.plan.axes},
-            "motion_s": self.plan.duration, "cycles_sent": self.cycles_sent, "bus_load": self.bus_load,
-            "wall_time_s": self.wall_time_s, "timing": self.timing.as_dict(),
-            "aborted": None if self.aborted is None else str(self.aborted), "holding": self.holding})
+        return stamped(
+            "record",
+            {
+                "out": str(self.out_dir),
+                "files": ["log.csv", "meta.yaml", "trace.blf"],
+                "axes": {a: {"samples": self.samples[a], "missing": self.missing[a]} for a in self.plan.axes},
+                "motion_s": self.plan.duration,
+                "cycles_sent": self.cycles_sent,
+                "bus_load": self.bus_load,
+                "wall_time_s": self.wall_time_s,
+                "timing": self.timing.as_dict(),
+                "aborted": None if self.aborted is None else str(self.aborted),
+                "holding": self.holding,
+            },
+        )
 
 
 def stream_supervision(config: BusConfig, axes: dict[str, AxisLink]) -> Supervision:
@@ -60,13 +71,25 @@ def stream_supervision(config: BusConfig, axes: dict[str, AxisLink]) -> Supervis
     profile's setpoint-loss timeout for their EDS/DCF, bus.yml's master section."""
     m, period = config.master, config.master.sync_period_s
     timeout, source = setpoint_timeout_for([ax.cfg.dcf for ax in axes.values()], period)
-    return supervision_for(axes, period, heartbeat_timeout=m.heartbeat_timeout_s, state_timeout=m.state_timeout_s,
-                           setpoint_timeout=timeout, setpoint_source=source, miss_limit=m.tpdo_miss_limit)
+    return supervision_for(
+        axes,
+        period,
+        heartbeat_timeout=m.heartbeat_timeout_s,
+        state_timeout=m.state_timeout_s,
+        setpoint_timeout=timeout,
+        setpoint_source=source,
+        miss_limit=m.tpdo_miss_limit,
+    )
 
 
-def record(config: BusConfig, link: Link, out_dir: str | Path, *,
-           on_plan: Callable[[Plan], Callable[[int], None] | None] | None = None,
-           axes: dict[str, AxisLink] | None = None) -> RecordResult:
+def record(
+    config: BusConfig,
+    link: Link,
+    out_dir: str | Path,
+    *,
+    on_plan: Callable[[Plan], Callable[[int], None] | None] | None = None,
+    axes: dict[str, AxisLink] | None = None,
+) -> RecordResult:
     """Run the campaign of ``config`` over ``link``; files go to ``out_dir``.
 
     ``on_plan`` receives the checked plan before anything moves and may return a
@@ -78,7 +101,7 @@ def record(config: BusConfig, link: Link, out_dir: str | Path, *,
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     trace = TraceRecorder(out / TRACE_NAME, background=link.threaded, epoch=link.epoch)
-    link.add_trace(trace)                    # from here: bring-up (when done here), streaming and stop
+    link.add_trace(trace)  # from here: bring-up (when done here), streaming and stop
     try:
         return _record(config, link, out, load, t_start, on_plan, axes)
     finally:
@@ -86,31 +109,41 @@ def record(config: BusConfig, link: Link, out_dir: str | Path, *,
         trace.stop()
 
 
-def _record(config: BusConfig, link: Link, out: Path, load: BusLoad, t_start: float,
-            on_plan: Callable[[Plan], Callable[[int], None] | None] | None,
-            axes: dict[str, AxisLink] | None) -> RecordResult:
+def _record(
+    config: BusConfig,
+    link: Link,
+    out: Path,
+    load: BusLoad,
+    t_start: float,
+    on_plan: Callable[[Plan], Callable[[int], None] | None] | None,
+    axes: dict[str, AxisLink] | None,
+) -> RecordResult:
     axes = axes or bring_up(link, config)
-    home(link, axes, config)                 # reference: home -- before the plan starts where it left them
+    home(link, axes, config)  # reference: home -- before the plan starts where it left them
     start = {name: ax.position_rad() for name, ax in axes.items()}
-    plan = build_plan(config.campaign, {n: a.cfg.limits for n, a in axes.items()}, start,
-                      config.master.sync_period_s)
+    plan = build_plan(
+        config.campaign, {n: a.cfg.limits for n, a in axes.items()}, start, config.master.sync_period_s
+    )
     progress = on_plan(plan) if on_plan else None
     meta: dict[str, Any] = {
         "drive_bridge_version": __version__,
         "config_file": str(config.path.resolve()),
         "sync_period_s": plan.period,
         "bus_load": load.describe(),
-        "campaign": {k: (list(v) if isinstance(v, tuple) else v)
-                     for k, v in vars(config.campaign).items()},
+        "campaign": {k: (list(v) if isinstance(v, tuple) else v) for k, v in vars(config.campaign).items()},
         "axes": layout_meta({a: axes[a] for a in plan.axes}),
         "segments": [s.as_dict(plan.period) for s in plan.segments],
         "counts": {"cycles_planned": len(plan.demand)},
-        "status": "running",          # until the run ends: a killed run's trace still decodes with this
+        "status": "running",  # until the run ends: a killed run's trace still decodes with this
         "trace": TRACE_NAME,
     }
     write_meta(out / META_NAME, meta)
-    log.info("campaign planned: %s, %d segments, %.1f s of motion", ", ".join(plan.axes), len(plan.segments),
-             plan.duration)
+    log.info(
+        "campaign planned: %s, %d segments, %.1f s of motion",
+        ", ".join(plan.axes),
+        len(plan.segments),
+        plan.duration,
+    )
 
     # decode skips the SYNCs that enabled the drives: meta.yaml says how many as soon as streaming
     # starts. The drives then follow and watch for setpoints (10 periods: 20 ms) -- no time for YAML
@@ -120,21 +153,47 @@ def _record(config: BusConfig, link: Link, out: Path, load: BusLoad, t_start: fl
 
     def started(enable_cycles: int) -> None:
         meta["counts"]["sync_before_plan"] = enable_cycles
-        write_text(out / META_NAME, starting.replace(f"sync_before_plan: {ENABLING}\n",
-                                                     f"sync_before_plan: {enable_cycles}\n", 1))
-    result = stream(link, axes, plan, supervision=stream_supervision(config, {a: axes[a] for a in plan.axes}),
-                    progress=progress, timing_limits=config.master.timing, on_start=started)
+        write_text(
+            out / META_NAME,
+            starting.replace(f"sync_before_plan: {ENABLING}\n", f"sync_before_plan: {enable_cycles}\n", 1),
+        )
+
+    result = stream(
+        link,
+        axes,
+        plan,
+        supervision=stream_supervision(config, {a: axes[a] for a in plan.axes}),
+        progress=progress,
+        timing_limits=config.master.timing,
+        on_start=started,
+    )
     rec = result.recording
     samples = {a: int(len(rec.raw) - result.missing[a]) for a in plan.axes}
-    meta["counts"].update({"cycles_sent": result.cycles_sent, "samples_received": samples,
-                           "samples_missing": dict(result.missing), "sync_before_plan": result.sync_before_plan})
+    meta["counts"].update(
+        {
+            "cycles_sent": result.cycles_sent,
+            "samples_received": samples,
+            "samples_missing": dict(result.missing),
+            "sync_before_plan": result.sync_before_plan,
+        }
+    )
     meta["holding"] = result.holding
     meta["status"] = "ok" if result.aborted is None else "aborted"
     meta["timing"] = result.timing.as_dict()
     if result.aborted is not None:
         meta["abort"] = {"axis": result.aborted.axis, "reason": result.aborted.reason}
-    with deferred():                  # the data so far is written whole before a signal ends the command
+    with deferred():  # the data so far is written whole before a signal ends the command
         write_csv(out / LOG_NAME, rec, {n: axes[n].cfg.scaling for n in plan.axes}, plan.period)
         write_meta(out / META_NAME, meta)
-    return RecordResult(out, plan, result.cycles_sent, samples, dict(result.missing), result.aborted,
-                        load.describe(), time.perf_counter() - t_start, result.timing, result.holding)
+    return RecordResult(
+        out,
+        plan,
+        result.cycles_sent,
+        samples,
+        dict(result.missing),
+        result.aborted,
+        load.describe(),
+        time.perf_counter() - t_start,
+        result.timing,
+        result.holding,
+    )

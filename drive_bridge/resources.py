@@ -7,6 +7,7 @@ installed as files (wheel or source tree), so each resource has a path on disk:
 canopen and the YAML readers take paths, and a bus.yml names its EDS by a path
 relative to itself.
 """
+
 from __future__ import annotations
 
 import os

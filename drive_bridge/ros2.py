@@ -20,6 +20,7 @@ The DCFs describe the devices (their object dictionaries, CiA 306 clean: Lely's 
 them), with the node-ID and bitrate in ``[DeviceComissioning]`` and no ParameterValue: the
 configuration is the bus.yml's, which dcfgen turns into the SDOs the master sends at boot.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -52,16 +53,22 @@ def export(config: BusConfig, out: str | Path) -> list[Path]:
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     m = config.master
-    doc: dict[str, Any] = {"options": {"dcf_path": "."},
-           "master": {"node_id": m.node_id or MASTER_NODE_ID, "driver": "ros2_canopen::MasterDriver",
-                      "package": "canopen_master_driver", "baudrate": m.nominal_bitrate // 1000,
-                      "sync_period": round(m.sync_period_s * 1e6),
-                      "heartbeat_consumer": True},
-           "nodes": {}}
+    doc: dict[str, Any] = {
+        "options": {"dcf_path": "."},
+        "master": {
+            "node_id": m.node_id or MASTER_NODE_ID,
+            "driver": "ros2_canopen::MasterDriver",
+            "package": "canopen_master_driver",
+            "baudrate": m.nominal_bitrate // 1000,
+            "sync_period": round(m.sync_period_s * 1e6),
+            "heartbeat_consumer": True,
+        },
+        "nodes": {},
+    }
     written = []
     for axis, n in config.nodes.items():
         dcf = out / f"{axis}.dcf"
-        write_dcf(n.od, dcf, n.node_id, m.nominal_bitrate, {})      # the device: no ParameterValue
+        write_dcf(n.od, dcf, n.node_id, m.nominal_bitrate, {})  # the device: no ParameterValue
         written.append(dcf)
         doc["nodes"][axis] = _node(n, dcf.name, m, {k: n.source[k] for k in OWN_KEYS if k in n.source})
     bus = out / "bus.yml"
@@ -73,19 +80,29 @@ def export(config: BusConfig, out: str | Path) -> list[Path]:
 
 def _node(n: NodeConfig, dcf_name: str, master: MasterConfig, own: dict) -> dict:
     if n.units_from_drive:
-        raise UserError(f"nodes.{n.axis}.scaling takes the units from the drive: ros2_canopen needs them in "
-                        f"scale_pos_to_dev; give increments_per_rev (and velocity_unit, rated_torque_Nm) as "
-                        f"bringup.json's units for the axis say, then export")
+        raise UserError(
+            f"nodes.{n.axis}.scaling takes the units from the drive: ros2_canopen needs them in "
+            f"scale_pos_to_dev; give increments_per_rev (and velocity_unit, rated_torque_Nm) as "
+            f"bringup.json's units for the axis say, then export"
+        )
     period_s = master.sync_period_s
-    feed = n.scaling.feed_m_per_rev                  # a linear axis: device units per m
+    feed = n.scaling.feed_m_per_rev  # a linear axis: device units per m
     inc_per_unit = n.scaling.inc_per_rad if feed is None else n.scaling.increments_per_rev / feed
     mode = 8 if any((0x607A, 0) in p.mapping for p in n.rpdo) else 7
-    entry = {"node_id": n.node_id, "dcf": dcf_name, "driver": "ros2_canopen::Cia402Driver",
-             "package": "canopen_402_driver", "period": max(1, round(period_s * 1000)), "position_mode": mode,
-             "scale_pos_to_dev": float(inc_per_unit), "scale_pos_from_dev": float(1 / inc_per_unit),
-             "heartbeat_producer": n.heartbeat_producer_ms,
-             "rpdo": _pdos(n, n.rpdo, 0x1400), "tpdo": _pdos(n, n.tpdo, 0x1800),
-             "sdo": _sdo(n, period_s, master)}
+    entry = {
+        "node_id": n.node_id,
+        "dcf": dcf_name,
+        "driver": "ros2_canopen::Cia402Driver",
+        "package": "canopen_402_driver",
+        "period": max(1, round(period_s * 1000)),
+        "position_mode": mode,
+        "scale_pos_to_dev": float(inc_per_unit),
+        "scale_pos_from_dev": float(1 / inc_per_unit),
+        "heartbeat_producer": n.heartbeat_producer_ms,
+        "rpdo": _pdos(n, n.rpdo, 0x1400),
+        "tpdo": _pdos(n, n.tpdo, 0x1800),
+        "sdo": _sdo(n, period_s, master),
+    }
     entry.update(own)
     return entry
 
@@ -100,11 +117,15 @@ def _pdos(n: NodeConfig, pdos: tuple[PdoConfig, ...], comm: int) -> dict:
         if p is None:
             out[num] = {"enabled": False}
             continue
-        out[num] = {"enabled": True, "cob_id": Hex(p.cob_id) if p.cob_id else "auto", "transmission": p.transmission,
-                    "mapping": [{"index": Hex(i), "sub_index": s} for i, s in p.mapping]}
+        out[num] = {
+            "enabled": True,
+            "cob_id": Hex(p.cob_id) if p.cob_id else "auto",
+            "transmission": p.transmission,
+            "mapping": [{"index": Hex(i), "sub_index": s} for i, s in p.mapping],
+        }
         if p.event_timer_ms is not None:
             out[num]["event_timer"] = p.event_timer_ms
-        if comm == 0x1800:                       # as bring-up writes it (0: never the EDS default)
+        if comm == 0x1800:  # as bring-up writes it (0: never the EDS default)
             out[num]["inhibit_time"] = p.inhibit_time_100us
     return out
 
@@ -113,7 +134,8 @@ def _sdo(n: NodeConfig, period_s: float, master: MasterConfig) -> list[dict]:
     """What drive-bridge's bring-up writes besides PDOs (:func:`~drive_bridge.master.bringup.settings`),
     as ros2_canopen's ``sdo``; the heartbeat is the node's ``heartbeat_producer`` and the
     communication cycle the master's ``sync_period``."""
-    return [{"index": Hex(i), "sub_index": s, "value": v} for i, s, v in settings(n.axis, n, period_s, master)
-            if i not in (0x1017, 0x1006) and n.od.get_variable(i, s) is not None]
-
-
+    return [
+        {"index": Hex(i), "sub_index": s, "value": v}
+        for i, s, v in settings(n.axis, n, period_s, master)
+        if i not in (0x1017, 0x1006) and n.od.get_variable(i, s) is not None
+    ]

@@ -5,6 +5,7 @@ Every command that talks to drives, and every step of ``commission``, works
 through a :class:`Session`, so a step behaves the same run alone or in the
 whole job.
 """
+
 from __future__ import annotations
 
 from contextlib import ExitStack
@@ -32,15 +33,15 @@ class Options:
     sim: bool = False
     realtime: bool = False
     sim_config: str | None = None
-    profile: str | None = None            # None: the one bus.yml names, else the project's drive
+    profile: str | None = None  # None: the one bus.yml names, else the project's drive
     motor: tuple[float, float] | None = None
     seed: int = 0
     force: bool = False
     pm_floor: float = PM_FLOOR_DEG
     gm_floor: float = GM_FLOOR_DB
     allow_unverified_scales: bool = False
-    history: bool = True                  # keep the run in the history database (commission, write)
-    db: str | None = None                 # that database's URL (None: DRIVE_BRIDGE_DB, else the user's SQLite file)
+    history: bool = True  # keep the run in the history database (commission, write)
+    db: str | None = None  # that database's URL (None: DRIVE_BRIDGE_DB, else the user's SQLite file)
 
     @property
     def writes_unverified(self) -> bool:
@@ -62,7 +63,7 @@ class Session:
         self._profile: Profile | None = None
         self._identities: dict[str, dict] = {}
 
-    def __enter__(self) -> "Session":
+    def __enter__(self) -> Session:
         return self
 
     def __exit__(self, *exc: object) -> None:
@@ -108,6 +109,7 @@ class Session:
         """How each brought-up axis is held now, read from the drives (empty where none was
         brought up; an axis that does not answer says so)."""
         from .master.stream import holding_of
+
         out = {}
         for name, ax in (self._axes or {}).items():
             try:

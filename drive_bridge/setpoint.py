@@ -8,6 +8,7 @@ simulated drives.
   position 32 bit, velocity 24 bit, time 8 bit in ms); controlword bit 4 enables interpolation
   and statusword bit 12 confirms it.
 """
+
 from __future__ import annotations
 
 from .cia.p402 import CSP, IP, MODE_NAMES

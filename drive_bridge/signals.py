@@ -6,6 +6,7 @@ a KeyboardInterrupt, so every path that ends Ctrl-C safely (quick stop in
 motion, restore in a write) ends these the same way.  Inside :func:`deferred`
 (restoring a drive's backup) a signal is held and raised when the span ends.
 """
+
 from __future__ import annotations
 
 import signal
@@ -27,8 +28,8 @@ class Terminated(KeyboardInterrupt):
 
 
 class _State:
-    deferring = 0                    # nested deferred() blocks open
-    pending: str | None = None       # the first signal they hold
+    deferring = 0  # nested deferred() blocks open
+    pending: str | None = None  # the first signal they hold
 
 
 _state = _State()

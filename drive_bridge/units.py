@@ -10,6 +10,7 @@ actual value, the current actual value (0x6078: per mille of the rated current
 0x6075, or mA) times the motor's torque constant, or a vendor object with its
 scale (Nm per unit).
 """
+
 from __future__ import annotations
 
 import math
@@ -37,13 +38,13 @@ class Scaling:
     increments_per_rev: float
     rated_torque_Nm: float
     feed_m_per_rev: float | None = None
-    torque_feedback: str = "torque"             # "torque": 0x6077; "current": 0x6078 × torque constant;
-                                                # "object": the vendor object torque_index × torque_per_unit_Nm
-    current_per_unit_A: float | None = None     # A per unit of 0x6078 (rated current / 1000, or 0.001 for mA)
+    torque_feedback: str = "torque"  # "torque": 0x6077; "current": 0x6078 × torque constant;
+    # "object": the vendor object torque_index × torque_per_unit_Nm
+    current_per_unit_A: float | None = None  # A per unit of 0x6078 (rated current / 1000, or 0.001 for mA)
     torque_constant_Nm_per_A: float | None = None
     torque_index: int | None = None
     torque_per_unit_Nm: float | None = None
-    velocity_unit: str = "inc/s"                # of 0x606C and the other velocities: "inc/s" or "rpm"
+    velocity_unit: str = "inc/s"  # of 0x606C and the other velocities: "inc/s" or "rpm"
     #: device velocity units per rad/s as the drive reports them (its 0x60A9, with ``scaling:
     #: from_drive``); None: from ``velocity_unit``
     velocity_units_per_rad_s: float | None = None

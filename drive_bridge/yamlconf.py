@@ -1,9 +1,10 @@
 """Strict reading of YAML configuration: every error names the file and the key."""
+
 from __future__ import annotations
 
 import math
-from pathlib import Path
 from collections.abc import Iterable, Mapping
+from pathlib import Path
 from typing import Any, TypeGuard
 
 import yaml
@@ -55,7 +56,7 @@ def finite_number(value: Any) -> TypeGuard[float]:
         return False
     try:
         return math.isfinite(value)
-    except OverflowError:                 # an integer too large for a float: no number drive-bridge can use
+    except OverflowError:  # an integer too large for a float: no number drive-bridge can use
         return False
 
 
@@ -82,8 +83,16 @@ class Section:
     def error(self, key: str | int, problem: str) -> ConfigError:
         return ConfigError(self.path, self._name(key), problem)
 
-    def get(self, key: str | int, kind: type | tuple[type, ...], default: Any = ..., *, low: float | None = None,
-            high: float | None = None, choices: Iterable[Any] | None = None) -> Any:
+    def get(
+        self,
+        key: str | int,
+        kind: type | tuple[type, ...],
+        default: Any = ...,
+        *,
+        low: float | None = None,
+        high: float | None = None,
+        choices: Iterable[Any] | None = None,
+    ) -> Any:
         """``key``'s value, checked to be of ``kind`` (a float may be written as an int), finite, within
         [``low``, ``high``] and one of ``choices``; ``default`` where it is absent (``...``: required)."""
         self._used.add(key)
@@ -105,7 +114,7 @@ class Section:
             raise self.error(key, f"must be a finite number, got {value!r}")
         if choices is not None and value not in choices:
             raise self.error(key, f"must be one of {', '.join(map(str, choices))}, got {value!r}")
-        number: Any = value                   # of the kinds asked for: a number where a range is given
+        number: Any = value  # of the kinds asked for: a number where a range is given
         if low is not None and number < low:
             raise self.error(key, f"must be >= {low}, got {value!r}")
         if high is not None and number > high:
@@ -118,7 +127,7 @@ class Section:
         self._used.update(found)
         return found
 
-    def section(self, key: str | int, required: bool = True) -> "Section":
+    def section(self, key: str | int, required: bool = True) -> Section:
         value = self.get(key, dict, ... if required else {})
         return Section(self.path, self._name(key), value)
 

@@ -1,4 +1,5 @@
 """Fixtures: simulated robots on private virtual-bus channels, in lockstep (helpers in support.py)."""
+
 from __future__ import annotations
 
 import os
@@ -10,7 +11,7 @@ from drive_bridge.sim.config import DEFAULT_CONFIG, SimConfig, load_sim_config
 
 from .support import VENDOR_EDS, Bench, clean_config
 
-os.environ.setdefault("DRIVE_BRIDGE_VENDOR_EDS", str(VENDOR_EDS))     # vendor files, read in place
+os.environ.setdefault("DRIVE_BRIDGE_VENDOR_EDS", str(VENDOR_EDS))  # vendor files, read in place
 # every run the tests commission is kept in a history database of the tests', never the user's
 os.environ["XDG_DATA_HOME"] = tempfile.mkdtemp(prefix="drive-bridge-tests-")
 os.environ.pop("DRIVE_BRIDGE_DB", None)
@@ -39,6 +40,7 @@ def bench():
         b = Bench(config or clean_config())
         benches.append(b)
         return b
+
     yield make
     for b in benches:
         b.close()
@@ -69,8 +71,11 @@ def _shared_skips(reporter) -> list:
 def pytest_terminal_summary(terminalreporter, exitstatus, config):
     skipped = _shared_skips(terminalreporter)
     if skipped:
-        terminalreporter.write_line(f"{len(skipped)} test(s) skipped: {SHARED} (the vendor files and real logs) is "
-                                    f"not beside the repository", yellow=True)
+        terminalreporter.write_line(
+            f"{len(skipped)} test(s) skipped: {SHARED} (the vendor files and real logs) is "
+            f"not beside the repository",
+            yellow=True,
+        )
 
 
 def pytest_sessionfinish(session, exitstatus):

@@ -9,6 +9,7 @@ master needs to stream: the power state machine driven by the controlword, the m
 record) put it, sampled at SYNC.  What is checked is the protocol: every SDO, PDO and NMT exchange
 of scan, bring-up, a campaign, a write and a store against an independent implementation.
 """
+
 from __future__ import annotations
 
 import itertools
@@ -44,8 +45,9 @@ def _timers() -> None:
         while True:
             try:
                 scheduler.run()
-            except can.CanError:            # a timer of a slave whose bus was closed meanwhile
+            except can.CanError:  # a timer of a slave whose bus was closed meanwhile
                 pass
+
     threading.Thread(target=run, name="durand-timers", daemon=True).start()
 
 
@@ -68,10 +70,12 @@ class DurandDrive:
     def __init__(self, eds, node_id: int, channel: str, serial: int = 0):
         _timers()
         od = load_od(eds, node_id)
-        count = lambda base: sum(1 for i in range(base, base + 0x200) if i in od)   # noqa: E731
+        count = lambda base: sum(1 for i in range(base, base + 0x200) if i in od)  # noqa: E731
         self.bus = can.Bus(interface="virtual", channel=channel, receive_own_messages=False)
         self.network = CANBusNetwork(self.bus)
-        self.node = Node(self.network, node_id, capabilities=NodeCapabilities(1, count(0x1400), count(0x1800)))
+        self.node = Node(
+            self.network, node_id, capabilities=NodeCapabilities(1, count(0x1400), count(0x1800))
+        )
         d = self.node.object_dictionary
         for obj in od.values():
             if obj.index in DURAND_OWNS:
@@ -84,21 +88,25 @@ class DurandDrive:
                     if sub:
                         rec[sub] = _variable(var)
                 d[obj.index] = rec
-        for comm in range(0x1400, 0x1A00):                  # sub-indices the file has and durand's PDOs lack
+        for comm in range(0x1400, 0x1A00):  # sub-indices the file has and durand's PDOs lack
             if comm in od and (comm & 0xFF00) in (0x1400, 0x1800) and comm in d:
                 for sub, var in od[comm].subindices.items():
                     if sub and sub not in d[comm]:
-                        d[comm][sub] = _variable(var)      # held, not acted on (durand has no event timer)
-        if od[0x1000].default is None:                      # the drive reports what the file leaves out
-            d.write(0x1000, 0, 0x00020192)                  # CiA 402, servo drive
-        if 0x6502 in od and od[0x6502].default is None:    # the modes the vendor documents (sim/vendors.py)
+                        d[comm][sub] = _variable(var)  # held, not acted on (durand has no event timer)
+        if od[0x1000].default is None:  # the drive reports what the file leaves out
+            d.write(0x1000, 0, 0x00020192)  # CiA 402, servo drive
+        if 0x6502 in od and od[0x6502].default is None:  # the modes the vendor documents (sim/vendors.py)
             d.write(0x6502, 0, spec_for(eds).supported_modes)
         info = od.device_information
-        for sub, value in ((1, info.vendor_number), (2, info.product_number), (3, info.revision_number),
-                           (4, serial)):
+        for sub, value in (
+            (1, info.vendor_number),
+            (2, info.product_number),
+            (3, info.revision_number),
+            (4, serial),
+        ):
             d.write(0x1018, sub, value or 0)
         self.od = od
-        for comm in range(0x1400, 0x1C00):                  # mapping entries: only PDO-mappable objects
+        for comm in range(0x1400, 0x1C00):  # mapping entries: only PDO-mappable objects
             if (comm & 0xFF00) in (0x1600, 0x1A00) and comm in od:
                 for sub in range(1, 9):
                     d.validate_callbacks[(comm, sub)].add(self._mappable)
@@ -119,17 +127,17 @@ class DurandDrive:
     def _controlword(self, cw: int) -> None:
         d = self.node.object_dictionary
         command = cw & 0x8F
-        if cw & 0x86 == 0x02 and self.state == "ENABLED":                 # quick stop
+        if cw & 0x86 == 0x02 and self.state == "ENABLED":  # quick stop
             self.state = "QUICK STOP"
-        elif not cw & 0x02:                                               # disable voltage
+        elif not cw & 0x02:  # disable voltage
             self.state = "SOD"
-        elif command & 0x87 == 0x06:                                      # shutdown
+        elif command & 0x87 == 0x06:  # shutdown
             self.state = "READY"
         elif command == 0x07 and self.state in ("READY", "ENABLED"):
             self.state = "ON"
         elif command == 0x0F and self.state in ("ON", "READY", "ENABLED", "QUICK STOP"):
             if self.state != "ENABLED":
-                self.target = self.position                                # takes the target as it stands
+                self.target = self.position  # takes the target as it stands
             self.state = "ENABLED"
         following = self.state == "ENABLED" and (d.read(0x6061, 0) == 8 or cw & 0x10)
         d.write(0x6041, 0, STATUS[self.state] | (0x1000 if following else 0))
@@ -144,10 +152,10 @@ class DurandDrive:
         velocity, self.position = self.target - self.position, self.target
         d.write(0x6064, 0, self.position)
         if 0x606C in self.od:
-            d.write(0x606C, 0, max(-2**31, min(2**31 - 1, velocity * 500)))
+            d.write(0x606C, 0, max(-(2**31), min(2**31 - 1, velocity * 500)))
 
     def close(self) -> None:
-        self.node.object_dictionary.write(0x1017, 0, 0)      # its heartbeat timer off first
+        self.node.object_dictionary.write(0x1017, 0, 0)  # its heartbeat timer off first
         self.network.stop()
         self.bus.shutdown()
 

@@ -1,5 +1,6 @@
 """Helpers the tests share: paths, the paper's plant, simulated robots on private virtual-bus
 channels in lockstep, and small readers.  Fixtures built on them are in conftest.py."""
+
 from __future__ import annotations
 
 import itertools
@@ -33,15 +34,22 @@ def clean_config(noise: float = 0.0, seed: int = 0, effects: dict | None = None)
     """The robot without hidden effects; ``effects`` = {axis: {name: {kernel param: value}}}."""
     axes = {}
     for i, (name, p) in enumerate(PAPER.items()):
-        axes[name] = SimAxis(name=name, node_id=i + 1, serial=100 + i, torque_noise_Nm=noise,
-                             motor=Motor(), effects=(effects or {}).get(name, {}), **p)
+        axes[name] = SimAxis(
+            name=name,
+            node_id=i + 1,
+            serial=100 + i,
+            torque_noise_Nm=noise,
+            motor=Motor(),
+            effects=(effects or {}).get(name, {}),
+            **p,
+        )
     return SimConfig(axes=axes, seed=seed)
 
 
 class Bench:
     """A simulated robot with a lockstep master link and canopen RemoteNodes for its drives."""
 
-    open: list["Bench"] = []
+    open: list[Bench] = []
 
     def __init__(self, config: SimConfig, eds: Path = EDS):
         """Every drive built from ``eds`` (the project's drive by default, or a vendor file)."""
@@ -85,7 +93,9 @@ def bus_yml_beside(tmp_path: Path, old: str = "", new: str = "") -> Path:
 
 def tool(name: str) -> str | None:
     """A third-party command (dcfchk, dcfgen, tshark) from the test environment or PATH; None when absent."""
-    return shutil.which(name, path=os.pathsep.join([os.path.dirname(sys.executable), os.environ.get("PATH", "")]))
+    return shutil.which(
+        name, path=os.pathsep.join([os.path.dirname(sys.executable), os.environ.get("PATH", "")])
+    )
 
 
 def follows_schema(doc: dict, name: str) -> dict:
@@ -98,6 +108,7 @@ def follows_schema(doc: dict, name: str) -> dict:
 
     from drive_bridge.outputs import SCHEMA_VERSION, SIGNIFICANT
     from drive_bridge.resources import data
+
     assert doc["schema"] == f"drive-bridge/{name}" and doc["schema_version"] == SCHEMA_VERSION
     jsonschema.validate(doc, json.loads(data("schemas", f"{name}.schema.json").read_text()))
 
@@ -110,6 +121,7 @@ def follows_schema(doc: dict, name: str) -> dict:
                 yield from floats(v)
         elif isinstance(x, float):
             yield x
+
     for f in floats(doc):
         assert f.is_integer() or float(f"{f:.{SIGNIFICANT}g}") == f, f"{f!r}: more digits than it means"
     return doc
@@ -120,6 +132,7 @@ def decodes_to_the_log(out: Path) -> None:
     log marked missing (a reply that reached the master after its row was written, on the wall
     clock of an overloaded machine), which the trace recovers; meta.yaml counts them."""
     import yaml
+
     live, decoded = (out / "log.csv").read_text().splitlines(), (out / "decoded.csv").read_text().splitlines()
     assert len(live) == len(decoded)
     differ = [i for i, (a, b) in enumerate(zip(live, decoded)) if a != b]

@@ -1,5 +1,6 @@
 """The package's face: the public API a pipeline imports from ``drive_bridge`` itself, each name
 imported on first use, and one version."""
+
 from __future__ import annotations
 
 import re
@@ -20,8 +21,17 @@ def test_every_public_name_is_the_function_or_class_of_its_module():
     from drive_bridge.params.write import write_drives
     from drive_bridge.session import Options, Session
     from drive_bridge.tuning.tune import tune
-    expected = {"Session": Session, "Options": Options, "open_link": open_link, "load_bus_config": load_bus_config,
-                "identify": identify, "tune": tune, "write_drives": write_drives, "commission": commission}
+
+    expected = {
+        "Session": Session,
+        "Options": Options,
+        "open_link": open_link,
+        "load_bus_config": load_bus_config,
+        "identify": identify,
+        "tune": tune,
+        "write_drives": write_drives,
+        "commission": commission,
+    }
     assert set(expected) <= set(drive_bridge.__all__) <= set(expected) | {"__version__"}
     for name, value in expected.items():
         assert getattr(drive_bridge, name) is value, name
@@ -29,7 +39,7 @@ def test_every_public_name_is_the_function_or_class_of_its_module():
 
 
 def test_importing_the_package_imports_none_of_the_layers_above():
-    code = ("import sys, drive_bridge; print(sorted(m for m in sys.modules if m.startswith('drive_bridge.')))")
+    code = "import sys, drive_bridge; print(sorted(m for m in sys.modules if m.startswith('drive_bridge.')))"
     loaded = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert eval(loaded) == ["drive_bridge.version"]
     try:

@@ -1,4 +1,5 @@
 """Which bus: the command line, bus.yml, then python-can's own configuration, as its tools do."""
+
 from __future__ import annotations
 
 import pytest
@@ -9,8 +10,10 @@ from drive_bridge.config import load_bus_config
 
 from .support import BUS_CONFIG, bus_yml_beside
 
-NO_INTERFACE = ("  interface: virtual          # socketcan / pcan / kvaser ... on a real bus\n"
-                "  channel: drive-bridge\n  bitrate: 1000000\n")
+NO_INTERFACE = (
+    "  interface: virtual          # socketcan / pcan / kvaser ... on a real bus\n"
+    "  channel: drive-bridge\n  bitrate: 1000000\n"
+)
 
 
 @pytest.fixture
@@ -22,16 +25,19 @@ def canrc(tmp_path, monkeypatch):
 
     def write(text: str):
         (tmp_path / ".canrc").write_text(text)
+
     return write
 
 
 def test_python_cans_configuration_fills_what_bus_yml_leaves_out(tmp_path, canrc):
     assert NO_INTERFACE in BUS_CONFIG.read_text()
-    canrc("[default]\ninterface = virtual\nchannel = 0\nbitrate = 250000\nreceive_own_messages = True\n"
-          "app_name = CANalyzer\n")
+    canrc(
+        "[default]\ninterface = virtual\nchannel = 0\nbitrate = 250000\nreceive_own_messages = True\n"
+        "app_name = CANalyzer\n"
+    )
     cfg = resolve(load_bus_config(bus_yml_beside(tmp_path, NO_INTERFACE, "")))
     m = cfg.master
-    assert (m.interface, m.channel, m.bitrate) == ("virtual", 0, 250000)      # an integer channel, as kvaser's
+    assert (m.interface, m.channel, m.bitrate) == ("virtual", 0, 250000)  # an integer channel, as kvaser's
     assert m.can_options == {"app_name": "CANalyzer", "receive_own_messages": False}
     notes = " | ".join(m.notes)
     assert "from python-can's configuration" in notes and "receive_own_messages = True" in notes
@@ -44,7 +50,11 @@ def test_the_command_line_comes_first_then_bus_yml_then_the_environment(tmp_path
     monkeypatch.setenv("CAN_BITRATE", "500000")
     base = load_bus_config(BUS_CONFIG)
     m = resolve(base).master
-    assert (m.interface, m.channel, m.bitrate) == ("virtual", "drive-bridge", 1_000_000)   # bus.yml over python-can
+    assert (m.interface, m.channel, m.bitrate) == (
+        "virtual",
+        "drive-bridge",
+        1_000_000,
+    )  # bus.yml over python-can
     m = resolve(base, "socketcan", "can1", 125000).master
     assert (m.interface, m.channel, m.bitrate) == ("socketcan", "can1", 125000)
     assert any("from the command line" in n for n in m.notes)
@@ -54,8 +64,9 @@ def test_the_command_line_comes_first_then_bus_yml_then_the_environment(tmp_path
 
 def test_interface_options_pass_through_and_an_unknown_interface_is_named(tmp_path, canrc, capsys):
     canrc("")
-    cfg = bus_yml_beside(tmp_path, NO_INTERFACE, "  interface: virtual\n  channel: 7\n"
-                                                 "  can_options: {rx_queue_size: 64}\n")
+    cfg = bus_yml_beside(
+        tmp_path, NO_INTERFACE, "  interface: virtual\n  channel: 7\n  can_options: {rx_queue_size: 64}\n"
+    )
     m = resolve(load_bus_config(cfg)).master
     assert m.channel == 7 and m.can_options == {"rx_queue_size": 64, "receive_own_messages": False}
     (tmp_path / "b").mkdir()
@@ -71,7 +82,7 @@ def test_no_interface_anywhere_is_one_message(tmp_path, canrc, capsys):
     assert main(["scan", "--config", str(cfg)]) == 2
     err = capsys.readouterr().err
     assert "no CAN interface named" in err and "-i/--interface" in err and "CAN_INTERFACE" in err
-    assert main(["scan", "--sim", "--config", str(cfg)]) == 0       # the simulated robot needs none
+    assert main(["scan", "--sim", "--config", str(cfg)]) == 0  # the simulated robot needs none
 
 
 def test_the_command_line_opens_the_bus_it_names(tmp_path, canrc, capsys):
@@ -81,4 +92,7 @@ def test_the_command_line_opens_the_bus_it_names(tmp_path, canrc, capsys):
     cfg = bus_yml_beside(tmp_path, NO_INTERFACE, "")
     assert main(["scan", "--config", str(cfg), "-i", "virtual", "-c", "empty-bus-42"]) == 3
     err = capsys.readouterr().err
-    assert "virtual:empty-bus-42" in err and "interface 'virtual', channel 'empty-bus-42' from the command line" in err
+    assert (
+        "virtual:empty-bus-42" in err
+        and "interface 'virtual', channel 'empty-bus-42' from the command line" in err
+    )

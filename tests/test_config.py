@@ -1,4 +1,5 @@
 """The bus configuration: one clear message for every mistake, the bus-load budget."""
+
 from __future__ import annotations
 
 import pytest
@@ -8,15 +9,16 @@ from drive_bridge.config import load_bus_config
 
 from .support import BUS_CONFIG, bus_yml_beside
 
-
 BAD_CONFIGS = [
     ("  sync_period: 2000", "  sync_period: 2000\n  colour: red", "master.colour: unknown key"),
     ("    node_id: 2\n", "", "nodes.y.node_id: missing"),
     ("  bitrate: 1000000", "  bitrate: fast", "master.bitrate: must be int"),
     ("dcf: ../eds/drive_bridge_servo.eds", "dcf: ../eds/nope.eds", "nodes.x.dcf: EDS/DCF file not found"),
-    ("max_velocity_m_s: 0.230, max_acceleration_m_s2: 5.0}\n    holding: brake\n  z",
-     "max_velocity_m_s: 0.8, max_acceleration_m_s2: 5.0}\n    holding: brake\n  z",
-     "nodes.y.limits.max_velocity_m_s: 0.8 m/s is 4800 rpm at the motor, above the drive's max motor speed"),
+    (
+        "max_velocity_m_s: 0.230, max_acceleration_m_s2: 5.0}\n    holding: brake\n  z",
+        "max_velocity_m_s: 0.8, max_acceleration_m_s2: 5.0}\n    holding: brake\n  z",
+        "nodes.y.limits.max_velocity_m_s: 0.8 m/s is 4800 rpm at the motor, above the drive's max motor speed",
+    ),
     ("        - {index: 0x607A, sub_index: 0}", "", "nodes.x.rpdo: must map a position setpoint (0x607A"),
 ]
 
@@ -46,5 +48,6 @@ def test_bus_load_above_budget_is_refused(tmp_path, capsys):
 
 def test_three_axes_at_500_hz_fit_at_1_mbit():
     from drive_bridge.master.busload import bus_load
+
     load = bus_load(load_bus_config(BUS_CONFIG))
     assert 0.4 < load.load < 0.8

@@ -1,5 +1,6 @@
 """The documentation holds: its Python examples run as written, the README stays a front door, and
 ``--help`` and the docs' exit-code page come from the one table in ``drive_bridge.errors``."""
+
 from __future__ import annotations
 
 import re
@@ -31,7 +32,7 @@ def test_the_python_examples_of_a_page_run_as_written(page, tmp_path, monkeypatc
 def test_the_readme_is_a_front_door():
     readme = (ROOT / "README.md").read_text(encoding="utf-8")
     assert len(readme.splitlines()) <= 150
-    for link in re.findall(r"\]\((docs/[^)#]+)", readme):              # every page it points to is there
+    for link in re.findall(r"\]\((docs/[^)#]+)", readme):  # every page it points to is there
         assert (ROOT / link).is_file(), link
 
 
@@ -40,4 +41,4 @@ def test_help_and_the_docs_print_the_one_exit_code_table():
     for code, kind, _ in EXIT_TABLE:
         assert re.search(rf"^\s+{code}\s+{kind}\s", epilog, flags=re.M), (code, kind)
     page = (DOCS / "reference" / "exit-codes.md").read_text(encoding="utf-8")
-    assert "{drive-bridge-exit-codes}" in page                          # generated, not written by hand
+    assert "{drive-bridge-exit-codes}" in page  # generated, not written by hand

@@ -1,4 +1,5 @@
 """The project's EDS and the vendor files against CiA 306, Lely's dcf-tools and canopen."""
+
 from __future__ import annotations
 
 import subprocess
@@ -20,9 +21,9 @@ DCFCHK = tool("dcfchk")
 def test_the_project_eds_is_cia_306_and_every_tool_reads_it(capsys):
     report = check(EDS)
     assert report.findings == [] and report.standard
-    raw = canopen.import_od(str(EDS), 1)                     # canopen as it is: the file loads
+    raw = canopen.import_od(str(EDS), 1)  # canopen as it is: the file loads
     assert raw[0x2000][1].default is None and raw[0x2000][1].default_raw == "0x43160000"
-    od = load_od(EDS, 1)                                     # and drive-bridge reads the REAL32 bit patterns
+    od = load_od(EDS, 1)  # and drive-bridge reads the REAL32 bit patterns
     assert od[0x2000][1].default == 150.0 and od[0x2000][3].default == pytest.approx(0.12)
     assert main(["check-eds", str(EDS)]) == 0
     out = capsys.readouterr().out
@@ -50,8 +51,10 @@ def test_vendor_files_are_read_as_they_are_and_what_is_not_standard_is_said(caps
     assert load_od(pilz, 3)[0x6502].default is not None
     code = main(["check-eds", str(pilz), str(VENDOR_EDS / "maxon_epos2_50-5.eds")])
     out = capsys.readouterr().out
-    assert "drive-bridge: modes (0x6502): profile position (1), velocity (2), interpolated position (7)" in out
-    assert "0x6502 has no DefaultValue here" in out                           # EPOS2: read from the drive
+    assert (
+        "drive-bridge: modes (0x6502): profile position (1), velocity (2), interpolated position (7)" in out
+    )
+    assert "0x6502 has no DefaultValue here" in out  # EPOS2: read from the drive
     if DCFCHK:
         assert code == 1 and "NOT standard" in out and "lely: " in out
     for path in sorted(VENDOR_EDS.glob("*.[ed][dc][sf]")):
@@ -60,13 +63,15 @@ def test_vendor_files_are_read_as_they_are_and_what_is_not_standard_is_said(caps
 
 def test_a_hand_written_file_with_the_usual_mistakes(tmp_path, capsys):
     path = tmp_path / "bad.eds"
-    path.write_text("[FileInfo]\nFileName=bad.eds\n[MandatoryObjects]\nSupportedObjects=2\n1=0x1000\n2=0x1018\n"
-                    "[1000]\nParameterName=Device type\nObjectType=0x7\nDataType=0x0007\nAccessType=ro\n"
-                    "DefaultValue=0x00020192\nPDOMapping=0\nDescription=a key CiA 306 lacks\n"
-                    "[2000]\nParameterName=Gain\nObjectType=0x7\nDataType=0x0008\nAccessType=rw\n"
-                    "DefaultValue=0.5\nPDOMapping=0\n"
-                    "[1400sub1]\nParameterName=COB-ID\nObjectType=0x7\nDataType=0x0007\nAccessType=rw\n"
-                    "DefaultValue=0x200+$NODEID\nPDOMapping=0\n")
+    path.write_text(
+        "[FileInfo]\nFileName=bad.eds\n[MandatoryObjects]\nSupportedObjects=2\n1=0x1000\n2=0x1018\n"
+        "[1000]\nParameterName=Device type\nObjectType=0x7\nDataType=0x0007\nAccessType=ro\n"
+        "DefaultValue=0x00020192\nPDOMapping=0\nDescription=a key CiA 306 lacks\n"
+        "[2000]\nParameterName=Gain\nObjectType=0x7\nDataType=0x0008\nAccessType=rw\n"
+        "DefaultValue=0.5\nPDOMapping=0\n"
+        "[1400sub1]\nParameterName=COB-ID\nObjectType=0x7\nDataType=0x0007\nAccessType=rw\n"
+        "DefaultValue=0x200+$NODEID\nPDOMapping=0\n"
+    )
     found = "\n".join(check(path).findings)
     assert "[1000]: Description (no such key in CiA 306)" in found
     assert "[2000] DefaultValue=0.5: a decimal REAL" in found
@@ -74,7 +79,7 @@ def test_a_hand_written_file_with_the_usual_mistakes(tmp_path, capsys):
     assert "mandatory object 0x1001 is not described" in found
     assert "object 0x1018 is listed but has no [1018] section" in found
     assert "[2000] is described but not listed" in found
-    assert "canopen cannot import it" in found                  # [1400sub1] without its [1400]
+    assert "canopen cannot import it" in found  # [1400sub1] without its [1400]
     assert main(["check-eds", str(path)]) == 1
     assert main(["check-eds", str(tmp_path / "missing.eds")]) == 2
     assert "no such EDS/DCF file" in capsys.readouterr().err
@@ -86,10 +91,10 @@ def test_each_load_is_its_own_object_dictionary_and_a_changed_file_is_read_again
     path.write_bytes(EDS.read_bytes())
     a, b = load_od(path, 2), load_od(path, 2)
     assert a is not b and a[0x1017].default == b[0x1017].default
-    a[0x1017].default = 4321                                  # one user's change stays its own
+    a[0x1017].default = 4321  # one user's change stays its own
     assert b[0x1017].default != 4321 and load_od(path, 2)[0x1017].default != 4321
-    assert load_od(path, 3)[0x1400][1].default == 0x200 + 3   # $NODEID resolved for the node asked for
+    assert load_od(path, 3)[0x1400][1].default == 0x200 + 3  # $NODEID resolved for the node asked for
     text = path.read_text()
     at = text.index("[1017]")
     path.write_text(text[:at] + text[at:].replace("DefaultValue=0", "DefaultValue=250", 1))
-    assert load_od(path, 2)[0x1017].default == 250            # the file changed: read again
+    assert load_od(path, 2)[0x1017].default == 250  # the file changed: read again

@@ -1,6 +1,7 @@
 """The protocol floor (drive_bridge.cia) stands on python-can, canopen and the package's leaves
 (errors, od, outputs: nothing above them), and the CiA 301/402 vocabulary is written once: the
 master, the parameters and the simulated drives read theirs from it and not from each other."""
+
 from __future__ import annotations
 
 import ast
@@ -11,7 +12,7 @@ import drive_bridge
 
 PACKAGE = Path(drive_bridge.__file__).parent
 ALLOWED = {"can", "canopen", "__future__"} | set(sys.stdlib_module_names)
-LEAVES = {"..errors", "..od", "..outputs"}          # the package's modules the floor may stand on
+LEAVES = {"..errors", "..od", "..outputs"}  # the package's modules the floor may stand on
 
 
 def imports(path: Path) -> set[str]:
@@ -27,8 +28,11 @@ def imports(path: Path) -> set[str]:
 
 def test_the_floor_imports_nothing_of_the_house_above_it():
     for path in sorted((PACKAGE / "cia").glob("*.py")):
-        above = {name for name in imports(path) if name not in ALLOWED | LEAVES and not
-                 (name.startswith(".") and not name.startswith(".."))}
+        above = {
+            name
+            for name in imports(path)
+            if name not in ALLOWED | LEAVES and not (name.startswith(".") and not name.startswith(".."))
+        }
         assert not above, f"{path.name} imports {sorted(above)}"
     for leaf in LEAVES:
         below = {name for name in imports(PACKAGE / f"{leaf[2:]}.py") if name.startswith(".")}
@@ -37,14 +41,40 @@ def test_the_floor_imports_nothing_of_the_house_above_it():
 
 def test_the_cia_402_vocabulary_is_written_once():
     """No module but the floor assigns a controlword, a mode number or a power state of its own."""
-    vocabulary = {"CW_SHUTDOWN", "CW_SWITCH_ON", "CW_ENABLE", "CW_QUICK_STOP", "CW_HALT", "CW_FAULT_RESET",
-                  "CW_ENABLE_IP", "SW_FAULT", "SW_FOLLOWING", "CSP", "IP", "PP", "PV", "HM", "MODE_NAMES",
-                  "STATUSWORD", "SYNC_COB_ID", "NMT_OPERATIONAL", "ERR_FOLLOWING", "ERR_RPDO_TIMEOUT", "EMCY_TEXT"}
+    vocabulary = {
+        "CW_SHUTDOWN",
+        "CW_SWITCH_ON",
+        "CW_ENABLE",
+        "CW_QUICK_STOP",
+        "CW_HALT",
+        "CW_FAULT_RESET",
+        "CW_ENABLE_IP",
+        "SW_FAULT",
+        "SW_FOLLOWING",
+        "CSP",
+        "IP",
+        "PP",
+        "PV",
+        "HM",
+        "MODE_NAMES",
+        "STATUSWORD",
+        "SYNC_COB_ID",
+        "NMT_OPERATIONAL",
+        "ERR_FOLLOWING",
+        "ERR_RPDO_TIMEOUT",
+        "EMCY_TEXT",
+    }
     for path in sorted(PACKAGE.rglob("*.py")):
         if path.parent.name == "cia":
             continue
         for node in ast.walk(ast.parse(path.read_text())):
             if isinstance(node, ast.Assign):
-                names = {t.id for target in node.targets
-                         for t in (target.elts if isinstance(target, ast.Tuple) else [target]) if isinstance(t, ast.Name)}
-                assert not names & vocabulary, f"{path.relative_to(PACKAGE)} defines {sorted(names & vocabulary)}"
+                names = {
+                    t.id
+                    for target in node.targets
+                    for t in (target.elts if isinstance(target, ast.Tuple) else [target])
+                    if isinstance(t, ast.Name)
+                }
+                assert not names & vocabulary, (
+                    f"{path.relative_to(PACKAGE)} defines {sorted(names & vocabulary)}"
+                )

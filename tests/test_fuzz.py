@@ -1,5 +1,6 @@
 """Property-based fuzzing of every reader (bounded: seconds): an input is accepted, or refused with
 one clear DriveBridgeError -- never a traceback of another kind."""
+
 from __future__ import annotations
 
 import tempfile
@@ -20,15 +21,20 @@ def trace(tmp_path_factory):
     return record_trace(tmp_path_factory.mktemp("trace"))
 
 
-KINDS = kinds(b"", "")                   # names only; the trace kind is rebuilt with the real trace
+KINDS = kinds(b"", "")  # names only; the trace kind is rebuilt with the real trace
 
 
 @pytest.mark.parametrize("name", list(KINDS))
 def test_every_reader_accepts_or_refuses_cleanly(name, trace, capsys):
     kind = kinds(*trace)[name]
 
-    @settings(max_examples=8 if name == "identify (log)" else 40, deadline=None, database=None, derandomize=True,
-              suppress_health_check=list(HealthCheck))
+    @settings(
+        max_examples=8 if name == "identify (log)" else 40,
+        deadline=None,
+        database=None,
+        derandomize=True,
+        suppress_health_check=list(HealthCheck),
+    )
     @given(kind.strategy)
     def check(value):
         with tempfile.TemporaryDirectory() as tmp:
@@ -38,5 +44,6 @@ def test_every_reader_accepts_or_refuses_cleanly(name, trace, capsys):
                 kind.read(value, work)
             except DriveBridgeError as exc:
                 assert str(exc).strip() and "\n" not in str(exc).strip(), "one line"
+
     check()
     capsys.readouterr()

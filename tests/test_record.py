@@ -1,4 +1,5 @@
 """The record job against the simulated robot: campaign, logs, decode, determinism, wall clock."""
+
 from __future__ import annotations
 
 import math
@@ -29,11 +30,11 @@ axes:
 
 def test_profile_outside_the_stroke_is_refused_before_motion(tmp_path):
     bench = Bench(clean_config())
-    bench.robot.plant.state[0, 0] = 30.0                        # X stands beyond its stroke (13.1 rad)
+    bench.robot.plant.state[0, 0] = 30.0  # X stands beyond its stroke (13.1 rad)
     try:
         with pytest.raises(Exception, match="outside the stroke"):
             record(quick_config().only(["x"]), bench.link, tmp_path)
-        assert bench.robot.drives["x"].state != 4          # never enabled
+        assert bench.robot.drives["x"].state != 4  # never enabled
         assert not (tmp_path / "log.csv").exists()
     finally:
         bench.close()
@@ -46,22 +47,34 @@ def test_campaign_levels_cycles_and_log_units(tmp_path):
     assert result.ok
     meta = yaml.safe_load((tmp_path / "meta.yaml").read_text())
     levels = [s for s in meta["segments"] if s["kind"] == "level"]
-    assert [(s["velocity_fraction"], s["acceleration_fraction"]) for s in levels] == \
-        [(0.4, 0.4), (0.4, 0.8), (0.8, 0.4), (0.8, 0.8)]
+    assert [(s["velocity_fraction"], s["acceleration_fraction"]) for s in levels] == [
+        (0.4, 0.4),
+        (0.4, 0.8),
+        (0.8, 0.4),
+        (0.8, 0.8),
+    ]
     assert all(s["cycles"] == 2 for s in levels)
     counts = meta["counts"]
     assert counts["cycles_sent"] == counts["cycles_planned"] == counts["samples_received"]["y"]
     assert counts["samples_missing"] == {"y": 0}
     names, data = read_csv(tmp_path / "log.csv")
-    for col in ("time_s", "y_position_rad", "y_velocity_rad_s", "y_torque_Nm", "y_position_demand_rad",
-                "y_statusword"):
+    for col in (
+        "time_s",
+        "y_position_rad",
+        "y_velocity_rad_s",
+        "y_torque_Nm",
+        "y_position_demand_rad",
+        "y_statusword",
+    ):
         assert col in names
     c = {n: data[:, i] for i, n in enumerate(names)}
     assert np.allclose(np.diff(c["time_s"]), 0.002)
     # the 80 % level runs at 0.8 * 0.23 m/s = 115.6 rad/s at the motor (10 mm lead)
     fast = levels[-1]
     span = (c["time_s"] >= fast["start_s"]) & (c["time_s"] < fast["end_s"])
-    assert np.max(np.abs(c["y_velocity_rad_s"][span])) == pytest.approx(0.8 * 0.23 * 2 * math.pi / 0.01, rel=0.05)
+    assert np.max(np.abs(c["y_velocity_rad_s"][span])) == pytest.approx(
+        0.8 * 0.23 * 2 * math.pi / 0.01, rel=0.05
+    )
     # the move spans 5 % of the 240 mm stroke: 12 mm = 7.54 rad
     assert np.ptp(c["y_position_rad"][span]) == pytest.approx(0.012 * 2 * math.pi / 0.01, rel=0.02)
     assert np.max(np.abs(c["y_position_demand_rad"] - c["y_position_rad"])) < 0.6
@@ -75,6 +88,7 @@ def test_campaign_levels_cycles_and_log_units(tmp_path):
 def test_decode_rebuilds_the_same_csv(tmp_path, capsys, config):
     """Also for maxon's EPOS2: PVT records 0x20C1, velocity in rpm, current in mA."""
     from drive_bridge.resources import data, vendor_dir
+
     extra = []
     if config:
         if not vendor_dir().is_dir():
@@ -101,8 +115,11 @@ def test_the_trace_reads_like_a_capture(tmp_path, realtime):
     frame stamped (wall-clock time, also in lockstep), none zero, in time order; decode still
     rebuilds log.csv byte for byte."""
     import time
+
     t0 = time.time()
-    args = ["record", "--sim", "--quick", "--axes", "z", "--out", str(tmp_path)] + (["--realtime"] if realtime else [])
+    args = ["record", "--sim", "--quick", "--axes", "z", "--out", str(tmp_path)] + (
+        ["--realtime"] if realtime else []
+    )
     code = main(args)
     meta = yaml.safe_load((tmp_path / "meta.yaml").read_text())
     degraded = meta["timing"]["degraded"]
@@ -111,26 +128,32 @@ def test_the_trace_reads_like_a_capture(tmp_path, realtime):
         # missing, in a row): the master stops, as it must, and the trace still reads like a capture
         assert meta["status"] == "aborted" and "no TPDO" in meta["abort"]["reason"]
     else:
-        assert code == (5 if degraded else 0) and (realtime or not degraded)   # a loaded machine: said, not hidden
+        assert code == (5 if degraded else 0) and (
+            realtime or not degraded
+        )  # a loaded machine: said, not hidden
     with can.LogReader(str(tmp_path / "trace.blf")) as reader:
         frames = list(reader)
     stamps = np.array([f.timestamp for f in frames])
     assert np.all(stamps > 0) and np.all(np.diff(stamps) >= 0)
-    assert t0 - 1 <= stamps[0] <= time.time() + 1                         # a real start time
+    assert t0 - 1 <= stamps[0] <= time.time() + 1  # a real start time
     ids = [f.arbitration_id for f in frames]
     first_sync = ids.index(0x080)
-    assert 0x603 in ids[:first_sync] and 0x583 in ids[:first_sync]          # bring-up SDOs of node 3 first
-    assert 0x000 in ids[:first_sync]                                        # NMT
+    assert 0x603 in ids[:first_sync] and 0x583 in ids[:first_sync]  # bring-up SDOs of node 3 first
+    assert 0x000 in ids[:first_sync]  # NMT
     assert main(["decode", str(tmp_path / "trace.blf"), "--out", str(tmp_path / "decoded.csv")]) == 0
     if realtime:
         decodes_to_the_log(tmp_path)
     else:
         assert (tmp_path / "decoded.csv").read_bytes() == (tmp_path / "log.csv").read_bytes()
     tshark = tool("tshark")
-    if tshark:                       # Wireshark's CANopen dissector: every frame, none malformed, real time
+    if tshark:  # Wireshark's CANopen dissector: every frame, none malformed, real time
         args = [tshark, "-r", str(tmp_path / "trace.blf"), "-d", "can.subdissector,canopen"]
-        fields = subprocess.run(args + ["-T", "fields", "-e", "frame.time_epoch", "-e", "frame.protocols"],
-                                capture_output=True, text=True, check=True).stdout.split("\n")
+        fields = subprocess.run(
+            args + ["-T", "fields", "-e", "frame.time_epoch", "-e", "frame.protocols"],
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout.split("\n")
         rows = [r.split("\t") for r in fields if r]
         assert len(rows) == len(frames)
         # (a SYNC without counter has no data byte: this dissector leaves it plain CAN)
@@ -154,8 +177,22 @@ def test_together_moves_all_axes_at_once(tmp_path):
 def test_cli_exit_code_after_a_fault(tmp_path, capsys):
     sim = tmp_path / "sim.yaml"
     sim.write_text(SIM_CLEAN % ", effects: {load: {torque_Nm: 6.0}}")
-    assert main(["record", "--sim", "--quick", "--sim-config", str(sim), "--axes", "z",
-                 "--out", str(tmp_path / "o")]) == 4
+    assert (
+        main(
+            [
+                "record",
+                "--sim",
+                "--quick",
+                "--sim-config",
+                str(sim),
+                "--axes",
+                "z",
+                "--out",
+                str(tmp_path / "o"),
+            ]
+        )
+        == 4
+    )
     err = capsys.readouterr().err
     assert "axis z: drive sent following error" in err and "data recorded so far is kept" in err
     assert (tmp_path / "o" / "log.csv").exists()
@@ -181,14 +218,14 @@ def test_wall_clock_campaign_against_drives_in_their_own_process(tmp_path, capsy
         return
     assert counts["cycles_sent"] == counts["cycles_planned"] == len(data)
     sync = data[:, names.index("sync_time_s")]
-    gaps = np.diff(sync[np.isfinite(sync)])                 # (a late master's skipped periods have no SYNC)
+    gaps = np.diff(sync[np.isfinite(sync)])  # (a late master's skipped periods have no SYNC)
     late = np.count_nonzero(gaps > 1.5 * 0.002) / len(gaps) * 100
     assert timing["clock"] == "wall" and timing["late_cycles_pct"] == pytest.approx(late, abs=1e-3)
     assert timing["max_sync_gap_ms"] == pytest.approx(gaps.max() * 1e3, abs=2e-3)
     assert timing["samples_missing"]["y"] == counts["samples_missing"]["y"]
     assert code == (5 if timing["degraded"] else 0)
     assert ("timing degraded" in captured.err) == timing["degraded"] and "timing: wall clock" in captured.out
-    assert abs(np.median(gaps) - 0.002) < 1e-4                         # SYNC at 500 Hz of wall time
+    assert abs(np.median(gaps) - 0.002) < 1e-4  # SYNC at 500 Hz of wall time
     demand, position = data[:, names.index("y_position_demand_rad")], data[:, names.index("y_position_rad")]
     # the drive followed: where the SYNCs came on time (a late cycle or a missing sample leaves the
     # rows after it comparing a demand with a position the drive reported while it caught up)
@@ -196,7 +233,7 @@ def test_wall_clock_campaign_against_drives_in_their_own_process(tmp_path, capsy
     upset = np.union1d(late_rows, np.flatnonzero(data[:, names.index("y_valid")] == 0))
     steady = np.ones(len(data), bool)
     for k in upset:
-        steady[k:k + 10] = False
+        steady[k : k + 10] = False
     assert steady.mean() > 0.5 and np.nanmax(np.abs(demand - position)[steady]) < 0.5
     assert main(["decode", str(out / "trace.blf")]) == 0
     decodes_to_the_log(out)
@@ -206,18 +243,40 @@ def test_a_run_past_its_timing_limits_is_degraded_with_exit_5(tmp_path, capsys):
     """Limits no wall clock can keep (every SYNC exactly on time): the run says so.  The master's
     supervision of the feedback widened (the drives' of the master's heartbeat cannot be): on a
     loaded machine it would stop the run first, rightly, and this test is about the timing limits."""
-    cfg = bus_yml_beside(tmp_path, "heartbeat_consumer_ms: 300  # a node silent this long is lost\n"
-                         "  sdo_timeout_s: 0.5\n  state_timeout_s: 1.0\n"
-                         "  heartbeat_producer: 100",
-                         "heartbeat_consumer_ms: 2000\n  sdo_timeout_s: 0.5\n  state_timeout_s: 1.0\n"
-                         "  tpdo_miss_limit: 100\n  timing: {max_gap_periods: 1.0}\n  heartbeat_producer: 100")
+    cfg = bus_yml_beside(
+        tmp_path,
+        "heartbeat_consumer_ms: 300  # a node silent this long is lost\n"
+        "  sdo_timeout_s: 0.5\n  state_timeout_s: 1.0\n"
+        "  heartbeat_producer: 100",
+        "heartbeat_consumer_ms: 2000\n  sdo_timeout_s: 0.5\n  state_timeout_s: 1.0\n"
+        "  tpdo_miss_limit: 100\n  timing: {max_gap_periods: 1.0}\n  heartbeat_producer: 100",
+    )
     assert "tpdo_miss_limit: 100" in cfg.read_text()
     out = tmp_path / "rt"
-    assert main(["record", "--sim", "--realtime", "--quick", "--axes", "y", "--config", str(cfg),
-                 "--out", str(out)]) == 5
+    assert (
+        main(
+            [
+                "record",
+                "--sim",
+                "--realtime",
+                "--quick",
+                "--axes",
+                "y",
+                "--config",
+                str(cfg),
+                "--out",
+                str(out),
+            ]
+        )
+        == 5
+    )
     meta = yaml.safe_load((out / "meta.yaml").read_text())
     timing = meta["timing"]
-    assert meta["status"] == "ok" and timing["degraded"] and any("largest SYNC gap" in r for r in timing["reasons"])
+    assert (
+        meta["status"] == "ok"
+        and timing["degraded"]
+        and any("largest SYNC gap" in r for r in timing["reasons"])
+    )
     assert "WARNING: timing degraded" in capsys.readouterr().err
     assert (out / "log.csv").exists()
 
@@ -228,13 +287,21 @@ def test_torque_from_the_current_actual_value_for_drives_without_0x6077(tmp_path
     from dataclasses import replace as dc_replace
 
     from drive_bridge.config import load_bus_config
+
     cfg = bus_yml_beside(tmp_path)
     doc = yaml.safe_load(cfg.read_text())
-    doc["nodes"]["y"]["scaling"].update({"torque_feedback": "current", "current_unit": "permille",
-                                         "rated_current_A": 1.27 / 0.2, "torque_constant_Nm_per_A": 0.2})
-    doc["nodes"]["y"]["tpdo"] = {1: {"transmission": 1, "mapping": [{"index": 0x6064}, {"index": 0x6078},
-                                                                     {"index": 0x6041}]},
-                                 2: {"transmission": 1, "mapping": [{"index": 0x606C}]}}
+    doc["nodes"]["y"]["scaling"].update(
+        {
+            "torque_feedback": "current",
+            "current_unit": "permille",
+            "rated_current_A": 1.27 / 0.2,
+            "torque_constant_Nm_per_A": 0.2,
+        }
+    )
+    doc["nodes"]["y"]["tpdo"] = {
+        1: {"transmission": 1, "mapping": [{"index": 0x6064}, {"index": 0x6078}, {"index": 0x6041}]},
+        2: {"transmission": 1, "mapping": [{"index": 0x606C}]},
+    }
     cfg.write_text(yaml.safe_dump(doc))
     logs = {}
     for name, config in (("torque", quick_config()), ("current", load_bus_config(cfg))):
@@ -247,33 +314,60 @@ def test_torque_from_the_current_actual_value_for_drives_without_0x6077(tmp_path
     torque, current = d_t[:, n_t.index("y_torque_Nm")], d_c[:, n_c.index("y_torque_Nm")]
     assert np.nanmax(np.abs(torque)) > 0.2 and np.allclose(torque, current, atol=1.3e-3, equal_nan=True)
     assert main(["decode", str(tmp_path / "current" / "trace.blf")]) == 0
-    assert (tmp_path / "current" / "decoded.csv").read_bytes() == (tmp_path / "current" / "log.csv").read_bytes()
+    assert (tmp_path / "current" / "decoded.csv").read_bytes() == (
+        tmp_path / "current" / "log.csv"
+    ).read_bytes()
 
 
 def test_torque_from_a_vendor_object_with_its_scale(tmp_path):
     """maxon's EPOS2 also reports its averaged current in 0x2027 (mA): logged as torque through
     its configured scale (Nm per unit = torque constant / 1000), the same Nm as from 0x6078."""
     from drive_bridge.resources import data, vendor_dir
+
     if not vendor_dir().is_dir():
         pytest.skip("../shared/eds-vendor not present")
     src = data("config", "examples", "maxon_epos2.yml")
     doc = yaml.safe_load(src.read_text())
-    doc["defaults"]["scaling"] = {"increments_per_rev": 16384, "rated_torque_Nm": 1.27, "velocity_unit": "rpm",
-                                  "torque_feedback": "object", "torque_object": 0x2027, "torque_Nm_per_unit": 0.2e-3}
+    doc["defaults"]["scaling"] = {
+        "increments_per_rev": 16384,
+        "rated_torque_Nm": 1.27,
+        "velocity_unit": "rpm",
+        "torque_feedback": "object",
+        "torque_object": 0x2027,
+        "torque_Nm_per_unit": 0.2e-3,
+    }
     doc["defaults"]["tpdo"][1]["mapping"][1] = {"index": 0x2027, "sub_index": 0}
     cfg = tmp_path / "bus.yml"
     cfg.write_text(yaml.safe_dump(doc))
     out = {}
     for name, path in (("object", cfg), ("current", src)):
-        assert main(["record", "--sim", "--quick", "--axes", "y", "--config", str(path),
-                     "--out", str(tmp_path / name)]) == 0
+        assert (
+            main(
+                [
+                    "record",
+                    "--sim",
+                    "--quick",
+                    "--axes",
+                    "y",
+                    "--config",
+                    str(path),
+                    "--out",
+                    str(tmp_path / name),
+                ]
+            )
+            == 0
+        )
         names, values = read_csv(tmp_path / name / "log.csv")
         out[name] = values[:, names.index("y_torque_Nm")]
-    assert np.nanmax(np.abs(out["object"])) > 0.2 and np.allclose(out["object"], out["current"], equal_nan=True)
+    assert np.nanmax(np.abs(out["object"])) > 0.2 and np.allclose(
+        out["object"], out["current"], equal_nan=True
+    )
     meta = yaml.safe_load((tmp_path / "object" / "meta.yaml").read_text())
     assert meta["axes"]["y"]["scaling"]["torque_index"] == 0x2027
     assert main(["decode", str(tmp_path / "object" / "trace.blf")]) == 0
-    assert (tmp_path / "object" / "decoded.csv").read_bytes() == (tmp_path / "object" / "log.csv").read_bytes()
+    assert (tmp_path / "object" / "decoded.csv").read_bytes() == (
+        tmp_path / "object" / "log.csv"
+    ).read_bytes()
 
 
 def test_streaming_starts_without_a_yaml_dump_while_the_drives_watch_for_setpoints(tmp_path, monkeypatch):
@@ -283,10 +377,12 @@ def test_streaming_starts_without_a_yaml_dump_while_the_drives_watch_for_setpoin
     those SYNCs."""
     import drive_bridge.record as recording
     from drive_bridge import logs
+
     in_window, dumped_there, told = [], [], []
     dump = logs.yaml.safe_dump
-    monkeypatch.setattr(logs.yaml, "safe_dump",
-                        lambda *a, **k: (dumped_there.append(bool(in_window)), dump(*a, **k))[1])
+    monkeypatch.setattr(
+        logs.yaml, "safe_dump", lambda *a, **k: (dumped_there.append(bool(in_window)), dump(*a, **k))[1]
+    )
     stream = recording.stream
 
     def watched_stream(*args, on_start, **kwargs):
@@ -296,15 +392,19 @@ def test_streaming_starts_without_a_yaml_dump_while_the_drives_watch_for_setpoin
                 on_start(cycles)
             finally:
                 in_window.clear()
-            told.append((cycles, yaml.safe_load((tmp_path / "meta.yaml").read_text())["counts"]["sync_before_plan"]))
+            told.append(
+                (cycles, yaml.safe_load((tmp_path / "meta.yaml").read_text())["counts"]["sync_before_plan"])
+            )
+
         return stream(*args, on_start=started, **kwargs)
+
     monkeypatch.setattr(recording, "stream", watched_stream)
     bench = Bench(clean_config())
     try:
         result = record(quick_config(together=True), bench.link, tmp_path)
     finally:
         bench.close()
-    assert result.ok and dumped_there and True not in dumped_there       # meta dumped before and after, not then
+    assert result.ok and dumped_there and True not in dumped_there  # meta dumped before and after, not then
     meta = yaml.safe_load((tmp_path / "meta.yaml").read_text())
     assert told and told[0][0] > 0 and told[0][0] == told[0][1] == meta["counts"]["sync_before_plan"]
     assert main(["decode", str(tmp_path / "trace.blf")]) == 0

@@ -7,6 +7,7 @@ effects) and the same seeds, records each campaign in lockstep, identifies it an
 motion time, J, c0, c1 with their std (and the std ratio short / full), the effects found and the
 final validation RMSE; with the date and machine, and each campaign's wall time.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -19,13 +20,13 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from drive_bridge.config import load_bus_config                 # noqa: E402
-from drive_bridge.connect import open_link                      # noqa: E402
-from drive_bridge.ident import identify                         # noqa: E402
-from drive_bridge.record import record                          # noqa: E402
-from drive_bridge.resources import DEFAULT_BUS_CONFIG           # noqa: E402
-from drive_bridge.sim.config import DEFAULT_CONFIG, load_sim_config   # noqa: E402
-from tools.reference import stamp                               # noqa: E402
+from drive_bridge.config import load_bus_config  # noqa: E402
+from drive_bridge.connect import open_link  # noqa: E402
+from drive_bridge.ident import identify  # noqa: E402
+from drive_bridge.record import record  # noqa: E402
+from drive_bridge.resources import DEFAULT_BUS_CONFIG  # noqa: E402
+from drive_bridge.sim.config import DEFAULT_CONFIG, load_sim_config  # noqa: E402
+from tools.reference import stamp  # noqa: E402
 
 ROBOTS = {"shipped": DEFAULT_CONFIG, "second": ROOT / "tools" / "robots" / "second.yaml"}
 
@@ -40,8 +41,10 @@ def run(robot: Path, design: str) -> tuple[dict, dict, float, float]:
         t1 = time.perf_counter()
         results = identify(Path(out) / "log.csv")
         t2 = time.perf_counter()
-    motion = {a: sum(s.end - s.start for s in result.plan.segments if a in s.axes) * result.plan.period
-              for a in result.plan.axes}
+    motion = {
+        a: sum(s.end - s.start for s in result.plan.segments if a in s.axes) * result.plan.period
+        for a in result.plan.axes
+    }
     return results, motion, t1 - t0, t2 - t1
 
 
@@ -50,8 +53,10 @@ def main(robots: list[str]) -> None:
     for name in robots:
         plant = load_sim_config(ROBOTS[name])
         runs = {d: run(ROBOTS[name], d) for d in ("paper", "short")}
-        print(f"\nrobot {name} ({ROBOTS[name].name}); wall time: " + ", ".join(
-            f"{d} campaign {r[2]:.1f} s + identify {r[3]:.1f} s" for d, r in runs.items()))
+        print(
+            f"\nrobot {name} ({ROBOTS[name].name}); wall time: "
+            + ", ".join(f"{d} campaign {r[2]:.1f} s + identify {r[3]:.1f} s" for d, r in runs.items())
+        )
         for a, ax in plant.axes.items():
             hidden = ", ".join(ax.effects) or "none"
             print(f"  axis {a} (hidden: {hidden})")
@@ -59,12 +64,16 @@ def main(robots: list[str]) -> None:
                 r = res[a]
                 p, sd = r.model.params_, r.model.param_std_
                 vals = "  ".join(f"{k} {p[k]:.5g} ± {sd[k]:.2g}" for k in ("J", "c0", "c1"))
-                print(f"    {d:<5} {motion[a]:6.1f} s  {vals}  effects {[t.effect.name for t in r.effects]}  "
-                      f"RMSE {r.after.rmse:.4g} (noise floor {r.noise_floor:.3g})")
+                print(
+                    f"    {d:<5} {motion[a]:6.1f} s  {vals}  effects {[t.effect.name for t in r.effects]}  "
+                    f"RMSE {r.after.rmse:.4g} (noise floor {r.noise_floor:.3g})"
+                )
             full, short = runs["paper"][0][a].model, runs["short"][0][a].model
-            print("    std short / full: " + ", ".join(
-                f"{k} {short.param_std_[k] / full.param_std_[k]:.2f}" for k in ("J", "c0", "c1"))
-                  + f"; plant J {ax.J:.5g}, c0 {ax.c0:.5g}, c1 {ax.c1:.5g}")
+            print(
+                "    std short / full: "
+                + ", ".join(f"{k} {short.param_std_[k] / full.param_std_[k]:.2f}" for k in ("J", "c0", "c1"))
+                + f"; plant J {ax.J:.5g}, c0 {ax.c0:.5g}, c1 {ax.c1:.5g}"
+            )
 
 
 if __name__ == "__main__":

@@ -23,6 +23,7 @@ axes (the same-run reference), and with ``--against REV`` the same log identifie
 git revision REV (a worktree, in a process of its own, the runs alternated): the speed-up measured
 in one run.  ``--profile N``: the N functions the time goes to (cProfile, internal time).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -43,14 +44,14 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from drive_bridge.config import load_bus_config                       # noqa: E402
-from drive_bridge.ident import identify                               # noqa: E402
-from drive_bridge.master.campaign import build_plan                   # noqa: E402
-from drive_bridge.sim.config import load_sim_config                   # noqa: E402
-from drive_bridge.sim.plantlog import plant_log, write_log           # noqa: E402
-from drive_bridge.resources import DEFAULT_BUS_CONFIG   # noqa: E402
-from drive_bridge.sim.config import DEFAULT_CONFIG as SIM_DEFAULT   # noqa: E402
-from tools.reference import least_squares, stamp, worktree                   # noqa: E402
+from drive_bridge.config import load_bus_config  # noqa: E402
+from drive_bridge.ident import identify  # noqa: E402
+from drive_bridge.master.campaign import build_plan  # noqa: E402
+from drive_bridge.resources import DEFAULT_BUS_CONFIG  # noqa: E402
+from drive_bridge.sim.config import DEFAULT_CONFIG as SIM_DEFAULT  # noqa: E402
+from drive_bridge.sim.config import load_sim_config  # noqa: E402
+from drive_bridge.sim.plantlog import plant_log, write_log  # noqa: E402
+from tools.reference import least_squares, stamp, worktree  # noqa: E402
 
 
 def plan_for(axes, seconds_per_axis):
@@ -68,20 +69,30 @@ def _sim_y_logs(seeds: int):
     y = sim.axes["y"]
     y.effects, y.cp, y.D, y.torque_noise_Nm = {}, 0.0, 0.0, 0.004
     plan = plan_for(["y"], 60.0)
-    return ({"J": y.J, "c0": y.c0, "c1": y.c1},
-            (plant_log(replace(sim, axes={"y": y}, seed=seed), {"y": plan.demand[:, 0]}) for seed in range(seeds)))
+    return (
+        {"J": y.J, "c0": y.c0, "c1": y.c1},
+        (
+            plant_log(replace(sim, axes={"y": y}, seed=seed), {"y": plan.demand[:, 0]})
+            for seed in range(seeds)
+        ),
+    )
 
 
 def _independent_logs(seeds: int):
     """The independent plant's values, and its log once per noise seed."""
     from tests.ident.generator import closed_loop_log
-    return ({"J": 1e-4, "c0": 0.3, "c1": 5e-4},
-            (closed_loop_log(np.arange(40000) / 1000, seed=seed) for seed in range(seeds)))
+
+    return (
+        {"J": 1e-4, "c0": 0.3, "c1": 5e-4},
+        (closed_loop_log(np.arange(40000) / 1000, seed=seed) for seed in range(seeds)),
+    )
 
 
 def crb(seeds: int) -> None:
-    for name, logs in (("simulated Y axis, 60 s campaign, torque noise 0.004 Nm + quantisation", _sim_y_logs),
-                       ("independent closed-loop plant, 40 s at 1 kHz, noise 0.004 Nm", _independent_logs)):
+    for name, logs in (
+        ("simulated Y axis, 60 s campaign, torque noise 0.004 Nm + quantisation", _sim_y_logs),
+        ("independent closed-loop plant, 40 s at 1 kHz, noise 0.004 Nm", _independent_logs),
+    ):
         estimates, bounds = [], []
         plant, cols = logs(seeds)
         with tempfile.TemporaryDirectory() as tmp:
@@ -94,47 +105,67 @@ def crb(seeds: int) -> None:
         for i, k in enumerate(("J", "c1", "c0")):
             spread = est[:, i].std(ddof=1)
             off = abs(est[:, i].mean() - plant[k]) / bound[i]
-            print(f"  {k:<3} mean {est[:, i].mean():.6g} (plant {plant[k]:.6g}, {off:.1f} reported std away), "
-                  f"spread {spread:.3g}, reported std {bound[i]:.3g}, ratio {spread / bound[i]:.2f}")
+            print(
+                f"  {k:<3} mean {est[:, i].mean():.6g} (plant {plant[k]:.6g}, {off:.1f} reported std away), "
+                f"spread {spread:.3g}, reported std {bound[i]:.3g}, ratio {spread / bound[i]:.2f}"
+            )
 
 
-STRUCTURES = {      # torque [Nm] no library effect nor a one-variable spline describes, with no part
+STRUCTURES = {  # torque [Nm] no library effect nor a one-variable spline describes, with no part
     # that J, c0 or c1 could take as their own (zero mean over the stroke or the log); a ∈ [0.3, 1.5]
-    "friction ∝ q·v (a guide tighter at one end, more with speed)":
-        lambda a: lambda q, v, a_, t: a * 0.002 * q * v,
-    "torque ∝ sin(q)·q̈ (an inertia that varies ±20 % along the stroke)":
-        lambda a: lambda q, v, a_, t: a * 2e-5 * np.sin(q) * a_,
-    "friction ∝ v·(t − 20 s) (heating with speed, about the middle of the log)":
-        lambda a: lambda q, v, a_, t: a * 5e-6 * v * (t - 20.0),
+    "friction ∝ q·v (a guide tighter at one end, more with speed)": lambda a: (
+        lambda q, v, a_, t: a * 0.002 * q * v
+    ),
+    "torque ∝ sin(q)·q̈ (an inertia that varies ±20 % along the stroke)": lambda a: (
+        lambda q, v, a_, t: a * 2e-5 * np.sin(q) * a_
+    ),
+    "friction ∝ v·(t − 20 s) (heating with speed, about the middle of the log)": lambda a: (
+        lambda q, v, a_, t: a * 5e-6 * v * (t - 20.0)
+    ),
 }
 
 
 def coverage(cases: int, verbose: bool = False) -> None:
     from tests.ident.generator import closed_loop_log
+
     rng = np.random.default_rng(0)
     inside = {k: 0 for k in ("J", "c0", "c1")}
     worst = {k: 0.0 for k in inside}
     with tempfile.TemporaryDirectory() as tmp:
         for case in range(cases):
             kind = list(STRUCTURES)[case % len(STRUCTURES)]
-            plant = {"J": float(rng.uniform(0.8e-4, 1.5e-4)), "c0": float(rng.uniform(0.1, 0.4)),
-                     "c1": float(rng.uniform(2e-4, 8e-4))}
+            plant = {
+                "J": float(rng.uniform(0.8e-4, 1.5e-4)),
+                "c0": float(rng.uniform(0.1, 0.4)),
+                "c1": float(rng.uniform(2e-4, 8e-4)),
+            }
             extra = STRUCTURES[kind](float(rng.uniform(0.3, 1.5)))
-            cols = closed_loop_log(np.arange(40000) / 1000, seed=int(rng.integers(1 << 30)), extra=extra, **plant)
+            cols = closed_loop_log(
+                np.arange(40000) / 1000, seed=int(rng.integers(1 << 30)), extra=extra, **plant
+            )
             r = identify(write_log(Path(tmp) / "log.csv", cols), axes=["y"])["y"]
             if verbose:
-                print(f"  case {case}: {kind}; effects {[e.effect.name for e in r.effects]}; "
-                      f"consistent {r.consistency.get('consistent')}; " + ", ".join(
-                    f"{k} {(r.model.params_[k] - plant[k]) / r.model.param_std_[k]:+.1f} std" for k in inside))
+                print(
+                    f"  case {case}: {kind}; effects {[e.effect.name for e in r.effects]}; "
+                    f"consistent {r.consistency.get('consistent')}; "
+                    + ", ".join(
+                        f"{k} {(r.model.params_[k] - plant[k]) / r.model.param_std_[k]:+.1f} std"
+                        for k in inside
+                    )
+                )
             for k in inside:
                 z = abs(r.model.params_[k] - plant[k]) / r.model.param_std_[k]
                 inside[k] += z <= 3
                 worst[k] = max(worst[k], z)
-    print(f"{cases} cases of the independent plant with structure the model cannot describe "
-          f"({len(STRUCTURES)} kinds, plants and amplitudes drawn at random, seed 0)")
+    print(
+        f"{cases} cases of the independent plant with structure the model cannot describe "
+        f"({len(STRUCTURES)} kinds, plants and amplitudes drawn at random, seed 0)"
+    )
     for k in inside:
-        print(f"  {k:<3} true value within 3 reported std in {inside[k]}/{cases} = {inside[k] / cases:.0%}, "
-              f"worst {worst[k]:.1f} std")
+        print(
+            f"  {k:<3} true value within 3 reported std in {inside[k]}/{cases} = {inside[k] / cases:.0%}, "
+            f"worst {worst[k]:.1f} std"
+        )
 
 
 def speed() -> None:
@@ -147,23 +178,37 @@ def speed() -> None:
         results = identify(path)
         wall = time.perf_counter() - t0
     n = len(cols["time_s"])
-    plain = sum(min(least_squares(cols["time_s"], cols[f"{a}_position_rad"], cols[f"{a}_torque_Nm"]) for _ in range(5))
-                for a in results)
+    plain = sum(
+        min(
+            least_squares(cols["time_s"], cols[f"{a}_position_rad"], cols[f"{a}_torque_Nm"]) for _ in range(5)
+        )
+        for a in results
+    )
     print(stamp())
-    print(f"{n} rows ({n * 0.002:.0f} s at 500 Hz), 3 axes, identification with residual tracing and GA: "
-          f"{wall:.2f} s; a plain filter + 3-column least squares of the same axes (tools/reference.py): "
-          f"{plain * 1e3:.0f} ms -> {wall / plain:.0f}x that")
+    print(
+        f"{n} rows ({n * 0.002:.0f} s at 500 Hz), 3 axes, identification with residual tracing and GA: "
+        f"{wall:.2f} s; a plain filter + 3-column least squares of the same axes (tools/reference.py): "
+        f"{plain * 1e3:.0f} ms -> {wall / plain:.0f}x that"
+    )
     for a, r in results.items():
-        print(f"  {a}: {[e.effect.name for e in r.effects]}, RMSE {r.before.rmse:.4g} -> {r.after.rmse:.4g} Nm")
+        print(
+            f"  {a}: {[e.effect.name for e in r.effects]}, RMSE {r.before.rmse:.4g} -> {r.after.rmse:.4g} Nm"
+        )
 
 
 def full_log(directory: Path) -> Path:
     """The full paper campaign of the shipped robot, bus-free, as a log CSV in ``directory``."""
     cfg = load_bus_config(DEFAULT_BUS_CONFIG)
     sim = load_sim_config(SIM_DEFAULT)
-    plan = build_plan(cfg.campaign, {a: cfg.nodes[a].limits for a in sim.axes}, dict.fromkeys(sim.axes, 0.0),
-                      cfg.master.sync_period_s)
-    return write_log(directory / "log.csv", plant_log(sim, {a: plan.demand[:, i] for i, a in enumerate(plan.axes)}))
+    plan = build_plan(
+        cfg.campaign,
+        {a: cfg.nodes[a].limits for a in sim.axes},
+        dict.fromkeys(sim.axes, 0.0),
+        cfg.master.sync_period_s,
+    )
+    return write_log(
+        directory / "log.csv", plant_log(sim, {a: plan.demand[:, i] for i, a in enumerate(plan.axes)})
+    )
 
 
 TIMED = """import json, sys, time
@@ -182,50 +227,70 @@ print(json.dumps({"wall": time.perf_counter() - t0,
 def _timed(root: Path, log: Path) -> dict:
     """One identification of ``log`` by the code under ``root``, in a process of its own."""
     env = {**os.environ, "PYTHONPATH": str(root)}
-    out = subprocess.run([sys.executable, "-c", TIMED, str(log)], cwd=root, env=env, check=True,
-                         capture_output=True, text=True).stdout
+    out = subprocess.run(
+        [sys.executable, "-c", TIMED, str(log)], cwd=root, env=env, check=True, capture_output=True, text=True
+    ).stdout
     return json.loads(out.strip().splitlines()[-1])
 
 
 def full(log_dir: str | None, against: str | None, profile: int, runs: int) -> None:
-    with tempfile.TemporaryDirectory() as tmp, \
-            (worktree(ROOT, against) if against else contextlib.nullcontext()) as other:
+    with (
+        tempfile.TemporaryDirectory() as tmp,
+        worktree(ROOT, against) if against else contextlib.nullcontext() as other,
+    ):
         log = Path(log_dir) / "log.csv" if log_dir else full_log(Path(tmp))
         mine, theirs = [], []
-        for _ in range(runs):                      # alternated: the machine's speed drifts
+        for _ in range(runs):  # alternated: the machine's speed drifts
             mine.append(_timed(ROOT, log))
             if other is not None:
                 theirs.append(_timed(other, log))
         from drive_bridge.ident.logdata import read_log
+
         data = read_log(log)
         plain = sum(min(least_squares(data.t, ax.q, ax.tau) for _ in range(5)) for ax in data.axes.values())
         print(stamp())
         best = min(r["wall"] for r in mine)
         print(f"{log}: {len(data.t)} rows ({len(data.t) * data.dt:.0f} s), {len(data.axes)} axes")
         walls = ", ".join(f"{r['wall']:.2f}" for r in mine)
-        print(f"identify (as commission runs it): {walls} s; a plain filter + "
-              f"3-column least squares of the same axes: {plain * 1e3:.0f} ms -> {best / plain:.0f}x that")
+        print(
+            f"identify (as commission runs it): {walls} s; a plain filter + "
+            f"3-column least squares of the same axes: {plain * 1e3:.0f} ms -> {best / plain:.0f}x that"
+        )
         if theirs:
             ref = min(r["wall"] for r in theirs)
             walls = ", ".join(f"{r['wall']:.2f}" for r in theirs)
-            print(f"revision {against}: {walls} s -> this code takes "
-                  f"{best / ref:.2f}x its time")
-            worst = max(abs(mine[0]["params"][a][k] - theirs[0]["params"][a][k]) / theirs[0]["std"][a][k]
-                        for a in theirs[0]["params"] for k in ("J", "c0", "c1"))
-            worst_ga = max(abs(mine[0]["ga"][a][k] - theirs[0]["ga"][a][k]) / theirs[0]["std"][a][k]
-                           for a in theirs[0]["ga"] for k in ("J", "c0", "c1"))
-            print(f"  J, c0, c1 differ by at most {worst:.2g} of their std (the genetic algorithm's "
-                  f"{worst_ga:.2g}); effects "
-                  + ("the same" if mine[0]["effects"] == theirs[0]["effects"] else
-                     f"differ: {mine[0]['effects']} vs {theirs[0]['effects']}"))
+            print(f"revision {against}: {walls} s -> this code takes {best / ref:.2f}x its time")
+            worst = max(
+                abs(mine[0]["params"][a][k] - theirs[0]["params"][a][k]) / theirs[0]["std"][a][k]
+                for a in theirs[0]["params"]
+                for k in ("J", "c0", "c1")
+            )
+            worst_ga = max(
+                abs(mine[0]["ga"][a][k] - theirs[0]["ga"][a][k]) / theirs[0]["std"][a][k]
+                for a in theirs[0]["ga"]
+                for k in ("J", "c0", "c1")
+            )
+            print(
+                f"  J, c0, c1 differ by at most {worst:.2g} of their std (the genetic algorithm's "
+                f"{worst_ga:.2g}); effects "
+                + (
+                    "the same"
+                    if mine[0]["effects"] == theirs[0]["effects"]
+                    else f"differ: {mine[0]['effects']} vs {theirs[0]['effects']}"
+                )
+            )
         for a, p in mine[0]["params"].items():
-            print(f"  {a}: J {p['J']:.6g}, c0 {p['c0']:.6g}, c1 {p['c1']:.6g}; effects {mine[0]['effects'][a]}")
+            print(
+                f"  {a}: J {p['J']:.6g}, c0 {p['c0']:.6g}, c1 {p['c1']:.6g}; effects {mine[0]['effects'][a]}"
+            )
         if profile:
-            os.environ["DRIVE_BRIDGE_WORKERS"] = "1"       # in this process: a profile sees no forked worker
+            os.environ["DRIVE_BRIDGE_WORKERS"] = "1"  # in this process: a profile sees no forked worker
             prof = cProfile.Profile()
             prof.runcall(identify, log, seed=0)
-            print(f"where the time goes (cProfile, the axes one after the other, the {profile} largest "
-                  f"internal times):")
+            print(
+                f"where the time goes (cProfile, the axes one after the other, the {profile} largest "
+                f"internal times):"
+            )
             pstats.Stats(prof).sort_stats("tottime").print_stats(profile)
 
 
@@ -233,7 +298,9 @@ if __name__ == "__main__":
     parser = argparse.ArgumentParser()
     parser.add_argument("mode", choices=["crb", "coverage", "speed", "full"])
     parser.add_argument("--log", help="full: a record directory (default: a plant log of the paper campaign)")
-    parser.add_argument("--against", help="full: a git revision whose identification is timed in the same run")
+    parser.add_argument(
+        "--against", help="full: a git revision whose identification is timed in the same run"
+    )
     parser.add_argument("--profile", type=int, default=0, help="full: print the N largest internal times")
     parser.add_argument("--runs", type=int, default=2, help="full: timed runs of each code")
     parser.add_argument("--seeds", type=int, default=50)

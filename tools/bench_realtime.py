@@ -22,6 +22,7 @@ was.  The largest of ours is what the engine adds to the machine.
 The acceptance (issue 42): every run PASS, 0 aborts, 0 samples missing, late cycles <= 0.1 %
 idle (<= 0.5 % loaded) and the largest SYNC gap <= 5 periods.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -40,7 +41,7 @@ import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
-from tools.reference import stamp, worktree              # noqa: E402
+from tools.reference import stamp, worktree  # noqa: E402
 
 PERIOD_S = 0.002
 
@@ -78,8 +79,12 @@ print(json.dumps({"granted": granted, "late": late, "held": held}))
 def floor_during() -> Iterator[dict]:
     """The floor measured while the block runs, one plain loop pinned to each CPU (a stall of one
     virtual CPU shows in its own): the wake-ups [ms] and when a loop was held up."""
-    procs = [subprocess.Popen([sys.executable, "-c", FLOOR, str(PERIOD_S), str(cpu)], stdout=subprocess.PIPE,
-                              text=True) for cpu in sorted(os.sched_getaffinity(0))]
+    procs = [
+        subprocess.Popen(
+            [sys.executable, "-c", FLOOR, str(PERIOD_S), str(cpu)], stdout=subprocess.PIPE, text=True
+        )
+        for cpu in sorted(os.sched_getaffinity(0))
+    ]
     for proc in procs:
         assert proc.stdout is not None
         proc.stdout.readline()
@@ -91,10 +96,14 @@ def floor_during() -> Iterator[dict]:
             proc.terminate()
         data = [json.loads(proc.communicate()[0]) for proc in procs]
         late = np.concatenate([d["late"] for d in data]) * 1e3
-        result.update(granted=data[0]["granted"], p99=float(np.percentile(late, 99)),
-                      p999=float(np.percentile(late, 99.9)), max=float(late.max()),
-                      over_3ms_pct=float(np.mean(late > 3.0) * 100),
-                      held=[[(t, w * 1e3) for t, w in d["held"]] for d in data])
+        result.update(
+            granted=data[0]["granted"],
+            p99=float(np.percentile(late, 99)),
+            p999=float(np.percentile(late, 99.9)),
+            max=float(late.max()),
+            over_3ms_pct=float(np.mean(late > 3.0) * 100),
+            held=[[(t, w * 1e3) for t, w in d["held"]] for d in data],
+        )
 
 
 def against_floor(trace: Path, held: list[list[tuple[float, float]]]) -> dict:
@@ -103,19 +112,24 @@ def against_floor(trace: Path, held: list[list[tuple[float, float]]]) -> dict:
     the engine's priority), a vCPU's (the loop on one CPU held up as long: a timer on that CPU
     fired late) or ours (neither)."""
     import can
+
     syncs = np.array([m.timestamp for m in can.BLFReader(str(trace)) if m.arbitration_id == 0x080])
     per_cpu = [(np.array([t for t, _ in cpu]), np.array([w for _, w in cpu])) for cpu in held]
     kinds: dict[str, list[float]] = {"machine": [], "vcpu": [], "ours": []}
     for i in np.flatnonzero(np.diff(syncs) > 1.5 * PERIOD_S):
         late_ms = (syncs[i + 1] - syncs[i]) * 1e3 - PERIOD_S * 1e3
-        held_ms = [float(stalls[(starts >= syncs[i] - PERIOD_S) & (starts <= syncs[i + 1])].max(initial=0.0))
-                   for starts, stalls in per_cpu]
+        held_ms = [
+            float(stalls[(starts >= syncs[i] - PERIOD_S) & (starts <= syncs[i + 1])].max(initial=0.0))
+            for starts, stalls in per_cpu
+        ]
         explained = late_ms - PERIOD_S * 1e3
         kind = "machine" if min(held_ms) >= explained else "vcpu" if max(held_ms) >= explained else "ours"
         kinds[kind].append(late_ms)
-    return {"late_syncs": sum(map(len, kinds.values())),
-            **{kind: len(late) for kind, late in kinds.items()},
-            **{f"{kind}_max_ms": max(late, default=0.0) for kind, late in kinds.items()}}
+    return {
+        "late_syncs": sum(map(len, kinds.values())),
+        **{kind: len(late) for kind, late in kinds.items()},
+        **{f"{kind}_max_ms": max(late, default=0.0) for kind, late in kinds.items()},
+    }
 
 
 def floor(seconds: float) -> dict:
@@ -129,7 +143,10 @@ def floor(seconds: float) -> dict:
 @contextlib.contextmanager
 def load(kind: str) -> Iterator[None]:
     """Two CPU-bound processes beside the block (``loaded``), or nothing (``idle``)."""
-    hogs = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(2 if kind == "loaded" else 0)]
+    hogs = [
+        subprocess.Popen([sys.executable, "-c", "while True: pass"])
+        for _ in range(2 if kind == "loaded" else 0)
+    ]
     try:
         yield
     finally:
@@ -145,9 +162,25 @@ def commission(code: Path, campaign: str) -> dict:
         env = {**os.environ, "PYTHONPATH": str(code), "XDG_DATA_HOME": tmp}
         t0 = time.perf_counter()
         with floor_during() as beside:
-            proc = subprocess.run([sys.executable, "-m", "drive_bridge", "commission", "--sim", "--realtime",
-                                   "--campaign", campaign, "--out", str(out), "--no-history"], cwd=code, env=env,
-                                  capture_output=True, text=True)
+            proc = subprocess.run(
+                [
+                    sys.executable,
+                    "-m",
+                    "drive_bridge",
+                    "commission",
+                    "--sim",
+                    "--realtime",
+                    "--campaign",
+                    campaign,
+                    "--out",
+                    str(out),
+                    "--no-history",
+                ],
+                cwd=code,
+                env=env,
+                capture_output=True,
+                text=True,
+            )
         wall = time.perf_counter() - t0
         trace = out / "campaign" / "trace.blf"
         matched = against_floor(trace, beside["held"]) if trace.exists() else {}
@@ -163,30 +196,47 @@ def commission(code: Path, campaign: str) -> dict:
     gaps = np.diff(sync[np.isfinite(sync)]) * 1e3 if sync.size > 1 else np.zeros(1)
     aborts = [s.get("abort", {}).get("reason") for s in streams if s.get("status") == "aborted"]
     verdict = summary.get("verdict", {})
-    return {"exit": proc.returncode, "wall_s": wall,
-            "verdict": verdict.get("overall") if isinstance(verdict, dict) else verdict,
-            "late_pct": timing.get("late_cycles_pct"), "p99_ms": float(np.percentile(gaps, 99)),
-            "max_ms": float(gaps.max()), "gap_periods": float(gaps.max()) / (PERIOD_S * 1e3),
-            "age": engine.get("feedback_age_ms", {}), "missing": sum((timing.get("samples_missing") or {}).values()),
-            "skipped": engine.get("periods_skipped"), "host": engine.get("host", timing.get("priority")),
-            "floor": beside, "matched": matched,
-            "aborts": aborts
-            or [line.strip() for line in (proc.stdout + proc.stderr).splitlines() if "FAILED:" in line]
-            or ([proc.stderr.strip().splitlines()[-1]] if proc.returncode not in (0, 5, 6) and proc.stderr.strip() else [])}
+    return {
+        "exit": proc.returncode,
+        "wall_s": wall,
+        "verdict": verdict.get("overall") if isinstance(verdict, dict) else verdict,
+        "late_pct": timing.get("late_cycles_pct"),
+        "p99_ms": float(np.percentile(gaps, 99)),
+        "max_ms": float(gaps.max()),
+        "gap_periods": float(gaps.max()) / (PERIOD_S * 1e3),
+        "age": engine.get("feedback_age_ms", {}),
+        "missing": sum((timing.get("samples_missing") or {}).values()),
+        "skipped": engine.get("periods_skipped"),
+        "host": engine.get("host", timing.get("priority")),
+        "floor": beside,
+        "matched": matched,
+        "aborts": aborts
+        or [line.strip() for line in (proc.stdout + proc.stderr).splitlines() if "FAILED:" in line]
+        or (
+            [proc.stderr.strip().splitlines()[-1]]
+            if proc.returncode not in (0, 5, 6) and proc.stderr.strip()
+            else []
+        ),
+    }
 
 
 def line(name: str, r: dict) -> str:
     age = r["age"]
-    return (f"  {name}: {r['verdict']} (exit {r['exit']}, {r['wall_s']:.0f} s): late cycles {r['late_pct']} %, "
-            f"SYNC period p99 {r['p99_ms']:.2f} ms, max {r['max_ms']:.2f} ms ({r['gap_periods']:.1f} periods), "
-            f"feedback age p99 {age.get('p99', '?')} ms max {age.get('max', '?')} ms, samples missing "
-            f"{r['missing']}, periods skipped {r['skipped']}, aborts {len(r['aborts'])}"
-            + (f" ({'; '.join(str(a) for a in r['aborts'])})" if r["aborts"] else "")
-            + f"\n    the floor during the run: max {r['floor']['max']:.2f} ms, {r['floor']['over_3ms_pct']:.3f} % over 3 ms"
-            + (f"; late SYNCs {m['late_syncs']}: {m['machine']} the machine's (every CPU's floor held; up to "
-               f"{m['machine_max_ms']:.1f} ms late), {m['vcpu']} a vCPU's (one CPU's floor held; up to "
-               f"{m['vcpu_max_ms']:.1f} ms), {m['ours']} ours (up to {m['ours_max_ms']:.1f} ms) "
-               if (m := r["matched"]) else ""))
+    return (
+        f"  {name}: {r['verdict']} (exit {r['exit']}, {r['wall_s']:.0f} s): late cycles {r['late_pct']} %, "
+        f"SYNC period p99 {r['p99_ms']:.2f} ms, max {r['max_ms']:.2f} ms ({r['gap_periods']:.1f} periods), "
+        f"feedback age p99 {age.get('p99', '?')} ms max {age.get('max', '?')} ms, samples missing "
+        f"{r['missing']}, periods skipped {r['skipped']}, aborts {len(r['aborts'])}"
+        + (f" ({'; '.join(str(a) for a in r['aborts'])})" if r["aborts"] else "")
+        + f"\n    the floor during the run: max {r['floor']['max']:.2f} ms, {r['floor']['over_3ms_pct']:.3f} % over 3 ms"
+        + (
+            f"; late SYNCs {m['late_syncs']}: {m['machine']} the machine's (every CPU's floor held; up to "
+            f"{m['machine_max_ms']:.1f} ms late), {m['vcpu']} a vCPU's (one CPU's floor held; up to "
+            f"{m['vcpu_max_ms']:.1f} ms), {m['ours']} ours (up to {m['ours_max_ms']:.1f} ms) "
+            if (m := r["matched"])
+            else ""
+        )
+    )
 
 
 def main() -> None:
@@ -203,13 +253,19 @@ def main() -> None:
         for condition in conditions:
             with load(condition):
                 f = floor(args.floor_seconds)
-                print(f"{condition}: the machine's floor ({f['granted']}, {args.floor_seconds:g} s on a 2 ms schedule): "
-                      f"wakes late p99 {f['p99']:.3f} ms, p99.9 {f['p999']:.3f} ms, max {f['max']:.3f} ms, "
-                      f"{f['over_3ms_pct']:.3f} % over 3 ms", flush=True)
+                print(
+                    f"{condition}: the machine's floor ({f['granted']}, {args.floor_seconds:g} s on a 2 ms schedule): "
+                    f"wakes late p99 {f['p99']:.3f} ms, p99.9 {f['p999']:.3f} ms, max {f['max']:.3f} ms, "
+                    f"{f['over_3ms_pct']:.3f} % over 3 ms",
+                    flush=True,
+                )
                 for run in range(args.runs):
                     print(line(f"{args.campaign} run {run + 1}", commission(ROOT, args.campaign)), flush=True)
                     if other is not None:
-                        print(line(f"{args.against} run {run + 1}", commission(other, args.campaign)), flush=True)
+                        print(
+                            line(f"{args.against} run {run + 1}", commission(other, args.campaign)),
+                            flush=True,
+                        )
 
 
 if __name__ == "__main__":

@@ -12,6 +12,7 @@ prints where a run's time goes (cProfile, the N largest internal times; it slows
 Realtime: the drives run against the wall clock in their own thread; the master streams at
 500 Hz and the SYNC time stamps of the log give the period statistics.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -31,11 +32,11 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from drive_bridge.connect import open_link                 # noqa: E402
-from drive_bridge.config import load_bus_config          # noqa: E402
-from drive_bridge.record import record                   # noqa: E402
-from drive_bridge.resources import DEFAULT_BUS_CONFIG   # noqa: E402
-from tools.reference import stamp, worktree              # noqa: E402
+from drive_bridge.config import load_bus_config  # noqa: E402
+from drive_bridge.connect import open_link  # noqa: E402
+from drive_bridge.record import record  # noqa: E402
+from drive_bridge.resources import DEFAULT_BUS_CONFIG  # noqa: E402
+from tools.reference import stamp, worktree  # noqa: E402
 
 
 def campaign_config(seconds: float):
@@ -70,19 +71,29 @@ def _timed(code: Path, seconds: float) -> dict:
     """One lockstep campaign recorded by the code under ``code`` (the pump: this checkout's)."""
     env = {**os.environ, "PYTHONPATH": str(code), "SOURCE_DATE_EPOCH": "1764000000"}
     pump = ROOT / "tools" / "reference.py"
-    out = subprocess.run([sys.executable, "-c", TIMED, str(seconds), str(pump)], cwd=code, env=env, check=True,
-                         capture_output=True, text=True).stdout
+    out = subprocess.run(
+        [sys.executable, "-c", TIMED, str(seconds), str(pump)],
+        cwd=code,
+        env=env,
+        check=True,
+        capture_output=True,
+        text=True,
+    ).stdout
     return json.loads(out.strip().splitlines()[-1])
 
 
 def _line(name: str, runs: list[dict], period: float) -> float:
     speeds = [r["cycles"] * period / r["wall"] for r in runs]
     ratios = [s / float(np.mean(r["pump"])) for s, r in zip(speeds, runs)]
-    print(f"{name}: {runs[0]['cycles'] * period:.1f} s of campaign ({runs[0]['cycles']} SYNC cycles, 3 axes), "
-          f"missing samples {runs[0]['missing']}; per run "
-          + ", ".join(f"{r['wall']:.2f} s = {s:.1f}x real time (pump {r['pump'][0]:.1f}x/{r['pump'][1]:.1f}x)"
-                      for r, s in zip(runs, speeds))
-          + f" -> master with drives at {float(np.median(ratios)):.2f}x the pump (median)")
+    print(
+        f"{name}: {runs[0]['cycles'] * period:.1f} s of campaign ({runs[0]['cycles']} SYNC cycles, 3 axes), "
+        f"missing samples {runs[0]['missing']}; per run "
+        + ", ".join(
+            f"{r['wall']:.2f} s = {s:.1f}x real time (pump {r['pump'][0]:.1f}x/{r['pump'][1]:.1f}x)"
+            for r, s in zip(runs, speeds)
+        )
+        + f" -> master with drives at {float(np.median(ratios)):.2f}x the pump (median)"
+    )
     return float(np.median(ratios))
 
 
@@ -91,7 +102,7 @@ def lockstep(seconds: float, runs: int, against: str | None, profile: int) -> No
     print(stamp())
     with worktree(ROOT, against) if against else contextlib.nullcontext() as other:
         mine, theirs = [], []
-        for _ in range(runs):                      # alternated: the machine's speed drifts
+        for _ in range(runs):  # alternated: the machine's speed drifts
             mine.append(_timed(ROOT, seconds))
             if other is not None:
                 theirs.append(_timed(other, seconds))
@@ -118,10 +129,12 @@ def realtime(seconds: float) -> None:
     period = cfg.master.sync_period_s
     dt = np.diff(data)
     late = np.count_nonzero(dt > 1.5 * period)
-    print(f"realtime: {len(data)} cycles ({len(data) * period:.1f} s), late cycles (> 1.5 periods) {late} "
-          f"({100 * late / max(1, len(dt)):.2f} %), samples lost {sum(result.missing.values())}, "
-          f"SYNC period mean {dt.mean() * 1e3:.3f} ms, p99 {np.percentile(dt, 99) * 1e3:.3f} ms, "
-          f"max {dt.max() * 1e3:.3f} ms; status {'ok' if result.ok else result.aborted}")
+    print(
+        f"realtime: {len(data)} cycles ({len(data) * period:.1f} s), late cycles (> 1.5 periods) {late} "
+        f"({100 * late / max(1, len(dt)):.2f} %), samples lost {sum(result.missing.values())}, "
+        f"SYNC period mean {dt.mean() * 1e3:.3f} ms, p99 {np.percentile(dt, 99) * 1e3:.3f} ms, "
+        f"max {dt.max() * 1e3:.3f} ms; status {'ok' if result.ok else result.aborted}"
+    )
 
 
 if __name__ == "__main__":

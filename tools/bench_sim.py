@@ -8,6 +8,7 @@
    TPDOs (2 per axis) after one RPDO per axis, the frames counted on a second bus.
 Prints real-time factors.
 """
+
 from __future__ import annotations
 
 import sys
@@ -18,11 +19,11 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from drive_bridge.sim import kernel as K                   # noqa: E402
-from drive_bridge.sim.config import DEFAULT_CONFIG, load_sim_config   # noqa: E402
-from drive_bridge.sim.robot import SimRobot                # noqa: E402
-from drive_bridge.sim.adapters import FastVirtualBus           # noqa: E402
-from tools.reference import pump, stamp                   # noqa: E402
+from drive_bridge.sim import kernel as K  # noqa: E402
+from drive_bridge.sim.adapters import FastVirtualBus  # noqa: E402
+from drive_bridge.sim.config import DEFAULT_CONFIG, load_sim_config  # noqa: E402
+from drive_bridge.sim.robot import SimRobot  # noqa: E402
+from tools.reference import pump, stamp  # noqa: E402
 
 PERIOD = 0.002
 
@@ -48,35 +49,43 @@ def kernel(seconds: float = 60.0) -> float:
 def bus(seconds: float = 60.0) -> float:
     robot = SimRobot(load_sim_config(DEFAULT_CONFIG), "bench-bus")
     master = FastVirtualBus(channel="bench-bus", preserve_timestamps=True)
-    master.direct = robot.bus.direct = True                 # one thread: frames handed over as the lockstep link does
-    import can
+    master.direct = robot.bus.direct = True  # one thread: frames handed over as the lockstep link does
     import struct
+
+    import can
+
     hold = {}
-    for name, drive in robot.drives.items():                # NMT start, enable CSP (SDO-free shortcut)
+    for name, drive in robot.drives.items():  # NMT start, enable CSP (SDO-free shortcut)
         drive.on_nmt(bytes([1, 0]))
         drive.mode = 8
         load = robot.config.axes[name].effects.get("load", {}).get("LOAD", 0.0)
-        drive.write(0x60B2, 0, round(load / drive.rated_torque * 1000))   # Z's weight held, as the master does
+        drive.write(0x60B2, 0, round(load / drive.rated_torque * 1000))  # Z's weight held, as the master does
         drive.refresh_actuals()
         hold[drive.node_id] = drive._position_inc
-        drive.write(0x607A, 0, hold[drive.node_id])        # the target preloaded where the axis stands
+        drive.write(0x607A, 0, hold[drive.node_id])  # the target preloaded where the axis stands
         for cw in (6, 7, 15):
             drive.write(0x6040, 0, cw)
     robot.process()
     n = round(seconds / PERIOD)
     frames = 0
     t0 = time.perf_counter()
-    for k in range(n):
+    for _ in range(n):
         for drive in robot.drives.values():
-            master.send(can.Message(arbitration_id=0x200 + drive.node_id, is_extended_id=False,
-                                    data=struct.pack("<Hi", 0x0F, hold[drive.node_id]), timestamp=robot.time))
+            master.send(
+                can.Message(
+                    arbitration_id=0x200 + drive.node_id,
+                    is_extended_id=False,
+                    data=struct.pack("<Hi", 0x0F, hold[drive.node_id]),
+                    timestamp=robot.time,
+                )
+            )
         master.send(can.Message(arbitration_id=0x80, data=b"", is_extended_id=False, timestamp=robot.time))
         robot.process()
         frames += sum(1 for _ in master.drain())
     wall = time.perf_counter() - t0
     master.shutdown()
     robot.shutdown()
-    assert frames == 3 * n, frames                          # default mapping: TPDO1 per axis, no EMCY
+    assert frames == 3 * n, frames  # default mapping: TPDO1 per axis, no EMCY
     return seconds / wall
 
 
@@ -87,4 +96,6 @@ if __name__ == "__main__":
     k = kernel()
     print(f"kernel (3 axes, 8 kHz / 2 kHz): {k:.0f}x real time ({k / ref:.1f}x the pump)")
     b = bus()
-    print(f"drives on the virtual bus, lockstep, answering SYNC: {b:.1f}x real time ({b / ref:.2f}x the pump)")
+    print(
+        f"drives on the virtual bus, lockstep, answering SYNC: {b:.1f}x real time ({b / ref:.2f}x the pump)"
+    )

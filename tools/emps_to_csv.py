@@ -6,6 +6,7 @@ Columns: ``time_s``, ``emps_position_m`` (qm, load side) and ``emps_force_N``
 (gtau · vir, the EMPS reference's force); the data is read in place from the
 .mat file (see ``../shared/data/emps/SOURCE.md``), never copied.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -20,16 +21,25 @@ AXIS = "emps"
 def emps_columns(mat_path: str | Path) -> dict[str, np.ndarray]:
     d = io.loadmat(str(mat_path))
     gtau = float(np.squeeze(d["gtau"]))
-    return {"time_s": np.ravel(d["t"]), f"{AXIS}_position_m": np.ravel(d["qm"]),
-            f"{AXIS}_force_N": gtau * np.ravel(d["vir"])}
+    return {
+        "time_s": np.ravel(d["t"]),
+        f"{AXIS}_position_m": np.ravel(d["qm"]),
+        f"{AXIS}_force_N": gtau * np.ravel(d["vir"]),
+    }
 
 
 def write_csv(mat_path: str | Path, csv_path: str | Path) -> Path:
     cols = emps_columns(mat_path)
     csv_path = Path(csv_path)
     csv_path.parent.mkdir(parents=True, exist_ok=True)
-    np.savetxt(csv_path, np.column_stack(list(cols.values())), delimiter=",", header=",".join(cols),
-               comments="", fmt=["%.6f", "%.10g", "%.10g"])
+    np.savetxt(
+        csv_path,
+        np.column_stack(list(cols.values())),
+        delimiter=",",
+        header=",".join(cols),
+        comments="",
+        fmt=["%.6f", "%.10g", "%.10g"],
+    )
     return csv_path
 
 

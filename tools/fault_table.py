@@ -11,6 +11,7 @@ holds every SYNC sent; samples lost = SYNC cycles sent whose row is missing from
 (RAM, stored set) is what a read-back and a power cycle show; half-written = a drive left holding
 part of the new set and part of the old.
 """
+
 from __future__ import annotations
 
 import sys
@@ -35,13 +36,19 @@ def motion_fault(name: str, sim, hook) -> tuple[bool, int]:
     bench = Bench(sim)
     with tempfile.TemporaryDirectory() as tmp:
         try:
-            result = record(quick_config(together=True).only(["y", "z"]), bench.link, Path(tmp),
-                            on_plan=lambda plan: (lambda k: hook(bench, k)))
-            standing = all(abs(d.s[K.V]) < 0.06 and d.state in (1, 5, 7) for d in bench.robot.drives.values()
-                           if d.online)
-            bench.link.clock.sleep(0.5)             # a drive the master cannot reach stops itself
-            standing = standing and all(abs(d.s[K.V]) < 0.06 and d.state in (1, 5, 7)
-                                        for d in bench.robot.drives.values())
+            result = record(
+                quick_config(together=True).only(["y", "z"]),
+                bench.link,
+                Path(tmp),
+                on_plan=lambda plan: lambda k: hook(bench, k),
+            )
+            standing = all(
+                abs(d.s[K.V]) < 0.06 and d.state in (1, 5, 7) for d in bench.robot.drives.values() if d.online
+            )
+            bench.link.clock.sleep(0.5)  # a drive the master cannot reach stops itself
+            standing = standing and all(
+                abs(d.s[K.V]) < 0.06 and d.state in (1, 5, 7) for d in bench.robot.drives.values()
+            )
             meta = yaml.safe_load((Path(tmp) / "meta.yaml").read_text())
             names, data = read_csv(Path(tmp) / "log.csv")
             lost = meta["counts"]["cycles_sent"] - len(data)
@@ -54,6 +61,7 @@ def _raise(exc, at):
     def hook(bench, k):
         if k >= at:
             raise exc
+
     return hook
 
 
@@ -69,7 +77,10 @@ def _silence(bench, k):
 
 
 MOTION = {
-    "following error (EMCY 0x8611)": (clean_config(effects={"y": {"load": {"LOAD": 5.0}}}), lambda b, k: None),
+    "following error (EMCY 0x8611)": (
+        clean_config(effects={"y": {"load": {"LOAD": 5.0}}}),
+        lambda b, k: None,
+    ),
     "heartbeat lost": (clean_config(), _silence),
     "feedback missing (drive off the bus)": (clean_config(), _unplug),
     "Ctrl-C": (clean_config(), _raise(KeyboardInterrupt(), 300)),
@@ -81,6 +92,7 @@ MOTION = {
 def write_fault(phase: str, kind: str) -> tuple[bool, int]:
     """(ended safely, drives half-written) of a two-drive transaction failing as ``kind`` in ``phase``."""
     from drive_bridge.params.write import write_all
+
     bench = Bench(clean_config())
     try:
         nodes = {a: bench.nodes[a] for a in ("x", "y")}
@@ -101,8 +113,9 @@ def write_fault(phase: str, kind: str) -> tuple[bool, int]:
             node.nmt.send_command(0x81)
         bench.link.clock.sleep(0.01)
         after = {a: device(n) for a, n in nodes.items()}
-        ok = ok and all(r.stored_set not in ("unchanged", "backup") or after[a] == before[a]
-                        for a, r in results.items())
+        ok = ok and all(
+            r.stored_set not in ("unchanged", "backup") or after[a] == before[a] for a, r in results.items()
+        )
         return ok, half
     finally:
         bench.close()
@@ -110,6 +123,7 @@ def write_fault(phase: str, kind: str) -> tuple[bool, int]:
 
 def device_values(axis, values):
     import numpy as np
+
     out = {}
     for n in NAMES:
         e = SIM.entries[n]
@@ -120,6 +134,7 @@ def device_values(axis, values):
 
 def main() -> None:
     import logging
+
     logging.getLogger("canopen").addHandler(logging.NullHandler())
     rows = []
     for name, (sim, hook) in MOTION.items():
@@ -128,8 +143,16 @@ def main() -> None:
     for phase in ("backup", "write", "verify", "store", "restore"):
         kinds = [k for p, k in CASES if p == phase]
         results = [write_fault(phase, k) for k in kinds]
-        rows.append(("write", f"{phase} phase: {', '.join(kinds)}", len(kinds), sum(s for s, _ in results), "–",
-                     sum(h for _, h in results)))
+        rows.append(
+            (
+                "write",
+                f"{phase} phase: {', '.join(kinds)}",
+                len(kinds),
+                sum(s for s, _ in results),
+                "–",
+                sum(h for _, h in results),
+            )
+        )
     print("| kind | fault | injected | ended safely | samples lost | half-written sets |")
     print("| --- | --- | --- | --- | --- | --- |")
     for r in rows:

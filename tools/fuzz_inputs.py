@@ -6,6 +6,7 @@ tracebacks (any exception that is not a DriveBridgeError) and hangs (an input ov
 The inputs come from tests/fuzz_inputs.py (hypothesis strategies); the test suite runs the same
 readers with a few dozen inputs each (tests/test_fuzz.py).  Exit 1 when any traceback or hang.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -38,13 +39,16 @@ def _alarm(signum, frame):
 
 def fuzz(name, kind, args, counts, first) -> None:
     """Run ``args.per_kind`` inputs of ``kind`` through its reader, counting what happens."""
+
     @seed(args.seed)
-    @settings(max_examples=args.per_kind, deadline=None, database=None, suppress_health_check=list(HealthCheck))
+    @settings(
+        max_examples=args.per_kind, deadline=None, database=None, suppress_health_check=list(HealthCheck)
+    )
     @given(kind.strategy)
     def run(value):
         counts[name]["inputs"] += 1
         with tempfile.TemporaryDirectory() as work:
-            inputs = Path(work) / "in"                # the readers may put files beside it (an EDS)
+            inputs = Path(work) / "in"  # the readers may put files beside it (an EDS)
             inputs.mkdir()
             signal.alarm(HANG_S)
             try:
@@ -54,11 +58,12 @@ def fuzz(name, kind, args, counts, first) -> None:
                 counts[name]["refused"] += 1
             except Hang:
                 counts[name]["hangs"] += 1
-            except BaseException as exc:          # noqa: BLE001 -- a traceback is what we count
+            except BaseException as exc:  # noqa: BLE001 -- a traceback is what we count
                 counts[name]["tracebacks"] += 1
                 first.setdefault((name, type(exc).__name__), (repr(value)[:300], traceback.format_exc()))
             finally:
                 signal.alarm(0)
+
     run()
 
 
@@ -80,9 +85,13 @@ def main() -> int:
     print(f"{'kind':<16} {'inputs':>7} {'accepted':>9} {'refused':>8} {'tracebacks':>11} {'hangs':>6}")
     for name, c in counts.items():
         total.update(c)
-        print(f"{name:<16} {c['inputs']:>7} {c['accepted']:>9} {c['refused']:>8} {c['tracebacks']:>11} {c['hangs']:>6}")
-    print(f"{'all':<16} {total['inputs']:>7} {total['accepted']:>9} {total['refused']:>8} "
-          f"{total['tracebacks']:>11} {total['hangs']:>6}   ({time.perf_counter() - t0:.0f} s, seed {args.seed})")
+        print(
+            f"{name:<16} {c['inputs']:>7} {c['accepted']:>9} {c['refused']:>8} {c['tracebacks']:>11} {c['hangs']:>6}"
+        )
+    print(
+        f"{'all':<16} {total['inputs']:>7} {total['accepted']:>9} {total['refused']:>8} "
+        f"{total['tracebacks']:>11} {total['hangs']:>6}   ({time.perf_counter() - t0:.0f} s, seed {args.seed})"
+    )
     for (name, exc), (value, tb) in first.items():
         print(f"\n--- {name}: {exc} on {value}\n{tb}")
     return 1 if total["tracebacks"] or total["hangs"] else 0

@@ -12,6 +12,7 @@ least_squares: the paper's identification done plainly on the same log -- a zero
 Butterworth on each axis' torque and a 3-column least squares (J, c1, c0) -- the floor under
 drive-bridge's identification.
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -37,7 +38,7 @@ def pump(cycles: int = 20000, axes: int = 3) -> float:
     channel = f"reference-pump-{next(_channels)}"
     master = can.Bus(interface="virtual", channel=channel)
     drives = can.Bus(interface="virtual", channel=channel)
-    rpdo = struct.Struct("<Hi")                        # controlword, target position
+    rpdo = struct.Struct("<Hi")  # controlword, target position
     tpdo = (struct.Struct("<Hi"), struct.Struct("<ih"))  # statusword, position; velocity, torque
     try:
         sync = can.Message(arbitration_id=0x80, data=b"", is_extended_id=False)
@@ -45,12 +46,18 @@ def pump(cycles: int = 20000, axes: int = 3) -> float:
         for k in range(cycles):
             master.send(sync)
             for a in range(axes):
-                master.send(can.Message(arbitration_id=0x201 + a, data=rpdo.pack(0x1F, k), is_extended_id=False))
+                master.send(
+                    can.Message(arbitration_id=0x201 + a, data=rpdo.pack(0x1F, k), is_extended_id=False)
+                )
             for _ in range(axes + 1):
                 drives.recv(timeout=0)
             for a in range(axes):
-                drives.send(can.Message(arbitration_id=0x181 + a, data=tpdo[0].pack(0x1237, k), is_extended_id=False))
-                drives.send(can.Message(arbitration_id=0x281 + a, data=tpdo[1].pack(k, 7), is_extended_id=False))
+                drives.send(
+                    can.Message(arbitration_id=0x181 + a, data=tpdo[0].pack(0x1237, k), is_extended_id=False)
+                )
+                drives.send(
+                    can.Message(arbitration_id=0x281 + a, data=tpdo[1].pack(k, 7), is_extended_id=False)
+                )
             for _ in range(2 * axes):
                 msg = master.recv(timeout=0)
                 tpdo[msg.arbitration_id >> 8 == 2].unpack(msg.data)
@@ -73,18 +80,24 @@ def worktree(root: Path, revision: str) -> Iterator[Path]:
     """A checkout of git ``revision`` of the repository at ``root``, removed afterwards."""
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "against"
-        subprocess.run(["git", "-C", str(root), "worktree", "add", "--detach", "-f", str(path), revision],
-                       check=True, capture_output=True)
+        subprocess.run(
+            ["git", "-C", str(root), "worktree", "add", "--detach", "-f", str(path), revision],
+            check=True,
+            capture_output=True,
+        )
         try:
             yield path
         finally:
-            subprocess.run(["git", "-C", str(root), "worktree", "remove", "--force", str(path)], capture_output=True)
+            subprocess.run(
+                ["git", "-C", str(root), "worktree", "remove", "--force", str(path)], capture_output=True
+            )
 
 
 def stamp() -> str:
     """When and where: the date and this machine's processor and core count."""
     import os
     import platform
+
     return f"{time.strftime('%Y-%m-%d')}, {platform.machine()} {os.cpu_count()} cores, Python {platform.python_version()}"
 
 

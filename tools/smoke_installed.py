@@ -4,6 +4,7 @@ every file it ships is there and readable, and a commission run left a complete 
 
     python tools/smoke_installed.py RUN_DIR
 """
+
 from __future__ import annotations
 
 import json
@@ -14,8 +15,7 @@ import drive_bridge
 from drive_bridge.config import load_bus_config
 from drive_bridge.ident import identify
 from drive_bridge.params.profile import available, load_profile
-from drive_bridge.resources import vendor_dir
-from drive_bridge.resources import DEFAULT_BUS_CONFIG, PROJECT_EDS
+from drive_bridge.resources import DEFAULT_BUS_CONFIG, PROJECT_EDS, vendor_dir
 from drive_bridge.sim.config import DEFAULT_CONFIG, load_sim_config
 
 
@@ -36,8 +36,10 @@ def main(run: Path) -> None:
     assert (run / "report.html").stat().st_size > 10_000
     results = identify(run / "campaign", seed=0)
     assert set(results) == {"x", "y", "z"}
-    print(f"installed drive-bridge {drive_bridge.__version__} at {package}: {len(shipped)} profiles, "
-          f"commission status {summary['status']}, identify ok")
+    print(
+        f"installed drive-bridge {drive_bridge.__version__} at {package}: {len(shipped)} profiles, "
+        f"commission status {summary['status']}, identify ok"
+    )
 
 
 if __name__ == "__main__":

@@ -4,6 +4,7 @@
 default), from the argparse parsers ``drive-bridge`` itself builds.  ``{drive-bridge-exit-codes}``:
 the exit-code table of :mod:`drive_bridge.errors`, the one ``drive-bridge --help`` prints.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -17,7 +18,7 @@ from drive_bridge.errors import EXIT_TABLE
 
 
 def _subparsers(parser: argparse.ArgumentParser) -> dict[str, argparse.ArgumentParser]:
-    for action in parser._actions:                       # argparse keeps them nowhere public
+    for action in parser._actions:  # argparse keeps them nowhere public
         if isinstance(action, argparse._SubParsersAction):
             return dict(action.choices)
     return {}
@@ -27,7 +28,7 @@ class CliReference(Directive):
     """Each command: a section with its description and its ``--help``."""
 
     def run(self):
-        os.environ["COLUMNS"] = "100"                    # the same width on every machine
+        os.environ["COLUMNS"] = "100"  # the same width on every machine
         parser = build_parser()
         out = [nodes.literal_block(text=parser.format_help())]
         for name, sub in _subparsers(parser).items():
@@ -53,8 +54,10 @@ class ExitCodes(Directive):
         group += head
         body = nodes.tbody()
         group += body
-        for target, cells in ((head, ("code", "kind", "meaning")),
-                              *((body, (str(code), kind, meaning)) for code, kind, meaning in EXIT_TABLE)):
+        for target, cells in (
+            (head, ("code", "kind", "meaning")),
+            *((body, (str(code), kind, meaning)) for code, kind, meaning in EXIT_TABLE),
+        ):
             row = nodes.row()
             for text in cells:
                 entry = nodes.entry()

@@ -1,13 +1,15 @@
 """Opening a python-can bus, and what it takes to open the same bus again (:class:`BusSpec`): the
 master's cyclic engine opens a handle of its own on the master's bus
 (:mod:`drive_bridge.master.coprocess`)."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
 import can
 
-from .multicast import INTERFACE as MULTICAST_NOECHO, UDP_GROUP, UDP_PORT
+from .multicast import INTERFACE as MULTICAST_NOECHO
+from .multicast import UDP_GROUP, UDP_PORT
 
 
 @dataclass(frozen=True)
@@ -29,14 +31,19 @@ class BusSpec:
         return self.interface == "virtual"
 
 
-def open_bus(interface: str, channel: str | int | None, bitrate: int | None = None,
-             options: dict | None = None) -> can.BusABC:
+def open_bus(
+    interface: str, channel: str | int | None, bitrate: int | None = None, options: dict | None = None
+) -> can.BusABC:
     """A python-can bus that does not hand its own frames back (``bitrate`` where the interface
     takes one; ``options``: the interface's own arguments, :mod:`drive_bridge.canconf`)."""
-    if interface in ("udp_multicast", MULTICAST_NOECHO):   # python-can's echoes every frame to its sender
+    if interface in ("udp_multicast", MULTICAST_NOECHO):  # python-can's echoes every frame to its sender
         opts = dict(options or {})
-        return can.Bus(interface=MULTICAST_NOECHO, channel=str(channel or UDP_GROUP),
-                       port=opts.pop("port", None) or UDP_PORT, **opts)
+        return can.Bus(
+            interface=MULTICAST_NOECHO,
+            channel=str(channel or UDP_GROUP),
+            port=opts.pop("port", None) or UDP_PORT,
+            **opts,
+        )
     kwargs = {**(options or {}), "interface": interface, "channel": channel, "receive_own_messages": False}
     if bitrate and interface != "virtual":
         kwargs["bitrate"] = bitrate

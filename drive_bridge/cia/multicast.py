@@ -8,6 +8,7 @@ It relies on python-can's ``UdpMulticastBus._multicast.recv`` (and its ``_socket
 ``can.interfaces.udp_multicast.utils.unpack_message``, pinned by ``tests/cia/test_multicast.py``;
 pyproject.toml bounds python-can above by the version that test passed on.
 """
+
 from __future__ import annotations
 
 import socket
@@ -68,8 +69,9 @@ class LoopbackMulticastBus(UdpMulticastBus):
             result = self._multicast.recv(timeout)
             if not result:
                 return None, False
-            msg = unpack_message(result[0], replace={"timestamp": result[2]} if self._kernel_stamps else None,
-                                 check=True)
+            msg = unpack_message(
+                result[0], replace={"timestamp": result[2]} if self._kernel_stamps else None, check=True
+            )
             if msg.arbitration_id not in self._sent_ids:
                 return msg, False
-            timeout = 0.0            # an echo: the next frame already waiting, if any (recv(0) drains past echoes)
+            timeout = 0.0  # an echo: the next frame already waiting, if any (recv(0) drains past echoes)

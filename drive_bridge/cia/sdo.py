@@ -8,6 +8,7 @@ its mapping count 0 while its entries do).
 Bring-up keeps a snapshot of everything it overwrites, so that a store (0x1010:1 saves every
 parameter) that must be undone can put the drive's stored set back as it was before bring-up.
 """
+
 from __future__ import annotations
 
 import logging
@@ -48,12 +49,15 @@ def read_if_readable(node: canopen.RemoteNode, index: int, sub: int, what: str) 
 def describe_sdo_error(exc: Exception) -> str:
     """One phrase for an SDO failure: the abort code and its CiA 301 text, or the lost answer."""
     if isinstance(exc, canopen.SdoAbortedError):
-        return f"SDO abort 0x{exc.code:08X}: {canopen.SdoAbortedError.CODES.get(exc.code, 'unknown abort code')}"
+        return (
+            f"SDO abort 0x{exc.code:08X}: {canopen.SdoAbortedError.CODES.get(exc.code, 'unknown abort code')}"
+        )
     if isinstance(exc, canopen.SdoCommunicationError):
         return f"no answer ({exc}): the node may have dropped off the bus"
     return f"{type(exc).__name__}: {exc}"
 
-PDO_COMM = (0x1400, 0x1800)                 # RPDO / TPDO communication parameters; mapping at +0x200
+
+PDO_COMM = (0x1400, 0x1800)  # RPDO / TPDO communication parameters; mapping at +0x200
 PDO_INVALID = 0x80000000
 
 
@@ -61,8 +65,10 @@ def write_setting(node: canopen.RemoteNode, axis: str, index: int, sub: int, val
     """SDO download of ``value``, checked against the range the drive's EDS/DCF gives first."""
     lo, hi = limits(variable(node.object_dictionary, index, sub))
     if (lo is not None and value < lo) or (hi is not None and value > hi):
-        raise DriveRefused(f"axis {axis}: 0x{index:04X}:{sub} = {value} is outside the range its EDS/DCF gives "
-                           f"({lo}..{hi}); nothing was written to it")
+        raise DriveRefused(
+            f"axis {axis}: 0x{index:04X}:{sub} = {value} is outside the range its EDS/DCF gives "
+            f"({lo}..{hi}); nothing was written to it"
+        )
     log.debug("axis %s: 0x%04X:%d = %s", axis, index, sub, value)
     try:
         node.sdo.download(index, sub, variable(node.object_dictionary, index, sub).encode_raw(value))
@@ -79,8 +85,11 @@ def pdo_objects(od: canopen.ObjectDictionary) -> list[tuple[int, int]]:
     for base in PDO_COMM:
         for num in range(4):
             for index, subs in ((base + num, (1, 2, 3, 5)), (base + 0x200 + num, range(9))):
-                out += [(index, sub) for sub in subs
-                        if (var := od.get_variable(index, sub)) is not None and var.writable and var.readable]
+                out += [
+                    (index, sub)
+                    for sub in subs
+                    if (var := od.get_variable(index, sub)) is not None and var.writable and var.readable
+                ]
     return out
 
 

@@ -5,6 +5,7 @@ Each command is a thin layer over the same core function the ``commission`` step
 calls: it parses, calls and prints.  Errors end as :mod:`drive_bridge.errors` says: one line, no
 traceback, and the exit code of the error's kind (its ``EXIT_TABLE``, which ``--help`` prints).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -14,8 +15,8 @@ import sys
 import warnings
 
 from .. import signals
-from ..version import __version__
 from ..errors import EXIT_CODES, DriveBridgeError, MotionAborted, exit_code, exit_codes_text
+from ..version import __version__
 from . import bus, commission, history, identification, tuning
 
 #: the command modules, in the order of the job (``drive-bridge --help`` lists them this way)
@@ -24,14 +25,22 @@ COMMANDS = (bus, identification, tuning, commission, history)
 
 def build_parser() -> argparse.ArgumentParser:
     lines = __doc__.splitlines()
-    parser = argparse.ArgumentParser(prog="drive-bridge", description=" ".join(lines[:2]),
-                                     formatter_class=argparse.RawDescriptionHelpFormatter,
-                                     epilog="Run 'drive-bridge COMMAND --help' for a command's options.\n\n"
-                                            "exit codes:\n" + exit_codes_text())
+    parser = argparse.ArgumentParser(
+        prog="drive-bridge",
+        description=" ".join(lines[:2]),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="Run 'drive-bridge COMMAND --help' for a command's options.\n\n"
+        "exit codes:\n" + exit_codes_text(),
+    )
     parser.add_argument("--version", action="version", version=f"drive-bridge {__version__}")
-    parser.add_argument("-v", "--verbose", action="count", default=0,
-                        help="-v: drive-bridge's log messages (bring-up, units, enabling, stopping, writing); "
-                             "-vv: also its debug messages and python-can's, canopen's and library warnings")
+    parser.add_argument(
+        "-v",
+        "--verbose",
+        action="count",
+        default=0,
+        help="-v: drive-bridge's log messages (bring-up, units, enabling, stopping, writing); "
+        "-vv: also its debug messages and python-can's, canopen's and library warnings",
+    )
     parser.add_argument("-q", "--quiet", action="store_true", help="log errors only")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for module in COMMANDS:
@@ -68,10 +77,10 @@ def main(argv: list[str] | None = None) -> int:
     with signals.handled(), warnings.catch_warnings():
         try:
             return _run(argv)
-        except KeyboardInterrupt as exc:      # a signal before or after a command's own handling
+        except KeyboardInterrupt as exc:  # a signal before or after a command's own handling
             print(f"drive-bridge: interrupted ({signals.signal_name(exc)})", file=sys.stderr)
             return exit_code(exc)
-        except BrokenPipeError:               # the reader of our output went away (| head): stop quietly
+        except BrokenPipeError:  # the reader of our output went away (| head): stop quietly
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
             return 1
 
@@ -79,13 +88,13 @@ def main(argv: list[str] | None = None) -> int:
 def _run(argv: list[str] | None) -> int:
     args = build_parser().parse_args(argv)
     if args.verbose >= 2 and not args.quiet:
-        logging.captureWarnings(True)         # library warnings as log lines
+        logging.captureWarnings(True)  # library warnings as log lines
     else:
-        warnings.simplefilter("ignore")       # library warnings are not for the person at the machine
+        warnings.simplefilter("ignore")  # library warnings are not for the person at the machine
     handler = log_to_stderr(args.verbose, args.quiet)
     try:
         return _command(args)
-    finally:                                  # main() may run again in this process (tests, the API)
+    finally:  # main() may run again in this process (tests, the API)
         for name in ("drive_bridge", *LIBRARY_LOGGERS):
             logging.getLogger(name).removeHandler(handler)
         logging.captureWarnings(False)
@@ -96,8 +105,11 @@ def _command(args: argparse.Namespace) -> int:
     try:
         return args.func(args)
     except MotionAborted as exc:
-        print(f"drive-bridge: motion stopped: {exc}. Axes were quick-stopped; "
-              f"the data recorded so far is kept.", file=sys.stderr)
+        print(
+            f"drive-bridge: motion stopped: {exc}. Axes were quick-stopped; "
+            f"the data recorded so far is kept.",
+            file=sys.stderr,
+        )
         return exc.exit_code
     except DriveBridgeError as exc:
         print(f"drive-bridge: error: {exc}", file=sys.stderr)
@@ -107,7 +119,9 @@ def _command(args: argparse.Namespace) -> int:
         return exit_code(exc)
     except BrokenPipeError:
         raise
-    except OSError as exc:                    # an output the user named cannot be written
+    except OSError as exc:  # an output the user named cannot be written
         where = f"{exc.filename}: " if exc.filename else ""
-        print(f"drive-bridge: error: {where}{exc.strerror or exc}; choose another output path", file=sys.stderr)
+        print(
+            f"drive-bridge: error: {where}{exc.strerror or exc}; choose another output path", file=sys.stderr
+        )
         return EXIT_CODES["user"]

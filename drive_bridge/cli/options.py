@@ -1,4 +1,5 @@
 """Options the commands share, declared once, and what they turn into."""
+
 from __future__ import annotations
 
 import argparse
@@ -27,28 +28,53 @@ if TYPE_CHECKING:
 
 def bus(p: argparse.ArgumentParser) -> None:
     """How to reach the drives: the bus configuration, or the simulated robot."""
-    p.add_argument("--config", default=str(DEFAULT_BUS_CONFIG),
-                   help="bus configuration (default: the simulated robot's, shipped with drive-bridge)")
+    p.add_argument(
+        "--config",
+        default=str(DEFAULT_BUS_CONFIG),
+        help="bus configuration (default: the simulated robot's, shipped with drive-bridge)",
+    )
     p.add_argument("--sim", action="store_true", help="run against the simulated robot in-process")
     p.add_argument("--realtime", action="store_true", help="with --sim: wall clock instead of lockstep")
-    p.add_argument("--sim-config", help="with --sim: simulator YAML, or a shipped robot by name: robot (the default), "
-                   "compliant (Y on a lightly damped spring)")
-    p.add_argument("-i", "--interface", help="python-can interface (socketcan, pcan, kvaser, vector ...; default: "
-                                             "bus.yml master.interface, else python-can's configuration)")
-    p.add_argument("-c", "--channel", type=can_channel,
-                   help="python-can channel (can0, PCAN_USBBUS1, 0 ...; default as for --interface)")
+    p.add_argument(
+        "--sim-config",
+        help="with --sim: simulator YAML, or a shipped robot by name: robot (the default), "
+        "compliant (Y on a lightly damped spring)",
+    )
+    p.add_argument(
+        "-i",
+        "--interface",
+        help="python-can interface (socketcan, pcan, kvaser, vector ...; default: "
+        "bus.yml master.interface, else python-can's configuration)",
+    )
+    p.add_argument(
+        "-c",
+        "--channel",
+        type=can_channel,
+        help="python-can channel (can0, PCAN_USBBUS1, 0 ...; default as for --interface)",
+    )
     p.add_argument("-b", "--bitrate", type=int, help="bitrate [bit/s] (default as for --interface)")
-    p.add_argument("--accept-identity", type=int, action="append", default=[], metavar="NODE",
-                   help="go on although node NODE's identity (0x1018) is not the one its EDS/DCF names "
-                        "(recorded in the output; repeat for more nodes)")
+    p.add_argument(
+        "--accept-identity",
+        type=int,
+        action="append",
+        default=[],
+        metavar="NODE",
+        help="go on although node NODE's identity (0x1018) is not the one its EDS/DCF names "
+        "(recorded in the output; repeat for more nodes)",
+    )
 
 
 def campaign(p: argparse.ArgumentParser) -> None:
     """Which excitation: the paper's campaign or the short designed one."""
     from ..config import DESIGNS
-    p.add_argument("--campaign", choices=DESIGNS, help="paper: the paper's trapezoid campaign (the reference); "
-                   "short: a multisine per axis designed for the identification, campaign.short_time_s per axis "
-                   "(default: bus.yml campaign.design, else paper)")
+
+    p.add_argument(
+        "--campaign",
+        choices=DESIGNS,
+        help="paper: the paper's trapezoid campaign (the reference); "
+        "short: a multisine per axis designed for the identification, campaign.short_time_s per axis "
+        "(default: bus.yml campaign.design, else paper)",
+    )
 
 
 def can_channel(text: str) -> str | int:
@@ -61,9 +87,12 @@ def can_channel(text: str) -> str | int:
 def drive(p: argparse.ArgumentParser, params: bool = True) -> None:
     """Bus, drive profile, --params (a tune result) and --json: what tune/write/validate share."""
     bus(p)
-    p.add_argument("--profile", default=None,
-                   help="drive profile: a shipped name or a YAML file (default: the profile the bus "
-                        "configuration names, else drive_bridge_servo)")
+    p.add_argument(
+        "--profile",
+        default=None,
+        help="drive profile: a shipped name or a YAML file (default: the profile the bus "
+        "configuration names, else drive_bridge_servo)",
+    )
     if params:
         p.add_argument("--params", required=True, help="tune result (tune.json)")
     json_flag(p)
@@ -71,17 +100,23 @@ def drive(p: argparse.ArgumentParser, params: bool = True) -> None:
 
 def motion(p: argparse.ArgumentParser) -> None:
     """``--yes``: a command that moves a real machine asks the person beside it first."""
-    p.add_argument("--yes", action="store_true",
-                   help="move the real axes without asking (automation; the person who gives it vouches that "
-                        "the machine's surroundings are clear); --sim never asks")
+    p.add_argument(
+        "--yes",
+        action="store_true",
+        help="move the real axes without asking (automation; the person who gives it vouches that "
+        "the machine's surroundings are clear); --sim never asks",
+    )
 
 
 def dry_run(p: argparse.ArgumentParser) -> None:
     """``--dry-run`` on a command that moves: everything up to the first setpoint, read only."""
-    p.add_argument("--dry-run", action="store_true",
-                   help="scan, read the drives' units and positions, plan and check every motion against the "
-                        "limits, print the plan and stop: nothing that changes a drive's behaviour is written, "
-                        "nothing moves")
+    p.add_argument(
+        "--dry-run",
+        action="store_true",
+        help="scan, read the drives' units and positions, plan and check every motion against the "
+        "limits, print the plan and stop: nothing that changes a drive's behaviour is written, "
+        "nothing moves",
+    )
 
 
 def asks(args: argparse.Namespace, config: BusConfig, what: str) -> bool:
@@ -91,14 +126,17 @@ def asks(args: argparse.Namespace, config: BusConfig, what: str) -> bool:
         return False
     if not sys.stdin.isatty():
         axes = ", ".join(f"{a} (node {n.node_id})" for a, n in config.nodes.items())
-        raise UserError(f"{what} moves the real axes {axes} on {config.master.interface}:{config.master.channel}, "
-                        f"and no one at a terminal can confirm it: give --yes when the machine is clear to move "
-                        f"(nothing was written or moved)")
+        raise UserError(
+            f"{what} moves the real axes {axes} on {config.master.interface}:{config.master.channel}, "
+            f"and no one at a terminal can confirm it: give --yes when the machine is clear to move "
+            f"(nothing was written or moved)"
+        )
     return True
 
 
-def confirm_motion(args: argparse.Namespace, config: BusConfig, what: str,
-                   preview: Callable[[], str] | None = None) -> None:
+def confirm_motion(
+    args: argparse.Namespace, config: BusConfig, what: str, preview: Callable[[], str] | None = None
+) -> None:
     """Before a command that moves a real machine writes anything: ``--yes``, or a person at a
     terminal who types ``yes`` after reading what will move (``preview()``: the plan, read without
     writing anything); otherwise UserError (nothing written, nothing moved).  --sim moves nothing
@@ -108,8 +146,11 @@ def confirm_motion(args: argparse.Namespace, config: BusConfig, what: str,
     axes = ", ".join(f"{a} (node {n.node_id})" for a, n in config.nodes.items())
     if preview is not None:
         print(preview(), file=sys.stderr)
-    print(f"{what} will enable and move the real axes {axes} on {config.master.interface}:"
-          f"{config.master.channel}; each moves within the limits of {config.path}. Stand clear.", file=sys.stderr)
+    print(
+        f"{what} will enable and move the real axes {axes} on {config.master.interface}:"
+        f"{config.master.channel}; each moves within the limits of {config.path}. Stand clear.",
+        file=sys.stderr,
+    )
     try:
         answer = input("Type 'yes' to move: ")
     except EOFError:
@@ -120,9 +161,12 @@ def confirm_motion(args: argparse.Namespace, config: BusConfig, what: str,
 
 def json_flag(p: argparse.ArgumentParser) -> None:
     """``--json``: every command has it."""
-    p.add_argument("--json", action="store_true",
-                   help="print the result as one JSON object on stdout (its schema ships in the package); "
-                        "messages go to stderr")
+    p.add_argument(
+        "--json",
+        action="store_true",
+        help="print the result as one JSON object on stdout (its schema ships in the package); "
+        "messages go to stderr",
+    )
 
 
 def print_json(doc: dict) -> None:
@@ -140,16 +184,33 @@ def motor(p: argparse.ArgumentParser) -> None:
 def write_checks(p: argparse.ArgumentParser) -> None:
     """The margin floor a written gain set must keep, and the deliberate override."""
     from ..params.check import GM_FLOOR_DB, PM_FLOOR_DEG
-    p.add_argument("--min-phase-margin", type=float, default=PM_FLOOR_DEG, metavar="DEG",
-                   help="refuse gains whose loop phase margin on the identified model is below this "
-                        "(default: %(default)s°)")
-    p.add_argument("--min-gain-margin", type=float, default=GM_FLOOR_DB, metavar="DB",
-                   help="refuse gains whose loop gain margin is below this (default: %(default)s dB)")
-    p.add_argument("--force", action="store_true",
-                   help="write a gain set below the margin floor (recorded in the output); never values "
-                        "outside the drive's ranges")
-    p.add_argument("--allow-unverified-scales", action="store_true",
-                   help="write through drive-profile scales that have no documented source (marked in the output)")
+
+    p.add_argument(
+        "--min-phase-margin",
+        type=float,
+        default=PM_FLOOR_DEG,
+        metavar="DEG",
+        help="refuse gains whose loop phase margin on the identified model is below this "
+        "(default: %(default)s°)",
+    )
+    p.add_argument(
+        "--min-gain-margin",
+        type=float,
+        default=GM_FLOOR_DB,
+        metavar="DB",
+        help="refuse gains whose loop gain margin is below this (default: %(default)s dB)",
+    )
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help="write a gain set below the margin floor (recorded in the output); never values "
+        "outside the drive's ranges",
+    )
+    p.add_argument(
+        "--allow-unverified-scales",
+        action="store_true",
+        help="write through drive-profile scales that have no documented source (marked in the output)",
+    )
 
 
 def _seed(text: str) -> int:
@@ -161,19 +222,29 @@ def _seed(text: str) -> int:
 
 def db(p: argparse.ArgumentParser) -> None:
     """``--db``: the history database."""
-    p.add_argument("--db", metavar="URL", help="history database: sqlite:///PATH or postgresql://USER@HOST/DATABASE "
-                                               "(default: DRIVE_BRIDGE_DB, else history.sqlite in the user's data "
-                                               "directory); a password belongs in PGPASSWORD or ~/.pgpass, not here")
+    p.add_argument(
+        "--db",
+        metavar="URL",
+        help="history database: sqlite:///PATH or postgresql://USER@HOST/DATABASE "
+        "(default: DRIVE_BRIDGE_DB, else history.sqlite in the user's data "
+        "directory); a password belongs in PGPASSWORD or ~/.pgpass, not here",
+    )
 
 
 def history(p: argparse.ArgumentParser, asked: bool = False) -> None:
     """Whether the run is kept in the history database: by default (``--no-history`` not to), or
     only when ``asked`` (``--history``)."""
     if asked:
-        p.add_argument("--history", action="store_true", help="keep the identification in the history database")
+        p.add_argument(
+            "--history", action="store_true", help="keep the identification in the history database"
+        )
     else:
-        p.add_argument("--no-history", dest="history", action="store_false",
-                       help="do not keep this run in the history database")
+        p.add_argument(
+            "--no-history",
+            dest="history",
+            action="store_false",
+            help="do not keep this run in the history database",
+        )
     db(p)
 
 
@@ -208,9 +279,13 @@ def config(args: argparse.Namespace) -> BusConfig:
         cfg = replace(cfg, campaign=cfg.campaign.quick())
     if getattr(args, "together", False):
         cfg = replace(cfg, campaign=replace(cfg.campaign, together=True))
-    if not getattr(args, "sim", False):            # the simulated robot needs no CAN interface
-        cfg = resolve(cfg, getattr(args, "interface", None), getattr(args, "channel", None),
-                      getattr(args, "bitrate", None))
+    if not getattr(args, "sim", False):  # the simulated robot needs no CAN interface
+        cfg = resolve(
+            cfg,
+            getattr(args, "interface", None),
+            getattr(args, "channel", None),
+            getattr(args, "bitrate", None),
+        )
     for note in cfg.master.notes:
         print(f"drive-bridge: note: {note}", file=sys.stderr)
     return cfg
@@ -219,10 +294,17 @@ def config(args: argparse.Namespace) -> BusConfig:
 def session_options(args: argparse.Namespace) -> Options:
     """What a Session needs from the command line."""
     R, L = getattr(args, "motor_R", None), getattr(args, "motor_L", None)
-    return Options(sim=args.sim, realtime=args.realtime, sim_config=args.sim_config,
-                   profile=getattr(args, "profile", Options.profile), motor=(R, L) if R and L else None,
-                   seed=getattr(args, "seed", 0), force=getattr(args, "force", False),
-                   pm_floor=getattr(args, "min_phase_margin", Options.pm_floor),
-                   gm_floor=getattr(args, "min_gain_margin", Options.gm_floor),
-                   allow_unverified_scales=getattr(args, "allow_unverified_scales", False),
-                   history=getattr(args, "history", False), db=getattr(args, "db", None))
+    return Options(
+        sim=args.sim,
+        realtime=args.realtime,
+        sim_config=args.sim_config,
+        profile=getattr(args, "profile", Options.profile),
+        motor=(R, L) if R and L else None,
+        seed=getattr(args, "seed", 0),
+        force=getattr(args, "force", False),
+        pm_floor=getattr(args, "min_phase_margin", Options.pm_floor),
+        gm_floor=getattr(args, "min_gain_margin", Options.gm_floor),
+        allow_unverified_scales=getattr(args, "allow_unverified_scales", False),
+        history=getattr(args, "history", False),
+        db=getattr(args, "db", None),
+    )

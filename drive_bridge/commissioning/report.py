@@ -8,6 +8,7 @@ evidence plot and the error before → after, the gains before and after with th
 loop pictures, the validation (following error, overshoot, settling, model torque error, before
 and after, with what got worse explained) and its plots, and the objects written and verified.
 """
+
 from __future__ import annotations
 
 import json
@@ -28,7 +29,7 @@ from .worse import worse
 
 REPORT = "report.html"
 REPORT_MD = "report.md"
-FIGURES = "figures"                 # the validation plots the report draws (the others are the steps')
+FIGURES = "figures"  # the validation plots the report draws (the others are the steps')
 #: the cascade's gains, SI motor side (rotary; a linear axis reads m for rad)
 GAIN_UNITS = {"KpP": "1/s", "FwF": "1", "KpS": "Nm·s/rad", "KiS": "1/s", "KpC": "V/A", "KiC": "1/s"}
 
@@ -37,8 +38,9 @@ def _milli(v: float | None, fmt: str = ".3g") -> str:
     return number(None if v is None else v * 1e3, fmt)
 
 
-def _validation_png(traces: Mapping[str, np.ndarray], axis: str, traj: str, path: Path,
-                    loop: dict | None) -> Path | None:
+def _validation_png(
+    traces: Mapping[str, np.ndarray], axis: str, traj: str, path: Path, loop: dict | None
+) -> Path | None:
     """Following error before and after (each on its own scale, with what the identified model and
     the gains predict for it where ``loop`` gives them: tune.json's model, motor and gains, and
     whether the after run fed the model torque forward), position, velocity, torque."""
@@ -53,16 +55,28 @@ def _validation_png(traces: Mapping[str, np.ndarray], axis: str, traj: str, path
             continue
         t = traces[f"{k}/t"]
         fe = (traces[f"{k}/demand"] - traces[f"{k}/position"]) * 1e3
-        ax.plot(t, fe, color=color, lw=0.8, label=f"measured, RMS {np.sqrt(np.nanmean(fe ** 2)):.3g} mrad")
+        ax.plot(t, fe, color=color, lw=0.8, label=f"measured, RMS {np.sqrt(np.nanmean(fe**2)):.3g} mrad")
         if loop is not None:
             gains = loop["gains_before" if sc == "before" else "gains"]
-            model_fe = 1e3 * predicted_following_error(loop["model"], gains, loop["motor"]["L"],
-                                                       sc == "after" and loop["feedforward"], t, traces[f"{k}/demand"],
-                                                       Controller.from_dict(loop.get("controller")).timing.tick_s)
-            ax.plot(t, model_fe, color="k", lw=0.7, ls="--",
-                    label=f"model, RMS {np.sqrt(np.mean(model_fe ** 2)):.3g} mrad")
+            model_fe = 1e3 * predicted_following_error(
+                loop["model"],
+                gains,
+                loop["motor"]["L"],
+                sc == "after" and loop["feedforward"],
+                t,
+                traces[f"{k}/demand"],
+                Controller.from_dict(loop.get("controller")).timing.tick_s,
+            )
+            ax.plot(
+                t,
+                model_fe,
+                color="k",
+                lw=0.7,
+                ls="--",
+                label=f"model, RMS {np.sqrt(np.mean(model_fe**2)):.3g} mrad",
+            )
         ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8)
-        ax.set_ylabel(f"FE {sc} [mrad]")              # each on its own scale: the after trace has a shape
+        ax.set_ylabel(f"FE {sc} [mrad]")  # each on its own scale: the after trace has a shape
         dt = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
         vel.plot(t, np.gradient(traces[f"{k}/position"], dt), color=color, lw=0.8, label=f"measured ({sc})")
         tq.plot(t, traces[f"{k}/torque"], color=color, lw=0.8, label=sc)
@@ -78,8 +92,10 @@ def _validation_png(traces: Mapping[str, np.ndarray], axis: str, traj: str, path
         ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8)
     for ax in (fe_b, fe_a, pos, vel, tq):
         ax.grid(True, alpha=0.3)
-    fe_b.set_title(f"axis {axis}, {traj.replace('_', '-')}: following error before and after commissioning "
-                   f"(own scales), position, velocity and torque")
+    fe_b.set_title(
+        f"axis {axis}, {traj.replace('_', '-')}: following error before and after commissioning "
+        f"(own scales), position, velocity and torque"
+    )
     fig.subplots_adjust(left=0.07, right=0.79, bottom=0.05, top=0.96, hspace=0.12)
     return save(fig, path)
 
@@ -91,20 +107,31 @@ def _model(doc: Document, out: Path, axis: str, a: dict) -> None:
     for k, v in a["params"].items():
         sd = a["param_std"].get(k)
         paper = (a.get("paper") or {}).get(k)
-        rows.append([k, measured(v, sd) if isinstance(v, float) else number(v, ".4g"), number(sd, ".2g"), unit(k, kind),
-                     number(paper and paper["paper"], ".6g"),
-                     number(paper and paper["deviation_pct"], "+.1f") + (" %" if paper else "")])
+        rows.append(
+            [
+                k,
+                measured(v, sd) if isinstance(v, float) else number(v, ".4g"),
+                number(sd, ".2g"),
+                unit(k, kind),
+                number(paper and paper["paper"], ".6g"),
+                number(paper and paper["deviation_pct"], "+.1f") + (" %" if paper else ""),
+            ]
+        )
     doc.heading(2, "Identified model")
     doc.table(["parameter", "value", "std", "unit", "paper (Table II)", "deviation"], rows)
-    doc.para(f"Validation ({a['identify_validation']}): RMSE {number(a['rmse_before'], '.4g')} → {number(a['rmse_after'], '.4g')} {u} "
-             f"(relative error {number(a['relative_error_before'] * 100, '.2f')} % → "
-             f"{number(a['relative_error_after'] * 100, '.2f')} %); noise floor {number(a['noise_floor'], '.3g')} {u}. "
-             f"Differential evolution on the same data: RMSE {number(a['ga']['rmse'], '.4g')} {u}.")
+    doc.para(
+        f"Validation ({a['identify_validation']}): RMSE {number(a['rmse_before'], '.4g')} → {number(a['rmse_after'], '.4g')} {u} "
+        f"(relative error {number(a['relative_error_before'] * 100, '.2f')} % → "
+        f"{number(a['relative_error_after'] * 100, '.2f')} %); noise floor {number(a['noise_floor'], '.3g')} {u}. "
+        f"Differential evolution on the same data: RMSE {number(a['ga']['rmse'], '.4g')} {u}."
+    )
     doc.figure(out / S.OUTPUT["identify"] / f"{axis}_fit.png", f"axis {axis}: measured and predicted torque")
     if (out / S.OUTPUT["identify"] / f"{axis}_response.png").exists():
-        doc.figure(out / S.OUTPUT["identify"] / f"{axis}_response.png",
-                   f"axis {axis}: the plant's response read from the campaign log beside the rigid model's "
-                   f"(reference; the measure step's response is the one the margins use)")
+        doc.figure(
+            out / S.OUTPUT["identify"] / f"{axis}_response.png",
+            f"axis {axis}: the plant's response read from the campaign log beside the rigid model's "
+            f"(reference; the measure step's response is the one the margins use)",
+        )
     if not a["effects"]:
         doc.para("No effect found beyond J, c0, c1.")
     else:
@@ -112,8 +139,10 @@ def _model(doc: Document, out: Path, axis: str, a: dict) -> None:
     for k, eff in enumerate(a["effects"]):
         p = ", ".join(f"{n} = {number(v, '.5g')}" for n, v in eff["params"].items())
         doc.heading(3, f"{k + 1}. {eff['name']} (depends on {eff['depends_on']})")
-        doc.para(f"{p}. Error after adding it: RMSE {number(eff['rmse_after'], '.4g')} {u}, relative error "
-                 f"{number(eff['relative_error_after'] * 100, '.2f')} %.")
+        doc.para(
+            f"{p}. Error after adding it: RMSE {number(eff['rmse_after'], '.4g')} {u}, relative error "
+            f"{number(eff['relative_error_after'] * 100, '.2f')} %."
+        )
         doc.para(eff["evidence"], "note")
         doc.figure(out / S.OUTPUT["identify"] / f"{axis}_effect{k + 1}_{eff['name']}.png", eff["name"])
     for un in a.get("unexplained") or []:
@@ -123,24 +152,53 @@ def _model(doc: Document, out: Path, axis: str, a: dict) -> None:
 def _gains(doc: Document, out: Path, axis: str, a: dict) -> None:
     before, after = a["gains_before"], a["gains_after"]
     doc.heading(2, "Gains")
-    doc.table(["gain", "unit", "before", "after"],
-              [[g, GAIN_UNITS.get(g, ""), number(before.get(g), ".4g"), number(v, ".4g")] for g, v in after.items()])
+    doc.table(
+        ["gain", "unit", "before", "after"],
+        [
+            [g, GAIN_UNITS.get(g, ""), number(before.get(g), ".4g"), number(v, ".4g")]
+            for g, v in after.items()
+        ],
+    )
     rows = []
     for loop in ("velocity", "position"):
         m, mb = a["margins"][loop], (a["margins_before"] or {}).get(loop) or {}
-        rows.append([loop, number(mb.get("phase_margin_deg"), ".1f"), number(m["phase_margin_deg"], ".1f"),
-                     number(mb.get("gain_margin_db"), ".1f"), number(m["gain_margin_db"], ".1f"),
-                     number(mb.get("crossover_hz"), ".0f"), number(m["crossover_hz"], ".0f")])
-    doc.table(["loop", "PM before [°]", "PM after [°]", "GM before [dB]", "GM after [dB]",
-               "crossover before [Hz]", "crossover after [Hz]"], rows)
+        rows.append(
+            [
+                loop,
+                number(mb.get("phase_margin_deg"), ".1f"),
+                number(m["phase_margin_deg"], ".1f"),
+                number(mb.get("gain_margin_db"), ".1f"),
+                number(m["gain_margin_db"], ".1f"),
+                number(mb.get("crossover_hz"), ".0f"),
+                number(m["crossover_hz"], ".0f"),
+            ]
+        )
+    doc.table(
+        [
+            "loop",
+            "PM before [°]",
+            "PM after [°]",
+            "GM before [dB]",
+            "GM after [dB]",
+            "crossover before [Hz]",
+            "crossover after [Hz]",
+        ],
+        rows,
+    )
     doc.figure(out / S.LOOPS.format(axis=axis), f"axis {axis} loops: Bode plots and step response")
     tuned = _tuned(out, axis) or {}
     c = Controller.from_dict(tuned.get("controller"))
     rates = ", ".join(f"{k} {v:g} Hz" for k, v in c.rates_hz.items() if v)
-    doc.para(f"Designed for the drive's {c.structure.replace('_', ' ')} ({rates})"
-             + (f"; not documented: {', '.join(c.unverified())} (the profile's reading)" if c.unverified() else "")
-             + (". Written as the position PID that is this cascade (D = KpS, P = KpS·(KpP + KiS), "
-                "I = KpS·KiS·KpP), its feed-forward the model's c1 and J." if c.structure == "position_pid" else "."))
+    doc.para(
+        f"Designed for the drive's {c.structure.replace('_', ' ')} ({rates})"
+        + (f"; not documented: {', '.join(c.unverified())} (the profile's reading)" if c.unverified() else "")
+        + (
+            ". Written as the position PID that is this cascade (D = KpS, P = KpS·(KpP + KiS), "
+            "I = KpS·KiS·KpP), its feed-forward the model's c1 and J."
+            if c.structure == "position_pid"
+            else "."
+        )
+    )
     if tuned.get("mode"):
         m = tuned["mode"]
         doc.para(f"A mode at {number(m['frequency_hz'], '.1f')} Hz ({m['source']}): {m['handling']}.")
@@ -164,7 +222,9 @@ def _loop(out: Path, axis: str, a: dict) -> dict | None:
     return {**t, "feedforward": ff}
 
 
-def _validation_figures(out: Path, summary: dict, loops: dict[str, dict | None]) -> dict[tuple[str, str], Path | None]:
+def _validation_figures(
+    out: Path, summary: dict, loops: dict[str, dict | None]
+) -> dict[tuple[str, str], Path | None]:
     """(axis, trajectory) -> its validation figure, drawn into ``out`` with what ``loops`` predict;
     side by side where work is shared out (:func:`..figures.side_by_side`)."""
     path = out / S.TRACES
@@ -172,37 +232,68 @@ def _validation_figures(out: Path, summary: dict, loops: dict[str, dict | None])
     if not jobs or not path.exists():
         return {}
     with np.load(path) as npz:
-        traces = dict(npz)                      # in memory: a forked process must not read the file's handle
+        traces = dict(npz)  # in memory: a forked process must not read the file's handle
     return dict(zip(jobs, side_by_side(_draw_validation, jobs, (traces, out, loops))))
 
 
-def _draw_validation(shared: tuple[Mapping[str, np.ndarray], Path, dict], job: tuple[str, str]) -> Path | None:
+def _draw_validation(
+    shared: tuple[Mapping[str, np.ndarray], Path, dict], job: tuple[str, str]
+) -> Path | None:
     traces, out, loops = shared
     axis, traj = job
     return _validation_png(traces, axis, traj, out / FIGURES / f"{axis}_{traj}.png", loops[axis])
 
 
-def _validation(doc: Document, axis: str, a: dict, loop: dict | None,
-                drawn: Mapping[tuple[str, str], Path | None]) -> None:
-    rows = [[t.replace("_", "-"), _milli(v["fe_rms_before"]), _milli(v["fe_rms_after"]),
-             number(v["improvement"], ".1f") + "×", _milli(v["fe_max_before"]), _milli(v["fe_max_after"]),
-             number(v.get("overshoot_pct_before"), ".2f"), number(v["overshoot_pct_after"], ".2f"),
-             _milli(v.get("settling_s_before"), ".0f"), _milli(v["settling_s_after"], ".0f"),
-             _milli(v["torque_rmse_before"]), _milli(v["torque_rmse_after"])]
-            for t, v in a["validation"].items()]
+def _validation(
+    doc: Document, axis: str, a: dict, loop: dict | None, drawn: Mapping[tuple[str, str], Path | None]
+) -> None:
+    rows = [
+        [
+            t.replace("_", "-"),
+            _milli(v["fe_rms_before"]),
+            _milli(v["fe_rms_after"]),
+            number(v["improvement"], ".1f") + "×",
+            _milli(v["fe_max_before"]),
+            _milli(v["fe_max_after"]),
+            number(v.get("overshoot_pct_before"), ".2f"),
+            number(v["overshoot_pct_after"], ".2f"),
+            _milli(v.get("settling_s_before"), ".0f"),
+            _milli(v["settling_s_after"], ".0f"),
+            _milli(v["torque_rmse_before"]),
+            _milli(v["torque_rmse_after"]),
+        ]
+        for t, v in a["validation"].items()
+    ]
     doc.heading(2, "Validation on reference trajectories")
-    doc.table(["trajectory", "FE RMS before [mrad]", "after", "improvement", "FE max before [mrad]", "after",
-               "overshoot before [%]", "after", "settling before [ms]", "after",
-               "model torque RMSE before [mNm]", "after"], rows)
+    doc.table(
+        [
+            "trajectory",
+            "FE RMS before [mrad]",
+            "after",
+            "improvement",
+            "FE max before [mrad]",
+            "after",
+            "overshoot before [%]",
+            "after",
+            "settling before [ms]",
+            "after",
+            "model torque RMSE before [mNm]",
+            "after",
+        ],
+        rows,
+    )
     notes = worse(a)
     if notes:
         doc.para([Strong("Worse after commissioning, and why:")])
         doc.bullets(notes)
     if loop is not None:
-        doc.para("The dashed lines: the following error the identified model and the gains predict along the same "
-                 "demand (the linear cascade with the model's other torques as a disturbance, "
-                 "drive_bridge/tuning/loops.py). After commissioning it gets the size, not the shape: what is left "
-                 "sits at the acceleration steps, where the drive's sampling decides.", "note")
+        doc.para(
+            "The dashed lines: the following error the identified model and the gains predict along the same "
+            "demand (the linear cascade with the model's other torques as a disturbance, "
+            "drive_bridge/tuning/loops.py). After commissioning it gets the size, not the shape: what is left "
+            "sits at the acceleration steps, where the drive's sampling decides.",
+            "note",
+        )
     for t in a["validation"]:
         png = drawn.get((axis, t))
         if png:
@@ -210,27 +301,49 @@ def _validation(doc: Document, axis: str, a: dict, loop: dict | None,
 
 
 def _written(doc: Document, a: dict) -> None:
-    rows = [[w["parameter"], w["object"], number(w["old"], ".6g"), number(w["new"], ".6g"), w["unit"],
-             f"{number(w['old_device'], '.6g')} → {number(w['new_device'], '.6g')}",
-             "verified" if w["verified"] else Strong("NOT verified")] for w in a["written"]]
+    rows = [
+        [
+            w["parameter"],
+            w["object"],
+            number(w["old"], ".6g"),
+            number(w["new"], ".6g"),
+            w["unit"],
+            f"{number(w['old_device'], '.6g')} → {number(w['new_device'], '.6g')}",
+            "verified" if w["verified"] else Strong("NOT verified"),
+        ]
+        for w in a["written"]
+    ]
     doc.heading(2, "Objects written")
     doc.table(["parameter", "object", "old", "new", "unit", "device units", "read back"], rows)
-    doc.para(("Stored to non-volatile memory (0x1010 save)." if a["stored"] else "Not stored.")
-             + (f" Not supported by the drive, not written: {', '.join(a['unsupported'])}."
-                if a["unsupported"] else ""))
+    doc.para(
+        ("Stored to non-volatile memory (0x1010 save)." if a["stored"] else "Not stored.")
+        + (
+            f" Not supported by the drive, not written: {', '.join(a['unsupported'])}."
+            if a["unsupported"]
+            else ""
+        )
+    )
 
 
 def _verdict(doc: Document, v: dict) -> None:
     style = {"PASS": "ok", "WARN": "partial", "INCOMPLETE": "partial", "FAIL": "failed"}
     doc.para([Strong(f"Verdict: {v['overall']}")], style[v["overall"]])
-    doc.table(["axis", "verdict", "criteria not met"],
-              [[Strong(a), Strong(x["verdict"]), reasons(x) or "every criterion met"] for a, x in v["axes"].items()])
+    doc.table(
+        ["axis", "verdict", "criteria not met"],
+        [
+            [Strong(a), Strong(x["verdict"]), reasons(x) or "every criterion met"]
+            for a, x in v["axes"].items()
+        ],
+    )
     acc = v["acceptance"]
-    doc.para(f"Criteria: velocity and position loop PM ≥ {acc['min_phase_margin_deg']:g}°, GM ≥ "
-             f"{acc['min_gain_margin_db']:g} dB and following error ≥ {acc['min_fe_improvement']:g}× better than the "
-             f"factory set on every validation trajectory (FAIL when not met); model torque RMSE ≤ "
-             f"{acc['max_rmse_over_noise']:g}× the noise floor, relative std of J, c0, c1 ≤ "
-             f"{acc['max_relative_std']:.0%}, identification consistent (WARN); bus.yml 'acceptance' sets them.", "note")
+    doc.para(
+        f"Criteria: velocity and position loop PM ≥ {acc['min_phase_margin_deg']:g}°, GM ≥ "
+        f"{acc['min_gain_margin_db']:g} dB and following error ≥ {acc['min_fe_improvement']:g}× better than the "
+        f"factory set on every validation trajectory (FAIL when not met); model torque RMSE ≤ "
+        f"{acc['max_rmse_over_noise']:g}× the noise floor, relative std of J, c0, c1 ≤ "
+        f"{acc['max_relative_std']:.0%}, identification consistent (WARN); bus.yml 'acceptance' sets them.",
+        "note",
+    )
 
 
 def _status(doc: Document, summary: dict) -> None:
@@ -241,22 +354,32 @@ def _status(doc: Document, summary: dict) -> None:
     elif status == "ok":
         doc.para([Strong("OK"), ": every step completed."], "ok")
     elif status == "degraded":
-        doc.para([Strong("DEGRADED TIMING"), ": every step completed, but " + "; ".join(summary["timing_degraded"])],
-                 "partial")
+        doc.para(
+            [
+                Strong("DEGRADED TIMING"),
+                ": every step completed, but " + "; ".join(summary["timing_degraded"]),
+            ],
+            "partial",
+        )
     else:
         doc.para([Strong("PARTIAL"), ": the steps run succeeded; some were not run."], "partial")
 
 
 def build_report(out: Path, summary: dict) -> Document:
     from ..history.since import history_note, report_section, trend_figures
+
     doc = Document("Commissioning report")
     _verdict(doc, summary["verdict"])
     _status(doc, summary)
-    doc.para(f"Bus configuration {summary['config']}{' (simulated robot)' if summary['simulated'] else ''}; "
-             f"drive profile {summary['profile']}; run directory {summary['out']}.")
+    doc.para(
+        f"Bus configuration {summary['config']}{' (simulated robot)' if summary['simulated'] else ''}; "
+        f"drive profile {summary['profile']}; run directory {summary['out']}."
+    )
     history_note(doc, summary.get("history"))
-    doc.table(["step", "status", "duration [s]"],
-              [[s["name"], s["status"], number(s["duration_s"], ".1f")] for s in summary["steps"]])
+    doc.table(
+        ["step", "status", "duration [s]"],
+        [[s["name"], s["status"], number(s["duration_s"], ".1f")] for s in summary["steps"]],
+    )
     loops = {axis: _loop(out, axis, a) for axis, a in summary["axes"].items() if a and a.get("validation")}
     drawn = _validation_figures(out, summary, loops)
     trends = trend_figures(out, summary.get("history"))

@@ -8,6 +8,7 @@ step succeeded, 2 a user mistake, 3 a bus or drive problem, 4 motion stopped (fa
 Ctrl-C, axes quick-stopped), 130 interrupted outside motion, 1 an internal error (its
 traceback in ``error.log``).
 """
+
 from __future__ import annotations
 
 import json
@@ -36,20 +37,22 @@ STEPS = tuple(S.STEP_FUNCTIONS)
 STATE = "state.json"
 SUMMARY = "summary.json"
 ERROR_LOG = "error.log"
-WHAT = {"scan": "find the configured drives on the bus",
-        "bringup": "configure the drives, read their parameters as they are",
-        "campaign": "excitation campaign, every axis (the robot moves)",
-        "identify": "J, c0, c1 and residual tracing",
-        "measure": "each axis's frequency response through its drive: a slow sweep with a torque-offset "
-                   "multisine, soft gains (the robot moves)",
-        "tune": "gains from the identified models, margins",
-        "write": "transactional write: backup, write, verify, store",
-        "validate": "reference trajectories, before vs after (the robot moves)"}
+WHAT = {
+    "scan": "find the configured drives on the bus",
+    "bringup": "configure the drives, read their parameters as they are",
+    "campaign": "excitation campaign, every axis (the robot moves)",
+    "identify": "J, c0, c1 and residual tracing",
+    "measure": "each axis's frequency response through its drive: a slow sweep with a torque-offset "
+    "multisine, soft gains (the robot moves)",
+    "tune": "gains from the identified models, margins",
+    "write": "transactional write: backup, write, verify, store",
+    "validate": "reference trajectories, before vs after (the robot moves)",
+}
 
 
 @dataclass
 class CommissionResult:
-    status: str                       # "ok", "failed" or "partial" (a subset of the steps ran)
+    status: str  # "ok", "failed" or "partial" (a subset of the steps ran)
     exit_code: int
     failed_step: str | None
     reason: str | None
@@ -64,9 +67,16 @@ class CommissionResult:
 
 def _state(out: Path, config: BusConfig, restart: bool) -> dict:
     from ..history.record import new_run_id, now
+
     path = out / STATE
-    fresh: dict[str, Any] = {"config": str(config.path.resolve()), "completed": [], "durations_s": {}, "failed": None,
-                             "run_id": new_run_id(), "started": now()}
+    fresh: dict[str, Any] = {
+        "config": str(config.path.resolve()),
+        "completed": [],
+        "durations_s": {},
+        "failed": None,
+        "run_id": new_run_id(),
+        "started": now(),
+    }
     if restart or not path.exists():
         return fresh
     try:
@@ -75,9 +85,11 @@ def _state(out: Path, config: BusConfig, restart: bool) -> dict:
     except (ValueError, KeyError, TypeError) as exc:
         raise UserError(f"{path}: unreadable; use --restart to start over") from exc
     if state.get("config") != fresh["config"]:
-        raise UserError(f"{out} holds a run with {state.get('config')}, not {fresh['config']}; "
-                        f"use --restart to start over there, or another --out")
-    state.setdefault("run_id", fresh["run_id"])        # a run directory of a drive-bridge before the history
+        raise UserError(
+            f"{out} holds a run with {state.get('config')}, not {fresh['config']}; "
+            f"use --restart to start over there, or another --out"
+        )
+    state.setdefault("run_id", fresh["run_id"])  # a run directory of a drive-bridge before the history
     state.setdefault("started", fresh["started"])
     return state
 
@@ -93,9 +105,16 @@ def _clear(out: Path) -> None:
             p.unlink()
 
 
-def commission(config: BusConfig, out: str | Path, options: Options | None = None, *,
-               steps: list[str] | None = None, restart: bool = False,
-               reporter: StepReporter | None = None, link: Link | None = None) -> CommissionResult:
+def commission(
+    config: BusConfig,
+    out: str | Path,
+    options: Options | None = None,
+    *,
+    steps: list[str] | None = None,
+    restart: bool = False,
+    reporter: StepReporter | None = None,
+    link: Link | None = None,
+) -> CommissionResult:
     """Run the commissioning steps of ``config`` with every output in ``out``.
 
     ``steps`` (names from :data:`STEPS`) runs only those, in pipeline order; without it the
@@ -117,13 +136,13 @@ def commission(config: BusConfig, out: str | Path, options: Options | None = Non
         todo = [s for s in STEPS if s in steps]
     else:
         done = [STEPS.index(s) for s in state["completed"] if s in STEPS]
-        todo = list(STEPS[max(done) + 1:]) if done else list(STEPS)
+        todo = list(STEPS[max(done) + 1 :]) if done else list(STEPS)
     reporter = reporter or StepReporter(list(STEPS))
     if not todo:
         reporter.note(f"every step is already completed in {out}; --restart to commission again")
     state["failed"] = None
     code = 0
-    failure: dict[str, str] | None = None       # the step that stopped the run, and why
+    failure: dict[str, str] | None = None  # the step that stopped the run, and why
     with Session(config, options, link) as session:
         ctx = S.Context(session, out, reporter)
         for step in todo:
@@ -137,7 +156,7 @@ def commission(config: BusConfig, out: str | Path, options: Options | None = Non
             t0 = time.perf_counter()
             try:
                 line = S.STEP_FUNCTIONS[step](ctx)
-            except (Exception, KeyboardInterrupt) as exc:      # every failure ends the run with a report
+            except (Exception, KeyboardInterrupt) as exc:  # every failure ends the run with a report
                 code, reason = _failure(exc, out)
                 failure = {"step": step, "reason": reason}
                 state["failed"] = failure
@@ -148,7 +167,9 @@ def commission(config: BusConfig, out: str | Path, options: Options | None = Non
                 break
             state["durations_s"][step] = time.perf_counter() - t0
             state["completed"] = [s for s in STEPS if s in state["completed"] or s == step]
-            state.setdefault("timing_degraded", {})[step] = ctx.degraded    # this run of the step replaces the last
+            state.setdefault("timing_degraded", {})[step] = (
+                ctx.degraded
+            )  # this run of the step replaces the last
             _save(out, state)
             log.info("step %s done in %.1f s: %s", step, state["durations_s"][step], line)
             reporter.done(step, state["durations_s"][step], line)
@@ -160,8 +181,10 @@ def commission(config: BusConfig, out: str | Path, options: Options | None = Non
         reporter.note(f"the commissioning completed but did not pass its acceptance criteria (exit {code})")
     elif failure is None and summary["status"] == "degraded":
         code = EXIT_CODES["degraded"]
-        reporter.note(f"WARNING: timing degraded ({'; '.join(summary['timing_degraded'])}); the data are kept "
-                      f"(exit {code})")
+        reporter.note(
+            f"WARNING: timing degraded ({'; '.join(summary['timing_degraded'])}); the data are kept "
+            f"(exit {code})"
+        )
     if options.history:
         summary["history"] = _keep(out, state, summary, config, options, reporter)
         if summary["history"]["interrupted"] and code == 0:
@@ -169,20 +192,32 @@ def commission(config: BusConfig, out: str | Path, options: Options | None = Non
     write_json(out / SUMMARY, summary)
     write_report(out, summary)
     if failure is not None:
-        reporter.note(f"stopped in step {failure['step']}. Everything recorded so far is in {out}; "
-                      f"{resume_hint(state, steps is not None)} (--restart to start over).")
+        reporter.note(
+            f"stopped in step {failure['step']}. Everything recorded so far is in {out}; "
+            f"{resume_hint(state, steps is not None)} (--restart to start over)."
+        )
     reporter.note(f"summary: {out / SUMMARY}; report: {out / REPORT} (and {REPORT_MD})")
-    for axis, how in holding.items():            # last: what the person beside the machine must know
+    for axis, how in holding.items():  # last: what the person beside the machine must know
         reporter.note(f"axis {axis}: {how}")
-    return CommissionResult(summary["status"], code, None if failure is None else failure["step"],
-                            None if failure is None else failure["reason"], todo, out, summary)
+    return CommissionResult(
+        summary["status"],
+        code,
+        None if failure is None else failure["step"],
+        None if failure is None else failure["reason"],
+        todo,
+        out,
+        summary,
+    )
 
 
-def _keep(out: Path, state: dict, summary: dict, config: BusConfig, options: Options, reporter: StepReporter) -> dict:
+def _keep(
+    out: Path, state: dict, summary: dict, config: BusConfig, options: Options, reporter: StepReporter
+) -> dict:
     """Keep the run in the history (one record per run directory: a resumed run replaces it) and
     compare its drives with their past and their siblings: ``summary.json``'s ``history``."""
     from ..history import keep
     from ..history.since import since_last_time
+
     record = history_record(out, state, summary, config, options.sim)
     kept = keep(record, options.db)
     reporter.note(kept.line())

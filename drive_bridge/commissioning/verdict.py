@@ -13,6 +13,7 @@ An axis is FAIL if a FAIL criterion is unmet, else WARN if a WARN criterion is, 
 criterion whose data the run did not produce (a step not run) is listed as not evaluated, and
 an axis with one is INCOMPLETE unless it already failed.  The overall verdict is the worst axis's.
 """
+
 from __future__ import annotations
 
 from typing import Any
@@ -23,8 +24,7 @@ ORDER = ("PASS", "WARN", "INCOMPLETE", "FAIL")
 
 
 def _criterion(name: str, severity: str, value: Any, limit: Any, ok: bool | None, unit: str = "") -> dict:
-    return {"criterion": name, "severity": severity, "value": value, "limit": limit, "unit": unit,
-            "met": ok}
+    return {"criterion": name, "severity": severity, "value": value, "limit": limit, "unit": unit, "met": ok}
 
 
 def axis_criteria(entry: dict, acc: Acceptance) -> list[dict]:
@@ -34,34 +34,82 @@ def axis_criteria(entry: dict, acc: Acceptance) -> list[dict]:
     for loop in ("velocity", "position"):
         m = margins.get(loop) or {}
         pm, gm = m.get("phase_margin_deg"), m.get("gain_margin_db")
-        out.append(_criterion(f"{loop} loop phase margin", "FAIL", pm, f"≥ {acc.min_phase_margin_deg:g}",
-                              None if pm is None else pm >= acc.min_phase_margin_deg, "°"))
-        out.append(_criterion(f"{loop} loop gain margin", "FAIL", gm, f"≥ {acc.min_gain_margin_db:g}",
-                              None if gm is None else gm >= acc.min_gain_margin_db, "dB"))
+        out.append(
+            _criterion(
+                f"{loop} loop phase margin",
+                "FAIL",
+                pm,
+                f"≥ {acc.min_phase_margin_deg:g}",
+                None if pm is None else pm >= acc.min_phase_margin_deg,
+                "°",
+            )
+        )
+        out.append(
+            _criterion(
+                f"{loop} loop gain margin",
+                "FAIL",
+                gm,
+                f"≥ {acc.min_gain_margin_db:g}",
+                None if gm is None else gm >= acc.min_gain_margin_db,
+                "dB",
+            )
+        )
     validation = entry.get("validation") or {}
     if not validation:
-        out.append(_criterion("following error improvement", "FAIL", None, f"≥ {acc.min_fe_improvement:g}×",
-                              None, "×"))
+        out.append(
+            _criterion(
+                "following error improvement", "FAIL", None, f"≥ {acc.min_fe_improvement:g}×", None, "×"
+            )
+        )
     for traj, v in validation.items():
         before, after = v.get("fe_rms_before"), v.get("fe_rms_after")
         ratio = before / after if before and after else None
-        out.append(_criterion(f"following error improvement ({traj.replace('_', ' ')})", "FAIL",
-                              ratio, f"≥ {acc.min_fe_improvement:g}×",
-                              None if ratio is None else ratio >= acc.min_fe_improvement, "×"))
+        out.append(
+            _criterion(
+                f"following error improvement ({traj.replace('_', ' ')})",
+                "FAIL",
+                ratio,
+                f"≥ {acc.min_fe_improvement:g}×",
+                None if ratio is None else ratio >= acc.min_fe_improvement,
+                "×",
+            )
+        )
     rmse, floor = entry.get("rmse_after"), entry.get("noise_floor")
     ratio = rmse / floor if rmse is not None and floor else None
-    out.append(_criterion("model torque RMSE over the noise floor", "WARN", ratio, f"≤ {acc.max_rmse_over_noise:g}×",
-                          None if ratio is None else ratio <= acc.max_rmse_over_noise, "×"))
+    out.append(
+        _criterion(
+            "model torque RMSE over the noise floor",
+            "WARN",
+            ratio,
+            f"≤ {acc.max_rmse_over_noise:g}×",
+            None if ratio is None else ratio <= acc.max_rmse_over_noise,
+            "×",
+        )
+    )
     params, std = entry.get("params") or {}, entry.get("param_std") or {}
     for p in ("J", "c0", "c1"):
         rel = abs(std[p] / params[p]) if p in std and params.get(p) else None
-        out.append(_criterion(f"relative std of {p}", "WARN", rel, f"≤ {acc.max_relative_std:.0%}",
-                              None if rel is None else rel <= acc.max_relative_std, ""))
+        out.append(
+            _criterion(
+                f"relative std of {p}",
+                "WARN",
+                rel,
+                f"≤ {acc.max_relative_std:.0%}",
+                None if rel is None else rel <= acc.max_relative_std,
+                "",
+            )
+        )
     if acc.require_consistent:
         c = entry.get("consistency")
-        out.append(_criterion("identification consistent between parts of the data", "WARN",
-                              None if c is None else c.get("consistent"), True,
-                              None if c is None else bool(c.get("consistent"))))
+        out.append(
+            _criterion(
+                "identification consistent between parts of the data",
+                "WARN",
+                None if c is None else c.get("consistent"),
+                True,
+                None if c is None else bool(c.get("consistent")),
+            )
+        )
     return out
 
 
@@ -78,10 +126,12 @@ def verdict(axes: dict[str, dict], acc: Acceptance) -> dict:
     out = {}
     for a, entry in axes.items():
         criteria = axis_criteria(entry, acc)
-        out[a] = {"verdict": axis_verdict(criteria),
-                  "unmet": [describe(c) for c in criteria if c["met"] is False],
-                  "not_evaluated": [c["criterion"] for c in criteria if c["met"] is None],
-                  "criteria": criteria}
+        out[a] = {
+            "verdict": axis_verdict(criteria),
+            "unmet": [describe(c) for c in criteria if c["met"] is False],
+            "not_evaluated": [c["criterion"] for c in criteria if c["met"] is None],
+            "criteria": criteria,
+        }
     overall = max((v["verdict"] for v in out.values()), key=ORDER.index, default="INCOMPLETE")
     return {"overall": overall, "axes": out, "acceptance": vars(acc)}
 
@@ -94,7 +144,7 @@ def describe(c: dict) -> str:
     unit = c["unit"]
     if not isinstance(v, float):
         shown = str(v)
-    elif c["criterion"].startswith("relative std"):       # a fraction, shown in per cent as its limit is
+    elif c["criterion"].startswith("relative std"):  # a fraction, shown in per cent as its limit is
         shown = f"{v * 100:.3g} %"
     else:
         shown = f"{v:.3g}" + ("×" if unit == "×" else f" {unit}" if unit else "")
@@ -103,10 +153,13 @@ def describe(c: dict) -> str:
 
 def reasons(x: dict) -> str:
     """Why one axis has its verdict: the criteria it misses, else those not evaluated ("" for PASS)."""
-    return "; ".join(x["unmet"]) or (f"not evaluated: {', '.join(x['not_evaluated'])}" if x["not_evaluated"] else "")
+    return "; ".join(x["unmet"]) or (
+        f"not evaluated: {', '.join(x['not_evaluated'])}" if x["not_evaluated"] else ""
+    )
 
 
 def headline(v: dict) -> str:
     """One line: the overall verdict and each axis's, with what it misses."""
-    return f"{v['overall']}: " + ", ".join(f"{a} {x['verdict']}" + (f" ({why})" if (why := reasons(x)) else "")
-                                           for a, x in v["axes"].items())
+    return f"{v['overall']}: " + ", ".join(
+        f"{a} {x['verdict']}" + (f" ({why})" if (why := reasons(x)) else "") for a, x in v["axes"].items()
+    )

@@ -6,6 +6,7 @@ in the :mod:`.store` (SQLite by default, a PostgreSQL server by URL: :mod:`.loca
 by Alembic migrations), and :mod:`.compare` sets each drive against its past and its siblings;
 :mod:`.since` is the commissioning report's "since last time".
 """
+
 from __future__ import annotations
 
 from .compare import Comparison, History, compare

@@ -13,6 +13,7 @@ and ``threshold`` relative to the previous value, or at least :data:`SPREADS` sp
 ``threshold`` relative to the siblings' median.  A parameter the data did not determine is never
 compared (its std says nothing is known).  Simulated runs are compared only with simulated runs.
 """
+
 from __future__ import annotations
 
 import math
@@ -25,10 +26,10 @@ import numpy as np
 from ..outputs import hex32
 from .store import ParameterRow
 
-SIGMAS = 3.0            # a change against the drive's own past: at least this many combined std ...
-SPREADS = 3.0           # ... against its siblings: at least this many spreads ...
-THRESHOLD = 0.10        # ... and, either way, at least this much relative change
-MIN_SIBLINGS = 3        # fewer siblings than this give no median and spread worth a word
+SIGMAS = 3.0  # a change against the drive's own past: at least this many combined std ...
+SPREADS = 3.0  # ... against its siblings: at least this many spreads ...
+THRESHOLD = 0.10  # ... and, either way, at least this much relative change
+MIN_SIBLINGS = 3  # fewer siblings than this give no median and spread worth a word
 
 
 @dataclass
@@ -47,15 +48,15 @@ class Comparison:
     previous: float | None = None
     previous_std: float | None = None
     previous_when: datetime | None = None
-    sigmas: float | None = None            # (value - previous) / combined std
-    relative: float | None = None          # (value - previous) / |previous|
+    sigmas: float | None = None  # (value - previous) / combined std
+    relative: float | None = None  # (value - previous) / |previous|
     siblings: int = 0
     median: float | None = None
     spread: float | None = None
-    spreads: float | None = None           # (value - median) / spread
+    spreads: float | None = None  # (value - median) / spread
     relative_to_median: float | None = None
-    changed: bool = False                  # named against its own past
-    stands_out: bool = False               # named against its siblings
+    changed: bool = False  # named against its own past
+    stands_out: bool = False  # named against its siblings
 
     @property
     def named(self) -> bool:
@@ -65,22 +66,41 @@ class Comparison:
         """'serial 1002, axis y: c0 +38 % (21 σ) since 2026-06-02 and 3.1 spread above its 11 siblings'."""
         parts = []
         if self.previous is not None and self.relative is not None and self.previous_when is not None:
-            parts.append(f"{self.relative * 100:+.0f} % ({_sig(self.sigmas)} σ) since {self.previous_when.date()}")
+            parts.append(
+                f"{self.relative * 100:+.0f} % ({_sig(self.sigmas)} σ) since {self.previous_when.date()}"
+            )
         if self.spreads is not None:
             side = "above" if self.spreads >= 0 else "below"
             parts.append(f"{abs(self.spreads):.1f} spread {side} its {self.siblings} siblings")
-        return f"{drive_name(self.serial)}, axis {self.axis}: {self.name} " + " and ".join(parts or ["no history"])
+        return f"{drive_name(self.serial)}, axis {self.axis}: {self.name} " + " and ".join(
+            parts or ["no history"]
+        )
 
     def as_dict(self) -> dict:
-        return {"axis": self.axis, "serial": None if self.serial is None else hex32(self.serial),
-                "parameter": self.name, "unit": self.unit,
-                "value": self.value, "std": self.std, "run_id": self.run_id, "when": self.when.isoformat(),
-                "previous": self.previous, "previous_std": self.previous_std,
-                "previous_when": self.previous_when and self.previous_when.isoformat(),
-                "sigmas": self.sigmas, "relative": self.relative, "siblings": self.siblings,
-                "siblings_median": self.median, "siblings_spread": self.spread, "spreads": self.spreads,
-                "relative_to_median": self.relative_to_median, "changed": self.changed,
-                "stands_out": self.stands_out, "named": self.named, "words": self.words()}
+        return {
+            "axis": self.axis,
+            "serial": None if self.serial is None else hex32(self.serial),
+            "parameter": self.name,
+            "unit": self.unit,
+            "value": self.value,
+            "std": self.std,
+            "run_id": self.run_id,
+            "when": self.when.isoformat(),
+            "previous": self.previous,
+            "previous_std": self.previous_std,
+            "previous_when": self.previous_when and self.previous_when.isoformat(),
+            "sigmas": self.sigmas,
+            "relative": self.relative,
+            "siblings": self.siblings,
+            "siblings_median": self.median,
+            "siblings_spread": self.spread,
+            "spreads": self.spreads,
+            "relative_to_median": self.relative_to_median,
+            "changed": self.changed,
+            "stands_out": self.stands_out,
+            "named": self.named,
+            "words": self.words(),
+        }
 
 
 def drive_name(serial: int | None) -> str:
@@ -103,8 +123,12 @@ class History:
         grouped: dict[tuple, dict[str, dict[str, ParameterRow]]] = defaultdict(dict)
         for r in self.rows:
             grouped[self.key(r)].setdefault(r.run_id, {})[r.name] = r
-        self.runs = {k: sorted(((rid, next(iter(p.values())).started, p) for rid, p in v.items()),
-                               key=lambda x: (x[1], x[0])) for k, v in grouped.items()}
+        self.runs = {
+            k: sorted(
+                ((rid, next(iter(p.values())).started, p) for rid, p in v.items()), key=lambda x: (x[1], x[0])
+            )
+            for k, v in grouped.items()
+        }
 
     @staticmethod
     def key(r: ParameterRow) -> tuple:
@@ -120,15 +144,19 @@ class History:
         out = []
         for k, runs in self.runs.items():
             if k[:3] == (sim, vendor, product) and k[4] == axis and k[3] != serial:
-                vals = [p[name] for _, t, p in runs if name in p and p[name].determined
-                        and (upto is None or t <= upto)]
+                vals = [
+                    p[name]
+                    for _, t, p in runs
+                    if name in p and p[name].determined and (upto is None or t <= upto)
+                ]
                 if vals:
                     out.append(vals[-1])
         return out
 
 
-def compare_one(history: History, key: tuple, run_id: str, threshold: float = THRESHOLD,
-                latest_siblings: bool = False) -> list[Comparison]:
+def compare_one(
+    history: History, key: tuple, run_id: str, threshold: float = THRESHOLD, latest_siblings: bool = False
+) -> list[Comparison]:
     """The parameters of ``run_id`` on the drive-axis ``key``, each against the run before it on
     that drive-axis and against the siblings as they stood then (``latest_siblings``: as they
     stand now)."""
@@ -159,8 +187,10 @@ def compare_one(history: History, key: tuple, run_id: str, threshold: float = TH
             median = float(np.median(values))
             # never narrower than what one identification resolves: three siblings that agree by
             # chance do not make a 1 % difference news
-            spread = max(float(1.4826 * np.median(np.abs(values - median))),
-                         float(np.median([s.std or 0.0 for s in sib])))
+            spread = max(
+                float(1.4826 * np.median(np.abs(values - median))),
+                float(np.median([s.std or 0.0 for s in sib])),
+            )
             c.median, c.spread = median, spread
             if spread > 0 and median != 0:
                 c.spreads = (p.value - median) / spread
@@ -170,8 +200,9 @@ def compare_one(history: History, key: tuple, run_id: str, threshold: float = TH
     return out
 
 
-def compare(history: History, axis: str | None = None, serial: int | None = None,
-            threshold: float = THRESHOLD) -> list[Comparison]:
+def compare(
+    history: History, axis: str | None = None, serial: int | None = None, threshold: float = THRESHOLD
+) -> list[Comparison]:
     """Every drive-axis's latest run (only ``axis``, only the drive ``serial``, when given),
     ordered by serial, axis and parameter."""
     out = []

@@ -1,6 +1,7 @@
 """Where the history is kept: the database URL (``--db``, else ``DRIVE_BRIDGE_DB``, else a SQLite
 file in the user's data directory), the local outbox beside that file, and the URL as it may be
 shown (its password never)."""
+
 from __future__ import annotations
 
 import os
@@ -40,14 +41,18 @@ def database_url(given: str | None = None) -> sa.URL:
     try:
         url = sa.make_url(text)
     except sa.exc.ArgumentError:
-        raise UserError(f"{where}: not a database URL (sqlite:///PATH or postgresql://USER@HOST/DATABASE)") from None
+        raise UserError(
+            f"{where}: not a database URL (sqlite:///PATH or postgresql://USER@HOST/DATABASE)"
+        ) from None
     backend = url.get_backend_name()
     if backend == "postgresql":
         url = url.set(drivername="postgresql+psycopg")
         if "sslmode" not in url.query:
             url = url.update_query_dict({"sslmode": "prefer"})
     elif backend != "sqlite":
-        raise UserError(f"{where}: {backend} databases are not supported (sqlite:///PATH or postgresql://...)")
+        raise UserError(
+            f"{where}: {backend} databases are not supported (sqlite:///PATH or postgresql://...)"
+        )
     return url
 
 

@@ -2,6 +2,7 @@
 JSON file per run id, beside the default database in the user's data directory), then sent; it
 leaves the outbox once the database holds it.  ``history sync`` sends what waits; a record sent
 twice is kept once (:meth:`~.store.HistoryStore.add` is idempotent by run id)."""
+
 from __future__ import annotations
 
 import json
@@ -23,20 +24,25 @@ class Kept:
     """Where a record went: into the database, or into the outbox (and why)."""
 
     run_id: str
-    database: str                     # the URL, password masked
+    database: str  # the URL, password masked
     stored: bool
-    reason: str | None = None         # why it waits in the outbox
+    reason: str | None = None  # why it waits in the outbox
     outbox: Path | None = None
-    sent_from_outbox: list[str] = field(default_factory=list)   # earlier records sent with it
-    interrupted: bool = False         # Ctrl-C while it was sent: the record waits in the outbox
+    sent_from_outbox: list[str] = field(default_factory=list)  # earlier records sent with it
+    interrupted: bool = False  # Ctrl-C while it was sent: the record waits in the outbox
 
     def line(self) -> str:
         if self.stored:
-            extra = (f" (and {len(self.sent_from_outbox)} earlier record(s) from the outbox)"
-                     if self.sent_from_outbox else "")
+            extra = (
+                f" (and {len(self.sent_from_outbox)} earlier record(s) from the outbox)"
+                if self.sent_from_outbox
+                else ""
+            )
             return f"history: run {self.run_id} kept in {self.database}{extra}"
-        return (f"history: the database is unreachable ({self.reason}); run {self.run_id} waits in "
-                f"{self.outbox}: 'drive-bridge history sync' sends it")
+        return (
+            f"history: the database is unreachable ({self.reason}); run {self.run_id} waits in "
+            f"{self.outbox}: 'drive-bridge history sync' sends it"
+        )
 
 
 def _entry(path: Path) -> dict | None:
@@ -51,7 +57,9 @@ def _entry(path: Path) -> dict | None:
 
 def waiting(url: sa.URL | None = None) -> list[tuple[Path, dict]]:
     """The outbox's entries (for the database ``url`` only, when given), oldest first."""
-    paths = sorted(outbox_dir().glob("*.json"), key=lambda p: p.stat().st_mtime) if outbox_dir().is_dir() else []
+    paths = (
+        sorted(outbox_dir().glob("*.json"), key=lambda p: p.stat().st_mtime) if outbox_dir().is_dir() else []
+    )
     entries = [(p, e) for p in paths if (e := _entry(p)) is not None]
     return [(p, e) for p, e in entries if url is None or e["database"] == shown(url)]
 
@@ -73,20 +81,27 @@ def keep(record: dict, db: str | None = None) -> Kept:
         log.info("%s", exc)
         return Kept(record["run_id"], shown(url), False, str(exc).split(": ", 1)[-1], path)
     except KeyboardInterrupt:
-        return Kept(record["run_id"], shown(url), False, "interrupted (Ctrl-C) while it was sent", path,
-                    interrupted=True)
+        return Kept(
+            record["run_id"],
+            shown(url),
+            False,
+            "interrupted (Ctrl-C) while it was sent",
+            path,
+            interrupted=True,
+        )
     if record["run_id"] not in sent.sent + sent.already:
         return Kept(record["run_id"], shown(url), False, sent.failed or "not sent", path)
-    return Kept(record["run_id"], shown(url), True,
-                sent_from_outbox=[r for r in sent.sent if r != record["run_id"]])
+    return Kept(
+        record["run_id"], shown(url), True, sent_from_outbox=[r for r in sent.sent if r != record["run_id"]]
+    )
 
 
 @dataclass
 class Sent:
-    sent: list[str] = field(default_factory=list)        # run ids the database did not hold before
-    already: list[str] = field(default_factory=list)     # run ids it held already (a retry)
-    failed: str | None = None                            # why sending stopped
-    left: int = 0                                        # entries still waiting for this database
+    sent: list[str] = field(default_factory=list)  # run ids the database did not hold before
+    already: list[str] = field(default_factory=list)  # run ids it held already (a retry)
+    failed: str | None = None  # why sending stopped
+    left: int = 0  # entries still waiting for this database
 
 
 def send(store: HistoryStore) -> Sent:

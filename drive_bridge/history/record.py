@@ -7,6 +7,7 @@ Parameters are SI, motor side, each with its std and whether the data determined
 identities are 0x1018's fields as hex strings.  Nothing in a record comes from the database URL: a record never
 holds a password.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -15,8 +16,8 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
-from ..version import __version__
 from ..outputs import hex32
+from ..version import __version__
 
 SCHEMA = "drive-bridge/history-record"
 SCHEMA_VERSION = 1
@@ -44,8 +45,11 @@ def identity(found: dict | None) -> dict[str, str] | None:
     keep them: hex strings ("0x000003EA"), as every output of drive-bridge writes identities."""
     if not found:
         return None
-    return {k: hex32(int(found[k], 16) if isinstance(found[k], str) else int(found[k])) for k in IDENTITY
-            if k in found}
+    return {
+        k: hex32(int(found[k], 16) if isinstance(found[k], str) else int(found[k]))
+        for k in IDENTITY
+        if k in found
+    }
 
 
 def identity_number(value: str | None) -> int | None:
@@ -56,59 +60,130 @@ def identity_number(value: str | None) -> int | None:
 def _parameters(ident: dict) -> dict[str, dict[str, Any]]:
     """An identify.json axis's parameters: value, std, unit, determined."""
     from ..ident.report import unit
+
     kind = "rotary" if (ident.get("units") or {}).get("position", "rad") == "rad" else "linear"
     std = ident.get("param_std") or {}
     undetermined = ident.get("undetermined") or {}
-    return {name: {"value": value, "std": std.get(name), "unit": unit(name, kind),
-                   "determined": name not in undetermined and std.get(name) is not None}
-            for name, value in (ident.get("params") or {}).items() if value is not None}
+    return {
+        name: {
+            "value": value,
+            "std": std.get(name),
+            "unit": unit(name, kind),
+            "determined": name not in undetermined and std.get(name) is not None,
+        }
+        for name, value in (ident.get("params") or {}).items()
+        if value is not None
+    }
 
 
 def identified(ident: dict) -> dict[str, Any]:
     """What an axis of identify.json adds to the record."""
-    return {"parameters": _parameters(ident), "effects": [e["name"] for e in ident.get("effects") or []],
-            "undetermined": ident.get("undetermined") or {},
-            "consistent": (ident.get("consistency") or {}).get("consistent"),
-            "rmse_before": ident.get("rmse_before"), "rmse_after": ident.get("rmse_after"),
-            "noise_floor": ident.get("noise_floor")}
+    return {
+        "parameters": _parameters(ident),
+        "effects": [e["name"] for e in ident.get("effects") or []],
+        "undetermined": ident.get("undetermined") or {},
+        "consistent": (ident.get("consistency") or {}).get("consistent"),
+        "rmse_before": ident.get("rmse_before"),
+        "rmse_after": ident.get("rmse_after"),
+        "noise_floor": ident.get("noise_floor"),
+    }
 
 
 def following_error(validation: dict) -> dict[str, dict[str, Any]]:
-    return {traj: {k: v.get(k) for k in ("fe_rms_before", "fe_rms_after", "fe_max_before", "fe_max_after")}
-            for traj, v in validation.items()}
+    return {
+        traj: {k: v.get(k) for k in ("fe_rms_before", "fe_rms_after", "fe_max_before", "fe_max_after")}
+        for traj, v in validation.items()
+    }
 
 
-def record(kind: str, run_id: str, started: str, axes: list[dict], *, config: str | Path | None, out: str | Path | None,
-           status: str | None, verdict: str | None, simulated: bool, failed: dict | None = None) -> dict:
+def record(
+    kind: str,
+    run_id: str,
+    started: str,
+    axes: list[dict],
+    *,
+    config: str | Path | None,
+    out: str | Path | None,
+    status: str | None,
+    verdict: str | None,
+    simulated: bool,
+    failed: dict | None = None,
+) -> dict:
     """A record document; ``updated`` is now (a later record of the same run replaces an earlier one)."""
-    return {"schema": SCHEMA, "schema_version": SCHEMA_VERSION, "run_id": run_id, "kind": kind,
-            "started": started, "updated": now(), "version": __version__,
-            "config": None if config is None else {"path": str(Path(config).resolve()),
-                                                   "sha256": file_sha256(config)},
-            "out": None if out is None else str(Path(out).resolve()), "status": status, "verdict": verdict,
-            "simulated": simulated, "failed": failed, "axes": axes}
+    return {
+        "schema": SCHEMA,
+        "schema_version": SCHEMA_VERSION,
+        "run_id": run_id,
+        "kind": kind,
+        "started": started,
+        "updated": now(),
+        "version": __version__,
+        "config": None
+        if config is None
+        else {"path": str(Path(config).resolve()), "sha256": file_sha256(config)},
+        "out": None if out is None else str(Path(out).resolve()),
+        "status": status,
+        "verdict": verdict,
+        "simulated": simulated,
+        "failed": failed,
+        "axes": axes,
+    }
 
 
-def write_record(run_id: str, started: str, outcome: dict, identities: dict[str, dict], config_path: Path,
-                 simulated: bool, out: str | Path | None) -> dict:
+def write_record(
+    run_id: str,
+    started: str,
+    outcome: dict,
+    identities: dict[str, dict],
+    config_path: Path,
+    simulated: bool,
+    out: str | Path | None,
+) -> dict:
     """The record of a ``write``: what was written and read back, and stored, per drive
     (``outcome`` is the write result's JSON document)."""
     axes = []
     for a, w in outcome["axes"].items():
-        axes.append({"axis": a, "node_id": w["node_id"], "drive": identity(identities.get(a)),
-                     "written": [{"parameter": o["parameter"], "object": o["object"], "unit": o["unit"],
-                                  "old": o["old_si"], "new": o["new_si"], "verified": o["verified"]}
-                                 for o in w["objects"]],
-                     "stored": w["stored"], "unsupported": w["unsupported"], "dry_run": w["dry_run"],
-                     "margins_after": outcome.get("margins", {}).get(a)})
-    return record("write", run_id, started, axes, config=config_path, out=out,
-                  status="ok" if outcome["ok"] else "failed", verdict=None, simulated=simulated)
+        axes.append(
+            {
+                "axis": a,
+                "node_id": w["node_id"],
+                "drive": identity(identities.get(a)),
+                "written": [
+                    {
+                        "parameter": o["parameter"],
+                        "object": o["object"],
+                        "unit": o["unit"],
+                        "old": o["old_si"],
+                        "new": o["new_si"],
+                        "verified": o["verified"],
+                    }
+                    for o in w["objects"]
+                ],
+                "stored": w["stored"],
+                "unsupported": w["unsupported"],
+                "dry_run": w["dry_run"],
+                "margins_after": outcome.get("margins", {}).get(a),
+            }
+        )
+    return record(
+        "write",
+        run_id,
+        started,
+        axes,
+        config=config_path,
+        out=out,
+        status="ok" if outcome["ok"] else "failed",
+        verdict=None,
+        simulated=simulated,
+    )
 
 
 def identify_record(run_id: str, started: str, doc: dict, source: str | Path, out: str | Path | None) -> dict:
     """The record of an ``identify`` of a log (``doc``: its identify.json); no drive identity."""
-    axes = [{"axis": a, "node_id": None, "drive": None, "source": str(Path(source).resolve()), **identified(r)}
-            for a, r in doc["axes"].items()]
-    return record("identify", run_id, started, axes, config=None, out=out, status="ok", verdict=None,
-                  simulated=False)
-
+    axes = [
+        {"axis": a, "node_id": None, "drive": None, "source": str(Path(source).resolve()), **identified(r)}
+        for a, r in doc["axes"].items()
+    ]
+    return record(
+        "identify", run_id, started, axes, config=None, out=out, status="ok", verdict=None, simulated=False
+    )

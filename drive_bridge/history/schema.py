@@ -1,6 +1,7 @@
 """The history database's tables (SQLAlchemy Core): one row per run, per axis of a run, per
 identified parameter of an axis.  The Alembic migrations in ``migrations/`` create and change
 them; the schema's version is Alembic's revision in the database's ``alembic_version`` table."""
+
 from __future__ import annotations
 
 import sqlalchemy as sa
@@ -10,13 +11,14 @@ metadata = sa.MetaData()
 #: one commissioning, write or identification; ``record`` is the whole record document
 #: (:mod:`.record`), the columns beside it what lists and comparisons select on
 runs = sa.Table(
-    "runs", metadata,
+    "runs",
+    metadata,
     sa.Column("run_id", sa.String(32), primary_key=True),
-    sa.Column("kind", sa.String(16), nullable=False),               # commission, write, identify
+    sa.Column("kind", sa.String(16), nullable=False),  # commission, write, identify
     sa.Column("started_at", sa.DateTime(timezone=True), nullable=False),
     sa.Column("updated_at", sa.DateTime(timezone=True), nullable=False),
-    sa.Column("version", sa.String(32), nullable=False),            # drive-bridge's
-    sa.Column("config_sha256", sa.String(64)),                      # the bus configuration's bytes
+    sa.Column("version", sa.String(32), nullable=False),  # drive-bridge's
+    sa.Column("config_sha256", sa.String(64)),  # the bus configuration's bytes
     sa.Column("out_dir", sa.Text),
     sa.Column("status", sa.String(16)),
     sa.Column("verdict", sa.String(16)),
@@ -26,7 +28,8 @@ runs = sa.Table(
 
 #: an axis of a run and the drive that moved it (0x1018; unknown for a log identified alone)
 axes = sa.Table(
-    "axes", metadata,
+    "axes",
+    metadata,
     sa.Column("run_id", sa.String(32), sa.ForeignKey("runs.run_id", ondelete="CASCADE"), primary_key=True),
     sa.Column("axis", sa.String(64), primary_key=True),
     sa.Column("node_id", sa.Integer),
@@ -43,7 +46,8 @@ axes = sa.Table(
 #: an identified parameter of an axis of a run: value and std in SI (motor side), ``determined``
 #: false where the identification said the data do not determine it
 parameters = sa.Table(
-    "parameters", metadata,
+    "parameters",
+    metadata,
     sa.Column("run_id", sa.String(32), primary_key=True),
     sa.Column("axis", sa.String(64), primary_key=True),
     sa.Column("name", sa.String(128), primary_key=True),

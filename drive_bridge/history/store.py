@@ -1,5 +1,6 @@
 """The history database: opened (and its schema brought to this version by Alembic), records
 added idempotently by run id, runs listed and read, parameter series selected for comparison."""
+
 from __future__ import annotations
 
 import logging
@@ -13,14 +14,14 @@ import sqlalchemy as sa
 from ..errors import DriveBridgeError, UserError
 from ..outputs import hex32
 from . import schema as T
-from .record import IDENTITY, identity_number
 from .location import data_dir, database_url, redacted, shown
+from .record import IDENTITY, identity_number
 
 log = logging.getLogger(__name__)
 
 MIGRATIONS = Path(__file__).parent / "migrations"
-CONNECT_TIMEOUT_S = 5       # a server that does not answer: the record goes to the outbox, the run goes on
-STATEMENT_TIMEOUT_S = 30    # ... nor one that answers the connection and then hangs
+CONNECT_TIMEOUT_S = 5  # a server that does not answer: the record goes to the outbox, the run goes on
+STATEMENT_TIMEOUT_S = 30  # ... nor one that answers the connection and then hangs
 
 
 class HistoryUnavailable(DriveBridgeError):
@@ -69,12 +70,16 @@ class HistoryStore:
             args["connect_timeout"] = CONNECT_TIMEOUT_S
             args["options"] = f"-c statement_timeout={STATEMENT_TIMEOUT_S * 1000}"
         elif self.url.database and Path(self.url.database).parent == data_dir():
-            data_dir().mkdir(parents=True, exist_ok=True)   # the default file (a file --db names needs its folder)
+            data_dir().mkdir(
+                parents=True, exist_ok=True
+            )  # the default file (a file --db names needs its folder)
         try:
             self.engine = sa.create_engine(self.url, connect_args=args, poolclass=sa.pool.NullPool)
-        except ModuleNotFoundError as exc:      # the driver of a server database
-            raise HistoryUnavailable(f"history database {shown(self.url)}: its driver is not installed ({exc.name}); "
-                                     f"pip install 'drive-bridge[postgresql]'") from None
+        except ModuleNotFoundError as exc:  # the driver of a server database
+            raise HistoryUnavailable(
+                f"history database {shown(self.url)}: its driver is not installed ({exc.name}); "
+                f"pip install 'drive-bridge[postgresql]'"
+            ) from None
         self._guard(self._migrate)
 
     @property
@@ -98,15 +103,18 @@ class HistoryStore:
         from alembic.config import Config
         from alembic.runtime.migration import MigrationContext
         from alembic.script import ScriptDirectory
+
         cfg = Config()
         cfg.set_main_option("script_location", str(MIGRATIONS))
         script = ScriptDirectory.from_config(cfg)
         with self.engine.begin() as conn:
             current = MigrationContext.configure(conn).get_current_revision()
             if current is not None and current not in {s.revision for s in script.walk_revisions()}:
-                raise HistoryUnavailable(f"history database {self.where}: its schema revision {current} is newer "
-                                         f"than this drive-bridge knows (head {script.get_current_head()}); "
-                                         f"upgrade drive-bridge")
+                raise HistoryUnavailable(
+                    f"history database {self.where}: its schema revision {current} is newer "
+                    f"than this drive-bridge knows (head {script.get_current_head()}); "
+                    f"upgrade drive-bridge"
+                )
             if current != script.get_current_head():
                 cfg.attributes["connection"] = conn
                 command.upgrade(cfg, "head")
@@ -114,6 +122,7 @@ class HistoryStore:
 
     def revision(self) -> str | None:
         from alembic.runtime.migration import MigrationContext
+
         with self.engine.connect() as conn:
             return MigrationContext.configure(conn).get_current_revision()
 
@@ -124,39 +133,76 @@ class HistoryStore:
 
     def _add(self, record: dict) -> bool:
         with self.engine.begin() as conn:
-            held = conn.execute(sa.select(T.runs.c.updated_at).where(T.runs.c.run_id == record["run_id"])).scalar()
+            held = conn.execute(
+                sa.select(T.runs.c.updated_at).where(T.runs.c.run_id == record["run_id"])
+            ).scalar()
             if held is not None and _aware(held) >= _time(record["updated"]):
                 return False
-            if held is not None:            # a resumed commissioning: its later record replaces the earlier
+            if held is not None:  # a resumed commissioning: its later record replaces the earlier
                 for table in (T.parameters, T.axes, T.runs):
                     conn.execute(table.delete().where(table.c.run_id == record["run_id"]))
-            conn.execute(T.runs.insert().values(
-                run_id=record["run_id"], kind=record["kind"], started_at=_time(record["started"]),
-                updated_at=_time(record["updated"]), version=record["version"],
-                config_sha256=(record.get("config") or {}).get("sha256"), out_dir=record.get("out"),
-                status=record.get("status"), verdict=record.get("verdict"), simulated=record["simulated"],
-                record=record))
+            conn.execute(
+                T.runs.insert().values(
+                    run_id=record["run_id"],
+                    kind=record["kind"],
+                    started_at=_time(record["started"]),
+                    updated_at=_time(record["updated"]),
+                    version=record["version"],
+                    config_sha256=(record.get("config") or {}).get("sha256"),
+                    out_dir=record.get("out"),
+                    status=record.get("status"),
+                    verdict=record.get("verdict"),
+                    simulated=record["simulated"],
+                    record=record,
+                )
+            )
             for a in record["axes"]:
                 drive = a.get("drive") or {}
-                conn.execute(T.axes.insert().values(
-                    run_id=record["run_id"], axis=a["axis"], node_id=a.get("node_id"),
-                    **{k: identity_number(drive.get(k)) for k in IDENTITY}, verdict=a.get("verdict"),
-                    consistent=a.get("consistent"), stored=a.get("stored")))
-                rows = [{"run_id": record["run_id"], "axis": a["axis"], "name": name, "value": p["value"],
-                         "std": p["std"], "unit": p["unit"], "determined": p["determined"]}
-                        for name, p in (a.get("parameters") or {}).items()]
+                conn.execute(
+                    T.axes.insert().values(
+                        run_id=record["run_id"],
+                        axis=a["axis"],
+                        node_id=a.get("node_id"),
+                        **{k: identity_number(drive.get(k)) for k in IDENTITY},
+                        verdict=a.get("verdict"),
+                        consistent=a.get("consistent"),
+                        stored=a.get("stored"),
+                    )
+                )
+                rows = [
+                    {
+                        "run_id": record["run_id"],
+                        "axis": a["axis"],
+                        "name": name,
+                        "value": p["value"],
+                        "std": p["std"],
+                        "unit": p["unit"],
+                        "determined": p["determined"],
+                    }
+                    for name, p in (a.get("parameters") or {}).items()
+                ]
                 if rows:
                     conn.execute(T.parameters.insert(), rows)
         return True
 
-    def runs(self, limit: int | None = None, axis: str | None = None, serial: int | None = None) -> list[dict]:
+    def runs(
+        self, limit: int | None = None, axis: str | None = None, serial: int | None = None
+    ) -> list[dict]:
         """The runs, newest first: id, kind, times, status, verdict, axes (with their drives'
         serials, hex), run directory."""
         return list(self._guard(self._runs, limit, axis, serial))
 
     def _runs(self, limit: int | None, axis: str | None, serial: int | None) -> list[dict]:
-        query = sa.select(T.runs.c.run_id, T.runs.c.kind, T.runs.c.started_at, T.runs.c.status, T.runs.c.verdict,
-                          T.runs.c.simulated, T.runs.c.out_dir, T.runs.c.version)
+        query = sa.select(
+            T.runs.c.run_id,
+            T.runs.c.kind,
+            T.runs.c.started_at,
+            T.runs.c.status,
+            T.runs.c.verdict,
+            T.runs.c.simulated,
+            T.runs.c.out_dir,
+            T.runs.c.version,
+        )
         if axis is not None or serial is not None:
             sel = sa.select(T.axes.c.run_id)
             sel = sel.where(T.axes.c.axis == axis) if axis is not None else sel
@@ -167,20 +213,26 @@ class HistoryStore:
             rows = [dict(r._mapping) for r in conn.execute(query)]
             drives: dict[str, list[tuple[str, int | None]]] = {}
             ids = [r["run_id"] for r in rows]
-            for row in conn.execute(sa.select(T.axes.c.run_id, T.axes.c.axis, T.axes.c.serial)
-                                    .where(T.axes.c.run_id.in_(ids)).order_by(T.axes.c.axis)):
+            for row in conn.execute(
+                sa.select(T.axes.c.run_id, T.axes.c.axis, T.axes.c.serial)
+                .where(T.axes.c.run_id.in_(ids))
+                .order_by(T.axes.c.axis)
+            ):
                 drives.setdefault(row.run_id, []).append((row.axis, row.serial))
         for r in rows:
             r["started_at"] = _aware(r["started_at"]).isoformat()
-            r["axes"] = [{"axis": a, "serial": None if s is None else hex32(s)} for a, s in drives.get(r["run_id"], [])]
+            r["axes"] = [
+                {"axis": a, "serial": None if s is None else hex32(s)} for a, s in drives.get(r["run_id"], [])
+            ]
         return rows
 
     def record(self, run: str) -> dict:
         """The record of run ``run`` (its id, or a prefix of it no other run id shares)."""
         rows = self._guard(self._records, run)
         if not rows:
-            raise UserError(f"history database {self.where}: no run {run!r}; 'drive-bridge history list' shows "
-                            f"the runs")
+            raise UserError(
+                f"history database {self.where}: no run {run!r}; 'drive-bridge history list' shows the runs"
+            )
         if len(rows) > 1:
             ids = ", ".join(r["run_id"] for r in rows)
             raise UserError(f"run {run!r} is the start of more than one run id ({ids}, ...); give more of it")
@@ -188,8 +240,14 @@ class HistoryStore:
 
     def _records(self, run: str) -> list[dict]:
         with self.engine.connect() as conn:
-            return [r.record for r in conn.execute(sa.select(T.runs.c.record).where(
-                T.runs.c.run_id.startswith(run, autoescape=True)).limit(2))]
+            return [
+                r.record
+                for r in conn.execute(
+                    sa.select(T.runs.c.record)
+                    .where(T.runs.c.run_id.startswith(run, autoescape=True))
+                    .limit(2)
+                )
+            ]
 
     def parameters(self) -> list[ParameterRow]:
         """Every identified parameter of every run that has a drive identity, oldest run first."""
@@ -197,16 +255,47 @@ class HistoryStore:
 
     def _parameters(self) -> list[ParameterRow]:
         r, a, p = T.runs.c, T.axes.c, T.parameters.c
-        query = (sa.select(r.run_id, r.started_at, r.simulated, a.axis, a.vendor_id, a.product_code, a.serial,
-                           p.name, p.value, p.std, p.unit, p.determined)
-                 .select_from(T.parameters.join(T.axes, sa.and_(p.run_id == a.run_id, p.axis == a.axis))
-                              .join(T.runs, r.run_id == a.run_id))
-                 .where(a.serial.is_not(None))          # a log identified alone names no drive: not compared
-                 .order_by(r.started_at, r.run_id))
+        query = (
+            sa.select(
+                r.run_id,
+                r.started_at,
+                r.simulated,
+                a.axis,
+                a.vendor_id,
+                a.product_code,
+                a.serial,
+                p.name,
+                p.value,
+                p.std,
+                p.unit,
+                p.determined,
+            )
+            .select_from(
+                T.parameters.join(T.axes, sa.and_(p.run_id == a.run_id, p.axis == a.axis)).join(
+                    T.runs, r.run_id == a.run_id
+                )
+            )
+            .where(a.serial.is_not(None))  # a log identified alone names no drive: not compared
+            .order_by(r.started_at, r.run_id)
+        )
         with self.engine.connect() as conn:
-            return [ParameterRow(row.run_id, _aware(row.started_at), row.simulated, row.axis, row.vendor_id,
-                                 row.product_code, row.serial, row.name, row.value, row.std, row.unit, row.determined)
-                    for row in conn.execute(query)]
+            return [
+                ParameterRow(
+                    row.run_id,
+                    _aware(row.started_at),
+                    row.simulated,
+                    row.axis,
+                    row.vendor_id,
+                    row.product_code,
+                    row.serial,
+                    row.name,
+                    row.value,
+                    row.std,
+                    row.unit,
+                    row.determined,
+                )
+                for row in conn.execute(query)
+            ]
 
     def close(self) -> None:
         self.engine.dispose()
@@ -215,4 +304,3 @@ class HistoryStore:
 def _aware(t: datetime) -> datetime:
     """A time read back (SQLite gives it without its zone; every time kept is UTC)."""
     return t if t.tzinfo is not None else t.replace(tzinfo=timezone.utc)
-

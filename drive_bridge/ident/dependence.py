@@ -3,6 +3,7 @@
 torque against the motion, friction-like) and, over the position, times the acceleration
 (``inertial``: an inertia that changes along the stroke).  Shared by the residual tracing (which
 effects to try) and its report (what is left unexplained)."""
+
 from __future__ import annotations
 
 from typing import Any
@@ -36,8 +37,14 @@ def variables(s: Signals) -> dict[str, np.ndarray]:
     """The candidate variables of a residual: position, velocity, acceleration, |acceleration|
     (the transmitted inertial torque's size), time, direction, and the other axes' position,
     velocity and acceleration."""
-    out = {"position": s.q, "velocity": s.qd, "acceleration": s.qdd, "abs_acceleration": np.abs(s.qdd),
-           "time": s.t, "direction": np.sign(s.qd)}
+    out = {
+        "position": s.q,
+        "velocity": s.qd,
+        "acceleration": s.qdd,
+        "abs_acceleration": np.abs(s.qdd),
+        "time": s.t,
+        "direction": np.sign(s.qd),
+    }
     for o, (q, qd, qdd) in s.others.items():
         out.update({f"{o}_position": q, f"{o}_velocity": qd, f"{o}_acceleration": qdd})
     return out
@@ -56,13 +63,14 @@ def dependences(s: Samples, residual: np.ndarray, min_share: float, p_value: flo
         found: list[dict[str, Any]] = []
         for form, resid in (("even", r), ("odd", r * direction), ("inertial", r * accel)):
             if form == "odd" and name in ("direction", "velocity"):
-                continue                    # sign(q̇)·r over q̇ or its sign: the even test sees it already
+                continue  # sign(q̇)·r over q̇ or its sign: the even test sees it already
             if form == "inertial" and name != "position":
-                continue                    # an inertia changes with where the load is, not with speed
+                continue  # an inertia changes with where the load is, not with speed
             share, p, f = eta2(x[m], resid)
             if share >= min_share and p < p_value:
-                found.append({"depends_on": name, "form": form, "fraction": round(share, 4),
-                              "evidence": round(f, 1)})
+                found.append(
+                    {"depends_on": name, "form": form, "fraction": round(share, 4), "evidence": round(f, 1)}
+                )
         if found:
             out.append(max(found, key=lambda d: d["evidence"]))
     return out

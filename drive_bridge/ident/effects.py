@@ -11,12 +11,13 @@ c0 - dc0 and c1 - dc1.  Units follow the axis (rotary: rad, Nm; linear: m, N).
 ``constant``, ``position``, ``velocity``, ``direction``, ``time``, or
 ``<other axis>_position|_velocity|_acceleration``.
 """
+
 from __future__ import annotations
 
 import inspect
 import math
-from collections.abc import Container, Iterator
-from typing import Callable, ClassVar
+from collections.abc import Callable, Container, Iterator
+from typing import ClassVar
 
 import numpy as np
 from scipy import optimize
@@ -25,13 +26,12 @@ from ..errors import InternalError
 from .dependence import dependences, variables
 from .signals import Samples, Signals
 
-
 #: the effects a drive's model (or the master's feed-forward of it) carries: their terms are the drive
 #: model's parameters (:data:`drive_bridge.tuning.feedforward.MODEL_KEYS`); any other is reported, not written
 DRIVE_EFFECTS = ("offset", "position_linear", "direction_asymmetry", "position_periodic")
 
 
-SEARCH_SAMPLES = 8192       # an effect's nonlinear parameters searched on about this many samples (Effect.fit)
+SEARCH_SAMPLES = 8192  # an effect's nonlinear parameters searched on about this many samples (Effect.fit)
 
 
 class NotFittedError(InternalError):
@@ -48,9 +48,9 @@ class Effect:
     :class:`~drive_bridge.ident.model.AxisModel`.
     """
 
-    name: str                                     # the effect's name in reports (may be per instance)
-    coef_names: tuple[str, ...]                   # its linear coefficients (may depend on the instance)
-    nonlinear: ClassVar[tuple[str, ...]] = ()     # nonlinear parameters, learned by fit as <name>_
+    name: str  # the effect's name in reports (may be per instance)
+    coef_names: tuple[str, ...]  # its linear coefficients (may depend on the instance)
+    nonlinear: ClassVar[tuple[str, ...]] = ()  # nonlinear parameters, learned by fit as <name>_
     #: regressor columns (n × len(coef_names)) at the signals, with the nonlinear parameters given
     #: by keyword (``odd``: their magnitude)
     _columns: Callable[..., np.ndarray]
@@ -80,8 +80,11 @@ class Effect:
         init = type(self).__init__
         if init is object.__init__:
             return {}
-        return {k: getattr(self, k) for k, p in inspect.signature(init).parameters.items()
-                if k != "self" and p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)}
+        return {
+            k: getattr(self, k)
+            for k, p in inspect.signature(init).parameters.items()
+            if k != "self" and p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)
+        }
 
     def bounds(self) -> dict[str, tuple[float, float]]:
         """Search range of each nonlinear parameter."""
@@ -104,7 +107,7 @@ class Effect:
         key = (type(self).__name__, str(self.get_params()), tuple(learned.values()))
         return s.parallel(key, lambda ch: self._signed(ch, self._columns(ch, **learned)), logged)
 
-    def fit(self, s: Samples, fixed: np.ndarray, y: np.ndarray, seed: int = 0) -> "Effect":
+    def fit(self, s: Samples, fixed: np.ndarray, y: np.ndarray, seed: int = 0) -> Effect:
         """Learn the nonlinear parameters on samples ``s`` against the observation ``y``, with the
         columns ``fixed`` (the model so far) solved by least squares inside (variable projection):
         differential evolution seeded with ``seed`` finds the minimum on every ``n //
@@ -116,10 +119,14 @@ class Effect:
         bounds = [self.bounds()[k] for k in self.nonlinear]
         full = self._sse(s, fixed, y)
         every = max(1, len(y) // SEARCH_SAMPLES)
-        search = full if every == 1 else self._sse(s.take(np.arange(len(y)) % every == 0), fixed[::every],
-                                                   y[::every])
-        x = optimize.differential_evolution(search, bounds, seed=seed, popsize=8, maxiter=25, tol=1e-6,
-                                            polish=False).x
+        search = (
+            full
+            if every == 1
+            else self._sse(s.take(np.arange(len(y)) % every == 0), fixed[::every], y[::every])
+        )
+        x = optimize.differential_evolution(
+            search, bounds, seed=seed, popsize=8, maxiter=25, tol=1e-6, polish=False
+        ).x
         polished = optimize.minimize(full, x, method="L-BFGS-B", bounds=bounds)
         if polished.fun < full(x):
             x = polished.x
@@ -130,7 +137,7 @@ class Effect:
     def _sse(self, s: Samples, fixed: np.ndarray, y: np.ndarray) -> Callable[[np.ndarray], float]:
         """The sum of squared errors of ``y`` with the columns ``fixed`` and this effect's at the
         nonlinear parameters given, every coefficient solved (the fixed columns projected out once)."""
-        scale = np.sqrt(np.mean(fixed ** 2, axis=0))
+        scale = np.sqrt(np.mean(fixed**2, axis=0))
         scale[scale == 0] = 1.0
         q, _ = np.linalg.qr(fixed / scale)
         y_perp = y - q @ (q.T @ y)
@@ -143,6 +150,7 @@ class Effect:
             coef, *_ = np.linalg.lstsq(extra.T @ extra, extra.T @ y_perp, rcond=None)
             r = y_perp - extra @ coef
             return float(r @ r)
+
         return sse
 
     def params(self, coef: np.ndarray) -> dict[str, float | str]:
@@ -217,13 +225,20 @@ class PositionPeriodic(Effect):
 
     def params(self, coef: np.ndarray) -> dict[str, float | str]:
         a, b = coef
-        return {"amplitude": float(math.hypot(a, b)), "period": self.period_, "phase": float(math.atan2(b, a))}
+        return {
+            "amplitude": float(math.hypot(a, b)),
+            "period": self.period_,
+            "phase": float(math.atan2(b, a)),
+        }
 
     def param_std(self, coef: np.ndarray, cov: np.ndarray) -> dict[str, float]:
         a, b = coef
         amp = math.hypot(a, b) or 1.0
-        return {"amplitude": float(math.sqrt(max(0.0, (a * a * cov[0, 0] + b * b * cov[1, 1]
-                                                       + 2 * a * b * cov[0, 1]) / amp ** 2)))}
+        return {
+            "amplitude": float(
+                math.sqrt(max(0.0, (a * a * cov[0, 0] + b * b * cov[1, 1] + 2 * a * b * cov[0, 1]) / amp**2))
+            )
+        }
 
 
 class Stribeck(Effect):
@@ -243,7 +258,7 @@ class Stribeck(Effect):
         return {"velocity": (self.low, self.high)}
 
     def _columns(self, s: Signals, velocity: float) -> np.ndarray:
-        return np.exp(-(s.qd_band / velocity) ** 2)[:, None]
+        return np.exp(-((s.qd_band / velocity) ** 2))[:, None]
 
     def params(self, coef: np.ndarray) -> dict[str, float | str]:
         return {"amplitude": float(coef[0]), "velocity": self.velocity_}
@@ -288,11 +303,11 @@ class CrossAxis(Effect):
         return f"{self.source}_{'position' if self.form.startswith('position') else self.form}"
 
     @property
-    def odd(self) -> bool:                        # the friction form: q_src times sign(q̇)
+    def odd(self) -> bool:  # the friction form: q_src times sign(q̇)
         return self.form == "position_friction"
 
     @property
-    def linear_in_signals(self) -> bool:          # q_src, q̇_src, q̈_src: filtered already
+    def linear_in_signals(self) -> bool:  # q_src, q̇_src, q̈_src: filtered already
         return True
 
     def _columns(self, s: Signals) -> np.ndarray:
@@ -324,8 +339,11 @@ class Drift(Effect):
 
     def _columns(self, s: Signals, time_constant: float) -> np.ndarray:
         span = self.end - self.start
-        mean = (time_constant * (np.exp(-self.start / time_constant) - np.exp(-self.end / time_constant)) / span
-                if span > 0 else 0.0)
+        mean = (
+            time_constant * (np.exp(-self.start / time_constant) - np.exp(-self.end / time_constant)) / span
+            if span > 0
+            else 0.0
+        )
         return (np.exp(-s.t / time_constant) - mean)[:, None]
 
     def params(self, coef: np.ndarray) -> dict[str, float | str]:
@@ -347,8 +365,15 @@ class Spline(Effect):
 
     GRID = 512
 
-    def __init__(self, variable: str, form: str, knots: tuple[float, ...], low: float, high: float,
-                 grid: tuple[float, ...]):
+    def __init__(
+        self,
+        variable: str,
+        form: str,
+        knots: tuple[float, ...],
+        low: float,
+        high: float,
+        grid: tuple[float, ...],
+    ):
         self.variable, self.form, self.knots, self.low, self.high = variable, form, tuple(knots), low, high
         self.grid = tuple(grid)
         self.name = f"spline_{form}_{variable}"
@@ -357,22 +382,30 @@ class Spline(Effect):
         terms = [np.ones_like(x)]
         if form == "even":
             terms.append(x)
-        if variable == "velocity":                          # over its own velocity: a friction curve
+        if variable == "velocity":  # over its own velocity: a friction curve
             terms.append(np.sign(x))
         removed = np.column_stack(terms)
         orthogonal = basis - removed @ np.linalg.lstsq(removed, basis, rcond=None)[0]
         _, sv, vt = np.linalg.svd(orthogonal, full_matrices=False)
-        reduce = vt[:int(np.sum(sv > 1e-9 * sv[0]))].T
-        self._on_grid = orthogonal @ reduce                 # the columns at the grid points
+        reduce = vt[: int(np.sum(sv > 1e-9 * sv[0]))].T
+        self._on_grid = orthogonal @ reduce  # the columns at the grid points
         self.coef_names = tuple(f"b{i + 1}" for i in range(reduce.shape[1]))
 
     def get_params(self) -> dict:
-        return {"variable": self.variable, "form": self.form, "knots": self.knots, "low": self.low, "high": self.high,
-                "grid": self.grid}
+        return {
+            "variable": self.variable,
+            "form": self.form,
+            "knots": self.knots,
+            "low": self.low,
+            "high": self.high,
+            "grid": self.grid,
+        }
 
     def __repr__(self) -> str:
-        return (f"Spline(variable={self.variable!r}, form={self.form!r}, knots={len(self.knots)}, "
-                f"low={self.low:.6g}, high={self.high:.6g})")
+        return (
+            f"Spline(variable={self.variable!r}, form={self.form!r}, knots={len(self.knots)}, "
+            f"low={self.low:.6g}, high={self.high:.6g})"
+        )
 
     @property
     def depends_on(self) -> str:
@@ -380,6 +413,7 @@ class Spline(Effect):
 
     def _basis(self, x: np.ndarray) -> np.ndarray:
         from scipy.interpolate import BSpline
+
         t = np.concatenate([[self.low] * 4, self.knots, [self.high] * 4])
         return BSpline.design_matrix(np.clip(x, self.low, self.high), t, 3).toarray()
 
@@ -396,14 +430,19 @@ class Spline(Effect):
         return self.form == "odd"
 
     def params(self, coef: np.ndarray) -> dict[str, float | str]:
-        return {"variable": self.variable, "form": self.form, "low": self.low, "high": self.high,
-                **{f"b{i + 1}": float(c) for i, c in enumerate(coef)}}
+        return {
+            "variable": self.variable,
+            "form": self.form,
+            "low": self.low,
+            "high": self.high,
+            **{f"b{i + 1}": float(c) for i, c in enumerate(coef)},
+        }
 
 
-SPLINE_KNOTS = (3, 6, 10)       # smoothness candidates: interior knots (validation chooses)
-SPLINE_SHARE = 0.15             # a variable the residual depends on by this share of its variance ...
-SPLINE_P = 1e-3                 # ... at this ANOVA p-value gets spline candidates
-STILL_SHARE = 0.01              # another axis whose RMS speed is below this share of the axis's own stands still
+SPLINE_KNOTS = (3, 6, 10)  # smoothness candidates: interior knots (validation chooses)
+SPLINE_SHARE = 0.15  # a variable the residual depends on by this share of its variance ...
+SPLINE_P = 1e-3  # ... at this ANOVA p-value gets spline candidates
+STILL_SHARE = 0.01  # another axis whose RMS speed is below this share of the axis's own stands still
 
 
 def shape_of(e: Effect) -> tuple[str, str]:
@@ -432,8 +471,9 @@ def standing_others(s: Samples) -> set[str]:
 NO_SPLINE_IN = ("direction", "acceleration")
 
 
-def spline_candidates(present: list[Effect], s: Samples, residual: np.ndarray,
-                      taken: Container[tuple[str, str]] = ()) -> Iterator[Effect]:
+def spline_candidates(
+    present: list[Effect], s: Samples, residual: np.ndarray, taken: Container[tuple[str, str]] = ()
+) -> Iterator[Effect]:
     """Even or odd splines in each variable the residual depends on (not in ``NO_SPLINE_IN``),
     at each smoothness of ``SPLINE_KNOTS``; made as they are asked for, and none of a shape
     (:func:`shape_of`) in ``taken`` as it stands then (a named effect of that shape passed: its
@@ -443,30 +483,35 @@ def spline_candidates(present: list[Effect], s: Samples, residual: np.ndarray,
     still = standing_others(s)
     for d in dependences(s, residual, SPLINE_SHARE, SPLINE_P):
         name = f"spline_{d['form']}_{d['depends_on']}"
-        if d["depends_on"] in NO_SPLINE_IN or name in have or d["depends_on"].rsplit("_", 1)[0] in still \
-                or (d["depends_on"], d["form"]) in taken:
-            continue                        # (another axis standing still: its signals are numerical dust)
+        if (
+            d["depends_on"] in NO_SPLINE_IN
+            or name in have
+            or d["depends_on"].rsplit("_", 1)[0] in still
+            or (d["depends_on"], d["form"]) in taken
+        ):
+            continue  # (another axis standing still: its signals are numerical dust)
         x = variables(s)[d["depends_on"]][m]
         low, high = float(np.min(x)), float(np.max(x))
         if not high > low or len(np.unique(x)) < 4 * (max(SPLINE_KNOTS) + 4):
-            continue                        # a still or coarsely quantised variable carries no smooth shape
+            continue  # a still or coarsely quantised variable carries no smooth shape
         for k in SPLINE_KNOTS:
             knots = np.unique(np.quantile(x, np.linspace(0, 1, k + 2)[1:-1]))
             knots = knots[(knots > low) & (knots < high)]
             if len(knots) < k:
-                break                       # the samples sit on a few values (a still axis, quantised)
+                break  # the samples sit on a few values (a still axis, quantised)
             grid = np.linspace(low, high, Spline.GRID)
             try:
-                spline = Spline(d["depends_on"], d["form"], tuple(map(float, knots)), low, high,
-                                tuple(map(float, grid)))
+                spline = Spline(
+                    d["depends_on"], d["form"], tuple(map(float, knots)), low, high, tuple(map(float, grid))
+                )
             except (np.linalg.LinAlgError, ValueError):
-                break                       # a basis the variable's samples cannot carry
+                break  # a basis the variable's samples cannot carry
             if not np.all(np.isfinite(spline.columns(s))):
                 break
             yield spline
 
 
-MAX_PERIODIC = 3            # periodic terms at different periods an axis may carry
+MAX_PERIODIC = 3  # periodic terms at different periods an axis may carry
 
 
 def position_period(s: Samples, residual: np.ndarray) -> float | None:
@@ -479,7 +524,9 @@ def position_period(s: Samples, residual: np.ndarray) -> float | None:
     """
     q = s.q
     span = float(np.ptp(q))
-    step = float(np.percentile(np.abs(np.diff(q)), 10))   # the slow passes' spacing: a short period shows there
+    step = float(
+        np.percentile(np.abs(np.diff(q)), 10)
+    )  # the slow passes' spacing: a short period shows there
     if span <= 0 or step <= 0:
         return None
     n_bins = int(min(8192, max(64, span / step)))
@@ -492,7 +539,7 @@ def position_period(s: Samples, residual: np.ndarray) -> float | None:
     grid = np.arange(n_bins)
     profile = np.interp(grid, grid[filled], profile)
     spectrum = np.abs(np.fft.rfft(profile - profile.mean()))
-    cycles = np.arange(len(spectrum))                  # periods per travelled range
+    cycles = np.arange(len(spectrum))  # periods per travelled range
     valid = cycles >= 3
     if not valid.any():
         return None
@@ -500,8 +547,9 @@ def position_period(s: Samples, residual: np.ndarray) -> float | None:
     return span / best
 
 
-def candidates(present: list[Effect], s: Samples, residual: np.ndarray,
-               taken: Container[tuple[str, str]] = ()) -> Iterator[Effect]:
+def candidates(
+    present: list[Effect], s: Samples, residual: np.ndarray, taken: Container[tuple[str, str]] = ()
+) -> Iterator[Effect]:
     """Effects not yet in the model that the residual could reveal, unfitted, with starting values:
     the named ones, then the splines (:func:`spline_candidates`, ``taken`` read as they are made)."""
     names = {e.name for e in present}
@@ -521,16 +569,23 @@ def candidates(present: list[Effect], s: Samples, residual: np.ndarray,
     vmax = float(np.max(np.abs(s.qd[m])))
     vmin = float(np.min(np.abs(s.qd[m])))
     low, high = max(vmin, 0.01 * vmax), 0.5 * vmax
-    if "stribeck" not in names and low < high:          # the log must reach down to low speeds
+    if "stribeck" not in names and low < high:  # the log must reach down to low speeds
         out.append(Stribeck(min(max(0.1 * vmax, low), high), low=low, high=high))
     if "direction_asymmetry" not in names:
         out.append(DirectionAsymmetry(with_dc0="offset" not in names))
     if "drift" not in names:
         duration = float(np.ptp(s.t))
-        out.append(Drift(duration / 5, low=duration / 100, high=3 * duration, start=float(s.t.min()),
-                         end=float(s.t.max())))
+        out.append(
+            Drift(
+                duration / 5,
+                low=duration / 100,
+                high=3 * duration,
+                start=float(s.t.min()),
+                end=float(s.t.max()),
+            )
+        )
     coupled = {(e.source, e.form) for e in present if isinstance(e, CrossAxis)}
-    still = standing_others(s)                # a coupling with a constant is an offset by another name
+    still = standing_others(s)  # a coupling with a constant is an offset by another name
     for src in (o for o in s.others if o not in still):
         for form in CrossAxis.FORMS:
             if (src, form) not in coupled:

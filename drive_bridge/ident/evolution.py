@@ -9,15 +9,16 @@ binomial strategies, drawing the donors of every member together with the same d
 (distinct members other than itself, uniformly at random).  Where a scipy release has no such
 step the solver is scipy's own, unchanged.
 """
+
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 from scipy.optimize import OptimizeResult
 from scipy.optimize._differentialevolution import DifferentialEvolutionSolver
 
-DONORS = 5                     # as scipy draws: enough for every strategy (rand2 uses five)
+DONORS = 5  # as scipy draws: enough for every strategy (rand2 uses five)
 
 
 def donors(rng: np.random.Generator, candidates: np.ndarray, members: int, k: int = DONORS) -> np.ndarray:
@@ -27,7 +28,7 @@ def donors(rng: np.random.Generator, candidates: np.ndarray, members: int, k: in
     todo = np.arange(len(candidates))
     while todo.size:
         draw = rng.integers(0, members - 1, size=(todo.size, k))
-        draw += draw >= candidates[todo, None]                 # skip the candidate itself
+        draw += draw >= candidates[todo, None]  # skip the candidate itself
         ordered = np.sort(draw, axis=1)
         distinct = np.all(ordered[:, 1:] != ordered[:, :-1], axis=1)
         out[todo[distinct]] = draw[distinct]
@@ -48,16 +49,18 @@ class DonorsAtOnce(DifferentialEvolutionSolver):
             bprime = self.mutation_func(candidates, samples)
         else:
             bprime = self.mutation_func(samples)
-        fill_point = rng.integers(0, p, size=S)                 # at least one coefficient from the mutant
+        fill_point = rng.integers(0, p, size=S)  # at least one coefficient from the mutant
         crossovers = rng.uniform(size=(S, p)) < self.cross_over_probability
         crossovers[np.arange(S), fill_point] = True
         return np.where(crossovers, bprime, self.population[candidates])
 
 
-def differential_evolution(cost: Callable[[np.ndarray], np.ndarray], bounds: list[tuple[float, float]],
-                           seed: int, **options: object) -> OptimizeResult:
+def differential_evolution(
+    cost: Callable[[np.ndarray], np.ndarray], bounds: list[tuple[float, float]], seed: int, **options: object
+) -> OptimizeResult:
     """``scipy.optimize.differential_evolution(cost, bounds, rng=default_rng(seed), vectorized=True,
     updating="deferred", **options)``, through :class:`DonorsAtOnce`."""
-    with DonorsAtOnce(cost, bounds, rng=np.random.default_rng(seed), vectorized=True, updating="deferred",
-                      **options) as solver:
+    with DonorsAtOnce(
+        cost, bounds, rng=np.random.default_rng(seed), vectorized=True, updating="deferred", **options
+    ) as solver:
         return solver.solve()

@@ -15,6 +15,7 @@ Nothing of the logged torque is used: its reporting (averaged, filtered, delayed
 drive to drive, the position does not.  Each bin's coherence is the share of its power the
 excitation explains across the periods (1: no noise).  SI: Hz, rad/s per Nm.
 """
+
 from __future__ import annotations
 
 from collections.abc import Callable
@@ -22,18 +23,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
-F_LOW_HZ = 2.0               # lowest excited frequency (below it the position loop holds the axis)
-F_HIGH_SHARE = 0.45          # highest, × the SYNC rate (0.5: Nyquist)
-TOP_SHARE = 0.4              # bins above this share of the SYNC rate are reported, not used for margins: the
-                             # offset's held steps have images above the Nyquist frequency whose response
-                             # aliases onto them (the rigid simulated axis: -2.6 dB at 0.4, -5.9 dB at 0.45)
-PERIOD_SAMPLES = 512         # one period of the excitation, in SYNC periods (1.02 s at 500 Hz: 0.98 Hz bins)
-PERIODS = 5                  # periods streamed; the first is the loops' settling and is not used
-MIN_COHERENCE = 0.8          # bins below it are reported, not used for margins
-MAX_LOOP_GAIN = 10.0         # nor the bins below the first whose loop gain |K·G| is under this: there the loop,
-                             # not the plant, sets the measured velocity, and G = T / (1 − K·T) divides by a
-                             # small difference (a 1 % error of K: 10 % of G).  A resonance above may exceed it
-                             # again: its peak is what the margins need
+F_LOW_HZ = 2.0  # lowest excited frequency (below it the position loop holds the axis)
+F_HIGH_SHARE = 0.45  # highest, × the SYNC rate (0.5: Nyquist)
+TOP_SHARE = 0.4  # bins above this share of the SYNC rate are reported, not used for margins: the
+# offset's held steps have images above the Nyquist frequency whose response
+# aliases onto them (the rigid simulated axis: -2.6 dB at 0.4, -5.9 dB at 0.45)
+PERIOD_SAMPLES = 512  # one period of the excitation, in SYNC periods (1.02 s at 500 Hz: 0.98 Hz bins)
+PERIODS = 5  # periods streamed; the first is the loops' settling and is not used
+MIN_COHERENCE = 0.8  # bins below it are reported, not used for margins
+MAX_LOOP_GAIN = 10.0  # nor the bins below the first whose loop gain |K·G| is under this: there the loop,
+# not the plant, sets the measured velocity, and G = T / (1 − K·T) divides by a
+# small difference (a 1 % error of K: 10 % of G).  A resonance above may exceed it
+# again: its peak is what the margins need
 
 
 @dataclass
@@ -60,20 +61,26 @@ class Frf:
         return (self.coherence >= MIN_COHERENCE) & above & (f <= TOP_SHARE * self.rate_hz)
 
     def as_json(self) -> dict:
-        return {"rate_hz": self.rate_hz, "frequency_hz": [round(float(f), 4) for f in self.frequency_hz],
-                "magnitude_db": [round(float(20 * np.log10(abs(g))), 3) for g in self.response],
-                "phase_deg": [round(float(np.degrees(np.angle(g))), 2) for g in self.response],
-                "coherence": [round(float(c), 4) for c in self.coherence],
-                "loop_gain": [round(float(x), 4) for x in self.loop_gain],
-                "reliable": [bool(r) for r in self.reliable()]}
+        return {
+            "rate_hz": self.rate_hz,
+            "frequency_hz": [round(float(f), 4) for f in self.frequency_hz],
+            "magnitude_db": [round(float(20 * np.log10(abs(g))), 3) for g in self.response],
+            "phase_deg": [round(float(np.degrees(np.angle(g))), 2) for g in self.response],
+            "coherence": [round(float(c), 4) for c in self.coherence],
+            "loop_gain": [round(float(x), 4) for x in self.loop_gain],
+            "reliable": [bool(r) for r in self.reliable()],
+        }
 
     @classmethod
-    def from_json(cls, doc: dict) -> "Frf":
+    def from_json(cls, doc: dict) -> Frf:
         mag = 10 ** (np.asarray(doc["magnitude_db"], dtype=float) / 20)
-        return cls(np.asarray(doc["frequency_hz"], dtype=float),
-                   mag * np.exp(1j * np.radians(np.asarray(doc["phase_deg"], dtype=float))),
-                   np.asarray(doc["coherence"], dtype=float), np.asarray(doc["loop_gain"], dtype=float),
-                   float(doc["rate_hz"]))
+        return cls(
+            np.asarray(doc["frequency_hz"], dtype=float),
+            mag * np.exp(1j * np.radians(np.asarray(doc["phase_deg"], dtype=float))),
+            np.asarray(doc["coherence"], dtype=float),
+            np.asarray(doc["loop_gain"], dtype=float),
+            float(doc["rate_hz"]),
+        )
 
 
 def excited_bins(rate_hz: float, samples: int = PERIOD_SAMPLES) -> np.ndarray:
@@ -90,26 +97,33 @@ def excitation(rate_hz: float, rms_Nm: float, samples: int = PERIOD_SAMPLES) -> 
     spectrum = np.zeros(samples // 2 + 1, dtype=complex)
     spectrum[bins] = np.exp(-1j * np.pi * k * (k - 1) / len(bins))
     u = np.fft.irfft(spectrum, samples)
-    return u * rms_Nm / np.sqrt(np.mean(u ** 2))
+    return u * rms_Nm / np.sqrt(np.mean(u**2))
 
 
-def measure(position: np.ndarray, offset: np.ndarray, rate_hz: float,
-            controller: Callable[[np.ndarray], np.ndarray], samples: int = PERIOD_SAMPLES) -> Frf:
+def measure(
+    position: np.ndarray,
+    offset: np.ndarray,
+    rate_hz: float,
+    controller: Callable[[np.ndarray], np.ndarray],
+    samples: int = PERIOD_SAMPLES,
+) -> Frf:
     """G(jω) from the positions [rad] sampled at each SYNC while the periodic ``offset`` [Nm] was
     applied (both from the first sample of a period, whole periods); ``controller(ω)``: the
     drive's K(jω) with the gains it ran with [Nm per rad/s]."""
     periods = len(position) // samples
     if periods < 3 or len(offset) < periods * samples:
-        raise ValueError(f"the FRF needs at least three whole periods of {samples} samples, got {len(position)}")
+        raise ValueError(
+            f"the FRF needs at least three whole periods of {samples} samples, got {len(position)}"
+        )
     bins = excited_bins(rate_hz, samples)
     f = np.fft.rfftfreq(samples, 1.0 / rate_hz)[bins]
     w = 2 * np.pi * f
-    q = position[:periods * samples].reshape(periods, samples)[1:]
-    sweep = (q[-1, 0] - q[0, 0]) / (len(q) - 1)                    # the constant speed's travel in one period
+    q = position[: periods * samples].reshape(periods, samples)[1:]
+    sweep = (q[-1, 0] - q[0, 0]) / (len(q) - 1)  # the constant speed's travel in one period
     q = q - sweep * np.arange(samples) / samples
-    v = 1j * w * np.fft.rfft(q, axis=1)[:, bins]                  # velocity per period and bin
+    v = 1j * w * np.fft.rfft(q, axis=1)[:, bins]  # velocity per period and bin
     u = np.fft.rfft(offset[:samples])[bins]
-    hold = np.exp(-1j * w / (2 * rate_hz)) * np.sinc(f / rate_hz)     # the offset held over each SYNC period
+    hold = np.exp(-1j * w / (2 * rate_hz)) * np.sinc(f / rate_hz)  # the offset held over each SYNC period
     t = v / (u * hold)
     mean = t.mean(axis=0)
     coherence = np.abs(mean) ** 2 / np.mean(np.abs(t) ** 2, axis=0)
@@ -118,12 +132,13 @@ def measure(position: np.ndarray, offset: np.ndarray, rate_hz: float,
     return Frf(f, g, coherence, np.abs(k * g), float(rate_hz))
 
 
-LOG_BANDS = 48               # log-spaced bands the log's response is reported in, 1 Hz .. Nyquist
-LOG_RESOLUTION_HZ = 0.5      # Welch resolution aimed at
+LOG_BANDS = 48  # log-spaced bands the log's response is reported in, 1 Hz .. Nyquist
+LOG_RESOLUTION_HZ = 0.5  # Welch resolution aimed at
 
 
-def log_response(t: np.ndarray, qd: np.ndarray, tau: np.ndarray, J: float, c1: float,
-                 reference: np.ndarray | None = None) -> dict | None:
+def log_response(
+    t: np.ndarray, qd: np.ndarray, tau: np.ndarray, J: float, c1: float, reference: np.ndarray | None = None
+) -> dict | None:
     """The plant's torque → velocity response read from a campaign log, for reference, in
     ``LOG_BANDS`` log-spaced bands from 1 Hz to the Nyquist frequency, the rigid model's
     |1/(J·jω + c1)| beside it.  ``tau``: the torque as logged, aligned with the position, less what
@@ -138,6 +153,7 @@ def log_response(t: np.ndarray, qd: np.ndarray, tau: np.ndarray, J: float, c1: f
     it says how little is left.  None for a log without a stretch long enough.  SI: Hz, rad/s per
     Nm (m/s per N)."""
     from scipy import signal
+
     dt = float(np.median(np.diff(t)))
     fs = 1.0 / dt
     cuts = np.flatnonzero(np.diff(t) > 1.5 * dt) + 1
@@ -147,22 +163,36 @@ def log_response(t: np.ndarray, qd: np.ndarray, tau: np.ndarray, J: float, c1: f
     while nper > 256 and nper > longest:
         nper //= 2
     x = tau if reference is None else reference
-    sums = np.zeros((5, nper // 2 + 1), dtype=complex)       # S_xx, S_vv, S_tt, S_xv, S_xt
+    sums = np.zeros((5, nper // 2 + 1), dtype=complex)  # S_xx, S_vv, S_tt, S_xv, S_xt
     f = None
     for a, b in stretches:
         if b - a < nper:
             continue
         sl = slice(a, b)
         f, pxx = signal.welch(x[sl], fs, nperseg=nper)
-        sums += (b - a) / nper * np.array([pxx,
-                                            signal.welch(qd[sl], fs, nperseg=nper)[1],
-                                            signal.welch(tau[sl], fs, nperseg=nper)[1],
-                                            signal.csd(x[sl], qd[sl], fs, nperseg=nper)[1],
-                                            signal.csd(x[sl], tau[sl], fs, nperseg=nper)[1]])
+        sums += (
+            (b - a)
+            / nper
+            * np.array(
+                [
+                    pxx,
+                    signal.welch(qd[sl], fs, nperseg=nper)[1],
+                    signal.welch(tau[sl], fs, nperseg=nper)[1],
+                    signal.csd(x[sl], qd[sl], fs, nperseg=nper)[1],
+                    signal.csd(x[sl], tau[sl], fs, nperseg=nper)[1],
+                ]
+            )
+        )
     if f is None:
         return None
     edges = np.geomspace(1.0, fs / 2, LOG_BANDS + 1)
-    out: dict[str, list] = {"frequency_hz": [], "magnitude": [], "phase_deg": [], "coherence": [], "model_magnitude": []}
+    out: dict[str, list] = {
+        "frequency_hz": [],
+        "magnitude": [],
+        "phase_deg": [],
+        "coherence": [],
+        "model_magnitude": [],
+    }
     for lo, hi in zip(edges[:-1], edges[1:]):
         band = (f >= lo) & (f < hi) & (f > 0)
         sxx, svv, stt, sxv, sxt = (complex(np.sum(row[band])) for row in sums)
@@ -176,8 +206,15 @@ def log_response(t: np.ndarray, qd: np.ndarray, tau: np.ndarray, J: float, c1: f
         out["phase_deg"].append(round(float(np.degrees(np.angle(g))), 2))
         out["coherence"].append(round(float(coh), 4))
         out["model_magnitude"].append(float(1 / abs(2j * np.pi * fc * J + max(c1, 0.0))))
-    method = ("the position demand as instrument: S(demand, velocity) / S(demand, torque)" if reference is not None
-              else "no position demand in the log: S(torque, velocity) / S(torque, torque), biased towards the "
-                   "inverse controller where the loop's own noise moves the axis")
-    return {"source": "the campaign log: the torque as logged, aligned and less the model's nonlinear terms, to the "
-                      "velocity", "method": method, **out}
+    method = (
+        "the position demand as instrument: S(demand, velocity) / S(demand, torque)"
+        if reference is not None
+        else "no position demand in the log: S(torque, velocity) / S(torque, torque), biased towards the "
+        "inverse controller where the loop's own noise moves the axis"
+    )
+    return {
+        "source": "the campaign log: the torque as logged, aligned and less the model's nonlinear terms, to the "
+        "velocity",
+        "method": method,
+        **out,
+    }

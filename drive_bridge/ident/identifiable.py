@@ -10,6 +10,7 @@ gravity the model may lack) is named where that is what hides it.  An undetermin
 reported as such and never tuned with or written (:func:`~drive_bridge.tuning.tune.read_identify_json`
 refuses it).
 """
+
 from __future__ import annotations
 
 import logging
@@ -22,37 +23,46 @@ from .signals import Samples
 
 log = logging.getLogger(__name__)
 
-T_MIN = 3.0          # a parameter within this many of its std of zero is not determined
-COLLINEAR = 0.9      # |correlation| of its column with another's above which that one is named
-FIT_MAX = 0.5        # a model leaving more than this share of the torque (validation) vouches for nothing
-SPREAD_MAX = 0.25    # parts of the data that disagree (beyond their std) by more than this share of the value
+T_MIN = 3.0  # a parameter within this many of its std of zero is not determined
+COLLINEAR = 0.9  # |correlation| of its column with another's above which that one is named
+FIT_MAX = 0.5  # a model leaving more than this share of the torque (validation) vouches for nothing
+SPREAD_MAX = 0.25  # parts of the data that disagree (beyond their std) by more than this share of the value
 
 
 def undetermined(model: AxisModel, est: Samples, after: Errors, consistency: dict) -> dict[str, str]:
     """Parameter (J, c0, c1) -> why the data do not determine it; absent where they do."""
     out = {}
     if after.relative_error > FIT_MAX:
-        reason = (f"the model leaves {after.relative_error:.0%} of the torque unexplained on the validation "
-                  f"samples: none of its coefficients can be vouched for")
+        reason = (
+            f"the model leaves {after.relative_error:.0%} of the torque unexplained on the validation "
+            f"samples: none of its coefficients can be vouched for"
+        )
         return dict.fromkeys(BASE, reason)
     moved = (consistency or {}).get("moved", {})
     phi, names = model.design(est)[est.moving], list(model.coef_names)
     if est.rotary and not any(isinstance(e, Gravity) for e in model.effects):
-        phi = np.column_stack([phi, Gravity().columns(est)[est.moving]])    # what a joint's weight would be
+        phi = np.column_stack([phi, Gravity().columns(est)[est.moving]])  # what a joint's weight would be
         names += ["a joint's gravity (cos q)", "a joint's gravity (sin q)"]
     for i, p in enumerate(BASE):
         value, std = model.params_[p], model.param_std_[p]
         spread = np.ptp(list(moved[p]["values"].values())) if p in moved else 0.0
         if spread > SPREAD_MAX * abs(value):
             m = moved[p]
-            out[p] = ("the parts of the data disagree: " + ", ".join(f"{n} {v:.4g}" for n, v in m["values"].items())
-                      + f" ({m['sigmas']:.3g} std apart, a spread of {spread / abs(value) if value else np.inf:.0%})")
+            out[p] = (
+                "the parts of the data disagree: "
+                + ", ".join(f"{n} {v:.4g}" for n, v in m["values"].items())
+                + f" ({m['sigmas']:.3g} std apart, a spread of {spread / abs(value) if value else np.inf:.0%})"
+            )
         elif not abs(value) >= T_MIN * std:
-            out[p] = f"{value:.4g} ± {std:.2g} is within {abs(value) / std if std else 0.0:.2g} std of zero" + \
-                _collinear(phi, i, names)
+            out[p] = (
+                f"{value:.4g} ± {std:.2g} is within {abs(value) / std if std else 0.0:.2g} std of zero"
+                + _collinear(phi, i, names)
+            )
         elif value < 0:
-            out[p] = (f"{value:.4g} ± {std:.2g} comes out negative, which no plant has: it stands in for a term "
-                      f"the model lacks" + _collinear(phi, i, names))
+            out[p] = (
+                f"{value:.4g} ± {std:.2g} comes out negative, which no plant has: it stands in for a term "
+                f"the model lacks" + _collinear(phi, i, names)
+            )
     for p, why in out.items():
         log.info("axis %s: %s undetermined: %s", est.axis, p, why)
     return out

@@ -1,8 +1,9 @@
 """``identify``: from a log to each axis's model, with the residual traced (Python API).
 
-    results = identify("out/record", seed=0)
-    results["y"].model.params_, results["y"].after.rmse
+results = identify("out/record", seed=0)
+results["y"].model.params_, results["y"].after.rmse
 """
+
 from __future__ import annotations
 
 import logging
@@ -28,39 +29,39 @@ from .trace import MIN_GAIN, TracedEffect, trace, unexplained
 
 logger = logging.getLogger(__name__)
 
-HOLDOUT_BLOCKS, HOLDOUT_EVERY = 10, 3      # without --validate: blocks 3, 6, 9 of 10 (by moving samples)
+HOLDOUT_BLOCKS, HOLDOUT_EVERY = 10, 3  # without --validate: blocks 3, 6, 9 of 10 (by moving samples)
 MIN_CUTOFF_BANDWIDTHS = 3.0  # a cut-off moved below a mode stays at least this many motion bandwidths
-DELAY_SIGMAS = 3.0          # a torque delay estimated beyond this many std is aligned (model.torque_delay)
-MAX_REALIGNMENTS = 3        # ... at most this many times while the tracing adds effects
-CONSISTENT_SIGMAS = 3.0     # parts of the data whose J, c0 or c1 differ by more: the axis is flagged
-DEGENERATE = 30.0           # a part whose refit has a J, c0 or c1 std this many times the whole fit's is degenerate,
+DELAY_SIGMAS = 3.0  # a torque delay estimated beyond this many std is aligned (model.torque_delay)
+MAX_REALIGNMENTS = 3  # ... at most this many times while the tracing adds effects
+CONSISTENT_SIGMAS = 3.0  # parts of the data whose J, c0 or c1 differ by more: the axis is flagged
+DEGENERATE = 30.0  # a part whose refit has a J, c0 or c1 std this many times the whole fit's is degenerate,
 #: a log of fewer rows times axes is identified one axis after the other: starting the workers
 #: costs more than they save
 MIN_PARALLEL_SAMPLES = 500_000
-DEGENERATE_COND = 1e8       # ... as is one whose (column-scaled) regressors have a condition number above this
+DEGENERATE_COND = 1e8  # ... as is one whose (column-scaled) regressors have a condition number above this
 
 
 @dataclass
 class AxisResult:
     axis: str
-    kind: str                                  # rotary | linear
+    kind: str  # rotary | linear
     units: dict[str, str]
     settings: Settings
-    validation: str                            # which samples validate
+    validation: str  # which samples validate
     est: Samples
     val: Samples
     base: AxisModel
     model: AxisModel
     effects: list[TracedEffect]
-    before: Errors                             # base model on the validation samples
-    after: Errors                              # final model on the validation samples
+    before: Errors  # base model on the validation samples
+    after: Errors  # final model on the validation samples
     noise_floor: float
     unexplained: list[dict]
     ga_coef: np.ndarray
     ga_errors: Errors
     dropped: list[str] = field(default_factory=list)
-    sampling: dict = field(default_factory=dict)       # what the log's time stamps held (Log.sampling)
-    consistency: dict = field(default_factory=dict)    # J, c0, c1 refitted on parts of the data (consistency())
+    sampling: dict = field(default_factory=dict)  # what the log's time stamps held (Log.sampling)
+    consistency: dict = field(default_factory=dict)  # J, c0, c1 refitted on parts of the data (consistency())
     #: the speeds c0 and c1 hold for, and whether they depend on which (friction_range())
     friction: dict = field(default_factory=dict)
     #: a resonance in the whole-band residual (resonance.find_mode), and the cut-off it moved from
@@ -74,7 +75,7 @@ class AxisResult:
     #: where every effect is one of those)
     drive_model: AxisModel | None = None
     drive_errors: Errors | None = None
-    drive_note: str | None = None              # why the drive gets the full model's values after all
+    drive_note: str | None = None  # why the drive gets the full model's values after all
     #: the plant's torque -> velocity response read from the log (frf.log_response), for reference
     response: dict | None = None
     #: whether the GA converged before its generation limit (``ga_coef`` otherwise: where the search stood)
@@ -101,10 +102,13 @@ class AxisResult:
             "samples": int(self.est.moving.sum()),
             "params": self.model.params_,
             "param_std": self.model.param_std_,
-            "uncertainty": {"method": "HAC (batch means over the residual's correlation length), widened to the "
-                                      "delete-one-block jackknife over 10 stretches in time where that is 1.5 times larger",
-                            "jackknife_over_hac": {k: round(float(self.model.jackknife_[i]), 3)
-                                                   for i, k in enumerate(("J", "c1", "c0"))}},
+            "uncertainty": {
+                "method": "HAC (batch means over the residual's correlation length), widened to the "
+                "delete-one-block jackknife over 10 stretches in time where that is 1.5 times larger",
+                "jackknife_over_hac": {
+                    k: round(float(self.model.jackknife_[i]), 3) for i, k in enumerate(("J", "c1", "c0"))
+                },
+            },
             "rmse_before": self.before.rmse,
             "rmse_after": self.after.rmse,
             "torque_rms": self.after.torque_rms,
@@ -113,20 +117,35 @@ class AxisResult:
             "relative_error_after": self.after.relative_error,
             "fit_relative_error_before": self.base.relative_error_,
             "fit_relative_error_after": self.model.relative_error_,
-            "effects": [{"name": t.effect.name, "depends_on": t.effect.depends_on, "params": t.params,
-                         "rmse_after": t.rmse_after, "relative_error_after": t.relative_error_after,
-                         "fit_relative_error_after": t.fit_relative_error, "model_params": t.model_params,
-                         "evidence": t.evidence} for t in self.effects],
+            "effects": [
+                {
+                    "name": t.effect.name,
+                    "depends_on": t.effect.depends_on,
+                    "params": t.params,
+                    "rmse_after": t.rmse_after,
+                    "relative_error_after": t.relative_error_after,
+                    "fit_relative_error_after": t.fit_relative_error,
+                    "model_params": t.model_params,
+                    "evidence": t.evidence,
+                }
+                for t in self.effects
+            ],
             "unexplained": self.unexplained,
             "validation": self.validation,
             "validation_samples": self.after.samples,
             "condition_number": self.model.cond_,
             "residual_std": self.model.sigma_,
-            "ga": {"params": dict(zip(self.model.coef_names, map(float, self.ga_coef))),
-                   "rmse": self.ga_errors.rmse, "converged": self.ga_converged,
-                   "std_from_lse": self.ga_std_from_lse},
-            "settings": {"cutoff_hz": self.settings.cutoff_hz, "decimation": self.settings.decimation,
-                         "rate_hz": self.settings.rate_hz},
+            "ga": {
+                "params": dict(zip(self.model.coef_names, map(float, self.ga_coef))),
+                "rmse": self.ga_errors.rmse,
+                "converged": self.ga_converged,
+                "std_from_lse": self.ga_std_from_lse,
+            },
+            "settings": {
+                "cutoff_hz": self.settings.cutoff_hz,
+                "decimation": self.settings.decimation,
+                "rate_hz": self.settings.rate_hz,
+            },
             "dropped": self.dropped,
             "sampling": self.sampling,
             "consistency": self.consistency,
@@ -152,9 +171,12 @@ def _holdout(s: Samples) -> tuple[Samples, Samples, str]:
         t = s.t[(block == b) & s.moving]
         if len(t):
             spans.append(f"{t[0]:.1f}-{t[-1]:.1f} s")
-    return (s.take(~held), s.take(held),
-            f"held out of the same log: blocks {', '.join(str(b + 1) for b in sorted(set(block[held].tolist())))} "
-            f"of {HOLDOUT_BLOCKS} by moving samples (t = {', '.join(spans)})")
+    return (
+        s.take(~held),
+        s.take(held),
+        f"held out of the same log: blocks {', '.join(str(b + 1) for b in sorted(set(block[held].tolist())))} "
+        f"of {HOLDOUT_BLOCKS} by moving samples (t = {', '.join(spans)})",
+    )
 
 
 def refit_part(model: AxisModel, part: Samples) -> tuple[AxisModel | None, str | None]:
@@ -165,15 +187,20 @@ def refit_part(model: AxisModel, part: Samples) -> tuple[AxisModel | None, str |
         return None, None
     fit = AxisModel(model.effects, seed=model.seed).fit(part)
     phi = fit.design(part)[part.moving]
-    scale = np.sqrt(np.mean(phi ** 2, axis=0))
+    scale = np.sqrt(np.mean(phi**2, axis=0))
     cond = float(np.linalg.cond(phi / np.where(scale > 0, scale, 1.0)))
     wide = [p for p in ("J", "c0", "c1") if not fit.param_std_[p] <= DEGENERATE * model.param_std_[p]]
     if not wide and cond <= DEGENERATE_COND:
         return fit, None
-    return None, ("its refit leaves " + (f"{', '.join(wide)} with a std over {DEGENERATE:g} times the whole "
-                                         f"fit's" if wide else
-                                         f"the model's columns dependent (condition number {cond:.2g})")
-                  + ": this part does not determine the model's terms")
+    return None, (
+        "its refit leaves "
+        + (
+            f"{', '.join(wide)} with a std over {DEGENERATE:g} times the whole fit's"
+            if wide
+            else f"the model's columns dependent (condition number {cond:.2g})"
+        )
+        + ": this part does not determine the model's terms"
+    )
 
 
 def consistency(model: AxisModel, est: Samples, val: Samples) -> dict:
@@ -184,22 +211,36 @@ def consistency(model: AxisModel, est: Samples, val: Samples) -> dict:
     many std (a payload change, a warm-up, a structure the model lacks)."""
     moving_t = est.t[est.moving]
     split = float(np.median(moving_t)) if len(moving_t) else 0.0
-    parts = {"first half": est.take(est.t < split), "second half": est.take(est.t >= split), "validation": val}
+    parts = {
+        "first half": est.take(est.t < split),
+        "second half": est.take(est.t >= split),
+        "validation": val,
+    }
     fits, degenerate = {}, {}
     for name, part in parts.items():
         fit, why = refit_part(model, part)
         if fit is not None:
             fits[name] = fit
-        elif why:                                 # the part cannot carry the model: named, not compared
+        elif why:  # the part cannot carry the model: named, not compared
             degenerate[name] = why
     moved = {}
     for p in ("J", "c0", "c1"):
         values = {n: (f.params_[p], f.param_std_[p]) for n, f in fits.items()}
-        worst = max(((abs(a[0] - b[0]) / np.hypot(a[1], b[1]), na, nb) for na, a in values.items()
-                     for nb, b in values.items() if na < nb and np.hypot(a[1], b[1]) > 0), default=(0.0, "", ""))
+        worst = max(
+            (
+                (abs(a[0] - b[0]) / np.hypot(a[1], b[1]), na, nb)
+                for na, a in values.items()
+                for nb, b in values.items()
+                if na < nb and np.hypot(a[1], b[1]) > 0
+            ),
+            default=(0.0, "", ""),
+        )
         if worst[0] > CONSISTENT_SIGMAS:
-            moved[p] = {"values": {n: v[0] for n, v in values.items()}, "sigmas": round(float(worst[0]), 1),
-                        "between": [worst[1], worst[2]]}
+            moved[p] = {
+                "values": {n: v[0] for n, v in values.items()},
+                "sigmas": round(float(worst[0]), 1),
+                "between": [worst[1], worst[2]],
+            }
     return {"consistent": not moved, "parts": list(fits), "moved": moved, "degenerate": degenerate}
 
 
@@ -214,8 +255,10 @@ def friction_range(model: AxisModel, est: Samples) -> dict:
     low, high = (float(x) for x in np.percentile(moving, [5, 95]))
     split = float(np.median(moving))
     out = {"velocity_range": [low, high], "linear": True}
-    fits = {name: refit_part(model, part)[0]
-            for name, part in (("slower", est.take(speed < split)), ("faster", est.take(speed >= split)))}
+    fits = {
+        name: refit_part(model, part)[0]
+        for name, part in (("slower", est.take(speed < split)), ("faster", est.take(speed >= split)))
+    }
     halves = {name: fit for name, fit in fits.items() if fit is not None}
     if len(halves) < 2:
         return out
@@ -232,9 +275,16 @@ def friction_range(model: AxisModel, est: Samples) -> dict:
     return out
 
 
-def identify_axis(log: Log, axis: str, val_log: Log | None = None, *, seed: int = 0,
-                  cutoff_hz: float | None = None, decimation: int | None = None,
-                  torque_delay_s: float | None = None) -> AxisResult:
+def identify_axis(
+    log: Log,
+    axis: str,
+    val_log: Log | None = None,
+    *,
+    seed: int = 0,
+    cutoff_hz: float | None = None,
+    decimation: int | None = None,
+    torque_delay_s: float | None = None,
+) -> AxisResult:
     """Identify one axis; a resonance close enough above the cut-off to bias the rigid fit moves
     the cut-off below it (unless the cut-off was given), and the result says so; backlash or
     impacts at torque reversal are reported (:mod:`.reversal`)."""
@@ -245,44 +295,75 @@ def identify_axis(log: Log, axis: str, val_log: Log | None = None, *, seed: int 
     if mode is not None:
         settings = result.settings
         below = mode["frequency_hz"] / 2
-        if cutoff_hz is None and not mode["mains"] and mode["frequency_hz"] < 2 * settings.cutoff_hz \
-                and below < settings.cutoff_hz \
-                and below >= MIN_CUTOFF_BANDWIDTHS * settings.motion_bandwidth_hz:
-            result = _identify_axis(log, axis, val_log, seed, below, None,
-                                    given or (0.0, "not estimated: the resonance shifts the torque's phase "
-                                                   "by more than a delay"))
+        if (
+            cutoff_hz is None
+            and not mode["mains"]
+            and mode["frequency_hz"] < 2 * settings.cutoff_hz
+            and below < settings.cutoff_hz
+            and below >= MIN_CUTOFF_BANDWIDTHS * settings.motion_bandwidth_hz
+        ):
+            result = _identify_axis(
+                log,
+                axis,
+                val_log,
+                seed,
+                below,
+                None,
+                given or (0.0, "not estimated: the resonance shifts the torque's phase by more than a delay"),
+            )
             mode = {**mode, "cutoff_moved_from_hz": round(settings.cutoff_hz, 2)}
             if result.settings.torque_delay_s != settings.torque_delay_s:
-                wide = whole_band(log, axis, result.settings)      # the positions as the new fit reads them
+                wide = whole_band(log, axis, result.settings)  # the positions as the new fit reads them
         result.resonance = mode
-        result.unexplained.append({"depends_on": "frequency", "form": "even", "kind": "resonance",
-                                   "fraction": mode["share"], "frequency_hz": mode["frequency_hz"],
-                                   "damping": mode["damping"], "mains": mode["mains"], "evidence": None,
-                                   **{k: v for k, v in mode.items() if k == "cutoff_moved_from_hz"}})
+        result.unexplained.append(
+            {
+                "depends_on": "frequency",
+                "form": "even",
+                "kind": "resonance",
+                "fraction": mode["share"],
+                "frequency_hz": mode["frequency_hz"],
+                "damping": mode["damping"],
+                "mains": mode["mains"],
+                "evidence": None,
+                **{k: v for k, v in mode.items() if k == "cutoff_moved_from_hz"},
+            }
+        )
     levels = clipped_levels(log.axes[axis].tau)
     if levels:
-        result.sampling["torque_clipped"] = {"levels": levels,
-                                             "share": round(float(np.isin(log.axes[axis].tau, levels).mean()), 4)}
+        result.sampling["torque_clipped"] = {
+            "levels": levels,
+            "share": round(float(np.isin(log.axes[axis].tau, levels).mean()), 4),
+        }
     _check_sign(log, axis, result.model, result.est)
     result.undetermined = undetermined(result.model, result.est, result.after, result.consistency)
     _refit_for_the_drive(result, seed)
     J, c1 = result.model.params_["J"], result.model.params_["c1"]
     predicted = result.model.predict(wide)
     demand = log.axes[axis].demand
-    result.response = log_response(wide.t, wide.qd, wide.tau_f - (predicted - J * wide.qdd - c1 * wide.qd), J, c1,
-                                   None if demand is None else np.interp(wide.t, log.t, demand))
+    result.response = log_response(
+        wide.t,
+        wide.qd,
+        wide.tau_f - (predicted - J * wide.qdd - c1 * wide.qd),
+        J,
+        c1,
+        None if demand is None else np.interp(wide.t, log.t, demand),
+    )
     found = find_reversal_transient(wide, wide.tau_f - predicted, predicted, result.settings, seed)
     if found is not None:
         standstill = found["reversal"] == "velocity"
         if not standstill:
             result.backlash = found
-        result.unexplained.append({"depends_on": f"{found['reversal']}_reversal",
-                                   "form": "odd" if standstill else "even",
-                                   "kind": "standstill_friction" if standstill else "backlash",
-                                   "fraction": found["share"], "evidence": None,
-                                   **{k: found[k] for k in ("delay_ms", "ratio", "events")},
-                                   **({"fitted_from": round(result.friction["velocity_range"][0], 4)}
-                                      if standstill else {})})
+        result.unexplained.append(
+            {
+                "depends_on": f"{found['reversal']}_reversal",
+                "form": "odd" if standstill else "even",
+                "kind": "standstill_friction" if standstill else "backlash",
+                "fraction": found["share"],
+                "evidence": None,
+                **{k: found[k] for k in ("delay_ms", "ratio", "events")},
+                **({"fitted_from": round(result.friction["velocity_range"][0], 4)} if standstill else {}),
+            }
+        )
     return result
 
 
@@ -296,10 +377,12 @@ def _refit_for_the_drive(result: AxisResult, seed: int) -> None:
     drive = AxisModel(held, seed=seed).fit(result.est).widen(result.est)
     drive_errors = errors(drive, result.val)
     lost = undetermined(drive, result.est, drive_errors, {})
-    if lost:                                           # the drive's structure cannot hold this machine
+    if lost:  # the drive's structure cannot hold this machine
         left = ", ".join(e.name for e in result.model.effects if e not in held)
-        result.drive_note = (f"refitted without {left}, which no drive model holds, the model leaves "
-                             f"{', '.join(lost)} undetermined: the full model's values are what is written")
+        result.drive_note = (
+            f"refitted without {left}, which no drive model holds, the model leaves "
+            f"{', '.join(lost)} undetermined: the full model's values are what is written"
+        )
     else:
         result.drive_model, result.drive_errors = drive, drive_errors
 
@@ -314,20 +397,31 @@ def _check_sign(log: Log, axis: str, model: AxisModel, est: Samples) -> None:
     for m in (model, AxisModel(load, seed=model.seed).fit(est)):
         p, sd = m.params_, m.param_std_
         if p["J"] < -T_MIN * sd["J"] and (p["c0"] < -T_MIN * sd["c0"] or p["c1"] < -T_MIN * sd["c1"]):
-            raise UserError(f"{log.path}: axis {axis}: J {p['J']:.4g}, c0 {p['c0']:.4g} and c1 {p['c1']:.4g} come "
-                            f"out negative: the torque and the position have opposite sign conventions? Give "
-                            f"--torque-sign -1 (identify) to read the torque the other way round")
+            raise UserError(
+                f"{log.path}: axis {axis}: J {p['J']:.4g}, c0 {p['c0']:.4g} and c1 {p['c1']:.4g} come "
+                f"out negative: the torque and the position have opposite sign conventions? Give "
+                f"--torque-sign -1 (identify) to read the torque the other way round"
+            )
 
 
-def _identify_axis(log: Log, axis: str, val_log: Log | None, seed: int, cutoff_hz: float | None,
-                   decimation: int | None, delay: tuple[float, str] | None = None) -> AxisResult:
+def _identify_axis(
+    log: Log,
+    axis: str,
+    val_log: Log | None,
+    seed: int,
+    cutoff_hz: float | None,
+    decimation: int | None,
+    delay: tuple[float, str] | None = None,
+) -> AxisResult:
     """One identification.  ``delay``: the torque's delay [s] behind the position and why it is
     that (``given``, not estimated because ...); None: estimated with the model as the tracing
     builds it (:func:`.model.torque_delay`), and where the torque is significantly late and
     aligning the positions with it lowers the validation error of the torque as logged (by
     ``MIN_GAIN``, as an effect must), they are aligned and the tracing goes on with them."""
     if val_log is not None and axis not in val_log.axes:
-        raise UserError(f"{val_log.path}: the validation log has no axis {axis!r} (it has {', '.join(val_log.axes)})")
+        raise UserError(
+            f"{val_log.path}: the validation log has no axis {axis!r} (it has {', '.join(val_log.axes)})"
+        )
     chosen = choose_settings(log, axis, cutoff_hz, decimation)
 
     def aligned(d: float) -> tuple[Settings, Settings, Samples, Samples, str]:
@@ -349,12 +443,14 @@ def _identify_axis(log: Log, axis: str, val_log: Log | None, seed: int, cutoff_h
         if delay is not None or moves >= MAX_REALIGNMENTS:
             return None
         settings, _, est, val, _ = current
-        d, std = torque_delay(model, est, log.dt)             # beyond the alignment made so far
+        d, std = torque_delay(model, est, log.dt)  # beyond the alignment made so far
         total = settings.torque_delay_s + d
         timing.update(torque_delay_estimate_ms=round(1e3 * total, 4), torque_delay_std_ms=round(1e3 * std, 4))
         if abs(total) > MAX_DELAY_SAMPLES * log.dt:
-            timing["torque_delay_note"] = (f"estimated beyond {MAX_DELAY_SAMPLES:g} log samples: no plain "
-                                           f"delay (a compliance or a filter), left as it was")
+            timing["torque_delay_note"] = (
+                f"estimated beyond {MAX_DELAY_SAMPLES:g} log samples: no plain "
+                f"delay (a compliance or a filter), left as it was"
+            )
             return None
         if abs(d) <= DELAY_SIGMAS * std:
             return None
@@ -362,8 +458,10 @@ def _identify_axis(log: Log, axis: str, val_log: Log | None, seed: int, cutoff_h
         candidate = aligned(total)
         refit = AxisModel(model.effects, seed=seed).fit(candidate[2])
         if errors(refit, candidate[3]).rmse > (1 - MIN_GAIN) * errors(model, val).rmse:
-            timing["torque_delay_note"] = (f"aligning the positions with it did not lower the validation "
-                                           f"error of the torque as logged by {MIN_GAIN:.0%}: left as it was")
+            timing["torque_delay_note"] = (
+                f"aligning the positions with it did not lower the validation "
+                f"error of the torque as logged by {MIN_GAIN:.0%}: left as it was"
+            )
             return None
         timing.pop("torque_delay_note", None)
         current = candidate
@@ -377,31 +475,66 @@ def _identify_axis(log: Log, axis: str, val_log: Log | None, seed: int, cutoff_h
     friction = friction_range(model, est)
     floor = noise_floor(val_log, axis, vs) if val_log is not None else noise_floor(log, axis, settings)
     ga_model = AxisModel(model.effects, method="ga", seed=seed).fit(est)
-    logger.info("axis %s: %s; effects %s; cut-off %.3g Hz, torque delay %.3g ms", axis,
-                ", ".join(f"{k} {v:.6g}" for k, v in model.params_.items() if k in ("J", "c0", "c1")),
-                ", ".join(t.effect.name for t in traced) or "none", settings.cutoff_hz, 1e3 * settings.torque_delay_s)
-    return AxisResult(axis, log.axes[axis].kind, log.axes[axis].units, settings, how, est, val, base, model,
-                      traced, errors(base, val), errors(model, val), floor,
-                      unexplained(model, val, settings.rate_hz / settings.decimation), ga_model.coef_,
-                      errors(ga_model, val), list(log.axes[axis].dropped),
-                      {**log.sampling, "torque_delay_ms": round(1e3 * settings.torque_delay_s, 4),
-                       "torque_aligned": settings.torque_delay_s != 0.0, **timing}, agreement,
-                      friction=friction, ga_converged=ga_model.converged_)
+    logger.info(
+        "axis %s: %s; effects %s; cut-off %.3g Hz, torque delay %.3g ms",
+        axis,
+        ", ".join(f"{k} {v:.6g}" for k, v in model.params_.items() if k in ("J", "c0", "c1")),
+        ", ".join(t.effect.name for t in traced) or "none",
+        settings.cutoff_hz,
+        1e3 * settings.torque_delay_s,
+    )
+    return AxisResult(
+        axis,
+        log.axes[axis].kind,
+        log.axes[axis].units,
+        settings,
+        how,
+        est,
+        val,
+        base,
+        model,
+        traced,
+        errors(base, val),
+        errors(model, val),
+        floor,
+        unexplained(model, val, settings.rate_hz / settings.decimation),
+        ga_model.coef_,
+        errors(ga_model, val),
+        list(log.axes[axis].dropped),
+        {
+            **log.sampling,
+            "torque_delay_ms": round(1e3 * settings.torque_delay_s, 4),
+            "torque_aligned": settings.torque_delay_s != 0.0,
+            **timing,
+        },
+        agreement,
+        friction=friction,
+        ga_converged=ga_model.converged_,
+    )
 
 
 def workers(log: Log, axes: list[str]) -> int:
     """How many processes identify ``axes`` of ``log`` (1: here, one after the other): one per
     axis up to :func:`processes`; for a small log only where ``DRIVE_BRIDGE_WORKERS`` asks."""
-    if len(axes) < 2 or (not os.environ.get("DRIVE_BRIDGE_WORKERS")
-                         and len(log.t) * len(axes) < MIN_PARALLEL_SAMPLES):
+    if len(axes) < 2 or (
+        not os.environ.get("DRIVE_BRIDGE_WORKERS") and len(log.t) * len(axes) < MIN_PARALLEL_SAMPLES
+    ):
         return 1
     return min(len(axes), processes())
 
 
-def identify(path: str | Path, validate: str | Path | None = None, axes: list[str] | None = None, *,
-             seed: int = 0, cutoff_hz: float | None = None, decimation: int | None = None,
-             progress: Callable[[str], object] | None = None, torque_delay_s: float | None = None,
-             torque_sign: float = 1.0) -> dict[str, AxisResult]:
+def identify(
+    path: str | Path,
+    validate: str | Path | None = None,
+    axes: list[str] | None = None,
+    *,
+    seed: int = 0,
+    cutoff_hz: float | None = None,
+    decimation: int | None = None,
+    progress: Callable[[str], object] | None = None,
+    torque_delay_s: float | None = None,
+    torque_sign: float = 1.0,
+) -> dict[str, AxisResult]:
     """Identify every axis of the log at ``path`` (or ``axes``); see the package docstring.
     ``torque_delay_s``: the logged torque's delay behind the position, None to estimate it;
     ``torque_sign`` -1: the torque was logged with the opposite sign convention to the position."""
@@ -416,27 +549,36 @@ def identify(path: str | Path, validate: str | Path | None = None, axes: list[st
     for a in names:
         if a not in log.axes:
             raise UserError(f"{log.path}: no axis {a!r} in the log (it has {', '.join(log.axes)})")
-    options = {"seed": seed, "cutoff_hz": cutoff_hz, "decimation": decimation, "torque_delay_s": torque_delay_s}
+    options = {
+        "seed": seed,
+        "cutoff_hz": cutoff_hz,
+        "decimation": decimation,
+        "torque_delay_s": torque_delay_s,
+    }
     count = workers(log, names)
-    if count > 1 and progress:               # side by side: every axis starts now
+    if count > 1 and progress:  # side by side: every axis starts now
         for a in names:
             progress(a)
-    outcomes = dict(zip(names, fork_map(_outcome, names, count,
-                                        (log, val_log, options, progress if count == 1 else None))))
+    outcomes = dict(
+        zip(
+            names, fork_map(_outcome, names, count, (log, val_log, options, progress if count == 1 else None))
+        )
+    )
     results = {a: r for a, (status, r) in outcomes.items() if status == "ok"}
     if count > 1:
         for r in results.values():
             r.attach(log)
     failed = [UserError(message) for status, message in outcomes.values() if status == "error"]
-    if failed and (axes or not results):        # asked for by name: its problem is the answer
+    if failed and (axes or not results):  # asked for by name: its problem is the answer
         raise failed[0]
-    for error in failed:                        # the others answered: this one is said, not lost
+    for error in failed:  # the others answered: this one is said, not lost
         logger.warning("%s", error)
     return results
 
 
-def _outcome(shared: tuple[Log, Log | None, dict[str, Any], Callable[[str], object] | None],
-             axis: str) -> tuple[str, Any]:
+def _outcome(
+    shared: tuple[Log, Log | None, dict[str, Any], Callable[[str], object] | None], axis: str
+) -> tuple[str, Any]:
     """("ok", :func:`identify_axis`'s result) or ("error", why the log cannot give it: a UserError's
     message, a log that cannot determine the model said so); ``progress(axis)`` first, where given."""
     log, val_log, options, progress = shared
@@ -446,7 +588,9 @@ def _outcome(shared: tuple[Log, Log | None, dict[str, Any], Callable[[str], obje
         try:
             return "ok", identify_axis(log, axis, val_log, **options)
         except (np.linalg.LinAlgError, ValueError, FloatingPointError) as exc:
-            raise UserError(f"{log.path}: axis {axis!r}: the log does not determine the model ({exc}); it "
-                            f"needs motion at several speeds and accelerations in both directions") from exc
+            raise UserError(
+                f"{log.path}: axis {axis!r}: the log does not determine the model ({exc}); it "
+                f"needs motion at several speeds and accelerations in both directions"
+            ) from exc
     except UserError as exc:
         return "error", str(exc)

@@ -17,6 +17,7 @@ median period, position and torque through the same cubic spline, so that
 every later step sees evenly spaced samples that are true to their instants.
 :attr:`Log.sampling` says what the stamps held and what was done.
 """
+
 from __future__ import annotations
 
 import io
@@ -31,19 +32,21 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from ..errors import UserError
-from ..logs import LOG_NAME, META_NAME, TRACE_NAME
 from ..forking import fork_map, processes
+from ..logs import LOG_NAME, META_NAME, TRACE_NAME
 
-KINDS = {"rad": ("rotary", "torque_Nm", {"position": "rad", "torque": "Nm"}),
-         "m": ("linear", "force_N", {"position": "m", "torque": "N"})}
-MAX_POSITION = 1e7           # rad | m: beyond this a value is a corrupt row, not a position
-MAX_TORQUE = 1e7             # Nm | N
-MIN_SEGMENT = 64            # samples: shorter finite runs are dropped (the filters need room)
-GAP_FACTOR = 5.0            # a time step longer than this many median periods is a gap
-MAX_FILLED = 5              # samples: a shorter run of missing samples is filled, not a cut (the filters
-                            # would cut far more at each edge than the run holds)
-MIN_PARALLEL_BYTES = 8_000_000   # a CSV this large is parsed in parts, one process per core
-JITTER_TOLERANCE = 1e-3     # steps within this fraction of the median period count as evenly spaced
+KINDS = {
+    "rad": ("rotary", "torque_Nm", {"position": "rad", "torque": "Nm"}),
+    "m": ("linear", "force_N", {"position": "m", "torque": "N"}),
+}
+MAX_POSITION = 1e7  # rad | m: beyond this a value is a corrupt row, not a position
+MAX_TORQUE = 1e7  # Nm | N
+MIN_SEGMENT = 64  # samples: shorter finite runs are dropped (the filters need room)
+GAP_FACTOR = 5.0  # a time step longer than this many median periods is a gap
+MAX_FILLED = 5  # samples: a shorter run of missing samples is filled, not a cut (the filters
+# would cut far more at each edge than the run holds)
+MIN_PARALLEL_BYTES = 8_000_000  # a CSV this large is parsed in parts, one process per core
+JITTER_TOLERANCE = 1e-3  # steps within this fraction of the median period count as evenly spaced
 
 
 @dataclass
@@ -51,21 +54,21 @@ class AxisLog:
     """One axis of a log: position [rad | m] and torque [Nm | N] on the log's time base."""
 
     name: str
-    kind: str                                    # "rotary" | "linear"
+    kind: str  # "rotary" | "linear"
     units: dict[str, str]
     q: np.ndarray
     tau: np.ndarray
-    segments: list[tuple[int, int]]              # [start, stop) row ranges that are usable
+    segments: list[tuple[int, int]]  # [start, stop) row ranges that are usable
     dropped: list[str] = field(default_factory=list)
-    demand: np.ndarray | None = None             # the position demand, where the log has it
-    filled: np.ndarray | None = None             # True where a short run of missing samples was filled
+    demand: np.ndarray | None = None  # the position demand, where the log has it
+    filled: np.ndarray | None = None  # True where a short run of missing samples was filled
 
 
 @dataclass
 class Log:
     path: Path
-    t: np.ndarray                                # [s], evenly spaced within segments (see sampling)
-    dt: float                                    # median sample period [s]
+    t: np.ndarray  # [s], evenly spaced within segments (see sampling)
+    dt: float  # median sample period [s]
     axes: dict[str, AxisLog]
     #: what the time stamps held: period, jitter, gaps, and whether the log was resampled
     sampling: dict = field(default_factory=dict)
@@ -78,11 +81,15 @@ def _csv_path(path: Path) -> Path:
     if path.is_dir():
         meta = path / META_NAME
         if meta.is_file() and "status: running" in meta.read_text(encoding="utf-8", errors="replace"):
-            raise UserError(f"{path}: the recording never ended (meta.yaml status 'running': the process was "
-                            f"killed); rebuild what it recorded with: drive-bridge decode {path / TRACE_NAME}")
+            raise UserError(
+                f"{path}: the recording never ended (meta.yaml status 'running': the process was "
+                f"killed); rebuild what it recorded with: drive-bridge decode {path / TRACE_NAME}"
+            )
         if not (path / LOG_NAME).exists():
-            raise UserError(f"{path}: a directory, but it holds no {LOG_NAME} (give a record output "
-                            f"directory or a CSV file)")
+            raise UserError(
+                f"{path}: a directory, but it holds no {LOG_NAME} (give a record output "
+                f"directory or a CSV file)"
+            )
         return path / LOG_NAME
     if not path.exists():
         raise UserError(f"{path}: no such file")
@@ -99,8 +106,11 @@ def _short_holes(finite: np.ndarray, gaps: np.ndarray) -> list[tuple[int, int]]:
     """[start, stop) of the runs of missing samples no longer than ``MAX_FILLED``, with a finite
     sample on either side and no time gap at or around them."""
     gap_rows = set((np.asarray(gaps) + 1).tolist())
-    return [(a, b) for a, b in _runs(~finite)
-            if b - a <= MAX_FILLED and a > 0 and b < len(finite) and not gap_rows & set(range(a, b + 1))]
+    return [
+        (a, b)
+        for a, b in _runs(~finite)
+        if b - a <= MAX_FILLED and a > 0 and b < len(finite) and not gap_rows & set(range(a, b + 1))
+    ]
 
 
 def _describe(runs: list[tuple[int, int]], t: np.ndarray, limit: int = 3) -> str:
@@ -121,22 +131,24 @@ def _rows(path: Path) -> np.ndarray:
             cuts = [f.tell()]
             for k in range(1, count):
                 f.seek(max(cuts[-1], cuts[0] + k * (size - cuts[0]) // count))
-                f.readline()                             # the part ends where a line does
+                f.readline()  # the part ends where a line does
                 cuts.append(f.tell())
             cuts.append(size)
             spans = [(a, b) for a, b in zip(cuts, cuts[1:]) if b > a]
             lines = [_lines(f, a, b) for a, b in spans]  # at most this many rows each (blank lines: fewer)
-        firsts = np.cumsum([0] + lines).tolist()         # each part's first row in the table
+        firsts = np.cumsum([0] + lines).tolist()  # each part's first row in the table
         table = np.frombuffer(mmap.mmap(-1, max(1, firsts[-1] * columns * 8)), dtype=float)
-        table = table[:firsts[-1] * columns].reshape(firsts[-1], columns)
+        table = table[: firsts[-1] * columns].reshape(firsts[-1], columns)
         try:
-            got = fork_map(_parse_part, [(a, b, first) for (a, b), first in zip(spans, firsts)], count, (path, table))
-        except Exception:       # noqa: BLE001 -- any part that fails: the whole file says why, below
+            got = fork_map(
+                _parse_part, [(a, b, first) for (a, b), first in zip(spans, firsts)], count, (path, table)
+            )
+        except Exception:  # noqa: BLE001 -- any part that fails: the whole file says why, below
             pass
         else:
             if got == lines:
-                return table                             # every part filled its rows up to the next one's
-            return np.concatenate([table[first:first + n] for n, first in zip(got, firsts)])
+                return table  # every part filled its rows up to the next one's
+            return np.concatenate([table[first : first + n] for n, first in zip(got, firsts)])
     return _parse_rows(path, None)
 
 
@@ -158,14 +170,14 @@ def _parse_part(shared: tuple[Path, np.ndarray], span: tuple[int, int, int]) -> 
     rows = _parse_rows(path, span[:2])
     if rows.size and rows.shape[1] != table.shape[1]:
         raise ValueError(f"{rows.shape[1]} columns under a header of {table.shape[1]}")
-    table[span[2]:span[2] + len(rows)] = rows
+    table[span[2] : span[2] + len(rows)] = rows
     return len(rows)
 
 
 def _parse_rows(path: Path, span: tuple[int, int] | None) -> np.ndarray:
     """The rows of the CSV between the byte offsets ``span`` (None: every row under its header)."""
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore")              # numpy's "input contained no data": said by the caller
+        warnings.simplefilter("ignore")  # numpy's "input contained no data": said by the caller
         if span is None:
             return np.loadtxt(path, delimiter=",", skiprows=1, dtype=float, ndmin=2)
         with open(path, "rb") as f:
@@ -186,8 +198,10 @@ def read_log(path: str | Path) -> Log:
     if "time_s" not in header:
         raise UserError(f"{path}: no time_s column (columns: {', '.join(header[:8])}...)")
     if data.shape[0] < 2 or data.shape[1] != len(header):
-        raise UserError(f"{path}: {data.shape[0]} data rows of {data.shape[1]} columns under a header of "
-                        f"{len(header)}: not a log")
+        raise UserError(
+            f"{path}: {data.shape[0]} data rows of {data.shape[1]} columns under a header of "
+            f"{len(header)}: not a log"
+        )
     col = {name: data[:, i] for i, name in enumerate(header)}
     t = col["time_s"]
     if not np.all(np.isfinite(t)):
@@ -202,14 +216,16 @@ def read_log(path: str | Path) -> Log:
     dt_all = np.diff(t)
     if np.any(dt_all <= 0):
         bad = int(np.flatnonzero(dt_all <= 0)[0])
-        raise UserError(f"{path}: time_s does not increase at row {bad + 3} "
-                        f"(t = {t[bad]:.6f} then {t[bad + 1]:.6f}); sort the log or fix its time base")
+        raise UserError(
+            f"{path}: time_s does not increase at row {bad + 3} "
+            f"(t = {t[bad]:.6f} then {t[bad + 1]:.6f}); sort the log or fix its time base"
+        )
     dt = float(np.median(dt_all))
-    for name in [n for n in header if n.endswith("_valid")]:     # a missing sample is missing data, in
-        invalid = col[name] == 0                                 # every column of its axis (in place:
-        if invalid.any():                                        # the table is this function's own)
+    for name in [n for n in header if n.endswith("_valid")]:  # a missing sample is missing data, in
+        invalid = col[name] == 0  # every column of its axis (in place:
+        if invalid.any():  # the table is this function's own)
             for other in header:
-                if other.startswith(name[:-len("valid")]) and other != name:
+                if other.startswith(name[: -len("valid")]) and other != name:
                     col[other][invalid] = np.nan
     col, t, gaps, sampling = _uniform_time(col, t, dt)
     axes = {}
@@ -226,8 +242,10 @@ def read_log(path: str | Path) -> Log:
         for what, values, limit in ((name, q, MAX_POSITION), (tau_name, tau, MAX_TORQUE)):
             wild = np.flatnonzero(np.abs(values) > limit)
             if len(wild):
-                raise UserError(f"{path}: {what} = {values[wild[0]]:.6g} at row {wild[0] + 2} is not a plausible "
-                                f"value (|x| > {limit:g}); fix or cut the log")
+                raise UserError(
+                    f"{path}: {what} = {values[wild[0]]:.6g} at row {wild[0] + 2} is not a plausible "
+                    f"value (|x| > {limit:g}); fix or cut the log"
+                )
         dropped = []
         finite = np.isfinite(q) & np.isfinite(tau)
         short = _short_holes(finite, gaps)
@@ -239,19 +257,24 @@ def read_log(path: str | Path) -> Log:
             for values in (q, tau):
                 values[filled] = CubicSpline(t[finite], values[finite])(t[filled])
             finite |= filled
-            dropped.append(f"filled, not dropped: {int(filled.sum())} samples missing in {len(short)} run(s) of at "
-                           f"most {MAX_FILLED} (a late master's skipped periods, say), by a cubic spline through "
-                           f"their neighbours for the filters; the samples within one cut-off period of them are "
-                           f"not fitted: {_describe(short, t)}")
+            dropped.append(
+                f"filled, not dropped: {int(filled.sum())} samples missing in {len(short)} run(s) of at "
+                f"most {MAX_FILLED} (a late master's skipped periods, say), by a cubic spline through "
+                f"their neighbours for the filters; the samples within one cut-off period of them are "
+                f"not fitted: {_describe(short, t)}"
+            )
         nan_runs = _runs(~finite)
         if nan_runs:
-            dropped.append(f"{int((~finite).sum())} samples without a value in {len(nan_runs)} run(s): "
-                           f"{_describe(nan_runs, t)}")
+            dropped.append(
+                f"{int((~finite).sum())} samples without a value in {len(nan_runs)} run(s): "
+                f"{_describe(nan_runs, t)}"
+            )
         usable = finite.copy()
-        usable[gaps + 1] = False                 # a segment never spans a time gap
+        usable[gaps + 1] = False  # a segment never spans a time gap
         if len(gaps):
-            dropped.append(f"time gaps split the log at {len(gaps)} place(s): "
-                           f"{_describe([(g, g + 2) for g in gaps], t)}")
+            dropped.append(
+                f"time gaps split the log at {len(gaps)} place(s): {_describe([(g, g + 2) for g in gaps], t)}"
+            )
         segments = []
         for a, b in _runs(usable):
             if b - a >= MIN_SEGMENT:
@@ -259,23 +282,38 @@ def read_log(path: str | Path) -> Log:
             else:
                 dropped.append(f"{b - a} samples at {_describe([(a, b)], t)}: too short a run to filter")
         if not segments:
-            raise UserError(f"{path}: axis {axis!r}: no run of {MIN_SEGMENT} or more consecutive samples "
-                            f"with position and torque")
+            raise UserError(
+                f"{path}: axis {axis!r}: no run of {MIN_SEGMENT} or more consecutive samples "
+                f"with position and torque"
+            )
         if not np.nanmax(tau) > np.nanmin(tau):
-            raise UserError(f"{path}: axis {axis!r}: {tau_name} never changes ({np.nanmax(tau):g}): no torque was "
-                            f"logged; check the TPDO mapping of the torque object")
+            raise UserError(
+                f"{path}: axis {axis!r}: {tau_name} never changes ({np.nanmax(tau):g}): no torque was "
+                f"logged; check the TPDO mapping of the torque object"
+            )
         demand = col.get(f"{axis}_position_demand_{unit}")
-        axes[axis] = AxisLog(axis, kind, units, q, tau, segments, dropped,
-                             None if demand is None or not np.isfinite(demand).any() else demand.copy(),
-                             filled)
+        axes[axis] = AxisLog(
+            axis,
+            kind,
+            units,
+            q,
+            tau,
+            segments,
+            dropped,
+            None if demand is None or not np.isfinite(demand).any() else demand.copy(),
+            filled,
+        )
     if not axes:
-        raise UserError(f"{path}: no axis found: expected <axis>_position_rad with <axis>_torque_Nm, or "
-                        f"<axis>_position_m with <axis>_force_N")
-    return Log(path, np.array(t), dt, axes, sampling)      # a copy: a column's view would keep the whole table
+        raise UserError(
+            f"{path}: no axis found: expected <axis>_position_rad with <axis>_torque_Nm, or "
+            f"<axis>_position_m with <axis>_force_N"
+        )
+    return Log(path, np.array(t), dt, axes, sampling)  # a copy: a column's view would keep the whole table
 
 
-def _uniform_time(col: dict[str, np.ndarray], t: np.ndarray, dt: float
-                  ) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray, dict]:
+def _uniform_time(
+    col: dict[str, np.ndarray], t: np.ndarray, dt: float
+) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray, dict]:
     """The columns on evenly spaced instants: as they are where the stamps are (within
     ``JITTER_TOLERANCE``), else resampled per gap-free span onto t0 + k·dt (cubic spline, every
     column alike; a sample next to a missing value stays missing).  Returns the columns, the
@@ -284,8 +322,13 @@ def _uniform_time(col: dict[str, np.ndarray], t: np.ndarray, dt: float
     gap = steps > GAP_FACTOR * dt
     inner = steps[~gap]
     deviation = float(np.max(np.abs(inner - dt))) if len(inner) else 0.0
-    sampling = {"period_s": dt, "jitter_std_s": float(np.std(inner)) if len(inner) else 0.0,
-                "max_step_deviation_s": deviation, "gaps": int(gap.sum()), "resampled": False}
+    sampling = {
+        "period_s": dt,
+        "jitter_std_s": float(np.std(inner)) if len(inner) else 0.0,
+        "max_step_deviation_s": deviation,
+        "gaps": int(gap.sum()),
+        "resampled": False,
+    }
     if deviation <= JITTER_TOLERANCE * dt:
         return col, t, np.flatnonzero(gap), sampling
     sampling["resampled"] = True

@@ -12,6 +12,7 @@ in them, widen it instead of hiding behind the white-noise formula σ²(ΦᵀΦ)
 coefficient again.  Units follow the axis: J [kg·m² | kg], c1 [Nm·s/rad |
 N·s/m], c0 [Nm | N].
 """
+
 from __future__ import annotations
 
 from collections.abc import Iterator
@@ -25,11 +26,11 @@ from .effects import Effect
 from .signals import Samples, Signals, derivative
 
 BASE = ("J", "c1", "c0")
-JACKKNIFE_BLOCKS = 10       # stretches of the log in time for the delete-one-block jackknife (AxisModel.widen)
-JACKKNIFE_BEYOND = 2.0      # ... which replaces the HAC std where larger by this factor: a 10-block jackknife's
-                            # own scatter (~25 %) is no evidence of structure, nor is a campaign whose blocks
-                            # differ (the paper's runs its speeds one after the other: 1.5x on the simulated
-                            # Y axis's c0 and c1, no structure); twice the HAC std is
+JACKKNIFE_BLOCKS = 10  # stretches of the log in time for the delete-one-block jackknife (AxisModel.widen)
+JACKKNIFE_BEYOND = 2.0  # ... which replaces the HAC std where larger by this factor: a 10-block jackknife's
+# own scatter (~25 %) is no evidence of structure, nor is a campaign whose blocks
+# differ (the paper's runs its speeds one after the other: 1.5x on the simulated
+# Y axis's c0 and c1, no structure); twice the HAC std is
 
 
 def base_columns(s: Samples) -> np.ndarray:
@@ -49,7 +50,7 @@ class AxisModel:
         self.method = method
         self.seed = seed
 
-    def with_effect(self, effect: Effect) -> "AxisModel":
+    def with_effect(self, effect: Effect) -> AxisModel:
         """The same model, unfitted, with ``effect`` added."""
         return AxisModel(self.effects + [effect], self.method, self.seed)
 
@@ -62,23 +63,23 @@ class AxisModel:
     def coef_names(self) -> list[str]:
         return list(BASE) + [f"{e.name}.{c}" for e in self.effects for c in e.coef_names]
 
-    def fit(self, s: Samples) -> "AxisModel":
+    def fit(self, s: Samples) -> AxisModel:
         """Fit every coefficient on the moving samples of ``s``.  ``cov_``, ``sigma_`` and
         ``cond_`` are those of the least-squares problem (with ``"ga"`` too: differential
         evolution gives no covariance)."""
         m = s.moving
         phi, y = self.design(s)[m], s.tau_f[m]
-        scale = np.sqrt(np.mean(phi ** 2, axis=0))
+        scale = np.sqrt(np.mean(phi**2, axis=0))
         scale[scale == 0] = 1.0
         coef, *_ = np.linalg.lstsq(phi / scale, y, rcond=None)
         coef = coef / scale
         n, p = phi.shape
         resid = y - phi @ coef
-        self.sigma_ = float(np.sqrt(float(resid @ resid) / max(1, n - p)))     # residual std
+        self.sigma_ = float(np.sqrt(float(resid @ resid) / max(1, n - p)))  # residual std
         gram_inv = np.linalg.pinv((phi / scale).T @ (phi / scale)) / np.outer(scale, scale)
         self.cov_ = hac_covariance(phi, resid, gram_inv, n - p)
         self.cond_ = float(np.linalg.cond(phi))
-        self.converged_ = True          # "ga": whether the search converged before its generation limit
+        self.converged_ = True  # "ga": whether the search converged before its generation limit
         if self.method == "ga":
             result = _differential_evolution(phi, y, coef, self.cov_, self.seed)
             coef, self.converged_ = result.x, bool(result.success)
@@ -86,10 +87,10 @@ class AxisModel:
         self.coef_ = coef
         self.n_samples_ = n
         self.sse_ = float(resid @ resid)
-        self.relative_error_ = float(np.linalg.norm(resid) / np.linalg.norm(y))   # paper / EMPS measure
+        self.relative_error_ = float(np.linalg.norm(resid) / np.linalg.norm(y))  # paper / EMPS measure
         return self
 
-    def widen(self, s: Samples, blocks: int = JACKKNIFE_BLOCKS) -> "AxisModel":
+    def widen(self, s: Samples, blocks: int = JACKKNIFE_BLOCKS) -> AxisModel:
         """Widen ``cov_`` to the delete-one-block jackknife over ``blocks`` stretches of ``s`` in
         time (equal counts of moving samples) wherever that is larger by ``JACKKNIFE_BEYOND``,
         keeping the correlations:
@@ -130,7 +131,11 @@ class AxisModel:
     def params_(self) -> dict[str, Any]:
         """J, c0, c1 and every effect's parameters (``<effect>.<name>``: numbers, and the names
         that say what an effect is, as a cross-axis coupling's source)."""
-        out: dict[str, Any] = {"J": float(self.coef_[0]), "c0": float(self.coef_[2]), "c1": float(self.coef_[1])}
+        out: dict[str, Any] = {
+            "J": float(self.coef_[0]),
+            "c0": float(self.coef_[2]),
+            "c1": float(self.coef_[1]),
+        }
         for e, sl in self._blocks():
             for k, v in e.params(self.coef_[sl]).items():
                 out[f"{e.name}.{k}"] = v
@@ -164,7 +169,7 @@ class AxisModel:
         return effect.params(self._coef_of(effect))
 
 
-DIRECT_LAGS = 64             # hac_lags: lags of the autocorrelation summed directly, beyond them by FFT
+DIRECT_LAGS = 64  # hac_lags: lags of the autocorrelation summed directly, beyond them by FFT
 
 
 def hac_lags(resid: np.ndarray) -> int:
@@ -178,12 +183,12 @@ def hac_lags(resid: np.ndarray) -> int:
         return rule
     cap = max(1, n // 10)
     band = 2 / np.sqrt(n) * power
-    for lag in range(1, min(cap, DIRECT_LAGS) + 1):      # the correlation is short: the first lags directly
+    for lag in range(1, min(cap, DIRECT_LAGS) + 1):  # the correlation is short: the first lags directly
         if float(r[:-lag] @ r[lag:]) <= band:
             return min(max(rule, lag), cap)
     spectrum = np.fft.rfft(r, 2 * n)
     acf = np.fft.irfft(spectrum * np.conj(spectrum))[:n]
-    below = np.flatnonzero(acf[1:cap + 1] <= band)
+    below = np.flatnonzero(acf[1 : cap + 1] <= band)
     lag = int(below[0]) + 1 if len(below) else cap
     return min(max(rule, lag), cap)
 
@@ -197,13 +202,13 @@ def hac_covariance(phi: np.ndarray, resid: np.ndarray, gram_inv: np.ndarray, dof
     u = phi * resid[:, None]
     b = hac_lags(resid) + 1
     full = n // b
-    blocks = u[:full * b].reshape(full, b, p).sum(axis=1)
-    tail = u[full * b:].sum(axis=0)
+    blocks = u[: full * b].reshape(full, b, p).sum(axis=1)
+    tail = u[full * b :].sum(axis=0)
     meat = blocks.T @ blocks + np.outer(tail, tail)
     return gram_inv @ meat @ gram_inv * (n / max(1, dof))
 
 
-MAX_DELAY_SAMPLES = 3.0      # a torque delay estimated beyond this many log samples is no plain delay
+MAX_DELAY_SAMPLES = 3.0  # a torque delay estimated beyond this many log samples is no plain delay
 
 
 class _TorqueRate(Effect):
@@ -242,9 +247,9 @@ def torque_delay(model: AxisModel, s: Samples, dt: float) -> tuple[float, float]
 class Errors:
     """Errors of a model on one set of samples (moving samples only)."""
 
-    rmse: float                 # measured torque as logged minus predicted [Nm | N]
-    torque_rms: float           # RMS of the measured torque on the same samples
-    relative_error: float       # ||filtered torque - predicted|| / ||filtered torque|| (paper, EMPS)
+    rmse: float  # measured torque as logged minus predicted [Nm | N]
+    torque_rms: float  # RMS of the measured torque on the same samples
+    relative_error: float  # ||filtered torque - predicted|| / ||filtered torque|| (paper, EMPS)
     samples: int
 
 
@@ -252,8 +257,12 @@ def errors(model: AxisModel, s: Samples) -> Errors:
     m = s.moving
     pred, logged = model.predict(s)[m], model.predict(s, logged=True)[m]
     tau, tau_f = s.tau[m], s.tau_f[m]
-    return Errors(float(np.sqrt(np.mean((tau - logged) ** 2))), float(np.sqrt(np.mean(tau ** 2))),
-                  float(np.linalg.norm(tau_f - pred) / np.linalg.norm(tau_f)), int(m.sum()))
+    return Errors(
+        float(np.sqrt(np.mean((tau - logged) ** 2))),
+        float(np.sqrt(np.mean(tau**2))),
+        float(np.linalg.norm(tau_f - pred) / np.linalg.norm(tau_f)),
+        int(m.sum()),
+    )
 
 
 def extend(model: AxisModel, effect: Effect, s: Samples) -> AxisModel:
@@ -265,8 +274,9 @@ def extend(model: AxisModel, effect: Effect, s: Samples) -> AxisModel:
     return model.with_effect(effect).fit(s)
 
 
-def _differential_evolution(phi: np.ndarray, y: np.ndarray, centre: np.ndarray, cov: np.ndarray,
-                            seed: int) -> evolution.OptimizeResult:
+def _differential_evolution(
+    phi: np.ndarray, y: np.ndarray, centre: np.ndarray, cov: np.ndarray, seed: int
+) -> evolution.OptimizeResult:
     """Every coefficient by differential evolution around the least-squares estimate ``centre``.
 
     The search box is ``centre`` ± max(50 %, 10 std) per coefficient; the cost is the same sum
@@ -277,8 +287,9 @@ def _differential_evolution(phi: np.ndarray, y: np.ndarray, centre: np.ndarray, 
     half = np.maximum(0.5 * np.abs(centre), 10 * np.sqrt(np.maximum(np.diag(cov), 0.0))) + 1e-12
     lo, hi = centre - half, centre + half
 
-    def sse(theta: np.ndarray) -> np.ndarray:          # theta: (p, S) population
+    def sse(theta: np.ndarray) -> np.ndarray:  # theta: (p, S) population
         return yy - 2 * b @ theta + np.einsum("is,ij,js->s", theta, gram, theta)
 
-    return evolution.differential_evolution(sse, list(zip(lo, hi)), seed, popsize=30, maxiter=400, tol=1e-10,
-                                            polish=False)
+    return evolution.differential_evolution(
+        sse, list(zip(lo, hi)), seed, popsize=30, maxiter=400, tol=1e-10, polish=False
+    )

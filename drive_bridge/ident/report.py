@@ -1,5 +1,6 @@
 """What ``identify`` tells: a terminal summary, the JSON contract, and a report with plots (HTML and
 Markdown, :mod:`drive_bridge.document`)."""
+
 from __future__ import annotations
 
 import re
@@ -21,9 +22,24 @@ def unit(name: str, kind: str) -> str:
     q, f = ("rad", "Nm") if kind == "rotary" else ("m", "N")
     inertia = "kg·m²" if kind == "rotary" else "kg"
     last = name.split(".")[-1]
-    table = {"J": inertia, "c0": f, "c1": f"{f}·s/{q}", "offset": f, "cp": f"{f}/{q}", "dc0": f, "dc1": f"{f}·s/{q}",
-             "amplitude": f, "a_sin": f, "a_cos": f, "b_sin": f, "angle": "rad", "period": q, "phase": "rad", "velocity": f"{q}/s",
-             "time_constant_s": "s"}
+    table = {
+        "J": inertia,
+        "c0": f,
+        "c1": f"{f}·s/{q}",
+        "offset": f,
+        "cp": f"{f}/{q}",
+        "dc0": f,
+        "dc1": f"{f}·s/{q}",
+        "amplitude": f,
+        "a_sin": f,
+        "a_cos": f,
+        "b_sin": f,
+        "angle": "rad",
+        "period": q,
+        "phase": "rad",
+        "velocity": f"{q}/s",
+        "time_constant_s": "s",
+    }
     if last in table:
         return table[last]
     if name.startswith("spline_") and re.fullmatch(r"b\d+", last):
@@ -35,31 +51,41 @@ def summary(results: dict[str, AxisResult]) -> str:
     lines = []
     for axis, r in results.items():
         tu = r.units["torque"]
-        lines.append(f"axis {axis} ({r.kind}; cut-off {r.settings.cutoff_hz:.1f} Hz, decimation "
-                     f"{r.settings.decimation}, {int(r.est.moving.sum())} moving samples fitted; "
-                     f"validation: {r.validation})")
+        lines.append(
+            f"axis {axis} ({r.kind}; cut-off {r.settings.cutoff_hz:.1f} Hz, decimation "
+            f"{r.settings.decimation}, {int(r.est.moving.sum())} moving samples fitted; "
+            f"validation: {r.validation})"
+        )
         std = r.model.param_std_
         for k in ("J", "c0", "c1"):
             v = r.model.params_[k]
             rel = abs(std[k] / v) * 100 if v else float("inf")
-            lines.append(f"  {k:<3} = {measured(v, std[k])} ± {std[k]:.2g} {unit(k, r.kind)}  ({rel:.2f} %)"
-                         + (f"  UNDETERMINED: {r.undetermined[k]}" if k in r.undetermined else ""))
+            lines.append(
+                f"  {k:<3} = {measured(v, std[k])} ± {std[k]:.2g} {unit(k, r.kind)}  ({rel:.2f} %)"
+                + (f"  UNDETERMINED: {r.undetermined[k]}" if k in r.undetermined else "")
+            )
         if r.friction:
             lines.append(f"  {friction_text(r)}")
-        lines.append(f"  base model J, c0, c1: validation RMSE {r.before.rmse:.4g} {tu} "
-                     f"(relative error {r.before.relative_error:.2%})")
+        lines.append(
+            f"  base model J, c0, c1: validation RMSE {r.before.rmse:.4g} {tu} "
+            f"(relative error {r.before.relative_error:.2%})"
+        )
         for t in r.effects:
             p = ", ".join(f"{k} {number(v)}" for k, v in t.params.items())
             lines.append(f"  + {t.effect.name} [{t.effect.depends_on}] ({p})")
             lines.append(f"      {t.evidence}")
         if not r.effects:
             lines.append("  no effect found beyond J, c0, c1")
-        lines.append(f"  final: validation RMSE {r.after.rmse:.4g} {tu} (measured torque RMS {r.after.torque_rms:.4g}, "
-                     f"noise floor {r.noise_floor:.3g}); relative error {r.after.relative_error:.2%}")
+        lines.append(
+            f"  final: validation RMSE {r.after.rmse:.4g} {tu} (measured torque RMS {r.after.torque_rms:.4g}, "
+            f"noise floor {r.noise_floor:.3g}); relative error {r.after.relative_error:.2%}"
+        )
         if r.drive_model is not None or r.drive_note:
             lines.append(f"  {drive_text(r)}")
-        lines.append(f"  GA (differential evolution) on the same data: validation RMSE {r.ga_errors.rmse:.4g} "
-                     f"{tu}, J {r.ga_coef[0]:.6g}, c1 {r.ga_coef[1]:.6g}, c0 {r.ga_coef[2]:.6g}; {ga_text(r)}")
+        lines.append(
+            f"  GA (differential evolution) on the same data: validation RMSE {r.ga_errors.rmse:.4g} "
+            f"{tu}, J {r.ga_coef[0]:.6g}, c1 {r.ga_coef[1]:.6g}, c0 {r.ga_coef[2]:.6g}; {ga_text(r)}"
+        )
         for u_ in r.unexplained:
             lines.append(f"  unexplained: {describe_unexplained(u_)}")
         for d in r.dropped:
@@ -84,12 +110,14 @@ def drive_text(r: AxisResult) -> str:
         return f"for the drive: {r.drive_note}"
     d, sd = r.drive_model.params_, r.drive_model.param_std_
     held = ", ".join(e.name for e in r.drive_model.effects) or "no effect"
-    return (f"for the drive (its model holds J, c0, c1 and {held}; refitted without the rest): "
-            + ", ".join(f"{k} {measured(d[k], sd[k])} ± {sd[k]:.2g}" for k in ("J", "c0", "c1"))
-            + f"; validation RMSE {r.drive_errors.rmse:.4g} {r.units['torque']} (every term: {r.after.rmse:.4g})")
+    return (
+        f"for the drive (its model holds J, c0, c1 and {held}; refitted without the rest): "
+        + ", ".join(f"{k} {measured(d[k], sd[k])} ± {sd[k]:.2g}" for k in ("J", "c0", "c1"))
+        + f"; validation RMSE {r.drive_errors.rmse:.4g} {r.units['torque']} (every term: {r.after.rmse:.4g})"
+    )
 
 
-GA_WITHIN_STD = 1.0     # a GA result this close to the least-squares minimum (in its std) is the same estimate
+GA_WITHIN_STD = 1.0  # a GA result this close to the least-squares minimum (in its std) is the same estimate
 
 
 def ga_text(r: AxisResult) -> str:
@@ -100,8 +128,10 @@ def ga_text(r: AxisResult) -> str:
         return f"converged, within {far:.2g} std of the least-squares values"
     if far <= GA_WITHIN_STD:
         return f"stopped at its generation limit within {far:.2g} std of the least-squares values"
-    return (f"stopped at its generation limit up to {far:.2g} std from the least-squares minimum of the same "
-            f"cost: its values are where the search stood, not an estimate (the data leave coefficients collinear)")
+    return (
+        f"stopped at its generation limit up to {far:.2g} std from the least-squares minimum of the same "
+        f"cost: its values are where the search stood, not an estimate (the data leave coefficients collinear)"
+    )
 
 
 def friction_text(r: AxisResult) -> str:
@@ -112,51 +142,69 @@ def friction_text(r: AxisResult) -> str:
     if f["linear"]:
         return text
     halves = "; ".join(f"{n} half c0 {f[n]['c0']:.4g}, c1 {f[n]['c1']:.4g}" for n in ("slower", "faster"))
-    return (f"{text}; friction is NOT linear in velocity over them ({halves}: "
-            + ", ".join(f"{p} {s:g} std apart" for p, s in f["sigmas"].items())
-            + "): their std is widened by half the difference")
+    return (
+        f"{text}; friction is NOT linear in velocity over them ({halves}: "
+        + ", ".join(f"{p} {s:g} std apart" for p, s in f["sigmas"].items())
+        + "): their std is widened by half the difference"
+    )
 
 
 def consistency_text(c: dict) -> str:
     """Which parameters moved between parts of the data, and by how much."""
-    return "; ".join(f"{p} differs between the {m['between'][0]} and the {m['between'][1]} by {m['sigmas']:.3g} std ("
-                     + ", ".join(f"{n} {v:.4g}" for n, v in m["values"].items()) + ")"
-                     for p, m in c["moved"].items()) + \
-        ": the data hold more than one value (a payload change, a warm-up, or structure the model lacks)"
+    return (
+        "; ".join(
+            f"{p} differs between the {m['between'][0]} and the {m['between'][1]} by {m['sigmas']:.3g} std ("
+            + ", ".join(f"{n} {v:.4g}" for n, v in m["values"].items())
+            + ")"
+            for p, m in c["moved"].items()
+        )
+        + ": the data hold more than one value (a payload change, a warm-up, or structure the model lacks)"
+    )
 
 
 def sampling_text(s: dict) -> str:
     """What the time stamps held and what was done about it, in one sentence."""
-    return (f"time stamps not evenly spaced (steps off the median {s['period_s'] * 1e3:.3f} ms by up to "
-            f"{s['max_step_deviation_s'] * 1e6:.0f} µs, std {s['jitter_std_s'] * 1e6:.0f} µs; {s['gaps']} gap(s) "
-            f"split the log): resampled onto a uniform {s['period_s'] * 1e3:.3f} ms grid, position and torque "
-            f"through the same cubic spline")
+    return (
+        f"time stamps not evenly spaced (steps off the median {s['period_s'] * 1e3:.3f} ms by up to "
+        f"{s['max_step_deviation_s'] * 1e6:.0f} µs, std {s['jitter_std_s'] * 1e6:.0f} µs; {s['gaps']} gap(s) "
+        f"split the log): resampled onto a uniform {s['period_s'] * 1e3:.3f} ms grid, position and torque "
+        f"through the same cubic spline"
+    )
 
 
 def clipped_text(c: dict, unit_: str) -> str:
     """Where the logged torque was clipped and what was done about it, in one sentence."""
-    return (f"the logged torque is clipped at {' and '.join(f'{v:g}' for v in c['levels'])} {unit_} on "
-            f"{c['share']:.1%} of the samples: those (and one cut-off period around them) were not fitted")
+    return (
+        f"the logged torque is clipped at {' and '.join(f'{v:g}' for v in c['levels'])} {unit_} on "
+        f"{c['share']:.1%} of the samples: those (and one cut-off period around them) were not fitted"
+    )
 
 
 def delay_text(s: dict) -> str:
     """How the torque was (or was not) aligned with the position, in one sentence."""
     if not s["torque_aligned"]:
         d = s["torque_delay_estimate_ms"]
-        return (f"the logged torque {'lags' if d > 0 else 'leads'} the position by {abs(d):.3g} ms by the estimate "
-                f"(± {s['torque_delay_std_ms']:.2g} ms); {s['torque_delay_note']}")
+        return (
+            f"the logged torque {'lags' if d > 0 else 'leads'} the position by {abs(d):.3g} ms by the estimate "
+            f"(± {s['torque_delay_std_ms']:.2g} ms); {s['torque_delay_note']}"
+        )
     d = s["torque_delay_ms"]
-    how = (f"estimated, ± {s['torque_delay_std_ms']:.2g} ms" if s["torque_delay_source"] == "estimated"
-           else "as given")
-    return (f"the logged torque {'lags' if d > 0 else 'leads'} the position by {abs(d):.3g} ms ({how}): the "
-            f"positions were read at the instants the torque stands for")
+    how = (
+        f"estimated, ± {s['torque_delay_std_ms']:.2g} ms"
+        if s["torque_delay_source"] == "estimated"
+        else "as given"
+    )
+    return (
+        f"the logged torque {'lags' if d > 0 else 'leads'} the position by {abs(d):.3g} ms ({how}): the "
+        f"positions were read at the instants the torque stands for"
+    )
 
 
 def as_json(results: dict[str, AxisResult]) -> str:
     return json_text(stamped("identify", {"axes": {a: r.as_json() for a, r in results.items()}}))
 
 
-SPAN_S = 3.0        # length of each stretch of the validation the fit figure shows [s]
+SPAN_S = 3.0  # length of each stretch of the validation the fit figure shows [s]
 SPANS = 3
 
 
@@ -169,7 +217,11 @@ def _spans(t: np.ndarray, moving: np.ndarray) -> list[slice]:
     n = max(2, int(round(SPAN_S / dt)))
     if len(blocks) == 1 or len(blocks[0]) >= SPANS * n:
         b = blocks[0]
-        starts = [b[0] + int(f * max(0, len(b) - n)) for f in np.linspace(0.1, 0.9, SPANS)] if len(b) > n else [b[0]]
+        starts = (
+            [b[0] + int(f * max(0, len(b) - n)) for f in np.linspace(0.1, 0.9, SPANS)]
+            if len(b) > n
+            else [b[0]]
+        )
     else:
         starts = [b[0] + max(0, (len(b) - n) // 2) for b in blocks[:SPANS]]
     out = []
@@ -188,8 +240,9 @@ def _plot_fit(r: AxisResult, path: Path) -> None:
     base = np.where(s.moving, r.base.predict(s, logged=True), np.nan)
     final = np.where(s.moving, r.model.predict(s, logged=True), np.nan)
     spans = _spans(s.t, s.moving)
-    fig, ax = plt.subplots(2, len(spans), figsize=(11, 6), sharey="row", squeeze=False,
-                           gridspec_kw={"height_ratios": [2, 1]})
+    fig, ax = plt.subplots(
+        2, len(spans), figsize=(11, 6), sharey="row", squeeze=False, gridspec_kw={"height_ratios": [2, 1]}
+    )
     for col, sl in enumerate(spans):
         t = s.t[sl]
         ax[0, col].plot(t, s.tau[sl], color="0.55", lw=1.6, label="measured (as logged)")
@@ -203,9 +256,13 @@ def _plot_fit(r: AxisResult, path: Path) -> None:
     ax[0, 0].set_ylabel(f"torque [{tu}]")
     ax[1, 0].set_ylabel(f"residual [{tu}]")
     handles = [h for a_ in (ax[0, 0], ax[1, 0]) for h in a_.get_legend_handles_labels()[0]]
-    fig.legend(handles, [h.get_label() for h in handles], loc="lower center", ncol=5, fontsize=8, frameon=False)
-    fig.suptitle(f"axis {r.axis}, validation samples, {len(spans)} stretches of {SPAN_S:g} s: RMSE "
-                 f"{r.before.rmse:.4g} {tu} (J, c0, c1) → {r.after.rmse:.4g} {tu} (final model)")
+    fig.legend(
+        handles, [h.get_label() for h in handles], loc="lower center", ncol=5, fontsize=8, frameon=False
+    )
+    fig.suptitle(
+        f"axis {r.axis}, validation samples, {len(spans)} stretches of {SPAN_S:g} s: RMSE "
+        f"{r.before.rmse:.4g} {tu} (J, c0, c1) → {r.after.rmse:.4g} {tu} (final model)"
+    )
     fig.subplots_adjust(left=0.08, right=0.98, bottom=0.16, top=0.92, wspace=0.08, hspace=0.25)
     fig.savefig(path, dpi=85)
     plt.close(fig)
@@ -222,7 +279,9 @@ def plot_response(r: AxisResult, path: Path) -> bool:
     good = coh >= MIN_COHERENCE
     fig, ax = plt.subplots(3, 1, figsize=(9, 7), sharex=True, gridspec_kw={"height_ratios": [2, 1.4, 1]})
     mag = 20 * np.log10(np.array(x["magnitude"]))
-    ax[0].semilogx(f, 20 * np.log10(np.array(x["model_magnitude"])), "k-", lw=1, label="rigid model 1/(J·jω + c1)")
+    ax[0].semilogx(
+        f, 20 * np.log10(np.array(x["model_magnitude"])), "k-", lw=1, label="rigid model 1/(J·jω + c1)"
+    )
     for sel, style, label in ((good, "o", "from the log"), (~good, "o", f"coherence < {MIN_COHERENCE:g}")):
         face = "C0" if sel is good else "none"
         ax[0].semilogx(f[sel], mag[sel], style, mfc=face, mec="C0", ms=4, ls="none", label=label)
@@ -246,10 +305,15 @@ def plot_response(r: AxisResult, path: Path) -> bool:
 def _variable(r: AxisResult, depends_on: str) -> tuple[np.ndarray, str]:
     s = r.est
     pos = r.units["position"]
-    table = {"position": (s.q, f"position [{pos}]"), "velocity": (s.qd, f"velocity [{pos}/s]"),
-             "direction": (s.qd, f"velocity [{pos}/s]"), "time": (s.t, "time [s]"),
-             "constant": (s.qd, f"velocity [{pos}/s]"), "acceleration": (s.qdd, f"acceleration [{pos}/s²]"),
-             "abs_acceleration": (np.abs(s.qdd), f"|acceleration| [{pos}/s²]")}
+    table = {
+        "position": (s.q, f"position [{pos}]"),
+        "velocity": (s.qd, f"velocity [{pos}/s]"),
+        "direction": (s.qd, f"velocity [{pos}/s]"),
+        "time": (s.t, "time [s]"),
+        "constant": (s.qd, f"velocity [{pos}/s]"),
+        "acceleration": (s.qdd, f"acceleration [{pos}/s²]"),
+        "abs_acceleration": (np.abs(s.qdd), f"|acceleration| [{pos}/s²]"),
+    }
     if depends_on in table:
         return table[depends_on]
     other, kind = depends_on.rsplit("_", 1)
@@ -267,9 +331,9 @@ def _plot_effect(r: AxisResult, k: int, path: Path) -> None:
     term = r.model.effect_term(t.effect, s)[m]
     partial = (s.tau_f - r.model.predict(s))[m] + term
     xs, ylabel = x[m], f"torque [{r.units['torque']}]"
-    if getattr(t.effect, "form", None) == "inertial":       # the inertia it adds: torque per acceleration
+    if getattr(t.effect, "form", None) == "inertial":  # the inertia it adds: torque per acceleration
         qdd = s.qdd[m]
-        keep = np.abs(qdd) > 0.5 * np.sqrt(np.mean(qdd ** 2))        # samples with |acceleration| > ½ RMS
+        keep = np.abs(qdd) > 0.5 * np.sqrt(np.mean(qdd**2))  # samples with |acceleration| > ½ RMS
         xs, partial, term = xs[keep], partial[keep] / qdd[keep], term[keep] / qdd[keep]
         ylabel = f"inertia added [{unit('J', r.kind)}]"
     fig, ax = plt.subplots(figsize=(8, 4.5))
@@ -279,8 +343,10 @@ def _plot_effect(r: AxisResult, k: int, path: Path) -> None:
     p = ", ".join(f"{n} {number(v)}" for n, v in t.params.items() if not isinstance(v, (list, dict)))
     ax.set_xlabel(label)
     ax.set_ylabel(ylabel)
-    ax.set_title(f"axis {r.axis}: {t.effect.name} ({t.effect.depends_on})" + (f": {p}" if len(p) < 70 else ""),
-                 fontsize=10)
+    ax.set_title(
+        f"axis {r.axis}: {t.effect.name} ({t.effect.depends_on})" + (f": {p}" if len(p) < 70 else ""),
+        fontsize=10,
+    )
     ax.grid(True, alpha=0.3)
     ax.legend(loc="upper left", bbox_to_anchor=(0, -0.14), ncol=2, markerscale=6, fontsize=8, frameon=False)
     fig.subplots_adjust(left=0.1, right=0.97, bottom=0.24, top=0.9)
@@ -322,32 +388,51 @@ def build_report(results: dict[str, AxisResult], out: Path, source: str) -> Docu
     for axis, r in results.items():
         tu = r.units["torque"]
         doc.heading(1, f"Axis {axis} ({r.kind})")
-        doc.para(f"Cut-off {r.settings.cutoff_hz:.1f} Hz (motion bandwidth {r.settings.motion_bandwidth_hz:.2f} Hz), "
-                 f"decimation {r.settings.decimation}, {int(r.est.moving.sum())} moving samples fitted. "
-                 f"Validation: {r.validation}.")
+        doc.para(
+            f"Cut-off {r.settings.cutoff_hz:.1f} Hz (motion bandwidth {r.settings.motion_bandwidth_hz:.2f} Hz), "
+            f"decimation {r.settings.decimation}, {int(r.est.moving.sum())} moving samples fitted. "
+            f"Validation: {r.validation}."
+        )
         rows = []
         for i, name in enumerate(r.model.coef_names):
             v = r.model.coef_[i]
             sd = float(np.sqrt(r.model.cov_[i, i]))
-            rows.append([name, unit(name, r.kind), measured(v, sd), f"{sd:.2g}", f"{abs(sd / v) * 100 if v else 0:.2f} %",
-                         measured(r.ga_coef[i], sd)])
+            rows.append(
+                [
+                    name,
+                    unit(name, r.kind),
+                    measured(v, sd),
+                    f"{sd:.2g}",
+                    f"{abs(sd / v) * 100 if v else 0:.2f} %",
+                    measured(r.ga_coef[i], sd),
+                ]
+            )
         doc.table(["coefficient", "unit", "LSE", "std", "rel. std", "GA"], rows)
-        doc.para(f"Condition number {r.model.cond_:.1f}; residual std {r.model.sigma_:.4g} {tu}; "
-                 f"GA validation RMSE {r.ga_errors.rmse:.4g} {tu} (LSE {r.after.rmse:.4g} {tu}); {ga_text(r)}.")
+        doc.para(
+            f"Condition number {r.model.cond_:.1f}; residual std {r.model.sigma_:.4g} {tu}; "
+            f"GA validation RMSE {r.ga_errors.rmse:.4g} {tu} (LSE {r.after.rmse:.4g} {tu}); {ga_text(r)}."
+        )
         rows = [["J, c0, c1", f"{r.before.rmse:.4g}", f"{r.before.relative_error:.2%}"]]
         names = []
         for t in r.effects:
             names.append(t.effect.name)
             rows.append([f"+ {' + '.join(names)}", f"{t.rmse_after:.4g}", f"{t.relative_error_after:.2%}"])
-        doc.table(["model", f"validation RMSE, logged torque [{tu}]", "relative error, filtered torque"], rows)
-        doc.para(f"Measured torque RMS on the same samples {r.after.torque_rms:.4g} {tu}; "
-                 f"noise floor {r.noise_floor:.3g} {tu}.")
+        doc.table(
+            ["model", f"validation RMSE, logged torque [{tu}]", "relative error, filtered torque"], rows
+        )
+        doc.para(
+            f"Measured torque RMS on the same samples {r.after.torque_rms:.4g} {tu}; "
+            f"noise floor {r.noise_floor:.3g} {tu}."
+        )
         doc.figure(out / f"{axis}_fit.png", f"axis {axis}: measured and predicted torque and the residual")
         if drawn[axis]:
-            doc.figure(out / f"{axis}_response.png", f"axis {axis}: the plant's response read from the log "
-                                                     f"(the torque less the model's nonlinear terms, to the velocity), "
-                                                     f"beside the rigid model's; hollow: coherence below "
-                                                     f"{MIN_COHERENCE:g}")
+            doc.figure(
+                out / f"{axis}_response.png",
+                f"axis {axis}: the plant's response read from the log "
+                f"(the torque less the model's nonlinear terms, to the velocity), "
+                f"beside the rigid model's; hollow: coherence below "
+                f"{MIN_COHERENCE:g}",
+            )
         for k, t in enumerate(r.effects):
             png = _effect_png(out, axis, k, t.effect.name)
             doc.heading(2, f"{t.effect.name} (depends on {t.effect.depends_on})")
@@ -372,7 +457,9 @@ def build_report(results: dict[str, AxisResult], out: Path, source: str) -> Docu
         if r.consistency and not r.consistency["consistent"]:
             doc.para([Strong("Not consistent:"), f" {consistency_text(r.consistency)}."])
         for name, why in r.undetermined.items():
-            doc.para([Strong(f"{name} undetermined:"), f" {why}; it is not used to tune nor written to a drive."])
+            doc.para(
+                [Strong(f"{name} undetermined:"), f" {why}; it is not used to tune nor written to a drive."]
+            )
     return doc
 
 

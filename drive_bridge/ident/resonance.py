@@ -16,6 +16,7 @@ damping ratio is estimated from the half-power bandwidth, ζ ≈ (f₂ − f₁)
 the mains frequency or its double (50, 60, 100, 120 Hz ± 1 Hz) is named as likely electrical
 pickup (``mains: true``), not as a mode.  SI: Hz.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -23,13 +24,13 @@ from scipy import signal
 
 from .signals import WIDE_BAND, Samples, Settings
 
-ABOVE_MOTION = 5.0          # a mode lies above this many motion bandwidths (below: the pace of the moves)
-PROMINENCE = 8.0           # its peak stands this many times above the residual's median level around it
-MIN_SHARE = 0.05            # ... and holds this share of the residual power (in its half-power band)
-RESOLUTION_HZ = 0.25        # Welch frequency resolution aimed at
-SAME_FREQUENCY = 0.1        # the slow and the fast group's peaks lie within this fraction of each other
-SPEED_GROUPS = ((0.15, 0.55), (0.65, 1.01))   # slow and fast moving samples, × the top speed
-MAINS_HZ = (50.0, 60.0, 100.0, 120.0)         # ± 1 Hz: electrical pickup rather than a mode
+ABOVE_MOTION = 5.0  # a mode lies above this many motion bandwidths (below: the pace of the moves)
+PROMINENCE = 8.0  # its peak stands this many times above the residual's median level around it
+MIN_SHARE = 0.05  # ... and holds this share of the residual power (in its half-power band)
+RESOLUTION_HZ = 0.25  # Welch frequency resolution aimed at
+SAME_FREQUENCY = 0.1  # the slow and the fast group's peaks lie within this fraction of each other
+SPEED_GROUPS = ((0.15, 0.55), (0.65, 1.01))  # slow and fast moving samples, × the top speed
+MAINS_HZ = (50.0, 60.0, 100.0, 120.0)  # ± 1 Hz: electrical pickup rather than a mode
 
 
 def find_mode(s: Samples, resid: np.ndarray, settings: Settings) -> dict | None:
@@ -51,10 +52,12 @@ def find_mode(s: Samples, resid: np.ndarray, settings: Settings) -> dict | None:
     k = int(np.argmax(np.where(band, pxx, 0.0)))
     around = band & (np.abs(f - f[k]) < max(0.5 * f[k], 10 * (f[1] - f[0])))
     near = band & (np.abs(f - f[k]) <= SAME_FREQUENCY * f[k])
-    stands = [ph[near].max() / np.median(ph[around])            # how it stands out in each speed group
-              for _, ph in (_welch(resid[group], fs, nper) for group in groups)]
+    stands = [
+        ph[near].max() / np.median(ph[around])  # how it stands out in each speed group
+        for _, ph in (_welch(resid[group], fs, nper) for group in groups)
+    ]
     if min(stands) < PROMINENCE / 4 or max(stands) < PROMINENCE / 2:
-        return None                           # it moves with the speed: not a mode
+        return None  # it moves with the speed: not a mode
     level = float(np.median(pxx[around]))
     prominence = float(pxx[k] / level) if level > 0 else np.inf
     half = pxx[k] / 2
@@ -64,13 +67,17 @@ def find_mode(s: Samples, resid: np.ndarray, settings: Settings) -> dict | None:
     hi = k
     while hi < len(f) - 1 and pxx[hi + 1] > half:
         hi += 1
-    share = float(pxx[max(lo, 1):hi + 1].sum() / pxx[1:].sum())
+    share = float(pxx[max(lo, 1) : hi + 1].sum() / pxx[1:].sum())
     if prominence < PROMINENCE or share < MIN_SHARE:
         return None
     width = max(f[min(hi + 1, len(f) - 1)] - f[max(lo - 1, 0)] - (f[1] - f[0]), f[1] - f[0])
-    return {"frequency_hz": round(float(f[k]), 2), "damping": round(float(width / (2 * f[k])), 4),
-            "share": round(share, 3), "prominence": round(prominence, 1),
-            "mains": bool(any(abs(f[k] - m) <= 1.0 for m in MAINS_HZ))}
+    return {
+        "frequency_hz": round(float(f[k]), 2),
+        "damping": round(float(width / (2 * f[k])), 4),
+        "share": round(share, 3),
+        "prominence": round(prominence, 1),
+        "mains": bool(any(abs(f[k] - m) <= 1.0 for m in MAINS_HZ)),
+    }
 
 
 def _segment(fs: float, n: int) -> int:

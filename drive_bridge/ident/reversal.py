@@ -33,6 +33,7 @@ reversal as on the way out (friction at low speed acts on both sides of a stands
 reversal excites, or an impact, only follows it) -- and whichever reversal holds the larger
 excess names the cause.  SI: s, the axis's torque unit.
 """
+
 from __future__ import annotations
 
 from typing import Any
@@ -42,21 +43,23 @@ from scipy import signal
 
 from .signals import FILTER_ORDER, Samples, Settings
 
-HYSTERESIS = 0.15       # a reversal swings from below -15 % to above +15 % of the signal's range (or back):
-                        # a loop's ringing after a short, sharp acceleration step swings less
-MIN_EVENTS = 20         # fewer reversals while moving: no telling
-BINS = 8                # time bins after a reversal, over half the median time between reversals
-LONGEST_S = 0.25        # ... and at most this long in all
-CONTROL_LEVEL = 0.3     # control instants: crossings of ±30 % of the signal's range
-PERMUTATIONS = 200      # relabellings of reversals and controls: the statistic's null distribution
-MIN_RATIO = 1.5         # the peak bin's mean residual power after reversals over that after controls
-MIN_SHARE = 0.05        # the share of the residual power in excess near the peak
+HYSTERESIS = 0.15  # a reversal swings from below -15 % to above +15 % of the signal's range (or back):
+# a loop's ringing after a short, sharp acceleration step swings less
+MIN_EVENTS = 20  # fewer reversals while moving: no telling
+BINS = 8  # time bins after a reversal, over half the median time between reversals
+LONGEST_S = 0.25  # ... and at most this long in all
+CONTROL_LEVEL = 0.3  # control instants: crossings of ±30 % of the signal's range
+PERMUTATIONS = 200  # relabellings of reversals and controls: the statistic's null distribution
+MIN_RATIO = 1.5  # the peak bin's mean residual power after reversals over that after controls
+MIN_SHARE = 0.05  # the share of the residual power in excess near the peak
 STANDSTILL_SHARE = 0.1  # ... after the velocity's reversals: a rigid model fitted while moving leaves some
-                        # there on any axis that sticks (0.06 on the simulated Y), Stribeck friction more
-AGAINST_T = 5.0         # ... and acts against the motion by this many standard errors over the reversals
+# there on any axis that sticks (0.06 on the simulated Y), Stribeck friction more
+AGAINST_T = 5.0  # ... and acts against the motion by this many standard errors over the reversals
 
 
-def reversals(x: np.ndarray, moving: np.ndarray, hysteresis: float = HYSTERESIS) -> tuple[np.ndarray, np.ndarray]:
+def reversals(
+    x: np.ndarray, moving: np.ndarray, hysteresis: float = HYSTERESIS
+) -> tuple[np.ndarray, np.ndarray]:
     """Indices where ``x`` crosses zero on its way from below -h to above +h or back
     (h = ``hysteresis`` × max |x|), kept where the axis moves; and how many samples each swing
     took from one threshold to the other."""
@@ -65,9 +68,9 @@ def reversals(x: np.ndarray, moving: np.ndarray, hysteresis: float = HYSTERESIS)
     idx = np.flatnonzero(state)
     if len(idx) < 2:
         return np.zeros(0, dtype=int), np.zeros(0, dtype=int)
-    swings = idx[1:][state[idx[1:]] != state[idx[:-1]]]          # first sample past the far threshold
-    prior = idx[:-1][state[idx[1:]] != state[idx[:-1]]]          # last sample past the near one
-    ev = np.array([a + int(np.argmin(np.abs(x[a:b + 1]))) for a, b in zip(prior, swings)], dtype=int)
+    swings = idx[1:][state[idx[1:]] != state[idx[:-1]]]  # first sample past the far threshold
+    prior = idx[:-1][state[idx[1:]] != state[idx[:-1]]]  # last sample past the near one
+    ev = np.array([a + int(np.argmin(np.abs(x[a : b + 1]))) for a, b in zip(prior, swings)], dtype=int)
     took = (swings - prior).astype(int)
     keep = moving[ev] if len(ev) else np.zeros(0, dtype=bool)
     return ev[keep], took[keep]
@@ -79,7 +82,9 @@ def crossings(x: np.ndarray, level: float) -> np.ndarray:
     return np.flatnonzero(above[1:] != above[:-1]) + 1
 
 
-def _windows(power: np.ndarray, count: np.ndarray, ev: np.ndarray, width: int) -> tuple[np.ndarray, np.ndarray]:
+def _windows(
+    power: np.ndarray, count: np.ndarray, ev: np.ndarray, width: int
+) -> tuple[np.ndarray, np.ndarray]:
     """Sum of the residual power and the number of moving samples in each of BINS bins of
     ``width`` samples after each instant ``ev`` (events × BINS; cumulative sums)."""
     n = len(power) - 1
@@ -99,22 +104,23 @@ def _against(resid: np.ndarray, s: Samples, ev: np.ndarray, width: int) -> float
     """How many standard errors (over the instants ``ev``) the residual times the direction of motion,
     averaged over the moving samples of the ``width`` after each instant, stands above zero."""
     against = np.where(s.moving, resid * np.sign(s.qd), np.nan)
-    means = [np.nanmean(against[e:e + width]) for e in ev[ev >= 0] if s.moving[e:e + width].any()]
+    means = [np.nanmean(against[e : e + width]) for e in ev[ev >= 0] if s.moving[e : e + width].any()]
     if len(means) < 2:
         return 0.0
     spread = float(np.std(means, ddof=1))
     return float(np.mean(means)) / spread * np.sqrt(len(means)) if spread > 0 else 0.0
 
 
-def find_reversal_transient(s: Samples, resid: np.ndarray, predicted: np.ndarray, settings: Settings,
-                            seed: int = 0) -> dict | None:
+def find_reversal_transient(
+    s: Samples, resid: np.ndarray, predicted: np.ndarray, settings: Settings, seed: int = 0
+) -> dict | None:
     """Residual energy concentrated after reversals beyond what equally sharp changes without
     reversal leave: which reversal (``acceleration``: the inertial torque, ``torque``: the
     model's -- backlash; ``velocity``: friction at standstill), the delay of the peak [ms], its
     ratio to the controls, the share of the residual power in excess, the number of reversals;
     None when there is none."""
     m = s.moving
-    power = np.concatenate(([0.0], np.cumsum(np.where(m, resid ** 2, 0.0))))
+    power = np.concatenate(([0.0], np.cumsum(np.where(m, resid**2, 0.0))))
     count = np.concatenate(([0], np.cumsum(m)))
     if count[-1] == 0 or power[-1] <= 0:
         return None
@@ -123,20 +129,21 @@ def find_reversal_transient(s: Samples, resid: np.ndarray, predicted: np.ndarray
     found: list[dict[str, Any]] = []
     for name, x in (("acceleration", s.qdd), ("torque", predicted), ("velocity", s.qd)):
         xf = signal.sosfiltfilt(sos, x)
-        ev, took = reversals(xf, m if name != "velocity" else np.ones_like(m))   # (the velocity's: at rest)
+        ev, took = reversals(xf, m if name != "velocity" else np.ones_like(m))  # (the velocity's: at rest)
         if len(ev) < MIN_EVENTS:
             continue
         gap = float(np.median(np.diff(ev)))
         width = max(1, int(min(gap / 2, LONGEST_S * settings.rate_hz) // BINS))
-        ev = ev[took <= BINS * width]           # a swing that dwells at zero (a trapezoid's cruise) is two
-        if len(ev) < MIN_EVENTS:                # steps with the load carried by friction between: no reversal
+        ev = ev[took <= BINS * width]  # a swing that dwells at zero (a trapezoid's cruise) is two
+        if len(ev) < MIN_EVENTS:  # steps with the load carried by friction between: no reversal
             continue
         level = CONTROL_LEVEL * float(np.max(np.abs(xf)))
         ctl = np.concatenate((crossings(xf, level), crossings(xf, -level)))
         near = np.searchsorted(ev, ctl)
-        clear = (np.abs(ctl - ev[np.minimum(near, len(ev) - 1)]) > width) & \
-                (np.abs(ctl - ev[np.maximum(near - 1, 0)]) > width)     # (a reversal's impact in a control's
-                                                                         # window only hides play, never fakes it)
+        clear = (np.abs(ctl - ev[np.minimum(near, len(ev) - 1)]) > width) & (
+            np.abs(ctl - ev[np.maximum(near - 1, 0)]) > width
+        )  # (a reversal's impact in a control's
+        # window only hides play, never fakes it)
         ctl = ctl[clear & m[ctl]]
         if len(ctl) < MIN_EVENTS:
             continue
@@ -147,11 +154,19 @@ def find_reversal_transient(s: Samples, resid: np.ndarray, predicted: np.ndarray
         k = int(np.argmax(ratio))
         ctl_level = p[~is_rev, k].sum() / max(c[~is_rev, k].sum(), 1)
         excess = (p[is_rev, k].sum() - ctl_level * c[is_rev, k].sum()) / power[-1]
-        if name == "velocity" and (excess < STANDSTILL_SHARE or min(
-                _against(resid, s, ev + side * BINS * width, BINS * width) for side in (-1, 0)) < AGAINST_T):
+        if name == "velocity" and (
+            excess < STANDSTILL_SHARE
+            or min(_against(resid, s, ev + side * BINS * width, BINS * width) for side in (-1, 0)) < AGAINST_T
+        ):
             continue
         if ratio[k] > null and ratio[k] >= MIN_RATIO and excess >= MIN_SHARE:
-            found.append({"reversal": name, "delay_ms": round(1e3 * (k + 0.5) * width / settings.rate_hz, 1),
-                          "ratio": round(float(ratio[k]), 2), "share": round(float(excess), 3),
-                          "events": int(len(ev))})
+            found.append(
+                {
+                    "reversal": name,
+                    "delay_ms": round(1e3 * (k + 0.5) * width / settings.rate_hz, 1),
+                    "ratio": round(float(ratio[k]), 2),
+                    "share": round(float(excess), 3),
+                    "events": int(len(ev)),
+                }
+            )
     return max(found, key=lambda d: d["share"]) if found else None

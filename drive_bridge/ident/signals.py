@@ -11,13 +11,14 @@ same low-pass, edge cut and decimation as the torque (:class:`Parallel`): a torq
 the low-pass attenuates is attenuated in its column alike, so its amplitude comes out as it is.  Units follow the log: rad, rad/s, rad/s², Nm
 (rotary) or m, m/s, m/s², N (linear).
 """
+
 from __future__ import annotations
 
 import logging
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
-from functools import cached_property, lru_cache
-from typing import Any, Union
+from functools import cache, cached_property
+from typing import Any
 
 import numpy as np
 from scipy import signal
@@ -28,22 +29,22 @@ from .logdata import Log
 logger = logging.getLogger(__name__)
 
 FILTER_ORDER = 4
-MOTION_POWER = 0.99          # the motion bandwidth holds this share of the velocity power
-CUTOFF_FACTOR = 25.0         # cut-off = 25 x the motion bandwidth (~5 x a closed-loop bandwidth,
-                             # itself ~5 x the motion's; EMPS: 4.15 Hz -> 104 Hz, reference 100 Hz)
-MAX_CUTOFF_SHARE = 0.2       # ... at most this share of the log's rate: above it the derivatives of the
-                             # quantised position are noise (a multisine at 14 Hz on a 500 Hz log: 100 Hz)
-QUANTISATION_SHARE = 1e-3    # ... and where the position is on counts, its acceleration noise below this
-QUANTISATION_BAND = 5.0      #     share of the motion's acceleration power (read below 5 x the bandwidth)
-DECIMATION_MARGIN = 2.5      # decimated sample rate = 2.5 x the cut-off: nearly white residual samples
-MOVING_FRACTION = 0.02       # |velocity| below this share of its maximum: near zero, not fitted
-SETTLE_CYCLES = 1.0          # ... nor this many cut-off periods from it
-STILL_SAMPLES = 3            # an encoder's position unchanged over this many log samples: standing still
-WIDE_BAND = 0.4              # the light low-pass of the whole-band samples, × the sample rate
-DELAY_HALF_TAPS = 16         # a position read between its samples: 32 taps of a windowed sinc ...
-DELAY_KAISER_BETA = 11.0     # ... Kaiser window (_fractional_delay)
-MIN_MOVING = 50              # decimated moving samples below this: nothing to identify
-ACTIVE_DECAY = 1e-12         # filtered around where the axis moves: the filters' transients decayed to this
+MOTION_POWER = 0.99  # the motion bandwidth holds this share of the velocity power
+CUTOFF_FACTOR = 25.0  # cut-off = 25 x the motion bandwidth (~5 x a closed-loop bandwidth,
+# itself ~5 x the motion's; EMPS: 4.15 Hz -> 104 Hz, reference 100 Hz)
+MAX_CUTOFF_SHARE = 0.2  # ... at most this share of the log's rate: above it the derivatives of the
+# quantised position are noise (a multisine at 14 Hz on a 500 Hz log: 100 Hz)
+QUANTISATION_SHARE = 1e-3  # ... and where the position is on counts, its acceleration noise below this
+QUANTISATION_BAND = 5.0  #     share of the motion's acceleration power (read below 5 x the bandwidth)
+DECIMATION_MARGIN = 2.5  # decimated sample rate = 2.5 x the cut-off: nearly white residual samples
+MOVING_FRACTION = 0.02  # |velocity| below this share of its maximum: near zero, not fitted
+SETTLE_CYCLES = 1.0  # ... nor this many cut-off periods from it
+STILL_SAMPLES = 3  # an encoder's position unchanged over this many log samples: standing still
+WIDE_BAND = 0.4  # the light low-pass of the whole-band samples, × the sample rate
+DELAY_HALF_TAPS = 16  # a position read between its samples: 32 taps of a windowed sinc ...
+DELAY_KAISER_BETA = 11.0  # ... Kaiser window (_fractional_delay)
+MIN_MOVING = 50  # decimated moving samples below this: nothing to identify
+ACTIVE_DECAY = 1e-12  # filtered around where the axis moves: the filters' transients decayed to this
 
 
 @dataclass
@@ -69,28 +70,41 @@ class Samples:
     q: np.ndarray
     qd: np.ndarray
     qdd: np.ndarray
-    sgn: np.ndarray              # sign(q̇) through the same filters as the torque (Coulomb column)
-    tau_f: np.ndarray            # filtered torque
-    tau: np.ndarray              # torque as logged (mean over each decimation interval)
-    moving: np.ndarray           # |qd| above the near-zero threshold
-    others: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]    # axis -> (q, qd, qdd)
-    source: "Parallel | None" = None    # the full-rate signals these samples were made from
-    index: np.ndarray | None = None     # ... and which of its samples these are
-    rotary: bool = False                # a joint whose position is its angle (one turn: 2π)
+    sgn: np.ndarray  # sign(q̇) through the same filters as the torque (Coulomb column)
+    tau_f: np.ndarray  # filtered torque
+    tau: np.ndarray  # torque as logged (mean over each decimation interval)
+    moving: np.ndarray  # |qd| above the near-zero threshold
+    others: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]  # axis -> (q, qd, qdd)
+    source: Parallel | None = None  # the full-rate signals these samples were made from
+    index: np.ndarray | None = None  # ... and which of its samples these are
+    rotary: bool = False  # a joint whose position is its angle (one turn: 2π)
 
     @property
     def qd_band(self) -> np.ndarray:
         """The velocity over the samples' whole band: the filtered one (see :class:`Channels`)."""
         return self.qd
 
-    def take(self, mask: np.ndarray) -> "Samples":
+    def take(self, mask: np.ndarray) -> Samples:
         index = np.arange(len(self)) if self.index is None else self.index
-        return Samples(self.axis, self.t[mask], self.q[mask], self.qd[mask], self.qdd[mask], self.sgn[mask],
-                       self.tau_f[mask], self.tau[mask], self.moving[mask],
-                       {a: tuple(x[mask] for x in v) for a, v in self.others.items()}, self.source, index[mask],
-                       self.rotary)
+        return Samples(
+            self.axis,
+            self.t[mask],
+            self.q[mask],
+            self.qd[mask],
+            self.qdd[mask],
+            self.sgn[mask],
+            self.tau_f[mask],
+            self.tau[mask],
+            self.moving[mask],
+            {a: tuple(x[mask] for x in v) for a, v in self.others.items()},
+            self.source,
+            index[mask],
+            self.rotary,
+        )
 
-    def parallel(self, key: object, columns: Callable[[Signals], np.ndarray], logged: bool = False) -> np.ndarray:
+    def parallel(
+        self, key: object, columns: Callable[[Signals], np.ndarray], logged: bool = False
+    ) -> np.ndarray:
         """``columns`` (a function of the signals, n × k) at these samples, computed at the log's
         rate and filtered and decimated as the torque is (``logged``: as the torque as logged
         is, by the mean over each decimation interval); at the samples as they are when they
@@ -121,15 +135,15 @@ class Channels:
     sgn: np.ndarray
     others: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]
     tau: np.ndarray
-    gate: np.ndarray         # 0 where the encoder shows the axis standing still, else 1
-    qd_band: np.ndarray      # the logged position's derivative (the differentiator's own band)
+    gate: np.ndarray  # 0 where the encoder shows the axis standing still, else 1
+    qd_band: np.ndarray  # the logged position's derivative (the differentiator's own band)
 
     def __len__(self) -> int:
         return len(self.t)
 
 
 #: what a regressor column is computed from: decimated samples, or a segment's signals at the log's rate
-Signals = Union[Samples, Channels]
+Signals = Samples | Channels
 
 
 @dataclass
@@ -142,7 +156,7 @@ class Parallel:
     log: Log
     axis: str
     settings: Settings
-    length: int = 0                                 # the prepared samples' count (set by prepare)
+    length: int = 0  # the prepared samples' count (set by prepare)
     _cache: dict = field(default_factory=dict, repr=False)
     _segments: list = field(default_factory=list, repr=False)
 
@@ -151,18 +165,24 @@ class Parallel:
         the receiver attaches its own log, :meth:`.identify.AxisResult.attach`)."""
         return {**self.__dict__, "log": None, "_cache": {}, "_segments": []}
 
-    def columns(self, key: object, columns: Callable[[Channels], np.ndarray], logged: bool = False) -> np.ndarray:
+    def columns(
+        self, key: object, columns: Callable[[Channels], np.ndarray], logged: bool = False
+    ) -> np.ndarray:
         if (key, logged) not in self._cache:
             sos, r = self.sos, self.settings.decimation
             parts = []
             for keep, ch in self.segments():
                 x = np.asarray(columns(ch), dtype=float).reshape(len(ch), -1)
                 if logged:
-                    parts.append(np.column_stack([_interval_mean(x[:, j], r)[keep][::r] for j in range(x.shape[1])]))
+                    parts.append(
+                        np.column_stack([_interval_mean(x[:, j], r)[keep][::r] for j in range(x.shape[1])])
+                    )
                 else:
                     xf = signal.sosfiltfilt(sos, x * ch.gate[:, None], axis=0)[keep]
-                    parts.append(np.column_stack([_decimate(xf[:, j], self.settings) for j in range(x.shape[1])]))
-            self._cache[key, logged] = np.concatenate(parts)[:self.length]
+                    parts.append(
+                        np.column_stack([_decimate(xf[:, j], self.settings) for j in range(x.shape[1])])
+                    )
+            self._cache[key, logged] = np.concatenate(parts)[: self.length]
         return self._cache[key, logged]
 
     @cached_property
@@ -186,13 +206,29 @@ class Parallel:
                 sl, keep = self._active(sl, keep, lag)
                 raw = self.log.axes[self.axis].q[sl]
                 q, qd, qdd = kinematics(raw)
-                others = {o: kinematics(_filled(self.log.axes[o].q[sl])) for o in self.log.axes if o != self.axis}
+                others = {
+                    o: kinematics(_filled(self.log.axes[o].q[sl])) for o in self.log.axes if o != self.axis
+                }
                 # the direction at the log's own instants (its fallback, the filtered velocity's
                 # sign, too), then read at the torque's as the positions are
                 sgn = np.sign(_delayed_steps(direction(raw, _delayed(qd, -lag)), lag))
                 gate = 1.0 - np.ceil(_delayed_steps(standing(raw).astype(float), lag))
-                self._segments.append((keep, Channels(self.log.t[sl], q, qd, qdd, sgn, others,
-                                                      self.log.axes[self.axis].tau[sl], gate, derivative(q, dt))))
+                self._segments.append(
+                    (
+                        keep,
+                        Channels(
+                            self.log.t[sl],
+                            q,
+                            qd,
+                            qdd,
+                            sgn,
+                            others,
+                            self.log.axes[self.axis].tau[sl],
+                            gate,
+                            derivative(q, dt),
+                        ),
+                    )
+                )
         return self._segments
 
     def _active(self, sl: slice, keep: slice, lag: float) -> tuple[slice, slice]:
@@ -210,16 +246,23 @@ class Parallel:
         key = (self.axis, sl.start, sl.stop, settings.cutoff_hz)
         speed = self.log.speeds.get(key)
         if speed is None:
-            speed = np.abs(derivative(signal.sosfiltfilt(self.sos, self.log.axes[self.axis].q[sl]), self.log.dt))
+            speed = np.abs(
+                derivative(signal.sosfiltfilt(self.sos, self.log.axes[self.axis].q[sl]), self.log.dt)
+            )
             self.log.speeds[key] = speed
         moving = np.flatnonzero(speed > MOVING_FRACTION * np.max(speed))
-        margin = (settings.edge + 2 * _settling_samples(settings, self.sos) + int(np.ceil(abs(lag))) + DELAY_HALF_TAPS
-                  + len(_DERIVATIVE))
+        margin = (
+            settings.edge
+            + 2 * _settling_samples(settings, self.sos)
+            + int(np.ceil(abs(lag)))
+            + DELAY_HALF_TAPS
+            + len(_DERIVATIVE)
+        )
         n = sl.stop - sl.start
         if not len(moving):
             return sl, keep
         lo = max(0, int(moving[0]) - margin)
-        lo -= lo % r                                    # the same decimated samples as the whole segment's
+        lo -= lo % r  # the same decimated samples as the whole segment's
         hi = min(n, int(moving[-1]) + 1 + margin)
         if (lo, hi) == (0, n) or hi - lo <= 2 * settings.edge + 3 * r * 9:
             return sl, keep
@@ -284,8 +327,8 @@ def _delayed(x: np.ndarray, samples: float) -> np.ndarray:
     whole = int(np.floor(samples))
     pad = DELAY_HALF_TAPS + abs(whole) + 1
     padded = np.pad(x, pad, mode="edge")
-    read = np.convolve(padded, _fractional_delay(samples - whole))[DELAY_HALF_TAPS - 1:][:len(padded)]
-    out = read[pad - whole:pad - whole + len(x)]
+    read = np.convolve(padded, _fractional_delay(samples - whole))[DELAY_HALF_TAPS - 1 :][: len(padded)]
+    out = read[pad - whole : pad - whole + len(x)]
     at = np.arange(len(x)) - samples
     out[at <= 0] = x[0]
     out[at >= len(x) - 1] = x[-1]
@@ -311,9 +354,9 @@ def count_step(q: np.ndarray) -> float | None:
     moved = moved[moved > 16 * np.finfo(float).eps * max(1.0, float(np.max(np.abs(finite), initial=0.0)))]
     if len(q) < 5 or not len(moved):
         return None
-    step = float(np.mean(moved[moved < 1.5 * moved.min()]))             # one count: the smallest step
+    step = float(np.mean(moved[moved < 1.5 * moved.min()]))  # one count: the smallest step
     counts = moved / step
-    small = counts[counts < 50]                     # (a large step's count carries the unit's rounding)
+    small = counts[counts < 50]  # (a large step's count carries the unit's rounding)
     return step if len(small) >= 10 and bool(np.max(np.abs(small - np.round(small))) <= 0.1) else None
 
 
@@ -332,7 +375,7 @@ def _in_runs(same: np.ndarray, length: int) -> np.ndarray:
     run = _runs(same, length)
     out = np.zeros(len(same) + 1, dtype=bool)
     for k in range(length):
-        out[k:k + len(run)] |= run
+        out[k : k + len(run)] |= run
     return out
 
 
@@ -365,7 +408,7 @@ def standing(q: np.ndarray) -> np.ndarray:
     if not _on_counts(q):
         return np.zeros(len(q), dtype=bool)
     out = np.zeros(len(q), dtype=bool)
-    out[2:-2] = _runs(np.diff(q) == 0, 5)             # centred on the five samples
+    out[2:-2] = _runs(np.diff(q) == 0, 5)  # centred on the five samples
     return out
 
 
@@ -379,7 +422,7 @@ def motion_bandwidth(log: Log, axis: str) -> float:
     """Frequency [Hz] below which MOTION_POWER of the axis's velocity power lies."""
     ax = log.axes[axis]
     # the segment with the most motion (a log split by missing rows may hold a long standstill)
-    a, b = max(ax.segments, key=lambda s: int(np.count_nonzero(np.diff(ax.q[s[0]:s[1]]))))
+    a, b = max(ax.segments, key=lambda s: int(np.count_nonzero(np.diff(ax.q[s[0] : s[1]]))))
     fs = 1.0 / log.dt
     v = np.gradient(ax.q[a:b], log.dt)
     f, pxx = signal.welch(v - v.mean(), fs=fs, nperseg=min(len(v), 4096))
@@ -407,24 +450,36 @@ def quantisation_cutoff(log: Log, axis: str, bw: float) -> float:
     f, pxx = signal.welch(np.gradient(ax.q[a:b], log.dt), fs=fs, nperseg=min(b - a, 4096))
     band = f <= QUANTISATION_BAND * bw
     power = float(np.sum((2 * np.pi * f[band]) ** 2 * pxx[band]) * (f[1] - f[0]))
-    noise = (2 * np.pi) ** 4 * step ** 2 / 12 / (5 * fs / 2)
+    noise = (2 * np.pi) ** 4 * step**2 / 12 / (5 * fs / 2)
     return float((QUANTISATION_SHARE * power / noise) ** 0.2)
 
 
-def choose_settings(log: Log, axis: str, cutoff_hz: float | None = None,
-                    decimation: int | None = None) -> Settings:
+def choose_settings(
+    log: Log, axis: str, cutoff_hz: float | None = None, decimation: int | None = None
+) -> Settings:
     """Cut-off and decimation from the data (overridable): the cut-off follows the motion's
     bandwidth, within a share of the rate and below what the position's quantisation allows."""
     fs = 1.0 / log.dt
     bw = motion_bandwidth(log, axis)
-    fc = cutoff_hz if cutoff_hz else float(np.clip(min(CUTOFF_FACTOR * bw, quantisation_cutoff(log, axis, bw)),
-                                                   0.5, MAX_CUTOFF_SHARE * fs))
+    fc = (
+        cutoff_hz
+        if cutoff_hz
+        else float(
+            np.clip(min(CUTOFF_FACTOR * bw, quantisation_cutoff(log, axis, bw)), 0.5, MAX_CUTOFF_SHARE * fs)
+        )
+    )
     if not 0 < fc < fs / 2:
         raise UserError(f"cut-off {fc} Hz must be between 0 and the Nyquist frequency {fs / 2:g} Hz")
     r = decimation if decimation else max(1, int(fs / (DECIMATION_MARGIN * fc)))
-    edge = max(50, int(3 * fs / fc))             # the Butterworth's settling, both ends
-    logger.debug("axis %s: motion bandwidth %.3g Hz, cut-off %.3g Hz%s, decimation %d", axis, bw, fc,
-                 " (given)" if cutoff_hz else "", max(1, r))
+    edge = max(50, int(3 * fs / fc))  # the Butterworth's settling, both ends
+    logger.debug(
+        "axis %s: motion bandwidth %.3g Hz, cut-off %.3g Hz%s, decimation %d",
+        axis,
+        bw,
+        fc,
+        " (given)" if cutoff_hz else "",
+        max(1, r),
+    )
     return Settings(fc, max(1, r), fs, edge, bw)
 
 
@@ -449,7 +504,7 @@ def _decimate(x: np.ndarray, settings: Settings) -> np.ndarray:
     by 0.989 while sign(q̇) stays ±1: c0 would come out 1 % low)."""
     ba = _decimation_filter(settings)
     if ba is None:
-        return x[::settings.decimation]
+        return x[:: settings.decimation]
     return signal.decimate(x, settings.decimation, ftype=signal.dlti(*ba), zero_phase=True)
 
 
@@ -462,14 +517,14 @@ def _decimation_filter(settings: Settings) -> tuple[np.ndarray, np.ndarray] | No
     return _chebyshev(r)
 
 
-@lru_cache(maxsize=None)
+@cache
 def _chebyshev(r: int) -> tuple[np.ndarray, np.ndarray]:
     b, a = signal.cheby1(8, 0.05, 0.8 / r)
     return b * (np.sum(a) / np.sum(b)), a
 
 
-CLIP_SHARE = 0.002          # a torque level held by at least this share of the samples ...
-CLIP_RUN = 3                # ... in runs of identical values this long, at the log's extreme: clipped
+CLIP_SHARE = 0.002  # a torque level held by at least this share of the samples ...
+CLIP_RUN = 3  # ... in runs of identical values this long, at the log's extreme: clipped
 
 
 def clipped_levels(tau: np.ndarray) -> list[float]:
@@ -501,21 +556,27 @@ def prepare(log: Log, axis: str, settings: Settings) -> Samples:
     levels = clipped_levels(log.axes[axis].tau)
     filled = log.axes[axis].filled
     spread = np.ones(2 * int(settings.rate_hz / settings.cutoff_hz) + 1)
-    parts: dict[str, list[np.ndarray]] = {k: [] for k in ("t", "q", "qd", "qdd", "sgn", "tau_f", "tau", "settled",
-                                                          "clean")}
+    parts: dict[str, list[np.ndarray]] = {
+        k: [] for k in ("t", "q", "qd", "qdd", "sgn", "tau_f", "tau", "settled", "clean")
+    }
     other_parts: dict[str, list[list[np.ndarray]]] = {o: [[], [], []] for o in log.axes if o != axis}
-    for keep, ch in source.segments():        # (too short to filter, cut and decimate: skipped)
+    for keep, ch in source.segments():  # (too short to filter, cut and decimate: skipped)
         # parallel filtering of the Coulomb column: the torque's step at a reversal is smoothed
         # by the low-pass, so sign(q̇) gets the same filter (IDIM: filter W and τ alike)
-        channels = {"q": signal.sosfiltfilt(sos, ch.q), "qd": ch.qd, "tau_f": signal.sosfiltfilt(sos, ch.tau * ch.gate),
-                    "qdd": ch.qdd, "sgn": signal.sosfiltfilt(sos, ch.sgn * ch.gate)}
+        channels = {
+            "q": signal.sosfiltfilt(sos, ch.q),
+            "qd": ch.qd,
+            "tau_f": signal.sosfiltfilt(sos, ch.tau * ch.gate),
+            "qdd": ch.qdd,
+            "sgn": signal.sosfiltfilt(sos, ch.sgn * ch.gate),
+        }
         for k, x in channels.items():
             parts[k].append(_decimate(x[keep], settings))
         parts["settled"].append(_settled(ch.qd, settings)[keep][::r])
         unknown = np.isin(ch.tau, levels)
         if filled is not None:
             start = int(np.searchsorted(log.t, ch.t[0]))
-            unknown |= filled[start:start + len(ch.t)]
+            unknown |= filled[start : start + len(ch.t)]
         clipped = np.convolve(unknown, spread, "same") > 0
         parts["clean"].append(~(np.convolve(clipped, np.ones(r), "same") > 0)[keep][::r])
         parts["t"].append(ch.t[keep][::r])
@@ -525,31 +586,59 @@ def prepare(log: Log, axis: str, settings: Settings) -> Samples:
             for i, x in enumerate((signal.sosfiltfilt(sos, oq), oqd, oqdd)):
                 lists[i].append(_decimate(x[keep], settings))
     if not parts["t"]:
-        raise UserError(f"{log.path}: axis {axis!r}: every usable run is shorter than the filter needs "
-                        f"({2 * edge + 27 * r} samples)")
+        raise UserError(
+            f"{log.path}: axis {axis!r}: every usable run is shorter than the filter needs "
+            f"({2 * edge + 27 * r} samples)"
+        )
     cat = {k: np.concatenate(v) for k, v in parts.items()}
-    n = min(len(v) for v in cat.values())        # decimate rounds up; t[::r] too: align
+    n = min(len(v) for v in cat.values())  # decimate rounds up; t[::r] too: align
     cat = {k: v[:n] for k, v in cat.items()}
-    others = {o: (np.concatenate(q)[:n], np.concatenate(qd)[:n], np.concatenate(qdd)[:n])
-              for o, (q, qd, qdd) in other_parts.items()}
+    others = {
+        o: (np.concatenate(q)[:n], np.concatenate(qd)[:n], np.concatenate(qdd)[:n])
+        for o, (q, qd, qdd) in other_parts.items()
+    }
     vmax = np.max(np.abs(cat["qd"]))
     moving = cat.pop("settled").astype(bool) & cat.pop("clean").astype(bool)
     if vmax == 0 or np.ptp(cat["q"]) == 0:
         raise UserError(f"{log.path}: axis {axis!r} does not move")
     if moving.sum() < MIN_MOVING:
-        raise UserError(f"{log.path}: axis {axis!r}: only {int(moving.sum())} moving samples after filtering "
-                        f"and decimation (need {MIN_MOVING}); record longer or with more motion")
+        raise UserError(
+            f"{log.path}: axis {axis!r}: only {int(moving.sum())} moving samples after filtering "
+            f"and decimation (need {MIN_MOVING}); record longer or with more motion"
+        )
     source.length = n
-    return Samples(axis, cat["t"], cat["q"], cat["qd"], cat["qdd"], cat["sgn"], cat["tau_f"], cat["tau"],
-                   moving, others, source, rotary=log.axes[axis].kind == "rotary")
+    return Samples(
+        axis,
+        cat["t"],
+        cat["q"],
+        cat["qd"],
+        cat["qdd"],
+        cat["sgn"],
+        cat["tau_f"],
+        cat["tau"],
+        moving,
+        others,
+        source,
+        rotary=log.axes[axis].kind == "rotary",
+    )
 
 
 def whole_band(log: Log, axis: str, settings: Settings) -> Samples:
     """Samples over the log's whole band (a light low-pass at ``WIDE_BAND`` × the sample rate, no
     decimation), for what the fitted samples cannot show: resonances, transients at reversals."""
     fs = settings.rate_hz
-    return prepare(log, axis, Settings(WIDE_BAND * fs, 1, fs, max(50, int(3 / WIDE_BAND)),
-                                       settings.motion_bandwidth_hz, settings.torque_delay_s))
+    return prepare(
+        log,
+        axis,
+        Settings(
+            WIDE_BAND * fs,
+            1,
+            fs,
+            max(50, int(3 / WIDE_BAND)),
+            settings.motion_bandwidth_hz,
+            settings.torque_delay_s,
+        ),
+    )
 
 
 def _settled(qd: np.ndarray, settings: Settings) -> np.ndarray:
@@ -581,7 +670,7 @@ def noise_floor(log: Log, axis: str, settings: Settings) -> float:
     for a, b in ax.segments:
         if b - a > 2 * settings.edge:
             x = ax.tau[a:b]
-            res.append((x - signal.sosfiltfilt(sos, x))[settings.edge:-settings.edge])
+            res.append((x - signal.sosfiltfilt(sos, x))[settings.edge : -settings.edge])
     hf = np.concatenate(res) if res else np.zeros(1)
     share = 1.0 - settings.cutoff_hz / (settings.rate_hz / 2)
     return float(np.std(hf) / np.sqrt(share) * np.sqrt(np.sum(_interval_window(settings.decimation) ** 2)))

@@ -36,6 +36,7 @@ which mostly reflects the pace of the moves, comes last), and a
 variable an added effect already depends on is named with that effect and what
 of the residual remains.
 """
+
 from __future__ import annotations
 
 import logging
@@ -55,25 +56,25 @@ log = logging.getLogger(__name__)
 
 P_VALUE = 1e-3
 MIN_GAIN = 0.01
-SPLINE_GAIN = 0.05            # a spline (many coefficients, no physics) must cut the validation error 5 %
+SPLINE_GAIN = 0.05  # a spline (many coefficients, no physics) must cut the validation error 5 %
 MAX_EFFECTS = 6
-UNEXPLAINED_SHARE = 0.05      # report a dependence that explains this share of the residual variance
+UNEXPLAINED_SHARE = 0.05  # report a dependence that explains this share of the residual variance
 
 
 @dataclass
 class TracedEffect:
     effect: Effect
-    params: dict               # in the final model (all parameters refitted together)
-    rmse_before: float         # validation RMSE on the logged torque
+    params: dict  # in the final model (all parameters refitted together)
+    rmse_before: float  # validation RMSE on the logged torque
     rmse_after: float
-    relative_error_before: float   # validation, filtered torque (paper's measure)
+    relative_error_before: float  # validation, filtered torque (paper's measure)
     relative_error_after: float
     f_stat: float
     p_value: float
-    share: float               # share of the residual variance (estimation) it explains
-    model_params: dict         # every parameter of the model once this effect was added
+    share: float  # share of the residual variance (estimation) it explains
+    model_params: dict  # every parameter of the model once this effect was added
     fit_relative_error: float  # relative error on the estimation samples once it was added
-    evidence: str = ""         # in words, once the final fit is known
+    evidence: str = ""  # in words, once the final fit is known
 
 
 def f_test(small: AxisModel, big: AxisModel) -> tuple[float, float]:
@@ -84,52 +85,84 @@ def f_test(small: AxisModel, big: AxisModel) -> tuple[float, float]:
     return float(f), float(stats.f.sf(f, k, dof))
 
 
-FORM_WORDS = {"even": "the same in both directions", "odd": "against the motion: friction-like",
-              "inertial": "in proportion to the acceleration: an inertia that changes along the stroke"}
-MOVED = 0.1                 # a parameter that moved by this share since its effect was added is said so
+FORM_WORDS = {
+    "even": "the same in both directions",
+    "odd": "against the motion: friction-like",
+    "inertial": "in proportion to the acceleration: an inertia that changes along the stroke",
+}
+MOVED = 0.1  # a parameter that moved by this share since its effect was added is said so
 
 
 def _evidence(t: TracedEffect) -> str:
     """Why ``t`` was added, with its parameters as the final fit has them (the table's values) and
     what they were when it was added where the effects added after it moved them."""
     e = t.effect
-    what = (f"a smooth torque in {e.variable} no named effect describes ({len(e.coef_names)}-coefficient spline, "
-            + FORM_WORDS[e.form] + ")"
-            if isinstance(e, Spline) else _named_evidence(e, t.params))
+    what = (
+        f"a smooth torque in {e.variable} no named effect describes ({len(e.coef_names)}-coefficient spline, "
+        + FORM_WORDS[e.form]
+        + ")"
+        if isinstance(e, Spline)
+        else _named_evidence(e, t.params)
+    )
     added = {k: t.model_params.get(f"{e.name}.{k}") for k in t.params}
-    moved = [] if isinstance(e, Spline) else [
-        f"{k} {now:+.4g}" for k, v in t.params.items()
-        if isinstance(v, float) and isinstance(now := added[k], float) and abs(v - now) > MOVED * abs(now)]
-    since = (f" (when it was added: {', '.join(moved)}; the effects added after it took part of that)"
-             if moved else "")
-    return (f"{what}{since}; explains {t.share:.0%} of the residual variance (F = {t.f_stat:.3g}); validation "
-            f"RMSE {t.rmse_before:.4g} -> {t.rmse_after:.4g}, relative error "
-            f"{t.relative_error_before:.2%} -> {t.relative_error_after:.2%}")
+    moved = (
+        []
+        if isinstance(e, Spline)
+        else [
+            f"{k} {now:+.4g}"
+            for k, v in t.params.items()
+            if isinstance(v, float) and isinstance(now := added[k], float) and abs(v - now) > MOVED * abs(now)
+        ]
+    )
+    since = (
+        f" (when it was added: {', '.join(moved)}; the effects added after it took part of that)"
+        if moved
+        else ""
+    )
+    return (
+        f"{what}{since}; explains {t.share:.0%} of the residual variance (F = {t.f_stat:.3g}); validation "
+        f"RMSE {t.rmse_before:.4g} -> {t.rmse_after:.4g}, relative error "
+        f"{t.relative_error_before:.2%} -> {t.relative_error_after:.2%}"
+    )
 
 
 def _named_evidence(e: Effect, params: dict) -> str:
     return {
-        "offset": lambda: (f"a constant torque {params['offset']:+.4g}: a load (gravity on a vertical axis), a "
-                           f"measurement offset, or the constant part of a Coulomb friction that differs between the "
-                           f"directions ((c0 + dc0·s)·s = c0·s + dc0): the torque alone cannot tell them apart"),
-        "gravity": lambda: (f"a weight on the joint: {params['amplitude']:.4g} at most, where the arm is horizontal "
-                            f"(angle {params['angle']:+.3g} rad), one period per turn"),
+        "offset": lambda: (
+            f"a constant torque {params['offset']:+.4g}: a load (gravity on a vertical axis), a "
+            f"measurement offset, or the constant part of a Coulomb friction that differs between the "
+            f"directions ((c0 + dc0·s)·s = c0·s + dc0): the torque alone cannot tell them apart"
+        ),
+        "gravity": lambda: (
+            f"a weight on the joint: {params['amplitude']:.4g} at most, where the arm is horizontal "
+            f"(angle {params['angle']:+.3g} rad), one period per turn"
+        ),
         "position_linear": lambda: f"residual slope over position {params['cp']:+.4g}",
-        "position_periodic": lambda: f"residual periodic in position, period {params['period']:.4g}, "
-                                     f"amplitude {params['amplitude']:.3g}",
+        "position_periodic": lambda: (
+            f"residual periodic in position, period {params['period']:.4g}, "
+            f"amplitude {params['amplitude']:.3g}"
+        ),
         "stribeck": lambda: f"residual rises near standstill below {params['velocity']:.3g}/s",
-        "direction_asymmetry": lambda: "residual differs with the direction of motion "
-                                       f"(dc1 {params['dc1']:+.3g}" + (f", dc0 {params['dc0']:+.3g})"
-                                                                       if "dc0" in params else ")"),
-        "cross_axis": lambda: f"residual follows axis {params['source']} ({params['form']}), "
-                              f"coefficient {params['coefficient']:+.3g}",
-        "drift": lambda: f"Coulomb friction changes over time, time constant {params['time_constant_s']:.3g} s",
+        "direction_asymmetry": lambda: (
+            "residual differs with the direction of motion "
+            f"(dc1 {params['dc1']:+.3g}" + (f", dc0 {params['dc0']:+.3g})" if "dc0" in params else ")")
+        ),
+        "cross_axis": lambda: (
+            f"residual follows axis {params['source']} ({params['form']}), "
+            f"coefficient {params['coefficient']:+.3g}"
+        ),
+        "drift": lambda: (
+            f"Coulomb friction changes over time, time constant {params['time_constant_s']:.3g} s"
+        ),
     }["position_periodic" if isinstance(e, PositionPeriodic) else e.name]()
 
 
-def trace(est: Samples, val: Samples, seed: int,
-          realign: Callable[[AxisModel], tuple[Samples, Samples] | None] | None = None,
-          ) -> tuple[AxisModel, AxisModel, list[TracedEffect]]:
+def trace(
+    est: Samples,
+    val: Samples,
+    seed: int,
+    realign: Callable[[AxisModel], tuple[Samples, Samples] | None] | None = None,
+) -> tuple[AxisModel, AxisModel, list[TracedEffect]]:
     """Base model, final model, and the effects added on the way (in order); ``seed`` seeds
     the search of every effect's nonlinear parameters.  ``realign(model)``, asked after the base
     fit and after each added effect, may return new estimation and validation samples (the
@@ -147,43 +180,73 @@ def trace(est: Samples, val: Samples, seed: int,
             try:
                 fitted = extend(model, cand, est)
             except np.linalg.LinAlgError:
-                continue                          # the candidate's columns leave the problem singular
-            if not np.all(np.isfinite(fitted.coef_)) or fitted.sse_ >= model.sse_ or hides_inertia(model, fitted):
+                continue  # the candidate's columns leave the problem singular
+            if (
+                not np.all(np.isfinite(fitted.coef_))
+                or fitted.sse_ >= model.sse_
+                or hides_inertia(model, fitted)
+            ):
                 continue
             new_err = errors(fitted, val)
-            if new_err.relative_error <= 0 or (isinstance(cand, Spline) and
-                                               new_err.relative_error > (1 - SPLINE_GAIN) * err.relative_error):
-                continue                          # a spline must earn its many coefficients
+            if new_err.relative_error <= 0 or (
+                isinstance(cand, Spline) and new_err.relative_error > (1 - SPLINE_GAIN) * err.relative_error
+            ):
+                continue  # a spline must earn its many coefficients
             if not isinstance(cand, Spline) and _accepted(f_test(model, fitted)[1], err, new_err):
                 named.add(shape_of(cand))
             score = 2 * np.log(err.relative_error / new_err.relative_error) / len(cand.coef_names)
             if best is None or score > best[0]:
                 best = (score, fitted, new_err, cand)
-            if isinstance(cand, Spline) and (spline is None or new_err.relative_error < spline[2].relative_error):
+            if isinstance(cand, Spline) and (
+                spline is None or new_err.relative_error < spline[2].relative_error
+            ):
                 spline = (score, fitted, new_err, cand)
         if best is None:
             break
         if spline is not None and spline[2].relative_error < (1 - SPLINE_GAIN) * best[2].relative_error:
-            best = spline                         # the named effect does not fit as well: the shape the data hold
+            best = spline  # the named effect does not fit as well: the shape the data hold
         _, fitted, new_err, cand = best
         f, p = f_test(model, fitted)
         if not _accepted(p, err, new_err):
-            log.debug("best candidate %s not accepted: p = %.3g, validation error %.4g -> %.4g", cand.name, p,
-                      err.relative_error, new_err.relative_error)
+            log.debug(
+                "best candidate %s not accepted: p = %.3g, validation error %.4g -> %.4g",
+                cand.name,
+                p,
+                err.relative_error,
+                new_err.relative_error,
+            )
             break
-        log.info("effect %s added: p = %.3g, validation error %.4g -> %.4g", cand.name, p, err.relative_error,
-                 new_err.relative_error)
+        log.info(
+            "effect %s added: p = %.3g, validation error %.4g -> %.4g",
+            cand.name,
+            p,
+            err.relative_error,
+            new_err.relative_error,
+        )
         share = 1.0 - fitted.sse_ / model.sse_
         params = fitted.effect_params(cand)
-        traced.append(TracedEffect(cand, params, err.rmse, new_err.rmse, err.relative_error,
-                                   new_err.relative_error, f, p, share, fitted.params_, fitted.relative_error_))
+        traced.append(
+            TracedEffect(
+                cand,
+                params,
+                err.rmse,
+                new_err.rmse,
+                err.relative_error,
+                new_err.relative_error,
+                f,
+                p,
+                share,
+                fitted.params_,
+                fitted.relative_error_,
+            )
+        )
         est, val, model = _realigned(realign, fitted, est, val)
         err = new_err if model is fitted else errors(model, val)
     while traced and not physical(model):  # effects that bought their fit with a negative friction go
         log.info("effect %s removed: the model with it is not physical", traced[-1].effect.name)
-        traced.pop()                       # again, last first (a base model stays as it is)
+        traced.pop()  # again, last first (a base model stays as it is)
         model = AxisModel([t.effect for t in traced], seed=seed).fit(est)
-    for t in traced:                      # every effect's parameters as the final joint fit has them
+    for t in traced:  # every effect's parameters as the final joint fit has them
         t.params = model.effect_params(t.effect)
         t.evidence = _evidence(t)
     return AxisModel(seed=seed).fit(est), model, traced
@@ -193,8 +256,10 @@ def hides_inertia(model: AxisModel, fitted: AxisModel) -> bool:
     """Whether the effect ``fitted`` adds leaves J undetermined where ``model`` determined it: a
     term the data cannot tell from J·q̈ (on a near-sinusoidal motion a gravity or a spline over
     position is nearly proportional to the acceleration) would take the inertia with it."""
+
     def determined(m: AxisModel) -> bool:
         return abs(m.params_["J"]) >= T_MIN * m.param_std_["J"]
+
     return determined(model) and not determined(fitted)
 
 
@@ -204,8 +269,12 @@ def _accepted(p_value: float, err: Errors, new_err: Errors) -> bool:
     return p_value < P_VALUE and new_err.relative_error <= (1 - MIN_GAIN) * err.relative_error
 
 
-def _realigned(realign: Callable[[AxisModel], tuple[Samples, Samples] | None] | None, model: AxisModel,
-               est: Samples, val: Samples) -> tuple[Samples, Samples, AxisModel]:
+def _realigned(
+    realign: Callable[[AxisModel], tuple[Samples, Samples] | None] | None,
+    model: AxisModel,
+    est: Samples,
+    val: Samples,
+) -> tuple[Samples, Samples, AxisModel]:
     """The samples ``realign(model)`` gives, and ``model`` refitted on them (as they were, and
     ``model`` itself, when it gives none)."""
     new = realign(model) if realign else None
@@ -230,7 +299,7 @@ def unexplained(model: AxisModel, s: Samples, rate_hz: float) -> list[dict]:
     m = s.moving
     residual = s.tau - model.predict(s, logged=True)
     r = residual[m]
-    total = float(np.mean(r ** 2))
+    total = float(np.mean(r**2))
     added: dict[str, list[str]] = {}
     for e in model.effects:
         added.setdefault(e.depends_on, []).append(e.name)
@@ -238,16 +307,29 @@ def unexplained(model: AxisModel, s: Samples, rate_hz: float) -> list[dict]:
     if total > 0 and r.mean() ** 2 / total >= UNEXPLAINED_SHARE:
         n = len(r)
         f = n * r.mean() ** 2 / max(float(np.var(r)), 1e-300)
-        out.append({"depends_on": "constant", "form": "even", "fraction": round(float(r.mean() ** 2 / total), 4),
-                    "evidence": round(float(f), 1)})
+        out.append(
+            {
+                "depends_on": "constant",
+                "form": "even",
+                "fraction": round(float(r.mean() ** 2 / total), 4),
+                "evidence": round(float(f), 1),
+            }
+        )
     out += dependences(s, residual, UNEXPLAINED_SHARE, P_VALUE)
     if len(r) >= 256:
         f, pxx = signal.welch(r - r.mean(), fs=rate_hz, nperseg=256)
         peak = int(np.argmax(pxx[1:])) + 1
-        band = float(pxx[max(1, peak - 1):peak + 2].sum() / pxx[1:].sum())
+        band = float(pxx[max(1, peak - 1) : peak + 2].sum() / pxx[1:].sum())
         if band >= 0.25:
-            out.append({"depends_on": "frequency", "form": "even", "fraction": round(band, 4),
-                        "frequency_hz": float(f[peak]), "evidence": None})
+            out.append(
+                {
+                    "depends_on": "frequency",
+                    "form": "even",
+                    "fraction": round(band, 4),
+                    "frequency_hz": float(f[peak]),
+                    "evidence": None,
+                }
+            )
     for d in out:
         if d["depends_on"] in added:
             d["after"] = added[d["depends_on"]]
@@ -257,29 +339,42 @@ def unexplained(model: AxisModel, s: Samples, rate_hz: float) -> list[dict]:
 
 def describe_unexplained(d: dict) -> str:
     """One entry of :func:`unexplained` in words."""
-    what = {"even": "the residual", "odd": "the residual times the direction of motion (a torque against the "
-            "motion, friction-like)", "inertial": "the residual times the acceleration (an inertia that changes "
-            "along the stroke)"}[d.get("form", "even")]
+    what = {
+        "even": "the residual",
+        "odd": "the residual times the direction of motion (a torque against the motion, friction-like)",
+        "inertial": "the residual times the acceleration (an inertia that changes along the stroke)",
+    }[d.get("form", "even")]
     if d.get("kind") == "resonance" and d.get("mains"):
-        return (f"a narrow peak at {d['frequency_hz']:.3g} Hz holds {d['fraction']:.0%} of the residual over the "
-                f"log's whole band: the mains frequency or its double, more likely electrical pickup in the torque "
-                f"measurement than a mechanical mode")
+        return (
+            f"a narrow peak at {d['frequency_hz']:.3g} Hz holds {d['fraction']:.0%} of the residual over the "
+            f"log's whole band: the mains frequency or its double, more likely electrical pickup in the torque "
+            f"measurement than a mechanical mode"
+        )
     if d.get("kind") == "resonance":
-        moved = (f"; the cut-off was moved from {d['cutoff_moved_from_hz']:.3g} Hz below it"
-                 if d.get("cutoff_moved_from_hz") else "")
-        return (f"a resonance at {d['frequency_hz']:.3g} Hz (damping ratio ≈ {d['damping']:.2g}) holds "
-                f"{d['fraction']:.0%} of the residual over the log's whole band: a compliant transmission the "
-                f"rigid model lacks{moved}")
+        moved = (
+            f"; the cut-off was moved from {d['cutoff_moved_from_hz']:.3g} Hz below it"
+            if d.get("cutoff_moved_from_hz")
+            else ""
+        )
+        return (
+            f"a resonance at {d['frequency_hz']:.3g} Hz (damping ratio ≈ {d['damping']:.2g}) holds "
+            f"{d['fraction']:.0%} of the residual over the log's whole band: a compliant transmission the "
+            f"rigid model lacks{moved}"
+        )
     if d.get("kind") == "standstill_friction":
-        return (f"the residual gathers {d['ratio']:.2g}× its usual power about {d['delay_ms']:.3g} ms after each "
-                f"reversal of the velocity ({d['events']} of them; {d['fraction']:.0%} of the residual over the "
-                f"log's whole band): friction at standstill the model lacks (breakaway, Stribeck friction or "
-                f"stick-slip) at speeds below those fitted ({d['fitted_from']:.3g}/s and up), not play")
+        return (
+            f"the residual gathers {d['ratio']:.2g}× its usual power about {d['delay_ms']:.3g} ms after each "
+            f"reversal of the velocity ({d['events']} of them; {d['fraction']:.0%} of the residual over the "
+            f"log's whole band): friction at standstill the model lacks (breakaway, Stribeck friction or "
+            f"stick-slip) at speeds below those fitted ({d['fitted_from']:.3g}/s and up), not play"
+        )
     if d.get("kind") == "backlash":
-        return (f"the residual gathers {d['ratio']:.2g}× its usual power about {d['delay_ms']:.3g} ms after each "
-                f"{d['depends_on'].replace('_', ' ')} ({d['events']} of them; {d['fraction']:.0%} of the residual "
-                f"over the log's whole band): backlash or an impact in the transmission, which the rigid model "
-                f"lacks")
+        return (
+            f"the residual gathers {d['ratio']:.2g}× its usual power about {d['delay_ms']:.3g} ms after each "
+            f"{d['depends_on'].replace('_', ' ')} ({d['events']} of them; {d['fraction']:.0%} of the residual "
+            f"over the log's whole band): backlash or an impact in the transmission, which the rigid model "
+            f"lacks"
+        )
     text = f"{what} depends on {d['depends_on']}"
     if "frequency_hz" in d:
         text += f" (a peak at {d['frequency_hz']:.3g} Hz)"

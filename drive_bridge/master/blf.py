@@ -16,6 +16,7 @@ pyproject.toml): the uncompressed ``_buffer`` (a list of bytes) and ``_buffer_si
 (which compresses the first ``max_container_size`` bytes into a container), ``object_count``,
 ``start_timestamp`` (the first frame's time truncated to ms) and ``stop_timestamp``.
 """
+
 from __future__ import annotations
 
 import os
@@ -25,15 +26,39 @@ from typing import Any
 
 import can
 import numpy as np
-from can.io.blf import (CAN_MESSAGE, CAN_MSG_EXT, DIR, LOG_CONTAINER, LOG_CONTAINER_STRUCT, NO_COMPRESSION,
-                        OBJ_HEADER_BASE_STRUCT, REMOTE_FLAG, TIME_ONE_NANS, ZLIB_DEFLATE)
+from can.io.blf import (
+    CAN_MESSAGE,
+    CAN_MSG_EXT,
+    DIR,
+    LOG_CONTAINER,
+    LOG_CONTAINER_STRUCT,
+    NO_COMPRESSION,
+    OBJ_HEADER_BASE_STRUCT,
+    REMOTE_FLAG,
+    TIME_ONE_NANS,
+    ZLIB_DEFLATE,
+)
 from can.util import channel2int
 
 #: one CAN_MESSAGE object: base header, header v1 (flags, client, version, time [ns]), the frame
-_OBJECT = np.dtype([("signature", "S4"), ("header_size", "<u2"), ("header_version", "<u2"),
-                    ("object_size", "<u4"), ("object_type", "<u4"),
-                    ("time_flags", "<u4"), ("client", "<u2"), ("version", "<u2"), ("time_ns", "<u8"),
-                    ("channel", "<u2"), ("flags", "u1"), ("dlc", "u1"), ("can_id", "<u4"), ("data", "S8")])
+_OBJECT = np.dtype(
+    [
+        ("signature", "S4"),
+        ("header_size", "<u2"),
+        ("header_version", "<u2"),
+        ("object_size", "<u4"),
+        ("object_type", "<u4"),
+        ("time_flags", "<u4"),
+        ("client", "<u2"),
+        ("version", "<u2"),
+        ("time_ns", "<u8"),
+        ("channel", "<u2"),
+        ("flags", "u1"),
+        ("dlc", "u1"),
+        ("can_id", "<u4"),
+        ("data", "S8"),
+    ]
+)
 _HEADER_SIZE = 32
 
 
@@ -42,14 +67,22 @@ class BatchedBLFWriter(can.BLFWriter):
     it is given (a lockstep link's clock starts at 0); ``container_thread``: containers compressed
     and written by a thread of their own."""
 
-    def __init__(self, file: str | os.PathLike[str], *, epoch: float = 0.0, container_thread: bool = False,
-                 **kwargs: Any):
+    def __init__(
+        self,
+        file: str | os.PathLike[str],
+        *,
+        epoch: float = 0.0,
+        container_thread: bool = False,
+        **kwargs: Any,
+    ):
         super().__init__(file, **kwargs)
         self.epoch = epoch
         self._rows: list[tuple[float, int, int, int, int, bytes]] = []
         self._batch = self.max_container_size // _OBJECT.itemsize + 1
         self._channels: dict[Any, int] = {}
-        self._containers = ThreadPoolExecutor(1, thread_name_prefix="blf-container") if container_thread else None
+        self._containers = (
+            ThreadPoolExecutor(1, thread_name_prefix="blf-container") if container_thread else None
+        )
         self._written: list[Future] = []
 
     def on_message_received(self, msg: can.Message) -> None:
@@ -63,9 +96,16 @@ class BatchedBLFWriter(can.BLFWriter):
         flags = REMOTE_FLAG if msg.is_remote_frame else 0
         if not msg.is_rx:
             flags |= DIR
-        self._rows.append((msg.timestamp, channel, flags, msg.dlc,
-                           msg.arbitration_id | CAN_MSG_EXT if msg.is_extended_id else msg.arbitration_id,
-                           bytes(msg.data)))
+        self._rows.append(
+            (
+                msg.timestamp,
+                channel,
+                flags,
+                msg.dlc,
+                msg.arbitration_id | CAN_MSG_EXT if msg.is_extended_id else msg.arbitration_id,
+                bytes(msg.data),
+            )
+        )
         if len(self._rows) >= self._batch:
             self._pack()
 
@@ -105,12 +145,12 @@ class BatchedBLFWriter(can.BLFWriter):
         buffer = b"".join(self._buffer)
         if not buffer:
             return
-        self._buffer = [buffer[self.max_container_size:]]
+        self._buffer = [buffer[self.max_container_size :]]
         self._buffer_size = len(self._buffer[0])
-        chunk = buffer[:self.max_container_size]
+        chunk = buffer[: self.max_container_size]
         self.uncompressed_size += OBJ_HEADER_BASE_STRUCT.size + LOG_CONTAINER_STRUCT.size + len(chunk)
         for done in [f for f in self._written if f.done()]:
-            done.result()                  # a container that could not be written stops the trace here
+            done.result()  # a container that could not be written stops the trace here
             self._written.remove(done)
         self._written.append(self._containers.submit(self._write_container, chunk))
 
@@ -120,11 +160,15 @@ class BatchedBLFWriter(can.BLFWriter):
         else:
             data, method = chunk, NO_COMPRESSION
         size = OBJ_HEADER_BASE_STRUCT.size + LOG_CONTAINER_STRUCT.size + len(data)
-        self.file.write(OBJ_HEADER_BASE_STRUCT.pack(b"LOBJ", OBJ_HEADER_BASE_STRUCT.size, 1, size, LOG_CONTAINER)
-                        + LOG_CONTAINER_STRUCT.pack(method, len(chunk)) + data + b"\x00" * (size % 4))
+        self.file.write(
+            OBJ_HEADER_BASE_STRUCT.pack(b"LOBJ", OBJ_HEADER_BASE_STRUCT.size, 1, size, LOG_CONTAINER)
+            + LOG_CONTAINER_STRUCT.pack(method, len(chunk))
+            + data
+            + b"\x00" * (size % 4)
+        )
 
     def _add_object(self, obj_type: int, data: bytes, timestamp: float | None = None) -> None:
-        self._pack()                      # error and FD frames, markers: after the frames before them
+        self._pack()  # error and FD frames, markers: after the frames before them
         super()._add_object(obj_type, data, None if timestamp is None else timestamp + self.epoch)
 
     def file_size(self) -> int:

@@ -1,5 +1,6 @@
 """Bring-up of the configured drives: scan, identity, NMT, heartbeats both ways, EMCY, the drive's
 units, the limits and stop behaviour inside the drive, PDO mapping."""
+
 from __future__ import annotations
 
 import logging
@@ -13,13 +14,19 @@ import canopen
 from canopen.emcy import EmcyError
 from canopen.pdo.base import PdoBase, PdoMap
 
+from ..cia.p402 import (
+    ABORT_QUICK_STOP,
+    FAULT_REACTION_QUICK_STOP_RAMP,
+    IP,
+    MODE_NAMES,
+    QUICK_STOP_RAMP_AND_HOLD,
+)
+from ..cia.sdo import pdo_objects, read_if_readable, sdo_object, snapshot, write_setting
 from ..config import BusConfig, MasterConfig, NodeConfig, PdoConfig
 from ..errors import BusError, DriveRefused, InternalError
 from ..od import default, limits, variable
 from ..outputs import hex_object, identity_hex, stamped
 from ..pdo import PdoCodec
-from ..cia.p402 import ABORT_QUICK_STOP, FAULT_REACTION_QUICK_STOP_RAMP, IP, MODE_NAMES, QUICK_STOP_RAMP_AND_HOLD
-from ..cia.sdo import pdo_objects, read_if_readable, sdo_object, snapshot, write_setting
 from ..setpoint import IP_SUB_MODE, PVT, choose, describe_modes, supported_modes
 from .cia402 import Drive402
 from .link import Clock, Link
@@ -44,17 +51,17 @@ class AxisLink:
     #: the operating mode the master streams in (8 CSP, 7 IP) and the object carrying its setpoints
     mode: int = 0
     setpoint: tuple[int, int] = (0x607A, 0)
-    modes: list[int] = field(default_factory=list)      # the operating modes the drive supports (0x6502)
+    modes: list[int] = field(default_factory=list)  # the operating modes the drive supports (0x6502)
     rpdos: list[PdoCodec] = field(default_factory=list)
     tpdos: list[PdoCodec] = field(default_factory=list)
     last_heartbeat: float | None = None
     nmt_state: int | None = None
-    emcy: list[tuple[float, int]] = field(default_factory=list)   # (time, code)
+    emcy: list[tuple[float, int]] = field(default_factory=list)  # (time, code)
     #: what the drive said about its units (:mod:`.units`), and the limits and stop behaviour
     #: written into it as read back ("0xIIII:S" -> value)
     units: dict = field(default_factory=dict)
     drive_limits: dict = field(default_factory=dict)
-    homed: bool = False            # reference: home, and the drive's homing has run in this bring-up
+    homed: bool = False  # reference: home, and the drive's homing has run in this bring-up
     #: every object bring-up overwrote, as the drive held it before ("0xIIII:S" -> raw value):
     #: what a store of all parameters must put back to leave the stored set as it was
     before: dict = field(default_factory=dict)
@@ -62,12 +69,22 @@ class AxisLink:
     def process_data(self) -> dict:
         """How the master exchanges this axis' process data (bringup.json): the operating mode, the
         setpoint object and each PDO's COB-ID and mapping, in hex as CANopen writes them."""
+
         def pdos(codecs: list[PdoCodec]) -> list[dict[str, Any]]:
-            return [{"cob_id": f"0x{c.cob_id:03X}", "mapping": [hex_object(i, s) for i, s in c.entries]}
-                    for c in codecs]
-        return {"mode": self.mode, "mode_name": MODE_NAMES.get(self.mode, str(self.mode)),
-                "setpoint": hex_object(*self.setpoint), "rpdo": pdos(self.rpdos), "tpdo": pdos(self.tpdos),
-                "units": self.units, "drive_limits": self.drive_limits}
+            return [
+                {"cob_id": f"0x{c.cob_id:03X}", "mapping": [hex_object(i, s) for i, s in c.entries]}
+                for c in codecs
+            ]
+
+        return {
+            "mode": self.mode,
+            "mode_name": MODE_NAMES.get(self.mode, str(self.mode)),
+            "setpoint": hex_object(*self.setpoint),
+            "rpdo": pdos(self.rpdos),
+            "tpdo": pdos(self.tpdos),
+            "units": self.units,
+            "drive_limits": self.drive_limits,
+        }
 
     def start_rad(self) -> float:
         """Where a motion planned now starts [rad]: where the axis stands, or for an axis that homes
@@ -92,10 +109,10 @@ class AxisLink:
 
 @dataclass
 class ScanResult:
-    found: dict[int, dict]            # node id -> identity
-    missing: list[str]                # configured axes that did not answer
-    unexpected: list[int]             # node ids that answered but are not configured
-    wrong_type: list[str]             # configured axes that are not CiA 402 drives
+    found: dict[int, dict]  # node id -> identity
+    missing: list[str]  # configured axes that did not answer
+    unexpected: list[int]  # node ids that answered but are not configured
+    wrong_type: list[str]  # configured axes that are not CiA 402 drives
     #: axis -> how the node's identity (0x1018) differs from its EDS/DCF; accepted ones are overridden
     identity_mismatch: dict[str, str] = field(default_factory=dict)
     identity_accepted: dict[str, str] = field(default_factory=dict)
@@ -105,32 +122,54 @@ class ScanResult:
         unexpected, wrong type, identities that differ from the EDS/DCF (and those accepted with
         --accept-identity)."""
         by_id = {n.node_id: a for a, n in config.nodes.items()}
-        return stamped("scan", {
-            "found": {by_id.get(i, str(i)): {"node_id": i, **identity_hex(ident)} for i, ident in self.found.items()},
-            "missing": self.missing, "unexpected": self.unexpected, "wrong_type": self.wrong_type,
-            "identity_mismatch": self.identity_mismatch, "identity_accepted": self.identity_accepted})
+        return stamped(
+            "scan",
+            {
+                "found": {
+                    by_id.get(i, str(i)): {"node_id": i, **identity_hex(ident)}
+                    for i, ident in self.found.items()
+                },
+                "missing": self.missing,
+                "unexpected": self.unexpected,
+                "wrong_type": self.wrong_type,
+                "identity_mismatch": self.identity_mismatch,
+                "identity_accepted": self.identity_accepted,
+            },
+        )
 
 
 def _identity(node: canopen.RemoteNode, axis: str) -> dict:
     try:
-        return {"device_type": node.sdo[0x1000].raw,
-                "vendor_id": node.sdo[0x1018][1].raw, "product_code": node.sdo[0x1018][2].raw,
-                "revision": node.sdo[0x1018][3].raw, "serial": node.sdo[0x1018][4].raw}
+        return {
+            "device_type": node.sdo[0x1000].raw,
+            "vendor_id": node.sdo[0x1018][1].raw,
+            "product_code": node.sdo[0x1018][2].raw,
+            "revision": node.sdo[0x1018][3].raw,
+            "serial": node.sdo[0x1018][4].raw,
+        }
     except (canopen.SdoCommunicationError, canopen.SdoAbortedError) as exc:
-        raise BusError(f"axis {axis} (node {node.id}): reading its identity (0x1000, 0x1018) failed ({exc})") from exc
+        raise BusError(
+            f"axis {axis} (node {node.id}): reading its identity (0x1000, 0x1018) failed ({exc})"
+        ) from exc
 
 
 #: identity fields of 0x1018 and the [DeviceInfo] entries of an EDS/DCF that name them
-IDENTITY_FIELDS = (("vendor_id", "vendor_number", "vendor"), ("product_code", "product_number", "product"),
-                   ("revision", "revision_number", "revision"))
+IDENTITY_FIELDS = (
+    ("vendor_id", "vendor_number", "vendor"),
+    ("product_code", "product_number", "product"),
+    ("revision", "revision_number", "revision"),
+)
 
 
 def identity_mismatch(ident: dict, od: canopen.ObjectDictionary) -> str | None:
     """How a node's identity differs from what its EDS/DCF names (fields the file leaves out are
     not compared); None when it matches."""
     info = od.device_information
-    wrong = [(label, ident[key], getattr(info, attr)) for key, attr, label in IDENTITY_FIELDS
-             if getattr(info, attr, None) is not None and ident[key] != getattr(info, attr)]
+    wrong = [
+        (label, ident[key], getattr(info, attr))
+        for key, attr, label in IDENTITY_FIELDS
+        if getattr(info, attr, None) is not None and ident[key] != getattr(info, attr)
+    ]
     if not wrong:
         return None
     node = ", ".join(f"{label} 0x{have:08X}" for label, have, _ in wrong)
@@ -163,20 +202,25 @@ def scan(link: Link, config: BusConfig) -> ScanResult:
         if ncfg.node_id not in answered:
             missing.append(axis)
             continue
-        node = net.add_node(ncfg.node_id, ncfg.od) if ncfg.node_id not in net else remote_node(net, ncfg.node_id)
+        node = (
+            net.add_node(ncfg.node_id, ncfg.od) if ncfg.node_id not in net else remote_node(net, ncfg.node_id)
+        )
         node.sdo.RESPONSE_TIMEOUT = config.master.sdo_timeout_s
         found[ncfg.node_id] = _identity(node, axis)
         if found[ncfg.node_id]["device_type"] & 0xFFFF != CIA402_PROFILE:
             wrong.append(axis)
         differs = identity_mismatch(found[ncfg.node_id], ncfg.od)
         if differs:
-            (accepted if ncfg.node_id in config.accept_identity else mismatch)[axis] = f"{differs} ({ncfg.dcf})"
+            (accepted if ncfg.node_id in config.accept_identity else mismatch)[axis] = (
+                f"{differs} ({ncfg.dcf})"
+            )
     unexpected = sorted(i for i in answered if i not in by_id)
     return ScanResult(found, missing, unexpected, wrong, mismatch, accepted)
 
 
-def _configure_pdos(node: canopen.RemoteNode, node_id: int, maps: PdoBase, configured: tuple[PdoConfig, ...],
-                    base: int) -> list[PdoCodec]:
+def _configure_pdos(
+    node: canopen.RemoteNode, node_id: int, maps: PdoBase, configured: tuple[PdoConfig, ...], base: int
+) -> list[PdoCodec]:
     """Map the configured PDOs and disable the drive's others (of PDOs 1-4, those its EDS/DCF has)."""
     codecs = []
     by_num = {p.number: p for p in configured}
@@ -194,8 +238,8 @@ def _configure_pdos(node: canopen.RemoteNode, node_id: int, maps: PdoBase, confi
                 pdo.add_variable(index, sub)
             pdo.trans_type = pc.transmission
             od = node.object_dictionary
-            if base == 0x180 and od.get_variable(comm_base + num - 1, 3):   # as configured, never the EDS
-                pdo.inhibit_time = pc.inhibit_time_100us                      # default (Nanotec's: 10 ms)
+            if base == 0x180 and od.get_variable(comm_base + num - 1, 3):  # as configured, never the EDS
+                pdo.inhibit_time = pc.inhibit_time_100us  # default (Nanotec's: 10 ms)
             if base == 0x180 and od.get_variable(comm_base + num - 1, 5):
                 pdo.event_timer = pc.event_timer_ms or 0
         pdo.save()
@@ -209,19 +253,25 @@ def check_scan(result: ScanResult, config: BusConfig) -> None:
     EDS/DCF describes (identity 0x1018, unless accepted), or is no CiA 402 drive."""
     if result.missing:
         ids = ", ".join(f"{a} (node {config.nodes[a].node_id})" for a in result.missing)
-        raise BusError(f"no answer from {ids} on {config.master.interface}:{config.master.channel}; "
-                       f"check power, wiring, bitrate and node_id in {config.path}")
+        raise BusError(
+            f"no answer from {ids} on {config.master.interface}:{config.master.channel}; "
+            f"check power, wiring, bitrate and node_id in {config.path}"
+        )
     if result.identity_mismatch:
         ax, why = next(iter(result.identity_mismatch.items()))
         node_id = config.nodes[ax].node_id
-        raise BusError(f"axis {ax} (node {node_id}) is not the drive its EDS/DCF describes: {why}; nothing was "
-                       f"written. Connect that drive, name this drive's own EDS/DCF in {config.path}, or give "
-                       f"--accept-identity {node_id} to go on deliberately")
+        raise BusError(
+            f"axis {ax} (node {node_id}) is not the drive its EDS/DCF describes: {why}; nothing was "
+            f"written. Connect that drive, name this drive's own EDS/DCF in {config.path}, or give "
+            f"--accept-identity {node_id} to go on deliberately"
+        )
     if result.wrong_type:
         ax = result.wrong_type[0]
         dt = result.found[config.nodes[ax].node_id]["device_type"]
-        raise BusError(f"axis {ax} (node {config.nodes[ax].node_id}) is not a CiA 402 drive "
-                       f"(device type 0x{dt:08X}); check node_id in {config.path}")
+        raise BusError(
+            f"axis {ax} (node {config.nodes[ax].node_id}) is not a CiA 402 drive "
+            f"(device type 0x{dt:08X}); check node_id in {config.path}"
+        )
 
 
 def bring_up(link: Link, config: BusConfig) -> dict[str, AxisLink]:
@@ -236,18 +286,26 @@ def bring_up(link: Link, config: BusConfig) -> dict[str, AxisLink]:
     axes: dict[str, AxisLink] = {}
     period = config.master.sync_period_s
     link.start_heartbeat(config.master.heartbeat_node_id, config.master.heartbeat_period_s)
-    log.info("master heartbeat: node %d every %g s", config.master.heartbeat_node_id, config.master.heartbeat_period_s)
+    log.info(
+        "master heartbeat: node %d every %g s",
+        config.master.heartbeat_node_id,
+        config.master.heartbeat_period_s,
+    )
     for name, ncfg in config.nodes.items():
         node = remote_node(net, ncfg.node_id)
-        node.nmt.send_command(0x80)                               # pre-operational
+        node.nmt.send_command(0x80)  # pre-operational
         before = snapshot(node, name, [(i, s) for i, s, _ in ncfg.sdo])
-        for index, sub, value in ncfg.sdo:                        # first: they may set the drive's units
+        for index, sub, value in ncfg.sdo:  # first: they may set the drive's units
             write_setting(node, name, index, sub, value)
         ax = _axis(link, config, result, name, ncfg, {})
         ncfg = ax.cfg
-        log.info("axis %s: units %s per rad (%s); assumed from bus.yml: %s", name, f"{ncfg.scaling.inc_per_rad:.6g}",
-                 ax.units.get("position_unit") or "not reported", "; ".join(ax.units.get("assumed_from_bus_yml") or [])
-                 or "nothing")
+        log.info(
+            "axis %s: units %s per rad (%s); assumed from bus.yml: %s",
+            name,
+            f"{ncfg.scaling.inc_per_rad:.6g}",
+            ax.units.get("position_unit") or "not reported",
+            "; ".join(ax.units.get("assumed_from_bus_yml") or []) or "nothing",
+        )
         written = drive_settings(name, ncfg, period, config.master)
         before |= _unseen(snapshot(node, name, [(i, s) for i, s, _ in written]), before)
         before |= _unseen(snapshot(node, name, pdo_objects(node.object_dictionary)), before)
@@ -262,15 +320,22 @@ def bring_up(link: Link, config: BusConfig) -> dict[str, AxisLink]:
             ax.rpdos = _configure_pdos(node, ncfg.node_id, node.rpdo, ncfg.rpdo, 0x200)
             ax.tpdos = _configure_pdos(node, ncfg.node_id, node.tpdo, ncfg.tpdo, 0x180)
         except canopen.SdoAbortedError as exc:
-            raise DriveRefused(f"axis {name}: the drive refused the PDO mapping ({exc}); "
-                               f"check nodes.{name}.rpdo / tpdo in {config.path}") from exc
+            raise DriveRefused(
+                f"axis {name}: the drive refused the PDO mapping ({exc}); "
+                f"check nodes.{name}.rpdo / tpdo in {config.path}"
+            ) from exc
         ax.mode, ax.setpoint, ax.modes = _streaming_mode(node, ncfg, config.path)
-        log.info("axis %s: streams in mode %d (%s), setpoint %s", name, ax.mode, MODE_NAMES.get(ax.mode, "?"),
-                 hex_object(*ax.setpoint))
+        log.info(
+            "axis %s: streams in mode %d (%s), setpoint %s",
+            name,
+            ax.mode,
+            MODE_NAMES.get(ax.mode, "?"),
+            hex_object(*ax.setpoint),
+        )
         if ax.mode == IP:
             if 0x60C0 in ncfg.od:
                 write_setting(node, name, 0x60C0, 0, IP_SUB_MODE[ax.setpoint])
-            if ax.setpoint == PVT and 0x60C4 in ncfg.od:          # clear the record buffer, then enable it
+            if ax.setpoint == PVT and 0x60C4 in ncfg.od:  # clear the record buffer, then enable it
                 write_setting(node, name, 0x60C4, 6, 0)
                 write_setting(node, name, 0x60C4, 6, 1)
         _watch(net, ax, clock)
@@ -283,24 +348,40 @@ def _unseen(values: dict[str, int], seen: dict[str, int]) -> dict[str, int]:
     return {k: v for k, v in values.items() if k not in seen}
 
 
-def _axis(link: Link, config: BusConfig, result: ScanResult, name: str, ncfg: NodeConfig,
-          planned: dict[tuple[int, int], int | float]) -> AxisLink:
+def _axis(
+    link: Link,
+    config: BusConfig,
+    result: ScanResult,
+    name: str,
+    ncfg: NodeConfig,
+    planned: dict[tuple[int, int], int | float],
+) -> AxisLink:
     """An axis with the units its drive reports (``planned``: values the node's ``sdo`` list will
     have written, read as the drive would hold them), checked against bus.yml and its stroke."""
     node = remote_node(link.network, ncfg.node_id)
     units = read_units(node, name, planned)
     ncfg = reconcile(ncfg, units, config.path)
-    if ncfg.reference == "here":                 # the stroke around where the axis stands now
+    if ncfg.reference == "here":  # the stroke around where the axis stands now
         try:
             here = float(ncfg.scaling.position_from_device(sdo_object(node, 0x6064, 0).raw))
         except (canopen.SdoCommunicationError, canopen.SdoAbortedError) as exc:
-            raise BusError(f"axis {name}: reading its position (0x6064) for reference: here failed ({exc})") from exc
+            raise BusError(
+                f"axis {name}: reading its position (0x6064) for reference: here failed ({exc})"
+            ) from exc
         lim = ncfg.limits
-        ncfg = replace(ncfg, limits=replace(lim, position_min=lim.position_min + here,
-                                            position_max=lim.position_max + here))
+        ncfg = replace(
+            ncfg,
+            limits=replace(lim, position_min=lim.position_min + here, position_max=lim.position_max + here),
+        )
     _check_range(ncfg, config.path)
-    return AxisLink(name, ncfg, node, Drive402(node, name, link.clock, config.master.state_timeout_s),
-                    result.found[ncfg.node_id], units=units.as_dict())
+    return AxisLink(
+        name,
+        ncfg,
+        node,
+        Drive402(node, name, link.clock, config.master.state_timeout_s),
+        result.found[ncfg.node_id],
+        units=units.as_dict(),
+    )
 
 
 def plan_bring_up(link: Link, config: BusConfig) -> dict[str, AxisLink]:
@@ -313,15 +394,18 @@ def plan_bring_up(link: Link, config: BusConfig) -> dict[str, AxisLink]:
     axes = {}
     for name, ncfg in config.nodes.items():
         ax = _axis(link, config, result, name, ncfg, {(i, s): v for i, s, v in ncfg.sdo})
-        ax.drive_limits = {hex_object(i, s): v for i, s, v in
-                           drive_settings(name, ax.cfg, config.master.sync_period_s, config.master)}
+        ax.drive_limits = {
+            hex_object(i, s): v
+            for i, s, v in drive_settings(name, ax.cfg, config.master.sync_period_s, config.master)
+        }
         ax.mode, ax.setpoint, ax.modes = _streaming_mode(ax.node, ax.cfg, config.path)
         axes[name] = ax
     return axes
 
 
-def _streaming_mode(node: canopen.RemoteNode, ncfg: NodeConfig, path: str | os.PathLike[str]
-                    ) -> tuple[int, tuple[int, int], list[int]]:
+def _streaming_mode(
+    node: canopen.RemoteNode, ncfg: NodeConfig, path: str | os.PathLike[str]
+) -> tuple[int, tuple[int, int], list[int]]:
     """The mode to stream in and its setpoint object, from the modes the drive lists in 0x6502
     (read from the drive; the EDS/DCF default where the drive does not answer) and the setpoint
     objects the RPDOs map; and every mode the drive lists."""
@@ -335,28 +419,34 @@ def _streaming_mode(node: canopen.RemoteNode, ncfg: NodeConfig, path: str | os.P
         except canopen.SdoCommunicationError as exc:
             raise BusError(f"axis {axis}: no SDO answer reading its supported modes 0x6502 ({exc})") from exc
     if bits is None:
-        raise DriveRefused(f"axis {axis}: the drive does not say which operating modes it supports (0x6502 "
-                           f"neither readable nor in {ncfg.dcf.name}); drive-bridge streams only in a mode "
-                           f"the drive lists")
+        raise DriveRefused(
+            f"axis {axis}: the drive does not say which operating modes it supports (0x6502 "
+            f"neither readable nor in {ncfg.dcf.name}); drive-bridge streams only in a mode "
+            f"the drive lists"
+        )
     mapped = [e for p in ncfg.rpdo for e in p.mapping]
     chosen = choose(bits, mapped)
     if chosen is None:
-        raise DriveRefused(f"axis {axis}: no streaming mode: the drive supports {describe_modes(bits)} "
-                           f"(0x6502 = 0x{bits:08X}); drive-bridge streams in {MODE_NAMES[8]} (8, RPDO maps "
-                           f"0x607A) or {MODE_NAMES[7]} (7, RPDO maps 0x60C1:1 or 0x20C1); map the setpoint "
-                           f"object of a mode the drive has in nodes.{axis}.rpdo of {path}")
+        raise DriveRefused(
+            f"axis {axis}: no streaming mode: the drive supports {describe_modes(bits)} "
+            f"(0x6502 = 0x{bits:08X}); drive-bridge streams in {MODE_NAMES[8]} (8, RPDO maps "
+            f"0x607A) or {MODE_NAMES[7]} (7, RPDO maps 0x60C1:1 or 0x20C1); map the setpoint "
+            f"object of a mode the drive has in nodes.{axis}.rpdo of {path}"
+        )
     return (*chosen, supported_modes(bits))
 
 
-def settings(axis: str, ncfg: NodeConfig, period: float,
-             master: MasterConfig | None = None) -> list[tuple[int, int, int | float]]:
+def settings(
+    axis: str, ncfg: NodeConfig, period: float, master: MasterConfig | None = None
+) -> list[tuple[int, int, int | float]]:
     """The SDO writes of a node's settings besides its PDOs, in order (also what ``export ros2``
     gives Lely's master): the node's own ``sdo`` list, then :func:`drive_settings`."""
     return [*ncfg.sdo, *drive_settings(axis, ncfg, period, master)]
 
 
-def drive_settings(axis: str, ncfg: NodeConfig, period: float,
-                   master: MasterConfig | None = None) -> list[tuple[int, int, int | float]]:
+def drive_settings(
+    axis: str, ncfg: NodeConfig, period: float, master: MasterConfig | None = None
+) -> list[tuple[int, int, int | float]]:
     """What bring-up writes after reading the drive's units, each where the drive's EDS/DCF has the
     object: its heartbeat; the consumer of the master's heartbeat (0x1016:1, about 3 periods) and
     what to do when it stops (0x6007: quick stop); quick stop as ramp-and-hold (0x605A), fault
@@ -369,6 +459,7 @@ def drive_settings(axis: str, ncfg: NodeConfig, period: float,
     def has(index: int, sub: int = 0) -> bool:
         var = od.get_variable(index, sub)
         return var is not None and var.writable
+
     out: list[tuple[int, int, int | float]] = [(0x1017, 0, ncfg.heartbeat_producer_ms)]
     if master is not None and has(0x1016, 1):
         ms = round(CONSUMER_PERIODS * master.heartbeat_period_s * 1000)
@@ -376,19 +467,27 @@ def drive_settings(axis: str, ncfg: NodeConfig, period: float,
     # when it loses the master (0x6007): quick stop; on a quick stop (0x605A): ramp down on the
     # quick-stop deceleration, then stay in QUICK STOP ACTIVE, holding the axis; on a fault
     # (0x605E): ramp down on the quick-stop deceleration
-    for index, value in ((0x6007, ABORT_QUICK_STOP), (0x605A, QUICK_STOP_RAMP_AND_HOLD),
-                         (0x605E, FAULT_REACTION_QUICK_STOP_RAMP)):
+    for index, value in (
+        (0x6007, ABORT_QUICK_STOP),
+        (0x605A, QUICK_STOP_RAMP_AND_HOLD),
+        (0x605E, FAULT_REACTION_QUICK_STOP_RAMP),
+    ):
         if has(index):
             out.append((index, 0, value))
-    if sc.increments_per_rev:               # the drive's units are known (from_drive: after bring-up read them)
+    if sc.increments_per_rev:  # the drive's units are known (from_drive: after bring-up read them)
         inc, vel = sc.inc_per_rad, sc.velocity_per_rad_s
-        out += [(0x6065, 0, round(ncfg.following_error_window_rad * inc)),
-                (0x607D, 1, round(ncfg.limits.position_min * inc)), (0x607D, 2, round(ncfg.limits.position_max * inc))]
+        out += [
+            (0x6065, 0, round(ncfg.following_error_window_rad * inc)),
+            (0x607D, 1, round(ncfg.limits.position_min * inc)),
+            (0x607D, 2, round(ncfg.limits.position_max * inc)),
+        ]
         if lim is not None:
-            optional = [(0x6066, lim.following_error_timeout_ms),
-                        (0x6085, round(lim.quick_stop_deceleration * vel)),    # velocity units per second
-                        (0x607F, round(lim.max_velocity * vel)),
-                        (0x6080, math.ceil(lim.max_velocity * 60 / (2 * math.pi)))]          # rpm
+            optional = [
+                (0x6066, lim.following_error_timeout_ms),
+                (0x6085, round(lim.quick_stop_deceleration * vel)),  # velocity units per second
+                (0x607F, round(lim.max_velocity * vel)),
+                (0x6080, math.ceil(lim.max_velocity * 60 / (2 * math.pi))),
+            ]  # rpm
             if lim.max_torque_Nm is not None:
                 optional.append((0x6072, round(lim.max_torque_Nm / sc.rated_torque_Nm * 1000)))
             out += [(index, 0, value) for index, value in optional if has(index)]
@@ -406,28 +505,37 @@ def _interpolation_period(axis: str, ncfg: NodeConfig, period: float) -> list[tu
     lo1, hi1 = limits(variable(ncfg.od, 0x60C2, 1))
     lo2, hi2 = limits(variable(ncfg.od, 0x60C2, 2))
     for exponent in (-3, -4, -5, -6):
-        value = period * 10 ** -exponent
+        value = period * 10**-exponent
         if abs(value - round(value)) > 1e-6 or not 1 <= round(value) <= 255:
             continue
-        if (lo1 is None or lo1 <= round(value)) and (hi1 is None or round(value) <= hi1) and \
-                (lo2 is None or lo2 <= exponent) and (hi2 is None or exponent <= hi2):
+        if (
+            (lo1 is None or lo1 <= round(value))
+            and (hi1 is None or round(value) <= hi1)
+            and (lo2 is None or lo2 <= exponent)
+            and (hi2 is None or exponent <= hi2)
+        ):
             return [(0x60C2, 1, round(value)), (0x60C2, 2, exponent)]
     if any(entry == PVT for p in ncfg.rpdo for entry in p.mapping):
         return []
-    raise DriveRefused(f"axis {axis}: the drive's interpolation time period 0x60C2 cannot be "
-                       f"{period * 1e3:g} ms within the limits of its EDS/DCF (value {lo1}..{hi1}, "
-                       f"index {lo2}..{hi2}); set master.sync_period to a period it can hold")
+    raise DriveRefused(
+        f"axis {axis}: the drive's interpolation time period 0x60C2 cannot be "
+        f"{period * 1e3:g} ms within the limits of its EDS/DCF (value {lo1}..{hi1}, "
+        f"index {lo2}..{hi2}); set master.sync_period to a period it can hold"
+    )
 
 
 def _check_range(ncfg: NodeConfig, path: str | os.PathLike[str]) -> None:
     """The stroke must fit the drive's 32-bit position in its own units (known only now with from_drive)."""
     if not ncfg.limits.fits_32_bits(ncfg.scaling.inc_per_rad):
-        raise DriveRefused(f"axis {ncfg.axis}: limits.stroke of nodes.{ncfg.axis} in {path} does not fit the "
-                           f"drive's 32-bit position range in its units ({ncfg.scaling.inc_per_rad:.6g} per rad)")
+        raise DriveRefused(
+            f"axis {ncfg.axis}: limits.stroke of nodes.{ncfg.axis} in {path} does not fit the "
+            f"drive's 32-bit position range in its units ({ncfg.scaling.inc_per_rad:.6g} per rad)"
+        )
 
 
-def read_back(node: canopen.RemoteNode, axis: str, written: Sequence[tuple[int, int, int | float]]
-              ) -> dict[str, int | float]:
+def read_back(
+    node: canopen.RemoteNode, axis: str, written: Sequence[tuple[int, int, int | float]]
+) -> dict[str, int | float]:
     """Each setting as the drive now holds it; DriveRefused where it kept another value."""
     out = {}
     for index, sub, value in written:
@@ -435,16 +543,19 @@ def read_back(node: canopen.RemoteNode, axis: str, written: Sequence[tuple[int, 
             continue
         held = read_if_readable(node, index, sub, f"axis {axis}'s setting back")
         if held is None:
-            continue                          # write-only on this drive: what was written stands
+            continue  # write-only on this drive: what was written stands
         if held != value:
-            raise DriveRefused(f"axis {axis}: 0x{index:04X}:{sub} was written {value} but the drive holds {held}; "
-                               f"it does not take the setting: nothing moves with a limit it did not keep")
+            raise DriveRefused(
+                f"axis {axis}: 0x{index:04X}:{sub} was written {value} but the drive holds {held}; "
+                f"it does not take the setting: nothing moves with a limit it did not keep"
+            )
         out[hex_object(index, sub)] = held
     return out
 
 
 def _watch(net: canopen.Network, ax: AxisLink, clock: Clock) -> None:
     """Heartbeat consumer and EMCY listener of one axis (they only record; the loop decides)."""
+
     def on_heartbeat(can_id: int, data: bytearray, timestamp: float) -> None:
         ax.last_heartbeat = clock.now()
         ax.nmt_state = data[0] & 0x7F if data else None

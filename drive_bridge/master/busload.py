@@ -1,4 +1,5 @@
 """Bus-load budget of a cyclic plan: bits on the wire per second against the bitrate."""
+
 from __future__ import annotations
 
 from collections.abc import Iterable
@@ -15,15 +16,15 @@ MAX_LOAD = 0.80
 
 def frame_bits(data_bytes: int) -> int:
     """Worst-case bits of a standard (11-bit) data frame, stuff bits and interframe space included."""
-    body = 34 + 8 * data_bytes                 # bits exposed to stuffing: SOF .. CRC
-    return body + (body - 1) // 4 + 13         # + stuff bits + CRC delimiter, ACK, EOF, IFS
+    body = 34 + 8 * data_bytes  # bits exposed to stuffing: SOF .. CRC
+    return body + (body - 1) // 4 + 13  # + stuff bits + CRC delimiter, ACK, EOF, IFS
 
 
 @dataclass(frozen=True)
 class BusLoad:
     bits_per_cycle: int
     bits_per_second: float
-    load: float                                 # fraction of the bitrate
+    load: float  # fraction of the bitrate
 
     def describe(self) -> str:
         return f"{self.load * 100:.1f} % ({self.bits_per_second / 1000:.0f} kbit/s)"
@@ -36,7 +37,7 @@ def pdo_bytes(od: canopen.ObjectDictionary, mapping: Iterable[tuple[int, int]]) 
 
 def bus_load(config: BusConfig) -> BusLoad:
     """Load of one SYNC period: SYNC + every enabled RPDO and TPDO of every node."""
-    bits: float = frame_bits(0)                 # SYNC
+    bits: float = frame_bits(0)  # SYNC
     for node in config.nodes.values():
         for pdo in node.rpdo:
             bits += frame_bits(pdo_bytes(node.od, pdo.mapping))
@@ -54,5 +55,6 @@ def check_bus_load(config: BusConfig) -> BusLoad:
             f"{config.path}: the cyclic plan needs {load.describe()} of {config.master.nominal_bitrate / 1000:.0f} "
             f"kbit/s, above the {MAX_LOAD:.0%} budget. Map fewer or shorter PDOs (nodes.<axis>.tpdo/rpdo), "
             f"send TPDOs every n-th SYNC (transmission: n), lengthen master.sync_period, "
-            f"or raise master.bitrate.")
+            f"or raise master.bitrate."
+        )
     return load

@@ -6,6 +6,7 @@ short multisine per axis designed for the identification (``design: short``,
 Everything is motor side SI (rad, rad/s, rad/s², rad/s³); the plan is checked against
 the axis limits before anything moves, and a profile outside them is refused.
 """
+
 from __future__ import annotations
 
 import logging
@@ -19,20 +20,20 @@ from ..errors import UserError
 
 log = logging.getLogger(__name__)
 
-APPROACH_LEVEL = 0.2     # approach and return moves run at 20 % of the limits
-APPROACH_RAMP_S = 0.05   # ... and their acceleration ramps over this long where no jerk limit is set
-MIN_EXCITATION_CYCLES = 600     # the short campaign's multisine needs at least this long
+APPROACH_LEVEL = 0.2  # approach and return moves run at 20 % of the limits
+APPROACH_RAMP_S = 0.05  # ... and their acceleration ramps over this long where no jerk limit is set
+MIN_EXCITATION_CYCLES = 600  # the short campaign's multisine needs at least this long
 
 
 @dataclass(frozen=True)
 class Segment:
     """A span of SYNC cycles [start, end) with one velocity / acceleration level."""
 
-    kind: str                       # "approach", "level" or "return"
+    kind: str  # "approach", "level" or "return"
     axes: tuple[str, ...]
     velocity_fraction: float
     acceleration_fraction: float
-    cycles: int                     # complete forward + backward cycles (0 for approach/return)
+    cycles: int  # complete forward + backward cycles (0 for approach/return)
     start: int
     end: int
 
@@ -47,7 +48,7 @@ class Segment:
 @dataclass
 class Plan:
     axes: list[str]
-    demand: np.ndarray              # (n_cycles, n_axes) position demand [rad]
+    demand: np.ndarray  # (n_cycles, n_axes) position demand [rad]
     segments: list[Segment]
     period: float
     #: feed-forward the master sends with each setpoint, (n_cycles, n_axes), as torque offset 0x60B2
@@ -65,14 +66,16 @@ def trapezoid(p0: float, p1: float, v: float, a: float, period: float) -> np.nda
     dist = abs(p1 - p0)
     if dist == 0.0:
         return np.empty(0)
-    v = min(v, math.sqrt(dist * a))              # triangular when the plateau vanishes
+    v = min(v, math.sqrt(dist * a))  # triangular when the plateau vanishes
     t_acc = v / a
     total = dist / v + t_acc
     t = np.arange(1, math.ceil(total / period - 1e-9) + 1) * period
     t = np.minimum(t, total)
-    s = np.where(t < t_acc, 0.5 * a * t**2,
-                 np.where(t <= total - t_acc, 0.5 * a * t_acc**2 + v * (t - t_acc),
-                          dist - 0.5 * a * (total - t)**2))
+    s = np.where(
+        t < t_acc,
+        0.5 * a * t**2,
+        np.where(t <= total - t_acc, 0.5 * a * t_acc**2 + v * (t - t_acc), dist - 0.5 * a * (total - t) ** 2),
+    )
     return p0 + math.copysign(1.0, p1 - p0) * s
 
 
@@ -94,8 +97,9 @@ def _allocate(cycle_times: list[float], wanted: int, budget: float) -> list[int]
     return counts
 
 
-def build_plan(cfg: CampaignConfig, limits: dict[str, Limits], start: dict[str, float],
-               period: float) -> Plan:
+def build_plan(
+    cfg: CampaignConfig, limits: dict[str, Limits], start: dict[str, float], period: float
+) -> Plan:
     """Plan of the whole campaign for the axes in ``limits``, from positions ``start`` [rad]."""
     if cfg.design == "short":
         return short_plan(cfg, limits, start, period)
@@ -118,19 +122,31 @@ def build_plan(cfg: CampaignConfig, limits: dict[str, Limits], start: dict[str, 
     # cycles per level and axis, within the per-axis time cap (approach and return included)
     counts = {}
     for ax in axes:
-        travel = (len(approach(ax, start[ax], ends[ax][0])) + len(approach(ax, ends[ax][0], start[ax]))) * period
+        travel = (
+            len(approach(ax, start[ax], ends[ax][0])) + len(approach(ax, ends[ax][0], start[ax]))
+        ) * period
         times = [len(level_cycle(ax, v, a)) * period for v, a in levels]
         counts[ax] = _allocate(times, cfg.cycles, cfg.max_axis_time_s - travel)
 
     seq = _Sequence(axes, start, period)
-    for group in ([axes] if cfg.together else [[ax] for ax in axes]):
-        seq.add("approach", group, {ax: approach(ax, seq.pos[ax], ends[ax][0]) for ax in group},
-                APPROACH_LEVEL, APPROACH_LEVEL)
+    for group in [axes] if cfg.together else [[ax] for ax in axes]:
+        seq.add(
+            "approach",
+            group,
+            {ax: approach(ax, seq.pos[ax], ends[ax][0]) for ax in group},
+            APPROACH_LEVEL,
+            APPROACH_LEVEL,
+        )
         for li, (vf, af) in enumerate(levels):
             pieces = {ax: np.tile(level_cycle(ax, vf, af), counts[ax][li]) for ax in group}
             seq.add("level", group, pieces, vf, af, min(counts[ax][li] for ax in group))
-        seq.add("return", group, {ax: approach(ax, seq.pos[ax], start[ax]) for ax in group},
-                APPROACH_LEVEL, APPROACH_LEVEL)
+        seq.add(
+            "return",
+            group,
+            {ax: approach(ax, seq.pos[ax], start[ax]) for ax in group},
+            APPROACH_LEVEL,
+            APPROACH_LEVEL,
+        )
     return seq.plan(limits)
 
 
@@ -144,8 +160,15 @@ class _Sequence:
         self.segments: list[Segment] = []
         self.n = 0
 
-    def add(self, kind: str, group: list[str], pieces: dict[str, np.ndarray], vf: float, af: float,
-            cycles: int = 0) -> None:
+    def add(
+        self,
+        kind: str,
+        group: list[str],
+        pieces: dict[str, np.ndarray],
+        vf: float,
+        af: float,
+        cycles: int = 0,
+    ) -> None:
         length = max(len(p) for p in pieces.values())
         if length == 0:
             return
@@ -165,36 +188,45 @@ class _Sequence:
         return plan
 
 
-def short_plan(cfg: CampaignConfig, limits: dict[str, Limits], start: dict[str, float], period: float) -> Plan:
+def short_plan(
+    cfg: CampaignConfig, limits: dict[str, Limits], start: dict[str, float], period: float
+) -> Plan:
     """The short campaign: per axis (or all at once with ``together``) an approach to the centre
     of the stroke, the designed multisine, and the return, within ``short_time_s`` per axis."""
     from .excitation import MARGIN, design_axis
+
     axes = list(limits)
     seq = _Sequence(axes, start, period)
-    for group in ([axes] if cfg.together else [[ax] for ax in axes]):
+    for group in [axes] if cfg.together else [[ax] for ax in axes]:
         centre = {ax: 0.5 * (limits[ax].position_min + limits[ax].position_max) for ax in group}
         travel = {ax: approach_move(limits[ax], seq.pos[ax], centre[ax], period) for ax in group}
         back = {ax: approach_move(limits[ax], centre[ax], start[ax], period) for ax in group}
         moving = max(len(travel[ax]) + len(back[ax]) for ax in group) * period
         excite = cfg.short_time_s - moving
         if excite < MIN_EXCITATION_CYCLES * period:
-            raise UserError(f"campaign.short_time_s {cfg.short_time_s:g} s leaves {excite:.1f} s of excitation "
-                            f"after the moves to and from the centre of the stroke; give it more time")
+            raise UserError(
+                f"campaign.short_time_s {cfg.short_time_s:g} s leaves {excite:.1f} s of excitation "
+                f"after the moves to and from the centre of the stroke; give it more time"
+            )
         excitation = {}
         for i, ax in enumerate(group):
             try:
                 excitation[ax] = design_axis(limits[ax], excite, period, cfg.move_fraction, seed=i)
             except ValueError as exc:
-                raise UserError(f"axis {ax}: {exc} in {excite:.1f} s of excitation; nothing was moved. Give "
-                                f"campaign.short_time_s more time, lower campaign.move_fraction, or use the "
-                                f"paper's campaign (design: paper)") from exc
+                raise UserError(
+                    f"axis {ax}: {exc} in {excite:.1f} s of excitation; nothing was moved. Give "
+                    f"campaign.short_time_s more time, lower campaign.move_fraction, or use the "
+                    f"paper's campaign (design: paper)"
+                ) from exc
         seq.add("approach", group, travel, APPROACH_LEVEL, APPROACH_LEVEL)
         seq.add("excitation", group, excitation, MARGIN, MARGIN)
         seq.add("return", group, back, APPROACH_LEVEL, APPROACH_LEVEL)
     return seq.plan(limits)
 
 
-def approach_move(lim: Limits, p0: float, p1: float, period: float, level: float = APPROACH_LEVEL) -> np.ndarray:
+def approach_move(
+    lim: Limits, p0: float, p1: float, period: float, level: float = APPROACH_LEVEL
+) -> np.ndarray:
     """A move at ``level`` of the limits (the approach level by default) from wherever the axis
     stands: a trapezoid whose positions are smoothed so that the acceleration ramps (an S-curve of
     the same travel) within the jerk limit where one is set, else over ``APPROACH_RAMP_S``: no
@@ -203,7 +235,7 @@ def approach_move(lim: Limits, p0: float, p1: float, period: float, level: float
     if len(move) == 0:
         return move
     ramp_s = APPROACH_RAMP_S if lim.max_jerk is None else 1.25 * lim.max_acceleration / lim.max_jerk
-    ramp = max(1, int(np.ceil(ramp_s / period)))          # 1.25: room for sampling
+    ramp = max(1, int(np.ceil(ramp_s / period)))  # 1.25: room for sampling
     padded = np.concatenate([np.full(ramp, p0), move, np.full(ramp, p1)])
     return np.convolve(padded, np.ones(ramp) / ramp, "valid")
 
@@ -215,12 +247,22 @@ def plan_summary(plan: Plan, limits: dict[str, Limits]) -> dict[str, dict]:
     out = {}
     for i, ax in enumerate(plan.axes):
         p, lim = plan.demand[:, i], limits[ax]
-        peak = [float(np.max(np.abs(np.diff(p, k)))) / T ** k if len(p) > k else 0.0 for k in (1, 2, 3)]
-        out[ax] = {"start_rad": float(p[0]), "min_rad": float(p.min()), "max_rad": float(p.max()),
-                   "peak_velocity_rad_s": peak[0], "peak_acceleration_rad_s2": peak[1], "peak_jerk_rad_s3": peak[2],
-                   "limits": {"stroke_rad": [lim.position_min, lim.position_max],
-                              "max_velocity_rad_s": lim.max_velocity, "max_acceleration_rad_s2": lim.max_acceleration,
-                              "max_jerk_rad_s3": lim.max_jerk}, "duration_s": plan.duration}
+        peak = [float(np.max(np.abs(np.diff(p, k)))) / T**k if len(p) > k else 0.0 for k in (1, 2, 3)]
+        out[ax] = {
+            "start_rad": float(p[0]),
+            "min_rad": float(p.min()),
+            "max_rad": float(p.max()),
+            "peak_velocity_rad_s": peak[0],
+            "peak_acceleration_rad_s2": peak[1],
+            "peak_jerk_rad_s3": peak[2],
+            "limits": {
+                "stroke_rad": [lim.position_min, lim.position_max],
+                "max_velocity_rad_s": lim.max_velocity,
+                "max_acceleration_rad_s2": lim.max_acceleration,
+                "max_jerk_rad_s3": lim.max_jerk,
+            },
+            "duration_s": plan.duration,
+        }
     return out
 
 
@@ -233,22 +275,41 @@ def check_plan(plan: Plan, limits: dict[str, Limits], tolerance: float = 1e-6) -
         p = plan.demand[:, i]
         lo, hi = p.min(), p.max()
         if lo < lim.position_min - tolerance or hi > lim.position_max + tolerance:
-            raise UserError(f"axis {ax}: the profile spans {lo:.4f} .. {hi:.4f} rad, outside the stroke "
-                            f"{lim.position_min:.4f} .. {lim.position_max:.4f} rad; nothing was moved. "
-                            f"Move the axis inside its stroke or correct limits.stroke in the bus config.")
+            raise UserError(
+                f"axis {ax}: the profile spans {lo:.4f} .. {hi:.4f} rad, outside the stroke "
+                f"{lim.position_min:.4f} .. {lim.position_max:.4f} rad; nothing was moved. "
+                f"Move the axis inside its stroke or correct limits.stroke in the bus config."
+            )
         v = np.abs(np.diff(p)) / T
         if v.size and v.max() > lim.max_velocity * (1 + 1e-6):
-            raise UserError(f"axis {ax}: the profile reaches {v.max():.4g} rad/s, above the limit "
-                            f"{lim.max_velocity:.4g} rad/s; nothing was moved.")
+            raise UserError(
+                f"axis {ax}: the profile reaches {v.max():.4g} rad/s, above the limit "
+                f"{lim.max_velocity:.4g} rad/s; nothing was moved."
+            )
         acc = np.abs(np.diff(p, 2)) / T**2
         if acc.size and acc.max() > lim.max_acceleration * (1 + 1e-3):
-            raise UserError(f"axis {ax}: the profile reaches {acc.max():.4g} rad/s², above the limit "
-                            f"{lim.max_acceleration:.4g} rad/s²; nothing was moved.")
+            raise UserError(
+                f"axis {ax}: the profile reaches {acc.max():.4g} rad/s², above the limit "
+                f"{lim.max_acceleration:.4g} rad/s²; nothing was moved."
+            )
         jerk = np.abs(np.diff(p, 3)) / T**3
         if lim.max_jerk is not None and jerk.size and jerk.max() > lim.max_jerk * (1 + 1e-3):
-            raise UserError(f"axis {ax}: the profile reaches a jerk of {jerk.max():.4g} rad/s³, above the limit "
-                            f"{lim.max_jerk:.4g} rad/s³; nothing was moved"
-                            + (" (the paper's trapezoids step the acceleration: campaign design: short keeps "
-                               "the jerk limit)" if any(s.kind == "level" for s in plan.segments) else "") + ".")
-        log.debug("axis %s: the plan spans %.4f .. %.4f rad, peaks %.4g rad/s, %.4g rad/s²: inside its limits",
-                  ax, lo, hi, v.max() if v.size else 0.0, acc.max() if acc.size else 0.0)
+            raise UserError(
+                f"axis {ax}: the profile reaches a jerk of {jerk.max():.4g} rad/s³, above the limit "
+                f"{lim.max_jerk:.4g} rad/s³; nothing was moved"
+                + (
+                    " (the paper's trapezoids step the acceleration: campaign design: short keeps "
+                    "the jerk limit)"
+                    if any(s.kind == "level" for s in plan.segments)
+                    else ""
+                )
+                + "."
+            )
+        log.debug(
+            "axis %s: the plan spans %.4f .. %.4f rad, peaks %.4g rad/s, %.4g rad/s²: inside its limits",
+            ax,
+            lo,
+            hi,
+            v.max() if v.size else 0.0,
+            acc.max() if acc.size else 0.0,
+        )

@@ -7,6 +7,7 @@ silently; here every wait uses the link clock and a configured timeout, the
 mode switch is confirmed through 0x6061, and every failure says what the
 drive showed.
 """
+
 from __future__ import annotations
 
 from typing import TYPE_CHECKING
@@ -19,10 +20,11 @@ from ..errors import BusError, DriveRefused
 if TYPE_CHECKING:
     from .timing import Clock
 
+
 class Drive402:
     """Power state machine of ``node`` with waits on ``clock`` bounded by ``timeout`` [s]."""
 
-    def __init__(self, node: canopen.RemoteNode, axis: str, clock: "Clock", timeout: float):
+    def __init__(self, node: canopen.RemoteNode, axis: str, clock: Clock, timeout: float):
         self.node = node
         self.axis = axis
         self.clock = clock
@@ -41,11 +43,15 @@ class Drive402:
             if state_name(sw) == target:
                 return
             if sw & SW_FAULT and target != "FAULT":
-                raise BusError(f"axis {self.axis}: drive went to FAULT while {doing} "
-                               f"(error code 0x{self.node.sdo[0x603F].raw:04X})")
+                raise BusError(
+                    f"axis {self.axis}: drive went to FAULT while {doing} "
+                    f"(error code 0x{self.node.sdo[0x603F].raw:04X})"
+                )
             if self.clock.now() >= deadline:
-                raise BusError(f"axis {self.axis}: drive did not reach {target} within {self.timeout} s "
-                               f"while {doing}; it shows {state_name(sw)} (statusword 0x{sw:04X})")
+                raise BusError(
+                    f"axis {self.axis}: drive did not reach {target} within {self.timeout} s "
+                    f"while {doing}; it shows {state_name(sw)} (statusword 0x{sw:04X})"
+                )
             self.clock.sleep(0.005)
 
     def command(self, controlword: int, target: str, doing: str) -> None:
@@ -63,8 +69,10 @@ class Drive402:
         try:
             self._wait_for("SWITCH ON DISABLED", f"resetting fault 0x{code:04X}")
         except BusError as exc:
-            raise DriveRefused(f"axis {self.axis}: fault 0x{code:04X} does not clear with a fault reset; "
-                               f"find and remove its cause at the drive") from exc
+            raise DriveRefused(
+                f"axis {self.axis}: fault 0x{code:04X} does not clear with a fault reset; "
+                f"find and remove its cause at the drive"
+            ) from exc
 
     def set_mode(self, mode: int) -> None:
         """Select the operating mode and confirm it in 0x6061 (no silent failure)."""
@@ -75,6 +83,8 @@ class Drive402:
         deadline = self.clock.now() + self.timeout
         while (shown := self.node.sdo[0x6061].raw) != mode:
             if self.clock.now() >= deadline:
-                raise BusError(f"axis {self.axis}: mode {mode} requested, drive still shows {shown} "
-                               f"in 0x6061 after {self.timeout} s")
+                raise BusError(
+                    f"axis {self.axis}: mode {mode} requested, drive still shows {shown} "
+                    f"in 0x6061 after {self.timeout} s"
+                )
             self.clock.sleep(0.005)

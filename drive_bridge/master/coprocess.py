@@ -19,6 +19,7 @@ Where the bus lives in the master's process only (python-can's virtual bus), or 
 handle on it cannot be opened, the same engine runs as a thread there (:class:`EngineThread`),
 and the run says so.
 """
+
 from __future__ import annotations
 
 import ctypes
@@ -47,10 +48,10 @@ from .timing import RT_PRIORITY, lock_memory, raise_priority
 
 log = logging.getLogger(__name__)
 
-START_TIMEOUT_S = 60.0          # the child imports python-can and numpy
-RING_FRAMES = 1 << 18           # ~50 s of a 3-axis 500 Hz stream: the master may fall that far behind
+START_TIMEOUT_S = 60.0  # the child imports python-can and numpy
+RING_FRAMES = 1 << 18  # ~50 s of a 3-axis 500 Hz stream: the master may fall that far behind
 ALIGN = 64
-_HEADER = struct.Struct("<I")   # length of each pickled message on the socket
+_HEADER = struct.Struct("<I")  # length of each pickled message on the socket
 PR_SET_PDEATHSIG = 1
 
 
@@ -80,7 +81,9 @@ def _views(buffer: mmap.mmap, job: Job, ring_frames: int) -> tuple[Arrays, Trace
         def allocate(shape: tuple[int, ...], dtype: type) -> np.ndarray:
             shape_, dtype_, offset = where[(owner, next(names))]
             return np.ndarray(shape_, dtype_, buffer=buffer, offset=offset)
+
         return allocate
+
     return Arrays(job, allocator("arrays")), TraceRing(ring_frames, allocator("ring"))
 
 
@@ -88,7 +91,7 @@ def _shared(size: int) -> tuple[int, mmap.mmap]:
     """A descriptor and a mapping of ``size`` bytes of memory to share with the engine's process."""
     if hasattr(os, "memfd_create"):
         fd = os.memfd_create("drive-bridge-run", getattr(os, "MFD_CLOEXEC", 0))
-    else:                                   # pragma: no cover - POSIX without memfd
+    else:  # pragma: no cover - POSIX without memfd
         handle = tempfile.TemporaryFile()
         fd = os.dup(handle.fileno())
         handle.close()
@@ -127,8 +130,12 @@ class EngineProcess:
         parent, child = socket.socketpair(socket.AF_UNIX, socket.SOCK_STREAM)
         self._sock = parent
         env = {**os.environ, "PYTHONUNBUFFERED": "1"}
-        self.process = subprocess.Popen([sys.executable, "-m", __name__, str(child.fileno())],
-                                        pass_fds=(child.fileno(),), env=env, stdin=subprocess.DEVNULL)
+        self.process = subprocess.Popen(
+            [sys.executable, "-m", __name__, str(child.fileno())],
+            pass_fds=(child.fileno(),),
+            env=env,
+            stdin=subprocess.DEVNULL,
+        )
         child.close()
         parent.settimeout(START_TIMEOUT_S)
         try:
@@ -166,12 +173,13 @@ class EngineProcess:
         self._sock.settimeout(timeout)
         try:
             reply, _ = _receive(self._sock)
-        except (socket.timeout, TimeoutError):
+        except TimeoutError:
             return None
         except (OSError, EOFError) as exc:
             code = self.process.poll()
-            raise EngineError(f"the cyclic engine's process ended without an outcome (exit code {code}: {exc})") \
-                from exc
+            raise EngineError(
+                f"the cyclic engine's process ended without an outcome (exit code {code}: {exc})"
+            ) from exc
         finally:
             self._sock.settimeout(None)
         if isinstance(reply, Outcome):
@@ -211,8 +219,9 @@ class EngineThread:
         def run() -> None:
             try:
                 self._outcome = Engine(job, arrays, BusPort(self._bus, ring)).run()
-            except BaseException as exc:      # noqa: BLE001 - handed to the master's thread
+            except BaseException as exc:  # noqa: BLE001 - handed to the master's thread
                 self._error = exc
+
         self._thread = threading.Thread(target=run, name="cyclic-engine", daemon=True)
         self._thread.start()
         return arrays, ring
@@ -254,19 +263,20 @@ def _serve(sock: socket.socket) -> None:
     assert isinstance(spec, BusSpec)
     try:
         bus = spec.open()
-    except Exception as exc:            # noqa: BLE001 - python-can raises many kinds: said to the master
+    except Exception as exc:  # noqa: BLE001 - python-can raises many kinds: said to the master
         _send(sock, {"error": f"cannot open {spec.interface}:{spec.channel} a second time ({exc})"})
         return
     try:
         libc = ctypes.CDLL(None)
-        libc.prctl(PR_SET_PDEATHSIG, signal.SIGTERM)       # the master gone: stop the axes, then leave
+        libc.prctl(PR_SET_PDEATHSIG, signal.SIGTERM)  # the master gone: stop the axes, then leave
     except (AttributeError, OSError):
         pass
-    control: list[np.ndarray] = []      # the running job's control slots (for the signal handler)
+    control: list[np.ndarray] = []  # the running job's control slots (for the signal handler)
 
     def stop(signum: int, frame: object) -> None:
         if control:
             control[0][STOP_REQUEST] = stop_code(HANDLED.get(signum, "SIGTERM"))
+
     for signum in HANDLED:
         signal.signal(signum, stop)
     granted = _real_time()
@@ -289,10 +299,10 @@ def _serve(sock: socket.socket) -> None:
         finally:
             control.clear()
         del arrays, ring
-        gc.collect()                    # between runs, never on the cyclic path
+        gc.collect()  # between runs, never on the cyclic path
         try:
             mapping.close()
-        except BufferError:             # a view still held: the mapping goes with it
+        except BufferError:  # a view still held: the mapping goes with it
             pass
         _send(sock, outcome)
     bus.shutdown()

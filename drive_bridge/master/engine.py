@@ -26,6 +26,7 @@ master was late.
 The cyclic path does not grow: every array is allocated before motion, no container is appended
 to, and it neither logs nor writes files (the host turns the outcome into words and files).
 """
+
 from __future__ import annotations
 
 import math
@@ -37,18 +38,32 @@ from typing import Protocol
 import numpy as np
 
 from ..cia.p301 import SYNC_COB_ID
-from ..cia.p402 import (CW_DISABLE_VOLTAGE, CW_ENABLE, CW_HALT, CW_QUICK_STOP, CW_SHUTDOWN, CW_SWITCH_ON, SW_FAULT,
-                        SW_FOLLOWING, state_name)
+from ..cia.p402 import (
+    CW_DISABLE_VOLTAGE,
+    CW_ENABLE,
+    CW_HALT,
+    CW_QUICK_STOP,
+    CW_SHUTDOWN,
+    CW_SWITCH_ON,
+    SW_FAULT,
+    SW_FOLLOWING,
+    state_name,
+)
 
 #: the controlword that takes a drive one step nearer OPERATION ENABLED from the state it shows
-ENABLE_STEP = {"SWITCH ON DISABLED": CW_SHUTDOWN, "READY TO SWITCH ON": CW_SWITCH_ON,
-               "SWITCHED ON": CW_ENABLE, "OPERATION ENABLED": CW_ENABLE, "QUICK STOP ACTIVE": CW_ENABLE}
-HEARTBEAT_OPERATIONAL = b"\x05"     # the master's heartbeat: NMT state operational
+ENABLE_STEP = {
+    "SWITCH ON DISABLED": CW_SHUTDOWN,
+    "READY TO SWITCH ON": CW_SWITCH_ON,
+    "SWITCHED ON": CW_ENABLE,
+    "OPERATION ENABLED": CW_ENABLE,
+    "QUICK STOP ACTIVE": CW_ENABLE,
+}
+HEARTBEAT_OPERATIONAL = b"\x05"  # the master's heartbeat: NMT state operational
 #: rows after the first setpoint by which the drive must show statusword bit 12 (following / IP active)
 FOLLOW_GRACE_ROWS = 2
 #: how often [s] the engine checks the drives' heartbeats, the bus's error frames and its stop request
 CHECK_EVERY_S = 0.05
-INT16 = (-2**15, 2**15 - 1)
+INT16 = (-(2**15), 2**15 - 1)
 #: kinds of an RPDO field: the controlword, a column of the setpoint table, a constant, a column of
 #: the torque offsets (less what the velocity loop holds at rest, see :attr:`AxisJob.torque_Nm_per_raw`)
 CONTROLWORD, TABLE, CONSTANT, TORQUE_OFFSET = range(4)
@@ -58,8 +73,8 @@ ENABLING, STREAMING, HOLDING, STOPPING, SWITCHING_OFF, ENDED = range(6)
 PHASE, ROWS_SENT, STOP_REQUEST, ENABLE_CYCLES, CONTROL_SLOTS = range(5)
 #: stop requests in ``STOP_REQUEST``: none, or the signal that asked for it
 STOP_SIGNALS = ("", "Ctrl-C", "SIGTERM", "SIGHUP")
-AGE_BIN_S, AGE_BINS = 1e-4, 1000     # histogram of feedback age: 0.1 ms bins up to 100 ms
-PROGRESS_ROWS = 50                  # the host's progress is told the plan row in steps of this many
+AGE_BIN_S, AGE_BINS = 1e-4, 1000  # histogram of feedback age: 0.1 ms bins up to 100 ms
+PROGRESS_ROWS = 50  # the host's progress is told the plan row in steps of this many
 #: what a port hands each received frame to: (data, time stamp [s])
 Handler = Callable[[bytes | bytearray, float], None]
 
@@ -72,8 +87,8 @@ class RpdoJob:
     cob_id: int
     format: str
     fields: tuple[tuple[int, int], ...]
-    axis: int                       # index into :attr:`Job.axes`
-    around_plan: bool = True        # also sent while enabling, holding and stopping (not: IP records)
+    axis: int  # index into :attr:`Job.axes`
+    around_plan: bool = True  # also sent while enabling, holding and stopping (not: IP records)
 
 
 @dataclass(frozen=True)
@@ -93,16 +108,16 @@ class AxisJob:
 
     name: str
     node_id: int
-    slots: tuple[int, ...]          # its TPDOs' columns of ``got``: a row is complete when all arrived
-    statusword: int                 # column of ``raw``
-    velocity: int                   # column of ``raw`` (-1: not mapped)
-    torque: int = -1                # column of ``raw`` of the torque feedback (-1: not mapped)
-    buffer_status: int = -1         # column of maxon's interpolation buffer status 0x20C4:1 (-1: none)
-    position_column: int = -1       # column of the setpoint table that holds its position [increments]
-    enable_controlword: int = CW_ENABLE      # during the plan (interpolated position: + bit 4)
+    slots: tuple[int, ...]  # its TPDOs' columns of ``got``: a row is complete when all arrived
+    statusword: int  # column of ``raw``
+    velocity: int  # column of ``raw`` (-1: not mapped)
+    torque: int = -1  # column of ``raw`` of the torque feedback (-1: not mapped)
+    buffer_status: int = -1  # column of maxon's interpolation buffer status 0x20C4:1 (-1: none)
+    position_column: int = -1  # column of the setpoint table that holds its position [increments]
+    enable_controlword: int = CW_ENABLE  # during the plan (interpolated position: + bit 4)
     interpolating: bool = False
-    standstill: float = 0.0         # |velocity actual| at or below this is standing [velocity units]
-    on_brake: bool = False          # held switched off onto its brake
+    standstill: float = 0.0  # |velocity actual| at or below this is standing [velocity units]
+    on_brake: bool = False  # held switched off onto its brake
     quick_stop_holds: bool = False  # 0x605A = 6: a quick stop holds the axis powered (leaves CSP safely)
     csp: bool = True
     #: where the master sends a torque offset: at each move start the torque the velocity loop holds
@@ -111,7 +126,7 @@ class AxisJob:
     torque_Nm_per_raw: float = 0.0
     rated_torque_Nm: float = 1.0
     move_starts: tuple[int, ...] = ()
-    velocity_guard: float = math.inf         # |velocity actual| beyond this stops the run [velocity units]
+    velocity_guard: float = math.inf  # |velocity actual| beyond this stops the run [velocity units]
 
 
 @dataclass(frozen=True)
@@ -119,19 +134,27 @@ class Supervision:
     """The time limits the engine judges by, and what they come from (written into the drives at
     bring-up, or the drive profile's own)."""
 
-    period_s: float                 # SYNC period = 0x1006
-    window_s: float                 # synchronous window 0x1007 (the period where none is written)
-    feedback_timeout_s: float       # a drive's feedback missing this long stops the run
-    setpoint_timeout_s: float       # the drives stop on their own after this long without setpoints
-    heartbeat_timeout_s: float      # a node silent this long is lost (the wall-clock backstop)
-    state_timeout_s: float          # enabling, holding
-    stop_timeout_s: float           # quick stop until standing still
+    period_s: float  # SYNC period = 0x1006
+    window_s: float  # synchronous window 0x1007 (the period where none is written)
+    feedback_timeout_s: float  # a drive's feedback missing this long stops the run
+    setpoint_timeout_s: float  # the drives stop on their own after this long without setpoints
+    heartbeat_timeout_s: float  # a node silent this long is lost (the wall-clock backstop)
+    state_timeout_s: float  # enabling, holding
+    stop_timeout_s: float  # quick stop until standing still
     sources: dict[str, str] = field(default_factory=dict)
 
     def as_dict(self) -> dict:
         """meta.yaml's ``supervision``: each limit in ms, and where it comes from."""
-        out: dict = {k: round(getattr(self, k) * 1e3, 3) for k in
-                     ("period_s", "window_s", "feedback_timeout_s", "setpoint_timeout_s", "heartbeat_timeout_s")}
+        out: dict = {
+            k: round(getattr(self, k) * 1e3, 3)
+            for k in (
+                "period_s",
+                "window_s",
+                "feedback_timeout_s",
+                "setpoint_timeout_s",
+                "heartbeat_timeout_s",
+            )
+        }
         out = {k.replace("_s", "_ms"): v for k, v in out.items()}
         out["sources"] = dict(self.sources)
         return out
@@ -144,9 +167,9 @@ class Job:
     axes: tuple[AxisJob, ...]
     rpdos: tuple[RpdoJob, ...]
     tpdos: tuple[TpdoJob, ...]
-    rows: int                       # plan rows (one SYNC each, on time)
-    columns: int                    # of ``raw``
-    table_columns: int              # of the setpoint table
+    rows: int  # plan rows (one SYNC each, on time)
+    columns: int  # of ``raw``
+    table_columns: int  # of the setpoint table
     supervision: Supervision
     #: the master's heartbeat (COB-ID, period [s]) where the engine is to produce it while it runs (the
     #: link's own is a thread of the master's process there, which the master's other work can hold up)
@@ -178,10 +201,16 @@ class Arrays:
     def layout(job: Job) -> list[tuple[str, tuple[int, ...], type]]:
         """(name, shape, type) of each array, in the order they are allocated."""
         n = job.rows
-        return [("table", (n, max(1, job.table_columns)), np.int64), ("raw", (n, max(1, job.columns)), np.int64),
-                ("got", (n, max(1, len(job.tpdos))), np.bool_), ("demand", (n, len(job.axes)), np.int64),
-                ("sync_time", (n,), np.float64), ("torque_offset", (len(job.axes),), np.int64),
-                ("ages", (AGE_BINS + 1,), np.int64), ("control", (CONTROL_SLOTS,), np.int64)]
+        return [
+            ("table", (n, max(1, job.table_columns)), np.int64),
+            ("raw", (n, max(1, job.columns)), np.int64),
+            ("got", (n, max(1, len(job.tpdos))), np.bool_),
+            ("demand", (n, len(job.axes)), np.int64),
+            ("sync_time", (n,), np.float64),
+            ("torque_offset", (len(job.axes),), np.int64),
+            ("ages", (AGE_BINS + 1,), np.int64),
+            ("control", (CONTROL_SLOTS,), np.int64),
+        ]
 
 
 @dataclass
@@ -196,10 +225,10 @@ class Outcome:
     statuswords: dict[str, int | None] = field(default_factory=dict)
     lost: list[str] = field(default_factory=list)
     problems: list[str] = field(default_factory=list)
-    late_cycles: int = 0            # cycles that started more than half a period late
-    periods_skipped: int = 0        # periods that got no SYNC (a late cycle sends the one it is in)
-    setpoints_late: int = 0         # interface-sent SYNCs the engine had sent no new setpoints before
-    worst_wake_ms: float = 0.0      # the latest a cycle started after its deadline
+    late_cycles: int = 0  # cycles that started more than half a period late
+    periods_skipped: int = 0  # periods that got no SYNC (a late cycle sends the one it is in)
+    setpoints_late: int = 0  # interface-sent SYNCs the engine had sent no new setpoints before
+    worst_wake_ms: float = 0.0  # the latest a cycle started after its deadline
     largest_sync_gap_ms: float = 0.0
     sync_source: str = ""
 
@@ -209,8 +238,9 @@ def stop_code(signal_name: str) -> int:
     return STOP_SIGNALS.index(signal_name) if signal_name in STOP_SIGNALS else 1
 
 
-def reporter(arrays: Arrays, progress: Callable[[int], None] | None,
-             on_start: Callable[[int], None] | None) -> Callable[[], None]:
+def reporter(
+    arrays: Arrays, progress: Callable[[int], None] | None, on_start: Callable[[int], None] | None
+) -> Callable[[], None]:
     """What the host calls now and then while the engine runs: ``on_start`` (once, with the SYNC
     cycles enabling took) when the plan's first row has gone out, ``progress`` with the rows sent."""
     started = [on_start is None]
@@ -223,11 +253,12 @@ def reporter(arrays: Arrays, progress: Callable[[int], None] | None,
         rows = int(control[ROWS_SENT])
         if not started[0] and rows > 0:
             started[0] = True
-            on_start(int(control[ENABLE_CYCLES]))        # type: ignore[misc]
+            on_start(int(control[ENABLE_CYCLES]))  # type: ignore[misc]
         row = (rows - 1) // PROGRESS_ROWS * PROGRESS_ROWS
         if progress is not None and row > shown[0]:
             shown[0] = row
             progress(row)
+
     return report
 
 
@@ -260,8 +291,7 @@ class Port(Protocol):
     def send(self, cob_id: int, data: bytes | bytearray, stamp: float) -> None:
         """Send one frame stamped ``stamp`` [s] (taken just before, from :meth:`now`)."""
 
-    def receive(self, handlers: dict[int, Handler],
-                on_error_frame: Callable[[], None]) -> None:
+    def receive(self, handlers: dict[int, Handler], on_error_frame: Callable[[], None]) -> None:
         """From now on, hand received frames to ``handlers`` by COB-ID, error frames to ``on_error_frame``."""
 
     def release(self) -> None:
@@ -281,34 +311,41 @@ class Engine:
         n_axes = len(job.axes)
         self.status: list[int | None] = [None] * n_axes
         self.velocity: list[int | None] = [None] * n_axes
-        self.age = [0] * n_axes                  # SYNCs since each axis's last statusword
-        self.heard = [0.0] * n_axes              # engine time of each drive's last frame (any)
-        self.beat = [0.0] * n_axes               # engine time of each drive's last heartbeat
-        self.last_complete = [math.inf] * n_axes       # SYNC time of each axis's last complete row
-        self.emcy: tuple[int, int] | None = None       # (axis, code) of the first EMCY of this run
+        self.age = [0] * n_axes  # SYNCs since each axis's last statusword
+        self.heard = [0.0] * n_axes  # engine time of each drive's last frame (any)
+        self.beat = [0.0] * n_axes  # engine time of each drive's last heartbeat
+        self.last_complete = [math.inf] * n_axes  # SYNC time of each axis's last complete row
+        self.emcy: tuple[int, int] | None = None  # (axis, code) of the first EMCY of this run
         self.bus_errors = 0
-        self.evidence = -math.inf               # newest time stamp of a frame from the drives
-        self.judged = 0                          # rows before this are judged
-        self.row = -1                            # plan row of the last SYNC (-1: none yet)
-        self.pending = [0] * n_axes             # position the last RPDO carried, per axis
+        self.evidence = -math.inf  # newest time stamp of a frame from the drives
+        self.judged = 0  # rows before this are judged
+        self.row = -1  # plan row of the last SYNC (-1: none yet)
+        self.pending = [0] * n_axes  # position the last RPDO carried, per axis
         self.outcome = Outcome(sync_source=port.sync_source)
         self.phase = ENABLING
         self.start = self.phase_start = self.next_check = self.t0 = 0.0
-        self.slot = 0                            # periods since the first SYNC
-        self.plan_slot = 0                       # the period of plan row 0
+        self.slot = 0  # periods since the first SYNC
+        self.plan_slot = 0  # the period of plan row 0
         self.last_sync = -math.inf
         self.enable_cycles = 0
-        self.still = [0] * n_axes                # fresh standstill readings in a row, per axis
+        self.still = [0] * n_axes  # fresh standstill readings in a row, per axis
         self.check_due = False
-        self.fence = math.inf                    # time stamp of the first SYNC after the plan's rows
+        self.fence = math.inf  # time stamp of the first SYNC after the plan's rows
         self.syncs_seen = 0
-        self.next_beat = -math.inf               # when the master's heartbeat is due (job.heartbeat)
-        self._rpdos = [(r, struct.Struct(r.format), bytearray(struct.calcsize(r.format)),
-                        [0] * len(r.fields)) for r in job.rpdos]
+        self.next_beat = -math.inf  # when the master's heartbeat is due (job.heartbeat)
+        self._rpdos = [
+            (r, struct.Struct(r.format), bytearray(struct.calcsize(r.format)), [0] * len(r.fields))
+            for r in job.rpdos
+        ]
         self._starts = [set(a.move_starts) for a in job.axes]
         #: per axis, the setpoint table's column of the torque offsets it is sent (-1: none)
-        self._offset_columns = [next((arg for r in job.rpdos if r.axis == axis for kind, arg in r.fields
-                                      if kind == TORQUE_OFFSET), -1) for axis in range(n_axes)]
+        self._offset_columns = [
+            next(
+                (arg for r in job.rpdos if r.axis == axis for kind, arg in r.fields if kind == TORQUE_OFFSET),
+                -1,
+            )
+            for axis in range(n_axes)
+        ]
 
     # ------------------------------------------------------------------ receiving
     def handlers(self) -> dict[int, Handler]:
@@ -345,7 +382,7 @@ class Engine:
                 self.age[axis] = 0
             if vel_at >= 0:
                 self.velocity[axis] = values[vel_at]
-            if stamp >= self.fence:               # it answers a SYNC after the plan's last
+            if stamp >= self.fence:  # it answers a SYNC after the plan's last
                 return
             row = self.row
             # the row of the newest SYNC before the frame reached the bus, among rows not judged yet
@@ -356,14 +393,16 @@ class Engine:
                 got[row, slot] = True
                 age = port.now() - stamp
                 ages[min(AGE_BINS, max(0, int(age / AGE_BIN_S)))] += 1
+
         return on_tpdo
 
     def _emcy_handler(self, axis: int) -> Handler:
         def on_emcy(data: bytes | bytearray, stamp: float) -> None:
             self.heard[axis] = self.port.now()
             code = int.from_bytes(data[:2], "little") if len(data) >= 2 else 0
-            if code and self.emcy is None:        # code 0: error reset, no error
+            if code and self.emcy is None:  # code 0: error reset, no error
                 self.emcy = (axis, code)
+
         return on_emcy
 
     def _heartbeat_handler(self, axis: int) -> Handler:
@@ -371,6 +410,7 @@ class Engine:
             self.heard[axis] = self.beat[axis] = self.port.now()
             if stamp > self.evidence:
                 self.evidence = stamp
+
         return on_heartbeat
 
     def _on_error_frame(self) -> None:
@@ -405,14 +445,23 @@ class Engine:
         """Before the RPDOs of plan ``row``: at a move start, what the velocity loop holds at rest (the
         torque actual less the offset sent, on the newest judged row) is taken out of the offsets."""
         job, arrays = self.job, self.arrays
-        ref = row - 2                          # the newest row whose feedback has arrived (in lockstep, always)
+        ref = row - 2  # the newest row whose feedback has arrived (in lockstep, always)
         if ref < 1:
             return
         for axis, ax in enumerate(job.axes):
-            if ax.torque_Nm_per_raw and row in self._starts[axis] and all(arrays.got[ref, s] for s in ax.slots):
+            if (
+                ax.torque_Nm_per_raw
+                and row in self._starts[axis]
+                and all(arrays.got[ref, s] for s in ax.slots)
+            ):
                 sent = self._offset_columns[axis]
-                held = round(float(arrays.raw[ref, ax.torque]) * ax.torque_Nm_per_raw / ax.rated_torque_Nm * 1000)
-                before = max(INT16[0], min(INT16[1], int(arrays.table[ref - 1, sent]) - int(arrays.torque_offset[axis])))
+                held = round(
+                    float(arrays.raw[ref, ax.torque]) * ax.torque_Nm_per_raw / ax.rated_torque_Nm * 1000
+                )
+                before = max(
+                    INT16[0],
+                    min(INT16[1], int(arrays.table[ref - 1, sent]) - int(arrays.torque_offset[axis])),
+                )
                 arrays.torque_offset[axis] = held - before
 
     # ------------------------------------------------------------------ judging
@@ -424,7 +473,7 @@ class Engine:
         while self.judged <= self.row:
             r = self.judged
             t = sync_time[r]
-            if t != t:                           # no SYNC in that period: nothing was asked of the drives
+            if t != t:  # no SYNC in that period: nothing was asked of the drives
                 self.judged += 1
                 continue
             if evidence < t + sup.window_s:
@@ -434,19 +483,30 @@ class Engine:
                 if not all(got[r, s] for s in ax.slots):
                     silent = t - self.last_complete[axis]
                     if silent > sup.feedback_timeout_s:
-                        return ("silent", ax.name, f"no feedback for {silent * 1e3:.0f} ms (its TPDOs missing "
-                                f"since the SYNC at row {r}; the limit is {sup.feedback_timeout_s * 1e3:.0f} ms)",
-                                None)
+                        return (
+                            "silent",
+                            ax.name,
+                            f"no feedback for {silent * 1e3:.0f} ms (its TPDOs missing "
+                            f"since the SYNC at row {r}; the limit is {sup.feedback_timeout_s * 1e3:.0f} ms)",
+                            None,
+                        )
                     continue
                 self.last_complete[axis] = t
                 sw = int(raw[r, ax.statusword])
                 if sw & SW_FAULT:
                     return ("fault", ax.name, f"drive reports {state_name(sw)} (statusword 0x{sw:04X})", None)
                 if r >= FOLLOW_GRACE_ROWS and not sw & SW_FOLLOWING:
-                    what = "interpolation is not active" if ax.interpolating else \
-                        "the drive does not follow the setpoints"
-                    return ("following", ax.name, f"{what} (statusword 0x{sw:04X}, bit 12 clear, in "
-                            f"{state_name(sw)})", None)
+                    what = (
+                        "interpolation is not active"
+                        if ax.interpolating
+                        else "the drive does not follow the setpoints"
+                    )
+                    return (
+                        "following",
+                        ax.name,
+                        f"{what} (statusword 0x{sw:04X}, bit 12 clear, in {state_name(sw)})",
+                        None,
+                    )
                 if ax.buffer_status >= 0 and int(raw[r, ax.buffer_status]) & 0x0F00:
                     return ("buffer", ax.name, f"0x{int(raw[r, ax.buffer_status]):04X}", None)
                 if ax.velocity >= 0 and abs(int(raw[r, ax.velocity])) > ax.velocity_guard:
@@ -487,14 +547,14 @@ class Engine:
             while True:
                 try:
                     done = self._cycle()
-                    if self.check_due:                     # after the period's frames are out
+                    if self.check_due:  # after the period's frames are out
                         self.check_due = False
-                        self.on_check()                    # type: ignore[misc]
+                        self.on_check()  # type: ignore[misc]
                     if done:
                         break
-                except KeyboardInterrupt as exc:           # lockstep: the signal arrives on this thread
+                except KeyboardInterrupt as exc:  # lockstep: the signal arrives on this thread
                     control[STOP_REQUEST] = stop_code(getattr(exc, "name", "Ctrl-C"))
-        except Exception as exc:                            # noqa: BLE001 - stop the axes, say why
+        except Exception as exc:  # noqa: BLE001 - stop the axes, say why
             out.abort = out.abort or ("error", None, f"{type(exc).__name__}: {exc}", None)
             out.lost = [a.name for a in job.axes]
         finally:
@@ -520,10 +580,10 @@ class Engine:
             now = port.now()
             if self.syncs_seen == seen:
                 raise RuntimeError(f"no SYNC from {port.sync_source} for {3 * period * 1e3:.0f} ms")
-            late = now - self.last_sync               # the RPDOs that follow go out this long after their SYNC
+            late = now - self.last_sync  # the RPDOs that follow go out this long after their SYNC
             out.worst_wake_ms = max(out.worst_wake_ms, late * 1e3)
             if late > job.supervision.window_s:
-                out.late_cycles += 1                  # past the window: the drives keep the setpoints they have
+                out.late_cycles += 1  # past the window: the drives keep the setpoints they have
             out.setpoints_late += self.syncs_seen - seen - 1  # SYNCs that came before their setpoints
         else:
             deadline = self.t0 + self.slot * period
@@ -533,20 +593,20 @@ class Engine:
             out.worst_wake_ms = max(out.worst_wake_ms, late * 1e3)
             if late > period / 2:
                 out.late_cycles += 1
-            if late > period:                        # the period it is in: the missed ones get no SYNC
+            if late > period:  # the period it is in: the missed ones get no SYNC
                 behind = int(late // period)
                 self.slot += behind
                 out.periods_skipped += behind
             stamp = port.now()
-            self._on_sync(stamp)                     # (before it goes: in lockstep the replies come at once)
+            self._on_sync(stamp)  # (before it goes: in lockstep the replies come at once)
             port.send(SYNC_COB_ID, b"", stamp)
-        if job.heartbeat is not None and now >= self.next_beat:   # the master's heartbeat, no burst when late
+        if job.heartbeat is not None and now >= self.next_beat:  # the master's heartbeat, no burst when late
             cob_id, beat = job.heartbeat
             port.send(cob_id, HEARTBEAT_OPERATIONAL, port.now())
             self.next_beat = max(self.next_beat + beat, now)
         # ---- judge, then decide the next period
         abort = None
-        if self.emcy is not None:                # an EMCY names the cause the statusword shows after it
+        if self.emcy is not None:  # an EMCY names the cause the statusword shows after it
             abort = self._watch(now, 0)
         if abort is None and self.phase in (STREAMING, HOLDING):
             abort = self._judge(now)
@@ -565,7 +625,7 @@ class Engine:
                 self._unload(nxt)
                 self._send_rpdos(nxt, [a.enable_controlword for a in job.axes], records=True)
                 return False
-            self._enter(HOLDING, now)            # the plan's last SYNC went out: hold from the next
+            self._enter(HOLDING, now)  # the plan's last SYNC went out: hold from the next
         if self.phase == HOLDING:
             return self._holding(now)
         if self.phase == STOPPING:
@@ -576,7 +636,7 @@ class Engine:
         """A SYNC at ``stamp``: the row of the period (while streaming), the feedback's age."""
         job, arrays, out = self.job, self.arrays, self.outcome
         if self.phase == STREAMING and self.slot - self.plan_slot >= job.rows:
-            self._enter(HOLDING, stamp)              # a late cycle past the plan's end
+            self._enter(HOLDING, stamp)  # a late cycle past the plan's end
         row = self.slot - self.plan_slot if self.phase == STREAMING else -1
         for axis in range(len(job.axes)):
             self.age[axis] += 1
@@ -585,7 +645,7 @@ class Engine:
         self.last_sync = stamp
         self.syncs_seen += 1
         if row >= 0:
-            if row == 0:                             # a drive's silence counts from the plan's first SYNC
+            if row == 0:  # a drive's silence counts from the plan's first SYNC
                 self.last_complete = [stamp] * len(job.axes)
             arrays.sync_time[row] = stamp
             arrays.demand[row] = self.pending
@@ -595,7 +655,7 @@ class Engine:
         elif self.phase == ENABLING:
             self.enable_cycles += 1
         elif self.row >= 0 and self.fence == math.inf:
-            self.fence = stamp                       # feedback from here on belongs to no plan row
+            self.fence = stamp  # feedback from here on belongs to no plan row
         self.slot += 1
 
     def _on_sync_frame(self, data: bytes | bytearray, stamp: float) -> None:
@@ -614,10 +674,15 @@ class Engine:
         elif now - self.phase_start > sup.state_timeout_s:
             late = next(a for a in range(len(job.axes)) if self._state(a) != "OPERATION ENABLED")
             sw = self.status[late]
-            out.abort = ("enable", job.axes[late].name, f"did not reach OPERATION ENABLED within "
-                         f"{sup.state_timeout_s} s of enabling in the controlword (it shows "
-                         f"{self._state(late) or 'no statusword'}" +
-                         (f", statusword 0x{sw:04X})" if sw is not None else ")"), None)
+            out.abort = (
+                "enable",
+                job.axes[late].name,
+                f"did not reach OPERATION ENABLED within "
+                f"{sup.state_timeout_s} s of enabling in the controlword (it shows "
+                f"{self._state(late) or 'no statusword'}"
+                + (f", statusword 0x{sw:04X})" if sw is not None else ")"),
+                None,
+            )
             self._enter(STOPPING, now)
             return self._stopping(now)
         else:
@@ -627,11 +692,17 @@ class Engine:
     def _holding(self, now: float) -> bool:
         job, out, sup = self.job, self.outcome, self.job.supervision
         wanted = self._hold_words()
-        if self.judged > self.row and self._all(lambda a: self._state(a) in _HELD[wanted[a]] and self.age[a] <= 1):
+        if self.judged > self.row and self._all(
+            lambda a: self._state(a) in _HELD[wanted[a]] and self.age[a] <= 1
+        ):
             return True
         if now - self.phase_start > sup.state_timeout_s:
-            out.problems += [f"axis {ax.name}: not held ({self._state(a) or 'no statusword'} {sup.state_timeout_s} s "
-                             f"after the motion)" for a, ax in enumerate(job.axes) if self._state(a) not in _HELD[wanted[a]]]
+            out.problems += [
+                f"axis {ax.name}: not held ({self._state(a) or 'no statusword'} {sup.state_timeout_s} s "
+                f"after the motion)"
+                for a, ax in enumerate(job.axes)
+                if self._state(a) not in _HELD[wanted[a]]
+            ]
             return True
         self._send_rpdos(max(0, self.row), wanted, records=False)
         return False
@@ -644,8 +715,11 @@ class Engine:
             self._enter(SWITCHING_OFF, now)
             return self._switching_off(now)
         if now - self.phase_start > sup.stop_timeout_s:
-            out.problems += [f"axis {ax.name}: still moving {sup.stop_timeout_s} s after quick stop"
-                             for a, ax in enumerate(job.axes) if ax.name not in out.lost and self.still[a] < 2]
+            out.problems += [
+                f"axis {ax.name}: still moving {sup.stop_timeout_s} s after quick stop"
+                for a, ax in enumerate(job.axes)
+                if ax.name not in out.lost and self.still[a] < 2
+            ]
             return True
         self._send_rpdos(max(0, self.row), [CW_QUICK_STOP] * len(job.axes), records=False)
         return False
@@ -654,11 +728,16 @@ class Engine:
         """After a quick stop: an axis that holds on its brake has its voltage disabled."""
         job, sup = self.job, self.job.supervision
         brake = [a for a, ax in enumerate(job.axes) if ax.on_brake and ax.name not in self.outcome.lost]
-        if all(self._state(a) in ("SWITCH ON DISABLED", "FAULT") and self.age[a] <= 1 for a in brake) or \
-                now - self.phase_start > sup.state_timeout_s:
+        if (
+            all(self._state(a) in ("SWITCH ON DISABLED", "FAULT") and self.age[a] <= 1 for a in brake)
+            or now - self.phase_start > sup.state_timeout_s
+        ):
             return True
-        self._send_rpdos(max(0, self.row), [CW_DISABLE_VOLTAGE if a in brake else CW_QUICK_STOP
-                                            for a in range(len(job.axes))], records=False)
+        self._send_rpdos(
+            max(0, self.row),
+            [CW_DISABLE_VOLTAGE if a in brake else CW_QUICK_STOP for a in range(len(job.axes))],
+            records=False,
+        )
         return False
 
     # ------------------------------------------------------------------ helpers
@@ -676,8 +755,10 @@ class Engine:
     def _hold_words(self) -> list[int]:
         """After the plan: a brake axis shut down; a powered CSP axis whose quick stop holds leaves the
         stream through it; any other halts (profile position with halt follows by SDO)."""
-        return [CW_SHUTDOWN if ax.on_brake else CW_QUICK_STOP if ax.quick_stop_holds and ax.csp else CW_HALT
-                for ax in self.job.axes]
+        return [
+            CW_SHUTDOWN if ax.on_brake else CW_QUICK_STOP if ax.quick_stop_holds and ax.csp else CW_HALT
+            for ax in self.job.axes
+        ]
 
     def _stopped(self, elapsed: float) -> bool:
         """Each axis standing still on two fresh statuswords in a row, or lost (its feedback gone longer
@@ -686,18 +767,26 @@ class Engine:
         for axis, ax in enumerate(self.job.axes):
             if ax.name in out.lost:
                 continue
-            gone = self.port.now() - self.heard[axis] > sup.feedback_timeout_s or \
-                (self.status[axis] is None and elapsed > sup.feedback_timeout_s)
+            gone = self.port.now() - self.heard[axis] > sup.feedback_timeout_s or (
+                self.status[axis] is None and elapsed > sup.feedback_timeout_s
+            )
             if gone and elapsed > sup.feedback_timeout_s:
                 out.lost.append(ax.name)
                 continue
             sw, v = self.status[axis], self.velocity[axis]
-            at_rest = self.age[axis] <= 1 and sw is not None and state_name(sw) != "OPERATION ENABLED" and \
-                (v is None or abs(v) <= ax.standstill)
+            at_rest = (
+                self.age[axis] <= 1
+                and sw is not None
+                and state_name(sw) != "OPERATION ENABLED"
+                and (v is None or abs(v) <= ax.standstill)
+            )
             still[axis] = still[axis] + 1 if at_rest else 0
         return all(ax.name in out.lost or still[a] >= 2 for a, ax in enumerate(self.job.axes))
 
 
 #: the states each hold controlword leaves an axis in
-_HELD = {CW_SHUTDOWN: ("READY TO SWITCH ON", "SWITCH ON DISABLED"), CW_HALT: ("OPERATION ENABLED",),
-         CW_QUICK_STOP: ("QUICK STOP ACTIVE",)}
+_HELD = {
+    CW_SHUTDOWN: ("READY TO SWITCH ON", "SWITCH ON DISABLED"),
+    CW_HALT: ("OPERATION ENABLED",),
+    CW_QUICK_STOP: ("QUICK STOP ACTIVE",),
+}

@@ -14,15 +14,16 @@ the axis limits allow (position, velocity, acceleration and, where configured, j
 ``MARGIN`` of its limit, from the sampled profile's own differences): designed inside the limits,
 never clipped.  Units motor side SI: rad, rad/s, rad/s², rad/s³.
 """
+
 from __future__ import annotations
 
 import numpy as np
 
 from ..config import Limits
 
-HARMONICS = 10            # sines, geometrically spaced from the fundamental to REACH
-REACH = 1.5               # x the frequency amax / vmax, where a sine at the velocity limit reaches the acceleration limit
-TRAVERSE = 0.4            # the fundamental: a traverse of the stroke at this share of the velocity limit
+HARMONICS = 10  # sines, geometrically spaced from the fundamental to REACH
+REACH = 1.5  # x the frequency amax / vmax, where a sine at the velocity limit reaches the acceleration limit
+TRAVERSE = 0.4  # the fundamental: a traverse of the stroke at this share of the velocity limit
 FADE_S = 1.0
 MARGIN = 0.9
 COVERAGE = 0.9
@@ -35,8 +36,8 @@ def _fade(n: int, fade: int) -> np.ndarray:
     w = np.ones(n)
     if fade > 0:
         x = np.arange(fade) / fade
-        ramp = x ** 3 * (10 - 15 * x + 6 * x ** 2)
-        w[:fade], w[n - fade:] = ramp, ramp[::-1]
+        ramp = x**3 * (10 - 15 * x + 6 * x**2)
+        w[:fade], w[n - fade :] = ramp, ramp[::-1]
     return w
 
 
@@ -44,14 +45,17 @@ def _derivatives(shape: np.ndarray, period: float) -> tuple[np.ndarray, np.ndarr
     """Velocity, acceleration and jerk as the plan check sees them: differences of the samples,
     with the rest before and after the excitation."""
     q = np.concatenate([np.zeros(3), shape, np.zeros(3)])
-    return np.diff(q) / period, np.diff(q, 2) / period ** 2, np.diff(q, 3) / period ** 3
+    return np.diff(q) / period, np.diff(q, 2) / period**2, np.diff(q, 3) / period**3
 
 
 def _scale(shape: np.ndarray, lim: Limits, half: float, period: float) -> float:
     """The largest factor for ``shape`` (a deviation from the centre) inside every limit."""
     v, a, j = _derivatives(shape, period)
-    bounds = [half / np.max(np.abs(shape)), MARGIN * lim.max_velocity / np.max(np.abs(v)),
-              MARGIN * lim.max_acceleration / np.max(np.abs(a))]
+    bounds = [
+        half / np.max(np.abs(shape)),
+        MARGIN * lim.max_velocity / np.max(np.abs(v)),
+        MARGIN * lim.max_acceleration / np.max(np.abs(a)),
+    ]
     if lim.max_jerk is not None:
         bounds.append(MARGIN * lim.max_jerk / np.max(np.abs(j)))
     return float(min(bounds))
@@ -65,8 +69,9 @@ def _information(q: np.ndarray, period: float) -> float:
     return float(logdet) if sign > 0 else -np.inf
 
 
-def design_axis(lim: Limits, duration_s: float, period: float, move_fraction: float, seed: int = 0
-                ) -> np.ndarray:
+def design_axis(
+    lim: Limits, duration_s: float, period: float, move_fraction: float, seed: int = 0
+) -> np.ndarray:
     """Positions [rad] at t = period, 2·period, ... of ``duration_s``: the designed excitation,
     from and back to the centre of the stroke, at rest at both ends."""
     centre = 0.5 * (lim.position_min + lim.position_max)
@@ -86,10 +91,10 @@ def design_axis(lim: Limits, duration_s: float, period: float, move_fraction: fl
     for _ in range(CANDIDATES):
         amp = rng.dirichlet(np.full(len(k), 0.5)) / k ** rng.uniform(0.5, 2.0)
         phase = rng.uniform(0, 2 * np.pi, len(k))
-        shape = sines @ (amp * np.cos(phase)) + cosines @ (amp * np.sin(phase))     # Σ amp·sin(kω0t + φ)
+        shape = sines @ (amp * np.cos(phase)) + cosines @ (amp * np.sin(phase))  # Σ amp·sin(kω0t + φ)
         shape = shape * _scale(shape, lim, half, period)
         if min(shape.max(), -shape.min()) < COVERAGE * half:
-            continue                            # the stroke not covered both ways
+            continue  # the stroke not covered both ways
         info = _information(centre + shape, period)
         if info > best_info:
             best, best_info = shape, info

@@ -9,23 +9,32 @@ timeout, Ctrl-C, SIGTERM -- quick-stops the axis where it is and ends the comman
 stop; nothing streams until every axis that needs it is homed.  Afterwards the axis is held as
 any other: on its brake (``holding: brake``), or powered where homing left it.
 """
+
 from __future__ import annotations
 
 import logging
 
+from ..cia.p402 import (
+    CW_ENABLE,
+    CW_SHUTDOWN,
+    CW_SWITCH_ON,
+    HM,
+    SW_FAULT,
+    SW_HOMING_ATTAINED,
+    SW_HOMING_ERROR,
+    SW_TARGET_REACHED,
+)
+from ..cia.sdo import write_setting
 from ..config import BusConfig
 from ..errors import Interrupted, MotionAborted
 from ..signals import signal_name
 from .bringup import AxisLink, read_back
-from ..cia.p402 import (CW_ENABLE, CW_SHUTDOWN, CW_SWITCH_ON, HM, SW_FAULT, SW_HOMING_ATTAINED, SW_HOMING_ERROR,
-                        SW_TARGET_REACHED)
 from .link import Link
-from ..cia.sdo import write_setting
 from .stream import check_heartbeats, quick_stop
 
 log = logging.getLogger(__name__)
 
-CW_START = CW_ENABLE | 0x10                  # enable operation with bit 4: start homing
+CW_START = CW_ENABLE | 0x10  # enable operation with bit 4: start homing
 POLL_S = 0.01
 
 
@@ -44,15 +53,26 @@ def home(link: Link, axes: dict[str, AxisLink], config: BusConfig) -> None:
 def _home(link: Link, ax: AxisLink, config: BusConfig) -> None:
     h, sc, node, drive = ax.cfg.homing, ax.cfg.scaling, ax.node, ax.drive
     if h is None:
-        raise ValueError(f"axis {ax.name} has no homing configured")      # to_home only names axes that have
+        raise ValueError(f"axis {ax.name} has no homing configured")  # to_home only names axes that have
     vel = sc.velocity_per_rad_s
-    settings = [(0x6098, 0, h.method), (0x6099, 1, round(h.switch_speed * vel)), (0x6099, 2, round(h.zero_speed * vel)),
-                (0x609A, 0, round(h.acceleration * vel))]
+    settings = [
+        (0x6098, 0, h.method),
+        (0x6099, 1, round(h.switch_speed * vel)),
+        (0x6099, 2, round(h.zero_speed * vel)),
+        (0x609A, 0, round(h.acceleration * vel)),
+    ]
     for index, sub, value in settings:
         write_setting(node, ax.name, index, sub, value)
     read_back(node, ax.name, settings)
-    log.info("axis %s: homing, method %d, %.4g / %.4g rad/s, %.4g rad/s², within %g s", ax.name, h.method,
-             h.switch_speed, h.zero_speed, h.acceleration, h.timeout_s)
+    log.info(
+        "axis %s: homing, method %d, %.4g / %.4g rad/s, %.4g rad/s², within %g s",
+        ax.name,
+        h.method,
+        h.switch_speed,
+        h.zero_speed,
+        h.acceleration,
+        h.timeout_s,
+    )
     drive.reset_fault()
     drive.set_mode(HM)
     clock = link.clock
@@ -66,20 +86,25 @@ def _home(link: Link, ax: AxisLink, config: BusConfig) -> None:
             clock.sleep(POLL_S)
             sw = drive.statusword()
             if sw & SW_FAULT:
-                raise MotionAborted(f"the drive faulted while homing (error code 0x{node.sdo[0x603F].raw:04X})",
-                                    ax.name)
+                raise MotionAborted(
+                    f"the drive faulted while homing (error code 0x{node.sdo[0x603F].raw:04X})", ax.name
+                )
             if sw & SW_HOMING_ERROR:
-                raise MotionAborted(f"the drive reports a homing error (statusword 0x{sw:04X}): check homing.method "
-                                    f"{h.method} against how the axis is wired", ax.name)
+                raise MotionAborted(
+                    f"the drive reports a homing error (statusword 0x{sw:04X}): check homing.method "
+                    f"{h.method} against how the axis is wired",
+                    ax.name,
+                )
             if sw & SW_HOMING_ATTAINED and sw & SW_TARGET_REACHED:
                 break
             lost = check_heartbeats({ax.name: ax}, [ax.name], clock.now(), config.master.heartbeat_timeout_s)
             if lost is not None:
                 raise lost
             if clock.now() > deadline:
-                raise MotionAborted(f"not homed within homing.timeout_s = {h.timeout_s:g} s (statusword 0x{sw:04X})",
-                                    ax.name)
-        node.sdo[0x6040].raw = CW_ENABLE                     # bit 4 down: homing done, the drive holds
+                raise MotionAborted(
+                    f"not homed within homing.timeout_s = {h.timeout_s:g} s (statusword 0x{sw:04X})", ax.name
+                )
+        node.sdo[0x6040].raw = CW_ENABLE  # bit 4 down: homing done, the drive holds
         if ax.cfg.drive_limits is not None and ax.cfg.drive_limits.holding == "brake":
             drive.command(CW_SHUTDOWN, "READY TO SWITCH ON", "putting the axis on its brake after homing")
     except (KeyboardInterrupt, Exception) as exc:

@@ -7,6 +7,7 @@ and the wall clock.  The simulator's lockstep link fulfils the same contract;
 nothing in the master knows which one it has (``tests/master/test_link.py``
 runs one scenario over both).
 """
+
 from __future__ import annotations
 
 import bisect
@@ -17,17 +18,17 @@ import sys
 import threading
 import time
 from collections import deque
-from dataclasses import replace
 from collections.abc import Callable
+from dataclasses import replace
 from typing import Protocol, runtime_checkable
 
 import can
 import canopen
 
+from ..cia.buses import BusSpec
 from ..errors import BusError
 from ..signals import signal_name
 from .blf import BatchedBLFWriter
-from ..cia.buses import BusSpec
 from .coprocess import EngineError, EngineProcess, EngineThread, engine_for
 from .engine import ROWS_SENT, STOP_REQUEST, Arrays, Job, Outcome, reporter, stop_code
 from .timing import Clock, raise_priority
@@ -52,10 +53,10 @@ class WallClock:
             time.sleep(left)
 
 
-TRACE_PRIORITY = 10           # SCHED_FIFO priority of the trace writer (the streaming threads: 50)
+TRACE_PRIORITY = 10  # SCHED_FIFO priority of the trace writer (the streaming threads: 50)
 
 
-REORDER_S = 0.5              # a background trace writes a frame once none older can still arrive: a
+REORDER_S = 0.5  # a background trace writes a frame once none older can still arrive: a
 #                              simulated drive held up (its process stalled) stamps its replies up to its
 #                              heartbeat consumer time in the past, and the master may drain the engine late
 
@@ -70,19 +71,28 @@ class TraceRecorder(can.Listener):
     setpoints never waits for the file.
     """
 
-    def __init__(self, path: str | os.PathLike[str], *, background: bool = False, flush_every_s: float = 0.05,
-                 epoch: float = 0.0):
+    def __init__(
+        self,
+        path: str | os.PathLike[str],
+        *,
+        background: bool = False,
+        flush_every_s: float = 0.05,
+        epoch: float = 0.0,
+    ):
         if background and epoch:
             raise ValueError("a background trace takes frames stamped with the wall clock (epoch 0)")
         blf = str(path).lower().endswith(".blf")
-        self.writer = BatchedBLFWriter(path, epoch=epoch, container_thread=not background) if blf \
+        self.writer = (
+            BatchedBLFWriter(path, epoch=epoch, container_thread=not background)
+            if blf
             else can.Logger(str(path))
+        )
         self._background = background
-        self._epoch = 0.0 if blf else epoch            # the BLF writer adds it itself
+        self._epoch = 0.0 if blf else epoch  # the BLF writer adds it itself
         #: frames stamped up to this came already from elsewhere (the cyclic engine's ring): not again
         self.seen_until = -math.inf
         if not background and not self._epoch:
-            self.on_message_received = self.writer.on_message_received     # type: ignore[method-assign]
+            self.on_message_received = self.writer.on_message_received  # type: ignore[method-assign]
         if background:
             self._pending: deque[can.Message] = deque()
             self._held: list[can.Message] = []
@@ -94,7 +104,7 @@ class TraceRecorder(can.Listener):
     def on_message_received(self, msg: can.Message) -> None:
         if self._background:
             if msg.timestamp > self.seen_until:
-                self._pending.append(msg)      # atomic: no lock shared with the sending thread
+                self._pending.append(msg)  # atomic: no lock shared with the sending thread
         else:
             self._write(msg)
 
@@ -118,7 +128,7 @@ class TraceRecorder(can.Listener):
             try:
                 os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), 10)
             except (AttributeError, OSError):
-                pass          # not on this platform: the writer still only runs every flush period
+                pass  # not on this platform: the writer still only runs every flush period
         while not self._stopping.wait(self._flush_every_s):
             self._write_pending(final=False)
         self._write_pending(final=True)
@@ -133,8 +143,11 @@ class TraceRecorder(can.Listener):
         if not held:
             return
         held.sort(key=lambda m: m.timestamp)
-        cut = len(held) if final else bisect.bisect_right(held, held[-1].timestamp - REORDER_S,
-                                                          key=lambda m: m.timestamp)
+        cut = (
+            len(held)
+            if final
+            else bisect.bisect_right(held, held[-1].timestamp - REORDER_S, key=lambda m: m.timestamp)
+        )
         for msg in held[:cut]:
             self._write(msg)
         del held[:cut]
@@ -156,13 +169,19 @@ class MasterNetwork(canopen.Network):
         self.traces: tuple[TraceRecorder, ...] = ()
         self.after_send: Callable[[], None] | None = None
 
-    def send_message(self, can_id: int, data: bytes, remote: bool = False,
-                     timestamp: float | None = None) -> None:
+    def send_message(
+        self, can_id: int, data: bytes, remote: bool = False, timestamp: float | None = None
+    ) -> None:
         """Send one frame stamped ``timestamp`` (default: now); it is traced before it
         goes on the bus, so the trace never shows a reply before its request."""
-        msg = can.Message(arbitration_id=can_id, data=data, is_extended_id=can_id > 0x7FF,
-                          is_remote_frame=remote, is_rx=False,
-                          timestamp=self.clock.now() if timestamp is None else timestamp)
+        msg = can.Message(
+            arbitration_id=can_id,
+            data=data,
+            is_extended_id=can_id > 0x7FF,
+            is_remote_frame=remote,
+            is_rx=False,
+            timestamp=self.clock.now() if timestamp is None else timestamp,
+        )
         if self.bus is None:
             raise BusError("the CANopen network has no bus (not connected)")
         for trace in self.traces:
@@ -187,7 +206,7 @@ class Link(Protocol):
     network: MasterNetwork
     threaded: bool
     epoch: float
-    bus_errors: "BusErrors"
+    bus_errors: BusErrors
 
     @property
     def clock(self) -> Clock:
@@ -207,8 +226,13 @@ class Link(Protocol):
     def stop_heartbeat(self) -> None:
         """Stop the master's heartbeat (the drives then stop as if the master had died)."""
 
-    def run_cycles(self, job: Job, fill: Callable[[Arrays], None], progress: Callable[[int], None] | None,
-                   on_start: Callable[[int], None] | None) -> tuple[Outcome, Arrays, str]:
+    def run_cycles(
+        self,
+        job: Job,
+        fill: Callable[[Arrays], None],
+        progress: Callable[[int], None] | None,
+        on_start: Callable[[int], None] | None,
+    ) -> tuple[Outcome, Arrays, str]:
         """Run the cyclic engine on ``job`` (``fill`` writes the setpoint table into its arrays before
         it starts): its outcome, its arrays and where it ran (what was granted it)."""
 
@@ -218,7 +242,9 @@ class Link(Protocol):
 
 def heartbeat_frame(node_id: int, timestamp: float = 0.0) -> can.Message:
     """The master's heartbeat: NMT state operational (0x05)."""
-    return can.Message(arbitration_id=0x700 + node_id, data=b"\x05", is_extended_id=False, timestamp=timestamp)
+    return can.Message(
+        arbitration_id=0x700 + node_id, data=b"\x05", is_extended_id=False, timestamp=timestamp
+    )
 
 
 class BusErrors(can.Listener):
@@ -237,9 +263,9 @@ class BusLink:
     """A python-can bus with canopen's Notifier thread and the wall clock; the cyclic engine on a
     handle of its own on the same bus (``spec``), in a process of its own where it can be."""
 
-    threaded = True           # frames arrive on the Notifier thread
-    epoch = 0.0               # the clock is the wall clock
-    POLL_S = 0.05             # how often the master drains the engine's trace ring and shows progress
+    threaded = True  # frames arrive on the Notifier thread
+    epoch = 0.0  # the clock is the wall clock
+    POLL_S = 0.05  # how often the master drains the engine's trace ring and shows progress
 
     def __init__(self, bus: can.BusABC, spec: BusSpec):
         self.clock = WallClock()
@@ -255,23 +281,33 @@ class BusLink:
         self.notifier: can.Notifier = self.network.notifier
         self.bus_errors = BusErrors()
         self.notifier.add_listener(self.bus_errors)
-        self.on_close: list[Callable[[], None]] = []        # callbacks after the bus is closed
+        self.on_close: list[Callable[[], None]] = []  # callbacks after the bus is closed
         self._heartbeat: can.broadcastmanager.CyclicSendTaskABC | None = None
-        self._beat: tuple[int, float] | None = None      # the master's heartbeat: node id, period [s]
+        self._beat: tuple[int, float] | None = None  # the master's heartbeat: node id, period [s]
         #: the cyclic engine's host, started with the first stream and kept for the link's life
         self.engine: EngineProcess | EngineThread | None = None
         #: what runs the drives behind the bus, where the link started it (the simulated drives' process)
         self.simulator: object | None = None
 
     @classmethod
-    def open(cls, interface: str, channel: str | int | None, bitrate: int | None = None,
-             options: dict | None = None) -> "BusLink":
+    def open(
+        cls,
+        interface: str,
+        channel: str | int | None,
+        bitrate: int | None = None,
+        options: dict | None = None,
+    ) -> BusLink:
         """A link on :func:`~.buses.open_bus`."""
         spec = BusSpec(interface, channel, bitrate, dict(options or {}))
         return cls(spec.open(), spec)
 
-    def run_cycles(self, job: Job, fill: Callable[[Arrays], None], progress: Callable[[int], None] | None,
-                   on_start: Callable[[int], None] | None) -> tuple[Outcome, Arrays, str]:
+    def run_cycles(
+        self,
+        job: Job,
+        fill: Callable[[Arrays], None],
+        progress: Callable[[int], None] | None,
+        on_start: Callable[[int], None] | None,
+    ) -> tuple[Outcome, Arrays, str]:
         if self.engine is None:
             self.engine = engine_for(self.spec)
         engine = self.engine
@@ -282,9 +318,9 @@ class BusLink:
             self.stop_heartbeat()
             job = replace(job, heartbeat=(0x700 + beat[0], beat[1]))
         traces = self.network.traces
-        for trace in traces:                 # the engine's ring carries every frame while it runs
+        for trace in traces:  # the engine's ring carries every frame while it runs
             self.notifier.remove_listener(trace)
-        last = -math.inf                     # the newest stamp the ring handed over
+        last = -math.inf  # the newest stamp the ring handed over
         try:
             arrays, ring = engine.start(job, fill)
             report = reporter(arrays, progress, on_start)
@@ -299,21 +335,26 @@ class BusLink:
                             for trace in traces:
                                 trace.on_message_received(msg)
                     report()
-                except KeyboardInterrupt as exc:     # the engine stops the axes; wait for it to say so
+                except KeyboardInterrupt as exc:  # the engine stops the axes; wait for it to say so
                     arrays.control[STOP_REQUEST] = stop_code(signal_name(exc))
-                except EngineError as exc:           # it is gone: the axes are stopped by SDO
+                except EngineError as exc:  # it is gone: the axes are stopped by SDO
                     log.error("%s", exc)
                     self.engine = None
                     engine.close()
-                    outcome = Outcome(abort=("error", None, str(exc), None), lost=[a.name for a in job.axes],
-                                      rows_sent=int(arrays.control[ROWS_SENT]))
+                    outcome = Outcome(
+                        abort=("error", None, str(exc), None),
+                        lost=[a.name for a in job.axes],
+                        rows_sent=int(arrays.control[ROWS_SENT]),
+                    )
             if ring.dropped:
-                log.warning("%d frames did not fit the engine's trace ring: the trace misses them", ring.dropped)
+                log.warning(
+                    "%d frames did not fit the engine's trace ring: the trace misses them", ring.dropped
+                )
             return outcome, arrays, engine.description
         finally:
             if job.heartbeat is not None and beat is not None:
                 self.start_heartbeat(*beat)
-            for trace in traces:              # what this bus still holds of the engine's run is in the trace
+            for trace in traces:  # what this bus still holds of the engine's run is in the trace
                 trace.seen_until = max(trace.seen_until, last)
                 self.notifier.add_listener(trace)
 
@@ -337,7 +378,7 @@ class BusLink:
             # preempts it while it holds the GIL holds up the thread that streams the setpoints
             try:
                 os.sched_setscheduler(thread.native_id, os.SCHED_FIFO, os.sched_param(TRACE_PRIORITY))
-            except (AttributeError, OSError) as exc:      # not allowed here: it sends ten short frames a second
+            except (AttributeError, OSError) as exc:  # not allowed here: it sends ten short frames a second
                 log.debug("the heartbeat thread keeps its ordinary priority (%s)", exc)
 
     def stop_heartbeat(self) -> None:

@@ -10,6 +10,7 @@ The schedule is absolute and monotonic: a port's ``now`` is ``time.monotonic()``
 the wall clock's epoch (the epoch frame time stamps are in), so a step of the system clock during
 a run moves no deadline.
 """
+
 from __future__ import annotations
 
 import time
@@ -47,9 +48,14 @@ class TraceRing:
 
     @staticmethod
     def layout(capacity: int) -> list[tuple[str, tuple[int, ...], type]]:
-        return [("stamp", (capacity,), np.float64), ("cob_id", (capacity,), np.uint32),
-                ("flags", (capacity,), np.uint8), ("dlc", (capacity,), np.uint8),
-                ("data", (capacity, 8), np.uint8), ("counters", (3,), np.int64)]
+        return [
+            ("stamp", (capacity,), np.float64),
+            ("cob_id", (capacity,), np.uint32),
+            ("flags", (capacity,), np.uint8),
+            ("dlc", (capacity,), np.uint8),
+            ("data", (capacity, 8), np.uint8),
+            ("counters", (3,), np.int64),
+        ]
 
     def put(self, stamp: float, cob_id: int, flags: int, data: bytes | bytearray) -> None:
         counters = self.counters
@@ -75,10 +81,19 @@ class TraceRing:
         for j in range(tail, head):
             i = j % self.capacity
             flags, n = int(self.flags[i]), int(self.dlc[i])
-            out.append(can.Message(timestamp=float(self.stamp[i]), arbitration_id=int(self.cob_id[i]),
-                                   is_extended_id=bool(flags & EXTENDED), is_remote_frame=bool(flags & REMOTE),
-                                   is_error_frame=bool(flags & ERROR), is_rx=bool(flags & RX), dlc=n,
-                                   data=bytes(self.data[i, :n]), check=False))
+            out.append(
+                can.Message(
+                    timestamp=float(self.stamp[i]),
+                    arbitration_id=int(self.cob_id[i]),
+                    is_extended_id=bool(flags & EXTENDED),
+                    is_remote_frame=bool(flags & REMOTE),
+                    is_error_frame=bool(flags & ERROR),
+                    is_rx=bool(flags & RX),
+                    dlc=n,
+                    data=bytes(self.data[i, :n]),
+                    check=False,
+                )
+            )
         counters[TAIL] = head
         return out
 
@@ -106,7 +121,7 @@ class BusPort:
     SYNC not come back within a few periods, the engine's own loop sends SYNC instead (said in
     :attr:`sync_source`)."""
 
-    ECHO_PERIODS = 5          # periods to wait for the interface's first SYNC before taking over
+    ECHO_PERIODS = 5  # periods to wait for the interface's first SYNC before taking over
 
     def __init__(self, bus: can.BusABC, ring: TraceRing):
         self.bus = bus
@@ -118,7 +133,7 @@ class BusPort:
         self._offset = time.time() - time.monotonic()
         self._handlers: dict[int, Handler] = {}
         self._on_error: Callable[[], None] | None = None
-        self._messages: dict[int, can.Message] = {}       # one per COB-ID sent, its data filled in place
+        self._messages: dict[int, can.Message] = {}  # one per COB-ID sent, its data filled in place
 
     def now(self) -> float:
         return time.monotonic() + self._offset
@@ -141,8 +156,9 @@ class BusPort:
                 return
 
     def start_sync(self, period: float) -> None:
-        self._task = self.bus.send_periodic(can.Message(arbitration_id=SYNC_COB_ID, data=b"", is_extended_id=False),
-                                            period)
+        self._task = self.bus.send_periodic(
+            can.Message(arbitration_id=SYNC_COB_ID, data=b"", is_extended_id=False), period
+        )
         handler = self._handlers.get(SYNC_COB_ID)
         seen: list[float] = []
 
@@ -150,17 +166,20 @@ class BusPort:
             seen.append(stamp)
             if handler is not None:
                 handler(data, stamp)
+
         self._handlers[SYNC_COB_ID] = first
         try:
             self.wait_sync(self.now() + self.ECHO_PERIODS * period)
         finally:
             if handler is not None:
                 self._handlers[SYNC_COB_ID] = handler
-        if not seen:                            # it does not show its own frames: the engine sends SYNC
+        if not seen:  # it does not show its own frames: the engine sends SYNC
             self.stop_sync()
             self.periodic_sync = False
-            self.sync_source = (f"the engine's own loop ({self.sync_source} did not show its SYNC within "
-                                f"{self.ECHO_PERIODS} periods)")
+            self.sync_source = (
+                f"the engine's own loop ({self.sync_source} did not show its SYNC within "
+                f"{self.ECHO_PERIODS} periods)"
+            )
 
     def wait_sync(self, timeout_at: float) -> None:
         self._receive_until(timeout_at, sync=True)
@@ -174,8 +193,12 @@ class BusPort:
         stamp = msg.timestamp or self.now()
         # (the interface's SYNC is the master's own frame, not a received one)
         own = self.periodic_sync and msg.arbitration_id == SYNC_COB_ID and not msg.is_error_frame
-        flags = (0 if own else RX) | (ERROR if msg.is_error_frame else 0) | \
-            (REMOTE if msg.is_remote_frame else 0) | (EXTENDED if msg.is_extended_id else 0)
+        flags = (
+            (0 if own else RX)
+            | (ERROR if msg.is_error_frame else 0)
+            | (REMOTE if msg.is_remote_frame else 0)
+            | (EXTENDED if msg.is_extended_id else 0)
+        )
         self.ring.put(stamp, msg.arbitration_id, flags, msg.data)
         if msg.is_error_frame:
             if self._on_error is not None:
@@ -188,8 +211,9 @@ class BusPort:
     def send(self, cob_id: int, data: bytes | bytearray, stamp: float) -> None:
         msg = self._messages.get(cob_id)
         if msg is None or len(msg.data) != len(data):
-            msg = self._messages[cob_id] = can.Message(arbitration_id=cob_id, data=bytes(data),
-                                                        is_extended_id=cob_id > 0x7FF)
+            msg = self._messages[cob_id] = can.Message(
+                arbitration_id=cob_id, data=bytes(data), is_extended_id=cob_id > 0x7FF
+            )
         else:
             msg.data[:] = data
         msg.timestamp = stamp
@@ -203,4 +227,3 @@ class BusPort:
     def release(self) -> None:
         self._handlers = {}
         self._on_error = None
-

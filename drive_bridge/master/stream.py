@@ -18,38 +18,60 @@ them to the link's cyclic engine (:mod:`.engine`; on the wall clock in a process
 in device units (:class:`Recording`; SI once, afterwards, in :mod:`drive_bridge.logs`), why it
 stopped, how each axis is held, the run's timing.
 """
+
 from __future__ import annotations
 
 import logging
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import canopen
 import numpy as np
 
+from ..cia.p301 import MASTER_LOSS, emcy_text
+from ..cia.p402 import (
+    CSP,
+    CW_ENABLE,
+    CW_ENABLE_IP,
+    CW_HALT,
+    CW_QUICK_STOP,
+    IP,
+    PP,
+    QUICK_STOP_RAMP_AND_HOLD,
+    state_name,
+)
+from ..config import TimingLimits
 from ..errors import GuardStop, Interrupted, MotionAborted, UserError
 from ..pdo import PdoCodec
-from ..cia.p301 import MASTER_LOSS, emcy_text
-from ..cia.p402 import (CSP, CW_ENABLE, CW_ENABLE_IP, CW_HALT, CW_QUICK_STOP, IP, PP, QUICK_STOP_RAMP_AND_HOLD,
-                        state_name)
 from ..setpoint import PVT, SETPOINT_OBJECTS, pack_pvt, position_of
 from .bringup import AxisLink
 from .campaign import Plan
-from .engine import (AGE_BIN_S, CONSTANT, CONTROLWORD, TABLE, TORQUE_OFFSET, Arrays, AxisJob, Job,
-                     Outcome, RpdoJob, Supervision, TpdoJob)
+from .engine import (
+    AGE_BIN_S,
+    CONSTANT,
+    CONTROLWORD,
+    TABLE,
+    TORQUE_OFFSET,
+    Arrays,
+    AxisJob,
+    Job,
+    Outcome,
+    RpdoJob,
+    Supervision,
+    TpdoJob,
+)
 from .link import Link
-from ..config import TimingLimits
 from .timing import Timing, measure
 
 log = logging.getLogger(__name__)
 
-STANDSTILL = 0.002                  # quick stop complete below this fraction of the axis's max velocity ...
-STANDSTILL_MIN_RAD_S = 0.05         # ... or below this, whichever is larger (encoder differencing noise)
+STANDSTILL = 0.002  # quick stop complete below this fraction of the axis's max velocity ...
+STANDSTILL_MIN_RAD_S = 0.05  # ... or below this, whichever is larger (encoder differencing noise)
 #: decoding a trace: a TPDO is placed in the row of the newest SYNC before its time stamp, looking
 #: back at most this many rows (a reply the master took in after the next SYNC went out)
 FEEDBACK_LAG = 1
-INT32 = (-2**31, 2**31 - 1)
+INT32 = (-(2**31), 2**31 - 1)
 #: EMCY codes a drive sends when the master's stream stopped reaching it (loss of setpoints, the
 #: master's heartbeat): where the master's own SYNCs were late by more than the drive allows, the
 #: master was late, and the run says so
@@ -74,35 +96,47 @@ class Recording:
     before that SYNC) still places it in its own row.
     """
 
-    def __init__(self, tpdos: dict[str, list[PdoCodec]], rpdos: dict[str, list[PdoCodec]], n_cycles: int,
-                 arrays: Arrays | None = None):
+    def __init__(
+        self,
+        tpdos: dict[str, list[PdoCodec]],
+        rpdos: dict[str, list[PdoCodec]],
+        n_cycles: int,
+        arrays: Arrays | None = None,
+    ):
         self.axes = list(tpdos)
         self.columns: list[tuple[str, int]] = []
-        self._tpdo_slots: list[tuple[int, PdoCodec, int, int]] = []   # (cob, codec, first column, got column)
+        self._tpdo_slots: list[tuple[int, PdoCodec, int, int]] = []  # (cob, codec, first column, got column)
         for axis, codecs in tpdos.items():
             for codec in codecs:
                 self._tpdo_slots.append((codec.cob_id, codec, len(self.columns), len(self._tpdo_slots)))
                 self.columns.extend((axis, index) for index in codec.objects)
         self._rpdo_slots = []
-        for ai, (axis, codecs) in enumerate(rpdos.items()):
+        for ai, codecs in enumerate(rpdos.values()):
             for codec in codecs:
                 for pos, entry in enumerate(codec.entries):
                     if entry in SETPOINT_OBJECTS:
                         self._rpdo_slots.append((codec.cob_id, codec, pos, ai, entry))
         #: per axis, the columns of ``got`` (its TPDOs): a row is complete when all of them arrived
-        self.slots = {axis: [slot for _, _, first, slot in self._tpdo_slots if self.columns[first][0] == axis]
-                      for axis in self.axes}
+        self.slots = {
+            axis: [slot for _, _, first, slot in self._tpdo_slots if self.columns[first][0] == axis]
+            for axis in self.axes
+        }
         if arrays is not None:
-            self.raw, self.got, self.demand, self.sync_time = arrays.raw, arrays.got, arrays.demand, arrays.sync_time
+            self.raw, self.got, self.demand, self.sync_time = (
+                arrays.raw,
+                arrays.got,
+                arrays.demand,
+                arrays.sync_time,
+            )
         else:
             self.raw = np.zeros((n_cycles, len(self.columns)), dtype=np.int64)
             self.got = np.zeros((n_cycles, len(self._tpdo_slots)), dtype=bool)
             self.demand = np.zeros((n_cycles, len(self.axes)), dtype=np.int64)
             self.sync_time = np.full(n_cycles, np.nan)
-        self.pending = [0] * len(self.axes)   # position the last RPDO carried, per axis (decode)
-        self.sync_index = -1          # row of the last SYNC sent (TPDOs after it belong to it)
+        self.pending = [0] * len(self.axes)  # position the last RPDO carried, per axis (decode)
+        self.sync_index = -1  # row of the last SYNC sent (TPDOs after it belong to it)
         self.last_sync_time = -np.inf
-        self.rows = 0                 # rows up to the last one with a SYNC
+        self.rows = 0  # rows up to the last one with a SYNC
         #: SYNCs still to come before the plan's first (decode: those that enabled the drives)
         self.skip_syncs = 0
         #: rows whose period got no SYNC (a late master sends the SYNC of the period it is in)
@@ -116,11 +150,19 @@ class Recording:
         out: dict[int, Callable[..., None]] = {}
         raw, got, sync_time = self.raw, self.got, self.sync_time
         for cob, codec, first, slot in self._tpdo_slots:
-            def on_tpdo(can_id: int, data: bytearray, ts: float, first: int = first,
-                        last: int = first + len(codec.objects), unpack: Callable = codec.struct.unpack_from,
-                        size: int = codec.struct.size, slot: int = slot) -> None:
+
+            def on_tpdo(
+                can_id: int,
+                data: bytearray,
+                ts: float,
+                first: int = first,
+                last: int = first + len(codec.objects),
+                unpack: Callable = codec.struct.unpack_from,
+                size: int = codec.struct.size,
+                slot: int = slot,
+            ) -> None:
                 row = back = self.sync_index
-                if ts < self.last_sync_time and row < len(raw):   # reached the bus before that SYNC
+                if ts < self.last_sync_time and row < len(raw):  # reached the bus before that SYNC
                     while back > 0 and back >= row - FEEDBACK_LAG and not sync_time[back] <= ts:
                         back -= 1
                     if sync_time[back] <= ts:
@@ -128,11 +170,21 @@ class Recording:
                 if 0 <= row < len(raw) and len(data) >= size:
                     raw[row, first:last] = unpack(data)
                     got[row, slot] = True
+
             out[cob] = on_tpdo
         for cob, codec, pos, ai, entry in self._rpdo_slots:
-            def on_rpdo(can_id: int, data: bytearray, ts: float, unpack: Callable = codec.struct.unpack_from,
-                        pos: int = pos, ai: int = ai, entry: tuple[int, int] = entry) -> None:
+
+            def on_rpdo(
+                can_id: int,
+                data: bytearray,
+                ts: float,
+                unpack: Callable = codec.struct.unpack_from,
+                pos: int = pos,
+                ai: int = ai,
+                entry: tuple[int, int] = entry,
+            ) -> None:
                 self.pending[ai] = position_of(entry, unpack(data)[pos])
+
             out[cob] = on_rpdo
         return out
 
@@ -155,13 +207,17 @@ class Recording:
 
     def missing(self) -> dict[str, int]:
         """Rows without a complete sample, per axis (rows of periods without a SYNC included)."""
-        return {axis: int(np.count_nonzero(~self.valid(axis)[:self.rows])) for axis in self.axes}
+        return {axis: int(np.count_nonzero(~self.valid(axis)[: self.rows])) for axis in self.axes}
 
     def truncate(self) -> None:
         """Drop rows after the last SYNC (the plan was not finished)."""
         n = self.rows
-        self.raw, self.got, self.demand, self.sync_time = (self.raw[:n], self.got[:n],
-                                                           self.demand[:n], self.sync_time[:n])
+        self.raw, self.got, self.demand, self.sync_time = (
+            self.raw[:n],
+            self.got[:n],
+            self.demand[:n],
+            self.sync_time[:n],
+        )
 
 
 @dataclass
@@ -169,19 +225,20 @@ class StreamResult:
     recording: Recording
     cycles_sent: int
     aborted: MotionAborted | None
-    missing: dict[str, int]           # samples (rows) missing per axis
+    missing: dict[str, int]  # samples (rows) missing per axis
     timing: Timing
     #: per axis, how it is held now that the motion is over (for the command's last line)
     holding: dict[str, str] | None = None
-    sync_before_plan: int = 0         # SYNC cycles that enabled the drives before the plan's first
+    sync_before_plan: int = 0  # SYNC cycles that enabled the drives before the plan's first
 
 
 def _at_rest(ax: AxisLink, statusword: int, velocity: int) -> bool:
     """Out of OPERATION ENABLED (quick stop active, switched off or faulted) and its measured
     velocity [device units] within ``STANDSTILL`` of its limit (or ``STANDSTILL_MIN_RAD_S``)."""
     speed = abs(float(ax.cfg.scaling.velocity_from_device(velocity)))
-    return state_name(statusword) != "OPERATION ENABLED" and \
-        speed <= max(STANDSTILL * ax.cfg.limits.max_velocity, STANDSTILL_MIN_RAD_S)
+    return state_name(statusword) != "OPERATION ENABLED" and speed <= max(
+        STANDSTILL * ax.cfg.limits.max_velocity, STANDSTILL_MIN_RAD_S
+    )
 
 
 def _on_brake(ax: AxisLink) -> bool:
@@ -220,8 +277,10 @@ def quick_stop(link: Link, axes: dict[str, AxisLink], timeout: float) -> list[st
                 pending.discard(name)
         if pending:
             link.clock.sleep(0.01)
-    problems.extend(f"axis {n}: still moving ({speed.get(n, float('nan')):.3g} rad/s) {timeout} s after quick stop"
-                    for n in sorted(pending))
+    problems.extend(
+        f"axis {n}: still moving ({speed.get(n, float('nan')):.3g} rad/s) {timeout} s after quick stop"
+        for n in sorted(pending)
+    )
     return problems
 
 
@@ -235,9 +294,16 @@ class VelocityGuard:
         return f"axis {axis}: velocity {velocity:.3g} rad/s beyond the guard {self.limits[axis]:.3g} rad/s: stopped"
 
 
-def supervision_for(axes: dict[str, AxisLink], period: float, *, heartbeat_timeout: float, state_timeout: float,
-                    setpoint_timeout: float | None = NO_TIMEOUT, miss_limit: int | None = None,
-                    setpoint_source: str = "") -> Supervision:
+def supervision_for(
+    axes: dict[str, AxisLink],
+    period: float,
+    *,
+    heartbeat_timeout: float,
+    state_timeout: float,
+    setpoint_timeout: float | None = NO_TIMEOUT,
+    miss_limit: int | None = None,
+    setpoint_source: str = "",
+) -> Supervision:
     """The time limits a stream is judged by, from what bring-up wrote into the drives and read back:
     the SYNC period (0x1006), the synchronous window (0x1007, else the period), the master's
     heartbeat consumer time (0x1016:1); and the drives' own setpoint-loss timeout where their
@@ -257,9 +323,14 @@ def supervision_for(axes: dict[str, AxisLink], period: float, *, heartbeat_timeo
     drive_stops = setpoint_timeout
     if drive_stops is None:
         drive_stops = (consumer_ms / 1000.0) if consumer_ms else heartbeat_timeout
-        sources["setpoint_timeout"] = ("the master's heartbeat consumer time the drives hold (0x1016:1): their "
-                                       "profile names no setpoint-loss timeout") if consumer_ms else \
-            "master.heartbeat_consumer_ms (no consumer time written, no setpoint-loss timeout in the profile)"
+        sources["setpoint_timeout"] = (
+            (
+                "the master's heartbeat consumer time the drives hold (0x1016:1): their "
+                "profile names no setpoint-loss timeout"
+            )
+            if consumer_ms
+            else "master.heartbeat_consumer_ms (no consumer time written, no setpoint-loss timeout in the profile)"
+        )
     else:
         sources["setpoint_timeout"] = setpoint_source or "the drive profile's setpoint-loss timeout"
     if miss_limit is not None:
@@ -269,12 +340,25 @@ def supervision_for(axes: dict[str, AxisLink], period: float, *, heartbeat_timeo
         feedback = drive_stops
         sources["feedback_timeout"] = "as long as the drives wait for setpoints (setpoint timeout)"
     sources["heartbeat_timeout"] = "master.heartbeat_consumer_ms"
-    return Supervision(period, (window / 1e6) if window else period, feedback, drive_stops, heartbeat_timeout,
-                       state_timeout, max(state_timeout, 2.0), sources)
+    return Supervision(
+        period,
+        (window / 1e6) if window else period,
+        feedback,
+        drive_stops,
+        heartbeat_timeout,
+        state_timeout,
+        max(state_timeout, 2.0),
+        sources,
+    )
 
 
-def _job(axes: dict[str, AxisLink], plan: Plan, rec: Recording, supervision: Supervision,
-         guard: VelocityGuard | None) -> tuple[Job, list[np.ndarray]]:
+def _job(
+    axes: dict[str, AxisLink],
+    plan: Plan,
+    rec: Recording,
+    supervision: Supervision,
+    guard: VelocityGuard | None,
+) -> tuple[Job, list[np.ndarray]]:
     """The plan as the engine runs it, and the setpoint table's columns."""
     names = plan.axes
     columns: list[np.ndarray] = []
@@ -294,11 +378,15 @@ def _job(axes: dict[str, AxisLink], plan: Plan, rec: Recording, supervision: Sup
                 index = entry[0]
                 if index == 0x6040:
                     fields.append((CONTROLWORD, 0))
-                elif entry == PVT:       # position, velocity at that position, time to reach it [ms]
-                    vel = np.clip(sc.velocity_to_device(np.gradient(demand, plan.period)), -2**23, 2**23 - 1)
+                elif entry == PVT:  # position, velocity at that position, time to reach it [ms]
+                    vel = np.clip(
+                        sc.velocity_to_device(np.gradient(demand, plan.period)), -(2**23), 2**23 - 1
+                    )
                     ms = round(plan.period * 1000)
-                    records = np.array([pack_pvt(p, v, ms) for p, v in zip(positions.tolist(), vel.tolist())],
-                                       dtype=np.uint64)
+                    records = np.array(
+                        [pack_pvt(p, v, ms) for p, v in zip(positions.tolist(), vel.tolist())],
+                        dtype=np.uint64,
+                    )
                     columns.append(records.view(np.int64))
                     fields.append((TABLE, len(columns) - 1))
                 elif entry in SETPOINT_OBJECTS:
@@ -307,41 +395,89 @@ def _job(axes: dict[str, AxisLink], plan: Plan, rec: Recording, supervision: Sup
                     columns.append(np.asarray(sc.torque_to_device(plan.torque_ff_Nm[:, ai]), dtype=np.int64))
                     fields.append((TORQUE_OFFSET, len(columns) - 1))
                     torque_gain = sc.feedback_Nm_per_unit
-                elif index == 0x6060:                       # modes of operation, where an RPDO maps it
+                elif index == 0x6060:  # modes of operation, where an RPDO maps it
                     fields.append((CONSTANT, ax.mode))
                 elif index == 0x60B1 and plan.velocity_ff_rad_s is not None:
-                    columns.append(np.asarray(np.clip(sc.velocity_to_device(plan.velocity_ff_rad_s[:, ai]), *INT32),
-                                              dtype=np.int64))
+                    columns.append(
+                        np.asarray(
+                            np.clip(sc.velocity_to_device(plan.velocity_ff_rad_s[:, ai]), *INT32),
+                            dtype=np.int64,
+                        )
+                    )
                     fields.append((TABLE, len(columns) - 1))
                 else:
                     fields.append((CONSTANT, 0))
             # around the plan, an interpolating drive's setpoint records stay off the bus: a FIFO (maxon's
             # PVT) would keep them and play them when interpolation starts
-            rpdos.append(RpdoJob(codec.cob_id, codec.struct.format, tuple(fields), ai, not _records_only(ax, codec)))
+            rpdos.append(
+                RpdoJob(codec.cob_id, codec.struct.format, tuple(fields), ai, not _records_only(ax, codec))
+            )
         moving = np.abs(np.diff(demand, prepend=demand[0])) > 0
-        starts = np.flatnonzero(moving & ~np.concatenate([[False], moving[:-1]])) if torque_gain else np.empty(0, int)
-        cols = {index: rec.column(a, index) for index in (0x6041, 0x606C, sc.torque_object, 0x20C4)
-                if (a, index) in rec.columns}
+        starts = (
+            np.flatnonzero(moving & ~np.concatenate([[False], moving[:-1]]))
+            if torque_gain
+            else np.empty(0, int)
+        )
+        cols = {
+            index: rec.column(a, index)
+            for index in (0x6041, 0x606C, sc.torque_object, 0x20C4)
+            if (a, index) in rec.columns
+        }
         powered = not _on_brake(ax)
-        standstill = max(STANDSTILL * ax.cfg.limits.max_velocity, STANDSTILL_MIN_RAD_S) * sc.velocity_per_rad_s
-        axis_jobs.append(AxisJob(
-            a, ax.cfg.node_id, tuple(rec.slots[a]), cols[0x6041], cols.get(0x606C, -1),
-            cols.get(sc.torque_object, -1), cols.get(0x20C4, -1), position_column,
-            CW_ENABLE_IP if ax.mode == IP else CW_ENABLE, ax.mode == IP, float(standstill), not powered,
-            powered and ax.drive_limits.get("0x605A:0") == QUICK_STOP_RAMP_AND_HOLD, ax.mode == CSP,
-            float(torque_gain), float(sc.rated_torque_Nm), tuple(int(k) for k in starts),
-            math.inf if guard is None or a not in guard.limits else guard.limits[a] * sc.velocity_per_rad_s))
-    tpdos = [TpdoJob(cob, codec.struct.format, first, slot, names.index(rec.columns[first][0]))
-             for cob, codec, first, slot in rec._tpdo_slots]
-    job = Job(tuple(axis_jobs), tuple(rpdos), tuple(tpdos), len(plan.demand), len(rec.columns), len(columns),
-              supervision)
+        standstill = (
+            max(STANDSTILL * ax.cfg.limits.max_velocity, STANDSTILL_MIN_RAD_S) * sc.velocity_per_rad_s
+        )
+        axis_jobs.append(
+            AxisJob(
+                a,
+                ax.cfg.node_id,
+                tuple(rec.slots[a]),
+                cols[0x6041],
+                cols.get(0x606C, -1),
+                cols.get(sc.torque_object, -1),
+                cols.get(0x20C4, -1),
+                position_column,
+                CW_ENABLE_IP if ax.mode == IP else CW_ENABLE,
+                ax.mode == IP,
+                float(standstill),
+                not powered,
+                powered and ax.drive_limits.get("0x605A:0") == QUICK_STOP_RAMP_AND_HOLD,
+                ax.mode == CSP,
+                float(torque_gain),
+                float(sc.rated_torque_Nm),
+                tuple(int(k) for k in starts),
+                math.inf
+                if guard is None or a not in guard.limits
+                else guard.limits[a] * sc.velocity_per_rad_s,
+            )
+        )
+    tpdos = [
+        TpdoJob(cob, codec.struct.format, first, slot, names.index(rec.columns[first][0]))
+        for cob, codec, first, slot in rec._tpdo_slots
+    ]
+    job = Job(
+        tuple(axis_jobs),
+        tuple(rpdos),
+        tuple(tpdos),
+        len(plan.demand),
+        len(rec.columns),
+        len(columns),
+        supervision,
+    )
     return job, columns
 
 
-def stream(link: Link, axes: dict[str, AxisLink], plan: Plan, *, supervision: Supervision,
-           progress: Callable[[int], None] | None = None, guard: VelocityGuard | None = None,
-           timing_limits: TimingLimits = TimingLimits(),
-           on_start: Callable[[int], None] | None = None) -> StreamResult:
+def stream(
+    link: Link,
+    axes: dict[str, AxisLink],
+    plan: Plan,
+    *,
+    supervision: Supervision,
+    progress: Callable[[int], None] | None = None,
+    guard: VelocityGuard | None = None,
+    timing_limits: TimingLimits = TimingLimits(),
+    on_start: Callable[[int], None] | None = None,
+) -> StreamResult:
     """Enable the axes without a jump, stream ``plan`` one setpoint per SYNC, hold, return the recording.
 
     A fault (EMCY, fault bit, heartbeat loss, feedback missing longer than ``supervision`` allows, a
@@ -357,11 +493,12 @@ def stream(link: Link, axes: dict[str, AxisLink], plan: Plan, *, supervision: Su
         _inside_drive_limits(axes[a], columns[job.axes[i].position_column])
     for cob in {c.cob_id for a in plan.axes for c in axes[a].tpdos}:
         if net.subscribers.get(cob):
-            net.unsubscribe(cob)            # canopen's own PdoMap decoding is not needed here
+            net.unsubscribe(cob)  # canopen's own PdoMap decoding is not needed here
 
     def fill(arrays: Arrays) -> None:
         for j, column in enumerate(columns):
             arrays.table[:, j] = column
+
     arrays: Arrays | None = None
     host = ""
     refused: MotionAborted | None = None
@@ -369,39 +506,58 @@ def stream(link: Link, axes: dict[str, AxisLink], plan: Plan, *, supervision: Su
         for i, a in enumerate(plan.axes):
             _prepare(axes[a], int(columns[job.axes[i].position_column][0]) if n else 0)
         for a in plan.axes:
-            axes[a].node.nmt.send_command(0x01)              # operational: PDOs flow
+            axes[a].node.nmt.send_command(0x01)  # operational: PDOs flow
         outcome, arrays, host = link.run_cycles(job, fill, progress, on_start)
-    except KeyboardInterrupt as exc:                  # before the engine ran: stop by SDO
-        outcome = Outcome(abort=("interrupt", None, getattr(exc, "name", "Ctrl-C"), None), lost=list(plan.axes))
-    except MotionAborted as exc:                      # preparing a drive failed: nothing was enabled
+    except KeyboardInterrupt as exc:  # before the engine ran: stop by SDO
+        outcome = Outcome(
+            abort=("interrupt", None, getattr(exc, "name", "Ctrl-C"), None), lost=list(plan.axes)
+        )
+    except MotionAborted as exc:  # preparing a drive failed: nothing was enabled
         refused = exc
         outcome = Outcome(abort=("refused", exc.axis, exc.reason, None), lost=list(plan.axes))
-    except Exception as exc:          # a bus error before or around the motion: still stop the axes
+    except Exception as exc:  # a bus error before or around the motion: still stop the axes
         outcome = Outcome(abort=("error", None, f"{type(exc).__name__}: {exc}", None), lost=list(plan.axes))
     rec = Recording({a: axes[a].tpdos for a in plan.axes}, {a: axes[a].rpdos for a in plan.axes}, n, arrays)
     rec.rows = outcome.rows_sent
     if arrays is not None:
-        rec.skipped = set(np.flatnonzero(np.isnan(arrays.sync_time[:outcome.rows_sent])).tolist())
+        rec.skipped = set(np.flatnonzero(np.isnan(arrays.sync_time[: outcome.rows_sent])).tolist())
     rec.truncate()
     missing = rec.missing()
     aborted = refused or _aborted(outcome, axes, supervision, guard)
-    log.info("%d of %d plan cycles sent; %s", outcome.rows_sent, n, f"stopping: {aborted}" if aborted else "holding")
+    log.info(
+        "%d of %d plan cycles sent; %s",
+        outcome.rows_sent,
+        n,
+        f"stopping: {aborted}" if aborted else "holding",
+    )
     holding, problems = _after(link, axes, plan.axes, outcome, aborted is None, supervision)
     if problems:
         text = "; ".join(problems)
         if aborted is None:
             aborted = MotionAborted(text)
-        elif isinstance(aborted, Interrupted):           # its reason says it was interrupted already
+        elif isinstance(aborted, Interrupted):  # its reason says it was interrupted already
             aborted = Interrupted(text, aborted.signal)
         else:
             aborted = MotionAborted(f"{aborted.reason}; {text}", aborted.axis, aborted.emcy)
-    timing = measure(rec.sync_time, plan.period, missing, wall=link.threaded,
-                     priority=host or "lockstep (no wall clock)", limits=timing_limits)
-    timing.engine = {"host": host or "lockstep", "sync_source": outcome.sync_source,
-                     "late_cycles": outcome.late_cycles, "periods_skipped": outcome.periods_skipped,
-                     "setpoints_late": outcome.setpoints_late,
-                     "rows_skipped": sorted(rec.skipped), "worst_wake_ms": round(outcome.worst_wake_ms, 3),
-                     "feedback_age_ms": _ages(arrays), "supervision": supervision.as_dict()}
+    timing = measure(
+        rec.sync_time,
+        plan.period,
+        missing,
+        wall=link.threaded,
+        priority=host or "lockstep (no wall clock)",
+        limits=timing_limits,
+    )
+    timing.engine = {
+        "host": host or "lockstep",
+        "sync_source": outcome.sync_source,
+        "late_cycles": outcome.late_cycles,
+        "periods_skipped": outcome.periods_skipped,
+        "setpoints_late": outcome.setpoints_late,
+        "rows_skipped": sorted(rec.skipped),
+        "worst_wake_ms": round(outcome.worst_wake_ms, 3),
+        "feedback_age_ms": _ages(arrays),
+        "supervision": supervision.as_dict(),
+    }
     return StreamResult(rec, outcome.rows_sent, aborted, missing, timing, holding, outcome.enable_cycles)
 
 
@@ -412,13 +568,16 @@ def _ages(arrays: Arrays | None) -> dict[str, float]:
     counts = arrays.ages
     cumulative = np.cumsum(counts) / counts.sum()
     edges = (np.arange(len(counts)) + 1) * AGE_BIN_S * 1e3
-    return {"p50": round(float(edges[np.searchsorted(cumulative, 0.5)]), 2),
-            "p99": round(float(edges[np.searchsorted(cumulative, 0.99)]), 2),
-            "max": round(float(edges[np.flatnonzero(counts)[-1]]), 2)}
+    return {
+        "p50": round(float(edges[np.searchsorted(cumulative, 0.5)]), 2),
+        "p99": round(float(edges[np.searchsorted(cumulative, 0.99)]), 2),
+        "max": round(float(edges[np.flatnonzero(counts)[-1]]), 2),
+    }
 
 
-def _aborted(outcome: Outcome, axes: dict[str, AxisLink], supervision: Supervision,
-             guard: VelocityGuard | None) -> MotionAborted | None:
+def _aborted(
+    outcome: Outcome, axes: dict[str, AxisLink], supervision: Supervision, guard: VelocityGuard | None
+) -> MotionAborted | None:
     """Why the engine stopped, in words (None: it did not)."""
     if outcome.abort is None:
         return None
@@ -431,8 +590,15 @@ def _aborted(outcome: Outcome, axes: dict[str, AxisLink], supervision: Supervisi
             return MotionAborted(
                 f"the master was late: its SYNCs stopped for {gap:.0f} ms, longer than the drives wait for "
                 f"setpoints ({supervision.setpoint_timeout_s * 1e3:.0f} ms); the drive stopped on its own "
-                f"({emcy_text(code)}, EMCY 0x{code:04X})", axis, code)
-        buffer = _buffer_cause(axes[axis]) if any(i == 0x20C4 for c in axes[axis].tpdos for i in c.objects) else None
+                f"({emcy_text(code)}, EMCY 0x{code:04X})",
+                axis,
+                code,
+            )
+        buffer = (
+            _buffer_cause(axes[axis])
+            if any(i == 0x20C4 for c in axes[axis].tpdos for i in c.objects)
+            else None
+        )
         return buffer or MotionAborted(f"drive sent {emcy_text(code)} (EMCY 0x{code:04X})", axis, code)
     if kind == "silent":
         return MotionAborted(f"no TPDO: {detail}", axis)
@@ -443,13 +609,21 @@ def _aborted(outcome: Outcome, axes: dict[str, AxisLink], supervision: Supervisi
     if kind == "heartbeat":
         return MotionAborted(f"heartbeat lost (none for {detail} s)", axis)
     if kind == "bus":
-        return MotionAborted(f"the CAN interface reported {detail} error frame(s) (bus errors, error passive or "
-                             f"bus-off: check wiring, termination and bitrate)")
+        return MotionAborted(
+            f"the CAN interface reported {detail} error frame(s) (bus errors, error passive or "
+            f"bus-off: check wiring, termination and bitrate)"
+        )
     return MotionAborted(detail, axis)
 
 
-def _after(link: Link, axes: dict[str, AxisLink], names: list[str], outcome: Outcome, completed: bool,
-           supervision: Supervision) -> tuple[dict[str, str], list[str]]:
+def _after(
+    link: Link,
+    axes: dict[str, AxisLink],
+    names: list[str],
+    outcome: Outcome,
+    completed: bool,
+    supervision: Supervision,
+) -> tuple[dict[str, str], list[str]]:
     """Once SYNC has stopped: an axis whose feedback was gone gets its quick stop by SDO; after a
     completed plan, a powered axis is held in profile position with halt where its drive has that
     mode, and a CSP axis that has neither that nor a quick stop that holds is said not to be held."""
@@ -460,7 +634,7 @@ def _after(link: Link, axes: dict[str, AxisLink], names: list[str], outcome: Out
         for a in outcome.lost:
             try:
                 state[a] = axes[a].drive.state()
-            except Exception:                        # noqa: BLE001 - it is said as it is
+            except Exception:  # noqa: BLE001 - it is said as it is
                 pass
     if completed and not outcome.lost:
         for a in names:
@@ -471,17 +645,23 @@ def _after(link: Link, axes: dict[str, AxisLink], names: list[str], outcome: Out
                 ax.drive.set_mode(PP)
                 ax.node.sdo[0x6040].raw = CW_HALT
                 state[a] = ax.drive.state()
-            except Exception as exc:                 # noqa: BLE001 - any failure: it holds as it is
+            except Exception as exc:  # noqa: BLE001 - any failure: it holds as it is
                 problems.append(f"axis {a}: could not hold it in profile position ({exc})")
                 try:
                     state[a] = ax.drive.state()
-                except Exception:                    # noqa: BLE001
+                except Exception:  # noqa: BLE001
                     pass
-        problems += [f"axis {a}: its drive has neither profile position nor a quick stop that holds: without the "
-                     f"master's setpoints it is not held (give it holding: brake)" for a in names
-                     if not _on_brake(axes[a]) and PP not in axes[a].modes and axes[a].mode == CSP
-                     and axes[a].drive_limits.get("0x605A:0") != QUICK_STOP_RAMP_AND_HOLD]
+        problems += [
+            f"axis {a}: its drive has neither profile position nor a quick stop that holds: without the "
+            f"master's setpoints it is not held (give it holding: brake)"
+            for a in names
+            if not _on_brake(axes[a])
+            and PP not in axes[a].modes
+            and axes[a].mode == CSP
+            and axes[a].drive_limits.get("0x605A:0") != QUICK_STOP_RAMP_AND_HOLD
+        ]
     return {a: holding_of(axes[a], state[a]) for a in names}, problems
+
 
 def _inside_drive_limits(ax: AxisLink, demand: np.ndarray) -> None:
     """UserError before the first setpoint where the plan [device units] leaves the software
@@ -491,10 +671,12 @@ def _inside_drive_limits(ax: AxisLink, demand: np.ndarray) -> None:
         return
     if demand.min() < lo or demand.max() > hi:
         sc = ax.cfg.scaling
-        raise UserError(f"axis {ax.name}: the motion spans {float(sc.position_from_device(demand.min())):.4f} .. "
-                        f"{float(sc.position_from_device(demand.max())):.4f} rad, outside the software position "
-                        f"limits the drive holds (0x607D: {float(sc.position_from_device(lo)):.4f} .. "
-                        f"{float(sc.position_from_device(hi)):.4f} rad); nothing was enabled or moved")
+        raise UserError(
+            f"axis {ax.name}: the motion spans {float(sc.position_from_device(demand.min())):.4f} .. "
+            f"{float(sc.position_from_device(demand.max())):.4f} rad, outside the software position "
+            f"limits the drive holds (0x607D: {float(sc.position_from_device(lo)):.4f} .. "
+            f"{float(sc.position_from_device(hi)):.4f} rad); nothing was enabled or moved"
+        )
 
 
 def _records_only(ax: AxisLink, codec: PdoCodec) -> bool:
@@ -512,19 +694,26 @@ def _prepare(ax: AxisLink, target: int) -> None:
             ax.node.sdo[0x60C4][6].raw = 0
             ax.node.sdo[0x60C4][6].raw = 1
         except (canopen.SdoCommunicationError, canopen.SdoAbortedError) as exc:
-            raise MotionAborted(f"clearing the interpolation buffer (0x60C4:6) failed ({exc}); nothing was "
-                                f"enabled", ax.name) from exc
+            raise MotionAborted(
+                f"clearing the interpolation buffer (0x60C4:6) failed ({exc}); nothing was enabled", ax.name
+            ) from exc
     if ax.mode == CSP:
         try:
             actual = ax.node.sdo[0x6064].raw
             tolerance = max(1, round(ax.cfg.following_error_window_rad * ax.cfg.scaling.inc_per_rad / 2))
             if abs(actual - target) > tolerance:
-                raise MotionAborted(f"the axis stands at {actual} (0x6064), not at the plan's start {target}: it "
-                                    f"moved since the plan was made; nothing was enabled", ax.name)
+                raise MotionAborted(
+                    f"the axis stands at {actual} (0x6064), not at the plan's start {target}: it "
+                    f"moved since the plan was made; nothing was enabled",
+                    ax.name,
+                )
             ax.node.sdo[0x607A].raw = actual
         except (canopen.SdoCommunicationError, canopen.SdoAbortedError) as exc:
-            raise MotionAborted(f"setting the target position 0x607A to the actual position before enabling "
-                                f"failed ({exc}); nothing was enabled", ax.name) from exc
+            raise MotionAborted(
+                f"setting the target position 0x607A to the actual position before enabling "
+                f"failed ({exc}); nothing was enabled",
+                ax.name,
+            ) from exc
     ax.drive.set_mode(ax.mode)
 
 
@@ -541,10 +730,12 @@ def holding_of(ax: AxisLink, state: str | None) -> str:
 
 #: maxon's interpolation buffer status 0x20C4:1: error bits (each aborts the drive's trajectory)
 #: (EPOS Application Note "Interpolation Position Mode", Dec 2008, p. 13)
-BUFFER_ERRORS = {0x0100: "its interpolation buffer ran empty (underflow: a record came late or not at all)",
-                 0x0200: "its interpolation buffer overflowed (more records than it takes)",
-                 0x0400: "an interpolated velocity above its maximal profile velocity 0x607F",
-                 0x0800: "an interpolated acceleration above its maximal profile acceleration 0x60C5"}
+BUFFER_ERRORS = {
+    0x0100: "its interpolation buffer ran empty (underflow: a record came late or not at all)",
+    0x0200: "its interpolation buffer overflowed (more records than it takes)",
+    0x0400: "an interpolated velocity above its maximal profile velocity 0x607F",
+    0x0800: "an interpolated acceleration above its maximal profile acceleration 0x60C5",
+}
 
 
 def _buffer_status_error(axis: str, status: int) -> MotionAborted | None:
@@ -562,7 +753,9 @@ def _buffer_cause(ax: AxisLink) -> MotionAborted | None:
         return None
 
 
-def check_heartbeats(axes: dict[str, AxisLink], names: list[str], now: float, timeout: float) -> MotionAborted | None:
+def check_heartbeats(
+    axes: dict[str, AxisLink], names: list[str], now: float, timeout: float
+) -> MotionAborted | None:
     """The first of ``names`` whose drive's heartbeat has been silent longer than ``timeout`` [s]."""
     for name in names:
         last = axes[name].last_heartbeat

@@ -6,6 +6,7 @@ one before), the largest SYNC gap and the samples missing.  A run past its limit
 The cyclic engine's process (:mod:`.coprocess`) asks the OS for a real-time (SCHED_FIFO)
 priority and locked memory where it allows them; the report says what it got.
 """
+
 from __future__ import annotations
 
 import os
@@ -17,7 +18,7 @@ import numpy as np
 from ..config import TimingLimits
 
 LATE_FACTOR = 1.5
-RT_PRIORITY = 50                    # SCHED_FIFO priority asked for (1..99); below kernel threads
+RT_PRIORITY = 50  # SCHED_FIFO priority asked for (1..99); below kernel threads
 MCL_CURRENT, MCL_FUTURE = 1, 2
 
 
@@ -34,13 +35,13 @@ class Clock(Protocol):
 
 @dataclass
 class Timing:
-    clock: str                      # "wall" or "lockstep" (simulation time: always on time)
+    clock: str  # "wall" or "lockstep" (simulation time: always on time)
     cycles: int
     late_cycles_pct: float
     max_sync_gap_ms: float
     mean_sync_period_ms: float
     samples_missing: dict[str, int]
-    priority: str                   # what the OS granted the sending thread
+    priority: str  # what the OS granted the sending thread
     degraded: bool = False
     reasons: list[str] = field(default_factory=list)
     #: how the cyclic engine ran: its host (a process of its own, a thread, lockstep), where SYNC came
@@ -52,20 +53,35 @@ class Timing:
         return asdict(self)
 
 
-def measure(sync_time: np.ndarray, period: float, missing: dict[str, int], *, wall: bool, priority: str,
-            limits: TimingLimits) -> Timing:
+def measure(
+    sync_time: np.ndarray,
+    period: float,
+    missing: dict[str, int],
+    *,
+    wall: bool,
+    priority: str,
+    limits: TimingLimits,
+) -> Timing:
     """The timing of a run from its SYNC time stamps [s] and missing samples per axis."""
     gaps = np.diff(sync_time[np.isfinite(sync_time)])
     n = len(sync_time)
     late = float(np.count_nonzero(gaps > LATE_FACTOR * period) / len(gaps) * 100) if len(gaps) else 0.0
-    t = Timing("wall" if wall else "lockstep", n, round(late, 3),
-               round(float(gaps.max()) * 1e3, 3) if len(gaps) else 0.0,
-               round(float(gaps.mean()) * 1e3, 4) if len(gaps) else 0.0, dict(missing), priority)
+    t = Timing(
+        "wall" if wall else "lockstep",
+        n,
+        round(late, 3),
+        round(float(gaps.max()) * 1e3, 3) if len(gaps) else 0.0,
+        round(float(gaps.mean()) * 1e3, 4) if len(gaps) else 0.0,
+        dict(missing),
+        priority,
+    )
     if wall and n:
         worst = max(missing.values(), default=0) / n * 100
-        for what, value, limit in (("late cycles", t.late_cycles_pct, limits.max_late_pct),
-                                   ("largest SYNC gap", t.max_sync_gap_ms / (period * 1e3), limits.max_gap_periods),
-                                   ("samples missing", worst, limits.max_missing_pct)):
+        for what, value, limit in (
+            ("late cycles", t.late_cycles_pct, limits.max_late_pct),
+            ("largest SYNC gap", t.max_sync_gap_ms / (period * 1e3), limits.max_gap_periods),
+            ("samples missing", worst, limits.max_missing_pct),
+        ):
             if value > limit:
                 unit = "periods" if what == "largest SYNC gap" else "%"
                 t.reasons.append(f"{what} {value:.3g} {unit} > {limit:g} {unit}")
@@ -83,12 +99,16 @@ def raise_priority(priority: int = RT_PRIORITY) -> tuple[str, tuple[int, os.sche
         os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
         return f"SCHED_FIFO {priority}", before
     except OSError as exc:
-        return f"normal (SCHED_FIFO not granted: {exc.strerror}; run with CAP_SYS_NICE or as root for it)", None
+        return (
+            f"normal (SCHED_FIFO not granted: {exc.strerror}; run with CAP_SYS_NICE or as root for it)",
+            None,
+        )
 
 
 def lock_memory() -> str:
     """Lock the process's memory, now and to come (mlockall), where the OS allows; what was granted."""
     import ctypes
+
     try:
         libc = ctypes.CDLL(None, use_errno=True)
         if libc.mlockall(MCL_CURRENT | MCL_FUTURE) != 0:

@@ -12,6 +12,7 @@ What the gain gate checks before a set is written (:mod:`.check`) and what the t
 with (:mod:`drive_bridge.tuning.design`).  Units SI, motor side: J [kg·m²], c1 [Nm·s/rad],
 KpS [Nm·s/rad], KiS [1/s], KpP [1/s], KpC [V/A], L [H].
 """
+
 from __future__ import annotations
 
 from collections.abc import Callable
@@ -26,12 +27,12 @@ from .controller import LOOP_TICK_S
 if TYPE_CHECKING:
     from ..ident.frf import Frf
 
-PM_MIN_DEG, GM_MIN_DB = 45.0, 8.0          # what must hold (industrial tuners' defaults)
+PM_MIN_DEG, GM_MIN_DB = 45.0, 8.0  # what must hold (industrial tuners' defaults)
 PADE_ORDER = 3
-CROSSOVER_SHARE = 0.3            # a loop's gain crossover must lie below this share of the SYNC rate the plant was
-                                 # measured at: higher, the response of the offset's images above the Nyquist
-                                 # frequency, aliased, reads the plant's gain low (-0.6 dB at 0.3 on the rigid
-                                 # simulated axis, -2.6 dB at 0.4) and the margins high
+CROSSOVER_SHARE = 0.3  # a loop's gain crossover must lie below this share of the SYNC rate the plant was
+# measured at: higher, the response of the offset's images above the Nyquist
+# frequency, aliased, reads the plant's gain low (-0.6 dB at 0.3 on the rigid
+# simulated axis, -2.6 dB at 0.4) and the margins high
 
 
 @dataclass
@@ -43,11 +44,14 @@ class Margins:
     def ok(self) -> bool:
         return self.phase_margin_deg >= PM_MIN_DEG and self.gain_margin_db >= GM_MIN_DB
 
-    def worse(self, other: "Margins") -> "Margins":
+    def worse(self, other: Margins) -> Margins:
         """The smaller phase and gain margin of the two, at this crossover (the model's and the
         measured plant's margins of one loop)."""
-        return Margins(min(self.phase_margin_deg, other.phase_margin_deg),
-                       min(self.gain_margin_db, other.gain_margin_db), self.crossover_hz)
+        return Margins(
+            min(self.phase_margin_deg, other.phase_margin_deg),
+            min(self.gain_margin_db, other.gain_margin_db),
+            self.crossover_hz,
+        )
 
 
 def margins_of(open_loop: control.TransferFunction) -> Margins:
@@ -57,23 +61,32 @@ def margins_of(open_loop: control.TransferFunction) -> Margins:
     return Margins(float(pm), gm_db, float(wc / (2 * np.pi)))
 
 
-def _plant_paths(J: float, c1: float, current_bw_rad_s: float, tick_s: float = LOOP_TICK_S
-                 ) -> tuple[control.TransferFunction, control.TransferFunction]:
+def _plant_paths(
+    J: float, c1: float, current_bw_rad_s: float, tick_s: float = LOOP_TICK_S
+) -> tuple[control.TransferFunction, control.TransferFunction]:
     s = control.tf("s")
-    num, den = control.pade(tick_s, PADE_ORDER)             # ½ T hold + ½ T velocity difference
+    num, den = control.pade(tick_s, PADE_ORDER)  # ½ T hold + ½ T velocity difference
     delay = control.tf(num, den)
     current = 1 / (s / current_bw_rad_s + 1)
     return s, delay * current / (J * s + max(c1, 0.0))
 
 
-def velocity_open_loop(J: float, c1: float, KpS: float, KiS: float, current_bw_rad_s: float,
-                       tick_s: float = LOOP_TICK_S) -> control.TransferFunction:
+def velocity_open_loop(
+    J: float, c1: float, KpS: float, KiS: float, current_bw_rad_s: float, tick_s: float = LOOP_TICK_S
+) -> control.TransferFunction:
     s, plant = _plant_paths(J, c1, current_bw_rad_s, tick_s)
     return KpS * (1 + KiS / s) * plant
 
 
-def position_open_loop(J: float, c1: float, KpS: float, KiS: float, KpP: float, current_bw_rad_s: float,
-                       tick_s: float = LOOP_TICK_S) -> control.TransferFunction:
+def position_open_loop(
+    J: float,
+    c1: float,
+    KpS: float,
+    KiS: float,
+    KpP: float,
+    current_bw_rad_s: float,
+    tick_s: float = LOOP_TICK_S,
+) -> control.TransferFunction:
     s = control.tf("s")
     closed_velocity = control.feedback(velocity_open_loop(J, c1, KpS, KiS, current_bw_rad_s, tick_s), 1)
     return KpP / s * closed_velocity
@@ -83,9 +96,11 @@ def controller(gains: dict[str, float], tick_s: float = LOOP_TICK_S) -> Callable
     """K(jω) of the drive's cascade as seen at its torque command [Nm per rad/s]: the velocity PI
     around the measured velocity, the position P around that, the loop's delay (½ T hold + ½ T
     velocity difference) -- what a torque offset added to the command sees close the loop."""
+
     def k(w: np.ndarray) -> np.ndarray:
         s = 1j * np.asarray(w, dtype=float)
         return _velocity_pi(gains, s, tick_s) * (1 + gains["KpP"] / s)
+
     return k
 
 
@@ -101,8 +116,9 @@ def rigid_response(J: float, c1: float, current_bw_rad_s: float, w: np.ndarray) 
     return 1 / (s / current_bw_rad_s + 1) / (J * s + max(c1, 0.0))
 
 
-def measured_margins(gains: dict[str, float], frf: "Frf", current_bw_rad_s: float, tick_s: float = LOOP_TICK_S
-                     ) -> tuple[Margins | None, Margins | None]:
+def measured_margins(
+    gains: dict[str, float], frf: Frf, current_bw_rad_s: float, tick_s: float = LOOP_TICK_S
+) -> tuple[Margins | None, Margins | None]:
     """Margins of the velocity and the position loop with ``gains`` on a measured plant
     (:class:`drive_bridge.ident.frf.Frf`, its reliable bins): the velocity loop
     KpS·(1 + KiS/jω)·e^(−jωT)·G(jω), the position loop KpP/jω around it closed.  Above the bins
@@ -110,12 +126,15 @@ def measured_margins(gains: dict[str, float], frf: "Frf", current_bw_rad_s: floa
     (``current_bw_rad_s``), up to the loops' Nyquist frequency: a gain margin beyond the band
     counts on no mode there.  None for a loop whose gain crossover lies above ``CROSSOVER_SHARE``
     of the SYNC rate (not verified)."""
-    return (measured_loop(gains, frf, "velocity", current_bw_rad_s, tick_s),
-            measured_loop(gains, frf, "position", current_bw_rad_s, tick_s))
+    return (
+        measured_loop(gains, frf, "velocity", current_bw_rad_s, tick_s),
+        measured_loop(gains, frf, "position", current_bw_rad_s, tick_s),
+    )
 
 
-def open_loop_at(gains: dict[str, float], f: np.ndarray, g: np.ndarray, loop: str,
-                 tick_s: float = LOOP_TICK_S) -> np.ndarray:
+def open_loop_at(
+    gains: dict[str, float], f: np.ndarray, g: np.ndarray, loop: str, tick_s: float = LOOP_TICK_S
+) -> np.ndarray:
     """The open ``loop`` ("velocity" or "position") with ``gains`` on a plant whose response is
     ``g`` [rad/s per Nm] at the frequencies ``f`` [Hz]: KpS·(1 + KiS/jω)·e^(−jωT)·G, and KpP/jω
     around that closed."""
@@ -124,8 +143,9 @@ def open_loop_at(gains: dict[str, float], f: np.ndarray, g: np.ndarray, loop: st
     return velocity if loop == "velocity" else gains["KpP"] / s * velocity / (1 + velocity)
 
 
-def measured_loop(gains: dict[str, float], frf: "Frf", loop: str, current_bw_rad_s: float,
-                  tick_s: float = LOOP_TICK_S) -> Margins | None:
+def measured_loop(
+    gains: dict[str, float], frf: Frf, loop: str, current_bw_rad_s: float, tick_s: float = LOOP_TICK_S
+) -> Margins | None:
     """One loop's margins of :func:`measured_margins` (``loop``: "velocity" or "position")."""
     ok = frf.reliable()
     f, g = frf.frequency_hz[ok], frf.response[ok]
@@ -138,7 +158,7 @@ def measured_loop(gains: dict[str, float], frf: "Frf", loop: str, current_bw_rad
     open_loop = open_loop_at(gains, f, g, loop, tick_s)
     sure = np.flatnonzero(f <= CROSSOVER_SHARE * frf.rate_hz)
     if not len(sure) or abs(open_loop[sure[-1]]) > 1:
-        return None                                      # its crossover lies above the bins measured well
+        return None  # its crossover lies above the bins measured well
     return margins_at_points(f, open_loop)
 
 
@@ -162,7 +182,7 @@ def margins_at_points(f: np.ndarray, loop: np.ndarray) -> Margins | None:
         if to_minus_one < pm:
             pm, wc = to_minus_one, float(np.exp(x[i] + r * (x[i + 1] - x[i])))
     gm = np.inf
-    shifted = (phase + 180.0) / 360.0                # crossings of -180° (+ k·360°)
+    shifted = (phase + 180.0) / 360.0  # crossings of -180° (+ k·360°)
     for i in np.flatnonzero(np.floor(shifted[:-1]) != np.floor(shifted[1:])):
         edge = np.floor(max(shifted[i], shifted[i + 1]))
         r = (edge - shifted[i]) / (shifted[i + 1] - shifted[i])
@@ -170,16 +190,25 @@ def margins_at_points(f: np.ndarray, loop: np.ndarray) -> Margins | None:
     return Margins(float(pm), gm, wc)
 
 
-def open_loops(J: float, c1: float, gains: dict[str, float], L: float, tick_s: float = LOOP_TICK_S
-               ) -> tuple[control.TransferFunction, control.TransferFunction]:
+def open_loops(
+    J: float, c1: float, gains: dict[str, float], L: float, tick_s: float = LOOP_TICK_S
+) -> tuple[control.TransferFunction, control.TransferFunction]:
     """The velocity and the position loop, open, with given gains on the identified plant."""
     w_i = gains["KpC"] / L
-    return (velocity_open_loop(J, c1, gains["KpS"], gains["KiS"], w_i, tick_s),
-            position_open_loop(J, c1, gains["KpS"], gains["KiS"], gains["KpP"], w_i, tick_s))
+    return (
+        velocity_open_loop(J, c1, gains["KpS"], gains["KiS"], w_i, tick_s),
+        position_open_loop(J, c1, gains["KpS"], gains["KiS"], gains["KpP"], w_i, tick_s),
+    )
 
 
-def following_error(J: float, c1: float, gains: dict[str, float], L: float, torque_feedforward: bool,
-                    tick_s: float = LOOP_TICK_S) -> tuple[control.TransferFunction, control.TransferFunction]:
+def following_error(
+    J: float,
+    c1: float,
+    gains: dict[str, float],
+    L: float,
+    torque_feedforward: bool,
+    tick_s: float = LOOP_TICK_S,
+) -> tuple[control.TransferFunction, control.TransferFunction]:
     """Transfer functions from the position demand, and from a torque disturbance, to the
     following error (demand − position) of the cascade on the identified plant: velocity
     feed-forward FwF, and where ``torque_feedforward`` the model torque, which enters through the
@@ -194,8 +223,9 @@ def following_error(J: float, c1: float, gains: dict[str, float], L: float, torq
     return control.minreal(demand, verbose=False), control.minreal((rigid - fed) / den, verbose=False)
 
 
-def loop_margins(J: float, c1: float, gains: dict[str, float], R: float, L: float,
-                 tick_s: float = LOOP_TICK_S) -> tuple[Margins, Margins]:
+def loop_margins(
+    J: float, c1: float, gains: dict[str, float], R: float, L: float, tick_s: float = LOOP_TICK_S
+) -> tuple[Margins, Margins]:
     """Margins of given gains on the identified plant (e.g. the factory or the paper's sets)."""
     velocity, position = open_loops(J, c1, gains, L, tick_s)
     return margins_of(velocity), margins_of(position)

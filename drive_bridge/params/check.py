@@ -7,6 +7,7 @@ LowLimit/HighLimit or its data type.  A gain set is refused when the loop
 margins it gives on the model it was designed for (recomputed from the exact
 values written) fall below a floor, unless forced.
 """
+
 from __future__ import annotations
 
 import logging
@@ -30,15 +31,31 @@ log = logging.getLogger(__name__)
 
 #: sign of each abstract parameter, whatever the drive: (lowest, lowest allowed itself, highest);
 #: a model term of 0 is "no feed-forward of that kind" (the factory model of a drive)
-PHYSICAL = {"J": (0.0, True, None), "c0": (0.0, True, None), "c1": (0.0, True, None),
-            "PidI": (0.0, True, None), "PidFFv": (0.0, True, None), "PidFFa": (0.0, True, None),
-            "periodic_amplitude": (0.0, True, None), "periodic_period": (0.0, True, None),
-            "ff_enable": (0.0, True, 1.0), "FwF": (0.0, True, None),
-            **{g: (0.0, False, None) for g in ("KpP", "KpS", "KiS", "KpC", "KiC", "PidP", "PidD")}}
-INTEGER_RANGES = {datatypes.UNSIGNED8: (0, 2**8 - 1), datatypes.UNSIGNED16: (0, 2**16 - 1),
-                  datatypes.UNSIGNED32: (0, 2**32 - 1), datatypes.INTEGER8: (-2**7, 2**7 - 1),
-                  datatypes.INTEGER16: (-2**15, 2**15 - 1), datatypes.INTEGER32: (-2**31, 2**31 - 1)}
-REAL_MAX = {datatypes.REAL32: float(np.finfo(np.float32).max), datatypes.REAL64: float(np.finfo(np.float64).max)}
+PHYSICAL = {
+    "J": (0.0, True, None),
+    "c0": (0.0, True, None),
+    "c1": (0.0, True, None),
+    "PidI": (0.0, True, None),
+    "PidFFv": (0.0, True, None),
+    "PidFFa": (0.0, True, None),
+    "periodic_amplitude": (0.0, True, None),
+    "periodic_period": (0.0, True, None),
+    "ff_enable": (0.0, True, 1.0),
+    "FwF": (0.0, True, None),
+    **{g: (0.0, False, None) for g in ("KpP", "KpS", "KiS", "KpC", "KiC", "PidP", "PidD")},
+}
+INTEGER_RANGES = {
+    datatypes.UNSIGNED8: (0, 2**8 - 1),
+    datatypes.UNSIGNED16: (0, 2**16 - 1),
+    datatypes.UNSIGNED32: (0, 2**32 - 1),
+    datatypes.INTEGER8: (-(2**7), 2**7 - 1),
+    datatypes.INTEGER16: (-(2**15), 2**15 - 1),
+    datatypes.INTEGER32: (-(2**31), 2**31 - 1),
+}
+REAL_MAX = {
+    datatypes.REAL32: float(np.finfo(np.float32).max),
+    datatypes.REAL64: float(np.finfo(np.float64).max),
+}
 #: the floor a written gain set must keep on its model (industrial tuners warn below these)
 PM_FLOOR_DEG, GM_FLOOR_DB = 30.0, 4.0
 
@@ -77,19 +94,31 @@ def check_value(entry: Entry, var: canopen.objectdictionary.ODVariable, value: A
     if var.max is not None:
         hi = var.max
     if (lo is not None and device < lo) or (hi is not None and device > hi):
-        return (f"{name} = {value:.6g}{unit} is {device} in device units, outside {entry.where()}'s range "
-                f"{lo}..{hi} (EDS and data type)")
+        return (
+            f"{name} = {value:.6g}{unit} is {device} in device units, outside {entry.where()}'s range "
+            f"{lo}..{hi} (EDS and data type)"
+        )
     return None
 
 
 def check_set(profile: Profile, od: canopen.ObjectDictionary, values: dict) -> list[str]:
     """Every reason the parameter set ``values`` (name -> SI) must not be written to a drive of ``profile``."""
-    problems = [p for name, v in values.items() if name in profile.entries
-                for p in [check_value(profile.entries[name], variable(od, profile.entries[name].index,
-                                                                             profile.entries[name].sub), v)] if p]
+    problems = [
+        p
+        for name, v in values.items()
+        if name in profile.entries
+        for p in [
+            check_value(
+                profile.entries[name], variable(od, profile.entries[name].index, profile.entries[name].sub), v
+            )
+        ]
+        if p
+    ]
     amp, period = values.get("periodic_amplitude", 0.0), values.get("periodic_period", 0.0)
     if not problems and amp and not period:
-        problems.append(f"periodic_amplitude = {amp:.6g} needs a periodic_period > 0 (0 switches the ripple off)")
+        problems.append(
+            f"periodic_amplitude = {amp:.6g} needs a periodic_period > 0 (0 switches the ripple off)"
+        )
     return problems
 
 
@@ -103,20 +132,32 @@ class MarginCheck:
     ok: bool
 
     def as_dict(self) -> dict:
-        return {"phase_margin_deg": self.phase_margin_deg, "gain_margin_db": self.gain_margin_db, "ok": self.ok}
+        return {
+            "phase_margin_deg": self.phase_margin_deg,
+            "gain_margin_db": self.gain_margin_db,
+            "ok": self.ok,
+        }
 
 
 def written_si(profile: Profile, values: dict) -> dict[str, float]:
     """``values`` (the cascade's terms) as the drive will hold them: through its controller's
     parameters and device units and back (rounding, REAL32)."""
-    held = {name: float(e.to_si(e.held(e.to_device(v)))) if (e := profile.entries.get(name)) else float(v)
-            for name, v in profile.controller.to_drive(values).items()}
+    held = {
+        name: float(e.to_si(e.held(e.to_device(v)))) if (e := profile.entries.get(name)) else float(v)
+        for name, v in profile.controller.to_drive(values).items()
+    }
     return profile.controller.from_drive(held)
 
 
-def check_margins(profile: Profile, values: dict, L: float | None, *,
-                  pm_floor: float = PM_FLOOR_DEG, gm_floor: float = GM_FLOOR_DB,
-                  frf: Frf | None = None) -> tuple[dict, str | None]:
+def check_margins(
+    profile: Profile,
+    values: dict,
+    L: float | None,
+    *,
+    pm_floor: float = PM_FLOOR_DEG,
+    gm_floor: float = GM_FLOOR_DB,
+    frf: Frf | None = None,
+) -> tuple[dict, str | None]:
     """Velocity- and position-loop margins of the gains in ``values``, as written, on the model
     of the same set (J, c1) with motor inductance ``L`` [H] and, where the axis's response was
     measured (``frf``: :class:`~drive_bridge.ident.frf.Frf`), on that too -- the worse of the two; a
@@ -125,7 +166,7 @@ def check_margins(profile: Profile, values: dict, L: float | None, *,
     reason too."""
     gains = ("KpP", "KpS", "KiS", "KpC")
     if not any(g in values for g in gains):
-        return {}, None                                   # no gains in this set: nothing to check
+        return {}, None  # no gains in this set: nothing to check
     missing = [g for g in gains if g not in values]
     if missing or not values.get("J") or L is None:
         what = ", ".join(missing) or ("the model's J" if not values.get("J") else "the motor inductance L")
@@ -136,18 +177,38 @@ def check_margins(profile: Profile, values: dict, L: float | None, *,
     tick = profile.controller.timing.tick_s
     model = loop_margins(values["J"], max(values.get("c1", 0.0), 0.0), w, 0.0, L, tick)
     measured = measured_margins(w, frf, w["KpC"] / L, tick) if frf is not None else (None, None)
-    unverified = [name for name, m in zip(("velocity", "position"), measured) if frf is not None and m is None]
+    unverified = [
+        name for name, m in zip(("velocity", "position"), measured) if frf is not None and m is None
+    ]
     worse = [m if other is None else m.worse(other) for m, other in zip(model, measured)]
-    out = {name: MarginCheck(m.phase_margin_deg, m.gain_margin_db,
-                             name not in unverified and m.phase_margin_deg >= pm_floor and m.gain_margin_db >= gm_floor)
-           for name, m in zip(("velocity", "position"), worse)}
+    out = {
+        name: MarginCheck(
+            m.phase_margin_deg,
+            m.gain_margin_db,
+            name not in unverified and m.phase_margin_deg >= pm_floor and m.gain_margin_db >= gm_floor,
+        )
+        for name, m in zip(("velocity", "position"), worse)
+    }
     where = "on the identified model" + (" and the measured response" if frf is not None else "")
-    bad = [f"{name} loop PM {m.phase_margin_deg:.1f}° / GM {m.gain_margin_db:.1f} dB" for name, m in out.items()
-           if not m.ok and name not in unverified]
-    reason = "; ".join(([f"{' and '.join(bad)} {where}, below the floor of {pm_floor:g}° / {gm_floor:g} dB"]
-                        if bad else []) +
-                       [f"the {name} loop crosses over above the band its response was measured in: not verified"
-                        for name in unverified]) or None
+    bad = [
+        f"{name} loop PM {m.phase_margin_deg:.1f}° / GM {m.gain_margin_db:.1f} dB"
+        for name, m in out.items()
+        if not m.ok and name not in unverified
+    ]
+    reason = (
+        "; ".join(
+            (
+                [f"{' and '.join(bad)} {where}, below the floor of {pm_floor:g}° / {gm_floor:g} dB"]
+                if bad
+                else []
+            )
+            + [
+                f"the {name} loop crosses over above the band its response was measured in: not verified"
+                for name in unverified
+            ]
+        )
+        or None
+    )
     return {k: v.as_dict() for k, v in out.items()}, reason
 
 
@@ -161,10 +222,18 @@ class GateResult:
     unverified: list[str]
 
 
-def screen(profiles: dict[str, Profile], values: dict[str, dict], inductance: dict[str, float | None], *,
-           force: bool = False,
-           pm_floor: float = PM_FLOOR_DEG, gm_floor: float = GM_FLOOR_DB, allow_unverified_scales: bool = False,
-           dry_run: bool = False, frf: dict | None = None) -> tuple[GateResult, str | None]:
+def screen(
+    profiles: dict[str, Profile],
+    values: dict[str, dict],
+    inductance: dict[str, float | None],
+    *,
+    force: bool = False,
+    pm_floor: float = PM_FLOOR_DEG,
+    gm_floor: float = GM_FLOOR_DB,
+    allow_unverified_scales: bool = False,
+    dry_run: bool = False,
+    frf: dict | None = None,
+) -> tuple[GateResult, str | None]:
     """The one check every gain set passes before it reaches a drive (``write``, ``validate``):
     scales with a documented source (else only with ``allow_unverified_scales``; a dry run shows
     them), and the loop margins of each axis's set on its model (J, c1) with the motor inductance
@@ -180,20 +249,28 @@ def screen(profiles: dict[str, Profile], values: dict[str, dict], inductance: di
             unheld.append(f"axis {a}: {exc}")
     if unheld:
         return GateResult({}, [], []), "; ".join(unheld)
-    unverified = sorted({f"{k} ({e.where()})" for a, v in drive_sets.items() for k in v
-                         if (e := profiles[a].entries.get(k)) is not None and not e.verified})
+    unverified = sorted(
+        {
+            f"{k} ({e.where()})"
+            for a, v in drive_sets.items()
+            for k in v
+            if (e := profiles[a].entries.get(k)) is not None and not e.verified
+        }
+    )
     profile = next(iter(profiles.values()))
     if unverified and not dry_run and not allow_unverified_scales:
         return GateResult({}, [], unverified), (
             f"the {profile.drive} profile has no documented source for the scale of {', '.join(unverified)} "
             f"({profile.path}); check them against the drive's manual, or --allow-unverified-scales to write "
-            f"them anyway")
+            f"them anyway"
+        )
     margins: dict[str, dict] = {}
     refused: list[str] = []
     forced: list[str] = []
     for a, v in values.items():
-        margins[a], reason = check_margins(profiles[a], v, inductance.get(a), pm_floor=pm_floor, gm_floor=gm_floor,
-                                           frf=(frf or {}).get(a))
+        margins[a], reason = check_margins(
+            profiles[a], v, inductance.get(a), pm_floor=pm_floor, gm_floor=gm_floor, frf=(frf or {}).get(a)
+        )
         if reason:
             (forced if force else refused).append(f"axis {a}: {reason}")
     for reason in forced:
@@ -202,8 +279,9 @@ def screen(profiles: dict[str, Profile], values: dict[str, dict], inductance: di
     return result, ("; ".join(refused) + " (--force writes it anyway and records that)") if refused else None
 
 
-def gate(profiles: dict[str, Profile], values: dict[str, dict], inductance: dict[str, float | None],
-         **checks: Any) -> GateResult:
+def gate(
+    profiles: dict[str, Profile], values: dict[str, dict], inductance: dict[str, float | None], **checks: Any
+) -> GateResult:
     """:func:`screen`, refusing with ValueRefused before anything is written."""
     result, refused = screen(profiles, values, inductance, **checks)
     if refused:

@@ -21,6 +21,7 @@ the PID drive is written the same loop; its feed-forward carries the model's vis
 x² − (P/D)·x + I/D (KpP the larger: the same loop either way); a PID with complex roots has no
 cascade and is reported without one.
 """
+
 from __future__ import annotations
 
 import math
@@ -31,12 +32,12 @@ from ..errors import UserError
 from ..yamlconf import Section
 
 STRUCTURES = ("cascade", "position_pid")
-GAINS = ("KpP", "FwF", "KpS", "KiS", "KpC", "KiC")   # a cascade's gains (tune's terms)
+GAINS = ("KpP", "FwF", "KpS", "KiS", "KpC", "KiC")  # a cascade's gains (tune's terms)
 CASCADE = ("KpP", "FwF", "KpS", "KiS")
 PID = ("PidP", "PidI", "PidD", "PidFFv", "PidFFa")
 RATES = ("position", "velocity", "current")
-LOOP_TICK_S = 0.5e-3          # the project drive's velocity / position loop period (2 kHz)
-CURRENT_RATE_HZ = 8000.0      # ... and its current loop's rate
+LOOP_TICK_S = 0.5e-3  # the project drive's velocity / position loop period (2 kHz)
+CURRENT_RATE_HZ = 8000.0  # ... and its current loop's rate
 
 
 @dataclass(frozen=True)
@@ -56,8 +57,13 @@ class Controller:
     (absent: unverified)."""
 
     structure: str = "cascade"
-    rates_hz: dict[str, float | None] = field(default_factory=lambda: {
-        "position": 1 / LOOP_TICK_S, "velocity": 1 / LOOP_TICK_S, "current": CURRENT_RATE_HZ})
+    rates_hz: dict[str, float | None] = field(
+        default_factory=lambda: {
+            "position": 1 / LOOP_TICK_S,
+            "velocity": 1 / LOOP_TICK_S,
+            "current": CURRENT_RATE_HZ,
+        }
+    )
     sources: dict[str, str] = field(default_factory=dict)
 
     @property
@@ -72,15 +78,22 @@ class Controller:
 
     def unverified(self) -> list[str]:
         """The items declared without a source."""
-        return [k for k in ("structure", *RATES) if k not in self.sources and
-                (k == "structure" or self.rates_hz.get(k) is not None)]
+        return [
+            k
+            for k in ("structure", *RATES)
+            if k not in self.sources and (k == "structure" or self.rates_hz.get(k) is not None)
+        ]
 
     def as_dict(self) -> dict:
-        return {"structure": self.structure, "rates_hz": dict(self.rates_hz), "sources": dict(self.sources),
-                "unverified": self.unverified()}
+        return {
+            "structure": self.structure,
+            "rates_hz": dict(self.rates_hz),
+            "sources": dict(self.sources),
+            "unverified": self.unverified(),
+        }
 
     @classmethod
-    def from_dict(cls, d: dict | None) -> "Controller":
+    def from_dict(cls, d: dict | None) -> Controller:
         """:meth:`as_dict` read back (tune.json's ``controller``); the project's cascade for None (a
         tune.json written before the controller was recorded)."""
         if not d:
@@ -96,10 +109,14 @@ class Controller:
         out = {k: v for k, v in values.items() if k not in (*CASCADE, "J", "c1")}
         gains = [g for g in ("KpP", "KpS", "KiS") if g in values]
         if gains and len(gains) < 3:
-            raise UserError(f"a position PID holds KpP, KpS and KiS only together (given: {', '.join(gains)})")
+            raise UserError(
+                f"a position PID holds KpP, KpS and KiS only together (given: {', '.join(gains)})"
+            )
         if "FwF" in values and values["FwF"] != 1.0:
-            raise UserError(f"FwF = {values['FwF']:g}: a position PID acts on the error's rate, the whole demand "
-                            f"velocity (FwF = 1)")
+            raise UserError(
+                f"FwF = {values['FwF']:g}: a position PID acts on the error's rate, the whole demand "
+                f"velocity (FwF = 1)"
+            )
         if gains:
             kpp, kps, kis = values["KpP"], values["KpS"], values["KiS"]
             out.update(PidP=kps * (kpp + kis), PidI=kps * kis * kpp, PidD=kps)
@@ -113,7 +130,14 @@ class Controller:
         """The drive's parameters that hold ``names`` (the cascade's terms)."""
         if self.structure == "cascade":
             return list(names)
-        held = {"KpP": PID[:3], "KpS": PID[:3], "KiS": PID[:3], "FwF": PID[:3], "c1": ("PidFFv",), "J": ("PidFFa",)}
+        held = {
+            "KpP": PID[:3],
+            "KpS": PID[:3],
+            "KiS": PID[:3],
+            "FwF": PID[:3],
+            "c1": ("PidFFv",),
+            "J": ("PidFFa",),
+        }
         return list(dict.fromkeys(d for n in names for d in held.get(n, (n,))))
 
     def from_drive(self, values: dict[str, float]) -> dict[str, float]:
@@ -141,7 +165,9 @@ def load_controller(sec: Section) -> Controller:
         return Controller()
     structure = sec.get("structure", str)
     if structure not in STRUCTURES:
-        raise sec.error("structure", f"unknown controller structure {structure!r} (known: {', '.join(STRUCTURES)})")
+        raise sec.error(
+            "structure", f"unknown controller structure {structure!r} (known: {', '.join(STRUCTURES)})"
+        )
     rates = sec.section("rates_hz")
     rates_hz: dict[str, float | None] = {}
     for name in RATES:
@@ -152,7 +178,9 @@ def load_controller(sec: Section) -> Controller:
     sources = {k: sources_sec.get(k, str) for k in sources_sec.keys()}
     unknown = set(sources) - {"structure", *RATES}
     if unknown:
-        raise sources_sec.error(sorted(unknown)[0], f"not a controller item (items: structure, {', '.join(RATES)})")
+        raise sources_sec.error(
+            sorted(unknown)[0], f"not a controller item (items: structure, {', '.join(RATES)})"
+        )
     sources_sec.done()
     sec.done()
     return Controller(structure, rates_hz, sources)

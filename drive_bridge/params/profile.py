@@ -20,6 +20,7 @@ supported.  The ``controller`` section declares the structure and loop rates the
 objects to run (Nanotec's 3212h:04): every set of gains written sets it (the parameter
 ``gain_objects``), and a drive not on them is read through the profile ``otherwise`` names.
 """
+
 from __future__ import annotations
 
 import functools
@@ -49,13 +50,44 @@ class MotorAxis(Protocol):
     def torque_constant(self) -> float | None:
         """Its motor's torque constant [Nm/A] (None: not given)."""
 
+
 PROFILE_DIR = shipped("params", "profiles")
 DEFAULT_PROFILE = "drive_bridge_servo"
-PARAMETERS = ("J", "c0", "c1", "offset", "cp", "dc0", "dc1", "periodic_amplitude", "periodic_period",
-              "periodic_phase", "ff_enable", "KpP", "FwF", "KpS", "KiS", "KpC", "KiC", *PID, "gain_objects")
-SELECT = "gain_objects"       # the parameter of a profile's select object
-TYPES = {name: getattr(datatypes, name) for name in
-         ("UNSIGNED8", "UNSIGNED16", "UNSIGNED32", "INTEGER8", "INTEGER16", "INTEGER32", "REAL32", "REAL64")}
+PARAMETERS = (
+    "J",
+    "c0",
+    "c1",
+    "offset",
+    "cp",
+    "dc0",
+    "dc1",
+    "periodic_amplitude",
+    "periodic_period",
+    "periodic_phase",
+    "ff_enable",
+    "KpP",
+    "FwF",
+    "KpS",
+    "KiS",
+    "KpC",
+    "KiC",
+    *PID,
+    "gain_objects",
+)
+SELECT = "gain_objects"  # the parameter of a profile's select object
+TYPES = {
+    name: getattr(datatypes, name)
+    for name in (
+        "UNSIGNED8",
+        "UNSIGNED16",
+        "UNSIGNED32",
+        "INTEGER8",
+        "INTEGER16",
+        "INTEGER32",
+        "REAL32",
+        "REAL64",
+    )
+}
 
 
 @dataclass(frozen=True)
@@ -69,9 +101,9 @@ class Entry:
     scale: float
     reciprocal: bool
     unit: str
-    min: float | None = None          # the drive's range [SI], where the profile states it
+    min: float | None = None  # the drive's range [SI], where the profile states it
     max: float | None = None
-    source: str | None = None         # the document (and section) the scale and unit come from
+    source: str | None = None  # the document (and section) the scale and unit come from
     per_torque_constant: bool = False  # held in current: scale / kt (bound by Profile.bind)
 
     @property
@@ -113,10 +145,10 @@ class Profile:
     eds: Path
     entries: dict[str, Entry]
     save: tuple[int, int] | None
-    motor: dict[str, tuple[int, int]] | None = None    # R [Ω], L [H]: (index, sub) where the drive reports them
+    motor: dict[str, tuple[int, int]] | None = None  # R [Ω], L [H]: (index, sub) where the drive reports them
     controller: Controller = Controller()
     #: (object's entry, the value that selects the profile's gain objects, the profile that runs otherwise)
-    select: "tuple[Entry, int, Profile | None] | None" = None
+    select: tuple[Entry, int, Profile | None] | None = None
     #: how long the drive follows without a new setpoint before it stops on its own, in interpolation
     #: periods (0x60C2), and the source that says so (None: not documented)
     setpoint_timeout: tuple[float, str] | None = None
@@ -124,11 +156,11 @@ class Profile:
     def object_dictionary(self, node_id: int) -> canopen.ObjectDictionary:
         return load_od(self.eds, node_id)
 
-    def for_axis(self, ax: MotorAxis) -> "Profile":
+    def for_axis(self, ax: MotorAxis) -> Profile:
         """:meth:`bind` for an axis, with its motor's torque constant."""
         return self.bind(ax.torque_constant, ax.name)
 
-    def bind(self, torque_constant: float | None, axis: str = "") -> "Profile":
+    def bind(self, torque_constant: float | None, axis: str = "") -> Profile:
         """This profile for one axis whose motor has ``torque_constant`` [Nm/A]: the entries the
         drive holds in current get their scale per Nm (the profile that runs otherwise too).
         UserError where one needs it and it is not given."""
@@ -139,14 +171,23 @@ class Profile:
         if not current:
             return replace(self, select=select)
         if not torque_constant or not torque_constant > 0:
-            raise UserError(f"{'axis ' + axis + ': ' if axis else ''}the {self.drive} holds "
-                            f"{', '.join(e.parameter for e in current)} in current: give the motor's torque "
-                            f"constant (scaling.torque_constant_Nm_per_A in the bus configuration)")
-        return replace(self, select=select,
-                       entries={k: replace(e, scale=e.scale / torque_constant, per_torque_constant=False)
-                                if e.per_torque_constant else e for k, e in self.entries.items()})
+            raise UserError(
+                f"{'axis ' + axis + ': ' if axis else ''}the {self.drive} holds "
+                f"{', '.join(e.parameter for e in current)} in current: give the motor's torque "
+                f"constant (scaling.torque_constant_Nm_per_A in the bus configuration)"
+            )
+        return replace(
+            self,
+            select=select,
+            entries={
+                k: replace(e, scale=e.scale / torque_constant, per_torque_constant=False)
+                if e.per_torque_constant
+                else e
+                for k, e in self.entries.items()
+            },
+        )
 
-    def otherwise(self) -> "Profile | None":
+    def otherwise(self) -> Profile | None:
         """The profile whose objects run while the select object does not select this one's (bound
         to the same motor)."""
         return None if self.select is None else self.select[2]
@@ -167,9 +208,11 @@ class Profile:
             return values
         missing = [k for k in gains if k not in values]
         if missing:
-            raise UserError(f"setting {', '.join(k for k in gains if k in values)} switches the {self.drive} onto "
-                            f"the profile's gain objects ({self.select[0].where()} = {self.select[1]}): the set "
-                            f"needs all of them (missing: {', '.join(missing)})")
+            raise UserError(
+                f"setting {', '.join(k for k in gains if k in values)} switches the {self.drive} onto "
+                f"the profile's gain objects ({self.select[0].where()} = {self.select[1]}): the set "
+                f"needs all of them (missing: {', '.join(missing)})"
+            )
         return {SELECT: float(self.select[1]), **values}
 
 
@@ -187,7 +230,7 @@ def load_profile(name_or_path: str | Path) -> Profile:
             raise ConfigError(name_or_path, "", f"no such drive profile (shipped: {', '.join(available())})")
     top = Section(path, "", load_yaml(path))
     drive = top.get("drive", str)
-    source = top.get("source", str, None)          # for every entry that does not name its own
+    source = top.get("source", str, None)  # for every entry that does not name its own
     eds_ref = top.get("eds", str)
     kind, _, rel = eds_ref.partition("/")
     if kind == "package":
@@ -195,11 +238,15 @@ def load_profile(name_or_path: str | Path) -> Profile:
     elif kind == "vendor":
         eds = vendor_dir() / rel
     else:
-        raise top.error("eds", "must start with package/ (shipped in drive_bridge/data) or vendor/ "
-                               "(the vendor folder)")
+        raise top.error(
+            "eds", "must start with package/ (shipped in drive_bridge/data) or vendor/ (the vendor folder)"
+        )
     if not eds.exists():
-        raise top.error("eds", f"{eds} not found" + (" (set DRIVE_BRIDGE_VENDOR_EDS to the vendor EDS folder)"
-                                                     if kind == "vendor" else ""))
+        raise top.error(
+            "eds",
+            f"{eds} not found"
+            + (" (set DRIVE_BRIDGE_VENDOR_EDS to the vendor EDS folder)" if kind == "vendor" else ""),
+        )
     save_sec = top.section("save", required=False)
     save = None
     if save_sec.keys():
@@ -220,17 +267,35 @@ def load_profile(name_or_path: str | Path) -> Profile:
     select_sec = top.section("select", required=False)
     select = None
     if select_sec.keys():
-        index, sub = select_sec.get("index", int, low=0, high=0xFFFF), select_sec.get("sub", int, 0, low=0, high=255)
+        index, sub = (
+            select_sec.get("index", int, low=0, high=0xFFFF),
+            select_sec.get("sub", int, 0, low=0, high=255),
+        )
         value, otherwise = select_sec.get("value", int), select_sec.get("otherwise", str, None)
         var = od.get_variable(index, sub)
         if var is None:
             raise select_sec.error("index", f"{eds.name} has no object 0x{index:04X}:{sub}")
-        type_name = next((n for n, t in TYPES.items() if t == var.data_type and not n.startswith("REAL")), None)
+        type_name = next(
+            (n for n, t in TYPES.items() if t == var.data_type and not n.startswith("REAL")), None
+        )
         if type_name is None or "w" not in var.access_type:
-            raise select_sec.error("index", f"{eds.name}: 0x{index:04X}:{sub} is not a writable integer object")
-        select = (Entry(SELECT, index, sub, type_name, 1.0, False, "1: the profile's gain objects run",
-                        source=select_sec.get("source", str, None)), value,
-                  None if otherwise is None else load_profile(otherwise))
+            raise select_sec.error(
+                "index", f"{eds.name}: 0x{index:04X}:{sub} is not a writable integer object"
+            )
+        select = (
+            Entry(
+                SELECT,
+                index,
+                sub,
+                type_name,
+                1.0,
+                False,
+                "1: the profile's gain objects run",
+                source=select_sec.get("source", str, None),
+            ),
+            value,
+            None if otherwise is None else load_profile(otherwise),
+        )
     select_sec.done()
     params = top.section("parameters")
     entries = {}
@@ -238,24 +303,38 @@ def load_profile(name_or_path: str | Path) -> Profile:
         if name not in PARAMETERS:
             raise params.error(name, f"unknown parameter (known: {', '.join(PARAMETERS)})")
         sec = params.section(name)
-        entry = Entry(name, sec.get("index", int), sec.get("sub", int, 0), sec.get("type", str),
-                      sec.get("scale", float, 1.0), sec.get("reciprocal", bool, False), sec.get("unit", str, ""),
-                      sec.get("min", float, None), sec.get("max", float, None),
-                      sec.get("source", (str, type(None)), source),
-                      sec.get("per_torque_constant", bool, False))
+        entry = Entry(
+            name,
+            sec.get("index", int),
+            sec.get("sub", int, 0),
+            sec.get("type", str),
+            sec.get("scale", float, 1.0),
+            sec.get("reciprocal", bool, False),
+            sec.get("unit", str, ""),
+            sec.get("min", float, None),
+            sec.get("max", float, None),
+            sec.get("source", (str, type(None)), source),
+            sec.get("per_torque_constant", bool, False),
+        )
         if entry.min is not None and entry.max is not None and entry.min > entry.max:
             raise params.error(f"{name}.min", f"min {entry.min} is above max {entry.max}")
-        if entry.reciprocal and entry.per_torque_constant:        # bind scales by 1/kt: right for scale × SI only
-            raise params.error(f"{name}.per_torque_constant", "a reciprocal value (a reset time) holds no current")
+        if entry.reciprocal and entry.per_torque_constant:  # bind scales by 1/kt: right for scale × SI only
+            raise params.error(
+                f"{name}.per_torque_constant", "a reciprocal value (a reset time) holds no current"
+            )
         sec.done()
         if entry.type not in TYPES:
-            raise params.error(f"{name}.type", f"unknown data type {entry.type!r} (known: {', '.join(TYPES)})")
+            raise params.error(
+                f"{name}.type", f"unknown data type {entry.type!r} (known: {', '.join(TYPES)})"
+            )
         var = od.get_variable(entry.index, entry.sub)
         if var is None:
             raise params.error(name, f"{eds.name} has no object {entry.where()}")
         if var.data_type != TYPES[entry.type]:
-            raise params.error(f"{name}.type", f"{eds.name} declares {entry.where()} as data type "
-                                               f"0x{var.data_type:04X}, not {entry.type}")
+            raise params.error(
+                f"{name}.type",
+                f"{eds.name} declares {entry.where()} as data type 0x{var.data_type:04X}, not {entry.type}",
+            )
         if "w" not in var.access_type:
             raise params.error(name, f"{eds.name}: {entry.where()} is not writable ({var.access_type})")
         entries[name] = entry
@@ -281,7 +360,7 @@ def _setpoint_timeout(sec: Section) -> tuple[float, str] | None:
     return out
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _shipped_setpoint_timeouts() -> dict[str, tuple[str, float, str]]:
     """EDS file name -> (profile, setpoint-loss timeout [periods], source), of every shipped profile
     that names one (read from the YAML alone: no EDS needed)."""
@@ -290,7 +369,11 @@ def _shipped_setpoint_timeouts() -> dict[str, tuple[str, float, str]]:
         doc = load_yaml(PROFILE_DIR / f"{name}.yaml")
         sup = doc.get("supervision") if isinstance(doc, dict) else None
         if isinstance(sup, dict) and "setpoint_timeout_periods" in sup:
-            out[Path(str(doc["eds"])).name] = (name, float(sup["setpoint_timeout_periods"]), str(sup.get("source", "")))
+            out[Path(str(doc["eds"])).name] = (
+                name,
+                float(sup["setpoint_timeout_periods"]),
+                str(sup.get("source", "")),
+            )
     return out
 
 
@@ -299,6 +382,8 @@ def setpoint_timeout_for(dcfs: list[Path], period: float) -> tuple[float | None,
     they stop on their own, at interpolation period ``period`` [s]: the shortest a shipped profile
     for one of those files names, and where it comes from; (None, "") where none names one."""
     known = [_shipped_setpoint_timeouts().get(Path(d).name) for d in dcfs]
-    found = [(periods * period, f"drive profile {name}: {periods:g} interpolation periods ({source})")
-             for name, periods, source in (k for k in known if k is not None)]
+    found = [
+        (periods * period, f"drive profile {name}: {periods:g} interpolation periods ({source})")
+        for name, periods, source in (k for k in known if k is not None)
+    ]
     return min(found) if found else (None, "")

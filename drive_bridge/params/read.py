@@ -1,5 +1,6 @@
 """Reading a drive: its parameters in SI through the drive profile, its motor data, and the
 state bring-up records before commissioning (the set a commissioning can be compared with)."""
+
 from __future__ import annotations
 
 from collections.abc import Collection
@@ -12,13 +13,15 @@ from ..errors import BusError, UserError
 from ..outputs import identity_hex
 from .profile import SELECT, Entry, Profile
 
+
 def sdo_variable(node: canopen.RemoteNode, entry: Entry) -> SdoVariable:
     """The SDO accessor of ``entry``'s object on ``node`` (canopen's own lookup)."""
     return sdo_object(node, entry.index, entry.sub)
 
 
-def read_parameters(node: canopen.RemoteNode, profile: Profile, names: Collection[str] | None = None
-                    ) -> dict[str, float]:
+def read_parameters(
+    node: canopen.RemoteNode, profile: Profile, names: Collection[str] | None = None
+) -> dict[str, float]:
     """The drive's current values [SI] of ``names`` in the cascade's terms (default: every
     parameter of ``profile``; names the profile has no object for are left out): its controller's
     parameters read and turned into them (``profile`` bound to the axis's motor).  Where the
@@ -27,7 +30,7 @@ def read_parameters(node: canopen.RemoteNode, profile: Profile, names: Collectio
 
     Raises BusError naming the object when the drive does not answer or refuses a read."""
     out = {}
-    if profile.select is not None:                      # a drive not on the profile's gain objects runs others
+    if profile.select is not None:  # a drive not on the profile's gain objects runs others
         entry = profile.select[0]
         out[entry.parameter] = selected = _read(node, entry)
         if selected != profile.select[1] and (otherwise := profile.otherwise()) is not None:
@@ -45,12 +48,14 @@ def _read(node: canopen.RemoteNode, entry: Entry) -> float:
     try:
         return entry.to_si(float(sdo_variable(node, entry).raw))
     except SDO_ERRORS as exc:
-        raise BusError(f"node {node.id}: reading {entry.parameter} ({entry.where()}) failed: "
-                       f"{describe_sdo_error(exc)}") from exc
+        raise BusError(
+            f"node {node.id}: reading {entry.parameter} ({entry.where()}) failed: {describe_sdo_error(exc)}"
+        ) from exc
 
 
-def motor_data(node: canopen.RemoteNode, profile: Profile, R: float | None = None,
-               L: float | None = None) -> tuple[float, float]:
+def motor_data(
+    node: canopen.RemoteNode, profile: Profile, R: float | None = None, L: float | None = None
+) -> tuple[float, float]:
     """Motor R [Ω] and L [H]: ``R``, ``L`` where given, else from the objects the drive profile
     names for them (``motor`` in the profile)."""
     if R and L:
@@ -60,20 +65,29 @@ def motor_data(node: canopen.RemoteNode, profile: Profile, R: float | None = Non
             R, L = (float(sdo_object(node, *profile.motor[k]).raw) for k in ("R", "L"))
             return R, L
         except SDO_ERRORS as exc:
-            raise BusError(f"node {node.id}: reading its motor data failed: {describe_sdo_error(exc)}") from exc
-    raise UserError(f"node {node.id}: the {profile.drive} profile names no motor data objects; give the motor's "
-                    f"winding resistance and inductance as motor: {{R_ohm: ..., L_H: ...}} of the node in the bus "
-                    f"configuration, or --motor-R and --motor-L")
+            raise BusError(
+                f"node {node.id}: reading its motor data failed: {describe_sdo_error(exc)}"
+            ) from exc
+    raise UserError(
+        f"node {node.id}: the {profile.drive} profile names no motor data objects; give the motor's "
+        f"winding resistance and inductance as motor: {{R_ohm: ..., L_H: ...}} of the node in the bus "
+        f"configuration, or --motor-R and --motor-L"
+    )
 
 
 def require_profile_objects(nodes: dict[str, canopen.RemoteNode], profile: Profile) -> None:
     """UserError naming the axis when its EDS/DCF lacks an object of ``profile`` (wrong profile)."""
     for a, node in nodes.items():
-        missing = [e.where() for e in profile.entries.values()
-                   if node.object_dictionary.get_variable(e.index, e.sub) is None]
+        missing = [
+            e.where()
+            for e in profile.entries.values()
+            if node.object_dictionary.get_variable(e.index, e.sub) is None
+        ]
         if missing:
-            raise UserError(f"axis {a}: the EDS/DCF of node {node.id} has no object {', '.join(missing)} of the "
-                            f"drive profile {profile.path}; choose the profile of this drive (--profile)")
+            raise UserError(
+                f"axis {a}: the EDS/DCF of node {node.id} has no object {', '.join(missing)} of the "
+                f"drive profile {profile.path}; choose the profile of this drive (--profile)"
+            )
 
 
 def drive_state(axes: dict, profile: Profile, motor: tuple[float, float] | None = None) -> dict[str, dict]:
@@ -86,6 +100,10 @@ def drive_state(axes: dict, profile: Profile, motor: tuple[float, float] | None 
     out = {}
     for a, ax in axes.items():
         R, L = motor_data(ax.node, profile, *(motor or ax.cfg.motor or (None, None)))
-        out[a] = {"node_id": ax.cfg.node_id, "identity": identity_hex(ax.identity), "motor": {"R": R, "L": L},
-                  "parameters_before": read_parameters(ax.node, profile.for_axis(ax))}
+        out[a] = {
+            "node_id": ax.cfg.node_id,
+            "identity": identity_hex(ax.identity),
+            "motor": {"R": R, "L": L},
+            "parameters_before": read_parameters(ax.node, profile.for_axis(ax)),
+        }
     return out

@@ -5,6 +5,7 @@ data type's range, a read-back that differs) restores the backup and issues
 no store; only when every value is verified is 0x1010 'save' written.  The
 result lists every object with its old and new value in SI and device units.
 """
+
 from __future__ import annotations
 
 import logging
@@ -16,9 +17,9 @@ from typing import Any
 
 import canopen
 
+from ..cia.sdo import SDO_ERRORS, address, describe_sdo_error, put_back, sdo_object, snapshot
 from ..dcf import export_dcf
 from ..errors import BusError, DriveRefused, InternalError, UserError, WriteInterrupted
-from ..cia.sdo import SDO_ERRORS, address, describe_sdo_error, put_back, sdo_object, snapshot
 from ..outputs import hex_object, stamped, write_json
 from ..signals import deferred, signal_name
 from .check import GM_FLOOR_DB, PM_FLOOR_DEG, ValueRefused, check_set, gate
@@ -27,7 +28,7 @@ from .read import motor_data, require_profile_objects, sdo_variable
 
 log = logging.getLogger(__name__)
 
-SAVE_SIGNATURE = 0x65766173         # "save"
+SAVE_SIGNATURE = 0x65766173  # "save"
 
 
 @dataclass
@@ -40,25 +41,32 @@ class ObjectWrite:
     new_si: float | None = None
     old_device: float | int | None = None
     new_device: float | int | None = None
-    attempted: bool = False           # a write was sent (its answer may have been lost)
-    written: bool = False             # the drive confirmed the write
-    verified: bool = False            # read back equal to what was written (and still in force)
+    attempted: bool = False  # a write was sent (its answer may have been lost)
+    written: bool = False  # the drive confirmed the write
+    verified: bool = False  # read back equal to what was written (and still in force)
 
 
 #: what a drive's RAM or its stored (non-volatile) set holds after a transaction
 NEW, BACKUP, UNCHANGED, UNKNOWN = "new", "backup", "unchanged", "unknown"
 #: what a store makes permanent besides the objects written (CiA 301 0x1010 sub-indices)
-STORE_SCOPE = {1: "every parameter the drive held in RAM (0x1010:1), not only the objects written: bring-up's "
-                  "PDO mapping and communication parameters, heartbeat consumer, limits and stop behaviour with them",
-               2: "the communication parameters (0x1010:2)", 3: "the application parameters (0x1010:3)"}
+STORE_SCOPE = {
+    1: "every parameter the drive held in RAM (0x1010:1), not only the objects written: bring-up's "
+    "PDO mapping and communication parameters, heartbeat consumer, limits and stop behaviour with them",
+    2: "the communication parameters (0x1010:2)",
+    3: "the application parameters (0x1010:3)",
+}
 #: what a restore after a store puts back: with bring-up's snapshot of what it overwrote, everything;
 #: without it (for the reason given), the objects written only
-RESTORE_ALL = ("the objects written, and every object bring-up overwrote (PDO mapping and communication parameters, "
-               "heartbeat, limits, stop behaviour) as the drive held it when bring-up found it -- its stored set, "
-               "unless something changed it since the drive was powered on: stored that way, then bring-up's values "
-               "set again in RAM for the rest of the run")
-RESTORE_WRITTEN = ("only the objects written: {why}, so the values the store made permanent for bring-up's PDO "
-                   "mapping, heartbeat, limits and stop behaviour (as a bring-up left them in RAM) stay stored")
+RESTORE_ALL = (
+    "the objects written, and every object bring-up overwrote (PDO mapping and communication parameters, "
+    "heartbeat, limits, stop behaviour) as the drive held it when bring-up found it -- its stored set, "
+    "unless something changed it since the drive was powered on: stored that way, then bring-up's values "
+    "set again in RAM for the rest of the run"
+)
+RESTORE_WRITTEN = (
+    "only the objects written: {why}, so the values the store made permanent for bring-up's PDO "
+    "mapping, heartbeat, limits and stop behaviour (as a bring-up left them in RAM) stay stored"
+)
 NO_BRING_UP = "this write did not bring the drives up"
 
 
@@ -81,8 +89,8 @@ class WriteResult:
     notes: list[str] = field(default_factory=list)
     ram: str = UNCHANGED
     stored_set: str = UNCHANGED
-    interrupted: str | None = None    # the signal that cut the transaction short (Ctrl-C, SIGTERM, SIGHUP)
-    caused: bool = False              # this drive's failure ended the transaction
+    interrupted: str | None = None  # the signal that cut the transaction short (Ctrl-C, SIGTERM, SIGHUP)
+    caused: bool = False  # this drive's failure ended the transaction
     #: what a store sent to this drive made permanent besides the objects written (None: no store sent),
     #: and what a restore after it puts back
     store_scope: str | None = None
@@ -90,8 +98,12 @@ class WriteResult:
 
     def holds(self) -> str:
         """What the drive is known to hold, in words."""
-        ram = {NEW: "new values in RAM", BACKUP: "restored (read back)", UNCHANGED: "untouched",
-               UNKNOWN: "RAM UNKNOWN (could not be read back)"}[self.ram]
+        ram = {
+            NEW: "new values in RAM",
+            BACKUP: "restored (read back)",
+            UNCHANGED: "untouched",
+            UNKNOWN: "RAM UNKNOWN (could not be read back)",
+        }[self.ram]
         return f"{ram}, stored set {self.stored_set}"
 
     @property
@@ -101,8 +113,10 @@ class WriteResult:
     def as_dict(self) -> dict:
         """One drive in write.json: each object's address as "0x2000:3"."""
         d = asdict(self)
-        d["objects"] = [{"parameter": o.pop("parameter"), "object": hex_object(o.pop("index"), o.pop("sub")), **o}
-                        for o in d["objects"]]
+        d["objects"] = [
+            {"parameter": o.pop("parameter"), "object": hex_object(o.pop("index"), o.pop("sub")), **o}
+            for o in d["objects"]
+        ]
         d["ok"] = self.ok
         return d
 
@@ -121,22 +135,33 @@ def _describe(exc: BaseException, phase: str, w: ObjectWrite | None, entry: Entr
         return f"interrupted by {signal_name(exc)} during the {phase} phase"
     if isinstance(exc, _Failed):
         return str(exc)
-    doing = {"backup": f"reading{what} for the backup", "write": f"writing{what} = {w.new_device if w else ''}",
-             "verify": f"reading back{what}", "store": "storing (0x1010 'save')"}[phase]
+    doing = {
+        "backup": f"reading{what} for the backup",
+        "write": f"writing{what} = {w.new_device if w else ''}",
+        "verify": f"reading back{what}",
+        "store": "storing (0x1010 'save')",
+    }[phase]
     if isinstance(exc, SDO_ERRORS):
         return f"{doing} failed: {describe_sdo_error(exc)}"
     return f"{doing} failed: {type(exc).__name__}: {exc}"
 
 
-def bind_axes(profile: Profile, axes: Iterable[str],
-              torque_constants: dict[str, float | None] | None) -> dict[str, Profile]:
+def bind_axes(
+    profile: Profile, axes: Iterable[str], torque_constants: dict[str, float | None] | None
+) -> dict[str, Profile]:
     """``profile`` for each of ``axes``, with its motor's torque constant [Nm/A] where the drive
     holds values in current (:meth:`~.profile.Profile.bind`)."""
     return {a: profile.bind((torque_constants or {}).get(a), a) for a in axes}
 
 
-def plan_writes(nodes: dict[str, canopen.RemoteNode], profiles: dict[str, Profile],
-                values: dict[str, dict[str, float]], *, check: bool = True, dry_run: bool = False) -> dict[str, WriteResult]:
+def plan_writes(
+    nodes: dict[str, canopen.RemoteNode],
+    profiles: dict[str, Profile],
+    values: dict[str, dict[str, float]],
+    *,
+    check: bool = True,
+    dry_run: bool = False,
+) -> dict[str, WriteResult]:
     """The objects each drive will get (``values`` in the cascade's terms, as tune gives them, turned
     into the parameters of the controller its profile declares); with ``check`` every value is
     checked first (:func:`~drive_bridge.params.check.check_set`) and ValueRefused names every
@@ -152,20 +177,38 @@ def plan_writes(nodes: dict[str, canopen.RemoteNode], profiles: dict[str, Profil
             continue
         if check:
             problems += [f"axis {axis}: {p}" for p in check_set(profile, node.object_dictionary, vals)]
-        objects = [ObjectWrite(k, profile.entries[k].index, profile.entries[k].sub, profile.entries[k].unit,
-                               new_si=float(v), new_device=None if problems else profile.entries[k].to_device(v))
-                   for k, v in vals.items() if k in profile.entries]
-        results[axis] = WriteResult(node.id, profile.drive, objects, [k for k in vals if k not in profile.entries],
-                                    dry_run=dry_run)
+        objects = [
+            ObjectWrite(
+                k,
+                profile.entries[k].index,
+                profile.entries[k].sub,
+                profile.entries[k].unit,
+                new_si=float(v),
+                new_device=None if problems else profile.entries[k].to_device(v),
+            )
+            for k, v in vals.items()
+            if k in profile.entries
+        ]
+        results[axis] = WriteResult(
+            node.id, profile.drive, objects, [k for k in vals if k not in profile.entries], dry_run=dry_run
+        )
     if problems:
         raise ValueRefused("refused before anything was written: " + "; ".join(problems))
     return results
 
 
-def write_all(nodes: dict[str, canopen.RemoteNode], profile: Profile, values: dict[str, dict[str, float]], *,
-              backup_dir: str | Path | None = None, store: bool = True, dry_run: bool = False,
-              check: bool = True, settings_before: dict[str, dict[str, int]] | None = None,
-              torque_constants: dict[str, float | None] | None = None) -> dict[str, WriteResult]:
+def write_all(
+    nodes: dict[str, canopen.RemoteNode],
+    profile: Profile,
+    values: dict[str, dict[str, float]],
+    *,
+    backup_dir: str | Path | None = None,
+    store: bool = True,
+    dry_run: bool = False,
+    check: bool = True,
+    settings_before: dict[str, dict[str, int]] | None = None,
+    torque_constants: dict[str, float | None] | None = None,
+) -> dict[str, WriteResult]:
     """Write every axis's ``values`` (axis -> name -> SI) as one transaction over all drives.
 
     Every value is checked before anything is written (``check``).  Then: backup (read every
@@ -180,7 +223,9 @@ def write_all(nodes: dict[str, canopen.RemoteNode], profile: Profile, values: di
     """
     profiles = bind_axes(profile, nodes, torque_constants)
     results = plan_writes(nodes, profiles, values, check=check, dry_run=dry_run)
-    _Transaction(nodes, profiles, results, _backup_paths(nodes, backup_dir), settings_before).run(store, dry_run)
+    _Transaction(nodes, profiles, results, _backup_paths(nodes, backup_dir), settings_before).run(
+        store, dry_run
+    )
     return results
 
 
@@ -188,34 +233,48 @@ def _backup_paths(nodes: Iterable[str], backup_dir: str | Path | None) -> dict[s
     return {a: None if backup_dir is None else Path(backup_dir) / f"{a}_backup.json" for a in nodes}
 
 
-def write_parameters(node: canopen.RemoteNode, profile: Profile, values: dict[str, float], *,
-                     dry_run: bool = False, store: bool = True, backup_path: str | Path | None = None,
-                     check: bool = True) -> WriteResult:
+def write_parameters(
+    node: canopen.RemoteNode,
+    profile: Profile,
+    values: dict[str, float],
+    *,
+    dry_run: bool = False,
+    store: bool = True,
+    backup_path: str | Path | None = None,
+    check: bool = True,
+) -> WriteResult:
     """:func:`write_all` for one drive (``backup_path``: where its backup goes; ``profile`` bound to
     its motor: :meth:`~.profile.Profile.bind`)."""
     results = plan_writes({"": node}, {"": profile}, {"": values}, check=check, dry_run=dry_run)
-    _Transaction({"": node}, {"": profile}, results, {"": None if backup_path is None else Path(backup_path)}
-                 ).run(store, dry_run)
+    _Transaction(
+        {"": node}, {"": profile}, results, {"": None if backup_path is None else Path(backup_path)}
+    ).run(store, dry_run)
     return results[""]
 
 
 class _Transaction:
-    def __init__(self, nodes: dict[str, canopen.RemoteNode], profiles: dict[str, Profile],
-                 results: dict[str, WriteResult], backup_paths: dict[str, Path | None],
-                 settings_before: dict[str, dict[str, int]] | None = None):
+    def __init__(
+        self,
+        nodes: dict[str, canopen.RemoteNode],
+        profiles: dict[str, Profile],
+        results: dict[str, WriteResult],
+        backup_paths: dict[str, Path | None],
+        settings_before: dict[str, dict[str, int]] | None = None,
+    ):
         self.nodes, self.profiles, self.results = nodes, profiles, results
-        self.profile = next(iter(profiles.values()))         # the drive model's (name, store object)
+        self.profile = next(iter(profiles.values()))  # the drive model's (name, store object)
         self.backup_paths = backup_paths
         self.settings_before = settings_before or {}
         self.store_state: dict[str, str] = dict.fromkeys(results, UNCHANGED)
-        self.interrupted_in_restore: str | None = None     # a KeyboardInterrupt the restore finished despite
+        self.interrupted_in_restore: str | None = None  # a KeyboardInterrupt the restore finished despite
 
     def _get(self, axis: str, w: ObjectWrite) -> int | float:
         """``w``'s object as the drive holds it [device units]."""
         value = sdo_variable(self.nodes[axis], self._entry(axis, w)).raw
         if not isinstance(value, (int, float)):
-            raise DriveRefused(f"axis {axis}: {w.parameter} ({self._entry(axis, w).where()}) reads {value!r}, "
-                               f"not a number")
+            raise DriveRefused(
+                f"axis {axis}: {w.parameter} ({self._entry(axis, w).where()}) reads {value!r}, not a number"
+            )
         return value
 
     def _set(self, axis: str, w: ObjectWrite, value: int | float | None) -> None:
@@ -229,7 +288,7 @@ class _Transaction:
 
     def run(self, store: bool, dry_run: bool) -> None:
         phase = "backup"
-        where: tuple[str | None, ObjectWrite | None] = (None, None)    # the axis and object at work
+        where: tuple[str | None, ObjectWrite | None] = (None, None)  # the axis and object at work
         try:
             for a, r in self.results.items():
                 for w in r.objects:
@@ -253,12 +312,14 @@ class _Transaction:
                     back = self._get(a, w)
                     w.verified = _same(self._entry(a, w), back, w.new_device)
                     if not w.verified:
-                        raise _Failed(f"{w.parameter} ({self._entry(a, w).where()}) reads back "
-                                      f"{back}, not the {w.new_device} written")
+                        raise _Failed(
+                            f"{w.parameter} ({self._entry(a, w).where()}) reads back "
+                            f"{back}, not the {w.new_device} written"
+                        )
             phase = "store"
             for a, r in self.results.items():
                 where = (a, None)
-                if store and r.objects:                 # nothing written: nothing to make non-volatile
+                if store and r.objects:  # nothing written: nothing to make non-volatile
                     self._store(a, r)
             for r in self.results.values():
                 r.ram = NEW
@@ -271,8 +332,11 @@ class _Transaction:
             if phase == "backup":
                 for a, r in self.results.items():
                     r.caused = a == axis
-                    r.error = reason + "; nothing was written" if a == axis else \
-                        f"not written: axis {axis} failed ({reason})"
+                    r.error = (
+                        reason + "; nothing was written"
+                        if a == axis
+                        else f"not written: axis {axis} failed ({reason})"
+                    )
                 return
             with deferred(raise_after=False) as held:
                 self._restore(axis, reason)
@@ -285,10 +349,26 @@ class _Transaction:
         path = self.backup_paths[axis]
         if path is None:
             return
-        write_json(path, {"node_id": r.node_id, "drive": self.profile.drive, "profile": self.profile.name,
-                          "objects": [{"parameter": w.parameter, "index": w.index, "sub": w.sub,
-                                       "device": w.old_device, "si": w.old_si} for w in r.objects],
-                          "settings_before_bring_up": self.settings_before.get(axis)}, exact=True)
+        write_json(
+            path,
+            {
+                "node_id": r.node_id,
+                "drive": self.profile.drive,
+                "profile": self.profile.name,
+                "objects": [
+                    {
+                        "parameter": w.parameter,
+                        "index": w.index,
+                        "sub": w.sub,
+                        "device": w.old_device,
+                        "si": w.old_si,
+                    }
+                    for w in r.objects
+                ],
+                "settings_before_bring_up": self.settings_before.get(axis),
+            },
+            exact=True,
+        )
         r.backup = str(path)
 
     def _store(self, axis: str, r: WriteResult) -> None:
@@ -297,9 +377,11 @@ class _Transaction:
             r.notes.append(f"{self.profile.drive} has no store object: the values are not made non-volatile")
             return
         log.info("axis %s: storing (0x%04X:%d 'save')", axis, *save)
-        self.store_state[axis] = UNKNOWN              # sent: until it is confirmed, nobody knows
+        self.store_state[axis] = UNKNOWN  # sent: until it is confirmed, nobody knows
         r.store_scope = STORE_SCOPE.get(save[1], f"what 0x{save[0]:04X}:{save[1]} stores")
-        r.restore_covers = RESTORE_ALL if self.settings_before.get(axis) else RESTORE_WRITTEN.format(why=NO_BRING_UP)
+        r.restore_covers = (
+            RESTORE_ALL if self.settings_before.get(axis) else RESTORE_WRITTEN.format(why=NO_BRING_UP)
+        )
         self.nodes[axis].sdo[save[0]][save[1]].raw = SAVE_SIGNATURE
         self.store_state[axis] = NEW
         r.stored, r.stored_set = True, NEW
@@ -335,7 +417,9 @@ class _Transaction:
                     continue
                 if not _same(self._entry(a, w), back, w.old_device):
                     back_ok = False
-                    r.notes.append(f"{w.parameter} reads {back} after restoring, not its backup {w.old_device}")
+                    r.notes.append(
+                        f"{w.parameter} reads {back} after restoring, not its backup {w.old_device}"
+                    )
             r.ram = BACKUP if back_ok else UNKNOWN
             r.restored = back_ok
             self._restore_stored_set(a, r)
@@ -356,17 +440,23 @@ class _Transaction:
         except (Exception, KeyboardInterrupt) as exc:
             self._note_interrupt(exc)
             r.restore_covers = RESTORE_WRITTEN.format(why=f"putting bring-up's settings back failed ({exc})")
-            r.notes.append(f"bring-up's settings could not be put back as they were before it ({exc}): they stay "
-                           f"stored as bring-up set them")
+            r.notes.append(
+                f"bring-up's settings could not be put back as they were before it ({exc}): they stay "
+                f"stored as bring-up set them"
+            )
         else:
-            r.notes.append(f"the {len(before)} objects bring-up overwrote were stored as the drive held them before it")
+            r.notes.append(
+                f"the {len(before)} objects bring-up overwrote were stored as the drive held them before it"
+            )
         yield
         try:
             put_back(node, axis, live)
         except (Exception, KeyboardInterrupt) as exc:
             self._note_interrupt(exc)
-            r.notes.append(f"bring-up's settings could not be set again in RAM ({exc}): the drive runs with its "
-                           f"settings from before bring-up until it is brought up again")
+            r.notes.append(
+                f"bring-up's settings could not be set again in RAM ({exc}): the drive runs with its "
+                f"settings from before bring-up until it is brought up again"
+            )
 
     def _restore_object(self, axis: str, w: ObjectWrite) -> None:
         """Write one object's backup; an interrupt is not the drive's answer, so that object is
@@ -387,19 +477,28 @@ class _Transaction:
         r.stored = False
         if state == UNCHANGED:
             r.stored_set = UNCHANGED
-            r.notes.append("no store was sent to this drive: its stored set is the one it had "
-                           "(a power cycle or NMT reset node brings it back)")
+            r.notes.append(
+                "no store was sent to this drive: its stored set is the one it had "
+                "(a power cycle or NMT reset node brings it back)"
+            )
             return
         if r.ram != BACKUP:
             r.stored_set = state
-            r.notes.append("its RAM could not be confirmed as the backup, so it was not stored again: its stored "
-                           + ("set holds the new values" if state == NEW else "set is unknown (a store was sent "
-                                                                              "without an answer)"))
+            r.notes.append(
+                "its RAM could not be confirmed as the backup, so it was not stored again: its stored "
+                + (
+                    "set holds the new values"
+                    if state == NEW
+                    else "set is unknown (a store was sent without an answer)"
+                )
+            )
             return
         try:
             save = self.profile.save
             if save is None:
-                raise DriveRefused(f"the {self.profile.drive} profile names no object that stores the parameters")
+                raise DriveRefused(
+                    f"the {self.profile.drive} profile names no object that stores the parameters"
+                )
             with self._as_before_bring_up(axis, r):
                 sdo_object(self.nodes[axis], *save).raw = SAVE_SIGNATURE
             r.stored_set = BACKUP
@@ -408,8 +507,10 @@ class _Transaction:
             self._note_interrupt(exc)
             lost = not isinstance(exc, canopen.SdoAbortedError)
             r.stored_set = UNKNOWN if lost or state == UNKNOWN else NEW
-            r.notes.append(f"storing the backup again failed ({_describe(exc, 'store', None, None)}): its stored set "
-                           + ("is unknown" if r.stored_set == UNKNOWN else "holds the new values"))
+            r.notes.append(
+                f"storing the backup again failed ({_describe(exc, 'store', None, None)}): its stored set "
+                + ("is unknown" if r.stored_set == UNKNOWN else "holds the new values")
+            )
 
 
 @dataclass
@@ -421,7 +522,7 @@ class WriteOutcome:
     margins: dict[str, dict]
     forced: list[str]
     axes: list[str]
-    unverified_scales: list[str] = field(default_factory=list)   # "KpS (0x3210:3)" written without a source
+    unverified_scales: list[str] = field(default_factory=list)  # "KpS (0x3210:3)" written without a source
 
     @property
     def ok(self) -> bool:
@@ -429,18 +530,36 @@ class WriteOutcome:
 
     def as_dict(self) -> dict:
         """write.json / ``write --json``."""
-        return stamped("write", {"ok": self.ok, "forced": self.forced, "margins": self.margins,
-                                 "unverified_scales": self.unverified_scales,
-                                 "axes": {a: r.as_dict() for a, r in self.results.items()}})
+        return stamped(
+            "write",
+            {
+                "ok": self.ok,
+                "forced": self.forced,
+                "margins": self.margins,
+                "unverified_scales": self.unverified_scales,
+                "axes": {a: r.as_dict() for a, r in self.results.items()},
+            },
+        )
 
 
-def write_drives(nodes: dict[str, canopen.RemoteNode], profile: Profile, values: dict[str, dict[str, float]], *,
-                 backup_dir: str | Path | None, dcf_dir: str | Path | None = None, dry_run: bool = False,
-                 inductance: dict[str, float | None] | None = None, force: bool = False,
-                 pm_floor: float = PM_FLOOR_DEG, gm_floor: float = GM_FLOOR_DB,
-                 allow_unverified_scales: bool = False, bitrate: int = 1_000_000,
-                 settings_before: dict[str, dict[str, int]] | None = None, frf: dict | None = None,
-                 torque_constants: dict[str, float | None] | None = None) -> WriteOutcome:
+def write_drives(
+    nodes: dict[str, canopen.RemoteNode],
+    profile: Profile,
+    values: dict[str, dict[str, float]],
+    *,
+    backup_dir: str | Path | None,
+    dcf_dir: str | Path | None = None,
+    dry_run: bool = False,
+    inductance: dict[str, float | None] | None = None,
+    force: bool = False,
+    pm_floor: float = PM_FLOOR_DEG,
+    gm_floor: float = GM_FLOOR_DB,
+    allow_unverified_scales: bool = False,
+    bitrate: int = 1_000_000,
+    settings_before: dict[str, dict[str, int]] | None = None,
+    frf: dict | None = None,
+    torque_constants: dict[str, float | None] | None = None,
+) -> WriteOutcome:
     """The write step: every value checked, and each drive's gains checked against the model in
     its set (J, c1) with its motor ``inductance`` [H] (from the tune result, else the motor
     data objects the profile names) and against its measured response where ``frf`` has one
@@ -456,21 +575,32 @@ def write_drives(nodes: dict[str, canopen.RemoteNode], profile: Profile, values:
     is written."""
     require_profile_objects(nodes, profile)
     profiles = bind_axes(profile, nodes, torque_constants)
-    results = plan_writes(nodes, profiles, values, dry_run=dry_run)     # every value first: ValueRefused
+    results = plan_writes(nodes, profiles, values, dry_run=dry_run)  # every value first: ValueRefused
     L = {}
     for a, node in nodes.items():
         L[a] = (inductance or {}).get(a)
-        if L[a] is None and profile.motor is not None:       # the drive reports its motor data
+        if L[a] is None and profile.motor is not None:  # the drive reports its motor data
             try:
                 L[a] = motor_data(node, profile)[1]
             except BusError:
                 L[a] = None
-    checked = gate(profiles, values, L, force=force, pm_floor=pm_floor, gm_floor=gm_floor,
-                   allow_unverified_scales=allow_unverified_scales, dry_run=dry_run, frf=frf)
-    _Transaction(nodes, profiles, results, _backup_paths(nodes, backup_dir), settings_before).run(True, dry_run)
+    checked = gate(
+        profiles,
+        values,
+        L,
+        force=force,
+        pm_floor=pm_floor,
+        gm_floor=gm_floor,
+        allow_unverified_scales=allow_unverified_scales,
+        dry_run=dry_run,
+        frf=frf,
+    )
+    _Transaction(nodes, profiles, results, _backup_paths(nodes, backup_dir), settings_before).run(
+        True, dry_run
+    )
     outcome = WriteOutcome(results, checked.margins, checked.forced, list(nodes), checked.unverified)
     if dcf_dir is not None and not dry_run and outcome.ok:
-        for a, r in results.items():
+        for a in results:
             export_dcf(nodes[a], Path(dcf_dir) / f"{a}.dcf", bitrate)
     return outcome
 
@@ -482,8 +612,9 @@ def raise_for_failure(outcome: WriteOutcome, backup_dir: str | Path | None) -> N
     axis = next((a for a, r in outcome.results.items() if r.caused), None)
     where = f"; backups in {backup_dir}" if backup_dir is not None else ""
     states = "; ".join(f"{a}: {r.holds()}" for a, r in outcome.results.items())
-    message = (f"axis {axis}: {outcome.results[axis].error}" if axis else "not every drive was written") + \
-        f" ({states}){where}"
+    message = (
+        f"axis {axis}: {outcome.results[axis].error}" if axis else "not every drive was written"
+    ) + f" ({states}){where}"
     failed = outcome.results.get(axis) if axis else None
     interrupted = next((r.interrupted for r in outcome.results.values() if r.interrupted), None)
     if interrupted:

@@ -26,6 +26,7 @@ drive's own way of sending.  Relies on ``LocalNode.__init__`` registering
 ``nmt.on_write`` through ``add_write_callback`` and on ``sdo.network`` being
 what the SDO server sends its replies through.
 """
+
 from __future__ import annotations
 
 import time
@@ -51,14 +52,23 @@ class FastVirtualBus(VirtualBus):
         for bus_queue in self.channel:
             if bus_queue is self.queue and not self.receive_own_messages:
                 continue
-            bus_queue.put_nowait(can.Message(
-                timestamp=timestamp, arbitration_id=msg.arbitration_id, is_extended_id=msg.is_extended_id,
-                is_remote_frame=msg.is_remote_frame, dlc=msg.dlc, data=bytes(msg.data),
-                channel=self.channel_id, is_rx=bus_queue is not self.queue, check=False))
+            bus_queue.put_nowait(
+                can.Message(
+                    timestamp=timestamp,
+                    arbitration_id=msg.arbitration_id,
+                    is_extended_id=msg.is_extended_id,
+                    is_remote_frame=msg.is_remote_frame,
+                    dlc=msg.dlc,
+                    data=bytes(msg.data),
+                    channel=self.channel_id,
+                    is_rx=bus_queue is not self.queue,
+                    check=False,
+                )
+            )
 
     def drain(self) -> Iterator[can.Message]:
         """Yield every frame waiting in the receive queue, oldest first."""
-        pending = self.queue.queue           # the Queue's deque: popleft is atomic, no lock needed
+        pending = self.queue.queue  # the Queue's deque: popleft is atomic, no lock needed
         popleft = pending.popleft
         while pending:
             yield popleft()
@@ -86,7 +96,9 @@ class _Replies(canopen.Network):
         self._send(can_id, bytes(data))
 
 
-def local_node(node_id: int, od: canopen.ObjectDictionary, send: Callable[[int, bytes], None]) -> canopen.LocalNode:
+def local_node(
+    node_id: int, od: canopen.ObjectDictionary, send: Callable[[int, bytes], None]
+) -> canopen.LocalNode:
     """A LocalNode (SDO server, object store) for a simulated drive that sends with ``send``.
 
     Its SDO server is fed by the drive (``node.sdo.on_request``); heartbeat, NMT, PDOs and

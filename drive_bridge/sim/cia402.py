@@ -8,16 +8,19 @@ A fault reset is the rising edge of bit 7 in FAULT.  Quick stop returns to
 OPERATION ENABLED on "enable operation" only when the quick stop option code
 (0x605A) says the drive stays in QUICK STOP ACTIVE (5..8).
 """
+
 from __future__ import annotations
 
 from ..cia.p402 import ENABLED, FAULT, QUICK_STOP, QUICK_STOP_STAYS, READY, SWITCH_ON_DISABLED, SWITCHED_ON
 
 #: device control commands: (name, mask, value) of the controlword
-COMMANDS = (("disable voltage", 0x82, 0x00),
-            ("quick stop", 0x86, 0x02),
-            ("shutdown", 0x87, 0x06),
-            ("switch on", 0x8F, 0x07),           # also "disable operation" from OPERATION ENABLED
-            ("enable operation", 0x8F, 0x0F))
+COMMANDS = (
+    ("disable voltage", 0x82, 0x00),
+    ("quick stop", 0x86, 0x02),
+    ("shutdown", 0x87, 0x06),
+    ("switch on", 0x8F, 0x07),  # also "disable operation" from OPERATION ENABLED
+    ("enable operation", 0x8F, 0x0F),
+)
 
 #: (command, state) -> next state; a command not listed for a state leaves it unchanged
 TRANSITIONS = {

@@ -4,6 +4,7 @@ The effects listed here act on the simulated plant only; nothing on the bus
 reveals them.  They exist to test identification on data with an effect that
 nobody declared.  All values SI, motor side (rad, rad/s, Nm).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -16,11 +17,21 @@ DEFAULT_CONFIG = Path(__file__).with_name("robot.yaml")
 SHIPPED = {"robot": DEFAULT_CONFIG, "compliant": Path(__file__).with_name("robot_compliant.yaml")}
 
 #: the range of each effect value the plant can run with (low, high)
-RANGES = {"torque_Nm": (-100.0, 100.0), "amplitude_Nm": (-100.0, 100.0), "period_rad": (1e-3, 1e6),
-          "phase_rad": (-100.0, 100.0), "velocity_rad_s": (1e-6, 1e6), "dc0_Nm": (-100.0, 100.0),
-          "dc1_Nm_s_rad": (-100.0, 100.0), "coefficient_Nm_per_rad": (-100.0, 100.0), "fraction": (-10.0, 10.0),
-          "time_constant_s": (1e-3, 1e9), "load_share": (1e-3, 0.999), "stiffness_Nm_rad": (1e-3, 1e9),
-          "damping_Nm_s_rad": (0.0, 1e6)}
+RANGES = {
+    "torque_Nm": (-100.0, 100.0),
+    "amplitude_Nm": (-100.0, 100.0),
+    "period_rad": (1e-3, 1e6),
+    "phase_rad": (-100.0, 100.0),
+    "velocity_rad_s": (1e-6, 1e6),
+    "dc0_Nm": (-100.0, 100.0),
+    "dc1_Nm_s_rad": (-100.0, 100.0),
+    "coefficient_Nm_per_rad": (-100.0, 100.0),
+    "fraction": (-10.0, 10.0),
+    "time_constant_s": (1e-3, 1e9),
+    "load_share": (1e-3, 0.999),
+    "stiffness_Nm_rad": (1e-3, 1e9),
+    "damping_Nm_s_rad": (0.0, 1e6),
+}
 #: effect name -> {yaml key: kernel parameter name}
 EFFECTS = {
     "load": {"torque_Nm": "LOAD"},
@@ -57,10 +68,10 @@ class SimAxis:
     D: float = 0.0
     torque_noise_Nm: float = 0.0
     motor: Motor = field(default_factory=Motor)
-    effects: dict = field(default_factory=dict)   # name -> {kernel param: value}; source as axis name
-    brake: bool = True            # a holding brake that holds the axis whenever the power stage is off
-    end_stops_rad: tuple[float, float] | None = None    # mechanical end stops, motor side
-    initial_position_rad: float = 0.0                   # where the axis stands at power-on
+    effects: dict = field(default_factory=dict)  # name -> {kernel param: value}; source as axis name
+    brake: bool = True  # a holding brake that holds the axis whenever the power stage is off
+    end_stops_rad: tuple[float, float] | None = None  # mechanical end stops, motor side
+    initial_position_rad: float = 0.0  # where the axis stands at power-on
 
 
 @dataclass
@@ -74,7 +85,11 @@ def _end_stops(sec: Section) -> tuple[float, float] | None:
     stops = sec.get("end_stops_rad", list, None)
     if stops is None:
         return None
-    if len(stops) != 2 or not all(isinstance(v, (int, float)) and abs(v) < 1e6 for v in stops) or stops[0] >= stops[1]:
+    if (
+        len(stops) != 2
+        or not all(isinstance(v, (int, float)) and abs(v) < 1e6 for v in stops)
+        or stops[0] >= stops[1]
+    ):
         raise sec.error("end_stops_rad", f"must be [low, high] in rad with low < high, got {stops!r}")
     return float(stops[0]), float(stops[1])
 
@@ -91,8 +106,12 @@ def load_sim_config(path: str | Path = DEFAULT_CONFIG) -> SimConfig:
         sec = axes_sec.section(name)
         plant = sec.section("plant")
         motor_sec = sec.section("motor", required=False)
-        motor = Motor(**{k: motor_sec.get(k, float, getattr(Motor, k), low=1e-9, high=1e4)
-                         for k in ("R", "L", "kt", "vbus", "rated_torque_Nm")})
+        motor = Motor(
+            **{
+                k: motor_sec.get(k, float, getattr(Motor, k), low=1e-9, high=1e4)
+                for k in ("R", "L", "kt", "vbus", "rated_torque_Nm")
+            }
+        )
         motor_sec.done()
         effects = {}
         eff_sec = sec.section("effects", required=False)
@@ -102,8 +121,11 @@ def load_sim_config(path: str | Path = DEFAULT_CONFIG) -> SimConfig:
             es = eff_sec.section(eff)
             values = {}
             for key, param in EFFECTS[eff].items():
-                values[param] = es.get(key, str) if key == "source" else es.get(key, float, low=RANGES[key][0],
-                                                                                  high=RANGES[key][1])
+                values[param] = (
+                    es.get(key, str)
+                    if key == "source"
+                    else es.get(key, float, low=RANGES[key][0], high=RANGES[key][1])
+                )
             es.done()
             effects[eff] = values
         eff_sec.done()
@@ -111,13 +133,18 @@ def load_sim_config(path: str | Path = DEFAULT_CONFIG) -> SimConfig:
             name=name,
             node_id=sec.get("node_id", int, low=1, high=127),
             serial=sec.get("serial", int, 0, low=0, high=2**32 - 1),
-            J=plant.get("J", float, low=1e-9, high=10.0), c0=plant.get("c0", float, low=0.0, high=100.0),
-            c1=plant.get("c1", float, low=0.0, high=100.0), cp=plant.get("cp", float, 0.0, low=-100.0, high=100.0),
+            J=plant.get("J", float, low=1e-9, high=10.0),
+            c0=plant.get("c0", float, low=0.0, high=100.0),
+            c1=plant.get("c1", float, low=0.0, high=100.0),
+            cp=plant.get("cp", float, 0.0, low=-100.0, high=100.0),
             D=plant.get("D", float, 0.0, low=-100.0, high=100.0),
             torque_noise_Nm=sec.get("torque_noise_Nm", float, 0.0, low=0.0, high=10.0),
-            motor=motor, effects=effects, brake=sec.get("brake", bool, True),
-            end_stops_rad=_end_stops(sec), initial_position_rad=sec.get("initial_position_rad", float, 0.0,
-                                                                          low=-1e6, high=1e6))
+            motor=motor,
+            effects=effects,
+            brake=sec.get("brake", bool, True),
+            end_stops_rad=_end_stops(sec),
+            initial_position_rad=sec.get("initial_position_rad", float, 0.0, low=-1e6, high=1e6),
+        )
         plant.done()
         sec.done()
     axes_sec.done()

@@ -10,6 +10,7 @@ streaming steady state (:class:`~drive_bridge.sim.steady.SteadyStream` decides w
 call: the fault checks, actual values, TPDO bytes, the setpoints the RPDOs brought and the
 next interpolation period.
 """
+
 from __future__ import annotations
 
 import math
@@ -20,9 +21,26 @@ from numba import njit
 from .kernel import A_FF, FE_COUNT, FERR, INC_PER_RAD, KT, P0, P1, Q, mean_current, new_arrays
 
 # --- drive columns: what a drive's CiA 402 side holds between SYNCs (one row per axis) ---
-(X_POS_PER_RAD, X_VEL_PER_SI, X_ORIGIN, X_RATED_TORQUE, X_CURRENT_UNIT, X_NOISE,
- X_LAST_COUNT, X_LAST_TIME, X_VELOCITY, X_TORQUE_PM, X_CURRENT, X_POSITION,
- X_V_DEM, X_SETPOINT, X_NEW_TARGET, X_LIMITED, X_SETPOINT_TIME, X_ARMED) = range(18)
+(
+    X_POS_PER_RAD,
+    X_VEL_PER_SI,
+    X_ORIGIN,
+    X_RATED_TORQUE,
+    X_CURRENT_UNIT,
+    X_NOISE,
+    X_LAST_COUNT,
+    X_LAST_TIME,
+    X_VELOCITY,
+    X_TORQUE_PM,
+    X_CURRENT,
+    X_POSITION,
+    X_V_DEM,
+    X_SETPOINT,
+    X_NEW_TARGET,
+    X_LIMITED,
+    X_SETPOINT_TIME,
+    X_ARMED,
+) = range(18)
 N_DRIVE = 18
 
 
@@ -45,7 +63,7 @@ def actual_values(s: np.ndarray, p: np.ndarray, x: np.ndarray, now: float, noise
         torque += x[X_NOISE] * noise
     x[X_TORQUE_PM] = max(-32768, min(32767, round(torque / x[X_RATED_TORQUE] * 1000)))
     x[X_CURRENT] = max(-32768, min(32767, round(current / x[X_CURRENT_UNIT])))
-    count -= round(x[X_ORIGIN] * inc)                       # as the drive counts since homing
+    count -= round(x[X_ORIGIN] * inc)  # as the drive counts since homing
     pos = x[X_POS_PER_RAD]
     position = count if pos == inc else round(count / inc * pos)
     x[X_POSITION] = max(-2147483648, min(2147483647, position))
@@ -101,8 +119,9 @@ N_AXIS = 7
 #: the TPDO (row of ``out``), byte offset, size [bytes] and the range its type holds
 (E_AXIS, E_SOURCE, E_CONST, E_ROW, E_OFFSET, E_SIZE, E_MIN, E_MAX) = range(8)
 N_ENTRY = 8
-(SRC_STATUSWORD, SRC_POSITION, SRC_VELOCITY, SRC_TORQUE, SRC_CURRENT, SRC_FOLLOWING_ERROR,
- SRC_CONST) = range(7)
+(SRC_STATUSWORD, SRC_POSITION, SRC_VELOCITY, SRC_TORQUE, SRC_CURRENT, SRC_FOLLOWING_ERROR, SRC_CONST) = range(
+    7
+)
 #: steady_period's answers other than the noise index
 SLOW, OUT_OF_RANGE = -1, -2
 
@@ -130,9 +149,19 @@ def _entry_value(src: int, a: int, state: np.ndarray, x: np.ndarray, axes: np.nd
 
 
 @njit(cache=True)
-def steady_period(state: np.ndarray, param: np.ndarray, demand: np.ndarray, drive: np.ndarray,
-                  axes: np.ndarray, entries: np.ndarray, noise: np.ndarray, noise_i: int, now: float,
-                  T: float, out: np.ndarray) -> int:
+def steady_period(
+    state: np.ndarray,
+    param: np.ndarray,
+    demand: np.ndarray,
+    drive: np.ndarray,
+    axes: np.ndarray,
+    entries: np.ndarray,
+    noise: np.ndarray,
+    noise_i: int,
+    now: float,
+    T: float,
+    out: np.ndarray,
+) -> int:
     """One SYNC at ``now`` [s] of every drive, all following in CSP: each samples its actual
     values (drawing its torque noise from ``noise`` at ``noise_i``), packs its TPDOs into the rows
     of ``out`` as ``entries`` lay them out, takes the setpoint ``axes`` carries and starts the
@@ -176,6 +205,19 @@ def compile_all() -> None:
     others are compiled for their one signature when imported)."""
     state, param, demand = new_arrays(1)
     drive = np.zeros((1, N_DRIVE))
-    param[0, INC_PER_RAD] = drive[0, X_POS_PER_RAD] = drive[0, X_RATED_TORQUE] = drive[0, X_CURRENT_UNIT] = 1.0
-    steady_period(state, param, demand, drive, np.zeros((1, N_AXIS)), np.zeros((0, N_ENTRY), dtype=np.int64),
-                  np.zeros(1), 0, 0.0, 1.0, np.zeros((1, 8), dtype=np.uint8))
+    param[0, INC_PER_RAD] = drive[0, X_POS_PER_RAD] = drive[0, X_RATED_TORQUE] = drive[0, X_CURRENT_UNIT] = (
+        1.0
+    )
+    steady_period(
+        state,
+        param,
+        demand,
+        drive,
+        np.zeros((1, N_AXIS)),
+        np.zeros((0, N_ENTRY), dtype=np.int64),
+        np.zeros(1),
+        0,
+        0.0,
+        1.0,
+        np.zeros((1, 8), dtype=np.uint8),
+    )

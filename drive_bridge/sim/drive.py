@@ -18,6 +18,7 @@ A drive knows the robot it sits in only through :class:`DriveHost` (as a
 canopen node knows only its Network): the time, the SYNC period, a way to send
 a frame, the robot's noise source, and a call when its RPDO routes change.
 """
+
 from __future__ import annotations
 
 import copy
@@ -25,26 +26,57 @@ import logging
 import math
 import struct
 from collections import deque
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable, Protocol
+from typing import Any, Protocol
 
 import numpy as np
 from canopen.objectdictionary import ODVariable
 from canopen.sdo import SdoAbortedError
 
-from ..factor import OBJECTS as FACTOR_OBJECTS, FactorGroup
+from ..cia.p301 import (
+    ERR_FOLLOWING,
+    ERR_HEARTBEAT,
+    ERR_PDO_LENGTH,
+    ERR_RPDO_TIMEOUT,
+    NMT_OPERATIONAL,
+    NMT_PREOP,
+    NMT_STOPPED,
+)
+from ..cia.p402 import (
+    ABORT_DISABLE,
+    ABORT_FAULT,
+    ABORT_QUICK_STOP,
+    CSP,
+    ENABLED,
+    FAULT,
+    FAULT_REACTION,
+    HM,
+    IP,
+    PP,
+    PV,
+    QUICK_STOP,
+    STATUSWORD,
+    SW_FOLLOWING,
+    SW_FOLLOWING_ERROR,
+    SW_HOMING_ATTAINED,
+    SW_HOMING_ERROR,
+    SW_INTERNAL_LIMIT,
+    SW_REMOTE,
+    SW_TARGET_REACHED,
+    SW_VOLTAGE_ENABLED,
+    SWITCH_ON_DISABLED,
+    VOLTAGE_ENABLED,
+)
+from ..factor import OBJECTS as FACTOR_OBJECTS
+from ..factor import FactorGroup
 from ..od import default, limits, load_od, variable
 from ..params.controller import Controller
 from ..params.profile import SELECT, load_profile
 from ..pdo import PdoCodec
-from ..cia.p301 import (ERR_FOLLOWING, ERR_HEARTBEAT, ERR_PDO_LENGTH, ERR_RPDO_TIMEOUT, NMT_OPERATIONAL, NMT_PREOP,
-                        NMT_STOPPED)
-from ..cia.p402 import (ABORT_DISABLE, ABORT_FAULT, ABORT_QUICK_STOP, CSP, ENABLED, FAULT, FAULT_REACTION, HM, IP, PP,
-                        PV, QUICK_STOP, STATUSWORD, SW_FOLLOWING, SW_FOLLOWING_ERROR, SW_HOMING_ATTAINED, SW_HOMING_ERROR,
-                        SW_INTERNAL_LIMIT, SW_REMOTE, SW_TARGET_REACHED, SW_VOLTAGE_ENABLED, SWITCH_ON_DISABLED,
-                        VOLTAGE_ENABLED)
 from ..setpoint import PVT, SETPOINT_OBJECTS, position_of, supported_modes
-from . import cyclic as X, kernel as K
+from . import cyclic as X
+from . import kernel as K
 from .adapters import local_node
 from .cia402 import next_state
 from .config import SimAxis
@@ -61,8 +93,8 @@ IMPLEMENTED_MODES = (PP, PV, HM, IP, CSP)
 HOMING_SWITCH = {17: -1, 18: 1}
 HOMING_HERE = (35, 37)
 LIMIT_SWITCH_INSET_RAD = 0.5
-SAVE_SIGNATURE = 0x65766173      # 'save'
-LOAD_SIGNATURE = 0x64616F6C      # 'load'
+SAVE_SIGNATURE = 0x65766173  # 'save'
+LOAD_SIGNATURE = 0x64616F6C  # 'load'
 
 #: maxon's PVT input FIFO (EPOS Application Note "Interpolation Position Mode", Dec 2008, pp. 13-16):
 #: 64 records; 0x20C4:1 buffer status bits; an underflow or overflow aborts the trajectory.  The EMCY
@@ -71,7 +103,7 @@ FIFO_RECORDS = 64
 IPB_UNDERFLOW_WARNING, IPB_OVERFLOW_WARNING, IPB_UNDERFLOW, IPB_OVERFLOW = 0x0001, 0x0002, 0x0100, 0x0200
 IPB_ENABLED, IPB_ACTIVE = 0x4000, 0x8000
 ERR_IP_UNDERFLOW, ERR_IP_OVERFLOW = 0xFF02, 0xFF03
-SETPOINT_TIMEOUT_PERIODS = 10     # CSP: no setpoint for this many interpolation periods -> fault
+SETPOINT_TIMEOUT_PERIODS = 10  # CSP: no setpoint for this many interpolation periods -> fault
 
 ABORT_TOO_LOW = 0x06090032
 
@@ -80,11 +112,21 @@ ABORT_TOO_LOW = 0x06090032
 #: that has one
 GAIN_PARAMS = {"KpP": K.KPP, "FwF": K.FWF, "KpS": K.KPS, "KiS": K.KIS, "KpC": K.KPC, "KiC": K.KIC}
 PID_PARAMS = {"PidP": K.PID_P, "PidI": K.PID_I, "PidD": K.PID_D, "PidFFv": K.PID_FFV, "PidFFa": K.PID_FFA}
-MODEL_PARAMS = {"ff_enable": K.FF_EN, "J": K.FF_J, "c0": K.FF_C0, "c1": K.FF_C1, "offset": K.FF_OFF,
-                "cp": K.FF_CP, "dc0": K.FF_DC0, "dc1": K.FF_DC1, "periodic_amplitude": K.FF_PER_AMP,
-                "periodic_period": K.FF_PER_PERIOD, "periodic_phase": K.FF_PER_PHASE}
-_MOTOR_OBJECTS = {1: "R", 2: "L", 3: "kt", 4: "vbus"}        # 0x2002 of the project's drive
-DEVICE_TYPE_SERVO = 0x00020192                                # CiA 402, servo drive
+MODEL_PARAMS = {
+    "ff_enable": K.FF_EN,
+    "J": K.FF_J,
+    "c0": K.FF_C0,
+    "c1": K.FF_C1,
+    "offset": K.FF_OFF,
+    "cp": K.FF_CP,
+    "dc0": K.FF_DC0,
+    "dc1": K.FF_DC1,
+    "periodic_amplitude": K.FF_PER_AMP,
+    "periodic_period": K.FF_PER_PERIOD,
+    "periodic_phase": K.FF_PER_PHASE,
+}
+_MOTOR_OBJECTS = {1: "R", 2: "L", 3: "kt", 4: "vbus"}  # 0x2002 of the project's drive
+DEVICE_TYPE_SERVO = 0x00020192  # CiA 402, servo drive
 
 
 def _loop_divider(controller: Controller, eds_path: str | Path) -> int:
@@ -92,14 +134,19 @@ def _loop_divider(controller: Controller, eds_path: str | Path) -> int:
     2 kHz / n and its current loop at 8 kHz; ValueError for a profile declaring other rates."""
     inner = controller.timing
     div = inner.tick_s / K.VELOCITY_TICK_S
-    if abs(div - round(div)) > 1e-9 or round(div) < 1 or \
-            inner.current_hz != K.CURRENT_SUBSTEPS / K.VELOCITY_TICK_S:
-        raise ValueError(f"{eds_path}: the simulator runs a drive's loops at 2 kHz / n and its current loop at 8 kHz, "
-                         f"not at {1 / inner.tick_s:g} Hz / {inner.current_hz:g} Hz as its profile declares")
+    if (
+        abs(div - round(div)) > 1e-9
+        or round(div) < 1
+        or inner.current_hz != K.CURRENT_SUBSTEPS / K.VELOCITY_TICK_S
+    ):
+        raise ValueError(
+            f"{eds_path}: the simulator runs a drive's loops at 2 kHz / n and its current loop at 8 kHz, "
+            f"not at {1 / inner.tick_s:g} Hz / {inner.current_hz:g} Hz as its profile declares"
+        )
     return round(div)
 
 
-def plant_params(p: np.ndarray, axis: "SimAxis", axis_names: list[str]) -> None:
+def plant_params(p: np.ndarray, axis: SimAxis, axis_names: list[str]) -> None:
     """Write the plant, motor and hidden effects of ``axis`` into its kernel parameter row ``p``."""
     m = axis.motor
     p[K.J], p[K.C0], p[K.C1], p[K.CP], p[K.D] = axis.J, axis.c0, axis.c1, axis.cp, axis.D
@@ -129,10 +176,10 @@ class _Held:
     def __init__(self, column: int, kind: type):
         self.column, self.kind = column, kind
 
-    def __get__(self, drive: "SimDrive", owner: type) -> Any:
+    def __get__(self, drive: SimDrive, owner: type) -> Any:
         return self.kind(drive.x.item(self.column))
 
-    def __set__(self, drive: "SimDrive", value: Any) -> None:
+    def __set__(self, drive: SimDrive, value: Any) -> None:
         drive.x[self.column] = value
 
 
@@ -142,28 +189,29 @@ class SimDrive:
     of this axis's rows; the plant's clock and seeded noise are the drive's); ``axis_names`` are every axis of the robot in row order (a cross-axis effect names its
     source)."""
 
-    pos_per_rad = _Held(X.X_POS_PER_RAD, float)      # position unit per rad (motor side)
-    vel_per_si = _Held(X.X_VEL_PER_SI, float)        # velocity unit per rad/s
-    origin_rad = _Held(X.X_ORIGIN, float)            # the plant position the drive counts as 0 (homing)
-    rated_torque = _Held(X.X_RATED_TORQUE, float)    # [Nm] (0x6076)
-    v_dem = _Held(X.X_V_DEM, float)                  # demand velocity of the current period [rad/s]
-    setpoint_inc = _Held(X.X_SETPOINT, int)          # the last CSP target / IP record position [increments]
-    new_target = _Held(X.X_NEW_TARGET, bool)         # a CSP target / IP record arrived since the last SYNC
-    internal_limit = _Held(X.X_LIMITED, bool)        # the demand held at a software position limit
+    pos_per_rad = _Held(X.X_POS_PER_RAD, float)  # position unit per rad (motor side)
+    vel_per_si = _Held(X.X_VEL_PER_SI, float)  # velocity unit per rad/s
+    origin_rad = _Held(X.X_ORIGIN, float)  # the plant position the drive counts as 0 (homing)
+    rated_torque = _Held(X.X_RATED_TORQUE, float)  # [Nm] (0x6076)
+    v_dem = _Held(X.X_V_DEM, float)  # demand velocity of the current period [rad/s]
+    setpoint_inc = _Held(X.X_SETPOINT, int)  # the last CSP target / IP record position [increments]
+    new_target = _Held(X.X_NEW_TARGET, bool)  # a CSP target / IP record arrived since the last SYNC
+    internal_limit = _Held(X.X_LIMITED, bool)  # the demand held at a software position limit
     last_setpoint_time = _Held(X.X_SETPOINT_TIME, float)
-    setpoint_armed = _Held(X.X_ARMED, bool)          # loss-of-setpoint watchdog armed (CSP streaming started)
-    _last_count = _Held(X.X_LAST_COUNT, int)         # encoder count and time of the last sample
+    setpoint_armed = _Held(X.X_ARMED, bool)  # loss-of-setpoint watchdog armed (CSP streaming started)
+    _last_count = _Held(X.X_LAST_COUNT, int)  # encoder count and time of the last sample
     _last_refresh = _Held(X.X_LAST_TIME, float)
-    _velocity = _Held(X.X_VELOCITY, int)             # the actual values as their objects hold them
+    _velocity = _Held(X.X_VELOCITY, int)  # the actual values as their objects hold them
     _torque_pm = _Held(X.X_TORQUE_PM, int)
     _current = _Held(X.X_CURRENT, int)
     _position_inc = _Held(X.X_POSITION, int)
 
-    def __init__(self, host: DriveHost, index: int, axis: SimAxis, eds_path: str, plant: Plant,
-                 axis_names: list[str]):
+    def __init__(
+        self, host: DriveHost, index: int, axis: SimAxis, eds_path: str, plant: Plant, axis_names: list[str]
+    ):
         self.plant = plant
-        self.s, self.p, self.d, self.x = plant.rows(index)      # kernel and drive rows of this axis (views)
-        self.abort_writes: dict[tuple[int, int], int] = {}   # injected SDO aborts, for tests
+        self.s, self.p, self.d, self.x = plant.rows(index)  # kernel and drive rows of this axis (views)
+        self.abort_writes: dict[tuple[int, int], int] = {}  # injected SDO aborts, for tests
         #: injected faults, for tests: called as (kind "read" | "write", index, sub) before an SDO
         #: request is handled; it may raise (SdoAbortedError: the drive refuses), take the drive off
         #: the bus, or, for a read, return a value the drive answers instead of its own
@@ -174,7 +222,7 @@ class SimDrive:
         self.axis_names = axis_names
         self.node_id = axis.node_id
         self.spec = spec_for(eds_path)
-        profile = load_profile(self.spec.profile).bind(axis.motor.kt)     # current through its own motor
+        profile = load_profile(self.spec.profile).bind(axis.motor.kt)  # current through its own motor
         #: the controller the drive runs (its profile's): structure and rates
         self.controller = profile.controller
         self.loop_div = _loop_divider(self.controller, eds_path)
@@ -182,16 +230,22 @@ class SimDrive:
         #: defaults) with its loops slowed by the drive's loop rate (the same crossover share of the
         #: rate, the same margins)
         self.factory_gains = self.controller.to_drive(
-            {k: v / self.loop_div if k in ("KpP", "KpS", "KiS") else v for k, v in factory().gains.items()})
+            {k: v / self.loop_div if k in ("KpP", "KpS", "KiS") else v for k, v in factory().gains.items()}
+        )
         #: the object that selects the profile's gain objects (Nanotec's 3212h:04) and the value that does;
         #: the other value runs the objects of the profile ``otherwise`` names
         self.select = None if profile.select is None else profile.select[:2]
         otherwise = profile.otherwise() or profile
         #: selected or not -> {(index, sub): (kernel parameter, profile entry)} of the gain / model objects
-        self.gain_sets = {on: {(e.index, e.sub): ((GAIN_PARAMS | PID_PARAMS | MODEL_PARAMS)[name], e)
-                               for name, e in p.entries.items() if name != SELECT}
-                          for on, p in ((True, profile), (False, otherwise))}
-        self.params = self.gain_sets[True]       # the objects that run now (set at power-up)
+        self.gain_sets = {
+            on: {
+                (e.index, e.sub): ((GAIN_PARAMS | PID_PARAMS | MODEL_PARAMS)[name], e)
+                for name, e in p.entries.items()
+                if name != SELECT
+            }
+            for on, p in ((True, profile), (False, otherwise))
+        }
+        self.params = self.gain_sets[True]  # the objects that run now (set at power-up)
         # heartbeat and NMT run in simulation time here, not in canopen's timer thread
         self.node = local_node(axis.node_id, load_od(eds_path, axis.node_id), self._send)
         self.node.add_write_callback(self._on_sdo_write)
@@ -207,16 +261,21 @@ class SimDrive:
         elif self.spec.increments_per_rev is not None:
             self.inc_per_rad = self.spec.increments_per_rev / (2 * math.pi)
         else:
-            raise ValueError(f"{self.spec.profile}: neither its EDS/DCF (0x608F) nor the simulator's description "
-                             f"gives the encoder's increments per revolution")
+            raise ValueError(
+                f"{self.spec.profile}: neither its EDS/DCF (0x608F) nor the simulator's description "
+                f"gives the encoder's increments per revolution"
+            )
         self.pos_per_rad = self.vel_per_si = self.inc_per_rad
         self.modes = [m for m in supported_modes(self._supported_bits()) if m in IMPLEMENTED_MODES]
-        self.online = True                 # False: the drive has dropped off the bus
+        self.online = True  # False: the drive has dropped off the bus
         #: maxon's PVT input FIFO (records in device units), where the drive takes PVT records
-        self.fifo: deque[int] | None = deque() if self.od.get_variable(*PVT) is not None and \
-            self.od.get_variable(0x60C4, 6) is not None else None
+        self.fifo: deque[int] | None = (
+            deque()
+            if self.od.get_variable(*PVT) is not None and self.od.get_variable(0x60C4, 6) is not None
+            else None
+        )
         self.fifo_enabled = False
-        self.ip_errors = 0                 # 0x20C4:1 error bits latched since the buffer was last cleared
+        self.ip_errors = 0  # 0x20C4:1 error bits latched since the buffer was last cleared
         self._init_storage()
         self._saved = copy.deepcopy(self.node.data_store)
         self._power_up()
@@ -224,7 +283,9 @@ class SimDrive:
     # ------------------------------------------------------------------ storage
     def _supported_bits(self) -> int:
         var = self.od.get_variable(0x6502, 0)
-        return var.default if var is not None and var.default is not None else (self.spec.supported_modes or 0)
+        return (
+            var.default if var is not None and var.default is not None else (self.spec.supported_modes or 0)
+        )
 
     def _init_storage(self) -> None:
         """Factory state: zero, or the nearest value the file's limits allow, where the file gives
@@ -232,18 +293,23 @@ class SimDrive:
         factory gains in the drive's units."""
         self.node.data_store.clear()
         for obj in self.od.values():
-            for var in (obj.values() if hasattr(obj, "values") else [obj]):
-                if var.default is None and var.value is None and var.readable and \
-                        var.data_type in var.STRUCT_TYPES and var.index not in self._live:
+            for var in obj.values() if hasattr(obj, "values") else [obj]:
+                if (
+                    var.default is None
+                    and var.value is None
+                    and var.readable
+                    and var.data_type in var.STRUCT_TYPES
+                    and var.index not in self._live
+                ):
                     lo, hi = limits(var)
                     value = max(0, lo) if lo is not None else 0
                     self._store(var.index, var.subindex, min(value, hi) if hi is not None else value)
         self._init_storage_missing()
         m = self.axis.motor
         if 0x6076 in self.od:
-            self._store(0x6076, 0, round(m.rated_torque_Nm * 1000))          # mNm
+            self._store(0x6076, 0, round(m.rated_torque_Nm * 1000))  # mNm
         if 0x6075 in self.od:
-            self._store(0x6075, 0, round(m.rated_torque_Nm / m.kt * 1000))   # mA
+            self._store(0x6075, 0, round(m.rated_torque_Nm / m.kt * 1000))  # mA
         if encoder_var := self.od.get_variable(0x608F, 1):
             if not encoder_var.default:
                 self._store(0x608F, 1, round(self.inc_per_rad * 2 * math.pi))
@@ -252,14 +318,17 @@ class SimDrive:
         if not self.spec.factory_in_file:
             f = factory()
             for params in self.gain_sets.values():
-                for (index, sub), (col, entry) in params.items():
+                for (index, sub), (_, entry) in params.items():
                     if entry.parameter in self.factory_gains:
                         self._store(index, sub, entry.to_device(self.factory_gains[entry.parameter]))
-            for index, value in ((0x6072, f.max_torque_permille), (0x6066, f.fe_timeout_ms),
-                                 (0x6085, f.quick_stop_rad_s2 * self.vel_per_si),
-                                 (0x6081, f.profile_velocity_rad_s * self.vel_per_si),
-                                 (0x6083, f.profile_acceleration_rad_s2 * self.vel_per_si),
-                                 (0x6084, f.profile_acceleration_rad_s2 * self.vel_per_si)):
+            for index, value in (
+                (0x6072, f.max_torque_permille),
+                (0x6066, f.fe_timeout_ms),
+                (0x6085, f.quick_stop_rad_s2 * self.vel_per_si),
+                (0x6081, f.profile_velocity_rad_s * self.vel_per_si),
+                (0x6083, f.profile_acceleration_rad_s2 * self.vel_per_si),
+                (0x6084, f.profile_acceleration_rad_s2 * self.vel_per_si),
+            ):
                 if index in self.od:
                     self._store(index, 0, round(value))
 
@@ -268,7 +337,9 @@ class SimDrive:
         otherwise, as they hold them now."""
         p = self.p
         self.params = self.gain_sets[selected]
-        for name, col in (GAIN_PARAMS | PID_PARAMS).items():  # a gain without an object keeps the factory value
+        for name, col in (
+            GAIN_PARAMS | PID_PARAMS
+        ).items():  # a gain without an object keeps the factory value
             p[col] = self.factory_gains.get(name, 0.0)
         for col in MODEL_PARAMS.values():
             p[col] = 0.0
@@ -281,7 +352,7 @@ class SimDrive:
 
     def _od_or(self, index: int, sub: int, fallback: Any) -> Any:
         """An object's value, or ``fallback`` where the drive has no such object."""
-        value = self._cache.get((index, sub))               # (held: the object exists)
+        value = self._cache.get((index, sub))  # (held: the object exists)
         if value is not None:
             return value
         return self._od(index, sub) if self.od.get_variable(index, sub) is not None else fallback
@@ -290,11 +361,14 @@ class SimDrive:
         """Device units per rad and per rad/s from the factor group the drive holds (its EDS
         defaults until the master writes it); where its objects do not say, the encoder's
         increments and the velocity unit of :mod:`.vendors`."""
-        group = FactorGroup.read(lambda i, s: self._od(i, s) if self.od.get_variable(i, s) is not None else None)
+        group = FactorGroup.read(
+            lambda i, s: self._od(i, s) if self.od.get_variable(i, s) is not None else None
+        )
         self.pos_per_rad = group.position_per_rad or self.inc_per_rad
         self.vel_per_si = group.velocity_per_rad_s or (
-            60 / (2 * math.pi) if self.spec.velocity_unit == "rpm" else self.pos_per_rad)
-        self.p[K.FE_WINDOW] = self._od(0x6065) / self.pos_per_rad        # the window is in position units
+            60 / (2 * math.pi) if self.spec.velocity_unit == "rpm" else self.pos_per_rad
+        )
+        self.p[K.FE_WINDOW] = self._od(0x6065) / self.pos_per_rad  # the window is in position units
 
     def _od(self, index: int, sub: int = 0) -> Any:
         """Current value of an object, as the SDO server would return it (cached)."""
@@ -335,11 +409,11 @@ class SimDrive:
         self.last_setpoint_time = 0.0
         self.v_dem = 0.0
         self.pending_rpdo: list[tuple[PdoCodec, bytes]] = []
-        self.pp_target: float | None = None    # PP: the demand is still travelling to it
-        self.pp_goal: float | None = None      # PP: the target of the last set-point accepted
+        self.pp_target: float | None = None  # PP: the demand is still travelling to it
+        self.pp_goal: float | None = None  # PP: the target of the last set-point accepted
         self.setpoint_ack = False
         self.origin_rad = 0.0
-        self.homing: str | None = None   # HM: the phase of a homing under way ("switch", "leave", "stop")
+        self.homing: str | None = None  # HM: the phase of a homing under way ("switch", "leave", "stop")
         self.homing_attained = self.homing_error = False
         self._in_window_since: float | None = None
         s[K.ENABLED] = 0.0
@@ -374,9 +448,9 @@ class SimDrive:
             self.nmt_state = NMT_STOPPED
         elif cs == 0x80:
             self.nmt_state = NMT_PREOP
-        elif cs in (0x81, 0x82):          # reset node / reset communication
+        elif cs in (0x81, 0x82):  # reset node / reset communication
             saved = copy.deepcopy(self._saved)
-            if cs == 0x82:                # only the communication area 0x1000-0x1FFF
+            if cs == 0x82:  # only the communication area 0x1000-0x1FFF
                 saved.update({i: v for i, v in self.node.data_store.items() if i >= 0x2000})
             self.node.data_store = saved
             self._cache.clear()
@@ -440,7 +514,7 @@ class SimDrive:
         for node, last in list(self._heard.items()):
             if now - last <= self.consumers[node] + 1e-9:
                 continue
-            del self._heard[node]                   # once; the node's next heartbeat watches it again
+            del self._heard[node]  # once; the node's next heartbeat watches it again
             if self.nmt_state == NMT_OPERATIONAL:
                 self.nmt_state = NMT_PREOP
             self._connection_lost(ERR_HEARTBEAT, self._od_or(0x6007, 0, 0))
@@ -449,7 +523,7 @@ class SimDrive:
         """EMCY ``code``; in OPERATION ENABLED, what the abort connection option says."""
         self.setpoint_armed = False
         if self.state == ENABLED and option == ABORT_FAULT:
-            self.fault(code)                            # (its EMCY carries the code)
+            self.fault(code)  # (its EMCY carries the code)
             return
         self._emcy(code)
         if self.state != ENABLED:
@@ -471,7 +545,7 @@ class SimDrive:
                 self.refresh_actuals()
             return live()
         if index in (0x1010, 0x1011) and subindex == 1:
-            return 1                      # device saves/restores on command
+            return 1  # device saves/restores on command
         if index == 0x1003:
             if subindex == 0:
                 return len(self.error_history)
@@ -487,8 +561,8 @@ class SimDrive:
         value = od.decode_raw(data)
         self.write(index, subindex, value)
         if index not in self._live:
-            self._cache[(index, subindex)] = value      # LocalNode stores the bytes after this
-        if index in FACTOR_OBJECTS:                     # new units: every position value is read anew
+            self._cache[(index, subindex)] = value  # LocalNode stores the bytes after this
+        if index in FACTOR_OBJECTS:  # new units: every position value is read anew
             self._units()
         elif index == 0x1016:
             self._consumers_changed()
@@ -511,41 +585,48 @@ class SimDrive:
                     self.mode = value
                     self._take_target()
             self.mode = value
-        elif index == 0x60B2:                               # torque offset [per mille of rated torque]
+        elif index == 0x60B2:  # torque offset [per mille of rated torque]
             self.d[K.T_OFF] = value / 1000.0 * self.rated_torque
-        elif index == 0x60B1:                               # velocity offset [velocity unit]
+        elif index == 0x60B1:  # velocity offset [velocity unit]
             self.d[K.V_OFF] = value / self.vel_per_si
-        elif (index, sub) == PVT and self.fifo is not None:   # maxon: into the FIFO, taken one a period
+        elif (index, sub) == PVT and self.fifo is not None:  # maxon: into the FIFO, taken one a period
             if not self.fifo_enabled:
-                return                                      # access to the buffer disabled: dropped
+                return  # access to the buffer disabled: dropped
             if len(self.fifo) >= FIFO_RECORDS:
                 self._buffer_error(IPB_OVERFLOW, ERR_IP_OVERFLOW)
                 return
             self.fifo.append(position_of(PVT, value))
-        elif index == 0x60C4 and sub == 6 and self.fifo is not None:     # buffer clear: 0 clear + disable, 1 enable
+        elif (
+            index == 0x60C4 and sub == 6 and self.fifo is not None
+        ):  # buffer clear: 0 clear + disable, 1 enable
             if value == 0:
                 self.fifo.clear()
                 self.ip_errors = 0
             self.fifo_enabled = value == 1
         elif (index, sub) in SETPOINT_OBJECTS:
-            if SETPOINT_OBJECTS[(index, sub)] == self.mode:     # 0x607A in PP is read on the set-point edge
+            if SETPOINT_OBJECTS[(index, sub)] == self.mode:  # 0x607A in PP is read on the set-point edge
                 self.setpoint_inc = position_of((index, sub), value)
                 self.new_target = True
                 self.last_setpoint_time = self.plant.time
                 if self.following:
                     self.setpoint_armed = True
         elif self.select is not None and (index, sub) == self.select[0].index_sub:
-            self._cache[(index, sub)] = value                   # stored after this call: the loops read it now
+            self._cache[(index, sub)] = value  # stored after this call: the loops read it now
             self._load_gains(value == self.select[1])
         elif (index, sub) in self.params:
             col, entry = self.params[(index, sub)]
             si = entry.to_si(value)
-            if not math.isfinite(si) or si < 0 and col not in (K.FF_OFF, K.FF_CP, K.FF_DC0, K.FF_DC1, K.FF_PER_PHASE) \
-                    or col == K.FF_EN and value not in (0, 1):
+            if (
+                not math.isfinite(si)
+                or si < 0
+                and col not in (K.FF_OFF, K.FF_CP, K.FF_DC0, K.FF_DC1, K.FF_PER_PHASE)
+                or col == K.FF_EN
+                and value not in (0, 1)
+            ):
                 raise SdoAbortedError(ABORT_TOO_LOW if si < 0 else ABORT_RANGE)
             self.p[col] = si
         elif index == 0x1017:
-            self._hb_next = self.plant.time + value / 1000.0     # first beat one period from now
+            self._hb_next = self.plant.time + value / 1000.0  # first beat one period from now
         elif index == 0x6065:
             self.p[K.FE_WINDOW] = value / self.pos_per_rad
         elif index == 0x6072:
@@ -587,10 +668,10 @@ class SimDrive:
             return
         codec, ttype = self.rpdos[cob_id]
         if len(data) < codec.struct.size:
-            self._emcy(ERR_PDO_LENGTH)                  # CiA 301: not processed, length error
+            self._emcy(ERR_PDO_LENGTH)  # CiA 301: not processed, length error
             return
         if ttype <= 240:
-            self.pending_rpdo.append((codec, data))     # synchronous: applied on the next SYNC
+            self.pending_rpdo.append((codec, data))  # synchronous: applied on the next SYNC
         else:
             self._apply_rpdo(codec, data)
 
@@ -601,7 +682,9 @@ class SimDrive:
 
     def keep(self, index: int, sub: int, raw: bytes, value: int) -> None:
         """Hold a value a PDO wrote as the object's (SDO reads it so); a measured object keeps its own."""
-        if index not in self._live and self._cache.get((index, sub)) != value:   # (the cache holds the stored value)
+        if (
+            index not in self._live and self._cache.get((index, sub)) != value
+        ):  # (the cache holds the stored value)
             self.node.data_store.setdefault(index, {})[sub] = raw
             self._cache[(index, sub)] = value
 
@@ -626,10 +709,14 @@ class SimDrive:
             sw |= SW_TARGET_REACHED
         if self.internal_limit:
             sw |= SW_INTERNAL_LIMIT
-        if self.mode == HM:                # bit 12 homing attained, bit 13 homing error
-            return sw | (SW_HOMING_ATTAINED if self.homing_attained else 0) | (SW_HOMING_ERROR if self.homing_error else 0)
+        if self.mode == HM:  # bit 12 homing attained, bit 13 homing error
+            return (
+                sw
+                | (SW_HOMING_ATTAINED if self.homing_attained else 0)
+                | (SW_HOMING_ERROR if self.homing_error else 0)
+            )
         if self.following or (self.state == ENABLED and self.mode == PP and self.setpoint_ack):
-            sw |= SW_FOLLOWING             # CSP: follows the command value; IP: active; PP: set-point acknowledged
+            sw |= SW_FOLLOWING  # CSP: follows the command value; IP: active; PP: set-point acknowledged
         if self.s.item(K.FE_COUNT) > 0:
             sw |= SW_FOLLOWING_ERROR
         return sw
@@ -637,36 +724,38 @@ class SimDrive:
     @property
     def following(self) -> bool:
         """Enabled and taking the master's setpoints: CSP, or IP with interpolation enabled (bit 4)."""
-        return self.state == ENABLED and (self.mode == CSP or (self.mode == IP and bool(self.controlword & 0x10)))
+        return self.state == ENABLED and (
+            self.mode == CSP or (self.mode == IP and bool(self.controlword & 0x10))
+        )
 
     def _on_controlword(self, cw: int) -> None:
         if cw == self.controlword and cw in (0x0F, 0x1F) and self.state == ENABLED:
-            return                                          # the streaming steady state
+            return  # the streaming steady state
         new_setpoint = cw & 0x10 and not self.controlword & 0x10
         previous, self.controlword = self.controlword, cw
         if self.state == FAULT:
-            if next_state(FAULT, cw, previous, 0) != FAULT:        # fault reset
+            if next_state(FAULT, cw, previous, 0) != FAULT:  # fault reset
                 self.error_code = 0
                 self.state = SWITCH_ON_DISABLED
                 self._emcy(0x0000)
             return
         self._go(next_state(self.state, cw, previous, self._od_or(0x605A, 0, 2)))
         if not cw & 0x10:
-            self.setpoint_ack = False                       # the handshake: bit 12 follows bit 4 down
+            self.setpoint_ack = False  # the handshake: bit 12 follows bit 4 down
         if self.state == ENABLED and self.mode == PP and new_setpoint:
             target = self._od(0x607A) / self.pos_per_rad
             self.pp_target = target + self.origin_rad if not cw & 0x40 else self.d[K.P1] + target
             self.pp_goal = self.pp_target
-            self.setpoint_ack = True                        # statusword bit 12: set-point acknowledged
+            self.setpoint_ack = True  # statusword bit 12: set-point acknowledged
             self.target_reached = False
             self._in_window_since = None
         if self.state == ENABLED and self.mode == HM:
             if new_setpoint:
                 self._start_homing()
             elif not cw & 0x10 and self.homing in ("switch", "leave"):
-                self.homing = "stop"                        # bit 4 down: homing interrupted, ramp to rest
+                self.homing = "stop"  # bit 4 down: homing interrupted, ramp to rest
         elif self.homing:
-            self.homing = None                              # left OPERATION ENABLED: no homing goes on
+            self.homing = None  # left OPERATION ENABLED: no homing goes on
 
     def _start_homing(self) -> None:
         """Bit 4 up in homing mode: the method 0x6098 says how home is found."""
@@ -678,7 +767,7 @@ class SimDrive:
         elif method in HOMING_SWITCH:
             self.homing = "switch"
         else:
-            self.homing_error = True                        # a method this drive does not have
+            self.homing_error = True  # a method this drive does not have
 
     def _switch_edge(self, direction: int) -> float | None:
         """Where the limit switch in ``direction`` starts [rad, plant]; None on an axis without end stops."""
@@ -726,8 +815,10 @@ class SimDrive:
                 self._take_target()
         elif state != QUICK_STOP:
             self.s[K.ENABLED] = 0.0
-        self.target_reached = False        # bit 10 belongs to the state it was set in
-        log.debug("simulated drive %s: state %d -> %d (mode %d)", self.axis.name, self.state, state, self.mode)
+        self.target_reached = False  # bit 10 belongs to the state it was set in
+        log.debug(
+            "simulated drive %s: state %d -> %d (mode %d)", self.axis.name, self.state, state, self.mode
+        )
         self.state = state
 
     def _take_target(self) -> None:
@@ -771,8 +862,14 @@ class SimDrive:
     def streaming(self) -> bool:
         """Following the master's stream in CSP with its controlword held at enable operation:
         the steady state whose SYNC :func:`.cyclic.steady_period` can run."""
-        return self.online and self.state == ENABLED and self.mode == CSP and self.controlword in (0x0F, 0x1F) \
-            and self.nmt_state == NMT_OPERATIONAL and self.fifo is None
+        return (
+            self.online
+            and self.state == ENABLED
+            and self.mode == CSP
+            and self.controlword in (0x0F, 0x1F)
+            and self.nmt_state == NMT_OPERATIONAL
+            and self.fifo is None
+        )
 
     def on_sync(self) -> None:
         """SYNC: send TPDOs with the values at this instant, then latch new setpoints."""
@@ -806,19 +903,25 @@ class SimDrive:
                 if self.fifo:
                     self.setpoint_inc, self.new_target = self.fifo.popleft(), True
                     self.last_setpoint_time = self.plant.time
-                else:                                       # the FIFO ran dry while interpolating
+                else:  # the FIFO ran dry while interpolating
                     d[K.P0] = d[K.P1]
                     self.internal_limit = False
                     self._buffer_error(IPB_UNDERFLOW, ERR_IP_UNDERFLOW)
                     return
             # linear interpolation (IP sub-mode 0) has no acceleration within a period
-            X.follow_period(d, self.x, T, *self.software_limits(), self.mode == IP and self._od_or(0x60C0, 0, 0) == 0)
+            X.follow_period(
+                d, self.x, T, *self.software_limits(), self.mode == IP and self._od_or(0x60C0, 0, 0) == 0
+            )
             return
         d[K.P0] = d.item(K.P1)
         v_old = self.v_dem
         self.internal_limit = False
         if self.state == QUICK_STOP:
-            self._ramp(0.0, self._od_or(0x6085, 0, factory().quick_stop_rad_s2 * self.vel_per_si) / self.vel_per_si, T)
+            self._ramp(
+                0.0,
+                self._od_or(0x6085, 0, factory().quick_stop_rad_s2 * self.vel_per_si) / self.vel_per_si,
+                T,
+            )
             if self.v_dem == 0.0:
                 self.target_reached = True
                 if self._od_or(0x605A, 0, 2) in (0, 1, 2, 3):
@@ -830,13 +933,15 @@ class SimDrive:
             dist = self.pp_target - d[K.P0]
             acc = self._od(0x6083) / self.vel_per_si
             dec = self._od_or(0x6084, 0, acc * self.vel_per_si) / self.vel_per_si
-            v_max = min(self._od_or(0x6081, 0, factory().profile_velocity_rad_s * self.vel_per_si) / self.vel_per_si,
-                        math.sqrt(2 * dec * abs(dist)))
+            v_max = min(
+                self._od_or(0x6081, 0, factory().profile_velocity_rad_s * self.vel_per_si) / self.vel_per_si,
+                math.sqrt(2 * dec * abs(dist)),
+            )
             self._ramp(math.copysign(v_max, dist), acc, T)
             if abs(dist) <= abs(self.v_dem) * T or abs(dist) < 1.0 / self.inc_per_rad:
                 d[K.P1] = self.pp_target
                 self.v_dem = 0.0
-                self.pp_target = None         # the demand is there; the axis is when it settles
+                self.pp_target = None  # the demand is there; the axis is when it settles
         elif self.state == ENABLED and self.mode == HM and self.homing:
             self._homing_period(T)
         else:
@@ -878,13 +983,17 @@ class SimDrive:
             elif self._in_window_since is None:
                 self._in_window_since = self.plant.time
             since = self._in_window_since
-            self.target_reached = since is not None and \
-                self.plant.time - since >= self._od_or(0x6068, 0, 10) / 1000.0 - 1e-9
-        over = self.s.item(K.FE_COUNT)                  # ticks outside the following error window
+            self.target_reached = (
+                since is not None and self.plant.time - since >= self._od_or(0x6068, 0, 10) / 1000.0 - 1e-9
+            )
+        over = self.s.item(K.FE_COUNT)  # ticks outside the following error window
         if over > 0 and over >= self.following_error_ticks():
             self.fault(ERR_FOLLOWING)
-        elif self.setpoint_armed and self.following and self.plant.time - self.last_setpoint_time > \
-                self.setpoint_timeout():
+        elif (
+            self.setpoint_armed
+            and self.following
+            and self.plant.time - self.last_setpoint_time > self.setpoint_timeout()
+        ):
             # the master's stream is gone: the drive's connection-abort reaction (a fault where
             # the drive has no 0x6007, or it is left at CiA 402's default)
             self._connection_lost(ERR_RPDO_TIMEOUT, self._od_or(0x6007, 0, ABORT_FAULT))
@@ -915,7 +1024,7 @@ class SimDrive:
     def _refresh_actuals(self, noise: bool) -> None:
         sample = self.plant.noise() if noise and self.x.item(X.X_NOISE) else 0.0
         X.actual_values(self.s, self.p, self.x, self.plant.time, sample)
-        if self.fifo is not None:                   # 0x20C4:1 as of this sample (its other sub-indices are settings)
+        if self.fifo is not None:  # 0x20C4:1 as of this sample (its other sub-indices are settings)
             self._store(0x20C4, 1, self._buffer_status())
 
     def _live_objects(self) -> dict[int, Callable[[], int]]:
@@ -943,7 +1052,9 @@ class SimDrive:
         if self.fifo is None:
             return 0
         n = len(self.fifo)
-        status = self.ip_errors | (IPB_ENABLED if self.fifo_enabled else 0) | (IPB_ACTIVE if self.following else 0)
+        status = (
+            self.ip_errors | (IPB_ENABLED if self.fifo_enabled else 0) | (IPB_ACTIVE if self.following else 0)
+        )
         if n < self._od_or(0x20C4, 2, 4):
             status |= IPB_UNDERFLOW_WARNING
         if n > self._od_or(0x20C4, 3, 60):

@@ -39,6 +39,7 @@ of the demand (s = its direction), and the velocity integrator restarts from
 zero when a move starts: the model, not a torque the integrator was left
 holding against stiction, carries the axis.
 """
+
 from __future__ import annotations
 
 import math
@@ -46,23 +47,92 @@ import math
 import numpy as np
 from numba import njit
 
-CURRENT_SUBSTEPS = 4          # current-loop ticks per velocity-loop tick (8 kHz / 2 kHz)
-VELOCITY_TICK_S = 0.0005      # velocity / position loop period
+CURRENT_SUBSTEPS = 4  # current-loop ticks per velocity-loop tick (8 kHz / 2 kHz)
+VELOCITY_TICK_S = 0.0005  # velocity / position loop period
 
 # --- state columns -------------------------------------------------------------------
-(Q, V, I, I_INT, V_INT, ENC, VMEAS, TCMD, PDEM, VDEM, FERR, FE_COUNT, T, ENABLED, I_SUM, I_COUNT,
- TWIST, V_LOAD, TICKS) = range(19)
+(
+    Q,
+    V,
+    I,  # noqa: E741 (the motor current, as the equations write it)
+    I_INT,
+    V_INT,
+    ENC,
+    VMEAS,
+    TCMD,
+    PDEM,
+    VDEM,
+    FERR,
+    FE_COUNT,
+    T,
+    ENABLED,
+    I_SUM,
+    I_COUNT,
+    TWIST,
+    V_LOAD,
+    TICKS,
+) = range(19)
 N_STATE = 19
 
 # --- parameter columns ---------------------------------------------------------------
-(J, C0, C1, CP, D, KT, R, L, VBUS, TMAX, INC_PER_RAD,
- KPP, FWF, KPS, KIS, KPC, KIC,
- FF_EN, FF_J, FF_C0, FF_C1, FF_OFF, FF_CP, FF_DC0, FF_DC1, FF_PER_AMP, FF_PER_PERIOD, FF_PER_PHASE,
- LOAD, PER_AMP, PER_PERIOD, PER_PHASE, STR_AMP, STR_VEL, ASYM_DC0, ASYM_DC1,
- CPL_SRC, CPL_COEF, DRIFT_FRAC, DRIFT_TAU, FE_WINDOW, BRAKE, END_LO, END_HI, TM_SHARE, TM_K, TM_D,
- STRUCT, LOOP_DIV, PID_P, PID_I, PID_D, PID_FFV, PID_FFA) = range(54)
+(
+    J,
+    C0,
+    C1,
+    CP,
+    D,
+    KT,
+    R,
+    L,
+    VBUS,
+    TMAX,
+    INC_PER_RAD,
+    KPP,
+    FWF,
+    KPS,
+    KIS,
+    KPC,
+    KIC,
+    FF_EN,
+    FF_J,
+    FF_C0,
+    FF_C1,
+    FF_OFF,
+    FF_CP,
+    FF_DC0,
+    FF_DC1,
+    FF_PER_AMP,
+    FF_PER_PERIOD,
+    FF_PER_PHASE,
+    LOAD,
+    PER_AMP,
+    PER_PERIOD,
+    PER_PHASE,
+    STR_AMP,
+    STR_VEL,
+    ASYM_DC0,
+    ASYM_DC1,
+    CPL_SRC,
+    CPL_COEF,
+    DRIFT_FRAC,
+    DRIFT_TAU,
+    FE_WINDOW,
+    BRAKE,
+    END_LO,
+    END_HI,
+    TM_SHARE,
+    TM_K,
+    TM_D,
+    STRUCT,
+    LOOP_DIV,
+    PID_P,
+    PID_I,
+    PID_D,
+    PID_FFV,
+    PID_FFA,
+) = range(54)
 N_PARAM = 54
-CASCADE, POSITION_PID = 0.0, 1.0     # STRUCT: the controller structure the drive runs
+CASCADE, POSITION_PID = 0.0, 1.0  # STRUCT: the controller structure the drive runs
 
 # --- demand columns (one row per axis, set once per SYNC period) ----------------------
 P0, P1, A_FF, V_OFF, T_OFF = range(5)
@@ -90,8 +160,14 @@ def _sign(x: float) -> float:
 
 
 @njit(cache=True, nogil=True)
-def advance(state: np.ndarray, param: np.ndarray, demand: np.ndarray, tick0: np.ndarray, n_ticks: int,
-            ticks_per_period: int) -> None:
+def advance(
+    state: np.ndarray,
+    param: np.ndarray,
+    demand: np.ndarray,
+    tick0: np.ndarray,
+    n_ticks: int,
+    ticks_per_period: int,
+) -> None:
     """Advance all axes by ``n_ticks`` velocity-loop ticks.
 
     ``tick0[a]`` is the number of ticks axis ``a`` has already done in the
@@ -110,7 +186,7 @@ def advance(state: np.ndarray, param: np.ndarray, demand: np.ndarray, tick0: np.
             div = p[LOOP_DIV]
             s[TICKS] += 1.0
             if s[TICKS] < div:
-                continue                     # between two ticks of a slower loop: the command holds
+                continue  # between two ticks of a slower loop: the command holds
             s[TICKS] = 0.0
             dt_v = VELOCITY_TICK_S * div
             inc = p[INC_PER_RAD]
@@ -119,16 +195,16 @@ def advance(state: np.ndarray, param: np.ndarray, demand: np.ndarray, tick0: np.
             s[ENC] = enc
             # demand at the instant the encoder is read (the start of this tick)
             frac = (tick0[a] + k) / ticks_per_period
-            if frac >= 1.0:                  # no new setpoint yet: hold the last one
+            if frac >= 1.0:  # no new setpoint yet: hold the last one
                 p_d, v_d, a_d = d[P1], 0.0, 0.0
-            else:                            # the parabola through the last three setpoints
+            else:  # the parabola through the last three setpoints
                 a_d = d[A_FF]
                 tau = frac * period
                 v0 = (d[P1] - d[P0]) / period - 0.5 * a_d * period
                 p_d = d[P0] + (v0 + 0.5 * a_d * tau) * tau
                 v_d = v0 + a_d * tau
             if p[FF_EN] != 0.0 and s[VDEM] == 0.0 and v_d != 0.0:
-                s[V_INT] = 0.0               # motion starts: the model, not the integrator, carries the torque
+                s[V_INT] = 0.0  # motion starts: the model, not the integrator, carries the torque
             s[PDEM] = p_d
             s[VDEM] = v_d
             if s[ENABLED] == 0.0:
@@ -148,14 +224,25 @@ def advance(state: np.ndarray, param: np.ndarray, demand: np.ndarray, tick0: np.
             t_ff = d[T_OFF]
             if p[FF_EN] != 0.0:
                 sg = _sign(v_d)
-                t_ff += (p[FF_J] * a_d + (p[FF_C1] + p[FF_DC1] * sg) * v_d
-                         + (p[FF_C0] + p[FF_DC0] * sg) * sg + p[FF_OFF] + p[FF_CP] * p_d)
+                t_ff += (
+                    p[FF_J] * a_d
+                    + (p[FF_C1] + p[FF_DC1] * sg) * v_d
+                    + (p[FF_C0] + p[FF_DC0] * sg) * sg
+                    + p[FF_OFF]
+                    + p[FF_CP] * p_d
+                )
                 if p[FF_PER_PERIOD] > 0.0:
                     t_ff += p[FF_PER_AMP] * math.sin(2.0 * math.pi * p_d / p[FF_PER_PERIOD] + p[FF_PER_PHASE])
             if p[STRUCT] == POSITION_PID:
                 integ = s[V_INT] + p[PID_I] * ferr * dt_v
-                t_cmd = (p[PID_P] * ferr + integ + p[PID_D] * (v_back + d[V_OFF] - s[VMEAS])
-                         + p[PID_FFV] * v_d + p[PID_FFA] * a_d + t_ff)
+                t_cmd = (
+                    p[PID_P] * ferr
+                    + integ
+                    + p[PID_D] * (v_back + d[V_OFF] - s[VMEAS])
+                    + p[PID_FFV] * v_d
+                    + p[PID_FFA] * a_d
+                    + t_ff
+                )
             else:
                 e_v = p[FWF] * v_back + p[KPP] * ferr + d[V_OFF] - s[VMEAS]
                 integ = s[V_INT] + p[KIS] * e_v * dt_v
@@ -165,14 +252,14 @@ def advance(state: np.ndarray, param: np.ndarray, demand: np.ndarray, tick0: np.
             elif t_cmd < -p[TMAX]:
                 t_cmd = -p[TMAX]
             else:
-                s[V_INT] = integ          # anti-windup: integrate only when not saturated
+                s[V_INT] = integ  # anti-windup: integrate only when not saturated
             s[TCMD] = t_cmd
         # ---------------- current loop, motor and mechanics (8 kHz) ----------------
         for _ in range(CURRENT_SUBSTEPS):
             for a in range(n_axes):
                 s = state[a]
                 p = param[a]
-                if s[ENABLED] == 0.0:    # power stage off: no current; the brake, if any, holds
+                if s[ENABLED] == 0.0:  # power stage off: no current; the brake, if any, holds
                     s[I] = 0.0
                     s[I_INT] = 0.0
                     if p[BRAKE] != 0.0:
@@ -190,7 +277,7 @@ def advance(state: np.ndarray, param: np.ndarray, demand: np.ndarray, tick0: np.
                     s[I_INT] = integ
                 decay = math.exp(-p[R] * dt_c / p[L])
                 s[I] = s[I] * decay + (1.0 - decay) * (u - kt * s[V]) / p[R]
-                s[I_SUM] += s[I]             # the drive reports the current averaged since its last report
+                s[I_SUM] += s[I]  # the drive reports the current averaged since its last report
                 s[I_COUNT] += 1.0
             for a in range(n_axes):
                 s = state[a]
@@ -210,7 +297,7 @@ def advance(state: np.ndarray, param: np.ndarray, demand: np.ndarray, tick0: np.
                 if src >= 0:
                     c0 += p[CPL_COEF] * state[src, Q]
                 j_motor = p[J]
-                if p[TM_SHARE] > 0.0:               # the load on its spring-damper
+                if p[TM_SHARE] > 0.0:  # the load on its spring-damper
                     spring = p[TM_K] * s[TWIST] + p[TM_D] * (v - s[V_LOAD])
                     s[V_LOAD] += spring / (p[J] * p[TM_SHARE]) * dt_c
                     s[TWIST] += (v - s[V_LOAD]) * dt_c
@@ -227,13 +314,13 @@ def advance(state: np.ndarray, param: np.ndarray, demand: np.ndarray, tick0: np.
                     sg = _sign(v)
                     c0_dir = c0 + p[ASYM_DC0] * sg
                     if p[STR_VEL] > 0.0:
-                        c0_dir += p[STR_AMP] * math.exp(-(v / p[STR_VEL]) ** 2)
+                        c0_dir += p[STR_AMP] * math.exp(-((v / p[STR_VEL]) ** 2))
                     friction = (p[C1] + p[ASYM_DC1] * sg) * v + c0_dir * sg
                     v_new = v + (net - friction) / j_motor * dt_c
-                    if v_new * v < 0.0:      # crossed zero within the step: stick
+                    if v_new * v < 0.0:  # crossed zero within the step: stick
                         v_new = 0.0
                 q_new = q + 0.5 * (v + v_new) * dt_c
-                if p[END_LO] < p[END_HI]:           # a mechanical end stop: the axis stops dead there
+                if p[END_LO] < p[END_HI]:  # a mechanical end stop: the axis stops dead there
                     if q_new < p[END_LO]:
                         q_new = p[END_LO]
                         v_new = 0.0

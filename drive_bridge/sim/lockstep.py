@@ -8,6 +8,7 @@ returns.  Time is the simulation's: it moves with SYNC and with
 reads as captured from the wall-clock time the link was opened (``epoch``; the
 ``SOURCE_DATE_EPOCH`` convention fixes it, for traces identical run to run).
 """
+
 from __future__ import annotations
 
 import os
@@ -18,14 +19,14 @@ import numpy as np
 
 from ..master.engine import Arrays, Engine, Handler, Job, Outcome, reporter
 from ..master.link import BusErrors, MasterNetwork, TraceRecorder, heartbeat_frame
-from .robot import SimRobot
 from .adapters import FastVirtualBus
+from .robot import SimRobot
 
 
 class LockstepClock:
     """Simulation time of ``robot``; sleeping lets the drives run without SYNC."""
 
-    def __init__(self, link: "LockstepLink"):
+    def __init__(self, link: LockstepLink):
         self._link = link
 
     def now(self) -> float:
@@ -46,7 +47,7 @@ class LinkPort:
     sync_source = "lockstep (simulated time)"
     periodic_sync = False
 
-    def __init__(self, link: "LockstepLink"):
+    def __init__(self, link: LockstepLink):
         self.link = link
         self.now = link.clock.now
         self._subscribed: list[tuple[int, Callable[[int, bytearray, float], None]]] = []
@@ -65,8 +66,10 @@ class LinkPort:
     def receive(self, handlers: dict[int, Handler], on_error_frame: Callable[[], None]) -> None:
         net = self.link.network
         for cob_id, handler in handlers.items():
+
             def on_frame(can_id: int, data: bytearray, stamp: float, handler: Handler = handler) -> None:
                 handler(data, stamp)
+
             net.subscribe(cob_id, on_frame)
             self._subscribed.append((cob_id, on_frame))
         self._on_error = on_error_frame
@@ -90,7 +93,7 @@ class LinkPort:
 class LockstepLink:
     """Master side of the virtual bus, pumped synchronously with ``robot``."""
 
-    threaded = False          # every frame is seen on the calling thread
+    threaded = False  # every frame is seen on the calling thread
 
     def __init__(self, robot: SimRobot, channel: str = "drive-bridge"):
         self.epoch = float(os.environ.get("SOURCE_DATE_EPOCH") or time.time())
@@ -98,12 +101,14 @@ class LockstepLink:
         self.clock = LockstepClock(self)
         self.bus = FastVirtualBus(channel=channel, preserve_timestamps=True)
         if not isinstance(robot.bus, FastVirtualBus):
-            raise ValueError("a lockstep link runs the robot on its own in-process bus (robot.bus a FastVirtualBus)")
-        self.bus.direct = robot.bus.direct = True       # one thread: hand frames over as they are
+            raise ValueError(
+                "a lockstep link runs the robot on its own in-process bus (robot.bus a FastVirtualBus)"
+            )
+        self.bus.direct = robot.bus.direct = True  # one thread: hand frames over as they are
         self.network = MasterNetwork(self.bus, self.clock)
         self.network.after_send = self._after_send
         self._notify = self.network.notify
-        self.bus_errors = BusErrors()          # a virtual bus has none; the contract has them
+        self.bus_errors = BusErrors()  # a virtual bus has none; the contract has them
         self._heartbeat: Callable[[float], None] | None = None
         robot.power_on()
         self.pump()
@@ -142,6 +147,7 @@ class LockstepLink:
                     trace.on_message_received(msg)
                 self.robot.dispatch(msg)
                 due[0] += period
+
         self._heartbeat = beat
         self.robot.timers.append(beat)
         beat(self.robot.time)
@@ -151,8 +157,13 @@ class LockstepLink:
             self.robot.timers.remove(self._heartbeat)
             self._heartbeat = None
 
-    def run_cycles(self, job: Job, fill: Callable[[Arrays], None], progress: Callable[[int], None] | None,
-                   on_start: Callable[[int], None] | None) -> tuple[Outcome, Arrays, str]:
+    def run_cycles(
+        self,
+        job: Job,
+        fill: Callable[[Arrays], None],
+        progress: Callable[[int], None] | None,
+        on_start: Callable[[int], None] | None,
+    ) -> tuple[Outcome, Arrays, str]:
         """The cyclic engine on this thread, in simulation time."""
         arrays = Arrays(job, np.zeros)
         fill(arrays)

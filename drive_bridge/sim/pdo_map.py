@@ -4,10 +4,11 @@ mapping only while the PDO is invalid and its sub-index 0 is 0, only PDO-mappabl
 right direction with their own length, at most 8 entries and 64 bits; no reserved transmission
 type.  Event-driven TPDOs (254, 255) go out on a change of their data (no sooner than the
 inhibit time after the last) and when their event timer runs out."""
+
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 import canopen
 from canopen.objectdictionary import ODVariable
@@ -21,8 +22,15 @@ ABORT_STATE = 0x08000022
 ABORT_NOT_MAPPABLE = 0x06040041
 ABORT_PDO_LENGTH = 0x06040042
 #: CiA 301 §7.3.5: CAN-IDs no PDO may use (NMT, SYNC/EMCY, TIME, SDO, NMT error control, LSS)
-RESTRICTED_IDS = (range(0x000, 0x080), range(0x101, 0x181), range(0x581, 0x600), range(0x601, 0x680),
-                  range(0x6E0, 0x700), range(0x701, 0x780), range(0x780, 0x800))
+RESTRICTED_IDS = (
+    range(0x000, 0x080),
+    range(0x101, 0x181),
+    range(0x581, 0x600),
+    range(0x601, 0x680),
+    range(0x6E0, 0x700),
+    range(0x701, 0x780),
+    range(0x780, 0x800),
+)
 RESERVED_TRANSMISSION = {"t": range(241, 252), "r": range(241, 254)}
 CAN_29BIT = 0x2000_0000
 
@@ -60,8 +68,12 @@ class PdoMapping:
     ``value(index, sub)`` reads an object as the drive holds it; ``getter(index, sub)`` gives
     the callable a TPDO samples an object with."""
 
-    def __init__(self, od: canopen.ObjectDictionary, value: Callable[[int, int], int],
-                 getter: Callable[[int, int], Callable[[], int]]):
+    def __init__(
+        self,
+        od: canopen.ObjectDictionary,
+        value: Callable[[int, int], int],
+        getter: Callable[[int, int], Callable[[], int]],
+    ):
         self.od, self._value, self._getter = od, value, getter
         self.rpdos: dict[int, tuple[PdoCodec, int]] = {}
         self.tpdos: list[tuple[PdoCodec, int, list[Callable[[], int]]]] = []
@@ -70,19 +82,23 @@ class PdoMapping:
     def check_write(self, index: int, sub: int, value: int) -> None:
         """Raise SdoAbortedError when a write to a PDO parameter breaks CiA 301's rules."""
         is_map = (index & 0xFF00) in (0x1600, 0x1A00)
-        comm = (index & ~0x0200) if is_map else index      # 0x16xx -> 0x14xx, 0x1Axx -> 0x18xx
+        comm = (index & ~0x0200) if is_map else index  # 0x16xx -> 0x14xx, 0x1Axx -> 0x18xx
         cob = self._value(comm, 1)
         if not is_map:
-            if sub == 1 and not cob & PDO_INVALID and not value & PDO_INVALID and \
-                    (value & 0x7FF) != (cob & 0x7FF):
-                raise SdoAbortedError(ABORT_RANGE)    # change the COB-ID only while invalid
+            if (
+                sub == 1
+                and not cob & PDO_INVALID
+                and not value & PDO_INVALID
+                and (value & 0x7FF) != (cob & 0x7FF)
+            ):
+                raise SdoAbortedError(ABORT_RANGE)  # change the COB-ID only while invalid
             if sub == 1 and (value & CAN_29BIT or (not value & PDO_INVALID and restricted(value))):
-                raise SdoAbortedError(ABORT_RANGE)    # a restricted CAN-ID, or 29-bit (not supported)
+                raise SdoAbortedError(ABORT_RANGE)  # a restricted CAN-ID, or 29-bit (not supported)
             if sub == 2 and value in RESERVED_TRANSMISSION["t" if index >= 0x1800 else "r"]:
-                raise SdoAbortedError(ABORT_RANGE)    # reserved transmission type
+                raise SdoAbortedError(ABORT_RANGE)  # reserved transmission type
             return
         if not cob & PDO_INVALID:
-            raise SdoAbortedError(ABORT_STATE)        # map only while the PDO is invalid
+            raise SdoAbortedError(ABORT_STATE)  # map only while the PDO is invalid
         if sub == 0:
             bits = 0
             for n in range(1, value + 1):
@@ -94,15 +110,23 @@ class PdoMapping:
                 raise SdoAbortedError(ABORT_PDO_LENGTH)
         else:
             if self._value(index, 0) != 0:
-                raise SdoAbortedError(ABORT_STATE)    # sub 0 must be 0 while entries change
-            if value and self._mappable(value >> 16, (value >> 8) & 0xFF, index >= 0x1A00, value & 0xFF) is None:
+                raise SdoAbortedError(ABORT_STATE)  # sub 0 must be 0 while entries change
+            if (
+                value
+                and self._mappable(value >> 16, (value >> 8) & 0xFF, index >= 0x1A00, value & 0xFF) is None
+            ):
                 raise SdoAbortedError(ABORT_NOT_MAPPABLE)
 
     def _mappable(self, index: int, sub: int, tpdo: bool, bits: int | None = None) -> ODVariable | None:
         """The object an entry maps, None where it cannot be mapped so (not mappable, the wrong
         direction, or ``bits`` other than its own length)."""
         var = self.od.get_variable(index, sub)
-        if var is None or not var.pdo_mappable or (tpdo and not var.readable) or (not tpdo and not var.writable):
+        if (
+            var is None
+            or not var.pdo_mappable
+            or (tpdo and not var.readable)
+            or (not tpdo and not var.writable)
+        ):
             return None
         if bits is not None and bits != len(var):
             return None
@@ -113,20 +137,31 @@ class PdoMapping:
         self.rpdos, self.tpdos, self.events = {}, [], []
         for n in range(4):
             for comm, mapping, table in ((0x1400 + n, 0x1600 + n, "r"), (0x1800 + n, 0x1A00 + n, "t")):
-                if comm not in self.od:                    # the drive has fewer PDOs
+                if comm not in self.od:  # the drive has fewer PDOs
                     continue
                 cob = self._value(comm, 1)
                 if cob & PDO_INVALID:
                     continue
-                entries = [(e >> 16, (e >> 8) & 0xFF) for e in (self._value(mapping, k)
-                                                                 for k in range(1, self._value(mapping, 0) + 1))]
+                entries = [
+                    (e >> 16, (e >> 8) & 0xFF)
+                    for e in (self._value(mapping, k) for k in range(1, self._value(mapping, 0) + 1))
+                ]
                 codec = PdoCodec.of(cob & 0x7FF, self.od, entries)
                 ttype = self._value(comm, 2)
                 if table == "r":
                     self.rpdos[codec.cob_id] = (codec, ttype)
                 elif ttype in (254, 255):
-                    sub = lambda k: self._value(comm, k) if self.od.get_variable(comm, k) is not None else 0  # noqa: E731
-                    self.events.append(EventPdo(codec, [self._getter(i, s) for i, s in codec.entries],
-                                                sub(3) * 1e-4, sub(5) * 1e-3))
+                    inhibit, timer = (
+                        self._value(comm, k) if self.od.get_variable(comm, k) is not None else 0
+                        for k in (3, 5)
+                    )
+                    self.events.append(
+                        EventPdo(
+                            codec,
+                            [self._getter(i, s) for i, s in codec.entries],
+                            inhibit * 1e-4,
+                            timer * 1e-3,
+                        )
+                    )
                 else:
                     self.tpdos.append((codec, ttype, [self._getter(i, s) for i, s in codec.entries]))

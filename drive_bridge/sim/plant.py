@@ -7,6 +7,7 @@ arrays per axis -- ``state``, ``param``, ``demand`` (:mod:`.kernel`) and the dri
 (``tick0``), the simulation time [s] and one standard-normal sequence from the configuration's
 seed, so that one seed gives byte-identical feedback in lockstep.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -46,7 +47,9 @@ class Plant:
         """The noise samples drawn ahead, at least ``n`` of them from the index returned on: the
         same sequence :meth:`noise` gives (the next block drawn early)."""
         if self._noise.size - self._noise_i < n:
-            self._noise = np.concatenate((self._noise[self._noise_i:], self._rng.standard_normal(NOISE_BLOCK)))
+            self._noise = np.concatenate(
+                (self._noise[self._noise_i :], self._rng.standard_normal(NOISE_BLOCK))
+            )
             self._noise_i = 0
         return self._noise, self._noise_i
 

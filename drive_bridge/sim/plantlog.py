@@ -6,10 +6,12 @@ with the factory gains of the project's drive (its EDS defaults); the log has th
 quantisation of ``record``'s log.csv: encoder increments, torque in per mille
 of rated torque, seeded measurement noise.
 """
+
 from __future__ import annotations
 
 import math
 from pathlib import Path
+
 import numpy as np
 
 from . import kernel as K
@@ -17,12 +19,16 @@ from .config import SimConfig
 from .drive import GAIN_PARAMS, plant_params
 from .vendors import factory
 
-INC_PER_REV = 2 ** 20
+INC_PER_REV = 2**20
 
 
-def plant_log(config: SimConfig, demand: dict[str, np.ndarray], period: float = 0.002,
-              torque_offset: dict[str, np.ndarray] | None = None,
-              gains: dict[str, dict[str, float]] | None = None) -> dict[str, np.ndarray]:
+def plant_log(
+    config: SimConfig,
+    demand: dict[str, np.ndarray],
+    period: float = 0.002,
+    torque_offset: dict[str, np.ndarray] | None = None,
+    gains: dict[str, dict[str, float]] | None = None,
+) -> dict[str, np.ndarray]:
     """Columns ``time_s`` and per axis ``<axis>_position_rad``, ``_position_demand_rad``,
     ``_torque_Nm`` of the plant following ``demand`` (axis -> positions per period [rad]), with
     ``torque_offset`` (axis -> [Nm] per period) added to the torque command as 0x60B2 is, and the
@@ -51,7 +57,7 @@ def plant_log(config: SimConfig, demand: dict[str, np.ndarray], period: float = 
     q = np.empty((n, len(names)))
     current = np.empty((n, len(names)))
     for k in range(n):
-        q[k] = state[:, K.Q]                                   # sampled at SYNC, like the TPDOs
+        q[k] = state[:, K.Q]  # sampled at SYNC, like the TPDOs
         current[k] = [K.mean_current(row) for row in state]
         dem[:, K.P0] = dem[:, K.P1]
         dem[:, K.P1] = targets[k]
@@ -70,6 +76,12 @@ def plant_log(config: SimConfig, demand: dict[str, np.ndarray], period: float = 
 
 def write_log(path: str | Path, cols: dict[str, np.ndarray]) -> Path:
     path = Path(path)
-    np.savetxt(path, np.column_stack(list(cols.values())), delimiter=",", header=",".join(cols),
-               comments="", fmt="%.9g")
+    np.savetxt(
+        path,
+        np.column_stack(list(cols.values())),
+        delimiter=",",
+        header=",".join(cols),
+        comments="",
+        fmt="%.9g",
+    )
     return path

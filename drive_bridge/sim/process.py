@@ -7,6 +7,7 @@ process, the same :class:`~drive_bridge.sim.robot.SimRobot`, reached over
 python-can's ``udp_multicast`` interface, which stamps every frame with the
 kernel's reception time like a CAN controller does.
 """
+
 from __future__ import annotations
 
 import gc
@@ -21,12 +22,12 @@ from typing import IO, cast
 
 import can
 
-from ..errors import BusError
 from ..cia.multicast import UDP_GROUP, LoopbackMulticastBus
+from ..errors import BusError
 from ..master.timing import lock_memory
 
-GROUP = UDP_GROUP               # python-can's default IPv4 group; each run gets its own port
-START_TIMEOUT_S = 120.0          # the child imports numpy/numba and loads the kernel
+GROUP = UDP_GROUP  # python-can's default IPv4 group; each run gets its own port
+START_TIMEOUT_S = 120.0  # the child imports numpy/numba and loads the kernel
 
 
 def free_port() -> int:
@@ -42,14 +43,29 @@ class SimProcess:
     its standard input closes (so it also stops when this process dies).
     """
 
-    def __init__(self, config_path: str | Path, sync_period: float, eds: Mapping[str, str | Path] | None = None):
+    def __init__(
+        self, config_path: str | Path, sync_period: float, eds: Mapping[str, str | Path] | None = None
+    ):
         self.group, self.port = GROUP, free_port()
-        self.bus = LoopbackMulticastBus(GROUP, self.port)      # the master's end, open before boot-up
+        self.bus = LoopbackMulticastBus(GROUP, self.port)  # the master's end, open before boot-up
         self.process = subprocess.Popen(
-            [sys.executable, "-m", __name__, str(config_path), str(self.port), repr(sync_period),
-             json.dumps({a: str(p) for a, p in (eds or {}).items()})],
-            stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
-        self._stdin, self._stdout = cast(IO[str], self.process.stdin), cast(IO[str], self.process.stdout)  # PIPEs
+            [
+                sys.executable,
+                "-m",
+                __name__,
+                str(config_path),
+                str(self.port),
+                repr(sync_period),
+                json.dumps({a: str(p) for a, p in (eds or {}).items()}),
+            ],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            text=True,
+        )
+        self._stdin, self._stdout = (
+            cast(IO[str], self.process.stdin),
+            cast(IO[str], self.process.stdout),
+        )  # PIPEs
         ready = select.select([self._stdout], [], [], START_TIMEOUT_S)[0]
         if not ready or self._stdout.readline().strip() != "ready":
             self.shutdown()
@@ -66,18 +82,24 @@ class SimProcess:
         self.bus.shutdown()
 
 
-def serve(config_path: str | Path, bus: can.BusABC, sync_period: float, eds: dict[str, str],
-          until: Callable[[], object]) -> None:
+def serve(
+    config_path: str | Path,
+    bus: can.BusABC,
+    sync_period: float,
+    eds: dict[str, str],
+    until: Callable[[], object],
+) -> None:
     """Run the simulated drives of ``config_path`` on ``bus`` against the wall clock; print
     ``ready`` once they are on the bus; ``until()`` returns when they are to stop."""
     from .config import load_sim_config
     from .robot import SimRobot
+
     robot = SimRobot(load_sim_config(config_path), bus=bus, sync_period=sync_period, eds=eds)
     # Out of the cycle collector's reach: a full collection walking three object dictionaries
     # stops the drives for tens of ms, longer than the master's missing-feedback limit.
     gc.collect()
     gc.freeze()
-    lock_memory()                       # where granted: no page fault holds the drives up
+    lock_memory()  # where granted: no page fault holds the drives up
     robot.start_realtime()
     robot.power_on()
     print("ready", flush=True)
@@ -88,8 +110,13 @@ def serve(config_path: str | Path, bus: can.BusABC, sync_period: float, eds: dic
 
 
 def main(config_path: str, port: str, sync_period: str, eds: str = "{}") -> None:
-    serve(config_path, LoopbackMulticastBus(GROUP, int(port), stamps="kernel"), float(sync_period), json.loads(eds),
-          sys.stdin.read)                # until the master closes the pipe
+    serve(
+        config_path,
+        LoopbackMulticastBus(GROUP, int(port), stamps="kernel"),
+        float(sync_period),
+        json.loads(eds),
+        sys.stdin.read,
+    )  # until the master closes the pipe
 
 
 if __name__ == "__main__":

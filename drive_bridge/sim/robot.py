@@ -9,6 +9,7 @@ Two clocks drive the same code:
   with real time and answers frames as they come, so a master that does not
   know it talks to a simulation sees drives that move on their own.
 """
+
 from __future__ import annotations
 
 import math
@@ -20,18 +21,19 @@ from pathlib import Path
 
 import can
 
-from ..resources import PROJECT_EDS
-from . import cyclic as X, kernel as K
-from .config import SimConfig
 from ..cia.p301 import NMT_STOPPED, SYNC_COB_ID
-from .drive import SimDrive
 from ..pdo import PdoCodec
+from ..resources import PROJECT_EDS
+from . import cyclic as X
+from . import kernel as K
 from .adapters import FastVirtualBus
+from .config import SimConfig
+from .drive import SimDrive
 from .plant import Plant
 from .steady import SteadyStream
 
-REPLY_DELAY_S = 50e-6        # wall clock: a drive's reply follows the frame it answers
-IDLE_WAKE_S = 0.002          # wall clock: the drives' thread wakes on this grid between frames
+REPLY_DELAY_S = 50e-6  # wall clock: a drive's reply follows the frame it answers
+IDLE_WAKE_S = 0.002  # wall clock: the drives' thread wakes on this grid between frames
 #: wall clock: how much of a SYNC's phase error against the drives' loop grid one SYNC corrects
 SYNC_LOCK_GAIN = 0.1
 #: ... for errors within this fraction of a period (a late master's SYNC does not move the grid)
@@ -48,28 +50,35 @@ class SimRobot:
     every drive is built from, or one per axis name (the project's drive where an axis has none).
     """
 
-    def __init__(self, config: SimConfig, channel: str = "drive-bridge", *, bus: can.BusABC | None = None,
-                 sync_period: float = 0.002, eds: str | Path | Mapping[str, str | Path] = PROJECT_EDS):
+    def __init__(
+        self,
+        config: SimConfig,
+        channel: str = "drive-bridge",
+        *,
+        bus: can.BusABC | None = None,
+        sync_period: float = 0.002,
+        eds: str | Path | Mapping[str, str | Path] = PROJECT_EDS,
+    ):
         self.config = config
         self.plant = Plant(len(config.axes), sync_period, config.seed)
         self.bus = bus if bus is not None else FastVirtualBus(channel=channel, preserve_timestamps=True)
         # wall clock: the time of simulation time 0 [s]; the drives' grid (ticks into the period,
         # boundaries passed), the boundary of the last SYNC, when it came, the RPDOs armed by it
         self._t0 = 0.0
-        self._bus_time = 0.0                      # wall clock: the latest frame's stamp [s]
+        self._bus_time = 0.0  # wall clock: the latest frame's stamp [s]
         self._phase = 0
         self._boundary = 0
         self._sync_tag = -2
         self._last_sync = -math.inf
         self._armed: list[list[tuple[PdoCodec, bytes]]] = [[] for _ in config.axes]
-        self._stamp = lambda: self.plant.time           # lockstep: frames carry simulation time
+        self._stamp = lambda: self.plant.time  # lockstep: frames carry simulation time
         # compile (or load from numba's cache) now, not while a clock is running
         self.plant.advance(0)
         X.compile_all()
         self._routes: dict[int, Callable[[bytes], None]] = {}
         #: called with the time after each advance (a lockstep master's heartbeat, in simulation time)
         self.timers: list[Callable[[float], None]] = []
-        self.drives: dict[str, SimDrive] = {}      # filled before the first routes_changed() counts
+        self.drives: dict[str, SimDrive] = {}  # filled before the first routes_changed() counts
         names = list(config.axes)
         for i, (name, axis) in enumerate(config.axes.items()):
             self.plant.state[i, K.Q] = axis.initial_position_rad
@@ -98,8 +107,9 @@ class SimRobot:
             drive.boot()
 
     def send(self, cob_id: int, data: bytes) -> None:
-        self.bus.send(can.Message(arbitration_id=cob_id, data=data, is_extended_id=False,
-                                  timestamp=self._stamp()))
+        self.bus.send(
+            can.Message(arbitration_id=cob_id, data=data, is_extended_id=False, timestamp=self._stamp())
+        )
 
     def routes_changed(self) -> None:
         """Rebuild the COB-ID -> handler table (after a PDO mapping change)."""
@@ -116,16 +126,21 @@ class SimRobot:
         self._routes = routes
         #: the frames that leave the drives' streaming layout as it is: SYNC and synchronous RPDOs,
         #: and the heartbeats the drives watch (those move when a drive next has its own business)
-        self._streamed = {SYNC_COB_ID} | {cob_id for drive in self.drives.values()
-                                    for cob_id, (_, ttype) in drive.rpdos.items() if ttype <= 240}
+        self._streamed = {SYNC_COB_ID} | {
+            cob_id
+            for drive in self.drives.values()
+            for cob_id, (_, ttype) in drive.rpdos.items()
+            if ttype <= 240
+        }
         self._watched = {0x700 + node for node in watchers}
         self._steady = None
 
     @staticmethod
     def _sdo_handler(drive: SimDrive) -> Callable[[bytes], None]:
         def handle(data: bytes) -> None:
-            if drive.online and drive.nmt_state != NMT_STOPPED:        # CiA 301: no SDO in Stopped
+            if drive.online and drive.nmt_state != NMT_STOPPED:  # CiA 301: no SDO in Stopped
                 drive.node.sdo.on_request(0x600 + drive.node_id, data, 0.0)
+
         return handle
 
     @staticmethod
@@ -133,6 +148,7 @@ class SimRobot:
         def handle(data: bytes) -> None:
             if drive.online:
                 drive.on_rpdo(cob_id, data)
+
         return handle
 
     @staticmethod
@@ -141,6 +157,7 @@ class SimRobot:
             for drive in drives:
                 if drive.online:
                     drive.on_heartbeat(node)
+
         return handle
 
     def dispatch(self, msg: can.Message) -> None:
@@ -164,12 +181,12 @@ class SimRobot:
         if self._steady is None and all(drive.streaming for drive in self.drives.values()):
             self._steady = SteadyStream(self.plant, list(self.drives.values()), self.send)
         if self._steady is not None and self._steady.period():
-            self.plant.tick0[:] = 0          # every drive starts an interpolation period
+            self.plant.tick0[:] = 0  # every drive starts an interpolation period
             return
         self._supervise()
         for drive in self.drives.values():
             drive.on_sync()
-            if not drive.internal_profile:      # a new interpolation period starts at SYNC
+            if not drive.internal_profile:  # a new interpolation period starts at SYNC
                 self.plant.tick0[drive.index] = 0
 
     # ------------------------------------------------------------------ lockstep
@@ -185,7 +202,7 @@ class SimRobot:
     def idle(self, duration: float) -> None:
         """Lockstep: let ``duration`` seconds pass without SYNC (drives hold, heartbeats go out)."""
         ticks = max(1, round(duration / K.VELOCITY_TICK_S))
-        while ticks > 0:                    # in SYNC-period steps so heartbeats go out on time
+        while ticks > 0:  # in SYNC-period steps so heartbeats go out on time
             step = min(ticks, self.plant.ticks_per_period)
             self.advance(step)
             ticks -= step
@@ -221,7 +238,7 @@ class SimRobot:
     def start_realtime(self) -> None:
         """Run the drives against the wall clock in a background thread
         (in a process of its own: :mod:`drive_bridge.sim.process`)."""
-        self._bus_time = time.time()             # frames leave REPLY_DELAY_S after what they answer
+        self._bus_time = time.time()  # frames leave REPLY_DELAY_S after what they answer
         self._stamp = lambda: self._bus_time + REPLY_DELAY_S
         self._running = True
         self._thread = threading.Thread(target=self._run_realtime, name="sim-drives", daemon=True)
@@ -234,10 +251,10 @@ class SimRobot:
         # the simulator, not of the master) is applied at its own time and never found missing.
         # Between frames the plant catches up on an absolute grid of IDLE_WAKE_S (heartbeats,
         # profiles, time-outs); a late wake-up takes the next point of the grid, never a burst.
-        try:                                    # the drives are hardware's stand-in: first in line for the CPU
+        try:  # the drives are hardware's stand-in: first in line for the CPU
             os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(60))
         except (AttributeError, OSError):
-            pass                                # not allowed here: they run at normal priority
+            pass  # not allowed here: they run at normal priority
         self.clock_from(time.time())
         wake = time.monotonic()
         while self._running:
@@ -307,8 +324,10 @@ class SimRobot:
         self._last_sync = stamp
         self.run_until(stamp)
         period = self.plant.ticks_per_period * K.VELOCITY_TICK_S
-        since = stamp - (self._t0 + self.plant.time) + self._phase * K.VELOCITY_TICK_S   # since the last boundary
-        if relock:                                      # the first SYNC after a pause sets the grid
+        since = (
+            stamp - (self._t0 + self.plant.time) + self._phase * K.VELOCITY_TICK_S
+        )  # since the last boundary
+        if relock:  # the first SYNC after a pause sets the grid
             self._t0 = stamp - self.plant.time
         # a master's SYNC is late, never early, but for jitter: the SYNC of the boundary passed last
         # unless that one had its SYNC already
@@ -319,7 +338,7 @@ class SimRobot:
             self._sample()
             self._next_boundary()
             return
-        nearest = round((stamp - self._t0 - self.plant.time) / K.VELOCITY_TICK_S)   # the tick it falls on
+        nearest = round((stamp - self._t0 - self.plant.time) / K.VELOCITY_TICK_S)  # the tick it falls on
         to_boundary = self.plant.ticks_per_period - self._phase
         if early and nearest >= to_boundary:
             # on the boundary's tick: sampled before its period starts, as a SYNC is in lockstep
@@ -328,10 +347,10 @@ class SimRobot:
             self._sample()
             self._next_boundary()
             self._run_ticks(nearest - to_boundary)
-        else:                           # (a late SYNC's period began at the boundary passed: not the next)
+        else:  # (a late SYNC's period began at the boundary passed: not the next)
             self._run_ticks(nearest if early else min(nearest, to_boundary - 1))
             self._sample()
-        error = since - period if early else since      # [s] against its own boundary
+        error = since - period if early else since  # [s] against its own boundary
         if abs(error) < SYNC_LOCK_RANGE * period:
             self._t0 += SYNC_LOCK_GAIN * error
 
@@ -340,7 +359,7 @@ class SimRobot:
         one before, the master's SYNC not here yet) starts with its RPDOs.  None: a drive following
         the master starts a period without a new setpoint (:func:`.cyclic.follow_period`: a substitute
         at the last velocity until its setpoint timeout), the others hold."""
-        if self._sync_tag == self._boundary - 1:        # the SYNC late or skipped: its RPDOs are due
+        if self._sync_tag == self._boundary - 1:  # the SYNC late or skipped: its RPDOs are due
             self._arm()
         elif self._sync_tag != self._boundary:
             for drive in self.drives.values():

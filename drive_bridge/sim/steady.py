@@ -12,11 +12,13 @@ know -- is the Python drive's: :meth:`SteadyStream.period` declines before chang
 the robot runs the SYNC as before.  Both give the same frames byte for byte
 (``tests/sim/test_steady.py``).
 """
+
 from __future__ import annotations
 
 import math
 import struct
-from typing import TYPE_CHECKING, Callable
+from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -28,17 +30,30 @@ if TYPE_CHECKING:
 
 #: TPDO objects whose value changes every period -> what steady_period computes for them
 #: (every other mapped object is constant while the drive streams, read when the plan is refreshed)
-MEASURED = {0x6041: X.SRC_STATUSWORD, 0x6064: X.SRC_POSITION, 0x606C: X.SRC_VELOCITY, 0x6077: X.SRC_TORQUE,
-            0x60F4: X.SRC_FOLLOWING_ERROR}
+MEASURED = {
+    0x6041: X.SRC_STATUSWORD,
+    0x6064: X.SRC_POSITION,
+    0x606C: X.SRC_VELOCITY,
+    0x6077: X.SRC_TORQUE,
+    0x60F4: X.SRC_FOLLOWING_ERROR,
+}
 #: what an RPDO of a streaming drive may write: the controlword (held), the CSP target and the
 #: torque and velocity offsets (the kernel reads those only as the plant advances: they are
 #: written as the Python drive writes them)
 STREAMED = {(0x6040, 0), (0x607A, 0), (0x60B2, 0), (0x60B1, 0)}
 OFFSETS = (0x60B2, 0x60B1)
 #: struct codes of the integer types a TPDO entry may have -> (signed, size in bytes)
-INTEGERS = {"b": (True, 1), "B": (False, 1), "h": (True, 2), "H": (False, 2), "i": (True, 4), "I": (False, 4),
-            "l": (True, 4), "L": (False, 4),
-            "q": (True, 8)}
+INTEGERS = {
+    "b": (True, 1),
+    "B": (False, 1),
+    "h": (True, 2),
+    "H": (False, 2),
+    "i": (True, 4),
+    "I": (False, 4),
+    "l": (True, 4),
+    "L": (False, 4),
+    "q": (True, 8),
+}
 #: what the statusword's bits 11 (internal limit active) and 13 (following error) leave to the period
 STATUS_PER_PERIOD = 0x0800 | 0x2000
 
@@ -52,15 +67,15 @@ class SteadyStream:
         self.plant = plant
         self.drives = drives
         self.send = send
-        self.stale = True              # the per-drive values (limits, times, constants) to be read anew
-        self._offsets: dict[tuple[int, int], int] = {}     # (axis, object) -> the offset it last wrote
+        self.stale = True  # the per-drive values (limits, times, constants) to be read anew
+        self._offsets: dict[tuple[int, int], int] = {}  # (axis, object) -> the offset it last wrote
         self.supported = self._layout()
 
     def _layout(self) -> bool:
         entries: list[list[int]] = []
         #: per drive: (row of ``out``, COB-ID, transmission type, length) of each synchronous TPDO
         self.tpdos: list[list[tuple[int, int, int, int]]] = []
-        self._constants: list[tuple[int, Callable[[], int]]] = []      # (entry, its getter)
+        self._constants: list[tuple[int, Callable[[], int]]] = []  # (entry, its getter)
         row = 0
         for a, drive in enumerate(self.drives):
             written = {e for codec, _ in drive.rpdos.values() for e in codec.entries}
@@ -71,8 +86,9 @@ class SteadyStream:
             for codec, ttype, getters in drive.pdos.tpdos:
                 if not 1 <= ttype <= 240:
                     continue
-                for (index, sub), (lo, hi), code, getter in zip(codec.entries, codec.spans,
-                                                                codec.struct.format.lstrip("<"), getters):
+                for (index, sub), (lo, hi), code, getter in zip(
+                    codec.entries, codec.spans, codec.struct.format.lstrip("<"), getters
+                ):
                     if code not in INTEGERS or (index, sub) in written:
                         return False
                     signed, size = INTEGERS[code]
@@ -88,7 +104,7 @@ class SteadyStream:
         self.entries = np.array(entries, dtype=np.int64).reshape(-1, X.N_ENTRY)
         self.out = np.zeros((max(1, row), 8), dtype=np.uint8)
         self.axes = np.zeros((len(self.drives), X.N_AXIS))
-        self.noisy = int(np.count_nonzero(self.plant.drive_rows[:, X.X_NOISE]))     # noise samples a period
+        self.noisy = int(np.count_nonzero(self.plant.drive_rows[:, X.X_NOISE]))  # noise samples a period
         return True
 
     def _refresh(self) -> None:
@@ -104,7 +120,7 @@ class SteadyStream:
             self.wake = min(self.wake, drive.next_due())
         for entry, getter in self._constants:
             self.entries[entry, X.E_CONST] = getter()
-        self._offsets.clear()               # the Python drive may have written others since
+        self._offsets.clear()  # the Python drive may have written others since
         self.stale = False
 
     def period(self) -> bool:
@@ -135,8 +151,19 @@ class SteadyStream:
                         axes[a, X.A_HAS_SETPOINT] = 1.0
                 taken.append((a, drive, codec, data, values))
         noise, index = plant.reserve_noise(self.noisy)
-        index = X.steady_period(plant.state, plant.param, plant.demand, plant.drive_rows, axes, self.entries,
-                                noise, index, now, plant.sync_period, self.out)
+        index = X.steady_period(
+            plant.state,
+            plant.param,
+            plant.demand,
+            plant.drive_rows,
+            axes,
+            self.entries,
+            noise,
+            index,
+            now,
+            plant.sync_period,
+            self.out,
+        )
         if index == X.SLOW:
             return False
         if index == X.OUT_OF_RANGE:
@@ -145,7 +172,7 @@ class SteadyStream:
         offsets = self._offsets
         for a, drive, codec, data, values in taken:
             for (i, sub), (lo, hi), value in zip(codec.entries, codec.spans, values):
-                if i in OFFSETS and offsets.get((a, i)) != value:      # (the loops read them as they advance)
+                if i in OFFSETS and offsets.get((a, i)) != value:  # (the loops read them as they advance)
                     drive.write(i, sub, value)
                     offsets[(a, i)] = value
                 drive.keep(i, sub, data[lo:hi], value)

@@ -8,6 +8,7 @@ default, which drive profile holds its gain objects -- is given here per file.
 Values marked as the simulation's choice stand for one plausible drive set-up,
 not for a vendor document.
 """
+
 from __future__ import annotations
 
 import configparser
@@ -36,7 +37,7 @@ class DriveSpec:
     velocity_unit: str = "inc/s"
     current_unit: str = "permille"
     supported_modes: int | None = None
-    current_objects: tuple[int, ...] = (0x6078,)      # objects reporting the averaged current
+    current_objects: tuple[int, ...] = (0x6078,)  # objects reporting the averaged current
 
 
 #: by EDS/DCF file name
@@ -46,9 +47,14 @@ SPECS = {
     # the drive: PP, PV, homing, IP and maxon's position/velocity/current modes (bits 16-18).
     # 16384 increments per revolution: a 4096-count encoder, quadrature (the simulation's choice).
     # 0x2027 "Current Actual Value Averaged" reports the same averaged current.
-    "maxon_epos2_50-5.eds": DriveSpec("maxon_epos2", increments_per_rev=16384, velocity_unit="rpm",
-                                      current_unit="mA", supported_modes=0x00070065,
-                                      current_objects=(0x6078, 0x2027)),
+    "maxon_epos2_50-5.eds": DriveSpec(
+        "maxon_epos2",
+        increments_per_rev=16384,
+        velocity_unit="rpm",
+        current_unit="mA",
+        supported_modes=0x00070065,
+        current_objects=(0x6078, 0x2027),
+    ),
     # C5-E: 0x608F:1 has no default; 65536 increments per revolution (the simulation's choice).
     "nanotec_C5-E-2-09.eds": DriveSpec("nanotec_c5e", increments_per_rev=65536),
     # iPOS: no 0x608F; 16384 increments per revolution (the simulation's choice).
@@ -70,8 +76,10 @@ def spec_for(eds_path: str | Path) -> DriveSpec:
         path = PROJECT_EDS if known == PROJECT_EDS.name else vendor_dir() / known
         if ident is not None and path.is_file() and _identity(path) == ident:
             return spec
-    raise ValueError(f"the simulator has no drive for {name} (it has: {', '.join(SPECS)}, or a file with one of "
-                     f"their vendor and product numbers)")
+    raise ValueError(
+        f"the simulator has no drive for {name} (it has: {', '.join(SPECS)}, or a file with one of "
+        f"their vendor and product numbers)"
+    )
 
 
 def _identity(path: Path) -> tuple[int, int] | None:
@@ -89,12 +97,12 @@ class Factory:
     """The factory set-up every simulated drive starts from, SI: the project drive's EDS
     defaults, so that each vendor drive runs the same loops on the same plant."""
 
-    gains: dict[str, float]                 # KpP, FwF, KpS, KiS, KpC, KiC
-    max_torque_permille: int                # 0x6072
-    quick_stop_rad_s2: float                # 0x6085
-    profile_velocity_rad_s: float           # 0x6081
-    profile_acceleration_rad_s2: float      # 0x6083, 0x6084
-    fe_timeout_ms: int                      # 0x6066
+    gains: dict[str, float]  # KpP, FwF, KpS, KiS, KpC, KiC
+    max_torque_permille: int  # 0x6072
+    quick_stop_rad_s2: float  # 0x6085
+    profile_velocity_rad_s: float  # 0x6081
+    profile_acceleration_rad_s2: float  # 0x6083, 0x6084
+    fe_timeout_ms: int  # 0x6066
 
 
 @cache
@@ -106,8 +114,14 @@ def factory() -> Factory:
         if var is None or var.default is None:
             raise ValueError(f"{PROJECT_EDS.name} has no default for 0x{index:04X}:{sub}")
         return var.default
+
     inc_per_rad = default(0x608F, 1) / default(0x608F, 2) / (2 * math.pi)
     names = ("KpP", "FwF", "KpS", "KiS", "KpC", "KiC")
-    return Factory({n: float(default(0x2000, i + 1)) for i, n in enumerate(names)}, int(default(0x6072)),
-                   default(0x6085) / inc_per_rad, default(0x6081) / inc_per_rad,
-                   default(0x6083) / inc_per_rad, int(default(0x6066)))
+    return Factory(
+        {n: float(default(0x2000, i + 1)) for i, n in enumerate(names)},
+        int(default(0x6072)),
+        default(0x6085) / inc_per_rad,
+        default(0x6081) / inc_per_rad,
+        default(0x6083) / inc_per_rad,
+        int(default(0x6066)),
+    )

@@ -22,6 +22,7 @@ compliant transmission's mode, which the rigid model lacks, then limits the
 crossover.  Units SI, motor side: KpS [Nm·s/rad],
 KiS [1/s], KpP [1/s], KpC [V/A], KiC [1/s].
 """
+
 from __future__ import annotations
 
 from collections.abc import Callable
@@ -36,8 +37,8 @@ from ..params.controller import CURRENT_RATE_HZ, Timing
 if TYPE_CHECKING:
     from ..ident.frf import Frf
 
-PM_DESIGN_DEG, GM_DESIGN_DB = 50.0, 9.0    # what the design aims at: room for model error
-INTEGRAL_RATIO = 6.0          # KiS = crossover / this
+PM_DESIGN_DEG, GM_DESIGN_DB = 50.0, 9.0  # what the design aims at: room for model error
+INTEGRAL_RATIO = 6.0  # KiS = crossover / this
 
 PROJECT = Timing()
 
@@ -62,21 +63,7 @@ class GainDesign:
         return asdict(self)
 
 
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-MEASURE_CROSSOVER_SHARE = 0.06   # the measurement's velocity loop crosses over at this share of the SYNC rate
+MEASURE_CROSSOVER_SHARE = 0.06  # the measurement's velocity loop crosses over at this share of the SYNC rate
 
 
 def measurement_gains(J: float, rate_hz: float) -> dict[str, float]:
@@ -87,14 +74,6 @@ def measurement_gains(J: float, rate_hz: float) -> dict[str, float]:
     its alias spoils the bins below; and the closer |K·G| is to 1 the better the plant is seen."""
     wc = 2 * np.pi * MEASURE_CROSSOVER_SHARE * rate_hz
     return {"KpP": wc / INTEGRAL_RATIO, "KpS": J * wc, "KiS": wc / INTEGRAL_RATIO}
-
-
-
-
-
-
-
-
 
 
 def current_bandwidth(current_hz: float = CURRENT_RATE_HZ) -> float:
@@ -108,19 +87,16 @@ def current_gains(R: float, L: float, current_hz: float = CURRENT_RATE_HZ) -> tu
     return L * w_i, R / L, w_i
 
 
-
-
-
-
-
-
-def _largest(margins_at: Callable[[float], Margins], lo: float, hi: float, pm_min: float,
-             what: str) -> tuple[float, Margins]:
+def _largest(
+    margins_at: Callable[[float], Margins], lo: float, hi: float, pm_min: float, what: str
+) -> tuple[float, Margins]:
     """The largest x in [lo, hi] whose margins hold (they shrink as x grows), by bisection on
     log x to 0.1 %."""
+
     def ok(x: float) -> Margins | None:
         m = margins_at(x)
         return m if m.phase_margin_deg >= pm_min and m.gain_margin_db >= GM_DESIGN_DB else None
+
     best = ok(lo)
     if best is None:
         raise ValueError(f"no {what} gain meets the margins on this plant")
@@ -134,8 +110,15 @@ def _largest(margins_at: Callable[[float], Margins], lo: float, hi: float, pm_mi
     return lo, best
 
 
-def design_gains(J: float, c1: float, R: float, L: float, frf: "Frf | None" = None,
-                 timing: Timing = PROJECT, max_crossover_hz: float | None = None) -> GainDesign:
+def design_gains(
+    J: float,
+    c1: float,
+    R: float,
+    L: float,
+    frf: Frf | None = None,
+    timing: Timing = PROJECT,
+    max_crossover_hz: float | None = None,
+) -> GainDesign:
     """Gains for the plant J [kg·m²], c1 [Nm·s/rad] and motor R [Ω], L [H], for loops at the
     drive's rates ``timing``; with a measured plant ``frf`` (:class:`drive_bridge.ident.frf.Frf`)
     every candidate must keep the margins on it too (the worse of the two counts), its crossover
@@ -156,11 +139,27 @@ def design_gains(J: float, c1: float, R: float, L: float, frf: "Frf | None" = No
         measured = measured_loop(gains, frf, loop, w_i, T)
         return Margins(-np.inf, -np.inf, model.crossover_hz) if measured is None else model.worse(measured)
 
-    wc, vm = _largest(lambda w: worse(margins_of(velocity_open_loop(J, c1, J * w, w / INTEGRAL_RATIO, w_i, T)),
-                                      {"KpS": J * w, "KiS": w / INTEGRAL_RATIO}, "velocity"),
-                      20.0, nyquist, PM_DESIGN_DEG, "velocity")           # the velocity-loop crossover
+    wc, vm = _largest(
+        lambda w: worse(
+            margins_of(velocity_open_loop(J, c1, J * w, w / INTEGRAL_RATIO, w_i, T)),
+            {"KpS": J * w, "KiS": w / INTEGRAL_RATIO},
+            "velocity",
+        ),
+        20.0,
+        nyquist,
+        PM_DESIGN_DEG,
+        "velocity",
+    )  # the velocity-loop crossover
     KpS, KiS = J * wc, wc / INTEGRAL_RATIO
-    KpP, pm = _largest(lambda k: worse(margins_of(position_open_loop(J, c1, KpS, KiS, k, w_i, T)),
-                                       {"KpS": KpS, "KiS": KiS, "KpP": k}, "position"),
-                       1.0, nyquist, PM_DESIGN_DEG + 5, "position")
+    KpP, pm = _largest(
+        lambda k: worse(
+            margins_of(position_open_loop(J, c1, KpS, KiS, k, w_i, T)),
+            {"KpS": KpS, "KiS": KiS, "KpP": k},
+            "position",
+        ),
+        1.0,
+        nyquist,
+        PM_DESIGN_DEG + 5,
+        "position",
+    )
     return GainDesign(float(KpP), 1.0, float(KpS), float(KiS), float(KpC), float(KiC), vm, pm)

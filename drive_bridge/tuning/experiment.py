@@ -17,11 +17,12 @@ the procedure's own (the fault is reset and the gain lowered); any other stop --
 an EMCY of another kind, a lost heartbeat, missing feedback, Ctrl-C, SIGTERM --
 ends the experiment as a motion stop.
 """
+
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
-from typing import Callable
 
 import numpy as np
 
@@ -56,7 +57,7 @@ RECOVER_S = 0.5
 @dataclass
 class Step:
     KpS: float
-    oscillation: float            # RMS velocity error on the flat parts / step height
+    oscillation: float  # RMS velocity error on the flat parts / step height
     oscillating: bool
     aborted: str | None
 
@@ -64,7 +65,7 @@ class Step:
 @dataclass
 class ExperimentResult:
     axis: str
-    KpS: float | None             # the last gain without oscillation
+    KpS: float | None  # the last gain without oscillation
     steps: list[Step] = field(default_factory=list)
     #: why the raising stopped before the velocity oscillated: the next gain the gate refused
     gated: str | None = None
@@ -76,11 +77,11 @@ class ExperimentResult:
 def square_wave(v_step: float, a_max: float, period: float, start: float) -> tuple[np.ndarray, np.ndarray]:
     """Position demand [rad] of the velocity square wave, and the velocity demand [rad/s]."""
     n_half = round(HALF_PERIOD_S / period)
-    ramp = max(1, int(np.ceil(v_step / a_max / period)))          # edges at the acceleration limit
+    ramp = max(1, int(np.ceil(v_step / a_max / period)))  # edges at the acceleration limit
     k = np.arange(1, n_half + 1)
     one = np.concatenate([np.minimum(k / ramp, 1.0), np.maximum(1.0 - k / ramp, 0.0)])
     vel = np.tile(one, CYCLES) * v_step
-    return start + (np.cumsum(vel) - vel) * period, vel     # p[k] = start + T·Σ_{j<k} v[j]
+    return start + (np.cumsum(vel) - vel) * period, vel  # p[k] = start + T·Σ_{j<k} v[j]
 
 
 def _oscillation(m: motion.Motion, axis: str, vel: np.ndarray, period: float, v_step: float) -> float:
@@ -92,7 +93,7 @@ def _oscillation(m: motion.Motion, axis: str, vel: np.ndarray, period: float, v_
         e = m.velocity[axis][flat] - vel[flat]
         err.append(e[np.isfinite(e)] - np.nanmean(e))
     e = np.concatenate(err)
-    return float(np.sqrt(np.mean(e ** 2)) / v_step) if e.size else float("inf")
+    return float(np.sqrt(np.mean(e**2)) / v_step) if e.size else float("inf")
 
 
 def demand_of(lim: Limits, period: float) -> tuple[np.ndarray, np.ndarray, float]:
@@ -100,39 +101,52 @@ def demand_of(lim: Limits, period: float) -> tuple[np.ndarray, np.ndarray, float
     demand [rad] around the stroke's centre, its velocity demand [rad/s], and the step height [rad/s]."""
     v_step = STEP_FRACTION * lim.max_velocity
     centre = 0.5 * (lim.position_min + lim.position_max)
-    demand, vel = square_wave(v_step, lim.max_acceleration, period, centre - 0.5 * v_step * HALF_PERIOD_S * CYCLES)
+    demand, vel = square_wave(
+        v_step, lim.max_acceleration, period, centre - 0.5 * v_step * HALF_PERIOD_S * CYCLES
+    )
     return demand, vel, v_step
 
 
 def check_start(axis: str, start_KpS: float, admit: Callable[[float], str | None] | None) -> None:
     """ValueRefused, before anything is written, when the gate refuses the experiment's first gain."""
     if admit is not None and (why := admit(start_KpS)):
-        raise ValueRefused(f"axis {axis}: the experiment's first gain KpS = {start_KpS:.5g} is refused before "
-                           f"anything was written: {why}")
+        raise ValueRefused(
+            f"axis {axis}: the experiment's first gain KpS = {start_KpS:.5g} is refused before "
+            f"anything was written: {why}"
+        )
 
 
-def run_experiment(config: BusConfig, link: Link, axes: dict[str, AxisLink], axis: str, profile: Profile,
-                   start_KpS: float, admit: Callable[[float], str | None] | None = None) -> ExperimentResult:
+def run_experiment(
+    config: BusConfig,
+    link: Link,
+    axes: dict[str, AxisLink],
+    axis: str,
+    profile: Profile,
+    start_KpS: float,
+    admit: Callable[[float], str | None] | None = None,
+) -> ExperimentResult:
     """The procedure on ``axis`` from ``start_KpS``. ``admit(KpS)`` says why a gain must not reach
     the drive (the gain gate, :func:`~drive_bridge.params.check.screen`; None: it may): a start it
     refuses raises ValueRefused before anything is written, a raise it refuses ends the raising
     there (``ExperimentResult.gated``); without ``admit`` every gain the ranges allow is tried."""
     ax = axes[axis]
     if profile.controller.structure != "cascade":
-        raise UserError(f"axis {axis}: the paper's procedure raises the velocity loop's KpS; the {profile.drive} "
-                        f"runs a {profile.controller.structure.replace('_', ' ')} in its streaming mode (tune "
-                        f"without --experiment)")
+        raise UserError(
+            f"axis {axis}: the paper's procedure raises the velocity loop's KpS; the {profile.drive} "
+            f"runs a {profile.controller.structure.replace('_', ' ')} in its streaming mode (tune "
+            f"without --experiment)"
+        )
     lim = ax.cfg.limits
     period = config.master.sync_period_s
     demand, vel, v_step = demand_of(lim, period)
     check_start(axis, start_KpS, admit)
     inc = ax.cfg.scaling.inc_per_rad
     window = ax.node.sdo[0x6065].raw
-    original: dict[str, float] | None = None         # the gains before, read before anything moves
+    original: dict[str, float] | None = None  # the gains before, read before anything moves
     result = ExperimentResult(axis, None)
     ax.node.sdo[0x6065].raw = round(FE_GUARD_RAD * inc)
 
-    v_limit = VELOCITY_GUARD * max(v_step, APPROACH_LEVEL * lim.max_velocity)    # the approach runs at 20 %
+    v_limit = VELOCITY_GUARD * max(v_step, APPROACH_LEVEL * lim.max_velocity)  # the approach runs at 20 %
 
     guard = VelocityGuard({axis: v_limit})
 
@@ -142,16 +156,21 @@ def run_experiment(config: BusConfig, link: Link, axes: dict[str, AxisLink], axi
             raise DriveRefused(f"axis {axis}: {res.error}")
         m = motion.run(config, link, {axis: ax}, {axis: demand}, guard=guard)
         if m.aborted is not None and not _expected(m.aborted):
-            raise m.aborted                   # a fault of the machine, not of the gain: stop here
+            raise m.aborted  # a fault of the machine, not of the gain: stop here
         if m.aborted is not None:
-            ax.drive.reset_fault()            # the experiment's own guard or its tightened window
+            ax.drive.reset_fault()  # the experiment's own guard or its tightened window
             step = Step(kps, float("inf"), True, str(m.aborted))
             recover()
         else:
             osc = _oscillation(m, axis, vel, period, v_step)
             step = Step(kps, osc, osc > OSCILLATION_RATIO, None)
-        log.info("axis %s: KpS %.5g: %s", axis, kps, step.aborted or f"velocity error {osc:.3g} of the step"
-                 + (" (oscillating)" if step.oscillating else ""))
+        log.info(
+            "axis %s: KpS %.5g: %s",
+            axis,
+            kps,
+            step.aborted
+            or f"velocity error {osc:.3g} of the step" + (" (oscillating)" if step.oscillating else ""),
+        )
         result.steps.append(step)
         return step
 
@@ -168,7 +187,9 @@ def run_experiment(config: BusConfig, link: Link, axes: dict[str, AxisLink], axi
         motion.run(config, link, {axis: ax}, {axis: np.full(round(RECOVER_S / period), here)})
 
     try:
-        original = read_parameters(ax.node, profile, list(GAINS))     # the whole set: a drive may switch gain objects
+        original = read_parameters(
+            ax.node, profile, list(GAINS)
+        )  # the whole set: a drive may switch gain objects
         running = {k: v for k, v in original.items() if k != SELECT}
         kps = start_KpS
         step = trial(kps)

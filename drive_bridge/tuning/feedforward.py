@@ -13,6 +13,7 @@ alone carries the axis out of stiction; no object does that on another drive, so
 start the streaming loop measures the torque the loop holds and sends that much less with the
 move (:class:`drive_bridge.master.stream._Unloader`).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -21,22 +22,40 @@ import numpy as np
 
 from ..master.bringup import AxisLink
 from ..params.profile import Profile
+
 #: identify's parameter names -> the drive's model parameters
-MODEL_KEYS = {"J": "J", "c0": "c0", "c1": "c1", "offset.offset": "offset", "position_linear.cp": "cp",
-              "direction_asymmetry.dc0": "dc0", "direction_asymmetry.dc1": "dc1",
-              "position_periodic.amplitude": "periodic_amplitude", "position_periodic.period": "periodic_period",
-              "position_periodic.phase": "periodic_phase"}
-MODEL = set(MODEL_KEYS.values())          # J, c0, c1 and the effect terms
+MODEL_KEYS = {
+    "J": "J",
+    "c0": "c0",
+    "c1": "c1",
+    "offset.offset": "offset",
+    "position_linear.cp": "cp",
+    "direction_asymmetry.dc0": "dc0",
+    "direction_asymmetry.dc1": "dc1",
+    "position_periodic.amplitude": "periodic_amplitude",
+    "position_periodic.period": "periodic_period",
+    "position_periodic.phase": "periodic_phase",
+}
+MODEL = set(MODEL_KEYS.values())  # J, c0, c1 and the effect terms
 
 
 def model_torque_at(p: dict[str, float], q: np.ndarray, v: np.ndarray, a: np.ndarray) -> np.ndarray:
     """The model torque [Nm] at positions ``q``, velocities ``v``, accelerations ``a``."""
     sg = np.sign(np.where(np.abs(v) > 1e-6, v, 0.0))
     period = p.get("periodic_period", 0.0)
-    ripple = (p.get("periodic_amplitude", 0.0) * np.sin(2 * np.pi * q / period + p.get("periodic_phase", 0.0))
-              if period > 0 else 0.0)
-    return (p.get("J", 0.0) * a + (p.get("c1", 0.0) + p.get("dc1", 0.0) * sg) * v
-            + (p.get("c0", 0.0) + p.get("dc0", 0.0) * sg) * sg + p.get("offset", 0.0) + p.get("cp", 0.0) * q + ripple)
+    ripple = (
+        p.get("periodic_amplitude", 0.0) * np.sin(2 * np.pi * q / period + p.get("periodic_phase", 0.0))
+        if period > 0
+        else 0.0
+    )
+    return (
+        p.get("J", 0.0) * a
+        + (p.get("c1", 0.0) + p.get("dc1", 0.0) * sg) * v
+        + (p.get("c0", 0.0) + p.get("dc0", 0.0) * sg) * sg
+        + p.get("offset", 0.0)
+        + p.get("cp", 0.0) * q
+        + ripple
+    )
 
 
 def model_torque(p: dict[str, float], q: np.ndarray, period: float) -> np.ndarray:
@@ -66,16 +85,23 @@ class MasterFeedForward:
     def offsets(self, demand: np.ndarray, period: float) -> tuple[np.ndarray, np.ndarray]:
         """Torque [Nm] and velocity [rad/s] offsets, one per setpoint of ``demand`` [rad]."""
         q, v, a = segments(demand, period)
-        return (model_torque_at(self.model, q, v, a) if self.torque else np.zeros_like(demand),
-                v if self.velocity else np.zeros_like(demand))
+        return (
+            model_torque_at(self.model, q, v, a) if self.torque else np.zeros_like(demand),
+            v if self.velocity else np.zeros_like(demand),
+        )
 
     def describe(self) -> str:
-        sent = [o for o, on in (("torque offset 0x60B2", self.torque), ("velocity offset 0x60B1", self.velocity)) if on]
+        sent = [
+            o
+            for o, on in (("torque offset 0x60B2", self.torque), ("velocity offset 0x60B1", self.velocity))
+            if on
+        ]
         return "master: " + " + ".join(sent)
 
 
-def route(ax: AxisLink, profile: Profile, model: dict[str, float], force_master: bool = False
-          ) -> MasterFeedForward | str:
+def route(
+    ax: AxisLink, profile: Profile, model: dict[str, float], force_master: bool = False
+) -> MasterFeedForward | str:
     """How an axis gets its model feed-forward: "drive" (the profile writes the model to the drive),
     a :class:`MasterFeedForward`, or a sentence saying why it gets none and what that costs."""
     if not model:
@@ -86,11 +112,17 @@ def route(ax: AxisLink, profile: Profile, model: dict[str, float], force_master:
         return "drive" + (f" ({', '.join(held)}; no object for {', '.join(left)})" if left else "")
     mapped = {i for c in ax.rpdos for i in c.objects}
     torque = 0x60B2 in mapped
-    velocity = 0x60B1 in mapped and not any(n in profile.entries for n in profile.controller.drive_names(["FwF"]))
+    velocity = 0x60B1 in mapped and not any(
+        n in profile.entries for n in profile.controller.drive_names(["FwF"])
+    )
     if torque or velocity:
         return MasterFeedForward(model, torque, velocity)
     if 0x60B2 in ax.cfg.od:
-        return ("none: the torque offset 0x60B2 is not in the RPDO mapping (map it in the node's rpdo): the model "
-                "torque is left to the velocity loop")
-    return ("none: the drive has neither model objects nor a torque offset 0x60B2: the model torque is left to "
-            "the velocity loop (the project's drive gains 12-65x in following error with it, 1.2-2.4x without)")
+        return (
+            "none: the torque offset 0x60B2 is not in the RPDO mapping (map it in the node's rpdo): the model "
+            "torque is left to the velocity loop"
+        )
+    return (
+        "none: the drive has neither model objects nor a torque offset 0x60B2: the model torque is left to "
+        "the velocity loop (the project's drive gains 12-65x in following error with it, 1.2-2.4x without)"
+    )

@@ -9,6 +9,7 @@ the report draws beside the measured one.  Where the plant's response was measur
 drive (:mod:`drive_bridge.ident.frf`), the open loops on its reliable bins are drawn as points
 beside the model's curves.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -26,15 +27,25 @@ if TYPE_CHECKING:
     from ..ident.frf import Frf
 
 
-def loop_figure(J: float, c1: float, before: dict[str, float] | None, after: dict[str, float], L: float,
-                path: str | Path, title: str = "", frf: Frf | None = None, tick_s: float = LOOP_TICK_S) -> Path:
+def loop_figure(
+    J: float,
+    c1: float,
+    before: dict[str, float] | None,
+    after: dict[str, float],
+    L: float,
+    path: str | Path,
+    title: str = "",
+    frf: Frf | None = None,
+    tick_s: float = LOOP_TICK_S,
+) -> Path:
     """Write the Bode plots and the step responses of one axis to ``path`` (PNG); ``frf``: the
     plant's measured response (:class:`drive_bridge.ident.frf.Frf`), drawn as points; ``tick_s``:
     the period of the drive's loop [s]."""
     plt = pyplot()
     from matplotlib.ticker import LogLocator
+
     sets = [("after", after, "C0")] + ([("before", before, "C3")] if before else [])
-    f = np.logspace(0, 4, 600)                                       # 1 Hz .. 10 kHz
+    f = np.logspace(0, 4, 600)  # 1 Hz .. 10 kHz
     fig, ax = plt.subplots(2, 3, figsize=(13, 6.5), gridspec_kw={"width_ratios": [1, 1, 0.9]})
     for name, gains, colour in sets:
         loops = open_loops(J, c1, gains, L, tick_s)
@@ -47,29 +58,52 @@ def loop_figure(J: float, c1: float, before: dict[str, float] | None, after: dic
             if np.isfinite(wc) and wc > 0:
                 fc = wc / (2 * np.pi)
                 ax[1, col].plot([fc, fc], [-180, -180 + pm], colour, lw=3, alpha=0.6)
-                ax[1, col].annotate(f"PM {pm:.0f}° at {fc:.0f} Hz", (fc, -180 + pm), color=colour, fontsize=8,
-                                    xytext=(4, 4 if name == "after" else -12), textcoords="offset points")
+                ax[1, col].annotate(
+                    f"PM {pm:.0f}° at {fc:.0f} Hz",
+                    (fc, -180 + pm),
+                    color=colour,
+                    fontsize=8,
+                    xytext=(4, 4 if name == "after" else -12),
+                    textcoords="offset points",
+                )
             if np.isfinite(gm) and gm > 0 and np.isfinite(wg):
                 fg = wg / (2 * np.pi)
                 ax[0, col].plot([fg, fg], [0, -20 * np.log10(gm)], colour, lw=3, alpha=0.6)
-                ax[0, col].annotate(f"GM {20 * np.log10(gm):.1f} dB at {fg:.0f} Hz", (fg, -20 * np.log10(gm)),
-                                    color=colour, fontsize=8, xytext=(4, -12 if name == "after" else 4),
-                                    textcoords="offset points")
+                ax[0, col].annotate(
+                    f"GM {20 * np.log10(gm):.1f} dB at {fg:.0f} Hz",
+                    (fg, -20 * np.log10(gm)),
+                    color=colour,
+                    fontsize=8,
+                    xytext=(4, -12 if name == "after" else 4),
+                    textcoords="offset points",
+                )
             ax[0, col].set_title(f"{loop} loop, open loop")
             if frf is not None:
                 ok = frf.reliable()
                 fm = frf.frequency_hz[ok]
                 measured = open_loop_at(gains, fm, frf.response[ok], loop, tick_s)
-                ax[0, col].semilogx(fm, 20 * np.log10(np.abs(measured)), ".", color=colour, ms=3,
-                                    label=f"{name}, on the measured plant")
-                ax[1, col].semilogx(fm, np.degrees(np.unwrap(np.angle(measured))) % 360 - 360, ".", color=colour,
-                                    ms=3, label=f"{name}, on the measured plant")
+                ax[0, col].semilogx(
+                    fm,
+                    20 * np.log10(np.abs(measured)),
+                    ".",
+                    color=colour,
+                    ms=3,
+                    label=f"{name}, on the measured plant",
+                )
+                ax[1, col].semilogx(
+                    fm,
+                    np.degrees(np.unwrap(np.angle(measured))) % 360 - 360,
+                    ".",
+                    color=colour,
+                    ms=3,
+                    label=f"{name}, on the measured plant",
+                )
         closed = control.feedback(loops[1], 1)
         t = np.linspace(0, 0.05, 1000)
         _, y = control.step_response(closed, t)
         ax[0, 2].plot(t * 1e3, y, colour, label=name)
     for col in range(2):
-        for r in range(2):                  # minor ticks at 2 and 5 (matplotlib's eight a decade cost most of the figure)
+        for r in range(2):  # minor ticks at 2 and 5 (matplotlib's eight a decade cost most of the figure)
             ax[r, col].xaxis.set_minor_locator(LogLocator(subs=(2.0, 5.0)))
         ax[0, col].axhline(0, color="0.5", lw=0.8)
         ax[1, col].axhline(-180, color="0.5", lw=0.8)
@@ -87,18 +121,35 @@ def loop_figure(J: float, c1: float, before: dict[str, float] | None, after: dic
     ax[0, 2].grid(True, alpha=0.3)
     ax[0, 2].legend(loc="lower right", fontsize=8)
     ax[1, 2].axis("off")
-    ax[1, 2].text(0, 0.9, "\n".join(
-        [f"J = {J:.4g}, c1 = {c1:.4g} (identified)", f"L = {L:.3g} H"] +
-        [f"{name}: KpP {g['KpP']:.4g} 1/s, KpS {g['KpS']:.4g},\n       KiS {g['KiS']:.4g} 1/s" for name, g, _ in sets]),
-        fontsize=8, va="top", family="monospace")
+    ax[1, 2].text(
+        0,
+        0.9,
+        "\n".join(
+            [f"J = {J:.4g}, c1 = {c1:.4g} (identified)", f"L = {L:.3g} H"]
+            + [
+                f"{name}: KpP {g['KpP']:.4g} 1/s, KpS {g['KpS']:.4g},\n       KiS {g['KiS']:.4g} 1/s"
+                for name, g, _ in sets
+            ]
+        ),
+        fontsize=8,
+        va="top",
+        family="monospace",
+    )
     if title:
         fig.suptitle(title)
     fig.subplots_adjust(left=0.06, right=0.98, bottom=0.08, top=0.9, wspace=0.3, hspace=0.25)
     return save(fig, Path(path))
 
 
-def predicted_following_error(model: dict[str, float], gains: dict[str, float], L: float, torque_feedforward: bool,
-                              t: np.ndarray, demand: np.ndarray, tick_s: float = LOOP_TICK_S) -> np.ndarray:
+def predicted_following_error(
+    model: dict[str, float],
+    gains: dict[str, float],
+    L: float,
+    torque_feedforward: bool,
+    t: np.ndarray,
+    demand: np.ndarray,
+    tick_s: float = LOOP_TICK_S,
+) -> np.ndarray:
     """The following error [rad] the identified ``model`` (J, c1 and what the drive model holds:
     c0, offset, ...) predicts along ``demand`` [rad] at ``t`` [s] with ``gains``: the linear cascade
     (:func:`drive_bridge.params.cascade.following_error`) driven by the demand and by the model's torque beyond J·q̈ + c1·q̇
@@ -109,5 +160,7 @@ def predicted_following_error(model: dict[str, float], gains: dict[str, float], 
     v = np.gradient(demand, dt)
     rest = model_torque(model, demand, dt) - J * np.gradient(v, dt) - c1 * v
     tt = t - t[0]
-    return (control.forced_response(to_error, tt, demand - demand[0]).outputs
-            + control.forced_response(from_torque, tt, rest - rest[0]).outputs)
+    return (
+        control.forced_response(to_error, tt, demand - demand[0]).outputs
+        + control.forced_response(from_torque, tt, rest - rest[0]).outputs
+    )

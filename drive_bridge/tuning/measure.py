@@ -8,6 +8,7 @@ its own gains are written back whatever ends the run.  The response is computed 
 and from the offsets as the drive received them (in its units), with the controller the drive
 holds as read back.  SI: rad, rad/s, Nm.
 """
+
 from __future__ import annotations
 
 import logging
@@ -15,26 +16,25 @@ from collections.abc import Callable
 
 import numpy as np
 
-from ..config import BusConfig
+from ..config import BusConfig, TimingLimits
 from ..errors import DriveRefused, UserError
 from ..ident.frf import PERIOD_SAMPLES, PERIODS, Frf, excitation, measure
 from ..master.bringup import AxisLink
 from ..master.campaign import Plan
 from ..master.link import Link
-from ..config import TimingLimits
 from ..outputs import stamped
+from ..params.cascade import controller
 from ..params.controller import GAINS
 from ..params.profile import SELECT, Profile
 from ..params.read import read_parameters
-from ..params.cascade import controller
 from ..params.write import write_parameters
 from . import motion
 from .design import measurement_gains
 
 log = logging.getLogger(__name__)
 
-SWEEP_SHARE = 0.8            # of the stroke, centred
-OFFSET_SHARE = 0.04          # RMS torque offset, × the drive's rated torque
+SWEEP_SHARE = 0.8  # of the stroke, centred
+OFFSET_SHARE = 0.04  # RMS torque offset, × the drive's rated torque
 SOFT = ("KpP", "KpS", "KiS")
 
 
@@ -47,15 +47,15 @@ def sweep(ax: AxisLink, period: float) -> tuple[np.ndarray, slice, float]:
     n = PERIOD_SAMPLES * PERIODS
     span = SWEEP_SHARE * (lim.position_max - lim.position_min)
     acc = 0.5 * lim.max_acceleration
-    T = n * period                                   # speed · T + speed² / acc = span
+    T = n * period  # speed · T + speed² / acc = span
     speed = min((-T + np.sqrt(T * T + 4 * span / acc)) * acc / 2, lim.max_velocity)
     ramp = int(np.ceil(speed / acc / period))
     acc = speed / (ramp * period)
     t = np.arange(1, ramp + 1) * period
-    up = 0.5 * acc * t ** 2
+    up = 0.5 * acc * t**2
     start = 0.5 * (lim.position_min + lim.position_max) - (speed * T + speed * ramp * period) / 2
     steady = up[-1] + speed * period * np.arange(1, n + 1)
-    down = steady[-1] + speed * t - 0.5 * acc * t ** 2
+    down = steady[-1] + speed * t - 0.5 * acc * t**2
     return start + np.concatenate((up, steady, down)), slice(ramp, ramp + n), float(speed)
 
 
@@ -78,9 +78,14 @@ def unmeasurable(ax: AxisLink, profile: Profile) -> str | None:
     return None
 
 
-def measure_axes(config: BusConfig, link: Link, axes: dict[str, AxisLink], profile: Profile,
-                 inertia: dict[str, float], on_plan: Callable[[Plan], Callable[[int], None] | None] | None = None
-                 ) -> tuple[dict[str, Frf], dict[str, str]]:
+def measure_axes(
+    config: BusConfig,
+    link: Link,
+    axes: dict[str, AxisLink],
+    profile: Profile,
+    inertia: dict[str, float],
+    on_plan: Callable[[Plan], Callable[[int], None] | None] | None = None,
+) -> tuple[dict[str, Frf], dict[str, str]]:
     """The frequency response of each axis of ``axes`` that can be measured (``inertia``: its
     identified J, for the soft gains; ``on_plan``: :func:`~drive_bridge.tuning.motion.run`'s
     progress hook), and why each other one was not."""
@@ -93,17 +98,28 @@ def measure_axes(config: BusConfig, link: Link, axes: dict[str, AxisLink], profi
         demand, steady, speed = sweep(ax, period)
         u = offset_of(ax, period, steady, len(demand))
         bound = profile.for_axis(ax)
-        own = read_parameters(ax.node, bound, list(GAINS))      # the whole set: a drive may switch gain objects
+        own = read_parameters(ax.node, bound, list(GAINS))  # the whole set: a drive may switch gain objects
         soft = {k: v for k, v in own.items() if k != SELECT} | measurement_gains(inertia[a], 1.0 / period)
         try:
             result = write_parameters(ax.node, bound, soft, store=False)
             if not result.ok:
                 raise DriveRefused(f"axis {a}: the measurement's gains: {result.error}")
             held = read_parameters(ax.node, bound, list(SOFT))
-            log.info("axis %s: frequency response at %.3g rad/s with %s", a, speed,
-                     ", ".join(f"{g} {v:.4g}" for g, v in held.items()))
-            m = motion.run(config, link, {a: ax}, {a: demand}, kind="frequency response", torque_offset={a: u},
-                           on_plan=on_plan)
+            log.info(
+                "axis %s: frequency response at %.3g rad/s with %s",
+                a,
+                speed,
+                ", ".join(f"{g} {v:.4g}" for g, v in held.items()),
+            )
+            m = motion.run(
+                config,
+                link,
+                {a: ax},
+                {a: demand},
+                kind="frequency response",
+                torque_offset={a: u},
+                on_plan=on_plan,
+            )
         finally:
             write_parameters(ax.node, bound, own, store=False)
         if m.aborted is not None:
@@ -113,9 +129,11 @@ def measure_axes(config: BusConfig, link: Link, axes: dict[str, AxisLink], profi
             raise DriveRefused(f"axis {a}: position samples missing during the frequency response")
         q = _filled(a, q, config.master.timing)
         if np.any(np.diff(q[PERIOD_SAMPLES:]) * np.sign(speed) < 0):
-            raise UserError(f"axis {a}: the axis went back during the frequency response (the torque offset "
-                            f"outweighed the sweep at {speed:.3g} rad/s): friction changed side and the response "
-                            f"is not the plant's; a longer stroke in the limits, or leave the measure step out")
+            raise UserError(
+                f"axis {a}: the axis went back during the frequency response (the torque offset "
+                f"outweighed the sweep at {speed:.3g} rad/s): friction changed side and the response "
+                f"is not the plant's; a longer stroke in the limits, or leave the measure step out"
+            )
         out[a] = measure(q, u[steady], 1.0 / period, controller(held, profile.controller.timing.tick_s))
     return out, skipped
 
@@ -131,17 +149,24 @@ def _filled(axis: str, position: np.ndarray, limits: TimingLimits) -> np.ndarray
     longest = int(np.max(edges[1::2] - edges[::2]))
     share = float(missing.mean() * 100)
     if longest >= limits.max_gap_periods or share > limits.max_missing_pct:
-        raise DriveRefused(f"axis {axis}: position samples missing during the frequency response ({int(missing.sum())}, "
-                           f"up to {longest} in a row: past master.timing's limits)")
-    log.warning("axis %s: %d position samples of the frequency response missing (late SYNCs), filled in "
-                "linearly", axis, int(missing.sum()))
+        raise DriveRefused(
+            f"axis {axis}: position samples missing during the frequency response ({int(missing.sum())}, "
+            f"up to {longest} in a row: past master.timing's limits)"
+        )
+    log.warning(
+        "axis %s: %d position samples of the frequency response missing (late SYNCs), filled in linearly",
+        axis,
+        int(missing.sum()),
+    )
     index = np.arange(len(position))
     out = position.copy()
     out[missing] = np.interp(index[missing], index[~missing], position[~missing])
     return out
 
 
-def measure_plans(config: BusConfig, axes: dict[str, AxisLink], profile: Profile, start: dict[str, float]) -> list:
+def measure_plans(
+    config: BusConfig, axes: dict[str, AxisLink], profile: Profile, start: dict[str, float]
+) -> list:
     """(title, Plan) of each axis's measurement from ``start``, one after the other, for the preview
     (an axis that cannot be measured does not move)."""
     period = config.master.sync_period_s
@@ -150,10 +175,20 @@ def measure_plans(config: BusConfig, axes: dict[str, AxisLink], profile: Profile
         if unmeasurable(ax, profile):
             continue
         demand, steady, speed = sweep(ax, period)
-        out.append((f"measure {a}: frequency response, {speed:.3g} rad/s sweep with a torque-offset multisine "
-                    f"({OFFSET_SHARE:.0%} of rated torque RMS)",
-                    motion.plan(config, {a: ax}, {a: demand}, {a: start[a]}, kind="frequency response",
-                                torque_offset={a: offset_of(ax, period, steady, len(demand))})[0]))
+        out.append(
+            (
+                f"measure {a}: frequency response, {speed:.3g} rad/s sweep with a torque-offset multisine "
+                f"({OFFSET_SHARE:.0%} of rated torque RMS)",
+                motion.plan(
+                    config,
+                    {a: ax},
+                    {a: demand},
+                    {a: start[a]},
+                    kind="frequency response",
+                    torque_offset={a: offset_of(ax, period, steady, len(demand))},
+                )[0],
+            )
+        )
         start = {**start, a: float(demand[-1])}
     return out
 

@@ -1,8 +1,9 @@
 """Running a demand on brought-up axes and getting SI arrays back (for validation and experiments)."""
+
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 
@@ -14,8 +15,8 @@ from ..master.campaign import APPROACH_LEVEL, Plan, Segment, approach_move, chec
 from ..master.homing import home
 from ..master.link import Link
 from ..master.stream import VelocityGuard, stream
-from ..record import stream_supervision
 from ..master.timing import Timing
+from ..record import stream_supervision
 from .feedforward import MasterFeedForward
 
 
@@ -33,10 +34,18 @@ class Motion:
     timing: Timing
 
 
-def plan(config: BusConfig, axes: dict[str, AxisLink], demand: dict[str, np.ndarray], start: dict[str, float], *,
-         kind: str = "trajectory", level: float = 1.0, feedforward: dict[str, MasterFeedForward] | None = None,
-         approach_level: float = APPROACH_LEVEL, torque_offset: dict[str, np.ndarray] | None = None,
-         ) -> tuple[Plan, int]:
+def plan(
+    config: BusConfig,
+    axes: dict[str, AxisLink],
+    demand: dict[str, np.ndarray],
+    start: dict[str, float],
+    *,
+    kind: str = "trajectory",
+    level: float = 1.0,
+    feedforward: dict[str, MasterFeedForward] | None = None,
+    approach_level: float = APPROACH_LEVEL,
+    torque_offset: dict[str, np.ndarray] | None = None,
+) -> tuple[Plan, int]:
     """The plan :func:`run` streams from ``start`` (axis -> position [rad]): the approach to the
     first setpoint of ``demand`` at ``approach_level`` of the limits, 0.2 s settling there, then the
     demand; checked against the axes' limits (UserError before anything moves). And the number of
@@ -45,17 +54,30 @@ def plan(config: BusConfig, axes: dict[str, AxisLink], demand: dict[str, np.ndar
     period = config.master.sync_period_s
     names = list(demand)
     limits = {a: axes[a].cfg.limits for a in names}
-    approach = {a: approach_move(limits[a], start[a], float(demand[a][0]), period, approach_level) for a in names}
-    n_app = max(len(v) for v in approach.values()) + round(0.2 / period)       # then settle
-    cols = [np.concatenate([approach[a], np.full(n_app - len(approach[a]), float(demand[a][0])), demand[a]])
-            for a in names]                  # the approach ends at the first setpoint, then holds it
-    out = Plan(names, np.column_stack(cols), [Segment("approach", tuple(names), approach_level, approach_level,
-                                                      0, 0, n_app),
-                                              Segment(kind, tuple(names), level, level, 0, n_app,
-                                                      n_app + len(demand[names[0]]))], period)
+    approach = {
+        a: approach_move(limits[a], start[a], float(demand[a][0]), period, approach_level) for a in names
+    }
+    n_app = max(len(v) for v in approach.values()) + round(0.2 / period)  # then settle
+    cols = [
+        np.concatenate([approach[a], np.full(n_app - len(approach[a]), float(demand[a][0])), demand[a]])
+        for a in names
+    ]  # the approach ends at the first setpoint, then holds it
+    out = Plan(
+        names,
+        np.column_stack(cols),
+        [
+            Segment("approach", tuple(names), approach_level, approach_level, 0, 0, n_app),
+            Segment(kind, tuple(names), level, level, 0, n_app, n_app + len(demand[names[0]])),
+        ],
+        period,
+    )
     if feedforward:
-        offsets = [feedforward[a].offsets(out.demand[:, i], period) if a in feedforward else
-                   (np.zeros(len(out.demand)),) * 2 for i, a in enumerate(names)]
+        offsets = [
+            feedforward[a].offsets(out.demand[:, i], period)
+            if a in feedforward
+            else (np.zeros(len(out.demand)),) * 2
+            for i, a in enumerate(names)
+        ]
         out.torque_ff_Nm = np.column_stack([t for t, _ in offsets])
         out.velocity_ff_rad_s = np.column_stack([v for _, v in offsets])
     if torque_offset:
@@ -67,12 +89,20 @@ def plan(config: BusConfig, axes: dict[str, AxisLink], demand: dict[str, np.ndar
     return out, n_app
 
 
-def run(config: BusConfig, link: Link, axes: dict[str, AxisLink], demand: dict[str, np.ndarray], *,
-        guard: VelocityGuard | None = None,
-        on_plan: Callable[[Plan], Callable[[int], None] | None] | None = None,
-        kind: str = "trajectory", level: float = 1.0,
-        feedforward: dict[str, MasterFeedForward] | None = None,
-        approach_level: float = APPROACH_LEVEL, torque_offset: dict[str, np.ndarray] | None = None) -> Motion:
+def run(
+    config: BusConfig,
+    link: Link,
+    axes: dict[str, AxisLink],
+    demand: dict[str, np.ndarray],
+    *,
+    guard: VelocityGuard | None = None,
+    on_plan: Callable[[Plan], Callable[[int], None] | None] | None = None,
+    kind: str = "trajectory",
+    level: float = 1.0,
+    feedforward: dict[str, MasterFeedForward] | None = None,
+    approach_level: float = APPROACH_LEVEL,
+    torque_offset: dict[str, np.ndarray] | None = None,
+) -> Motion:
     """Stream :func:`plan` from where the axes stand, homed first where they home
     (:mod:`~drive_bridge.master.homing`) (``demand``: axis -> positions per SYNC
     [rad]); ``guard`` sees each cycle's measured velocities and may stop the run.
@@ -82,19 +112,41 @@ def run(config: BusConfig, link: Link, axes: dict[str, AxisLink], demand: dict[s
     (per axis, per setpoint of ``demand`` [Nm]) is added to it over the demand."""
     period = config.master.sync_period_s
     names = list(demand)
-    home(link, {a: axes[a] for a in names}, config)          # reference: home, before the first motion
-    plan_, n_app = plan(config, axes, demand, {a: axes[a].position_rad() for a in names}, kind=kind, level=level,
-                        feedforward=feedforward, approach_level=approach_level, torque_offset=torque_offset)
+    home(link, {a: axes[a] for a in names}, config)  # reference: home, before the first motion
+    plan_, n_app = plan(
+        config,
+        axes,
+        demand,
+        {a: axes[a].position_rad() for a in names},
+        kind=kind,
+        level=level,
+        feedforward=feedforward,
+        approach_level=approach_level,
+        torque_offset=torque_offset,
+    )
     m = config.master
     progress = on_plan(plan_) if on_plan else None
-    result = stream(link, {a: axes[a] for a in names}, plan_,
-                    supervision=stream_supervision(config, {a: axes[a] for a in names}), progress=progress,
-                    timing_limits=m.timing, guard=guard)
+    result = stream(
+        link,
+        {a: axes[a] for a in names},
+        plan_,
+        supervision=stream_supervision(config, {a: axes[a] for a in names}),
+        progress=progress,
+        timing_limits=m.timing,
+        guard=guard,
+    )
     names_, values, _ = to_table(result.recording, {a: axes[a].cfg.scaling for a in names}, period)
     col = {n: values[:, i] for i, n in enumerate(names_)}
     rows = slice(n_app, max(n_app, len(values)))
-    get = lambda suffix: {a: col[f"{a}_{suffix}"][rows] for a in names}       # noqa: E731
+    get = lambda suffix: {a: col[f"{a}_{suffix}"][rows] for a in names}  # noqa: E731
     # the setpoint a SYNC's sample was following: the one sent before the previous SYNC
-    dem = {a: col[f"{a}_position_demand_rad"][n_app - 1:max(n_app - 1, len(values) - 1)] for a in names}
-    return Motion(col["time_s"][rows] - n_app * period, get("position_rad"), get("velocity_rad_s"),
-                  get("torque_Nm"), dem, result.aborted, result.timing)
+    dem = {a: col[f"{a}_position_demand_rad"][n_app - 1 : max(n_app - 1, len(values) - 1)] for a in names}
+    return Motion(
+        col["time_s"][rows] - n_app * period,
+        get("position_rad"),
+        get("velocity_rad_s"),
+        get("torque_Nm"),
+        dem,
+        result.aborted,
+        result.timing,
+    )

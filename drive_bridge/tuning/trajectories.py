@@ -7,6 +7,7 @@ after each move (overshoot and settling are measured there).
 Fig. 7; the axes move together on each edge, all arriving at once (the
 slowest axis at 60 % of its limits sets the edge's duration).
 """
+
 from __future__ import annotations
 
 import math
@@ -18,7 +19,7 @@ from ..master.campaign import trapezoid
 
 REST_S = 0.4
 PTP_LEVEL, PATH_LEVEL = 0.8, 0.6
-PTP_STOPS = (-0.4, 0.4, 0.0)                       # fractions of the half stroke around the centre
+PTP_STOPS = (-0.4, 0.4, 0.0)  # fractions of the half stroke around the centre
 PATH_CORNERS = ((-0.3, -0.3, 0.0), (0.3, -0.3, 0.3), (0.3, 0.3, 0.0), (-0.3, 0.3, 0.3), (-0.3, -0.3, 0.0))
 
 
@@ -26,8 +27,9 @@ def _centre_half(lim: Limits) -> tuple[float, float]:
     return 0.5 * (lim.position_min + lim.position_max), 0.5 * (lim.position_max - lim.position_min)
 
 
-def point_to_point(limits: dict[str, Limits], period: float
-                   ) -> tuple[dict[str, np.ndarray], dict[str, list[tuple[int, float, float]]]]:
+def point_to_point(
+    limits: dict[str, Limits], period: float
+) -> tuple[dict[str, np.ndarray], dict[str, list[tuple[int, float, float]]]]:
     """Demands per axis, and per axis its moves as (row where the demand ends, start, target)."""
     rest = round(REST_S / period)
     out, moves = {}, {}
@@ -36,7 +38,9 @@ def point_to_point(limits: dict[str, Limits], period: float
         pos, pieces, n, marks = c, [np.full(rest, c)], rest, []
         for f in PTP_STOPS:
             target = c + f * h
-            move = trapezoid(pos, target, PTP_LEVEL * lim.max_velocity, PTP_LEVEL * lim.max_acceleration, period)
+            move = trapezoid(
+                pos, target, PTP_LEVEL * lim.max_velocity, PTP_LEVEL * lim.max_acceleration, period
+            )
             pieces += [move, np.full(rest, target)]
             n += len(move)
             marks.append((n, pos, target))
@@ -49,8 +53,10 @@ def point_to_point(limits: dict[str, Limits], period: float
 
 def path(limits: dict[str, Limits], period: float) -> dict[str, np.ndarray]:
     axes = list(limits)
-    corners = [[_centre_half(limits[a])[0] + f[i % 3] * _centre_half(limits[a])[1] for i, a in enumerate(axes)]
-               for f in PATH_CORNERS]
+    corners = [
+        [_centre_half(limits[a])[0] + f[i % 3] * _centre_half(limits[a])[1] for i, a in enumerate(axes)]
+        for f in PATH_CORNERS
+    ]
     rest = round(REST_S / period)
     cols = [[np.full(rest, corners[0][i])] for i in range(len(axes))]
     for p0, p1 in zip(corners, corners[1:]):
@@ -63,10 +69,15 @@ def path(limits: dict[str, Limits], period: float) -> dict[str, np.ndarray]:
             v = min(v, math.sqrt(d * acc)) if d else v
             times.append(d / v + v / acc if d else 0.0)
         lead = int(np.argmax(times))
-        per_stroke = 1.0 / max(abs(p1[lead] - p0[lead]), 1e-12)          # the lead axis's stroke: 1
+        per_stroke = 1.0 / max(abs(p1[lead] - p0[lead]), 1e-12)  # the lead axis's stroke: 1
         lead_limits = limits[axes[lead]]
-        shape = trapezoid(0.0, 1.0, per_stroke * (PATH_LEVEL * lead_limits.max_velocity),
-                          per_stroke * (PATH_LEVEL * lead_limits.max_acceleration), period)
+        shape = trapezoid(
+            0.0,
+            1.0,
+            per_stroke * (PATH_LEVEL * lead_limits.max_velocity),
+            per_stroke * (PATH_LEVEL * lead_limits.max_acceleration),
+            period,
+        )
         for i in range(len(axes)):
             cols[i].append(p0[i] + (p1[i] - p0[i]) * shape)
             cols[i].append(np.full(rest // 2, p1[i]))

@@ -1,10 +1,10 @@
 """``tune``: from identified axis models to gains and the parameter set to write (Python API)."""
+
 from __future__ import annotations
 
 import json
 import logging
 import math
-
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -13,50 +13,67 @@ import numpy as np
 from ..config import BusConfig
 from ..errors import UserError
 from ..ident.effects import DRIVE_EFFECTS
-from ..outputs import stamped
-from ..yamlconf import too_large
 from ..ident.frf import Frf
-from ..params.cascade import Margins, controller as loop_controller, loop_margins, measured_margins, rigid_response
+from ..outputs import stamped
+from ..params.cascade import (
+    Margins,
+    loop_margins,
+    measured_margins,
+    rigid_response,
+)
+from ..params.cascade import (
+    controller as loop_controller,
+)
 from ..params.controller import GAINS, Controller
+from ..yamlconf import too_large
 from .design import GainDesign, current_bandwidth, design_gains
 from .experiment import ExperimentResult
 from .feedforward import MODEL_KEYS
 
 log = logging.getLogger(__name__)
 
-MODE_SHARE = 1 / 3        # without a filter object, a mode the measured response does not cover keeps the
-                          # velocity crossover below this share of its frequency (rule of thumb for a rigid
-                          # design near a lightly damped mode: 1/3 ... 1/5)
-MODE_PEAK = 2.0           # a measured |G| this many times the rigid model's (6 dB) at its peak: a mode
-LOOP_RINGING = 2 ** 0.5   # an identified peak where the drive's own loop amplifies this much (3 dB) is the loop's
+MODE_SHARE = 1 / 3  # without a filter object, a mode the measured response does not cover keeps the
+# velocity crossover below this share of its frequency (rule of thumb for a rigid
+# design near a lightly damped mode: 1/3 ... 1/5)
+MODE_PEAK = 2.0  # a measured |G| this many times the rigid model's (6 dB) at its peak: a mode
+LOOP_RINGING = (
+    2**0.5
+)  # an identified peak where the drive's own loop amplifies this much (3 dB) is the loop's
 
 
 @dataclass
 class AxisTuning:
     axis: str
-    model: dict[str, float]                 # J, c0, c1 (+ effect terms), SI motor side
+    model: dict[str, float]  # J, c0, c1 (+ effect terms), SI motor side
     design: GainDesign
-    before: dict[str, float]                # the drive's gains before tuning
+    before: dict[str, float]  # the drive's gains before tuning
     before_margins: tuple[Margins, Margins] | None
-    motor: dict[str, float]                 # R [Ω], L [H] the current loop was designed for
+    motor: dict[str, float]  # R [Ω], L [H] the current loop was designed for
     experiment: ExperimentResult | None = None
-    frf: Frf | None = None                  # the plant's response measured through the drive, designed on too
-    controller: Controller = Controller()   # the structure and rates the gains are designed for
-    mode: dict | None = None                # a mode of the transmission, where one is known, and how it is met
+    frf: Frf | None = None  # the plant's response measured through the drive, designed on too
+    controller: Controller = Controller()  # the structure and rates the gains are designed for
+    mode: dict | None = None  # a mode of the transmission, where one is known, and how it is met
 
     def parameters(self) -> dict[str, float]:
         """Everything to write: the designed gains, the model, and the model feed-forward on."""
         return {**self.design.gains(), **self.model, "ff_enable": 1.0}
 
     def as_dict(self) -> dict:
-        return {"model": self.model, "motor": self.motor, "gains": self.design.gains(), "gains_before": self.before,
-                "margins": {"velocity": vars(self.design.velocity), "position": vars(self.design.position)},
-                "margins_before": None if self.before_margins is None else
-                {"velocity": vars(self.before_margins[0]), "position": vars(self.before_margins[1])},
-                "experiment": None if self.experiment is None else self.experiment.as_dict(),
-                "measured": None if self.frf is None else self.measured(),
-                "controller": self.controller.as_dict(), "mode": self.mode,
-                "parameters": self.parameters()}
+        return {
+            "model": self.model,
+            "motor": self.motor,
+            "gains": self.design.gains(),
+            "gains_before": self.before,
+            "margins": {"velocity": vars(self.design.velocity), "position": vars(self.design.position)},
+            "margins_before": None
+            if self.before_margins is None
+            else {"velocity": vars(self.before_margins[0]), "position": vars(self.before_margins[1])},
+            "experiment": None if self.experiment is None else self.experiment.as_dict(),
+            "measured": None if self.frf is None else self.measured(),
+            "controller": self.controller.as_dict(),
+            "mode": self.mode,
+            "parameters": self.parameters(),
+        }
 
     def measured(self) -> dict:
         """The margins before and after on the measured response, and the band they hold for [Hz]
@@ -71,8 +88,12 @@ class AxisTuning:
                 return None
             v, p = measured_margins(gains, frf, gains["KpC"] / self.motor["L"], self.controller.timing.tick_s)
             return {"velocity": None if v is None else vars(v), "position": None if p is None else vars(p)}
-        return {"band_hz": [float(band.min()), float(band.max())] if len(band) else None,
-                "margins": margins(self.design.gains()), "margins_before": margins(self.before)}
+
+        return {
+            "band_hz": [float(band.min()), float(band.max())] if len(band) else None,
+            "margins": margins(self.design.gains()),
+            "margins_before": margins(self.before),
+        }
 
 
 def model_from_identify(params: dict[str, float]) -> dict[str, float]:
@@ -109,7 +130,7 @@ def _numbers(path: Path, where: str, values: object) -> dict[str, float]:
             raise UserError(f"{path}: {where}.{k} = {v!r} is not a number")
         try:
             out[k] = float(v)
-        except OverflowError as exc:                  # only an int overflows a float
+        except OverflowError as exc:  # only an int overflows a float
             raise UserError(f"{path}: {where}.{k}: {too_large(int(v))}") from exc
     return out
 
@@ -121,8 +142,10 @@ def read_frf_json(path: str | Path) -> dict[str, Frf]:
         doc = json.loads(path.read_text(encoding="utf-8"))
         return {a: Frf.from_json(r) for a, r in doc["axes"].items()}
     except (OSError, KeyError, TypeError, ValueError, AttributeError) as exc:
-        raise UserError(f"{path}: not a frequency response as the measure step writes it ({exc!r}); rerun the "
-                        f"measure step") from exc
+        raise UserError(
+            f"{path}: not a frequency response as the measure step writes it ({exc!r}); rerun the "
+            f"measure step"
+        ) from exc
 
 
 def read_identify_json(path: str | Path) -> dict[str, dict[str, float]]:
@@ -135,12 +158,14 @@ def read_identify_json(path: str | Path) -> dict[str, dict[str, float]]:
         unknown = r.get("undetermined")
         if isinstance(unknown, dict) and unknown:
             k, why = next(iter(unknown.items()))
-            raise UserError(f"{path}: axis {a}: the identification could not determine {', '.join(map(str, unknown))} "
-                            f"({k}: {why}); it is not used to tune or written to a drive. Record a log that "
-                            f"determines it (a richer excitation: several speeds and accelerations, both directions), "
-                            f"or leave the axis out of identify.json")
-        params = r.get("drive_params", r.get("params"))       # what the drive's model holds, where identify says
-        if isinstance(params, dict):                  # text values (a cross-axis effect's source) are not numbers
+            raise UserError(
+                f"{path}: axis {a}: the identification could not determine {', '.join(map(str, unknown))} "
+                f"({k}: {why}); it is not used to tune or written to a drive. Record a log that "
+                f"determines it (a richer excitation: several speeds and accelerations, both directions), "
+                f"or leave the axis out of identify.json"
+            )
+        params = r.get("drive_params", r.get("params"))  # what the drive's model holds, where identify says
+        if isinstance(params, dict):  # text values (a cross-axis effect's source) are not numbers
             params = {k: v for k, v in params.items() if not isinstance(v, str)}
         out[a] = model_from_identify(_numbers(path, f"axes.{a}.params", params))
     return out
@@ -148,8 +173,10 @@ def read_identify_json(path: str | Path) -> dict[str, dict[str, float]]:
 
 def read_resonances(path: str | Path) -> dict[str, dict | None]:
     """axis -> the resonance an ``identify --json`` result reports for it (None: none)."""
-    return {a: r.get("resonance") if isinstance(r.get("resonance"), dict) else None
-            for a, r in _axes_of(Path(path), "identify --json result").items()}
+    return {
+        a: r.get("resonance") if isinstance(r.get("resonance"), dict) else None
+        for a, r in _axes_of(Path(path), "identify --json result").items()
+    }
 
 
 def unwritable_effects(path: str | Path) -> dict[str, list[str]]:
@@ -157,8 +184,12 @@ def unwritable_effects(path: str | Path) -> dict[str, list[str]]:
     (nor the master's feed-forward, which sends the same model) can carry: reported, not dropped."""
     axes = _axes_of(Path(path), "identify --json result")
     writable = set(DRIVE_EFFECTS)
-    return {a: [e["name"] for e in r.get("effects") or [] if isinstance(e, dict) and e.get("name") not in writable]
-            for a, r in axes.items()}
+    return {
+        a: [
+            e["name"] for e in r.get("effects") or [] if isinstance(e, dict) and e.get("name") not in writable
+        ]
+        for a, r in axes.items()
+    }
 
 
 #: the largest J [kg·m² | kg], c0 [Nm | N], c1 [Nm·s/rad | N·s/m] a servo axis can have (linear axes too)
@@ -170,12 +201,20 @@ def check_model(axis: str, model: dict[str, float]) -> None:
     bad = [f"{k} missing" for k in ("J", "c0", "c1") if k not in model]
     bad += [f"{k} = {v}" for k, v in model.items() if not math.isfinite(v)]
     if not bad:
-        bad = ([f"J = {model['J']:.6g} (must be > 0)"] if model["J"] <= 0 else []) + \
-              [f"{k} = {model[k]:.6g} (friction must be ≥ 0)" for k in ("c0", "c1") if model[k] < 0] + \
-              [f"{k} = {model[k]:.6g} (no servo axis has that much)" for k, most in PLAUSIBLE.items() if model[k] > most]
+        bad = (
+            ([f"J = {model['J']:.6g} (must be > 0)"] if model["J"] <= 0 else [])
+            + [f"{k} = {model[k]:.6g} (friction must be ≥ 0)" for k in ("c0", "c1") if model[k] < 0]
+            + [
+                f"{k} = {model[k]:.6g} (no servo axis has that much)"
+                for k, most in PLAUSIBLE.items()
+                if model[k] > most
+            ]
+        )
     if bad:
-        raise UserError(f"axis {axis}: the identified model is not physical ({', '.join(bad)}); identify it "
-                        f"again (longer or richer excitation) before tuning")
+        raise UserError(
+            f"axis {axis}: the identified model is not physical ({', '.join(bad)}); identify it "
+            f"again (longer or richer excitation) before tuning"
+        )
 
 
 def measured_mode(frf: Frf, J: float, c1: float, current_bw_rad_s: float) -> float | None:
@@ -190,18 +229,28 @@ def measured_mode(frf: Frf, J: float, c1: float, current_bw_rad_s: float) -> flo
     return float(f[k]) if ratio[k] >= MODE_PEAK else None
 
 
-def loop_amplification(model: dict[str, float], gains: dict[str, float], current_bw_rad_s: float, tick_s: float,
-                       f_hz: float) -> float:
+def loop_amplification(
+    model: dict[str, float], gains: dict[str, float], current_bw_rad_s: float, tick_s: float, f_hz: float
+) -> float:
     """How much the drive's loop with ``gains`` amplifies at ``f_hz`` on the rigid ``model``: the
     larger of |1 / (1 + K·G)| and |K·G / (1 + K·G)|, broken at the torque command (whatever the
     structure, the same loop).  Above 1 the loop rings there by itself."""
     w = np.array([2 * np.pi * f_hz])
-    open_loop = loop_controller(gains, tick_s)(w) * rigid_response(model["J"], model["c1"], current_bw_rad_s, w)
+    open_loop = loop_controller(gains, tick_s)(w) * rigid_response(
+        model["J"], model["c1"], current_bw_rad_s, w
+    )
     return float(max(abs(1 / (1 + open_loop[0])), abs(open_loop[0] / (1 + open_loop[0]))))
 
 
-def _mode(axis: str, model: dict[str, float], resonance: dict | None, frf: Frf | None, controller: Controller,
-          drive: str, before: dict[str, float]) -> tuple[dict | None, float | None]:
+def _mode(
+    axis: str,
+    model: dict[str, float],
+    resonance: dict | None,
+    frf: Frf | None,
+    controller: Controller,
+    drive: str,
+    before: dict[str, float],
+) -> tuple[dict | None, float | None]:
     """A mode of the axis's transmission (identified or measured) and how the design meets it:
     the record for tune.json, and the velocity crossover cap [Hz] (None: none).  An identified
     peak where the drive's own loop with its gains ``before`` peaks on the rigid model is that
@@ -214,28 +263,52 @@ def _mode(axis: str, model: dict[str, float], resonance: dict | None, frf: Frf |
         source, f = "identification", float(resonance["frequency_hz"])
     else:
         return None, None
+
     def met(handling: str, cap: float | None = None) -> tuple[dict, float | None]:
-        return ({"frequency_hz": round(f, 2), "source": source, "filter": None, "handling": handling,
-                 "crossover_cap_hz": None if cap is None else round(cap, 2)}, cap)
+        return (
+            {
+                "frequency_hz": round(f, 2),
+                "source": source,
+                "filter": None,
+                "handling": handling,
+                "crossover_cap_hz": None if cap is None else round(cap, 2),
+            },
+            cap,
+        )
+
     band = frf.frequency_hz[frf.reliable()] if frf is not None else np.array([])
     no_filter = f"the {drive} profile names no notch or low-pass filter object"
     if source == "identification" and {"KpP", "KpS", "KiS"} <= set(before):
         gain = loop_amplification(model, before, w_i, controller.timing.tick_s, f)
         if gain >= LOOP_RINGING:
-            return met(f"the drive's own loop with its gains before amplifies {20 * np.log10(gain):.1f} dB there on "
-                       f"the rigid model: the log shows that loop ringing, not a mode of the machine (measure the "
-                       f"response to tell them apart); no limit")
+            return met(
+                f"the drive's own loop with its gains before amplifies {20 * np.log10(gain):.1f} dB there on "
+                f"the rigid model: the log shows that loop ringing, not a mode of the machine (measure the "
+                f"response to tell them apart); no limit"
+            )
     if len(band) and band.min() <= f <= band.max():
-        return met(f"{no_filter}; the response measured through the mode limits the crossover: the margins hold on it")
+        return met(
+            f"{no_filter}; the response measured through the mode limits the crossover: the margins hold on it"
+        )
     cap = MODE_SHARE * f
     log.info("axis %s: a mode at %.0f Hz (%s): velocity crossover kept below %.0f Hz", axis, f, source, cap)
-    return met(f"{no_filter}; not measured through: the velocity crossover kept at most {MODE_SHARE:.2g} × the mode",
-               cap)
+    return met(
+        f"{no_filter}; not measured through: the velocity crossover kept at most {MODE_SHARE:.2g} × the mode",
+        cap,
+    )
 
 
-def tune_axis(axis: str, model: dict[str, float], R: float, L: float, before: dict[str, float],
-              frf: Frf | None = None, controller: Controller = Controller(), resonance: dict | None = None,
-              drive: str = "drive") -> AxisTuning:
+def tune_axis(
+    axis: str,
+    model: dict[str, float],
+    R: float,
+    L: float,
+    before: dict[str, float],
+    frf: Frf | None = None,
+    controller: Controller = Controller(),
+    resonance: dict | None = None,
+    drive: str = "drive",
+) -> AxisTuning:
     """Gains for one axis from its identified ``model`` for the ``controller`` its drive runs (and,
     where given, the margins kept on its measured response ``frf`` too; a mode -- ``resonance``
     from identify, or one the response shows -- met as :func:`_mode` says)."""
@@ -248,18 +321,31 @@ def tune_axis(axis: str, model: dict[str, float], R: float, L: float, before: di
         design = design_gains(model["J"], model["c1"], R, L, frf, timing, cap)
     except (KeyError, ValueError) as exc:
         raise UserError(f"axis {axis}: cannot design gains from the model {model}: {exc}") from exc
-    margins = loop_margins(model["J"], model["c1"], before, R, L, timing.tick_s) \
-        if set(GAINS) <= set(before) else None
-    log.info("axis %s: %s; velocity loop PM %.1f° at %.0f Hz", axis,
-             ", ".join(f"{g} {v:.5g}" for g, v in design.gains().items()), design.velocity.phase_margin_deg,
-             design.velocity.crossover_hz)
-    return AxisTuning(axis, model, design, before, margins, {"R": R, "L": L}, frf=frf, controller=controller,
-                      mode=mode)
+    margins = (
+        loop_margins(model["J"], model["c1"], before, R, L, timing.tick_s)
+        if set(GAINS) <= set(before)
+        else None
+    )
+    log.info(
+        "axis %s: %s; velocity loop PM %.1f° at %.0f Hz",
+        axis,
+        ", ".join(f"{g} {v:.5g}" for g, v in design.gains().items()),
+        design.velocity.phase_margin_deg,
+        design.velocity.crossover_hz,
+    )
+    return AxisTuning(
+        axis, model, design, before, margins, {"R": R, "L": L}, frf=frf, controller=controller, mode=mode
+    )
 
 
-def tune(models: dict[str, dict[str, float]], state: dict[str, dict],
-              frfs: dict[str, Frf] | None = None, controller: Controller = Controller(),
-              resonances: dict[str, dict | None] | None = None, drive: str = "drive") -> dict[str, AxisTuning]:
+def tune(
+    models: dict[str, dict[str, float]],
+    state: dict[str, dict],
+    frfs: dict[str, Frf] | None = None,
+    controller: Controller = Controller(),
+    resonances: dict[str, dict | None] | None = None,
+    drive: str = "drive",
+) -> dict[str, AxisTuning]:
     """The tune step: gains for every axis of ``state`` (what bring-up read:
     :func:`~drive_bridge.params.read.drive_state`) from its identified model in ``models`` for the
     ``controller`` of the ``drive``'s profile and, where ``frfs`` has it, its measured response
@@ -267,19 +353,35 @@ def tune(models: dict[str, dict[str, float]], state: dict[str, dict],
     out = {}
     for a, st in state.items():
         if a not in models:
-            raise UserError(f"axis {a}: no identified model (identify.json has {', '.join(models) or 'no axis'})")
+            raise UserError(
+                f"axis {a}: no identified model (identify.json has {', '.join(models) or 'no axis'})"
+            )
         before = st["parameters_before"]
-        out[a] = tune_axis(a, models[a], st["motor"]["R"], st["motor"]["L"],
-                           {g: before[g] for g in GAINS if g in before}, (frfs or {}).get(a), controller,
-                           (resonances or {}).get(a), drive)
+        out[a] = tune_axis(
+            a,
+            models[a],
+            st["motor"]["R"],
+            st["motor"]["L"],
+            {g: before[g] for g in GAINS if g in before},
+            (frfs or {}).get(a),
+            controller,
+            (resonances or {}).get(a),
+            drive,
+        )
     return out
 
 
 def tune_doc(results: dict[str, AxisTuning], unwritable: dict[str, list[str]] | None = None) -> dict:
     """tune.json: per axis the model, gains before and after, margins, the parameters to write, and
     the identified effects no drive parameter can carry (``not_writable``)."""
-    return stamped("tune", {"axes": {a: {**t.as_dict(), "not_writable": (unwritable or {}).get(a, [])}
-                                     for a, t in results.items()}})
+    return stamped(
+        "tune",
+        {
+            "axes": {
+                a: {**t.as_dict(), "not_writable": (unwritable or {}).get(a, [])} for a, t in results.items()
+            }
+        },
+    )
 
 
 @dataclass
@@ -291,12 +393,14 @@ class TuneFile:
     parameters: dict[str, dict[str, float]]
     inductance: dict[str, float | None]
 
-    def only(self, config: BusConfig) -> "TuneFile":
+    def only(self, config: BusConfig) -> TuneFile:
         """The axes of ``config``; an axis of the file that ``config`` does not have is an error."""
         unknown = [a for a in self.parameters if a not in config.nodes]
         if unknown:
-            raise UserError(f"{self.path}: axis {unknown[0]!r} is not in {config.path} "
-                            f"(its axes: {', '.join(config.nodes)})")
+            raise UserError(
+                f"{self.path}: axis {unknown[0]!r} is not in {config.path} "
+                f"(its axes: {', '.join(config.nodes)})"
+            )
         return self
 
 

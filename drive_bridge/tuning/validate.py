@@ -13,6 +13,7 @@ A scenario's model feed-forward runs in the drive where the drive profile has mo
 else from the master (:mod:`.feedforward`: torque offset 0x60B2 with each setpoint); each run
 records which, per axis, and why an axis had none.
 """
+
 from __future__ import annotations
 
 import logging
@@ -39,9 +40,9 @@ from .feedforward import MODEL, MasterFeedForward, model_torque, route
 log = logging.getLogger(__name__)
 
 SETTLE_BAND = 0.02
-MAX_TORQUE_LAG = 3          # cycles the logged torque may lag the demand it answers (setpoint -> SYNC -> TPDO)
-STEP_GUARD = 2              # cycles either side of a change of the demand's acceleration ...
-STEP_SHARE = 0.1            # ... a change of at least this share of the largest one
+MAX_TORQUE_LAG = 3  # cycles the logged torque may lag the demand it answers (setpoint -> SYNC -> TPDO)
+STEP_GUARD = 2  # cycles either side of a change of the demand's acceleration ...
+STEP_SHARE = 0.1  # ... a change of at least this share of the largest one
 
 
 @dataclass
@@ -68,24 +69,33 @@ class Run:
     trajectory: str
     axes: dict[str, AxisMetrics]
     aborted: str | None
-    motion: motion.Motion | None = field(default=None, repr=False)     # the logged run, for plots
+    motion: motion.Motion | None = field(default=None, repr=False)  # the logged run, for plots
     #: per axis: how the model feed-forward ran ("drive", "master: ...", "none: why")
     feedforward: dict[str, str] = field(default_factory=dict)
 
     def as_dict(self) -> dict:
-        return {"scenario": self.scenario, "trajectory": self.trajectory, "aborted": self.aborted,
-                "axes": {a: asdict(m) for a, m in self.axes.items()}, "feedforward": self.feedforward,
-                "timing": None if self.motion is None else self.motion.timing.as_dict()}
+        return {
+            "scenario": self.scenario,
+            "trajectory": self.trajectory,
+            "aborted": self.aborted,
+            "axes": {a: asdict(m) for a, m in self.axes.items()},
+            "feedforward": self.feedforward,
+            "timing": None if self.motion is None else self.motion.timing.as_dict(),
+        }
 
 
-def metrics(m: motion.Motion, model: dict[str, dict[str, float]], period: float,
-            moves: dict[str, list[tuple[int, float, float]]] | None) -> dict[str, AxisMetrics]:
+def metrics(
+    m: motion.Motion,
+    model: dict[str, dict[str, float]],
+    period: float,
+    moves: dict[str, list[tuple[int, float, float]]] | None,
+) -> dict[str, AxisMetrics]:
     out = {}
     rest = round(trajectories.REST_S / period)
     for a in m.position:
         fe = m.demand[a] - m.position[a]
         ok = np.isfinite(fe)
-        if not ok.any():                       # stopped before the trajectory began: nothing to measure
+        if not ok.any():  # stopped before the trajectory began: nothing to measure
             nan = float("nan")
             out[a] = AxisMetrics(nan, nan, None, None, nan, nan)
             continue
@@ -93,22 +103,30 @@ def metrics(m: motion.Motion, model: dict[str, dict[str, float]], period: float,
         if moves:
             overs, settles = [], []
             for end, start, target in moves[a]:
-                window = m.position[a][end:end + rest]
+                window = m.position[a][end : end + rest]
                 dist = abs(target - start)
                 if dist == 0 or len(window) < rest or not np.all(np.isfinite(window)):
                     continue
-                overs.append(max(0.0, float(np.max((window - target) * np.sign(target - start)))) / dist * 100)
+                overs.append(
+                    max(0.0, float(np.max((window - target) * np.sign(target - start)))) / dist * 100
+                )
                 outside = np.flatnonzero(np.abs(window - target) > SETTLE_BAND * dist)
                 settles.append(0.0 if len(outside) == 0 else (outside[-1] + 1) * period)
             over = max(overs) if overs else None
             settle = max(settles) if settles else None
-        out[a] = AxisMetrics(float(np.sqrt(np.mean(fe[ok] ** 2))), float(np.max(np.abs(fe[ok]))), over, settle,
-                             *_torque_error(model.get(a, {}), m.demand[a], m.torque[a], ok, period))
+        out[a] = AxisMetrics(
+            float(np.sqrt(np.mean(fe[ok] ** 2))),
+            float(np.max(np.abs(fe[ok]))),
+            over,
+            settle,
+            *_torque_error(model.get(a, {}), m.demand[a], m.torque[a], ok, period),
+        )
     return out
 
 
-def _torque_error(model: dict[str, float], demand: np.ndarray, torque: np.ndarray, ok: np.ndarray,
-                  period: float) -> tuple[float, float, int | None, float | None]:
+def _torque_error(
+    model: dict[str, float], demand: np.ndarray, torque: np.ndarray, ok: np.ndarray, period: float
+) -> tuple[float, float, int | None, float | None]:
     """Model torque RMSE [Nm], torque RMS [Nm], the lag [cycles] the RMSE is taken at, and the
     RMSE between the acceleration steps, over the moving samples (at rest: stiction)."""
     pred = model_torque(model, demand, period)
@@ -116,38 +134,51 @@ def _torque_error(model: dict[str, float], demand: np.ndarray, torque: np.ndarra
     if not okt.any():
         okt = ok & np.isfinite(torque)
     jerk = np.abs(np.diff(np.gradient(np.gradient(demand)), prepend=0.0))
-    steps = jerk > STEP_SHARE * jerk.max()                     # the corners of the velocity profile
+    steps = jerk > STEP_SHARE * jerk.max()  # the corners of the velocity profile
     near = np.convolve(steps, np.ones(2 * STEP_GUARD + 1 + MAX_TORQUE_LAG), "same") > 0
     best = None
     for lag in range(MAX_TORQUE_LAG + 1):
-        p = np.concatenate([np.full(lag, np.nan), pred[:len(pred) - lag]])
+        p = np.concatenate([np.full(lag, np.nan), pred[: len(pred) - lag]])
         use = okt & np.isfinite(p)
         if not use.any():
             continue
         rmse = float(np.sqrt(np.mean((torque[use] - p[use]) ** 2)))
         if best is None or rmse < best[0]:
             between = use & ~near
-            best = (rmse, lag, float(np.sqrt(np.mean((torque[between] - p[between]) ** 2))) if between.any() else None)
+            best = (
+                rmse,
+                lag,
+                float(np.sqrt(np.mean((torque[between] - p[between]) ** 2))) if between.any() else None,
+            )
     rms = float(np.sqrt(np.mean(torque[okt] ** 2)))
     if best is None:
         return float("nan"), rms, None, None
     return best[0], rms, best[1], best[2]
 
 
-def reference_demands(limits: dict[str, Limits], period: float) -> list[tuple[str, dict[str, np.ndarray], dict | None,
-                                                                            float]]:
+def reference_demands(
+    limits: dict[str, Limits], period: float
+) -> list[tuple[str, dict[str, np.ndarray], dict | None, float]]:
     """What each scenario runs, in order: (trajectory, axis -> demand [rad] per SYNC, the moves
     overshoot and settling are measured on, the share of the limits it runs at)."""
     ptp, moves = trajectories.point_to_point(limits, period)
-    return [("point_to_point", ptp, moves, trajectories.PTP_LEVEL),
-            ("path", trajectories.path(limits, period), None, trajectories.PATH_LEVEL)]
+    return [
+        ("point_to_point", ptp, moves, trajectories.PTP_LEVEL),
+        ("path", trajectories.path(limits, period), None, trajectories.PATH_LEVEL),
+    ]
 
 
-def validate(config: BusConfig, link: Link, axes: dict[str, AxisLink], profile: Profile,
-             scenarios: dict[str, dict[str, dict[str, float]]],
-             model: dict[str, dict[str, float]], *,
-             on_plan: Callable[[Plan], Callable[[int], None] | None] | None = None,
-             master_feedforward: Collection[str] = frozenset()) -> list[Run]:
+def validate(
+    config: BusConfig,
+    link: Link,
+    axes: dict[str, AxisLink],
+    profile: Profile,
+    scenarios: dict[str, dict[str, dict[str, float]]],
+    model: dict[str, dict[str, float]],
+    *,
+    on_plan: Callable[[Plan], Callable[[int], None] | None] | None = None,
+    master_feedforward: Collection[str] = frozenset(),
+) -> list[Run]:
     """Run every scenario (name -> axis -> parameter values) on both reference trajectories.
 
     ``model`` (axis -> J, c0, c1, ...) predicts the torque the metrics compare with; ``on_plan``
@@ -163,58 +194,93 @@ def validate(config: BusConfig, link: Link, axes: dict[str, AxisLink], profile: 
         ff: dict[str, MasterFeedForward] = {}
         how: dict[str, str] = {}
         for a, v in values.items():
-            way = route(axes[a], profile, {k: x for k, x in v.items() if k in MODEL}, name in master_feedforward)
+            way = route(
+                axes[a], profile, {k: x for k, x in v.items() if k in MODEL}, name in master_feedforward
+            )
             if isinstance(way, MasterFeedForward):
                 ff[a] = way
                 v = {k: x for k, x in v.items() if k not in MODEL and k != "ff_enable"}
                 if "ff_enable" in profile.entries:
-                    v["ff_enable"] = 0                  # the drive's own model off: the master's runs
+                    v["ff_enable"] = 0  # the drive's own model off: the master's runs
             how[a] = way.describe() if isinstance(way, MasterFeedForward) else way
             res = write_parameters(axes[a].node, profile.for_axis(axes[a]), v, store=False)
             if not res.ok:
                 raise DriveRefused(f"scenario {name}, axis {a}: {res.error}")
         for traj, demand, marks, level in demands:
-            log.info("scenario %s, %s: the model feed-forward %s", name, traj,
-                     "; ".join(f"{a} {h}" for a, h in how.items()))
-            m = motion.run(config, link, axes, demand, on_plan=on_plan, kind=traj, level=level, feedforward=ff)
-            runs.append(Run(name, traj, metrics(m, model, period, marks),
-                            None if m.aborted is None else str(m.aborted), m, how))
+            log.info(
+                "scenario %s, %s: the model feed-forward %s",
+                name,
+                traj,
+                "; ".join(f"{a} {h}" for a, h in how.items()),
+            )
+            m = motion.run(
+                config, link, axes, demand, on_plan=on_plan, kind=traj, level=level, feedforward=ff
+            )
+            runs.append(
+                Run(
+                    name,
+                    traj,
+                    metrics(m, model, period, marks),
+                    None if m.aborted is None else str(m.aborted),
+                    m,
+                    how,
+                )
+            )
             if m.aborted is not None:
-                return runs                   # stopped: no fault is reset and nothing moves again by itself
+                return runs  # stopped: no fault is reset and nothing moves again by itself
     return runs
 
 
 VALIDATE_JSON, TRACES = "validate.json", "traces.npz"
 
 
-def run_scenarios(config: BusConfig, link: Link, axes: dict[str, AxisLink], profile: Profile,
-                  scenarios: dict[str, dict[str, dict[str, float]]], model: dict[str, dict[str, float]], *,
-                  out_dir: str | Path | None = None,
-                  on_plan: Callable[[Plan], Callable[[int], None] | None] | None = None,
-                  master_feedforward: Collection[str] = frozenset(),
-                  refused: dict[str, str] | None = None) -> list[Run]:
+def run_scenarios(
+    config: BusConfig,
+    link: Link,
+    axes: dict[str, AxisLink],
+    profile: Profile,
+    scenarios: dict[str, dict[str, dict[str, float]]],
+    model: dict[str, dict[str, float]],
+    *,
+    out_dir: str | Path | None = None,
+    on_plan: Callable[[Plan], Callable[[int], None] | None] | None = None,
+    master_feedforward: Collection[str] = frozenset(),
+    refused: dict[str, str] | None = None,
+) -> list[Run]:
     """The validate step: :func:`validate` with the drives left holding the parameters they had
     before (every parameter a scenario sets, read first and written back, not stored), and,
     with ``out_dir``, ``validate.json`` and the logged runs (``traces.npz``) kept there.
     A stopped run is in the result (see :func:`stopped`); the runs after it did not move.
     ``refused``: the scenarios the gain gate kept from the drives, and why (into validate.json)."""
-    bound = {a: profile.for_axis(ax) for a, ax in axes.items()}       # each drive's, with its motor
-    problems = [f"scenario {name}, axis {a}: {p}" for name, values in scenarios.items() for a, v in values.items()
-                for p in check_set(bound[a], axes[a].node.object_dictionary, bound[a].drive_values(v))]
+    bound = {a: profile.for_axis(ax) for a, ax in axes.items()}  # each drive's, with its motor
+    problems = [
+        f"scenario {name}, axis {a}: {p}"
+        for name, values in scenarios.items()
+        for a, v in values.items()
+        for p in check_set(bound[a], axes[a].node.object_dictionary, bound[a].drive_values(v))
+    ]
     if problems:
         raise ValueRefused("refused before anything moved: " + "; ".join(problems))
     names = sorted({k for values in scenarios.values() for v in values.values() for k in v} | {"ff_enable"})
     held = {a: read_parameters(ax.node, bound[a], names) for a, ax in axes.items()}
     try:
-        runs = validate(config, link, axes, profile, scenarios, model, on_plan=on_plan,
-                        master_feedforward=master_feedforward)
+        runs = validate(
+            config,
+            link,
+            axes,
+            profile,
+            scenarios,
+            model,
+            on_plan=on_plan,
+            master_feedforward=master_feedforward,
+        )
     finally:
-        for a, ax in axes.items():          # what the drive held, as it held it: not checked again
+        for a, ax in axes.items():  # what the drive held, as it held it: not checked again
             write_parameters(ax.node, bound[a], held[a], store=False, check=False)
     if out_dir is not None:
         out = Path(out_dir)
         write_json(out / VALIDATE_JSON, validate_doc(runs, refused))
-        traces: dict[str, Any] = {}             # arrays by name (numpy's keywords: "allow_pickle" is not one)
+        traces: dict[str, Any] = {}  # arrays by name (numpy's keywords: "allow_pickle" is not one)
         for r in runs:
             m = r.motion
             if m is None:
@@ -236,8 +302,11 @@ def validate_doc(runs: list[Run], refused: dict[str, str] | None = None) -> dict
 
 def degraded(runs: list[Run]) -> list[str]:
     """Why wall-clock runs missed their timing limits (empty: none did)."""
-    return [f"{r.scenario}, {r.trajectory}: {'; '.join(r.motion.timing.reasons)}" for r in runs
-            if r.motion is not None and r.motion.timing.degraded]
+    return [
+        f"{r.scenario}, {r.trajectory}: {'; '.join(r.motion.timing.reasons)}"
+        for r in runs
+        if r.motion is not None and r.motion.timing.degraded
+    ]
 
 
 def stopped(runs: list[Run]) -> MotionAborted | None:

@@ -1,6 +1,7 @@
 """Pins the behaviour of python-can's udp_multicast bus that drive_bridge.cia.multicast relies on
 (its internals: run this after raising python-can's bound in pyproject.toml), and that python-can
 opens the echo-free bus by its registered name."""
+
 from __future__ import annotations
 
 import time
@@ -9,7 +10,8 @@ import can
 import pytest
 
 from drive_bridge.cia.buses import open_bus
-from drive_bridge.cia.multicast import INTERFACE, UDP_GROUP as GROUP, LoopbackMulticastBus
+from drive_bridge.cia.multicast import INTERFACE, LoopbackMulticastBus
+from drive_bridge.cia.multicast import UDP_GROUP as GROUP
 from drive_bridge.sim.process import free_port
 
 
@@ -26,7 +28,7 @@ def test_loopback_multicast_bus_drops_its_echo_and_keeps_the_senders_time():
         assert msg is not None and msg.arbitration_id == 0x080 and msg.timestamp == pytest.approx(123.456)
         deadline = time.monotonic() + 0.3
         while time.monotonic() < deadline:
-            assert a.recv(timeout=0.05) is None          # its own frame looped back: dropped
+            assert a.recv(timeout=0.05) is None  # its own frame looped back: dropped
     finally:
         a.shutdown()
         b.shutdown()
@@ -41,7 +43,7 @@ def test_python_can_opens_the_echo_free_bus_by_its_name_as_bus_yml_names_udp_mul
         configured.send(frame(0x181, b"\x01", 1.0))
         msg = named.recv(timeout=2.0)
         assert msg is not None and msg.arbitration_id == 0x181
-        assert configured.recv(timeout=0.1) is None          # not its own echo
+        assert configured.recv(timeout=0.1) is None  # not its own echo
     finally:
         named.shutdown()
         configured.shutdown()

@@ -1,5 +1,6 @@
 """``--json`` on every command: one object on stdout that follows the schema shipped for it, with
 object addresses, identities and COB-IDs as hex strings and floats rounded to what they mean."""
+
 from __future__ import annotations
 
 import json
@@ -17,7 +18,7 @@ pytest.importorskip("jsonschema")
 
 def _printed(capsys) -> dict:
     out = capsys.readouterr().out
-    assert out.count("\n") == 1, out               # exactly one JSON object, nothing else on stdout
+    assert out.count("\n") == 1, out  # exactly one JSON object, nothing else on stdout
     return json.loads(out)
 
 
@@ -31,10 +32,16 @@ def test_scan_names_identities_in_hex(capsys):
 def test_record_then_decode_then_identify(tmp_path, capsys):
     assert main(["record", "--sim", "--quick", "--axes", "y", "--out", str(tmp_path), "--json"]) == 0
     rec = follows_schema(_printed(capsys), "record")
-    assert rec["aborted"] is None and rec["axes"]["y"]["samples"] > 500 and rec["timing"]["clock"] == "lockstep"
+    assert (
+        rec["aborted"] is None and rec["axes"]["y"]["samples"] > 500 and rec["timing"]["clock"] == "lockstep"
+    )
     assert main(["decode", str(tmp_path / "trace.blf"), "--json"]) == 0
     dec = follows_schema(_printed(capsys), "decode")
-    assert dec["problem"] is None and dec["rows"] >= rec["axes"]["y"]["samples"] and (tmp_path / "decoded.csv").is_file()
+    assert (
+        dec["problem"] is None
+        and dec["rows"] >= rec["axes"]["y"]["samples"]
+        and (tmp_path / "decoded.csv").is_file()
+    )
     assert main(["identify", str(tmp_path), "--json"]) == 0
     ident = follows_schema(_printed(capsys), "identify")
     assert ident["axes"]["y"]["params"]["J"] > 0
@@ -46,7 +53,7 @@ def test_check_eds_and_export(tmp_path, capsys):
     assert doc["standard"] and doc["files"][0]["path"] == str(EDS)
     code = main(["check-eds", str(VENDOR_EDS / "pilz_prbt_0_1.dcf"), "--json"])
     doc = follows_schema(_printed(capsys), "check-eds")
-    assert code == (0 if doc["standard"] else 1)                 # 1 where Lely's dcfchk is installed
+    assert code == (0 if doc["standard"] else 1)  # 1 where Lely's dcfchk is installed
     assert any(line.startswith("modes (0x6502): profile position (1)") for line in doc["files"][0]["drive"])
     assert main(["export", "ros2", "--out", str(tmp_path), "--json"]) == 0
     doc = follows_schema(_printed(capsys), "export")
@@ -57,11 +64,14 @@ def test_verbose_shows_drive_bridge_log_lines_and_quiet_only_errors(tmp_path, ca
     """-v: drive-bridge's log (bring-up, enabling, stopping) on stderr; by default and with -q, none;
     python-can's and canopen's lines only with -vv."""
     from drive_bridge.cli import main
+
     args = ["record", "--sim", "--quick", "--axes", "y", "--out"]
     assert main(["-v"] + args + [str(tmp_path / "a")]) == 0
     err = capsys.readouterr().err
-    assert "INFO drive_bridge.master.bringup: axis y: units" in err and "INFO drive_bridge.master.stream" in err
-    assert " canopen." not in err                                  # python-can's and canopen's: -vv
+    assert (
+        "INFO drive_bridge.master.bringup: axis y: units" in err and "INFO drive_bridge.master.stream" in err
+    )
+    assert " canopen." not in err  # python-can's and canopen's: -vv
     assert main(["-vv"] + args + [str(tmp_path / "d")]) == 0
     assert "INFO canopen.pdo" in capsys.readouterr().err
     assert main(args + [str(tmp_path / "b")]) == 0

@@ -3,6 +3,7 @@ resonance, 85 Hz anti-resonance, ζ 0.02) over the virtual bus: the measure step
 the mode, the gains written keep the margins on the true plant -- computed here from the
 simulator's own parameters -- where the rigid model's gains do not, and the axis still follows
 at least twice as well as with the factory set."""
+
 from __future__ import annotations
 
 import json
@@ -31,7 +32,9 @@ def commissioned(tmp_path_factory):
     doc["campaign"].update(SHORT_CAMPAIGN)
     cfg.write_text(yaml.safe_dump(doc))
     out = tmp / "run"
-    code = main(["commission", "--sim", "--sim-config", "compliant", "--config", str(cfg), "--out", str(out), "--yes"])
+    code = main(
+        ["commission", "--sim", "--sim-config", "compliant", "--config", str(cfg), "--out", str(out), "--yes"]
+    )
     return code, out
 
 
@@ -46,12 +49,16 @@ def test_the_compliant_axis_is_commissioned_with_gains_that_keep_the_margins_on_
         assert floor_kept(loop), loop
     model = tune["model"]
     rigid = D.design_gains(model["J"], model["c1"], tune["motor"]["R"], tune["motor"]["L"]).gains()
-    assert not floor_kept(true_margins(rigid, *true)[0])                # what tune gave before the measure step
+    assert not floor_kept(true_margins(rigid, *true)[0])  # what tune gave before the measure step
     measured = tune["measured"]
-    assert measured["band_hz"][1] >= 0.4 * 500 - 1 and measured["margins"]["velocity"]["phase_margin_deg"] >= 45
+    assert (
+        measured["band_hz"][1] >= 0.4 * 500 - 1 and measured["margins"]["velocity"]["phase_margin_deg"] >= 45
+    )
     frf = json.loads((out / "frf.json").read_text())["axes"]["y"]
-    above_inertia = [(m + 20 * math.log10(f), f) for m, f in zip(frf["magnitude_db"], frf["frequency_hz"]) if f > 20]
-    assert 100 < max(above_inertia)[1] < 130                            # the resonance, in what was measured
-    mode = tune["mode"]                  # and tune says what it found and how the design met it
+    above_inertia = [
+        (m + 20 * math.log10(f), f) for m, f in zip(frf["magnitude_db"], frf["frequency_hz"]) if f > 20
+    ]
+    assert 100 < max(above_inertia)[1] < 130  # the resonance, in what was measured
+    mode = tune["mode"]  # and tune says what it found and how the design met it
     assert mode["source"] == "measured response" and 100 < mode["frequency_hz"] < 130, mode
     assert mode["filter"] is None and mode["crossover_cap_hz"] is None and "measured" in mode["handling"]

@@ -3,6 +3,7 @@ simulated drives built from each drive's own EDS/DCF (the vendor files read in p
 campaign: mode chosen from the drive's 0x6502, gains written and verified through the vendor's
 objects (stored where the file has 0x1010), the model feed-forward in the drive or from the master,
 validation better than the factory set."""
+
 from __future__ import annotations
 
 import json
@@ -34,9 +35,10 @@ def short(tmp_path, drive: str):
     doc = yaml.safe_load((EXAMPLES / f"{drive}.yml").read_text())
     if doc["defaults"]["dcf"].startswith("../"):
         doc["defaults"]["dcf"] = str((EXAMPLES / doc["defaults"]["dcf"]).resolve())
-    doc["campaign"].update({"velocity_levels": [0.4, 0.8], "acceleration_levels": [0.4, 0.8], "cycles": 2,
-                            "max_axis_time_s": 8})
-    doc["nodes"] = {"y": doc["nodes"]["y"]}                # one axis keeps the suite short
+    doc["campaign"].update(
+        {"velocity_levels": [0.4, 0.8], "acceleration_levels": [0.4, 0.8], "cycles": 2, "max_axis_time_s": 8}
+    )
+    doc["nodes"] = {"y": doc["nodes"]["y"]}  # one axis keeps the suite short
     path = tmp_path / "bus.yml"
     path.write_text(yaml.safe_dump(doc))
     return path
@@ -55,17 +57,21 @@ def test_commission_runs_end_to_end_on_the_vendor_faithful_drive(drive, tmp_path
     # where nothing can be written and nothing fed forward (the iPOS), the commissioning completes
     # but the following error stays the factory set's: the verdict fails it (exit 6), and says why
     expected = 0 if writes or ff != "none" else 6
-    assert main(["commission", "--sim", "--config", str(short(tmp_path, drive)), "--out", str(out)]) == expected
+    assert (
+        main(["commission", "--sim", "--config", str(short(tmp_path, drive)), "--out", str(out)]) == expected
+    )
     summary = json.loads((out / "summary.json").read_text())
     if expected == 6:
         assert summary["verdict"]["axes"]["y"]["verdict"] == "FAIL"
-        assert any(u.startswith("following error improvement") for u in summary["verdict"]["axes"]["y"]["unmet"])
+        assert any(
+            u.startswith("following error improvement") for u in summary["verdict"]["axes"]["y"]["unmet"]
+        )
     assert summary["status"] == "ok" and summary["profile"] == drive
     y = summary["axes"]["y"]
     assert y["operating_mode"]["mode"] == mode
     meta = yaml.safe_load((out / "campaign" / "meta.yaml").read_text())
-    assert meta["axes"]["y"]["operating_mode"]["mode"] == mode          # the log records the mode that ran
-    assert abs(y["params"]["J"] - 1e-4) < 0.15e-4                      # the plant's inertia, through any drive
+    assert meta["axes"]["y"]["operating_mode"]["mode"] == mode  # the log records the mode that ran
+    assert abs(y["params"]["J"] - 1e-4) < 0.15e-4  # the plant's inertia, through any drive
     assert all(w["verified"] for w in y["written"]) and bool(y["written"]) == writes
     assert y["stored"] == stored
     for traj in ("point_to_point", "path"):
@@ -73,15 +79,20 @@ def test_commission_runs_end_to_end_on_the_vendor_faithful_drive(drive, tmp_path
         assert val["feedforward"].startswith(ff)
         if writes or ff != "none":
             assert val["fe_rms_after"] < val["fe_rms_before"] / 2, (traj, val)
-    if drive == "maxon_epos2":      # its position PID (what runs in IP mode) and its feed-forward, not 0x60F9
+    if drive == "maxon_epos2":  # its position PID (what runs in IP mode) and its feed-forward, not 0x60F9
         written = {w["object"]: w for w in y["written"]}
         assert {o[:6] for o in written} == {"0x60FB", "0x60F6"} and len(written) == 7
-        kt = yaml.safe_load(short(tmp_path, drive).read_text())["defaults"]["scaling"]["torque_constant_Nm_per_A"]
-        assert written["0x60FB:4"]["new_device"] == round(y["params"]["c1"] / kt * 1e6)     # µA per rad/s
+        kt = yaml.safe_load(short(tmp_path, drive).read_text())["defaults"]["scaling"][
+            "torque_constant_Nm_per_A"
+        ]
+        assert written["0x60FB:4"]["new_device"] == round(y["params"]["c1"] / kt * 1e6)  # µA per rad/s
         assert written["0x60FB:5"]["new_device"] == round(y["params"]["J"] / kt * 1e6)
         tune = json.loads((out / "tune.json").read_text())["axes"]["y"]
-        assert tune["controller"]["structure"] == "position_pid" and tune["controller"]["rates_hz"]["position"] == 1000
-    dcf = out / "write" / "y.dcf"                  # the commissioned node, read back, CiA 306 clean
+        assert (
+            tune["controller"]["structure"] == "position_pid"
+            and tune["controller"]["rates_hz"]["position"] == 1000
+        )
+    dcf = out / "write" / "y.dcf"  # the commissioned node, read back, CiA 306 clean
     assert check_eds(dcf).findings == []
     if tool("dcfchk"):
         r = subprocess.run([tool("dcfchk"), "-n", "2", str(dcf)], capture_output=True, text=True)
@@ -94,7 +105,10 @@ def test_export_ros2_of_every_drive_passes_lely(drive, tmp_path):
     themselves do not all (two's complement signed defaults, decimal REALs, descriptions)."""
     if drive != "drive_bridge_servo" and not vendor_dir().is_dir():
         pytest.skip("../shared/eds-vendor not present")
-    assert main(["export", "ros2", "--config", str(short(tmp_path, drive)), "--out", str(tmp_path / "ros2")]) == 0
+    assert (
+        main(["export", "ros2", "--config", str(short(tmp_path, drive)), "--out", str(tmp_path / "ros2")])
+        == 0
+    )
     dcf = tmp_path / "ros2" / "y.dcf"
     assert check_eds(dcf).findings == []
     if tool("dcfchk"):
@@ -132,4 +146,4 @@ def test_a_drive_holding_gains_in_current_needs_the_torque_constant(tmp_path, ca
     assert "scaling.torque_constant_Nm_per_A" in err and "Traceback" not in err
     summary = json.loads((tmp_path / "run" / "summary.json").read_text())
     assert summary["status"] == "failed" and summary["failed"]["step"] == "bringup"
-    assert not (tmp_path / "run" / "campaign").exists()                 # nothing moved
+    assert not (tmp_path / "run" / "campaign").exists()  # nothing moved

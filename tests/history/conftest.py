@@ -1,6 +1,7 @@
 """The history's databases: SQLite, and a real PostgreSQL server (TLS, password login) -- the one
 .ci/run started (DRIVE_BRIDGE_TEST_POSTGRES), else one this worker starts from Debian's package
 with tools/test_postgres.sh. Every test gets an empty database and an empty outbox."""
+
 from __future__ import annotations
 
 import os
@@ -45,8 +46,11 @@ def postgres():
             env = start_server()
         except (RuntimeError, OSError, subprocess.TimeoutExpired) as exc:
             no_server(exc)
-    yield (env["DRIVE_BRIDGE_TEST_POSTGRES"], env["DRIVE_BRIDGE_TEST_POSTGRES_PASSWORD"],
-           env["DRIVE_BRIDGE_TEST_POSTGRES_DIR"])
+    yield (
+        env["DRIVE_BRIDGE_TEST_POSTGRES"],
+        env["DRIVE_BRIDGE_TEST_POSTGRES_PASSWORD"],
+        env["DRIVE_BRIDGE_TEST_POSTGRES_DIR"],
+    )
     if own:
         subprocess.run([str(SERVER), "remove", env["DRIVE_BRIDGE_TEST_POSTGRES_DIR"]], timeout=60)
 

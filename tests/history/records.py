@@ -1,5 +1,6 @@
 """History records made by hand (not by a commissioning): drives, times and parameters as a test
 sets them."""
+
 from __future__ import annotations
 
 import uuid
@@ -18,20 +19,55 @@ def day(n: float) -> datetime:
 
 def axis(name: str, serial: int | None, params: dict[str, tuple], product: int = PRODUCT) -> dict:
     """An axis entry: ``params`` name -> (value, std) or (value, std, determined)."""
-    return {"axis": name, "node_id": 1, "verdict": "PASS", "consistent": True, "stored": True,
-            "drive": None if serial is None else {"vendor_id": f"0x{VENDOR:08X}", "product_code": f"0x{product:08X}",
-                                                  "revision": "0x00000001", "serial": f"0x{serial:08X}"},
-            "parameters": {k: {"value": v[0], "std": v[1], "unit": UNITS.get(k, ""),
-                               "determined": v[2] if len(v) > 2 else True} for k, v in params.items()}}
+    return {
+        "axis": name,
+        "node_id": 1,
+        "verdict": "PASS",
+        "consistent": True,
+        "stored": True,
+        "drive": None
+        if serial is None
+        else {
+            "vendor_id": f"0x{VENDOR:08X}",
+            "product_code": f"0x{product:08X}",
+            "revision": "0x00000001",
+            "serial": f"0x{serial:08X}",
+        },
+        "parameters": {
+            k: {
+                "value": v[0],
+                "std": v[1],
+                "unit": UNITS.get(k, ""),
+                "determined": v[2] if len(v) > 2 else True,
+            }
+            for k, v in params.items()
+        },
+    }
 
 
-def record(when: datetime, axes: list[dict], run_id: str | None = None, simulated: bool = False,
-           updated: datetime | None = None) -> dict:
-    return {"schema": SCHEMA, "schema_version": SCHEMA_VERSION, "run_id": run_id or uuid.uuid4().hex,
-            "kind": "commission", "started": when.isoformat(), "updated": (updated or when).isoformat(),
-            "version": "test", "config": {"path": "/plant/cell4/bus.yml", "sha256": "0" * 64},
-            "out": "/plant/runs/x", "status": "ok", "verdict": "PASS", "simulated": simulated, "failed": None,
-            "axes": axes}
+def record(
+    when: datetime,
+    axes: list[dict],
+    run_id: str | None = None,
+    simulated: bool = False,
+    updated: datetime | None = None,
+) -> dict:
+    return {
+        "schema": SCHEMA,
+        "schema_version": SCHEMA_VERSION,
+        "run_id": run_id or uuid.uuid4().hex,
+        "kind": "commission",
+        "started": when.isoformat(),
+        "updated": (updated or when).isoformat(),
+        "version": "test",
+        "config": {"path": "/plant/cell4/bus.yml", "sha256": "0" * 64},
+        "out": "/plant/runs/x",
+        "status": "ok",
+        "verdict": "PASS",
+        "simulated": simulated,
+        "failed": None,
+        "axes": axes,
+    }
 
 
 def nominal(scale_c0: float = 1.0) -> dict[str, tuple]:

@@ -1,5 +1,6 @@
 """Each drive against its past and its siblings, on records made by hand: a change is named when it
 is beyond noise (combined std) and beyond the threshold, never for an undetermined parameter."""
+
 from __future__ import annotations
 
 import pytest
@@ -14,7 +15,7 @@ def hall(db: str, rising: float = 1.38, std_scale: float = 1.0) -> HistoryStore:
     machine 5's Y friction has risen by ``rising``."""
     store = HistoryStore(db)
     for m in range(12):
-        wobble = 1 + 0.004 * ((m * 7) % 5 - 2)             # the machines differ a little
+        wobble = 1 + 0.004 * ((m * 7) % 5 - 2)  # the machines differ a little
         for visit, when in enumerate((day(m), day(200 + m))):
             c0 = 0.323 * wobble * (rising if (m == 5 and visit == 1) else 1.0)
             params = {"J": (1.0e-4 * wobble, 5e-7), "c0": (c0, 1.6e-3 * std_scale), "c1": (5.0e-4, 2.5e-6)}
@@ -34,7 +35,7 @@ def test_the_drive_whose_friction_rose_is_named_in_words_and_no_other(db):
 
 
 def test_noise_is_not_news_a_large_change_within_its_std_is_not_named(db):
-    found = compare(History(hall(db, rising=1.38, std_scale=80).parameters()))   # std 0.13 Nm: 38 % is < 1 σ
+    found = compare(History(hall(db, rising=1.38, std_scale=80).parameters()))  # std 0.13 Nm: 38 % is < 1 σ
     c = next(c for c in found if c.serial == 2005 and c.name == "c0")
     assert abs(c.sigmas) < 3 and not c.changed
 
@@ -42,7 +43,7 @@ def test_noise_is_not_news_a_large_change_within_its_std_is_not_named(db):
 def test_a_significant_but_small_change_is_under_the_threshold(db):
     found = compare(History(hall(db, rising=1.05).parameters()))
     c = next(c for c in found if c.serial == 2005 and c.name == "c0")
-    assert c.sigmas > 3 and not c.named                         # +5 %: below 10 %
+    assert c.sigmas > 3 and not c.named  # +5 %: below 10 %
     named = compare(History(hall(db, rising=1.05).parameters()), threshold=0.03)
     assert [(c.serial, c.name) for c in named if c.named] == [(2005, "c0")]
 
@@ -53,8 +54,8 @@ def test_filters_an_undetermined_parameter_and_siblings_of_another_type(db):
         store.add(record(day(n), [axis("y", 7, {"J": (1e-4, 5e-7), "c1": (2e-4 * (1 + n), 1e-3, False)})]))
         store.add(record(day(n), [axis("y", 70 + n, {"J": (3e-4, 5e-7)}, product=PRODUCT + 1)]))
     found = compare(History(store.parameters()), serial=7)
-    assert [c.name for c in found] == ["J"]                 # c1 undetermined: never compared
-    assert found[0].siblings == 0                           # the other product is no sibling
+    assert [c.name for c in found] == ["J"]  # c1 undetermined: never compared
+    assert found[0].siblings == 0  # the other product is no sibling
     assert compare(History(store.parameters()), axis="x") == []
 
 

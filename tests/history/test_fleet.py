@@ -3,6 +3,7 @@
 quick campaign and identification: the steps that measure), machine B's Y friction rising between
 its visits: ``history compare`` names that axis of that drive and no other, on SQLite and on
 PostgreSQL; B's second commissioning report says so under "since last time"."""
+
 from __future__ import annotations
 
 import json
@@ -42,7 +43,7 @@ def bus_config(tmp: Path) -> Path:
 
 def robot_config(tmp: Path, robot: str, visit: int, c0_y: float) -> Path:
     doc = yaml.safe_load(DEFAULT_CONFIG.read_text())
-    doc["seed"] = 100 * "ABCD".index(robot) + visit          # each visit its own measurement noise
+    doc["seed"] = 100 * "ABCD".index(robot) + visit  # each visit its own measurement noise
     doc["axes"] = {a: doc["axes"][a] for a in AXES}
     for a, serial in serials(robot).items():
         doc["axes"][a]["serial"] = serial
@@ -64,8 +65,24 @@ def fleet(tmp_path_factory):
             if visit < len(c0):
                 out = tmp / f"{robot}{visit}"
                 sim = robot_config(tmp, robot, visit, c0[visit])
-                code = main(["-q", "commission", "--config", str(config), "--sim", "--sim-config", str(sim),
-                             "--quick", "--steps", STEPS, "--out", str(out), "--db", db])
+                code = main(
+                    [
+                        "-q",
+                        "commission",
+                        "--config",
+                        str(config),
+                        "--sim",
+                        "--sim-config",
+                        str(sim),
+                        "--quick",
+                        "--steps",
+                        STEPS,
+                        "--out",
+                        str(out),
+                        "--db",
+                        db,
+                    ]
+                )
                 assert code == 0
                 runs[robot, visit] = out
     return db, runs
@@ -76,7 +93,9 @@ def test_every_commissioning_is_kept_once_with_its_drives(fleet, capsys):
     assert main(["history", "list", "--db", db, "--json"]) == 0
     listed = follows_schema(json.loads(capsys.readouterr().out), "history")["runs"]
     assert sorted(Path(r["out_dir"]) for r in listed) == sorted(p.resolve() for p in runs.values())
-    assert [r["out_dir"] for r in listed] == [str(p.resolve()) for p in reversed(runs.values())]   # newest first
+    assert [r["out_dir"] for r in listed] == [
+        str(p.resolve()) for p in reversed(runs.values())
+    ]  # newest first
     b1 = next(r for r in listed if r["out_dir"] == str(runs["B", 1].resolve()))
     assert b1["axes"] == [{"axis": a, "serial": f"0x{s:08X}"} for a, s in serials("B").items()]
     assert main(["history", "list", "--db", db, "--drive", str(serials("A")["y"])]) == 0
@@ -109,14 +128,18 @@ def test_the_second_commissioning_report_says_what_changed_since_last_time(fleet
     summary = follows_schema(json.loads((runs["B", 1] / "summary.json").read_text()), "summary")
     history = summary["history"]
     assert history["kept"] and set(history["axes"]) == {"x", "y"}
-    assert any(w.startswith(f"serial {serials('B')['y']}, axis y: c0 +") for w in history["axes"]["y"]["named"])
+    assert any(
+        w.startswith(f"serial {serials('B')['y']}, axis y: c0 +") for w in history["axes"]["y"]["named"]
+    )
     assert history["axes"]["x"]["named"] == []
-    assert [p["value"] for p in history["axes"]["y"]["series"]["c0"]] == pytest.approx([0.323, 0.42], rel=0.03)
+    assert [p["value"] for p in history["axes"]["y"]["series"]["c0"]] == pytest.approx(
+        [0.323, 0.42], rel=0.03
+    )
     report = (runs["B", 1] / "report.md").read_text()
     assert report.count("## Since last time") == 2 and "**Changed:** serial 20002, axis y: c0 +" in report
     assert (runs["B", 1] / "figures" / "history_y.png").stat().st_size > 10_000
     first = json.loads((runs["A", 0] / "summary.json").read_text())["history"]
-    assert first["kept"] and first["axes"] == {}          # a first commissioning, no siblings yet: no section
+    assert first["kept"] and first["axes"] == {}  # a first commissioning, no siblings yet: no section
     assert "Since last time" not in (runs["A", 0] / "report.md").read_text()
 
 
@@ -134,13 +157,20 @@ def test_show_prints_a_run_in_full(fleet, capsys):
 
 def test_identify_keeps_its_identification_when_asked(fleet, tmp_path, capsys):
     db, runs = fleet
-    args = ["identify", str(runs["B", 1] / "campaign"), "--axis", "y", "--db", f"sqlite:///{tmp_path / 'h.sqlite'}"]
+    args = [
+        "identify",
+        str(runs["B", 1] / "campaign"),
+        "--axis",
+        "y",
+        "--db",
+        f"sqlite:///{tmp_path / 'h.sqlite'}",
+    ]
     assert main(args) == 0
-    assert "history:" not in capsys.readouterr().err          # not asked: nothing kept
+    assert "history:" not in capsys.readouterr().err  # not asked: nothing kept
     assert main(args + ["--history"]) == 0
     assert "history: run " in capsys.readouterr().err
     [run] = HistoryStore(f"sqlite:///{tmp_path / 'h.sqlite'}").runs()
     rec = HistoryStore(f"sqlite:///{tmp_path / 'h.sqlite'}").record(run["run_id"])
     assert rec["kind"] == "identify" and [a["axis"] for a in rec["axes"]] == ["y"]
-    assert rec["axes"][0]["drive"] is None                    # a log does not say which drive it came from
+    assert rec["axes"][0]["drive"] is None  # a log does not say which drive it came from
     assert rec["axes"][0]["parameters"]["c0"]["value"] == pytest.approx(0.42, rel=0.03)

@@ -1,6 +1,7 @@
 """Acceptance: the database stopped in the middle of a commissioning. The commissioning completes,
 its record waits in the outbox, and ``history sync`` later adds exactly one record -- on SQLite
 (its folder taken away) and on a PostgreSQL server of the test's own (stopped with pg_ctl)."""
+
 from __future__ import annotations
 
 import json
@@ -17,9 +18,9 @@ from drive_bridge.history import HistoryStore
 from drive_bridge.history.location import outbox_dir
 from drive_bridge.progress import StepReporter
 
+from ..support import BUS_CONFIG
 from .conftest import SERVER, fresh_database, no_server, start_server
 from .records import axis, day, nominal, record
-from ..support import BUS_CONFIG
 
 pytestmark = pytest.mark.slow
 
@@ -37,17 +38,22 @@ def outage(request, tmp_path, monkeypatch):
     if request.param == "sqlite":
         folder, away = tmp_path / "db", tmp_path / "db-away"
         folder.mkdir()
-        yield Outage(f"sqlite:///{folder / 'history.sqlite'}", lambda: folder.rename(away), lambda: away.rename(folder))
+        yield Outage(
+            f"sqlite:///{folder / 'history.sqlite'}", lambda: folder.rename(away), lambda: away.rename(folder)
+        )
         return
-    try:                                    # a server of the test's own: stopping it disturbs no other test
+    try:  # a server of the test's own: stopping it disturbs no other test
         env = start_server()
     except (RuntimeError, OSError, subprocess.TimeoutExpired) as exc:
         no_server(exc)
     where = env["DRIVE_BRIDGE_TEST_POSTGRES_DIR"]
     monkeypatch.setenv("PGPASSWORD", env["DRIVE_BRIDGE_TEST_POSTGRES_PASSWORD"])
     url = fresh_database(env["DRIVE_BRIDGE_TEST_POSTGRES"], env["DRIVE_BRIDGE_TEST_POSTGRES_PASSWORD"])
-    yield Outage(url, lambda: subprocess.run([str(SERVER), "stop", where], check=True, timeout=60),
-                 lambda: subprocess.run([str(SERVER), "restart", where], check=True, timeout=60))
+    yield Outage(
+        url,
+        lambda: subprocess.run([str(SERVER), "stop", where], check=True, timeout=60),
+        lambda: subprocess.run([str(SERVER), "restart", where], check=True, timeout=60),
+    )
     subprocess.run([str(SERVER), "remove", where], timeout=60)
 
 
@@ -71,11 +77,16 @@ def runs(url: str) -> int:
 
 
 def test_the_commissioning_completes_and_history_sync_adds_exactly_one_record(outage, tmp_path, capsys):
-    HistoryStore(outage.url).add(record(day(0), [axis("y", 1002, nominal())]))    # the database was up
+    HistoryStore(outage.url).add(record(day(0), [axis("y", 1002, nominal())]))  # the database was up
     config = load_bus_config(BUS_CONFIG)
     config = replace(config, campaign=config.campaign.quick())
-    result = commission(config, tmp_path / "run", Options(sim=True, db=outage.url),
-                        steps=["scan", "bringup", "campaign"], reporter=StopsTheDatabase(outage))
+    result = commission(
+        config,
+        tmp_path / "run",
+        Options(sim=True, db=outage.url),
+        steps=["scan", "bringup", "campaign"],
+        reporter=StopsTheDatabase(outage),
+    )
     assert result.exit_code == 0 and result.failed_step is None
     history = result.summary["history"]
     assert history["kept"] is False and history["reason"]
@@ -85,17 +96,21 @@ def test_the_commissioning_completes_and_history_sync_adds_exactly_one_record(ou
     assert json.loads((tmp_path / "run" / "summary.json").read_text())["history"]["outbox"] == str(waiting[0])
     assert "history sync" in capsys.readouterr().err
 
-    assert main(["history", "sync", "--db", outage.url]) == 7      # still away: nothing lost, nothing sent
+    assert main(["history", "sync", "--db", outage.url]) == 7  # still away: nothing lost, nothing sent
     assert list(outbox_dir().glob("*.json")) == waiting
 
     outage.start()
     assert main(["history", "sync", "--db", outage.url]) == 0
     assert runs(outage.url) == 2
     assert list(outbox_dir().glob("*.json")) == []
-    assert main(["history", "sync", "--db", outage.url]) == 0      # again: nothing to send, nothing doubled
+    assert main(["history", "sync", "--db", outage.url]) == 0  # again: nothing to send, nothing doubled
     assert runs(outage.url) == 2
     kept = HistoryStore(outage.url).record(history["run_id"])
-    assert kept["out"] == str((tmp_path / "run").resolve()) and [a["axis"] for a in kept["axes"]] == ["x", "y", "z"]
+    assert kept["out"] == str((tmp_path / "run").resolve()) and [a["axis"] for a in kept["axes"]] == [
+        "x",
+        "y",
+        "z",
+    ]
     assert [a["drive"]["serial"] for a in kept["axes"]] == ["0x000003E9", "0x000003EA", "0x000003EB"]
 
 
@@ -104,10 +119,12 @@ def test_ctrl_c_while_the_record_is_sent_keeps_it_in_the_outbox_and_the_report_w
 
     def interrupted(self, record):
         raise KeyboardInterrupt
+
     monkeypatch.setattr(HistoryStore, "add", interrupted)
     config = load_bus_config(BUS_CONFIG)
-    result = commission(config, tmp_path / "run", Options(sim=True, db=f"sqlite:///{tmp_path / 'h.sqlite'}"),
-                        steps=["scan"])
+    result = commission(
+        config, tmp_path / "run", Options(sim=True, db=f"sqlite:///{tmp_path / 'h.sqlite'}"), steps=["scan"]
+    )
     assert result.exit_code == 130
     history = json.loads((tmp_path / "run" / "summary.json").read_text())["history"]
     assert history["interrupted"] and not history["kept"]

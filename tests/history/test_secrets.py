@@ -1,6 +1,7 @@
 """Credentials stay secret and connections use TLS, against the real PostgreSQL server (TLS on,
 password logins only over TLS): the password, given in the URL, PGPASSWORD or a password file,
 never appears in output, logs, JSON, the run directory or the outbox -- reached or not."""
+
 from __future__ import annotations
 
 import os
@@ -19,8 +20,13 @@ def with_password(url: str, password: str) -> str:
 
 
 def everything_written(*folders: Path) -> str:
-    return "".join(p.read_text(errors="replace") for f in folders if f.exists() for p in f.rglob("*") if p.is_file()
-                   and p.suffix != ".sqlite")
+    return "".join(
+        p.read_text(errors="replace")
+        for f in folders
+        if f.exists()
+        for p in f.rglob("*")
+        if p.is_file() and p.suffix != ".sqlite"
+    )
 
 
 @pytest.mark.parametrize("reachable", [True, False])
@@ -28,10 +34,25 @@ def test_a_password_in_the_url_never_appears(postgres, tmp_path, monkeypatch, ca
     url, password, _ = postgres
     monkeypatch.setenv("XDG_DATA_HOME", str(tmp_path / "data"))
     monkeypatch.delenv("PGPASSWORD", raising=False)
-    target = with_password(url if reachable else sa.make_url(url).set(port=1).render_as_string(False), password)
+    target = with_password(
+        url if reachable else sa.make_url(url).set(port=1).render_as_string(False), password
+    )
     out = tmp_path / "run"
-    code = main(["-vv", "commission", "--sim", "--quick", "--steps", "scan", "--out", str(out), "--db", target,
-                 "--json"])
+    code = main(
+        [
+            "-vv",
+            "commission",
+            "--sim",
+            "--quick",
+            "--steps",
+            "scan",
+            "--out",
+            str(out),
+            "--db",
+            target,
+            "--json",
+        ]
+    )
     assert code == 0
     written = capfd.readouterr()
     assert password not in written.out + written.err + everything_written(out, data_dir())

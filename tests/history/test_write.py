@@ -1,5 +1,6 @@
 """``write`` keeps what it wrote: each drive's identity, every object with old and new value and
 whether it read back, and whether it was stored; a dry run and a refused write keep nothing."""
+
 from __future__ import annotations
 
 import json
@@ -28,7 +29,7 @@ def test_a_write_is_kept_with_the_drive_the_objects_and_the_store(db, tmp_path, 
     assert main(args + ["--dry-run"]) == 0
     absurd = tmp_path / "absurd"
     absurd.mkdir()
-    assert main(args + ["--params", tune_json(absurd, KpS=1e30)]) == 2         # refused before writing
+    assert main(args + ["--params", tune_json(absurd, KpS=1e30)]) == 2  # refused before writing
     assert HistoryStore(db).runs() == []
     capsys.readouterr()
     assert main(args + ["--json"]) == 0
@@ -40,6 +41,8 @@ def test_a_write_is_kept_with_the_drive_the_objects_and_the_store(db, tmp_path, 
     [y] = rec["axes"]
     assert y["axis"] == "y" and y["drive"]["serial"] == "0x000003EA" and y["stored"] is True
     written = {w["parameter"]: w for w in y["written"]}
-    assert written["J"]["new"] == pytest.approx(TABLE_II["y"]["J"]) and all(w["verified"] for w in y["written"])
+    assert written["J"]["new"] == pytest.approx(TABLE_II["y"]["J"]) and all(
+        w["verified"] for w in y["written"]
+    )
     assert main(args + ["--no-history"]) == 0
     assert len(HistoryStore(db).runs()) == 1

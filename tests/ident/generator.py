@@ -8,6 +8,7 @@ torque to 1 mNm, with seeded Gaussian noise.  SI, motor side.  The loop is compi
 test's ``extra`` torque with it, as a C callback): the same numbers as the plain Python loop it
 replaced, bit for bit, in a tenth of the time.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -27,7 +28,9 @@ def _compiled(extra):
 
 
 @njit(cache=True)
-def _integrate(t, q_ref, v_ref, a_ref, T, J0, c0, c1, kp, kv, ki, extra, payload, coupled, J_l, k_s, d_s, lash):
+def _integrate(
+    t, q_ref, v_ref, a_ref, T, J0, c0, c1, kp, kv, ki, extra, payload, coupled, J_l, k_s, d_s, lash
+):
     """The cascade and the plant, semi-implicit Euler at every instant of ``t``: position and torque."""
     n = len(t)
     q = np.empty(n)
@@ -40,7 +43,7 @@ def _integrate(t, q_ref, v_ref, a_ref, T, J0, c0, c1, kp, kv, ki, extra, payload
         integ += ki * e_v * T
         u = kv * (e_v + integ)
         drive = u - extra(qk, vk, a_ref[k], t[k])
-        if coupled:                                         # the load's reaction through the coupling
+        if coupled:  # the load's reaction through the coupling
             twist = qk - ql
             twist = np.sign(twist) * max(0.0, abs(twist) - lash / 2)
             f_c = k_s * twist + (d_s * (vk - vl) if twist != 0.0 else 0.0)
@@ -48,23 +51,32 @@ def _integrate(t, q_ref, v_ref, a_ref, T, J0, c0, c1, kp, kv, ki, extra, payload
             ql += vl * T
             drive -= f_c
         if vk == 0.0 and abs(drive) <= c0:
-            pass                                            # stuck
+            pass  # stuck
         else:
             s_dir = np.sign(vk) if vk != 0.0 else np.sign(drive)
             v_new = vk + T / J * (drive - c1 * vk - c0 * s_dir)
-            vk = 0.0 if vk != 0.0 and v_new * vk < 0 else v_new      # crossed zero: sticks
+            vk = 0.0 if vk != 0.0 and v_new * vk < 0 else v_new  # crossed zero: sticks
         qk += vk * T
         q[k], tau[k] = qk, u
     return q, tau
 
 
-def closed_loop_log(stamps: np.ndarray, *, J: float = 1e-4, c0: float = 0.3, c1: float = 5e-4,
-                    extra=None, noise_Nm: float = 0.004, increments_per_rev: int = 2**16,
-                    seed: int = 0, fs_int: float = 10_000.0,
-                    payload: tuple[float, float] | None = None,
-                    coupling: tuple[float, float, float, float] | None = None,
-                    torque_lag_s: float = 0.0, multisine_hz: tuple[float, float] | None = None
-                    ) -> dict[str, np.ndarray]:
+def closed_loop_log(
+    stamps: np.ndarray,
+    *,
+    J: float = 1e-4,
+    c0: float = 0.3,
+    c1: float = 5e-4,
+    extra=None,
+    noise_Nm: float = 0.004,
+    increments_per_rev: int = 2**16,
+    seed: int = 0,
+    fs_int: float = 10_000.0,
+    payload: tuple[float, float] | None = None,
+    coupling: tuple[float, float, float, float] | None = None,
+    torque_lag_s: float = 0.0,
+    multisine_hz: tuple[float, float] | None = None,
+) -> dict[str, np.ndarray]:
     """Columns ``time_s`` (the stamps), ``y_position_rad``, ``y_torque_Nm``; ``payload`` = (time [s],
     inertia after it [kg·m²]): a payload change during the log; ``coupling`` = (load inertia
     [kg·m²], mode frequency [Hz], damping ratio, backlash [rad]): the load hangs on the motor
@@ -85,7 +97,7 @@ def closed_loop_log(stamps: np.ndarray, *, J: float = 1e-4, c0: float = 0.3, c1:
         phases = -np.pi * np.arange(len(freqs)) ** 2 / len(freqs)
         for f_k, ph in zip(freqs, phases):
             w = 2 * np.pi * f_k
-            amp = 0.2 / w                                   # 0.2 rad/s of velocity per line
+            amp = 0.2 / w  # 0.2 rad/s of velocity per line
             sine = np.sin(w * t + ph)
             q_ref = q_ref + amp * sine
             v_ref = v_ref + amp * w * np.cos(w * t + ph)
@@ -96,8 +108,26 @@ def closed_loop_log(stamps: np.ndarray, *, J: float = 1e-4, c0: float = 0.3, c1:
     k_s = (2 * np.pi * f_mode) ** 2 * J_eff
     d_s = 2 * zeta * np.sqrt(k_s * J_eff)
     after = (float(payload[0]), float(payload[1])) if payload is not None else (np.inf, J)
-    q, tau = _integrate(t, q_ref, v_ref, a_ref, T, J, c0, c1, kp, kv, ki, _compiled(extra), after,
-                        coupling is not None, J_l, k_s, d_s, lash)
+    q, tau = _integrate(
+        t,
+        q_ref,
+        v_ref,
+        a_ref,
+        T,
+        J,
+        c0,
+        c1,
+        kp,
+        kv,
+        ki,
+        _compiled(extra),
+        after,
+        coupling is not None,
+        J_l,
+        k_s,
+        d_s,
+        lash,
+    )
     rng = np.random.default_rng(seed)
     q_s = np.interp(stamps, t, q)
     tau_s = np.interp(stamps - torque_lag_s, t, tau) + noise_Nm * rng.standard_normal(len(stamps))
@@ -117,15 +147,27 @@ def jittered(rate_hz: float, duration_s: float, jitter_s: float, seed: int = 1) 
 def irregular(rate_hz: float, duration_s: float, lo_s: float, hi_s: float, seed: int = 2) -> np.ndarray:
     """Stamps of a logger that writes when it can: steps mostly near 1/rate, now and then up to ``hi_s``."""
     rng = np.random.default_rng(seed)
-    steps = np.where(rng.random(int(duration_s * rate_hz)) < 0.02, rng.uniform(2 / rate_hz, hi_s, int(duration_s * rate_hz)),
-                     rng.uniform(lo_s, 1.3 / rate_hz, int(duration_s * rate_hz)))
+    steps = np.where(
+        rng.random(int(duration_s * rate_hz)) < 0.02,
+        rng.uniform(2 / rate_hz, hi_s, int(duration_s * rate_hz)),
+        rng.uniform(lo_s, 1.3 / rate_hz, int(duration_s * rate_hz)),
+    )
     t = np.cumsum(steps)
     return t[t < duration_s]
 
 
-def averaged_torque_log(duration_s: float, period_s: float = 0.002, *, J: float = 1e-4, c0: float = 0.3,
-                        c1: float = 5e-4, accel: float = 3000.0, noise_Nm: float = 0.002, seed: int = 0,
-                        fs_int: float = 32_000.0) -> dict[str, np.ndarray]:
+def averaged_torque_log(
+    duration_s: float,
+    period_s: float = 0.002,
+    *,
+    J: float = 1e-4,
+    c0: float = 0.3,
+    c1: float = 5e-4,
+    accel: float = 3000.0,
+    noise_Nm: float = 0.002,
+    seed: int = 0,
+    fs_int: float = 32_000.0,
+) -> dict[str, np.ndarray]:
     """An axis made to follow trapezoidal moves (acceleration ±``accel`` for 0.1 s, then
     0.3 s at speed, each second), its torque J·q̈ + c1·q̇ + c0·sign(q̇) computed at
     ``fs_int`` and logged as a drive that reports its current averaged since the last report
@@ -143,13 +185,29 @@ def averaged_torque_log(duration_s: float, period_s: float = 0.002, *, J: float 
     q = np.cumsum(v) * T
     ends = np.arange(sub - 1, n, sub)
     noise = noise_Nm * np.random.default_rng(seed).standard_normal(len(ends))
-    return {"time_s": t[ends], "y_position_rad": q[ends], "y_torque_Nm": tau.reshape(-1, sub).mean(axis=1) + noise}
+    return {
+        "time_s": t[ends],
+        "y_position_rad": q[ends],
+        "y_torque_Nm": tau.reshape(-1, sub).mean(axis=1) + noise,
+    }
 
 
-def joint_log(duration_s: float = 40.0, rate_hz: float = 200.0, *, J: float = 2.0, c0: float = 5.0, c1: float = 3.0,
-              gravity_Nm: float = 60.0, centre_rad: float = -1.0, sines: tuple[tuple[float, float], ...] =
-              ((0.6, 0.25), (0.3, 0.7)), noise_Nm: float = 0.2, seed: int = 0, clip_Nm: float | None = None,
-              torque_sign: float = 1.0, fs_int: float = 5_000.0) -> dict[str, np.ndarray]:
+def joint_log(
+    duration_s: float = 40.0,
+    rate_hz: float = 200.0,
+    *,
+    J: float = 2.0,
+    c0: float = 5.0,
+    c1: float = 3.0,
+    gravity_Nm: float = 60.0,
+    centre_rad: float = -1.0,
+    sines: tuple[tuple[float, float], ...] = ((0.6, 0.25), (0.3, 0.7)),
+    noise_Nm: float = 0.2,
+    seed: int = 0,
+    clip_Nm: float | None = None,
+    torque_sign: float = 1.0,
+    fs_int: float = 5_000.0,
+) -> dict[str, np.ndarray]:
     """A gravity-loaded rotary joint (a robot's shoulder: angle 0 with the arm horizontal), its own
     plant, not ``closed_loop_log``'s: J·q̈ = τ − c1·q̇ − c0·sign(q̇) − G·cos q under a PD position
     loop with the reference's inverse dynamics fed forward, tracking ``sines`` ((amplitude [rad],
@@ -158,17 +216,23 @@ def joint_log(duration_s: float = 40.0, rate_hz: float = 200.0, *, J: float = 2.
     a current report that saturates while the drive's torque does not, times ``torque_sign``)."""
     T = 1.0 / fs_int
     t = np.arange(int(duration_s * fs_int)) * T
-    ramp = 0.5 * (1 - np.cos(np.pi * np.minimum(t / 4.0, 1.0)))        # fade the motion in over 4 s
+    ramp = 0.5 * (1 - np.cos(np.pi * np.minimum(t / 4.0, 1.0)))  # fade the motion in over 4 s
     q_ref = centre_rad + ramp * sum(a * np.sin(2 * np.pi * f * t) for a, f in sines)
     v_ref, a_ref = np.gradient(q_ref, T), np.gradient(np.gradient(q_ref, T), T)
     wn = 2 * np.pi * 15.0
-    kp, kd = J * wn ** 2, 2 * 0.7 * J * wn
+    kp, kd = J * wn**2, 2 * 0.7 * J * wn
     q, v = np.empty_like(t), np.empty_like(t)
     tau = np.empty_like(t)
     qk, vk = q_ref[0], 0.0
     for k in range(len(t)):
-        u = J * a_ref[k] + c1 * v_ref[k] + c0 * np.sign(v_ref[k]) + gravity_Nm * np.cos(q_ref[k]) \
-            + kp * (q_ref[k] - qk) + kd * (v_ref[k] - vk)
+        u = (
+            J * a_ref[k]
+            + c1 * v_ref[k]
+            + c0 * np.sign(v_ref[k])
+            + gravity_Nm * np.cos(q_ref[k])
+            + kp * (q_ref[k] - qk)
+            + kd * (v_ref[k] - vk)
+        )
         acc = (u - c1 * vk - c0 * np.sign(vk) - gravity_Nm * np.cos(qk)) / J
         vk += acc * T
         qk += vk * T
@@ -178,13 +242,26 @@ def joint_log(duration_s: float = 40.0, rate_hz: float = 200.0, *, J: float = 2.
     tau_s = np.interp(stamps, t, tau) + noise_Nm * rng.standard_normal(len(stamps))
     if clip_Nm is not None:
         tau_s = np.clip(tau_s, -clip_Nm, clip_Nm)
-    return {"time_s": stamps, "j_position_rad": np.round(np.interp(stamps, t, q), 4),
-            "j_torque_Nm": torque_sign * np.round(tau_s, 3)}
+    return {
+        "time_s": stamps,
+        "j_position_rad": np.round(np.interp(stamps, t, q), 4),
+        "j_torque_Nm": torque_sign * np.round(tau_s, 3),
+    }
 
 
-def trapezoid_log(acceleration: float, *, velocity: float = 20.0, stroke: float = 3.0, duration_s: float = 30.0,
-                  J: float = 1e-4, c0: float = 0.3, c1: float = 5e-4, noise_Nm: float = 0.004, seed: int = 0,
-                  fs_int: float = 10_000.0) -> dict[str, np.ndarray]:
+def trapezoid_log(
+    acceleration: float,
+    *,
+    velocity: float = 20.0,
+    stroke: float = 3.0,
+    duration_s: float = 30.0,
+    J: float = 1e-4,
+    c0: float = 0.3,
+    c1: float = 5e-4,
+    noise_Nm: float = 0.004,
+    seed: int = 0,
+    fs_int: float = 10_000.0,
+) -> dict[str, np.ndarray]:
     """A rigid axis moved back and forth between ± ``stroke`` [rad] by trapezoids at ``velocity``
     [rad/s] and ``acceleration`` [rad/s²] with 0.3 s of rest at each end (a short acceleration
     phase at a high ``acceleration``), under the same PI velocity / P position cascade as
@@ -198,9 +275,15 @@ def trapezoid_log(acceleration: float, *, velocity: float = 20.0, stroke: float 
             t_acc = v / acceleration
             t = np.arange(1, int(np.ceil((dist / v + t_acc) / T)) + 1) * T
             t = np.minimum(t, dist / v + t_acc)
-            s = np.where(t < t_acc, 0.5 * acceleration * t ** 2,
-                         np.where(t <= dist / v, 0.5 * acceleration * t_acc ** 2 + v * (t - t_acc),
-                                  dist - 0.5 * acceleration * (dist / v + t_acc - t) ** 2))
+            s = np.where(
+                t < t_acc,
+                0.5 * acceleration * t**2,
+                np.where(
+                    t <= dist / v,
+                    0.5 * acceleration * t_acc**2 + v * (t - t_acc),
+                    dist - 0.5 * acceleration * (dist / v + t_acc - t) ** 2,
+                ),
+            )
             pieces += [a + np.sign(b - a) * s, rest + b]
     q_ref = np.concatenate(pieces)[:n]
     v_ref = np.gradient(q_ref, T)
@@ -220,15 +303,28 @@ def trapezoid_log(acceleration: float, *, velocity: float = 20.0, stroke: float 
     stamps = np.arange(int(duration_s * 1000)) / 1000.0
     t = np.arange(n) * T
     rng = np.random.default_rng(seed)
-    inc = 2 ** 16 / (2 * np.pi)
-    return {"time_s": stamps, "y_position_rad": np.floor(np.interp(stamps, t, q) * inc) / inc,
-            "y_torque_Nm": np.round(np.interp(stamps, t, tau) + noise_Nm * rng.standard_normal(len(stamps)), 3)}
+    inc = 2**16 / (2 * np.pi)
+    return {
+        "time_s": stamps,
+        "y_position_rad": np.floor(np.interp(stamps, t, q) * inc) / inc,
+        "y_torque_Nm": np.round(np.interp(stamps, t, tau) + noise_Nm * rng.standard_normal(len(stamps)), 3),
+    }
 
 
-def two_mass_log(duration_s: float = 40.0, *, J_motor: float = 0.6e-4, J_load: float = 0.4e-4,
-                 locked_hz: float = 45.0, zeta: float = 0.02, c0: float = 0.3, c1: float = 5e-4,
-                 velocity_loop_hz: float = 150.0, noise_Nm: float = 0.004, seed: int = 0,
-                 fs_int: float = 20_000.0) -> dict[str, np.ndarray]:
+def two_mass_log(
+    duration_s: float = 40.0,
+    *,
+    J_motor: float = 0.6e-4,
+    J_load: float = 0.4e-4,
+    locked_hz: float = 45.0,
+    zeta: float = 0.02,
+    c0: float = 0.3,
+    c1: float = 5e-4,
+    velocity_loop_hz: float = 150.0,
+    noise_Nm: float = 0.004,
+    seed: int = 0,
+    fs_int: float = 20_000.0,
+) -> dict[str, np.ndarray]:
     """A motor driving a load through a lightly damped spring, its velocity loop stiff: a PI on the
     motor's velocity whose crossover ``velocity_loop_hz`` lies far above the mode, so the motor is
     held and the load rings against it at its locked-motor frequency ``locked_hz`` (√(k/J_load)/2π,
@@ -242,8 +338,9 @@ def two_mass_log(duration_s: float = 40.0, *, J_motor: float = 0.6e-4, J_load: f
     n = int(duration_s * fs_int)
     t = np.arange(n) * T
     fade = 0.5 * (1 - np.cos(np.pi * np.minimum(t / 2.0, 1.0)))
-    q_ref = fade * sum(a * np.sin(2 * np.pi * f * t + i) for i, (a, f) in enumerate(((5.0, 0.3), (2.0, 0.9),
-                                                                                   (0.6, 2.3))))
+    q_ref = fade * sum(
+        a * np.sin(2 * np.pi * f * t + i) for i, (a, f) in enumerate(((5.0, 0.3), (2.0, 0.9), (0.6, 2.3)))
+    )
     v_ref = np.gradient(q_ref, T)
     wc = 2 * np.pi * velocity_loop_hz
     kv, ti, kp = J_motor * wc, 4 / wc, wc / 8
@@ -264,6 +361,9 @@ def two_mass_log(duration_s: float = 40.0, *, J_motor: float = 0.6e-4, J_load: f
         q[i], tau[i] = qm, u
     stamps = np.arange(int(duration_s * 1000)) / 1000.0
     rng = np.random.default_rng(seed)
-    inc = 2 ** 16 / (2 * np.pi)
-    return {"time_s": stamps, "y_position_rad": np.floor(np.interp(stamps, t, q) * inc) / inc,
-            "y_torque_Nm": np.round(np.interp(stamps, t, tau) + noise_Nm * rng.standard_normal(len(stamps)), 3)}
+    inc = 2**16 / (2 * np.pi)
+    return {
+        "time_s": stamps,
+        "y_position_rad": np.floor(np.interp(stamps, t, q) * inc) / inc,
+        "y_torque_Nm": np.round(np.interp(stamps, t, tau) + noise_Nm * rng.standard_normal(len(stamps)), 3),
+    }

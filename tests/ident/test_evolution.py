@@ -1,4 +1,5 @@
 """The genetic algorithm's solver: scipy's differential evolution with a generation's donors drawn at once."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -16,7 +17,7 @@ def test_donors_are_distinct_other_members_drawn_uniformly():
     for _ in range(rounds):
         d = evolution.donors(rng, candidates, members)
         assert d.shape == (members, evolution.DONORS)
-        assert not np.any(d == candidates[:, None])                        # never the member itself
+        assert not np.any(d == candidates[:, None])  # never the member itself
         assert all(len(set(row)) == evolution.DONORS for row in d.tolist())  # distinct
         assert d.min() >= 0 and d.max() < members
         for k in range(evolution.DONORS):
@@ -48,10 +49,12 @@ def test_it_reaches_the_least_squares_optimum_as_scipy_does_and_repeats_with_its
 
     options = dict(popsize=30, maxiter=400, tol=1e-10, polish=False)
     ours = evolution.differential_evolution(sse, bounds, 7, **options)
-    theirs = optimize.differential_evolution(sse, bounds, rng=7, vectorized=True, updating="deferred", **options)
+    theirs = optimize.differential_evolution(
+        sse, bounds, rng=7, vectorized=True, updating="deferred", **options
+    )
     assert ours.success and theirs.success
     assert np.max(np.abs(ours.x - coef) / std) < 1e-2
     assert np.max(np.abs(theirs.x - coef) / std) < 1e-2
-    assert abs(ours.nit - theirs.nit) < 0.3 * theirs.nit                   # the same search, not a shortcut
+    assert abs(ours.nit - theirs.nit) < 0.3 * theirs.nit  # the same search, not a shortcut
     again = evolution.differential_evolution(sse, bounds, 7, **options)
     assert np.array_equal(again.x, ours.x)

@@ -1,6 +1,7 @@
 """Identification that stays honest on a joint it never saw: a rotary joint's gravity named as
 gravity, an inertia no other term may take, and "cannot tell" where the data cannot tell -- on a
 gravity-loaded joint of its own (tests/ident/generator.py: joint_log), not drive_bridge.sim."""
+
 from __future__ import annotations
 
 import json
@@ -30,7 +31,10 @@ def test_a_joints_gravity_is_named_and_leaves_the_inertia_to_j(tmp_path):
     assert "gravity" in names and not any("acceleration" in n for n in names), names
     p, sd = r.model.params_, r.model.param_std_
     assert abs(p["J"] - J) <= 3 * sd["J"] and sd["J"] < 0.1 * J
-    assert abs(p["gravity.a_cos"] - G) <= 3 * sd["gravity.a_cos"] and abs(p["gravity.b_sin"]) <= 3 * sd["gravity.b_sin"]
+    assert (
+        abs(p["gravity.a_cos"] - G) <= 3 * sd["gravity.a_cos"]
+        and abs(p["gravity.b_sin"]) <= 3 * sd["gravity.b_sin"]
+    )
     assert r.undetermined == {}
 
 
@@ -57,6 +61,7 @@ def test_a_clipped_torque_is_named_and_its_samples_left_out(tmp_path):
     not) on several percent of the rows: the level and share are said, those samples are not
     fitted, and J stays within 3 std (before: J 13 % low, 5.6 std, and four spurious effects)."""
     from drive_bridge.ident.report import summary
+
     clean = joint_log(J=J, gravity_Nm=G)
     clip = 0.9 * float(abs(clean["j_torque_Nm"]).max())
     r = identify(write_log(tmp_path / "clipped.csv", joint_log(J=J, gravity_Nm=G, clip_Nm=clip)))
@@ -72,6 +77,7 @@ def test_a_torque_logged_with_the_opposite_sign_is_refused_with_the_way_out(tmp_
     differ and names --torque-sign -1, which then gives the plant's values (before: negative
     values printed with a small std)."""
     from drive_bridge.cli import main
+
     path = write_log(tmp_path / "flipped.csv", joint_log(J=J, gravity_Nm=G, torque_sign=-1.0))
     with pytest.raises(UserError, match="opposite sign conventions.*--torque-sign -1"):
         identify(path)
@@ -88,11 +94,15 @@ def test_two_ripples_at_different_periods_are_both_found(tmp_path):
     import numpy as np
 
     from .generator import closed_loop_log
+
     p1, p2 = 2 * np.pi / 6, 2 * np.pi / 50
 
     def ripples(q, v, a, t):
         return 0.03 * np.sin(2 * np.pi * q / p1) + 0.02 * np.sin(2 * np.pi * q / p2 + 0.5)
-    r = identify(write_log(tmp_path / "ripples.csv", closed_loop_log(np.arange(30000) / 1000.0, extra=ripples)))["y"]
+
+    r = identify(
+        write_log(tmp_path / "ripples.csv", closed_loop_log(np.arange(30000) / 1000.0, extra=ripples))
+    )["y"]
     assert sorted(t.effect.name for t in r.effects) == ["position_periodic", "position_periodic_2"]
     truth = {p1: 0.03, p2: 0.02}
     matched = {min(truth, key=lambda p: abs(t.params["period"] / p - 1)): t for t in r.effects}
@@ -111,8 +121,13 @@ def test_friction_that_is_not_linear_in_velocity_says_over_which_speeds_c0_c1_ho
     import numpy as np
 
     from .generator import closed_loop_log
-    r = identify(write_log(tmp_path / "drag.csv", closed_loop_log(
-        np.arange(30000) / 1000.0, extra=lambda q, v, a, t: 4e-6 * v * abs(v))))["y"]
+
+    r = identify(
+        write_log(
+            tmp_path / "drag.csv",
+            closed_loop_log(np.arange(30000) / 1000.0, extra=lambda q, v, a, t: 4e-6 * v * abs(v)),
+        )
+    )["y"]
     f = r.friction
     lo, hi = f["velocity_range"]
     assert 0 < lo < hi and not f["linear"] and f["sigmas"]
@@ -129,6 +144,7 @@ def test_no_backlash_on_a_rigid_axis_moved_by_trapezoids(tmp_path, acceleration)
     taken for reversals of the transmitted torque; with other rests the filtered acceleration's
     swing across a cruise was too)."""
     from .generator import trapezoid_log
+
     r = identify(write_log(tmp_path / "trapezoids.csv", trapezoid_log(acceleration)))["y"]
     assert r.backlash is None, r.backlash
 
@@ -142,8 +158,17 @@ def test_stribeck_friction_in_the_independent_plant_is_found_and_leaves_the_iner
     import numpy as np
 
     from .generator import closed_loop_log
-    r = identify(write_log(tmp_path / "stribeck.csv", closed_loop_log(
-        np.arange(40000) / 1000.0, seed=3, extra=lambda q, v, a, t: 0.3 * np.exp(-(v / 2.0) ** 2) * np.sign(v))))["y"]
+
+    r = identify(
+        write_log(
+            tmp_path / "stribeck.csv",
+            closed_loop_log(
+                np.arange(40000) / 1000.0,
+                seed=3,
+                extra=lambda q, v, a, t: 0.3 * np.exp(-((v / 2.0) ** 2)) * np.sign(v),
+            ),
+        )
+    )["y"]
     found = {t.effect.name: t.params for t in r.effects}
     assert set(found) == {"stribeck"}, found
     assert found["stribeck"]["amplitude"] == pytest.approx(0.3, rel=0.1)
@@ -166,11 +191,15 @@ def _short_campaign_log(tmp_path, effects: dict | None):
 
     from ..support import BUS_CONFIG
     from .test_identify import sim_config
+
     cfg = load_bus_config(BUS_CONFIG)
-    plan = build_plan(replace(cfg.campaign, design="short", together=False), {"y": cfg.nodes["y"].limits},
-                      {"y": 0.0}, 0.002)
+    plan = build_plan(
+        replace(cfg.campaign, design="short", together=False), {"y": cfg.nodes["y"].limits}, {"y": 0.0}, 0.002
+    )
     demand = {"y": plan.demand[:, 0], "z": np.zeros(len(plan.demand))}
-    return write_log(tmp_path / f"{'stribeck' if effects else 'clean'}.csv", plant_log(sim_config(effects), demand))
+    return write_log(
+        tmp_path / f"{'stribeck' if effects else 'clean'}.csv", plant_log(sim_config(effects), demand)
+    )
 
 
 def test_stribeck_friction_below_the_speeds_fitted_is_named_as_friction_at_standstill_not_play(tmp_path):
@@ -182,9 +211,12 @@ def test_stribeck_friction_below_the_speeds_fitted_is_named_as_friction_at_stand
     combined std; c0 and c1 within 2.5 % (the stick-slip after each reversal changes the loop's
     transient the fitted samples see: c1 +2 %).  The same axis without it reports neither."""
     from drive_bridge.ident.report import summary
+
     clean = identify(_short_campaign_log(tmp_path, None), axes=["y"])["y"]
     assert clean.backlash is None and not any(u.get("kind") for u in clean.unexplained), clean.unexplained
-    results = identify(_short_campaign_log(tmp_path, {"stribeck": {"STR_AMP": 0.3, "STR_VEL": 2.0}}), axes=["y"])
+    results = identify(
+        _short_campaign_log(tmp_path, {"stribeck": {"STR_AMP": 0.3, "STR_VEL": 2.0}}), axes=["y"]
+    )
     r = results["y"]
     assert r.backlash is None
     standstill = [u for u in r.unexplained if u.get("kind") == "standstill_friction"]
@@ -206,8 +238,10 @@ def test_a_two_mass_mode_under_a_stiff_velocity_loop_is_found(tmp_path, locked_h
     (before: the 20 Hz mode stood out less in the fast samples than the slow ones' test asks of
     both, and was not reported)."""
     from .generator import two_mass_log
-    r = identify(write_log(tmp_path / "two_mass.csv", two_mass_log(locked_hz=locked_hz,
-                                                                    velocity_loop_hz=loop_hz)))["y"]
+
+    r = identify(
+        write_log(tmp_path / "two_mass.csv", two_mass_log(locked_hz=locked_hz, velocity_loop_hz=loop_hz))
+    )["y"]
     assert r.resonance is not None and r.resonance["frequency_hz"] == pytest.approx(locked_hz, rel=0.1)
     assert r.resonance["damping"] < 0.1
     J, sd = r.model.params_["J"], r.model.param_std_["J"]
@@ -227,6 +261,7 @@ def test_the_response_read_from_the_log_matches_the_plant_where_its_coherence_sa
     from drive_bridge.ident.frf import MIN_COHERENCE
 
     from .generator import closed_loop_log
+
     J, c1 = 1e-4, 5e-4
     cols = closed_loop_log(np.arange(30000) / 1000.0, J=J, c1=c1, multisine_hz=(1.0, 60.0))
     x = identify(write_log(tmp_path / "multisine.csv", cols))["y"].response

@@ -1,6 +1,7 @@
 """Real logs of machines the project never saw (../shared/data/realdata, read in place; SOURCE.md
 has their provenance): what each lets one determine, said honestly. No log may end with an
 inertia that is negative or that the parts of the log contradict, printed as a determined value."""
+
 from __future__ import annotations
 
 import pytest
@@ -11,7 +12,10 @@ from drive_bridge.ident.report import ga_text
 from ..support import SHARED
 
 REAL = SHARED / "data" / "realdata"
-pytestmark = [pytest.mark.slow, pytest.mark.skipif(not REAL.is_dir(), reason="../shared/data/realdata not present")]
+pytestmark = [
+    pytest.mark.slow,
+    pytest.mark.skipif(not REAL.is_dir(), reason="../shared/data/realdata not present"),
+]
 
 
 def fit(name: str, est: str, val: str | None = None):
@@ -19,8 +23,10 @@ def fit(name: str, est: str, val: str | None = None):
 
 
 def combined_sigmas(a, b) -> float:
-    return abs(a.model.params_["J"] - b.model.params_["J"]) / (a.model.param_std_["J"] ** 2 +
-                                                              b.model.param_std_["J"] ** 2) ** 0.5
+    return (
+        abs(a.model.params_["J"] - b.model.params_["J"])
+        / (a.model.param_std_["J"] ** 2 + b.model.param_std_["J"] ** 2) ** 0.5
+    )
 
 
 def test_ur10e_shoulder_gravity_is_named_and_its_inertia_holds_across_the_log():
@@ -55,8 +61,10 @@ def test_ur10e_base_joint_inertia_is_determined_on_the_split_and_not_claimed_on_
         assert part not in whole.consistency["parts"] and "does not determine" in why
 
 
-@pytest.mark.parametrize("name,est,val,axis", [("dfki_pendulum", "est.csv", "val.csv", "pend"),
-                                               ("franka_j7", "j7.csv", None, "j7")])
+@pytest.mark.parametrize(
+    "name,est,val,axis",
+    [("dfki_pendulum", "est.csv", "val.csv", "pend"), ("franka_j7", "j7.csv", None, "j7")],
+)
 def test_a_log_that_cannot_determine_the_inertia_says_so(name, est, val, axis):
     """The pendulum's swing-up (gravity and inertia torque nearly cancel; a model explains little of
     the validation run) and the Franka wrist (an inertia too small for its friction-dominated

@@ -1,5 +1,6 @@
 """The signals the regressor is made of: derivatives of the filtered position, the direction of
 motion and the standstills an encoder shows, each against a signal built here with numpy."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -43,7 +44,7 @@ def test_an_encoder_standing_still_at_a_reversal_has_no_direction():
     t = np.arange(300) * 1e-3
     q = np.concatenate([np.linspace(0.0, 0.2, 130), np.full(40, 0.2), np.linspace(0.2, 0.0, 130)])
     q = _encoder(q + 1e-7)
-    smeared = np.sign(0.2 - 0.5 * np.abs(t - 0.15) - 0.1)        # a sign that changes at t = 0.15 only
+    smeared = np.sign(0.2 - 0.5 * np.abs(t - 0.15) - 0.1)  # a sign that changes at t = 0.15 only
     d = direction(q, smeared)
     assert np.all(d[5:125] == 1) and np.all(d[135:165] == 0) and np.all(d[175:295] == -1)
     still = standing(q)

@@ -1,4 +1,5 @@
 """Scan and bring-up against the simulated robot."""
+
 from __future__ import annotations
 
 import pytest
@@ -25,7 +26,9 @@ def test_scan_reports_missing_and_unexpected_nodes(tmp_path, capsys):
 def _nanotec_y(tmp_path):
     """The shipped bus.yml with Y's drive described by the Nanotec C5-E's EDS (read in place)."""
     import yaml
+
     from drive_bridge.resources import vendor_dir
+
     eds = vendor_dir() / "nanotec_C5-E-2-09.eds"
     if not eds.exists():
         pytest.skip("../shared/eds-vendor not present")
@@ -41,7 +44,9 @@ def test_a_node_that_is_not_the_drive_its_eds_describes_stops_before_any_write(t
     from drive_bridge.config import load_bus_config
     from drive_bridge.errors import EXIT_CODES, BusError
     from drive_bridge.master.bringup import bring_up, check_scan, scan
+
     from ..support import Bench, clean_config
+
     cfg = load_bus_config(_nanotec_y(tmp_path))
     bench = Bench(clean_config())
     with pytest.raises(BusError) as exc:
@@ -50,21 +55,26 @@ def test_a_node_that_is_not_the_drive_its_eds_describes_stops_before_any_write(t
     assert "axis y (node 2) is not the drive its EDS/DCF describes" in msg and EXIT_CODES[exc.value.kind] == 3
     assert "vendor 0x00000DB1" in msg and "vendor 0x0000026C" in msg and "--accept-identity 2" in msg
     writes = []
-    bench.robot.drives["y"].sdo_fault = lambda op, index, sub: writes.append((index, sub)) if op == "write" else None
+    bench.robot.drives["y"].sdo_fault = lambda op, index, sub: (
+        writes.append((index, sub)) if op == "write" else None
+    )
     with pytest.raises(BusError, match="is not the drive"):
         bring_up(bench.link, cfg)
-    assert writes == []                                       # nothing was written to any drive
+    assert writes == []  # nothing was written to any drive
 
 
 def test_accept_identity_is_the_deliberate_override_and_is_recorded(tmp_path):
     from dataclasses import replace
+
     from drive_bridge.config import load_bus_config
     from drive_bridge.master.bringup import check_scan, scan
+
     from ..support import Bench, clean_config
+
     cfg = replace(load_bus_config(_nanotec_y(tmp_path)), accept_identity=frozenset({2}))
     bench = Bench(clean_config())
     result = scan(bench.link, cfg)
-    check_scan(result, cfg)                                   # goes on
+    check_scan(result, cfg)  # goes on
     assert "y" in result.identity_accepted and "y" in result.as_dict(cfg)["identity_accepted"]
 
 
@@ -81,18 +91,24 @@ def test_bring_up_streams_in_a_mode_the_drive_lists_or_refuses_naming_its_modes(
     from drive_bridge.config import load_bus_config
     from drive_bridge.errors import DriveRefused
     from drive_bridge.master.bringup import bring_up
+
     from ..support import BUS_CONFIG, Bench, clean_config
+
     cfg = load_bus_config(BUS_CONFIG).only(["y"])
     bench = Bench(clean_config())
     axes = bring_up(bench.link, cfg)
     assert (axes["y"].mode, axes["y"].setpoint) == (8, (0x607A, 0))
-    bench.robot.drives["y"].sdo_fault = lambda op, index, sub: 0x25 if (op, index) == ("read", 0x6502) else None
-    with pytest.raises(DriveRefused) as exc:                   # PP, PV, homing only
+    bench.robot.drives["y"].sdo_fault = lambda op, index, sub: (
+        0x25 if (op, index) == ("read", 0x6502) else None
+    )
+    with pytest.raises(DriveRefused) as exc:  # PP, PV, homing only
         bring_up(bench.link, cfg)
     assert "profile position (1), profile velocity (3), homing (6)" in str(exc.value)
     assert "nodes.y.rpdo" in str(exc.value)
-    bench.robot.drives["y"].sdo_fault = lambda op, index, sub: 0x45 if (op, index) == ("read", 0x6502) else None
-    with pytest.raises(DriveRefused, match="0x60C1:1"):      # IP listed, but its record is not mapped
+    bench.robot.drives["y"].sdo_fault = lambda op, index, sub: (
+        0x45 if (op, index) == ("read", 0x6502) else None
+    )
+    with pytest.raises(DriveRefused, match="0x60C1:1"):  # IP listed, but its record is not mapped
         bring_up(bench.link, cfg)
 
 
@@ -104,7 +120,9 @@ def test_a_dry_run_writes_nothing_and_plans_what_the_run_then_does(tmp_path, cap
     from drive_bridge.master.bringup import plan_bring_up
     from drive_bridge.master.campaign import build_plan
     from drive_bridge.record import record
+
     from ..support import Bench, clean_config, quick_config
+
     config = quick_config()
     bench = Bench(clean_config())
     writes = []
@@ -113,8 +131,12 @@ def test_a_dry_run_writes_nothing_and_plans_what_the_run_then_does(tmp_path, cap
     sent = []
     bench.link.network.traces += (type("T", (), {"on_message_received": lambda self, m: sent.append(m)})(),)
     axes = plan_bring_up(bench.link, config)
-    planned = build_plan(config.campaign, {n: a.cfg.limits for n, a in axes.items()},
-                         {n: a.position_rad() for n, a in axes.items()}, config.master.sync_period_s)
+    planned = build_plan(
+        config.campaign,
+        {n: a.cfg.limits for n, a in axes.items()},
+        {n: a.position_rad() for n, a in axes.items()},
+        config.master.sync_period_s,
+    )
     assert writes == [] and not [m for m in sent if m.arbitration_id in (0x000, 0x080)]
     assert axes["y"].drive_limits["0x607D:2"] > 0 and axes["y"].mode == 8
     for drive in bench.robot.drives.values():
@@ -136,19 +158,32 @@ def test_validate_streams_the_trajectories_its_dry_run_planned(tmp_path):
     from drive_bridge.master.bringup import bring_up, plan_bring_up
     from drive_bridge.params.profile import load_profile
     from drive_bridge.tuning.validate import run_scenarios
-    from ..support import Bench, clean_config, load_bus_config, BUS_CONFIG
+
+    from ..support import BUS_CONFIG, Bench, clean_config, load_bus_config
+
     config = load_bus_config(BUS_CONFIG).only(["y"])
     bench = Bench(clean_config())
     writes = []
-    bench.robot.drives["y"].sdo_fault = lambda op, index, sub: writes.append((index, sub)) if op == "write" else None
-    previewed = [plan for _, plan in validate_plans(config, "one scenario")(plan_bring_up(bench.link, config))]
+    bench.robot.drives["y"].sdo_fault = lambda op, index, sub: (
+        writes.append((index, sub)) if op == "write" else None
+    )
+    previewed = [
+        plan for _, plan in validate_plans(config, "one scenario")(plan_bring_up(bench.link, config))
+    ]
     assert writes == [] and len(previewed) == 2
     bench.robot.drives["y"].sdo_fault = None
     streamed = []
     axes = bring_up(bench.link, config)
     profile = load_profile("drive_bridge_servo")
-    runs = run_scenarios(config, bench.link, axes, profile, {"held": {"y": {}}}, {"y": {}},
-                         on_plan=lambda plan: streamed.append(plan))
+    runs = run_scenarios(
+        config,
+        bench.link,
+        axes,
+        profile,
+        {"held": {"y": {}}},
+        {"y": {}},
+        on_plan=lambda plan: streamed.append(plan),
+    )
     assert not any(r.aborted for r in runs) and len(streamed) == 2
     assert np.array_equal(previewed[0].demand, streamed[0].demand)
     # the path starts where the axis came to rest after the first: that, to the encoder's resolution

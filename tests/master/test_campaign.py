@@ -1,6 +1,7 @@
 """The short campaign (``campaign: {design: short}``, ``--campaign short``): a multisine per axis
 designed for the identification, inside every limit before anything moves, and what it
 identifies on the simulated robot."""
+
 from __future__ import annotations
 
 from dataclasses import replace
@@ -26,9 +27,11 @@ PERIOD = 0.002
 def _limits(jerk_share: float | None = None):
     cfg = load_bus_config(DEFAULT_BUS_CONFIG)
     limits = {a: n.limits for a, n in cfg.nodes.items()}
-    if jerk_share is not None:          # a jerk limit: this share of amax² / vmax (a sine at the corner)
-        limits = {a: replace(l, max_jerk=jerk_share * l.max_acceleration ** 2 / l.max_velocity)
-                  for a, l in limits.items()}
+    if jerk_share is not None:  # a jerk limit: this share of amax² / vmax (a sine at the corner)
+        limits = {
+            a: replace(lim, max_jerk=jerk_share * lim.max_acceleration**2 / lim.max_velocity)
+            for a, lim in limits.items()
+        }
     return cfg, limits
 
 
@@ -38,28 +41,30 @@ def test_the_short_campaign_stays_inside_every_limit(jerk_share):
     start = {"x": 1.0, "y": -20.0, "z": 5.0}
     plan = build_plan(replace(cfg.campaign, design="short"), limits, start, PERIOD)
     again = build_plan(replace(cfg.campaign, design="short"), limits, start, PERIOD)
-    assert np.array_equal(plan.demand, again.demand)                  # designed from a seed: the same plan
+    assert np.array_equal(plan.demand, again.demand)  # designed from a seed: the same plan
     for i, a in enumerate(plan.axes):
         lim, q = limits[a], plan.demand[:, i]
         moving = [s for s in plan.segments if a in s.axes]
         assert sum(s.end - s.start for s in moving) * PERIOD <= cfg.campaign.short_time_s + 1e-9
-        v, acc, jerk = (np.abs(np.diff(q, k)) / PERIOD ** k for k in (1, 2, 3))
+        v, acc, jerk = (np.abs(np.diff(q, k)) / PERIOD**k for k in (1, 2, 3))
         assert lim.position_min <= q.min() and q.max() <= lim.position_max
         assert v.max() <= lim.max_velocity and acc.max() <= lim.max_acceleration
         if lim.max_jerk is not None:
             assert jerk.max() <= lim.max_jerk
-        assert acc.max() > 0.2 * lim.max_acceleration and v.max() > 0.5 * lim.max_velocity   # it excites
+        assert acc.max() > 0.2 * lim.max_acceleration and v.max() > 0.5 * lim.max_velocity  # it excites
         half = 0.5 * (lim.position_max - lim.position_min) * cfg.campaign.move_fraction
         centre = 0.5 * (lim.position_max + lim.position_min)
-        assert q.max() - centre > 0.85 * half and centre - q.min() > 0.85 * half        # the whole stroke
+        assert q.max() - centre > 0.85 * half and centre - q.min() > 0.85 * half  # the whole stroke
         assert q[0] == pytest.approx(start[a], abs=1e-3) and q[-1] == pytest.approx(start[a])  # from and back
 
 
 def test_limits_no_multisine_can_cover_the_stroke_in_are_a_clear_refusal():
     cfg, limits = _limits()
-    slow = {a: replace(l, max_velocity=l.max_velocity / 50) for a, l in limits.items()}
+    slow = {a: replace(lim, max_velocity=lim.max_velocity / 50) for a, lim in limits.items()}
     with pytest.raises(UserError, match=r"axis x: no multisine covers the stroke.*short_time_s more time"):
-        build_plan(replace(cfg.campaign, design="short", short_time_s=10), slow, dict.fromkeys(slow, 0.0), PERIOD)
+        build_plan(
+            replace(cfg.campaign, design="short", short_time_s=10), slow, dict.fromkeys(slow, 0.0), PERIOD
+        )
 
 
 def test_a_jerk_limit_refuses_the_papers_trapezoids_before_anything_moves():
@@ -85,12 +90,17 @@ def test_the_short_campaign_finds_what_the_full_one_finds(tmp_path):
     assert meta["campaign"]["design"] == "short"
     results = identify(tmp_path / "log.csv")
     found = {a: [t.effect.name for t in r.effects] for a, r in results.items()}
-    assert found == {"x": ["position_periodic"], "y": ["offset", "position_linear", "direction_asymmetry"],
-                     "z": ["offset"]}
+    assert found == {
+        "x": ["position_periodic"],
+        "y": ["offset", "position_linear", "direction_asymmetry"],
+        "z": ["offset"],
+    }
     for a, r in results.items():
         p = r.model.params_
-        assert p["J"] == pytest.approx(PAPER[a]["J"], rel=0.02) and p["c0"] == pytest.approx(PAPER[a]["c0"], rel=0.01)
-        if a != "x":                    # the slow belt axis: 8 rad/s at most, c1·q̇ below the noise
+        assert p["J"] == pytest.approx(PAPER[a]["J"], rel=0.02) and p["c0"] == pytest.approx(
+            PAPER[a]["c0"], rel=0.01
+        )
+        if a != "x":  # the slow belt axis: 8 rad/s at most, c1·q̇ below the noise
             assert p["c1"] == pytest.approx(PAPER[a]["c1"], rel=0.05)
 
 
@@ -98,15 +108,20 @@ def test_the_short_campaign_finds_what_the_full_one_finds(tmp_path):
 def test_the_move_to_the_start_ramps_its_acceleration_from_wherever_the_axis_stands(design):
     """Without a jerk limit too: no acceleration step when motion starts (the Z axis rests on its end stop)."""
     from drive_bridge.master.campaign import APPROACH_LEVEL, APPROACH_RAMP_S
+
     cfg, limits = _limits()
     start = {a: lim.position_min for a, lim in limits.items()}
-    plan = build_plan(replace(cfg.campaign.quick(), design=design, short_time_s=30.0, move_fraction=0.3),
-                      limits, start, PERIOD)
+    plan = build_plan(
+        replace(cfg.campaign.quick(), design=design, short_time_s=30.0, move_fraction=0.3),
+        limits,
+        start,
+        PERIOD,
+    )
     for seg in (s for s in plan.segments if s.kind in ("approach", "return")):
         for ax in seg.axes:
             i = plan.axes.index(ax)
-            before = plan.demand[seg.start - 1, i] if seg.start else start[ax]     # at rest before it
-            p = np.concatenate([np.full(3, before), plan.demand[seg.start:seg.end, i]])
-            jerk = np.abs(np.diff(p, 3)) / PERIOD ** 3
+            before = plan.demand[seg.start - 1, i] if seg.start else start[ax]  # at rest before it
+            p = np.concatenate([np.full(3, before), plan.demand[seg.start : seg.end, i]])
+            jerk = np.abs(np.diff(p, 3)) / PERIOD**3
             bound = APPROACH_LEVEL * limits[ax].max_acceleration / APPROACH_RAMP_S
             assert jerk.max() <= 1.05 * bound, (ax, seg.kind, jerk.max() / bound)

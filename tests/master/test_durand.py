@@ -2,6 +2,7 @@
 vendor EDS files (tests/durand_drive.py).  Scan, bring-up, a short campaign, a write and a store
 run over the wall clock with no SDO abort: everything the master sends is something the file's
 objects, access types, limits and PDO-mappable flags allow."""
+
 from __future__ import annotations
 
 from dataclasses import replace
@@ -25,6 +26,7 @@ pytestmark = [pytest.mark.slow, pytest.mark.third_party]
 
 pytest.importorskip("durand")
 from ..durand_drive import slaves  # noqa: E402  (durand: the test extra)
+
 EXAMPLES = {"nanotec_c5e": "nanotec_C5-E-2-09.eds", "maxon_epos2": "maxon_epos2_50-5.eds"}
 
 
@@ -37,8 +39,9 @@ class Aborts(can.Listener):
     def on_message_received(self, msg):
         if 0x581 <= msg.arbitration_id <= 0x5FF and msg.data and msg.data[0] == 0x80:
             code = int.from_bytes(msg.data[4:8], "little")
-            self.seen.append((msg.arbitration_id - 0x580, int.from_bytes(msg.data[1:3], "little"), msg.data[3],
-                              hex(code)))
+            self.seen.append(
+                (msg.arbitration_id - 0x580, int.from_bytes(msg.data[1:3], "little"), msg.data[3], hex(code))
+            )
 
 
 @pytest.mark.parametrize("example", list(EXAMPLES))
@@ -49,8 +52,11 @@ def test_scan_bring_up_campaign_write_and_store_against_durand_slaves(example, t
     config = load_bus_config(data("config", "examples", f"{example}.yml")).only(["y"])
     channel, drives = slaves(eds, {"y": config.nodes["y"].node_id})
     # the wall clock on a loaded 2-core machine: generous feedback limits (the protocol is the test)
-    config = replace(config, master=replace(config.master, tpdo_miss_limit=1000, heartbeat_timeout_s=5.0),
-                     campaign=replace(config.campaign, design="short", short_time_s=8.0, move_fraction=0.3))
+    config = replace(
+        config,
+        master=replace(config.master, tpdo_miss_limit=1000, heartbeat_timeout_s=5.0),
+        campaign=replace(config.campaign, design="short", short_time_s=8.0, move_fraction=0.3),
+    )
     link = BusLink.open("virtual", channel)
     aborts = Aborts()
     link.network.notifier.add_listener(aborts)
@@ -68,8 +74,15 @@ def test_scan_bring_up_campaign_write_and_store_against_durand_slaves(example, t
         profile = load_profile(config.profile)
         p = PAPER["y"]
         values = {"y": {**design_gains(p["J"], p["c1"], R=0.8, L=0.002).gains(), **p}}
-        outcome = write_drives({"y": axes["y"].node}, profile, values, backup_dir=None, force=True,
-                               allow_unverified_scales=True, torque_constants=config.torque_constants)
+        outcome = write_drives(
+            {"y": axes["y"].node},
+            profile,
+            values,
+            backup_dir=None,
+            force=True,
+            allow_unverified_scales=True,
+            torque_constants=config.torque_constants,
+        )
         assert outcome.ok and outcome.results["y"].stored == (profile.save is not None)
         assert aborts.seen == []
     finally:

@@ -2,6 +2,7 @@
 burst), a stall of the simulated drives' process is no fault of the master or the drives, a master
 stalled past the drives' timeout is caught by the drives and reported as the master's, and the
 cyclic path does not grow while it streams."""
+
 from __future__ import annotations
 
 import math
@@ -13,12 +14,22 @@ import tracemalloc
 import numpy as np
 import pytest
 
+from drive_bridge.cia.p301 import SYNC_COB_ID
+from drive_bridge.cia.p402 import state_name
 from drive_bridge.connect import open_link
 from drive_bridge.master.bringup import bring_up
-from drive_bridge.cia.p402 import state_name
-from drive_bridge.cia.p301 import SYNC_COB_ID
-from drive_bridge.master.engine import (CONTROLWORD, STREAMING, TABLE, Arrays, AxisJob,
-                                        Engine, Job, RpdoJob, Supervision, TpdoJob)
+from drive_bridge.master.engine import (
+    CONTROLWORD,
+    STREAMING,
+    TABLE,
+    Arrays,
+    AxisJob,
+    Engine,
+    Job,
+    RpdoJob,
+    Supervision,
+    TpdoJob,
+)
 from drive_bridge.record import record
 from drive_bridge.sim.lockstep import LinkPort, LockstepLink
 
@@ -59,26 +70,28 @@ def test_a_late_cycle_sends_the_setpoint_of_its_own_period_and_never_a_burst(tmp
     assert result.ok, result.aborted
     rec_time = np.loadtxt(tmp_path / "log.csv", delimiter=",", skiprows=1, usecols=(1,))
     skipped = np.flatnonzero(np.isnan(rec_time))
-    assert len(skipped) == 3                                   # 3.5 periods late: 3 periods got no SYNC
-    late = skipped[-1] + 1                                     # the row of the late cycle's SYNC
+    assert len(skipped) == 3  # 3.5 periods late: 3 periods got no SYNC
+    late = skipped[-1] + 1  # the row of the late cycle's SYNC
     stamps = rec_time[np.isfinite(rec_time)]
-    assert np.all(np.diff(stamps) >= PERIOD - 1e-9)            # one SYNC per period at most: no burst
+    assert np.all(np.diff(stamps) >= PERIOD - 1e-9)  # one SYNC per period at most: no burst
     names, data = read_csv(tmp_path / "log.csv")
     demand = data[:, names.index("y_position_demand_rad")]
     planned = result.plan.demand[:, 0]
     sc = axes["y"].cfg.scaling
-    on_grid = lambda rad: float(sc.position_from_device(sc.position_to_device(rad)))   # noqa: E731
+    on_grid = lambda rad: float(sc.position_from_device(sc.position_to_device(rad)))  # noqa: E731
     # the drive took at the late SYNC what it had (the row before the stall) ...
-    assert demand[late] == pytest.approx(on_grid(planned[skipped[0]]), abs=1e-7)    # (log.csv: 9 digits)
+    assert demand[late] == pytest.approx(on_grid(planned[skipped[0]]), abs=1e-7)  # (log.csv: 9 digits)
     # ... and from the next SYNC on, the setpoint of each row's own time
     for row in range(late + 1, late + 20):
         assert demand[row] == pytest.approx(on_grid(planned[row]), abs=1e-7)
     import yaml
+
     meta = yaml.safe_load((tmp_path / "meta.yaml").read_text())
     assert meta["timing"]["engine"]["rows_skipped"] == skipped.tolist()
     assert meta["timing"]["engine"]["periods_skipped"] == 3
     # decode rebuilds the same rows from the trace and meta.yaml
     from drive_bridge.logs import decode_trace
+
     _, decoded, _, _, problem = decode_trace(tmp_path / "trace.blf")
     assert problem is None and np.array_equal(np.isnan(decoded[:, 1]), np.isnan(rec_time))
 
@@ -92,7 +105,7 @@ class _Drives:
     def __init__(self):
         self.t = 1000.0
         self.handlers = {}
-        self.reply = (0x1237).to_bytes(2, "little") + bytes(6)        # OPERATION ENABLED, following
+        self.reply = (0x1237).to_bytes(2, "little") + bytes(6)  # OPERATION ENABLED, following
 
     def now(self):
         return self.t
@@ -120,9 +133,15 @@ def test_the_cyclic_path_does_not_grow_while_it_streams():
     heap at row 1000 and at row 5000)."""
     rows = 6000
     sup = Supervision(PERIOD, PERIOD, 0.02, 0.02, 0.3, 1.0, 2.0)
-    job = Job((AxisJob("y", 1, (0,), statusword=0, velocity=-1, position_column=0),),
-              (RpdoJob(0x201, "<Hl", ((CONTROLWORD, 0), (TABLE, 0)), 0),),
-              (TpdoJob(0x181, "<Hhl", 0, 0, 0),), rows, 3, 1, sup)
+    job = Job(
+        (AxisJob("y", 1, (0,), statusword=0, velocity=-1, position_column=0),),
+        (RpdoJob(0x201, "<Hl", ((CONTROLWORD, 0), (TABLE, 0)), 0),),
+        (TpdoJob(0x181, "<Hhl", 0, 0, 0),),
+        rows,
+        3,
+        1,
+        sup,
+    )
     arrays = Arrays(job, np.zeros)
     arrays.table[:, 0] = np.arange(rows)
     seen = {}
@@ -133,6 +152,7 @@ def test_the_cyclic_path_does_not_grow_while_it_streams():
             seen["a"] = tracemalloc.get_traced_memory()[0]
         if arrays.control[0] == STREAMING and row >= 5000 and "b" not in seen:
             seen["b"] = tracemalloc.get_traced_memory()[0]
+
     tracemalloc.start()
     try:
         outcome = Engine(job, arrays, _Drives(), on_check=check).run()
@@ -158,7 +178,9 @@ def _stalling(pid_of, stalls, seconds):
                 time.sleep(seconds)
                 os.kill(pid, signal.SIGCONT)
                 done.append(k)
+
         return progress
+
     return on_plan, done
 
 
@@ -198,6 +220,7 @@ def test_the_masters_heartbeat_goes_on_while_the_masters_process_is_held_up(tmp_
     """The master's process held up longer than the drives watch its heartbeat (a sort that keeps the
     interpreter lock, mid-stream): the engine beats in its own process, so no drive stops."""
     import can
+
     config = quick_config().only(["y"])
     held = []
 
@@ -206,17 +229,25 @@ def test_the_masters_heartbeat_goes_on_while_the_masters_process_is_held_up(tmp_
             if k >= 0.3 * len(plan.demand) and not held:
                 numbers = [(i * 7919) % 4000037 for i in range(4_000_000)]
                 t0 = time.perf_counter()
-                numbers.sort()                                   # C, the interpreter lock kept throughout
+                numbers.sort()  # C, the interpreter lock kept throughout
                 held.append(time.perf_counter() - t0)
+
         return progress
+
     with open_link(config, sim=True, realtime=True) as link:
         result = record(config, link, tmp_path, on_plan=on_plan)
     consumer = 3 * config.master.heartbeat_period_s
-    assert held and held[0] > consumer, held                     # held up past the drives' consumer time
+    assert held and held[0] > consumer, held  # held up past the drives' consumer time
     assert result.ok, result.aborted
     with can.LogReader(str(tmp_path / "trace.blf")) as reader:
         frames = list(reader)
     syncs = [f.timestamp for f in frames if f.arbitration_id == 0x080]
-    beats = np.array([f.timestamp for f in frames if f.arbitration_id == 0x700 + config.master.heartbeat_node_id
-                      and syncs[0] <= f.timestamp <= syncs[-1]])
+    beats = np.array(
+        [
+            f.timestamp
+            for f in frames
+            if f.arbitration_id == 0x700 + config.master.heartbeat_node_id
+            and syncs[0] <= f.timestamp <= syncs[-1]
+        ]
+    )
     assert len(beats) > 10 and np.diff(beats).max() < consumer

@@ -1,5 +1,6 @@
 """The Link contract: one scenario, run over the lockstep link and over the wall-clock link to the
 simulated drives in their own process (python-can's udp_multicast bus, canopen's Notifier)."""
+
 from __future__ import annotations
 
 import can
@@ -44,12 +45,12 @@ def test_one_scenario_over_every_link(realtime, tmp_path):
         # on the wall clock a period the master was late in has no SYNC and no sample: counted, and the rest
         skipped = m.timing.engine.get("periods_skipped", 0)
         assert np.count_nonzero(np.isnan(m.position["y"])) <= 0.01 * len(m.position["y"]) + skipped
-        assert abs(np.nanmax(m.position["y"]) - (here + 2.0)) < 0.01          # it arrived
-        assert elapsed >= len(demand) * 0.002                                   # the link's clock moved
+        assert abs(np.nanmax(m.position["y"]) - (here + 2.0)) < 0.01  # it arrived
+        assert elapsed >= len(demand) * 0.002  # the link's clock moved
         assert quick_stop(link, axes, 1.0) == []
     with can.LogReader(str(tmp_path / "trace.blf")) as reader:
         frames = list(reader)
     ids = {f.arbitration_id for f in frames}
-    assert {0x080, 0x202, 0x182, 0x282} <= ids                 # SYNC, RPDO1, TPDO1, TPDO2 of node 2
+    assert {0x080, 0x202, 0x182, 0x282} <= ids  # SYNC, RPDO1, TPDO1, TPDO2 of node 2
     stamps = np.array([f.timestamp for f in frames if f.arbitration_id == 0x080])
-    assert np.all(np.diff(stamps) > 0)                          # SYNCs in time order
+    assert np.all(np.diff(stamps) > 0)  # SYNCs in time order

@@ -3,13 +3,14 @@ target, a vertical axis without a brake after a motion, a quick stop and Ctrl-C,
 falls silent, a drive in units bus.yml does not assume.  Each test fails against a master that
 enables by SDO, ends a motion with Shutdown, quick-stops without 0x605A, sends no heartbeat, or
 takes its units from bus.yml alone."""
+
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from drive_bridge.master.bringup import bring_up
 from drive_bridge.cia.p402 import state_name
+from drive_bridge.master.bringup import bring_up
 from drive_bridge.master.stream import VelocityGuard
 from drive_bridge.sim import kernel as K
 from drive_bridge.tuning.motion import run
@@ -18,7 +19,7 @@ from ..support import Bench, clean_config, quick_config
 
 pytestmark = pytest.mark.slow
 
-Z = 2          # Z's row in the kernel arrays
+Z = 2  # Z's row in the kernel arrays
 
 
 def _z_at(b) -> float:
@@ -38,7 +39,7 @@ def test_enabling_with_a_stale_target_does_not_move_the_axis():
     config = quick_config()
     axes = bring_up(b.link, config)
     start = axes["y"].position_rad()
-    axes["y"].node.sdo[0x607A].raw = axes["y"].node.sdo[0x6064].raw + 2_000_000      # left by an earlier program
+    axes["y"].node.sdo[0x607A].raw = axes["y"].node.sdo[0x6064].raw + 2_000_000  # left by an earlier program
     motion = run(config, b.link, {"y": axes["y"]}, {"y": np.full(100, start)})
     assert motion.aborted is None
     assert np.max(np.abs(motion.position["y"] - start)) < 1e-4
@@ -48,7 +49,7 @@ def test_enabling_with_a_stale_target_does_not_move_the_axis():
     assert run(config, b.link, {"z": axes["z"]}, {"z": np.full(100, z0)}).aborted is None
     assert state_name(axes["z"].drive.statusword()) == "OPERATION ENABLED"
     axes["z"].node.sdo[0x607A].raw = axes["z"].node.sdo[0x6064].raw + 2_000_000
-    excursion = []                                      # every 2 ms of the run, enabling included
+    excursion = []  # every 2 ms of the run, enabling included
     b.robot.timers.append(lambda t: excursion.append(abs(float(b.robot.plant.state[2, K.Q]) - z0)))
     motion = run(config, b.link, {"z": axes["z"]}, {"z": np.full(100, z0)})
     assert motion.aborted is None
@@ -62,30 +63,32 @@ def test_z_holds_its_position_for_10_s_after_a_motion(robot):
     assert motion.aborted is None
     assert state_name(axes["z"].drive.statusword()) == "OPERATION ENABLED"
     held = _z_at(b)
-    assert abs(held) < 0.01                              # it got there ...
+    assert abs(held) < 0.01  # it got there ...
     b.link.clock.sleep(10.0)
-    assert abs(_z_at(b) - held) < 1e-3                  # ... and stays, powered: no fall
-    assert state_name(axes["x"].drive.statusword()) == "READY TO SWITCH ON"     # holding: brake
+    assert abs(_z_at(b) - held) < 1e-3  # ... and stays, powered: no fall
+    assert state_name(axes["x"].drive.statusword()) == "READY TO SWITCH ON"  # holding: brake
 
 
 @pytest.mark.parametrize("how", ["guard", "ctrl-c"])
 def test_z_holds_its_position_for_10_s_after_a_quick_stop(robot, how):
     b, config, axes = robot
     z0 = _z_at(b)
-    approach = 0.2 * axes["z"].cfg.limits.max_velocity          # the approach runs at 20 % of the limits
+    approach = 0.2 * axes["z"].cfg.limits.max_velocity  # the approach runs at 20 % of the limits
     guard = VelocityGuard({"z": 0.5 * approach}) if how == "guard" else None
 
     def on_plan(plan):
         def progress(k):
-            if how == "ctrl-c" and k >= 600:                 # mid-approach, Z moving up at 46 mm/s
+            if how == "ctrl-c" and k >= 600:  # mid-approach, Z moving up at 46 mm/s
                 raise KeyboardInterrupt
+
         return progress
+
     motion = run(config, b.link, axes, {"z": np.full(50, 0.0)}, guard=guard, on_plan=on_plan)
     assert motion.aborted is not None and ("guard" in motion.aborted.reason) == (how == "guard")
     assert state_name(axes["z"].drive.statusword()) == "QUICK STOP ACTIVE"
     stopped = _z_at(b)
-    assert stopped > z0 + 0.05                           # it stopped off its end stop
-    b.link.clock.sleep(0.5)                              # the stop settles (stiction, then the integrator)
+    assert stopped > z0 + 0.05  # it stopped off its end stop
+    b.link.clock.sleep(0.5)  # the stop settles (stiction, then the integrator)
     held = _z_at(b)
     assert abs(held - stopped) < 0.02
     b.link.clock.sleep(10.0)
@@ -106,20 +109,23 @@ def test_every_moving_drive_quick_stops_by_itself_when_the_master_heartbeat_stop
     def on_plan(plan):
         def progress(k):
             if b.robot.time > 1.0 and not silent:
-                b.link.stop_heartbeat()                   # as a SIGKILL would
+                b.link.stop_heartbeat()  # as a SIGKILL would
                 silent["t"] = b.robot.time
+
         return progress
+
     start = {a: ax.position_rad() for a, ax in axes.items()}
     run(config, b.link, axes, {a: np.full(50, start[a] + 8.0) for a in axes}, on_plan=on_plan)
     period = config.master.heartbeat_period_s
     for a in axes:
         t_emcy = min(t for t, code in emcy[a] if code == 0x8130)
         assert t_emcy - silent["t"] <= 3 * period + 0.01, a
-    ramp = max(axes[a].cfg.limits.max_velocity * 0.2 / axes[a].cfg.drive_limits.quick_stop_deceleration
-               for a in axes)
+    ramp = max(
+        axes[a].cfg.limits.max_velocity * 0.2 / axes[a].cfg.drive_limits.quick_stop_deceleration for a in axes
+    )
     still = next(t for t, *v in speeds if t > silent["t"] and max(v) < 0.05)
     assert still - silent["t"] <= 3 * period + ramp + 0.05
-    assert state_name(axes["z"].drive.statusword()) == "QUICK STOP ACTIVE"      # and holds, powered
+    assert state_name(axes["z"].drive.statusword()) == "QUICK STOP ACTIVE"  # and holds, powered
     held = _z_at(b)
     b.link.clock.sleep(5.0)
     assert abs(_z_at(b) - held) < 1e-3
@@ -132,6 +138,7 @@ def _nanotec(tmp_path, from_drive: bool):
 
     from drive_bridge.config import load_bus_config
     from drive_bridge.resources import data, vendor_dir
+
     eds = vendor_dir() / "nanotec_C5-E-2-09.eds"
     if not eds.exists():
         pytest.skip("../shared/eds-vendor not present")
@@ -146,6 +153,7 @@ def _nanotec(tmp_path, from_drive: bool):
 
 def test_a_nanotec_on_factory_units_is_refused_before_anything_moves(tmp_path):
     from drive_bridge.errors import DriveRefused
+
     config, b = _nanotec(tmp_path, from_drive=False)
     writes = []
     for drive in b.robot.drives.values():
@@ -164,7 +172,7 @@ def test_from_drive_commissions_a_nanotec_on_factory_units_with_the_planned_stro
     assert axes["y"].cfg.scaling.inc_per_rad == pytest.approx(3600 / (2 * np.pi))
     assert axes["y"].units["position_unit"].startswith("0.1 °")
     start = axes["y"].position_rad()
-    target = start + 20.0                                     # rad, motor side
+    target = start + 20.0  # rad, motor side
     motion = run(config, b.link, {"y": axes["y"]}, {"y": np.full(100, target)})
     assert motion.aborted is None
     moved = float(b.robot.plant.state[1, K.Q]) - start
@@ -174,6 +182,7 @@ def test_from_drive_commissions_a_nanotec_on_factory_units_with_the_planned_stro
 def _epos2_bench():
     from drive_bridge.config import load_bus_config
     from drive_bridge.resources import data, vendor_dir
+
     eds = vendor_dir() / "maxon_epos2_50-5.eds"
     if not eds.exists():
         pytest.skip("../shared/eds-vendor not present")
@@ -184,9 +193,10 @@ def _epos2_bench():
 
 def test_records_an_earlier_program_left_in_the_buffer_are_not_played():
     from drive_bridge.setpoint import pack_pvt
+
     b, config, axes = _epos2_bench()
     node = axes["y"].node
-    for _ in range(20):                                  # far away: a jump if the drive played them
+    for _ in range(20):  # far away: a jump if the drive played them
         node.sdo[0x20C1].raw = pack_pvt(node.sdo[0x6064].raw + 500_000, 0, 2)
     start = axes["y"].position_rad()
     motion = run(config, b.link, axes, {"y": np.full(100, start)})
@@ -199,12 +209,14 @@ def test_a_record_that_does_not_come_stops_the_run_naming_the_buffer_underflow()
     lost = []
 
     def on_plan(plan):
-        def progress(k):                                 # one record lost on the bus, mid-motion
+        def progress(k):  # one record lost on the bus, mid-motion
             if k >= 300 and not lost:
                 lost.append(k)
                 route = b.robot._routes[cob]
                 b.robot._routes[cob] = lambda data: b.robot._routes.__setitem__(cob, route)
+
         return progress
+
     start = axes["y"].position_rad()
     motion = run(config, b.link, axes, {"y": np.full(500, start + 5.0)}, on_plan=on_plan)
     assert motion.aborted is not None and "interpolation buffer ran empty" in str(motion.aborted)
@@ -216,19 +228,31 @@ def test_a_node_without_scaling_takes_the_units_the_drive_reports(tmp_path):
     import yaml
 
     from drive_bridge.config import load_bus_config
+
     from ..support import bus_yml_beside
+
     path = bus_yml_beside(tmp_path)
     doc = yaml.safe_load(path.read_text())
     doc["defaults"].pop("scaling")
-    doc["nodes"] = {"y": {"node_id": 2, "limits": {"stroke_rad": [-70.0, 70.0], "max_velocity_rad_s": 140.0,
-                                                     "max_acceleration_rad_s2": 3000.0}}}
+    doc["nodes"] = {
+        "y": {
+            "node_id": 2,
+            "limits": {
+                "stroke_rad": [-70.0, 70.0],
+                "max_velocity_rad_s": 140.0,
+                "max_acceleration_rad_s2": 3000.0,
+            },
+        }
+    }
     path.write_text(yaml.safe_dump(doc))
     config = load_bus_config(path)
     assert config.nodes["y"].units_from_drive
     b = Bench(clean_config())
     axes = bring_up(b.link, config)
     sc = axes["y"].cfg.scaling
-    assert sc.increments_per_rev == pytest.approx(2**20) and sc.velocity_per_rad_s == pytest.approx(2**20 / (2 * np.pi))
+    assert sc.increments_per_rev == pytest.approx(2**20) and sc.velocity_per_rad_s == pytest.approx(
+        2**20 / (2 * np.pi)
+    )
     assert sc.rated_torque_Nm == pytest.approx(1.27) and axes["y"].units["assumed_from_bus_yml"] == []
 
 
@@ -240,7 +264,9 @@ def test_reference_here_lays_the_stroke_around_the_axis_and_the_drive_limits_bou
 
     from drive_bridge.config import load_bus_config
     from drive_bridge.errors import UserError
+
     from ..support import bus_yml_beside
+
     path = bus_yml_beside(tmp_path)
     doc = yaml.safe_load(path.read_text())
     doc["nodes"] = {"y": {**doc["nodes"]["y"], "reference": "here"}}
@@ -248,15 +274,19 @@ def test_reference_here_lays_the_stroke_around_the_axis_and_the_drive_limits_bou
     config = load_bus_config(path)
     cfg = clean_config()
     b = Bench(cfg)
-    b.robot.plant.state[1, K.Q] = 100.0                      # far from the encoder's zero
+    b.robot.plant.state[1, K.Q] = 100.0  # far from the encoder's zero
     b.robot.drives["y"].refresh_actuals()
     axes = bring_up(b.link, config)
     lim = axes["y"].cfg.limits
-    assert lim.position_min == pytest.approx(100.0 - 75.398, abs=1e-3) and lim.position_max == pytest.approx(175.398, abs=1e-3)
+    assert lim.position_min == pytest.approx(100.0 - 75.398, abs=1e-3) and lim.position_max == pytest.approx(
+        175.398, abs=1e-3
+    )
     assert axes["y"].drive_limits["0x607D:2"] == round(lim.position_max * axes["y"].cfg.scaling.inc_per_rad)
     motion = run(config, b.link, axes, {"y": np.full(50, 101.0)})
     assert motion.aborted is None and float(b.robot.plant.state[1, K.Q]) == pytest.approx(101.0, abs=1e-3)
-    axes["y"].drive_limits["0x607D:2"] = round(101.5 * axes["y"].cfg.scaling.inc_per_rad)   # the drive's, narrower
+    axes["y"].drive_limits["0x607D:2"] = round(
+        101.5 * axes["y"].cfg.scaling.inc_per_rad
+    )  # the drive's, narrower
     with pytest.raises(UserError, match="outside the software position limits the drive holds"):
         run(config, b.link, axes, {"y": np.full(50, 102.0)})
     assert float(b.robot.plant.state[1, K.Q]) == pytest.approx(101.0, abs=1e-3)

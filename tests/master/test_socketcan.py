@@ -5,6 +5,7 @@ candump of the stream.  The guest runs under software emulation: these test func
 (a 20 ms SYNC there).  Run with DRIVE_BRIDGE_GUEST=1 (.ci/run does, on their own: the emulation takes
 both cores for minutes and would upset the timing of the tests beside it); skipped, with the reason,
 otherwise and where the guest cannot boot."""
+
 from __future__ import annotations
 
 import os
@@ -29,8 +30,10 @@ PYTHON = Path(os.sys.executable)
 
 def _why_not() -> str | None:
     if not os.environ.get("DRIVE_BRIDGE_GUEST"):
-        return ("the SocketCAN guest's emulation takes both cores for minutes: set DRIVE_BRIDGE_GUEST=1 to run "
-                "these tests in it (.ci/run does, after tools/vcan_guest.sh setup)")
+        return (
+            "the SocketCAN guest's emulation takes both cores for minutes: set DRIVE_BRIDGE_GUEST=1 to run "
+            "these tests in it (.ci/run does, after tools/vcan_guest.sh setup)"
+        )
     if shutil.which("qemu-system-x86_64") is None or shutil.which("candump") is None:
         return "no qemu-system-x86_64 or can-utils: run tools/vcan_guest.sh setup (as root) for the SocketCAN guest"
     if not list((WORK / "kernel" / "boot").glob("vmlinu*-*")) or not (WORK / "initramfs.cpio.gz").exists():
@@ -49,10 +52,18 @@ def _in_guest(tmp_path: Path, script: str, timeout: float = 600) -> subprocess.C
     share = tmp_path / "guest"
     share.mkdir(exist_ok=True)
     path = share / "script.sh"
-    path.write_text("set -u\nexport NUMBA_CPU_NAME=generic PYTHONDONTWRITEBYTECODE=1\n" + textwrap.dedent(script))
+    path.write_text(
+        "set -u\nexport NUMBA_CPU_NAME=generic PYTHONDONTWRITEBYTECODE=1\n" + textwrap.dedent(script)
+    )
     env = {**os.environ, "VCAN_OUT": str(share), "VCAN_WORK": str(WORK), "VCAN_TIMEOUT": str(int(timeout))}
-    return subprocess.run(["bash", str(GUEST), "run-file", str(path)], cwd=ROOT, env=env, capture_output=True,
-                          text=True, timeout=timeout + 60)
+    return subprocess.run(
+        ["bash", str(GUEST), "run-file", str(path)],
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=timeout + 60,
+    )
 
 
 def test_sync_from_the_broadcast_manager_and_error_frames(tmp_path):
@@ -61,7 +72,8 @@ def test_sync_from_the_broadcast_manager_and_error_frames(tmp_path):
     an error frame on to the engine."""
     probe = tmp_path / "guest" / "probe.py"
     probe.parent.mkdir(exist_ok=True)
-    probe.write_text(textwrap.dedent("""
+    probe.write_text(
+        textwrap.dedent("""
         import json, sys, can, numpy as np
         from drive_bridge.cia.buses import open_bus
         from drive_bridge.master.port import BusPort, TraceRing
@@ -83,15 +95,17 @@ def test_sync_from_the_broadcast_manager_and_error_frames(tmp_path):
                    "period_ms": float(np.median(np.diff(stamps)) * 1e3), "errors": len(errors),
                    "own_syncs": sum(1 for m in frames if m.arbitration_id == 0x80 and not m.is_rx),
                    "error_frames": sum(1 for m in frames if m.is_error_frame)}, open(sys.argv[1], "w"))
-    """))
+    """)
+    )
     result = tmp_path / "guest" / "probe.json"
     run = _in_guest(tmp_path, f"cd {ROOT} && {PYTHON} {probe} {result}\n", timeout=300)
     assert run.returncode == 0, run.stdout[-2000:]
     import json
+
     got = json.loads(result.read_text())
     assert got["periodic"] and "broadcast manager" in got["source"]
-    assert got["syncs"] >= 80 and 9.5 < got["period_ms"] < 12.0        # BCM re-arms after each frame
-    assert got["own_syncs"] == got["syncs"]                 # in the trace as the master's frames, not received ones
+    assert got["syncs"] >= 80 and 9.5 < got["period_ms"] < 12.0  # BCM re-arms after each frame
+    assert got["own_syncs"] == got["syncs"]  # in the trace as the master's frames, not received ones
     assert got["errors"] == 1 and got["error_frames"] == 1
 
 
@@ -100,18 +114,30 @@ def test_sim_and_record_over_socketcan_with_a_candump_of_the_stream(tmp_path):
     axis with SYNC from the kernel's broadcast manager at 20 ms, the engine in its own process; candump
     sees the SYNCs and the stream the trace holds."""
     doc = yaml.safe_load(DEFAULT_BUS_CONFIG.read_text())
-    doc["master"].update(interface="socketcan", channel="vcan0", sync_period=20000, heartbeat_consumer_ms=2000,
-                         sdo_timeout_s=2.0, state_timeout_s=5.0)
+    doc["master"].update(
+        interface="socketcan",
+        channel="vcan0",
+        sync_period=20000,
+        heartbeat_consumer_ms=2000,
+        sdo_timeout_s=2.0,
+        state_timeout_s=5.0,
+    )
     doc["defaults"]["dcf"] = str(PROJECT_EDS)
     share = tmp_path / "guest"
     share.mkdir()
     cfg = share / "bus.yml"
     cfg.write_text(yaml.safe_dump(doc, sort_keys=False))
     # numba's cache, compiled here for a CPU the emulated one can run (else LLVM runs under emulation)
-    subprocess.run([str(PYTHON), "-c", "import drive_bridge.sim.cyclic as c, drive_bridge.sim.robot; c.compile_all()"],
-                   env={**os.environ, "NUMBA_CPU_NAME": "generic"}, check=True, cwd=ROOT)
+    subprocess.run(
+        [str(PYTHON), "-c", "import drive_bridge.sim.cyclic as c, drive_bridge.sim.robot; c.compile_all()"],
+        env={**os.environ, "NUMBA_CPU_NAME": "generic"},
+        check=True,
+        cwd=ROOT,
+    )
     db = f"{PYTHON} -m drive_bridge"
-    run = _in_guest(tmp_path, f"""
+    run = _in_guest(
+        tmp_path,
+        f"""
         cd {ROOT}
         {db} sim -i socketcan -c vcan0 --config {cfg} > {share}/sim.log 2>&1 &
         SIM=$!
@@ -123,16 +149,18 @@ def test_sim_and_record_over_socketcan_with_a_candump_of_the_stream(tmp_path):
         echo $? > {share}/record.rc
         sleep 0.5; kill $DUMP; kill -INT $SIM; wait $SIM
         true
-    """, timeout=900)
+    """,
+        timeout=900,
+    )
     assert run.returncode == 0, run.stdout[-3000:]
     rc = int((share / "record.rc").read_text())
     err = (share / "record.err").read_text()
-    assert rc in (0, 5), err[-3000:]                         # done (5: the emulated machine's timing said)
+    assert rc in (0, 5), err[-3000:]  # done (5: the emulated machine's timing said)
     meta = yaml.safe_load((share / "rec" / "meta.yaml").read_text())
     engine = meta["timing"]["engine"]
     assert meta["status"] == "ok" and "broadcast manager" in engine["sync_source"]
     assert "a process of its own" in engine["host"]
     dump = (share / "candump.log").read_text().splitlines()
     syncs = [line for line in dump if " vcan0 080#" in line]
-    assert len(syncs) >= meta["counts"]["cycles_sent"]                  # every row's SYNC on the bus
+    assert len(syncs) >= meta["counts"]["cycles_sent"]  # every row's SYNC on the bus
     assert any(" vcan0 202#" in line for line in dump) and any(" vcan0 182#" in line for line in dump)

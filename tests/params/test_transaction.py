@@ -1,5 +1,6 @@
 """The write transaction over two drives, failing in every phase in every way a real bus can:
 the result never claims more than was read back, and a power cycle shows the stored set it names."""
+
 from __future__ import annotations
 
 import canopen
@@ -51,7 +52,7 @@ class Fault:
         elif self.seen == "write":
             self.seen = "verify"
         if self.seen == self.phase or (self.phase == "restore" and self.seen == "verify"):
-            if self.phase == "restore":              # first make the transaction fail, then hit its restore
+            if self.phase == "restore":  # first make the transaction fail, then hit its restore
                 self.fired = True
                 raise canopen.SdoAbortedError(0x08000020)
             self.fired = True
@@ -67,13 +68,16 @@ class Fault:
         if self.kind == "ctrl-c":
             raise KeyboardInterrupt
         if self.kind == "mismatch":
-            return 12345                              # the drive answers another value than was written
+            return 12345  # the drive answers another value than was written
         raise AssertionError(self.kind)
 
 
-CASES = [(phase, kind) for phase in ("backup", "write", "verify", "store", "restore")
-         for kind in ("abort", "lost", "ctrl-c", "mismatch")
-         if not (kind == "mismatch" and phase != "verify")]
+CASES = [
+    (phase, kind)
+    for phase in ("backup", "write", "verify", "store", "restore")
+    for kind in ("abort", "lost", "ctrl-c", "mismatch")
+    if not (kind == "mismatch" and phase != "verify")
+]
 
 
 @pytest.mark.parametrize("phase,kind", CASES, ids=[f"{p}-{k}" for p, k in CASES])
@@ -94,14 +98,19 @@ def test_every_phase_and_failure_ends_with_what_each_drive_holds_known(bench, tm
     if kind == "ctrl-c":
         assert all(r.interrupted == "Ctrl-C" for r in results.values())
     for a, r in results.items():
-        assert r.ram in ("backup", "unchanged", "unknown") and r.stored_set in ("backup", "unchanged", "unknown", "new")
-        if r.ram in ("backup", "unchanged"):                # what it claims, it holds
+        assert r.ram in ("backup", "unchanged", "unknown") and r.stored_set in (
+            "backup",
+            "unchanged",
+            "unknown",
+            "new",
+        )
+        if r.ram in ("backup", "unchanged"):  # what it claims, it holds
             assert device(nodes[a]) == pytest.approx(before[a]), (a, r.ram, r.notes)
         else:
             assert r.notes, "an unknown state is explained"
         if phase == "backup":
             assert r.ram == "unchanged" and r.stored_set == "unchanged"
-    for a, node in nodes.items():                            # power cycle: the stored set it named
+    for node in nodes.values():  # power cycle: the stored set it named
         node.nmt.send_command(0x81)
     b.link.clock.sleep(0.01)
     for a, r in results.items():
@@ -126,11 +135,16 @@ def test_a_store_refused_on_the_second_drive_stores_the_backup_again_on_the_firs
     assert {a: device(n) for a, n in nodes.items()} == before
 
 
-@pytest.mark.parametrize("name,value,why", [("KpS", 1e39, "not a finite number|overflows|outside"),
-                                            ("ff_enable", float("nan"), "not a finite number"),
-                                            ("J", 1e30, "outside the drive's range"),
-                                            ("c1", -1.0, "must be ≥ 0"),
-                                            ("KiS", float("inf"), "not a finite number")])
+@pytest.mark.parametrize(
+    "name,value,why",
+    [
+        ("KpS", 1e39, "not a finite number|overflows|outside"),
+        ("ff_enable", float("nan"), "not a finite number"),
+        ("J", 1e30, "outside the drive's range"),
+        ("c1", -1.0, "must be ≥ 0"),
+        ("KiS", float("inf"), "not a finite number"),
+    ],
+)
 def test_a_value_the_drive_must_not_hold_is_refused_before_any_drive_is_written(bench, name, value, why):
     b = bench()
     nodes = {a: b.nodes[a] for a in ("x", "y")}
@@ -139,14 +153,16 @@ def test_a_value_the_drive_must_not_hold_is_refused_before_any_drive_is_written(
     with pytest.raises(ValueRefused, match=why) as refused:
         write_all(nodes, SIM, values)
     assert "axis y" in str(refused.value) and name in str(refused.value)
-    assert {a: device(n) for a, n in nodes.items()} == before     # not even x was touched
+    assert {a: device(n) for a, n in nodes.items()} == before  # not even x was touched
 
 
 def test_write_json_says_what_a_store_made_permanent_beyond_the_backup(bench):
     """0x1010:1 stores every parameter: bring-up's PDO mapping and settings too, which a restore
     does not put back -- write.json says so instead of letting 'stored_set: backup' claim more."""
     from drive_bridge.params.write import write_parameters
+
     from .test_write import SIM, tuned_values
+
     b = bench()
     r = write_parameters(b.nodes["y"], SIM, tuned_values())
     assert r.ok and r.stored
@@ -161,10 +177,12 @@ def test_a_failed_write_after_bring_up_leaves_the_stored_set_as_bring_up_found_i
     bring-up's values are set again in RAM for the rest of the run; the backup file holds them."""
     import json
 
+    from drive_bridge.cia.sdo import address, snapshot
     from drive_bridge.config import load_bus_config
     from drive_bridge.master.bringup import bring_up
-    from drive_bridge.cia.sdo import address, snapshot
+
     from ..support import BUS_CONFIG
+
     b = bench()
     axes = bring_up(b.link, load_bus_config(BUS_CONFIG).only(["x", "y"]))
     node = axes["x"].node
@@ -172,15 +190,23 @@ def test_a_failed_write_after_bring_up_leaves_the_stored_set_as_bring_up_found_i
     keys = [address(k) for k in found]
     live = snapshot(node, "x", keys)
     changed = sorted(k for k in found if found[k] != live[k])
-    assert {"0x1016:1", "0x607D:2", "0x1A00:1"} <= set(changed)            # heartbeat, limits, TPDO mapping
+    assert {"0x1016:1", "0x607D:2", "0x1A00:1"} <= set(changed)  # heartbeat, limits, TPDO mapping
     b.robot.drives["y"].abort_writes[(0x1010, 1)] = 0x08000020
-    results = write_all({a: axes[a].node for a in ("x", "y")}, SIM, {a: new_values(a) for a in ("x", "y")},
-                        backup_dir=tmp_path, settings_before={a: axes[a].before for a in ("x", "y")})
+    results = write_all(
+        {a: axes[a].node for a in ("x", "y")},
+        SIM,
+        {a: new_values(a) for a in ("x", "y")},
+        backup_dir=tmp_path,
+        settings_before={a: axes[a].before for a in ("x", "y")},
+    )
     r = results["x"]
-    assert results["y"].caused and r.stored_set == "backup" and "as the drive held it when bring-up found it" in \
-        r.restore_covers
-    assert snapshot(node, "x", keys) == live                                 # RAM: bring-up's, as before
+    assert (
+        results["y"].caused
+        and r.stored_set == "backup"
+        and "as the drive held it when bring-up found it" in r.restore_covers
+    )
+    assert snapshot(node, "x", keys) == live  # RAM: bring-up's, as before
     assert json.loads((tmp_path / "x_backup.json").read_text())["settings_before_bring_up"] == found
-    node.nmt.send_command(0x81)                                              # power cycle: the stored set
+    node.nmt.send_command(0x81)  # power cycle: the stored set
     b.link.clock.sleep(0.01)
     assert snapshot(node, "x", keys) == found

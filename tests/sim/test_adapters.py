@@ -1,5 +1,6 @@
 """Pins every behaviour of python-can and canopen that drive_bridge.sim.adapters relies on
 (their internals, not their documented API): run this after raising a bound in pyproject.toml."""
+
 from __future__ import annotations
 
 import struct
@@ -30,14 +31,16 @@ def test_fast_virtual_bus_talks_to_pythoncan_virtual_buses_on_its_channel(direct
         for msg in sent:
             fast.send(msg)
         got = [stock.recv(0), stock.recv(0)]
-        assert [(m.arbitration_id, bytes(m.data), m.timestamp) for m in got] == \
-            [(0x181, b"\x01\x02", 1.5), (0x281, b"", 2.25)]
+        assert [(m.arbitration_id, bytes(m.data), m.timestamp) for m in got] == [
+            (0x181, b"\x01\x02", 1.5),
+            (0x281, b"", 2.25),
+        ]
         assert all(m.is_rx for m in got) and stock.recv(0) is None
         drained = list(other.drain())
         assert [(m.arbitration_id, m.timestamp) for m in drained] == [(0x181, 1.5), (0x281, 2.25)]
-        if direct:                                   # the sender's own objects, no copy
+        if direct:  # the sender's own objects, no copy
             assert drained[0] is sent[0]
-        assert list(fast.drain()) == []              # never its own frames
+        assert list(fast.drain()) == []  # never its own frames
         stock.send(frame(0x701, b"\x05", 3.0))
         assert [(m.arbitration_id, bytes(m.data)) for m in fast.drain()] == [(0x701, b"\x05")]
     finally:
@@ -52,6 +55,7 @@ def test_canopen_local_node_registers_its_nmt_write_handler_through_add_write_ca
         def add_write_callback(self, callback):
             registered.append(callback)
             super().add_write_callback(callback)
+
     node = Spy(5, load_od(PROJECT_EDS, 5))
     assert node.nmt.on_write in registered
 
@@ -59,7 +63,7 @@ def test_canopen_local_node_registers_its_nmt_write_handler_through_add_write_ca
 def test_local_node_answers_sdo_through_the_drive_and_leaves_heartbeats_to_it():
     sent = []
     node = local_node(5, load_od(PROJECT_EDS, 5), lambda cob, data: sent.append((cob, data)))
-    node.set_data(0x1017, 0, struct.pack("<H", 100))      # canopen's NMT would start a timer thread here
-    node.sdo.on_request(0x605, bytes([0x40, 0x17, 0x10, 0x00, 0, 0, 0, 0]), 0.0)   # upload 0x1017
+    node.set_data(0x1017, 0, struct.pack("<H", 100))  # canopen's NMT would start a timer thread here
+    node.sdo.on_request(0x605, bytes([0x40, 0x17, 0x10, 0x00, 0, 0, 0, 0]), 0.0)  # upload 0x1017
     assert len(sent) == 1 and sent[0][0] == 0x585
     assert sent[0][1][0] & 0xE0 == 0x40 and struct.unpack_from("<H", sent[0][1], 4)[0] == 100

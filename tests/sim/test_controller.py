@@ -1,6 +1,7 @@
 """The controller structures a simulated drive runs (kernel ``STRUCT``, ``LOOP_DIV``) and the
 profile's conversion between them (params/controller.py): a position PID written as the cascade's
 equivalent follows a move as that cascade does, at the drive's own loop rate."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -19,7 +20,9 @@ CASCADE = {"KpP": 198.0, "FwF": 1.0, "KpS": 0.046, "KiS": 77.0, "KpC": 12.566, "
 def test_a_pid_is_the_cascade_and_back():
     drive = PID.to_drive({**CASCADE, "J": 1e-4, "c1": 5e-4, "c0": 0.3})
     assert drive["PidD"] == CASCADE["KpS"] and drive["PidFFa"] == 1e-4 and drive["PidFFv"] == 5e-4
-    assert drive["PidP"] == pytest.approx(0.046 * (198 + 77)) and drive["PidI"] == pytest.approx(0.046 * 77 * 198)
+    assert drive["PidP"] == pytest.approx(0.046 * (198 + 77)) and drive["PidI"] == pytest.approx(
+        0.046 * 77 * 198
+    )
     assert drive["c0"] == 0.3 and not {"KpP", "KpS", "KiS", "FwF", "J", "c1"} & set(drive)
     back = PID.from_drive(drive)
     for k in ("KpP", "KpS", "KiS", "FwF", "KpC", "KiC"):
@@ -41,8 +44,19 @@ def _follow(struct: float, gains: dict[str, float]) -> np.ndarray:
     plant_params(p, axis, ["y"])
     p[K.INC_PER_RAD] = 2**20 / (2 * np.pi)
     p[K.TMAX], p[K.FE_WINDOW], p[K.STRUCT], p[K.LOOP_DIV] = 5.0, 1e9, struct, 2.0
-    cols = {"KpP": K.KPP, "FwF": K.FWF, "KpS": K.KPS, "KiS": K.KIS, "KpC": K.KPC, "KiC": K.KIC, "PidP": K.PID_P,
-            "PidI": K.PID_I, "PidD": K.PID_D, "PidFFv": K.PID_FFV, "PidFFa": K.PID_FFA}
+    cols = {
+        "KpP": K.KPP,
+        "FwF": K.FWF,
+        "KpS": K.KPS,
+        "KiS": K.KIS,
+        "KpC": K.KPC,
+        "KiC": K.KIC,
+        "PidP": K.PID_P,
+        "PidI": K.PID_I,
+        "PidD": K.PID_D,
+        "PidFFv": K.PID_FFV,
+        "PidFFa": K.PID_FFA,
+    }
     for k, v in gains.items():
         p[cols[k]] = v
     state[0, K.ENABLED] = 1.0
@@ -52,7 +66,7 @@ def _follow(struct: float, gains: dict[str, float]) -> np.ndarray:
     tick0 = np.zeros(1, dtype=np.int64)
     for k, x in enumerate(target):
         demand[0, K.P0], demand[0, K.P1] = demand[0, K.P1], x
-        demand[0, K.A_FF] = (x - 2 * target[k - 1] + target[k - 2]) / 0.002 ** 2 if k >= 2 else 0.0
+        demand[0, K.A_FF] = (x - 2 * target[k - 1] + target[k - 2]) / 0.002**2 if k >= 2 else 0.0
         tick0[:] = 0
         K.advance(state, param, demand, tick0, 4, 4)
         fe.append(x - state[0, K.Q])
@@ -62,8 +76,8 @@ def _follow(struct: float, gains: dict[str, float]) -> np.ndarray:
 def test_the_kernel_runs_the_pid_as_the_cascade_it_was_written_from():
     cascade = _follow(K.CASCADE, CASCADE)
     pid = _follow(K.POSITION_PID, {k: v for k, v in PID.to_drive(CASCADE).items()})
-    rms = np.sqrt(np.mean(cascade ** 2))
-    assert 1e-4 < rms < 0.05                                   # it moved and followed
+    rms = np.sqrt(np.mean(cascade**2))
+    assert 1e-4 < rms < 0.05  # it moved and followed
     assert np.sqrt(np.mean((pid - cascade) ** 2)) < 0.05 * rms
 
 
@@ -75,8 +89,8 @@ def test_a_1_khz_loop_holds_its_command_between_its_ticks():
     state[0, K.ENABLED] = 1.0
     commands = []
     for k in range(8):
-        demand[0, K.P0] = demand[0, K.P1] = 0.01 * (k + 1)     # a new demand every 2 kHz tick
+        demand[0, K.P0] = demand[0, K.P1] = 0.01 * (k + 1)  # a new demand every 2 kHz tick
         K.advance(state, param, demand, np.zeros(1, dtype=np.int64), 1, 4)
         commands.append(state[0, K.TCMD])
-    assert all(commands[i] == commands[i + 1] for i in (1, 3, 5))        # held between its ticks
-    assert all(commands[i] != commands[i + 1] for i in (0, 2, 4, 6))     # new on each of its ticks
+    assert all(commands[i] == commands[i + 1] for i in (1, 3, 5))  # held between its ticks
+    assert all(commands[i] != commands[i + 1] for i in (0, 2, 4, 6))  # new on each of its ticks

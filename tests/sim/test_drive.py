@@ -1,4 +1,5 @@
 """The simulated drives, seen only through the bus: SDO, PDO, NMT, EMCY, heartbeat."""
+
 from __future__ import annotations
 
 import math
@@ -10,7 +11,6 @@ import pytest
 from drive_bridge.sim.drive import SETPOINT_TIMEOUT_PERIODS
 
 from ..support import clean_config
-
 
 INC_PER_RAD = 2**20 / (2 * math.pi)
 
@@ -59,7 +59,9 @@ def run_csp(bench, node, targets_rad):
 
 def smooth_move(distance, duration, period=0.002, hold=0.3):
     s = np.linspace(0, 1, round(duration / period))
-    return np.concatenate([distance * (10 * s**3 - 15 * s**4 + 6 * s**5), np.full(round(hold / period), distance)])
+    return np.concatenate(
+        [distance * (10 * s**3 - 15 * s**4 + 6 * s**5), np.full(round(hold / period), distance)]
+    )
 
 
 def started(bench, axis="x"):
@@ -82,24 +84,24 @@ def test_identity_and_device_type(bench):
 def test_state_machine_transitions_fault_and_quick_stop(bench):
     b = bench()
     node = b.nodes["x"]
-    sw = lambda: node.sdo[0x6041].raw & 0x6F   # noqa: E731
-    assert sw() & 0x4F == 0x40                  # switch on disabled
-    node.sdo[0x6040].raw = 0x0F                 # enable operation from SOD is not a transition
+    sw = lambda: node.sdo[0x6041].raw & 0x6F  # noqa: E731
+    assert sw() & 0x4F == 0x40  # switch on disabled
+    node.sdo[0x6040].raw = 0x0F  # enable operation from SOD is not a transition
     assert sw() & 0x4F == 0x40
     node.sdo[0x6060].raw = 8
     for cw, expected in ((0x06, 0x21), (0x07, 0x23), (0x0F, 0x27), (0x07, 0x23), (0x0F, 0x27)):
         node.sdo[0x6040].raw = cw
         assert sw() == expected, hex(cw)
-    node.sdo[0x6040].raw = 0x0B                 # quick stop: ramp, then switch on disabled (0x605A = 2)
+    node.sdo[0x6040].raw = 0x0B  # quick stop: ramp, then switch on disabled (0x605A = 2)
     assert sw() in (0x07, 0x40)
     b.link.clock.sleep(0.1)
     assert sw() & 0x4F == 0x40
-    node.sdo[0x605A].raw = 6                    # stay in quick stop active
+    node.sdo[0x605A].raw = 6  # stay in quick stop active
     for cw in (0x06, 0x07, 0x0F, 0x0B):
         node.sdo[0x6040].raw = cw
     b.link.clock.sleep(0.1)
     assert sw() == 0x07
-    node.sdo[0x6040].raw = 0x00                 # disable voltage
+    node.sdo[0x6040].raw = 0x00  # disable voltage
     assert sw() & 0x4F == 0x40
 
 
@@ -114,13 +116,13 @@ def test_unsupported_mode_is_refused(bench):
 def test_dynamic_pdo_mapping_rules(bench):
     b = bench()
     node = b.nodes["x"]
-    with pytest.raises(canopen.SdoAbortedError):           # mapping while the PDO is valid
+    with pytest.raises(canopen.SdoAbortedError):  # mapping while the PDO is valid
         node.sdo[0x1A00][1].raw = 0x60770010
     node.sdo[0x1800][1].raw = 0x80000181
-    with pytest.raises(canopen.SdoAbortedError):           # entries only while sub 0 is 0
+    with pytest.raises(canopen.SdoAbortedError):  # entries only while sub 0 is 0
         node.sdo[0x1A00][1].raw = 0x60770010
     node.sdo[0x1A00][0].raw = 0
-    with pytest.raises(canopen.SdoAbortedError) as err:    # 0x2000 is not PDO-mappable
+    with pytest.raises(canopen.SdoAbortedError) as err:  # 0x2000 is not PDO-mappable
         node.sdo[0x1A00][1].raw = 0x20000120
     assert err.value.code == 0x06040041
     node.sdo[0x1A00][1].raw = 0x60770010
@@ -131,7 +133,7 @@ def test_dynamic_pdo_mapping_rules(bench):
     frames = []
     b.net.subscribe(0x181, lambda c, d, t: frames.append(bytes(d)))
     b.net.sync.transmit()
-    assert len(frames) == 1 and len(frames[0]) == 6          # torque (2) + velocity (4) as mapped
+    assert len(frames) == 1 and len(frames[0]) == 6  # torque (2) + velocity (4) as mapped
 
 
 def test_tpdos_only_in_operational(bench):
@@ -141,7 +143,7 @@ def test_tpdos_only_in_operational(bench):
     frames = []
     b.net.subscribe(0x181, lambda c, d, t: frames.append(d))
     b.net.sync.transmit()
-    assert frames == []                                     # pre-operational
+    assert frames == []  # pre-operational
     b.net.nmt.send_command(0x01)
     b.net.sync.transmit()
     assert len(frames) == 1
@@ -183,9 +185,9 @@ def step_response(bench, kps):
 def test_gain_write_changes_the_step_response(bench):
     soft = step_response(bench, 0.03)
     stiff = step_response(bench, 0.12)
-    t90 = lambda p: np.argmax(p >= 0.045)                   # noqa: E731
-    assert t90(soft) > 5 * t90(stiff)                       # a soft velocity loop is much slower
-    assert np.max(stiff) > np.max(soft)                     # and the stiff one overshoots the step
+    t90 = lambda p: np.argmax(p >= 0.045)  # noqa: E731
+    assert t90(soft) > 5 * t90(stiff)  # a soft velocity loop is much slower
+    assert np.max(stiff) > np.max(soft)  # and the stiff one overshoots the step
 
 
 def test_unstable_gains_oscillate_then_fault_with_emcy(bench):
@@ -193,17 +195,17 @@ def test_unstable_gains_oscillate_then_fault_with_emcy(bench):
     node = started(b)
     emcy = []
     node.emcy.add_callback(lambda e: emcy.append(e.code))
-    node.sdo[0x6065].raw = round(0.02 * INC_PER_RAD)        # a commissioning following-error window
-    node.sdo[0x6066].raw = 1                                # ... and time-out [ms]
-    node.sdo[0x2000][3].raw = 0.6                           # velocity loop far beyond its phase margin
-    pos, torque, sw = run_csp(b, node, np.full(500, 0.01))   # a small step excites it
-    assert emcy and emcy[0] == 0x8611                       # following error
-    assert sw[-1] & 0x4F == 0x08                            # fault
+    node.sdo[0x6065].raw = round(0.02 * INC_PER_RAD)  # a commissioning following-error window
+    node.sdo[0x6066].raw = 1  # ... and time-out [ms]
+    node.sdo[0x2000][3].raw = 0.6  # velocity loop far beyond its phase margin
+    pos, torque, sw = run_csp(b, node, np.full(500, 0.01))  # a small step excites it
+    assert emcy and emcy[0] == 0x8611  # following error
+    assert sw[-1] & 0x4F == 0x08  # fault
     moving = torque[: np.argmax(sw & 0x08)]
-    assert np.max(np.abs(moving)) > 1.0                     # it oscillated hard before the fault
-    node.sdo[0x6040].raw = 0x80                             # fault reset
+    assert np.max(np.abs(moving)) > 1.0  # it oscillated hard before the fault
+    node.sdo[0x6040].raw = 0x80  # fault reset
     assert node.sdo[0x6041].raw & 0x4F == 0x40
-    assert emcy[-1] == 0                                    # EMCY "error reset"
+    assert emcy[-1] == 0  # EMCY "error reset"
 
 
 def test_loss_of_setpoint_faults(bench):
@@ -212,9 +214,9 @@ def test_loss_of_setpoint_faults(bench):
     run_csp(b, node, np.zeros(10))
     emcy = []
     node.emcy.add_callback(lambda e: emcy.append(e.code))
-    for _ in range(SETPOINT_TIMEOUT_PERIODS - 1):          # SYNC keeps coming, RPDOs stop
+    for _ in range(SETPOINT_TIMEOUT_PERIODS - 1):  # SYNC keeps coming, RPDOs stop
         b.net.sync.transmit()
-    assert emcy == []                                       # within the drive's tolerance
+    assert emcy == []  # within the drive's tolerance
     for _ in range(2):
         b.net.sync.transmit()
     assert emcy == [0x8250]
@@ -230,17 +232,17 @@ def test_software_position_limit_clamps_demand(bench):
     enable_csp(node)
     pos, _, sw = run_csp(b, node, np.linspace(0, 0.4, 200))
     assert np.max(pos) < 0.2 + 1e-3
-    assert any(s & 0x0800 for s in sw)                      # internal limit active
+    assert any(s & 0x0800 for s in sw)  # internal limit active
 
 
 def test_store_and_restore_parameters(bench):
     b = bench()
     node = b.nodes["x"]
     node.sdo[0x2000][1].raw = 200.0
-    b.net.nmt.send_command(0x81)                            # reset node: unsaved value is lost
+    b.net.nmt.send_command(0x81)  # reset node: unsaved value is lost
     assert node.sdo[0x2000][1].raw == pytest.approx(150.0)
     node.sdo[0x2000][1].raw = 200.0
-    node.sdo[0x1010][1].raw = 0x65766173                    # 'save'
+    node.sdo[0x1010][1].raw = 0x65766173  # 'save'
     b.net.nmt.send_command(0x81)
     assert node.sdo[0x2000][1].raw == pytest.approx(200.0)
 
@@ -250,6 +252,7 @@ def test_lockstep_is_deterministic(bench):
         b = bench(clean_config(noise=0.004, seed=7))
         node = started(b)
         return run_csp(b, node, smooth_move(0.5, 0.3))
+
     a, c = run(), run()
     for x, y in zip(a, c):
         assert np.array_equal(x, y)
@@ -270,7 +273,7 @@ def constant_velocity_torque(bench, effect=None, axis="x", v=2.0, z_offset=0.0):
     cfg = clean_config(effects={axis: {effect: EFFECTS[effect]}} if effect else None)
     b = bench(cfg)
     if z_offset:
-        b.robot.plant.state[2, 0] = z_offset                      # park Z (the coupling source)
+        b.robot.plant.state[2, 0] = z_offset  # park Z (the coupling source)
     node = started(b, axis)
     t = np.arange(0, 1.0, 0.002)
     fwd = v * t
@@ -285,23 +288,23 @@ def test_each_hidden_effect_shows_in_the_torque(bench, effect):
     _, base, f, r = constant_velocity_torque(bench)
     pos, tq, f, r = constant_velocity_torque(bench, effect, z_offset=10.0 if effect == "cross_axis" else 0.0)
     d_fwd, d_back = tq[f].mean() - base[f].mean(), tq[r].mean() - base[r].mean()
-    if effect == "load":                                    # same sign both ways
+    if effect == "load":  # same sign both ways
         assert d_fwd == pytest.approx(0.1, abs=0.01) and d_back == pytest.approx(0.1, abs=0.01)
-    elif effect == "position_periodic":                     # ripple with position, period 0.5 rad
+    elif effect == "position_periodic":  # ripple with position, period 0.5 rad
         resid = tq[f] - base[f]
         phase = 2 * np.pi * pos[f] / 0.5
         amp = 2 * np.mean(resid * np.sin(phase))
         assert amp == pytest.approx(0.05, rel=0.2)
-    elif effect == "stribeck":                              # extra friction fades at 2 rad/s...
+    elif effect == "stribeck":  # extra friction fades at 2 rad/s...
         assert abs(d_fwd) < 0.01
         _, slow, f2, _ = constant_velocity_torque(bench, effect, v=0.2)
         _, slow_base, _, _ = constant_velocity_torque(bench, v=0.2)
-        assert slow[f2].mean() - slow_base[f2].mean() > 0.05   # ...but not at 0.2 rad/s
-    elif effect == "direction_asymmetry":                   # more friction one way, less the other
+        assert slow[f2].mean() - slow_base[f2].mean() > 0.05  # ...but not at 0.2 rad/s
+    elif effect == "direction_asymmetry":  # more friction one way, less the other
         assert d_fwd == pytest.approx(0.05, abs=0.01) and d_back == pytest.approx(0.05, abs=0.01)
-    elif effect == "cross_axis":                            # friction grows with Z position
+    elif effect == "cross_axis":  # friction grows with Z position
         assert d_fwd == pytest.approx(1.0, abs=0.05) and d_back == pytest.approx(-1.0, abs=0.05)
-    elif effect == "drift":                                 # warm-up: friction 1.5 x at t = 0
+    elif effect == "drift":  # warm-up: friction 1.5 x at t = 0
         assert d_fwd == pytest.approx(0.5 * 0.2198, rel=0.1) and d_back < -0.08
 
 
@@ -311,12 +314,12 @@ def test_profile_position_acknowledges_the_set_point_and_reaches_the_target_in_i
     b = bench()
     node = b.nodes["y"]
     node.sdo[0x6060].raw = 1
-    node.sdo[0x6067].raw = 50                                           # a tight window: 50 increments
+    node.sdo[0x6067].raw = 50  # a tight window: 50 increments
     for cw in (0x06, 0x07, 0x0F):
         node.sdo[0x6040].raw = cw
     start = node.sdo[0x6064].raw
-    node.sdo[0x607A].raw = start + 2**20                               # one revolution
-    node.sdo[0x6040].raw = 0x1F                                          # new set-point
+    node.sdo[0x607A].raw = start + 2**20  # one revolution
+    node.sdo[0x6040].raw = 0x1F  # new set-point
     sw = node.sdo[0x6041].raw
     assert sw & 0x1000 and not sw & 0x0400
     node.sdo[0x6040].raw = 0x0F
@@ -334,11 +337,11 @@ def test_no_sdo_in_nmt_stopped(bench):
     b = bench()
     node = b.nodes["y"]
     node.sdo.RESPONSE_TIMEOUT = 0.05
-    node.nmt.send_command(0x02)                                         # stopped
+    node.nmt.send_command(0x02)  # stopped
     b.link.clock.sleep(0.01)
     with pytest.raises(canopen.SdoCommunicationError):
-        node.sdo[0x6041].raw
-    node.nmt.send_command(0x80)                                         # pre-operational: SDO again
+        _ = node.sdo[0x6041].raw
+    node.nmt.send_command(0x80)  # pre-operational: SDO again
     b.link.clock.sleep(0.01)
     assert node.sdo[0x6041].raw & 0x40
 
@@ -347,6 +350,7 @@ def test_torque_and_velocity_offsets_reach_the_loops(bench):
     """0x60B2 adds to the torque command and 0x60B1 to the velocity command, as in a real drive:
     a held axis moves off its setpoint by a torque offset above its static friction."""
     from drive_bridge.sim import kernel as K
+
     b = bench()
     node = started(b, "y")
     drive = b.robot.drives["y"]
@@ -355,7 +359,7 @@ def test_torque_and_velocity_offsets_reach_the_loops(bench):
     node.sdo[0x60B1].raw = 0
     p0 = node.sdo[0x6064].raw
     held = run_csp(b, node, np.zeros(10))[0]
-    node.sdo[0x60B2].raw = 600                                     # 0.76 Nm, above c0 = 0.32 Nm
+    node.sdo[0x60B2].raw = 600  # 0.76 Nm, above c0 = 0.32 Nm
     assert drive.d[K.T_OFF] == pytest.approx(0.6 * 1.27)
     pushed = run_csp(b, node, np.zeros(10))[0]
     assert np.max(np.abs(held)) < np.max(np.abs(pushed)) and node.sdo[0x6064].raw != p0

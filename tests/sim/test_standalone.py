@@ -1,8 +1,7 @@
 """``drive-bridge sim``: the simulated drives as a process of their own on udp_multicast, and a
 master killed with SIGKILL mid-campaign: every drive stops through its own heartbeat consumer."""
-from __future__ import annotations
 
-import pytest
+from __future__ import annotations
 
 import os
 import select
@@ -12,10 +11,11 @@ import sys
 import time
 
 import canopen
+import pytest
 import yaml
 
-from drive_bridge.cia.p402 import state_name
 from drive_bridge.cia.multicast import UDP_GROUP, LoopbackMulticastBus
+from drive_bridge.cia.p402 import state_name
 from drive_bridge.sim.process import free_port
 
 from ..support import bus_yml_beside
@@ -42,8 +42,13 @@ def test_a_master_killed_mid_campaign_leaves_every_drive_stopped_by_its_heartbea
     doc["master"].update(interface="udp_multicast", channel=UDP_GROUP, can_options={"port": port})
     cfg.write_text(yaml.safe_dump(doc))
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
-    drives = subprocess.Popen([sys.executable, "-m", "drive_bridge", "sim", "--config", str(cfg), "--port", str(port)],
-                              stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, env=env)
+    drives = subprocess.Popen(
+        [sys.executable, "-m", "drive_bridge", "sim", "--config", str(cfg), "--port", str(port)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.DEVNULL,
+        text=True,
+        env=env,
+    )
     monitor = None
     try:
         _wait_for(drives.stdout, "ready", 120)
@@ -51,18 +56,37 @@ def test_a_master_killed_mid_campaign_leaves_every_drive_stopped_by_its_heartbea
         monitor.connect()
         emcy = []
         for node_id in (1, 2, 3):
-            monitor.subscribe(0x80 + node_id, lambda cob, data, ts: emcy.append((cob & 0x7F, data[0] | data[1] << 8,
-                                                                                   time.time())))
-        master = subprocess.Popen([sys.executable, "-m", "drive_bridge", "record", "--config", str(cfg), "--axes", "x", "--yes",
-                                   "--out", str(tmp_path / "run")], stdout=subprocess.DEVNULL,
-                                  stderr=subprocess.PIPE, text=True, env=env, start_new_session=True)
+            monitor.subscribe(
+                0x80 + node_id,
+                lambda cob, data, ts: emcy.append((cob & 0x7F, data[0] | data[1] << 8, time.time())),
+            )
+        master = subprocess.Popen(
+            [
+                sys.executable,
+                "-m",
+                "drive_bridge",
+                "record",
+                "--config",
+                str(cfg),
+                "--axes",
+                "x",
+                "--yes",
+                "--out",
+                str(tmp_path / "run"),
+            ],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.PIPE,
+            text=True,
+            env=env,
+            start_new_session=True,
+        )
         _wait_for(master.stderr, "campaign:", 120)
-        node = monitor.add_node(1, None)                  # SDO only: no object dictionary needed
-        time.sleep(1.5)                                   # X is on its way to the campaign's start (6 s) ...
+        node = monitor.add_node(1, None)  # SDO only: no object dictionary needed
+        time.sleep(1.5)  # X is on its way to the campaign's start (6 s) ...
         moving = abs(int.from_bytes(node.sdo.upload(0x606C, 0), "little", signed=True))
-        os.killpg(master.pid, signal.SIGKILL)            # the master and its cyclic engine, as a power cut would
+        os.killpg(master.pid, signal.SIGKILL)  # the master and its cyclic engine, as a power cut would
         killed = time.time()
-        assert moving > 0.5 * 166886                      # ... at more than 0.5 rad/s when the master dies
+        assert moving > 0.5 * 166886  # ... at more than 0.5 rad/s when the master dies
         master.wait()
         speeds = []
         while time.time() < killed + 1.5:
@@ -70,11 +94,11 @@ def test_a_master_killed_mid_campaign_leaves_every_drive_stopped_by_its_heartbea
             speeds.append((time.time(), abs(int.from_bytes(raw, "little", signed=True))))
             time.sleep(0.01)
         lost = [t for n, code, t in emcy if n == 1 and code == 0x8130]
-        assert lost and lost[0] - killed <= 3 * 0.1 + 0.1          # 3 heartbeat periods (+ the wall clock's slack)
-        stopped = next(t for t, v in speeds if t > lost[0] and v < 8000)     # < 0.05 rad/s in increments/s
-        assert stopped - killed <= 3 * 0.1 + 0.01 + 0.15          # ... plus the quick-stop ramp
+        assert lost and lost[0] - killed <= 3 * 0.1 + 0.1  # 3 heartbeat periods (+ the wall clock's slack)
+        stopped = next(t for t, v in speeds if t > lost[0] and v < 8000)  # < 0.05 rad/s in increments/s
+        assert stopped - killed <= 3 * 0.1 + 0.01 + 0.15  # ... plus the quick-stop ramp
         statusword = int.from_bytes(node.sdo.upload(0x6041, 0), "little")
-        assert state_name(statusword) == "QUICK STOP ACTIVE"      # stopped, and holding
+        assert state_name(statusword) == "QUICK STOP ACTIVE"  # stopped, and holding
     finally:
         if monitor is not None:
             monitor.disconnect()
@@ -91,6 +115,7 @@ def test_on_a_terminal_the_plan_is_shown_and_yes_moves(tmp_path, capsys, monkeyp
     from drive_bridge.cli import main
     from drive_bridge.sim.config import DEFAULT_CONFIG
     from drive_bridge.sim.process import SimProcess
+
     drives = SimProcess(DEFAULT_CONFIG, 0.002)
     try:
         cfg = bus_yml_beside(tmp_path)
@@ -99,9 +124,11 @@ def test_on_a_terminal_the_plan_is_shown_and_yes_moves(tmp_path, capsys, monkeyp
         cfg.write_text(yaml.safe_dump(doc))
         monkeypatch.setattr("sys.stdin.isatty", lambda: True)
         monkeypatch.setattr("builtins.input", lambda prompt: "yes")
-        code = main(["record", "--config", str(cfg), "--quick", "--axes", "y", "--out", str(tmp_path / "run")])
+        code = main(
+            ["record", "--config", str(cfg), "--quick", "--axes", "y", "--out", str(tmp_path / "run")]
+        )
         err = capsys.readouterr().err
-        assert code in (0, 5)                      # 5: a loaded machine's timing, said
+        assert code in (0, 5)  # 5: a loaded machine's timing, said
         assert err.index("units as the drive reports them") < err.index("will enable and move the real axes")
         assert (tmp_path / "run" / "log.csv").exists()
     finally:
@@ -112,8 +139,10 @@ def test_the_simulator_starts_without_the_tuning_tools():
     """Drives in a process of their own (``sim/process.py``, ``drive-bridge sim``'s core) import the
     simulator only: not python-control, matplotlib or the tuning code (they had cost 2.4 s of every
     start through the controller description's loop rates)."""
-    code = ("import sys, drive_bridge.sim.robot, drive_bridge.sim.process; "
-            "heavy = ('control', 'matplotlib.pyplot', 'drive_bridge.tuning.design'); "
-            "print(sorted(m for m in heavy if m in sys.modules))")
+    code = (
+        "import sys, drive_bridge.sim.robot, drive_bridge.sim.process; "
+        "heavy = ('control', 'matplotlib.pyplot', 'drive_bridge.tuning.design'); "
+        "print(sorted(m for m in heavy if m in sys.modules))"
+    )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]"

@@ -1,6 +1,7 @@
 """The drives' compiled streaming SYNC (sim/steady.py) sends what the Python drive sends: a whole
 recording -- bring-up, the campaign, its faults and stops -- gives the same trace and log byte for
 byte with it and without it, and it runs for most of a campaign's SYNCs."""
+
 from __future__ import annotations
 
 import pytest
@@ -13,23 +14,23 @@ from ..support import Bench, clean_config, quick_config
 
 
 def _heavy_y(bench, k):
-    if k == 300:                                   # Y suddenly carries more than its drive can: following error
+    if k == 300:  # Y suddenly carries more than its drive can: following error
         bench.robot.plant.param[1, K.LOAD] = 5.0
 
 
 def _silent_z(bench, k):
-    if k == 500:                                   # Z's heartbeat stops: the master loses it
+    if k == 500:  # Z's heartbeat stops: the master loses it
         bench.robot.drives["z"].node.data_store[0x1017] = {0: b"\x00\x00"}
         bench.robot.drives["z"]._cache.pop((0x1017, 0), None)
 
 
 def _gone_x(bench, k):
-    if k == 400:                                   # X drops off the bus mid-stream
+    if k == 400:  # X drops off the bus mid-stream
         bench.robot.drives["x"].online = False
 
 
 def _limited_x(bench, k):
-    if k == 200:                                   # X's software limits narrowed by SDO under the stream
+    if k == 200:  # X's software limits narrowed by SDO under the stream
         limits, here = bench.nodes["x"].sdo[0x607D], bench.robot.drives["x"]._position_inc
         limits[1].raw, limits[2].raw = here - 2000, here + 2000
 
@@ -40,23 +41,29 @@ def recording(tmp_path, monkeypatch, compiled: bool, hook=None) -> tuple[bytes, 
     monkeypatch.setenv("SOURCE_DATE_EPOCH", "1700000000")
     ran = []
     python_drive = SteadyStream.period
-    monkeypatch.setattr(SteadyStream, "period", lambda self: ran.append(1) is None if
-                        compiled and python_drive(self) else False)
+    monkeypatch.setattr(
+        SteadyStream,
+        "period",
+        lambda self: ran.append(1) is None if compiled and python_drive(self) else False,
+    )
     bench = Bench(clean_config(noise=0.004, seed=3, effects={"z": {"load": {"LOAD": 0.3}}}))
     try:
         out = tmp_path / ("compiled" if compiled else "python")
-        on_plan = (lambda plan: (lambda k: hook(bench, k))) if hook else None
+        on_plan = (lambda plan: lambda k: hook(bench, k)) if hook else None
         record(quick_config(together=True), bench.link, out, on_plan=on_plan)
     finally:
         bench.close()
     return (out / "trace.blf").read_bytes(), (out / "log.csv").read_bytes(), len(ran)
 
 
-@pytest.mark.parametrize("hook", [None, _heavy_y, _silent_z, _gone_x, _limited_x],
-                         ids=["campaign", "following-error", "heartbeat-lost", "drive-gone", "software-limit"])
+@pytest.mark.parametrize(
+    "hook",
+    [None, _heavy_y, _silent_z, _gone_x, _limited_x],
+    ids=["campaign", "following-error", "heartbeat-lost", "drive-gone", "software-limit"],
+)
 def test_the_compiled_sync_sends_what_the_python_drive_sends(tmp_path, monkeypatch, hook):
     trace, log, ran = recording(tmp_path, monkeypatch, True, hook)
     trace_py, log_py, ran_py = recording(tmp_path, monkeypatch, False, hook)
-    assert ran_py == 0 and ran > 300                   # it ran (the quick campaign streams ~1000 SYNCs)
+    assert ran_py == 0 and ran > 300  # it ran (the quick campaign streams ~1000 SYNCs)
     assert log == log_py
     assert trace == trace_py

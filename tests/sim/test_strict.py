@@ -1,5 +1,6 @@
 """The simulated drives are as strict as real ones: where a real drive would jump, fall, fault or
 refuse, so do they (each test here fails against a lenient simulator)."""
+
 from __future__ import annotations
 
 from dataclasses import replace
@@ -13,7 +14,7 @@ from ..support import VENDOR_EDS, Bench, clean_config
 
 pytestmark = pytest.mark.slow
 
-GRAVITY_Z = {"z": {"load": {"LOAD": 0.4}}}       # above the screw's 0.323 Nm of friction
+GRAVITY_Z = {"z": {"load": {"LOAD": 0.4}}}  # above the screw's 0.323 Nm of friction
 
 
 def falling_z(brake: bool):
@@ -30,7 +31,7 @@ def test_a_disabled_vertical_axis_falls_without_a_brake_and_stands_with_one(benc
     if brake:
         assert q == 0.0
     else:
-        assert q < -10.0                  # 0.5 s of free fall against viscous friction: tens of rad
+        assert q < -10.0  # 0.5 s of free fall against viscous friction: tens of rad
 
 
 def test_an_end_stop_stops_the_fall():
@@ -52,13 +53,13 @@ def test_csp_enable_takes_the_target_as_it_stands_and_a_stale_one_makes_the_axis
     node.nmt.send_command(0x80)
     node.sdo[0x6060].raw = 8
     start = node.sdo[0x6064].raw
-    node.sdo[0x607A].raw = start + 2_000_000            # stale: 12 rad away
+    node.sdo[0x607A].raw = start + 2_000_000  # stale: 12 rad away
     _enable_by_sdo(node)
     codes = []
     node.emcy.add_callback(lambda e: codes.append(e.code))
     b.link.clock.sleep(0.05)
-    assert abs(node.sdo[0x6064].raw - start) > 10_000   # it jumped toward the stale target ...
-    assert 0x8611 in codes                              # ... and faulted on the following error
+    assert abs(node.sdo[0x6064].raw - start) > 10_000  # it jumped toward the stale target ...
+    assert 0x8611 in codes  # ... and faulted on the following error
     assert node.sdo[0x6041].raw & 0x0008
 
 
@@ -73,10 +74,13 @@ def test_csp_enable_with_the_target_preloaded_does_not_move(bench):
     assert abs(node.sdo[0x6064].raw - start) <= 2 and not node.sdo[0x6041].raw & 0x0008
 
 
-@pytest.mark.parametrize("option, state", [(3, "QUICK STOP ACTIVE"), (1, "FAULT"), (2, "SWITCH ON DISABLED"),
-                                           (0, "OPERATION ENABLED")])
+@pytest.mark.parametrize(
+    "option, state",
+    [(3, "QUICK STOP ACTIVE"), (1, "FAULT"), (2, "SWITCH ON DISABLED"), (0, "OPERATION ENABLED")],
+)
 def test_the_heartbeat_consumer_acts_when_the_master_falls_silent(bench, option, state):
     from drive_bridge.cia.p402 import state_name
+
     b = bench()
     node = b.nodes["x"]
     node.sdo[0x1016][1].raw = 127 << 16 | 300
@@ -89,10 +93,10 @@ def test_the_heartbeat_consumer_acts_when_the_master_falls_silent(bench, option,
     node.emcy.add_callback(lambda e: codes.append(e.code))
     b.link.start_heartbeat(127, 0.1)
     b.link.clock.sleep(1.0)
-    assert state_name(node.sdo[0x6041].raw) == "OPERATION ENABLED" and not codes   # watched, alive
+    assert state_name(node.sdo[0x6041].raw) == "OPERATION ENABLED" and not codes  # watched, alive
     b.link.stop_heartbeat()
     b.link.clock.sleep(0.25)
-    assert state_name(node.sdo[0x6041].raw) == "OPERATION ENABLED"                 # not yet: 0.3 s
+    assert state_name(node.sdo[0x6041].raw) == "OPERATION ENABLED"  # not yet: 0.3 s
     b.link.clock.sleep(0.2)
     assert 0x8130 in codes and state_name(node.sdo[0x6041].raw) == state
 
@@ -107,16 +111,16 @@ def test_pdo_parameters_are_refused_as_cia301_refuses_them(bench):
     node = bench().nodes["x"]
     node.nmt.send_command(0x80)
     tpdo, rpdo = node.sdo[0x1800], node.sdo[0x1400]
-    assert _abort(lambda: setattr(tpdo[2], "raw", 245)) == 0x06090030          # reserved transmission type
-    assert _abort(lambda: setattr(rpdo[2], "raw", 252)) == 0x06090030          # RTR types are not an RPDO's
+    assert _abort(lambda: setattr(tpdo[2], "raw", 245)) == 0x06090030  # reserved transmission type
+    assert _abort(lambda: setattr(rpdo[2], "raw", 252)) == 0x06090030  # RTR types are not an RPDO's
     tpdo[1].raw = tpdo[1].raw | 0x8000_0000
-    tpdo[1].raw = 0x8000_0701                     # a restricted CAN-ID may stand while the PDO is invalid ...
-    assert _abort(lambda: setattr(tpdo[1], "raw", 0x701)) == 0x06090030        # ... never in a valid PDO
+    tpdo[1].raw = 0x8000_0701  # a restricted CAN-ID may stand while the PDO is invalid ...
+    assert _abort(lambda: setattr(tpdo[1], "raw", 0x701)) == 0x06090030  # ... never in a valid PDO
     tpdo[1].raw = 0x8000_0181
     mapping = node.sdo[0x1A00]
     mapping[0].raw = 0
-    assert _abort(lambda: setattr(mapping[1], "raw", 0x6064_0010)) == 0x06040041   # 16 bits of a 32-bit object
-    mapping[1].raw = 0x6064_0020                                                # its own length is fine
+    assert _abort(lambda: setattr(mapping[1], "raw", 0x6064_0010)) == 0x06040041  # 16 bits of a 32-bit object
+    mapping[1].raw = 0x6064_0020  # its own length is fine
 
 
 def test_an_rpdo_shorter_than_its_mapping_raises_emcy_8210(bench):
@@ -125,7 +129,7 @@ def test_an_rpdo_shorter_than_its_mapping_raises_emcy_8210(bench):
     codes = []
     node.emcy.add_callback(lambda e: codes.append(e.code))
     node.nmt.send_command(0x01)
-    b.net.send_message(0x201, b"\x06\x00")          # RPDO1 of the factory mapping is longer
+    b.net.send_message(0x201, b"\x06\x00")  # RPDO1 of the factory mapping is longer
     b.robot.process()
     b.link.pump()
     assert 0x8210 in codes
@@ -140,12 +144,12 @@ def test_an_event_driven_tpdo_is_sent(bench):
     tpdo = node.sdo[0x1800]
     tpdo[1].raw = 0x8000_0181
     tpdo[2].raw = 255
-    tpdo[5].raw = 100                                 # event timer: 100 ms
+    tpdo[5].raw = 100  # event timer: 100 ms
     tpdo[1].raw = 0x181
     node.nmt.send_command(0x01)
     b.link.clock.sleep(1.0)
     b.link.pump()
-    assert 8 <= len(seen) <= 12                       # on its timer (the axis stands: no change of data)
+    assert 8 <= len(seen) <= 12  # on its timer (the axis stands: no change of data)
 
 
 def test_the_nanotec_faithful_drive_starts_in_its_factory_units_and_changes_them_when_told(bench):
@@ -157,8 +161,8 @@ def test_the_nanotec_faithful_drive_starts_in_its_factory_units_and_changes_them
     assert node.sdo[0x60A8].raw == 0xFF410000 and node.sdo[0x60A9].raw == 0x00B44700
     b.robot.plant.state[1, K.Q] = 1.0
     drive.refresh_actuals()
-    assert abs(node.sdo[0x6064].raw - 573) <= 1       # 1 rad in tenths of a degree
-    node.sdo[0x60A8].raw = 0x00B50000                  # encoder increments
+    assert abs(node.sdo[0x6064].raw - 573) <= 1  # 1 rad in tenths of a degree
+    node.sdo[0x60A8].raw = 0x00B50000  # encoder increments
     drive.refresh_actuals()
     assert abs(node.sdo[0x6064].raw - 65536 / 6.283185307) <= 1
 
@@ -182,32 +186,34 @@ def _interpolating(b, node):
 
 def test_the_maxon_fifo_underflows_when_a_record_does_not_come():
     from drive_bridge.setpoint import pack_pvt
+
     b = _epos2()
     node = b.nodes["y"]
     codes = []
     node.emcy.add_callback(lambda e: codes.append(e.code))
     start = node.sdo[0x6064].raw
     _interpolating(b, node)
-    for _ in range(3):                                    # one record a period: it keeps up
+    for _ in range(3):  # one record a period: it keeps up
         node.sdo[0x20C1].raw = pack_pvt(start, 0, 2)
         b.net.sync.transmit()
     assert not node.sdo[0x6041].raw & 0x0008 and node.sdo[0x20C4][1].raw & 0xC000 == 0xC000
-    b.net.sync.transmit()                                 # a period without a record
+    b.net.sync.transmit()  # a period without a record
     b.link.pump()
     assert node.sdo[0x6041].raw & 0x0008 and node.sdo[0x20C4][1].raw & 0x0100 and 0xFF02 in codes
 
 
 def test_the_maxon_fifo_overflows_past_64_records_and_ignores_records_while_disabled():
     from drive_bridge.setpoint import pack_pvt
+
     b = _epos2()
     node = b.nodes["y"]
-    node.sdo[0x20C1].raw = pack_pvt(10**6, 0, 2)           # buffer access not enabled: dropped
+    node.sdo[0x20C1].raw = pack_pvt(10**6, 0, 2)  # buffer access not enabled: dropped
     assert len(b.robot.drives["y"].fifo) == 0
     node.sdo[0x60C4][6].raw = 1
     for _ in range(64):
         node.sdo[0x20C1].raw = pack_pvt(0, 0, 2)
     b.robot.drives["y"].refresh_actuals()
-    assert node.sdo[0x20C4][1].raw & 0x0002                # above the overflow warning level (60)
+    assert node.sdo[0x20C4][1].raw & 0x0002  # above the overflow warning level (60)
     node.sdo[0x20C1].raw = pack_pvt(0, 0, 2)
     b.robot.drives["y"].refresh_actuals()
     assert node.sdo[0x20C4][1].raw & 0x0200 and node.sdo[0x6041].raw & 0x0008

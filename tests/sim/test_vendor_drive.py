@@ -1,6 +1,7 @@
 """Simulated drives built from the vendor EDS/DCF files (read in place): each behaves as that drive
 on the bus -- its identity, only the modes its 0x6502 lists, its feedback objects and units, no
 object its file lacks, its gain objects driving the same loops through the profile's scales."""
+
 from __future__ import annotations
 
 import math
@@ -17,7 +18,10 @@ from drive_bridge.sim.vendors import SPECS
 
 from ..support import Bench, clean_config
 
-pytestmark = [pytest.mark.slow, pytest.mark.skipif(not vendor_dir().is_dir(), reason="../shared/eds-vendor not present")]
+pytestmark = [
+    pytest.mark.slow,
+    pytest.mark.skipif(not vendor_dir().is_dir(), reason="../shared/eds-vendor not present"),
+]
 VENDOR_FILES = sorted(n for n in SPECS if n != "drive_bridge_servo.eds")
 
 
@@ -40,7 +44,7 @@ def test_identity_and_modes_are_the_files(name):
         if mode in listed:
             node.sdo[0x6060].raw = mode
             assert node.sdo[0x6061].raw == mode
-        else:                                   # a mode the drive does not list is refused
+        else:  # a mode the drive does not list is refused
             with pytest.raises(canopen.SdoAbortedError):
                 node.sdo[0x6060].raw = mode
 
@@ -53,7 +57,7 @@ def test_no_object_the_file_lacks(name):
         if index not in od:
             with pytest.raises(canopen.SdoAbortedError) as exc:
                 node.sdo.upload(index, 1 if index == 0x1010 else 0)
-            assert exc.value.code == 0x06020000            # object does not exist
+            assert exc.value.code == 0x06020000  # object does not exist
 
 
 @pytest.mark.parametrize("name", VENDOR_FILES)
@@ -61,9 +65,20 @@ def test_gains_through_the_profile_drive_the_loops(name):
     b, node = bench(name)
     profile = load_profile(SPECS[name].profile).bind(b.robot.config.axes["y"].motor.kt)
     drive = b.robot.drives["y"]
-    cols = {"KpP": K.KPP, "FwF": K.FWF, "KpS": K.KPS, "KiS": K.KIS, "KpC": K.KPC, "KiC": K.KIC, "PidP": K.PID_P,
-            "PidI": K.PID_I, "PidD": K.PID_D, "PidFFv": K.PID_FFV, "PidFFa": K.PID_FFA}
-    if profile.select is not None:           # the Nanotec's 321Ah-321Dh run once 3212h:04 selects them
+    cols = {
+        "KpP": K.KPP,
+        "FwF": K.FWF,
+        "KpS": K.KPS,
+        "KiS": K.KIS,
+        "KpC": K.KPC,
+        "KiC": K.KIC,
+        "PidP": K.PID_P,
+        "PidI": K.PID_I,
+        "PidD": K.PID_D,
+        "PidFFv": K.PID_FFV,
+        "PidFFa": K.PID_FFA,
+    }
+    if profile.select is not None:  # the Nanotec's 321Ah-321Dh run once 3212h:04 selects them
         sdo_variable(node, profile.select[0]).raw = profile.select[1]
     for param, entry in profile.entries.items():
         if param == "gain_objects":
@@ -72,7 +87,7 @@ def test_gains_through_the_profile_drive_the_loops(name):
         value = drive.p[col] * 1.25 or 1e-4
         sdo_variable(node, entry).raw = entry.to_device(value)
         assert drive.p[col] == pytest.approx(entry.to_si(entry.held(entry.to_device(value))), rel=1e-6)
-    if not profile.entries:                       # the iPOS: no gain objects, the factory loops run
+    if not profile.entries:  # the iPOS: no gain objects, the factory loops run
         assert drive.p[K.KPS] > 0
 
 
@@ -101,14 +116,14 @@ def test_the_epos2_runs_its_position_pid_at_1_kHz_and_its_velocity_pi_is_not_in_
     node.sdo[0x60F9][1].raw = 2 * node.sdo[0x60F9][1].raw + 1
     assert (drive.p == before).all()
     kt = b.robot.config.axes["y"].motor.kt
-    node.sdo[0x60FB][1].raw = 3000                    # 0.01 A/rad on the bus (the profile's reading)
+    node.sdo[0x60FB][1].raw = 3000  # 0.01 A/rad on the bus (the profile's reading)
     assert drive.p[K.PID_P] == pytest.approx(3000 / 100 * kt)
 
 
 def test_maxon_reports_velocity_in_rpm_and_current_in_mA():
     b, node = bench("maxon_epos2_50-5.eds")
     drive = b.robot.drives["y"]
-    drive.s[K.V] = 10.0                              # rad/s
+    drive.s[K.V] = 10.0  # rad/s
     drive.s[K.I_SUM], drive.s[K.I_COUNT] = 1.5, 1.0  # 1.5 A averaged
     drive.s[K.Q] += 10.0 * 0.002
     b.robot.advance(0)
@@ -149,6 +164,7 @@ def test_a_nanotec_on_3210h_is_read_as_it_runs_and_switched_only_with_the_whole_
     from drive_bridge.params.read import read_parameters
     from drive_bridge.params.write import write_parameters
     from drive_bridge.sim.vendors import factory
+
     b, node = bench("nanotec_C5-E-2-09.eds")
     profile = load_profile("nanotec_c5e").bind(b.robot.config.axes["y"].motor.kt)
     running = read_parameters(node, profile)
@@ -156,6 +172,7 @@ def test_a_nanotec_on_3210h_is_read_as_it_runs_and_switched_only_with_the_whole_
     for g in ("KpP", "KpS", "KiS", "KpC", "KiC", "FwF"):
         assert running[g] == pytest.approx(factory().gains[g], rel=1e-3), g
     from drive_bridge.params.check import ValueRefused
+
     with pytest.raises(ValueRefused, match="needs all of them"):
         write_parameters(node, profile, {"KpS": 2 * running["KpS"]}, store=False)
     assert node.sdo[0x3212][4].raw == 0

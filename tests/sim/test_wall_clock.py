@@ -1,6 +1,7 @@
 """The simulated drives on the wall clock: their loops locked to the SYNCs they receive, as a
 drive's phase-locked loop is.  A SYNC late by most of a period leaves the axis's motion as it
 was; a period whose SYNC the master skipped is bridged at the last velocity, not held."""
+
 from __future__ import annotations
 
 import struct
@@ -13,8 +14,8 @@ from drive_bridge.sim.drive import SETPOINT_TIMEOUT_PERIODS
 from .test_drive import INC_PER_RAD, smooth_move, started
 
 PERIOD = 0.002
-START = 1000.0                  # [s] the wall-clock time the stream starts at (stamps, not sleeps)
-RPDO_AFTER_SYNC = 1e-4          # [s] a master's RPDO follows its SYNC
+START = 1000.0  # [s] the wall-clock time the stream starts at (stamps, not sleeps)
+RPDO_AFTER_SYNC = 1e-4  # [s] a master's RPDO follows its SYNC
 
 
 def frame(cob_id: int, stamp: float, data: bytes = b"") -> can.Message:
@@ -37,8 +38,13 @@ def stream(bench, targets_rad, late=None, skipped=()):
             continue
         stamp = START + k * PERIOD + late[k]
         robot.take(frame(0x080, stamp))
-        robot.take(frame(0x200 + node.id, stamp + RPDO_AFTER_SYNC,
-                         struct.pack("<Hi", 0x0F, p0 + round(target * INC_PER_RAD))))
+        robot.take(
+            frame(
+                0x200 + node.id,
+                stamp + RPDO_AFTER_SYNC,
+                struct.pack("<Hi", 0x0F, p0 + round(target * INC_PER_RAD)),
+            )
+        )
     robot.run_until(START + (len(targets_rad) + 1) * PERIOD)
     rows = [struct.unpack("<ihH", data) for cob_id, data in sent if cob_id == 0x180 + node.id]
     a = np.array(rows, dtype=float)
@@ -51,7 +57,7 @@ def test_late_syncs_do_not_stretch_or_shorten_the_drives_periods(bench):
     late = np.where(rng.random(len(move)) < 0.3, rng.uniform(0.1, 0.9, len(move)) * PERIOD, 0.0)
     on_time, _ = stream(bench(), move)
     jittered, status = stream(bench(), move, late)
-    assert not np.any(status & 0x0008)                      # no fault
+    assert not np.any(status & 0x0008)  # no fault
     punctual = late == 0.0
     # every SYNC that came on time sampled the same motion, to the increment: the late ones before it
     # moved the axis exactly as on-time ones do (a drive whose period followed each SYNC's arrival
@@ -61,12 +67,12 @@ def test_late_syncs_do_not_stretch_or_shorten_the_drives_periods(bench):
 
 def test_a_skipped_period_is_bridged_at_the_last_velocity(bench):
     move = smooth_move(20.0, 0.6, hold=0.05)
-    skipped = {150, 151, 152}                                 # 6 ms without SYNC or RPDO, at speed
+    skipped = {150, 151, 152}  # 6 ms without SYNC or RPDO, at speed
     on_time, _ = stream(bench(), move)
     bridged, status = stream(bench(), move, skipped=skipped)
     assert len(skipped) < SETPOINT_TIMEOUT_PERIODS and not np.any(status & 0x0008)
     kept = [k for k in range(len(move)) if k not in skipped]
-    speed = np.max(np.abs(np.diff(on_time))) / PERIOD         # [rad/s] the move's top speed
+    speed = np.max(np.abs(np.diff(on_time))) / PERIOD  # [rad/s] the move's top speed
     # the axis went on at its speed through the gap: off the on-time motion by far less than the
     # distance it covers in the gap (a drive that held would fall behind by about all of it)
     assert np.max(np.abs(bridged - on_time[kept])) < 0.1 * speed * len(skipped) * PERIOD
@@ -76,7 +82,7 @@ def test_a_master_gone_at_speed_is_bridged_only_until_the_setpoint_timeout(bench
     """The substitute setpoint is no licence to run on: a drive whose stream stops at speed goes on
     at its last velocity for the setpoint timeout, then stops itself with EMCY 0x8250."""
     move = smooth_move(20.0, 0.6, hold=0.05)
-    cut = 150                                                # the stream ends here, mid-move
+    cut = 150  # the stream ends here, mid-move
     b = bench()
     node = started(b)
     robot = b.robot
@@ -87,12 +93,17 @@ def test_a_master_gone_at_speed_is_bridged_only_until_the_setpoint_timeout(bench
     for k, target in enumerate(move[:cut]):
         stamp = START + k * PERIOD
         robot.take(frame(0x080, stamp))
-        robot.take(frame(0x200 + node.id, stamp + RPDO_AFTER_SYNC,
-                         struct.pack("<Hi", 0x0F, p0 + round(target * INC_PER_RAD))))
+        robot.take(
+            frame(
+                0x200 + node.id,
+                stamp + RPDO_AFTER_SYNC,
+                struct.pack("<Hi", 0x0F, p0 + round(target * INC_PER_RAD)),
+            )
+        )
     gone = START + cut * PERIOD
     robot.run_until(gone + (SETPOINT_TIMEOUT_PERIODS - 2) * PERIOD)
-    assert not any(cob_id == 0x080 + node.id for cob_id, _ in sent)         # bridged: no EMCY yet
+    assert not any(cob_id == 0x080 + node.id for cob_id, _ in sent)  # bridged: no EMCY yet
     robot.run_until(gone + (SETPOINT_TIMEOUT_PERIODS + 2) * PERIOD)
     emcy = [struct.unpack_from("<H", data)[0] for cob_id, data in sent if cob_id == 0x080 + node.id]
     assert 0x8250 in emcy
-    assert robot.drives["x"].statusword & 0x6F != 0x27                       # no longer OPERATION ENABLED
+    assert robot.drives["x"].statusword & 0x6F != 0x27  # no longer OPERATION ENABLED

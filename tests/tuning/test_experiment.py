@@ -1,4 +1,5 @@
 """The paper's gain-raising procedure on the simulated drive."""
+
 from __future__ import annotations
 
 import pytest
@@ -34,7 +35,7 @@ def test_paper_procedure_finds_the_stability_edge_and_restores_the_drive():
     assert result.KpS is not None and 0.2 < result.KpS < 2 * PAPER["y"]["J"] / 0.5e-3
     assert any(s.oscillating for s in result.steps) and not result.steps[-1].oscillating
     design = design_gains(PAPER["y"]["J"], PAPER["y"]["c1"], **MOTOR)
-    assert design.KpS < result.KpS                                     # the design keeps its margins
+    assert design.KpS < result.KpS  # the design keeps its margins
 
 
 def test_every_gain_the_experiment_tries_passes_the_gain_gate():
@@ -42,12 +43,19 @@ def test_every_gain_the_experiment_tries_passes_the_gain_gate():
     first gain below the floor, which never reaches the drive; a refused first gain ends the
     experiment before anything is written."""
     from drive_bridge.params.check import ValueRefused, screen
+
     config = load_bus_config(BUS_CONFIG).only(["y"])
     model = {k: PAPER["y"][k] for k in ("J", "c0", "c1")}
     before = {"KpP": 150.0, "KpS": 0.12, "KiS": 20.0, "KpC": 12.566}
 
     def admit(kps):
-        return screen({"y": SIM}, {"y": {**model, **before, "KpS": kps}}, {"y": MOTOR["L"]}, allow_unverified_scales=True)[1]
+        return screen(
+            {"y": SIM},
+            {"y": {**model, **before, "KpS": kps}},
+            {"y": MOTOR["L"]},
+            allow_unverified_scales=True,
+        )[1]
+
     with open_link(config, sim=True) as link:
         axes = bring_up(link, config)
         result = run_experiment(config, link, axes, "y", SIM, 0.12, admit)

@@ -2,6 +2,7 @@
 (params.cascade.measured_margins), on the simulated Y axis run bus-free (plant_log): the soft measurement
 gains, a constant 10 rad/s sweep, the torque-offset multisine.  The compliant axis is checked
 against its true two-mass plant, computed here from the simulator's parameters (not measured)."""
+
 from __future__ import annotations
 
 import json
@@ -11,12 +12,20 @@ import numpy as np
 import pytest
 
 from drive_bridge.ident.frf import PERIODS, Frf, excitation, measure
+from drive_bridge.params.cascade import (
+    GM_MIN_DB,
+    PM_MIN_DEG,
+    Margins,
+    controller,
+    margins_at_points,
+    measured_margins,
+    rigid_response,
+    velocity_open_loop,
+)
+from drive_bridge.params.controller import LOOP_TICK_S
 from drive_bridge.sim.config import Motor, load_sim_config
 from drive_bridge.sim.plantlog import plant_log
 from drive_bridge.sim.vendors import factory
-from drive_bridge.params.cascade import (GM_MIN_DB, PM_MIN_DEG, Margins, controller, margins_at_points, measured_margins,
-                                         rigid_response, velocity_open_loop)
-from drive_bridge.params.controller import LOOP_TICK_S
 from drive_bridge.tuning.design import PM_DESIGN_DEG, current_gains, design_gains, measurement_gains
 
 from ..ident.test_identify import sim_config
@@ -27,7 +36,7 @@ RATE = 500.0
 J, C1 = 1e-4, 5e-4
 MOTOR = Motor()
 W_I = current_gains(MOTOR.R, MOTOR.L)[2]
-SHARE, RESONANCE_HZ, ZETA = 0.5, 120.0, 0.02          # the shipped compliant robot's Y
+SHARE, RESONANCE_HZ, ZETA = 0.5, 120.0, 0.02  # the shipped compliant robot's Y
 
 
 def two_mass(share=SHARE, resonance_hz=RESONANCE_HZ, zeta=ZETA) -> tuple[float, float, float]:
@@ -41,8 +50,12 @@ def measured(effects: dict | None = None) -> Frf:
     soft = {**factory().gains, **measurement_gains(J, RATE)}
     u = np.tile(excitation(RATE, 0.05), PERIODS)
     n = len(u)
-    cols = plant_log(sim_config(effects), {"y": -60 + 10 * np.arange(1, n + 1) / RATE, "z": np.zeros(n)},
-                     torque_offset={"y": u}, gains={"y": soft})
+    cols = plant_log(
+        sim_config(effects),
+        {"y": -60 + 10 * np.arange(1, n + 1) / RATE, "z": np.zeros(n)},
+        torque_offset={"y": u},
+        gains={"y": soft},
+    )
     return measure(cols["y_position_rad"], u, RATE, controller(soft))
 
 
@@ -53,7 +66,7 @@ def true_margins(gains: dict[str, float], share: float, k: float, d: float) -> t
     f = np.geomspace(0.5, 999.0, 4000)
     s = 2j * np.pi * f
     jm, jl = J * (1 - share), J * share
-    spring = jl * s ** 2 + d * s + k
+    spring = jl * s**2 + d * s + k
     plant = 1 / (s / W_I + 1) * spring / ((jm * s + C1) * spring + jl * s * (d * s + k))
     velocity = gains["KpS"] * (1 + gains["KiS"] / s) * np.exp(-s * LOOP_TICK_S) * plant
     position = gains["KpP"] / s * velocity / (1 + velocity)
@@ -97,7 +110,7 @@ def test_on_a_compliant_axis_the_rigid_design_rings_and_the_design_on_the_measur
 def test_the_design_on_the_measured_response_of_a_rigid_axis_keeps_the_margins_on_it():
     frf = measured()
     gains = design_gains(J, C1, MOTOR.R, MOTOR.L, frf=frf).gains()
-    for loop in true_margins(gains, 1e-6, 1e6, 0.0):          # (a load of nothing on a stiff spring: rigid)
+    for loop in true_margins(gains, 1e-6, 1e6, 0.0):  # (a load of nothing on a stiff spring: rigid)
         assert floor_kept(loop), loop
 
 
@@ -130,9 +143,10 @@ def test_the_shipped_compliant_robot_rings_at_its_resonance():
     """The simulator's two-mass plant, let go with the motor moving and the load at rest, swings
     at √(k·(Jm + Jl)/(Jm·Jl)) / 2π: 120 Hz for the shipped compliant Y."""
     from drive_bridge.sim import kernel as K
+
     y = load_sim_config("compliant").axes["y"]
     state, param, demand = K.new_arrays(1)
-    param[0, K.J], param[0, K.BRAKE], param[0, K.INC_PER_RAD] = y.J, 0.0, 1e6    # power off, no friction
+    param[0, K.J], param[0, K.BRAKE], param[0, K.INC_PER_RAD] = y.J, 0.0, 1e6  # power off, no friction
     for name, value in y.effects["compliance"].items():
         param[0, getattr(K, name)] = value
     state[0, K.V] = 1.0
@@ -151,12 +165,24 @@ def test_tune_takes_the_measured_response_and_says_its_margins(tmp_path, capsys)
     that is not one is refused naming the file and the step to rerun (exit 2, nothing written)."""
     from drive_bridge.cli import main
     from drive_bridge.tuning.measure import frf_doc
+
     share, k, d = two_mass()
-    (tmp_path / "frf.json").write_text(json.dumps(frf_doc({"y": measured(
-        {"compliance": {"TM_SHARE": share, "TM_K": k, "TM_D": d}})}, {})))
-    (tmp_path / "identify.json").write_text(json.dumps({"axes": {"y": {"params": {"J": J, "c0": 0.32, "c1": C1}}}}))
-    argv = ["tune", "--ident", str(tmp_path / "identify.json"), "--offline", "--motor-R", str(MOTOR.R),
-            "--motor-L", str(MOTOR.L)]
+    (tmp_path / "frf.json").write_text(
+        json.dumps(frf_doc({"y": measured({"compliance": {"TM_SHARE": share, "TM_K": k, "TM_D": d}})}, {}))
+    )
+    (tmp_path / "identify.json").write_text(
+        json.dumps({"axes": {"y": {"params": {"J": J, "c0": 0.32, "c1": C1}}}})
+    )
+    argv = [
+        "tune",
+        "--ident",
+        str(tmp_path / "identify.json"),
+        "--offline",
+        "--motor-R",
+        str(MOTOR.R),
+        "--motor-L",
+        str(MOTOR.L),
+    ]
     assert main(argv + ["--frf", str(tmp_path / "frf.json"), "--out", str(tmp_path / "t.json")]) == 0
     y = json.loads((tmp_path / "t.json").read_text())["axes"]["y"]
     assert y["gains"]["KpS"] < design_gains(J, C1, MOTOR.R, MOTOR.L).KpS
@@ -164,7 +190,10 @@ def test_tune_takes_the_measured_response_and_says_its_margins(tmp_path, capsys)
     capsys.readouterr()
     (tmp_path / "bad.json").write_text(json.dumps({"axes": {"y": {"frequency_hz": [1.0]}}}))
     assert main(argv + ["--frf", str(tmp_path / "bad.json"), "--out", str(tmp_path / "t2.json")]) == 2
-    assert "bad.json: not a frequency response" in capsys.readouterr().err and not (tmp_path / "t2.json").exists()
+    assert (
+        "bad.json: not a frequency response" in capsys.readouterr().err
+        and not (tmp_path / "t2.json").exists()
+    )
 
 
 def test_write_refuses_gains_the_measured_response_does_not_admit(tmp_path, capsys):
@@ -176,18 +205,33 @@ def test_write_refuses_gains_the_measured_response_does_not_admit(tmp_path, caps
     from drive_bridge.tuning.tune import tune, tune_doc
 
     from ..support import bus_yml_beside
+
     share, k, d = two_mass()
     frf = tmp_path / "frf.json"
-    frf.write_text(json.dumps(frf_doc({"y": measured({"compliance": {"TM_SHARE": share, "TM_K": k, "TM_D": d}})},
-                                      {})))
-    rigid = tune({"y": {"J": J, "c0": 0.32, "c1": C1}}, {"y": {"motor": {"R": MOTOR.R, "L": MOTOR.L},
-                                                                     "parameters_before": {}}})
+    frf.write_text(
+        json.dumps(frf_doc({"y": measured({"compliance": {"TM_SHARE": share, "TM_K": k, "TM_D": d}})}, {}))
+    )
+    rigid = tune(
+        {"y": {"J": J, "c0": 0.32, "c1": C1}},
+        {"y": {"motor": {"R": MOTOR.R, "L": MOTOR.L}, "parameters_before": {}}},
+    )
     (tmp_path / "tune.json").write_text(json.dumps(tune_doc(rigid)))
     cfg = bus_yml_beside(tmp_path)
-    argv = ["write", "--sim", "--config", str(cfg), "--params", str(tmp_path / "tune.json"), "--dry-run",
-            "--backup-dir", str(tmp_path / "b")]
+    argv = [
+        "write",
+        "--sim",
+        "--config",
+        str(cfg),
+        "--params",
+        str(tmp_path / "tune.json"),
+        "--dry-run",
+        "--backup-dir",
+        str(tmp_path / "b"),
+    ]
     assert main(argv) == 0
     capsys.readouterr()
     assert main(argv + ["--frf", str(frf)]) == 2
-    assert "axis y: the velocity loop crosses over above the band its response was measured in" in \
-        capsys.readouterr().err
+    assert (
+        "axis y: the velocity loop crosses over above the band its response was measured in"
+        in capsys.readouterr().err
+    )

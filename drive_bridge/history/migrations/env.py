@@ -1,4 +1,5 @@
 """Alembic's environment: migrations run on the connection :mod:`drive_bridge.history.store` passes."""
+
 from __future__ import annotations
 
 from alembic import context

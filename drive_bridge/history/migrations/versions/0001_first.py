@@ -4,6 +4,7 @@ Revision ID: 0001
 Revises:
 Create Date: 2026-11-26
 """
+
 from __future__ import annotations
 
 import sqlalchemy as sa
@@ -32,7 +33,9 @@ def upgrade() -> None:
     )
     op.create_table(
         "axes",
-        sa.Column("run_id", sa.String(32), sa.ForeignKey("runs.run_id", ondelete="CASCADE"), primary_key=True),
+        sa.Column(
+            "run_id", sa.String(32), sa.ForeignKey("runs.run_id", ondelete="CASCADE"), primary_key=True
+        ),
         sa.Column("axis", sa.String(64), primary_key=True),
         sa.Column("node_id", sa.Integer),
         sa.Column("vendor_id", sa.BigInteger),
