@@ -35,9 +35,9 @@ def open_link(
         except Exception as exc:  # python-can raises many kinds for a missing interface
             raise UserError(f"{config.path}: cannot open bus {m.interface}:{m.channel} ({exc})") from exc
     else:
-        from .sim.config import DEFAULT_CONFIG as SIM_DEFAULT
-        from .sim.config import load_sim_config
         from .sim.kernel import VELOCITY_TICK_S
+        from .sim.robot_config import DEFAULT_CONFIG as SIM_DEFAULT
+        from .sim.robot_config import load_sim_config
 
         robot_cfg = load_sim_config(sim_config or SIM_DEFAULT)  # errors show here, not in the child
         ticks = config.master.sync_period_s / VELOCITY_TICK_S

@@ -9,7 +9,7 @@ the time unit of a velocity.  ``0xFF410000`` is 0.1 degree, ``0x00B44700`` revol
 (the Nanotec C5-E's factory units), ``0x00B50000`` encoder increments.
 
 Everything here is motor side: device units per motor radian and per motor rad/s.  The master
-reads these objects at bring-up (:mod:`drive_bridge.master.units`); the simulated drives use
+reads these objects at bring-up (:mod:`drive_bridge.master.drive_units`); the simulated drives use
 the same decoding to report in the units their object dictionary holds.
 """
 

@@ -7,7 +7,7 @@ import tempfile
 
 import pytest
 
-from drive_bridge.sim.config import DEFAULT_CONFIG, SimConfig, load_sim_config
+from drive_bridge.sim.robot_config import DEFAULT_CONFIG, SimConfig, load_sim_config
 
 from .support import VENDOR_EDS, Bench, clean_config
 

@@ -26,8 +26,8 @@ from drive_bridge.od import load_od
 from drive_bridge.params.check import check_set
 from drive_bridge.params.profile import PROFILE_DIR, load_profile
 from drive_bridge.resources import DEFAULT_BUS_CONFIG, PROJECT_EDS
-from drive_bridge.sim.config import DEFAULT_CONFIG as SIM_CONFIG
-from drive_bridge.sim.config import load_sim_config
+from drive_bridge.sim.robot_config import DEFAULT_CONFIG as SIM_CONFIG
+from drive_bridge.sim.robot_config import load_sim_config
 from drive_bridge.tuning.tune import read_identify_json, read_tune_json, tune
 
 #: values nobody should write in a configuration, and some that look almost right
@@ -354,7 +354,7 @@ def _cli(argv, tmp: Path):
 
 def record_trace(out: Path) -> tuple[bytes, str]:
     """A real trace and its meta.yaml: a short lockstep recording of one axis, in ``out``."""
-    from drive_bridge.record import record
+    from drive_bridge.recorder import record
 
     from .support import Bench, clean_config, quick_config
 

@@ -17,9 +17,9 @@ from drive_bridge.config import load_bus_config
 from drive_bridge.od import load_od
 from drive_bridge.paper import TABLE_II
 from drive_bridge.resources import DEFAULT_BUS_CONFIG, PROJECT_EDS
-from drive_bridge.sim.config import Motor, SimAxis, SimConfig
 from drive_bridge.sim.lockstep import LockstepLink
 from drive_bridge.sim.robot import SimRobot
+from drive_bridge.sim.robot_config import Motor, SimAxis, SimConfig
 
 ROOT = Path(__file__).resolve().parents[1]
 SHARED = ROOT.parent / "shared"

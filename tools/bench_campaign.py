@@ -23,9 +23,9 @@ sys.path.insert(0, str(ROOT))
 from drive_bridge.config import load_bus_config  # noqa: E402
 from drive_bridge.connect import open_link  # noqa: E402
 from drive_bridge.ident import identify  # noqa: E402
-from drive_bridge.record import record  # noqa: E402
+from drive_bridge.recorder import record  # noqa: E402
 from drive_bridge.resources import DEFAULT_BUS_CONFIG  # noqa: E402
-from drive_bridge.sim.config import DEFAULT_CONFIG, load_sim_config  # noqa: E402
+from drive_bridge.sim.robot_config import DEFAULT_CONFIG, load_sim_config  # noqa: E402
 from tools.reference import stamp  # noqa: E402
 
 ROBOTS = {"shipped": DEFAULT_CONFIG, "second": ROOT / "tools" / "robots" / "second.yaml"}

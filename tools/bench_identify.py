@@ -48,9 +48,9 @@ from drive_bridge.config import load_bus_config  # noqa: E402
 from drive_bridge.ident import identify  # noqa: E402
 from drive_bridge.master.campaign import build_plan  # noqa: E402
 from drive_bridge.resources import DEFAULT_BUS_CONFIG  # noqa: E402
-from drive_bridge.sim.config import DEFAULT_CONFIG as SIM_DEFAULT  # noqa: E402
-from drive_bridge.sim.config import load_sim_config  # noqa: E402
 from drive_bridge.sim.plantlog import plant_log, write_log  # noqa: E402
+from drive_bridge.sim.robot_config import DEFAULT_CONFIG as SIM_DEFAULT  # noqa: E402
+from drive_bridge.sim.robot_config import load_sim_config  # noqa: E402
 from tools.reference import least_squares, stamp, worktree  # noqa: E402
 
 

@@ -34,7 +34,7 @@ sys.path.insert(0, str(ROOT))
 
 from drive_bridge.config import load_bus_config  # noqa: E402
 from drive_bridge.connect import open_link  # noqa: E402
-from drive_bridge.record import record  # noqa: E402
+from drive_bridge.recorder import record  # noqa: E402
 from drive_bridge.resources import DEFAULT_BUS_CONFIG  # noqa: E402
 from tools.reference import stamp, worktree  # noqa: E402
 
@@ -52,7 +52,7 @@ reference = importlib.util.module_from_spec(spec)
 spec.loader.exec_module(reference)
 from drive_bridge.config import load_bus_config
 from drive_bridge.connect import open_link
-from drive_bridge.record import record
+from drive_bridge.recorder import record
 from drive_bridge.resources import DEFAULT_BUS_CONFIG
 cfg = load_bus_config(DEFAULT_BUS_CONFIG)
 cfg = replace(cfg, campaign=replace(cfg.campaign, max_axis_time_s=float(sys.argv[1]) / 3, together=False))

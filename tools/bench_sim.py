@@ -19,28 +19,28 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from drive_bridge.sim import kernel as K  # noqa: E402
+from drive_bridge.sim import kernel  # noqa: E402
 from drive_bridge.sim.adapters import FastVirtualBus  # noqa: E402
-from drive_bridge.sim.config import DEFAULT_CONFIG, load_sim_config  # noqa: E402
 from drive_bridge.sim.robot import SimRobot  # noqa: E402
+from drive_bridge.sim.robot_config import DEFAULT_CONFIG, load_sim_config  # noqa: E402
 from tools.reference import pump, stamp  # noqa: E402
 
 PERIOD = 0.002
 
 
-def kernel(seconds: float = 60.0) -> float:
+def plant_kernel(seconds: float = 60.0) -> float:
     robot = SimRobot(load_sim_config(DEFAULT_CONFIG), "bench-kernel")
-    robot.plant.state[:, K.ENABLED] = 1.0
+    robot.plant.state[:, kernel.ENABLED] = 1.0
     n = round(seconds / PERIOD)
     demand = np.sin(np.arange(n) * PERIOD * 2 * np.pi) * 5.0
     tick0 = np.zeros(3, dtype=np.int64)
-    K.advance(robot.plant.state, robot.plant.param, robot.plant.demand, tick0, 1, 4)
+    kernel.advance(robot.plant.state, robot.plant.param, robot.plant.demand, tick0, 1, 4)
     t0 = time.perf_counter()
     for k in range(1, n):
-        robot.plant.demand[:, K.P0] = demand[k - 1]
-        robot.plant.demand[:, K.P1] = demand[k]
+        robot.plant.demand[:, kernel.P0] = demand[k - 1]
+        robot.plant.demand[:, kernel.P1] = demand[k]
         tick0[:] = 0
-        K.advance(robot.plant.state, robot.plant.param, robot.plant.demand, tick0, 4, 4)
+        kernel.advance(robot.plant.state, robot.plant.param, robot.plant.demand, tick0, 4, 4)
     wall = time.perf_counter() - t0
     robot.shutdown()
     return seconds / wall
@@ -93,7 +93,7 @@ if __name__ == "__main__":
     print(stamp())
     ref = pump()
     print(f"plain python-can pump (tools/reference.py): {ref:.1f}x real time")
-    k = kernel()
+    k = plant_kernel()
     print(f"kernel (3 axes, 8 kHz / 2 kHz): {k:.0f}x real time ({k / ref:.1f}x the pump)")
     b = bus()
     print(

@@ -24,9 +24,9 @@ sys.path.insert(0, str(ROOT))
 import canopen  # noqa: E402
 import yaml  # noqa: E402
 
-from drive_bridge.record import record  # noqa: E402
-from drive_bridge.signals import Terminated  # noqa: E402
-from drive_bridge.sim import kernel as K  # noqa: E402
+from drive_bridge.interrupts import Terminated  # noqa: E402
+from drive_bridge.recorder import record  # noqa: E402
+from drive_bridge.sim import kernel  # noqa: E402
 from tests.params.test_transaction import CASES, NAMES, SIM, Fault, device, new_values  # noqa: E402
 from tests.support import Bench, clean_config, quick_config, read_csv  # noqa: E402
 
@@ -43,11 +43,13 @@ def motion_fault(name: str, sim, hook) -> tuple[bool, int]:
                 on_plan=lambda plan: lambda k: hook(bench, k),
             )
             standing = all(
-                abs(d.s[K.V]) < 0.06 and d.state in (1, 5, 7) for d in bench.robot.drives.values() if d.online
+                abs(d.s[kernel.V]) < 0.06 and d.state in (1, 5, 7)
+                for d in bench.robot.drives.values()
+                if d.online
             )
             bench.link.clock.sleep(0.5)  # a drive the master cannot reach stops itself
             standing = standing and all(
-                abs(d.s[K.V]) < 0.06 and d.state in (1, 5, 7) for d in bench.robot.drives.values()
+                abs(d.s[kernel.V]) < 0.06 and d.state in (1, 5, 7) for d in bench.robot.drives.values()
             )
             meta = yaml.safe_load((Path(tmp) / "meta.yaml").read_text())
             names, data = read_csv(Path(tmp) / "log.csv")

@@ -16,7 +16,7 @@ from drive_bridge.config import load_bus_config
 from drive_bridge.ident import identify
 from drive_bridge.params.profile import available, load_profile
 from drive_bridge.resources import DEFAULT_BUS_CONFIG, PROJECT_EDS, vendor_dir
-from drive_bridge.sim.config import DEFAULT_CONFIG, load_sim_config
+from drive_bridge.sim.robot_config import DEFAULT_CONFIG, load_sim_config
 
 
 def main(run: Path) -> None:

@@ -26,7 +26,7 @@ from drive_bridge.master.bringup import bring_up  # noqa: E402
 from drive_bridge.paper import TABLE_III  # noqa: E402
 from drive_bridge.params.cascade import loop_margins  # noqa: E402
 from drive_bridge.params.profile import load_profile  # noqa: E402
-from drive_bridge.record import record  # noqa: E402
+from drive_bridge.recorder import record  # noqa: E402
 from drive_bridge.resources import DEFAULT_BUS_CONFIG  # noqa: E402
 from drive_bridge.tuning.tune import model_from_identify, tune_axis  # noqa: E402
 from drive_bridge.tuning.validate import validate  # noqa: E402

@@ -4,7 +4,7 @@ option codes of the reactions a drive can be set to.
 
 canopen's :class:`~canopen.profiles.p402.State402` names the states as the master sees them;
 :func:`state_name` reads a statusword with its masks.  The states' numbers here are the drive's
-side (:mod:`drive_bridge.sim.cia402` runs the transitions between them).
+side (:mod:`drive_bridge.sim.state_machine` runs the transitions between them).
 """
 
 from __future__ import annotations

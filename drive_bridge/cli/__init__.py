@@ -14,7 +14,7 @@ import os
 import sys
 import warnings
 
-from .. import signals
+from .. import interrupts
 from ..errors import EXIT_CODES, DriveBridgeError, MotionAborted, exit_code, exit_codes_text
 from ..version import __version__
 from . import bus, commission, history, identification, tuning
@@ -73,12 +73,12 @@ def log_to_stderr(verbose: int, quiet: bool) -> logging.Handler:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run one command; SIGTERM and SIGHUP end it like Ctrl-C (:mod:`drive_bridge.signals`)."""
-    with signals.handled(), warnings.catch_warnings():
+    """Run one command; SIGTERM and SIGHUP end it like Ctrl-C (:mod:`drive_bridge.interrupts`)."""
+    with interrupts.handled(), warnings.catch_warnings():
         try:
             return _run(argv)
         except KeyboardInterrupt as exc:  # a signal before or after a command's own handling
-            print(f"drive-bridge: interrupted ({signals.signal_name(exc)})", file=sys.stderr)
+            print(f"drive-bridge: interrupted ({interrupts.signal_name(exc)})", file=sys.stderr)
             return exit_code(exc)
         except BrokenPipeError:  # the reader of our output went away (| head): stop quietly
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
@@ -115,7 +115,9 @@ def _command(args: argparse.Namespace) -> int:
         print(f"drive-bridge: error: {exc}", file=sys.stderr)
         return exc.exit_code
     except KeyboardInterrupt as exc:
-        print(f"drive-bridge: interrupted ({signals.signal_name(exc)}); nothing was moving", file=sys.stderr)
+        print(
+            f"drive-bridge: interrupted ({interrupts.signal_name(exc)}); nothing was moving", file=sys.stderr
+        )
         return exit_code(exc)
     except BrokenPipeError:
         raise

@@ -175,7 +175,7 @@ def cmd_scan(args: argparse.Namespace) -> int:
 
 def cmd_record(args: argparse.Namespace) -> int:
     from ..progress import CampaignProgress
-    from ..record import record
+    from ..recorder import record
 
     options.out_dir(args.out)
     config = options.config(args)
@@ -216,8 +216,8 @@ def cmd_record(args: argparse.Namespace) -> int:
 
 def cmd_sim(args: argparse.Namespace) -> int:
     from ..cia.buses import open_bus
-    from ..sim.config import DEFAULT_CONFIG
     from ..sim.process import serve
+    from ..sim.robot_config import DEFAULT_CONFIG
 
     config = load_bus_config(args.config)
     eds = {a: str(n.dcf) for a, n in config.nodes.items()}

@@ -48,7 +48,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 def cmd_identify(args: argparse.Namespace) -> int:
     from ..history.record import now
     from ..ident import identify
-    from ..ident.report import as_json, summary, write_report
+    from ..ident.presentation import as_json, summary, write_report
 
     options.out_dir(args.out)
     started = now()

@@ -19,11 +19,11 @@ import numpy as np
 
 from ..document import Document, Strong, measured, number
 from ..figures import pyplot, save, side_by_side
-from ..ident.report import unit
+from ..ident.presentation import unit
 from ..ident.trace import describe_unexplained
 from ..params.controller import Controller
 from ..tuning.loops import predicted_following_error
-from . import steps as S
+from . import steps as step_functions
 from .verdict import reasons
 from .worse import worse
 
@@ -125,10 +125,13 @@ def _model(doc: Document, out: Path, axis: str, a: dict) -> None:
         f"{number(a['relative_error_after'] * 100, '.2f')} %); noise floor {number(a['noise_floor'], '.3g')} {u}. "
         f"Differential evolution on the same data: RMSE {number(a['ga']['rmse'], '.4g')} {u}."
     )
-    doc.figure(out / S.OUTPUT["identify"] / f"{axis}_fit.png", f"axis {axis}: measured and predicted torque")
-    if (out / S.OUTPUT["identify"] / f"{axis}_response.png").exists():
+    doc.figure(
+        out / step_functions.OUTPUT["identify"] / f"{axis}_fit.png",
+        f"axis {axis}: measured and predicted torque",
+    )
+    if (out / step_functions.OUTPUT["identify"] / f"{axis}_response.png").exists():
         doc.figure(
-            out / S.OUTPUT["identify"] / f"{axis}_response.png",
+            out / step_functions.OUTPUT["identify"] / f"{axis}_response.png",
             f"axis {axis}: the plant's response read from the campaign log beside the rigid model's "
             f"(reference; the measure step's response is the one the margins use)",
         )
@@ -144,7 +147,9 @@ def _model(doc: Document, out: Path, axis: str, a: dict) -> None:
             f"{number(eff['relative_error_after'] * 100, '.2f')} %."
         )
         doc.para(eff["evidence"], "note")
-        doc.figure(out / S.OUTPUT["identify"] / f"{axis}_effect{k + 1}_{eff['name']}.png", eff["name"])
+        doc.figure(
+            out / step_functions.OUTPUT["identify"] / f"{axis}_effect{k + 1}_{eff['name']}.png", eff["name"]
+        )
     for un in a.get("unexplained") or []:
         doc.para(f"Unexplained: {describe_unexplained(un)}.")
 
@@ -185,7 +190,9 @@ def _gains(doc: Document, out: Path, axis: str, a: dict) -> None:
         ],
         rows,
     )
-    doc.figure(out / S.LOOPS.format(axis=axis), f"axis {axis} loops: Bode plots and step response")
+    doc.figure(
+        out / step_functions.LOOPS.format(axis=axis), f"axis {axis} loops: Bode plots and step response"
+    )
     tuned = _tuned(out, axis) or {}
     c = Controller.from_dict(tuned.get("controller"))
     rates = ", ".join(f"{k} {v:g} Hz" for k, v in c.rates_hz.items() if v)
@@ -207,7 +214,7 @@ def _gains(doc: Document, out: Path, axis: str, a: dict) -> None:
 def _tuned(out: Path, axis: str) -> dict | None:
     """``axis`` in tune.json; None where it cannot be read."""
     try:
-        return json.loads((out / S.OUTPUT["tune"]).read_text())["axes"][axis]
+        return json.loads((out / step_functions.OUTPUT["tune"]).read_text())["axes"][axis]
     except (OSError, ValueError, KeyError):
         return None
 
@@ -227,7 +234,7 @@ def _validation_figures(
 ) -> dict[tuple[str, str], Path | None]:
     """(axis, trajectory) -> its validation figure, drawn into ``out`` with what ``loops`` predict;
     side by side where work is shared out (:func:`..figures.side_by_side`)."""
-    path = out / S.TRACES
+    path = out / step_functions.TRACES
     jobs = [(axis, t) for axis in loops for t in summary["axes"][axis]["validation"]]
     if not jobs or not path.exists():
         return {}

@@ -26,14 +26,14 @@ from ..master.link import Link
 from ..outputs import write_json
 from ..progress import StepReporter
 from ..session import Options, Session
-from . import steps as S
+from . import steps as step_functions
 from .report import FIGURES, REPORT, REPORT_MD, write_report
 from .summary import build_summary, history_record
 from .verdict import headline
 
 log = logging.getLogger(__name__)
 
-STEPS = tuple(S.STEP_FUNCTIONS)
+STEPS = tuple(step_functions.STEP_FUNCTIONS)
 STATE = "state.json"
 SUMMARY = "summary.json"
 ERROR_LOG = "error.log"
@@ -96,8 +96,17 @@ def _state(out: Path, config: BusConfig, restart: bool) -> dict:
 
 def _clear(out: Path) -> None:
     """Remove a previous run's outputs (only the names this tool writes)."""
-    loops = [p.name for p in out.glob(S.LOOPS.format(axis="*"))]
-    for name in [*S.OUTPUT.values(), STATE, SUMMARY, REPORT, REPORT_MD, FIGURES, ERROR_LOG, *loops]:
+    loops = [p.name for p in out.glob(step_functions.LOOPS.format(axis="*"))]
+    for name in [
+        *step_functions.OUTPUT.values(),
+        STATE,
+        SUMMARY,
+        REPORT,
+        REPORT_MD,
+        FIGURES,
+        ERROR_LOG,
+        *loops,
+    ]:
         p = out / name
         if p.is_dir():
             shutil.rmtree(p)
@@ -144,7 +153,7 @@ def commission(
     code = 0
     failure: dict[str, str] | None = None  # the step that stopped the run, and why
     with Session(config, options, link) as session:
-        ctx = S.Context(session, out, reporter)
+        ctx = step_functions.Context(session, out, reporter)
         for step in todo:
             reporter.start(step, WHAT[step])
             log.info("step %s: %s", step, WHAT[step])
@@ -155,7 +164,7 @@ def commission(
             _save(out, state)
             t0 = time.perf_counter()
             try:
-                line = S.STEP_FUNCTIONS[step](ctx)
+                line = step_functions.STEP_FUNCTIONS[step](ctx)
             except (Exception, KeyboardInterrupt) as exc:  # every failure ends the run with a report
                 code, reason = _failure(exc, out)
                 failure = {"step": step, "reason": reason}

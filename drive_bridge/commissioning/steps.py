@@ -18,7 +18,7 @@ from ..params.write import raise_for_failure, write_drives
 from ..progress import StepReporter
 from ..session import Session
 from ..tuning import tune as gain_tuning
-from ..tuning import validate as V
+from ..tuning import validate as validation
 from ..tuning.tune import (
     drive_model,
     read_frf_json,
@@ -43,8 +43,8 @@ OUTPUT = {
 }
 IDENTIFY_JSON = "identify/identify.json"
 WRITE_JSON = "write/write.json"
-VALIDATE_JSON = f"{OUTPUT['validate']}/{V.VALIDATE_JSON}"
-TRACES = f"{OUTPUT['validate']}/{V.TRACES}"
+VALIDATE_JSON = f"{OUTPUT['validate']}/{validation.VALIDATE_JSON}"
+TRACES = f"{OUTPUT['validate']}/{validation.TRACES}"
 LOOPS = "loops_{axis}.png"  # the tune step's loop pictures, per axis
 
 
@@ -106,7 +106,7 @@ def bringup(ctx: Context) -> str:
 
 
 def campaign(ctx: Context) -> str:
-    from ..record import record
+    from ..recorder import record
 
     # brought up once more inside the campaign's trace (the bringup step's writes, the same again),
     # so that it holds bring-up, streaming and stop as a capture from the bus's opening would
@@ -132,7 +132,7 @@ def campaign(ctx: Context) -> str:
 
 def identify(ctx: Context) -> str:
     from ..ident import identify as identify_log
-    from ..ident.report import write_report
+    from ..ident.presentation import write_report
 
     source = ctx.require(OUTPUT["campaign"])
     results = identify_log(source, seed=ctx.options.seed, progress=lambda a: ctx.reporter.note(f"axis {a}"))

@@ -27,7 +27,7 @@ from ..params.profile import DEFAULT_PROFILE
 from ..session import Options
 from ..version import __version__
 from ..yamlconf import load_yaml
-from . import steps as S
+from . import steps as step_functions
 from .verdict import verdict
 
 PACKAGES = ("python-can", "canopen", "numpy", "scipy", "control", "matplotlib", "numba", "PyYAML")
@@ -126,7 +126,7 @@ def _written(w: dict) -> list[dict]:
 
 def _meta(out: Path) -> dict:
     """The campaign's meta.yaml (the mode each axis streamed in), or nothing."""
-    path = out / S.OUTPUT["campaign"] / META_NAME
+    path = out / step_functions.OUTPUT["campaign"] / META_NAME
     try:
         return load_yaml(path) if path.is_file() else {}
     except UserError:
@@ -138,8 +138,8 @@ def history_record(out: Path, state: dict, summary: dict, config: BusConfig, sim
     its scan (the drives' identities) and its identification (what the data left undetermined)."""
     from ..history.record import following_error, identified, identity, record
 
-    found = (_load(out, S.OUTPUT["scan"]) or {}).get("found", {})
-    ident = (_load(out, S.IDENTIFY_JSON) or {}).get("axes", {})
+    found = (_load(out, step_functions.OUTPUT["scan"]) or {}).get("found", {})
+    ident = (_load(out, step_functions.IDENTIFY_JSON) or {}).get("axes", {})
     verdicts = summary["verdict"]["axes"]
     axes = []
     for a, s in summary["axes"].items():
@@ -190,16 +190,20 @@ def build_summary(out: Path, state: dict, config: BusConfig, options: Options) -
             else ("done" if s in completed else "not run"),
             "duration_s": state["durations_s"].get(s),
         }
-        for s in S.STEP_FUNCTIONS
+        for s in step_functions.STEP_FUNCTIONS
     ]
-    status = "failed" if failed else ("ok" if all(s in completed for s in S.STEP_FUNCTIONS) else "partial")
+    status = (
+        "failed"
+        if failed
+        else ("ok" if all(s in completed for s in step_functions.STEP_FUNCTIONS) else "partial")
+    )
     timing = [d for reasons in (state.get("timing_degraded") or {}).values() for d in reasons]
     if status == "ok" and timing:
         status = "degraded"
-    ident = (_load(out, S.IDENTIFY_JSON) or {}).get("axes", {})
-    tune = (_load(out, S.OUTPUT["tune"]) or {}).get("axes", {})
-    write = (_load(out, S.WRITE_JSON) or {}).get("axes", {})
-    runs = (_load(out, S.VALIDATE_JSON) or {}).get("runs", [])
+    ident = (_load(out, step_functions.IDENTIFY_JSON) or {}).get("axes", {})
+    tune = (_load(out, step_functions.OUTPUT["tune"]) or {}).get("axes", {})
+    write = (_load(out, step_functions.WRITE_JSON) or {}).get("axes", {})
+    runs = (_load(out, step_functions.VALIDATE_JSON) or {}).get("runs", [])
     meta = _meta(out)
     axes = {}
     for a in config.nodes:

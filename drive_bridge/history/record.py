@@ -59,7 +59,7 @@ def identity_number(value: str | None) -> int | None:
 
 def _parameters(ident: dict) -> dict[str, dict[str, Any]]:
     """An identify.json axis's parameters: value, std, unit, determined."""
-    from ..ident.report import unit
+    from ..ident.presentation import unit
 
     kind = "rotary" if (ident.get("units") or {}).get("position", "rad") == "rad" else "linear"
     std = ident.get("param_std") or {}

@@ -13,7 +13,7 @@ import sqlalchemy as sa
 
 from ..errors import DriveBridgeError, UserError
 from ..outputs import hex32
-from . import schema as T
+from . import schema
 from .location import data_dir, database_url, redacted, shown
 from .record import IDENTITY, identity_number
 
@@ -134,15 +134,15 @@ class HistoryStore:
     def _add(self, record: dict) -> bool:
         with self.engine.begin() as conn:
             held = conn.execute(
-                sa.select(T.runs.c.updated_at).where(T.runs.c.run_id == record["run_id"])
+                sa.select(schema.runs.c.updated_at).where(schema.runs.c.run_id == record["run_id"])
             ).scalar()
             if held is not None and _aware(held) >= _time(record["updated"]):
                 return False
             if held is not None:  # a resumed commissioning: its later record replaces the earlier
-                for table in (T.parameters, T.axes, T.runs):
+                for table in (schema.parameters, schema.axes, schema.runs):
                     conn.execute(table.delete().where(table.c.run_id == record["run_id"]))
             conn.execute(
-                T.runs.insert().values(
+                schema.runs.insert().values(
                     run_id=record["run_id"],
                     kind=record["kind"],
                     started_at=_time(record["started"]),
@@ -159,7 +159,7 @@ class HistoryStore:
             for a in record["axes"]:
                 drive = a.get("drive") or {}
                 conn.execute(
-                    T.axes.insert().values(
+                    schema.axes.insert().values(
                         run_id=record["run_id"],
                         axis=a["axis"],
                         node_id=a.get("node_id"),
@@ -182,7 +182,7 @@ class HistoryStore:
                     for name, p in (a.get("parameters") or {}).items()
                 ]
                 if rows:
-                    conn.execute(T.parameters.insert(), rows)
+                    conn.execute(schema.parameters.insert(), rows)
         return True
 
     def runs(
@@ -194,29 +194,29 @@ class HistoryStore:
 
     def _runs(self, limit: int | None, axis: str | None, serial: int | None) -> list[dict]:
         query = sa.select(
-            T.runs.c.run_id,
-            T.runs.c.kind,
-            T.runs.c.started_at,
-            T.runs.c.status,
-            T.runs.c.verdict,
-            T.runs.c.simulated,
-            T.runs.c.out_dir,
-            T.runs.c.version,
+            schema.runs.c.run_id,
+            schema.runs.c.kind,
+            schema.runs.c.started_at,
+            schema.runs.c.status,
+            schema.runs.c.verdict,
+            schema.runs.c.simulated,
+            schema.runs.c.out_dir,
+            schema.runs.c.version,
         )
         if axis is not None or serial is not None:
-            sel = sa.select(T.axes.c.run_id)
-            sel = sel.where(T.axes.c.axis == axis) if axis is not None else sel
-            sel = sel.where(T.axes.c.serial == serial) if serial is not None else sel
-            query = query.where(T.runs.c.run_id.in_(sel))
-        query = query.order_by(T.runs.c.started_at.desc(), T.runs.c.run_id).limit(limit)
+            sel = sa.select(schema.axes.c.run_id)
+            sel = sel.where(schema.axes.c.axis == axis) if axis is not None else sel
+            sel = sel.where(schema.axes.c.serial == serial) if serial is not None else sel
+            query = query.where(schema.runs.c.run_id.in_(sel))
+        query = query.order_by(schema.runs.c.started_at.desc(), schema.runs.c.run_id).limit(limit)
         with self.engine.connect() as conn:
             rows = [dict(r._mapping) for r in conn.execute(query)]
             drives: dict[str, list[tuple[str, int | None]]] = {}
             ids = [r["run_id"] for r in rows]
             for row in conn.execute(
-                sa.select(T.axes.c.run_id, T.axes.c.axis, T.axes.c.serial)
-                .where(T.axes.c.run_id.in_(ids))
-                .order_by(T.axes.c.axis)
+                sa.select(schema.axes.c.run_id, schema.axes.c.axis, schema.axes.c.serial)
+                .where(schema.axes.c.run_id.in_(ids))
+                .order_by(schema.axes.c.axis)
             ):
                 drives.setdefault(row.run_id, []).append((row.axis, row.serial))
         for r in rows:
@@ -243,8 +243,8 @@ class HistoryStore:
             return [
                 r.record
                 for r in conn.execute(
-                    sa.select(T.runs.c.record)
-                    .where(T.runs.c.run_id.startswith(run, autoescape=True))
+                    sa.select(schema.runs.c.record)
+                    .where(schema.runs.c.run_id.startswith(run, autoescape=True))
                     .limit(2)
                 )
             ]
@@ -254,7 +254,7 @@ class HistoryStore:
         return list(self._guard(self._parameters))
 
     def _parameters(self) -> list[ParameterRow]:
-        r, a, p = T.runs.c, T.axes.c, T.parameters.c
+        r, a, p = schema.runs.c, schema.axes.c, schema.parameters.c
         query = (
             sa.select(
                 r.run_id,
@@ -271,8 +271,8 @@ class HistoryStore:
                 p.determined,
             )
             .select_from(
-                T.parameters.join(T.axes, sa.and_(p.run_id == a.run_id, p.axis == a.axis)).join(
-                    T.runs, r.run_id == a.run_id
+                schema.parameters.join(schema.axes, sa.and_(p.run_id == a.run_id, p.axis == a.axis)).join(
+                    schema.runs, r.run_id == a.run_id
                 )
             )
             .where(a.serial.is_not(None))  # a log identified alone names no drive: not compared

@@ -28,9 +28,9 @@ from ..od import default, limits, variable
 from ..outputs import hex_object, identity_hex, stamped
 from ..pdo import PdoCodec
 from ..setpoint import IP_SUB_MODE, PVT, choose, describe_modes, supported_modes
-from .cia402 import Drive402
+from .drive_units import read_units, reconcile
 from .link import Clock, Link
-from .units import read_units, reconcile
+from .sdo_states import Drive402
 
 log = logging.getLogger(__name__)
 
@@ -57,7 +57,7 @@ class AxisLink:
     last_heartbeat: float | None = None
     nmt_state: int | None = None
     emcy: list[tuple[float, int]] = field(default_factory=list)  # (time, code)
-    #: what the drive said about its units (:mod:`.units`), and the limits and stop behaviour
+    #: what the drive said about its units (:mod:`.drive_units`), and the limits and stop behaviour
     #: written into it as read back ("0xIIII:S" -> value)
     units: dict = field(default_factory=dict)
     drive_limits: dict = field(default_factory=dict)

@@ -41,7 +41,7 @@ from typing import cast
 import numpy as np
 
 from ..cia.buses import BusSpec
-from ..signals import HANDLED
+from ..interrupts import HANDLED
 from .engine import STOP_REQUEST, Arrays, Engine, Job, Outcome, stop_code
 from .port import BusPort, TraceRing
 from .timing import RT_PRIORITY, lock_memory, raise_priority

@@ -27,7 +27,7 @@ from ..cia.p402 import (
 from ..cia.sdo import write_setting
 from ..config import BusConfig
 from ..errors import Interrupted, MotionAborted
-from ..signals import signal_name
+from ..interrupts import signal_name
 from .bringup import AxisLink, read_back
 from .link import Link
 from .stream import check_heartbeats, quick_stop

@@ -27,7 +27,7 @@ import canopen
 
 from ..cia.buses import BusSpec
 from ..errors import BusError
-from ..signals import signal_name
+from ..interrupts import signal_name
 from .blf import BatchedBLFWriter
 from .coprocess import EngineError, EngineProcess, EngineThread, engine_for
 from .engine import ROWS_SENT, STOP_REQUEST, Arrays, Job, Outcome, reporter, stop_code

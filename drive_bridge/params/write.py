@@ -20,8 +20,8 @@ import canopen
 from ..cia.sdo import SDO_ERRORS, address, describe_sdo_error, put_back, sdo_object, snapshot
 from ..dcf import export_dcf
 from ..errors import BusError, DriveRefused, InternalError, UserError, WriteInterrupted
+from ..interrupts import deferred, signal_name
 from ..outputs import hex_object, stamped, write_json
-from ..signals import deferred, signal_name
 from .check import GM_FLOOR_DB, PM_FLOOR_DEG, ValueRefused, check_set, gate
 from .profile import Entry, Profile
 from .read import motor_data, require_profile_objects, sdo_variable

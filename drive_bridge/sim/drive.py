@@ -3,7 +3,7 @@
 The SDO server and the object storage are canopen's ``LocalNode``; this module
 adds what a real drive does with those objects: NMT, heartbeat, EMCY, PDOs as
 the master maps them (:mod:`.pdo_map`; TPDOs sent on SYNC, synchronous RPDOs
-applied on SYNC), the CiA 402 state machine (:mod:`.cia402`), the operating modes CSP (8),
+applied on SYNC), the CiA 402 state machine (:mod:`.state_machine`), the operating modes CSP (8),
 IP (7), PV (3), PP (1) and homing (6) where its 0x6502 lists them (positions counted from home
 once it has homed), and the safety functions (following-error window, software position limits,
 loss of setpoint).  The loops and the
@@ -75,13 +75,12 @@ from ..params.controller import Controller
 from ..params.profile import SELECT, load_profile
 from ..pdo import PdoCodec
 from ..setpoint import PVT, SETPOINT_OBJECTS, position_of, supported_modes
-from . import cyclic as X
-from . import kernel as K
+from . import cyclic, kernel
 from .adapters import local_node
-from .cia402 import next_state
-from .config import SimAxis
 from .pdo_map import ABORT_RANGE, PdoMapping
 from .plant import Plant
+from .robot_config import SimAxis
+from .state_machine import next_state
 from .vendors import factory, spec_for
 
 log = logging.getLogger(__name__)
@@ -110,20 +109,33 @@ ABORT_TOO_LOW = 0x06090032
 
 #: drive-profile parameter -> kernel parameter: the gains, and the model feed-forward of a drive
 #: that has one
-GAIN_PARAMS = {"KpP": K.KPP, "FwF": K.FWF, "KpS": K.KPS, "KiS": K.KIS, "KpC": K.KPC, "KiC": K.KIC}
-PID_PARAMS = {"PidP": K.PID_P, "PidI": K.PID_I, "PidD": K.PID_D, "PidFFv": K.PID_FFV, "PidFFa": K.PID_FFA}
+GAIN_PARAMS = {
+    "KpP": kernel.KPP,
+    "FwF": kernel.FWF,
+    "KpS": kernel.KPS,
+    "KiS": kernel.KIS,
+    "KpC": kernel.KPC,
+    "KiC": kernel.KIC,
+}
+PID_PARAMS = {
+    "PidP": kernel.PID_P,
+    "PidI": kernel.PID_I,
+    "PidD": kernel.PID_D,
+    "PidFFv": kernel.PID_FFV,
+    "PidFFa": kernel.PID_FFA,
+}
 MODEL_PARAMS = {
-    "ff_enable": K.FF_EN,
-    "J": K.FF_J,
-    "c0": K.FF_C0,
-    "c1": K.FF_C1,
-    "offset": K.FF_OFF,
-    "cp": K.FF_CP,
-    "dc0": K.FF_DC0,
-    "dc1": K.FF_DC1,
-    "periodic_amplitude": K.FF_PER_AMP,
-    "periodic_period": K.FF_PER_PERIOD,
-    "periodic_phase": K.FF_PER_PHASE,
+    "ff_enable": kernel.FF_EN,
+    "J": kernel.FF_J,
+    "c0": kernel.FF_C0,
+    "c1": kernel.FF_C1,
+    "offset": kernel.FF_OFF,
+    "cp": kernel.FF_CP,
+    "dc0": kernel.FF_DC0,
+    "dc1": kernel.FF_DC1,
+    "periodic_amplitude": kernel.FF_PER_AMP,
+    "periodic_period": kernel.FF_PER_PERIOD,
+    "periodic_phase": kernel.FF_PER_PHASE,
 }
 _MOTOR_OBJECTS = {1: "R", 2: "L", 3: "kt", 4: "vbus"}  # 0x2002 of the project's drive
 DEVICE_TYPE_SERVO = 0x00020192  # CiA 402, servo drive
@@ -133,11 +145,11 @@ def _loop_divider(controller: Controller, eds_path: str | Path) -> int:
     """Kernel ticks per tick of the drive's position/velocity loop: the simulator runs loops at
     2 kHz / n and its current loop at 8 kHz; ValueError for a profile declaring other rates."""
     inner = controller.timing
-    div = inner.tick_s / K.VELOCITY_TICK_S
+    div = inner.tick_s / kernel.VELOCITY_TICK_S
     if (
         abs(div - round(div)) > 1e-9
         or round(div) < 1
-        or inner.current_hz != K.CURRENT_SUBSTEPS / K.VELOCITY_TICK_S
+        or inner.current_hz != kernel.CURRENT_SUBSTEPS / kernel.VELOCITY_TICK_S
     ):
         raise ValueError(
             f"{eds_path}: the simulator runs a drive's loops at 2 kHz / n and its current loop at 8 kHz, "
@@ -149,14 +161,20 @@ def _loop_divider(controller: Controller, eds_path: str | Path) -> int:
 def plant_params(p: np.ndarray, axis: SimAxis, axis_names: list[str]) -> None:
     """Write the plant, motor and hidden effects of ``axis`` into its kernel parameter row ``p``."""
     m = axis.motor
-    p[K.J], p[K.C0], p[K.C1], p[K.CP], p[K.D] = axis.J, axis.c0, axis.c1, axis.cp, axis.D
-    p[K.KT], p[K.R], p[K.L], p[K.VBUS] = m.kt, m.R, m.L, m.vbus
-    p[K.CPL_SRC] = -1.0
-    p[K.BRAKE] = 1.0 if axis.brake else 0.0
-    p[K.END_LO], p[K.END_HI] = axis.end_stops_rad or (0.0, 0.0)
+    p[kernel.J], p[kernel.C0], p[kernel.C1], p[kernel.CP], p[kernel.D] = (
+        axis.J,
+        axis.c0,
+        axis.c1,
+        axis.cp,
+        axis.D,
+    )
+    p[kernel.KT], p[kernel.R], p[kernel.L], p[kernel.VBUS] = m.kt, m.R, m.L, m.vbus
+    p[kernel.CPL_SRC] = -1.0
+    p[kernel.BRAKE] = 1.0 if axis.brake else 0.0
+    p[kernel.END_LO], p[kernel.END_HI] = axis.end_stops_rad or (0.0, 0.0)
     for values in axis.effects.values():
         for name, value in values.items():
-            p[getattr(K, name)] = float(axis_names.index(value)) if name == "CPL_SRC" else value
+            p[getattr(kernel, name)] = float(axis_names.index(value)) if name == "CPL_SRC" else value
 
 
 class DriveHost(Protocol):
@@ -177,10 +195,10 @@ class _Held:
         self.column, self.kind = column, kind
 
     def __get__(self, drive: SimDrive, owner: type) -> Any:
-        return self.kind(drive.x.item(self.column))
+        return self.kind(drive.drive_values.item(self.column))
 
     def __set__(self, drive: SimDrive, value: Any) -> None:
-        drive.x[self.column] = value
+        drive.drive_values[self.column] = value
 
 
 class SimDrive:
@@ -189,28 +207,30 @@ class SimDrive:
     of this axis's rows; the plant's clock and seeded noise are the drive's); ``axis_names`` are every axis of the robot in row order (a cross-axis effect names its
     source)."""
 
-    pos_per_rad = _Held(X.X_POS_PER_RAD, float)  # position unit per rad (motor side)
-    vel_per_si = _Held(X.X_VEL_PER_SI, float)  # velocity unit per rad/s
-    origin_rad = _Held(X.X_ORIGIN, float)  # the plant position the drive counts as 0 (homing)
-    rated_torque = _Held(X.X_RATED_TORQUE, float)  # [Nm] (0x6076)
-    v_dem = _Held(X.X_V_DEM, float)  # demand velocity of the current period [rad/s]
-    setpoint_inc = _Held(X.X_SETPOINT, int)  # the last CSP target / IP record position [increments]
-    new_target = _Held(X.X_NEW_TARGET, bool)  # a CSP target / IP record arrived since the last SYNC
-    internal_limit = _Held(X.X_LIMITED, bool)  # the demand held at a software position limit
-    last_setpoint_time = _Held(X.X_SETPOINT_TIME, float)
-    setpoint_armed = _Held(X.X_ARMED, bool)  # loss-of-setpoint watchdog armed (CSP streaming started)
-    _last_count = _Held(X.X_LAST_COUNT, int)  # encoder count and time of the last sample
-    _last_refresh = _Held(X.X_LAST_TIME, float)
-    _velocity = _Held(X.X_VELOCITY, int)  # the actual values as their objects hold them
-    _torque_pm = _Held(X.X_TORQUE_PM, int)
-    _current = _Held(X.X_CURRENT, int)
-    _position_inc = _Held(X.X_POSITION, int)
+    pos_per_rad = _Held(cyclic.X_POS_PER_RAD, float)  # position unit per rad (motor side)
+    vel_per_si = _Held(cyclic.X_VEL_PER_SI, float)  # velocity unit per rad/s
+    origin_rad = _Held(cyclic.X_ORIGIN, float)  # the plant position the drive counts as 0 (homing)
+    rated_torque = _Held(cyclic.X_RATED_TORQUE, float)  # [Nm] (0x6076)
+    v_dem = _Held(cyclic.X_V_DEM, float)  # demand velocity of the current period [rad/s]
+    setpoint_inc = _Held(cyclic.X_SETPOINT, int)  # the last CSP target / IP record position [increments]
+    new_target = _Held(cyclic.X_NEW_TARGET, bool)  # a CSP target / IP record arrived since the last SYNC
+    internal_limit = _Held(cyclic.X_LIMITED, bool)  # the demand held at a software position limit
+    last_setpoint_time = _Held(cyclic.X_SETPOINT_TIME, float)
+    setpoint_armed = _Held(cyclic.X_ARMED, bool)  # loss-of-setpoint watchdog armed (CSP streaming started)
+    _last_count = _Held(cyclic.X_LAST_COUNT, int)  # encoder count and time of the last sample
+    _last_refresh = _Held(cyclic.X_LAST_TIME, float)
+    _velocity = _Held(cyclic.X_VELOCITY, int)  # the actual values as their objects hold them
+    _torque_pm = _Held(cyclic.X_TORQUE_PM, int)
+    _current = _Held(cyclic.X_CURRENT, int)
+    _position_inc = _Held(cyclic.X_POSITION, int)
 
     def __init__(
         self, host: DriveHost, index: int, axis: SimAxis, eds_path: str, plant: Plant, axis_names: list[str]
     ):
         self.plant = plant
-        self.s, self.p, self.d, self.x = plant.rows(index)  # kernel and drive rows of this axis (views)
+        self.plant_state, self.plant_param, self.plant_demand, self.drive_values = plant.rows(
+            index
+        )  # kernel and drive rows of this axis (views)
         self.abort_writes: dict[tuple[int, int], int] = {}  # injected SDO aborts, for tests
         #: injected faults, for tests: called as (kind "read" | "write", index, sub) before an SDO
         #: request is handled; it may raise (SdoAbortedError: the drive refuses), take the drive off
@@ -335,7 +355,7 @@ class SimDrive:
     def _load_gains(self, selected: bool) -> None:
         """The loops run the gain objects of the profile (``selected``) or of the one that runs
         otherwise, as they hold them now."""
-        p = self.p
+        p = self.plant_param
         self.params = self.gain_sets[selected]
         for name, col in (
             GAIN_PARAMS | PID_PARAMS
@@ -368,7 +388,9 @@ class SimDrive:
         self.vel_per_si = group.velocity_per_rad_s or (
             60 / (2 * math.pi) if self.spec.velocity_unit == "rpm" else self.pos_per_rad
         )
-        self.p[K.FE_WINDOW] = self._od(0x6065) / self.pos_per_rad  # the window is in position units
+        self.plant_param[kernel.FE_WINDOW] = (
+            self._od(0x6065) / self.pos_per_rad
+        )  # the window is in position units
 
     def _od(self, index: int, sub: int = 0) -> Any:
         """Current value of an object, as the SDO server would return it (cached)."""
@@ -382,18 +404,22 @@ class SimDrive:
 
     def _power_up(self) -> None:
         """Reset application: load parameters from storage, state machine to start."""
-        p, s = self.p, self.s
+        p, s = self.plant_param, self.plant_state
         plant_params(p, self.axis, self.axis_names)
-        p[K.INC_PER_RAD] = self.inc_per_rad
+        p[kernel.INC_PER_RAD] = self.inc_per_rad
         m = self.axis.motor
         self.rated_torque = self._od_or(0x6076, 0, m.rated_torque_Nm * 1000) / 1000.0
         self.rated_current_A = self._od_or(0x6075, 0, m.rated_torque_Nm / m.kt * 1000) / 1000.0
-        self.x[X.X_CURRENT_UNIT] = 1e-3 if self.spec.current_unit == "mA" else self.rated_current_A / 1000.0
-        self.x[X.X_NOISE] = self.axis.torque_noise_Nm
-        p[K.STRUCT] = K.POSITION_PID if self.controller.structure == "position_pid" else K.CASCADE
-        p[K.LOOP_DIV] = self.loop_div
+        self.drive_values[cyclic.X_CURRENT_UNIT] = (
+            1e-3 if self.spec.current_unit == "mA" else self.rated_current_A / 1000.0
+        )
+        self.drive_values[cyclic.X_NOISE] = self.axis.torque_noise_Nm
+        p[kernel.STRUCT] = (
+            kernel.POSITION_PID if self.controller.structure == "position_pid" else kernel.CASCADE
+        )
+        p[kernel.LOOP_DIV] = self.loop_div
         self._load_gains(self.select is None or self._od(*self.select[0].index_sub) == self.select[1])
-        p[K.TMAX] = self._od_or(0x6072, 0, factory().max_torque_permille) / 1000.0 * self.rated_torque
+        p[kernel.TMAX] = self._od_or(0x6072, 0, factory().max_torque_permille) / 1000.0 * self.rated_torque
         self._units()
         self.state = SWITCH_ON_DISABLED
         self.nmt_state = NMT_PREOP
@@ -416,14 +442,16 @@ class SimDrive:
         self.homing: str | None = None  # HM: the phase of a homing under way ("switch", "leave", "stop")
         self.homing_attained = self.homing_error = False
         self._in_window_since: float | None = None
-        s[K.ENABLED] = 0.0
+        s[kernel.ENABLED] = 0.0
         self._sync_count = 0
         self._hb_next = 0.0
-        self._last_count = math.floor(s[K.Q] * self.inc_per_rad)
+        self._last_count = math.floor(s[kernel.Q] * self.inc_per_rad)
         self._last_refresh = self.plant.time
         self._velocity = 0
-        self.d[:] = 0.0
-        self.d[K.P0] = self.d[K.P1] = self.s[K.ENC] = self._last_count / self.inc_per_rad
+        self.plant_demand[:] = 0.0
+        self.plant_demand[kernel.P0] = self.plant_demand[kernel.P1] = self.plant_state[kernel.ENC] = (
+            self._last_count / self.inc_per_rad
+        )
         if self.fifo is not None:
             self.fifo.clear()
             self.fifo_enabled, self.ip_errors = False, 0
@@ -586,9 +614,9 @@ class SimDrive:
                     self._take_target()
             self.mode = value
         elif index == 0x60B2:  # torque offset [per mille of rated torque]
-            self.d[K.T_OFF] = value / 1000.0 * self.rated_torque
+            self.plant_demand[kernel.T_OFF] = value / 1000.0 * self.rated_torque
         elif index == 0x60B1:  # velocity offset [velocity unit]
-            self.d[K.V_OFF] = value / self.vel_per_si
+            self.plant_demand[kernel.V_OFF] = value / self.vel_per_si
         elif (index, sub) == PVT and self.fifo is not None:  # maxon: into the FIFO, taken one a period
             if not self.fifo_enabled:
                 return  # access to the buffer disabled: dropped
@@ -619,18 +647,19 @@ class SimDrive:
             if (
                 not math.isfinite(si)
                 or si < 0
-                and col not in (K.FF_OFF, K.FF_CP, K.FF_DC0, K.FF_DC1, K.FF_PER_PHASE)
-                or col == K.FF_EN
+                and col
+                not in (kernel.FF_OFF, kernel.FF_CP, kernel.FF_DC0, kernel.FF_DC1, kernel.FF_PER_PHASE)
+                or col == kernel.FF_EN
                 and value not in (0, 1)
             ):
                 raise SdoAbortedError(ABORT_TOO_LOW if si < 0 else ABORT_RANGE)
-            self.p[col] = si
+            self.plant_param[col] = si
         elif index == 0x1017:
             self._hb_next = self.plant.time + value / 1000.0  # first beat one period from now
         elif index == 0x6065:
-            self.p[K.FE_WINDOW] = value / self.pos_per_rad
+            self.plant_param[kernel.FE_WINDOW] = value / self.pos_per_rad
         elif index == 0x6072:
-            self.p[K.TMAX] = value / 1000.0 * self.rated_torque
+            self.plant_param[kernel.TMAX] = value / 1000.0 * self.rated_torque
         elif index == 0x1010 and sub == 1:
             if value != SAVE_SIGNATURE:
                 raise SdoAbortedError(0x08000020)
@@ -717,7 +746,7 @@ class SimDrive:
             )
         if self.following or (self.state == ENABLED and self.mode == PP and self.setpoint_ack):
             sw |= SW_FOLLOWING  # CSP: follows the command value; IP: active; PP: set-point acknowledged
-        if self.s.item(K.FE_COUNT) > 0:
+        if self.plant_state.item(kernel.FE_COUNT) > 0:
             sw |= SW_FOLLOWING_ERROR
         return sw
 
@@ -744,7 +773,9 @@ class SimDrive:
             self.setpoint_ack = False  # the handshake: bit 12 follows bit 4 down
         if self.state == ENABLED and self.mode == PP and new_setpoint:
             target = self._od(0x607A) / self.pos_per_rad
-            self.pp_target = target + self.origin_rad if not cw & 0x40 else self.d[K.P1] + target
+            self.pp_target = (
+                target + self.origin_rad if not cw & 0x40 else self.plant_demand[kernel.P1] + target
+            )
             self.pp_goal = self.pp_target
             self.setpoint_ack = True  # statusword bit 12: set-point acknowledged
             self.target_reached = False
@@ -762,7 +793,7 @@ class SimDrive:
         method = self._od_or(0x6098, 0, 0)
         self.homing_attained = self.homing_error = self.target_reached = False
         if method in HOMING_HERE:
-            self.origin_rad = self.s[K.ENC] - self._od_or(0x607C, 0, 0) / self.pos_per_rad
+            self.origin_rad = self.plant_state[kernel.ENC] - self._od_or(0x607C, 0, 0) / self.pos_per_rad
             self.homing_attained = self.target_reached = True
         elif method in HOMING_SWITCH:
             self.homing = "switch"
@@ -779,7 +810,9 @@ class SimDrive:
     def _on_switch(self, direction: int) -> bool:
         """Whether the limit switch in ``direction`` is made."""
         edge = self._switch_edge(direction)
-        return edge is not None and (self.s[K.ENC] <= edge if direction < 0 else self.s[K.ENC] >= edge)
+        return edge is not None and (
+            self.plant_state[kernel.ENC] <= edge if direction < 0 else self.plant_state[kernel.ENC] >= edge
+        )
 
     def _homing_period(self, T: float) -> None:
         """One period of a homing on a limit switch: toward it at the switch speed 0x6099:1, off it at
@@ -807,14 +840,14 @@ class SimDrive:
         if state == self.state:
             return
         if state == ENABLED:
-            self.s[K.ENABLED] = 1.0
-            self.s[K.V_INT] = self.s[K.I_INT] = 0.0
+            self.plant_state[kernel.ENABLED] = 1.0
+            self.plant_state[kernel.V_INT] = self.plant_state[kernel.I_INT] = 0.0
             self._hold_position()
             self.setpoint_armed = False
             if self.mode == CSP:
                 self._take_target()
         elif state != QUICK_STOP:
-            self.s[K.ENABLED] = 0.0
+            self.plant_state[kernel.ENABLED] = 0.0
         self.target_reached = False  # bit 10 belongs to the state it was set in
         log.debug(
             "simulated drive %s: state %d -> %d (mode %d)", self.axis.name, self.state, state, self.mode
@@ -825,11 +858,13 @@ class SimDrive:
         """CSP from now on: the demand is the target position 0x607A as it stands, wherever the
         axis is (a stale target makes it jump, as on a real drive)."""
         self.setpoint_inc = self._od(0x607A)
-        self.d[K.P0] = self.d[K.P1] = self._limit(self._plant(self.setpoint_inc))
+        self.plant_demand[kernel.P0] = self.plant_demand[kernel.P1] = self._limit(
+            self._plant(self.setpoint_inc)
+        )
 
     def _hold_position(self) -> None:
-        self.d[K.P0] = self.d[K.P1] = self.s[K.ENC]
-        self.d[K.A_FF] = 0.0
+        self.plant_demand[kernel.P0] = self.plant_demand[kernel.P1] = self.plant_state[kernel.ENC]
+        self.plant_demand[kernel.A_FF] = 0.0
         self.v_dem = 0.0
         self.new_target = False
         self.pp_target = self.pp_goal = None
@@ -839,7 +874,7 @@ class SimDrive:
         if self.state == FAULT:
             return
         self.state = FAULT_REACTION
-        self.s[K.ENABLED] = 0.0
+        self.plant_state[kernel.ENABLED] = 0.0
         self.error_code = code
         self.error_history.insert(0, code)
         del self.error_history[8:]
@@ -897,23 +932,27 @@ class SimDrive:
 
     def next_period(self) -> None:
         """Set the demand P0 -> P1 of the interpolation period that starts now."""
-        d, T = self.d, self.plant.sync_period
+        d, T = self.plant_demand, self.plant.sync_period
         if self.following:
             if self.fifo is not None and self.mode == IP:
                 if self.fifo:
                     self.setpoint_inc, self.new_target = self.fifo.popleft(), True
                     self.last_setpoint_time = self.plant.time
                 else:  # the FIFO ran dry while interpolating
-                    d[K.P0] = d[K.P1]
+                    d[kernel.P0] = d[kernel.P1]
                     self.internal_limit = False
                     self._buffer_error(IPB_UNDERFLOW, ERR_IP_UNDERFLOW)
                     return
             # linear interpolation (IP sub-mode 0) has no acceleration within a period
-            X.follow_period(
-                d, self.x, T, *self.software_limits(), self.mode == IP and self._od_or(0x60C0, 0, 0) == 0
+            cyclic.follow_period(
+                d,
+                self.drive_values,
+                T,
+                *self.software_limits(),
+                self.mode == IP and self._od_or(0x60C0, 0, 0) == 0,
             )
             return
-        d[K.P0] = d.item(K.P1)
+        d[kernel.P0] = d.item(kernel.P1)
         v_old = self.v_dem
         self.internal_limit = False
         if self.state == QUICK_STOP:
@@ -930,7 +969,7 @@ class SimDrive:
             self._ramp(self._od(0x60FF) / self.vel_per_si, self._od(0x6083) / self.vel_per_si, T)
             self.target_reached = self.v_dem == self._od(0x60FF) / self.vel_per_si
         elif self.state == ENABLED and self.mode == PP and self.pp_target is not None:
-            dist = self.pp_target - d[K.P0]
+            dist = self.pp_target - d[kernel.P0]
             acc = self._od(0x6083) / self.vel_per_si
             dec = self._od_or(0x6084, 0, acc * self.vel_per_si) / self.vel_per_si
             v_max = min(
@@ -939,14 +978,14 @@ class SimDrive:
             )
             self._ramp(math.copysign(v_max, dist), acc, T)
             if abs(dist) <= abs(self.v_dem) * T or abs(dist) < 1.0 / self.inc_per_rad:
-                d[K.P1] = self.pp_target
+                d[kernel.P1] = self.pp_target
                 self.v_dem = 0.0
                 self.pp_target = None  # the demand is there; the axis is when it settles
         elif self.state == ENABLED and self.mode == HM and self.homing:
             self._homing_period(T)
         else:
             self.v_dem = 0.0
-        d[K.A_FF] = (self.v_dem - v_old) / T
+        d[kernel.A_FF] = (self.v_dem - v_old) / T
         self.new_target = False
 
     def _ramp(self, v_target: float, accel: float, T: float, limit: bool = True) -> None:
@@ -954,17 +993,17 @@ class SimDrive:
         software position limits unless ``limit`` is False)."""
         dv = max(-accel * T, min(accel * T, v_target - self.v_dem))
         v_new = self.v_dem + dv
-        p1 = self.d[K.P0] + 0.5 * (self.v_dem + v_new) * T
-        self.d[K.P1] = self._limit(p1) if limit else p1
+        p1 = self.plant_demand[kernel.P0] + 0.5 * (self.v_dem + v_new) * T
+        self.plant_demand[kernel.P1] = self._limit(p1) if limit else p1
         self.v_dem = v_new
 
     def _plant(self, position: int) -> float:
         """A position in the drive's units as the plant's [rad]: through the origin homing set."""
-        return X.plant_position(self.x, position)
+        return cyclic.plant_position(self.drive_values, position)
 
     def _limit(self, position: float) -> float:
         """``position`` [rad, plant] inside the software position limits 0x607D."""
-        return X.soft_limit(self.x, position, *self.software_limits())
+        return cyclic.soft_limit(self.drive_values, position, *self.software_limits())
 
     def software_limits(self) -> tuple[int, int]:
         """0x607D: (min, max) [position unit]; no limits where min >= max."""
@@ -977,7 +1016,9 @@ class SimDrive:
         if self.state not in (ENABLED, QUICK_STOP):
             return
         if self.state == ENABLED and self.mode == PP and self.pp_target is None and self.pp_goal is not None:
-            inside = abs(self.s[K.ENC] - self.pp_goal) * self.pos_per_rad <= self._od_or(0x6067, 0, 1000)
+            inside = abs(self.plant_state[kernel.ENC] - self.pp_goal) * self.pos_per_rad <= self._od_or(
+                0x6067, 0, 1000
+            )
             if not inside:
                 self._in_window_since = None
             elif self._in_window_since is None:
@@ -986,7 +1027,7 @@ class SimDrive:
             self.target_reached = (
                 since is not None and self.plant.time - since >= self._od_or(0x6068, 0, 10) / 1000.0 - 1e-9
             )
-        over = self.s.item(K.FE_COUNT)  # ticks outside the following error window
+        over = self.plant_state.item(kernel.FE_COUNT)  # ticks outside the following error window
         if over > 0 and over >= self.following_error_ticks():
             self.fault(ERR_FOLLOWING)
         elif (
@@ -1000,7 +1041,9 @@ class SimDrive:
 
     def following_error_ticks(self) -> int:
         """Loop ticks outside the following error window that fault the drive (0x6066)."""
-        return max(1, round(self._od_or(0x6066, 0, factory().fe_timeout_ms) / 1000.0 / K.VELOCITY_TICK_S))
+        return max(
+            1, round(self._od_or(0x6066, 0, factory().fe_timeout_ms) / 1000.0 / kernel.VELOCITY_TICK_S)
+        )
 
     def setpoint_timeout(self) -> float:
         """How long [s] the drive follows without a new setpoint before the stream counts as lost."""
@@ -1022,8 +1065,8 @@ class SimDrive:
         self._refresh_actuals(noise=True)
 
     def _refresh_actuals(self, noise: bool) -> None:
-        sample = self.plant.noise() if noise and self.x.item(X.X_NOISE) else 0.0
-        X.actual_values(self.s, self.p, self.x, self.plant.time, sample)
+        sample = self.plant.noise() if noise and self.drive_values.item(cyclic.X_NOISE) else 0.0
+        cyclic.actual_values(self.plant_state, self.plant_param, self.drive_values, self.plant.time, sample)
         if self.fifo is not None:  # 0x20C4:1 as of this sample (its other sub-indices are settings)
             self._store(0x20C4, 1, self._buffer_status())
 
@@ -1036,7 +1079,7 @@ class SimDrive:
             0x6064: lambda: self._position_inc,
             0x606C: lambda: self._velocity,
             0x6077: lambda: self._torque_pm,
-            0x60F4: lambda: round(self.s[K.FERR] * self.pos_per_rad),
+            0x60F4: lambda: round(self.plant_state[kernel.FERR] * self.pos_per_rad),
             0x603F: lambda: self.error_code,
             0x1001: lambda: 0x01 if self.state == FAULT else 0x00,
         }

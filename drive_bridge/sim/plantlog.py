@@ -14,9 +14,9 @@ from pathlib import Path
 
 import numpy as np
 
-from . import kernel as K
-from .config import SimConfig
+from . import kernel
 from .drive import GAIN_PARAMS, plant_params
+from .robot_config import SimConfig
 from .vendors import factory
 
 INC_PER_REV = 2**20
@@ -36,34 +36,34 @@ def plant_log(
     position."""
     names = list(config.axes)
     n = len(next(iter(demand.values())))
-    state, param, dem = K.new_arrays(len(names))
+    state, param, dem = kernel.new_arrays(len(names))
     inc_per_rad = INC_PER_REV / (2 * math.pi)
     rng = np.random.default_rng(config.seed)
     targets = np.zeros((n, len(names)))
     offsets = np.zeros((n, len(names)))
     for i, (name, axis) in enumerate(config.axes.items()):
         plant_params(param[i], axis, names)
-        param[i, K.INC_PER_RAD] = inc_per_rad
+        param[i, kernel.INC_PER_RAD] = inc_per_rad
         for gain, col in GAIN_PARAMS.items():
             param[i, col] = (gains or {}).get(name, factory().gains)[gain]
-        param[i, K.TMAX] = factory().max_torque_permille / 1000.0 * axis.motor.rated_torque_Nm
-        param[i, K.FE_WINDOW] = 1e9
+        param[i, kernel.TMAX] = factory().max_torque_permille / 1000.0 * axis.motor.rated_torque_Nm
+        param[i, kernel.FE_WINDOW] = 1e9
         targets[:, i] = demand.get(name, np.zeros(n))
         offsets[:, i] = (torque_offset or {}).get(name, np.zeros(n))
-        state[i, K.Q] = state[i, K.ENC] = dem[i, K.P0] = dem[i, K.P1] = targets[0, i]
-        state[i, K.ENABLED] = 1.0
-    ticks = round(period / K.VELOCITY_TICK_S)
+        state[i, kernel.Q] = state[i, kernel.ENC] = dem[i, kernel.P0] = dem[i, kernel.P1] = targets[0, i]
+        state[i, kernel.ENABLED] = 1.0
+    ticks = round(period / kernel.VELOCITY_TICK_S)
     tick0 = np.zeros(len(names), dtype=np.int64)
     q = np.empty((n, len(names)))
     current = np.empty((n, len(names)))
     for k in range(n):
-        q[k] = state[:, K.Q]  # sampled at SYNC, like the TPDOs
-        current[k] = [K.mean_current(row) for row in state]
-        dem[:, K.P0] = dem[:, K.P1]
-        dem[:, K.P1] = targets[k]
-        dem[:, K.T_OFF] = offsets[k]
+        q[k] = state[:, kernel.Q]  # sampled at SYNC, like the TPDOs
+        current[k] = [kernel.mean_current(row) for row in state]
+        dem[:, kernel.P0] = dem[:, kernel.P1]
+        dem[:, kernel.P1] = targets[k]
+        dem[:, kernel.T_OFF] = offsets[k]
         tick0[:] = 0
-        K.advance(state, param, dem, tick0, ticks, ticks)
+        kernel.advance(state, param, dem, tick0, ticks, ticks)
     cols = {"time_s": np.arange(n) * period}
     for i, (name, axis) in enumerate(config.axes.items()):
         rated = axis.motor.rated_torque_Nm

@@ -91,8 +91,8 @@ def serve(
 ) -> None:
     """Run the simulated drives of ``config_path`` on ``bus`` against the wall clock; print
     ``ready`` once they are on the bus; ``until()`` returns when they are to stop."""
-    from .config import load_sim_config
     from .robot import SimRobot
+    from .robot_config import load_sim_config
 
     robot = SimRobot(load_sim_config(config_path), bus=bus, sync_period=sync_period, eds=eds)
     # Out of the cycle collector's reach: a full collection walking three object dictionaries

@@ -24,12 +24,11 @@ import can
 from ..cia.p301 import NMT_STOPPED, SYNC_COB_ID
 from ..pdo import PdoCodec
 from ..resources import PROJECT_EDS
-from . import cyclic as X
-from . import kernel as K
+from . import cyclic, kernel
 from .adapters import FastVirtualBus
-from .config import SimConfig
 from .drive import SimDrive
 from .plant import Plant
+from .robot_config import SimConfig
 from .steady import SteadyStream
 
 REPLY_DELAY_S = 50e-6  # wall clock: a drive's reply follows the frame it answers
@@ -74,14 +73,14 @@ class SimRobot:
         self._stamp = lambda: self.plant.time  # lockstep: frames carry simulation time
         # compile (or load from numba's cache) now, not while a clock is running
         self.plant.advance(0)
-        X.compile_all()
+        cyclic.compile_all()
         self._routes: dict[int, Callable[[bytes], None]] = {}
         #: called with the time after each advance (a lockstep master's heartbeat, in simulation time)
         self.timers: list[Callable[[float], None]] = []
         self.drives: dict[str, SimDrive] = {}  # filled before the first routes_changed() counts
         names = list(config.axes)
         for i, (name, axis) in enumerate(config.axes.items()):
-            self.plant.state[i, K.Q] = axis.initial_position_rad
+            self.plant.state[i, kernel.Q] = axis.initial_position_rad
             path = eds.get(name, PROJECT_EDS) if isinstance(eds, Mapping) else eds
             self.drives[name] = SimDrive(self, i, axis, str(path), self.plant, names)
         #: lockstep: the drives' streaming SYNC compiled (None until laid out anew)
@@ -201,7 +200,7 @@ class SimRobot:
 
     def idle(self, duration: float) -> None:
         """Lockstep: let ``duration`` seconds pass without SYNC (drives hold, heartbeats go out)."""
-        ticks = max(1, round(duration / K.VELOCITY_TICK_S))
+        ticks = max(1, round(duration / kernel.VELOCITY_TICK_S))
         while ticks > 0:  # in SYNC-period steps so heartbeats go out on time
             step = min(ticks, self.plant.ticks_per_period)
             self.advance(step)
@@ -283,7 +282,7 @@ class SimRobot:
 
     def run_until(self, now: float) -> None:
         """Wall clock: the loops and plant run up to ``now`` [s] (whole ticks)."""
-        self._run_ticks(int((now - self._t0 - self.plant.time) / K.VELOCITY_TICK_S))
+        self._run_ticks(int((now - self._t0 - self.plant.time) / kernel.VELOCITY_TICK_S))
 
     # The drives' loops run on a grid of their own, locked to the SYNCs they receive as a drive's
     # phase-locked loop is: a SYNC period starts on the grid's period boundary, with the RPDOs that
@@ -323,9 +322,9 @@ class SimRobot:
         relock = stamp - self._last_sync > SYNC_RELOCK_S
         self._last_sync = stamp
         self.run_until(stamp)
-        period = self.plant.ticks_per_period * K.VELOCITY_TICK_S
+        period = self.plant.ticks_per_period * kernel.VELOCITY_TICK_S
         since = (
-            stamp - (self._t0 + self.plant.time) + self._phase * K.VELOCITY_TICK_S
+            stamp - (self._t0 + self.plant.time) + self._phase * kernel.VELOCITY_TICK_S
         )  # since the last boundary
         if relock:  # the first SYNC after a pause sets the grid
             self._t0 = stamp - self.plant.time
@@ -338,7 +337,7 @@ class SimRobot:
             self._sample()
             self._next_boundary()
             return
-        nearest = round((stamp - self._t0 - self.plant.time) / K.VELOCITY_TICK_S)  # the tick it falls on
+        nearest = round((stamp - self._t0 - self.plant.time) / kernel.VELOCITY_TICK_S)  # the tick it falls on
         to_boundary = self.plant.ticks_per_period - self._phase
         if early and nearest >= to_boundary:
             # on the boundary's tick: sampled before its period starts, as a SYNC is in lockstep

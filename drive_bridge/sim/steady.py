@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from . import cyclic as X
+from . import cyclic
 from .plant import Plant
 
 if TYPE_CHECKING:
@@ -31,11 +31,11 @@ if TYPE_CHECKING:
 #: TPDO objects whose value changes every period -> what steady_period computes for them
 #: (every other mapped object is constant while the drive streams, read when the plan is refreshed)
 MEASURED = {
-    0x6041: X.SRC_STATUSWORD,
-    0x6064: X.SRC_POSITION,
-    0x606C: X.SRC_VELOCITY,
-    0x6077: X.SRC_TORQUE,
-    0x60F4: X.SRC_FOLLOWING_ERROR,
+    0x6041: cyclic.SRC_STATUSWORD,
+    0x6064: cyclic.SRC_POSITION,
+    0x606C: cyclic.SRC_VELOCITY,
+    0x6077: cyclic.SRC_TORQUE,
+    0x60F4: cyclic.SRC_FOLLOWING_ERROR,
 }
 #: what an RPDO of a streaming drive may write: the controlword (held), the CSP target and the
 #: torque and velocity offsets (the kernel reads those only as the plant advances: they are
@@ -94,17 +94,17 @@ class SteadyStream:
                     signed, size = INTEGERS[code]
                     bits = 8 * size
                     low, high = (-(1 << bits - 1), (1 << bits - 1) - 1) if signed else (0, (1 << bits) - 1)
-                    source = X.SRC_CURRENT if index in current else MEASURED.get(index, X.SRC_CONST)
-                    if source == X.SRC_CONST:
+                    source = cyclic.SRC_CURRENT if index in current else MEASURED.get(index, cyclic.SRC_CONST)
+                    if source == cyclic.SRC_CONST:
                         self._constants.append((len(entries), getter))
                     entries.append([a, source, 0, row, lo, hi - lo, low, high])
                 mine.append((row, codec.cob_id, ttype, codec.struct.size))
                 row += 1
             self.tpdos.append(mine)
-        self.entries = np.array(entries, dtype=np.int64).reshape(-1, X.N_ENTRY)
+        self.entries = np.array(entries, dtype=np.int64).reshape(-1, cyclic.N_ENTRY)
         self.out = np.zeros((max(1, row), 8), dtype=np.uint8)
-        self.axes = np.zeros((len(self.drives), X.N_AXIS))
-        self.noisy = int(np.count_nonzero(self.plant.drive_rows[:, X.X_NOISE]))  # noise samples a period
+        self.axes = np.zeros((len(self.drives), cyclic.N_AXIS))
+        self.noisy = int(np.count_nonzero(self.plant.drive_rows[:, cyclic.X_NOISE]))  # noise samples a period
         return True
 
     def _refresh(self) -> None:
@@ -113,13 +113,13 @@ class SteadyStream:
         self.wake = math.inf
         for a, drive in enumerate(self.drives):
             axis = self.axes[a]
-            axis[X.A_LO], axis[X.A_HI] = drive.software_limits()
-            axis[X.A_FE_TICKS] = drive.following_error_ticks()
-            axis[X.A_TIMEOUT] = drive.setpoint_timeout()
-            axis[X.A_STATUS] = drive.statusword & ~STATUS_PER_PERIOD
+            axis[cyclic.A_LO], axis[cyclic.A_HI] = drive.software_limits()
+            axis[cyclic.A_FE_TICKS] = drive.following_error_ticks()
+            axis[cyclic.A_TIMEOUT] = drive.setpoint_timeout()
+            axis[cyclic.A_STATUS] = drive.statusword & ~STATUS_PER_PERIOD
             self.wake = min(self.wake, drive.next_due())
         for entry, getter in self._constants:
-            self.entries[entry, X.E_CONST] = getter()
+            self.entries[entry, cyclic.E_CONST] = getter()
         self._offsets.clear()  # the Python drive may have written others since
         self.stale = False
 
@@ -140,18 +140,18 @@ class SteadyStream:
         axes = self.axes
         taken = []
         for a, drive in enumerate(self.drives):
-            axes[a, X.A_HAS_SETPOINT] = 0.0
+            axes[a, cyclic.A_HAS_SETPOINT] = 0.0
             for codec, data in drive.pending_rpdo:
                 values = codec.struct.unpack_from(data)
                 for (index, _), value in zip(codec.entries, values):
                     if index == 0x6040 and value != drive.controlword:
                         return False
                     if index == 0x607A:
-                        axes[a, X.A_SETPOINT] = value
-                        axes[a, X.A_HAS_SETPOINT] = 1.0
+                        axes[a, cyclic.A_SETPOINT] = value
+                        axes[a, cyclic.A_HAS_SETPOINT] = 1.0
                 taken.append((a, drive, codec, data, values))
         noise, index = plant.reserve_noise(self.noisy)
-        index = X.steady_period(
+        index = cyclic.steady_period(
             plant.state,
             plant.param,
             plant.demand,
@@ -164,9 +164,9 @@ class SteadyStream:
             plant.sync_period,
             self.out,
         )
-        if index == X.SLOW:
+        if index == cyclic.SLOW:
             return False
-        if index == X.OUT_OF_RANGE:
+        if index == cyclic.OUT_OF_RANGE:
             raise struct.error("a value the simulated drive sends does not fit its TPDO entry")
         plant.take_noise(index)
         offsets = self._offsets

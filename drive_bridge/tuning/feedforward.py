@@ -11,7 +11,7 @@ goes as velocity offset 0x60B1.  SI inside: rad, rad/s, rad/s², Nm.
 The project's drive also restarts its velocity integrator when a move starts, so the model
 alone carries the axis out of stiction; no object does that on another drive, so at each move
 start the streaming loop measures the torque the loop holds and sends that much less with the
-move (:class:`drive_bridge.master.stream._Unloader`).
+move (the stream's unloading of the torque offset, :mod:`drive_bridge.master.stream`).
 """
 
 from __future__ import annotations

@@ -16,7 +16,7 @@ from ..master.homing import home
 from ..master.link import Link
 from ..master.stream import VelocityGuard, stream
 from ..master.timing import Timing
-from ..record import stream_supervision
+from ..recorder import stream_supervision
 from .feedforward import MasterFeedForward
 
 

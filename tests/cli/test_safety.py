@@ -11,8 +11,8 @@ import pytest
 import yaml
 
 from drive_bridge.cli import main
+from drive_bridge.interrupts import Terminated, deferred, handled
 from drive_bridge.paper import TABLE_II, TABLE_III
-from drive_bridge.signals import Terminated, deferred, handled
 from drive_bridge.tuning.design import design_gains
 
 from ..support import read_csv

@@ -13,8 +13,8 @@ import pytest
 import yaml
 
 from drive_bridge.cli import main
-from drive_bridge.sim.config import load_sim_config
-from drive_bridge.tuning import design as D
+from drive_bridge.sim.robot_config import load_sim_config
+from drive_bridge.tuning.design import design_gains
 
 from ..support import bus_yml_beside
 from ..tuning.test_frf import floor_kept, true_margins
@@ -48,7 +48,7 @@ def test_the_compliant_axis_is_commissioned_with_gains_that_keep_the_margins_on_
     for loop in true_margins(tune["gains"], *true):
         assert floor_kept(loop), loop
     model = tune["model"]
-    rigid = D.design_gains(model["J"], model["c1"], tune["motor"]["R"], tune["motor"]["L"]).gains()
+    rigid = design_gains(model["J"], model["c1"], tune["motor"]["R"], tune["motor"]["L"]).gains()
     assert not floor_kept(true_margins(rigid, *true)[0])  # what tune gave before the measure step
     measured = tune["measured"]
     assert (

@@ -22,8 +22,8 @@ from drive_bridge.edscheck import check as check_eds
 from drive_bridge.od import load_od
 from drive_bridge.progress import StepReporter
 from drive_bridge.resources import data
-from drive_bridge.sim import kernel as K
-from drive_bridge.sim.config import DEFAULT_CONFIG, load_sim_config
+from drive_bridge.sim import kernel
+from drive_bridge.sim.robot_config import DEFAULT_CONFIG, load_sim_config
 
 from ..support import BUS_CONFIG, EDS, PAPER, follows_schema, tool
 
@@ -289,7 +289,9 @@ def test_a_refused_write_restores_every_drive_and_stores_nothing(run, tmp_path):
         assert "axis z" in result.reason and "0x2001:4" in result.reason and "restored" in result.reason
         for a, d in drives.items():
             assert d._saved is saved[a]  # no 'save' reached any drive
-            assert d.p[K.KPS] == pytest.approx(0.12) and d.p[K.FF_EN] == 0.0  # the backup, FF off
+            assert (
+                d.plant_param[kernel.KPS] == pytest.approx(0.12) and d.plant_param[kernel.FF_EN] == 0.0
+            )  # the backup, FF off
     s = result.summary
     assert s["status"] == "failed" and s["failed"]["step"] == "write"
     assert [st["status"] for st in s["steps"]][6:] == ["failed", "not run"]
@@ -318,7 +320,7 @@ def test_ctrl_c_during_the_campaign_stops_safely_and_resume_picks_up_there(run, 
         result = commission(config, out, Options(sim=True), link=link, reporter=_Interrupting(list(STEPS)))
         drive = link.robot.drives["y"]
         link.clock.sleep(0.01)
-        assert drive.s[1] == 0.0 and drive.state in (1, 7)  # standing still, disabled
+        assert drive.plant_state[1] == 0.0 and drive.state in (1, 7)  # standing still, disabled
     assert result.exit_code == 4 and result.failed_step == "campaign" and "Ctrl-C" in result.reason
     assert (out / "campaign" / "log.csv").stat().st_size > 1000  # the data so far is kept
     assert yaml.safe_load((out / "campaign" / "meta.yaml").read_text())["status"] == "aborted"
@@ -449,13 +451,13 @@ def test_ctrl_c_during_the_measurement_stops_and_leaves_the_drive_its_own_gains(
     config = load_bus_config(run["cfg"]).only(["y"])
     with open_link(config, sim=True) as link:
         drive = link.robot.drives["y"]
-        own = drive.p[K.KPS]
+        own = drive.plant_param[kernel.KPS]
         result = commission(
             config, out, Options(sim=True), link=link, steps=["measure"], reporter=_Interrupting(list(STEPS))
         )
         link.clock.sleep(0.01)
-        assert drive.s[K.V] == 0.0 and drive.state in (1, 7)  # standing still, disabled
-        assert drive.p[K.KPS] == pytest.approx(own) and own == pytest.approx(0.12)
+        assert drive.plant_state[kernel.V] == 0.0 and drive.state in (1, 7)  # standing still, disabled
+        assert drive.plant_param[kernel.KPS] == pytest.approx(own) and own == pytest.approx(0.12)
     assert result.exit_code == 4 and result.failed_step == "measure" and "Ctrl-C" in result.reason
     assert not (out / "frf.json").exists()
     capsys.readouterr()

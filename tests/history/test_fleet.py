@@ -14,7 +14,7 @@ import yaml
 
 from drive_bridge.cli import main
 from drive_bridge.history import HistoryStore
-from drive_bridge.sim.config import DEFAULT_CONFIG
+from drive_bridge.sim.robot_config import DEFAULT_CONFIG
 
 from ..support import BUS_CONFIG, EDS, follows_schema
 

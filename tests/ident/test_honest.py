@@ -10,7 +10,7 @@ import pytest
 
 from drive_bridge.errors import UserError
 from drive_bridge.ident.identify import identify
-from drive_bridge.ident.report import as_json
+from drive_bridge.ident.presentation import as_json
 from drive_bridge.sim.plantlog import write_log
 from drive_bridge.tuning.tune import read_identify_json
 
@@ -60,7 +60,7 @@ def test_a_clipped_torque_is_named_and_its_samples_left_out(tmp_path):
     """The logged torque saturates at 90 % of its peak (a logger's range; the drive's torque does
     not) on several percent of the rows: the level and share are said, those samples are not
     fitted, and J stays within 3 std (before: J 13 % low, 5.6 std, and four spurious effects)."""
-    from drive_bridge.ident.report import summary
+    from drive_bridge.ident.presentation import summary
 
     clean = joint_log(J=J, gravity_Nm=G)
     clip = 0.9 * float(abs(clean["j_torque_Nm"]).max())
@@ -210,7 +210,7 @@ def test_stribeck_friction_below_the_speeds_fitted_is_named_as_friction_at_stand
     the acceleration's reversals, ratio 3).  J is that of the same axis without it within 3
     combined std; c0 and c1 within 2.5 % (the stick-slip after each reversal changes the loop's
     transient the fitted samples see: c1 +2 %).  The same axis without it reports neither."""
-    from drive_bridge.ident.report import summary
+    from drive_bridge.ident.presentation import summary
 
     clean = identify(_short_campaign_log(tmp_path, None), axes=["y"])["y"]
     assert clean.backlash is None and not any(u.get("kind") for u in clean.unexplained), clean.unexplained

@@ -19,8 +19,8 @@ from drive_bridge.config import load_bus_config
 from drive_bridge.ident import identify
 from drive_bridge.ident.logdata import read_log
 from drive_bridge.master.campaign import build_plan
-from drive_bridge.sim.config import Motor, SimAxis, SimConfig
 from drive_bridge.sim.plantlog import plant_log, write_log
+from drive_bridge.sim.robot_config import Motor, SimAxis, SimConfig
 
 from ..support import BUS_CONFIG, ROOT, SHARED
 
@@ -587,7 +587,7 @@ def test_emps_writes_the_best_values_the_drive_model_holds(tmp_path):
     those."""
     import json
 
-    from drive_bridge.ident.report import as_json
+    from drive_bridge.ident.presentation import as_json
     from drive_bridge.tuning.tune import read_identify_json
 
     sys.path.insert(0, str(ROOT / "tools"))

@@ -7,7 +7,7 @@ from __future__ import annotations
 import pytest
 
 from drive_bridge.ident.identify import identify
-from drive_bridge.ident.report import ga_text
+from drive_bridge.ident.presentation import ga_text
 
 from ..support import SHARED
 

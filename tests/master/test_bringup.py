@@ -119,7 +119,7 @@ def test_a_dry_run_writes_nothing_and_plans_what_the_run_then_does(tmp_path, cap
 
     from drive_bridge.master.bringup import plan_bring_up
     from drive_bridge.master.campaign import build_plan
-    from drive_bridge.record import record
+    from drive_bridge.recorder import record
 
     from ..support import Bench, clean_config, quick_config
 

@@ -16,7 +16,7 @@ from drive_bridge.master.bringup import bring_up, check_scan, scan
 from drive_bridge.master.link import BusLink
 from drive_bridge.params.profile import load_profile
 from drive_bridge.params.write import write_drives
-from drive_bridge.record import record
+from drive_bridge.recorder import record
 from drive_bridge.resources import data, vendor_dir
 from drive_bridge.tuning.design import design_gains
 

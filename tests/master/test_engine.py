@@ -30,7 +30,7 @@ from drive_bridge.master.engine import (
     Supervision,
     TpdoJob,
 )
-from drive_bridge.record import record
+from drive_bridge.recorder import record
 from drive_bridge.sim.lockstep import LinkPort, LockstepLink
 
 from ..support import Bench, clean_config, quick_config, read_csv

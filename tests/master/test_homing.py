@@ -11,8 +11,8 @@ from drive_bridge.config import load_bus_config
 from drive_bridge.errors import ConfigError, MotionAborted, UserError
 from drive_bridge.master.bringup import bring_up
 from drive_bridge.master.homing import home
-from drive_bridge.record import record
-from drive_bridge.sim import kernel as K
+from drive_bridge.recorder import record
+from drive_bridge.sim import kernel
 from drive_bridge.sim.drive import LIMIT_SWITCH_INSET_RAD
 
 from ..support import Bench, bus_yml_beside, clean_config, read_csv
@@ -51,7 +51,7 @@ def test_a_campaign_runs_in_the_frame_its_homing_set(tmp_path):
     edge = END_STOPS[0] + LIMIT_SWITCH_INSET_RAD
     assert drive.origin_rad == pytest.approx(edge)
     reported = drive.node.sdo[0x6064].raw / drive.pos_per_rad
-    assert reported == pytest.approx(drive.s[K.Q] - edge, abs=2 / drive.inc_per_rad)
+    assert reported == pytest.approx(drive.plant_state[kernel.Q] - edge, abs=2 / drive.inc_per_rad)
     names, data = read_csv(tmp_path / "rec" / "log.csv")
     z = data[:, names.index("z_position_rad")]
     span = config.nodes["z"].limits
@@ -96,7 +96,7 @@ def test_a_homing_that_fails_quick_stops_the_axis_before_anything_streams(tmp_pa
     assert why in str(stop.value) and "quick-stopped" in str(stop.value) and stop.value.axis == "z"
     drive = bench.robot.drives["z"]
     assert drive.node.sdo[0x6041].raw & 0x6F == 0x07  # QUICK STOP ACTIVE: held, powered
-    assert abs(drive.s[K.V]) < 1e-3 and not syncs
+    assert abs(drive.plant_state[kernel.V]) < 1e-3 and not syncs
 
 
 def test_reference_home_needs_a_homing_section_and_a_drive_that_can_home(tmp_path):

@@ -12,7 +12,7 @@ import pytest
 from drive_bridge.cia.p402 import state_name
 from drive_bridge.master.bringup import bring_up
 from drive_bridge.master.stream import VelocityGuard
-from drive_bridge.sim import kernel as K
+from drive_bridge.sim import kernel
 from drive_bridge.tuning.motion import run
 
 from ..support import Bench, clean_config, quick_config
@@ -23,7 +23,7 @@ Z = 2  # Z's row in the kernel arrays
 
 
 def _z_at(b) -> float:
-    return float(b.robot.plant.state[Z, K.Q])
+    return float(b.robot.plant.state[Z, kernel.Q])
 
 
 @pytest.fixture
@@ -50,7 +50,7 @@ def test_enabling_with_a_stale_target_does_not_move_the_axis():
     assert state_name(axes["z"].drive.statusword()) == "OPERATION ENABLED"
     axes["z"].node.sdo[0x607A].raw = axes["z"].node.sdo[0x6064].raw + 2_000_000
     excursion = []  # every 2 ms of the run, enabling included
-    b.robot.timers.append(lambda t: excursion.append(abs(float(b.robot.plant.state[2, K.Q]) - z0)))
+    b.robot.timers.append(lambda t: excursion.append(abs(float(b.robot.plant.state[2, kernel.Q]) - z0)))
     motion = run(config, b.link, {"z": axes["z"]}, {"z": np.full(100, z0)})
     assert motion.aborted is None
     assert max(excursion) < 1e-4
@@ -104,7 +104,7 @@ def test_every_moving_drive_quick_stops_by_itself_when_the_master_heartbeat_stop
     for a, ax in axes.items():
         ax.node.emcy.add_callback(lambda e, a=a: emcy[a].append((b.robot.time, e.code)))
     silent, speeds = {}, []
-    b.robot.timers.append(lambda t: speeds.append((t, *np.abs(b.robot.plant.state[:, K.V]))))
+    b.robot.timers.append(lambda t: speeds.append((t, *np.abs(b.robot.plant.state[:, kernel.V]))))
 
     def on_plan(plan):
         def progress(k):
@@ -175,7 +175,7 @@ def test_from_drive_commissions_a_nanotec_on_factory_units_with_the_planned_stro
     target = start + 20.0  # rad, motor side
     motion = run(config, b.link, {"y": axes["y"]}, {"y": np.full(100, target)})
     assert motion.aborted is None
-    moved = float(b.robot.plant.state[1, K.Q]) - start
+    moved = float(b.robot.plant.state[1, kernel.Q]) - start
     assert moved == pytest.approx(20.0, rel=0.01)
 
 
@@ -274,7 +274,7 @@ def test_reference_here_lays_the_stroke_around_the_axis_and_the_drive_limits_bou
     config = load_bus_config(path)
     cfg = clean_config()
     b = Bench(cfg)
-    b.robot.plant.state[1, K.Q] = 100.0  # far from the encoder's zero
+    b.robot.plant.state[1, kernel.Q] = 100.0  # far from the encoder's zero
     b.robot.drives["y"].refresh_actuals()
     axes = bring_up(b.link, config)
     lim = axes["y"].cfg.limits
@@ -283,10 +283,12 @@ def test_reference_here_lays_the_stroke_around_the_axis_and_the_drive_limits_bou
     )
     assert axes["y"].drive_limits["0x607D:2"] == round(lim.position_max * axes["y"].cfg.scaling.inc_per_rad)
     motion = run(config, b.link, axes, {"y": np.full(50, 101.0)})
-    assert motion.aborted is None and float(b.robot.plant.state[1, K.Q]) == pytest.approx(101.0, abs=1e-3)
+    assert motion.aborted is None and float(b.robot.plant.state[1, kernel.Q]) == pytest.approx(
+        101.0, abs=1e-3
+    )
     axes["y"].drive_limits["0x607D:2"] = round(
         101.5 * axes["y"].cfg.scaling.inc_per_rad
     )  # the drive's, narrower
     with pytest.raises(UserError, match="outside the software position limits the drive holds"):
         run(config, b.link, axes, {"y": np.full(50, 102.0)})
-    assert float(b.robot.plant.state[1, K.Q]) == pytest.approx(101.0, abs=1e-3)
+    assert float(b.robot.plant.state[1, kernel.Q]) == pytest.approx(101.0, abs=1e-3)

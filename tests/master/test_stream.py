@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import yaml
 
-from drive_bridge.record import record
+from drive_bridge.recorder import record
 
 from ..support import Bench, clean_config, quick_config, read_csv
 
@@ -29,7 +29,7 @@ def assert_stopped_and_kept(bench, tmp_path, result, axis, reason):
     assert len(data) == meta["counts"]["cycles_sent"]
     bench.link.clock.sleep(0.01)  # the holding brakes engage
     for name, drive in bench.robot.drives.items():  # every axis stands still and is held:
-        assert abs(drive.s[1]) < 0.05  # on its brake (switch on disabled) or
+        assert abs(drive.plant_state[1]) < 0.05  # on its brake (switch on disabled) or
         held = 1 if name in ("x", "y") else 5  # powered (quick stop active), or faulted
         assert drive.state in (held, 7), (name, drive.state)
 
@@ -84,7 +84,7 @@ def test_ctrl_c_stops_every_axis(tmp_path):
 def test_a_second_quick_stop_in_one_process_waits_until_the_axes_stand(tmp_path):
     """The first quick stop leaves statusword bit 10 set in QUICK STOP ACTIVE; the second must
     read the drive afresh and wait for standstill, not trust a bit of the earlier stop."""
-    from drive_bridge.sim import kernel as K
+    from drive_bridge.sim import kernel
 
     bench = Bench(clean_config())
     config = quick_config(together=True)
@@ -97,7 +97,11 @@ def test_a_second_quick_stop_in_one_process_waits_until_the_axes_stand(tmp_path)
         result = record(config, bench.link, tmp_path / str(run), on_plan=lambda plan: interrupt)
         assert "Ctrl-C" in result.aborted.reason
         for drive in bench.robot.drives.values():  # at the moment the stop returned
-            assert abs(drive.s[K.V]) < 0.06, (run, drive.axis.name, drive.s[K.V])
+            assert abs(drive.plant_state[kernel.V]) < 0.06, (
+                run,
+                drive.axis.name,
+                drive.plant_state[kernel.V],
+            )
 
 
 def test_a_can_error_frame_stops_every_axis(tmp_path):

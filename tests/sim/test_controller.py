@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from drive_bridge.params.controller import Controller
-from drive_bridge.sim import kernel as K
+from drive_bridge.sim import kernel
 from drive_bridge.sim.drive import plant_params
 
 from ..support import clean_config
@@ -39,58 +39,58 @@ def test_a_set_the_pid_cannot_hold_is_refused(values, why):
 def _follow(struct: float, gains: dict[str, float]) -> np.ndarray:
     """Following error [rad] of the simulated Y axis at a 1 kHz loop over a smooth 0.4 s move."""
     axis = clean_config().axes["y"]
-    state, param, demand = K.new_arrays(1)
+    state, param, demand = kernel.new_arrays(1)
     p = param[0]
     plant_params(p, axis, ["y"])
-    p[K.INC_PER_RAD] = 2**20 / (2 * np.pi)
-    p[K.TMAX], p[K.FE_WINDOW], p[K.STRUCT], p[K.LOOP_DIV] = 5.0, 1e9, struct, 2.0
+    p[kernel.INC_PER_RAD] = 2**20 / (2 * np.pi)
+    p[kernel.TMAX], p[kernel.FE_WINDOW], p[kernel.STRUCT], p[kernel.LOOP_DIV] = 5.0, 1e9, struct, 2.0
     cols = {
-        "KpP": K.KPP,
-        "FwF": K.FWF,
-        "KpS": K.KPS,
-        "KiS": K.KIS,
-        "KpC": K.KPC,
-        "KiC": K.KIC,
-        "PidP": K.PID_P,
-        "PidI": K.PID_I,
-        "PidD": K.PID_D,
-        "PidFFv": K.PID_FFV,
-        "PidFFa": K.PID_FFA,
+        "KpP": kernel.KPP,
+        "FwF": kernel.FWF,
+        "KpS": kernel.KPS,
+        "KiS": kernel.KIS,
+        "KpC": kernel.KPC,
+        "KiC": kernel.KIC,
+        "PidP": kernel.PID_P,
+        "PidI": kernel.PID_I,
+        "PidD": kernel.PID_D,
+        "PidFFv": kernel.PID_FFV,
+        "PidFFa": kernel.PID_FFA,
     }
     for k, v in gains.items():
         p[cols[k]] = v
-    state[0, K.ENABLED] = 1.0
+    state[0, kernel.ENABLED] = 1.0
     t = np.arange(0, 0.6, 0.002)
     target = 20.0 * (1 - np.cos(np.pi * np.clip(t / 0.4, 0, 1))) / 2
     fe = []
     tick0 = np.zeros(1, dtype=np.int64)
     for k, x in enumerate(target):
-        demand[0, K.P0], demand[0, K.P1] = demand[0, K.P1], x
-        demand[0, K.A_FF] = (x - 2 * target[k - 1] + target[k - 2]) / 0.002**2 if k >= 2 else 0.0
+        demand[0, kernel.P0], demand[0, kernel.P1] = demand[0, kernel.P1], x
+        demand[0, kernel.A_FF] = (x - 2 * target[k - 1] + target[k - 2]) / 0.002**2 if k >= 2 else 0.0
         tick0[:] = 0
-        K.advance(state, param, demand, tick0, 4, 4)
-        fe.append(x - state[0, K.Q])
+        kernel.advance(state, param, demand, tick0, 4, 4)
+        fe.append(x - state[0, kernel.Q])
     return np.array(fe)
 
 
 def test_the_kernel_runs_the_pid_as_the_cascade_it_was_written_from():
-    cascade = _follow(K.CASCADE, CASCADE)
-    pid = _follow(K.POSITION_PID, {k: v for k, v in PID.to_drive(CASCADE).items()})
+    cascade = _follow(kernel.CASCADE, CASCADE)
+    pid = _follow(kernel.POSITION_PID, {k: v for k, v in PID.to_drive(CASCADE).items()})
     rms = np.sqrt(np.mean(cascade**2))
     assert 1e-4 < rms < 0.05  # it moved and followed
     assert np.sqrt(np.mean((pid - cascade) ** 2)) < 0.05 * rms
 
 
 def test_a_1_khz_loop_holds_its_command_between_its_ticks():
-    state, param, demand = K.new_arrays(1)
+    state, param, demand = kernel.new_arrays(1)
     plant_params(param[0], clean_config().axes["y"], ["y"])
-    param[0, K.INC_PER_RAD], param[0, K.TMAX], param[0, K.FE_WINDOW] = 1e5, 5.0, 1e9
-    param[0, K.LOOP_DIV], param[0, K.PID_P], param[0, K.STRUCT] = 2.0, 1.0, K.POSITION_PID
-    state[0, K.ENABLED] = 1.0
+    param[0, kernel.INC_PER_RAD], param[0, kernel.TMAX], param[0, kernel.FE_WINDOW] = 1e5, 5.0, 1e9
+    param[0, kernel.LOOP_DIV], param[0, kernel.PID_P], param[0, kernel.STRUCT] = 2.0, 1.0, kernel.POSITION_PID
+    state[0, kernel.ENABLED] = 1.0
     commands = []
     for k in range(8):
-        demand[0, K.P0] = demand[0, K.P1] = 0.01 * (k + 1)  # a new demand every 2 kHz tick
-        K.advance(state, param, demand, np.zeros(1, dtype=np.int64), 1, 4)
-        commands.append(state[0, K.TCMD])
+        demand[0, kernel.P0] = demand[0, kernel.P1] = 0.01 * (k + 1)  # a new demand every 2 kHz tick
+        kernel.advance(state, param, demand, np.zeros(1, dtype=np.int64), 1, 4)
+        commands.append(state[0, kernel.TCMD])
     assert all(commands[i] == commands[i + 1] for i in (1, 3, 5))  # held between its ticks
     assert all(commands[i] != commands[i + 1] for i in (0, 2, 4, 6))  # new on each of its ticks

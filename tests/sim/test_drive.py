@@ -349,17 +349,17 @@ def test_no_sdo_in_nmt_stopped(bench):
 def test_torque_and_velocity_offsets_reach_the_loops(bench):
     """0x60B2 adds to the torque command and 0x60B1 to the velocity command, as in a real drive:
     a held axis moves off its setpoint by a torque offset above its static friction."""
-    from drive_bridge.sim import kernel as K
+    from drive_bridge.sim import kernel
 
     b = bench()
     node = started(b, "y")
     drive = b.robot.drives["y"]
     node.sdo[0x60B1].raw = 1000
-    assert drive.d[K.V_OFF] == pytest.approx(1000 / INC_PER_RAD)
+    assert drive.plant_demand[kernel.V_OFF] == pytest.approx(1000 / INC_PER_RAD)
     node.sdo[0x60B1].raw = 0
     p0 = node.sdo[0x6064].raw
     held = run_csp(b, node, np.zeros(10))[0]
     node.sdo[0x60B2].raw = 600  # 0.76 Nm, above c0 = 0.32 Nm
-    assert drive.d[K.T_OFF] == pytest.approx(0.6 * 1.27)
+    assert drive.plant_demand[kernel.T_OFF] == pytest.approx(0.6 * 1.27)
     pushed = run_csp(b, node, np.zeros(10))[0]
     assert np.max(np.abs(held)) < np.max(np.abs(pushed)) and node.sdo[0x6064].raw != p0

@@ -113,8 +113,8 @@ def test_on_a_terminal_the_plan_is_shown_and_yes_moves(tmp_path, capsys, monkeyp
     """A real bus (the simulated drives in their own process) at a terminal: the campaign's plan,
     read over a read-only bring-up, is shown before the question; 'yes' runs it."""
     from drive_bridge.cli import main
-    from drive_bridge.sim.config import DEFAULT_CONFIG
     from drive_bridge.sim.process import SimProcess
+    from drive_bridge.sim.robot_config import DEFAULT_CONFIG
 
     drives = SimProcess(DEFAULT_CONFIG, 0.002)
     try:

@@ -6,8 +6,8 @@ from __future__ import annotations
 
 import pytest
 
-from drive_bridge.record import record
-from drive_bridge.sim import kernel as K
+from drive_bridge.recorder import record
+from drive_bridge.sim import kernel
 from drive_bridge.sim.steady import SteadyStream
 
 from ..support import Bench, clean_config, quick_config
@@ -15,7 +15,7 @@ from ..support import Bench, clean_config, quick_config
 
 def _heavy_y(bench, k):
     if k == 300:  # Y suddenly carries more than its drive can: following error
-        bench.robot.plant.param[1, K.LOAD] = 5.0
+        bench.robot.plant.param[1, kernel.LOAD] = 5.0
 
 
 def _silent_z(bench, k):

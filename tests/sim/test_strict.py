@@ -8,7 +8,7 @@ from dataclasses import replace
 import canopen
 import pytest
 
-from drive_bridge.sim import kernel as K
+from drive_bridge.sim import kernel
 
 from ..support import VENDOR_EDS, Bench, clean_config
 
@@ -27,7 +27,7 @@ def falling_z(brake: bool):
 def test_a_disabled_vertical_axis_falls_without_a_brake_and_stands_with_one(bench, brake):
     b = bench(falling_z(brake))
     b.link.clock.sleep(0.5)
-    q = b.robot.plant.state[2, K.Q]
+    q = b.robot.plant.state[2, kernel.Q]
     if brake:
         assert q == 0.0
     else:
@@ -39,7 +39,7 @@ def test_an_end_stop_stops_the_fall():
     cfg.axes["z"] = replace(cfg.axes["z"], end_stops_rad=(-5.0, 5.0))
     b = Bench(cfg)
     b.link.clock.sleep(1.0)
-    assert b.robot.plant.state[2, K.Q] == -5.0 and b.robot.plant.state[2, K.V] == 0.0
+    assert b.robot.plant.state[2, kernel.Q] == -5.0 and b.robot.plant.state[2, kernel.V] == 0.0
 
 
 def _enable_by_sdo(node):
@@ -159,7 +159,7 @@ def test_the_nanotec_faithful_drive_starts_in_its_factory_units_and_changes_them
     b = Bench(clean_config(), eds=eds)
     node, drive = b.nodes["y"], b.robot.drives["y"]
     assert node.sdo[0x60A8].raw == 0xFF410000 and node.sdo[0x60A9].raw == 0x00B44700
-    b.robot.plant.state[1, K.Q] = 1.0
+    b.robot.plant.state[1, kernel.Q] = 1.0
     drive.refresh_actuals()
     assert abs(node.sdo[0x6064].raw - 573) <= 1  # 1 rad in tenths of a degree
     node.sdo[0x60A8].raw = 0x00B50000  # encoder increments

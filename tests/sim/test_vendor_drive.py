@@ -13,7 +13,7 @@ from drive_bridge.params.profile import load_profile
 from drive_bridge.params.read import sdo_variable
 from drive_bridge.resources import vendor_dir
 from drive_bridge.setpoint import supported_modes
-from drive_bridge.sim import kernel as K
+from drive_bridge.sim import kernel
 from drive_bridge.sim.vendors import SPECS
 
 from ..support import Bench, clean_config
@@ -66,17 +66,17 @@ def test_gains_through_the_profile_drive_the_loops(name):
     profile = load_profile(SPECS[name].profile).bind(b.robot.config.axes["y"].motor.kt)
     drive = b.robot.drives["y"]
     cols = {
-        "KpP": K.KPP,
-        "FwF": K.FWF,
-        "KpS": K.KPS,
-        "KiS": K.KIS,
-        "KpC": K.KPC,
-        "KiC": K.KIC,
-        "PidP": K.PID_P,
-        "PidI": K.PID_I,
-        "PidD": K.PID_D,
-        "PidFFv": K.PID_FFV,
-        "PidFFa": K.PID_FFA,
+        "KpP": kernel.KPP,
+        "FwF": kernel.FWF,
+        "KpS": kernel.KPS,
+        "KiS": kernel.KIS,
+        "KpC": kernel.KPC,
+        "KiC": kernel.KIC,
+        "PidP": kernel.PID_P,
+        "PidI": kernel.PID_I,
+        "PidD": kernel.PID_D,
+        "PidFFv": kernel.PID_FFV,
+        "PidFFa": kernel.PID_FFA,
     }
     if profile.select is not None:  # the Nanotec's 321Ah-321Dh run once 3212h:04 selects them
         sdo_variable(node, profile.select[0]).raw = profile.select[1]
@@ -84,11 +84,13 @@ def test_gains_through_the_profile_drive_the_loops(name):
         if param == "gain_objects":
             continue
         col = cols[param]
-        value = drive.p[col] * 1.25 or 1e-4
+        value = drive.plant_param[col] * 1.25 or 1e-4
         sdo_variable(node, entry).raw = entry.to_device(value)
-        assert drive.p[col] == pytest.approx(entry.to_si(entry.held(entry.to_device(value))), rel=1e-6)
+        assert drive.plant_param[col] == pytest.approx(
+            entry.to_si(entry.held(entry.to_device(value))), rel=1e-6
+        )
     if not profile.entries:  # the iPOS: no gain objects, the factory loops run
-        assert drive.p[K.KPS] > 0
+        assert drive.plant_param[kernel.KPS] > 0
 
 
 def test_the_nanotec_runs_321Ah_to_321Dh_only_once_3212h_04_selects_them():
@@ -96,14 +98,14 @@ def test_the_nanotec_runs_321Ah_to_321Dh_only_once_3212h_04_selects_them():
     setting it switches the loops to what 321Ah-321Dh hold, clearing it back to 3210h."""
     b, node = bench("nanotec_C5-E-2-09.eds")
     drive = b.robot.drives["y"]
-    kps = drive.p[K.KPS]
+    kps = drive.plant_param[kernel.KPS]
     assert node.sdo[0x3212][4].raw == 0
     node.sdo[0x321B][1].raw = 2 * node.sdo[0x321B][1].raw
-    assert drive.p[K.KPS] == kps
+    assert drive.plant_param[kernel.KPS] == kps
     node.sdo[0x3212][4].raw = 1
-    assert drive.p[K.KPS] == pytest.approx(2 * kps, rel=1e-3)
+    assert drive.plant_param[kernel.KPS] == pytest.approx(2 * kps, rel=1e-3)
     node.sdo[0x3212][4].raw = 0
-    assert drive.p[K.KPS] == kps
+    assert drive.plant_param[kernel.KPS] == kps
 
 
 def test_the_epos2_runs_its_position_pid_at_1_kHz_and_its_velocity_pi_is_not_in_the_loop():
@@ -111,21 +113,21 @@ def test_the_epos2_runs_its_position_pid_at_1_kHz_and_its_velocity_pi_is_not_in_
     declared 1 kHz; 0x60F9 (the velocity PI) is held but drives nothing."""
     b, node = bench("maxon_epos2_50-5.eds")
     drive = b.robot.drives["y"]
-    assert drive.p[K.STRUCT] == K.POSITION_PID and drive.p[K.LOOP_DIV] == 2
-    before = drive.p.copy()
+    assert drive.plant_param[kernel.STRUCT] == kernel.POSITION_PID and drive.plant_param[kernel.LOOP_DIV] == 2
+    before = drive.plant_param.copy()
     node.sdo[0x60F9][1].raw = 2 * node.sdo[0x60F9][1].raw + 1
-    assert (drive.p == before).all()
+    assert (drive.plant_param == before).all()
     kt = b.robot.config.axes["y"].motor.kt
     node.sdo[0x60FB][1].raw = 3000  # 0.01 A/rad on the bus (the profile's reading)
-    assert drive.p[K.PID_P] == pytest.approx(3000 / 100 * kt)
+    assert drive.plant_param[kernel.PID_P] == pytest.approx(3000 / 100 * kt)
 
 
 def test_maxon_reports_velocity_in_rpm_and_current_in_mA():
     b, node = bench("maxon_epos2_50-5.eds")
     drive = b.robot.drives["y"]
-    drive.s[K.V] = 10.0  # rad/s
-    drive.s[K.I_SUM], drive.s[K.I_COUNT] = 1.5, 1.0  # 1.5 A averaged
-    drive.s[K.Q] += 10.0 * 0.002
+    drive.plant_state[kernel.V] = 10.0  # rad/s
+    drive.plant_state[kernel.I_SUM], drive.plant_state[kernel.I_COUNT] = 1.5, 1.0  # 1.5 A averaged
+    drive.plant_state[kernel.Q] += 10.0 * 0.002
     b.robot.advance(0)
     b.robot.plant.time += 0.002
     drive.refresh_actuals()
@@ -179,4 +181,4 @@ def test_a_nanotec_on_3210h_is_read_as_it_runs_and_switched_only_with_the_whole_
     whole = {k: v for k, v in running.items() if k != "gain_objects"} | {"KpS": 2 * running["KpS"]}
     assert write_parameters(node, profile, whole, store=False).ok
     assert node.sdo[0x3212][4].raw == 1
-    assert b.robot.drives["y"].p[K.KPS] == pytest.approx(2 * running["KpS"], rel=1e-3)
+    assert b.robot.drives["y"].p[kernel.KPS] == pytest.approx(2 * running["KpS"], rel=1e-3)

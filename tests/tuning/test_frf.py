@@ -23,8 +23,8 @@ from drive_bridge.params.cascade import (
     velocity_open_loop,
 )
 from drive_bridge.params.controller import LOOP_TICK_S
-from drive_bridge.sim.config import Motor, load_sim_config
 from drive_bridge.sim.plantlog import plant_log
+from drive_bridge.sim.robot_config import Motor, load_sim_config
 from drive_bridge.sim.vendors import factory
 from drive_bridge.tuning.design import PM_DESIGN_DEG, current_gains, design_gains, measurement_gains
 
@@ -142,19 +142,23 @@ def test_the_frf_survives_its_json():
 def test_the_shipped_compliant_robot_rings_at_its_resonance():
     """The simulator's two-mass plant, let go with the motor moving and the load at rest, swings
     at √(k·(Jm + Jl)/(Jm·Jl)) / 2π: 120 Hz for the shipped compliant Y."""
-    from drive_bridge.sim import kernel as K
+    from drive_bridge.sim import kernel
 
     y = load_sim_config("compliant").axes["y"]
-    state, param, demand = K.new_arrays(1)
-    param[0, K.J], param[0, K.BRAKE], param[0, K.INC_PER_RAD] = y.J, 0.0, 1e6  # power off, no friction
+    state, param, demand = kernel.new_arrays(1)
+    param[0, kernel.J], param[0, kernel.BRAKE], param[0, kernel.INC_PER_RAD] = (
+        y.J,
+        0.0,
+        1e6,
+    )  # power off, no friction
     for name, value in y.effects["compliance"].items():
-        param[0, getattr(K, name)] = value
-    state[0, K.V] = 1.0
+        param[0, getattr(kernel, name)] = value
+    state[0, kernel.V] = 1.0
     v = []
     for _ in range(800):
-        K.advance(state, param, demand, np.zeros(1, dtype=np.int64), 1, 4)
-        v.append(state[0, K.V])
-    f = np.fft.rfftfreq(len(v), K.VELOCITY_TICK_S)
+        kernel.advance(state, param, demand, np.zeros(1, dtype=np.int64), 1, 4)
+        v.append(state[0, kernel.V])
+    f = np.fft.rfftfreq(len(v), kernel.VELOCITY_TICK_S)
     peak = f[np.argmax(np.abs(np.fft.rfft(np.asarray(v) - np.mean(v))))]
     assert peak == pytest.approx(RESONANCE_HZ, abs=2 * (f[1] - f[0]))
 

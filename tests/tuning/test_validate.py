@@ -9,7 +9,7 @@ from drive_bridge.connect import open_link
 from drive_bridge.master.bringup import bring_up
 from drive_bridge.paper import TABLE_III
 from drive_bridge.params.profile import load_profile
-from drive_bridge.sim import kernel as K
+from drive_bridge.sim import kernel
 from drive_bridge.tuning.design import design_gains
 from drive_bridge.tuning.tune import model_from_identify
 from drive_bridge.tuning.validate import validate
@@ -96,7 +96,7 @@ def test_master_feedforward_reaches_the_drives_own_on_the_same_trajectories():
     for traj in ("point_to_point", "path"):
         assert fe[("master", traj)] <= 1.5 * fe[("drive", traj)], fe
         assert fe[("master", traj)] < fe[("gains only", traj)] / 4, fe
-    assert drive.p[K.FF_EN] == 0.0  # the last scenario ran with the drive's own model off
+    assert drive.plant_param[kernel.FF_EN] == 0.0  # the last scenario ran with the drive's own model off
 
 
 def test_master_feedforward_offsets_follow_the_interpolation_segment():

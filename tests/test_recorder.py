@@ -11,7 +11,7 @@ import pytest
 import yaml
 
 from drive_bridge.cli import main
-from drive_bridge.record import record
+from drive_bridge.recorder import record
 
 from .master.test_stream import run_record
 from .support import Bench, bus_yml_beside, clean_config, decodes_to_the_log, quick_config, read_csv, tool
@@ -375,7 +375,7 @@ def test_streaming_starts_without_a_yaml_dump_while_the_drives_watch_for_setpoin
     SYNCs enabling took right then, without a YAML dump (one took 26 ms: every 3-axis wall-clock run
     stopped with loss of setpoint 0x8250 after two cycles), and what it says lets decode skip exactly
     those SYNCs."""
-    import drive_bridge.record as recording
+    import drive_bridge.recorder as recording
     from drive_bridge import logs
 
     in_window, dumped_there, told = [], [], []

@@ -11,6 +11,7 @@ from typing import Any
 
 from .config import BusConfig
 from .errors import MotionAborted
+from .interrupts import deferred
 from .logs import LOG_NAME, META_NAME, TRACE_NAME, layout_meta, meta_text, write_csv, write_meta
 from .master.bringup import AxisLink, bring_up
 from .master.busload import BusLoad, check_bus_load
@@ -22,7 +23,6 @@ from .master.stream import stream, supervision_for
 from .master.timing import Timing
 from .outputs import stamped, write_text
 from .params.profile import setpoint_timeout_for
-from .signals import deferred
 from .version import __version__
 
 ENABLING = -999_999_999  # meta.yaml's sync_before_plan while the drives are being enabled
