@@ -651,7 +651,26 @@ def _merge(defaults: dict, node: dict) -> dict:
 
 
 def load_bus_config(path: str | Path) -> BusConfig:
-    """Read and check ``bus.yml``; raises :class:`ConfigError` naming file and key."""
+    """Read and check a bus configuration (``bus.yml``).
+
+    Parameters
+    ----------
+    path : str or Path
+        The bus.yml file. Each node's EDS/DCF is read from the path it names (relative to the
+        file), or from the vendor files shipped with drive-bridge.
+
+    Returns
+    -------
+    BusConfig
+        The checked configuration: the master's bus and timing, each node with its scaling,
+        limits [SI, motor side], PDO mapping and drive profile.
+
+    Raises
+    ------
+    ConfigError
+        A missing file, a key that is missing, unknown or out of range, or an EDS/DCF that
+        cannot be read; the message names the file and the key and says what to do.
+    """
     path = Path(path)
     top = Section(path, "", load_yaml(path))
     options = top.section("options", required=False)

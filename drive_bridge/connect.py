@@ -19,7 +19,35 @@ log = logging.getLogger(__name__)
 def open_link(
     config: BusConfig, sim: bool, realtime: bool = False, sim_config: str | None = None
 ) -> Iterator[Link]:
-    """The link the master talks through: the configured bus, or the simulated robot."""
+    """The link the master talks through: the configured bus, or the simulated robot.
+
+    A context manager: the link is closed on leaving it (on the simulated robot, the drives'
+    process or thread too).
+
+    Parameters
+    ----------
+    config : BusConfig
+        The bus configuration (:func:`load_bus_config`).
+    sim : bool
+        Talk to the simulated robot instead of the configured bus.
+    realtime : bool
+        With ``sim``: the drives in a process of their own on the wall clock (udp_multicast)
+        instead of lockstep, where simulated time waits for the master.
+    sim_config : str, optional
+        With ``sim``: the simulator's YAML, or a shipped robot by name (``robot``,
+        ``compliant``); default the shipped ``robot``.
+
+    Yields
+    ------
+    Link
+        The open link (:class:`drive_bridge.master.link.Link`).
+
+    Raises
+    ------
+    UserError
+        No CAN interface named, a bus that cannot be opened, a SYNC period the simulated drives
+        cannot run, or a node whose EDS/DCF has no simulated drive.
+    """
     link: Link
     if not sim:
         m = config.master

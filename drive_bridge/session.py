@@ -23,12 +23,33 @@ from .params.profile import DEFAULT_PROFILE, Profile, load_profile
 
 @dataclass
 class Options:
-    """How to reach the drives and what to run with: ``sim`` (``realtime``, ``sim_config``) for
-    the simulated robot, the drive ``profile``, ``motor`` (R [Ω], L [H]) for drives that do not
-    report it, the ``seed`` of the evolutionary fits, and the margin floor a written gain set must
-    keep (``pm_floor`` [°], ``gm_floor`` [dB]) unless ``force``; ``allow_unverified_scales`` writes
-    through drive-profile scales without a documented source; ``history`` keeps the run in the
-    history database ``db`` (:mod:`drive_bridge.history`)."""
+    """How a session or a commissioning reaches the drives and what it runs with.
+
+    Parameters
+    ----------
+    sim : bool
+        The simulated robot instead of the configured bus.
+    realtime : bool
+        With ``sim``: on the wall clock, the drives in a process of their own.
+    sim_config : str, optional
+        With ``sim``: the simulator's YAML or a shipped robot by name.
+    profile : str, optional
+        The drive profile; default the one bus.yml names, else the project's drive.
+    motor : (float, float), optional
+        R [Ω], L [H] for drives that do not report their motor.
+    seed : int
+        Seed of the evolutionary fits.
+    force : bool
+        Write a gain set below the margin floor (recorded).
+    pm_floor, gm_floor : float
+        The margin floor [°], [dB] a written gain set must keep.
+    allow_unverified_scales : bool
+        Write through drive-profile scales without a documented source.
+    history : bool
+        Keep the run in the history database (:mod:`drive_bridge.history`).
+    db : str, optional
+        That database's URL; default ``DRIVE_BRIDGE_DB``, else the user's SQLite file.
+    """
 
     sim: bool = False
     realtime: bool = False
@@ -51,7 +72,40 @@ class Options:
 
 
 class Session:
-    """The drives of ``config`` reached as ``options`` say (or over an open ``link``)."""
+    """The drives of a bus configuration, reached as the options say: drive-bridge's counterpart of
+    ``canopen.Network``. Nothing is opened, scanned or written until it is asked for; a context
+    manager closes what it opened.
+
+    Parameters
+    ----------
+    config : BusConfig
+        The bus configuration (:func:`drive_bridge.load_bus_config`).
+    options : Options, optional
+        How to reach the drives (default: the configured bus, the project's drive profile).
+    link : Link, optional
+        An open link to use instead of opening one.
+
+    Attributes
+    ----------
+    link : Link
+        The link, opened on first use (:func:`drive_bridge.open_link`).
+    nodes : dict of str to canopen.RemoteNode
+        The configured nodes found on the bus, by axis (a scan; nothing written).
+    axes : dict of str to AxisLink
+        The drives brought up (PDO mapping, heartbeat, limits; they stay disabled).
+    identities : dict of str to dict
+        Each axis's drive identity (0x1018) as the scan or bring-up read it.
+    profile : Profile
+        The drive profile in use.
+
+    Examples
+    --------
+    >>> from drive_bridge import Options, Session, load_bus_config
+    >>> from drive_bridge.resources import data
+    >>> with Session(load_bus_config(data("config", "bus.yml")), Options(sim=True)) as session:
+    ...     sorted(session.axes)
+    ['x', 'y', 'z']
+    """
 
     def __init__(self, config: BusConfig, options: Options | None = None, link: Link | None = None):
         self.config = config

@@ -126,11 +126,39 @@ def commission(
 ) -> CommissionResult:
     """Run the commissioning steps of ``config`` with every output in ``out``.
 
-    ``steps`` (names from :data:`STEPS`) runs only those, in pipeline order; without it the
-    run resumes after the last completed step recorded in ``out``.  ``link`` is an open link
-    to use (default: open the configured bus, or the simulated robot with ``options.sim``).
-    Never raises for a problem on the bus or in the data: the result says which step failed
-    and why.
+    scan → bring-up → campaign → identify → measure → tune → write → validate, each step's
+    output kept in ``out`` (resumable), ending in ``summary.json`` and ``report.html``.
+
+    Parameters
+    ----------
+    config : BusConfig
+        The bus configuration (:func:`drive_bridge.load_bus_config`).
+    out : str or Path
+        The run directory (made where missing).
+    options : Options, optional
+        How to reach the drives and what to run with (default :class:`Options`: the configured
+        bus, the project's drive profile).
+    steps : list of str, optional
+        Run only these (names from :data:`STEPS`), in pipeline order; default: resume after
+        the last completed step recorded in ``out``.
+    restart : bool
+        Start again from the first step, whatever ``out`` holds.
+    reporter : StepReporter, optional
+        Told as each step starts and ends (the command's progress lines).
+    link : Link, optional
+        An open link to use; default: open the configured bus, or the simulated robot with
+        ``options.sim``.
+
+    Returns
+    -------
+    CommissionResult
+        How it ended (``status``, ``exit_code``), the failed step and why, the verdict.
+
+    Raises
+    ------
+    UserError
+        An unknown step name. A problem on the bus or in the data never raises: the result
+        says which step failed and why.
     """
     options = options or Options()
     out = Path(out)

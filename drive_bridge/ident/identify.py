@@ -535,9 +535,46 @@ def identify(
     torque_delay_s: float | None = None,
     torque_sign: float = 1.0,
 ) -> dict[str, AxisResult]:
-    """Identify every axis of the log at ``path`` (or ``axes``); see the package docstring.
-    ``torque_delay_s``: the logged torque's delay behind the position, None to estimate it;
-    ``torque_sign`` -1: the torque was logged with the opposite sign convention to the position."""
+    """Identify J, c0 and c1 of every axis of a log, and the effects its residual shows.
+
+    The rigid model J·q̈ + c1·q̇ + c0·sign(q̇) = τ is fitted by least squares and a genetic
+    algorithm on filtered, decimated samples; the residual is traced to effects the model
+    lacks (each kept only where it improves the validation error); what the data cannot
+    determine is said, not printed with a small std.
+
+    Parameters
+    ----------
+    path : str or Path
+        The log (CSV: ``time_s``, per axis ``<axis>_position_rad`` [rad] and
+        ``<axis>_torque_Nm`` [Nm], motor side), or a run directory with ``log.csv``.
+    validate : str or Path, optional
+        A second log of the same axes to validate on; default: blocks held out of ``path``.
+    axes : list of str, optional
+        The axes to identify; default every axis of the log.
+    seed : int
+        Seed of the genetic algorithm (the same seed, the same numbers).
+    cutoff_hz : float, optional
+        The low-pass cut-off [Hz]; default chosen from the motion's bandwidth.
+    decimation : int, optional
+        The decimation factor; default chosen with the cut-off.
+    progress : callable, optional
+        Called with a line of text as each axis advances.
+    torque_delay_s : float, optional
+        The logged torque's delay behind the position [s]; None: estimated from the log.
+    torque_sign : {1.0, -1.0}
+        -1: the torque was logged with the opposite sign convention to the position.
+
+    Returns
+    -------
+    dict of str to AxisResult
+        Per axis: the fitted model (``model.params_``, ``model.param_std_``), the effects
+        added, the validation errors before and after, and what is undetermined.
+
+    Raises
+    ------
+    UserError
+        A log that cannot be read or has no such axis, or settings out of range.
+    """
     log = read_log(path)
     val_log = read_log(validate) if validate else None
     if torque_sign not in (1.0, -1.0):

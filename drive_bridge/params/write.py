@@ -560,19 +560,57 @@ def write_drives(
     frf: dict | None = None,
     torque_constants: dict[str, float | None] | None = None,
 ) -> WriteOutcome:
-    """The write step: every value checked, and each drive's gains checked against the model in
-    its set (J, c1) with its motor ``inductance`` [H] (from the tune result, else the motor
-    data objects the profile names) and against its measured response where ``frf`` has one
-    (margins of the values as written, the worse of the two, floor
-    ``pm_floor`` / ``gm_floor``; ``force`` writes a set below it and records that); then with
-    ``dry_run`` each drive's old and new values, nothing written, else one transaction over
-    every drive (:func:`write_all`, backups in ``backup_dir``, what bring-up overwrote in
-    ``settings_before``) and, when every drive verified,
-    each commissioned node exported as a DCF to ``dcf_dir`` (:func:`~drive_bridge.dcf.export_dcf`,
-    the bus at ``bitrate``).  A scale without a documented source
-    is written only with ``allow_unverified_scales`` (a dry run shows it); ``torque_constants``
-    [Nm/A] per axis where the drive holds values in current.  Raises ValueRefused before anything
-    is written."""
+    """The write step: every value checked, then one transaction over every drive.
+
+    Every value is checked against its physical range, the drive's limits and the EDS; each
+    drive's gains against the model in its set (J, c1) and, where measured, its response (the
+    margins of the values as written, the worse of the two). Then one transaction over every
+    drive (:func:`write_all`): written, stored, read back; on any failure every drive is put
+    back to its backup. Nothing is half-written.
+
+    Parameters
+    ----------
+    nodes : dict of str to canopen.RemoteNode
+        The drives by axis, brought up.
+    profile : Profile
+        The drive profile: which object holds each parameter, in which unit.
+    values : dict of str to dict of str to float
+        Per axis the parameters to write (J [kg·m²], c0 [Nm], c1 [Nm·s/rad], KpP [1/s], FwF [1],
+        KpS [Nm·s/rad], KiS [1/s], ...), SI, motor side.
+    backup_dir : str or Path or None
+        Where each drive's values before the write are kept (None: not kept).
+    dcf_dir : str or Path, optional
+        Where each commissioned node is exported as a DCF once every drive verified.
+    dry_run : bool
+        Check and show each drive's old and new values; nothing is written.
+    inductance : dict of str to float, optional
+        Per axis the motor inductance [H] for the margin check; default the motor data objects
+        the profile names.
+    force : bool
+        Write a gain set whose margins are below the floor (recorded as forced).
+    pm_floor, gm_floor : float
+        The margin floor [°], [dB] a gain set must keep.
+    allow_unverified_scales : bool
+        Write through profile scales without a documented source (a dry run shows them).
+    bitrate : int
+        The bus bitrate [bit/s] written into the exported DCFs.
+    settings_before : dict, optional
+        What bring-up overwrote, per axis, put back with a failed write.
+    frf : dict of str to Frf, optional
+        Per axis the response measured through the drive: the gains keep their margins on it too.
+    torque_constants : dict of str to float, optional
+        Per axis [Nm/A], where the drive holds values in current.
+
+    Returns
+    -------
+    WriteOutcome
+        Per axis what was written, stored and read back, the margins, the sets forced.
+
+    Raises
+    ------
+    ValueRefused
+        A value out of its range or a gain set below the margin floor, before anything is written.
+    """
     require_profile_objects(nodes, profile)
     profiles = bind_axes(profile, nodes, torque_constants)
     results = plan_writes(nodes, profiles, values, dry_run=dry_run)  # every value first: ValueRefused

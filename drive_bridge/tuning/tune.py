@@ -346,10 +346,35 @@ def tune(
     resonances: dict[str, dict | None] | None = None,
     drive: str = "drive",
 ) -> dict[str, AxisTuning]:
-    """The tune step: gains for every axis of ``state`` (what bring-up read:
-    :func:`~drive_bridge.params.read.drive_state`) from its identified model in ``models`` for the
-    ``controller`` of the ``drive``'s profile and, where ``frfs`` has it, its measured response
-    (``resonances``: identify's per axis)."""
+    """The cascade gains of every axis from its identified model.
+
+    Parameters
+    ----------
+    models : dict of str to dict of str to float
+        Per axis the identified model: J [kg·m²], c0 [Nm], c1 [Nm·s/rad].
+    state : dict of str to dict
+        Per axis what bring-up read (:func:`~drive_bridge.params.read.drive_state`): the motor's
+        R [Ω] and L [H] and the parameters before.
+    frfs : dict of str to Frf, optional
+        Per axis the response measured through the drive: the margins are kept on it too.
+    controller : Controller
+        The controller the drive runs (its profile's: structure and loop rates).
+    resonances : dict of str to dict, optional
+        Per axis the mode identify found (frequency [Hz], damping).
+    drive : str
+        The drive's name, for the messages.
+
+    Returns
+    -------
+    dict of str to AxisTuning
+        Per axis the design (KpP [1/s], FwF [1], KpS [Nm·s/rad], KiS [1/s], KpC [V/A],
+        KiC [1/s]), the loop margins before and after, and how a mode was met.
+
+    Raises
+    ------
+    UserError
+        An axis without a model, a model or motor data that cannot be designed for.
+    """
     out = {}
     for a, st in state.items():
         if a not in models:

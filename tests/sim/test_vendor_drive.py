@@ -181,4 +181,4 @@ def test_a_nanotec_on_3210h_is_read_as_it_runs_and_switched_only_with_the_whole_
     whole = {k: v for k, v in running.items() if k != "gain_objects"} | {"KpS": 2 * running["KpS"]}
     assert write_parameters(node, profile, whole, store=False).ok
     assert node.sdo[0x3212][4].raw == 1
-    assert b.robot.drives["y"].p[kernel.KPS] == pytest.approx(2 * running["KpS"], rel=1e-3)
+    assert b.robot.drives["y"].plant_param[kernel.KPS] == pytest.approx(2 * running["KpS"], rel=1e-3)
