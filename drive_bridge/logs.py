@@ -1,6 +1,6 @@
 """Record output: ``log.csv`` (SI, one row per SYNC), ``meta.yaml`` and the raw CAN trace.
 
-The CSV is made from a :class:`~drive_bridge.master.stream.Recording` in
+The CSV is made from a :class:`~drive_bridge.master.recording.Recording` in
 device units through the axis scaling; :func:`decode_trace` refills the same
 Recording from the trace and the PDO layout in meta.yaml, so decoding gives
 the same CSV as the live run.
@@ -28,7 +28,7 @@ from .yamlconf import load_yaml
 
 if TYPE_CHECKING:  # the master is not imported to read a log (identification does)
     from .master.bringup import AxisLink
-    from .master.stream import Recording
+    from .master.recording import Recording
 
 LOG_NAME, META_NAME, TRACE_NAME = "log.csv", "meta.yaml", "trace.blf"
 
@@ -175,7 +175,7 @@ def decode_trace(
 
     A damaged or cut-short trace gives the rows before the damage and, last, what is wrong
     with it (None for a whole trace)."""
-    from .master.stream import Recording
+    from .master.recording import Recording
 
     trace = Path(trace)
     meta_path = Path(meta_path) if meta_path else trace.with_name(META_NAME)

@@ -19,7 +19,8 @@ from .master.campaign import Plan, build_plan
 from .master.engine import Supervision
 from .master.homing import home
 from .master.link import Link, TraceRecorder
-from .master.stream import stream, supervision_for
+from .master.stream import stream
+from .master.supervision import supervision_for
 from .master.timing import Timing
 from .outputs import stamped, write_text
 from .params.profile import setpoint_timeout_for

@@ -162,7 +162,7 @@ class Session:
     def holding(self) -> dict[str, str]:
         """How each brought-up axis is held now, read from the drives (empty where none was
         brought up; an axis that does not answer says so)."""
-        from .master.stream import holding_of
+        from .master.hold import holding_of
 
         out = {}
         for name, ax in (self._axes or {}).items():

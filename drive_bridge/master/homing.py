@@ -29,8 +29,9 @@ from ..config import BusConfig
 from ..errors import Interrupted, MotionAborted
 from ..interrupts import signal_name
 from .bringup import AxisLink, read_back
+from .hold import quick_stop
 from .link import Link
-from .stream import check_heartbeats, quick_stop
+from .supervision import check_heartbeats
 
 log = logging.getLogger(__name__)
 

@@ -9,14 +9,14 @@ jump).  After it, each axis is left held (``holding: enabled``: powered at its p
 profile position with halt; ``brake``: switched off onto its brake); after a fault or a signal,
 every axis gets a quick stop in the next cycle's controlword and SYNC runs until each stands
 still (SDO only where its feedback is gone), and an axis that holds ``enabled`` stays in QUICK
-STOP ACTIVE, powered.
+STOP ACTIVE, powered (:mod:`.hold`).
 
 This module lays the plan out as a :class:`~.engine.Job` (what each RPDO field carries, per axis
 its constants in device units, the time limits the drives were given) and a setpoint table, hands
 them to the link's cyclic engine (:mod:`.engine`; on the wall clock in a process of its own,
 :mod:`.coprocess`), and turns the engine's outcome into the :class:`StreamResult`: the recording
-in device units (:class:`Recording`; SI once, afterwards, in :mod:`drive_bridge.logs`), why it
-stopped, how each axis is held, the run's timing.
+in device units (:class:`~.recording.Recording`; SI once, afterwards, in :mod:`drive_bridge.logs`),
+why it stopped (:mod:`.supervision`), how each axis is held, the run's timing.
 """
 
 from __future__ import annotations
@@ -26,25 +26,22 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
-import canopen
 import numpy as np
 
-from ..cia.p301 import MASTER_LOSS, emcy_text
 from ..cia.p402 import (
     CSP,
     CW_ENABLE,
     CW_ENABLE_IP,
     CW_HALT,
-    CW_QUICK_STOP,
     IP,
     PP,
     QUICK_STOP_RAMP_AND_HOLD,
     state_name,
 )
 from ..config import TimingLimits
-from ..errors import GuardStop, Interrupted, MotionAborted, UserError
+from ..errors import Interrupted, MotionAborted, UserError
 from ..pdo import PdoCodec
-from ..setpoint import PVT, SETPOINT_OBJECTS, pack_pvt, position_of
+from ..setpoint import PVT, SETPOINT_OBJECTS, pack_pvt
 from .bringup import AxisLink
 from .campaign import Plan
 from .engine import (
@@ -61,163 +58,15 @@ from .engine import (
     Supervision,
     TpdoJob,
 )
+from .hold import STANDSTILL, STANDSTILL_MIN_RAD_S, holding_of, on_brake, prepare_enable, quick_stop
 from .link import Link
+from .recording import Recording
+from .supervision import VelocityGuard, stop_reason
 from .timing import Timing, measure
 
 log = logging.getLogger(__name__)
 
-STANDSTILL = 0.002  # quick stop complete below this fraction of the axis's max velocity ...
-STANDSTILL_MIN_RAD_S = 0.05  # ... or below this, whichever is larger (encoder differencing noise)
-#: decoding a trace: a TPDO is placed in the row of the newest SYNC before its time stamp, looking
-#: back at most this many rows (a reply the master took in after the next SYNC went out)
-FEEDBACK_LAG = 1
 INT32 = (-(2**31), 2**31 - 1)
-#: EMCY codes a drive sends when the master's stream stopped reaching it (loss of setpoints, the
-#: master's heartbeat): where the master's own SYNCs were late by more than the drive allows, the
-#: master was late, and the run says so
-#: the drive profile's setpoint-loss timeout is unknown: a drive is taken to stop on the master's
-#: heartbeat alone, within the consumer time bring-up wrote (0x1016:1)
-NO_TIMEOUT = None
-
-
-class Recording:
-    """Samples in device units, one row per SYNC period of the plan.
-
-    ``raw`` holds the TPDO objects of every axis side by side (``columns``
-    names them as (axis, index)); ``got`` says which TPDO of which row arrived;
-    ``demand`` is the position each drive took at the row's SYNC (what the last
-    RPDO before it carried); ``sync_time`` the SYNC's time stamp, NaN for a period
-    a late master sent no SYNC in (``skipped``).  :meth:`handlers` gives the
-    per-COB-ID callbacks that rebuild it from a trace (:mod:`drive_bridge.logs`);
-    live, the cyclic engine writes the same arrays (``arrays``, its own).
-
-    A TPDO belongs to the last SYNC sent before it; when it is read after the
-    next SYNC went out, its frame time stamp (taken when it reached the bus,
-    before that SYNC) still places it in its own row.
-    """
-
-    def __init__(
-        self,
-        tpdos: dict[str, list[PdoCodec]],
-        rpdos: dict[str, list[PdoCodec]],
-        n_cycles: int,
-        arrays: Arrays | None = None,
-    ):
-        self.axes = list(tpdos)
-        self.columns: list[tuple[str, int]] = []
-        self._tpdo_slots: list[tuple[int, PdoCodec, int, int]] = []  # (cob, codec, first column, got column)
-        for axis, codecs in tpdos.items():
-            for codec in codecs:
-                self._tpdo_slots.append((codec.cob_id, codec, len(self.columns), len(self._tpdo_slots)))
-                self.columns.extend((axis, index) for index in codec.objects)
-        self._rpdo_slots = []
-        for ai, codecs in enumerate(rpdos.values()):
-            for codec in codecs:
-                for pos, entry in enumerate(codec.entries):
-                    if entry in SETPOINT_OBJECTS:
-                        self._rpdo_slots.append((codec.cob_id, codec, pos, ai, entry))
-        #: per axis, the columns of ``got`` (its TPDOs): a row is complete when all of them arrived
-        self.slots = {
-            axis: [slot for _, _, first, slot in self._tpdo_slots if self.columns[first][0] == axis]
-            for axis in self.axes
-        }
-        if arrays is not None:
-            self.raw, self.got, self.demand, self.sync_time = (
-                arrays.raw,
-                arrays.got,
-                arrays.demand,
-                arrays.sync_time,
-            )
-        else:
-            self.raw = np.zeros((n_cycles, len(self.columns)), dtype=np.int64)
-            self.got = np.zeros((n_cycles, len(self._tpdo_slots)), dtype=bool)
-            self.demand = np.zeros((n_cycles, len(self.axes)), dtype=np.int64)
-            self.sync_time = np.full(n_cycles, np.nan)
-        self.pending = [0] * len(self.axes)  # position the last RPDO carried, per axis (decode)
-        self.sync_index = -1  # row of the last SYNC sent (TPDOs after it belong to it)
-        self.last_sync_time = -np.inf
-        self.rows = 0  # rows up to the last one with a SYNC
-        #: SYNCs still to come before the plan's first (decode: those that enabled the drives)
-        self.skip_syncs = 0
-        #: rows whose period got no SYNC (a late master sends the SYNC of the period it is in)
-        self.skipped: set[int] = set()
-
-    def column(self, axis: str, index: int) -> int:
-        return self.columns.index((axis, index))
-
-    def handlers(self) -> dict[int, Callable]:
-        """COB-ID -> callback(can_id, data, timestamp) for every TPDO and RPDO of the plan."""
-        out: dict[int, Callable[..., None]] = {}
-        raw, got, sync_time = self.raw, self.got, self.sync_time
-        for cob, codec, first, slot in self._tpdo_slots:
-
-            def on_tpdo(
-                can_id: int,
-                data: bytearray,
-                ts: float,
-                first: int = first,
-                last: int = first + len(codec.objects),
-                unpack: Callable = codec.struct.unpack_from,
-                size: int = codec.struct.size,
-                slot: int = slot,
-            ) -> None:
-                row = back = self.sync_index
-                if ts < self.last_sync_time and row < len(raw):  # reached the bus before that SYNC
-                    while back > 0 and back >= row - FEEDBACK_LAG and not sync_time[back] <= ts:
-                        back -= 1
-                    if sync_time[back] <= ts:
-                        row = back
-                if 0 <= row < len(raw) and len(data) >= size:
-                    raw[row, first:last] = unpack(data)
-                    got[row, slot] = True
-
-            out[cob] = on_tpdo
-        for cob, codec, pos, ai, entry in self._rpdo_slots:
-
-            def on_rpdo(
-                can_id: int,
-                data: bytearray,
-                ts: float,
-                unpack: Callable = codec.struct.unpack_from,
-                pos: int = pos,
-                ai: int = ai,
-                entry: tuple[int, int] = entry,
-            ) -> None:
-                self.pending[ai] = position_of(entry, unpack(data)[pos])
-
-            out[cob] = on_rpdo
-        return out
-
-    def on_sync(self, timestamp: float) -> None:
-        if self.skip_syncs > 0:
-            self.skip_syncs -= 1
-            return
-        self.last_sync_time = timestamp
-        self.sync_index += 1
-        while self.sync_index in self.skipped:
-            self.sync_index += 1
-        if self.sync_index < len(self.raw):
-            self.sync_time[self.sync_index] = timestamp
-            self.demand[self.sync_index] = self.pending
-            self.rows = self.sync_index + 1
-
-    def valid(self, axis: str) -> np.ndarray:
-        """Per row: every TPDO of ``axis`` arrived (a complete sample)."""
-        return np.asarray(self.got[:, self.slots[axis]].all(axis=1))
-
-    def missing(self) -> dict[str, int]:
-        """Rows without a complete sample, per axis (rows of periods without a SYNC included)."""
-        return {axis: int(np.count_nonzero(~self.valid(axis)[: self.rows])) for axis in self.axes}
-
-    def truncate(self) -> None:
-        """Drop rows after the last SYNC (the plan was not finished)."""
-        n = self.rows
-        self.raw, self.got, self.demand, self.sync_time = (
-            self.raw[:n],
-            self.got[:n],
-            self.demand[:n],
-            self.sync_time[:n],
-        )
 
 
 @dataclass
@@ -230,126 +79,6 @@ class StreamResult:
     #: per axis, how it is held now that the motion is over (for the command's last line)
     holding: dict[str, str] | None = None
     sync_before_plan: int = 0  # SYNC cycles that enabled the drives before the plan's first
-
-
-def _at_rest(ax: AxisLink, statusword: int, velocity: int) -> bool:
-    """Out of OPERATION ENABLED (quick stop active, switched off or faulted) and its measured
-    velocity [device units] within ``STANDSTILL`` of its limit (or ``STANDSTILL_MIN_RAD_S``)."""
-    speed = abs(float(ax.cfg.scaling.velocity_from_device(velocity)))
-    return state_name(statusword) != "OPERATION ENABLED" and speed <= max(
-        STANDSTILL * ax.cfg.limits.max_velocity, STANDSTILL_MIN_RAD_S
-    )
-
-
-def _on_brake(ax: AxisLink) -> bool:
-    """Whether the axis is held by its brake (``holding: brake``) rather than powered."""
-    return ax.cfg.drive_limits is not None and ax.cfg.drive_limits.holding == "brake"
-
-
-def quick_stop(link: Link, axes: dict[str, AxisLink], timeout: float) -> list[str]:
-    """Quick stop every axis by SDO, then wait until each stands still (the fallback where an axis's
-    cyclic feedback is gone, and for a master that no longer streams). Returns problems seen.
-
-    An axis stands still when a fresh read shows it out of OPERATION ENABLED (quick stop active,
-    switched off or faulted) and its measured velocity (0x606C) within ``STANDSTILL`` of its
-    limit on two reads in a row: never a statusword bit left from an earlier stop, and a drive
-    that switched off while its axis coasts is waited for too."""
-    problems = []
-    for name, ax in axes.items():
-        try:
-            ax.node.sdo[0x6040].raw = CW_QUICK_STOP
-        except (canopen.SdoCommunicationError, canopen.SdoAbortedError) as exc:
-            problems.append(f"axis {name}: quick stop not confirmed ({exc})")
-    deadline = link.clock.now() + timeout
-    pending = {n for n in axes if not any(p.startswith(f"axis {n}:") for p in problems)}
-    still = dict.fromkeys(pending, 0)
-    speed = {}
-    while pending and link.clock.now() < deadline:
-        for name in list(pending):
-            ax = axes[name]
-            try:
-                sw, velocity = ax.node.sdo[0x6041].raw, ax.node.sdo[0x606C].raw
-            except (canopen.SdoCommunicationError, canopen.SdoAbortedError):
-                continue
-            speed[name] = abs(float(ax.cfg.scaling.velocity_from_device(velocity)))
-            still[name] = still[name] + 1 if _at_rest(ax, sw, velocity) else 0
-            if still[name] >= 2:
-                pending.discard(name)
-        if pending:
-            link.clock.sleep(0.01)
-    problems.extend(
-        f"axis {n}: still moving ({speed.get(n, float('nan')):.3g} rad/s) {timeout} s after quick stop"
-        for n in sorted(pending)
-    )
-    return problems
-
-
-@dataclass(frozen=True)
-class VelocityGuard:
-    """A run's own limit on each axis's measured velocity [rad/s]: beyond it the run stops."""
-
-    limits: dict[str, float]
-
-    def reason(self, axis: str, velocity: float) -> str:
-        return f"axis {axis}: velocity {velocity:.3g} rad/s beyond the guard {self.limits[axis]:.3g} rad/s: stopped"
-
-
-def supervision_for(
-    axes: dict[str, AxisLink],
-    period: float,
-    *,
-    heartbeat_timeout: float,
-    state_timeout: float,
-    setpoint_timeout: float | None = NO_TIMEOUT,
-    miss_limit: int | None = None,
-    setpoint_source: str = "",
-) -> Supervision:
-    """The time limits a stream is judged by, from what bring-up wrote into the drives and read back:
-    the SYNC period (0x1006), the synchronous window (0x1007, else the period), the master's
-    heartbeat consumer time (0x1016:1); and the drives' own setpoint-loss timeout where their
-    profile names one (``setpoint_timeout`` [s]).  A drive's feedback may be missing as long as a
-    drive waits for the master's setpoints before it stops on its own: the setpoint-loss timeout,
-    else the heartbeat consumer time.  ``miss_limit`` (bus.yml ``master.tpdo_miss_limit``) sets it
-    to that many periods instead."""
-    sources = {"period": "master.sync_period (0x1006 written)"}
-    windows = [ax.drive_limits.get("0x1007:0") for ax in axes.values()]
-    window = min((w for w in windows if w), default=None)
-    if window:
-        sources["window"] = "0x1007, as the drives hold it"
-    else:
-        sources["window"] = "the SYNC period (no synchronous window 0x1007 written)"
-    consumers = [ax.drive_limits.get("0x1016:1") for ax in axes.values()]
-    consumer_ms = min((c & 0xFFFF for c in consumers if c), default=None)
-    drive_stops = setpoint_timeout
-    if drive_stops is None:
-        drive_stops = (consumer_ms / 1000.0) if consumer_ms else heartbeat_timeout
-        sources["setpoint_timeout"] = (
-            (
-                "the master's heartbeat consumer time the drives hold (0x1016:1): their "
-                "profile names no setpoint-loss timeout"
-            )
-            if consumer_ms
-            else "master.heartbeat_consumer_ms (no consumer time written, no setpoint-loss timeout in the profile)"
-        )
-    else:
-        sources["setpoint_timeout"] = setpoint_source or "the drive profile's setpoint-loss timeout"
-    if miss_limit is not None:
-        feedback = miss_limit * period
-        sources["feedback_timeout"] = f"master.tpdo_miss_limit: {miss_limit} periods"
-    else:
-        feedback = drive_stops
-        sources["feedback_timeout"] = "as long as the drives wait for setpoints (setpoint timeout)"
-    sources["heartbeat_timeout"] = "master.heartbeat_consumer_ms"
-    return Supervision(
-        period,
-        (window / 1e6) if window else period,
-        feedback,
-        drive_stops,
-        heartbeat_timeout,
-        state_timeout,
-        max(state_timeout, 2.0),
-        sources,
-    )
 
 
 def _job(
@@ -423,7 +152,7 @@ def _job(
             for index in (0x6041, 0x606C, sc.torque_object, 0x20C4)
             if (a, index) in rec.columns
         }
-        powered = not _on_brake(ax)
+        powered = not on_brake(ax)
         standstill = (
             max(STANDSTILL * ax.cfg.limits.max_velocity, STANDSTILL_MIN_RAD_S) * sc.velocity_per_rad_s
         )
@@ -504,7 +233,7 @@ def stream(
     refused: MotionAborted | None = None
     try:
         for i, a in enumerate(plan.axes):
-            _prepare(axes[a], int(columns[job.axes[i].position_column][0]) if n else 0)
+            prepare_enable(axes[a], int(columns[job.axes[i].position_column][0]) if n else 0)
         for a in plan.axes:
             axes[a].node.nmt.send_command(0x01)  # operational: PDOs flow
         outcome, arrays, host = link.run_cycles(job, fill, progress, on_start)
@@ -523,7 +252,7 @@ def stream(
         rec.skipped = set(np.flatnonzero(np.isnan(arrays.sync_time[: outcome.rows_sent])).tolist())
     rec.truncate()
     missing = rec.missing()
-    aborted = refused or _aborted(outcome, axes, supervision, guard)
+    aborted = refused or stop_reason(outcome, axes, supervision, guard)
     log.info(
         "%d of %d plan cycles sent; %s",
         outcome.rows_sent,
@@ -575,47 +304,6 @@ def _ages(arrays: Arrays | None) -> dict[str, float]:
     }
 
 
-def _aborted(
-    outcome: Outcome, axes: dict[str, AxisLink], supervision: Supervision, guard: VelocityGuard | None
-) -> MotionAborted | None:
-    """Why the engine stopped, in words (None: it did not)."""
-    if outcome.abort is None:
-        return None
-    kind, axis, detail, code = outcome.abort
-    if kind == "interrupt":
-        return Interrupted(signal=detail or "Ctrl-C")
-    if kind == "emcy" and axis is not None and code is not None:
-        gap = outcome.largest_sync_gap_ms
-        if code in MASTER_LOSS and gap >= supervision.setpoint_timeout_s * 1e3:
-            return MotionAborted(
-                f"the master was late: its SYNCs stopped for {gap:.0f} ms, longer than the drives wait for "
-                f"setpoints ({supervision.setpoint_timeout_s * 1e3:.0f} ms); the drive stopped on its own "
-                f"({emcy_text(code)}, EMCY 0x{code:04X})",
-                axis,
-                code,
-            )
-        buffer = (
-            _buffer_cause(axes[axis])
-            if any(i == 0x20C4 for c in axes[axis].tpdos for i in c.objects)
-            else None
-        )
-        return buffer or MotionAborted(f"drive sent {emcy_text(code)} (EMCY 0x{code:04X})", axis, code)
-    if kind == "silent":
-        return MotionAborted(f"no TPDO: {detail}", axis)
-    if kind == "guard" and axis is not None and guard is not None:
-        return GuardStop(guard.reason(axis, float(axes[axis].cfg.scaling.velocity_from_device(int(detail)))))
-    if kind == "buffer" and axis is not None:
-        return _buffer_status_error(axis, int(detail, 16)) or MotionAborted(detail, axis)
-    if kind == "heartbeat":
-        return MotionAborted(f"heartbeat lost (none for {detail} s)", axis)
-    if kind == "bus":
-        return MotionAborted(
-            f"the CAN interface reported {detail} error frame(s) (bus errors, error passive or "
-            f"bus-off: check wiring, termination and bitrate)"
-        )
-    return MotionAborted(detail, axis)
-
-
 def _after(
     link: Link,
     axes: dict[str, AxisLink],
@@ -639,7 +327,7 @@ def _after(
     if completed and not outcome.lost:
         for a in names:
             ax = axes[a]
-            if _on_brake(ax) or PP not in ax.modes:
+            if on_brake(ax) or PP not in ax.modes:
                 continue
             try:
                 ax.drive.set_mode(PP)
@@ -655,7 +343,7 @@ def _after(
             f"axis {a}: its drive has neither profile position nor a quick stop that holds: without the "
             f"master's setpoints it is not held (give it holding: brake)"
             for a in names
-            if not _on_brake(axes[a])
+            if not on_brake(axes[a])
             and PP not in axes[a].modes
             and axes[a].mode == CSP
             and axes[a].drive_limits.get("0x605A:0") != QUICK_STOP_RAMP_AND_HOLD
@@ -682,83 +370,3 @@ def _inside_drive_limits(ax: AxisLink, demand: np.ndarray) -> None:
 def _records_only(ax: AxisLink, codec: PdoCodec) -> bool:
     """An RPDO of an interpolating axis that carries setpoint records and no controlword."""
     return ax.mode == IP and 0x6040 not in codec.objects and any(e in SETPOINT_OBJECTS for e in codec.entries)
-
-
-def _prepare(ax: AxisLink, target: int) -> None:
-    """Before SYNC starts: a fault reset (SDO), the target position set to where the axis stands
-    (CSP: a drive that takes 0x607A on enable must not jump), a record buffer emptied of whatever
-    an earlier run left in it (IP with 0x60C4), then the operating mode."""
-    ax.drive.reset_fault()
-    if ax.mode == IP and ax.setpoint == PVT and 0x60C4 in ax.node.object_dictionary:
-        try:
-            ax.node.sdo[0x60C4][6].raw = 0
-            ax.node.sdo[0x60C4][6].raw = 1
-        except (canopen.SdoCommunicationError, canopen.SdoAbortedError) as exc:
-            raise MotionAborted(
-                f"clearing the interpolation buffer (0x60C4:6) failed ({exc}); nothing was enabled", ax.name
-            ) from exc
-    if ax.mode == CSP:
-        try:
-            actual = ax.node.sdo[0x6064].raw
-            tolerance = max(1, round(ax.cfg.following_error_window_rad * ax.cfg.scaling.inc_per_rad / 2))
-            if abs(actual - target) > tolerance:
-                raise MotionAborted(
-                    f"the axis stands at {actual} (0x6064), not at the plan's start {target}: it "
-                    f"moved since the plan was made; nothing was enabled",
-                    ax.name,
-                )
-            ax.node.sdo[0x607A].raw = actual
-        except (canopen.SdoCommunicationError, canopen.SdoAbortedError) as exc:
-            raise MotionAborted(
-                f"setting the target position 0x607A to the actual position before enabling "
-                f"failed ({exc}); nothing was enabled",
-                ax.name,
-            ) from exc
-    ax.drive.set_mode(ax.mode)
-
-
-def holding_of(ax: AxisLink, state: str | None) -> str:
-    """How an axis in CiA 402 ``state`` is held, in words, for the command's last lines."""
-    if state in ("SWITCH ON DISABLED", "READY TO SWITCH ON", "SWITCHED ON"):
-        return "switched off, on its brake" if _on_brake(ax) else "switched off: NOT HELD"
-    if state == "OPERATION ENABLED":
-        return "powered, holding its position (profile position, halt)"
-    if state == "QUICK STOP ACTIVE":
-        return "powered, holding its position (quick stop active)"
-    return f"in {state or 'an unknown state'}"
-
-
-#: maxon's interpolation buffer status 0x20C4:1: error bits (each aborts the drive's trajectory)
-#: (EPOS Application Note "Interpolation Position Mode", Dec 2008, p. 13)
-BUFFER_ERRORS = {
-    0x0100: "its interpolation buffer ran empty (underflow: a record came late or not at all)",
-    0x0200: "its interpolation buffer overflowed (more records than it takes)",
-    0x0400: "an interpolated velocity above its maximal profile velocity 0x607F",
-    0x0800: "an interpolated acceleration above its maximal profile acceleration 0x60C5",
-}
-
-
-def _buffer_status_error(axis: str, status: int) -> MotionAborted | None:
-    for bit, what in BUFFER_ERRORS.items():
-        if status & bit:
-            return MotionAborted(f"the drive reports {what} (0x20C4:1 = 0x{status:04X})", axis)
-    return None
-
-
-def _buffer_cause(ax: AxisLink) -> MotionAborted | None:
-    """After an EMCY, the interpolation buffer status read by SDO: an error there is the cause."""
-    try:
-        return _buffer_status_error(ax.name, ax.node.sdo[0x20C4][1].raw)
-    except (canopen.SdoCommunicationError, canopen.SdoAbortedError):
-        return None
-
-
-def check_heartbeats(
-    axes: dict[str, AxisLink], names: list[str], now: float, timeout: float
-) -> MotionAborted | None:
-    """The first of ``names`` whose drive's heartbeat has been silent longer than ``timeout`` [s]."""
-    for name in names:
-        last = axes[name].last_heartbeat
-        if last is not None and now - last > timeout:
-            return MotionAborted(f"heartbeat lost (none for {now - last:.3f} s)", name)
-    return None

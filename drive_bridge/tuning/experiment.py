@@ -32,7 +32,7 @@ from ..errors import DriveRefused, GuardStop, MotionAborted, UserError
 from ..master.bringup import AxisLink
 from ..master.campaign import APPROACH_LEVEL
 from ..master.link import Link
-from ..master.stream import VelocityGuard
+from ..master.supervision import VelocityGuard
 from ..params.check import ValueRefused
 from ..params.controller import GAINS
 from ..params.profile import SELECT, Profile

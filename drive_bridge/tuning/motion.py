@@ -14,7 +14,8 @@ from ..master.bringup import AxisLink
 from ..master.campaign import APPROACH_LEVEL, Plan, Segment, approach_move, check_plan
 from ..master.homing import home
 from ..master.link import Link
-from ..master.stream import VelocityGuard, stream
+from ..master.stream import stream
+from ..master.supervision import VelocityGuard
 from ..master.timing import Timing
 from ..recorder import stream_supervision
 from .feedforward import MasterFeedForward

@@ -11,8 +11,8 @@ from drive_bridge.config import load_bus_config
 from drive_bridge.connect import open_link
 from drive_bridge.master.bringup import bring_up, scan
 from drive_bridge.master.campaign import trapezoid
+from drive_bridge.master.hold import quick_stop
 from drive_bridge.master.link import Link, MasterNetwork, TraceRecorder
-from drive_bridge.master.stream import quick_stop
 from drive_bridge.tuning import motion
 
 from ..support import BUS_CONFIG

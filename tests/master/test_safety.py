@@ -11,7 +11,7 @@ import pytest
 
 from drive_bridge.cia.p402 import state_name
 from drive_bridge.master.bringup import bring_up
-from drive_bridge.master.stream import VelocityGuard
+from drive_bridge.master.supervision import VelocityGuard
 from drive_bridge.sim import kernel
 from drive_bridge.tuning.motion import run
 

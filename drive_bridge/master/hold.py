@@ -1,0 +1,120 @@
+"""An axis enabled without a jump, stopped, and held: the target a CSP drive takes on enable set
+to where the axis stands, a quick stop that ends when every axis stands still (SDO only where its
+feedback is gone), and how each axis is held once the motion is over (``holding: enabled``: powered
+at its position; ``brake``: switched off onto its brake)."""
+
+from __future__ import annotations
+
+import canopen
+
+from ..cia.p402 import (
+    CSP,
+    CW_QUICK_STOP,
+    IP,
+    state_name,
+)
+from ..errors import MotionAborted
+from ..setpoint import PVT
+from .bringup import AxisLink
+from .link import Link
+
+STANDSTILL = 0.002  # quick stop complete below this fraction of the axis's max velocity ...
+
+
+STANDSTILL_MIN_RAD_S = 0.05  # ... or below this, whichever is larger (encoder differencing noise)
+
+
+def at_rest(ax: AxisLink, statusword: int, velocity: int) -> bool:
+    """Out of OPERATION ENABLED (quick stop active, switched off or faulted) and its measured
+    velocity [device units] within ``STANDSTILL`` of its limit (or ``STANDSTILL_MIN_RAD_S``)."""
+    speed = abs(float(ax.cfg.scaling.velocity_from_device(velocity)))
+    return state_name(statusword) != "OPERATION ENABLED" and speed <= max(
+        STANDSTILL * ax.cfg.limits.max_velocity, STANDSTILL_MIN_RAD_S
+    )
+
+
+def on_brake(ax: AxisLink) -> bool:
+    """Whether the axis is held by its brake (``holding: brake``) rather than powered."""
+    return ax.cfg.drive_limits is not None and ax.cfg.drive_limits.holding == "brake"
+
+
+def quick_stop(link: Link, axes: dict[str, AxisLink], timeout: float) -> list[str]:
+    """Quick stop every axis by SDO, then wait until each stands still (the fallback where an axis's
+    cyclic feedback is gone, and for a master that no longer streams). Returns problems seen.
+
+    An axis stands still when a fresh read shows it out of OPERATION ENABLED (quick stop active,
+    switched off or faulted) and its measured velocity (0x606C) within ``STANDSTILL`` of its
+    limit on two reads in a row: never a statusword bit left from an earlier stop, and a drive
+    that switched off while its axis coasts is waited for too."""
+    problems = []
+    for name, ax in axes.items():
+        try:
+            ax.node.sdo[0x6040].raw = CW_QUICK_STOP
+        except (canopen.SdoCommunicationError, canopen.SdoAbortedError) as exc:
+            problems.append(f"axis {name}: quick stop not confirmed ({exc})")
+    deadline = link.clock.now() + timeout
+    pending = {n for n in axes if not any(p.startswith(f"axis {n}:") for p in problems)}
+    still = dict.fromkeys(pending, 0)
+    speed = {}
+    while pending and link.clock.now() < deadline:
+        for name in list(pending):
+            ax = axes[name]
+            try:
+                sw, velocity = ax.node.sdo[0x6041].raw, ax.node.sdo[0x606C].raw
+            except (canopen.SdoCommunicationError, canopen.SdoAbortedError):
+                continue
+            speed[name] = abs(float(ax.cfg.scaling.velocity_from_device(velocity)))
+            still[name] = still[name] + 1 if at_rest(ax, sw, velocity) else 0
+            if still[name] >= 2:
+                pending.discard(name)
+        if pending:
+            link.clock.sleep(0.01)
+    problems.extend(
+        f"axis {n}: still moving ({speed.get(n, float('nan')):.3g} rad/s) {timeout} s after quick stop"
+        for n in sorted(pending)
+    )
+    return problems
+
+
+def prepare_enable(ax: AxisLink, target: int) -> None:
+    """Before SYNC starts: a fault reset (SDO), the target position set to where the axis stands
+    (CSP: a drive that takes 0x607A on enable must not jump), a record buffer emptied of whatever
+    an earlier run left in it (IP with 0x60C4), then the operating mode."""
+    ax.drive.reset_fault()
+    if ax.mode == IP and ax.setpoint == PVT and 0x60C4 in ax.node.object_dictionary:
+        try:
+            ax.node.sdo[0x60C4][6].raw = 0
+            ax.node.sdo[0x60C4][6].raw = 1
+        except (canopen.SdoCommunicationError, canopen.SdoAbortedError) as exc:
+            raise MotionAborted(
+                f"clearing the interpolation buffer (0x60C4:6) failed ({exc}); nothing was enabled", ax.name
+            ) from exc
+    if ax.mode == CSP:
+        try:
+            actual = ax.node.sdo[0x6064].raw
+            tolerance = max(1, round(ax.cfg.following_error_window_rad * ax.cfg.scaling.inc_per_rad / 2))
+            if abs(actual - target) > tolerance:
+                raise MotionAborted(
+                    f"the axis stands at {actual} (0x6064), not at the plan's start {target}: it "
+                    f"moved since the plan was made; nothing was enabled",
+                    ax.name,
+                )
+            ax.node.sdo[0x607A].raw = actual
+        except (canopen.SdoCommunicationError, canopen.SdoAbortedError) as exc:
+            raise MotionAborted(
+                f"setting the target position 0x607A to the actual position before enabling "
+                f"failed ({exc}); nothing was enabled",
+                ax.name,
+            ) from exc
+    ax.drive.set_mode(ax.mode)
+
+
+def holding_of(ax: AxisLink, state: str | None) -> str:
+    """How an axis in CiA 402 ``state`` is held, in words, for the command's last lines."""
+    if state in ("SWITCH ON DISABLED", "READY TO SWITCH ON", "SWITCHED ON"):
+        return "switched off, on its brake" if on_brake(ax) else "switched off: NOT HELD"
+    if state == "OPERATION ENABLED":
+        return "powered, holding its position (profile position, halt)"
+    if state == "QUICK STOP ACTIVE":
+        return "powered, holding its position (quick stop active)"
+    return f"in {state or 'an unknown state'}"
