@@ -8,8 +8,7 @@ import tempfile
 import pytest
 
 from drive_bridge.sim.robot_config import DEFAULT_CONFIG, SimConfig, load_sim_config
-
-from .support import VENDOR_EDS, Bench, clean_config
+from harness.support import VENDOR_EDS, Bench, clean_config
 
 os.environ.setdefault("DRIVE_BRIDGE_VENDOR_EDS", str(VENDOR_EDS))  # vendor files, read in place
 # every run the tests commission is kept in a history database of the tests', never the user's

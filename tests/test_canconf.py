@@ -7,8 +7,7 @@ import pytest
 from drive_bridge.canconf import resolve
 from drive_bridge.cli import main
 from drive_bridge.config import load_bus_config
-
-from .support import BUS_CONFIG, bus_yml_beside
+from harness.support import BUS_CONFIG, bus_yml_beside
 
 NO_INTERFACE = (
     "  interface: virtual          # socketcan / pcan / kvaser ... on a real bus\n"

@@ -6,8 +6,7 @@ import pytest
 
 from drive_bridge.cli import main
 from drive_bridge.config import load_bus_config
-
-from .support import BUS_CONFIG, bus_yml_beside
+from harness.support import BUS_CONFIG, bus_yml_beside
 
 BAD_CONFIGS = [
     ("  sync_period: 2000", "  sync_period: 2000\n  colour: red", "master.colour: unknown key"),

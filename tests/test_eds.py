@@ -10,8 +10,7 @@ import pytest
 from drive_bridge.cli import main
 from drive_bridge.edscheck import check
 from drive_bridge.od import float_bits, float_from_bits, load_od
-
-from .support import EDS, VENDOR_EDS, tool
+from harness.support import EDS, VENDOR_EDS, tool
 
 pytestmark = pytest.mark.third_party
 

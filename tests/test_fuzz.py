@@ -10,8 +10,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 
 from drive_bridge.errors import DriveBridgeError
-
-from .fuzz_inputs import kinds, record_trace
+from harness.fuzzing import kinds, record_trace
 
 pytestmark = pytest.mark.slow
 

@@ -12,9 +12,17 @@ import yaml
 
 from drive_bridge.cli import main
 from drive_bridge.recorder import record
+from harness.support import (
+    Bench,
+    bus_yml_beside,
+    clean_config,
+    decodes_to_the_log,
+    quick_config,
+    read_csv,
+    tool,
+)
 
 from .master.test_stream import run_record
-from .support import Bench, bus_yml_beside, clean_config, decodes_to_the_log, quick_config, read_csv, tool
 
 pytestmark = [pytest.mark.slow, pytest.mark.realtime]
 

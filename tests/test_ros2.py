@@ -10,8 +10,7 @@ import yaml
 from drive_bridge.cli import main
 from drive_bridge.config import load_bus_config
 from drive_bridge.resources import DEFAULT_BUS_CONFIG, data
-
-from .support import EDS, tool
+from harness.support import EDS, tool
 
 pytestmark = [pytest.mark.slow, pytest.mark.third_party]
 

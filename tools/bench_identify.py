@@ -11,7 +11,7 @@ crb: a log measured 50 times with different torque-noise seeds, identified as a 
 against the std each fit reports (averaged; autocorrelation- and heteroskedasticity-consistent),
 and how far the plant's values lie from the mean estimate in reported std.  Two plants: the
 simulated Y axis (plant J, c0, c1 only) on a 60 s campaign, and the independent closed-loop plant
-of the tests (``tests/ident/generator.py``, 40 s at 1 kHz).  coverage: the independent plant with
+of the tests (``harness/plants.py``, 40 s at 1 kHz).  coverage: the independent plant with
 structure no library effect or one-variable spline models (friction or torque depending on two
 variables at once), amplitudes, plants and seeds drawn at random (seeded): the share of cases
 where the true J, c0, c1 lie within 3 reported std.  speed: the shipped robot (with its hidden
@@ -80,7 +80,7 @@ def _sim_y_logs(seeds: int):
 
 def _independent_logs(seeds: int):
     """The independent plant's values, and its log once per noise seed."""
-    from tests.ident.generator import closed_loop_log
+    from harness.plants import closed_loop_log
 
     return (
         {"J": 1e-4, "c0": 0.3, "c1": 5e-4},
@@ -126,7 +126,7 @@ STRUCTURES = {  # torque [Nm] no library effect nor a one-variable spline descri
 
 
 def coverage(cases: int, verbose: bool = False) -> None:
-    from tests.ident.generator import closed_loop_log
+    from harness.plants import closed_loop_log
 
     rng = np.random.default_rng(0)
     inside = {k: 0 for k in ("J", "c0", "c1")}

@@ -27,8 +27,8 @@ import yaml  # noqa: E402
 from drive_bridge.interrupts import Terminated  # noqa: E402
 from drive_bridge.recorder import record  # noqa: E402
 from drive_bridge.sim import kernel  # noqa: E402
-from tests.params.test_transaction import CASES, NAMES, SIM, Fault, device, new_values  # noqa: E402
-from tests.support import Bench, clean_config, quick_config, read_csv  # noqa: E402
+from harness.support import Bench, clean_config, quick_config, read_csv  # noqa: E402
+from harness.write_faults import CASES, NAMES, SIM, Fault, device, new_values  # noqa: E402
 
 
 def motion_fault(name: str, sim, hook) -> tuple[bool, int]:

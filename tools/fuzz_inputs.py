@@ -3,7 +3,7 @@ tracebacks (any exception that is not a DriveBridgeError) and hangs (an input ov
 
     python tools/fuzz_inputs.py [--per-kind 300] [--seed 1]
 
-The inputs come from tests/fuzz_inputs.py (hypothesis strategies); the test suite runs the same
+The inputs come from harness/fuzzing.py (hypothesis strategies); the test suite runs the same
 readers with a few dozen inputs each (tests/test_fuzz.py).  Exit 1 when any traceback or hang.
 """
 
@@ -24,7 +24,7 @@ sys.path.insert(0, str(ROOT))
 from hypothesis import HealthCheck, given, seed, settings  # noqa: E402
 
 from drive_bridge.errors import DriveBridgeError  # noqa: E402
-from tests.fuzz_inputs import kinds, record_trace  # noqa: E402
+from harness.fuzzing import kinds, record_trace  # noqa: E402
 
 HANG_S = 20
 

@@ -8,8 +8,7 @@ import json
 import pytest
 
 from drive_bridge.cli import main
-
-from ..support import EDS, VENDOR_EDS, follows_schema
+from harness.support import EDS, VENDOR_EDS, follows_schema
 
 pytestmark = pytest.mark.slow
 

@@ -14,8 +14,7 @@ from drive_bridge.cli import main
 from drive_bridge.interrupts import Terminated, deferred, handled
 from drive_bridge.paper import TABLE_II, TABLE_III
 from drive_bridge.tuning.design import design_gains
-
-from ..support import read_csv
+from harness.support import read_csv
 
 pytestmark = pytest.mark.slow
 
@@ -188,7 +187,7 @@ def test_a_fault_during_validate_stops_everything_and_resets_nothing(tmp_path, c
 
 
 def _only_y(tmp_path):
-    from ..support import bus_yml_beside
+    from harness.support import bus_yml_beside
 
     cfg = bus_yml_beside(tmp_path)
     doc = yaml.safe_load(cfg.read_text())

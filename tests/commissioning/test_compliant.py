@@ -15,8 +15,8 @@ import yaml
 from drive_bridge.cli import main
 from drive_bridge.sim.robot_config import load_sim_config
 from drive_bridge.tuning.design import design_gains
+from harness.support import bus_yml_beside
 
-from ..support import bus_yml_beside
 from ..tuning.test_frf import floor_kept, true_margins
 from .test_run import SHORT_CAMPAIGN
 

@@ -24,8 +24,7 @@ from drive_bridge.progress import StepReporter
 from drive_bridge.resources import data
 from drive_bridge.sim import kernel
 from drive_bridge.sim.robot_config import DEFAULT_CONFIG, load_sim_config
-
-from ..support import BUS_CONFIG, EDS, PAPER, follows_schema, tool
+from harness.support import BUS_CONFIG, EDS, PAPER, follows_schema, tool
 
 pytestmark = pytest.mark.slow
 

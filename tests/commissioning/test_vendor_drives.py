@@ -15,8 +15,7 @@ import yaml
 from drive_bridge.cli import main
 from drive_bridge.edscheck import check as check_eds
 from drive_bridge.resources import data, vendor_dir
-
-from ..support import tool
+from harness.support import tool
 
 pytestmark = pytest.mark.slow
 

@@ -15,8 +15,7 @@ import yaml
 from drive_bridge.cli import main
 from drive_bridge.history import HistoryStore
 from drive_bridge.sim.robot_config import DEFAULT_CONFIG
-
-from ..support import BUS_CONFIG, EDS, follows_schema
+from harness.support import BUS_CONFIG, EDS, follows_schema
 
 pytestmark = pytest.mark.slow
 

@@ -17,8 +17,8 @@ from drive_bridge.config import load_bus_config
 from drive_bridge.history import HistoryStore
 from drive_bridge.history.location import outbox_dir
 from drive_bridge.progress import StepReporter
+from harness.support import BUS_CONFIG
 
-from ..support import BUS_CONFIG
 from .conftest import SERVER, fresh_database, no_server, start_server
 from .records import axis, day, nominal, record
 

@@ -1,6 +1,6 @@
 """Identification that stays honest on a joint it never saw: a rotary joint's gravity named as
 gravity, an inertia no other term may take, and "cannot tell" where the data cannot tell -- on a
-gravity-loaded joint of its own (tests/ident/generator.py: joint_log), not drive_bridge.sim."""
+gravity-loaded joint of its own (harness/plants.py: joint_log), not drive_bridge.sim."""
 
 from __future__ import annotations
 
@@ -13,8 +13,7 @@ from drive_bridge.ident.identify import identify
 from drive_bridge.ident.presentation import as_json
 from drive_bridge.sim.plantlog import write_log
 from drive_bridge.tuning.tune import read_identify_json
-
-from .generator import joint_log
+from harness.plants import joint_log
 
 pytestmark = pytest.mark.slow
 
@@ -93,7 +92,7 @@ def test_two_ripples_at_different_periods_are_both_found(tmp_path):
     as the fast passes' steps, and a spurious Stribeck term took its place)."""
     import numpy as np
 
-    from .generator import closed_loop_log
+    from harness.plants import closed_loop_log
 
     p1, p2 = 2 * np.pi / 6, 2 * np.pi / 50
 
@@ -120,7 +119,7 @@ def test_friction_that_is_not_linear_in_velocity_says_over_which_speeds_c0_c1_ho
     a std that ignored how much the split depended on the speeds used)."""
     import numpy as np
 
-    from .generator import closed_loop_log
+    from harness.plants import closed_loop_log
 
     r = identify(
         write_log(
@@ -143,7 +142,7 @@ def test_no_backlash_on_a_rigid_axis_moved_by_trapezoids(tmp_path, acceleration)
     backlash is reported (before: at 4 ms it was -- the loop's ringing after each short step was
     taken for reversals of the transmitted torque; with other rests the filtered acceleration's
     swing across a cruise was too)."""
-    from .generator import trapezoid_log
+    from harness.plants import trapezoid_log
 
     r = identify(write_log(tmp_path / "trapezoids.csv", trapezoid_log(acceleration)))["y"]
     assert r.backlash is None, r.backlash
@@ -157,7 +156,7 @@ def test_stribeck_friction_in_the_independent_plant_is_found_and_leaves_the_iner
     mismatch read as inertia -- J +3 %, 5 std -- and as a residual in the acceleration)."""
     import numpy as np
 
-    from .generator import closed_loop_log
+    from harness.plants import closed_loop_log
 
     r = identify(
         write_log(
@@ -188,8 +187,8 @@ def _short_campaign_log(tmp_path, effects: dict | None):
     from drive_bridge.config import load_bus_config
     from drive_bridge.master.campaign import build_plan
     from drive_bridge.sim.plantlog import plant_log
+    from harness.support import BUS_CONFIG
 
-    from ..support import BUS_CONFIG
     from .test_identify import sim_config
 
     cfg = load_bus_config(BUS_CONFIG)
@@ -237,7 +236,7 @@ def test_a_two_mass_mode_under_a_stiff_velocity_loop_is_found(tmp_path, locked_h
     (motor + load) within 3 std and 2 %, and nothing is called play or friction at standstill
     (before: the 20 Hz mode stood out less in the fast samples than the slow ones' test asks of
     both, and was not reported)."""
-    from .generator import two_mass_log
+    from harness.plants import two_mass_log
 
     r = identify(
         write_log(tmp_path / "two_mass.csv", two_mass_log(locked_hz=locked_hz, velocity_loop_hz=loop_hz))
@@ -259,8 +258,7 @@ def test_the_response_read_from_the_log_matches_the_plant_where_its_coherence_sa
     import numpy as np
 
     from drive_bridge.ident.frf import MIN_COHERENCE
-
-    from .generator import closed_loop_log
+    from harness.plants import closed_loop_log
 
     J, c1 = 1e-4, 5e-4
     cols = closed_loop_log(np.arange(30000) / 1000.0, J=J, c1=c1, multisine_hz=(1.0, 60.0))

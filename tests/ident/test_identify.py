@@ -21,8 +21,7 @@ from drive_bridge.ident.logdata import read_log
 from drive_bridge.master.campaign import build_plan
 from drive_bridge.sim.plantlog import plant_log, write_log
 from drive_bridge.sim.robot_config import Motor, SimAxis, SimConfig
-
-from ..support import BUS_CONFIG, ROOT, SHARED
+from harness.support import BUS_CONFIG, ROOT, SHARED
 
 pytestmark = pytest.mark.slow
 
@@ -293,9 +292,9 @@ def test_log_without_motion_is_refused(tmp_path, capsys):
 @pytest.mark.parametrize("kind", ["jitter", "irregular"])
 def test_time_is_what_the_stamps_say(tmp_path, capsys, kind):
     """A 1 kHz log whose stamps wander ±50 µs, and a logger writing 0.7-8.8 ms apart, from the
-    independent closed-loop plant of tests/ident/generator.py: resampled onto a uniform grid from
+    independent closed-loop plant of harness/plants.py: resampled onto a uniform grid from
     the stamps (reported), never treated as evenly spaced; J, c0, c1 of the plant come back."""
-    from .generator import closed_loop_log, irregular, jittered
+    from harness.plants import closed_loop_log, irregular, jittered
 
     stamps = jittered(1000, 40, 50e-6) if kind == "jitter" else irregular(1000, 40, 0.7e-3, 8.8e-3)
     path = write_log(tmp_path / f"{kind}.csv", closed_loop_log(stamps))
@@ -310,7 +309,7 @@ def test_time_is_what_the_stamps_say(tmp_path, capsys, kind):
 
 
 def test_evenly_stamped_logs_are_used_as_they_are(tmp_path):
-    from .generator import closed_loop_log
+    from harness.plants import closed_loop_log
 
     path = write_log(tmp_path / "even.csv", closed_loop_log(np.arange(20000) / 1000))
     log = read_log(path)
@@ -369,7 +368,7 @@ def test_an_effect_beyond_the_library_is_fitted_as_a_spline(tmp_path, case, form
     by position averages it away), the same both ways (even) or in proportion to the acceleration
     (inertial: a load whose inertia changes along the stroke). The tracer adds a spline in
     position of the right form, the error falls to the noise floor, and J, c0, c1 stay right."""
-    from .generator import closed_loop_log
+    from harness.plants import closed_loop_log
 
     extra = {
         "friction bump along the stroke": lambda q, v, a, t: (
@@ -402,7 +401,7 @@ def test_clean_closed_loop_log_leaves_nothing_unexplained(tmp_path, seed):
     static friction allows: J, c0 and c1 still come out within 3 reported std of the plant's (the
     encoder's standstills count for nothing before the low-pass; with the filtered velocity's
     sign alone c0 and c1 came out 4 std apart)."""
-    from .generator import closed_loop_log
+    from harness.plants import closed_loop_log
 
     r = identify(write_log(tmp_path / "log.csv", closed_loop_log(np.arange(40000) / 1000, seed=seed)))["y"]
     assert r.effects == [] and r.unexplained == []
@@ -415,7 +414,7 @@ def test_clean_closed_loop_log_leaves_nothing_unexplained(tmp_path, seed):
 def test_a_payload_change_halfway_is_flagged_not_averaged(tmp_path, capsys):
     """The independent plant's inertia grows 30 % halfway through the log: J refitted on the two
     halves disagrees far beyond its uncertainty, and the axis says so (JSON and text)."""
-    from .generator import closed_loop_log
+    from harness.plants import closed_loop_log
 
     path = write_log(
         tmp_path / "log.csv", closed_loop_log(np.arange(40000) / 1000, seed=3, payload=(20.0, 1.3e-4))
@@ -437,7 +436,7 @@ def test_uncertainty_widens_with_structure_the_model_lacks(tmp_path, structure):
     (2e-5·sin(q)·q̈, which the inertial spline form approximates): the reported std
     (autocorrelation- and heteroskedasticity-consistent) covers the plant's J, c0 and c1 within
     3 std; on the clean log the halves agree."""
-    from .generator import closed_loop_log
+    from harness.plants import closed_loop_log
 
     extra = {"q·v": lambda q, v, a, t: 0.002 * q * v, "sin(q)·a": lambda q, v, a, t: 2e-5 * np.sin(q) * a}[
         structure
@@ -458,7 +457,7 @@ def test_a_compliant_coupling_mode_is_reported_and_the_cut_off_moved_below_it(tm
     """Load on the motor through a lightly damped coupling (40 Hz open loop, ζ 0.03) in the
     independent plant: the whole-band residual shows the mode (closed loop it rings near 27 Hz);
     it is reported with its frequency and damping, and the fit moves its cut-off below it."""
-    from .generator import closed_loop_log
+    from harness.plants import closed_loop_log
 
     cols = closed_loop_log(np.arange(40000) / 1000, seed=3, J=0.5e-4, coupling=(0.5e-4, 40.0, 0.03, 0.0))
     path = write_log(tmp_path / "log.csv", cols)
@@ -474,7 +473,7 @@ def test_a_compliant_coupling_mode_is_reported_and_the_cut_off_moved_below_it(tm
 
 
 def test_no_resonance_or_backlash_on_clean_logs(tmp_path):
-    from .generator import closed_loop_log, jittered
+    from harness.plants import closed_loop_log, jittered
 
     for name, stamps in (("even", np.arange(40000) / 1000), ("jitter", jittered(1000, 40, 50e-6))):
         r = identify(write_log(tmp_path / f"{name}.csv", closed_loop_log(stamps, seed=3)))["y"]
@@ -494,7 +493,7 @@ def test_backlash_is_reported_at_torque_reversal(tmp_path, capsys, J_motor, coup
     each reversal of the torque the coupling carries and strikes it when the gap closes.  The
     residual's energy after the acceleration reversals is reported with the delay of the
     impact; a stiff coupling without play (the same plant) reports nothing."""
-    from .generator import closed_loop_log
+    from harness.plants import closed_loop_log
 
     path = write_log(
         tmp_path / "log.csv", closed_loop_log(np.arange(40000) / 1000, seed=3, J=J_motor, coupling=coupling)
@@ -518,7 +517,7 @@ def test_a_torque_averaged_over_each_period(tmp_path):
     """A drive that reports its current averaged over each 2 ms period logs a torque half a
     period late: the delay is estimated, the positions are read that much earlier between their
     samples without losing what the fit uses (J within 0.05 % and 3 std), and nothing is added."""
-    from .generator import averaged_torque_log
+    from harness.plants import averaged_torque_log
 
     r = identify(write_log(tmp_path / "log.csv", averaged_torque_log(40.0)))["y"]
     assert r.sampling["torque_delay_ms"] == pytest.approx(1.0, abs=0.05)
@@ -538,7 +537,7 @@ def test_cogging_above_the_cut_off_and_a_late_torque(tmp_path, lag_s, period, am
     time or 1.5 ms late (a drive reporting an averaged current): the cogging column goes through
     the torque's own filter, so its amplitude comes out whole; the delay is estimated and the
     positions aligned with the torque; the final error falls to the noise floor."""
-    from .generator import closed_loop_log
+    from harness.plants import closed_loop_log
 
     def extra(q, v, a, t):
         return (
@@ -568,7 +567,7 @@ def test_a_position_in_a_coarse_unit_does_not_bias_the_inertia(tmp_path):
     quantised that coarsely, the acceleration's noise through a cut-off set by the motion alone
     reads J low (noise in a regressor); the cut-off also stays below what the count allows, so J
     comes out within 1 % and 3 std (independent plant, trapezoidal moves at 3000 rad/s²)."""
-    from .generator import averaged_torque_log
+    from harness.plants import averaged_torque_log
 
     log = averaged_torque_log(40.0, accel=300.0)
     count = math.pi / 1800  # 0.1°
@@ -615,8 +614,7 @@ def test_an_axis_is_filtered_only_around_where_it_moves(tmp_path, monkeypatch):
     half the samples here -- and J, c0, c1 come out as filtering the whole log gives them, within
     1e-6 of their std, with the same effects."""
     from drive_bridge.ident import signals
-
-    from .generator import closed_loop_log
+    from harness.plants import closed_loop_log
 
     moving = closed_loop_log(np.arange(0.0, 40.0, 0.002), seed=3)
     still = np.arange(1, 30001) * 0.002  # 60 s before, 60 s after
@@ -664,7 +662,7 @@ def test_axes_identified_in_worker_processes_give_what_one_after_the_other_gives
     are), give every parameter, std and prediction exactly as one axis after the other here: the
     worker's result comes back without its signals and is given the caller's log again. Run in a
     process of its own (a test worker runs threads, and a process with other threads never forks)."""
-    from .generator import closed_loop_log
+    from harness.plants import closed_loop_log
 
     stamps = np.arange(0.0, 12.0, 0.002)
     x, y = closed_loop_log(stamps, seed=5), closed_loop_log(stamps, seed=6, c0=0.2)
@@ -721,7 +719,7 @@ def test_a_large_csv_parsed_in_parts_gives_the_same_rows_and_a_bad_row_is_named(
     file gives, also with blank lines in it (fewer rows than lines: the shared table is cut to the
     rows); a row that does not parse, in the last part, is named as the whole file names it.
     Run in a process of its own (a test worker runs threads, and a process with threads never forks)."""
-    from .generator import closed_loop_log
+    from harness.plants import closed_loop_log
 
     good = write_log(tmp_path / "good.csv", closed_loop_log(np.arange(0.0, 6.0, 0.002), seed=7))
     lines = good.read_text().splitlines()

@@ -8,8 +8,7 @@ import pytest
 
 from drive_bridge.ident.identify import identify
 from drive_bridge.ident.presentation import ga_text
-
-from ..support import SHARED
+from harness.support import SHARED
 
 REAL = SHARED / "data" / "realdata"
 pytestmark = [

@@ -5,8 +5,7 @@ from __future__ import annotations
 import pytest
 
 from drive_bridge.cli import main
-
-from ..support import bus_yml_beside
+from harness.support import bus_yml_beside
 
 
 def test_scan_lists_the_three_drives(capsys):
@@ -44,8 +43,7 @@ def test_a_node_that_is_not_the_drive_its_eds_describes_stops_before_any_write(t
     from drive_bridge.config import load_bus_config
     from drive_bridge.errors import EXIT_CODES, BusError
     from drive_bridge.master.bringup import bring_up, check_scan, scan
-
-    from ..support import Bench, clean_config
+    from harness.support import Bench, clean_config
 
     cfg = load_bus_config(_nanotec_y(tmp_path))
     bench = Bench(clean_config())
@@ -68,8 +66,7 @@ def test_accept_identity_is_the_deliberate_override_and_is_recorded(tmp_path):
 
     from drive_bridge.config import load_bus_config
     from drive_bridge.master.bringup import check_scan, scan
-
-    from ..support import Bench, clean_config
+    from harness.support import Bench, clean_config
 
     cfg = replace(load_bus_config(_nanotec_y(tmp_path)), accept_identity=frozenset({2}))
     bench = Bench(clean_config())
@@ -91,8 +88,7 @@ def test_bring_up_streams_in_a_mode_the_drive_lists_or_refuses_naming_its_modes(
     from drive_bridge.config import load_bus_config
     from drive_bridge.errors import DriveRefused
     from drive_bridge.master.bringup import bring_up
-
-    from ..support import BUS_CONFIG, Bench, clean_config
+    from harness.support import BUS_CONFIG, Bench, clean_config
 
     cfg = load_bus_config(BUS_CONFIG).only(["y"])
     bench = Bench(clean_config())
@@ -120,8 +116,7 @@ def test_a_dry_run_writes_nothing_and_plans_what_the_run_then_does(tmp_path, cap
     from drive_bridge.master.bringup import plan_bring_up
     from drive_bridge.master.campaign import build_plan
     from drive_bridge.recorder import record
-
-    from ..support import Bench, clean_config, quick_config
+    from harness.support import Bench, clean_config, quick_config
 
     config = quick_config()
     bench = Bench(clean_config())
@@ -158,8 +153,7 @@ def test_validate_streams_the_trajectories_its_dry_run_planned(tmp_path):
     from drive_bridge.master.bringup import bring_up, plan_bring_up
     from drive_bridge.params.profile import load_profile
     from drive_bridge.tuning.validate import run_scenarios
-
-    from ..support import BUS_CONFIG, Bench, clean_config, load_bus_config
+    from harness.support import BUS_CONFIG, Bench, clean_config, load_bus_config
 
     config = load_bus_config(BUS_CONFIG).only(["y"])
     bench = Bench(clean_config())

@@ -16,8 +16,7 @@ from drive_bridge.errors import UserError
 from drive_bridge.ident import identify
 from drive_bridge.master.campaign import build_plan
 from drive_bridge.resources import DEFAULT_BUS_CONFIG
-
-from ..support import PAPER, bus_yml_beside
+from harness.support import PAPER, bus_yml_beside
 
 pytestmark = pytest.mark.slow
 

@@ -19,8 +19,7 @@ from drive_bridge.params.write import write_drives
 from drive_bridge.recorder import record
 from drive_bridge.resources import data, vendor_dir
 from drive_bridge.tuning.design import design_gains
-
-from ..support import PAPER
+from harness.support import PAPER
 
 pytestmark = [pytest.mark.slow, pytest.mark.third_party]
 

@@ -32,8 +32,7 @@ from drive_bridge.master.engine import (
 )
 from drive_bridge.recorder import record
 from drive_bridge.sim.lockstep import LinkPort, LockstepLink
-
-from ..support import Bench, clean_config, quick_config, read_csv
+from harness.support import Bench, clean_config, quick_config, read_csv
 
 PERIOD = 0.002
 

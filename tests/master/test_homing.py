@@ -14,8 +14,7 @@ from drive_bridge.master.homing import home
 from drive_bridge.recorder import record
 from drive_bridge.sim import kernel
 from drive_bridge.sim.drive import LIMIT_SWITCH_INSET_RAD
-
-from ..support import Bench, bus_yml_beside, clean_config, read_csv
+from harness.support import Bench, bus_yml_beside, clean_config, read_csv
 
 Z_LIMITS = "    limits: {stroke_m: [-0.120, 0.120], max_velocity_m_s: 0.230, max_acceleration_m_s2: 5.0}\n    holding: enabled"
 END_STOPS = (-75.398, 75.398)  # the shipped robot's Z: its stroke's ends, +-0.12 m

@@ -14,8 +14,7 @@ from drive_bridge.master.campaign import trapezoid
 from drive_bridge.master.hold import quick_stop
 from drive_bridge.master.link import Link, MasterNetwork, TraceRecorder
 from drive_bridge.tuning import motion
-
-from ..support import BUS_CONFIG
+from harness.support import BUS_CONFIG
 
 pytestmark = [pytest.mark.slow, pytest.mark.realtime]
 

@@ -14,8 +14,7 @@ from drive_bridge.master.bringup import bring_up
 from drive_bridge.master.supervision import VelocityGuard
 from drive_bridge.sim import kernel
 from drive_bridge.tuning.motion import run
-
-from ..support import Bench, clean_config, quick_config
+from harness.support import Bench, clean_config, quick_config
 
 pytestmark = pytest.mark.slow
 
@@ -228,8 +227,7 @@ def test_a_node_without_scaling_takes_the_units_the_drive_reports(tmp_path):
     import yaml
 
     from drive_bridge.config import load_bus_config
-
-    from ..support import bus_yml_beside
+    from harness.support import bus_yml_beside
 
     path = bus_yml_beside(tmp_path)
     doc = yaml.safe_load(path.read_text())
@@ -264,8 +262,7 @@ def test_reference_here_lays_the_stroke_around_the_axis_and_the_drive_limits_bou
 
     from drive_bridge.config import load_bus_config
     from drive_bridge.errors import UserError
-
-    from ..support import bus_yml_beside
+    from harness.support import bus_yml_beside
 
     path = bus_yml_beside(tmp_path)
     doc = yaml.safe_load(path.read_text())

@@ -6,8 +6,7 @@ import numpy as np
 import yaml
 
 from drive_bridge.recorder import record
-
-from ..support import Bench, clean_config, quick_config, read_csv
+from harness.support import Bench, clean_config, quick_config, read_csv
 
 
 def run_record(tmp_path, sim_cfg, config=None, axes=None, on_progress=None):

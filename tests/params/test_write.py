@@ -18,8 +18,7 @@ from drive_bridge.params.read import sdo_variable
 from drive_bridge.params.write import write_drives, write_parameters
 from drive_bridge.resources import vendor_dir
 from drive_bridge.tuning.design import design_gains
-
-from ..support import PAPER
+from harness.support import PAPER
 
 pytestmark = pytest.mark.slow
 

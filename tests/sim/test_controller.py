@@ -10,8 +10,7 @@ import pytest
 from drive_bridge.params.controller import Controller
 from drive_bridge.sim import kernel
 from drive_bridge.sim.drive import plant_params
-
-from ..support import clean_config
+from harness.support import clean_config
 
 PID = Controller("position_pid", {"position": 1000.0, "velocity": None, "current": 8000.0})
 CASCADE = {"KpP": 198.0, "FwF": 1.0, "KpS": 0.046, "KiS": 77.0, "KpC": 12.566, "KiC": 400.0}

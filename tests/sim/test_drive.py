@@ -9,8 +9,7 @@ import numpy as np
 import pytest
 
 from drive_bridge.sim.drive import SETPOINT_TIMEOUT_PERIODS
-
-from ..support import clean_config
+from harness.support import clean_config
 
 INC_PER_RAD = 2**20 / (2 * math.pi)
 

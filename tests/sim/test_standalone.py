@@ -17,8 +17,7 @@ import yaml
 from drive_bridge.cia.multicast import UDP_GROUP, LoopbackMulticastBus
 from drive_bridge.cia.p402 import state_name
 from drive_bridge.sim.process import free_port
-
-from ..support import bus_yml_beside
+from harness.support import bus_yml_beside
 
 pytestmark = [pytest.mark.slow, pytest.mark.realtime]
 

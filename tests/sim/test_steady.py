@@ -9,8 +9,7 @@ import pytest
 from drive_bridge.recorder import record
 from drive_bridge.sim import kernel
 from drive_bridge.sim.steady import SteadyStream
-
-from ..support import Bench, clean_config, quick_config
+from harness.support import Bench, clean_config, quick_config
 
 
 def _heavy_y(bench, k):

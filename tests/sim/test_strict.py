@@ -9,8 +9,7 @@ import canopen
 import pytest
 
 from drive_bridge.sim import kernel
-
-from ..support import VENDOR_EDS, Bench, clean_config
+from harness.support import VENDOR_EDS, Bench, clean_config
 
 pytestmark = pytest.mark.slow
 

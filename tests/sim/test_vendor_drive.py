@@ -15,8 +15,7 @@ from drive_bridge.resources import vendor_dir
 from drive_bridge.setpoint import supported_modes
 from drive_bridge.sim import kernel
 from drive_bridge.sim.vendors import SPECS
-
-from ..support import Bench, clean_config
+from harness.support import Bench, clean_config
 
 pytestmark = [
     pytest.mark.slow,

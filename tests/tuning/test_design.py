@@ -7,8 +7,7 @@ import pytest
 from drive_bridge.paper import TABLE_III
 from drive_bridge.params.cascade import GM_MIN_DB, PM_MIN_DEG, loop_margins
 from drive_bridge.tuning.design import design_gains
-
-from ..support import PAPER
+from harness.support import PAPER
 
 MOTOR = dict(R=0.8, L=0.002)
 

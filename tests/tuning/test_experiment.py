@@ -10,8 +10,7 @@ from drive_bridge.master.bringup import bring_up
 from drive_bridge.params.profile import load_profile
 from drive_bridge.tuning.design import design_gains
 from drive_bridge.tuning.experiment import run_experiment
-
-from ..support import BUS_CONFIG, PAPER
+from harness.support import BUS_CONFIG, PAPER
 
 pytestmark = pytest.mark.slow
 

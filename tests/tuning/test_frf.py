@@ -207,8 +207,7 @@ def test_write_refuses_gains_the_measured_response_does_not_admit(tmp_path, caps
     from drive_bridge.cli import main
     from drive_bridge.tuning.measure import frf_doc
     from drive_bridge.tuning.tune import tune, tune_doc
-
-    from ..support import bus_yml_beside
+    from harness.support import bus_yml_beside
 
     share, k, d = two_mass()
     frf = tmp_path / "frf.json"

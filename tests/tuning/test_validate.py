@@ -13,9 +13,9 @@ from drive_bridge.sim import kernel
 from drive_bridge.tuning.design import design_gains
 from drive_bridge.tuning.tune import model_from_identify
 from drive_bridge.tuning.validate import validate
+from harness.support import BUS_CONFIG, PAPER
 
 from ..params.test_write import tuned_values
-from ..support import BUS_CONFIG, PAPER
 
 pytestmark = pytest.mark.slow
 
