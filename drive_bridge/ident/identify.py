@@ -21,7 +21,7 @@ from .effects import DRIVE_EFFECTS, Effect, Gravity, Offset
 from .frf import log_response
 from .identifiable import T_MIN, undetermined
 from .logdata import Log, read_log
-from .model import MAX_DELAY_SAMPLES, AxisModel, Errors, errors, torque_delay
+from .model import JACKKNIFE_BLOCKS, MAX_DELAY_SAMPLES, AxisModel, Errors, errors, torque_delay
 from .resonance import find_mode
 from .reversal import find_reversal_transient
 from .signals import Samples, Settings, choose_settings, clipped_levels, noise_floor, prepare, whole_band
@@ -374,7 +374,7 @@ def _refit_for_the_drive(result: AxisResult, seed: int) -> None:
     held = [e for e in result.model.effects if e.name in DRIVE_EFFECTS]
     if len(held) == len(result.model.effects):
         return
-    drive = AxisModel(held, seed=seed).fit(result.est).widen(result.est)
+    drive = AxisModel(held, seed=seed, jackknife_blocks=JACKKNIFE_BLOCKS).fit(result.est)
     drive_errors = errors(drive, result.val)
     lost = undetermined(drive, result.est, drive_errors, {})
     if lost:  # the drive's structure cannot hold this machine
@@ -470,7 +470,9 @@ def _identify_axis(
     settings, vs, est, val, how = current
     base, model, traced = trace(est, val, seed, realign)
     settings, vs, est, val, how = current
-    model.widen(est)
+    model = AxisModel(model.effects, model.method, model.seed, JACKKNIFE_BLOCKS).fit(
+        est
+    )  # its std from the jackknife too
     agreement = consistency(model, est, val)
     friction = friction_range(model, est)
     floor = noise_floor(val_log, axis, vs) if val_log is not None else noise_floor(log, axis, settings)

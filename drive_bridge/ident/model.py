@@ -26,7 +26,7 @@ from .effects import Effect
 from .signals import Samples, Signals, derivative
 
 BASE = ("J", "c1", "c0")
-JACKKNIFE_BLOCKS = 10  # stretches of the log in time for the delete-one-block jackknife (AxisModel.widen)
+JACKKNIFE_BLOCKS = 10  # stretches of the log in time for the delete-one-block jackknife (AxisModel)
 JACKKNIFE_BEYOND = 2.0  # ... which replaces the HAC std where larger by this factor: a 10-block jackknife's
 # own scatter (~25 %) is no evidence of structure, nor is a campaign whose blocks
 # differ (the paper's runs its speeds one after the other: 1.5x on the simulated
@@ -39,20 +39,33 @@ def base_columns(s: Samples) -> np.ndarray:
 
 class AxisModel:
     """Base rigid-body model plus ``effects`` (fitted ones: their nonlinear parameters learned),
-    fitted by least squares (``method="lse"``) or differential evolution (``"ga"``, seeded)."""
+    fitted by least squares (``method="lse"``) or differential evolution (``"ga"``, seeded).
+
+    As scikit-learn's estimators: the settings are given here, and the fitted values (``coef_``,
+    ``cov_``, ``sigma_``, ...) are set by :meth:`fit` alone. With ``jackknife_blocks`` > 0 the fit's
+    covariance is widened to the delete-one-block jackknife over that many stretches of the log in
+    time where that is larger (:data:`JACKKNIFE_BEYOND`); 0: the least-squares (HAC) covariance.
+    """
 
     METHODS = ("lse", "ga")
 
-    def __init__(self, effects: list[Effect] | tuple[Effect, ...] = (), method: str = "lse", seed: int = 0):
+    def __init__(
+        self,
+        effects: list[Effect] | tuple[Effect, ...] = (),
+        method: str = "lse",
+        seed: int = 0,
+        jackknife_blocks: int = 0,
+    ):
         if method not in self.METHODS:
             raise ValueError(f"method must be one of {self.METHODS}, got {method!r}")
         self.effects = list(effects)
         self.method = method
         self.seed = seed
+        self.jackknife_blocks = jackknife_blocks
 
     def with_effect(self, effect: Effect) -> AxisModel:
         """The same model, unfitted, with ``effect`` added."""
-        return AxisModel(self.effects + [effect], self.method, self.seed)
+        return AxisModel(self.effects + [effect], self.method, self.seed, self.jackknife_blocks)
 
     def design(self, s: Samples, logged: bool = False) -> np.ndarray:
         """Regressor matrix at ``s``: every column filtered as the torque the fit uses, or
@@ -66,7 +79,9 @@ class AxisModel:
     def fit(self, s: Samples) -> AxisModel:
         """Fit every coefficient on the moving samples of ``s``.  ``cov_``, ``sigma_`` and
         ``cond_`` are those of the least-squares problem (with ``"ga"`` too: differential
-        evolution gives no covariance)."""
+        evolution gives no covariance), ``cov_`` widened by the jackknife where
+        ``jackknife_blocks`` says (``jackknife_``: the ratio jackknife / HAC std per coefficient,
+        ones without it)."""
         m = s.moving
         phi, y = self.design(s)[m], s.tau_f[m]
         scale = np.sqrt(np.mean(phi**2, axis=0))
@@ -88,15 +103,18 @@ class AxisModel:
         self.n_samples_ = n
         self.sse_ = float(resid @ resid)
         self.relative_error_ = float(np.linalg.norm(resid) / np.linalg.norm(y))  # paper / EMPS measure
+        self.jackknife_ = np.ones(len(coef))
+        if self.jackknife_blocks:
+            self._widen(s, self.jackknife_blocks)
         return self
 
-    def widen(self, s: Samples, blocks: int = JACKKNIFE_BLOCKS) -> AxisModel:
+    def _widen(self, s: Samples, blocks: int) -> None:
         """Widen ``cov_`` to the delete-one-block jackknife over ``blocks`` stretches of ``s`` in
         time (equal counts of moving samples) wherever that is larger by ``JACKKNIFE_BEYOND``,
         keeping the correlations:
         the HAC estimate sees coloured noise and heteroskedasticity, the jackknife also a
         structure the model lacks that changes over the log (heating, a payload, a stroke
-        covered unevenly).  ``jackknife_`` holds the ratio jackknife / HAC std per coefficient."""
+        covered unevenly)."""
         order = np.minimum(np.cumsum(s.moving) * blocks // max(1, int(s.moving.sum())), blocks - 1)
         coefs = []
         for b in range(blocks):
@@ -104,8 +122,7 @@ class AxisModel:
             if part.moving.sum() > 3 * len(self.coef_):
                 coefs.append(AxisModel(self.effects, seed=self.seed).fit(part).coef_)
         if len(coefs) < 3:
-            self.jackknife_ = np.ones(len(self.coef_))
-            return self
+            return
         c = np.array(coefs)
         k = len(c)
         jack = np.sqrt((k - 1) / k * np.sum((c - c.mean(axis=0)) ** 2, axis=0))
@@ -113,7 +130,6 @@ class AxisModel:
         self.jackknife_ = jack / hac
         scale = np.where(self.jackknife_ > JACKKNIFE_BEYOND, self.jackknife_, 1.0)
         self.cov_ = self.cov_ * np.outer(scale, scale)
-        return self
 
     def predict(self, s: Samples, logged: bool = False) -> np.ndarray:
         """The filtered torque at ``s`` (``logged``: the torque as logged)."""
