@@ -77,6 +77,8 @@ from ..pdo import PdoCodec
 from ..setpoint import PVT, SETPOINT_OBJECTS, position_of, supported_modes
 from . import cyclic, kernel
 from .adapters import local_node
+from .heartbeats import HeartbeatConsumer
+from .home_search import HomeSearch
 from .pdo_map import ABORT_RANGE, PdoMapping
 from .plant import Plant
 from .robot_config import SimAxis
@@ -86,12 +88,6 @@ from .vendors import factory, spec_for
 log = logging.getLogger(__name__)
 
 IMPLEMENTED_MODES = (PP, PV, HM, IP, CSP)
-#: homing methods (0x6098) the simulated drive has: 17/18 search the negative/positive limit switch
-#: (set this far inside the axis's mechanical end stops, motor side) and leave it slowly, its edge
-#: being home; 35/37 take the position where the axis stands as home
-HOMING_SWITCH = {17: -1, 18: 1}
-HOMING_HERE = (35, 37)
-LIMIT_SWITCH_INSET_RAD = 0.5
 SAVE_SIGNATURE = 0x65766173  # 'save'
 LOAD_SIGNATURE = 0x64616F6C  # 'load'
 
@@ -370,7 +366,7 @@ class SimDrive:
         self.node.data_store.setdefault(index, {})[sub] = variable(self.od, index, sub).encode_raw(value)
         self._cache[(index, sub)] = value
 
-    def _od_or(self, index: int, sub: int, fallback: Any) -> Any:
+    def object_or(self, index: int, sub: int, fallback: Any) -> Any:
         """An object's value, or ``fallback`` where the drive has no such object."""
         value = self._cache.get((index, sub))  # (held: the object exists)
         if value is not None:
@@ -408,8 +404,8 @@ class SimDrive:
         plant_params(p, self.axis, self.axis_names)
         p[kernel.INC_PER_RAD] = self.inc_per_rad
         m = self.axis.motor
-        self.rated_torque = self._od_or(0x6076, 0, m.rated_torque_Nm * 1000) / 1000.0
-        self.rated_current_A = self._od_or(0x6075, 0, m.rated_torque_Nm / m.kt * 1000) / 1000.0
+        self.rated_torque = self.object_or(0x6076, 0, m.rated_torque_Nm * 1000) / 1000.0
+        self.rated_current_A = self.object_or(0x6075, 0, m.rated_torque_Nm / m.kt * 1000) / 1000.0
         self.drive_values[cyclic.X_CURRENT_UNIT] = (
             1e-3 if self.spec.current_unit == "mA" else self.rated_current_A / 1000.0
         )
@@ -419,7 +415,7 @@ class SimDrive:
         )
         p[kernel.LOOP_DIV] = self.loop_div
         self._load_gains(self.select is None or self._od(*self.select[0].index_sub) == self.select[1])
-        p[kernel.TMAX] = self._od_or(0x6072, 0, factory().max_torque_permille) / 1000.0 * self.rated_torque
+        p[kernel.TMAX] = self.object_or(0x6072, 0, factory().max_torque_permille) / 1000.0 * self.rated_torque
         self._units()
         self.state = SWITCH_ON_DISABLED
         self.nmt_state = NMT_PREOP
@@ -439,8 +435,7 @@ class SimDrive:
         self.pp_goal: float | None = None  # PP: the target of the last set-point accepted
         self.setpoint_ack = False
         self.origin_rad = 0.0
-        self.homing: str | None = None  # HM: the phase of a homing under way ("switch", "leave", "stop")
-        self.homing_attained = self.homing_error = False
+        self.homing = HomeSearch(self)  # HM: the search for home
         self._in_window_since: float | None = None
         s[kernel.ENABLED] = 0.0
         self._sync_count = 0
@@ -456,8 +451,8 @@ class SimDrive:
             self.fifo.clear()
             self.fifo_enabled, self.ip_errors = False, 0
         self._rebuild_pdos()
-        self._heard: dict[int, float] = {}
-        self._consumers_changed()
+        self.heartbeats = HeartbeatConsumer(self._object)
+        self.host.routes_changed()
         self._refresh_actuals(noise=False)
 
     # ------------------------------------------------------------------ NMT
@@ -518,34 +513,25 @@ class SimDrive:
 
     # ------------------------------------------------------------------ heartbeat consumer
     def _consumers_changed(self) -> None:
-        """0x1016: the nodes whose heartbeat the drive watches and for how long [s]; watching a
-        node starts with its first heartbeat (CiA 301)."""
-        self.consumers: dict[int, float] = {}
-        if self.od.get_variable(0x1016, 1) is not None:
-            for sub in range(1, len(self.od[0x1016])):
-                value = self._od(0x1016, sub)
-                if value >> 16 & 0x7F and value & 0xFFFF:
-                    self.consumers[value >> 16 & 0x7F] = (value & 0xFFFF) / 1000.0
-        self._heard = {n: t for n, t in self._heard.items() if n in self.consumers}
+        """0x1016 written: the nodes the drive watches, and the routes to its consumer."""
+        self.heartbeats.configure()
         self.host.routes_changed()
 
+    def _object(self, index: int, sub: int) -> Any:
+        """The value of ``index``:``sub``; None where the drive has no such object."""
+        return self._od(index, sub) if self.od.get_variable(index, sub) is not None else None
+
     def on_heartbeat(self, node: int) -> None:
-        if node in self.consumers:
-            self._heard[node] = self.plant.time
+        self.heartbeats.heard(node, self.plant.time)
 
     def supervise(self, now: float) -> None:
         """A watched node silent for longer than its consumer time: EMCY 0x8130, the NMT state
         falls back to pre-operational (0x1029's default) and, in OPERATION ENABLED, the drive does
         what its abort connection option 0x6007 says (a drive without 0x6007 does nothing)."""
-        if not self._heard:
-            return
-        for node, last in list(self._heard.items()):
-            if now - last <= self.consumers[node] + 1e-9:
-                continue
-            del self._heard[node]  # once; the node's next heartbeat watches it again
+        for _node in self.heartbeats.fallen_silent(now):
             if self.nmt_state == NMT_OPERATIONAL:
                 self.nmt_state = NMT_PREOP
-            self._connection_lost(ERR_HEARTBEAT, self._od_or(0x6007, 0, 0))
+            self._connection_lost(ERR_HEARTBEAT, self.object_or(0x6007, 0, 0))
 
     def _connection_lost(self, code: int, option: int) -> None:
         """EMCY ``code``; in OPERATION ENABLED, what the abort connection option says."""
@@ -741,8 +727,8 @@ class SimDrive:
         if self.mode == HM:  # bit 12 homing attained, bit 13 homing error
             return (
                 sw
-                | (SW_HOMING_ATTAINED if self.homing_attained else 0)
-                | (SW_HOMING_ERROR if self.homing_error else 0)
+                | (SW_HOMING_ATTAINED if self.homing.attained else 0)
+                | (SW_HOMING_ERROR if self.homing.error else 0)
             )
         if self.following or (self.state == ENABLED and self.mode == PP and self.setpoint_ack):
             sw |= SW_FOLLOWING  # CSP: follows the command value; IP: active; PP: set-point acknowledged
@@ -768,7 +754,7 @@ class SimDrive:
                 self.state = SWITCH_ON_DISABLED
                 self._emcy(0x0000)
             return
-        self._go(next_state(self.state, cw, previous, self._od_or(0x605A, 0, 2)))
+        self._go(next_state(self.state, cw, previous, self.object_or(0x605A, 0, 2)))
         if not cw & 0x10:
             self.setpoint_ack = False  # the handshake: bit 12 follows bit 4 down
         if self.state == ENABLED and self.mode == PP and new_setpoint:
@@ -782,59 +768,11 @@ class SimDrive:
             self._in_window_since = None
         if self.state == ENABLED and self.mode == HM:
             if new_setpoint:
-                self._start_homing()
-            elif not cw & 0x10 and self.homing in ("switch", "leave"):
-                self.homing = "stop"  # bit 4 down: homing interrupted, ramp to rest
-        elif self.homing:
-            self.homing = None  # left OPERATION ENABLED: no homing goes on
-
-    def _start_homing(self) -> None:
-        """Bit 4 up in homing mode: the method 0x6098 says how home is found."""
-        method = self._od_or(0x6098, 0, 0)
-        self.homing_attained = self.homing_error = self.target_reached = False
-        if method in HOMING_HERE:
-            self.origin_rad = self.plant_state[kernel.ENC] - self._od_or(0x607C, 0, 0) / self.pos_per_rad
-            self.homing_attained = self.target_reached = True
-        elif method in HOMING_SWITCH:
-            self.homing = "switch"
+                self.homing.start()
+            elif not cw & 0x10:
+                self.homing.interrupt()  # bit 4 down: homing interrupted, ramp to rest
         else:
-            self.homing_error = True  # a method this drive does not have
-
-    def _switch_edge(self, direction: int) -> float | None:
-        """Where the limit switch in ``direction`` starts [rad, plant]; None on an axis without end stops."""
-        stops = self.axis.end_stops_rad
-        if stops is None:
-            return None
-        return stops[0] + LIMIT_SWITCH_INSET_RAD if direction < 0 else stops[1] - LIMIT_SWITCH_INSET_RAD
-
-    def _on_switch(self, direction: int) -> bool:
-        """Whether the limit switch in ``direction`` is made."""
-        edge = self._switch_edge(direction)
-        return edge is not None and (
-            self.plant_state[kernel.ENC] <= edge if direction < 0 else self.plant_state[kernel.ENC] >= edge
-        )
-
-    def _homing_period(self, T: float) -> None:
-        """One period of a homing on a limit switch: toward it at the switch speed 0x6099:1, off it at
-        the zero speed 0x6099:2 (its edge is home: the drive counts 0x607C there), then to rest; the
-        software position limits do not apply before home is known."""
-        direction = HOMING_SWITCH.get(self._od_or(0x6098, 0, 0), -1)
-        accel = self._od_or(0x609A, 0, 0) / self.vel_per_si
-        if self.homing == "switch":
-            self._ramp(direction * self._od_or(0x6099, 1, 0) / self.vel_per_si, accel, T, limit=False)
-            if self._on_switch(direction):
-                self.homing = "leave"
-        elif self.homing == "leave":
-            self._ramp(-direction * self._od_or(0x6099, 2, 0) / self.vel_per_si, accel, T, limit=False)
-            if not self._on_switch(direction):
-                self.origin_rad = self._switch_edge(direction) - self._od_or(0x607C, 0, 0) / self.pos_per_rad
-                self.homing = "stop"
-                self.homing_attained = True
-        else:
-            self._ramp(0.0, accel, T, limit=False)
-            if self.v_dem == 0.0:
-                self.homing = None
-                self.target_reached = self.homing_attained
+            self.homing.phase = None  # left OPERATION ENABLED: no homing goes on
 
     def _go(self, state: int) -> None:
         if state == self.state:
@@ -868,7 +806,7 @@ class SimDrive:
         self.v_dem = 0.0
         self.new_target = False
         self.pp_target = self.pp_goal = None
-        self.homing = None
+        self.homing.phase = None
 
     def fault(self, code: int) -> None:
         if self.state == FAULT:
@@ -949,46 +887,47 @@ class SimDrive:
                 self.drive_values,
                 T,
                 *self.software_limits(),
-                self.mode == IP and self._od_or(0x60C0, 0, 0) == 0,
+                self.mode == IP and self.object_or(0x60C0, 0, 0) == 0,
             )
             return
         d[kernel.P0] = d.item(kernel.P1)
         v_old = self.v_dem
         self.internal_limit = False
         if self.state == QUICK_STOP:
-            self._ramp(
+            self.ramp(
                 0.0,
-                self._od_or(0x6085, 0, factory().quick_stop_rad_s2 * self.vel_per_si) / self.vel_per_si,
+                self.object_or(0x6085, 0, factory().quick_stop_rad_s2 * self.vel_per_si) / self.vel_per_si,
                 T,
             )
             if self.v_dem == 0.0:
                 self.target_reached = True
-                if self._od_or(0x605A, 0, 2) in (0, 1, 2, 3):
+                if self.object_or(0x605A, 0, 2) in (0, 1, 2, 3):
                     self._go(SWITCH_ON_DISABLED)
         elif self.state == ENABLED and self.mode == PV:
-            self._ramp(self._od(0x60FF) / self.vel_per_si, self._od(0x6083) / self.vel_per_si, T)
+            self.ramp(self._od(0x60FF) / self.vel_per_si, self._od(0x6083) / self.vel_per_si, T)
             self.target_reached = self.v_dem == self._od(0x60FF) / self.vel_per_si
         elif self.state == ENABLED and self.mode == PP and self.pp_target is not None:
             dist = self.pp_target - d[kernel.P0]
             acc = self._od(0x6083) / self.vel_per_si
-            dec = self._od_or(0x6084, 0, acc * self.vel_per_si) / self.vel_per_si
+            dec = self.object_or(0x6084, 0, acc * self.vel_per_si) / self.vel_per_si
             v_max = min(
-                self._od_or(0x6081, 0, factory().profile_velocity_rad_s * self.vel_per_si) / self.vel_per_si,
+                self.object_or(0x6081, 0, factory().profile_velocity_rad_s * self.vel_per_si)
+                / self.vel_per_si,
                 math.sqrt(2 * dec * abs(dist)),
             )
-            self._ramp(math.copysign(v_max, dist), acc, T)
+            self.ramp(math.copysign(v_max, dist), acc, T)
             if abs(dist) <= abs(self.v_dem) * T or abs(dist) < 1.0 / self.inc_per_rad:
                 d[kernel.P1] = self.pp_target
                 self.v_dem = 0.0
                 self.pp_target = None  # the demand is there; the axis is when it settles
-        elif self.state == ENABLED and self.mode == HM and self.homing:
-            self._homing_period(T)
+        elif self.state == ENABLED and self.mode == HM and self.homing.phase:
+            self.homing.period(T)
         else:
             self.v_dem = 0.0
         d[kernel.A_FF] = (self.v_dem - v_old) / T
         self.new_target = False
 
-    def _ramp(self, v_target: float, accel: float, T: float, limit: bool = True) -> None:
+    def ramp(self, v_target: float, accel: float, T: float, limit: bool = True) -> None:
         """Move the demand velocity toward ``v_target`` at ``accel`` and integrate P1 (inside the
         software position limits unless ``limit`` is False)."""
         dv = max(-accel * T, min(accel * T, v_target - self.v_dem))
@@ -1016,7 +955,7 @@ class SimDrive:
         if self.state not in (ENABLED, QUICK_STOP):
             return
         if self.state == ENABLED and self.mode == PP and self.pp_target is None and self.pp_goal is not None:
-            inside = abs(self.plant_state[kernel.ENC] - self.pp_goal) * self.pos_per_rad <= self._od_or(
+            inside = abs(self.plant_state[kernel.ENC] - self.pp_goal) * self.pos_per_rad <= self.object_or(
                 0x6067, 0, 1000
             )
             if not inside:
@@ -1025,7 +964,7 @@ class SimDrive:
                 self._in_window_since = self.plant.time
             since = self._in_window_since
             self.target_reached = (
-                since is not None and self.plant.time - since >= self._od_or(0x6068, 0, 10) / 1000.0 - 1e-9
+                since is not None and self.plant.time - since >= self.object_or(0x6068, 0, 10) / 1000.0 - 1e-9
             )
         over = self.plant_state.item(kernel.FE_COUNT)  # ticks outside the following error window
         if over > 0 and over >= self.following_error_ticks():
@@ -1037,12 +976,12 @@ class SimDrive:
         ):
             # the master's stream is gone: the drive's connection-abort reaction (a fault where
             # the drive has no 0x6007, or it is left at CiA 402's default)
-            self._connection_lost(ERR_RPDO_TIMEOUT, self._od_or(0x6007, 0, ABORT_FAULT))
+            self._connection_lost(ERR_RPDO_TIMEOUT, self.object_or(0x6007, 0, ABORT_FAULT))
 
     def following_error_ticks(self) -> int:
         """Loop ticks outside the following error window that fault the drive (0x6066)."""
         return max(
-            1, round(self._od_or(0x6066, 0, factory().fe_timeout_ms) / 1000.0 / kernel.VELOCITY_TICK_S)
+            1, round(self.object_or(0x6066, 0, factory().fe_timeout_ms) / 1000.0 / kernel.VELOCITY_TICK_S)
         )
 
     def setpoint_timeout(self) -> float:
@@ -1055,9 +994,7 @@ class SimDrive:
     def next_due(self) -> float:
         """The earliest time [s] its heartbeat or a watched node's silence needs it (inf: never)."""
         due = self._hb_next if self._od(0x1017) > 0 else math.inf
-        for node, last in self._heard.items():
-            due = min(due, last + self.consumers[node])
-        return due
+        return min(due, self.heartbeats.next_due())
 
     # ------------------------------------------------------------------ actual values
     def refresh_actuals(self) -> None:
@@ -1098,9 +1035,9 @@ class SimDrive:
         status = (
             self.ip_errors | (IPB_ENABLED if self.fifo_enabled else 0) | (IPB_ACTIVE if self.following else 0)
         )
-        if n < self._od_or(0x20C4, 2, 4):
+        if n < self.object_or(0x20C4, 2, 4):
             status |= IPB_UNDERFLOW_WARNING
-        if n > self._od_or(0x20C4, 3, 60):
+        if n > self.object_or(0x20C4, 3, 60):
             status |= IPB_OVERFLOW_WARNING
         return status
 

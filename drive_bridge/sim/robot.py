@@ -118,7 +118,7 @@ class SimRobot:
             routes[0x600 + drive.node_id] = self._sdo_handler(drive)
             for cob_id in drive.rpdos:
                 routes[cob_id] = self._rpdo_handler(drive, cob_id)
-            for node in drive.consumers:
+            for node in drive.heartbeats.watched:
                 watchers.setdefault(node, []).append(drive)
         for node, drives in watchers.items():
             routes[0x700 + node] = self._heartbeat_handler(node, drives)

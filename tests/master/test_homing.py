@@ -13,7 +13,7 @@ from drive_bridge.master.bringup import bring_up
 from drive_bridge.master.homing import home
 from drive_bridge.recorder import record
 from drive_bridge.sim import kernel
-from drive_bridge.sim.drive import LIMIT_SWITCH_INSET_RAD
+from drive_bridge.sim.home_search import LIMIT_SWITCH_INSET_RAD
 from harness.support import Bench, bus_yml_beside, clean_config, read_csv
 
 Z_LIMITS = "    limits: {stroke_m: [-0.120, 0.120], max_velocity_m_s: 0.230, max_acceleration_m_s2: 5.0}\n    holding: enabled"

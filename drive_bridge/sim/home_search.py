@@ -1,0 +1,94 @@
+"""The homing mode (CiA 402 mode 6) of a simulated drive: the methods it has, and the search for
+home one interpolation period at a time.
+
+Methods (0x6098): 17/18 search the negative/positive limit switch (set ``LIMIT_SWITCH_INSET_RAD``
+inside the axis's mechanical end stops, motor side) at the switch speed 0x6099:1 and leave it at
+the zero speed 0x6099:2, the switch's edge being home (the drive counts the home offset 0x607C
+there); 35/37 take the position where the axis stands as home.  The homing acceleration is
+0x609A.  The software position limits do not apply before home is known.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from . import kernel
+
+if TYPE_CHECKING:
+    from .drive import SimDrive
+
+HOMING_SWITCH = {17: -1, 18: 1}  # method -> the direction of its limit switch
+HOMING_HERE = (35, 37)
+LIMIT_SWITCH_INSET_RAD = 0.5
+
+
+class HomeSearch:
+    """The homing of ``drive``: ``phase`` of a search under way ("switch", "leave", "stop"; None:
+    none), and whether home was ``attained`` or the method ended in an ``error`` (statusword bits 12
+    and 13 in homing mode)."""
+
+    def __init__(self, drive: SimDrive):
+        self.drive = drive
+        self.phase: str | None = None
+        self.attained = self.error = False
+
+    def start(self) -> None:
+        """Bit 4 up in homing mode: the method 0x6098 says how home is found."""
+        drive = self.drive
+        method = drive.object_or(0x6098, 0, 0)
+        self.attained = self.error = drive.target_reached = False
+        if method in HOMING_HERE:
+            drive.origin_rad = (
+                drive.plant_state[kernel.ENC] - drive.object_or(0x607C, 0, 0) / drive.pos_per_rad
+            )
+            self.attained = drive.target_reached = True
+        elif method in HOMING_SWITCH:
+            self.phase = "switch"
+        else:
+            self.error = True  # a method this drive does not have
+
+    def interrupt(self) -> None:
+        """Bit 4 down: a search under way ramps to rest."""
+        if self.phase in ("switch", "leave"):
+            self.phase = "stop"
+
+    def period(self, period_s: float) -> None:
+        """One period [s] of a homing on a limit switch: toward it, off it (its edge is home), then
+        to rest."""
+        drive = self.drive
+        direction = HOMING_SWITCH.get(drive.object_or(0x6098, 0, 0), -1)
+        accel = drive.object_or(0x609A, 0, 0) / drive.vel_per_si
+        if self.phase == "switch":
+            drive.ramp(
+                direction * drive.object_or(0x6099, 1, 0) / drive.vel_per_si, accel, period_s, limit=False
+            )
+            if self._on_switch(direction):
+                self.phase = "leave"
+        elif self.phase == "leave":
+            drive.ramp(
+                -direction * drive.object_or(0x6099, 2, 0) / drive.vel_per_si, accel, period_s, limit=False
+            )
+            if not self._on_switch(direction):
+                edge = self._switch_edge(direction)
+                assert edge is not None  # the switch was made: the axis has end stops
+                drive.origin_rad = edge - drive.object_or(0x607C, 0, 0) / drive.pos_per_rad
+                self.phase = "stop"
+                self.attained = True
+        else:
+            drive.ramp(0.0, accel, period_s, limit=False)
+            if drive.v_dem == 0.0:
+                self.phase = None
+                drive.target_reached = self.attained
+
+    def _switch_edge(self, direction: int) -> float | None:
+        """Where the limit switch in ``direction`` starts [rad, plant]; None on an axis without end stops."""
+        stops = self.drive.axis.end_stops_rad
+        if stops is None:
+            return None
+        return stops[0] + LIMIT_SWITCH_INSET_RAD if direction < 0 else stops[1] - LIMIT_SWITCH_INSET_RAD
+
+    def _on_switch(self, direction: int) -> bool:
+        """Whether the limit switch in ``direction`` is made."""
+        edge = self._switch_edge(direction)
+        position = self.drive.plant_state[kernel.ENC]
+        return edge is not None and (position <= edge if direction < 0 else position >= edge)
