@@ -16,10 +16,10 @@ from pathlib import Path
 import canopen
 from canopen.objectdictionary import datatypes
 
+from .cia.od import default, load_od
+from .cia.setpoint import SETPOINT_OBJECTS
 from .errors import ConfigError
-from .od import default, load_od
 from .resources import vendor_dir
-from .setpoint import SETPOINT_OBJECTS
 from .units import Scaling
 from .yamlconf import Section, finite_number, load_yaml
 

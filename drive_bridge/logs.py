@@ -20,9 +20,9 @@ import yaml
 
 from .cia.p301 import SYNC_COB_ID
 from .cia.p402 import MODE_NAMES
+from .cia.pdo import PdoCodec
 from .errors import UserError
 from .outputs import atomic, write_text
-from .pdo import PdoCodec
 from .units import Scaling
 from .yamlconf import load_yaml
 

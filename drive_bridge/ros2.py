@@ -28,8 +28,8 @@ from typing import Any
 
 import yaml
 
+from .cia.dcf import write_dcf
 from .config import BusConfig, MasterConfig, NodeConfig, PdoConfig
-from .dcf import write_dcf
 from .errors import UserError
 from .master.bringup import settings
 

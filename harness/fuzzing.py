@@ -18,11 +18,11 @@ from pathlib import Path
 import yaml
 from hypothesis import strategies as st
 
+from drive_bridge.cia.od import load_od
 from drive_bridge.cli import main
 from drive_bridge.config import load_bus_config
 from drive_bridge.ident.logdata import read_log
 from drive_bridge.logs import decode_trace
-from drive_bridge.od import load_od
 from drive_bridge.params.check import check_set
 from drive_bridge.params.profile import PROFILE_DIR, load_profile
 from drive_bridge.resources import DEFAULT_BUS_CONFIG, PROJECT_EDS

@@ -13,8 +13,8 @@ from pathlib import Path
 import canopen
 import numpy as np
 
+from drive_bridge.cia.od import load_od
 from drive_bridge.config import load_bus_config
-from drive_bridge.od import load_od
 from drive_bridge.paper import TABLE_II
 from drive_bridge.resources import DEFAULT_BUS_CONFIG, PROJECT_EDS
 from drive_bridge.sim.lockstep import LockstepLink

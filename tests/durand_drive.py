@@ -23,8 +23,8 @@ from durand.node import NodeCapabilities
 from durand.scheduler import SyncScheduler
 from durand.services.nmt import StateEnum
 
-from drive_bridge.od import load_od
-from drive_bridge.setpoint import unpack_pvt
+from drive_bridge.cia.od import load_od
+from drive_bridge.cia.setpoint import unpack_pvt
 from drive_bridge.sim.vendors import spec_for
 
 ACCESS = {"rw": "rw", "rww": "rw", "rwr": "rw", "ro": "ro", "wo": "wo", "const": "const"}

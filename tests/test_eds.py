@@ -7,9 +7,9 @@ import subprocess
 import canopen
 import pytest
 
+from drive_bridge.cia.edscheck import check
+from drive_bridge.cia.od import float_bits, float_from_bits, load_od
 from drive_bridge.cli import main
-from drive_bridge.edscheck import check
-from drive_bridge.od import float_bits, float_from_bits, load_od
 from harness.support import EDS, VENDOR_EDS, tool
 
 pytestmark = pytest.mark.third_party

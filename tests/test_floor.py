@@ -1,5 +1,5 @@
 """The protocol floor (drive_bridge.cia) stands on python-can, canopen and the package's leaves
-(errors, od, outputs: nothing above them), and the CiA 301/402 vocabulary is written once: the
+(errors, outputs: nothing above them), and the CiA 301/402 vocabulary is written once: the
 master, the parameters and the simulated drives read theirs from it and not from each other."""
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ import drive_bridge
 
 PACKAGE = Path(drive_bridge.__file__).parent
 ALLOWED = {"can", "canopen", "__future__"} | set(sys.stdlib_module_names)
-LEAVES = {"..errors", "..od", "..outputs"}  # the package's modules the floor may stand on
+LEAVES = {"..errors", "..outputs"}  # the package's modules the floor may stand on
 
 
 def imports(path: Path) -> set[str]:

@@ -19,8 +19,8 @@ import canopen
 from canopen.sdo import SdoVariable
 
 from ..errors import BusError, DriveRefused
-from ..od import limits, variable
 from ..outputs import hex_object
+from .od import limits, variable
 
 log = logging.getLogger(__name__)
 

@@ -485,7 +485,7 @@ def cmd_decode(args: argparse.Namespace) -> int:
 
 
 def cmd_check_eds(args: argparse.Namespace) -> int:
-    from ..edscheck import check
+    from ..cia.edscheck import check
 
     reports = [check(name) for name in args.files]
     clean = all(r.standard for r in reports)

@@ -14,6 +14,7 @@ import canopen
 from canopen.emcy import EmcyError
 from canopen.pdo.base import PdoBase, PdoMap
 
+from ..cia.od import default, limits, variable
 from ..cia.p402 import (
     ABORT_QUICK_STOP,
     FAULT_REACTION_QUICK_STOP_RAMP,
@@ -21,13 +22,12 @@ from ..cia.p402 import (
     MODE_NAMES,
     QUICK_STOP_RAMP_AND_HOLD,
 )
+from ..cia.pdo import PdoCodec
 from ..cia.sdo import pdo_objects, read_if_readable, sdo_object, snapshot, write_setting
+from ..cia.setpoint import IP_SUB_MODE, PVT, choose, describe_modes, supported_modes
 from ..config import BusConfig, MasterConfig, NodeConfig, PdoConfig
 from ..errors import BusError, DriveRefused, InternalError
-from ..od import default, limits, variable
 from ..outputs import hex_object, identity_hex, stamped
-from ..pdo import PdoCodec
-from ..setpoint import IP_SUB_MODE, PVT, choose, describe_modes, supported_modes
 from .drive_units import read_units, reconcile
 from .link import Clock, Link
 from .sdo_states import Drive402

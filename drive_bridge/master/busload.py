@@ -7,9 +7,9 @@ from dataclasses import dataclass
 
 import canopen
 
+from ..cia.od import variable
 from ..config import BusConfig
 from ..errors import UserError
-from ..od import variable
 
 MAX_LOAD = 0.80
 

@@ -2,7 +2,7 @@
 bus.yml's ``scaling`` before anything else is written or moved.
 
 Read where the drive's EDS/DCF has the objects: the factor group (0x608F encoder, 0x6091 gear,
-0x6092 feed, 0x60A8 / 0x60A9 SI units; :mod:`drive_bridge.factor`), the rated torque 0x6076
+0x6092 feed, 0x60A8 / 0x60A9 SI units; :mod:`drive_bridge.cia.factor`), the rated torque 0x6076
 [mNm], the rated current 0x6075 [mA] and the max torque 0x6072 [per mille of rated torque].
 Where the drive says something bus.yml contradicts, bring-up refuses, naming both values and the
 two ways out; with ``scaling: from_drive`` the drive's units are taken.  What the drive does not
@@ -18,10 +18,10 @@ from typing import Any
 
 import canopen
 
+from ..cia.factor import FactorGroup, describe
 from ..cia.sdo import read_if_readable
 from ..config import NodeConfig
 from ..errors import DriveRefused
-from ..factor import FactorGroup, describe
 
 REL_TOLERANCE = 1e-6  # units agree when they differ by less than this, relatively
 TORQUE_TOLERANCE = 1e-3  # rated torque / current: the drive reports mNm / mA

@@ -13,8 +13,8 @@ from ..cia.p402 import (
     IP,
     state_name,
 )
+from ..cia.setpoint import PVT
 from ..errors import MotionAborted
-from ..setpoint import PVT
 from .bringup import AxisLink
 from .link import Link
 

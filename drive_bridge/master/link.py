@@ -297,7 +297,7 @@ class BusLink:
         bitrate: int | None = None,
         options: dict | None = None,
     ) -> BusLink:
-        """A link on :func:`~.buses.open_bus`."""
+        """A link on :func:`~drive_bridge.cia.buses.open_bus`."""
         spec = BusSpec(interface, channel, bitrate, dict(options or {}))
         return cls(spec.open(), spec)
 

@@ -8,8 +8,8 @@ from collections.abc import Callable
 
 import numpy as np
 
-from ..pdo import PdoCodec
-from ..setpoint import SETPOINT_OBJECTS, position_of
+from ..cia.pdo import PdoCodec
+from ..cia.setpoint import SETPOINT_OBJECTS, position_of
 from .engine import (
     Arrays,
 )

@@ -38,10 +38,10 @@ from ..cia.p402 import (
     QUICK_STOP_RAMP_AND_HOLD,
     state_name,
 )
+from ..cia.pdo import PdoCodec
+from ..cia.setpoint import PVT, SETPOINT_OBJECTS, pack_pvt
 from ..config import TimingLimits
 from ..errors import Interrupted, MotionAborted, UserError
-from ..pdo import PdoCodec
-from ..setpoint import PVT, SETPOINT_OBJECTS, pack_pvt
 from .bringup import AxisLink
 from .campaign import Plan
 from .engine import (

@@ -19,8 +19,8 @@ import canopen
 import numpy as np
 from canopen.objectdictionary import datatypes
 
+from ..cia.od import variable
 from ..errors import UserError
-from ..od import variable
 from .cascade import loop_margins, measured_margins
 from .profile import Entry, Profile
 

@@ -32,8 +32,8 @@ import canopen
 import numpy as np
 from canopen.objectdictionary import datatypes
 
+from ..cia.od import load_od
 from ..errors import ConfigError, UserError
-from ..od import load_od
 from ..resources import data, shipped, vendor_dir
 from ..yamlconf import Section, load_yaml
 from .controller import PID, Controller, load_controller

@@ -17,8 +17,8 @@ from typing import Any
 
 import canopen
 
+from ..cia.dcf import export_dcf
 from ..cia.sdo import SDO_ERRORS, address, describe_sdo_error, put_back, sdo_object, snapshot
-from ..dcf import export_dcf
 from ..errors import BusError, DriveRefused, InternalError, UserError, WriteInterrupted
 from ..interrupts import deferred, signal_name
 from ..outputs import hex_object, stamped, write_json

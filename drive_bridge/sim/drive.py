@@ -34,6 +34,9 @@ import numpy as np
 from canopen.objectdictionary import ODVariable
 from canopen.sdo import SdoAbortedError
 
+from ..cia.factor import OBJECTS as FACTOR_OBJECTS
+from ..cia.factor import FactorGroup
+from ..cia.od import default, limits, load_od, variable
 from ..cia.p301 import (
     ERR_FOLLOWING,
     ERR_HEARTBEAT,
@@ -68,13 +71,10 @@ from ..cia.p402 import (
     SWITCH_ON_DISABLED,
     VOLTAGE_ENABLED,
 )
-from ..factor import OBJECTS as FACTOR_OBJECTS
-from ..factor import FactorGroup
-from ..od import default, limits, load_od, variable
+from ..cia.pdo import PdoCodec
+from ..cia.setpoint import PVT, SETPOINT_OBJECTS, position_of, supported_modes
 from ..params.controller import Controller
 from ..params.profile import SELECT, load_profile
-from ..pdo import PdoCodec
-from ..setpoint import PVT, SETPOINT_OBJECTS, position_of, supported_modes
 from . import cyclic, kernel
 from .adapters import local_node
 from .heartbeats import HeartbeatConsumer

@@ -10,16 +10,32 @@ there); 35/37 take the position where the axis stands as home.  The homing accel
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import Any, Protocol
+
+import numpy as np
 
 from . import kernel
-
-if TYPE_CHECKING:
-    from .drive import SimDrive
+from .robot_config import SimAxis
 
 HOMING_SWITCH = {17: -1, 18: 1}  # method -> the direction of its limit switch
 HOMING_HERE = (35, 37)
 LIMIT_SWITCH_INSET_RAD = 0.5
+
+
+class HomingDrive(Protocol):
+    """What the search needs of its drive (:class:`.drive.SimDrive`)."""
+
+    axis: SimAxis
+    plant_state: np.ndarray  # the axis's kernel state row
+    pos_per_rad: float  # position unit per rad
+    vel_per_si: float  # velocity unit per rad/s
+    origin_rad: float  # the plant position the drive counts as 0
+    target_reached: bool
+    v_dem: float  # the demand velocity [rad/s]
+
+    def object_or(self, index: int, sub: int, fallback: Any) -> Any: ...
+
+    def ramp(self, v_target: float, accel: float, T: float, limit: bool = True) -> None: ...
 
 
 class HomeSearch:
@@ -27,7 +43,7 @@ class HomeSearch:
     none), and whether home was ``attained`` or the method ended in an ``error`` (statusword bits 12
     and 13 in homing mode)."""
 
-    def __init__(self, drive: SimDrive):
+    def __init__(self, drive: HomingDrive):
         self.drive = drive
         self.phase: str | None = None
         self.attained = self.error = False

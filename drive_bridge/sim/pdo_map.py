@@ -14,7 +14,7 @@ import canopen
 from canopen.objectdictionary import ODVariable
 from canopen.sdo import SdoAbortedError
 
-from ..pdo import PdoCodec
+from ..cia.pdo import PdoCodec
 
 PDO_INVALID = 0x8000_0000
 ABORT_RANGE = 0x06090030

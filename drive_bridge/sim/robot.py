@@ -22,7 +22,7 @@ from pathlib import Path
 import can
 
 from ..cia.p301 import NMT_STOPPED, SYNC_COB_ID
-from ..pdo import PdoCodec
+from ..cia.pdo import PdoCodec
 from ..resources import PROJECT_EDS
 from . import cyclic, kernel
 from .adapters import FastVirtualBus

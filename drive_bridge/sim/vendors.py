@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
 
-from ..od import load_od
+from ..cia.od import load_od
 from ..resources import PROJECT_EDS, vendor_dir
 
 

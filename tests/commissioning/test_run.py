@@ -14,12 +14,12 @@ import numpy as np
 import pytest
 import yaml
 
+from drive_bridge.cia.edscheck import check as check_eds
+from drive_bridge.cia.od import load_od
 from drive_bridge.cli import main
 from drive_bridge.commissioning import STEPS, Options, commission
 from drive_bridge.config import load_bus_config
 from drive_bridge.connect import open_link
-from drive_bridge.edscheck import check as check_eds
-from drive_bridge.od import load_od
 from drive_bridge.progress import StepReporter
 from drive_bridge.resources import data
 from drive_bridge.sim import kernel

@@ -12,8 +12,8 @@ import subprocess
 import pytest
 import yaml
 
+from drive_bridge.cia.edscheck import check as check_eds
 from drive_bridge.cli import main
-from drive_bridge.edscheck import check as check_eds
 from drive_bridge.resources import data, vendor_dir
 from harness.support import tool
 

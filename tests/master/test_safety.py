@@ -191,7 +191,7 @@ def _epos2_bench():
 
 
 def test_records_an_earlier_program_left_in_the_buffer_are_not_played():
-    from drive_bridge.setpoint import pack_pvt
+    from drive_bridge.cia.setpoint import pack_pvt
 
     b, config, axes = _epos2_bench()
     node = axes["y"].node

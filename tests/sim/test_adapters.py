@@ -10,7 +10,7 @@ import canopen
 import pytest
 from can.interfaces.virtual import VirtualBus
 
-from drive_bridge.od import load_od
+from drive_bridge.cia.od import load_od
 from drive_bridge.resources import PROJECT_EDS
 from drive_bridge.sim.adapters import FastVirtualBus, local_node
 

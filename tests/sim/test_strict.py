@@ -184,7 +184,7 @@ def _interpolating(b, node):
 
 
 def test_the_maxon_fifo_underflows_when_a_record_does_not_come():
-    from drive_bridge.setpoint import pack_pvt
+    from drive_bridge.cia.setpoint import pack_pvt
 
     b = _epos2()
     node = b.nodes["y"]
@@ -202,7 +202,7 @@ def test_the_maxon_fifo_underflows_when_a_record_does_not_come():
 
 
 def test_the_maxon_fifo_overflows_past_64_records_and_ignores_records_while_disabled():
-    from drive_bridge.setpoint import pack_pvt
+    from drive_bridge.cia.setpoint import pack_pvt
 
     b = _epos2()
     node = b.nodes["y"]

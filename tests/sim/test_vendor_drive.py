@@ -9,10 +9,10 @@ import math
 import canopen
 import pytest
 
+from drive_bridge.cia.setpoint import supported_modes
 from drive_bridge.params.profile import load_profile
 from drive_bridge.params.read import sdo_variable
 from drive_bridge.resources import vendor_dir
-from drive_bridge.setpoint import supported_modes
 from drive_bridge.sim import kernel
 from drive_bridge.sim.vendors import SPECS
 from harness.support import Bench, clean_config

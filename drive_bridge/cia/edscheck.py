@@ -1,6 +1,6 @@
 """What in an EDS/DCF file is not CiA 306, and what drive-bridge can do with the drive it describes.
 
-drive-bridge reads vendor files as they are (:func:`~drive_bridge.od.load_od`); this check says
+drive-bridge reads vendor files as they are (:func:`~drive_bridge.cia.od.load_od`); this check says
 what other tools would stumble over: keys CiA 306 does not have, REAL32/REAL64 values written as
 decimals (CiA 306 tools such as Lely's read them as IEEE 754 bit patterns), values that do not
 parse as their data type, ``$NODEID`` in another form than ``$NODEID+value``, objects listed but
@@ -19,7 +19,7 @@ from pathlib import Path
 import canopen
 from canopen.objectdictionary import datatypes
 
-from .errors import ConfigError
+from ..errors import ConfigError
 from .od import default, load_od
 from .setpoint import describe_modes
 

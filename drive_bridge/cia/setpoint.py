@@ -11,7 +11,7 @@ simulated drives.
 
 from __future__ import annotations
 
-from .cia.p402 import CSP, IP, MODE_NAMES
+from .p402 import CSP, IP, MODE_NAMES
 
 PVT = (0x20C1, 0)
 #: object that carries a position setpoint -> the mode it is streamed in

@@ -13,7 +13,7 @@ from typing import Any
 import canopen
 from canopen.objectdictionary import ODVariable, datatypes
 
-from .errors import ConfigError
+from ..errors import ConfigError
 
 
 def load_od(path: str | Path, node_id: int) -> canopen.ObjectDictionary:
