@@ -1,4 +1,4 @@
-"""The protocol floor (drive_bridge.cia) stands on python-can, canopen and the package's leaves
+"""The protocol floor (drive_bridge.cia) stands on python-can, canopen (and Lely's linter) and the package's leaves
 (errors, outputs: nothing above them), and the CiA 301/402 vocabulary is written once: the
 master, the parameters and the simulated drives read theirs from it and not from each other."""
 
@@ -11,7 +11,8 @@ from pathlib import Path
 import drive_bridge
 
 PACKAGE = Path(drive_bridge.__file__).parent
-ALLOWED = {"can", "canopen", "__future__"} | set(sys.stdlib_module_names)
+#: python-can, canopen, and Lely's dcf-tools (``dcf``: the EDS check runs its linter where installed)
+ALLOWED = {"can", "canopen", "dcf", "__future__"} | set(sys.stdlib_module_names)
 LEAVES = {"..errors", "..outputs"}  # the package's modules the floor may stand on
 
 

@@ -11,6 +11,8 @@ ERR_FOLLOWING = 0x8611  # CiA 402: following error
 ERR_RPDO_TIMEOUT = 0x8250  # RPDO timeout: the master's setpoints stopped
 ERR_HEARTBEAT = 0x8130  # heartbeat consumer: a watched node fell silent (life guard error)
 ERR_PDO_LENGTH = 0x8210  # PDO not processed: shorter than its mapping
+ERR_PARAMETER = 0x6320  # a value the device cannot take (parameter error)
+ERR_SOFTWARE = 0x6100  # internal software
 #: the codes a drive sends when its master went silent
 MASTER_LOSS = {ERR_RPDO_TIMEOUT, ERR_HEARTBEAT}
 
@@ -18,6 +20,9 @@ EMCY_TEXT = {
     ERR_FOLLOWING: "following error",
     ERR_RPDO_TIMEOUT: "RPDO timeout (loss of setpoint)",
     ERR_HEARTBEAT: "heartbeat or life guard error",
+    ERR_PDO_LENGTH: "PDO not processed (length error)",
+    ERR_PARAMETER: "parameter error (a value the drive cannot take)",
+    ERR_SOFTWARE: "internal software error",
     0x8400: "velocity speed controller",
     0x2310: "continuous over-current",
     0x3210: "DC link over-voltage",

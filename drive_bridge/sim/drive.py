@@ -40,8 +40,10 @@ from ..cia.od import default, limits, load_od, variable
 from ..cia.p301 import (
     ERR_FOLLOWING,
     ERR_HEARTBEAT,
+    ERR_PARAMETER,
     ERR_PDO_LENGTH,
     ERR_RPDO_TIMEOUT,
+    ERR_SOFTWARE,
     NMT_OPERATIONAL,
     NMT_PREOP,
     NMT_STOPPED,
@@ -691,9 +693,26 @@ class SimDrive:
             self._apply_rpdo(codec, data)
 
     def _apply_rpdo(self, codec: PdoCodec, data: bytes) -> None:
-        for (index, sub), (lo, hi), value in zip(codec.entries, codec.spans, codec.struct.unpack_from(data)):
-            self.write(index, sub, value)
+        """The whole PDO taken before any of it acts: every value first, the controlword last (a new
+        set-point takes the target of the same PDO).  A value the drive cannot take is not taken:
+        an EMCY says so (parameter error) and the rest of the PDO is."""
+        entries = list(zip(codec.entries, codec.spans, codec.struct.unpack_from(data)))
+        for (index, sub), (lo, hi), value in sorted(entries, key=lambda entry: entry[0][0] == 0x6040):
+            try:
+                self.write(index, sub, value)
+            except SdoAbortedError:
+                self._emcy(ERR_PARAMETER)
+                continue
             self.keep(index, sub, data[lo:hi], value)
+
+    def internal_error(self) -> None:
+        """A frame the drive's software could not handle (a bug of the simulator): the drive faults
+        with EMCY 0x6100 and goes on serving, as a drive's firmware would."""
+        log.exception("simulated drive %s: internal error", self.axis.name)
+        if self.state == FAULT:
+            self._emcy(ERR_SOFTWARE)
+        else:
+            self.fault(ERR_SOFTWARE)
 
     def keep(self, index: int, sub: int, raw: bytes, value: int) -> None:
         """Hold a value a PDO wrote as the object's (SDO reads it so); a measured object keeps its own."""

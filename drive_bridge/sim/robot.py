@@ -146,7 +146,10 @@ class SimRobot:
     def _rpdo_handler(drive: SimDrive, cob_id: int) -> Callable[[bytes], None]:
         def handle(data: bytes) -> None:
             if drive.online:
-                drive.on_rpdo(cob_id, data)
+                try:
+                    drive.on_rpdo(cob_id, data)
+                except Exception:  # no value from the bus ends a drive's service
+                    drive.internal_error()
 
         return handle
 
@@ -172,7 +175,10 @@ class SimRobot:
     def _on_nmt(self, data: bytes) -> None:
         for drive in self.drives.values():
             if drive.online:
-                drive.on_nmt(data)
+                try:
+                    drive.on_nmt(data)
+                except Exception:  # no value from the bus ends a drive's service
+                    drive.internal_error()
 
     def _on_sync(self, _data: bytes) -> None:
         # lockstep: the SYNC period passes now (on the wall clock SYNC is :meth:`_sync_received`'s)

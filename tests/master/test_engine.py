@@ -191,8 +191,8 @@ def test_a_stalled_simulator_is_no_fault_of_the_master_or_the_drives(tmp_path):
     with open_link(config, sim=True, realtime=True) as link:
         on_plan, done = _stalling(lambda: link.simulator.process.pid, [0.2, 0.45, 0.7], 0.03)
         result = record(config, link, tmp_path, on_plan=on_plan)
+    assert result.ok, (result.aborted, result.timing.as_dict())
     assert len(done) == 3
-    assert result.ok, result.aborted
     # no sample is lost to the stalls: a row missing is one of a period the master itself was late in
     assert result.missing["y"] == len(result.timing.engine["rows_skipped"])
 

@@ -1,0 +1,135 @@
+"""``drive-bridge sim`` against a master the project did not write: python canopen's own services
+(NMT, SDO, PDO, EMCY, SYNC) and its CiA 402 node, over python-can's stock udp_multicast bus, as a
+user testing their own master would start it."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+
+import canopen
+import pytest
+import yaml
+
+from drive_bridge.cia.multicast import UDP_GROUP
+from drive_bridge.cia.p301 import ERR_PARAMETER
+from drive_bridge.resources import PROJECT_EDS
+from drive_bridge.sim.process import free_port
+from harness.support import bus_yml_beside
+
+from .test_standalone import _wait_for
+
+pytestmark = [pytest.mark.slow, pytest.mark.realtime]
+
+NODES = (1, 2, 3)
+
+
+@pytest.fixture(scope="module")
+def drives(tmp_path_factory) -> Iterator[canopen.Network]:
+    """``drive-bridge sim`` in a process of its own, and a canopen network on its bus (python-can's
+    udp_multicast as it comes: it hands the network its own frames back too)."""
+    tmp = tmp_path_factory.mktemp("sim")
+    port = free_port()
+    cfg = bus_yml_beside(tmp)
+    doc = yaml.safe_load(cfg.read_text())
+    doc["master"].update(interface="udp_multicast", channel=UDP_GROUP, can_options={"port": port})
+    cfg.write_text(yaml.safe_dump(doc))
+    process = subprocess.Popen(
+        [sys.executable, "-m", "drive_bridge", "sim", "--config", str(cfg), "--port", str(port)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.DEVNULL,
+        text=True,
+        env={**os.environ, "PYTHONUNBUFFERED": "1"},
+    )
+    network = canopen.Network()
+    try:
+        _wait_for(process.stdout, "ready", 120)
+        network.connect(interface="udp_multicast", channel=UDP_GROUP, port=port)
+        yield network
+    finally:
+        network.disconnect()
+        process.terminate()
+        process.wait(10)
+
+
+def test_a_value_a_drive_cannot_take_by_rpdo_is_answered_with_an_emcy_and_every_drive_serves_on(drives):
+    """0x6060 = 2 (a mode not in 0x6502) by RPDO: EMCY 0x6320 from that drive, its mode unchanged,
+    and every drive still answers SDO and sends its heartbeat (the same write by SDO is refused)."""
+    network = drives
+    nodes = {n: network.add_node(n, str(PROJECT_EDS)) for n in NODES}
+    emcy: list[tuple[int, int]] = []
+    beats: list[int] = []
+    for n in NODES:
+        network.subscribe(0x80 + n, lambda cob, data, ts: emcy.append((cob - 0x80, data[0] | data[1] << 8)))
+        network.subscribe(0x700 + n, lambda cob, data, ts: beats.append(cob - 0x700))
+    node = nodes[1]
+    node.nmt.state = "PRE-OPERATIONAL"
+    for n in NODES:
+        nodes[n].sdo[0x1017].raw = 50  # heartbeat producer, 50 ms
+    with pytest.raises(canopen.SdoAbortedError):
+        node.sdo[0x6060].raw = 2
+    node.rpdo.read()
+    pdo = node.rpdo[2]
+    pdo.clear()
+    pdo.add_variable(0x6060)
+    pdo.cob_id = 0x300 + 1
+    pdo.trans_type = 255  # event-driven: taken as it comes
+    pdo.enabled = True
+    node.rpdo.save()
+    node.nmt.state = "OPERATIONAL"
+    time.sleep(0.1)
+    before = node.sdo[0x6061].raw
+    pdo[0].raw = 2
+    pdo.transmit()
+    deadline = time.monotonic() + 5.0
+    while (1, ERR_PARAMETER) not in emcy and time.monotonic() < deadline:
+        time.sleep(0.02)
+    assert (1, ERR_PARAMETER) in emcy, emcy
+    assert node.sdo[0x6061].raw == before  # not taken
+    beats.clear()
+    time.sleep(0.5)
+    assert set(beats) == set(NODES), beats  # every drive's heartbeat goes on
+    for n in NODES:
+        assert nodes[n].sdo[0x6041].raw is not None  # and each answers SDO
+    pdo[0].raw = 1  # a value it can take, by the same PDO
+    pdo.transmit()
+    deadline = time.monotonic() + 5.0
+    while node.sdo[0x6061].raw != 1 and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert node.sdo[0x6061].raw == 1
+
+
+def test_profile_position_takes_the_target_of_the_same_rpdo_as_its_new_set_point(drives):
+    """canopen's CiA 402 node, the EDS's own RPDO1 (controlword and target 0x607A, synchronous, sent
+    every SYNC as canopen's periodic PDO does): a new set-point (bit 4 rising) sent in one PDO with
+    its target moves the axis there -- the drive takes the whole PDO before it acts on any of it."""
+    network = drives
+    node = canopen.BaseNode402(2, str(PROJECT_EDS))
+    network.add_node(node)
+    node.nmt.state = "PRE-OPERATIONAL"
+    node.setup_402_state_machine()  # reads the PDO mappings
+    node.nmt.state = "OPERATIONAL"
+    node.op_mode = "PROFILED POSITION"
+    pdo = node.rpdo[1]
+    start = node.sdo[0x6064].raw
+    pdo[1].raw = start  # the target where the axis stands
+    network.sync.start(0.01)  # the master's SYNC, 10 ms, and RPDO1 with each
+    pdo.start(0.01)
+    try:
+        node.state = "OPERATION ENABLED"
+        target = start + 1048576 // 2  # half a turn
+        pdo.stop()
+        pdo[1].raw = target
+        pdo[0].raw = 0x1F  # enable operation + new set-point, in the same PDO as the target
+        pdo.start(0.01)
+        deadline = time.monotonic() + 10.0
+        while abs(node.sdo[0x6064].raw - target) > 1000 and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert abs(node.sdo[0x6064].raw - target) <= 1000, (start, target, node.sdo[0x6064].raw)
+        node.state = "SWITCH ON DISABLED"
+    finally:
+        pdo.stop()
+        network.sync.stop()
