@@ -24,7 +24,8 @@ channel), ``.queue`` (its own, a ``queue.Queue``), ``.channel_id``,
 store of a simulated drive) without canopen's heartbeat timer, attached to a
 drive's own way of sending.  Relies on ``LocalNode.__init__`` registering
 ``nmt.on_write`` through ``add_write_callback`` and on ``sdo.network`` being
-what the SDO server sends its replies through.
+what the SDO server sends its replies through.  Its SDO server's ``abort`` answers a request that came
+before any transfer (canopen's relies on ``_index``/``_subindex``, None until one began).
 """
 
 from __future__ import annotations
@@ -35,6 +36,7 @@ from collections.abc import Callable, Iterator
 import can
 import canopen
 from can.interfaces.virtual import VirtualBus
+from canopen.sdo import SdoServer
 
 
 class FastVirtualBus(VirtualBus):
@@ -96,6 +98,17 @@ class _Replies(canopen.Network):
         self._send(can_id, bytes(data))
 
 
+class _SdoServerThatAnswers(SdoServer):
+    """canopen's SDO server, whose abort answers a request that came before any transfer too
+    (canopen's packs the transfer's object, None until one began: a segment request out of the
+    blue made the abort itself raise, out of the server)."""
+
+    def abort(self, abort_code: int = 0x08000000) -> None:
+        if self._index is None or self._subindex is None:
+            self._index, self._subindex = 0, 0
+        super().abort(abort_code)
+
+
 def local_node(
     node_id: int, od: canopen.ObjectDictionary, send: Callable[[int, bytes], None]
 ) -> canopen.LocalNode:
@@ -104,5 +117,6 @@ def local_node(
     Its SDO server is fed by the drive (``node.sdo.on_request``); heartbeat, NMT, PDOs and
     EMCY are the drive's own."""
     node = _LocalNodeWithoutNmtTimer(node_id, od)
+    node.sdo = _SdoServerThatAnswers(0x600 + node_id, 0x580 + node_id, node)
     node.sdo.network = _Replies(send)
     return node

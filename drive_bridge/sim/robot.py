@@ -137,7 +137,8 @@ class SimRobot:
     @staticmethod
     def _sdo_handler(drive: SimDrive) -> Callable[[bytes], None]:
         def handle(data: bytes) -> None:
-            if drive.online and drive.nmt_state != NMT_STOPPED:  # CiA 301: no SDO in Stopped
+            # CiA 301: no SDO in Stopped; an SDO request is 8 bytes (a shorter frame is not one)
+            if drive.online and drive.nmt_state != NMT_STOPPED and len(data) == 8:
                 drive.node.sdo.on_request(0x600 + drive.node_id, data, 0.0)
 
         return handle

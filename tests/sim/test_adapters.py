@@ -67,3 +67,14 @@ def test_local_node_answers_sdo_through_the_drive_and_leaves_heartbeats_to_it():
     node.sdo.on_request(0x605, bytes([0x40, 0x17, 0x10, 0x00, 0, 0, 0, 0]), 0.0)  # upload 0x1017
     assert len(sent) == 1 and sent[0][0] == 0x585
     assert sent[0][1][0] & 0xE0 == 0x40 and struct.unpack_from("<H", sent[0][1], 4)[0] == 100
+
+
+def test_an_sdo_segment_request_before_any_transfer_is_answered_with_an_abort():
+    """canopen's SdoServer.abort packs the transfer's index, None before any transfer (its
+    ``_index``/``_subindex``): the simulated drive's server answers such a request with an abort
+    instead of raising out of it."""
+    sent = []
+    node = local_node(5, load_od(PROJECT_EDS, 5), lambda cob, data: sent.append((cob, bytes(data))))
+    node.sdo.on_request(0x605, bytes(8), 0.0)  # a download segment, no transfer begun
+    assert len(sent) == 1 and sent[0][0] == 0x585 and sent[0][1][0] == 0x80  # an abort
+    assert node.sdo._index is not None  # the attribute the adapter relies on
