@@ -108,6 +108,16 @@ class _SdoServerThatAnswers(SdoServer):
             self._index, self._subindex = 0, 0
         super().abort(abort_code)
 
+    def block_upload(self, data: bytes) -> None:
+        """A block upload, which this server does not have: canopen's switches to a segmented
+        upload, which CiA 301 allows only where the request's protocol switch threshold (byte 5)
+        lets it; with 0, abort 0x05040001 (command specifier not valid)."""
+        if data[5] == 0:
+            self._index, self._subindex = data[1] | data[2] << 8, data[3]
+            self.abort(0x05040001)
+            return
+        super().block_upload(data)
+
 
 def local_node(
     node_id: int, od: canopen.ObjectDictionary, send: Callable[[int, bytes], None]

@@ -91,6 +91,9 @@ log = logging.getLogger(__name__)
 
 IMPLEMENTED_MODES = (PP, PV, HM, IP, CSP)
 SAVE_SIGNATURE = 0x65766173  # 'save'
+#: option codes -> the first value CiA 402 reserves (negative values: the manufacturer's): the
+#: quick stop option code 0x605A defines 0..8, the abort connection option 0x6007 0..3
+RESERVED_FROM = {0x605A: 9, 0x6007: 4}
 LOAD_SIGNATURE = 0x64616F6C  # 'load'
 
 #: maxon's PVT input FIFO (EPOS Application Note "Interpolation Position Mode", Dec 2008, pp. 13-16):
@@ -592,6 +595,9 @@ class SimDrive:
             return
         if index == 0x6040:
             self._on_controlword(value)
+        elif index in RESERVED_FROM:  # an option code whose value CiA 402 reserves
+            if RESERVED_FROM[index] <= value:
+                raise SdoAbortedError(ABORT_RANGE)
         elif index == 0x6060:
             if value != 0 and value not in self.modes:
                 raise SdoAbortedError(ABORT_RANGE)

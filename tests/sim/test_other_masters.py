@@ -133,3 +133,25 @@ def test_profile_position_takes_the_target_of_the_same_rpdo_as_its_new_set_point
     finally:
         pdo.stop()
         network.sync.stop()
+
+
+def test_what_a_tool_reads_and_writes_by_sdo_is_what_cia_301_and_402_define(drives):
+    """An SDO block upload a drive does not have is refused as CiA 301 says (abort 0x05040001:
+    protocol switch threshold 0 forbids a segmented answer); a TPDO's communication record counts its
+    event timer (sub 5) in sub 0; option codes refuse the values CiA 402 reserves."""
+    network = drives
+    node = network.add_node(3, str(PROJECT_EDS))
+    with pytest.raises(canopen.SdoAbortedError) as refused:
+        with node.sdo.open(0x1018, 1, "rb", block_transfer=True) as stream:
+            stream.read()
+    assert refused.value.code == 0x05040001
+    assert node.sdo[0x1018][1].raw is not None  # and it serves on
+    for tpdo in range(0x1800, 0x1804):
+        assert node.sdo[tpdo][0].raw == 5
+        assert node.sdo[tpdo][5].raw is not None  # the event timer, within 1..sub 0
+    for index, reserved, defined in ((0x605A, 99, 2), (0x6007, 99, 1)):
+        with pytest.raises(canopen.SdoAbortedError) as refused:
+            node.sdo[index].raw = reserved
+        assert refused.value.code == 0x06090030, hex(index)
+        node.sdo[index].raw = defined
+        assert node.sdo[index].raw == defined
