@@ -1,18 +1,39 @@
-"""Opening the link the master talks through: the configured bus, or the simulated robot
-(``--sim``: the only place outside the tests that reaches into ``drive_bridge.sim``)."""
+"""Opening the link the master talks through, by the name of its backend, as python-can opens an
+interface by its name: ``bus`` (the configured python-can bus) or ``simulated`` (the simulated
+robot's drives: :func:`drive_bridge.sim.connection.simulated_link`, imported only when asked for)."""
 
 from __future__ import annotations
 
+import importlib
 import logging
 from collections.abc import Iterator
 from contextlib import contextmanager
 
-from .cia.buses import BusSpec
 from .config import BusConfig
 from .errors import UserError
 from .master.link import BusLink, Link
 
 log = logging.getLogger(__name__)
+
+#: the ways the master reaches the drives, by name -> "module:function" opening a Link for a bus
+#: configuration (keywords ``realtime``, ``sim_config``)
+BACKENDS = {"bus": "drive_bridge.connect:bus_link", "simulated": "drive_bridge.sim.connection:simulated_link"}
+
+
+def bus_link(config: BusConfig, **_: object) -> Link:
+    """The bus bus.yml (or the command line, or python-can's configuration) names."""
+    m = config.master
+    if m.interface is None:
+        raise UserError(
+            f"{config.path}: no CAN interface named: give master.interface (and channel) in "
+            f"bus.yml, -i/--interface and -c/--channel, or python-can's configuration "
+            f"(CAN_INTERFACE, ~/.canrc)"
+        )
+    log.info("bus %s:%s at %s bit/s", m.interface, m.channel, m.bitrate)
+    try:
+        return BusLink.open(m.interface, m.channel, m.bitrate, m.can_options)
+    except Exception as exc:  # python-can raises many kinds for a missing interface
+        raise UserError(f"{config.path}: cannot open bus {m.interface}:{m.channel} ({exc})") from exc
 
 
 @contextmanager
@@ -48,65 +69,11 @@ def open_link(
         No CAN interface named, a bus that cannot be opened, a SYNC period the simulated drives
         cannot run, or a node whose EDS/DCF has no simulated drive.
     """
-    link: Link
-    if not sim:
-        m = config.master
-        if m.interface is None:
-            raise UserError(
-                f"{config.path}: no CAN interface named: give master.interface (and channel) in "
-                f"bus.yml, -i/--interface and -c/--channel, or python-can's configuration "
-                f"(CAN_INTERFACE, ~/.canrc)"
-            )
-        log.info("bus %s:%s at %s bit/s", m.interface, m.channel, m.bitrate)
-        try:
-            link = BusLink.open(m.interface, m.channel, m.bitrate, m.can_options)
-        except Exception as exc:  # python-can raises many kinds for a missing interface
-            raise UserError(f"{config.path}: cannot open bus {m.interface}:{m.channel} ({exc})") from exc
-    else:
-        from .sim.kernel import VELOCITY_TICK_S
-        from .sim.robot_config import DEFAULT_CONFIG as SIM_DEFAULT
-        from .sim.robot_config import load_sim_config
-
-        robot_cfg = load_sim_config(sim_config or SIM_DEFAULT)  # errors show here, not in the child
-        ticks = config.master.sync_period_s / VELOCITY_TICK_S
-        if abs(ticks - round(ticks)) > 1e-6:
-            raise UserError(
-                f"{config.path}: master.sync_period: the simulated drives run their loops every "
-                f"{VELOCITY_TICK_S * 1e6:.0f} µs, so the SYNC period must be a multiple of it "
-                f"(got {config.master.sync_period_s * 1e6:.0f} µs)"
-            )
-        # each simulated drive is the drive its node's EDS/DCF describes (by axis name)
-        eds = {a: n.dcf for a, n in config.nodes.items() if a in robot_cfg.axes}
-        from .sim.vendors import spec_for
-
-        for axis, path in eds.items():
-            try:
-                spec_for(path)
-            except ValueError as exc:  # no simulated drive for this node's EDS/DCF
-                raise UserError(f"{config.path}: nodes.{axis}.dcf: --sim: {exc}") from exc
-        log.info(
-            "simulated robot %s, %s, drives %s",
-            sim_config or SIM_DEFAULT,
-            "wall clock" if realtime else "lockstep",
-            ", ".join(f"{a}: {p.name}" for a, p in eds.items()),
-        )
-        if realtime:
-            from .sim.process import SimProcess
-
-            drives = SimProcess(sim_config or SIM_DEFAULT, config.master.sync_period_s, eds)
-            bus_link = BusLink(
-                drives.bus, BusSpec("udp_multicast", drives.group, None, {"port": drives.port})
-            )
-            bus_link.simulator = drives  # the drives' process (tests stall it to prove the supervision)
-            bus_link.on_close.append(drives.shutdown)
-            link = bus_link
-        else:
-            from .sim.lockstep import LockstepLink
-            from .sim.robot import SimRobot
-
-            channel = f"{config.master.channel or 'drive-bridge'}-sim"  # closed again below, so reusable
-            robot = SimRobot(robot_cfg, channel, sync_period=config.master.sync_period_s, eds=eds)
-            link = LockstepLink(robot, channel)
+    backend = "simulated" if sim else "bus"
+    module, function = BACKENDS[backend].split(":")
+    link = getattr(importlib.import_module(module), function)(
+        config, realtime=realtime, sim_config=sim_config
+    )
     try:
         yield link
     finally:
