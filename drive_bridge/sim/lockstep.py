@@ -13,8 +13,10 @@ from __future__ import annotations
 
 import os
 import time
+from collections import deque
 from collections.abc import Callable
 
+import can
 import numpy as np
 
 from ..master.engine import Arrays, Engine, Handler, Job, Outcome, reporter
@@ -110,6 +112,9 @@ class LockstepLink:
         self._notify = self.network.notify
         self.bus_errors = BusErrors()  # a virtual bus has none; the contract has them
         self._heartbeat: Callable[[float], None] | None = None
+        #: the master's heartbeats handed to the drives while the robot advanced, for the trace: written
+        #: there in time order with the drives' frames of the same stretch (:meth:`pump`)
+        self._beats: deque[can.Message] = deque()
         robot.power_on()
         self.pump()
 
@@ -117,7 +122,16 @@ class LockstepLink:
         self.network.traces += (trace,)
 
     def remove_trace(self, trace: TraceRecorder) -> None:
+        self._trace_beats(self.robot.time)
         self.network.traces = tuple(t for t in self.network.traces if t is not trace)
+
+    def _trace_beats(self, until: float) -> None:
+        """Trace the master's heartbeats stamped up to ``until`` [s]."""
+        beats, traces = self._beats, self.network.traces
+        while beats and beats[0].timestamp <= until:
+            msg = beats.popleft()
+            for trace in traces:
+                trace.on_message_received(msg)
 
     def _after_send(self) -> None:
         self.robot.process()
@@ -130,21 +144,23 @@ class LockstepLink:
         for msg in self.bus.drain():
             if not msg.timestamp:
                 msg.timestamp = now
+            if self._beats:
+                self._trace_beats(msg.timestamp)
             for trace in traces:
                 trace.on_message_received(msg)
             notify(msg.arbitration_id, msg.data, msg.timestamp)
+        self._trace_beats(now)
 
     def start_heartbeat(self, node_id: int, period: float) -> None:
-        """In simulation time: each beat is handed to the drives (and the trace) at the instant it
-        is due while the robot advances, however long the master waits."""
+        """In simulation time: each beat is handed to the drives at the instant it is due while the
+        robot advances, however long the master waits (and to the trace in time order, :meth:`pump`)."""
         self.stop_heartbeat()
         due = [self.robot.time]
 
         def beat(now: float) -> None:
             while now >= due[0] - 1e-9:
                 msg = heartbeat_frame(node_id, due[0])
-                for trace in self.network.traces:
-                    trace.on_message_received(msg)
+                self._beats.append(msg)
                 self.robot.dispatch(msg)
                 due[0] += period
 

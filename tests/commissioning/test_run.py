@@ -67,6 +67,17 @@ def run(tmp_path_factory):
     }
 
 
+def test_every_trace_of_the_run_has_its_time_stamps_in_order(run):
+    """The campaign's trace, as a capture would read: the master's heartbeats, handed to the drives
+    while simulated time ran on, stand among the drives' frames in time order (one stood 100 ms
+    after the frame that followed it)."""
+    import can
+
+    with can.LogReader(str(run["out"] / "campaign" / "trace.blf")) as reader:
+        stamps = np.array([frame.timestamp for frame in reader])
+    assert len(stamps) > 1000 and np.all(np.diff(stamps) >= 0), np.flatnonzero(np.diff(stamps) < 0)
+
+
 def test_a_subset_then_a_rerun_resumes_after_the_last_completed_step(run):
     assert run["codes"] == (0, 0)
     p = run["partial"]
