@@ -21,6 +21,9 @@ venv/bin/drive-bridge --help > /dev/null
 venv/bin/drive-bridge scan --sim
 venv/bin/drive-bridge commission --sim --campaign short --out run
 venv/bin/python "$repo/tools/smoke_installed.py" run
-venv/bin/drive-bridge history list | grep -q "^1 run(s) in sqlite:///$work/data/drive-bridge/history.sqlite" ||
+# read whole first: grep -q leaving a pipe early makes the listing's next line a broken pipe
+# (exit 1 under pipefail), a failure of this check that was not the package's
+history="$(venv/bin/drive-bridge history list)"
+grep -q "^1 run(s) in sqlite:///$work/data/drive-bridge/history.sqlite" <<< "$history" ||
   { echo "the installed commission kept no history" >&2; exit 1; }
 echo "wheel check passed: $(ls dist)"
