@@ -184,6 +184,7 @@ def _stalling(pid_of, stalls, seconds):
 
 
 @pytest.mark.realtime
+@pytest.mark.slow  # seconds on the wall clock
 def test_a_stalled_simulator_is_no_fault_of_the_master_or_the_drives(tmp_path):
     """The simulated drives' process stopped for 30 ms (SIGSTOP, SIGCONT), three times, mid-stream:
     the frames that waited are taken at the time they reached the bus, on both sides."""
@@ -198,6 +199,7 @@ def test_a_stalled_simulator_is_no_fault_of_the_master_or_the_drives(tmp_path):
 
 
 @pytest.mark.realtime
+@pytest.mark.slow  # seconds on the wall clock
 def test_a_master_stalled_past_the_drives_timeout_is_caught_by_the_drives_and_said(tmp_path):
     """The master's cyclic engine stopped for 80 ms mid-stream, four times the 20 ms the drive waits
     for setpoints: the drive stops on its own (EMCY 0x8250), and the run says the master was late."""
@@ -215,6 +217,7 @@ def test_a_master_stalled_past_the_drives_timeout_is_caught_by_the_drives_and_sa
 
 
 @pytest.mark.realtime
+@pytest.mark.slow  # seconds on the wall clock
 def test_the_masters_heartbeat_goes_on_while_the_masters_process_is_held_up(tmp_path):
     """The master's process held up longer than the drives watch its heartbeat (a sort that keeps the
     interpreter lock, mid-stream): the engine beats in its own process, so no drive stops."""
