@@ -636,7 +636,11 @@ class Engine:
         """A SYNC at ``stamp``: the row of the period (while streaming), the feedback's age."""
         job, arrays, out = self.job, self.arrays, self.outcome
         if self.phase == STREAMING and self.slot - self.plan_slot >= job.rows:
-            self._enter(HOLDING, stamp)  # a late cycle past the plan's end
+            # a late cycle past the plan's end: the plan's last periods had no SYNC -- rows of the
+            # recording like any period skipped (no sample, counted missing), not rows it never had
+            out.rows_sent = job.rows
+            arrays.control[ROWS_SENT] = job.rows
+            self._enter(HOLDING, stamp)
         row = self.slot - self.plan_slot if self.phase == STREAMING else -1
         for axis in range(len(job.axes)):
             self.age[axis] += 1

@@ -20,6 +20,7 @@ from drive_bridge.connect import open_link
 from drive_bridge.master.bringup import bring_up
 from drive_bridge.master.engine import (
     CONTROLWORD,
+    ROWS_SENT,
     STREAMING,
     TABLE,
     Arrays,
@@ -93,6 +94,43 @@ def test_a_late_cycle_sends_the_setpoint_of_its_own_period_and_never_a_burst(tmp
 
     _, decoded, _, _, problem = decode_trace(tmp_path / "trace.blf")
     assert problem is None and np.array_equal(np.isnan(decoded[:, 1]), np.isnan(rec_time))
+
+
+class _LateAtTheEndPort(LinkPort):
+    """A lockstep port whose master wakes 3.5 periods late once, right after the plan's last row but
+    one went out: the plan's end passes without its last SYNC."""
+
+    def __init__(self, link, arrays: Arrays, rows: int):
+        super().__init__(link)
+        self.arrays, self.rows, self.late = arrays, rows, False
+
+    def wait_until(self, deadline):
+        if not self.late and self.arrays.control[ROWS_SENT] == self.rows - 1:
+            self.late = True
+            self.link.clock.sleep(3.5 * PERIOD)
+        super().wait_until(deadline)
+
+
+class _LateAtTheEndLink(LockstepLink):
+    def run_cycles(self, job, fill, progress, on_start):
+        arrays = Arrays(job, np.zeros)
+        fill(arrays)
+        return Engine(job, arrays, _LateAtTheEndPort(self, arrays, job.rows)).run(), arrays, "lockstep, late"
+
+
+def test_a_plan_whose_last_periods_passed_without_sync_counts_them_missing(tmp_path):
+    """Every period of the plan is a sample or a counted miss, the last ones too: a master late past
+    the plan's end leaves its last rows without a SYNC, in log.csv and counted missing (they were
+    neither)."""
+    b = Bench(clean_config())
+    b.link.__class__ = _LateAtTheEndLink
+    config = quick_config().only(["y"])
+    result = record(config, b.link, tmp_path, axes=bring_up(b.link, config))
+    assert result.ok, result.aborted
+    rec_time = np.loadtxt(tmp_path / "log.csv", delimiter=",", skiprows=1, usecols=(1,))
+    assert len(rec_time) == len(result.plan.demand)
+    assert np.isnan(rec_time[-1]) and result.missing["y"] == np.count_nonzero(np.isnan(rec_time)) >= 1
+    assert result.samples["y"] + result.missing["y"] == len(result.plan.demand)
 
 
 class _Drives:
