@@ -10,6 +10,7 @@ import os
 import signal
 import time
 import tracemalloc
+from collections.abc import Callable
 
 import numpy as np
 import pytest
@@ -39,31 +40,44 @@ PERIOD = 0.002
 
 
 class _LatePort(LinkPort):
-    """A lockstep port whose master wakes 3.5 periods late once, at its ``at``-th wait of the plan: the
-    drives run on without SYNC meanwhile, as they would while a real master is held up."""
+    """A lockstep port whose master wakes 3.5 periods late once, at the first wait where
+    ``late(waits, rows_sent, rows)`` holds (its waits so far, the plan's rows sent and its length):
+    the drives run on without SYNC meanwhile, as they would while a real master is held up."""
 
-    def __init__(self, link, at: int):
+    def __init__(self, link, arrays: Arrays, rows: int, late: Callable[[int, int, int], bool]):
         super().__init__(link)
-        self.at, self.waits = at, 0
+        self.arrays, self.rows, self.late = arrays, rows, late
+        self.waits, self.held = 0, False
 
     def wait_until(self, deadline):
         self.waits += 1
-        if self.waits == self.at:
+        if not self.held and self.late(self.waits, int(self.arrays.control[ROWS_SENT]), self.rows):
+            self.held = True
             self.link.clock.sleep(3.5 * PERIOD)
         super().wait_until(deadline)
 
 
 class _LateLink(LockstepLink):
+    """A lockstep link whose engine runs on a :class:`_LatePort` held up where ``late`` says."""
+
+    late: Callable[[int, int, int], bool]
+
     def run_cycles(self, job, fill, progress, on_start):
         arrays = Arrays(job, np.zeros)
         fill(arrays)
-        self.port = _LatePort(self, at=400)
-        return Engine(job, arrays, self.port).run(), arrays, "lockstep, late once"
+        port = _LatePort(self, arrays, job.rows, self.late)
+        return Engine(job, arrays, port).run(), arrays, "lockstep, late once"
+
+
+def _late_bench(late: Callable[[int, int, int], bool]) -> Bench:
+    b = Bench(clean_config())
+    b.link.__class__ = _LateLink
+    b.link.late = late
+    return b
 
 
 def test_a_late_cycle_sends_the_setpoint_of_its_own_period_and_never_a_burst(tmp_path):
-    b = Bench(clean_config())
-    b.link.__class__ = _LateLink
+    b = _late_bench(lambda waits, sent, rows: waits == 400)
     config = quick_config().only(["y"])
     axes = bring_up(b.link, config)
     result = record(config, b.link, tmp_path, axes=axes)
@@ -96,34 +110,11 @@ def test_a_late_cycle_sends_the_setpoint_of_its_own_period_and_never_a_burst(tmp
     assert problem is None and np.array_equal(np.isnan(decoded[:, 1]), np.isnan(rec_time))
 
 
-class _LateAtTheEndPort(LinkPort):
-    """A lockstep port whose master wakes 3.5 periods late once, right after the plan's last row but
-    one went out: the plan's end passes without its last SYNC."""
-
-    def __init__(self, link, arrays: Arrays, rows: int):
-        super().__init__(link)
-        self.arrays, self.rows, self.late = arrays, rows, False
-
-    def wait_until(self, deadline):
-        if not self.late and self.arrays.control[ROWS_SENT] == self.rows - 1:
-            self.late = True
-            self.link.clock.sleep(3.5 * PERIOD)
-        super().wait_until(deadline)
-
-
-class _LateAtTheEndLink(LockstepLink):
-    def run_cycles(self, job, fill, progress, on_start):
-        arrays = Arrays(job, np.zeros)
-        fill(arrays)
-        return Engine(job, arrays, _LateAtTheEndPort(self, arrays, job.rows)).run(), arrays, "lockstep, late"
-
-
 def test_a_plan_whose_last_periods_passed_without_sync_counts_them_missing(tmp_path):
     """Every period of the plan is a sample or a counted miss, the last ones too: a master late past
     the plan's end leaves its last rows without a SYNC, in log.csv and counted missing (they were
     neither)."""
-    b = Bench(clean_config())
-    b.link.__class__ = _LateAtTheEndLink
+    b = _late_bench(lambda waits, sent, rows: sent == rows - 1)  # after the last row but one
     config = quick_config().only(["y"])
     result = record(config, b.link, tmp_path, axes=bring_up(b.link, config))
     assert result.ok, result.aborted
