@@ -27,6 +27,7 @@ import math
 import struct
 from collections import deque
 from collections.abc import Callable
+from functools import partial
 from pathlib import Path
 from typing import Any, Protocol
 
@@ -456,7 +457,7 @@ class SimDrive:
             self.fifo.clear()
             self.fifo_enabled, self.ip_errors = False, 0
         self._rebuild_pdos()
-        self.heartbeats = HeartbeatConsumer(self._object)
+        self.heartbeats = HeartbeatConsumer(partial(self.object_or, fallback=None))
         self.host.routes_changed()
         self._refresh_actuals(noise=False)
 
@@ -521,10 +522,6 @@ class SimDrive:
         """0x1016 written: the nodes the drive watches, and the routes to its consumer."""
         self.heartbeats.configure()
         self.host.routes_changed()
-
-    def _object(self, index: int, sub: int) -> Any:
-        """The value of ``index``:``sub``; None where the drive has no such object."""
-        return self._od(index, sub) if self.od.get_variable(index, sub) is not None else None
 
     def on_heartbeat(self, node: int) -> None:
         self.heartbeats.heard(node, self.plant.time)
