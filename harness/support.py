@@ -5,19 +5,25 @@ from __future__ import annotations
 
 import itertools
 import os
+import select
 import shutil
+import subprocess
 import sys
+import time
 from dataclasses import replace
 from pathlib import Path
 
 import canopen
 import numpy as np
+import yaml
 
+from drive_bridge.cia.multicast import UDP_GROUP
 from drive_bridge.cia.od import load_od
 from drive_bridge.config import load_bus_config
 from drive_bridge.paper import TABLE_II
 from drive_bridge.resources import DEFAULT_BUS_CONFIG, PROJECT_EDS
 from drive_bridge.sim.lockstep import LockstepLink
+from drive_bridge.sim.process import free_port
 from drive_bridge.sim.robot import SimRobot
 from drive_bridge.sim.robot_config import Motor, SimAxis, SimConfig
 
@@ -89,6 +95,41 @@ def bus_yml_beside(tmp_path: Path, old: str = "", new: str = "") -> Path:
     cfg = tmp_path / "bus.yml"
     cfg.write_text(text.replace("../eds/", str(EDS.parent) + "/"))
     return cfg
+
+
+def wait_for(stream, text: str, timeout: float) -> str:
+    """Lines of ``stream`` up to the first that holds ``text``."""
+    seen, deadline = [], time.time() + timeout
+    while time.time() < deadline:
+        if select.select([stream], [], [], 0.5)[0]:
+            line = stream.readline()
+            seen.append(line)
+            if text in line:
+                return "".join(seen)
+    raise AssertionError(f"{text!r} did not come within {timeout} s; got {''.join(seen)!r}")
+
+
+def start_sim(tmp_path: Path) -> tuple[subprocess.Popen, Path, int]:
+    """``drive-bridge sim`` started as the docs say, on udp_multicast (python-can's IPv4 group, a
+    free port), its bus.yml in ``tmp_path``, once it says ready: (the process, the bus.yml, the port)."""
+    port = free_port()
+    cfg = bus_yml_beside(tmp_path)
+    doc = yaml.safe_load(cfg.read_text())
+    doc["master"].update(interface="udp_multicast", channel=UDP_GROUP, can_options={"port": port})
+    cfg.write_text(yaml.safe_dump(doc))
+    drives = subprocess.Popen(
+        [sys.executable, "-m", "drive_bridge", "sim", "--config", str(cfg), "--port", str(port)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.DEVNULL,
+        text=True,
+        env={**os.environ, "PYTHONUNBUFFERED": "1"},
+    )
+    try:
+        wait_for(drives.stdout, "ready", 120)
+    except BaseException:
+        drives.terminate()
+        raise
+    return drives, cfg, port
 
 
 def tool(name: str) -> str | None:

@@ -38,11 +38,15 @@ def bench():
 
 def _serving(bench) -> None:
     beats: set[int] = set()
+
+    def heard(cob: int, data: bytearray, ts: float) -> None:
+        beats.add(cob - 0x700)
+
     for node in bench.nodes.values():
-        bench.net.subscribe(0x700 + node.id, lambda cob, data, ts: beats.add(cob - 0x700))
+        bench.net.subscribe(0x700 + node.id, heard)
     bench.link.clock.sleep(0.05)
     for node in bench.nodes.values():
-        bench.net.unsubscribe(0x700 + node.id)
+        bench.net.unsubscribe(0x700 + node.id, heard)  # only ours: canopen's NMT listens there too
     assert beats == {node.id for node in bench.nodes.values()}, beats
     for node in bench.nodes.values():
         assert node.sdo[0x1000].raw is not None

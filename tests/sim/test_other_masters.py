@@ -4,23 +4,16 @@ user testing their own master would start it."""
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
 import time
 from collections.abc import Iterator
 
 import canopen
 import pytest
-import yaml
 
 from drive_bridge.cia.multicast import UDP_GROUP
 from drive_bridge.cia.p301 import ERR_PARAMETER
 from drive_bridge.resources import PROJECT_EDS
-from drive_bridge.sim.process import free_port
-from harness.support import bus_yml_beside
-
-from .test_standalone import _wait_for
+from harness.support import start_sim
 
 pytestmark = [pytest.mark.slow, pytest.mark.realtime]
 
@@ -31,22 +24,9 @@ NODES = (1, 2, 3)
 def drives(tmp_path_factory) -> Iterator[canopen.Network]:
     """``drive-bridge sim`` in a process of its own, and a canopen network on its bus (python-can's
     udp_multicast as it comes: it hands the network its own frames back too)."""
-    tmp = tmp_path_factory.mktemp("sim")
-    port = free_port()
-    cfg = bus_yml_beside(tmp)
-    doc = yaml.safe_load(cfg.read_text())
-    doc["master"].update(interface="udp_multicast", channel=UDP_GROUP, can_options={"port": port})
-    cfg.write_text(yaml.safe_dump(doc))
-    process = subprocess.Popen(
-        [sys.executable, "-m", "drive_bridge", "sim", "--config", str(cfg), "--port", str(port)],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.DEVNULL,
-        text=True,
-        env={**os.environ, "PYTHONUNBUFFERED": "1"},
-    )
+    process, _, port = start_sim(tmp_path_factory.mktemp("sim"))
     network = canopen.Network()
     try:
-        _wait_for(process.stdout, "ready", 120)
         network.connect(interface="udp_multicast", channel=UDP_GROUP, port=port)
         yield network
     finally:

@@ -4,7 +4,6 @@ master killed with SIGKILL mid-campaign: every drive stops through its own heart
 from __future__ import annotations
 
 import os
-import select
 import signal
 import subprocess
 import sys
@@ -16,41 +15,16 @@ import yaml
 
 from drive_bridge.cia.multicast import UDP_GROUP, LoopbackMulticastBus
 from drive_bridge.cia.p402 import state_name
-from drive_bridge.sim.process import free_port
-from harness.support import bus_yml_beside
+from harness.support import bus_yml_beside, start_sim, wait_for
 
 pytestmark = [pytest.mark.slow, pytest.mark.realtime]
 
 
-def _wait_for(stream, text: str, timeout: float) -> str:
-    """Lines of ``stream`` up to the first that holds ``text``."""
-    seen, deadline = [], time.time() + timeout
-    while time.time() < deadline:
-        if select.select([stream], [], [], 0.5)[0]:
-            line = stream.readline()
-            seen.append(line)
-            if text in line:
-                return "".join(seen)
-    raise AssertionError(f"{text!r} did not come within {timeout} s; got {''.join(seen)!r}")
-
-
 def test_a_master_killed_mid_campaign_leaves_every_drive_stopped_by_its_heartbeat_consumer(tmp_path):
-    port = free_port()
-    cfg = bus_yml_beside(tmp_path)
-    doc = yaml.safe_load(cfg.read_text())
-    doc["master"].update(interface="udp_multicast", channel=UDP_GROUP, can_options={"port": port})
-    cfg.write_text(yaml.safe_dump(doc))
+    drives, cfg, port = start_sim(tmp_path)
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
-    drives = subprocess.Popen(
-        [sys.executable, "-m", "drive_bridge", "sim", "--config", str(cfg), "--port", str(port)],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.DEVNULL,
-        text=True,
-        env=env,
-    )
     monitor = None
     try:
-        _wait_for(drives.stdout, "ready", 120)
         monitor = canopen.Network(LoopbackMulticastBus(UDP_GROUP, port))
         monitor.connect()
         emcy = []
@@ -79,7 +53,7 @@ def test_a_master_killed_mid_campaign_leaves_every_drive_stopped_by_its_heartbea
             env=env,
             start_new_session=True,
         )
-        _wait_for(master.stderr, "campaign:", 120)
+        wait_for(master.stderr, "campaign:", 120)
         node = monitor.add_node(1, None)  # SDO only: no object dictionary needed
         time.sleep(1.5)  # X is on its way to the campaign's start (6 s) ...
         moving = abs(int.from_bytes(node.sdo.upload(0x606C, 0), "little", signed=True))
