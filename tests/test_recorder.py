@@ -12,6 +12,7 @@ import yaml
 
 from drive_bridge.cli import main
 from drive_bridge.recorder import record
+from harness.floor import beside_the_floor, meta_stall_ms
 from harness.support import (
     Bench,
     bus_yml_beside,
@@ -128,17 +129,15 @@ def test_the_trace_reads_like_a_capture(tmp_path, realtime):
     args = ["record", "--sim", "--quick", "--axes", "z", "--out", str(tmp_path)] + (
         ["--realtime"] if realtime else []
     )
-    code = main(args)
-    meta = yaml.safe_load((tmp_path / "meta.yaml").read_text())
+
+    def recorded() -> tuple[int, dict]:
+        return main(args), yaml.safe_load((tmp_path / "meta.yaml").read_text())
+
+    # on the wall clock a run the machine stalled (CI, 2026-11-25: 3 TPDOs of 3233 missing, in a row;
+    # its own floor held up as long) runs again
+    code, meta = beside_the_floor(recorded, lambda run: meta_stall_ms(run[1])) if realtime else recorded()
     degraded = meta["timing"]["degraded"]
-    if realtime and code == 4:
-        # on the wall clock a loaded machine may lose three TPDOs in a row (CI, 2026-11-25: 3 of 3233
-        # missing, in a row): the master stops, as it must, and the trace still reads like a capture
-        assert meta["status"] == "aborted" and "no TPDO" in meta["abort"]["reason"]
-    else:
-        assert code == (5 if degraded else 0) and (
-            realtime or not degraded
-        )  # a loaded machine: said, not hidden
+    assert code == (5 if degraded else 0) and (realtime or not degraded)  # a loaded machine: said, not hidden
     with can.LogReader(str(tmp_path / "trace.blf")) as reader:
         frames = list(reader)
     stamps = np.array([f.timestamp for f in frames])
@@ -211,19 +210,19 @@ def test_wall_clock_campaign_against_drives_in_their_own_process(tmp_path, capsy
     """--realtime: the drives run in a child process on python-can's udp_multicast bus and the
     master streams at 500 Hz against the wall clock; the trace still decodes to the same CSV, and
     the run reports its timing as the log shows it -- degraded (exit 5) when a loaded machine
-    made it miss its limits, never a silent ok.  A machine loaded past what 500 Hz of wall time
-    allows may starve the master for longer than the drive watches its heartbeat: then the drive's
-    own supervision stops the run, and the run says so."""
+    made it miss its limits, never a silent ok."""
     out = tmp_path / "rt"
-    code = main(["record", "--sim", "--realtime", "--quick", "--axes", "y", "--out", str(out)])
+
+    def wall_clock_record() -> tuple[int, dict]:
+        code = main(["record", "--sim", "--realtime", "--quick", "--axes", "y", "--out", str(out)])
+        return code, yaml.safe_load((out / "meta.yaml").read_text())
+
+    # a run the machine itself stalled past the drive's watch (its own floor held up as long) runs again
+    code, meta = beside_the_floor(wall_clock_record, lambda run: meta_stall_ms(run[1]))
     captured = capsys.readouterr()
     names, data = read_csv(out / "log.csv")
-    meta = yaml.safe_load((out / "meta.yaml").read_text())
     counts, timing = meta["counts"], meta["timing"]
-    if meta["status"] == "aborted" and "EMCY 0x8130" in meta["abort"]["reason"]:
-        assert code != 0 and meta["abort"]["axis"] == "y" and "heartbeat" in captured.err
-        assert counts["cycles_sent"] == len(data) < counts["cycles_planned"]
-        return
+    assert meta["status"] == "ok", (meta.get("abort"), timing)
     assert counts["cycles_sent"] == counts["cycles_planned"] == len(data)
     sync = data[:, names.index("sync_time_s")]
     gaps = np.diff(sync[np.isfinite(sync)])  # (a late master's skipped periods have no SYNC)

@@ -4,9 +4,9 @@ starts it, beside the machine's own floor measured in the same run.
     python tools/bench_realtime.py [--campaign short|paper] [--runs 3] [--load idle|loaded|both]
                                    [--floor-seconds 30] [--against REV]
 
-The floor: a plain Python loop pinned to each CPU at SCHED_FIFO on the same 2 ms absolute
-schedule (as cyclictest measures: sleep to the next deadline, note how late it woke), each in a
-process of its own, for
+The floor (``harness/floor.py``): a plain Python loop pinned to each CPU at SCHED_FIFO on the same
+2 ms absolute schedule (as cyclictest measures: sleep to the next deadline, note how late it woke),
+each in a process of its own, for
 ``--floor-seconds`` right before the runs of each condition, and again *during* each run.  Per
 run: its verdict, the campaign's late cycles, SYNC period p99 and max, the largest SYNC gap in
 periods, the age of the feedback when the engine had it (p99, max), the samples missing, whether
@@ -34,6 +34,7 @@ import sys
 import tempfile
 import time
 from collections.abc import Iterator
+from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
@@ -41,69 +42,8 @@ import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+from harness.floor import PERIOD_S, floor_during  # noqa: E402
 from tools.reference import stamp, worktree  # noqa: E402
-
-PERIOD_S = 0.002
-
-FLOOR = """import json, os, signal, sys, time
-period = float(sys.argv[1])
-os.sched_setaffinity(0, {int(sys.argv[2])})
-try:
-    os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(50))
-    granted = "SCHED_FIFO 50"
-except OSError as exc:
-    granted = f"normal ({exc.strerror})"
-stop = []
-signal.signal(signal.SIGTERM, lambda *_: stop.append(1))
-offset = time.time() - time.monotonic()
-late, held = [], []
-t0 = time.monotonic() + period
-k = 0
-sys.stdout.write("ready\\n")
-sys.stdout.flush()
-while not stop:
-    deadline = t0 + k * period
-    left = deadline - time.monotonic()
-    if left > 0:
-        time.sleep(left)
-    woke = time.monotonic() - deadline
-    late.append(woke)
-    if woke > period / 2:
-        held.append((deadline + offset, woke))
-    k += 1
-print(json.dumps({"granted": granted, "late": late, "held": held}))
-"""
-
-
-@contextlib.contextmanager
-def floor_during() -> Iterator[dict]:
-    """The floor measured while the block runs, one plain loop pinned to each CPU (a stall of one
-    virtual CPU shows in its own): the wake-ups [ms] and when a loop was held up."""
-    procs = [
-        subprocess.Popen(
-            [sys.executable, "-c", FLOOR, str(PERIOD_S), str(cpu)], stdout=subprocess.PIPE, text=True
-        )
-        for cpu in sorted(os.sched_getaffinity(0))
-    ]
-    for proc in procs:
-        assert proc.stdout is not None
-        proc.stdout.readline()
-    result: dict = {}
-    try:
-        yield result
-    finally:
-        for proc in procs:
-            proc.terminate()
-        data = [json.loads(proc.communicate()[0]) for proc in procs]
-        late = np.concatenate([d["late"] for d in data]) * 1e3
-        result.update(
-            granted=data[0]["granted"],
-            p99=float(np.percentile(late, 99)),
-            p999=float(np.percentile(late, 99.9)),
-            max=float(late.max()),
-            over_3ms_pct=float(np.mean(late > 3.0) * 100),
-            held=[[(t, w * 1e3) for t, w in d["held"]] for d in data],
-        )
 
 
 def against_floor(trace: Path, held: list[list[tuple[float, float]]]) -> dict:
@@ -137,7 +77,7 @@ def floor(seconds: float) -> dict:
     ``seconds`` with nothing of ours running."""
     with floor_during() as result:
         time.sleep(seconds)
-    return result
+    return asdict(result)
 
 
 @contextlib.contextmanager
@@ -183,7 +123,7 @@ def commission(code: Path, campaign: str) -> dict:
             )
         wall = time.perf_counter() - t0
         trace = out / "campaign" / "trace.blf"
-        matched = against_floor(trace, beside["held"]) if trace.exists() else {}
+        matched = against_floor(trace, beside.held) if trace.exists() else {}
         summary = json.loads((out / "summary.json").read_text()) if (out / "summary.json").exists() else {}
         meta_path = out / "campaign" / "meta.yaml"
         meta = yaml.safe_load(meta_path.read_text()) if meta_path.exists() else {}
@@ -208,7 +148,7 @@ def commission(code: Path, campaign: str) -> dict:
         "missing": sum((timing.get("samples_missing") or {}).values()),
         "skipped": engine.get("periods_skipped"),
         "host": engine.get("host", timing.get("priority")),
-        "floor": beside,
+        "floor": asdict(beside),
         "matched": matched,
         "aborts": aborts
         or [line.strip() for line in (proc.stdout + proc.stderr).splitlines() if "FAILED:" in line]
