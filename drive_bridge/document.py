@@ -30,6 +30,8 @@ padding:.6em 1em}.partial{background:#fff5d6;border:1px solid #db5;padding:.6em 
 #: paragraph styles: a box in HTML (the verdict, the status), a quote in Markdown; or a note in grey
 BOXES = ("ok", "partial", "failed")
 STYLES = (*BOXES, "note")
+#: what a report without figures says under its title
+FIGURES_LEFT_OUT = "Figures not drawn (--no-figures): the numbers are all here, the plots are not."
 
 
 @dataclass(frozen=True)
@@ -88,10 +90,17 @@ def _md(text: Text, cell: bool = False) -> str:
 
 @dataclass
 class Document:
-    """Blocks in reading order; ``html()`` and ``markdown()`` render them."""
+    """Blocks in reading order; ``html()`` and ``markdown()`` render them.  Without ``figures``
+    (``--no-figures``) it holds none, whatever files a run directory still has from an earlier run,
+    and says so under its title."""
 
     title: str
     blocks: list[tuple] = field(default_factory=list)
+    figures: bool = True
+
+    def __post_init__(self) -> None:
+        if not self.figures:
+            self.para(FIGURES_LEFT_OUT, "note")
 
     def heading(self, level: int, text: Text) -> None:
         self.blocks.append(("h", level, text))
@@ -109,8 +118,8 @@ class Document:
         self.blocks.append(("table", head, rows))
 
     def figure(self, path: str | Path, alt: str) -> None:
-        """A PNG file (left out where it was not made)."""
-        if Path(path).is_file():
+        """A PNG file (left out where it was not made, or the document has no figures)."""
+        if self.figures and Path(path).is_file():
             self.blocks.append(("img", Path(path), alt))
 
     # ---------------------------------------------------------------- rendering

@@ -49,6 +49,8 @@ class Options:
         Keep the run in the history database (:mod:`drive_bridge.history`).
     db : str, optional
         That database's URL; default ``DRIVE_BRIDGE_DB``, else the user's SQLite file.
+    figures : bool
+        Draw the reports' figures (PNG files beside them); without them the reports say so.
     """
 
     sim: bool = False
@@ -63,6 +65,7 @@ class Options:
     allow_unverified_scales: bool = False
     history: bool = True  # keep the run in the history database (commission, write)
     db: str | None = None  # that database's URL (None: DRIVE_BRIDGE_DB, else the user's SQLite file)
+    figures: bool = True  # draw the reports' figures
 
     @property
     def writes_unverified(self) -> bool:

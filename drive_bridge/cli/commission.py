@@ -44,6 +44,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     options.seed(p)
     options.motor(p)
     options.history(p)
+    options.figures(p)
     p.set_defaults(func=cmd_commission)
 
 

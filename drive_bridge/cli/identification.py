@@ -42,6 +42,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     )
     options.seed(p)
     options.history(p, asked=True)
+    options.figures(p)
     p.set_defaults(func=cmd_identify)
 
 
@@ -65,9 +66,10 @@ def cmd_identify(args: argparse.Namespace) -> int:
         torque_sign=args.torque_sign,
     )
     if args.out:
-        report = write_report(results, Path(args.out), str(args.log))
+        report = write_report(results, Path(args.out), str(args.log), figures=args.figures)
         if not args.json:
-            print(f"wrote {report} and identify.html (plots and identify.json beside them)", file=sys.stderr)
+            beside = "plots and identify.json" if args.figures else "identify.json"
+            print(f"wrote {report} and identify.html ({beside} beside them)", file=sys.stderr)
     print(as_json(results) if args.json else summary(results))
     if args.history:
         from ..history import keep

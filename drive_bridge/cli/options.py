@@ -248,6 +248,16 @@ def history(p: argparse.ArgumentParser, asked: bool = False) -> None:
     db(p)
 
 
+def figures(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--no-figures",
+        dest="figures",
+        action="store_false",
+        help="do not draw the reports' figures (faster, for scripts that read only the JSON); "
+        "the reports say they were left out",
+    )
+
+
 def seed(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=_seed, default=0, help="seed of the evolutionary fits (default: 0)")
 
@@ -307,4 +317,5 @@ def session_options(args: argparse.Namespace) -> Options:
         allow_unverified_scales=getattr(args, "allow_unverified_scales", False),
         history=getattr(args, "history", False),
         db=getattr(args, "db", None),
+        figures=getattr(args, "figures", True),
     )

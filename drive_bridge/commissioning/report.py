@@ -372,10 +372,12 @@ def _status(doc: Document, summary: dict) -> None:
         doc.para([Strong("PARTIAL"), ": the steps run succeeded; some were not run."], "partial")
 
 
-def build_report(out: Path, summary: dict) -> Document:
+def build_report(out: Path, summary: dict, figures: bool = True) -> Document:
+    """The commissioning report of the run in ``out`` (with ``figures``: the validation and trend
+    figures drawn into it)."""
     from ..history.since import history_note, report_section, trend_figures
 
-    doc = Document("Commissioning report")
+    doc = Document("Commissioning report", figures=figures)
     _verdict(doc, summary["verdict"])
     _status(doc, summary)
     doc.para(
@@ -388,8 +390,8 @@ def build_report(out: Path, summary: dict) -> Document:
         [[s["name"], s["status"], number(s["duration_s"], ".1f")] for s in summary["steps"]],
     )
     loops = {axis: _loop(out, axis, a) for axis, a in summary["axes"].items() if a and a.get("validation")}
-    drawn = _validation_figures(out, summary, loops)
-    trends = trend_figures(out, summary.get("history"))
+    drawn = _validation_figures(out, summary, loops) if figures else {}
+    trends = trend_figures(out, summary.get("history")) if figures else {}
     for axis, a in summary["axes"].items():
         if not a:
             continue
@@ -407,6 +409,6 @@ def build_report(out: Path, summary: dict) -> Document:
     return doc
 
 
-def write_report(out: Path, summary: dict) -> Path:
-    """``report.html`` and ``report.md`` (figures in the run directory); the HTML's path."""
-    return build_report(out, summary).write(out / REPORT, out / REPORT_MD)[0]
+def write_report(out: Path, summary: dict, figures: bool = True) -> Path:
+    """``report.html`` and ``report.md`` (figures in the run directory, where drawn); the HTML's path."""
+    return build_report(out, summary, figures).write(out / REPORT, out / REPORT_MD)[0]

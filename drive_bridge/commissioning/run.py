@@ -227,7 +227,7 @@ def commission(
         if summary["history"]["interrupted"] and code == 0:
             code = EXIT_CODES["interrupted"]
     write_json(out / SUMMARY, summary)
-    write_report(out, summary)
+    write_report(out, summary, options.figures)
     if failure is not None:
         reporter.note(
             f"stopped in step {failure['step']}. Everything recorded so far is in {out}; "

@@ -136,7 +136,7 @@ def identify(ctx: Context) -> str:
 
     source = ctx.require(OUTPUT["campaign"])
     results = identify_log(source, seed=ctx.options.seed, progress=lambda a: ctx.reporter.note(f"axis {a}"))
-    write_report(results, ctx.out / OUTPUT["identify"], str(source))
+    write_report(results, ctx.out / OUTPUT["identify"], str(source), ctx.options.figures)
     return "; ".join(
         f"{a}: J {r.model.params_['J']:.4g}, "
         + (" + ".join(t.effect.name for t in r.effects) or "no effect")
@@ -200,7 +200,11 @@ def tune(ctx: Context) -> str:
         unwritable_effects(ctx.require(IDENTIFY_JSON)),
     )
     write_json(ctx.out / OUTPUT["tune"], doc)
-    side_by_side(_loop_figure, list(doc["axes"]), (ctx.out, doc, frfs, profile.controller.timing.tick_s))
+    if ctx.options.figures:
+        side_by_side(_loop_figure, list(doc["axes"]), (ctx.out, doc, frfs, profile.controller.timing.tick_s))
+    else:  # no figure of an earlier run's gains is left beside these
+        for a in doc["axes"]:
+            (ctx.out / LOOPS.format(axis=a)).unlink(missing_ok=True)
     return "; ".join(
         f"{a}: KpS {d['gains_before'].get('KpS', float('nan')):.3g} → {d['gains']['KpS']:.3g}, "
         f"KpP {d['gains']['KpP']:.0f}, PM {d['margins']['velocity']['phase_margin_deg']:.1f}°, "

@@ -177,7 +177,8 @@ def report_section(doc: Document, history: dict | None, axis: str, figures: dict
     doc.table(
         ["parameter", "now", "unit", "previous commissioning", "change", "siblings: median ± spread"], rows
     )
-    doc.figure(figures[axis], f"axis {axis}: trend")
+    if axis in figures:  # (not drawn: --no-figures)
+        doc.figure(figures[axis], f"axis {axis}: trend")
     doc.para(
         f"A change is named at ≥ {SIGMAS:g} combined std and ≥ {THRESHOLD:.0%} since the previous "
         f"commissioning, or ≥ {SPREADS:g} spreads and ≥ {THRESHOLD:.0%} from the siblings' median (same drive "

@@ -380,11 +380,11 @@ def _effect_png(out: Path, axis: str, k: int, name: str) -> Path:
     return out / f"{axis}_effect{k + 1}_{name}.png"
 
 
-def build_report(results: dict[str, AxisResult], out: Path, source: str) -> Document:
-    """The identification report (figures drawn into ``out``: each axis's in a process of its own
-    where the work is shared out, :mod:`.workers`)."""
-    drawn = draw_figures(results, out)
-    doc = Document(f"Identification of {source}")
+def build_report(results: dict[str, AxisResult], out: Path, source: str, figures: bool = True) -> Document:
+    """The identification report (with ``figures``, drawn into ``out``: each axis's in a process of
+    its own where the work is shared out, :func:`draw_figures`)."""
+    drawn = draw_figures(results, out) if figures else dict.fromkeys(results, False)
+    doc = Document(f"Identification of {source}", figures=figures)
     for axis, r in results.items():
         tu = r.units["torque"]
         doc.heading(1, f"Axis {axis} ({r.kind})")
@@ -466,10 +466,14 @@ def build_report(results: dict[str, AxisResult], out: Path, source: str) -> Docu
 REPORT, REPORT_MD = "identify.html", "identify.md"
 
 
-def write_report(results: dict[str, AxisResult], out: Path, source: str) -> Path:
-    """``out/identify.html`` (self-contained) and ``out/identify.md`` (its plots beside it), and
-    ``out/identify.json``; the Markdown's path."""
+def write_report(results: dict[str, AxisResult], out: Path, source: str, figures: bool = True) -> Path:
+    """``out/identify.html`` (self-contained) and ``out/identify.md`` (its plots beside it, where
+    ``figures`` are drawn), and ``out/identify.json``; the Markdown's path."""
     out.mkdir(parents=True, exist_ok=True)
-    doc = build_report(results, out, source)
+    if not figures:  # no figure of an earlier identification is left beside this one
+        for axis in results:
+            for png in out.glob(f"{axis}_*.png"):
+                png.unlink()
+    doc = build_report(results, out, source, figures)
     write_text(out / "identify.json", as_json(results))
     return doc.write(out / REPORT, out / REPORT_MD)[1]

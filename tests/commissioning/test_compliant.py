@@ -33,7 +33,18 @@ def commissioned(tmp_path_factory):
     cfg.write_text(yaml.safe_dump(doc))
     out = tmp / "run"
     code = main(
-        ["commission", "--sim", "--sim-config", "compliant", "--config", str(cfg), "--out", str(out), "--yes"]
+        [
+            "commission",
+            "--sim",
+            "--sim-config",
+            "compliant",
+            "--config",
+            str(cfg),
+            "--out",
+            str(out),
+            "--yes",
+            "--no-figures",
+        ]
     )
     return code, out
 

@@ -189,14 +189,19 @@ def test_the_summary_opens_with_a_verdict_and_the_exit_code_says_when_it_fails(r
     state = json.loads((out / "state.json").read_text())
     state["config"] = str(cfg.resolve())  # the same run, judged by stricter limits
     (out / "state.json").write_text(json.dumps(state))
-    code = main(["commission", "--sim", "--config", str(cfg), "--out", str(out), "--steps", "tune"])
+    code = main(
+        ["commission", "--sim", "--config", str(cfg), "--out", str(out), "--steps", "tune", "--no-figures"]
+    )
     assert code == 6
     strict = json.loads((out / "summary.json").read_text())["verdict"]
     assert strict["overall"] == "FAIL" and strict["acceptance"]["min_phase_margin_deg"] == 80
     assert any(
         u.startswith("velocity loop phase margin") and "needs ≥ 80" in u for u in strict["axes"]["y"]["unmet"]
     )
-    assert "Verdict: FAIL" in (out / "report.html").read_text()
+    report = (out / "report.html").read_text()
+    assert "Verdict: FAIL" in report
+    # --no-figures: the tune step drew no loop figure, and the report says its figures were left out
+    assert "Figures not drawn (--no-figures)" in report and "_loops.png" not in report
     assert "did not pass its acceptance criteria (exit 6)" in capsys.readouterr().err
 
 
@@ -258,7 +263,7 @@ def test_report_is_one_self_contained_page_and_markdown_with_the_same_figures(ru
 def test_a_complete_run_is_not_repeated_and_restart_starts_over(run, tmp_path, capsys):
     out = tmp_path / "run"
     shutil.copytree(run["out"], out)
-    args = ["commission", "--sim", "--config", str(run["cfg"]), "--out", str(out)]
+    args = ["commission", "--sim", "--config", str(run["cfg"]), "--out", str(out), "--no-figures"]
     assert main(args) == 0
     assert "already completed" in capsys.readouterr().err
     assert main(args + ["--steps", "tune", "--restart"]) == 2  # tune needs identify's output
@@ -294,7 +299,7 @@ def test_a_refused_write_restores_every_drive_and_stores_nothing(run, tmp_path):
         drives = link.robot.drives
         drives["z"].abort_writes[(0x2001, 4)] = 0x06090030  # z refuses c1
         saved = {a: d._saved for a, d in drives.items()}
-        result = commission(config, out, Options(sim=True), link=link)
+        result = commission(config, out, Options(sim=True, figures=False), link=link)
         assert result.exit_code == 3 and result.failed_step == "write"
         assert "axis z" in result.reason and "0x2001:4" in result.reason and "restored" in result.reason
         for a, d in drives.items():
@@ -327,7 +332,9 @@ def test_ctrl_c_during_the_campaign_stops_safely_and_resume_picks_up_there(run, 
     out = tmp_path / "run"
     config = load_bus_config(run["cfg"]).only(["y"])
     with open_link(config, sim=True) as link:
-        result = commission(config, out, Options(sim=True), link=link, reporter=_Interrupting(list(STEPS)))
+        result = commission(
+            config, out, Options(sim=True, figures=False), link=link, reporter=_Interrupting(list(STEPS))
+        )
         drive = link.robot.drives["y"]
         link.clock.sleep(0.01)
         assert drive.plant_state[1] == 0.0 and drive.state in (1, 7)  # standing still, disabled
@@ -354,7 +361,11 @@ def test_an_interrupted_step_is_never_completed_and_the_hint_says_what_a_rerun_d
     shutil.copytree(run["out"], out)  # every step completed
     config = load_bus_config(run["cfg"])
     result = commission(
-        config, out, Options(sim=True), steps=["identify"], reporter=_InterruptingIdentify(list(STEPS))
+        config,
+        out,
+        Options(sim=True, figures=False),
+        steps=["identify"],
+        reporter=_InterruptingIdentify(list(STEPS)),
     )
     assert result.exit_code == 130 and result.failed_step == "identify"
     state = json.loads((out / "state.json").read_text())
@@ -463,7 +474,12 @@ def test_ctrl_c_during_the_measurement_stops_and_leaves_the_drive_its_own_gains(
         drive = link.robot.drives["y"]
         own = drive.plant_param[kernel.KPS]
         result = commission(
-            config, out, Options(sim=True), link=link, steps=["measure"], reporter=_Interrupting(list(STEPS))
+            config,
+            out,
+            Options(sim=True, figures=False),
+            link=link,
+            steps=["measure"],
+            reporter=_Interrupting(list(STEPS)),
         )
         link.clock.sleep(0.01)
         assert drive.plant_state[kernel.V] == 0.0 and drive.state in (1, 7)  # standing still, disabled

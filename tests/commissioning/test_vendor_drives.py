@@ -57,7 +57,18 @@ def test_commission_runs_end_to_end_on_the_vendor_faithful_drive(drive, tmp_path
     # but the following error stays the factory set's: the verdict fails it (exit 6), and says why
     expected = 0 if writes or ff != "none" else 6
     assert (
-        main(["commission", "--sim", "--config", str(short(tmp_path, drive)), "--out", str(out)]) == expected
+        main(
+            [
+                "commission",
+                "--sim",
+                "--config",
+                str(short(tmp_path, drive)),
+                "--out",
+                str(out),
+                "--no-figures",
+            ]
+        )
+        == expected
     )
     summary = json.loads((out / "summary.json").read_text())
     if expected == 6:

@@ -83,7 +83,7 @@ def test_the_commissioning_completes_and_history_sync_adds_exactly_one_record(ou
     result = commission(
         config,
         tmp_path / "run",
-        Options(sim=True, db=outage.url),
+        Options(sim=True, db=outage.url, figures=False),
         steps=["scan", "bringup", "campaign"],
         reporter=StopsTheDatabase(outage),
     )

@@ -196,6 +196,12 @@ def test_cli_json_is_one_object_and_report_has_plots(tmp_path, capsys):
     assert "y_response.png" in md  # the plant's response read from the log, with the rigid model's
     assert html.count("data:image/png;base64,") == md.count("](") == 3 and 'src="http' not in html
     assert "Axis y (rotary)" in html and "## Axis y (rotary)" in md
+    # --no-figures: the same numbers, no plot drawn, and the report says so
+    assert main(["identify", str(log), "--json", "--out", str(tmp_path / "bare"), "--no-figures"]) == 0
+    assert json.loads(capsys.readouterr().out) == doc
+    assert not list((tmp_path / "bare").glob("*.png"))
+    bare = (tmp_path / "bare" / "identify.html").read_text()
+    assert "Figures not drawn (--no-figures)" in bare and "data:image/png" not in bare
 
 
 def test_linear_axis_units_and_validation_log(tmp_path, capsys):
