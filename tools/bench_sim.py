@@ -34,13 +34,17 @@ def plant_kernel(seconds: float = 60.0) -> float:
     n = round(seconds / PERIOD)
     demand = np.sin(np.arange(n) * PERIOD * 2 * np.pi) * 5.0
     tick0 = np.zeros(3, dtype=np.int64)
-    kernel.advance(robot.plant.state, robot.plant.param, robot.plant.demand, tick0, 1, 4)
+    kernel.advance(
+        robot.plant.state, robot.plant.param, robot.plant.demand, tick0, 1, np.full(3, 4, dtype=np.int64)
+    )
     t0 = time.perf_counter()
     for k in range(1, n):
         robot.plant.demand[:, kernel.P0] = demand[k - 1]
         robot.plant.demand[:, kernel.P1] = demand[k]
         tick0[:] = 0
-        kernel.advance(robot.plant.state, robot.plant.param, robot.plant.demand, tick0, 4, 4)
+        kernel.advance(
+            robot.plant.state, robot.plant.param, robot.plant.demand, tick0, 4, np.full(3, 4, dtype=np.int64)
+        )
     wall = time.perf_counter() - t0
     robot.shutdown()
     return seconds / wall

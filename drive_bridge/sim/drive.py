@@ -75,7 +75,7 @@ from ..cia.p402 import (
     VOLTAGE_ENABLED,
 )
 from ..cia.pdo import PdoCodec
-from ..cia.setpoint import PVT, SETPOINT_OBJECTS, position_of, supported_modes
+from ..cia.setpoint import PVT, SETPOINT_OBJECTS, position_of, supported_modes, unpack_pvt
 from ..params.controller import Controller
 from ..params.profile import SELECT, load_profile
 from . import cyclic, kernel
@@ -188,6 +188,9 @@ class DriveHost(Protocol):
     def routes_changed(self) -> None:
         """The drive's RPDO COB-IDs changed."""
 
+    def cycle_period_written(self, period_us: int) -> None:
+        """0x1006 written: the SYNC period [µs] the drives' loops lock to."""
+
 
 class _Held:
     """A drive attribute held in its row of the drive array (:mod:`.cyclic`), where the compiled
@@ -290,8 +293,8 @@ class SimDrive:
         self.pos_per_rad = self.vel_per_si = self.inc_per_rad
         self.modes = [m for m in supported_modes(self._supported_bits()) if m in IMPLEMENTED_MODES]
         self.online = True  # False: the drive has dropped off the bus
-        #: maxon's PVT input FIFO (records in device units), where the drive takes PVT records
-        self.fifo: deque[int] | None = (
+        #: maxon's PVT input FIFO (position, velocity, time [ms] in device units), where it takes PVT records
+        self.fifo: deque[tuple[int, int, int]] | None = (
             deque()
             if self.od.get_variable(*PVT) is not None and self.od.get_variable(0x60C4, 6) is not None
             else None
@@ -614,7 +617,7 @@ class SimDrive:
             if len(self.fifo) >= FIFO_RECORDS:
                 self._buffer_error(IPB_OVERFLOW, ERR_IP_OVERFLOW)
                 return
-            self.fifo.append(position_of(PVT, value))
+            self.fifo.append(unpack_pvt(value))  # (position, velocity, time [ms]): its own period
         elif (
             index == 0x60C4 and sub == 6 and self.fifo is not None
         ):  # buffer clear: 0 clear + disable, 1 enable
@@ -647,6 +650,8 @@ class SimDrive:
             self.plant_param[col] = si
         elif index == 0x1017:
             self._hb_next = self.plant.time + value / 1000.0  # first beat one period from now
+        elif index == 0x1006:
+            self.host.cycle_period_written(value)
         elif index == 0x6065:
             self.plant_param[kernel.FE_WINDOW] = value / self.pos_per_rad
         elif index == 0x6072:
@@ -894,20 +899,23 @@ class SimDrive:
         """Set the demand P0 -> P1 of the interpolation period that starts now."""
         d, T = self.plant_demand, self.plant.sync_period
         if self.following:
+            record_s = None  # a PVT record's own time
             if self.fifo is not None and self.mode == IP:
                 if self.fifo:
-                    self.setpoint_inc, self.new_target = self.fifo.popleft(), True
+                    self.setpoint_inc, _, record_ms = self.fifo.popleft()
+                    self.new_target, record_s = True, record_ms / 1000.0
                     self.last_setpoint_time = self.plant.time
                 else:  # the FIFO ran dry while interpolating
                     d[kernel.P0] = d[kernel.P1]
                     self.internal_limit = False
                     self._buffer_error(IPB_UNDERFLOW, ERR_IP_UNDERFLOW)
                     return
-            # linear interpolation (IP sub-mode 0) has no acceleration within a period
+            # over the drive's interpolation time period (0x60C2); linear interpolation (IP
+            # sub-mode 0) has no acceleration within a period
             cyclic.follow_period(
                 d,
                 self.drive_values,
-                T,
+                self._follow_period_s(record_s),
                 *self.software_limits(),
                 self.mode == IP and self.object_or(0x60C0, 0, 0) == 0,
             )
@@ -1011,7 +1019,23 @@ class SimDrive:
         return SETPOINT_TIMEOUT_PERIODS * self._interpolation_period() + 1e-9
 
     def _interpolation_period(self) -> float:
+        """0x60C2 [s]: value × 10^index (the SYNC period where the drive has no such object)."""
+        if self.od.get_variable(0x60C2, 1) is None:
+            return self.plant.sync_period
         return self._od(0x60C2, 1) * 10.0 ** self._od(0x60C2, 2)
+
+    def interpolation_ticks(self) -> int:
+        """The interpolation time period 0x60C2 in whole loop ticks (at least one)."""
+        return max(1, round(self._interpolation_period() / kernel.VELOCITY_TICK_S))
+
+    def _follow_period_s(self, record_s: float | None = None) -> float:
+        """The interpolation period [s] that starts now, the plant told how many ticks: a PVT
+        record's own time (``record_s``), else the drive's 0x60C2, whatever the SYNC period."""
+        ticks = max(1, round(record_s / kernel.VELOCITY_TICK_S)) if record_s else self.interpolation_ticks()
+        self.plant.period_ticks[self.index] = ticks
+        return (
+            self.plant.sync_period if ticks == self.plant.ticks_per_period else ticks * kernel.VELOCITY_TICK_S
+        )
 
     def next_due(self) -> float:
         """The earliest time [s] its heartbeat or a watched node's silence needs it (inf: never)."""

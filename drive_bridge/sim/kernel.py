@@ -166,17 +166,17 @@ def advance(
     demand: np.ndarray,
     tick0: np.ndarray,
     n_ticks: int,
-    ticks_per_period: int,
+    period_ticks: np.ndarray,
 ) -> None:
     """Advance all axes by ``n_ticks`` velocity-loop ticks.
 
     ``tick0[a]`` is the number of ticks axis ``a`` has already done in the
     current interpolation period (counted on by ``n_ticks`` here); the position demand moves from
-    ``P0`` to ``P1`` over ``ticks_per_period`` ticks and holds at ``P1`` after.
+    ``P0`` to ``P1`` over ``period_ticks[a]`` ticks (its interpolation period, 0x60C2) and holds
+    at ``P1`` after.
     """
     n_axes = state.shape[0]
     dt_c = VELOCITY_TICK_S / CURRENT_SUBSTEPS
-    period = ticks_per_period * VELOCITY_TICK_S
     for k in range(n_ticks):
         # ---------------- position + velocity loops (2 kHz / LOOP_DIV) ----------------
         for a in range(n_axes):
@@ -194,7 +194,8 @@ def advance(
             s[VMEAS] = (enc - s[ENC]) / dt_v
             s[ENC] = enc
             # demand at the instant the encoder is read (the start of this tick)
-            frac = (tick0[a] + k) / ticks_per_period
+            frac = (tick0[a] + k) / period_ticks[a]
+            period = period_ticks[a] * VELOCITY_TICK_S
             if frac >= 1.0:  # no new setpoint yet: hold the last one
                 p_d, v_d, a_d = d[P1], 0.0, 0.0
             else:  # the parabola through the last three setpoints

@@ -18,21 +18,28 @@ NOISE_BLOCK = 4096
 
 
 class Plant:
-    """The plant of ``n_axes`` axes whose drives interpolate over ``sync_period`` [s] (a multiple
-    of the loop tick, :data:`.kernel.VELOCITY_TICK_S`), noise drawn from ``seed``."""
+    """The plant of ``n_axes`` axes whose drives' loops lock to a SYNC every ``sync_period`` [s] (a
+    multiple of the loop tick, :data:`.kernel.VELOCITY_TICK_S`) and interpolate over their own
+    periods (``period_ticks``), noise drawn from ``seed``."""
 
     def __init__(self, n_axes: int, sync_period: float, seed: int | None):
-        self.sync_period = sync_period
-        self.ticks_per_period = round(sync_period / kernel.VELOCITY_TICK_S)
-        if abs(self.ticks_per_period * kernel.VELOCITY_TICK_S - sync_period) > 1e-9:
-            raise ValueError(f"SYNC period {sync_period} s is not a multiple of the 0.5 ms loop tick")
+        self.set_sync_period(sync_period)
         self.time = 0.0
         self.state, self.param, self.demand = kernel.new_arrays(n_axes)
         self.drive_rows = np.zeros((n_axes, cyclic.N_DRIVE))
         self.tick0 = np.zeros(n_axes, dtype=np.int64)
+        #: each axis's interpolation period [ticks] (its drive's 0x60C2; the SYNC period until set)
+        self.period_ticks = np.full(n_axes, self.ticks_per_period, dtype=np.int64)
         self._rng = np.random.default_rng(seed)
         self._noise = np.empty(0)
         self._noise_i = 0
+
+    def set_sync_period(self, sync_period: float) -> None:
+        """The SYNC period [s] the drives' loops lock to (a whole number of loop ticks)."""
+        ticks = round(sync_period / kernel.VELOCITY_TICK_S)
+        if ticks < 1 or abs(ticks * kernel.VELOCITY_TICK_S - sync_period) > 1e-9:
+            raise ValueError(f"SYNC period {sync_period} s is not a multiple of the 0.5 ms loop tick")
+        self.sync_period, self.ticks_per_period = sync_period, ticks
 
     def rows(self, axis: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The rows of axis ``axis`` (its index): state, param, demand, drive values."""
@@ -40,7 +47,7 @@ class Plant:
 
     def advance(self, n_ticks: int) -> None:
         """Loops and plant of every axis for ``n_ticks`` velocity-loop ticks (the clock with them)."""
-        kernel.advance(self.state, self.param, self.demand, self.tick0, n_ticks, self.ticks_per_period)
+        kernel.advance(self.state, self.param, self.demand, self.tick0, n_ticks, self.period_ticks)
         self.time = float(self.state[0, kernel.T])
 
     def reserve_noise(self, n: int) -> tuple[np.ndarray, int]:

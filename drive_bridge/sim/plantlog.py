@@ -54,6 +54,7 @@ def plant_log(
         state[i, kernel.ENABLED] = 1.0
     ticks = round(period / kernel.VELOCITY_TICK_S)
     tick0 = np.zeros(len(names), dtype=np.int64)
+    period_ticks = np.full(len(names), ticks, dtype=np.int64)  # interpolation over each SYNC period
     q = np.empty((n, len(names)))
     current = np.empty((n, len(names)))
     for k in range(n):
@@ -63,7 +64,7 @@ def plant_log(
         dem[:, kernel.P1] = targets[k]
         dem[:, kernel.T_OFF] = offsets[k]
         tick0[:] = 0
-        kernel.advance(state, param, dem, tick0, ticks, ticks)
+        kernel.advance(state, param, dem, tick0, ticks, period_ticks)
     cols = {"time_s": np.arange(n) * period}
     for i, (name, axis) in enumerate(config.axes.items()):
         rated = axis.motor.rated_torque_Nm

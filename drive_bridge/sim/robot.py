@@ -99,6 +99,20 @@ class SimRobot:
         """The SYNC period the drives interpolate over [s]."""
         return self.plant.sync_period
 
+    def cycle_period_written(self, period_us: int) -> None:
+        """0x1006 written on a drive: the drives' loops lock to that SYNC period, as a drive's
+        phase-locked loop does (one grid: the SYNC is the bus's), from the next SYNC on; 0 (no
+        SYNC expected) and a period that is not a whole number of loop ticks leave it as it is."""
+        ticks = round(period_us * 1e-6 / kernel.VELOCITY_TICK_S)
+        if ticks < 1 or abs(ticks * kernel.VELOCITY_TICK_S - period_us * 1e-6) > 1e-9:
+            return
+        if ticks != self.plant.ticks_per_period:
+            self.plant.set_sync_period(period_us / 1e6)
+            self._phase = 0
+            self._last_sync = -math.inf  # the next SYNC sets the grid's phase
+            if self._steady is not None:
+                self._steady.stale = True
+
     # ------------------------------------------------------------------ bus
     def power_on(self) -> None:
         """Every drive sends its boot-up message."""

@@ -68,6 +68,7 @@ class SteadyStream:
         self.drives = drives
         self.send = send
         self.stale = True  # the per-drive values (limits, times, constants) to be read anew
+        self.own_periods = False  # a drive interpolates over a period of its own (0x60C2)
         self._offsets: dict[tuple[int, int], int] = {}  # (axis, object) -> the offset it last wrote
         self.supported = self._layout()
 
@@ -118,6 +119,10 @@ class SteadyStream:
             axis[cyclic.A_TIMEOUT] = drive.setpoint_timeout()
             axis[cyclic.A_STATUS] = drive.statusword & ~STATUS_PER_PERIOD
             self.wake = min(self.wake, drive.next_due())
+        # a drive interpolating over another period than the SYNC's (0x60C2) runs in Python
+        self.own_periods = any(d.interpolation_ticks() != self.plant.ticks_per_period for d in self.drives)
+        if not self.own_periods:
+            self.plant.period_ticks[:] = self.plant.ticks_per_period
         for entry, getter in self._constants:
             self.entries[entry, cyclic.E_CONST] = getter()
         self._offsets.clear()  # the Python drive may have written others since
@@ -133,6 +138,8 @@ class SteadyStream:
                 return False
         if self.stale:
             self._refresh()
+        if self.own_periods:
+            return False
         plant = self.plant
         now = plant.time
         if now >= self.wake - 1e-9:

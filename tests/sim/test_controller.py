@@ -67,7 +67,7 @@ def _follow(struct: float, gains: dict[str, float]) -> np.ndarray:
         demand[0, kernel.P0], demand[0, kernel.P1] = demand[0, kernel.P1], x
         demand[0, kernel.A_FF] = (x - 2 * target[k - 1] + target[k - 2]) / 0.002**2 if k >= 2 else 0.0
         tick0[:] = 0
-        kernel.advance(state, param, demand, tick0, 4, 4)
+        kernel.advance(state, param, demand, tick0, 4, np.full(1, 4))
         fe.append(x - state[0, kernel.Q])
     return np.array(fe)
 
@@ -89,7 +89,7 @@ def test_a_1_khz_loop_holds_its_command_between_its_ticks():
     commands = []
     for k in range(8):
         demand[0, kernel.P0] = demand[0, kernel.P1] = 0.01 * (k + 1)  # a new demand every 2 kHz tick
-        kernel.advance(state, param, demand, np.zeros(1, dtype=np.int64), 1, 4)
+        kernel.advance(state, param, demand, np.zeros(1, dtype=np.int64), 1, np.full(1, 4))
         commands.append(state[0, kernel.TCMD])
     assert all(commands[i] == commands[i + 1] for i in (1, 3, 5))  # held between its ticks
     assert all(commands[i] != commands[i + 1] for i in (0, 2, 4, 6))  # new on each of its ticks

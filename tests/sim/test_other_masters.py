@@ -4,10 +4,13 @@ user testing their own master would start it."""
 
 from __future__ import annotations
 
+import math
+import threading
 import time
 from collections.abc import Iterator
 
 import canopen
+import numpy as np
 import pytest
 
 from drive_bridge.cia.multicast import UDP_GROUP
@@ -135,3 +138,76 @@ def test_what_a_tool_reads_and_writes_by_sdo_is_what_cia_301_and_402_define(driv
         assert refused.value.code == 0x06090030, hex(index)
         node.sdo[index].raw = defined
         assert node.sdo[index].raw == defined
+
+
+def test_csp_at_a_10_ms_sync_moves_as_0x60c2_says_not_stop_and_go(drives):
+    """A master of its own at a 10 ms SYNC (the simulator started at its default 2 ms), 0x1006 and
+    0x60C2 = 10 ms written, cyclic synchronous position with controlword and target in the EDS's
+    RPDO1 after each SYNC: the drive interpolates each setpoint over 10 ms -- its velocity, read at
+    any moment of the cruise, is the commanded one (not 2 ms of motion and 8 of standstill) -- and
+    the axis arrives when the profile ends."""
+    network = drives
+    node = canopen.BaseNode402(3, str(PROJECT_EDS))
+    network.add_node(node)
+    node.nmt.state = "PRE-OPERATIONAL"
+    node.sdo[0x1006].raw = 10_000  # [µs]
+    node.sdo[0x60C2][1].raw, node.sdo[0x60C2][2].raw = 10, -3  # 10 × 10⁻³ s
+    node.setup_402_state_machine()
+    node.nmt.state = "OPERATIONAL"
+    node.op_mode = "CYCLIC SYNCHRONOUS POSITION"
+    pdo = node.rpdo[1]  # 0x6040 + 0x607A, synchronous
+    start = node.sdo[0x6064].raw
+    per_rad = 1048576 / (2 * math.pi)
+    speed, accel, period = 2.0 * per_rad, 10.0 * per_rad, 0.010  # [inc/s], [inc/s²], [s]
+    ramp, cruise = speed / accel, 1.0  # [s]
+    profile = np.arange(0.0, 2 * ramp + cruise + period, period)
+    target = start + np.where(
+        profile < ramp,
+        0.5 * accel * profile**2,
+        np.where(
+            profile < ramp + cruise,
+            0.5 * accel * ramp**2 + speed * (profile - ramp),
+            0.5 * accel * ramp**2
+            + speed * cruise
+            + speed * (profile - ramp - cruise)
+            - 0.5 * accel * (profile - ramp - cruise) ** 2,
+        ),
+    )
+    target = np.round(np.minimum(target, target[np.searchsorted(profile, 2 * ramp + cruise)])).astype(int)
+    sampled: list[float] = []
+    controlword = [0x06]
+
+    def master() -> None:  # SYNC, then the setpoint for the period it opens, on an absolute schedule
+        t0 = time.monotonic()
+        for k, setpoint in enumerate([start] * 50 + list(target) + [int(target[-1])] * 100):
+            time.sleep(max(0.0, t0 + k * period - time.monotonic()))
+            network.sync.transmit()
+            pdo[0].raw, pdo[1].raw = controlword[0], setpoint
+            pdo.transmit()
+
+    pdo[0].raw, pdo[1].raw = 0x06, start
+    thread = threading.Thread(target=master)
+    thread.start()
+    try:
+        for word in (0x06, 0x07, 0x0F):  # shutdown, switch on, enable operation
+            controlword[0] = word
+            time.sleep(0.1)
+        assert node.state == "OPERATION ENABLED"
+        time.sleep(0.5 - 0.3 + ramp + 0.1)  # into the cruise (the profile starts 0.5 s after the master)
+        t_end = time.monotonic() + cruise - 0.2
+        while time.monotonic() < t_end:
+            sampled.append(node.sdo[0x606C].raw)
+            time.sleep(0.007)
+        thread.join()
+        arrived = node.sdo[0x6064].raw
+    finally:
+        thread.join()
+        controlword[0] = 0x06
+        node.sdo[0x6040].raw = 0x06
+    velocity = np.array(sampled)
+    assert len(velocity) > 30
+    assert np.median(velocity) == pytest.approx(speed, rel=0.1)  # moving at the commanded speed ...
+    assert (
+        np.percentile(velocity, 5) > 0.7 * speed and np.percentile(velocity, 95) < 1.3 * speed
+    )  # ... steadily
+    assert abs(arrived - target[-1]) < 0.01 * per_rad  # and there when the profile ended (+1 s)

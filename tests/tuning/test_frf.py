@@ -156,7 +156,7 @@ def test_the_shipped_compliant_robot_rings_at_its_resonance():
     state[0, kernel.V] = 1.0
     v = []
     for _ in range(800):
-        kernel.advance(state, param, demand, np.zeros(1, dtype=np.int64), 1, 4)
+        kernel.advance(state, param, demand, np.zeros(1, dtype=np.int64), 1, np.full(1, 4))
         v.append(state[0, kernel.V])
     f = np.fft.rfftfreq(len(v), kernel.VELOCITY_TICK_S)
     peak = f[np.argmax(np.abs(np.fft.rfft(np.asarray(v) - np.mean(v))))]
