@@ -12,7 +12,7 @@ import yaml
 
 from drive_bridge.cli import main
 from drive_bridge.recorder import record
-from harness.floor import beside_the_floor, meta_stall_ms
+from harness.machine_floor import beside_the_floor, meta_stall_ms
 from harness.support import (
     Bench,
     bus_yml_beside,

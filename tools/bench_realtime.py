@@ -4,7 +4,7 @@ starts it, beside the machine's own floor measured in the same run.
     python tools/bench_realtime.py [--campaign short|paper] [--runs 3] [--load idle|loaded|both]
                                    [--floor-seconds 30] [--against REV]
 
-The floor (``harness/floor.py``): a plain Python loop pinned to each CPU at SCHED_FIFO on the same
+The floor (``harness/machine_floor.py``): a plain Python loop pinned to each CPU at SCHED_FIFO on the same
 2 ms absolute schedule (as cyclictest measures: sleep to the next deadline, note how late it woke),
 each in a process of its own, for
 ``--floor-seconds`` right before the runs of each condition, and again *during* each run.  Per
@@ -42,7 +42,7 @@ import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
-from harness.floor import PERIOD_S, floor_during  # noqa: E402
+from harness.machine_floor import PERIOD_S, floor_during  # noqa: E402
 from tools.reference import stamp, worktree  # noqa: E402
 
 

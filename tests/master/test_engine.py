@@ -34,7 +34,7 @@ from drive_bridge.master.engine import (
 )
 from drive_bridge.recorder import RecordResult, record
 from drive_bridge.sim.lockstep import LinkPort, LockstepLink
-from harness.floor import beside_the_floor, run_stall_ms
+from harness.machine_floor import beside_the_floor, run_stall_ms
 from harness.support import Bench, clean_config, quick_config, read_csv
 
 PERIOD = 0.002

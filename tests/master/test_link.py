@@ -15,7 +15,7 @@ from drive_bridge.master.hold import quick_stop
 from drive_bridge.master.link import Link, MasterNetwork, TraceRecorder
 from drive_bridge.tuning import motion
 from drive_bridge.tuning.motion import Motion
-from harness.floor import beside_the_floor, run_stall_ms
+from harness.machine_floor import beside_the_floor, run_stall_ms
 from harness.support import BUS_CONFIG
 
 pytestmark = [pytest.mark.slow, pytest.mark.realtime]

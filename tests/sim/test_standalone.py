@@ -15,7 +15,7 @@ import yaml
 
 from drive_bridge.cia.multicast import UDP_GROUP, LoopbackMulticastBus
 from drive_bridge.cia.p402 import state_name
-from harness.floor import beside_the_floor, meta_stall_ms
+from harness.machine_floor import beside_the_floor, meta_stall_ms
 from harness.support import bus_yml_beside, start_sim, wait_for
 
 pytestmark = [pytest.mark.slow, pytest.mark.realtime]
