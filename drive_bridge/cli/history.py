@@ -8,7 +8,7 @@ import sys
 from typing import TYPE_CHECKING
 
 from ..document import measured, number
-from ..errors import UserError
+from ..errors import EXIT_CODES, UserError
 from ..outputs import stamped
 from . import options
 
@@ -55,6 +55,10 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         "sync", help="send the records that wait in the outbox (the database was unreachable)"
     )
     v.set_defaults(func=cmd_sync)
+    v = verbs.add_parser(
+        "rejected", help="the records set aside because the database refused what they hold, and why"
+    )
+    v.set_defaults(func=cmd_rejected)
     for v in verbs.choices.values():
         options.db(v)
         options.json_flag(v)
@@ -206,6 +210,7 @@ def cmd_sync(args: argparse.Namespace) -> int:
                     "already": sent.already,
                     "left": sent.left,
                     "failed": sent.failed,
+                    "rejected": [{"run_id": r, "reason": why} for r, why in sent.rejected],
                     "waiting_for_other_databases": other,
                 },
             )
@@ -216,8 +221,29 @@ def cmd_sync(args: argparse.Namespace) -> int:
             + (f"; {sent.left} still waiting: {sent.failed}" if sent.failed else ""),
             file=sys.stderr,
         )
+        for run_id, why in sent.rejected:
+            print(
+                f"run {run_id} set aside, not kept: {why} ('drive-bridge history rejected' lists it)",
+                file=sys.stderr,
+            )
         if other:
             print(f"{other} record(s) in the outbox are for another database (--db)", file=sys.stderr)
     if sent.failed:
         raise HistoryUnavailable(f"history database {store.where}: {sent.failed}")
+    return EXIT_CODES["user"] if sent.rejected else 0
+
+
+def cmd_rejected(args: argparse.Namespace) -> int:
+    from ..history.outbox import rejected, rejected_dir
+
+    entries = rejected()
+    if args.json:
+        options.print_json(
+            stamped("history", {"verb": "rejected", "folder": str(rejected_dir()), "rejected": entries})
+        )
+        return 0
+    if not entries:
+        print(f"no record set aside ({rejected_dir()})")
+    for e in entries:
+        print(f"{e['run_id']}  {e['set_aside'] or ''}  for {e['database']}: {e['reason']}  ({e['path']})")
     return 0

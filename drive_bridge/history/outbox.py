@@ -1,7 +1,9 @@
 """Nothing lost when the database is away: every record is first written to the local outbox (one
 JSON file per run id, beside the default database in the user's data directory), then sent; it
 leaves the outbox once the database holds it.  ``history sync`` sends what waits; a record sent
-twice is kept once (:meth:`~.store.HistoryStore.add` is idempotent by run id)."""
+twice is kept once (:meth:`~.store.HistoryStore.add` is idempotent by run id).  A record refused
+for what it holds (:class:`~.store.RecordRefused`) is set aside in ``rejected/`` with the reason
+(``history rejected`` lists them): it never blocks the records behind it."""
 
 from __future__ import annotations
 
@@ -14,7 +16,8 @@ import sqlalchemy as sa
 
 from ..outputs import write_text
 from .location import database_url, outbox_dir, shown
-from .store import HistoryStore, HistoryUnavailable
+from .record import now
+from .store import HistoryStore, HistoryUnavailable, RecordRefused
 
 log = logging.getLogger(__name__)
 
@@ -30,6 +33,7 @@ class Kept:
     outbox: Path | None = None
     sent_from_outbox: list[str] = field(default_factory=list)  # earlier records sent with it
     interrupted: bool = False  # Ctrl-C while it was sent: the record waits in the outbox
+    refused: bool = False  # refused for its content: set aside in the outbox's rejected/
 
     def line(self) -> str:
         if self.stored:
@@ -39,6 +43,11 @@ class Kept:
                 else ""
             )
             return f"history: run {self.run_id} kept in {self.database}{extra}"
+        if self.refused:
+            return (
+                f"history: run {self.run_id} was not kept: {self.reason}; set aside in {self.outbox} "
+                f"('drive-bridge history rejected' lists what was set aside)"
+            )
         return (
             f"history: the database is unreachable ({self.reason}); run {self.run_id} waits in "
             f"{self.outbox}: 'drive-bridge history sync' sends it"
@@ -89,6 +98,16 @@ def keep(record: dict, db: str | None = None) -> Kept:
             path,
             interrupted=True,
         )
+    refused = dict(sent.rejected)
+    if record["run_id"] in refused:
+        return Kept(
+            record["run_id"],
+            shown(url),
+            False,
+            refused[record["run_id"]],
+            rejected_dir() / path.name,
+            refused=True,
+        )
     if record["run_id"] not in sent.sent + sent.already:
         return Kept(record["run_id"], shown(url), False, sent.failed or "not sent", path)
     return Kept(
@@ -102,19 +121,57 @@ class Sent:
     already: list[str] = field(default_factory=list)  # run ids it held already (a retry)
     failed: str | None = None  # why sending stopped
     left: int = 0  # entries still waiting for this database
+    rejected: list[tuple[str, str]] = field(default_factory=list)  # (run id, why) set aside
+
+
+def rejected_dir() -> Path:
+    """Where records refused for their content are set aside, each with the reason."""
+    return outbox_dir() / "rejected"
 
 
 def send(store: HistoryStore) -> Sent:
     """Send the outbox's entries for ``store``'s database, oldest first; each leaves the outbox
-    once the database holds it.  Stops at the first failure (the database went away again)."""
+    once the database holds it, or is set aside in :func:`rejected_dir` where it is refused for
+    what it holds (the others go on).  Stops at the first failure of the database itself (it went
+    away again)."""
     out = Sent()
     entries = waiting(store.url)
     for i, (path, entry) in enumerate(entries):
         run_id = entry["record"]["run_id"]
         try:
             (out.sent if store.add(entry["record"]) else out.already).append(run_id)
+        except RecordRefused as exc:
+            why = str(exc)
+            log.warning("history: run %s set aside: %s", run_id, why)
+            write_text(
+                rejected_dir() / path.name, json.dumps({**entry, "reason": why, "set_aside": now()}, indent=1)
+            )
+            out.rejected.append((run_id, why))
         except HistoryUnavailable as exc:
             out.failed, out.left = str(exc).split(": ", 1)[-1], len(entries) - i
             break
         path.unlink(missing_ok=True)
+    return out
+
+
+def rejected() -> list[dict]:
+    """The records set aside (oldest first): run id, database, reason, when, file."""
+    folder = rejected_dir()
+    paths = sorted(folder.glob("*.json"), key=lambda p: p.stat().st_mtime) if folder.is_dir() else []
+    out = []
+    for path in paths:
+        try:
+            doc = json.loads(path.read_text())
+            run_id = doc["record"]["run_id"]
+        except (OSError, ValueError, KeyError, TypeError):
+            run_id, doc = path.stem, {}
+        out.append(
+            {
+                "run_id": run_id,
+                "database": doc.get("database"),
+                "reason": doc.get("reason", "unreadable"),
+                "set_aside": doc.get("set_aside"),
+                "path": str(path),
+            }
+        )
     return out

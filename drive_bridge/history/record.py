@@ -187,3 +187,55 @@ def identify_record(run_id: str, started: str, doc: dict, source: str | Path, ou
     return record(
         "identify", run_id, started, axes, config=None, out=out, status="ok", verdict=None, simulated=False
     )
+
+
+def _number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def problems(record: Any) -> list[str]:
+    """What in ``record`` does not follow the record's schema (:data:`SCHEMA`, version
+    :data:`SCHEMA_VERSION`), in words naming the key; empty where it does.  A parameter's value
+    may be a number or what an effect names (a string, a list): only numbers are compared."""
+    if not isinstance(record, dict):
+        return ["the record is not a JSON object"]
+    out = []
+    if record.get("schema") != SCHEMA or record.get("schema_version") != SCHEMA_VERSION:
+        out.append(f"schema: {record.get('schema')!r} version {record.get('schema_version')!r}")
+    run_id = record.get("run_id")
+    if not isinstance(run_id, str) or not 0 < len(run_id) <= 32:
+        out.append(f"run_id: {run_id!r} (a text of 1 to 32 characters)")
+    if record.get("kind") not in ("commission", "write", "identify"):
+        out.append(f"kind: {record.get('kind')!r}")
+    for key in ("started", "updated"):
+        try:
+            datetime.fromisoformat(record[key])
+        except (KeyError, TypeError, ValueError):
+            out.append(f"{key}: {record.get(key)!r} (an ISO 8601 time)")
+    if not isinstance(record.get("version"), str):
+        out.append(f"version: {record.get('version')!r}")
+    if not isinstance(record.get("simulated"), bool):
+        out.append(f"simulated: {record.get('simulated')!r} (true or false)")
+    axes = record.get("axes")
+    if not isinstance(axes, list):
+        return [*out, "axes: not a list"]
+    for i, axis in enumerate(axes):
+        name = axis.get("axis") if isinstance(axis, dict) else None
+        if not isinstance(name, str) or not name:
+            out.append(f"axes[{i}]: no axis name")
+            continue
+        drive = axis.get("drive") or {}
+        for key in IDENTITY:
+            try:
+                identity_number(drive.get(key))
+            except (TypeError, ValueError, AttributeError):
+                out.append(f"axis {name}: drive {key} {drive.get(key)!r} (hex)")
+        for pname, p in (axis.get("parameters") or {}).items():
+            if not isinstance(p, dict) or "value" not in p:
+                out.append(f"axis {name}: parameter {pname}: no value")
+                continue
+            if p.get("std") is not None and not _number(p["std"]):
+                out.append(f"axis {name}: parameter {pname}: std {p['std']!r} is not a number")
+            if _number(p["value"]) and not isinstance(p.get("determined"), bool):
+                out.append(f"axis {name}: parameter {pname}: determined {p.get('determined')!r}")
+    return out

@@ -15,7 +15,7 @@ from ..errors import DriveBridgeError, UserError
 from ..outputs import hex32
 from . import schema
 from .location import data_dir, database_url, redacted, shown
-from .record import IDENTITY, identity_number
+from .record import IDENTITY, identity_number, problems
 
 log = logging.getLogger(__name__)
 
@@ -28,6 +28,13 @@ class HistoryUnavailable(DriveBridgeError):
     """The history database cannot be reached or used (its URL shown without the password)."""
 
     kind = "unavailable"
+
+
+class RecordRefused(DriveBridgeError):
+    """A record the history cannot keep for what it holds (its schema, or a value the database
+    refuses), whatever the database's state: set aside, never retried as if the database were away."""
+
+    kind = "user"
 
 
 @dataclass
@@ -88,12 +95,18 @@ class HistoryStore:
 
     def _guard(self, work: Any, *args: Any) -> Any:
         """``work(*args)``, a database error turned into :class:`HistoryUnavailable` naming the
-        database (never its password)."""
+        database (never its password); one about what was sent (a value of the wrong type, a
+        constraint) into :class:`RecordRefused`."""
         try:
             return work(*args)
         except (sa.exc.SQLAlchemyError, OSError) as exc:
             why = getattr(exc, "orig", None) or exc
             text = redacted(" ".join(str(why).split()), self.url)
+            content = isinstance(exc, (sa.exc.DataError, sa.exc.IntegrityError)) or (
+                isinstance(exc, sa.exc.StatementError) and not isinstance(exc, sa.exc.DBAPIError)
+            )  # (a StatementError of its own: a value the column's type could not take)
+            if content:
+                raise RecordRefused(f"history database {self.where} refused the record: {text}") from None
             raise HistoryUnavailable(f"history database {self.where}: {text}") from None
 
     def _migrate(self) -> None:
@@ -128,8 +141,16 @@ class HistoryStore:
 
     def add(self, record: dict) -> bool:
         """Keep ``record``; False where the database holds it already (the same run id, updated
-        as late or later): adding a record twice never duplicates it."""
-        return bool(self._guard(self._add, record))
+        as late or later): adding a record twice never duplicates it.  Raises
+        :class:`RecordRefused` for a record that does not follow its schema, or whose content the
+        database refuses, and :class:`HistoryUnavailable` where the database cannot be used."""
+        wrong = problems(record)
+        if wrong:
+            raise RecordRefused(f"the record does not follow its schema: {'; '.join(wrong)}")
+        try:
+            return bool(self._guard(self._add, record))
+        except (KeyError, TypeError, ValueError) as exc:  # a field the schema check let through
+            raise RecordRefused(f"the record could not be kept: {exc!r}") from None
 
     def _add(self, record: dict) -> bool:
         with self.engine.begin() as conn:
@@ -180,6 +201,9 @@ class HistoryStore:
                         "determined": p["determined"],
                     }
                     for name, p in (a.get("parameters") or {}).items()
+                    # numbers only: what an effect names (a variable, a source axis) stays in the
+                    # record as it is
+                    if isinstance(p["value"], (int, float)) and not isinstance(p["value"], bool)
                 ]
                 if rows:
                     conn.execute(schema.parameters.insert(), rows)
