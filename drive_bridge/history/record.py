@@ -189,7 +189,8 @@ def identify_record(run_id: str, started: str, doc: dict, source: str | Path, ou
     )
 
 
-def _number(value: Any) -> bool:
+def numeric(value: Any) -> bool:
+    """A parameter value the history compares: a number (not a name an effect holds, nor a bool)."""
     return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
@@ -234,8 +235,8 @@ def problems(record: Any) -> list[str]:
             if not isinstance(p, dict) or "value" not in p:
                 out.append(f"axis {name}: parameter {pname}: no value")
                 continue
-            if p.get("std") is not None and not _number(p["std"]):
+            if p.get("std") is not None and not numeric(p["std"]):
                 out.append(f"axis {name}: parameter {pname}: std {p['std']!r} is not a number")
-            if _number(p["value"]) and not isinstance(p.get("determined"), bool):
+            if numeric(p["value"]) and not isinstance(p.get("determined"), bool):
                 out.append(f"axis {name}: parameter {pname}: determined {p.get('determined')!r}")
     return out

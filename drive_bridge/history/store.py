@@ -15,7 +15,7 @@ from ..errors import DriveBridgeError, UserError
 from ..outputs import hex32
 from . import schema
 from .location import data_dir, database_url, redacted, shown
-from .record import IDENTITY, identity_number, problems
+from .record import IDENTITY, identity_number, numeric, problems
 
 log = logging.getLogger(__name__)
 
@@ -203,7 +203,7 @@ class HistoryStore:
                     for name, p in (a.get("parameters") or {}).items()
                     # numbers only: what an effect names (a variable, a source axis) stays in the
                     # record as it is
-                    if isinstance(p["value"], (int, float)) and not isinstance(p["value"], bool)
+                    if numeric(p["value"])
                 ]
                 if rows:
                     conn.execute(schema.parameters.insert(), rows)

@@ -17,6 +17,13 @@ from . import cyclic, kernel
 NOISE_BLOCK = 4096
 
 
+def whole_ticks(period: float) -> int | None:
+    """``period`` [s] in loop ticks (:data:`.kernel.VELOCITY_TICK_S`); None where it is not a
+    whole number of them (or none)."""
+    ticks = round(period / kernel.VELOCITY_TICK_S)
+    return ticks if ticks >= 1 and abs(ticks * kernel.VELOCITY_TICK_S - period) <= 1e-9 else None
+
+
 class Plant:
     """The plant of ``n_axes`` axes whose drives' loops lock to a SYNC every ``sync_period`` [s] (a
     multiple of the loop tick, :data:`.kernel.VELOCITY_TICK_S`) and interpolate over their own
@@ -36,8 +43,8 @@ class Plant:
 
     def set_sync_period(self, sync_period: float) -> None:
         """The SYNC period [s] the drives' loops lock to (a whole number of loop ticks)."""
-        ticks = round(sync_period / kernel.VELOCITY_TICK_S)
-        if ticks < 1 or abs(ticks * kernel.VELOCITY_TICK_S - sync_period) > 1e-9:
+        ticks = whole_ticks(sync_period)
+        if ticks is None:
             raise ValueError(f"SYNC period {sync_period} s is not a multiple of the 0.5 ms loop tick")
         self.sync_period, self.ticks_per_period = sync_period, ticks
 

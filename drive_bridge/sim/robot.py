@@ -27,7 +27,7 @@ from ..resources import PROJECT_EDS
 from . import cyclic, kernel
 from .adapters import FastVirtualBus
 from .drive import SimDrive
-from .plant import Plant
+from .plant import Plant, whole_ticks
 from .robot_config import SimConfig
 from .steady import SteadyStream
 
@@ -103,10 +103,8 @@ class SimRobot:
         """0x1006 written on a drive: the drives' loops lock to that SYNC period, as a drive's
         phase-locked loop does (one grid: the SYNC is the bus's), from the next SYNC on; 0 (no
         SYNC expected) and a period that is not a whole number of loop ticks leave it as it is."""
-        ticks = round(period_us * 1e-6 / kernel.VELOCITY_TICK_S)
-        if ticks < 1 or abs(ticks * kernel.VELOCITY_TICK_S - period_us * 1e-6) > 1e-9:
-            return
-        if ticks != self.plant.ticks_per_period:
+        ticks = whole_ticks(period_us / 1e6)
+        if ticks is not None and ticks != self.plant.ticks_per_period:
             self.plant.set_sync_period(period_us / 1e6)
             self._phase = 0
             self._last_sync = -math.inf  # the next SYNC sets the grid's phase

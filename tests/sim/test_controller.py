@@ -9,7 +9,7 @@ import pytest
 
 from drive_bridge.params.controller import Controller
 from drive_bridge.sim import kernel
-from drive_bridge.sim.drive import plant_params
+from drive_bridge.sim.drive import GAIN_PARAMS, PID_PARAMS, plant_params
 from harness.support import clean_config
 
 PID = Controller("position_pid", {"position": 1000.0, "velocity": None, "current": 8000.0})
@@ -43,19 +43,7 @@ def _follow(struct: float, gains: dict[str, float]) -> np.ndarray:
     plant_params(p, axis, ["y"])
     p[kernel.INC_PER_RAD] = 2**20 / (2 * np.pi)
     p[kernel.TMAX], p[kernel.FE_WINDOW], p[kernel.STRUCT], p[kernel.LOOP_DIV] = 5.0, 1e9, struct, 2.0
-    cols = {
-        "KpP": kernel.KPP,
-        "FwF": kernel.FWF,
-        "KpS": kernel.KPS,
-        "KiS": kernel.KIS,
-        "KpC": kernel.KPC,
-        "KiC": kernel.KIC,
-        "PidP": kernel.PID_P,
-        "PidI": kernel.PID_I,
-        "PidD": kernel.PID_D,
-        "PidFFv": kernel.PID_FFV,
-        "PidFFa": kernel.PID_FFA,
-    }
+    cols = {**GAIN_PARAMS, **PID_PARAMS}  # the simulated drive's map: gain -> kernel column
     for k, v in gains.items():
         p[cols[k]] = v
     state[0, kernel.ENABLED] = 1.0

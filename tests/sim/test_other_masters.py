@@ -15,6 +15,7 @@ import pytest
 
 from drive_bridge.cia.multicast import UDP_GROUP
 from drive_bridge.cia.p301 import ERR_PARAMETER
+from drive_bridge.master.campaign import trapezoid
 from drive_bridge.resources import PROJECT_EDS
 from harness.support import start_sim
 
@@ -160,20 +161,8 @@ def test_csp_at_a_10_ms_sync_moves_as_0x60c2_says_not_stop_and_go(drives):
     per_rad = 1048576 / (2 * math.pi)
     speed, accel, period = 2.0 * per_rad, 10.0 * per_rad, 0.010  # [inc/s], [inc/s²], [s]
     ramp, cruise = speed / accel, 1.0  # [s]
-    profile = np.arange(0.0, 2 * ramp + cruise + period, period)
-    target = start + np.where(
-        profile < ramp,
-        0.5 * accel * profile**2,
-        np.where(
-            profile < ramp + cruise,
-            0.5 * accel * ramp**2 + speed * (profile - ramp),
-            0.5 * accel * ramp**2
-            + speed * cruise
-            + speed * (profile - ramp - cruise)
-            - 0.5 * accel * (profile - ramp - cruise) ** 2,
-        ),
-    )
-    target = np.round(np.minimum(target, target[np.searchsorted(profile, 2 * ramp + cruise)])).astype(int)
+    # the setpoints of a trapezoid: ramp, 1 s at speed, ramp
+    target = np.round(trapezoid(start, start + speed * (ramp + cruise), speed, accel, period)).astype(int)
     sampled: list[float] = []
     controlword = [0x06]
 

@@ -64,7 +64,7 @@ def test_gains_through_the_profile_drive_the_loops(name):
     b, node = bench(name)
     profile = load_profile(SPECS[name].profile).bind(b.robot.config.axes["y"].motor.kt)
     drive = b.robot.drives["y"]
-    cols = {
+    cols = {  # what each gain drives, written out apart from the simulated drive's own map
         "KpP": kernel.KPP,
         "FwF": kernel.FWF,
         "KpS": kernel.KPS,
