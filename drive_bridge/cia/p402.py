@@ -15,6 +15,7 @@ from canopen.profiles.p402 import State402
 CW_SHUTDOWN, CW_SWITCH_ON, CW_ENABLE = 0x06, 0x07, 0x0F
 CW_QUICK_STOP = 0x000B  # enable voltage + switch on + enable operation, quick stop bit low
 CW_DISABLE_VOLTAGE = 0x0000
+CW_HALT_BIT = 0x0100  # controlword bit 8: halt
 CW_HALT = 0x010F  # enable operation with halt (bit 8): a profile position drive holds
 CW_FAULT_RESET = 0x80
 CW_ENABLE_IP = 0x1F  # enable operation + bit 4: enable interpolation
@@ -28,6 +29,7 @@ SW_INTERNAL_LIMIT = 0x0800
 # bits 12 and 13 mean what the operating mode says
 SW_FOLLOWING = 0x1000  # CSP follows the setpoints / IP active / PP set-point acknowledged
 SW_FOLLOWING_ERROR = 0x2000  # CSP, PP: following error
+SW_SPEED_ZERO = 0x1000  # profile velocity: the speed is 0 (inside the velocity threshold 0x606F)
 SW_HOMING_ATTAINED = 0x1000  # homing
 SW_HOMING_ERROR = 0x2000  # homing
 

@@ -167,7 +167,8 @@ class MasterNetwork(canopen.Network):
         super().__init__(bus)
         self.clock = clock
         self.traces: tuple[TraceRecorder, ...] = ()
-        self.after_send: Callable[[], None] | None = None
+        #: called with each frame's COB-ID once it is on the bus (a lockstep link runs the drives)
+        self.after_send: Callable[[int], None] | None = None
 
     def send_message(
         self, can_id: int, data: bytes, remote: bool = False, timestamp: float | None = None
@@ -189,7 +190,7 @@ class MasterNetwork(canopen.Network):
         with self.send_lock:
             self.bus.send(msg)
         if self.after_send is not None:
-            self.after_send()
+            self.after_send(can_id)
 
 
 @runtime_checkable

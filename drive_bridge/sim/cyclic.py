@@ -18,7 +18,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .kernel import A_FF, FE_COUNT, FERR, INC_PER_RAD, KT, P0, P1, Q, mean_current, new_arrays
+from .kernel import A_FF, FE_COUNT, FERR, INC_PER_RAD, KT, P0, P1, VMEAS, Q, mean_current, new_arrays
 
 # --- drive columns: what a drive's CiA 402 side holds between SYNCs (one row per axis) ---
 (
@@ -44,19 +44,23 @@ from .kernel import A_FF, FE_COUNT, FERR, INC_PER_RAD, KT, P0, P1, Q, mean_curre
 N_DRIVE = 18
 
 
-@njit("void(float64[::1], float64[::1], float64[::1], float64, float64)", cache=True)
-def actual_values(s: np.ndarray, p: np.ndarray, x: np.ndarray, now: float, noise: float) -> None:
+@njit("void(float64[::1], float64[::1], float64[::1], float64, float64, boolean)", cache=True)
+def actual_values(s: np.ndarray, p: np.ndarray, x: np.ndarray, now: float, noise: float, sync: bool) -> None:
     """Sample what a drive reports at ``now`` [s] into its drive row ``x``: position [position
-    unit, counted from its origin], velocity [velocity unit, from the encoder counts since the
-    last sample], torque [per mille of rated, its measurement noise ``x[X_NOISE]`` · ``noise``
+    unit, counted from its origin], velocity [velocity unit: at a SYNC (``sync``) from the encoder
+    counts since the SYNC before, the mean over the period; between SYNCs the velocity loop's own
+    measurement, whoever asked before], torque [per mille of rated, its measurement noise ``x[X_NOISE]`` · ``noise``
     added] and current [its current unit], each rounded and clamped as the drive's object holds it."""
     inc = p[INC_PER_RAD]
     count = math.floor(s[Q] * inc)
-    dt = now - x[X_LAST_TIME]
-    if dt > 0:
-        x[X_VELOCITY] = round((count - x[X_LAST_COUNT]) / dt / inc * x[X_VEL_PER_SI])
-    x[X_LAST_COUNT] = count
-    x[X_LAST_TIME] = now
+    if not sync:
+        x[X_VELOCITY] = round(s[VMEAS] * x[X_VEL_PER_SI])
+    else:
+        dt = now - x[X_LAST_TIME]
+        if dt > 0:
+            x[X_VELOCITY] = round((count - x[X_LAST_COUNT]) / dt / inc * x[X_VEL_PER_SI])
+        x[X_LAST_COUNT] = count
+        x[X_LAST_TIME] = now
     current = mean_current(s)
     torque = p[KT] * current
     if x[X_NOISE] != 0.0:
@@ -182,7 +186,7 @@ def steady_period(
         if x[X_NOISE] != 0.0:
             sample = noise[noise_i]
             noise_i += 1
-        actual_values(state[a], param[a], x, now, sample)
+        actual_values(state[a], param[a], x, now, sample, True)
         while e < entries.shape[0] and entries[e, E_AXIS] == a:
             value = _entry_value(entries[e, E_SOURCE], a, state, x, axes, entries[e, E_CONST])
             if value < entries[e, E_MIN] or value > entries[e, E_MAX]:

@@ -54,6 +54,7 @@ from ..cia.p402 import (
     ABORT_FAULT,
     ABORT_QUICK_STOP,
     CSP,
+    CW_HALT_BIT,
     ENABLED,
     FAULT,
     FAULT_REACTION,
@@ -69,6 +70,7 @@ from ..cia.p402 import (
     SW_HOMING_ERROR,
     SW_INTERNAL_LIMIT,
     SW_REMOTE,
+    SW_SPEED_ZERO,
     SW_TARGET_REACHED,
     SW_VOLTAGE_ENABLED,
     SWITCH_ON_DISABLED,
@@ -104,6 +106,9 @@ FIFO_RECORDS = 64
 IPB_UNDERFLOW_WARNING, IPB_OVERFLOW_WARNING, IPB_UNDERFLOW, IPB_OVERFLOW = 0x0001, 0x0002, 0x0100, 0x0200
 IPB_ENABLED, IPB_ACTIVE = 0x4000, 0x8000
 ERR_IP_UNDERFLOW, ERR_IP_OVERFLOW = 0xFF02, 0xFF03
+#: profile velocity's windows where the drive has no object for them (0x606D velocity window,
+#: 0x606F velocity threshold, "speed = 0"), about 5 rpm [rad/s]; their times 0x606E / 0x6070 [ms]
+VELOCITY_WINDOW_RAD_S = 0.5
 SETPOINT_TIMEOUT_PERIODS = 10  # CSP: no setpoint for this many interpolation periods -> fault
 
 ABORT_TOO_LOW = 0x06090032
@@ -206,6 +211,23 @@ class _Held:
         drive.drive_values[self.column] = value
 
 
+class Dwell:
+    """A condition that counts once it has held for a time: CiA 402's windows and their window times
+    (position window 0x6067 for 0x6068, velocity window 0x606D for 0x606E, threshold 0x606F for 0x6070)."""
+
+    def __init__(self) -> None:
+        self.since: float | None = None
+
+    def held(self, inside: bool, now: float, duration: float) -> bool:
+        """Whether ``inside`` has been true since at least ``duration`` [s] before ``now`` [s]."""
+        if not inside:
+            self.since = None
+            return False
+        if self.since is None:
+            self.since = now
+        return now - self.since >= duration - 1e-9
+
+
 class SimDrive:
     """A servo drive of one axis in ``host``.  ``index`` is the axis' row in the ``plant``'s arrays
     (:meth:`.plant.Plant.rows`: state, param, demand, and the drive array of :mod:`.cyclic`, views
@@ -223,7 +245,7 @@ class SimDrive:
     last_setpoint_time = _Held(cyclic.X_SETPOINT_TIME, float)
     setpoint_armed = _Held(cyclic.X_ARMED, bool)  # loss-of-setpoint watchdog armed (CSP streaming started)
     _last_count = _Held(cyclic.X_LAST_COUNT, int)  # encoder count and time of the last sample
-    _last_refresh = _Held(cyclic.X_LAST_TIME, float)
+    _last_sync_sample = _Held(cyclic.X_LAST_TIME, float)
     _velocity = _Held(cyclic.X_VELOCITY, int)  # the actual values as their objects hold them
     _torque_pm = _Held(cyclic.X_TORQUE_PM, int)
     _current = _Held(cyclic.X_CURRENT, int)
@@ -445,12 +467,13 @@ class SimDrive:
         self.setpoint_ack = False
         self.origin_rad = 0.0
         self.homing = HomeSearch(self)  # HM: the search for home
-        self._in_window_since: float | None = None
+        # bit 10 of profile position / velocity, bit 12 of profile velocity (speed = 0)
+        self.position_window, self.velocity_window, self.threshold = Dwell(), Dwell(), Dwell()
         s[kernel.ENABLED] = 0.0
         self._sync_count = 0
         self._hb_next = 0.0
         self._last_count = math.floor(s[kernel.Q] * self.inc_per_rad)
-        self._last_refresh = self.plant.time
+        self._last_sync_sample = self._sampled_at = self.plant.time
         self._velocity = 0
         self.plant_demand[:] = 0.0
         self.plant_demand[kernel.P0] = self.plant_demand[kernel.P1] = self.plant_state[kernel.ENC] = (
@@ -560,7 +583,7 @@ class SimDrive:
                 return answer
         live = self._live.get(index)
         if live is not None:
-            if self._last_refresh != self.plant.time:
+            if self.plant.time not in (self._last_sync_sample, self._sampled_at):  # once per instant
                 self.refresh_actuals()
             return live()
         if index in (0x1010, 0x1011) and subindex == 1:
@@ -752,11 +775,14 @@ class SimDrive:
         if self.internal_limit:
             sw |= SW_INTERNAL_LIMIT
         if self.mode == HM:  # bit 12 homing attained, bit 13 homing error
-            return (
-                sw
+            return (  # bit 10: at rest (not started, interrupted, or ended), as CiA 402 tables them
+                (sw & ~SW_TARGET_REACHED)
+                | (SW_TARGET_REACHED if self.state != ENABLED or self.homing.phase is None else 0)
                 | (SW_HOMING_ATTAINED if self.homing.attained else 0)
                 | (SW_HOMING_ERROR if self.homing.error else 0)
             )
+        if self.mode == PV:  # bit 12: speed = 0 (0x606F for 0x6070); bit 13 (max slippage) unwatched
+            return sw | (SW_SPEED_ZERO if self.speed_zero() else 0)
         if self.following or (self.state == ENABLED and self.mode == PP and self.setpoint_ack):
             sw |= SW_FOLLOWING  # CSP: follows the command value; IP: active; PP: set-point acknowledged
         if self.plant_state.item(kernel.FE_COUNT) > 0:
@@ -792,12 +818,12 @@ class SimDrive:
             self.pp_goal = self.pp_target
             self.setpoint_ack = True  # statusword bit 12: set-point acknowledged
             self.target_reached = False
-            self._in_window_since = None
+            self.position_window.since = None
         if self.state == ENABLED and self.mode == HM:
-            if new_setpoint:
+            if new_setpoint and not cw & CW_HALT_BIT:
                 self.homing.start()
-            elif not cw & 0x10:
-                self.homing.interrupt()  # bit 4 down: homing interrupted, ramp to rest
+            elif not cw & 0x10 or cw & CW_HALT_BIT:
+                self.homing.interrupt()  # bit 4 down or halt: homing interrupted, ramp to rest
         else:
             self.homing.phase = None  # left OPERATION ENABLED: no homing goes on
 
@@ -879,7 +905,7 @@ class SimDrive:
     def sample_sync(self) -> None:
         """A SYNC received: the synchronous TPDOs, with the actual values at this instant."""
         if self.online and self.nmt_state == NMT_OPERATIONAL:
-            self.refresh_actuals()
+            self.refresh_actuals(sync=True)
             self.send_tpdos()
 
     def start_period(self, rpdos: list[tuple[PdoCodec, bytes]]) -> None:
@@ -921,6 +947,7 @@ class SimDrive:
             )
             return
         d[kernel.P0] = d.item(kernel.P1)
+        self.plant.period_ticks[self.index] = self.plant.ticks_per_period  # its own profile's period
         v_old = self.v_dem
         self.internal_limit = False
         if self.state == QUICK_STOP:
@@ -929,17 +956,15 @@ class SimDrive:
                 self.object_or(0x6085, 0, factory().quick_stop_rad_s2 * self.vel_per_si) / self.vel_per_si,
                 T,
             )
-            if self.v_dem == 0.0:
-                self.target_reached = True
-                if self.object_or(0x605A, 0, 2) in (0, 1, 2, 3):
-                    self._go(SWITCH_ON_DISABLED)
+            if self.v_dem == 0.0 and self.object_or(0x605A, 0, 2) in (0, 1, 2, 3):
+                self._go(SWITCH_ON_DISABLED)
+        elif self.state == ENABLED and self.mode in (PV, PP) and self.halted:
+            self.ramp(0.0, self._deceleration(), T)  # halt (0x605D 1): down on the profile deceleration
         elif self.state == ENABLED and self.mode == PV:
             self.ramp(self._od(0x60FF) / self.vel_per_si, self._od(0x6083) / self.vel_per_si, T)
-            self.target_reached = self.v_dem == self._od(0x60FF) / self.vel_per_si
         elif self.state == ENABLED and self.mode == PP and self.pp_target is not None:
             dist = self.pp_target - d[kernel.P0]
-            acc = self._od(0x6083) / self.vel_per_si
-            dec = self.object_or(0x6084, 0, acc * self.vel_per_si) / self.vel_per_si
+            acc, dec = self._od(0x6083) / self.vel_per_si, self._deceleration()
             v_max = min(
                 self.object_or(0x6081, 0, factory().profile_velocity_rad_s * self.vel_per_si)
                 / self.vel_per_si,
@@ -957,11 +982,24 @@ class SimDrive:
         d[kernel.A_FF] = (self.v_dem - v_old) / T
         self.new_target = False
 
+    @property
+    def halted(self) -> bool:
+        """Controlword bit 8 (halt) in a mode whose profile the drive makes itself."""
+        return bool(self.controlword & CW_HALT_BIT) and self.mode in (PV, PP, HM)
+
+    def _deceleration(self) -> float:
+        """The profile deceleration 0x6084 [rad/s²] (the acceleration 0x6083 where it has none)."""
+        return self.object_or(0x6084, 0, self._od(0x6083)) / self.vel_per_si
+
     def ramp(self, v_target: float, accel: float, T: float, limit: bool = True) -> None:
         """Move the demand velocity toward ``v_target`` at ``accel`` and integrate P1 (inside the
         software position limits unless ``limit`` is False)."""
-        dv = max(-accel * T, min(accel * T, v_target - self.v_dem))
-        v_new = self.v_dem + dv
+        step = accel * T
+        v_new = (
+            v_target
+            if abs(v_target - self.v_dem) <= step
+            else self.v_dem + math.copysign(step, v_target - self.v_dem)
+        )
         p1 = self.plant_demand[kernel.P0] + 0.5 * (self.v_dem + v_new) * T
         self.plant_demand[kernel.P1] = self._limit(p1) if limit else p1
         self.v_dem = v_new
@@ -978,24 +1016,49 @@ class SimDrive:
         """0x607D: (min, max) [position unit]; no limits where min >= max."""
         return self._od(0x607D, 1), self._od(0x607D, 2)
 
-    def check_faults(self) -> None:
-        """After the plant advanced: following error, loss of setpoint, and (profile position)
-        target reached once the axis has stood inside the position window (0x6067) for the
-        position window time (0x6068)."""
-        if self.state not in (ENABLED, QUICK_STOP):
-            return
-        if self.state == ENABLED and self.mode == PP and self.pp_target is None and self.pp_goal is not None:
+    def speed_zero(self) -> bool:
+        """The speed inside the velocity threshold 0x606F for the threshold time 0x6070."""
+        speed = self.plant_state.item(kernel.VMEAS)
+        return self.threshold.held(
+            abs(speed) <= self._velocity_window(0x606F),
+            self.plant.time,
+            self.object_or(0x6070, 0, 0) / 1000.0,
+        )
+
+    def _velocity_window(self, index: int) -> float:
+        """0x606D (velocity window) or 0x606F (velocity threshold) [rad/s], where the drive has none
+        ``VELOCITY_WINDOW_RAD_S``."""
+        return self.object_or(index, 0, VELOCITY_WINDOW_RAD_S * self.vel_per_si) / self.vel_per_si
+
+    def _update_reached(self) -> None:
+        """Bits 10 and 12 as the axis moves, each over its window and window time: speed = 0 inside
+        the velocity threshold 0x606F for 0x6070; quick stop and halt reached once the demand is 0 and
+        the axis stands; profile velocity reached with the demand at 0x60FF and the speed inside the
+        velocity window 0x606D for 0x606E; profile position reached once the demand is at the target
+        and the axis has stood inside the position window 0x6067 for 0x6068."""
+        now, speed = self.plant.time, self.plant_state.item(kernel.VMEAS)
+        if self.state == QUICK_STOP or self.halted:
+            self.target_reached = self.v_dem == 0.0 and self.speed_zero()
+        elif self.mode == PV:
+            target = self._od(0x60FF) / self.vel_per_si
+            inside = self.v_dem == target and abs(speed - target) <= self._velocity_window(0x606D)
+            self.target_reached = self.velocity_window.held(
+                inside, now, self.object_or(0x606E, 0, 0) / 1000.0
+            )
+        elif self.mode == PP and self.pp_target is None and self.pp_goal is not None:
             inside = abs(self.plant_state[kernel.ENC] - self.pp_goal) * self.pos_per_rad <= self.object_or(
                 0x6067, 0, 1000
             )
-            if not inside:
-                self._in_window_since = None
-            elif self._in_window_since is None:
-                self._in_window_since = self.plant.time
-            since = self._in_window_since
-            self.target_reached = (
-                since is not None and self.plant.time - since >= self.object_or(0x6068, 0, 10) / 1000.0 - 1e-9
+            self.target_reached = self.position_window.held(
+                inside, now, self.object_or(0x6068, 0, 10) / 1000.0
             )
+
+    def check_faults(self) -> None:
+        """After the plant advanced: following error, loss of setpoint, and bits 10 and 12 as the
+        axis moves (:meth:`_update_reached`)."""
+        if self.state not in (ENABLED, QUICK_STOP):
+            return
+        self._update_reached()
         over = self.plant_state.item(kernel.FE_COUNT)  # ticks outside the following error window
         if over > 0 and over >= self.following_error_ticks():
             self.fault(ERR_FOLLOWING)
@@ -1043,13 +1106,17 @@ class SimDrive:
         return min(due, self.heartbeats.next_due())
 
     # ------------------------------------------------------------------ actual values
-    def refresh_actuals(self) -> None:
-        """Sample the measured values the drive reports (called after each advance)."""
-        self._refresh_actuals(noise=True)
+    def refresh_actuals(self, sync: bool = False) -> None:
+        """Sample the measured values the drive reports (at a SYNC: ``sync``, the velocity its mean
+        over the period)."""
+        self._refresh_actuals(noise=True, sync=sync)
 
-    def _refresh_actuals(self, noise: bool) -> None:
+    def _refresh_actuals(self, noise: bool, sync: bool = False) -> None:
         sample = self.plant.noise() if noise and self.drive_values.item(cyclic.X_NOISE) else 0.0
-        cyclic.actual_values(self.plant_state, self.plant_param, self.drive_values, self.plant.time, sample)
+        self._sampled_at = self.plant.time
+        cyclic.actual_values(
+            self.plant_state, self.plant_param, self.drive_values, self.plant.time, sample, sync
+        )
         if self.fifo is not None:  # 0x20C4:1 as of this sample (its other sub-indices are settings)
             self._store(0x20C4, 1, self._buffer_status())
 

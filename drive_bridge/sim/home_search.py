@@ -30,7 +30,6 @@ class HomingDrive(Protocol):
     pos_per_rad: float  # position unit per rad
     vel_per_si: float  # velocity unit per rad/s
     origin_rad: float  # the plant position the drive counts as 0
-    target_reached: bool
     v_dem: float  # the demand velocity [rad/s]
 
     def object_or(self, index: int, sub: int, fallback: Any) -> Any: ...
@@ -52,12 +51,12 @@ class HomeSearch:
         """Bit 4 up in homing mode: the method 0x6098 says how home is found."""
         drive = self.drive
         method = drive.object_or(0x6098, 0, 0)
-        self.attained = self.error = drive.target_reached = False
+        self.attained = self.error = False
         if method in HOMING_HERE:
             drive.origin_rad = (
                 drive.plant_state[kernel.ENC] - drive.object_or(0x607C, 0, 0) / drive.pos_per_rad
             )
-            self.attained = drive.target_reached = True
+            self.attained = True
         elif method in HOMING_SWITCH:
             self.phase = "switch"
         else:
@@ -93,8 +92,7 @@ class HomeSearch:
         else:
             drive.ramp(0.0, accel, period_s, limit=False)
             if drive.v_dem == 0.0:
-                self.phase = None
-                drive.target_reached = self.attained
+                self.phase = None  # at rest: statusword bit 10
 
     def _switch_edge(self, direction: int) -> float | None:
         """Where the limit switch in ``direction`` starts [rad, plant]; None on an axis without end stops."""

@@ -21,8 +21,11 @@ import numpy as np
 
 from ..master.engine import Arrays, Engine, Handler, Job, Outcome, reporter
 from ..master.link import BusErrors, MasterNetwork, TraceRecorder, heartbeat_frame
+from . import kernel
 from .adapters import FastVirtualBus
 from .robot import SimRobot
+
+SDO_REQUESTS = (0x601, 0x67F)  # COB-IDs of SDO requests to nodes 1-127 (the master's)
 
 
 class LockstepClock:
@@ -133,7 +136,11 @@ class LockstepLink:
             for trace in traces:
                 trace.on_message_received(msg)
 
-    def _after_send(self) -> None:
+    def _after_send(self, cob_id: int) -> None:
+        if SDO_REQUESTS[0] <= cob_id <= SDO_REQUESTS[1]:
+            # a drive answers an SDO request on one of its loop ticks, not in no time: a trace of
+            # the start-up reads as the bus carried it (and a replay keeps its pace)
+            self.robot.idle(kernel.VELOCITY_TICK_S)
         self.robot.process()
         self.pump()
 

@@ -194,8 +194,14 @@ class SimRobot:
                     drive.internal_error()
 
     def _on_sync(self, _data: bytes) -> None:
-        # lockstep: the SYNC period passes now (on the wall clock SYNC is :meth:`_sync_received`'s)
-        self._run_plant(self.plant.ticks_per_period)
+        # lockstep: the SYNC period passes now (on the wall clock SYNC is :meth:`_sync_received`'s);
+        # a drive making its own profile off the SYNC's grid starts its periods on their own ticks
+        ticks = self.plant.ticks_per_period
+        while (step := self._ticks_to_profile_period()) < ticks:
+            self._run_plant(step)
+            self._supervise()
+            ticks -= step
+        self._run_plant(ticks)
         if self._steady is None and all(drive.streaming for drive in self.drives.values()):
             self._steady = SteadyStream(self.plant, list(self.drives.values()), self.send)
         if self._steady is not None and self._steady.period():
@@ -227,9 +233,25 @@ class SimRobot:
 
     # ------------------------------------------------------------------ plant
     def advance(self, n_ticks: int) -> None:
-        """Run loops and plant for ``n_ticks`` velocity-loop ticks, then faults and heartbeats."""
-        self._run_plant(n_ticks)
-        self._supervise()
+        """Run loops and plant for ``n_ticks`` velocity-loop ticks, then faults and heartbeats; a drive
+        that makes its own profile (quick stop, PV, PP, homing) starts its next period on the tick its
+        period ends, however the ticks are asked for (its demand never waits a tick for it)."""
+        while True:
+            step = min(n_ticks, self._ticks_to_profile_period())
+            self._run_plant(step)
+            self._supervise()
+            n_ticks -= step
+            if n_ticks <= 0:
+                return
+
+    def _ticks_to_profile_period(self) -> int:
+        """Ticks until the period of a drive making its own profile ends (a large number: none does)."""
+        ticks = [
+            self.plant.ticks_per_period - int(self.plant.tick0[drive.index])
+            for drive in self.drives.values()
+            if drive.internal_profile
+        ]
+        return max(1, min(ticks)) if ticks else 1 << 30
 
     def _run_plant(self, n_ticks: int) -> None:
         """Loops and plant for ``n_ticks`` velocity-loop ticks, and the timers at the time reached."""

@@ -5,16 +5,20 @@ user testing their own master would start it."""
 from __future__ import annotations
 
 import math
+import subprocess
+import sys
 import threading
 import time
 from collections.abc import Iterator
 
+import can
 import canopen
 import numpy as np
 import pytest
 
 from drive_bridge.cia.multicast import UDP_GROUP
 from drive_bridge.cia.p301 import ERR_PARAMETER
+from drive_bridge.cli import main
 from drive_bridge.master.campaign import trapezoid
 from drive_bridge.resources import PROJECT_EDS
 from harness.support import start_sim
@@ -200,3 +204,237 @@ def test_csp_at_a_10_ms_sync_moves_as_0x60c2_says_not_stop_and_go(drives):
         np.percentile(velocity, 5) > 0.7 * speed and np.percentile(velocity, 95) < 1.3 * speed
     )  # ... steadily
     assert abs(arrived - target[-1]) < 0.01 * per_rad  # and there when the profile ended (+1 s)
+
+
+PER_REV = 1048576  # the simulated drives' position unit: encoder increments per motor revolution
+
+
+class Tpdo1:
+    """A node's TPDO1 as the master receives it (the EDS's own mapping: statusword 0x6041,
+    position actual 0x6064, sent on each SYNC), with the bus's time stamps."""
+
+    def __init__(self, network: canopen.Network, node_id: int):
+        self.rows: list[tuple[float, int, int]] = []
+        network.subscribe(0x180 + node_id, self._take)
+
+    def _take(self, _cob: int, data: bytearray, stamp: float) -> None:
+        self.rows.append(
+            (stamp, int.from_bytes(data[0:2], "little"), int.from_bytes(data[2:6], "little", signed=True))
+        )
+
+    def since(self, start: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(time since ``start`` [s], statusword, position [inc]) of the frames received after it."""
+        rows = np.array([r for r in self.rows if r[0] >= start], dtype=float)
+        return rows[:, 0] - start, rows[:, 1].astype(int), rows[:, 2]
+
+    def wait(self, mask: int, value: int, timeout: float) -> float:
+        """The stamp of the first frame from now on whose statusword has ``value`` under ``mask``."""
+        seen, deadline = len(self.rows), time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            for stamp, word, _ in self.rows[seen:]:
+                if word & mask == value:
+                    return stamp
+            time.sleep(0.01)
+        raise AssertionError(f"statusword & 0x{mask:04X} never 0x{value:04X}: last 0x{self.rows[-1][1]:04X}")
+
+
+def velocity(t: np.ndarray, position: np.ndarray) -> np.ndarray:
+    """[rev/s] between successive frames."""
+    return np.diff(position) / np.diff(t) / PER_REV
+
+
+@pytest.fixture
+def node402(drives) -> Iterator[tuple[canopen.BaseNode402, Tpdo1]]:
+    """Node 2 as canopen's CiA 402 node, OPERATIONAL, SYNC every 10 ms with its RPDO1
+    (controlword, target) sent after each as a periodic PDO; left SWITCH ON DISABLED."""
+    network = drives
+    node = canopen.BaseNode402(2, str(PROJECT_EDS))
+    network.add_node(node)
+    node.nmt.state = "PRE-OPERATIONAL"
+    node.setup_402_state_machine()
+    tpdo = Tpdo1(network, 2)
+    node.nmt.state = "OPERATIONAL"
+    node.rpdo[1][0].raw, node.rpdo[1][1].raw = 0x06, node.sdo[0x6064].raw
+    network.sync.start(0.01)
+    node.rpdo[1].start(0.01)
+    try:
+        yield node, tpdo
+    finally:
+        node.state = "SWITCH ON DISABLED"
+        node.rpdo[1].stop()
+        network.sync.stop()
+        del network[2]
+
+
+def test_profile_velocity_takes_its_ramp_time_and_says_reached_only_at_speed(node402):
+    """Profile velocity, 0 -> 4 rev/s at 0x6083 = 4 rev/s²: the axis takes the 1 s its ramp says
+    (±10 %); bit 10 (target reached) is clear while it ramps and set at speed, bit 12 (speed = 0)
+    is set only while it stands."""
+    node, tpdo = node402
+    node.op_mode = "PROFILED VELOCITY"
+    node.sdo[0x6083].raw = 4 * PER_REV
+    node.sdo[0x60FF].raw = 0
+    node.state = "OPERATION ENABLED"
+    standing = tpdo.wait(0x1000, 0x1000, 2.0)  # enabled, standing: speed = 0
+    start = time.time()
+    assert start > standing
+    node.sdo[0x60FF].raw = 4 * PER_REV
+    reached = tpdo.wait(0x0400, 0x0400, 3.0) - start
+    time.sleep(0.3)
+    t, word, position = tpdo.since(start)
+    v = velocity(t, position)
+    assert reached == pytest.approx(1.0, rel=0.1), reached
+    ramping = (t[1:] > 0.1) & (t[1:] < reached - 0.05)
+    assert not np.any(word[1:][ramping] & 0x0400)  # not reached while it ramps ...
+    assert np.all(v[ramping] < 4.0 * 0.98)  # ... below speed
+    at_speed = t[1:] > reached + 0.02
+    assert np.all(word[1:][at_speed] & 0x0400)  # reached ...
+    assert np.median(v[at_speed]) == pytest.approx(4.0, rel=0.02)  # ... at the target velocity
+    assert not np.any(word[1:][t[1:] > 0.1] & 0x1000)  # moving: speed is not 0
+    node.sdo[0x60FF].raw = 0
+    tpdo.wait(0x1400, 0x1400, 3.0)  # at rest again: reached, speed = 0
+
+
+def test_profile_position_takes_the_time_its_trapezoid_says_and_reached_means_there(node402):
+    """Half a turn at 0x6081 = 1 rev/s, 0x6083 = 0x6084 = 4 rev/s²: 0.25 s up, 0.25 s at speed,
+    0.25 s down -- set-point acknowledged (bit 12) as the profile starts, target reached (bit 10)
+    0.75 s later (±10 %) with the axis in the position window, and not before."""
+    node, tpdo = node402
+    node.op_mode = "PROFILED POSITION"
+    for index, value in ((0x6081, PER_REV), (0x6083, 4 * PER_REV), (0x6084, 4 * PER_REV)):
+        node.sdo[index].raw = value
+    node.state = "OPERATION ENABLED"
+    pdo = node.rpdo[1]
+    start_position = node.sdo[0x6064].raw
+    target = start_position + PER_REV // 2
+    time.sleep(0.1)
+    start = time.time()
+    pdo[1].raw, pdo[0].raw = target, 0x1F  # target and new set-point in one PDO
+    acknowledged = tpdo.wait(0x1000, 0x1000, 2.0) - start
+    reached = tpdo.wait(0x0400, 0x0400, 3.0) - start
+    t, word, position = tpdo.since(start)
+    moving = np.flatnonzero(np.abs(position - start_position) > 0.0005 * PER_REV)
+    assert t[moving[0]] > acknowledged  # the profile starts with the acknowledgement ...
+    assert reached - acknowledged == pytest.approx(0.75, rel=0.1), (
+        acknowledged,
+        reached,
+    )  # ... and ends on time
+    before = t < reached - 0.005
+    assert not np.any(word[before & (t > acknowledged)] & 0x0400)
+    assert np.all(np.abs(position[t >= reached] - target) <= node.sdo[0x6067].raw)
+    pdo[0].raw = 0x0F
+
+
+def test_homing_on_the_limit_switch_says_attained_and_reached_as_cia_402_tables_them(drives):
+    """Homing method 17 (negative limit switch) on z, which rests on its lower end stop: before
+    the start, 'not started' (bit 10 set, 12 clear); while it leaves the switch at the zero speed,
+    'in progress' (10 and 12 clear); then 'attained' and, once at rest, 'completed' (10 and 12
+    set), the position counted from the switch's edge as home (0x607C = 0), the search moving at
+    the zero speed 0x6099:2."""
+    network = drives
+    node = canopen.BaseNode402(3, str(PROJECT_EDS))
+    network.add_node(node)
+    node.nmt.state = "PRE-OPERATIONAL"
+    node.setup_402_state_machine()
+    tpdo = Tpdo1(network, 3)
+    node.nmt.state = "OPERATIONAL"
+    pdo = node.rpdo[1]
+    pdo[0].raw, pdo[1].raw = 0x06, node.sdo[0x6064].raw
+    network.sync.start(0.01)
+    pdo.start(0.01)
+    try:
+        node.op_mode = "HOMING"
+        zero_speed = PER_REV // 10  # 0.1 rev/s
+        node.sdo[0x6098].raw, node.sdo[0x609A].raw, node.sdo[0x607C].raw = 17, 10 * PER_REV, 0
+        node.sdo[0x6099][1].raw, node.sdo[0x6099][2].raw = PER_REV, zero_speed  # switch, zero speed
+        resting = node.sdo[0x6064].raw + 1000
+        while abs(node.sdo[0x6064].raw - resting) > 10:  # at rest (an earlier test may have let it fall)
+            resting = node.sdo[0x6064].raw
+            time.sleep(0.2)
+        node.state = "OPERATION ENABLED"
+        tpdo.wait(0x3400, 0x0400, 2.0)  # homing not started
+
+        start = time.time()
+        pdo[0].raw = 0x1F  # start homing
+        attained = tpdo.wait(0x1000, 0x1000, 10.0) - start
+        completed = tpdo.wait(0x3400, 0x1400, 3.0) - start
+        t, word, position = tpdo.since(start)
+        searching = (t > 0.1) & (t < attained - 0.005)
+        assert not np.any(word[searching] & 0x3400)  # in progress: bits 10, 12, 13 clear
+        assert np.median(velocity(t, position)[searching[1:]]) == pytest.approx(0.1, rel=0.1)  # zero speed
+        first = np.flatnonzero(t >= attained)[0]
+        assert abs(position[first]) < 0.1 * 0.03 * PER_REV  # attained on the edge (3 periods at the zero
+        # speed), counted as home
+        assert completed > attained and abs(position[-1]) < 0.01 * PER_REV
+    finally:
+        pdo[0].raw = 0x06
+        time.sleep(0.05)
+        pdo.stop()
+        network.sync.stop()
+
+
+def _is_masters(cob_id: int) -> bool:
+    """NMT, SYNC, an SDO request, an RPDO 1-4 or the master's heartbeat (node 127)."""
+    return (
+        cob_id in (0x000, 0x080, 0x77F)
+        or 0x601 <= cob_id <= 0x67F
+        or any(base < cob_id <= base + 0x7F for base in (0x200, 0x300, 0x400, 0x500))
+    )
+
+
+def test_a_lockstep_trace_replayed_by_can_player_reaches_the_drives_frame_for_frame(tmp_path):
+    """``record --sim`` in lockstep writes trace.blf; its start-up reads as a bus carried it (an SDO
+    answer a loop tick after its request, no two requests at one instant), and the master's
+    frames of it, replayed by python-can's ``can.player`` at their own time stamps to a fresh
+    ``drive-bridge sim``, are each answered as in the trace: every SDO response, a TPDO for every
+    SYNC, no EMCY while the replay lasts (its heartbeat consumer times out after it, as it should),
+    the axis where the trace left it."""
+    assert main(["record", "--sim", "--quick", "--axes", "z", "--out", str(tmp_path / "run")]) == 0
+    with can.LogReader(str(tmp_path / "run" / "trace.blf")) as reader:
+        frames = list(reader)
+    ids = [f.arbitration_id for f in frames]
+    startup = frames[: ids.index(0x080)]
+    requests = [f.timestamp for f in startup if 0x601 <= f.arbitration_id <= 0x67F]
+    assert len(set(requests)) == len(requests) > 100
+    for request, answer in zip(startup, startup[1:]):
+        if request.arbitration_id == 0x603 and answer.arbitration_id == 0x583:
+            assert answer.timestamp - request.timestamp >= 0.0004
+    replay = tmp_path / "replay.blf"
+    with can.Logger(str(replay)) as writer:
+        for frame in frames:
+            if _is_masters(frame.arbitration_id):
+                writer.on_message_received(frame)
+    process, _, port = start_sim(tmp_path)
+    heard: list[can.Message] = []
+    try:
+        # (python-can's udp_multicast_noecho: this project's, its receive buffer raised for the stream)
+        with can.Bus(interface="udp_multicast_noecho", channel=UDP_GROUP, port=port) as bus:
+            notifier = can.Notifier(bus, [heard.append])
+            player = [sys.executable, "-m", "can.player", "-i", "udp_multicast", "-c", UDP_GROUP]
+            bus_kwargs = ["--bus-kwargs", f"port={port}", "--gap", "0"]  # (an option ends the list)
+            subprocess.run([*player, *bus_kwargs, str(replay)], check=True, timeout=120)
+            time.sleep(0.2)
+            notifier.stop()
+    finally:
+        process.terminate()
+        process.wait(10)
+    drives = [m for m in heard if not _is_masters(m.arbitration_id)]
+    replayed_until = max(m.timestamp for m in heard if _is_masters(m.arbitration_id))
+
+    def count(frames: list[can.Message], cob_id: int) -> int:
+        return sum(f.arbitration_id == cob_id for f in frames)
+
+    assert count(heard, 0x080) == count(frames, 0x080)  # the whole replay went out
+    for cob_id in (0x581, 0x582, 0x583, 0x183, 0x283):
+        assert count(drives, cob_id) == count(frames, cob_id), hex(cob_id)
+    emcy = [m for m in drives if 0x81 <= m.arbitration_id <= 0xFF and any(m.data[:2])]
+    assert not [m for m in emcy if m.timestamp <= replayed_until]  # none while the master's frames came
+    last = [m for m in drives if m.arbitration_id == 0x183][-1]
+    traced = [f for f in frames if f.arbitration_id == 0x183][-1]
+    assert (
+        abs(
+            int.from_bytes(last.data[:4], "little", signed=True)
+            - int.from_bytes(traced.data[:4], "little", signed=True)
+        )
+        < PER_REV // 100
+    )

@@ -63,6 +63,6 @@ def recording(tmp_path, monkeypatch, compiled: bool, hook=None) -> tuple[bytes, 
 def test_the_compiled_sync_sends_what_the_python_drive_sends(tmp_path, monkeypatch, hook):
     trace, log, ran = recording(tmp_path, monkeypatch, True, hook)
     trace_py, log_py, ran_py = recording(tmp_path, monkeypatch, False, hook)
-    assert ran_py == 0 and ran > 300  # it ran (the quick campaign streams ~1000 SYNCs)
+    assert ran_py == 0 and ran > 250  # it ran (the quick campaign streams ~1000 SYNCs; ~300 before the fault)
     assert log == log_py
     assert trace == trace_py

@@ -124,14 +124,14 @@ def test_the_epos2_runs_its_position_pid_at_1_kHz_and_its_velocity_pi_is_not_in_
 def test_maxon_reports_velocity_in_rpm_and_current_in_mA():
     b, node = bench("maxon_epos2_50-5.eds")
     drive = b.robot.drives["y"]
-    drive.plant_state[kernel.V] = 10.0  # rad/s
+    drive.plant_state[kernel.V] = drive.plant_state[kernel.VMEAS] = 10.0  # rad/s, as its loop measures it
     drive.plant_state[kernel.I_SUM], drive.plant_state[kernel.I_COUNT] = 1.5, 1.0  # 1.5 A averaged
-    drive.plant_state[kernel.Q] += 10.0 * 0.002
     b.robot.advance(0)
     b.robot.plant.time += 0.002
     drive.refresh_actuals()
-    assert node.sdo[0x6078].raw == pytest.approx(1500, abs=2)
-    assert node.sdo[0x606C].raw == pytest.approx(10.0 * 60 / (2 * math.pi), abs=2)
+    own = drive.node.sdo  # its own SDO server, read at this instant (over the bus a loop tick later)
+    assert own[0x6078].raw == pytest.approx(1500, abs=2)
+    assert own[0x606C].raw == pytest.approx(10.0 * 60 / (2 * math.pi), abs=2)
 
 
 @pytest.mark.parametrize("name", ["pilz_prbt_0_1.dcf", "technosoft_iPOS.eds"])
