@@ -325,6 +325,45 @@ def test_profile_position_takes_the_time_its_trapezoid_says_and_reached_means_th
     pdo[0].raw = 0x0F
 
 
+def test_quick_stop_takes_its_ramp_and_a_fault_is_reset_as_canopens_node_resets_it(drives, node402):
+    """At 4 rev/s in profile velocity, quick stop (0x605A = 6: ramp on 0x6085, stay) stops the axis
+    in the 0.5 s of 0x6085 = 8 rev/s² (±10 %), says QUICK STOP ACTIVE and target reached only at
+    rest; enable operation takes it back. The master's heartbeat then stops with 0x6007 = 1: the
+    drive faults (EMCY 0x8130, statusword bit 3), and canopen's fault reset clears it (EMCY 0x0000)."""
+    network, (node, tpdo) = drives, node402
+    emcy: list[int] = []
+    network.subscribe(0x82, lambda cob, data, ts: emcy.append(data[0] | data[1] << 8))
+    node.op_mode = "PROFILED VELOCITY"
+    node.sdo[0x6083].raw, node.sdo[0x6085].raw, node.sdo[0x605A].raw = 8 * PER_REV, 8 * PER_REV, 6
+    node.sdo[0x60FF].raw = 4 * PER_REV
+    node.state = "OPERATION ENABLED"
+    tpdo.wait(0x0400, 0x0400, 3.0)  # at speed
+    start = time.time()
+    node.rpdo[1][0].raw = 0x0B  # quick stop
+    stopped = tpdo.wait(0x046F, 0x0407, 3.0) - start  # QUICK STOP ACTIVE, target reached
+    t, word, position = tpdo.since(start)
+    v = velocity(t, position)
+    assert stopped == pytest.approx(0.5, rel=0.1), stopped
+    assert np.all(np.abs(v[t[1:] > stopped + 0.02]) < 0.01)
+    assert not np.any(word[(t > 0.02) & (t < stopped - 0.005)] & 0x0400)
+    node.rpdo[1][0].raw = 0x0F  # enable operation: back from QUICK STOP ACTIVE
+    tpdo.wait(0x006F, 0x0027, 2.0)
+    node.sdo[0x60FF].raw = 0
+    node.sdo[0x6007].raw = 1  # the master lost: fault
+    node.sdo[0x1016][1].raw = 0x7F << 16 | 100  # watch node 127 every 100 ms
+    for _ in range(3):
+        network.send_message(0x77F, [0x05])
+        time.sleep(0.05)
+    deadline = time.monotonic() + 2.0  # (by SDO: the drive fell back to PRE-OPERATIONAL, no TPDO)
+    while not node.sdo[0x6041].raw & 0x0008 and time.monotonic() < deadline:
+        time.sleep(0.02)
+    assert node.sdo[0x6041].raw & 0x0008 and 0x8130 in emcy  # FAULT, once its heartbeats stopped
+    node.sdo[0x1016][1].raw = 0  # (watch nothing while the master is away)
+    node.nmt.state = "OPERATIONAL"
+    node.state = "SWITCH ON DISABLED"  # canopen's fault reset (controlword bit 7)
+    assert not node.sdo[0x6041].raw & 0x0008 and emcy[-1] == 0x0000
+
+
 def test_homing_on_the_limit_switch_says_attained_and_reached_as_cia_402_tables_them(drives):
     """Homing method 17 (negative limit switch) on z, which rests on its lower end stop: before
     the start, 'not started' (bit 10 set, 12 clear); while it leaves the switch at the zero speed,
