@@ -16,7 +16,8 @@ from pathlib import Path
 import canopen
 from canopen.objectdictionary import datatypes
 
-from .cia.od import default, load_od
+from .cia.od import default, load_od, variable
+from .cia.p402 import CSP, IP, MODE_NAMES
 from .cia.setpoint import SETPOINT_OBJECTS
 from .errors import ConfigError
 from .resources import vendor_dir
@@ -144,6 +145,15 @@ class Limits:
         return max(abs(self.position_min), abs(self.position_max)) * per_rad < 2**31
 
 
+#: the limits of an axis whose limits bring-up has not read from its drive yet: no motion fits them
+NO_MOTION = Limits(0.0, 0.0, 0.0, 0.0)
+
+
+#: ros2_canopen's placeholder for the bus configuration's own directory (its cogen replaces it)
+BUS_CONFIG_PATH = "@BUS_CONFIG_PATH@"
+#: ros2_canopen's scale pairs: to the device and back, each the other's inverse
+ROS_SCALES = (("scale_pos_to_dev", "scale_pos_from_dev"), ("scale_vel_to_dev", "scale_vel_from_dev"))
+
 HOLDING = ("brake", "enabled")
 REFERENCES = ("absolute", "here", "home")
 DEFAULT_MASTER_NODE_ID = 127
@@ -203,11 +213,18 @@ class NodeConfig:
     #: ``scaling: from_drive``: the position and velocity units (and the rated torque where bus.yml
     #: gives none) are the drive's own, read at bring-up
     units_from_drive: bool = False
+    #: no ``limits`` in bus.yml: the stroke, velocity and acceleration are the drive's own (0x607D,
+    #: 0x607F or 0x6080, 0x60C5/0x60C6 or 0x6083/0x6084), read at bring-up; until then ``limits`` is
+    #: :data:`NO_MOTION`
+    limits_from_drive: bool = False
     #: where the stroke is: ``absolute`` (positions as the drive counts them), ``here`` (laid out
     #: around the position the axis stands at when it is brought up) or ``home`` (as the drive counts
     #: them after its homing, ``homing``, has run)
     reference: str = "absolute"
     homing: Homing | None = None
+    #: ros2_canopen's ``position_mode``: the one streaming mode to use (8 CSP, 7 IP); None: CSP
+    #: where the drive and the RPDOs allow it, else IP
+    position_mode: int | None = None
 
 
 DEFAULT_BITRATE = 1_000_000  # bit/s, when nothing names the bitrate
@@ -330,8 +347,16 @@ class BusConfig:
 
 
 def _pdos(
-    sec: Section, key: str, od: canopen.ObjectDictionary, allowed: set[int], required: dict[int, str]
+    sec: Section,
+    key: str,
+    od: canopen.ObjectDictionary,
+    allowed: set[int],
+    required: dict[int, str],
+    added: list[str] | None = None,
 ) -> tuple[PdoConfig, ...]:
+    """The PDOs of ``key`` (rpdo/tpdo), each checked against the drive's EDS/DCF; every object of
+    ``required`` mapped, or (``added`` a list: a mapping written for another master) added where
+    it fits -- to an enabled PDO with room, else as a synchronous PDO of its own -- and said there."""
     pdo_sec = sec.section(key)
     result = []
     seen: set[int] = set()
@@ -397,6 +422,9 @@ def _pdos(
                 PdoConfig(num, trans, tuple(mapping), None if cob == "auto" else cob, timer, inhibit)
             )
     pdo_sec.done()
+    if added is not None:
+        result = _add_missing(result, [i for i in required if i not in seen], od, key, added)
+        seen.update(i for p in result for i, _ in p.mapping)
     missing = [f"0x{i:04X} ({name})" for i, name in required.items() if i not in seen]
     if key == "rpdo" and not any(e in SETPOINT_OBJECTS for p in result for e in p.mapping):
         missing.append(
@@ -408,10 +436,75 @@ def _pdos(
     return tuple(result)
 
 
+def _position_mode(sec: Section, ignored: set[str]) -> int | None:
+    """ros2_canopen's ``position_mode``, honoured where drive-bridge can stream in it."""
+    mode = sec.get("position_mode", int, None)
+    if mode is not None and mode not in (CSP, IP):
+        raise sec.error(
+            "position_mode",
+            f"{mode} ({MODE_NAMES.get(mode, 'not a CiA 402 mode')}): drive-bridge streams its setpoints "
+            f"in {MODE_NAMES[CSP]} (8) or {MODE_NAMES[IP]} (7); give one of them, or leave it out",
+        )
+    ignored.discard("position_mode")
+    return mode
+
+
+def _ros_velocity_scale(sec: Section, data: dict, feed: float | None, inc: int | None) -> float:
+    """Device velocity units per motor rad/s from ros2_canopen's ``scale_vel_to_dev`` (device units
+    per rad/s of the axis, or per m/s with a feed); where it is not given, the position's units per
+    second. Each ``_from_dev`` given must be its ``_to_dev``'s inverse."""
+    for to_dev, from_dev in ROS_SCALES:
+        forth, back = data.get(to_dev), data.get(from_dev)
+        for key, value in ((to_dev, forth), (from_dev, back)):
+            if value is not None and not (finite_number(value) and value > 0):
+                raise sec.error(key, f"must be a number above 0, got {value!r}")
+        if forth is not None and back is not None and abs(forth * back - 1) > 1e-6:
+            raise sec.error(
+                from_dev,
+                f"{back} is not 1/{to_dev} = {1 / forth:.6g}: ros2_canopen commands the drive with one "
+                f"and reads it with the other; give them as each other's inverse",
+            )
+    per_axis_unit = data.get("scale_vel_to_dev")
+    if per_axis_unit is None:
+        return (inc or 0) / (2 * math.pi)
+    return float(per_axis_unit) * ((feed or 2 * math.pi) / (2 * math.pi))
+
+
+def _add_missing(
+    pdos: list[PdoConfig], objects: list[int], od: canopen.ObjectDictionary, key: str, added: list[str]
+) -> list[PdoConfig]:
+    """``pdos`` with each of ``objects`` (sub 0) mapped where it fits, each addition said in ``added``."""
+    pdos = list(pdos)
+    for index in objects:
+        var = od.get_variable(index, 0)
+        if var is None or not var.pdo_mappable:
+            continue  # refused by the caller, naming it
+        bits = {p.number: sum(len(variable(od, i, sub)) for i, sub in p.mapping) for p in pdos}
+        room = [n for n, p in enumerate(pdos) if p.transmission <= 240 and bits[p.number] + len(var) <= 64]
+        if room:
+            p = pdos[room[0]]
+            pdos[room[0]] = replace(p, mapping=(*p.mapping, (index, 0)))
+        else:
+            base = 0x1400 if key == "rpdo" else 0x1800
+            free = [n for n in range(1, 5) if base + n - 1 in od and n not in bits]
+            if not free:
+                continue
+            p = PdoConfig(free[0], 1, ((index, 0),))
+            pdos.append(p)
+        added.append(f"0x{index:04X} to {key.upper()} {p.number}")
+    return pdos
+
+
 def _node(
-    path: Path, axis: str, data: dict, dcf_path: str | None = None, unused: set | None = None
+    path: Path,
+    axis: str,
+    data: dict,
+    dcf_path: str | None = None,
+    unused: set | None = None,
+    notes: list[str] | None = None,
 ) -> NodeConfig:
-    if data.get("scaling") == "from_drive" or ("scaling" not in data and "scale_pos_to_dev" not in data):
+    ros_units = "scaling" not in data and "scale_pos_to_dev" in data  # ros2_canopen's scaling alone
+    if data.get("scaling") == "from_drive" or ("scaling" not in data and not ros_units):
         data = {**data, "scaling": {"from_drive": True}}  # everything from the drive (a rotary axis)
     sec = Section(path, f"nodes.{axis}", data)
     node_id = sec.get("node_id", int, low=1, high=127)
@@ -419,7 +512,7 @@ def _node(
     vendor = name.startswith("vendor/")
     dcf = (vendor_dir() / name[len("vendor/") :] if vendor else path.parent / name).resolve()
     if not vendor and not dcf.is_file() and dcf_path:  # ros2_canopen: beside bus.yml, or in options.dcf_path
-        dcf = (path.parent / dcf_path / name).resolve()
+        dcf = (path.parent / dcf_path.replace(BUS_CONFIG_PATH, ".") / name).resolve()
     scale_pos = data.get("scale_pos_to_dev")
     ignored = sec.accept((ROS_KEYS | LELY_NODE_KEYS) - {"dcf_path"})
     sec.get("dcf_path", str, None)
@@ -434,7 +527,7 @@ def _node(
             ),
         )
     od = load_od(dcf, node_id)
-    sc = sec.section("scaling")
+    sc = sec.section("scaling", required=not ros_units)
     from_drive = sc.get("from_drive", bool, False)
     feed = sc.get("feed_m_per_rev", float, None, low=1e-6, high=100.0)
     feedback = sc.get("torque_feedback", str, "torque", choices=list(TORQUE_FEEDBACK))
@@ -460,6 +553,18 @@ def _node(
     if inc is None and finite_number(scale_pos) and scale_pos > 0 and not from_drive:
         inc = round(scale_pos * (feed or 2 * math.pi))  # ros2_canopen: device units per rad (or m)
         ignored.discard("scale_pos_to_dev")
+        if ros_units:
+            ignored.difference_update(k for pair in ROS_SCALES for k in pair)
+    elif inc is not None and finite_number(scale_pos) and scale_pos > 0:  # both: they must agree
+        if round(scale_pos * (feed or 2 * math.pi)) != inc:
+            raise sec.error(
+                "scale_pos_to_dev",
+                f"{scale_pos} device units per {'m' if feed else 'rad'} is "
+                f"{scale_pos * (feed or 2 * math.pi):.6g} per motor revolution, but "
+                f"scaling.increments_per_rev is {inc}: give one, or make them agree",
+            )
+        ignored.discard("scale_pos_to_dev")
+    position_mode = _position_mode(sec, ignored)
     if unused is not None:
         unused.update(ignored)
     if inc is None and not from_drive:
@@ -476,7 +581,11 @@ def _node(
         )
     scaling = Scaling(
         increments_per_rev=inc or 0,
-        rated_torque_Nm=sc.get("rated_torque_Nm", float, 0.0 if from_drive else ..., low=1e-6, high=1e6),
+        # (0: the drive's own 0x6076, read at bring-up)
+        rated_torque_Nm=sc.get(
+            "rated_torque_Nm", float, 0.0 if from_drive or ros_units else ..., low=1e-6, high=1e6
+        ),
+        velocity_units_per_rad_s=_ros_velocity_scale(sec, data, feed, inc) if ros_units else None,
         feed_m_per_rev=feed,
         torque_feedback=feedback,
         current_per_unit_A=per_unit,
@@ -487,29 +596,33 @@ def _node(
     )
     sc.done()
     unit = "m" if feed else "rad"
-    lim = sec.section("limits")
+    limits_from_drive = "limits" not in data
+    lim = sec.section("limits", required=False)
     qs = lim.get(f"quick_stop_deceleration_{unit}_s2", float, None, low=1e-9, high=1e8)
     fe_timeout = lim.get("following_error_timeout_ms", int, 10, low=1, high=65535)
     max_torque = lim.get("max_torque_Nm", float, None, low=1e-6, high=1e6)
-    stroke = lim.get("stroke_" + unit, list)
-    if (
-        len(stroke) != 2
-        or not all(finite_number(v) and abs(v) < 1e9 for v in stroke)
-        or stroke[0] >= stroke[1]
-    ):
-        raise lim.error("stroke_" + unit, f"must be [min, max] in {unit} with min < max, got {stroke!r}")
-    vmax = lim.get(f"max_velocity_{unit}_s", float, low=1e-9, high=1e6)
-    amax = lim.get(f"max_acceleration_{unit}_s2", float, low=1e-9, high=1e8)
-    jmax = lim.get(f"max_jerk_{unit}_s3", float, None, low=1e-9, high=1e12)
+    if limits_from_drive:  # read at bring-up (:mod:`.master.drive_units`): until then nothing may move
+        limits = NO_MOTION
+    else:
+        stroke = lim.get("stroke_" + unit, list)
+        if (
+            len(stroke) != 2
+            or not all(finite_number(v) and abs(v) < 1e9 for v in stroke)
+            or stroke[0] >= stroke[1]
+        ):
+            raise lim.error("stroke_" + unit, f"must be [min, max] in {unit} with min < max, got {stroke!r}")
+        vmax = lim.get(f"max_velocity_{unit}_s", float, low=1e-9, high=1e6)
+        amax = lim.get(f"max_acceleration_{unit}_s2", float, low=1e-9, high=1e8)
+        jmax = lim.get(f"max_jerk_{unit}_s3", float, None, low=1e-9, high=1e12)
+        limits = Limits(
+            float(scaling.load_to_motor(stroke[0])),
+            float(scaling.load_to_motor(stroke[1])),
+            float(scaling.load_to_motor(vmax)),
+            float(scaling.load_to_motor(amax)),
+            None if jmax is None else float(scaling.load_to_motor(jmax)),
+        )
     lim.done()
-    limits = Limits(
-        float(scaling.load_to_motor(stroke[0])),
-        float(scaling.load_to_motor(stroke[1])),
-        float(scaling.load_to_motor(vmax)),
-        float(scaling.load_to_motor(amax)),
-        None if jmax is None else float(scaling.load_to_motor(jmax)),
-    )
-    if default(od, 0x6080):
+    if default(od, 0x6080) and not limits_from_drive:
         drive_max = default(od, 0x6080) * 2 * math.pi / 60.0
         if limits.max_velocity > drive_max * (1 + 1e-9):
             raise lim.error(
@@ -535,6 +648,20 @@ def _node(
                 raise e.error("value", f"0x{index:04X}:{sub} holds an integer, got {value!r}")
             value = int(value)
         sdo.append((index, sub, value))
+    torque_added: list[str] = []
+    tpdo = _pdos(
+        sec,
+        "tpdo",
+        od,
+        TPDO_OBJECTS | {scaling.torque_object},
+        {**REQUIRED_TPDO, scaling.torque_object: TORQUE_FEEDBACK[feedback]},
+        added=torque_added if ros_units else None,
+    )
+    if torque_added and notes is not None:
+        notes.append(
+            f"nodes.{axis}.tpdo: {', '.join(torque_added)} (drive-bridge logs the torque; "
+            f"the mapping written for ros2_canopen does not carry it)"
+        )
     drive_limits = DriveLimits(
         max_velocity=DRIVE_LIMIT_MARGIN * limits.max_velocity,
         quick_stop_deceleration=float(scaling.load_to_motor(qs)) if qs else 2 * limits.max_acceleration,
@@ -553,21 +680,17 @@ def _node(
         heartbeat_producer_ms=sec.get("heartbeat_producer", int, 100, low=1, high=65535),
         following_error_window_rad=sec.get("following_error_window_rad", float, 0.6, low=1e-6, high=1e6),
         rpdo=_pdos(sec, "rpdo", od, RPDO_OBJECTS, REQUIRED_RPDO),
-        tpdo=_pdos(
-            sec,
-            "tpdo",
-            od,
-            TPDO_OBJECTS | {scaling.torque_object},
-            {**REQUIRED_TPDO, scaling.torque_object: TORQUE_FEEDBACK[feedback]},
-        ),
+        tpdo=tpdo,
         sdo=tuple(sdo),
         profile=sec.get("profile", str, None),
         motor=_motor(sec),
         source=data,
         drive_limits=drive_limits,
         units_from_drive=from_drive,
+        limits_from_drive=limits_from_drive,
         reference=sec.get("reference", str, "absolute", choices=list(REFERENCES)),
-        homing=_homing(sec, od, scaling, limits, unit),
+        homing=_homing(sec, od, scaling, limits, unit, limits_from_drive),
+        position_mode=position_mode,
     )
     if (cfg.reference == "home") != (cfg.homing is not None):
         raise sec.error(
@@ -584,11 +707,17 @@ HOMING_OBJECTS = ((0x6098, 0), (0x6099, 1), (0x6099, 2), (0x609A, 0))
 
 
 def _homing(
-    sec: Section, od: canopen.ObjectDictionary, scaling: Scaling, limits: Limits, unit: str
+    sec: Section,
+    od: canopen.ObjectDictionary,
+    scaling: Scaling,
+    limits: Limits,
+    unit: str,
+    limits_from_drive: bool = False,
 ) -> Homing | None:
     """``homing: {method, switch_speed_<unit>_s, zero_speed_<unit>_s, acceleration_<unit>_s2,
     timeout_s}`` (speeds by default 5 % and 1 % of the axis's velocity limit, the acceleration 10 %
-    of its own), in load units as the limits are."""
+    of its own: given, where the limits are the drive's, read only at bring-up), in load units as
+    the limits are."""
     h = sec.section("homing", required=False)
     if not h.keys():
         return None
@@ -602,15 +731,16 @@ def _homing(
         )
     to_motor = lambda v: None if v is None else float(scaling.load_to_motor(v))  # noqa: E731
     vmax, amax = limits.max_velocity, limits.max_acceleration
-    switch = to_motor(h.get(f"switch_speed_{unit}_s", float, None, low=1e-9, high=1e6)) or 0.05 * vmax
-    zero = to_motor(h.get(f"zero_speed_{unit}_s", float, None, low=1e-9, high=1e6)) or 0.01 * vmax
-    acc = to_motor(h.get(f"acceleration_{unit}_s2", float, None, low=1e-9, high=1e8)) or 0.1 * amax
+    given = ... if limits_from_drive else None  # (no limits yet to take a default from)
+    switch = to_motor(h.get(f"switch_speed_{unit}_s", float, given, low=1e-9, high=1e6)) or 0.05 * vmax
+    zero = to_motor(h.get(f"zero_speed_{unit}_s", float, given, low=1e-9, high=1e6)) or 0.01 * vmax
+    acc = to_motor(h.get(f"acceleration_{unit}_s2", float, given, low=1e-9, high=1e8)) or 0.1 * amax
     for key, value, most in (
         (f"switch_speed_{unit}_s", switch, vmax),
         (f"zero_speed_{unit}_s", zero, vmax),
         (f"acceleration_{unit}_s2", acc, amax),
     ):
-        if value > most * (1 + 1e-9):
+        if value > most * (1 + 1e-9) and not limits_from_drive:
             raise h.error(key, "above the axis's own limit in limits")
     out = Homing(method, switch, zero, acc, h.get("timeout_s", float, 120.0, low=0.1, high=3600.0))
     h.done()
@@ -737,7 +867,17 @@ def load_bus_config(path: str | Path) -> BusConfig:
             merged = {**entry, **defaults}
         else:
             merged = _merge(defaults, entry)
-        nodes[axis] = _node(path, axis, merged, dcf_path, unused)
+        nodes[axis] = _node(path, axis, merged, dcf_path, unused, notes)
+        period = merged.get("period")  # ros2_canopen: the node's setpoint period [ms]
+        if period is not None and (
+            not finite_number(period) or abs(period * 1e-3 - master.sync_period_s) > 1e-9
+        ):
+            raise Section(path, f"nodes.{axis}", merged).error(
+                "period",
+                f"{period!r} ms, but drive-bridge sends a setpoint with every SYNC, every "
+                f"{master.sync_period_s * 1e3:g} ms (master.sync_period): give them alike",
+            )
+    unused.discard("period")
     if unused:
         notes.append(
             f"nodes: {', '.join(sorted(unused))} (ros2_canopen / Lely keys drive-bridge does not use)"

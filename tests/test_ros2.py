@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+import math
 import subprocess
 
 import pytest
@@ -9,6 +11,7 @@ import yaml
 
 from drive_bridge.cli import main
 from drive_bridge.config import load_bus_config
+from drive_bridge.errors import ConfigError
 from drive_bridge.resources import DEFAULT_BUS_CONFIG, data
 from harness.support import EDS, tool
 
@@ -38,7 +41,9 @@ def test_a_ros2_canopen_bus_yml_is_read_as_it_is(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "master: driver, package (ros2_canopen / Lely keys" in err  # heartbeat_producer is the master's
     assert ros.master.heartbeat_period_s == 0.1
-    assert "nodes: boot, driver, heartbeat_consumer, package, period, position_mode" in err
+    assert (
+        "nodes: boot, driver, heartbeat_consumer, package, sdo_timeout_ms (" in err
+    )  # period, position_mode honoured
     assert ros.nodes["x"].scaling.increments_per_rev == 2**20  # from x's scale_pos_to_dev [increments/m]
     assert main(["decode", str(tmp_path / "trace.blf"), "--out", str(tmp_path / "d.csv")]) == 0
     assert (tmp_path / "d.csv").read_bytes() == (tmp_path / "log.csv").read_bytes()
@@ -198,3 +203,126 @@ def test_ros2_canopens_cia402_mapping_streams(tmp_path):
     mode = header.index("y_mode_display")
     assert {r[mode] for r in rows if r[mode] != "nan"} == {"8"}  # cyclic synchronous position
     assert main(["identify", str(out), "--json"]) == 0
+
+
+#: a bus.yml as ros2_canopen's users write it for a CiA 402 drive (its cia402 examples): the EDS
+#: beside it through ros2_canopen's @BUS_CONFIG_PATH@, scale_pos/vel_to_dev and _from_dev, the
+#: PDOs ros2_canopen's Cia402Driver needs (statusword, mode display, position, velocity; controlword,
+#: mode, target) -- nothing of drive-bridge's own: no scaling, limits, torque in a TPDO, campaign
+AS_ROS2_USERS_WRITE_IT = """
+options:
+  dcf_path: "@BUS_CONFIG_PATH@"
+master:
+  node_id: 127
+  driver: "ros2_canopen::MasterDriver"
+  package: "canopen_master_driver"
+  sync_period: 2000
+defaults:
+  dcf: "drive_bridge_servo.eds"
+  driver: "ros2_canopen::Cia402Driver"
+  package: "canopen_402_driver"
+  period: 2
+  heartbeat_producer: 100
+  position_mode: 8
+  scale_pos_to_dev: 166886.05360752725
+  scale_pos_from_dev: 5.9921124526782858e-06
+  scale_vel_to_dev: 166886.05360752725
+  scale_vel_from_dev: 5.9921124526782858e-06
+  sdo:
+    - {index: 0x60C2, sub_index: 1, value: 2}
+    - {index: 0x60C2, sub_index: 2, value: -3}
+  tpdo:
+    1:
+      enabled: true
+      cob_id: "auto"
+      transmission: 0x01
+      mapping:
+        - {index: 0x6041, sub_index: 0}
+        - {index: 0x6061, sub_index: 0}
+    2:
+      enabled: true
+      cob_id: "auto"
+      transmission: 0x01
+      mapping:
+        - {index: 0x6064, sub_index: 0}
+        - {index: 0x606C, sub_index: 0}
+  rpdo:
+    1:
+      enabled: true
+      cob_id: "auto"
+      mapping:
+        - {index: 0x6040, sub_index: 0}
+        - {index: 0x6060, sub_index: 0}
+    2:
+      enabled: true
+      cob_id: "auto"
+      mapping:
+        - {index: 0x607A, sub_index: 0}
+nodes:
+  x: {node_id: 1}
+  y: {node_id: 2}
+  z: {node_id: 3}
+"""
+
+
+def test_a_bus_yml_as_ros2_canopens_users_write_it_scans_and_commissions(tmp_path, capsys):
+    """Nothing of drive-bridge's own in it: its scale_pos/vel_to_dev are the units (checked against
+    what the drive reports), the rated torque is the drive's 0x6076, the limits the drive's (0x607D,
+    0x607F, 0x6083/0x6084: the simulated machine's integrator left them there), the torque added to
+    a TPDO with room, each said with its value; then scan and commission run on the simulated
+    robot, within the limits the drive holds."""
+    (tmp_path / "drive_bridge_servo.eds").write_bytes(EDS.read_bytes())
+    bus = tmp_path / "bus.yml"
+    bus.write_text(AS_ROS2_USERS_WRITE_IT)
+    config = load_bus_config(bus)
+    x = config.nodes["x"]
+    assert x.limits_from_drive and x.position_mode == 8
+    assert x.scaling.increments_per_rev == 2**20 and x.scaling.velocity_per_rad_s == pytest.approx(
+        2**20 / 6.283185307
+    )
+    assert x.tpdo[0].mapping == ((0x6041, 0), (0x6061, 0), (0x6077, 0))  # the torque where it fits
+    assert "nodes.x.tpdo: 0x6077 to TPDO 1" in " ".join(config.master.notes)
+    assert main(["scan", "--sim", "--config", str(bus)]) == 0
+    out = tmp_path / "run"
+    args = [
+        "commission",
+        "--sim",
+        "--config",
+        str(bus),
+        "--campaign",
+        "short",
+        "--no-history",
+        "--no-figures",
+    ]
+    assert main([*args, "--yes", "--out", str(out)]) in (0, 3)  # PASS or WARN: it ran to its end
+    err = capsys.readouterr().err
+    assert "axis x: no limits in" in err and "stroke -13.09 .. 13.09 rad (0x607D)" in err
+    assert "max velocity 8.3776 rad/s (1/1.25 of 0x607F)" in err  # the default bus.yml's 0.08 m/s
+    summary = json.loads((out / "summary.json").read_text())
+    assert [step["status"] for step in summary["steps"]] == ["done"] * len(summary["steps"])
+    bringup = json.loads((out / "bringup.json").read_text())
+    written = bringup["axes"]["x"]["process_data"]["drive_limits"]  # as read back
+    assert written["0x607D:2"] == round(13.09 * 2**20 / (2 * math.pi))  # what it held, kept
+
+
+@pytest.mark.parametrize(
+    "change, key, words",
+    [
+        ({"position_mode": 1}, "position_mode", "drive-bridge streams its setpoints"),
+        ({"period": 10}, "period", "sends a setpoint with every SYNC"),
+        ({"scale_pos_from_dev": 1e-3}, "scale_pos_from_dev", "each other's inverse"),
+        ({"scale_vel_to_dev": -1.0}, "scale_vel_to_dev", "above 0"),
+    ],
+)
+def test_a_ros2_canopen_key_drive_bridge_cannot_honour_is_one_message(tmp_path, change, key, words):
+    """A ros2_canopen key is honoured or refused naming the key, never silently ignored: a
+    position_mode drive-bridge cannot stream in, a setpoint period not the SYNC's, scales that are
+    not each other's inverse or not positive."""
+    (tmp_path / "drive_bridge_servo.eds").write_bytes(EDS.read_bytes())
+    doc = yaml.safe_load(AS_ROS2_USERS_WRITE_IT)
+    doc["defaults"].update(change)
+    bus = tmp_path / "bus.yml"
+    bus.write_text(yaml.safe_dump(doc))
+    with pytest.raises(ConfigError) as refused:
+        load_bus_config(bus)
+    assert f"nodes.x.{key}" in str(refused.value) and words in str(refused.value)

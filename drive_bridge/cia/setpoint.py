@@ -48,11 +48,13 @@ def position_of(entry: tuple[int, int], value: int) -> int:
     return unpack_pvt(value)[0] if entry == PVT else value
 
 
-def choose(bits: int, mapped: list[tuple[int, int]]) -> tuple[int, tuple[int, int]] | None:
-    """(mode, setpoint object) to stream in: cyclic synchronous position where the drive has it
-    (0x6502 ``bits``) and the RPDOs map 0x607A, else interpolated position with its data record
-    mapped; None when neither."""
-    for mode in (CSP, IP):
+def choose(
+    bits: int, mapped: list[tuple[int, int]], modes: tuple[int, ...] = (CSP, IP)
+) -> tuple[int, tuple[int, int]] | None:
+    """(mode, setpoint object) to stream in: the first of ``modes`` (by default cyclic synchronous
+    position, then interpolated position) the drive has (0x6502 ``bits``) with its setpoint object
+    mapped in the RPDOs (0x607A; the data record); None when none."""
+    for mode in modes:
         if bits >> (mode - 1) & 1:
             entry = next((e for e in mapped if SETPOINT_OBJECTS.get(e) == mode), None)
             if entry is not None:

@@ -262,14 +262,18 @@ def cmd_jog(args: argparse.Namespace) -> int:
     for name, value in (("--to", args.to), ("--by", args.by), ("--speed", args.speed)):
         if value is not None and not math.isfinite(value):
             raise UserError(f"{name} must be a finite number [{unit}], got {value}")
-    level = JOG_LEVEL
-    if args.speed is not None:
-        level = float(ncfg.scaling.load_to_motor(args.speed)) / ncfg.limits.max_velocity
+
+    def jog_level(cfg: NodeConfig) -> float:
+        """The share of the axis's limits (as bring-up found them) the jog runs at."""
+        if args.speed is None:
+            return JOG_LEVEL
+        level = float(cfg.scaling.load_to_motor(args.speed)) / cfg.limits.max_velocity
         if not 0 < level <= 1:
             raise UserError(
                 f"--speed {args.speed} {unit}/s must be above 0 and within the axis's limit "
-                f"{ncfg.limits.max_velocity * k:.4g} {unit}/s"
+                f"{cfg.limits.max_velocity * k:.4g} {unit}/s"
             )
+        return level
 
     def target(ax: AxisLink) -> float:
         """Where the jog goes [rad motor side], from where ``ax`` stands (homed first where it homes)."""
@@ -279,6 +283,7 @@ def cmd_jog(args: argparse.Namespace) -> int:
 
     def plans(axes: dict[str, AxisLink]) -> list[tuple[str, Plan]]:
         ax = axes[args.axis]
+        level = jog_level(ax.cfg)
         plan, _ = motion.plan(
             config,
             axes,
@@ -309,8 +314,8 @@ def cmd_jog(args: argparse.Namespace) -> int:
             {args.axis: ax},
             {args.axis: np.array([target(ax)])},
             kind="jog",
-            level=level,
-            approach_level=level,
+            level=jog_level(ax.cfg),
+            approach_level=jog_level(ax.cfg),
             on_plan=on_plan,
         )
         holding = session.holding()
@@ -332,7 +337,7 @@ def plan_lines(plan: Plan, config: BusConfig) -> str:
     from ..master.campaign import plan_summary
 
     lines = []
-    for a, d in plan_summary(plan, {n: config.nodes[n].limits for n in plan.axes}).items():
+    for a, d in plan_summary(plan, plan.limits).items():
         k, unit = own_units(config.nodes[a])
         lim = d["limits"]
         jerk = "" if lim["max_jerk_rad_s3"] is None else f" / {lim['max_jerk_rad_s3'] * k:.4g}"

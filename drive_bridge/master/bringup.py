@@ -17,6 +17,7 @@ from canopen.pdo.base import PdoBase, PdoMap
 from ..cia.od import default, limits, variable
 from ..cia.p402 import (
     ABORT_QUICK_STOP,
+    CSP,
     FAULT_REACTION_QUICK_STOP_RAMP,
     IP,
     MODE_NAMES,
@@ -28,6 +29,7 @@ from ..cia.setpoint import IP_SUB_MODE, PVT, choose, describe_modes, supported_m
 from ..config import BusConfig, MasterConfig, NodeConfig, PdoConfig
 from ..errors import BusError, DriveRefused, InternalError
 from ..outputs import hex_object, identity_hex, stamped
+from .drive_limits import read_limits
 from .drive_units import read_units, reconcile
 from .link import Clock, Link
 from .sdo_states import Drive402
@@ -361,6 +363,10 @@ def _axis(
     node = remote_node(link.network, ncfg.node_id)
     units = read_units(node, name, planned)
     ncfg = reconcile(ncfg, units, config.path)
+    from_drive: list[str] = []
+    if ncfg.limits_from_drive:
+        ncfg, from_drive = read_limits(node, ncfg, config.path)
+        log.warning("axis %s: no limits in %s, the drive's: %s", name, config.path, "; ".join(from_drive))
     if ncfg.reference == "here":  # the stroke around where the axis stands now
         try:
             here = float(ncfg.scaling.position_from_device(sdo_object(node, 0x6064, 0).raw))
@@ -380,7 +386,7 @@ def _axis(
         node,
         Drive402(node, name, link.clock, config.master.state_timeout_s),
         result.found[ncfg.node_id],
-        units=units.as_dict(),
+        units=units.as_dict() | ({"limits_from_drive": from_drive} if from_drive else {}),
     )
 
 
@@ -425,7 +431,14 @@ def _streaming_mode(
             f"the drive lists"
         )
     mapped = [e for p in ncfg.rpdo for e in p.mapping]
-    chosen = choose(bits, mapped)
+    chosen = choose(bits, mapped, (ncfg.position_mode,) if ncfg.position_mode else (CSP, IP))
+    if chosen is None and ncfg.position_mode:
+        raise DriveRefused(
+            f"axis {axis}: nodes.{axis}.position_mode in {path} is {ncfg.position_mode} "
+            f"({MODE_NAMES[ncfg.position_mode]}), but the drive supports {describe_modes(bits)} "
+            f"(0x6502 = 0x{bits:08X}) and the RPDOs map {', '.join(hex_object(*e) for e in mapped)}: "
+            f"map its setpoint object, or leave position_mode out"
+        )
     if chosen is None:
         raise DriveRefused(
             f"axis {axis}: no streaming mode: the drive supports {describe_modes(bits)} "

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
@@ -55,6 +55,8 @@ class Plan:
     #: [Nm] and velocity offset 0x60B1 [rad/s] where the RPDOs map them (None: zero offsets)
     torque_ff_Nm: np.ndarray | None = None
     velocity_ff_rad_s: np.ndarray | None = None
+    #: the limits of each axis the plan was checked against (as bring-up found them)
+    limits: dict[str, Limits] = field(default_factory=dict)
 
     @property
     def duration(self) -> float:
@@ -183,7 +185,7 @@ class _Sequence:
     def plan(self, limits: dict[str, Limits]) -> Plan:
         """The plan, checked against ``limits``."""
         demand = np.column_stack([np.concatenate(self.columns[ax]) for ax in self.axes])
-        plan = Plan(self.axes, demand, self.segments, self.period)
+        plan = Plan(self.axes, demand, self.segments, self.period, limits=dict(limits))
         check_plan(plan, limits)
         return plan
 

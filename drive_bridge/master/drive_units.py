@@ -83,7 +83,7 @@ def reconcile(ncfg: NodeConfig, units: DriveUnits, path: str | os.PathLike[str])
 
     With ``from_drive`` the drive's units replace what bus.yml leaves open; otherwise every unit the
     drive reports must agree with bus.yml, else DriveRefused (nothing of the node's limits, PDOs or
-    motion has been written yet)."""
+    motion has been written yet); a rated torque bus.yml does not give is the drive's 0x6076."""
     axis, sc = ncfg.axis, ncfg.scaling
     pos, vel = units.group.position_per_rad, units.group.velocity_per_rad_s
     if ncfg.units_from_drive:
@@ -110,6 +110,14 @@ def reconcile(ncfg: NodeConfig, units: DriveUnits, path: str | os.PathLike[str])
         units.assumed = [] if units.rated_torque_Nm is not None else [f"rated torque {sc.rated_torque_Nm} Nm"]
         return replace(ncfg, scaling=sc)
     problems, assumed = [], []
+    if not sc.rated_torque_Nm:  # bus.yml gives none (a ros2_canopen bus.yml): the drive's own
+        if units.rated_torque_Nm is None:
+            raise DriveRefused(
+                f"axis {axis}: nodes.{axis} in {path} gives no rated torque and the drive does not "
+                f"report its 0x6076: give nodes.{axis}.scaling.rated_torque_Nm"
+            )
+        sc = replace(sc, rated_torque_Nm=units.rated_torque_Nm)
+        ncfg = replace(ncfg, scaling=sc)
     if pos is None:
         assumed.append(
             f"position {sc.increments_per_rev} units per motor revolution (the drive does not report "

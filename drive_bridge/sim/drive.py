@@ -299,6 +299,7 @@ class SimDrive:
         self.node.add_read_callback(self._on_sdo_read)
         self.od = self.node.object_dictionary
         self._cache: dict[tuple[int, int], object] = {}
+        self._absent: set[tuple[int, int]] = set()  # objects its EDS/DCF does not have
         self._live = self._live_objects()
         self.pdos = PdoMapping(self.od, self._od, self._getter)
         encoder = self.od.get_variable(0x608F, 1)
@@ -378,6 +379,16 @@ class SimDrive:
             ):
                 if index in self.od:
                     self._store(index, 0, round(value))
+        if (saved := self.axis.saved_limits) is not None:  # the machine's commissioning, kept in the drive
+            for (index, sub), value in (
+                ((0x607D, 1), saved.stroke_rad[0] * self.pos_per_rad),
+                ((0x607D, 2), saved.stroke_rad[1] * self.pos_per_rad),
+                ((0x607F, 0), saved.max_velocity_rad_s * self.vel_per_si),
+                ((0x6083, 0), saved.acceleration_rad_s2 * self.vel_per_si),
+                ((0x6084, 0), saved.acceleration_rad_s2 * self.vel_per_si),
+            ):
+                if self.od.get_variable(index, sub) is not None:
+                    self._store(index, sub, round(value))
 
     def _load_gains(self, selected: bool) -> None:
         """The loops run the gain objects of the profile (``selected``) or of the one that runs
@@ -402,7 +413,12 @@ class SimDrive:
         value = self._cache.get((index, sub))  # (held: the object exists)
         if value is not None:
             return value
-        return self._od(index, sub) if self.od.get_variable(index, sub) is not None else fallback
+        if (index, sub) in self._absent:
+            return fallback
+        if self.od.get_variable(index, sub) is None:
+            self._absent.add((index, sub))  # (its object dictionary does not change)
+            return fallback
+        return self._od(index, sub)
 
     def _units(self) -> None:
         """Device units per rad and per rad/s from the factor group the drive holds (its EDS
@@ -1036,6 +1052,8 @@ class SimDrive:
         the axis stands; profile velocity reached with the demand at 0x60FF and the speed inside the
         velocity window 0x606D for 0x606E; profile position reached once the demand is at the target
         and the axis has stood inside the position window 0x6067 for 0x6068."""
+        if self.state != QUICK_STOP and self.mode not in (PV, PP, HM):
+            return  # (CSP and IP: bit 10 is not theirs)
         now, speed = self.plant.time, self.plant_state.item(kernel.VMEAS)
         if self.state == QUICK_STOP or self.halted:
             self.target_reached = self.v_dem == 0.0 and self.speed_zero()

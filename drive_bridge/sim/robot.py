@@ -197,7 +197,7 @@ class SimRobot:
         # lockstep: the SYNC period passes now (on the wall clock SYNC is :meth:`_sync_received`'s);
         # a drive making its own profile off the SYNC's grid starts its periods on their own ticks
         ticks = self.plant.ticks_per_period
-        while (step := self._ticks_to_profile_period()) < ticks:
+        while self.plant.tick0.any() and (step := self._ticks_to_profile_period()) < ticks:
             self._run_plant(step)
             self._supervise()
             ticks -= step

@@ -72,6 +72,19 @@ class SimAxis:
     brake: bool = True  # a holding brake that holds the axis whenever the power stage is off
     end_stops_rad: tuple[float, float] | None = None  # mechanical end stops, motor side
     initial_position_rad: float = 0.0  # where the axis stands at power-on
+    #: what the machine's integrator saved in the drive (SI, motor side): the software position
+    #: limits 0x607D [rad], the max profile velocity 0x607F [rad/s], the profile acceleration and
+    #: deceleration 0x6083 / 0x6084 [rad/s²] (None: the drive's factory values)
+    saved_limits: SavedLimits | None = None
+
+
+@dataclass(frozen=True)
+class SavedLimits:
+    """The limits a machine's drive holds from its commissioning (``saved_limits`` in the YAML)."""
+
+    stroke_rad: tuple[float, float]
+    max_velocity_rad_s: float
+    acceleration_rad_s2: float
 
 
 @dataclass
@@ -92,6 +105,26 @@ def _end_stops(sec: Section) -> tuple[float, float] | None:
     ):
         raise sec.error("end_stops_rad", f"must be [low, high] in rad with low < high, got {stops!r}")
     return float(stops[0]), float(stops[1])
+
+
+def _saved_limits(sec: Section) -> SavedLimits | None:
+    saved = sec.section("saved_limits", required=False)
+    if not saved.keys():
+        return None
+    stroke = saved.get("stroke_rad", list)
+    if (
+        len(stroke) != 2
+        or not all(isinstance(v, (int, float)) and abs(v) < 1e6 for v in stroke)
+        or stroke[0] >= stroke[1]
+    ):
+        raise saved.error("stroke_rad", f"must be [min, max] in rad with min < max, got {stroke!r}")
+    out = SavedLimits(
+        (float(stroke[0]), float(stroke[1])),
+        saved.get("max_velocity_rad_s", float, low=1e-6, high=1e5),
+        saved.get("acceleration_rad_s2", float, low=1e-6, high=1e7),
+    )
+    saved.done()
+    return out
 
 
 def load_sim_config(path: str | Path = DEFAULT_CONFIG) -> SimConfig:
@@ -144,6 +177,7 @@ def load_sim_config(path: str | Path = DEFAULT_CONFIG) -> SimConfig:
             brake=sec.get("brake", bool, True),
             end_stops_rad=_end_stops(sec),
             initial_position_rad=sec.get("initial_position_rad", float, 0.0, low=-1e6, high=1e6),
+            saved_limits=_saved_limits(sec),
         )
         plant.done()
         sec.done()

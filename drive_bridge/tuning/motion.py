@@ -71,6 +71,7 @@ def plan(
             Segment(kind, tuple(names), level, level, 0, n_app, n_app + len(demand[names[0]])),
         ],
         period,
+        limits=limits,
     )
     if feedforward:
         offsets = [
