@@ -29,8 +29,9 @@ def new_run_id() -> str:
 
 
 def now() -> str:
-    """The time of day as records keep it: UTC, ISO 8601."""
-    return datetime.now(timezone.utc).isoformat(timespec="seconds")
+    """The time of day as records keep it: UTC, ISO 8601, to the millisecond (two runs a second
+    apart, or less, keep their order)."""
+    return datetime.now(timezone.utc).isoformat(timespec="milliseconds")
 
 
 def file_sha256(path: str | Path) -> str | None:
