@@ -76,6 +76,7 @@ def closed_loop_log(
     coupling: tuple[float, float, float, float] | None = None,
     torque_lag_s: float = 0.0,
     multisine_hz: tuple[float, float] | None = None,
+    drift_rad_s: float = 0.0,
 ) -> dict[str, np.ndarray]:
     """Columns ``time_s`` (the stamps), ``y_position_rad``, ``y_torque_Nm``; ``payload`` = (time [s],
     inertia after it [kg·m²]): a payload change during the log; ``coupling`` = (load inertia
@@ -84,7 +85,8 @@ def closed_loop_log(
     ± backlash/2; the encoder reads the motor; ``torque_lag_s``: the torque logged is the one
     that held that long before its stamp (a drive reporting a delayed or averaged current);
     ``multisine_hz`` = (lowest, highest): the reference also carries a Schroeder-phased multisine
-    over that band (every 0.25 Hz, 0.2 rad/s each), and the log its ``y_position_demand_rad``."""
+    over that band (every 0.25 Hz, 0.2 rad/s each), and the log its ``y_position_demand_rad``;
+    ``drift_rad_s``: the reference also runs on at that speed (above 32 rad/s: it never turns back)."""
     T = 1.0 / fs_int
     n = int(np.ceil(stamps[-1] / T)) + 2
     t = np.arange(n) * T
@@ -92,6 +94,7 @@ def closed_loop_log(
     q_ref = 6.0 * np.sin(w1 * t) + 2.5 * np.sin(w2 * t + 0.3)
     v_ref = 6.0 * w1 * np.cos(w1 * t) + 2.5 * w2 * np.cos(w2 * t + 0.3)
     a_ref = -6.0 * w1**2 * np.sin(w1 * t) - 2.5 * w2**2 * np.sin(w2 * t + 0.3)
+    q_ref, v_ref = q_ref + drift_rad_s * t, v_ref + drift_rad_s
     if multisine_hz is not None:
         freqs = np.arange(multisine_hz[0], multisine_hz[1] + 1e-9, 0.25)
         phases = -np.pi * np.arange(len(freqs)) ** 2 / len(freqs)

@@ -29,9 +29,12 @@ FIT_MAX = 0.5  # a model leaving more than this share of the torque (validation)
 SPREAD_MAX = 0.25  # parts of the data that disagree (beyond their std) by more than this share of the value
 
 
-def undetermined(model: AxisModel, est: Samples, after: Errors, consistency: dict) -> dict[str, str]:
-    """Parameter (J, c0, c1) -> why the data do not determine it; absent where they do."""
-    out = {}
+def undetermined(
+    model: AxisModel, est: Samples, after: Errors, consistency: dict, cannot_tell: dict | None = None
+) -> dict[str, str]:
+    """Parameter (J, c0, c1) -> why the data do not determine it; absent where they do.
+    ``cannot_tell``: what the motion itself cannot determine (:mod:`.motion`), whatever the std."""
+    out = dict(cannot_tell or {})
     if after.relative_error > FIT_MAX:
         reason = (
             f"the model leaves {after.relative_error:.0%} of the torque unexplained on the validation "
@@ -44,6 +47,8 @@ def undetermined(model: AxisModel, est: Samples, after: Errors, consistency: dic
         phi = np.column_stack([phi, Gravity().columns(est)[est.moving]])  # what a joint's weight would be
         names += ["a joint's gravity (cos q)", "a joint's gravity (sin q)"]
     for i, p in enumerate(BASE):
+        if p in out:
+            continue  # the motion cannot tell it: said so, whatever its std
         value, std = model.params_[p], model.param_std_[p]
         spread = np.ptp(list(moved[p]["values"].values())) if p in moved else 0.0
         if spread > SPREAD_MAX * abs(value):

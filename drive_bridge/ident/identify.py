@@ -22,6 +22,7 @@ from .frf import log_response
 from .identifiable import T_MIN, undetermined
 from .logdata import Log, read_log
 from .model import JACKKNIFE_BLOCKS, MAX_DELAY_SAMPLES, AxisModel, Errors, errors, torque_delay
+from .motion import what_the_motion_tells
 from .resonance import find_mode
 from .reversal import find_reversal_transient
 from .signals import Samples, Settings, choose_settings, clipped_levels, noise_floor, prepare, whole_band
@@ -68,6 +69,8 @@ class AxisResult:
     resonance: dict | None = None
     #: residual energy concentrated after torque reversals (reversal.find_backlash)
     backlash: dict | None = None
+    #: what the motion covers and which of c0, c1 it cannot determine (motion.what_the_motion_tells)
+    motion: dict = field(default_factory=dict)
     #: J, c0, c1 the data do not determine, and why (identifiable.undetermined)
     undetermined: dict[str, str] = field(default_factory=dict)
     #: the model refitted with only the effects a drive's model carries (effects.DRIVE_EFFECTS):
@@ -154,6 +157,7 @@ class AxisResult:
             "drive_param_std": (self.drive_model or self.model).param_std_,
             "drive_rmse": (self.drive_errors or self.after).rmse,
             "drive_note": self.drive_note,
+            "motion": self.motion,
             "identifiable": {p: p not in self.undetermined for p in ("J", "c0", "c1")},
             "undetermined": self.undetermined,
             "resonance": self.resonance,
@@ -335,7 +339,10 @@ def identify_axis(
             "share": round(float(np.isin(log.axes[axis].tau, levels).mean()), 4),
         }
     _check_sign(log, axis, result.model, result.est)
-    result.undetermined = undetermined(result.model, result.est, result.after, result.consistency)
+    result.motion = what_the_motion_tells(result.est, result.units["position"])
+    result.undetermined = undetermined(
+        result.model, result.est, result.after, result.consistency, result.motion["cannot_tell"]
+    )
     _refit_for_the_drive(result, seed)
     J, c1 = result.model.params_["J"], result.model.params_["c1"]
     predicted = result.model.predict(wide)
@@ -376,7 +383,7 @@ def _refit_for_the_drive(result: AxisResult, seed: int) -> None:
         return
     drive = AxisModel(held, seed=seed, jackknife_blocks=JACKKNIFE_BLOCKS).fit(result.est)
     drive_errors = errors(drive, result.val)
-    lost = undetermined(drive, result.est, drive_errors, {})
+    lost = undetermined(drive, result.est, drive_errors, {}, result.motion.get("cannot_tell"))
     if lost:  # the drive's structure cannot hold this machine
         left = ", ".join(e.name for e in result.model.effects if e not in held)
         result.drive_note = (

@@ -13,6 +13,7 @@ from ..figures import pyplot, side_by_side
 from ..outputs import json_text, stamped, write_text
 from .frf import MIN_COHERENCE
 from .identify import AxisResult
+from .motion import motion_text
 from .trace import describe_unexplained
 
 
@@ -56,6 +57,8 @@ def summary(results: dict[str, AxisResult]) -> str:
             f"{r.settings.decimation}, {int(r.est.moving.sum())} moving samples fitted; "
             f"validation: {r.validation})"
         )
+        if r.motion:
+            lines.append(f"  {motion_text(r.motion)}")
         std = r.model.param_std_
         for k in ("J", "c0", "c1"):
             v = r.model.params_[k]
@@ -391,7 +394,7 @@ def build_report(results: dict[str, AxisResult], out: Path, source: str, figures
         doc.para(
             f"Cut-off {r.settings.cutoff_hz:.1f} Hz (motion bandwidth {r.settings.motion_bandwidth_hz:.2f} Hz), "
             f"decimation {r.settings.decimation}, {int(r.est.moving.sum())} moving samples fitted. "
-            f"Validation: {r.validation}."
+            f"Validation: {r.validation}." + (f" {motion_text(r.motion).capitalize()}." if r.motion else "")
         )
         rows = []
         for i, name in enumerate(r.model.coef_names):

@@ -275,3 +275,19 @@ def test_the_response_read_from_the_log_matches_the_plant_where_its_coherence_sa
     del cols["y_position_demand_rad"]
     plain = identify(write_log(tmp_path / "no_demand.csv", cols))["y"].response
     assert plain["method"].startswith("no position demand in the log") and "biased" in plain["method"]
+
+
+def test_a_log_that_never_turns_back_says_c0_is_collinear_with_the_offset(tmp_path):
+    """An independent plant (harness.plants, not sim/) driven one way at 8-72 rad/s: the motion is
+    stated, c0 is undetermined as collinear with the offset whatever its std, while J and c1 --
+    which the speeds and accelerations do determine -- stay within 3 std of the plant."""
+    from harness.plants import closed_loop_log, jittered
+
+    r = identify(
+        write_log(tmp_path / "oneway.csv", closed_loop_log(jittered(1000.0, 12.0, 0.0), drift_rad_s=40.0))
+    )["y"]
+    assert r.motion["directions"]["positive"] == 1.0 and set(r.motion["cannot_tell"]) == {"c0"}
+    assert "collinear with the offset" in r.undetermined["c0"]
+    p, sd = r.model.params_, r.model.param_std_
+    assert "J" not in r.undetermined and abs(p["J"] - 1e-4) <= 3 * sd["J"]
+    assert "c1" not in r.undetermined and abs(p["c1"] - 5e-4) <= 3 * sd["c1"]

@@ -71,3 +71,33 @@ def test_a_log_that_cannot_determine_the_inertia_says_so(name, est, val, axis):
     a number a pipeline would write)."""
     r = fit(name, est, val)[axis]
     assert "J" in r.undetermined and r.undetermined["J"]
+
+
+@pytest.mark.parametrize(
+    "name, axis, cannot",
+    [
+        ("odrive_cogging_comp", "ax0", {"c0"}),  # one turn one way at 0.1 rev/s, anticogging on
+        ("odrive_cogging_nocomp", "ax0", {"c0"}),  # the same, the cogging's stick-slip: 2 % backwards
+        ("kinova_gen3_j1", "j1", {"c0", "c1"}),  # one stroke one way at one speed
+    ],
+)
+def test_a_log_moving_one_way_never_gives_a_determined_c0(name, axis, cannot):
+    """The motion is stated before the fit, and what it cannot determine is undetermined whatever
+    the std: one direction makes c0 collinear with the offset, one speed does the same to c1 (the
+    anticogging ODrive printed c0 = 0.240 ± 0.024 A as determined before)."""
+    r = fit(name, "est.csv", "val.csv")[axis]
+    assert set(r.motion["cannot_tell"]) == cannot and r.motion["directions"]["positive"] > 0.95
+    assert (
+        "one direction only" in r.undetermined["c0"] and "collinear with the offset" in r.undetermined["c0"]
+    )
+    if "c1" in cannot:
+        assert "narrow band" in r.undetermined["c1"]
+    assert not r.as_json()["identifiable"]["c0"]
+
+
+@pytest.mark.parametrize("name, axis", [("kuka_kr300_a2", "a2"), ("hsm150", "hsm")])
+def test_a_log_moving_both_ways_at_many_speeds_leaves_c0_and_c1_to_the_fit(name, axis):
+    """Both directions, speeds over a wide band: the motion itself rules nothing out."""
+    r = fit(name, "est.csv", "val.csv")[axis]
+    assert r.motion["cannot_tell"] == {} and min(r.motion["directions"].values()) > 0.3
+    assert r.motion["speed"]["p90"] / r.motion["speed"]["p10"] > 1.5
