@@ -207,12 +207,18 @@ def refit_part(model: AxisModel, part: Samples) -> tuple[AxisModel | None, str |
     )
 
 
-def consistency(model: AxisModel, est: Samples, val: Samples) -> dict:
+def consistency(model: AxisModel, est: Samples, val: Samples, second_run: bool = False) -> dict:
     """The final model's coefficients refitted (its effects' nonlinear parameters kept) on the
     first and second half in time of the estimation samples and on the validation samples: J, c0
     and c1 must agree between every two within ``CONSISTENT_SIGMAS`` of their combined reported
     std.  ``consistent: false`` names each parameter that moved, its value per part and by how
-    many std (a payload change, a warm-up, a structure the model lacks)."""
+    many std (a payload change, a warm-up, a structure the model lacks).
+
+    With ``second_run`` (the validation samples are a run of their own, ``--validate``), the
+    whole estimation fit and the validation refit are two answers to one question: where a
+    parameter differs between them by more than their combined std, ``model``'s std of it is
+    widened to cover half the difference (``between_runs``: both values, by how many std, the std
+    before and after), and beyond ``CONSISTENT_SIGMAS`` it is said to differ between the runs."""
     moving_t = est.t[est.moving]
     split = float(np.median(moving_t)) if len(moving_t) else 0.0
     parts = {
@@ -245,7 +251,43 @@ def consistency(model: AxisModel, est: Samples, val: Samples) -> dict:
                 "sigmas": round(float(worst[0]), 1),
                 "between": [worst[1], worst[2]],
             }
-    return {"consistent": not moved, "parts": list(fits), "moved": moved, "degenerate": degenerate}
+    out = {"consistent": not moved, "parts": list(fits), "moved": moved, "degenerate": degenerate}
+    if second_run and "validation" in fits:
+        out["between_runs"] = _between_runs(model, fits["validation"], moved)
+        out["consistent"] = not moved
+    return out
+
+
+def _between_runs(model: AxisModel, other: AxisModel, moved: dict) -> dict:
+    """J, c0, c1 of ``model`` (the estimation run) against ``other`` (the validation run's refit):
+    each that differs beyond their combined std has ``model``'s std widened by half the difference
+    (in quadrature); beyond ``CONSISTENT_SIGMAS`` it is added to ``moved`` as differing between the
+    runs, with both values."""
+    out = {}
+    names = list(model.coef_names)
+    for p in ("J", "c0", "c1"):
+        a, b = model.params_[p], other.params_[p]
+        sa, sb = model.param_std_[p], other.param_std_[p]
+        combined = float(np.hypot(sa, sb))
+        if not combined or abs(a - b) <= combined:
+            continue
+        i = names.index(p)
+        model.cov_[i, i] += ((a - b) / 2) ** 2
+        sigmas = round(float(abs(a - b) / combined), 1)
+        out[p] = {
+            "estimation": a,
+            "validation": b,
+            "sigmas": sigmas,
+            "std_before": sa,
+            "std_after": model.param_std_[p],
+        }
+        if sigmas > CONSISTENT_SIGMAS and p not in moved:
+            moved[p] = {
+                "values": {"estimation run": a, "validation run": b},
+                "sigmas": sigmas,
+                "between": ["estimation run", "validation run"],
+            }
+    return out
 
 
 def friction_range(model: AxisModel, est: Samples) -> dict:
@@ -480,7 +522,7 @@ def _identify_axis(
     model = AxisModel(model.effects, model.method, model.seed, JACKKNIFE_BLOCKS).fit(
         est
     )  # its std from the jackknife too
-    agreement = consistency(model, est, val)
+    agreement = consistency(model, est, val, second_run=val_log is not None)
     friction = friction_range(model, est)
     floor = noise_floor(val_log, axis, vs) if val_log is not None else noise_floor(log, axis, settings)
     ga_model = AxisModel(model.effects, method="ga", seed=seed).fit(est)

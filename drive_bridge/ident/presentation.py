@@ -101,6 +101,8 @@ def summary(results: dict[str, AxisResult]) -> str:
             lines.append(f"  {delay_text(r.sampling)}")
         if r.consistency and not r.consistency["consistent"]:
             lines.append(f"  NOT CONSISTENT: {consistency_text(r.consistency)}")
+        if runs := (r.consistency or {}).get("between_runs"):
+            lines.append(f"  two runs: {between_runs_text(runs)}")
         for part, why in (r.consistency or {}).get("degenerate", {}).items():
             lines.append(f"  consistency: the {part} not compared: {why}")
     return "\n".join(lines)
@@ -149,6 +151,15 @@ def friction_text(r: AxisResult) -> str:
         f"{text}; friction is NOT linear in velocity over them ({halves}: "
         + ", ".join(f"{p} {s:g} std apart" for p, s in f["sigmas"].items())
         + "): their std is widened by half the difference"
+    )
+
+
+def between_runs_text(runs: dict) -> str:
+    """The parameters the estimation and the validation run give differently, and the std widened."""
+    return "; ".join(
+        f"{p} {m['estimation']:.4g} from the estimation run, {m['validation']:.4g} from the validation "
+        f"run ({m['sigmas']:.3g} std apart): its std widened {m['std_before']:.2g} -> {m['std_after']:.2g}"
+        for p, m in runs.items()
     )
 
 
@@ -459,6 +470,8 @@ def build_report(results: dict[str, AxisResult], out: Path, source: str, figures
             doc.para(_sentence(friction_text(r)))
         if r.consistency and not r.consistency["consistent"]:
             doc.para([Strong("Not consistent:"), f" {consistency_text(r.consistency)}."])
+        if runs := (r.consistency or {}).get("between_runs"):
+            doc.para([Strong("Two runs:"), f" {between_runs_text(runs)}."])
         for name, why in r.undetermined.items():
             doc.para(
                 [Strong(f"{name} undetermined:"), f" {why}; it is not used to tune nor written to a drive."]
