@@ -25,7 +25,16 @@ from .model import JACKKNIFE_BLOCKS, MAX_DELAY_SAMPLES, AxisModel, Errors, error
 from .motion import what_the_motion_tells
 from .resonance import find_mode
 from .reversal import find_reversal_transient
-from .signals import Samples, Settings, choose_settings, clipped_levels, noise_floor, prepare, whole_band
+from .signals import (
+    FilterTooNarrow,
+    Samples,
+    Settings,
+    choose_settings,
+    clipped_levels,
+    noise_floor,
+    prepare,
+    whole_band,
+)
 from .trace import MIN_GAIN, TracedEffect, trace, unexplained
 
 logger = logging.getLogger(__name__)
@@ -348,18 +357,30 @@ def identify_axis(
             and below < settings.cutoff_hz
             and below >= MIN_CUTOFF_BANDWIDTHS * settings.motion_bandwidth_hz
         ):
-            result = _identify_axis(
-                log,
-                axis,
-                val_log,
-                seed,
-                below,
-                None,
-                given or (0.0, "not estimated: the resonance shifts the torque's phase by more than a delay"),
-            )
-            mode = {**mode, "cutoff_moved_from_hz": round(settings.cutoff_hz, 2)}
-            if result.settings.torque_delay_s != settings.torque_delay_s:
-                wide = whole_band(log, axis, result.settings)  # the positions as the new fit reads them
+            try:
+                moved = _identify_axis(
+                    log,
+                    axis,
+                    val_log,
+                    seed,
+                    below,
+                    None,
+                    given
+                    or (0.0, "not estimated: the resonance shifts the torque's phase by more than a delay"),
+                )
+            except FilterTooNarrow as exc:  # below the mode the log holds too little: the band stays
+                mode = {
+                    **mode,
+                    "cutoff_kept_hz": round(settings.cutoff_hz, 2),
+                    "why_kept": f"at {below:.3g} Hz, below the mode, "
+                    + str(exc).split(f"axis {axis!r}: ", 1)[-1]
+                    + ": the fit keeps the band above it, the mode inside",
+                }
+            else:
+                result = moved
+                mode = {**mode, "cutoff_moved_from_hz": round(settings.cutoff_hz, 2)}
+                if result.settings.torque_delay_s != settings.torque_delay_s:
+                    wide = whole_band(log, axis, result.settings)  # the positions as the new fit reads them
         result.resonance = mode
         result.unexplained.append(
             {
@@ -371,7 +392,11 @@ def identify_axis(
                 "damping": mode["damping"],
                 "mains": mode["mains"],
                 "evidence": None,
-                **{k: v for k, v in mode.items() if k == "cutoff_moved_from_hz"},
+                **{
+                    k: v
+                    for k, v in mode.items()
+                    if k in ("cutoff_moved_from_hz", "cutoff_kept_hz", "why_kept")
+                },
             }
         )
     levels = clipped_levels(log.axes[axis].tau)

@@ -31,7 +31,14 @@ logger = logging.getLogger(__name__)
 FILTER_ORDER = 4
 MOTION_POWER = 0.99  # the motion bandwidth holds this share of the velocity power
 CUTOFF_FACTOR = 25.0  # cut-off = 25 x the motion bandwidth (~5 x a closed-loop bandwidth,
+
+
 # itself ~5 x the motion's; EMPS: 4.15 Hz -> 104 Hz, reference 100 Hz)
+class FilterTooNarrow(UserError):
+    """The log, through the filter and decimation chosen, leaves too little to fit (a band below a
+    resonance is then not taken: :func:`~drive_bridge.ident.identify.identify_axis`)."""
+
+
 MAX_CUTOFF_SHARE = 0.2  # ... at most this share of the log's rate: above it the derivatives of the
 # quantised position are noise (a multisine at 14 Hz on a 500 Hz log: 100 Hz)
 QUANTISATION_SHARE = 1e-3  # ... and where the position is on counts, its acceleration noise below this
@@ -586,7 +593,7 @@ def prepare(log: Log, axis: str, settings: Settings) -> Samples:
             for i, x in enumerate((signal.sosfiltfilt(sos, oq), oqd, oqdd)):
                 lists[i].append(_decimate(x[keep], settings))
     if not parts["t"]:
-        raise UserError(
+        raise FilterTooNarrow(
             f"{log.path}: axis {axis!r}: every usable run is shorter than the filter needs "
             f"({2 * edge + 27 * r} samples)"
         )
@@ -602,7 +609,7 @@ def prepare(log: Log, axis: str, settings: Settings) -> Samples:
     if vmax == 0 or np.ptp(cat["q"]) == 0:
         raise UserError(f"{log.path}: axis {axis!r} does not move")
     if moving.sum() < MIN_MOVING:
-        raise UserError(
+        raise FilterTooNarrow(
             f"{log.path}: axis {axis!r}: only {int(moving.sum())} moving samples after filtering "
             f"and decimation (need {MIN_MOVING}); record longer or with more motion"
         )

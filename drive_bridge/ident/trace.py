@@ -354,6 +354,8 @@ def describe_unexplained(d: dict) -> str:
         moved = (
             f"; the cut-off was moved from {d['cutoff_moved_from_hz']:.3g} Hz below it"
             if d.get("cutoff_moved_from_hz")
+            else f"; the cut-off stays at {d['cutoff_kept_hz']:.3g} Hz: {d['why_kept']}"
+            if d.get("cutoff_kept_hz")
             else ""
         )
         return (
