@@ -286,7 +286,9 @@ def test_profile_velocity_takes_its_ramp_time_and_says_reached_only_at_speed(nod
     assert reached == pytest.approx(1.0, rel=0.1), reached
     ramping = (t[1:] > 0.1) & (t[1:] < reached - 0.05)
     assert not np.any(word[1:][ramping] & 0x0400)  # not reached while it ramps ...
-    assert np.all(v[ramping] < 4.0 * 0.98)  # ... below speed
+    # ... below speed: ramping (the mean of a ramp from 0.1 s to its end; frame by frame the reception
+    # stamps of a loaded machine scatter the velocity read from them by several %)
+    assert np.mean(v[ramping]) == pytest.approx(0.5 * 4.0 * (0.1 + reached - 0.05), rel=0.15)
     at_speed = t[1:] > reached + 0.02
     assert np.all(word[1:][at_speed] & 0x0400)  # reached ...
     assert np.median(v[at_speed]) == pytest.approx(4.0, rel=0.02)  # ... at the target velocity
