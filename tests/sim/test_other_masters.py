@@ -4,6 +4,7 @@ user testing their own master would start it."""
 
 from __future__ import annotations
 
+import contextlib
 import math
 import subprocess
 import sys
@@ -243,16 +244,15 @@ def velocity(t: np.ndarray, position: np.ndarray) -> np.ndarray:
     return np.diff(position) / np.diff(t) / PER_REV
 
 
-@pytest.fixture
-def node402(drives) -> Iterator[tuple[canopen.BaseNode402, Tpdo1]]:
-    """Node 2 as canopen's CiA 402 node, OPERATIONAL, SYNC every 10 ms with its RPDO1
+@contextlib.contextmanager
+def operational(network: canopen.Network, node_id: int) -> Iterator[tuple[canopen.BaseNode402, Tpdo1]]:
+    """Node ``node_id`` as canopen's CiA 402 node, OPERATIONAL, SYNC every 10 ms with its RPDO1
     (controlword, target) sent after each as a periodic PDO; left SWITCH ON DISABLED."""
-    network = drives
-    node = canopen.BaseNode402(2, str(PROJECT_EDS))
+    node = canopen.BaseNode402(node_id, str(PROJECT_EDS))
     network.add_node(node)
     node.nmt.state = "PRE-OPERATIONAL"
     node.setup_402_state_machine()
-    tpdo = Tpdo1(network, 2)
+    tpdo = Tpdo1(network, node_id)
     node.nmt.state = "OPERATIONAL"
     node.rpdo[1][0].raw, node.rpdo[1][1].raw = 0x06, node.sdo[0x6064].raw
     network.sync.start(0.01)
@@ -263,7 +263,14 @@ def node402(drives) -> Iterator[tuple[canopen.BaseNode402, Tpdo1]]:
         node.state = "SWITCH ON DISABLED"
         node.rpdo[1].stop()
         network.sync.stop()
-        del network[2]
+        del network[node_id]
+
+
+@pytest.fixture
+def node402(drives) -> Iterator[tuple[canopen.BaseNode402, Tpdo1]]:
+    """Node 2, :func:`operational`."""
+    with operational(drives, 2) as started:
+        yield started
 
 
 def test_profile_velocity_takes_its_ramp_time_and_says_reached_only_at_speed(node402):
@@ -372,18 +379,7 @@ def test_homing_on_the_limit_switch_says_attained_and_reached_as_cia_402_tables_
     'in progress' (10 and 12 clear); then 'attained' and, once at rest, 'completed' (10 and 12
     set), the position counted from the switch's edge as home (0x607C = 0), the search moving at
     the zero speed 0x6099:2."""
-    network = drives
-    node = canopen.BaseNode402(3, str(PROJECT_EDS))
-    network.add_node(node)
-    node.nmt.state = "PRE-OPERATIONAL"
-    node.setup_402_state_machine()
-    tpdo = Tpdo1(network, 3)
-    node.nmt.state = "OPERATIONAL"
-    pdo = node.rpdo[1]
-    pdo[0].raw, pdo[1].raw = 0x06, node.sdo[0x6064].raw
-    network.sync.start(0.01)
-    pdo.start(0.01)
-    try:
+    with operational(drives, 3) as (node, tpdo):
         node.op_mode = "HOMING"
         zero_speed = PER_REV // 10  # 0.1 rev/s
         node.sdo[0x6098].raw, node.sdo[0x609A].raw, node.sdo[0x607C].raw = 17, 10 * PER_REV, 0
@@ -394,9 +390,8 @@ def test_homing_on_the_limit_switch_says_attained_and_reached_as_cia_402_tables_
             time.sleep(0.2)
         node.state = "OPERATION ENABLED"
         tpdo.wait(0x3400, 0x0400, 2.0)  # homing not started
-
         start = time.time()
-        pdo[0].raw = 0x1F  # start homing
+        node.rpdo[1][0].raw = 0x1F  # start homing
         attained = tpdo.wait(0x1000, 0x1000, 10.0) - start
         completed = tpdo.wait(0x3400, 0x1400, 3.0) - start
         t, word, position = tpdo.since(start)
@@ -407,11 +402,6 @@ def test_homing_on_the_limit_switch_says_attained_and_reached_as_cia_402_tables_
         assert abs(position[first]) < 0.1 * 0.03 * PER_REV  # attained on the edge (3 periods at the zero
         # speed), counted as home
         assert completed > attained and abs(position[-1]) < 0.01 * PER_REV
-    finally:
-        pdo[0].raw = 0x06
-        time.sleep(0.05)
-        pdo.stop()
-        network.sync.stop()
 
 
 def _is_masters(cob_id: int) -> bool:
