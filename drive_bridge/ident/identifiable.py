@@ -33,7 +33,8 @@ def undetermined(
     model: AxisModel, est: Samples, after: Errors, consistency: dict, cannot_tell: dict | None = None
 ) -> dict[str, str]:
     """Parameter (J, c0, c1) -> why the data do not determine it; absent where they do.
-    ``cannot_tell``: what the motion itself cannot determine (:mod:`.motion`), whatever the std."""
+    ``cannot_tell``: what is undetermined whatever the std -- what the motion itself cannot tell
+    (:mod:`.motion`), a J that depends on the band (:func:`.identify.band_dependence`)."""
     out = dict(cannot_tell or {})
     if after.relative_error > FIT_MAX:
         reason = (

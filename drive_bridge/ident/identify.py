@@ -80,6 +80,8 @@ class AxisResult:
     backlash: dict | None = None
     #: what the motion covers and which of c0, c1 it cannot determine (motion.what_the_motion_tells)
     motion: dict = field(default_factory=dict)
+    #: J refitted in half the band (band_dependence): the band it holds across, or why not
+    band: dict = field(default_factory=dict)
     #: J, c0, c1 the data do not determine, and why (identifiable.undetermined)
     undetermined: dict[str, str] = field(default_factory=dict)
     #: the model refitted with only the effects a drive's model carries (effects.DRIVE_EFFECTS):
@@ -167,6 +169,7 @@ class AxisResult:
             "drive_rmse": (self.drive_errors or self.after).rmse,
             "drive_note": self.drive_note,
             "motion": self.motion,
+            "band": self.band,
             "identifiable": {p: p not in self.undetermined for p in ("J", "c0", "c1")},
             "undetermined": self.undetermined,
             "resonance": self.resonance,
@@ -330,6 +333,45 @@ def friction_range(model: AxisModel, est: Samples) -> dict:
     return out
 
 
+def band_dependence(log: Log, axis: str, result: AxisResult) -> dict:
+    """J refitted with the final model (its effects' nonlinear parameters kept) on the log filtered
+    at half the cut-off: a J that differs between the two bands by more than ``CONSISTENT_SIGMAS``
+    of their combined std depends on the band the fit uses (a mode, a torque delay, a term the
+    model lacks between them) and gets ``why`` with both values, the range it lies in at best.
+    Not checked where half the cut-off would cut into the motion itself, or the log holds too
+    little there (said in ``not_checked``)."""
+    settings = result.settings
+    half = replace(settings, cutoff_hz=settings.cutoff_hz / 2, edge=2 * settings.edge)
+    floor = MIN_CUTOFF_BANDWIDTHS * settings.motion_bandwidth_hz
+    if half.cutoff_hz < floor <= settings.cutoff_hz:  # (a cut-off held below that floor by the
+        # log's rate says the motion's bandwidth was read off noise: checked all the same)
+        return {"not_checked": f"half the cut-off, {half.cutoff_hz:.3g} Hz, would cut into the motion"}
+    try:
+        fit, why = refit_part(result.model, prepare(log, axis, half))
+    except FilterTooNarrow as exc:
+        return {"not_checked": str(exc).split(f"axis {axis!r}: ", 1)[-1]}
+    if fit is None:
+        return {"not_checked": why or "too few samples in half the band"}
+    j, sj = result.model.params_["J"], result.model.param_std_["J"]
+    j2, sj2 = fit.params_["J"], fit.param_std_["J"]
+    combined = float(np.hypot(sj, sj2))
+    sigmas = abs(j - j2) / combined if combined else 0.0
+    out = {
+        "cutoff_hz": settings.cutoff_hz,
+        "half_hz": half.cutoff_hz,
+        "J_half": j2,
+        "sigmas": round(sigmas, 1),
+    }
+    if sigmas > CONSISTENT_SIGMAS:
+        low, high = sorted((j, j2))
+        out["why"] = (
+            f"J depends on the band the fit uses: {j:.4g} at {settings.cutoff_hz:.3g} Hz, {j2:.4g} at "
+            f"{half.cutoff_hz:.3g} Hz ({sigmas:.2g} std apart), so at best it lies in {low:.4g} .. {high:.4g} "
+            f"(a mode, a torque delay or a term the model lacks between the two bands)"
+        )
+    return out
+
+
 def identify_axis(
     log: Log,
     axis: str,
@@ -407,8 +449,13 @@ def identify_axis(
         }
     _check_sign(log, axis, result.model, result.est)
     result.motion = what_the_motion_tells(result.est, result.units["position"])
+    result.band = band_dependence(log, axis, result)
     result.undetermined = undetermined(
-        result.model, result.est, result.after, result.consistency, result.motion["cannot_tell"]
+        result.model,
+        result.est,
+        result.after,
+        result.consistency,
+        {**result.motion["cannot_tell"], **({"J": result.band["why"]} if "why" in result.band else {})},
     )
     _refit_for_the_drive(result, seed)
     J, c1 = result.model.params_["J"], result.model.params_["c1"]

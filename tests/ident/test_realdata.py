@@ -130,3 +130,14 @@ def test_a_short_log_with_a_low_mode_is_answered_in_the_band_it_supports(name, a
     assert "parts of the data disagree" in r.undetermined["J"]
     if axis == "a1":
         assert "c0" not in r.undetermined and "c1" not in r.undetermined
+
+
+def test_an_inertia_that_depends_on_the_band_is_given_as_a_range_not_a_value():
+    """The Kinova stroke as one log: J came out 0.0078 ± 0.0025, determined, from a 200 Hz band,
+    while half that band gives 0.033 (5 std apart): J is undetermined, with both bands, both values
+    and the range it lies in at best. A log whose J holds across the bands keeps it (HSM150)."""
+    r = fit("kinova_gen3_j1", "full.csv")["j1"]
+    assert r.band["sigmas"] > 3 and "depends on the band" in r.undetermined["J"]
+    assert f"{r.band['J_half']:.4g}" in r.undetermined["J"]
+    held = fit("hsm150", "est.csv", "val.csv")["hsm"]
+    assert held.band["sigmas"] <= 3 and "J" not in held.undetermined
