@@ -19,7 +19,7 @@ from ..errors import UserError
 from ..forking import fork_map, processes
 from .effects import DRIVE_EFFECTS, Effect, Gravity, Offset
 from .frf import log_response
-from .identifiable import T_MIN, undetermined
+from .identifiable import SPREAD_MAX, T_MIN, undetermined
 from .logdata import Log, read_log
 from .model import JACKKNIFE_BLOCKS, MAX_DELAY_SAMPLES, AxisModel, Errors, errors, torque_delay
 from .motion import what_the_motion_tells
@@ -336,8 +336,10 @@ def friction_range(model: AxisModel, est: Samples) -> dict:
 def band_dependence(log: Log, axis: str, result: AxisResult) -> dict:
     """J refitted with the final model (its effects' nonlinear parameters kept) on the log filtered
     at half the cut-off: a J that differs between the two bands by more than ``CONSISTENT_SIGMAS``
-    of their combined std depends on the band the fit uses (a mode, a torque delay, a term the
-    model lacks between them) and gets ``why`` with both values, the range it lies in at best.
+    of their combined std and by more than ``SPREAD_MAX`` of its value (as parts of the data must,
+    :mod:`.identifiable`: a long clean log's std is so small that a filter's 0.3 % is 3 std) depends
+    on the band the fit uses (a mode, a torque delay, a term the model lacks between them) and gets
+    ``why`` with both values, the range it lies in at best.
     Not checked where half the cut-off would cut into the motion itself, or the log holds too
     little there (said in ``not_checked``)."""
     settings = result.settings
@@ -356,13 +358,15 @@ def band_dependence(log: Log, axis: str, result: AxisResult) -> dict:
     j2, sj2 = fit.params_["J"], fit.param_std_["J"]
     combined = float(np.hypot(sj, sj2))
     sigmas = abs(j - j2) / combined if combined else 0.0
+    spread = abs(j - j2) / max(abs(j), abs(j2)) if j or j2 else 0.0
     out = {
         "cutoff_hz": settings.cutoff_hz,
         "half_hz": half.cutoff_hz,
         "J_half": j2,
         "sigmas": round(sigmas, 1),
+        "relative": round(spread, 4),
     }
-    if sigmas > CONSISTENT_SIGMAS:
+    if sigmas > CONSISTENT_SIGMAS and spread > SPREAD_MAX:
         low, high = sorted((j, j2))
         out["why"] = (
             f"J depends on the band the fit uses: {j:.4g} at {settings.cutoff_hz:.3g} Hz, {j2:.4g} at "
