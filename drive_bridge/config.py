@@ -449,10 +449,11 @@ def _position_mode(sec: Section, ignored: set[str]) -> int | None:
     return mode
 
 
-def _ros_velocity_scale(sec: Section, data: dict, feed: float | None, inc: int | None) -> float:
+def _ros_velocity_scale(sec: Section, data: dict, feed: float | None) -> float | None:
     """Device velocity units per motor rad/s from ros2_canopen's ``scale_vel_to_dev`` (device units
-    per rad/s of the axis, or per m/s with a feed); where it is not given, the position's units per
-    second. Each ``_from_dev`` given must be its ``_to_dev``'s inverse."""
+    per rad/s of the axis, or per m/s with a feed); None where it is not given (the position's
+    units per second, :class:`~drive_bridge.units.Scaling`'s own). Each ``_from_dev`` given must
+    be its ``_to_dev``'s inverse."""
     for to_dev, from_dev in ROS_SCALES:
         forth, back = data.get(to_dev), data.get(from_dev)
         for key, value in ((to_dev, forth), (from_dev, back)):
@@ -466,7 +467,7 @@ def _ros_velocity_scale(sec: Section, data: dict, feed: float | None, inc: int |
             )
     per_axis_unit = data.get("scale_vel_to_dev")
     if per_axis_unit is None:
-        return (inc or 0) / (2 * math.pi)
+        return None
     return float(per_axis_unit) * ((feed or 2 * math.pi) / (2 * math.pi))
 
 
@@ -550,18 +551,19 @@ def _node(
             sc.get("rated_current_A", float, low=1e-6, high=1e5) / 1000.0 if unit_ == "permille" else 1e-3
         )
     inc = sc.get("increments_per_rev", int, None, low=1, high=2**31 - 1)
-    if inc is None and finite_number(scale_pos) and scale_pos > 0 and not from_drive:
-        inc = round(scale_pos * (feed or 2 * math.pi))  # ros2_canopen: device units per rad (or m)
+    # ros2_canopen: device units per rad (or m): per motor revolution
+    per_rev = scale_pos * (feed or 2 * math.pi) if finite_number(scale_pos) and scale_pos > 0 else None
+    if inc is None and per_rev is not None and not from_drive:
+        inc = round(per_rev)
         ignored.discard("scale_pos_to_dev")
         if ros_units:
             ignored.difference_update(k for pair in ROS_SCALES for k in pair)
-    elif inc is not None and finite_number(scale_pos) and scale_pos > 0:  # both: they must agree
-        if round(scale_pos * (feed or 2 * math.pi)) != inc:
+    elif inc is not None and per_rev is not None:  # both: they must agree
+        if round(per_rev) != inc:
             raise sec.error(
                 "scale_pos_to_dev",
-                f"{scale_pos} device units per {'m' if feed else 'rad'} is "
-                f"{scale_pos * (feed or 2 * math.pi):.6g} per motor revolution, but "
-                f"scaling.increments_per_rev is {inc}: give one, or make them agree",
+                f"{scale_pos} device units per {'m' if feed else 'rad'} is {per_rev:.6g} per motor "
+                f"revolution, but scaling.increments_per_rev is {inc}: give one, or make them agree",
             )
         ignored.discard("scale_pos_to_dev")
     position_mode = _position_mode(sec, ignored)
@@ -585,7 +587,7 @@ def _node(
         rated_torque_Nm=sc.get(
             "rated_torque_Nm", float, 0.0 if from_drive or ros_units else ..., low=1e-6, high=1e6
         ),
-        velocity_units_per_rad_s=_ros_velocity_scale(sec, data, feed, inc) if ros_units else None,
+        velocity_units_per_rad_s=_ros_velocity_scale(sec, data, feed) if ros_units else None,
         feed_m_per_rev=feed,
         torque_feedback=feedback,
         current_per_unit_A=per_unit,
@@ -601,7 +603,7 @@ def _node(
     qs = lim.get(f"quick_stop_deceleration_{unit}_s2", float, None, low=1e-9, high=1e8)
     fe_timeout = lim.get("following_error_timeout_ms", int, 10, low=1, high=65535)
     max_torque = lim.get("max_torque_Nm", float, None, low=1e-6, high=1e6)
-    if limits_from_drive:  # read at bring-up (:mod:`.master.drive_units`): until then nothing may move
+    if limits_from_drive:  # read at bring-up (:mod:`.master.drive_limits`): until then nothing may move
         limits = NO_MOTION
     else:
         stroke = lim.get("stroke_" + unit, list)

@@ -271,9 +271,7 @@ def test_a_bus_yml_as_ros2_canopens_users_write_it_scans_and_commissions(tmp_pat
     0x607F, 0x6083/0x6084: the simulated machine's integrator left them there), the torque added to
     a TPDO with room, each said with its value; then scan and commission run on the simulated
     robot, within the limits the drive holds."""
-    (tmp_path / "drive_bridge_servo.eds").write_bytes(EDS.read_bytes())
-    bus = tmp_path / "bus.yml"
-    bus.write_text(AS_ROS2_USERS_WRITE_IT)
+    bus = _as_ros2_users_write_it(tmp_path)
     config = load_bus_config(bus)
     x = config.nodes["x"]
     assert x.limits_from_drive and x.position_mode == 8
@@ -326,3 +324,31 @@ def test_a_ros2_canopen_key_drive_bridge_cannot_honour_is_one_message(tmp_path, 
     with pytest.raises(ConfigError) as refused:
         load_bus_config(bus)
     assert f"nodes.x.{key}" in str(refused.value) and words in str(refused.value)
+
+
+def _as_ros2_users_write_it(tmp_path) -> str:
+    (tmp_path / "drive_bridge_servo.eds").write_bytes(EDS.read_bytes())
+    bus = tmp_path / "bus.yml"
+    bus.write_text(AS_ROS2_USERS_WRITE_IT)
+    return str(bus)
+
+
+def test_without_limits_in_bus_yml_or_in_the_drive_nothing_moves(tmp_path, capsys):
+    """The same bus.yml on a machine whose drives hold no software position limits (the compliant
+    simulated robot: factory values, 0x607D 0..0): nothing says how far the axis may travel, so
+    the run is refused at bring-up, naming the object and both ways out -- and no axis moved."""
+    bus = _as_ros2_users_write_it(tmp_path)
+    args = ["record", "--sim", "--sim-config", "compliant", "--quick", "--axes", "y", "--config", bus]
+    assert main([*args, "--yes", "--out", str(tmp_path / "run")]) != 0
+    err = capsys.readouterr().err
+    assert "the drive holds no stroke (software position limits 0x607D)" in err
+    assert "give nodes.y.limits" in err
+    assert not (tmp_path / "run" / "log.csv").exists()
+
+
+def test_a_jog_faster_than_the_limit_the_drive_holds_is_refused(tmp_path, capsys):
+    """--speed is judged against the limit bring-up read from the drive (x: 0x607F/1.25 = 8.38 rad/s),
+    not against the no-motion placeholder the bus.yml leaves until then."""
+    bus = _as_ros2_users_write_it(tmp_path)
+    assert main(["jog", "x", "--sim", "--config", bus, "--by", "0.5", "--speed", "9.0", "--yes"]) != 0
+    assert "within the axis's limit 8.378 rad/s" in capsys.readouterr().err

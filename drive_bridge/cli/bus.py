@@ -308,14 +308,15 @@ def cmd_jog(args: argparse.Namespace) -> int:
                 file=sys.stderr,
             )
 
+        level = jog_level(ax.cfg)
         moved = motion.run(
             config,
             session.link,
             {args.axis: ax},
             {args.axis: np.array([target(ax)])},
             kind="jog",
-            level=jog_level(ax.cfg),
-            approach_level=jog_level(ax.cfg),
+            level=level,
+            approach_level=level,
             on_plan=on_plan,
         )
         holding = session.holding()

@@ -21,7 +21,7 @@ from .effects import DRIVE_EFFECTS, Effect, Gravity, Offset
 from .frf import log_response
 from .identifiable import SPREAD_MAX, T_MIN, undetermined
 from .logdata import Log, read_log
-from .model import JACKKNIFE_BLOCKS, MAX_DELAY_SAMPLES, AxisModel, Errors, errors, torque_delay
+from .model import BASE, JACKKNIFE_BLOCKS, MAX_DELAY_SAMPLES, AxisModel, Errors, errors, torque_delay
 from .motion import what_the_motion_tells
 from .resonance import find_mode
 from .reversal import find_reversal_transient
@@ -263,11 +263,22 @@ def consistency(model: AxisModel, est: Samples, val: Samples, second_run: bool =
                 "sigmas": round(float(worst[0]), 1),
                 "between": [worst[1], worst[2]],
             }
+    runs = _between_runs(model, fits["validation"], moved) if second_run and "validation" in fits else None
     out = {"consistent": not moved, "parts": list(fits), "moved": moved, "degenerate": degenerate}
-    if second_run and "validation" in fits:
-        out["between_runs"] = _between_runs(model, fits["validation"], moved)
-        out["consistent"] = not moved
+    if runs is not None:
+        out["between_runs"] = runs
     return out
+
+
+def _widen(model: AxisModel, p: str, gap: float) -> None:
+    """``model``'s std of J, c0 or c1 (``p``) widened, in quadrature, by half ``gap``."""
+    i = BASE.index(p)
+    model.cov_[i, i] += (gap / 2) ** 2
+
+
+def _reason(exc: Exception, axis: str) -> str:
+    """What a refusal of ``axis`` says, without the log and axis it names."""
+    return str(exc).split(f"axis {axis!r}: ", 1)[-1]
 
 
 def _between_runs(model: AxisModel, other: AxisModel, moved: dict) -> dict:
@@ -276,15 +287,13 @@ def _between_runs(model: AxisModel, other: AxisModel, moved: dict) -> dict:
     (in quadrature); beyond ``CONSISTENT_SIGMAS`` it is added to ``moved`` as differing between the
     runs, with both values."""
     out = {}
-    names = list(model.coef_names)
     for p in ("J", "c0", "c1"):
         a, b = model.params_[p], other.params_[p]
         sa, sb = model.param_std_[p], other.param_std_[p]
         combined = float(np.hypot(sa, sb))
         if not combined or abs(a - b) <= combined:
             continue
-        i = names.index(p)
-        model.cov_[i, i] += ((a - b) / 2) ** 2
+        _widen(model, p, a - b)
         sigmas = round(float(abs(a - b) / combined), 1)
         out[p] = {
             "estimation": a,
@@ -323,11 +332,11 @@ def friction_range(model: AxisModel, est: Samples) -> dict:
     slow, fast = halves["slower"], halves["faster"]
     out.update({n: {p: f.params_[p] for p in ("c0", "c1")} for n, f in halves.items()})
     widen = {}
-    for p, i in (("c0", 2), ("c1", 1)):
+    for p in ("c0", "c1"):
         gap = abs(slow.params_[p] - fast.params_[p])
         if gap > CONSISTENT_SIGMAS * np.hypot(slow.param_std_[p], fast.param_std_[p]):
             widen[p] = round(float(gap / np.hypot(slow.param_std_[p], fast.param_std_[p])), 1)
-            model.cov_[i, i] += (gap / 2) ** 2
+            _widen(model, p, gap)
     if widen:
         out.update(linear=False, sigmas=widen)
     return out
@@ -351,7 +360,7 @@ def band_dependence(log: Log, axis: str, result: AxisResult) -> dict:
     try:
         fit, why = refit_part(result.model, prepare(log, axis, half))
     except FilterTooNarrow as exc:
-        return {"not_checked": str(exc).split(f"axis {axis!r}: ", 1)[-1]}
+        return {"not_checked": _reason(exc, axis)}
     if fit is None:
         return {"not_checked": why or "too few samples in half the band"}
     j, sj = result.model.params_["J"], result.model.param_std_["J"]
@@ -418,9 +427,8 @@ def identify_axis(
                 mode = {
                     **mode,
                     "cutoff_kept_hz": round(settings.cutoff_hz, 2),
-                    "why_kept": f"at {below:.3g} Hz, below the mode, "
-                    + str(exc).split(f"axis {axis!r}: ", 1)[-1]
-                    + ": the fit keeps the band above it, the mode inside",
+                    "why_kept": f"at {below:.3g} Hz, below the mode, {_reason(exc, axis)}: the fit "
+                    "keeps the band above it, the mode inside",
                 }
             else:
                 result = moved
@@ -501,7 +509,7 @@ def _refit_for_the_drive(result: AxisResult, seed: int) -> None:
         return
     drive = AxisModel(held, seed=seed, jackknife_blocks=JACKKNIFE_BLOCKS).fit(result.est)
     drive_errors = errors(drive, result.val)
-    lost = undetermined(drive, result.est, drive_errors, {}, result.motion.get("cannot_tell"))
+    lost = undetermined(drive, result.est, drive_errors, {})
     if lost:  # the drive's structure cannot hold this machine
         left = ", ".join(e.name for e in result.model.effects if e not in held)
         result.drive_note = (

@@ -49,6 +49,11 @@ def read_limits(
         value = read_if_readable(node, index, sub, f"axis {axis}'s limits")
         return None if value is None else int(value)
 
+    def limit(index: int) -> int | None:
+        """The limit the drive holds in ``index``; None where it has none (absent, 0, or 0xFFFFFFFF)."""
+        value = read(index)
+        return None if value in NO_LIMIT else value
+
     def refused(what: str, objects: str) -> DriveRefused:
         return DriveRefused(
             f"axis {axis}: nodes.{axis} in {path} has no limits, and the drive holds no {what} "
@@ -63,10 +68,9 @@ def read_limits(
         raise refused("stroke", "software position limits 0x607D")
     stroke = (low / per_rad, high / per_rad)
     said.append(f"stroke {stroke[0]:.6g} .. {stroke[1]:.6g} rad (0x607D)")
-    velocity = read(0x607F)
-    if velocity not in NO_LIMIT and velocity is not None:
+    if (velocity := limit(0x607F)) is not None:
         drive_max, source = velocity / per_rad_s, "0x607F"
-    elif (rpm := read(0x6080)) not in NO_LIMIT and rpm is not None:
+    elif (rpm := limit(0x6080)) is not None:
         drive_max, source = rpm * 2 * math.pi / 60.0, "0x6080"
     else:
         raise refused("velocity limit", "max profile velocity 0x607F or max motor speed 0x6080")
@@ -75,15 +79,15 @@ def read_limits(
     )
     acceleration = None
     for pair in ((0x60C5, 0x60C6), (0x6083, 0x6084)):
-        values = [v for v in (read(i) for i in pair) if v not in NO_LIMIT and v is not None]
+        values = [v for v in map(limit, pair) if v is not None]
         if values:
             acceleration = min(values) / per_rad_s  # acceleration units: velocity units per s
             said.append(f"max acceleration {acceleration:.6g} rad/s² (0x{pair[0]:04X}/0x{pair[1]:04X})")
             break
     if acceleration is None:
         raise refused("acceleration limit", "0x60C5/0x60C6 or 0x6083/0x6084")
-    quick_stop = read(0x6085)
-    if quick_stop in NO_LIMIT or quick_stop is None:
+    quick_stop = limit(0x6085)
+    if quick_stop is None:
         deceleration = 2 * acceleration
         said.append(f"quick-stop deceleration {deceleration:.6g} rad/s² (default: twice the acceleration)")
     else:

@@ -218,10 +218,14 @@ class Dwell:
     def __init__(self) -> None:
         self.since: float | None = None
 
+    def restart(self) -> None:
+        """Not inside since any time: the next ``held`` starts the count."""
+        self.since = None
+
     def held(self, inside: bool, now: float, duration: float) -> bool:
         """Whether ``inside`` has been true since at least ``duration`` [s] before ``now`` [s]."""
         if not inside:
-            self.since = None
+            self.restart()
             return False
         if self.since is None:
             self.since = now
@@ -834,7 +838,7 @@ class SimDrive:
             self.pp_goal = self.pp_target
             self.setpoint_ack = True  # statusword bit 12: set-point acknowledged
             self.target_reached = False
-            self.position_window.since = None
+            self.position_window.restart()
         if self.state == ENABLED and self.mode == HM:
             if new_setpoint and not cw & CW_HALT_BIT:
                 self.homing.start()

@@ -196,12 +196,7 @@ class SimRobot:
     def _on_sync(self, _data: bytes) -> None:
         # lockstep: the SYNC period passes now (on the wall clock SYNC is :meth:`_sync_received`'s);
         # a drive making its own profile off the SYNC's grid starts its periods on their own ticks
-        ticks = self.plant.ticks_per_period
-        while self.plant.tick0.any() and (step := self._ticks_to_profile_period()) < ticks:
-            self._run_plant(step)
-            self._supervise()
-            ticks -= step
-        self._run_plant(ticks)
+        self._run_plant(self._through_profile_periods(self.plant.ticks_per_period))
         if self._steady is None and all(drive.streaming for drive in self.drives.values()):
             self._steady = SteadyStream(self.plant, list(self.drives.values()), self.send)
         if self._steady is not None and self._steady.period():
@@ -236,22 +231,28 @@ class SimRobot:
         """Run loops and plant for ``n_ticks`` velocity-loop ticks, then faults and heartbeats; a drive
         that makes its own profile (quick stop, PV, PP, homing) starts its next period on the tick its
         period ends, however the ticks are asked for (its demand never waits a tick for it)."""
-        while True:
-            step = min(n_ticks, self._ticks_to_profile_period())
+        self._run_plant(self._through_profile_periods(n_ticks))
+        self._supervise()
+
+    def _through_profile_periods(self, n_ticks: int) -> int:
+        """Loops and plant through every end of a period of a drive making its own profile that falls
+        before the end of the next ``n_ticks`` ticks, each followed by what the drives do then (its
+        next period among it); the ticks left."""
+        while n_ticks > 0:
+            if n_ticks <= self.plant.ticks_per_period and not self.plant.tick0.any():
+                return n_ticks  # (every period starts now: none ends sooner)
+            ends = [
+                self.plant.ticks_per_period - int(self.plant.tick0[drive.index])
+                for drive in self.drives.values()
+                if drive.internal_profile
+            ]
+            step = max(1, min(ends)) if ends else n_ticks
+            if step >= n_ticks:
+                return n_ticks
             self._run_plant(step)
             self._supervise()
             n_ticks -= step
-            if n_ticks <= 0:
-                return
-
-    def _ticks_to_profile_period(self) -> int:
-        """Ticks until the period of a drive making its own profile ends (a large number: none does)."""
-        ticks = [
-            self.plant.ticks_per_period - int(self.plant.tick0[drive.index])
-            for drive in self.drives.values()
-            if drive.internal_profile
-        ]
-        return max(1, min(ticks)) if ticks else 1 << 30
+        return n_ticks
 
     def _run_plant(self, n_ticks: int) -> None:
         """Loops and plant for ``n_ticks`` velocity-loop ticks, and the timers at the time reached."""

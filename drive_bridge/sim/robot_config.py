@@ -94,32 +94,28 @@ class SimConfig:
     path: Path | None = None
 
 
-def _end_stops(sec: Section) -> tuple[float, float] | None:
-    stops = sec.get("end_stops_rad", list, None)
-    if stops is None:
+def _span(sec: Section, key: str, required: bool = False) -> tuple[float, float] | None:
+    """``key``: [low, high] in rad, low < high (None where it is not given and not ``required``)."""
+    span = sec.get(key, list, ... if required else None)
+    if span is None:
         return None
     if (
-        len(stops) != 2
-        or not all(isinstance(v, (int, float)) and abs(v) < 1e6 for v in stops)
-        or stops[0] >= stops[1]
+        len(span) != 2
+        or not all(isinstance(v, (int, float)) and abs(v) < 1e6 for v in span)
+        or span[0] >= span[1]
     ):
-        raise sec.error("end_stops_rad", f"must be [low, high] in rad with low < high, got {stops!r}")
-    return float(stops[0]), float(stops[1])
+        raise sec.error(key, f"must be [low, high] in rad with low < high, got {span!r}")
+    return float(span[0]), float(span[1])
 
 
 def _saved_limits(sec: Section) -> SavedLimits | None:
     saved = sec.section("saved_limits", required=False)
     if not saved.keys():
         return None
-    stroke = saved.get("stroke_rad", list)
-    if (
-        len(stroke) != 2
-        or not all(isinstance(v, (int, float)) and abs(v) < 1e6 for v in stroke)
-        or stroke[0] >= stroke[1]
-    ):
-        raise saved.error("stroke_rad", f"must be [min, max] in rad with min < max, got {stroke!r}")
+    stroke = _span(saved, "stroke_rad", required=True)
+    assert stroke is not None  # (required)
     out = SavedLimits(
-        (float(stroke[0]), float(stroke[1])),
+        stroke,
         saved.get("max_velocity_rad_s", float, low=1e-6, high=1e5),
         saved.get("acceleration_rad_s2", float, low=1e-6, high=1e7),
     )
@@ -175,7 +171,7 @@ def load_sim_config(path: str | Path = DEFAULT_CONFIG) -> SimConfig:
             motor=motor,
             effects=effects,
             brake=sec.get("brake", bool, True),
-            end_stops_rad=_end_stops(sec),
+            end_stops_rad=_span(sec, "end_stops_rad"),
             initial_position_rad=sec.get("initial_position_rad", float, 0.0, low=-1e6, high=1e6),
             saved_limits=_saved_limits(sec),
         )
