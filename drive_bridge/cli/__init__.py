@@ -17,10 +17,10 @@ import warnings
 from .. import interrupts
 from ..errors import EXIT_CODES, DriveBridgeError, MotionAborted, exit_code, exit_codes_text
 from ..version import __version__
-from . import bus, commission, history, identification, tuning
+from . import bus, commission, history, identification, monitor, tuning
 
 #: the command modules, in the order of the job (``drive-bridge --help`` lists them this way)
-COMMANDS = (bus, identification, tuning, commission, history)
+COMMANDS = (bus, identification, tuning, commission, history, monitor)
 
 
 def build_parser() -> argparse.ArgumentParser:

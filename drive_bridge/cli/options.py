@@ -38,7 +38,7 @@ def bus(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--sim-config",
         help="with --sim: simulator YAML, or a shipped robot by name: robot (the default), "
-        "compliant (Y on a lightly damped spring)",
+        "compliant (Y on a lightly damped spring), wearing (X's friction rising as it runs)",
     )
     p.add_argument(
         "-i",

@@ -24,6 +24,10 @@ SCHEMA_VERSION = 1
 IDENTITY = ("vendor_id", "product_code", "revision", "serial")
 
 
+#: what a record keeps: a commissioning, a write, an identification of a log, a monitored window
+KINDS = ("commission", "write", "identify", "monitor")
+
+
 def new_run_id() -> str:
     return uuid.uuid4().hex
 
@@ -207,7 +211,7 @@ def problems(record: Any) -> list[str]:
     run_id = record.get("run_id")
     if not isinstance(run_id, str) or not 0 < len(run_id) <= 32:
         out.append(f"run_id: {run_id!r} (a text of 1 to 32 characters)")
-    if record.get("kind") not in ("commission", "write", "identify"):
+    if record.get("kind") not in KINDS:
         out.append(f"kind: {record.get('kind')!r}")
     for key in ("started", "updated"):
         try:

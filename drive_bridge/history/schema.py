@@ -8,13 +8,13 @@ import sqlalchemy as sa
 
 metadata = sa.MetaData()
 
-#: one commissioning, write or identification; ``record`` is the whole record document
+#: one commissioning, write, identification or monitored window; ``record`` is the whole record document
 #: (:mod:`.record`), the columns beside it what lists and comparisons select on
 runs = sa.Table(
     "runs",
     metadata,
     sa.Column("run_id", sa.String(32), primary_key=True),
-    sa.Column("kind", sa.String(16), nullable=False),  # commission, write, identify
+    sa.Column("kind", sa.String(16), nullable=False),  # commission, write, identify, monitor
     sa.Column("started_at", sa.DateTime(timezone=True), nullable=False),
     sa.Column("updated_at", sa.DateTime(timezone=True), nullable=False),
     sa.Column("version", sa.String(32), nullable=False),  # drive-bridge's

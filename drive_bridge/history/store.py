@@ -15,13 +15,14 @@ from ..errors import DriveBridgeError, UserError
 from ..outputs import hex32
 from . import schema
 from .location import data_dir, database_url, redacted, shown
-from .record import IDENTITY, identity_number, numeric, problems
+from .record import IDENTITY, file_sha256, identity_number, numeric, problems
 
 log = logging.getLogger(__name__)
 
 MIGRATIONS = Path(__file__).parent / "migrations"
 CONNECT_TIMEOUT_S = 5  # a server that does not answer: the record goes to the outbox, the run goes on
 STATEMENT_TIMEOUT_S = 30  # ... nor one that answers the connection and then hangs
+LAST_LOOKED_AT = 50  # an axis's newest commissionings looked through for one of a bus configuration
 
 
 class HistoryUnavailable(DriveBridgeError):
@@ -249,6 +250,34 @@ class HistoryStore:
                 {"axis": a, "serial": None if s is None else hex32(s)} for a, s in drives.get(r["run_id"], [])
             ]
         return rows
+
+    def last_commissioning(self, axis: str, node_id: int, config: Path, simulated: bool) -> dict | None:
+        """The newest commissioning of ``axis`` at node ``node_id`` under the bus configuration
+        ``config`` (the same path, or the same bytes): its ``run_id``, ``started`` and the axis's
+        entry of its record (drive identity, parameters); None where none is kept."""
+        return self._guard(self._last_commissioning, axis, node_id, config, simulated)
+
+    def _last_commissioning(self, axis: str, node_id: int, config: Path, simulated: bool) -> dict | None:
+        path, sha = str(config.resolve()), file_sha256(config)
+        r, a = schema.runs.c, schema.axes.c
+        query = (
+            sa.select(r.run_id, r.started_at, r.record)
+            .where(
+                r.kind == "commission",
+                r.simulated == simulated,
+                r.run_id.in_(sa.select(a.run_id).where(a.axis == axis, a.node_id == node_id)),
+            )
+            .order_by(r.started_at.desc(), r.run_id)
+            .limit(LAST_LOOKED_AT)
+        )
+        with self.engine.connect() as conn:
+            for row in conn.execute(query):
+                cfg = row.record.get("config") or {}
+                if cfg.get("path") == path or (sha is not None and cfg.get("sha256") == sha):
+                    entry = next((x for x in row.record["axes"] if x.get("axis") == axis), None)
+                    if entry is not None:
+                        return {"run_id": row.run_id, "started": _aware(row.started_at), "axis": entry}
+        return None
 
     def record(self, run: str) -> dict:
         """The record of run ``run`` (its id, or a prefix of it no other run id shares)."""

@@ -12,7 +12,8 @@ Plant, per axis (``sign`` = direction of motion)::
 
     J*dv/dt = kt*i - load(q, t, other axes) - friction(v)
     load     = cp*q + D + load_Nm + A_per*sin(2*pi*q/period + phase)
-    friction = (c1 + dc1*sign)*v + (c0*drift(t) + dc0*sign + cpl*q_src + S*exp(-(v/vs)^2))*sign
+    friction = (c1*wear1 + dc1*sign)*v + (c0*drift(t)*wear0 + dc0*sign + cpl*q_src + S*exp(-(v/vs)^2))*sign
+    wear0    = 1 + W0*distance,  wear1 = 1 + W1*distance  (distance: the motor's travel [rad])
 
 with stiction at rest: the axis stays stopped while the driving torque is
 within the breakaway friction, and stops when its velocity crosses zero.  A compliant
@@ -71,8 +72,9 @@ VELOCITY_TICK_S = 0.0005  # velocity / position loop period
     TWIST,
     V_LOAD,
     TICKS,
-) = range(19)
-N_STATE = 19
+    DISTANCE,
+) = range(20)
+N_STATE = 20
 
 # --- parameter columns ---------------------------------------------------------------
 (
@@ -130,8 +132,10 @@ N_STATE = 19
     PID_D,
     PID_FFV,
     PID_FFA,
-) = range(54)
-N_PARAM = 54
+    WEAR_C0,
+    WEAR_C1,
+) = range(56)
+N_PARAM = 56
 CASCADE, POSITION_PID = 0.0, 1.0  # STRUCT: the controller structure the drive runs
 
 # --- demand columns (one row per axis, set once per SYNC period) ----------------------
@@ -294,6 +298,10 @@ def advance(
                 c0 = p[C0]
                 if p[DRIFT_TAU] > 0.0:
                     c0 *= 1.0 + p[DRIFT_FRAC] * math.exp(-t_now / p[DRIFT_TAU])
+                c1 = p[C1]
+                if p[WEAR_C0] != 0.0 or p[WEAR_C1] != 0.0:  # friction that rises with the travel
+                    c0 *= 1.0 + p[WEAR_C0] * s[DISTANCE]
+                    c1 *= 1.0 + p[WEAR_C1] * s[DISTANCE]
                 src = int(p[CPL_SRC])
                 if src >= 0:
                     c0 += p[CPL_COEF] * state[src, Q]
@@ -316,7 +324,7 @@ def advance(
                     c0_dir = c0 + p[ASYM_DC0] * sg
                     if p[STR_VEL] > 0.0:
                         c0_dir += p[STR_AMP] * math.exp(-((v / p[STR_VEL]) ** 2))
-                    friction = (p[C1] + p[ASYM_DC1] * sg) * v + c0_dir * sg
+                    friction = (c1 + p[ASYM_DC1] * sg) * v + c0_dir * sg
                     v_new = v + (net - friction) / j_motor * dt_c
                     if v_new * v < 0.0:  # crossed zero within the step: stick
                         v_new = 0.0
@@ -328,6 +336,7 @@ def advance(
                     elif q_new > p[END_HI]:
                         q_new = p[END_HI]
                         v_new = 0.0
+                s[DISTANCE] += abs(q_new - q)
                 s[Q] = q_new
                 s[V] = v_new
         for a in range(n_axes):

@@ -14,7 +14,11 @@ from ..yamlconf import Section, load_yaml
 
 DEFAULT_CONFIG = Path(__file__).with_name("robot.yaml")
 #: simulated robots shipped with the package, by the name ``--sim-config`` takes instead of a path
-SHIPPED = {"robot": DEFAULT_CONFIG, "compliant": Path(__file__).with_name("robot_compliant.yaml")}
+SHIPPED = {
+    "robot": DEFAULT_CONFIG,
+    "compliant": Path(__file__).with_name("robot_compliant.yaml"),
+    "wearing": Path(__file__).with_name("robot_wearing.yaml"),
+}
 
 #: the range of each effect value the plant can run with (low, high)
 RANGES = {
@@ -31,7 +35,11 @@ RANGES = {
     "load_share": (1e-3, 0.999),
     "stiffness_Nm_rad": (1e-3, 1e9),
     "damping_Nm_s_rad": (0.0, 1e6),
+    "c0_fraction_per_rad": (0.0, 1.0),
+    "c1_fraction_per_rad": (0.0, 1.0),
 }
+#: an effect's keys that may be left out, and their value then (wear: one of the two frictions alone)
+OPTIONAL = {"c0_fraction_per_rad": 0.0, "c1_fraction_per_rad": 0.0}
 #: effect name -> {yaml key: kernel parameter name}
 EFFECTS = {
     "load": {"torque_Nm": "LOAD"},
@@ -40,6 +48,8 @@ EFFECTS = {
     "direction_asymmetry": {"dc0_Nm": "ASYM_DC0", "dc1_Nm_s_rad": "ASYM_DC1"},
     "cross_axis": {"source": "CPL_SRC", "coefficient_Nm_per_rad": "CPL_COEF"},
     "drift": {"fraction": "DRIFT_FRAC", "time_constant_s": "DRIFT_TAU"},
+    # wear: Coulomb and viscous friction rising with the motor's travel (a fraction of c0, c1 per rad)
+    "wear": {"c0_fraction_per_rad": "WEAR_C0", "c1_fraction_per_rad": "WEAR_C1"},
     # a compliant transmission: that share of J behind a spring-damper (a two-mass mode)
     "compliance": {"load_share": "TM_SHARE", "stiffness_Nm_rad": "TM_K", "damping_Nm_s_rad": "TM_D"},
 }
@@ -153,7 +163,7 @@ def load_sim_config(path: str | Path = DEFAULT_CONFIG) -> SimConfig:
                 values[param] = (
                     es.get(key, str)
                     if key == "source"
-                    else es.get(key, float, low=RANGES[key][0], high=RANGES[key][1])
+                    else es.get(key, float, OPTIONAL.get(key, ...), low=RANGES[key][0], high=RANGES[key][1])
                 )
             es.done()
             effects[eff] = values

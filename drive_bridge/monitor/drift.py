@@ -1,0 +1,147 @@
+"""Drift named as it happens: each window's J, c0 and c1 against the drive's last commissioning
+(or, where none is kept, the first window the monitor identified) and against its recent windows,
+in units of the combined std as ``history compare`` measures a change.
+
+A parameter is beyond its reference where it differs by at least :data:`SIGMAS` combined std
+*and* :data:`THRESHOLD` of the reference (noise is not news, nor is a significant 1 %); it is
+named once it has been beyond, on the same side, in :data:`PERSIST` windows in a row -- one odd
+window names nothing -- and named again only after it has come back.  ``since`` is the first
+window of that run.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+from ..history.compare import SIGMAS, THRESHOLD
+from .window import PARAMETERS, Window, when
+
+PERSIST = 2  # windows in a row beyond the reference before a change is named
+RECENT = 5  # the windows a new one is also set against (their mean)
+
+
+@dataclass
+class Reference:
+    """What an axis's windows are set against: value and std per parameter, where they come from."""
+
+    values: dict[str, tuple[float, float]]  # name -> (value, std), SI
+    source: str  # "commissioning <run id> of <time>" or "first monitored window of <time>"
+
+
+@dataclass
+class AxisDrift:
+    """One axis's reference, its recent windows and the changes running."""
+
+    reference: Reference | None = None
+    recent: list[dict[str, float]] = field(default_factory=list)  # the last windows' values
+    #: parameter -> [side (+1/-1), windows in a row beyond, first window's start, named]
+    runs: dict[str, list[Any]] = field(default_factory=dict)
+
+    def as_dict(self) -> dict:
+        ref = self.reference
+        return {
+            "reference": None if ref is None else {"values": ref.values, "source": ref.source},
+            "recent": self.recent,
+            "runs": self.runs,
+        }
+
+    @classmethod
+    def from_dict(cls, d: dict) -> AxisDrift:
+        ref = d.get("reference")
+        return cls(
+            None
+            if ref is None
+            else Reference({k: tuple(v) for k, v in ref["values"].items()}, ref["source"]),
+            list(d.get("recent") or []),
+            dict(d.get("runs") or {}),
+        )
+
+
+def _event(axis: str, serial: str | None, name: str, w: Window, ref: Reference, **more: Any) -> dict:
+    value, std = w.values[name]["value"], w.values[name]["std"]  # type: ignore[index]
+    ref_value, ref_std = ref.values[name]
+    combined = math.hypot(std or 0.0, ref_std or 0.0)
+    return {
+        "axis": axis,
+        "serial": serial,
+        "parameter": name,
+        "unit": w.values[name]["unit"],  # type: ignore[index]
+        "value": value,
+        "std": std,
+        "reference": ref_value,
+        "reference_std": ref_std,
+        "reference_from": ref.source,
+        "relative": (value - ref_value) / abs(ref_value),
+        "sigmas": (value - ref_value) / combined if combined > 0 else None,
+        "window": {"from": when(w.first), "to": when(w.last)},
+        **more,
+    }
+
+
+def judge(state: AxisDrift, w: Window, serial: str | None) -> list[dict]:
+    """Set the determined window ``w`` against the axis's reference and recent windows; the
+    changes to name now (``event``: ``drift``, or ``back`` for one that came back within the
+    noise), as JSON-ready dicts with their words."""
+    assert w.values is not None
+    values = {n: w.values[n]["value"] for n in PARAMETERS}
+    if state.reference is None:
+        stds = {n: w.values[n]["std"] or 0.0 for n in PARAMETERS}
+        state.reference = Reference(
+            {n: (values[n], stds[n]) for n in PARAMETERS}, f"first monitored window of {when(w.first)}"
+        )
+    ref = state.reference
+    events = []
+    recent = state.recent[-RECENT:]
+    for name in PARAMETERS:
+        ref_value, ref_std = ref.values[name]
+        std = w.values[name]["std"] or 0.0
+        diff = values[name] - ref_value
+        combined = math.hypot(std, ref_std)
+        sigmas = diff / combined if combined > 0 else (math.inf if diff else 0.0)
+        beyond = abs(sigmas) >= SIGMAS and ref_value != 0 and abs(diff / ref_value) >= THRESHOLD
+        side = 1 if diff > 0 else -1
+        run = state.runs.get(name)
+        trend = (
+            (values[name] - sum(r[name] for r in recent) / len(recent)) / abs(ref_value)
+            if recent and ref_value
+            else None
+        )
+        if beyond:
+            if run is None or run[0] != side:
+                run = [side, 0, w.first, False]
+            run[1] += 1
+            state.runs[name] = run
+            if run[1] >= PERSIST and not run[3]:
+                run[3] = True
+                e = _event(w.axis, serial, name, w, ref, event="drift", since=when(run[2]), trend=trend)
+                e["words"] = _words(e)
+                events.append(e)
+        elif run is not None:
+            if run[3]:
+                e = _event(w.axis, serial, name, w, ref, event="back", since=when(run[2]), trend=trend)
+                e["words"] = (
+                    f"{_drive(serial)}, axis {w.axis}: {name} back within the noise of its reference "
+                    f"({e['relative'] * 100:+.0f} %, {_sigmas(e['sigmas'])} σ)"
+                )
+                events.append(e)
+            del state.runs[name]
+    state.recent = (state.recent + [values])[-RECENT:]
+    return events
+
+
+def _drive(serial: str | None) -> str:
+    return f"serial {serial}" if serial else "drive of unknown serial"
+
+
+def _sigmas(z: float | None) -> str:
+    return "∞" if z is None or math.isinf(z) else f"{abs(z):.2g}" if abs(z) < 10 else f"{abs(z):.0f}"
+
+
+def _words(e: dict) -> str:
+    """'serial 1001, axis x: c0 +21 % (9.4 σ) since 2026-11-27T08:00 (against the commissioning ...)'."""
+    return (
+        f"{_drive(e['serial'])}, axis {e['axis']}: {e['parameter']} {e['relative'] * 100:+.0f} % "
+        f"({_sigmas(e['sigmas'])} σ) since {e['since'][:16]} against the {e['reference_from']}"
+    )

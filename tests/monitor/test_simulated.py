@@ -1,0 +1,66 @@
+"""A simulated week of pick-and-place with X wearing (its Coulomb friction +30 % over the week's
+travel): ``monitor --sim`` names X's c0 within the week, and nothing on Y and Z; every window it
+identifies is a history record of kind ``monitor``; its JSON lines follow their schema."""
+
+from __future__ import annotations
+
+import json
+import re
+
+import pytest
+
+from drive_bridge.cli import main
+from drive_bridge.history import HistoryStore
+from drive_bridge.sim.robot_config import SHIPPED
+from harness.support import follows_schema
+
+pytestmark = pytest.mark.slow
+
+SHIFTS, SHIFT_S = 8, 25.0
+X_TRAVEL_RAD = 750.0  # X's travel over those shifts, about (the week prints it)
+
+
+def test_a_wearing_axis_is_named_within_the_week_and_no_other(tmp_path, capsys):
+    text = SHIPPED["wearing"].read_text()
+    wear = re.search(r"wear: \{[^}]*\}", text)
+    assert wear is not None
+    yaml_path = tmp_path / "robot_wearing.yaml"  # +30 % over this shorter week's travel, c1 steady
+    yaml_path.write_text(
+        text.replace(wear.group(0), f"wear: {{c0_fraction_per_rad: {0.30 / X_TRAVEL_RAD:.3g}}}")
+    )
+    db = f"sqlite:///{tmp_path / 'history.sqlite'}"
+    code = main(
+        [
+            "monitor",
+            "--sim",
+            "--sim-config",
+            str(yaml_path),
+            "--shifts",
+            str(SHIFTS),
+            "--shift-s",
+            str(SHIFT_S),
+            "--dir",
+            str(tmp_path / "monitor"),
+            "--db",
+            db,
+            "--json",
+        ]
+    )
+    out = capsys.readouterr()
+    assert code == 0, out.err
+    events = [json.loads(line) for line in out.out.splitlines()]
+    for e in events:
+        follows_schema(e, "monitor")
+    windows = [e for e in events if e["event"] == "window"]
+    assert len(windows) == 3 * SHIFTS
+    drift = [e for e in events if e["event"] == "drift"]
+    assert [(e["axis"], e["parameter"]) for e in drift] == [("x", "c0")]
+    assert drift[0]["relative"] >= 0.10 and "axis x: c0 +" in drift[0]["words"]
+    logged = [json.loads(line) for line in (tmp_path / "monitor" / "events.jsonl").read_text().splitlines()]
+    assert [e["words"] for e in logged] == [e["words"] for e in drift]  # for a plant system to pick up
+    store = HistoryStore(db)
+    runs = store.runs()
+    assert {r["kind"] for r in runs} == {"monitor"}
+    assert len(runs) == sum(w["determined"] for w in windows) >= 3 * SHIFTS - 3
+    store.close()
+    assert "travelled" in out.err and "simulated week done" in out.err
