@@ -123,7 +123,8 @@ def cmd_monitor(args: argparse.Namespace) -> int:
         else:
             say(("DRIFT " if event["event"] == "drift" else "") + event["words"])
 
-    monitor = Monitor(config, directory, settings, emit)
+    # on a live bus the windows are identified beside the listening, in a worker process
+    monitor = Monitor(config, directory, settings, emit, background=not args.sim)
     for axis, drive in monitor.drives.items():
         ref = monitor.drift[axis].reference
         say(

@@ -12,6 +12,7 @@ frames and bus-off are counted and said, and listening goes on.
 from __future__ import annotations
 
 import logging
+import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -34,7 +35,9 @@ class ListenOnly(can.BusABC):
 
     def __init__(self, bus: can.BusABC):
         self._bus = bus
-        self.channel_info = f"listen-only {getattr(bus, 'channel_info', '')}".strip()
+        #: what the adapter says it is ("socketcan channel 'can0'", ...)
+        self.inner_info = str(getattr(bus, "channel_info", "") or type(bus).__name__)
+        self.channel_info = f"listen-only {self.inner_info}"
         self.hardware_passive = False
         try:
             bus.state = can.BusState.PASSIVE
@@ -71,10 +74,12 @@ def listen(
     *,
     once: bool = False,
     opener: Callable[[], can.BusABC] | None = None,
+    stop: threading.Event | None = None,
 ) -> Listening:
     """Feed ``monitor`` from the bus of ``config`` until Ctrl-C or SIGTERM (raised as
     KeyboardInterrupt, caught here: the state is kept), or, with ``once``, until every axis has
-    closed a window.  ``opener`` opens the bus (default: bus.yml's interface and channel)."""
+    closed a window, or until ``stop`` is set (another thread's way to end it).  ``opener`` opens
+    the bus (default: bus.yml's interface and channel)."""
     m = config.master
     if opener is None and m.interface is None:
         raise UserError(
@@ -82,6 +87,7 @@ def listen(
             f"-i/--interface and -c/--channel, or python-can's configuration (CAN_INTERFACE, ~/.canrc)"
         )
     interface = str(m.interface)
+    where = f"{m.interface}:{m.channel}"
     open_raw = opener or (lambda: open_bus(interface, m.channel, m.bitrate, m.can_options))
     seen = Listening()
     bus: ListenOnly | None = None
@@ -94,18 +100,18 @@ def listen(
                 try:
                     bus = ListenOnly(open_raw())
                 except Exception as exc:  # python-can raises many kinds for an adapter that is gone
-                    say(f"bus {m.interface}:{m.channel}: cannot open ({exc}); trying again in {RETRY_S:g} s")
+                    say(f"bus {where}: cannot open ({exc}); trying again in {RETRY_S:g} s")
                     time.sleep(RETRY_S)
                     seen.reconnections += 1
                     continue
                 say(
-                    f"listening on {m.interface}:{m.channel} "
+                    f"listening on {where if opener is None else bus.inner_info} "
                     + ("(adapter in listen-only mode)" if bus.hardware_passive else "(never sending)")
                 )
             try:
                 msg = bus.recv(RECV_S)
             except (can.CanError, OSError) as exc:
-                say(f"bus {m.interface}:{m.channel} lost ({exc}); reopening in {RETRY_S:g} s")
+                say(f"bus {where} lost ({exc}); reopening in {RETRY_S:g} s")
                 _close(bus)
                 bus = None
                 time.sleep(RETRY_S)
@@ -122,7 +128,7 @@ def listen(
                 stamp, at = msg.timestamp, time.monotonic()
             if stamp is not None:  # on the adapter's clock: the last frame's stamp and the time since
                 monitor.tick(stamp + time.monotonic() - at)
-            if once and _every_axis_closed(monitor, closed_before):
+            if (once and _every_axis_closed(monitor, closed_before)) or (stop is not None and stop.is_set()):
                 break
     except KeyboardInterrupt as exc:
         seen.stopped_by = getattr(exc, "name", "Ctrl-C")

@@ -12,8 +12,11 @@ from __future__ import annotations
 
 import json
 import logging
+import multiprocessing
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from concurrent import futures
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -32,6 +35,7 @@ log = logging.getLogger(__name__)
 WINDOW_S = 600.0  # a window closes with this much motion of its axis [s] ...
 MAX_SPAN_S = 3600.0  # ... or once it spans this long [s], whatever it holds
 STATE_NAME = "state.json"
+CLOSING = "closing"  # closed windows' logs until they are identified and kept
 
 
 @dataclass
@@ -63,11 +67,80 @@ class Drive:
         return (self.identity or {}).get("serial")
 
 
+@dataclass
+class Job:
+    """A closed window to identify: the axis, its first and last time stamp [s], its moving time
+    [s], its log, the seed, and what keeping it needs (None: not kept)."""
+
+    axis: str
+    first: float
+    last: float
+    moving_s: float
+    log: Path
+    seed: int
+    keeping: dict | None
+
+    def as_dict(self) -> dict:
+        return {**asdict(self), "log": str(self.log)}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> Job:
+        return cls(**{**d, "log": Path(d["log"])})
+
+
+def work(job: Job) -> tuple[Window, dict | None]:
+    """Identify ``job``'s window and keep it where its values are determined (in a worker process
+    while the monitor listens on; nothing here touches the monitor's state)."""
+    if job.moving_s > 0 and job.log.is_file():
+        window = identify_window(job.log, job.axis, job.first, job.last, job.moving_s, job.seed)
+    else:
+        window = standing(job.axis, job.first, job.last, job.moving_s)
+    if window.values is None or job.keeping is None:
+        return window, None
+    from ..history import keep
+
+    k = job.keeping
+    entry = {
+        "axis": window.axis,
+        "node_id": k["node_id"],
+        "drive": k["drive"],
+        "window": {"from": when(window.first), "to": when(window.last), "moving_s": window.moving_s},
+        "parameters": window.values,
+        "effects": [e["name"] for e in (window.ident or {}).get("effects") or []],
+        "undetermined": {},
+        "rmse_before": (window.ident or {}).get("rmse_before"),
+        "rmse_after": (window.ident or {}).get("rmse_after"),
+    }
+    doc = record(
+        "monitor",
+        new_run_id(),
+        when(window.first),
+        [entry],
+        config=k["config"],
+        out=k["out"],
+        status="ok",
+        verdict=None,
+        simulated=k["simulated"],
+    )
+    result = keep(doc, k["db"])
+    window.ident = None  # (not sent back: the record holds what is kept)
+    return window, {"run_id": doc["run_id"], "stored": result.stored, "where": result.line()}
+
+
 class Monitor:
     """Listens to the axes of ``config``, keeps its state in ``directory``; ``emit`` gets each
-    window and each drift as a JSON-ready dict (``event``: ``window`` or ``drift`` or ``back``)."""
+    window and each drift as a JSON-ready dict (``event``: ``window`` or ``drift`` or ``back``).
+    With ``background``, windows are identified in a worker process (a live bus: the listening
+    never waits for an identification or the history database)."""
 
-    def __init__(self, config: BusConfig, directory: Path, settings: Settings, emit: Callable[[dict], None]):
+    def __init__(
+        self,
+        config: BusConfig,
+        directory: Path,
+        settings: Settings,
+        emit: Callable[[dict], None],
+        background: bool = False,
+    ):
         self.config = config
         self.directory = Path(directory)
         self.settings = settings
@@ -83,7 +156,11 @@ class Monitor:
         #: them would fill the memory; each went to ``emit`` and, where determined, to the history)
         self.closed: dict[str, int] = dict.fromkeys(self.logs, 0)
         self.listener = Listener(self.layout, self.add)
+        self.background = background
+        self._pool: ProcessPoolExecutor | None = None
+        self._pending: list[tuple[Job, futures.Future]] = []
         self._look_up_drives()
+        self._resume_closing()
 
     # --- state -----------------------------------------------------------------------------
     def _load_state(self) -> dict:
@@ -147,6 +224,7 @@ class Monitor:
         """Time passes (``now_s``, on the frames' clock): samples of a machine that stopped are
         handed on, and a window that spans its longest is closed."""
         self.listener.idle(now_s)
+        self.collect()
         for axis, opened in self.opened.items():
             if opened is not None and now_s - opened >= self.settings.max_span_s:
                 self.close(axis, now_s)
@@ -166,68 +244,105 @@ class Monitor:
             self.close(axis, float(chunk.time[-1]))
 
     # --- windows -----------------------------------------------------------------------------
-    def close(self, axis: str, until: float) -> Window:
-        """Close ``axis``'s open window at ``until`` [s]: identify it, keep it, name any drift."""
+    def close(self, axis: str, until: float) -> None:
+        """Close ``axis``'s open window at ``until`` [s]: its samples become one log in
+        ``closing/``, identified and kept (:func:`work`) here or, with ``background``, in a worker
+        process while the listening goes on (:meth:`collect` finishes it)."""
         rolling = self.logs[axis]
         opened = self.opened[axis]
         first = opened if opened is not None else (rolling.first or until)
-        moving = rolling.moving_s
-        if rolling.chunks and moving > 0:
-            path = self.directory / "window.csv"
-            rolling.window(path)
-            window = identify_window(path, axis, first, rolling.last or until, moving, self.settings.seed)
-            path.unlink(missing_ok=True)
-        else:
-            window = standing(axis, first, until, moving)
-        with deferred():  # the window is kept, its chunks dropped and the state saved together
-            events = self._keep(window)
+        closing = self.directory / CLOSING
+        closing.mkdir(exist_ok=True)
+        job = Job(
+            axis,
+            first,
+            rolling.last or until if rolling.chunks else until,
+            rolling.moving_s,
+            closing / f"{axis}-{round(first * 1e6)}.csv",
+            self.settings.seed,
+            self._keeping(axis),
+        )
+        with deferred():  # the window's log and its job written, its chunks dropped, together
+            if rolling.chunks and job.moving_s > 0:
+                rolling.window(job.log)
+            write_text(job.log.with_suffix(".json"), json.dumps(job.as_dict()))
             rolling.drop()
             self.opened[axis] = None
             self.save()
-        self.closed[axis] += 1
-        self.emit({"event": "window", **window.as_dict(), "kept": events.pop(0)})
+        self._submit(job)
+
+    def _keeping(self, axis: str) -> dict | None:
+        """What keeping a window of ``axis`` needs (None: nothing is kept)."""
+        if not self.settings.history:
+            return None
+        drive = self.drives[axis]
+        return {
+            "node_id": drive.node_id,
+            "drive": drive.identity,
+            "config": str(self.config.path),
+            "out": str(self.directory),
+            "simulated": self.settings.simulated,
+            "db": self.settings.db,
+        }
+
+    def _submit(self, job: Job) -> None:
+        if not self.background:
+            self._finish(job, *work(job))
+            return
+        if self._pool is None:
+            # spawned, not forked: this process runs the listening thread
+            self._pool = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"))
+        self._pending.append((job, self._pool.submit(work, job)))
+
+    def collect(self, wait: float = 0.0) -> None:
+        """Finish the windows whose work is done (waiting up to ``wait`` [s] for the rest)."""
+        if wait and self._pending:
+            futures.wait([f for _, f in self._pending], timeout=wait)
+        for job, future in [(j, f) for j, f in self._pending if f.done()]:
+            self._pending.remove((job, future))
+            try:
+                window, kept = future.result()
+            except Exception as exc:  # a worker gone (killed, out of memory): the job waits on disk
+                log.warning(
+                    "axis %s: the window's identification failed (%s); retried at the next start",
+                    job.axis,
+                    exc,
+                )
+                continue
+            self._finish(job, window, kept)
+
+    def _finish(self, job: Job, window: Window, kept: dict | None) -> None:
+        """The window identified (and kept): its drift judged, said, its files dropped."""
+        drive = self.drives[job.axis]
+        events = [] if window.values is None else judge(self.drift[job.axis], window, drive.serial)
+        with deferred():
+            job.log.unlink(missing_ok=True)
+            job.log.with_suffix(".json").unlink(missing_ok=True)
+            self.save()
+        self.closed[job.axis] += 1
+        self.emit({"event": "window", **window.as_dict(), "kept": kept})
         for e in events:
             self.emit(e)
-        return window
 
-    def _keep(self, window: Window) -> list[Any]:
-        """The window's record kept (where its values are determined) and the drift it shows:
-        [where it was kept (or None), drift events...]."""
-        if window.values is None:
-            return [None]
-        drive = self.drives[window.axis]
-        events = judge(self.drift[window.axis], window, drive.serial)
-        kept = None
-        if self.settings.history:
-            from ..history import keep
+    def _resume_closing(self) -> None:
+        """Windows closed before a restart and not yet finished: identified again."""
+        for path in sorted((self.directory / CLOSING).glob("*.json")):
+            try:
+                job = Job.from_dict(json.loads(path.read_text(encoding="utf-8")))
+            except (OSError, ValueError, KeyError, TypeError) as exc:
+                log.warning("%s: unreadable (%s): that window is lost", path, exc)
+                path.unlink()
+                continue
+            if job.axis in self.logs:
+                self._submit(job)
 
-            entry = {
-                "axis": window.axis,
-                "node_id": drive.node_id,
-                "drive": drive.identity,
-                "window": {"from": when(window.first), "to": when(window.last), "moving_s": window.moving_s},
-                "parameters": window.values,
-                "effects": [e["name"] for e in (window.ident or {}).get("effects") or []],
-                "undetermined": {},
-                "rmse_before": (window.ident or {}).get("rmse_before"),
-                "rmse_after": (window.ident or {}).get("rmse_after"),
-            }
-            doc = record(
-                "monitor",
-                new_run_id(),
-                when(window.first),
-                [entry],
-                config=self.config.path,
-                out=self.directory,
-                status="ok",
-                verdict=None,
-                simulated=self.settings.simulated,
-            )
-            result = keep(doc, self.settings.db)
-            kept = {"run_id": doc["run_id"], "stored": result.stored, "where": result.line()}
-        return [kept, *events]
-
-    def stop(self) -> None:
-        """Hand the samples in memory to the rolling log and keep the state (Ctrl-C, SIGTERM, end)."""
+    def stop(self, wait: float = 60.0) -> None:
+        """Hand the samples in memory to the rolling log, finish the windows being identified
+        (waiting up to ``wait`` [s]; the others are identified at the next start) and keep the
+        state (Ctrl-C, SIGTERM, the end)."""
         self.listener.flush()
+        self.collect(wait)
+        if self._pool is not None:
+            self._pool.shutdown(wait=False, cancel_futures=True)
+            self._pool = None
         self.save()

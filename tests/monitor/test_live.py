@@ -97,7 +97,9 @@ def test_the_monitor_identifies_a_production_on_the_bus_and_sends_nothing(produc
     config = load_bus_config(DEFAULT_BUS_CONFIG)
     events: list = []
     said: list[str] = []
-    m = Monitor(config, tmp_path / "monitor", Settings(window_s=15.0, history=False), events.append)
+    m = Monitor(
+        config, tmp_path / "monitor", Settings(window_s=15.0, history=False), events.append, background=True
+    )
     sender, third = virtual(), virtual()  # the production's frames, and a capture beside them
     result = {}
     thread = threading.Thread(

@@ -164,3 +164,18 @@ def test_a_pdo_whose_frames_are_not_the_mapped_length_is_said_and_not_decoded(tm
         r.getMessage() for r in caplog.records if "the drive's mapping is not bus.yml's" in r.getMessage()
     ]
     assert f"axis x: PDO 0x{codec.cob_id:03X} carries {codec.struct.size - 2} bytes" in said
+
+
+def test_a_window_closed_but_not_yet_identified_when_the_process_died_is_identified_at_the_restart(
+    tmp_path, monkeypatch
+):
+    events: list = []
+    dying = monitor(tmp_path, events)
+    monkeypatch.setattr(dying, "_submit", lambda job: None)  # the process dies as the window closes
+    for c in chunks("x", 45.0):
+        dying.add(c)
+    assert events == [] and list((tmp_path / "monitor" / "closing").glob("x-*.csv"))
+    again = monitor(tmp_path, events)  # the restart
+    (window,) = events
+    assert window["determined"] and window["moving_s"] >= 40.0 and again.closed["x"] == 1
+    assert not list((tmp_path / "monitor" / "closing").iterdir())
