@@ -151,7 +151,9 @@ def cmd_monitor(args: argparse.Namespace) -> int:
         if week.aborted is not None:
             raise week.aborted
         travel = ", ".join(f"{a} {d:.0f} rad" for a, d in week.travel_rad.items())
-        say(f"simulated week done: {week.shifts} shifts, {sum(monitor.closed.values())} windows; travelled: {travel}")
+        say(
+            f"simulated week done: {week.shifts} shifts, {sum(monitor.closed.values())} windows; travelled: {travel}"
+        )
         return 0
     seen = listen(monitor, config, say, once=args.once)
     say(
