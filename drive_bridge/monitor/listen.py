@@ -20,6 +20,7 @@ from .layout import VELOCITY, Layout
 log = logging.getLogger(__name__)
 
 CHUNK_S = 10.0  # the samples of this many seconds of SYNCs are handed on together
+NO_SYNC_FRAMES = 1000  # this many PDOs without a SYNC: said once (the drives send them event-driven)
 IDLE_S = 1.0  # no SYNC for this long: the samples so far are handed on (the machine stopped)
 
 
@@ -67,6 +68,7 @@ class Listener(can.Listener):
         }
         #: COB-ID -> the length its frames had where it was not the mapping's (said once each)
         self.mismatched: dict[int, int] = {}
+        self._unsynced = 0  # PDOs before any SYNC
         self._start()
 
     def _start(self) -> None:
@@ -85,6 +87,15 @@ class Listener(can.Listener):
             return
         handler = self._handlers.get(can_id)
         if handler is not None:
+            if not self.syncs:
+                self._unsynced += 1
+                if self._unsynced == NO_SYNC_FRAMES:
+                    log.warning(
+                        "%d PDOs and no SYNC so far: monitor takes one row per SYNC (synchronous "
+                        "TPDOs); the machine's drives seem to send theirs event-driven, which it "
+                        "cannot sample",
+                        NO_SYNC_FRAMES,
+                    )
             axis, size = self._sizes[can_id]
             if len(data) != size:
                 if can_id not in self.mismatched:

@@ -92,7 +92,11 @@ def work(job: Job) -> tuple[Window, dict | None]:
     """Identify ``job``'s window and keep it where its values are determined (in a worker process
     while the monitor listens on; nothing here touches the monitor's state)."""
     if job.moving_s > 0 and job.log.is_file():
-        window = identify_window(job.log, job.axis, job.first, job.last, job.moving_s, job.seed)
+        try:
+            window = identify_window(job.log, job.axis, job.first, job.last, job.moving_s, job.seed)
+        except Exception as exc:  # a defect on one window's data must not stop weeks of listening
+            why = f"not identified: a defect of drive-bridge ({type(exc).__name__}: {exc}); the log was {job.log.name}"
+            window = Window(job.axis, job.first, job.last, job.moving_s, why=why)
     else:
         window = standing(job.axis, job.first, job.last, job.moving_s)
     if window.values is None or job.keeping is None:

@@ -179,3 +179,28 @@ def test_a_window_closed_but_not_yet_identified_when_the_process_died_is_identif
     (window,) = events
     assert window["determined"] and window["moving_s"] >= 40.0 and again.closed["x"] == 1
     assert not list((tmp_path / "monitor" / "closing").iterdir())
+
+
+def test_pdos_without_sync_are_said_once(tmp_path, caplog):
+    m = monitor(tmp_path, [])
+    codec = m.layout.tpdos["x"][0]
+    for i in range(2500):
+        m.frame(codec.cob_id, bytes(codec.struct.size), EPOCH + i * 0.001)
+    said = [r.getMessage() for r in caplog.records if "no SYNC so far" in r.getMessage()]
+    assert len(said) == 1 and "event-driven" in said[0]
+
+
+def test_a_window_that_breaks_the_identification_is_said_and_listening_goes_on(tmp_path, monkeypatch):
+    from drive_bridge.monitor import watch
+
+    def broken(*args, **kwargs):
+        raise FloatingPointError("a defect")
+
+    monkeypatch.setattr(watch, "identify_window", broken)
+    events: list = []
+    m = monitor(tmp_path, events)
+    for c in chunks("x", 45.0):
+        m.add(c)
+    (window,) = events
+    assert not window["determined"] and "a defect of drive-bridge (FloatingPointError" in window["why"]
+    assert m.closed["x"] == 1 and not list((tmp_path / "monitor" / "closing").iterdir())
