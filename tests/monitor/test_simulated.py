@@ -1,6 +1,9 @@
-"""A simulated week of pick-and-place with X wearing (its Coulomb friction +30 % over the week's
-travel): ``monitor --sim`` names X's c0 within the week, and nothing on Y and Z; every window it
-identifies is a history record of kind ``monitor``; its JSON lines follow their schema."""
+"""A simulated week of pick-and-place with one axis wearing (Y's Coulomb friction +30 % over the
+week's travel; the shipped `wearing` robot's X, without its wear): ``monitor --sim`` names Y's c0
+within the week, and nothing on X and Z; every window it identifies is a history record of kind
+``monitor``, every other says why; its JSON lines follow their schema.  (Y, not X as in the shipped
+demo: X's c1, small beside its c0 at its low speeds, is undetermined in some 25 s windows -- said,
+and such a window judges nothing -- which would leave too few windows to name a change in.)"""
 
 from __future__ import annotations
 
@@ -17,16 +20,21 @@ from harness.support import follows_schema
 pytestmark = pytest.mark.slow
 
 SHIFTS, SHIFT_S = 8, 25.0
-X_TRAVEL_RAD = 750.0  # X's travel over those shifts, about (the week prints it)
+Y_TRAVEL_RAD = 9000.0  # Y's travel over those shifts, about (the week prints it)
 
 
 def test_a_wearing_axis_is_named_within_the_week_and_no_other(tmp_path, capsys):
     text = SHIPPED["wearing"].read_text()
-    wear = re.search(r"wear: \{[^}]*\}", text)
+    wear = re.search(r"\n *wear: \{[^}]*\}[^\n]*", text)
     assert wear is not None
-    yaml_path = tmp_path / "robot_wearing.yaml"  # +30 % over this shorter week's travel, c1 steady
+    text = text.replace(wear.group(0), "")  # X wears no more ...
+    asymmetry = "      direction_asymmetry: {dc0_Nm: 0.02, dc1_Nm_s_rad: 0.00015}"
+    assert asymmetry in text  # ... Y does: +30 % over this shorter week's travel, c1 steady
+    yaml_path = tmp_path / "robot_wearing.yaml"
     yaml_path.write_text(
-        text.replace(wear.group(0), f"wear: {{c0_fraction_per_rad: {0.30 / X_TRAVEL_RAD:.3g}}}")
+        text.replace(
+            asymmetry, asymmetry + f"\n      wear: {{c0_fraction_per_rad: {0.30 / Y_TRAVEL_RAD:.3g}}}"
+        )
     )
     db = f"sqlite:///{tmp_path / 'history.sqlite'}"
     code = main(
@@ -54,13 +62,14 @@ def test_a_wearing_axis_is_named_within_the_week_and_no_other(tmp_path, capsys):
     windows = [e for e in events if e["event"] == "window"]
     assert len(windows) == 3 * SHIFTS
     drift = [e for e in events if e["event"] == "drift"]
-    assert [(e["axis"], e["parameter"]) for e in drift] == [("x", "c0")]
-    assert drift[0]["relative"] >= 0.10 and "axis x: c0 +" in drift[0]["words"]
+    assert [(e["axis"], e["parameter"]) for e in drift] == [("y", "c0")]
+    assert drift[0]["relative"] >= 0.10 and "axis y: c0 +" in drift[0]["words"]
     logged = [json.loads(line) for line in (tmp_path / "monitor" / "events.jsonl").read_text().splitlines()]
     assert [e["words"] for e in logged] == [e["words"] for e in drift]  # for a plant system to pick up
     store = HistoryStore(db)
     runs = store.runs()
     assert {r["kind"] for r in runs} == {"monitor"}
-    assert len(runs) == sum(w["determined"] for w in windows) >= 3 * SHIFTS - 3
+    assert len(runs) == sum(w["determined"] for w in windows) >= 2 * SHIFTS
+    assert all(w["why"] for w in windows if not w["determined"])
     store.close()
     assert "travelled" in out.err and "simulated week done" in out.err
