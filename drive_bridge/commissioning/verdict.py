@@ -107,7 +107,7 @@ def axis_criteria(entry: dict, acc: Acceptance) -> list[dict]:
                 "WARN",
                 None if c is None else c.get("consistent"),
                 True,
-                None if c is None else bool(c.get("consistent")),
+                None if c is None or c.get("consistent") is None else bool(c["consistent"]),
             )
         )
     return out

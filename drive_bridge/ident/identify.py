@@ -21,7 +21,16 @@ from .effects import DRIVE_EFFECTS, Effect, Gravity, Offset
 from .frf import log_response
 from .identifiable import SPREAD_MAX, T_MIN, undetermined
 from .logdata import Log, read_log
-from .model import BASE, JACKKNIFE_BLOCKS, MAX_DELAY_SAMPLES, AxisModel, Errors, errors, torque_delay
+from .model import (
+    BASE,
+    JACKKNIFE_BEYOND,
+    JACKKNIFE_BLOCKS,
+    MAX_DELAY_SAMPLES,
+    AxisModel,
+    Errors,
+    errors,
+    torque_delay,
+)
 from .motion import what_the_motion_tells
 from .resonance import find_mode
 from .reversal import find_reversal_transient
@@ -118,7 +127,9 @@ class AxisResult:
             "param_std": self.model.param_std_,
             "uncertainty": {
                 "method": "HAC (batch means over the residual's correlation length), widened to the "
-                "delete-one-block jackknife over 10 stretches in time where that is 1.5 times larger",
+                f"delete-one-block jackknife over {JACKKNIFE_BLOCKS} stretches in time where that is "
+                f"{JACKKNIFE_BEYOND:g} times larger (where no two parts of the data could be compared: "
+                f"wherever it is larger, consistency.inflated)",
                 "jackknife_over_hac": {
                     k: round(float(self.model.jackknife_[i]), 3) for i, k in enumerate(("J", "c1", "c0"))
                 },
@@ -264,9 +275,37 @@ def consistency(model: AxisModel, est: Samples, val: Samples, second_run: bool =
                 "between": [worst[1], worst[2]],
             }
     runs = _between_runs(model, fits["validation"], moved) if second_run and "validation" in fits else None
-    out = {"consistent": not moved, "parts": list(fits), "moved": moved, "degenerate": degenerate}
+    out: dict = {"consistent": not moved, "parts": list(fits), "moved": moved, "degenerate": degenerate}
     if runs is not None:
         out["between_runs"] = runs
+    compared_runs = second_run and "validation" in fits  # the two runs' fits were set side by side
+    if len(fits) < 2 and not compared_runs:  # nothing set against anything: said, the jackknife's std
+        out["consistent"] = None
+        out["not_run"] = (
+            f"{'only the ' + next(iter(fits)) if fits else 'no part'} of the data carries the model on "
+            f"its own ({', '.join(degenerate) or 'the others'}: see degenerate), so no two parts could "
+            f"be compared"
+        )
+        out["inflated"] = _jackknife_inflation(model)
+    return out
+
+
+def _jackknife_inflation(model: AxisModel) -> dict:
+    """J, c0, c1 whose delete-one-block jackknife std is larger than the HAC std but short of the
+    factor that widens it anyway (:data:`.model.JACKKNIFE_BEYOND`): widened to the jackknife's,
+    with the std before and after -- the one check of the std left where the parts of the data
+    cannot be compared."""
+    out = {}
+    for p in ("J", "c0", "c1"):
+        ratio = float(model.jackknife_[BASE.index(p)])
+        std = model.param_std_[p]
+        if 1.0 < ratio <= JACKKNIFE_BEYOND and std > 0:
+            _widen(model, p, 2 * std * np.sqrt(ratio**2 - 1))
+            out[p] = {
+                "jackknife_over_hac": round(ratio, 3),
+                "std_before": std,
+                "std_after": model.param_std_[p],
+            }
     return out
 
 

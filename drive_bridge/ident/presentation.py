@@ -99,8 +99,10 @@ def summary(results: dict[str, AxisResult]) -> str:
             lines.append(f"  {clipped_text(r.sampling['torque_clipped'], tu)}")
         if r.sampling.get("torque_aligned") or r.sampling.get("torque_delay_note"):
             lines.append(f"  {delay_text(r.sampling)}")
-        if r.consistency and not r.consistency["consistent"]:
+        if r.consistency and r.consistency["consistent"] is False:
             lines.append(f"  NOT CONSISTENT: {consistency_text(r.consistency)}")
+        if r.consistency and r.consistency["consistent"] is None:
+            lines.append(f"  consistency not checked: {not_run_text(r.consistency)}")
         if runs := (r.consistency or {}).get("between_runs"):
             lines.append(f"  two runs: {between_runs_text(runs)}")
         for part, why in (r.consistency or {}).get("degenerate", {}).items():
@@ -160,6 +162,19 @@ def between_runs_text(runs: dict) -> str:
         f"{p} {m['estimation']:.4g} from the estimation run, {m['validation']:.4g} from the validation "
         f"run ({m['sigmas']:.3g} std apart): its std widened {m['std_before']:.2g} -> {m['std_after']:.2g}"
         for p, m in runs.items()
+    )
+
+
+def not_run_text(c: dict) -> str:
+    """Why the parts of the data were not compared, and the std widened instead."""
+    widened = ", ".join(
+        f"{p} std {m['std_before']:.2g} -> {m['std_after']:.2g} (jackknife {m['jackknife_over_hac']:.3g}x HAC)"
+        for p, m in (c.get("inflated") or {}).items()
+    )
+    return c["not_run"] + (
+        f"; the std widened to the delete-one-block jackknife's where larger: {widened}"
+        if widened
+        else "; the jackknife over the log finds no std larger than reported"
     )
 
 
@@ -468,8 +483,10 @@ def build_report(results: dict[str, AxisResult], out: Path, source: str, figures
             doc.para(_sentence(drive_text(r)))
         if r.friction:
             doc.para(_sentence(friction_text(r)))
-        if r.consistency and not r.consistency["consistent"]:
+        if r.consistency and r.consistency["consistent"] is False:
             doc.para([Strong("Not consistent:"), f" {consistency_text(r.consistency)}."])
+        if r.consistency and r.consistency["consistent"] is None:
+            doc.para([Strong("Consistency not checked:"), f" {not_run_text(r.consistency)}."])
         if runs := (r.consistency or {}).get("between_runs"):
             doc.para([Strong("Two runs:"), f" {between_runs_text(runs)}."])
         for name, why in r.undetermined.items():

@@ -117,6 +117,24 @@ def test_two_runs_that_disagree_beyond_their_std_widen_it_and_say_so():
     assert "two runs: J" in summary({"hsm": r})
 
 
+def test_where_no_two_parts_of_the_data_can_be_compared_it_is_said_and_the_std_carries_the_jackknife():
+    """KUKA KR300 axis 2: the halves of the estimation run and the validation run each leave the
+    model's columns dependent on their own, so no two parts can be set against each other. That is
+    said (consistent: null, not 'true' as before, with nothing said), and each of J, c0, c1 whose
+    delete-one-block jackknife std exceeds the HAC std gets the jackknife's, stated with both."""
+    r = fit("kuka_kr300_a2", "est.csv", "val.csv")["a2"]
+    c = r.consistency
+    assert c["consistent"] is None and "no two parts could be compared" in c["not_run"]
+    assert set(c["degenerate"]) == {"first half", "second half", "validation"}
+    assert c["inflated"], "the jackknife finds c0 and c1 less certain than the HAC std (1.7x, 1.2x)"
+    for p, m in c["inflated"].items():
+        assert m["std_after"] == pytest.approx(m["std_before"] * m["jackknife_over_hac"], rel=1e-3)
+        assert r.model.param_std_[p] == pytest.approx(m["std_after"])
+    text = summary({"a2": r})
+    assert "consistency not checked: no part of the data carries the model" in text
+    assert "NOT CONSISTENT" not in text
+
+
 @pytest.mark.parametrize("name, axis, mode_hz", [("kuka_kr300_a1", "a1", 5.9), ("kuka_kr300_a3", "a3", 1.95)])
 def test_a_short_log_with_a_low_mode_is_answered_in_the_band_it_supports(name, axis, mode_hz):
     """KUKA KR300, 10 s at 250 Hz with a low mode: the cut-off is not moved below the mode where the
