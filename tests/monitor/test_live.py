@@ -74,6 +74,7 @@ class FailsOnRecv(can.BusABC):
         self._bus.shutdown()
 
 
+@pytest.mark.slow  # a shift of production in lockstep, replayed frame by frame
 def test_the_monitor_identifies_a_production_on_the_bus_and_sends_nothing(production, tmp_path, monkeypatch):
     monkeypatch.setattr(live, "RETRY_S", 0.05)
     channel = f"monitor-{uuid.uuid4().hex}"
