@@ -10,17 +10,20 @@ resume -- the rolling log, each window's start, the drift state -- lives in its 
 
 from __future__ import annotations
 
+import fcntl
 import json
 import logging
 import multiprocessing
+import os
 from collections.abc import Callable
 from concurrent import futures
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
 from ..config import BusConfig
+from ..errors import UserError
 from ..history.record import new_run_id, record
 from ..interrupts import deferred
 from ..outputs import write_text
@@ -35,6 +38,7 @@ log = logging.getLogger(__name__)
 WINDOW_S = 600.0  # a window closes with this much motion of its axis [s] ...
 MAX_SPAN_S = 3600.0  # ... or once it spans this long [s], whatever it holds
 STATE_NAME = "state.json"
+LOCK_NAME = "lock"  # held by the monitor using the directory (its process id inside)
 CLOSING = "closing"  # closed windows' logs until they are identified and kept
 
 
@@ -131,6 +135,28 @@ def work(job: Job) -> tuple[Window, dict | None]:
     return window, {"run_id": doc["run_id"], "stored": result.stored, "where": result.line()}
 
 
+def _lock(directory: Path) -> IO[str]:
+    """``directory`` (made where missing) locked for this monitor while the returned file is open:
+    two monitors on one directory would each resume the other's windows."""
+    directory.mkdir(parents=True, exist_ok=True)
+    f = open(directory / LOCK_NAME, "a+", encoding="utf-8")  # noqa: SIM115 -- held open while it runs
+    try:
+        fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        f.seek(0)
+        holder = f.read().strip() or "unknown"
+        f.close()
+        raise UserError(
+            f"{directory}: another monitor uses this directory (process {holder}); stop it, or give "
+            f"this one another --dir"
+        ) from None
+    f.seek(0)
+    f.truncate()
+    f.write(str(os.getpid()))
+    f.flush()
+    return f
+
+
 class Monitor:
     """Listens to the axes of ``config``, keeps its state in ``directory``; ``emit`` gets each
     window and each drift as a JSON-ready dict (``event``: ``window`` or ``drift`` or ``back``).
@@ -150,6 +176,7 @@ class Monitor:
         self.settings = settings
         self.emit = emit
         self.layout = Layout.of(config)
+        self._lock = _lock(self.directory)
         self.logs = {a: RollingLog(self.directory / "rolling" / a, a) for a in self.layout.tpdos}
         self.drives = {a: Drive(n.node_id) for a, n in config.nodes.items()}
         state = self._load_state()
@@ -350,3 +377,8 @@ class Monitor:
             self._pool.shutdown(wait=False, cancel_futures=True)
             self._pool = None
         self.save()
+        self.release()
+
+    def release(self) -> None:
+        """Let another monitor use the directory (as the end of this process does)."""
+        self._lock.close()

@@ -175,6 +175,7 @@ def test_a_window_closed_but_not_yet_identified_when_the_process_died_is_identif
     monkeypatch.setattr(dying, "_submit", lambda job: None)  # the process dies as the window closes
     for c in chunks("x", 25.0):
         dying.add(c)
+    dying.release()  # (its lock goes with the process)
     assert events == [] and list((tmp_path / "monitor" / "closing").glob("x-*.csv"))
     again = monitor(tmp_path, events)  # the restart
     (window,) = events
@@ -205,3 +206,11 @@ def test_a_window_that_breaks_the_identification_is_said_and_listening_goes_on(t
     (window,) = events
     assert not window["determined"] and "a defect of drive-bridge (FloatingPointError" in window["why"]
     assert m.closed["x"] == 1 and not list((tmp_path / "monitor" / "closing").iterdir())
+
+
+def test_a_second_monitor_on_the_same_directory_is_refused_until_the_first_stops(tmp_path):
+    first = monitor(tmp_path, [])
+    with pytest.raises(UserError, match="another monitor uses this directory"):
+        monitor(tmp_path, [])
+    first.stop()
+    monitor(tmp_path, []).stop()
