@@ -79,15 +79,10 @@ def _positive(text: str) -> float:
 
 
 def cmd_monitor(args: argparse.Namespace) -> int:
-    from ..config import load_bus_config
     from ..monitor import Monitor, Settings, listen, simulated_week
     from ..outputs import json_text, stamped
 
-    config = load_bus_config(args.config)
-    if not args.sim:
-        from ..canconf import resolve
-
-        config = resolve(config, args.interface, args.channel, args.bitrate)
+    config = options.config(args)  # (the interface from -i/-c/-b, bus.yml or python-can's; its notes said)
     if args.dir:
         directory = Path(args.dir)
     elif args.sim:  # a simulated week starts afresh each time
@@ -165,11 +160,13 @@ def cmd_monitor(args: argparse.Namespace) -> int:
 
 
 def _window_words(event: dict) -> str:
+    from ..monitor.window import PARAMETERS
+
     span = f"{event['from'][:19]} .. {event['to'][11:19]}, {event['moving_s']:.0f} s moving"
     if not event["determined"]:
         return f"axis {event['axis']}: window {span}: no values ({event['why']})"
     p = event["parameters"]
-    values = ", ".join(f"{n} {p[n]['value']:.4g} ± {p[n]['std']:.2g}" for n in ("J", "c0", "c1"))
+    values = ", ".join(f"{n} {p[n]['value']:.4g} ± {p[n]['std']:.2g}" for n in PARAMETERS)
     return f"axis {event['axis']}: window {span}: {values}"
 
 

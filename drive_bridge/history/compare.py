@@ -67,7 +67,7 @@ class Comparison:
         parts = []
         if self.previous is not None and self.relative is not None and self.previous_when is not None:
             parts.append(
-                f"{self.relative * 100:+.0f} % ({_sig(self.sigmas)} σ) since {self.previous_when.date()}"
+                f"{self.relative * 100:+.0f} % ({sigma_text(self.sigmas)} σ) since {self.previous_when.date()}"
             )
         if self.spreads is not None:
             side = "above" if self.spreads >= 0 else "below"
@@ -103,11 +103,12 @@ class Comparison:
         }
 
 
-def drive_name(serial: int | None) -> str:
+def drive_name(serial: int | str | None) -> str:
     return "drive of unknown serial" if serial is None else f"serial {serial}"
 
 
-def _sig(z: float | None) -> str:
+def sigma_text(z: float | None) -> str:
+    """A change in combined std as the words say it: two digits below 10, whole above, ∞ without a std."""
     return "∞" if z is None or math.isinf(z) else f"{abs(z):.2g}" if abs(z) < 10 else f"{abs(z):.0f}"
 
 

@@ -278,8 +278,7 @@ def consistency(model: AxisModel, est: Samples, val: Samples, second_run: bool =
     out: dict = {"consistent": not moved, "parts": list(fits), "moved": moved, "degenerate": degenerate}
     if runs is not None:
         out["between_runs"] = runs
-    compared_runs = second_run and "validation" in fits  # the two runs' fits were set side by side
-    if len(fits) < 2 and not compared_runs:  # nothing set against anything: said, the jackknife's std
+    if len(fits) < 2 and runs is None:  # nothing set against anything: said, the jackknife's std
         out["consistent"] = None
         out["not_run"] = (
             f"{'only the ' + next(iter(fits)) if fits else 'no part'} of the data carries the model on "

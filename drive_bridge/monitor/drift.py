@@ -15,7 +15,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
-from ..history.compare import SIGMAS, THRESHOLD
+from ..history.compare import SIGMAS, THRESHOLD, drive_name, sigma_text
 from .window import PARAMETERS, Window, when
 
 PERSIST = 2  # windows in a row beyond the reference before a change is named
@@ -59,12 +59,12 @@ class AxisDrift:
         )
 
 
-def _event(axis: str, serial: str | None, name: str, w: Window, ref: Reference, **more: Any) -> dict:
+def _event(w: Window, serial: str | None, name: str, ref: Reference, sigmas: float, **more: Any) -> dict:
+    """``name`` of window ``w`` against ``ref``, ``sigmas`` combined std apart, as a JSON-ready dict."""
     value, std = w.values[name]["value"], w.values[name]["std"]  # type: ignore[index]
     ref_value, ref_std = ref.values[name]
-    combined = math.hypot(std or 0.0, ref_std or 0.0)
     return {
-        "axis": axis,
+        "axis": w.axis,
         "serial": serial,
         "parameter": name,
         "unit": w.values[name]["unit"],  # type: ignore[index]
@@ -74,7 +74,7 @@ def _event(axis: str, serial: str | None, name: str, w: Window, ref: Reference, 
         "reference_std": ref_std,
         "reference_from": ref.source,
         "relative": (value - ref_value) / abs(ref_value),
-        "sigmas": (value - ref_value) / combined if combined > 0 else None,
+        "sigmas": sigmas,
         "window": {"from": when(w.first), "to": when(w.last)},
         **more,
     }
@@ -115,33 +115,20 @@ def judge(state: AxisDrift, w: Window, serial: str | None) -> list[dict]:
             state.runs[name] = run
             if run[1] >= PERSIST and not run[3]:
                 run[3] = True
-                e = _event(w.axis, serial, name, w, ref, event="drift", since=when(run[2]), trend=trend)
-                e["words"] = _words(e)
+                e = _event(w, serial, name, ref, sigmas, event="drift", since=when(run[2]), trend=trend)
+                e["words"] = (
+                    f"{drive_name(serial)}, axis {w.axis}: {name} {e['relative'] * 100:+.0f} % "
+                    f"({sigma_text(sigmas)} σ) since {e['since'][:16]} against the {ref.source}"
+                )
                 events.append(e)
         elif run is not None:
             if run[3]:
-                e = _event(w.axis, serial, name, w, ref, event="back", since=when(run[2]), trend=trend)
+                e = _event(w, serial, name, ref, sigmas, event="back", since=when(run[2]), trend=trend)
                 e["words"] = (
-                    f"{_drive(serial)}, axis {w.axis}: {name} back within the noise of its reference "
-                    f"({e['relative'] * 100:+.0f} %, {_sigmas(e['sigmas'])} σ)"
+                    f"{drive_name(serial)}, axis {w.axis}: {name} back within the noise of its reference "
+                    f"({e['relative'] * 100:+.0f} %, {sigma_text(sigmas)} σ)"
                 )
                 events.append(e)
             del state.runs[name]
     state.recent = (state.recent + [values])[-RECENT:]
     return events
-
-
-def _drive(serial: str | None) -> str:
-    return f"serial {serial}" if serial else "drive of unknown serial"
-
-
-def _sigmas(z: float | None) -> str:
-    return "∞" if z is None or math.isinf(z) else f"{abs(z):.2g}" if abs(z) < 10 else f"{abs(z):.0f}"
-
-
-def _words(e: dict) -> str:
-    """'serial 1001, axis x: c0 +21 % (9.4 σ) since 2026-11-27T08:00 (against the commissioning ...)'."""
-    return (
-        f"{_drive(e['serial'])}, axis {e['axis']}: {e['parameter']} {e['relative'] * 100:+.0f} % "
-        f"({_sigmas(e['sigmas'])} σ) since {e['since'][:16]} against the {e['reference_from']}"
-    )

@@ -12,7 +12,7 @@ from ..config import BusConfig, NodeConfig, PdoConfig
 from ..errors import UserError
 from ..units import Scaling
 
-POSITION, VELOCITY = 0x6064, 0x606C
+POSITION = 0x6064
 
 
 def _codecs(ncfg: NodeConfig, pdos: tuple[PdoConfig, ...], base: int) -> list[PdoCodec]:

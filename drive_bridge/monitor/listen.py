@@ -15,7 +15,7 @@ import numpy as np
 from ..cia.p301 import SYNC_COB_ID
 from ..logs import to_table
 from ..master.recording import Recording
-from .layout import VELOCITY, Layout
+from .layout import Layout
 
 log = logging.getLogger(__name__)
 
@@ -53,12 +53,11 @@ class Listener(can.Listener):
         self.layout = layout
         self.on_chunk = on_chunk
         self._rows = max(16, round(chunk_s / layout.period))
-        self.frames = 0
         self.syncs = 0
         self.last_sync: float | None = None
         #: per axis, whether a setpoint RPDO was seen (else its demand column is left out)
         self.setpoints_seen: set[str] = set()
-        self._rpdo_axis = {c.cob_id: a for a, codecs in layout.rpdos.items() for c in codecs}
+        self._setpoint_cobs = {c.cob_id for codecs in layout.rpdos.values() for c in codecs}
         #: each PDO's length as bus.yml maps it; a frame of another length is not decoded
         self._sizes = {
             c.cob_id: (a, c.struct.size)
@@ -77,7 +76,6 @@ class Listener(can.Listener):
 
     def frame(self, can_id: int, data: bytes | bytearray, timestamp: float) -> None:
         """One frame seen on the bus at ``timestamp`` [s]."""
-        self.frames += 1
         if can_id == SYNC_COB_ID and len(data) <= 1:
             if self._rec.rows >= self._rows:
                 self.flush()
@@ -111,7 +109,7 @@ class Listener(can.Listener):
                     )
                 return
             handler(can_id, data, timestamp)
-            if can_id in self._rpdo_axis:
+            if can_id in self._setpoint_cobs:
                 self.setpoints_seen.add(axis)
 
     def on_message_received(self, msg: can.Message) -> None:
@@ -145,11 +143,11 @@ class Listener(can.Listener):
             self.on_chunk(Chunk(axis, time, columns, table, self._moving(axis, columns, table, time)))
 
     def _moving(self, axis: str, columns: list[str], table: np.ndarray, time: np.ndarray) -> np.ndarray:
-        """Per row: the axis moves faster than its threshold (the velocity it reports, else the
-        position's slope)."""
+        """Per row: the axis moves faster than its threshold (the velocity it reports where a TPDO
+        maps it, else the position's slope)."""
         by_name = dict(zip(columns, table.T))
         velocity = by_name.get(f"{axis}_velocity_rad_s")
-        if velocity is None or VELOCITY not in {i for c in self.layout.tpdos[axis] for i in c.objects}:
+        if velocity is None:
             position = by_name[f"{axis}_position_rad"]
             velocity = np.gradient(position, time) if len(time) > 1 else np.zeros(len(time))
         return np.nan_to_num(np.abs(velocity)) > self.layout.moving_rad_s[axis]

@@ -18,13 +18,13 @@ import os
 from collections.abc import Callable
 from concurrent import futures
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import IO, Any
+from typing import IO
 
 from ..config import BusConfig
 from ..errors import UserError
-from ..history.record import new_run_id, record
+from ..history.record import identified, new_run_id, record
 from ..interrupts import deferred
 from ..outputs import write_text
 from .drift import AxisDrift, Reference, judge
@@ -58,13 +58,11 @@ class Settings:
 
 @dataclass
 class Drive:
-    """What the monitor knows of an axis's drive without asking it: the identity and parameters
-    of its last commissioning under this bus configuration (kept in the history), if any."""
+    """What the monitor knows of an axis's drive without asking it: its node, and the identity
+    its last commissioning under this bus configuration found (kept in the history), if any."""
 
     node_id: int
     identity: dict[str, str] | None = None
-    commissioned: str | None = None  # "commissioning <run id> of <time>"
-    parameters: dict[str, dict[str, Any]] = field(default_factory=dict)
 
     @property
     def serial(self) -> str | None:
@@ -113,11 +111,7 @@ def work(job: Job) -> tuple[Window, dict | None]:
         "node_id": k["node_id"],
         "drive": k["drive"],
         "window": {"from": when(window.first), "to": when(window.last), "moving_s": window.moving_s},
-        "parameters": window.values,
-        "effects": [e["name"] for e in (window.ident or {}).get("effects") or []],
-        "undetermined": {},
-        "rmse_before": (window.ident or {}).get("rmse_before"),
-        "rmse_after": (window.ident or {}).get("rmse_after"),
+        **identified(window.ident or {}),  # what an identification adds to a record, as identify's
     }
     doc = record(
         "monitor",
@@ -229,17 +223,13 @@ class Monitor:
                     continue
                 entry = found["axis"]
                 drive.identity = entry.get("drive")
-                drive.commissioned = (
-                    f"commissioning {found['run_id'][:8]} of {found['started'].isoformat()[:16]}"
-                )
-                drive.parameters = entry.get("parameters") or {}
-                params = drive.parameters
+                params = entry.get("parameters") or {}
                 if self.drift[axis].reference is None and all(
                     (params.get(n) or {}).get("determined") for n in PARAMETERS
                 ):
                     self.drift[axis].reference = Reference(
                         {n: (params[n]["value"], params[n]["std"] or 0.0) for n in PARAMETERS},
-                        drive.commissioned,
+                        f"commissioning {found['run_id'][:8]} of {found['started'].isoformat()[:16]}",
                     )
         except HistoryUnavailable as exc:
             log.warning("history: %s; the first windows are the reference", exc)
@@ -287,7 +277,7 @@ class Monitor:
         job = Job(
             axis,
             first,
-            rolling.last or until if rolling.chunks else until,
+            rolling.last or until,
             rolling.moving_s,
             closing / f"{axis}-{round(first * 1e6)}.csv",
             self.settings.seed,
