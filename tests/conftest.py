@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import atexit
 import os
+import shutil
 import tempfile
 
 import pytest
@@ -13,6 +15,7 @@ from harness.support import VENDOR_EDS, Bench, clean_config
 os.environ.setdefault("DRIVE_BRIDGE_VENDOR_EDS", str(VENDOR_EDS))  # vendor files, read in place
 # every run the tests commission is kept in a history database of the tests', never the user's
 os.environ["XDG_DATA_HOME"] = tempfile.mkdtemp(prefix="drive-bridge-tests-")
+atexit.register(shutil.rmtree, os.environ["XDG_DATA_HOME"], ignore_errors=True)  # (left in /tmp before)
 os.environ.pop("DRIVE_BRIDGE_DB", None)
 
 

@@ -14,6 +14,7 @@ import subprocess
 import textwrap
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
 
@@ -108,6 +109,27 @@ def test_sync_from_the_broadcast_manager_and_error_frames(tmp_path):
     assert got["errors"] == 1 and got["error_frames"] == 1
 
 
+def _said(share: Path) -> str:
+    """What a failed run left: the record's errors, the simulated drives' output and, from the
+    candump, the longest gap between the SYNCs and between the heartbeats of each node."""
+    stamps: dict[str, list[float]] = {}
+    dump = share / "candump.log"
+    for line in dump.read_text().splitlines() if dump.exists() else []:
+        stamp, _channel, frame = line.split()[:3]
+        cob_id = frame.split("#")[0]
+        if cob_id == "080" or cob_id.startswith("7"):
+            stamps.setdefault(cob_id, []).append(float(stamp.strip("()")))
+    gaps = [
+        f"{cob_id}: {len(times)} frames, longest gap {np.diff(times).max(initial=0.0) * 1e3:.0f} ms"
+        for cob_id, times in sorted(stamps.items())
+    ]
+    sim = share / "sim.log"
+    return "\n".join(
+        [(share / "record.err").read_text()[-3000:], "sim:", sim.read_text()[-1500:] if sim.exists() else ""]
+        + gaps
+    )
+
+
 def test_sim_and_record_over_socketcan_with_a_candump_of_the_stream(tmp_path):
     """``drive-bridge sim`` and ``record`` as two processes on vcan0: bring-up, a quick campaign on one
     axis with SYNC from the kernel's broadcast manager at 20 ms, the engine in its own process; candump
@@ -117,7 +139,9 @@ def test_sim_and_record_over_socketcan_with_a_candump_of_the_stream(tmp_path):
         interface="socketcan",
         channel="vcan0",
         sync_period=20000,
-        heartbeat_consumer_ms=2000,
+        # the drives' consumer time of the master's heartbeat (the kernel's broadcast manager, 100 ms):
+        # emulated, a vCPU's soft timers can be held up for seconds (CI once saw 0x8130 at 2 s)
+        heartbeat_consumer_ms=5000,
         sdo_timeout_s=2.0,
         state_timeout_s=5.0,
     )
@@ -153,8 +177,7 @@ def test_sim_and_record_over_socketcan_with_a_candump_of_the_stream(tmp_path):
     )
     assert run.returncode == 0, run.stdout[-3000:]
     rc = int((share / "record.rc").read_text())
-    err = (share / "record.err").read_text()
-    assert rc in (0, 5), err[-3000:]  # done (5: the emulated machine's timing said)
+    assert rc in (0, 5), _said(share)  # done (5: the emulated machine's timing said)
     meta = yaml.safe_load((share / "rec" / "meta.yaml").read_text())
     engine = meta["timing"]["engine"]
     assert meta["status"] == "ok" and "broadcast manager" in engine["sync_source"]
