@@ -74,8 +74,7 @@ def _unplug(bench, k):
 
 def _silence(bench, k):
     if k == 500:
-        bench.robot.drives["z"].node.data_store[0x1017] = {0: b"\x00\x00"}
-        bench.robot.drives["z"]._cache.pop((0x1017, 0), None)
+        bench.robot.drives["z"].objects.set(0x1017, 0, 0)
 
 
 MOTION = {

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from scipy import fft
 
 from . import evolution
 from .effects import Effect
@@ -202,8 +203,9 @@ def hac_lags(resid: np.ndarray) -> int:
     for lag in range(1, min(cap, DIRECT_LAGS) + 1):  # the correlation is short: the first lags directly
         if float(r[:-lag] @ r[lag:]) <= band:
             return min(max(rule, lag), cap)
-    spectrum = np.fft.rfft(r, 2 * n)
-    acf = np.fft.irfft(spectrum * np.conj(spectrum))[:n]
+    size = fft.next_fast_len(2 * n - 1, real=True)  # no wrap-around; a length pocketfft is fast at
+    spectrum = fft.rfft(r, size)
+    acf = fft.irfft(spectrum.real**2 + spectrum.imag**2, size)[:n]
     below = np.flatnonzero(acf[1 : cap + 1] <= band)
     lag = int(below[0]) + 1 if len(below) else cap
     return min(max(rule, lag), cap)

@@ -21,10 +21,8 @@ a frame, the robot's noise source, and a call when its RPDO routes change.
 
 from __future__ import annotations
 
-import copy
 import logging
 import math
-import struct
 from collections import deque
 from collections.abc import Callable
 from functools import partial
@@ -37,7 +35,7 @@ from canopen.sdo import SdoAbortedError
 
 from ..cia.factor import OBJECTS as FACTOR_OBJECTS
 from ..cia.factor import FactorGroup
-from ..cia.od import default, limits, load_od, variable
+from ..cia.od import default, limits, load_od
 from ..cia.p301 import (
     ERR_FOLLOWING,
     ERR_HEARTBEAT,
@@ -47,7 +45,6 @@ from ..cia.p301 import (
     ERR_SOFTWARE,
     NMT_OPERATIONAL,
     NMT_PREOP,
-    NMT_STOPPED,
 )
 from ..cia.p402 import (
     ABORT_DISABLE,
@@ -82,12 +79,15 @@ from ..params.controller import Controller
 from ..params.profile import SELECT, load_profile
 from . import cyclic, kernel
 from .adapters import local_node
+from .emergency import EmcyProducer
 from .heartbeats import HeartbeatConsumer
 from .home_search import HomeSearch
+from .nmt_slave import RESET_COMMUNICATION, NmtSlave
 from .pdo_map import ABORT_RANGE, PdoMapping
 from .plant import Plant
 from .robot_config import SimAxis
 from .state_machine import next_state
+from .storage import ObjectStorage
 from .vendors import factory, spec_for
 
 log = logging.getLogger(__name__)
@@ -302,14 +302,13 @@ class SimDrive:
         self.node.add_write_callback(self._on_sdo_write)
         self.node.add_read_callback(self._on_sdo_read)
         self.od = self.node.object_dictionary
-        self._cache: dict[tuple[int, int], object] = {}
-        self._absent: set[tuple[int, int]] = set()  # objects its EDS/DCF does not have
-        self._live = self._live_objects()
-        self.pdos = PdoMapping(self.od, self._od, self._getter)
+        #: its objects' values, the measured ones read live, and the parameter set a reset restores
+        self.objects = ObjectStorage(self.node, self._live_objects())
+        self.pdos = PdoMapping(self.od, self.objects.get, self.objects.getter)
         encoder = self.od.get_variable(0x608F, 1)
         #: the encoder's increments per rad (what the kernel quantises the position with)
         if encoder is not None and encoder.default:
-            self.inc_per_rad = self._od(0x608F, 1) / self._od(0x608F, 2) / (2 * math.pi)
+            self.inc_per_rad = self.objects.get(0x608F, 1) / self.objects.get(0x608F, 2) / (2 * math.pi)
         elif self.spec.increments_per_rev is not None:
             self.inc_per_rad = self.spec.increments_per_rev / (2 * math.pi)
         else:
@@ -329,7 +328,7 @@ class SimDrive:
         self.fifo_enabled = False
         self.ip_errors = 0  # 0x20C4:1 error bits latched since the buffer was last cleared
         self._init_storage()
-        self._saved = copy.deepcopy(self.node.data_store)
+        self.objects.save()
         self._power_up()
 
     # ------------------------------------------------------------------ storage
@@ -343,7 +342,7 @@ class SimDrive:
         """Factory state: zero, or the nearest value the file's limits allow, where the file gives
         no value (a vendor file leaves many out), the fixed values (identity, motor data), and the
         factory gains in the drive's units."""
-        self.node.data_store.clear()
+        self.objects.clear()
         for obj in self.od.values():
             for var in obj.values() if hasattr(obj, "values") else [obj]:
                 if (
@@ -351,28 +350,28 @@ class SimDrive:
                     and var.value is None
                     and var.readable
                     and var.data_type in var.STRUCT_TYPES
-                    and var.index not in self._live
+                    and var.index not in self.objects.live
                 ):
                     lo, hi = limits(var)
                     value = max(0, lo) if lo is not None else 0
-                    self._store(var.index, var.subindex, min(value, hi) if hi is not None else value)
+                    self.objects.set(var.index, var.subindex, min(value, hi) if hi is not None else value)
         self._init_storage_missing()
         m = self.axis.motor
         if 0x6076 in self.od:
-            self._store(0x6076, 0, round(m.rated_torque_Nm * 1000))  # mNm
+            self.objects.set(0x6076, 0, round(m.rated_torque_Nm * 1000))  # mNm
         if 0x6075 in self.od:
-            self._store(0x6075, 0, round(m.rated_torque_Nm / m.kt * 1000))  # mA
+            self.objects.set(0x6075, 0, round(m.rated_torque_Nm / m.kt * 1000))  # mA
         if encoder_var := self.od.get_variable(0x608F, 1):
             if not encoder_var.default:
-                self._store(0x608F, 1, round(self.inc_per_rad * 2 * math.pi))
-                self._store(0x608F, 2, 1)
+                self.objects.set(0x608F, 1, round(self.inc_per_rad * 2 * math.pi))
+                self.objects.set(0x608F, 2, 1)
         self._units()
         if not self.spec.factory_in_file:
             f = factory()
             for params in self.gain_sets.values():
                 for (index, sub), (_, entry) in params.items():
                     if entry.parameter in self.factory_gains:
-                        self._store(index, sub, entry.to_device(self.factory_gains[entry.parameter]))
+                        self.objects.set(index, sub, entry.to_device(self.factory_gains[entry.parameter]))
             for index, value in (
                 (0x6072, f.max_torque_permille),
                 (0x6066, f.fe_timeout_ms),
@@ -382,7 +381,7 @@ class SimDrive:
                 (0x6084, f.profile_acceleration_rad_s2 * self.vel_per_si),
             ):
                 if index in self.od:
-                    self._store(index, 0, round(value))
+                    self.objects.set(index, 0, round(value))
         if (saved := self.axis.saved_limits) is not None:  # the machine's commissioning, kept in the drive
             for (index, sub), value in (
                 ((0x607D, 1), saved.stroke_rad[0] * self.pos_per_rad),
@@ -392,7 +391,7 @@ class SimDrive:
                 ((0x6084, 0), saved.acceleration_rad_s2 * self.vel_per_si),
             ):
                 if self.od.get_variable(index, sub) is not None:
-                    self._store(index, sub, round(value))
+                    self.objects.set(index, sub, round(value))
 
     def _load_gains(self, selected: bool) -> None:
         """The loops run the gain objects of the profile (``selected``) or of the one that runs
@@ -406,48 +405,22 @@ class SimDrive:
         for col in MODEL_PARAMS.values():
             p[col] = 0.0
         for (index, sub), (col, entry) in self.params.items():
-            p[col] = entry.to_si(self._od(index, sub))
-
-    def _store(self, index: int, sub: int, value: Any) -> None:
-        self.node.data_store.setdefault(index, {})[sub] = variable(self.od, index, sub).encode_raw(value)
-        self._cache[(index, sub)] = value
-
-    def object_or(self, index: int, sub: int, fallback: Any) -> Any:
-        """An object's value, or ``fallback`` where the drive has no such object."""
-        value = self._cache.get((index, sub))  # (held: the object exists)
-        if value is not None:
-            return value
-        if (index, sub) in self._absent:
-            return fallback
-        if self.od.get_variable(index, sub) is None:
-            self._absent.add((index, sub))  # (its object dictionary does not change)
-            return fallback
-        return self._od(index, sub)
+            p[col] = entry.to_si(self.objects.get(index, sub))
 
     def _units(self) -> None:
         """Device units per rad and per rad/s from the factor group the drive holds (its EDS
         defaults until the master writes it); where its objects do not say, the encoder's
         increments and the velocity unit of :mod:`.vendors`."""
         group = FactorGroup.read(
-            lambda i, s: self._od(i, s) if self.od.get_variable(i, s) is not None else None
+            lambda i, s: self.objects.get(i, s) if self.od.get_variable(i, s) is not None else None
         )
         self.pos_per_rad = group.position_per_rad or self.inc_per_rad
         self.vel_per_si = group.velocity_per_rad_s or (
             60 / (2 * math.pi) if self.spec.velocity_unit == "rpm" else self.pos_per_rad
         )
         self.plant_param[kernel.FE_WINDOW] = (
-            self._od(0x6065) / self.pos_per_rad
+            self.objects.get(0x6065) / self.pos_per_rad
         )  # the window is in position units
-
-    def _od(self, index: int, sub: int = 0) -> Any:
-        """Current value of an object, as the SDO server would return it (cached)."""
-        try:
-            return self._cache[(index, sub)]
-        except KeyError:
-            value = variable(self.od, index, sub).decode_raw(self.node.get_data(index, sub))
-            if index not in self._live:
-                self._cache[(index, sub)] = value
-            return value
 
     def _power_up(self) -> None:
         """Reset application: load parameters from storage, state machine to start."""
@@ -455,8 +428,8 @@ class SimDrive:
         plant_params(p, self.axis, self.axis_names)
         p[kernel.INC_PER_RAD] = self.inc_per_rad
         m = self.axis.motor
-        self.rated_torque = self.object_or(0x6076, 0, m.rated_torque_Nm * 1000) / 1000.0
-        self.rated_current_A = self.object_or(0x6075, 0, m.rated_torque_Nm / m.kt * 1000) / 1000.0
+        self.rated_torque = self.objects.get_or(0x6076, 0, m.rated_torque_Nm * 1000) / 1000.0
+        self.rated_current_A = self.objects.get_or(0x6075, 0, m.rated_torque_Nm / m.kt * 1000) / 1000.0
         self.drive_values[cyclic.X_CURRENT_UNIT] = (
             1e-3 if self.spec.current_unit == "mA" else self.rated_current_A / 1000.0
         )
@@ -465,15 +438,17 @@ class SimDrive:
             kernel.POSITION_PID if self.controller.structure == "position_pid" else kernel.CASCADE
         )
         p[kernel.LOOP_DIV] = self.loop_div
-        self._load_gains(self.select is None or self._od(*self.select[0].index_sub) == self.select[1])
-        p[kernel.TMAX] = self.object_or(0x6072, 0, factory().max_torque_permille) / 1000.0 * self.rated_torque
+        self._load_gains(self.select is None or self.objects.get(*self.select[0].index_sub) == self.select[1])
+        p[kernel.TMAX] = (
+            self.objects.get_or(0x6072, 0, factory().max_torque_permille) / 1000.0 * self.rated_torque
+        )
         self._units()
         self.state = SWITCH_ON_DISABLED
-        self.nmt_state = NMT_PREOP
+        #: its NMT state, boot-up and heartbeat producer
+        self.nmt = NmtSlave(self.node_id, self._send, lambda: self.objects.get(0x1017))
         self.controlword = 0
-        self.mode = self._od(0x6060)
-        self.error_code = 0
-        self.error_history: list[int] = []
+        self.mode = self.objects.get(0x6060)
+        self.emcy = EmcyProducer(self.node_id, self._send)  # EMCY, 0x603F and 0x1003
         self.internal_limit = False
         self.target_reached = False
         self.new_target = False
@@ -491,7 +466,6 @@ class SimDrive:
         self.position_window, self.velocity_window, self.threshold = Dwell(), Dwell(), Dwell()
         s[kernel.ENABLED] = 0.0
         self._sync_count = 0
-        self._hb_next = 0.0
         self._last_count = math.floor(s[kernel.Q] * self.inc_per_rad)
         self._last_sync_sample = self._sampled_at = self.plant.time
         self._velocity = 0
@@ -503,60 +477,47 @@ class SimDrive:
             self.fifo.clear()
             self.fifo_enabled, self.ip_errors = False, 0
         self._rebuild_pdos()
-        self.heartbeats = HeartbeatConsumer(partial(self.object_or, fallback=None))
+        self.heartbeats = HeartbeatConsumer(partial(self.objects.get_or, fallback=None))
         self.host.routes_changed()
         self._refresh_actuals(noise=False)
 
     # ------------------------------------------------------------------ NMT
     def boot(self) -> None:
-        self.nmt_state = NMT_PREOP
-        self._send(0x700 + self.node_id, b"\x00")
-        self._hb_next = self.plant.time + self._od(0x1017) / 1000.0
+        """Initialisation done: the boot-up message, pre-operational."""
+        self.nmt.boot(self.plant.time)
 
     def on_nmt(self, data: bytes) -> None:
-        if len(data) < 2 or data[1] not in (0, self.node_id):
+        """An NMT command; a reset restores the stored parameters (reset communication: only
+        those of the communication area 0x1000-0x1FFF) and boots the drive again."""
+        reset = self.nmt.command(data)
+        if reset is None:
             return
-        cs = data[0]
-        if cs == 0x01:
-            self.nmt_state = NMT_OPERATIONAL
-        elif cs == 0x02:
-            self.nmt_state = NMT_STOPPED
-        elif cs == 0x80:
-            self.nmt_state = NMT_PREOP
-        elif cs in (0x81, 0x82):  # reset node / reset communication
-            saved = copy.deepcopy(self._saved)
-            if cs == 0x82:  # only the communication area 0x1000-0x1FFF
-                saved.update({i: v for i, v in self.node.data_store.items() if i >= 0x2000})
-            self.node.data_store = saved
-            self._cache.clear()
-            self._init_storage_missing()
-            self._power_up()
-            self.boot()
+        self.objects.restore(communication_only=reset == RESET_COMMUNICATION)
+        self._init_storage_missing()
+        self._power_up()
+        self.boot()
 
     def _init_storage_missing(self) -> None:
         """What no parameter store holds: motor data, identity, device type, supported modes."""
         m = self.axis.motor
         if self.spec.factory_in_file:
             for sub, name in _MOTOR_OBJECTS.items():
-                self._store(0x2002, sub, getattr(m, name))
+                self.objects.set(0x2002, sub, getattr(m, name))
         info = self.od.device_information
         for sub, value in ((1, info.vendor_number), (2, info.product_number), (3, info.revision_number)):
             var = self.od.get_variable(0x1018, sub)
             if var is not None and var.default is None:
-                self._store(0x1018, sub, value or 0)
-        self._store(0x1018, 4, self.axis.serial)
+                self.objects.set(0x1018, sub, value or 0)
+        self.objects.set(0x1018, 4, self.axis.serial)
         if default(self.od, 0x1000) is None:
-            self._store(0x1000, 0, DEVICE_TYPE_SERVO)
+            self.objects.set(0x1000, 0, DEVICE_TYPE_SERVO)
         if 0x6502 in self.od and default(self.od, 0x6502) is None:
-            self._store(0x6502, 0, self.spec.supported_modes)
+            self.objects.set(0x6502, 0, self.spec.supported_modes)
 
     def heartbeat_due(self, now: float) -> None:
         """Its own heartbeat and its event-driven TPDOs, when due."""
-        period = self._od(0x1017) / 1000.0
-        if period > 0 and now >= self._hb_next - 1e-9:
-            self._send(0x700 + self.node_id, bytes([self.nmt_state]))
-            self._hb_next = max(self._hb_next + period, now)
-        if self.nmt_state == NMT_OPERATIONAL and self.pdos.events:
+        self.nmt.beat(now)
+        if self.nmt.state == NMT_OPERATIONAL and self.pdos.events:
             self.refresh_actuals()
             for pdo in self.pdos.events:
                 data = pdo.codec.struct.pack(*[g() for g in pdo.getters])
@@ -577,9 +538,9 @@ class SimDrive:
         falls back to pre-operational (0x1029's default) and, in OPERATION ENABLED, the drive does
         what its abort connection option 0x6007 says (a drive without 0x6007 does nothing)."""
         for _node in self.heartbeats.fallen_silent(now):
-            if self.nmt_state == NMT_OPERATIONAL:
-                self.nmt_state = NMT_PREOP
-            self._connection_lost(ERR_HEARTBEAT, self.object_or(0x6007, 0, 0))
+            if self.nmt.state == NMT_OPERATIONAL:
+                self.nmt.state = NMT_PREOP
+            self._connection_lost(ERR_HEARTBEAT, self.objects.get_or(0x6007, 0, 0))
 
     def _connection_lost(self, code: int, option: int) -> None:
         """EMCY ``code``; in OPERATION ENABLED, what the abort connection option says."""
@@ -587,7 +548,7 @@ class SimDrive:
         if self.state == ENABLED and option == ABORT_FAULT:
             self.fault(code)  # (its EMCY carries the code)
             return
-        self._emcy(code)
+        self.emcy.send(code)
         if self.state != ENABLED:
             return
         if option == ABORT_DISABLE:
@@ -601,7 +562,7 @@ class SimDrive:
             answer = self.sdo_fault("read", index, subindex)
             if answer is not None:
                 return answer
-        live = self._live.get(index)
+        live = self.objects.live.get(index)
         if live is not None:
             if self.plant.time not in (self._last_sync_sample, self._sampled_at):  # once per instant
                 self.refresh_actuals()
@@ -609,9 +570,7 @@ class SimDrive:
         if index in (0x1010, 0x1011) and subindex == 1:
             return 1  # device saves/restores on command
         if index == 0x1003:
-            if subindex == 0:
-                return len(self.error_history)
-            return self.error_history[subindex - 1] if subindex <= len(self.error_history) else 0
+            return self.emcy.field(subindex)
         return None
 
     def _on_sdo_write(self, index: int, subindex: int, od: ODVariable, data: bytes) -> None:
@@ -622,8 +581,7 @@ class SimDrive:
             raise SdoAbortedError(code)
         value = od.decode_raw(data)
         self.write(index, subindex, value)
-        if index not in self._live:
-            self._cache[(index, subindex)] = value  # LocalNode stores the bytes after this
+        self.objects.written(index, subindex, value)
         if index in FACTOR_OBJECTS:  # new units: every position value is read anew
             self._units()
         elif index == 0x1016:
@@ -633,7 +591,7 @@ class SimDrive:
         """Apply a value written by SDO or RPDO; raise SdoAbortedError to refuse it."""
         if 0x1400 <= index <= 0x1BFF:
             self.pdos.check_write(index, sub, value)
-            self._store(index, sub, value)
+            self.objects.set(index, sub, value)
             self._rebuild_pdos()
             return
         if index == 0x6040:
@@ -676,7 +634,7 @@ class SimDrive:
                 if self.following:
                     self.setpoint_armed = True
         elif self.select is not None and (index, sub) == self.select[0].index_sub:
-            self._cache[(index, sub)] = value  # stored after this call: the loops read it now
+            self.objects.written(index, sub, value)  # (stored after this call: the loops read it now)
             self._load_gains(value == self.select[1])
         elif (index, sub) in self.params:
             col, entry = self.params[(index, sub)]
@@ -692,7 +650,7 @@ class SimDrive:
                 raise SdoAbortedError(ABORT_TOO_LOW if si < 0 else ABORT_RANGE)
             self.plant_param[col] = si
         elif index == 0x1017:
-            self._hb_next = self.plant.time + value / 1000.0  # first beat one period from now
+            self.nmt.heartbeat_time_written(self.plant.time, value)
         elif index == 0x1006:
             self.host.cycle_period_written(value)
         elif index == 0x6065:
@@ -702,17 +660,17 @@ class SimDrive:
         elif index == 0x1010 and sub == 1:
             if value != SAVE_SIGNATURE:
                 raise SdoAbortedError(0x08000020)
-            self._saved = copy.deepcopy(self.node.data_store)
+            self.objects.save()
             return
         elif index == 0x1011 and sub == 1:
             if value != LOAD_SIGNATURE:
                 raise SdoAbortedError(0x08000020)
-            self._saved = {}
+            self.objects.saved = {}
             return
         elif index == 0x1003 and sub == 0:
             if value != 0:
                 raise SdoAbortedError(ABORT_RANGE)
-            self.error_history.clear()
+            self.emcy.history.clear()
             return
 
     # ------------------------------------------------------------------ PDOs
@@ -725,18 +683,12 @@ class SimDrive:
     def rpdos(self) -> dict[int, tuple[PdoCodec, int]]:
         return self.pdos.rpdos
 
-    def _getter(self, index: int, sub: int) -> Callable:
-        live = self._live.get(index)
-        if live is not None:
-            return live
-        return lambda: self._od(index, sub)
-
     def on_rpdo(self, cob_id: int, data: bytes) -> None:
-        if self.nmt_state != NMT_OPERATIONAL:
+        if self.nmt.state != NMT_OPERATIONAL:
             return
         codec, ttype = self.rpdos[cob_id]
         if len(data) < codec.struct.size:
-            self._emcy(ERR_PDO_LENGTH)  # CiA 301: not processed, length error
+            self.emcy.send(ERR_PDO_LENGTH)  # CiA 301: not processed, length error
             return
         if ttype <= 240:
             self.pending_rpdo.append((codec, data))  # synchronous: applied on the next SYNC
@@ -752,26 +704,18 @@ class SimDrive:
             try:
                 self.write(index, sub, value)
             except SdoAbortedError:
-                self._emcy(ERR_PARAMETER)
+                self.emcy.send(ERR_PARAMETER)
                 continue
-            self.keep(index, sub, data[lo:hi], value)
+            self.objects.keep(index, sub, data[lo:hi], value)
 
     def internal_error(self) -> None:
         """A frame the drive's software could not handle (a bug of the simulator): the drive faults
         with EMCY 0x6100 and goes on serving, as a drive's firmware would."""
         log.exception("simulated drive %s: internal error", self.axis.name)
         if self.state == FAULT:
-            self._emcy(ERR_SOFTWARE)
+            self.emcy.send(ERR_SOFTWARE)
         else:
             self.fault(ERR_SOFTWARE)
-
-    def keep(self, index: int, sub: int, raw: bytes, value: int) -> None:
-        """Hold a value a PDO wrote as the object's (SDO reads it so); a measured object keeps its own."""
-        if (
-            index not in self._live and self._cache.get((index, sub)) != value
-        ):  # (the cache holds the stored value)
-            self.node.data_store.setdefault(index, {})[sub] = raw
-            self._cache[(index, sub)] = value
 
     def count_sync(self) -> int:
         """One more SYNC: the count a synchronous TPDO's transmission type divides."""
@@ -823,15 +767,14 @@ class SimDrive:
         previous, self.controlword = self.controlword, cw
         if self.state == FAULT:
             if next_state(FAULT, cw, previous, 0) != FAULT:  # fault reset
-                self.error_code = 0
                 self.state = SWITCH_ON_DISABLED
-                self._emcy(0x0000)
+                self.emcy.reset()
             return
-        self._go(next_state(self.state, cw, previous, self.object_or(0x605A, 0, 2)))
+        self._go(next_state(self.state, cw, previous, self.objects.get_or(0x605A, 0, 2)))
         if not cw & 0x10:
             self.setpoint_ack = False  # the handshake: bit 12 follows bit 4 down
         if self.state == ENABLED and self.mode == PP and new_setpoint:
-            target = self._od(0x607A) / self.pos_per_rad
+            target = self.objects.get(0x607A) / self.pos_per_rad
             self.pp_target = (
                 target + self.origin_rad if not cw & 0x40 else self.plant_demand[kernel.P1] + target
             )
@@ -868,7 +811,7 @@ class SimDrive:
     def _take_target(self) -> None:
         """CSP from now on: the demand is the target position 0x607A as it stands, wherever the
         axis is (a stale target makes it jump, as on a real drive)."""
-        self.setpoint_inc = self._od(0x607A)
+        self.setpoint_inc = self.objects.get(0x607A)
         self.plant_demand[kernel.P0] = self.plant_demand[kernel.P1] = self._limit(
             self._plant(self.setpoint_inc)
         )
@@ -886,17 +829,10 @@ class SimDrive:
             return
         self.state = FAULT_REACTION
         self.plant_state[kernel.ENABLED] = 0.0
-        self.error_code = code
-        self.error_history.insert(0, code)
-        del self.error_history[8:]
         self.state = FAULT
         self.setpoint_armed = False
         log.debug("simulated drive %s: FAULT 0x%04X", self.axis.name, code)
-        self._emcy(code)
-
-    def _emcy(self, code: int) -> None:
-        reg = 0x01 if code else 0x00
-        self._send(0x80 + self.node_id, struct.pack("<HB5s", code, reg, b"\x00" * 5))
+        self.emcy.fault(code)
 
     # ------------------------------------------------------------------ cyclic
     @property
@@ -913,7 +849,7 @@ class SimDrive:
             and self.state == ENABLED
             and self.mode == CSP
             and self.controlword in (0x0F, 0x1F)
-            and self.nmt_state == NMT_OPERATIONAL
+            and self.nmt.state == NMT_OPERATIONAL
             and self.fifo is None
         )
 
@@ -924,7 +860,7 @@ class SimDrive:
 
     def sample_sync(self) -> None:
         """A SYNC received: the synchronous TPDOs, with the actual values at this instant."""
-        if self.online and self.nmt_state == NMT_OPERATIONAL:
+        if self.online and self.nmt.state == NMT_OPERATIONAL:
             self.refresh_actuals(sync=True)
             self.send_tpdos()
 
@@ -934,7 +870,7 @@ class SimDrive:
         if not self.online:
             rpdos.clear()
             return
-        if self.nmt_state == NMT_OPERATIONAL:
+        if self.nmt.state == NMT_OPERATIONAL:
             for codec, data in rpdos:
                 self._apply_rpdo(codec, data)
         rpdos.clear()
@@ -963,7 +899,7 @@ class SimDrive:
                 self.drive_values,
                 self._follow_period_s(record_s),
                 *self.software_limits(),
-                self.mode == IP and self.object_or(0x60C0, 0, 0) == 0,
+                self.mode == IP and self.objects.get_or(0x60C0, 0, 0) == 0,
             )
             return
         d[kernel.P0] = d.item(kernel.P1)
@@ -973,20 +909,23 @@ class SimDrive:
         if self.state == QUICK_STOP:
             self.ramp(
                 0.0,
-                self.object_or(0x6085, 0, factory().quick_stop_rad_s2 * self.vel_per_si) / self.vel_per_si,
+                self.objects.get_or(0x6085, 0, factory().quick_stop_rad_s2 * self.vel_per_si)
+                / self.vel_per_si,
                 T,
             )
-            if self.v_dem == 0.0 and self.object_or(0x605A, 0, 2) in (0, 1, 2, 3):
+            if self.v_dem == 0.0 and self.objects.get_or(0x605A, 0, 2) in (0, 1, 2, 3):
                 self._go(SWITCH_ON_DISABLED)
         elif self.state == ENABLED and self.mode in (PV, PP) and self.halted:
             self.ramp(0.0, self._deceleration(), T)  # halt (0x605D 1): down on the profile deceleration
         elif self.state == ENABLED and self.mode == PV:
-            self.ramp(self._od(0x60FF) / self.vel_per_si, self._od(0x6083) / self.vel_per_si, T)
+            self.ramp(
+                self.objects.get(0x60FF) / self.vel_per_si, self.objects.get(0x6083) / self.vel_per_si, T
+            )
         elif self.state == ENABLED and self.mode == PP and self.pp_target is not None:
             dist = self.pp_target - d[kernel.P0]
-            acc, dec = self._od(0x6083) / self.vel_per_si, self._deceleration()
+            acc, dec = self.objects.get(0x6083) / self.vel_per_si, self._deceleration()
             v_max = min(
-                self.object_or(0x6081, 0, factory().profile_velocity_rad_s * self.vel_per_si)
+                self.objects.get_or(0x6081, 0, factory().profile_velocity_rad_s * self.vel_per_si)
                 / self.vel_per_si,
                 math.sqrt(2 * dec * abs(dist)),
             )
@@ -1009,7 +948,7 @@ class SimDrive:
 
     def _deceleration(self) -> float:
         """The profile deceleration 0x6084 [rad/s²] (the acceleration 0x6083 where it has none)."""
-        return self.object_or(0x6084, 0, self._od(0x6083)) / self.vel_per_si
+        return self.objects.get_or(0x6084, 0, self.objects.get(0x6083)) / self.vel_per_si
 
     def ramp(self, v_target: float, accel: float, T: float, limit: bool = True) -> None:
         """Move the demand velocity toward ``v_target`` at ``accel`` and integrate P1 (inside the
@@ -1034,7 +973,7 @@ class SimDrive:
 
     def software_limits(self) -> tuple[int, int]:
         """0x607D: (min, max) [position unit]; no limits where min >= max."""
-        return self._od(0x607D, 1), self._od(0x607D, 2)
+        return self.objects.get(0x607D, 1), self.objects.get(0x607D, 2)
 
     def speed_zero(self) -> bool:
         """The speed inside the velocity threshold 0x606F for the threshold time 0x6070."""
@@ -1042,13 +981,13 @@ class SimDrive:
         return self.threshold.held(
             abs(speed) <= self._velocity_window(0x606F),
             self.plant.time,
-            self.object_or(0x6070, 0, 0) / 1000.0,
+            self.objects.get_or(0x6070, 0, 0) / 1000.0,
         )
 
     def _velocity_window(self, index: int) -> float:
         """0x606D (velocity window) or 0x606F (velocity threshold) [rad/s], where the drive has none
         ``VELOCITY_WINDOW_RAD_S``."""
-        return self.object_or(index, 0, VELOCITY_WINDOW_RAD_S * self.vel_per_si) / self.vel_per_si
+        return self.objects.get_or(index, 0, VELOCITY_WINDOW_RAD_S * self.vel_per_si) / self.vel_per_si
 
     def _update_reached(self) -> None:
         """Bits 10 and 12 as the axis moves, each over its window and window time: speed = 0 inside
@@ -1062,17 +1001,17 @@ class SimDrive:
         if self.state == QUICK_STOP or self.halted:
             self.target_reached = self.v_dem == 0.0 and self.speed_zero()
         elif self.mode == PV:
-            target = self._od(0x60FF) / self.vel_per_si
+            target = self.objects.get(0x60FF) / self.vel_per_si
             inside = self.v_dem == target and abs(speed - target) <= self._velocity_window(0x606D)
             self.target_reached = self.velocity_window.held(
-                inside, now, self.object_or(0x606E, 0, 0) / 1000.0
+                inside, now, self.objects.get_or(0x606E, 0, 0) / 1000.0
             )
         elif self.mode == PP and self.pp_target is None and self.pp_goal is not None:
-            inside = abs(self.plant_state[kernel.ENC] - self.pp_goal) * self.pos_per_rad <= self.object_or(
-                0x6067, 0, 1000
-            )
+            inside = abs(
+                self.plant_state[kernel.ENC] - self.pp_goal
+            ) * self.pos_per_rad <= self.objects.get_or(0x6067, 0, 1000)
             self.target_reached = self.position_window.held(
-                inside, now, self.object_or(0x6068, 0, 10) / 1000.0
+                inside, now, self.objects.get_or(0x6068, 0, 10) / 1000.0
             )
 
     def check_faults(self) -> None:
@@ -1091,12 +1030,13 @@ class SimDrive:
         ):
             # the master's stream is gone: the drive's connection-abort reaction (a fault where
             # the drive has no 0x6007, or it is left at CiA 402's default)
-            self._connection_lost(ERR_RPDO_TIMEOUT, self.object_or(0x6007, 0, ABORT_FAULT))
+            self._connection_lost(ERR_RPDO_TIMEOUT, self.objects.get_or(0x6007, 0, ABORT_FAULT))
 
     def following_error_ticks(self) -> int:
         """Loop ticks outside the following error window that fault the drive (0x6066)."""
         return max(
-            1, round(self.object_or(0x6066, 0, factory().fe_timeout_ms) / 1000.0 / kernel.VELOCITY_TICK_S)
+            1,
+            round(self.objects.get_or(0x6066, 0, factory().fe_timeout_ms) / 1000.0 / kernel.VELOCITY_TICK_S),
         )
 
     def setpoint_timeout(self) -> float:
@@ -1107,7 +1047,7 @@ class SimDrive:
         """0x60C2 [s]: value × 10^index (the SYNC period where the drive has no such object)."""
         if self.od.get_variable(0x60C2, 1) is None:
             return self.plant.sync_period
-        return self._od(0x60C2, 1) * 10.0 ** self._od(0x60C2, 2)
+        return self.objects.get(0x60C2, 1) * 10.0 ** self.objects.get(0x60C2, 2)
 
     def interpolation_ticks(self) -> int:
         """The interpolation time period 0x60C2 in whole loop ticks (at least one)."""
@@ -1124,8 +1064,7 @@ class SimDrive:
 
     def next_due(self) -> float:
         """The earliest time [s] its heartbeat or a watched node's silence needs it (inf: never)."""
-        due = self._hb_next if self._od(0x1017) > 0 else math.inf
-        return min(due, self.heartbeats.next_due())
+        return min(self.nmt.next_due(), self.heartbeats.next_due())
 
     # ------------------------------------------------------------------ actual values
     def refresh_actuals(self, sync: bool = False) -> None:
@@ -1140,7 +1079,7 @@ class SimDrive:
             self.plant_state, self.plant_param, self.drive_values, self.plant.time, sample, sync
         )
         if self.fifo is not None:  # 0x20C4:1 as of this sample (its other sub-indices are settings)
-            self._store(0x20C4, 1, self._buffer_status())
+            self.objects.set(0x20C4, 1, self._buffer_status())
 
     def _live_objects(self) -> dict[int, Callable[[], int]]:
         """Objects whose value the drive measures or computes instead of storing."""
@@ -1152,14 +1091,14 @@ class SimDrive:
             0x606C: lambda: self._velocity,
             0x6077: lambda: self._torque_pm,
             0x60F4: lambda: round(self.plant_state[kernel.FERR] * self.pos_per_rad),
-            0x603F: lambda: self.error_code,
+            0x603F: lambda: self.emcy.error_code,
             0x1001: lambda: 0x01 if self.state == FAULT else 0x00,
         }
 
     def _buffer_error(self, bit: int, code: int) -> None:
         """An underflow or overflow: latched in 0x20C4:1 at once, and the trajectory aborted (a fault)."""
         self.ip_errors |= bit
-        self._store(0x20C4, 1, self._buffer_status())
+        self.objects.set(0x20C4, 1, self._buffer_status())
         self.fault(code)
 
     def _buffer_status(self) -> int:
@@ -1170,9 +1109,9 @@ class SimDrive:
         status = (
             self.ip_errors | (IPB_ENABLED if self.fifo_enabled else 0) | (IPB_ACTIVE if self.following else 0)
         )
-        if n < self.object_or(0x20C4, 2, 4):
+        if n < self.objects.get_or(0x20C4, 2, 4):
             status |= IPB_UNDERFLOW_WARNING
-        if n > self.object_or(0x20C4, 3, 60):
+        if n > self.objects.get_or(0x20C4, 3, 60):
             status |= IPB_OVERFLOW_WARNING
         return status
 

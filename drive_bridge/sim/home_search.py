@@ -10,12 +10,13 @@ there); 35/37 take the position where the axis stands as home.  The homing accel
 
 from __future__ import annotations
 
-from typing import Any, Protocol
+from typing import Protocol
 
 import numpy as np
 
 from . import kernel
 from .robot_config import SimAxis
+from .storage import ObjectStorage
 
 HOMING_SWITCH = {17: -1, 18: 1}  # method -> the direction of its limit switch
 HOMING_HERE = (35, 37)
@@ -31,8 +32,7 @@ class HomingDrive(Protocol):
     vel_per_si: float  # velocity unit per rad/s
     origin_rad: float  # the plant position the drive counts as 0
     v_dem: float  # the demand velocity [rad/s]
-
-    def object_or(self, index: int, sub: int, fallback: Any) -> Any: ...
+    objects: ObjectStorage  # its objects (the homing method, offset, speeds and acceleration)
 
     def ramp(self, v_target: float, accel: float, T: float, limit: bool = True) -> None: ...
 
@@ -50,11 +50,11 @@ class HomeSearch:
     def start(self) -> None:
         """Bit 4 up in homing mode: the method 0x6098 says how home is found."""
         drive = self.drive
-        method = drive.object_or(0x6098, 0, 0)
+        method = drive.objects.get_or(0x6098, 0, 0)
         self.attained = self.error = False
         if method in HOMING_HERE:
             drive.origin_rad = (
-                drive.plant_state[kernel.ENC] - drive.object_or(0x607C, 0, 0) / drive.pos_per_rad
+                drive.plant_state[kernel.ENC] - drive.objects.get_or(0x607C, 0, 0) / drive.pos_per_rad
             )
             self.attained = True
         elif method in HOMING_SWITCH:
@@ -71,22 +71,28 @@ class HomeSearch:
         """One period [s] of a homing on a limit switch: toward it, off it (its edge is home), then
         to rest."""
         drive = self.drive
-        direction = HOMING_SWITCH.get(drive.object_or(0x6098, 0, 0), -1)
-        accel = drive.object_or(0x609A, 0, 0) / drive.vel_per_si
+        direction = HOMING_SWITCH.get(drive.objects.get_or(0x6098, 0, 0), -1)
+        accel = drive.objects.get_or(0x609A, 0, 0) / drive.vel_per_si
         if self.phase == "switch":
             drive.ramp(
-                direction * drive.object_or(0x6099, 1, 0) / drive.vel_per_si, accel, period_s, limit=False
+                direction * drive.objects.get_or(0x6099, 1, 0) / drive.vel_per_si,
+                accel,
+                period_s,
+                limit=False,
             )
             if self._on_switch(direction):
                 self.phase = "leave"
         elif self.phase == "leave":
             drive.ramp(
-                -direction * drive.object_or(0x6099, 2, 0) / drive.vel_per_si, accel, period_s, limit=False
+                -direction * drive.objects.get_or(0x6099, 2, 0) / drive.vel_per_si,
+                accel,
+                period_s,
+                limit=False,
             )
             if not self._on_switch(direction):
                 edge = self._switch_edge(direction)
                 assert edge is not None  # the switch was made: the axis has end stops
-                drive.origin_rad = edge - drive.object_or(0x607C, 0, 0) / drive.pos_per_rad
+                drive.origin_rad = edge - drive.objects.get_or(0x607C, 0, 0) / drive.pos_per_rad
                 self.phase = "stop"
                 self.attained = True
         else:

@@ -150,7 +150,7 @@ class SimRobot:
     def _sdo_handler(drive: SimDrive) -> Callable[[bytes], None]:
         def handle(data: bytes) -> None:
             # CiA 301: no SDO in Stopped; an SDO request is 8 bytes (a shorter frame is not one)
-            if drive.online and drive.nmt_state != NMT_STOPPED and len(data) == 8:
+            if drive.online and drive.nmt.state != NMT_STOPPED and len(data) == 8:
                 drive.node.sdo.on_request(0x600 + drive.node_id, data, 0.0)
 
         return handle

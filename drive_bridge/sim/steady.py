@@ -182,7 +182,7 @@ class SteadyStream:
                 if i in OFFSETS and offsets.get((a, i)) != value:  # (the loops read them as they advance)
                     drive.write(i, sub, value)
                     offsets[(a, i)] = value
-                drive.keep(i, sub, data[lo:hi], value)
+                drive.objects.keep(i, sub, data[lo:hi], value)
         out, send = self.out, self.send
         for drive, tpdos in zip(self.drives, self.tpdos):
             drive.pending_rpdo.clear()

@@ -298,12 +298,12 @@ def test_a_refused_write_restores_every_drive_and_stores_nothing(run, tmp_path):
     with open_link(config, sim=True) as link:
         drives = link.robot.drives
         drives["z"].abort_writes[(0x2001, 4)] = 0x06090030  # z refuses c1
-        saved = {a: d._saved for a, d in drives.items()}
+        saved = {a: d.objects.saved for a, d in drives.items()}
         result = commission(config, out, Options(sim=True, figures=False), link=link)
         assert result.exit_code == 3 and result.failed_step == "write"
         assert "axis z" in result.reason and "0x2001:4" in result.reason and "restored" in result.reason
         for a, d in drives.items():
-            assert d._saved is saved[a]  # no 'save' reached any drive
+            assert d.objects.saved is saved[a]  # no 'save' reached any drive
             assert (
                 d.plant_param[kernel.KPS] == pytest.approx(0.12) and d.plant_param[kernel.FF_EN] == 0.0
             )  # the backup, FF off

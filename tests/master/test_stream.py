@@ -43,8 +43,7 @@ def test_following_error_fault_stops_every_axis(tmp_path):
 def test_heartbeat_loss_stops_every_axis(tmp_path):
     def silence_z(bench, k):
         if k == 500:
-            bench.robot.drives["z"].node.data_store[0x1017] = {0: b"\x00\x00"}  # producer off
-            bench.robot.drives["z"]._cache.pop((0x1017, 0), None)
+            bench.robot.drives["z"].objects.set(0x1017, 0, 0)  # producer off
 
     bench, result = run_record(tmp_path, clean_config(), quick_config(together=True), on_progress=silence_z)
     assert_stopped_and_kept(bench, tmp_path, result, "z", "heartbeat lost")

@@ -19,8 +19,7 @@ def _heavy_y(bench, k):
 
 def _silent_z(bench, k):
     if k == 500:  # Z's heartbeat stops: the master loses it
-        bench.robot.drives["z"].node.data_store[0x1017] = {0: b"\x00\x00"}
-        bench.robot.drives["z"]._cache.pop((0x1017, 0), None)
+        bench.robot.drives["z"].objects.set(0x1017, 0, 0)
 
 
 def _gone_x(bench, k):
