@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import logging
 import math
-from collections import deque
 from collections.abc import Callable
 from functools import partial
 from pathlib import Path
@@ -74,7 +73,7 @@ from ..cia.p402 import (
     VOLTAGE_ENABLED,
 )
 from ..cia.pdo import PdoCodec
-from ..cia.setpoint import PVT, SETPOINT_OBJECTS, position_of, supported_modes, unpack_pvt
+from ..cia.setpoint import PVT, SETPOINT_OBJECTS, position_of, supported_modes
 from ..params.controller import Controller
 from ..params.profile import SELECT, load_profile
 from . import cyclic, kernel
@@ -85,6 +84,7 @@ from .home_search import HomeSearch
 from .nmt_slave import RESET_COMMUNICATION, NmtSlave
 from .pdo_map import ABORT_RANGE, PdoMapping
 from .plant import Plant
+from .pvt_buffer import ERR_UNDERFLOW, PvtBuffer
 from .robot_config import SimAxis
 from .state_machine import next_state
 from .storage import ObjectStorage
@@ -99,13 +99,6 @@ SAVE_SIGNATURE = 0x65766173  # 'save'
 RESERVED_FROM = {0x605A: 9, 0x6007: 4}
 LOAD_SIGNATURE = 0x64616F6C  # 'load'
 
-#: maxon's PVT input FIFO (EPOS Application Note "Interpolation Position Mode", Dec 2008, pp. 13-16):
-#: 64 records; 0x20C4:1 buffer status bits; an underflow or overflow aborts the trajectory.  The EMCY
-#: codes are the simulation's choice (maxon's are not in ../shared)
-FIFO_RECORDS = 64
-IPB_UNDERFLOW_WARNING, IPB_OVERFLOW_WARNING, IPB_UNDERFLOW, IPB_OVERFLOW = 0x0001, 0x0002, 0x0100, 0x0200
-IPB_ENABLED, IPB_ACTIVE = 0x4000, 0x8000
-ERR_IP_UNDERFLOW, ERR_IP_OVERFLOW = 0xFF02, 0xFF03
 #: profile velocity's windows where the drive has no object for them (0x606D velocity window,
 #: 0x606F velocity threshold, "speed = 0"), about 5 rpm [rad/s]; their times 0x606E / 0x6070 [ms]
 VELOCITY_WINDOW_RAD_S = 0.5
@@ -319,14 +312,12 @@ class SimDrive:
         self.pos_per_rad = self.vel_per_si = self.inc_per_rad
         self.modes = [m for m in supported_modes(self._supported_bits()) if m in IMPLEMENTED_MODES]
         self.online = True  # False: the drive has dropped off the bus
-        #: maxon's PVT input FIFO (position, velocity, time [ms] in device units), where it takes PVT records
-        self.fifo: deque[tuple[int, int, int]] | None = (
-            deque()
+        #: maxon's PVT input buffer, where the drive takes PVT records
+        self.pvt: PvtBuffer | None = (
+            PvtBuffer()
             if self.od.get_variable(*PVT) is not None and self.od.get_variable(0x60C4, 6) is not None
             else None
         )
-        self.fifo_enabled = False
-        self.ip_errors = 0  # 0x20C4:1 error bits latched since the buffer was last cleared
         self._init_storage()
         self.objects.save()
         self._power_up()
@@ -473,9 +464,8 @@ class SimDrive:
         self.plant_demand[kernel.P0] = self.plant_demand[kernel.P1] = self.plant_state[kernel.ENC] = (
             self._last_count / self.inc_per_rad
         )
-        if self.fifo is not None:
-            self.fifo.clear()
-            self.fifo_enabled, self.ip_errors = False, 0
+        if self.pvt is not None:
+            self.pvt.reset()
         self._rebuild_pdos()
         self.heartbeats = HeartbeatConsumer(partial(self.objects.get_or, fallback=None))
         self.host.routes_changed()
@@ -612,20 +602,11 @@ class SimDrive:
             self.plant_demand[kernel.T_OFF] = value / 1000.0 * self.rated_torque
         elif index == 0x60B1:  # velocity offset [velocity unit]
             self.plant_demand[kernel.V_OFF] = value / self.vel_per_si
-        elif (index, sub) == PVT and self.fifo is not None:  # maxon: into the FIFO, taken one a period
-            if not self.fifo_enabled:
-                return  # access to the buffer disabled: dropped
-            if len(self.fifo) >= FIFO_RECORDS:
-                self._buffer_error(IPB_OVERFLOW, ERR_IP_OVERFLOW)
-                return
-            self.fifo.append(unpack_pvt(value))  # (position, velocity, time [ms]): its own period
-        elif (
-            index == 0x60C4 and sub == 6 and self.fifo is not None
-        ):  # buffer clear: 0 clear + disable, 1 enable
-            if value == 0:
-                self.fifo.clear()
-                self.ip_errors = 0
-            self.fifo_enabled = value == 1
+        elif (index, sub) == PVT and self.pvt is not None:  # maxon: into the buffer, taken one a period
+            if (code := self.pvt.put(value)) is not None:
+                self._buffer_error(code)
+        elif index == 0x60C4 and sub == 6 and self.pvt is not None:
+            self.pvt.control(value)
         elif (index, sub) in SETPOINT_OBJECTS:
             if SETPOINT_OBJECTS[(index, sub)] == self.mode:  # 0x607A in PP is read on the set-point edge
                 self.setpoint_inc = position_of((index, sub), value)
@@ -850,7 +831,7 @@ class SimDrive:
             and self.mode == CSP
             and self.controlword in (0x0F, 0x1F)
             and self.nmt.state == NMT_OPERATIONAL
-            and self.fifo is None
+            and self.pvt is None
         )
 
     def on_sync(self) -> None:
@@ -882,15 +863,15 @@ class SimDrive:
         d, T = self.plant_demand, self.plant.sync_period
         if self.following:
             record_s = None  # a PVT record's own time
-            if self.fifo is not None and self.mode == IP:
-                if self.fifo:
-                    self.setpoint_inc, _, record_ms = self.fifo.popleft()
+            if self.pvt is not None and self.mode == IP:
+                if (record := self.pvt.take()) is not None:
+                    self.setpoint_inc, _, record_ms = record
                     self.new_target, record_s = True, record_ms / 1000.0
                     self.last_setpoint_time = self.plant.time
-                else:  # the FIFO ran dry while interpolating
+                else:  # the buffer ran dry while interpolating
                     d[kernel.P0] = d[kernel.P1]
                     self.internal_limit = False
-                    self._buffer_error(IPB_UNDERFLOW, ERR_IP_UNDERFLOW)
+                    self._buffer_error(ERR_UNDERFLOW)
                     return
             # over the drive's interpolation time period (0x60C2); linear interpolation (IP
             # sub-mode 0) has no acceleration within a period
@@ -1078,7 +1059,7 @@ class SimDrive:
         cyclic.actual_values(
             self.plant_state, self.plant_param, self.drive_values, self.plant.time, sample, sync
         )
-        if self.fifo is not None:  # 0x20C4:1 as of this sample (its other sub-indices are settings)
+        if self.pvt is not None:  # 0x20C4:1 as of this sample (its other sub-indices are settings)
             self.objects.set(0x20C4, 1, self._buffer_status())
 
     def _live_objects(self) -> dict[int, Callable[[], int]]:
@@ -1095,25 +1076,19 @@ class SimDrive:
             0x1001: lambda: 0x01 if self.state == FAULT else 0x00,
         }
 
-    def _buffer_error(self, bit: int, code: int) -> None:
-        """An underflow or overflow: latched in 0x20C4:1 at once, and the trajectory aborted (a fault)."""
-        self.ip_errors |= bit
+    def _buffer_error(self, code: int) -> None:
+        """An underflow or overflow of the PVT buffer (latched in its status): 0x20C4:1 at once, and
+        the trajectory aborted (a fault with EMCY ``code``)."""
         self.objects.set(0x20C4, 1, self._buffer_status())
         self.fault(code)
 
     def _buffer_status(self) -> int:
         """0x20C4:1, maxon's interpolation buffer status (sub-indices 2 and 3 the warning levels)."""
-        if self.fifo is None:
+        if self.pvt is None:
             return 0
-        n = len(self.fifo)
-        status = (
-            self.ip_errors | (IPB_ENABLED if self.fifo_enabled else 0) | (IPB_ACTIVE if self.following else 0)
+        return self.pvt.status(
+            self.following, self.objects.get_or(0x20C4, 2, 4), self.objects.get_or(0x20C4, 3, 60)
         )
-        if n < self.objects.get_or(0x20C4, 2, 4):
-            status |= IPB_UNDERFLOW_WARNING
-        if n > self.objects.get_or(0x20C4, 3, 60):
-            status |= IPB_OVERFLOW_WARNING
-        return status
 
     def _send(self, cob_id: int, data: bytes) -> None:
         if self.online:

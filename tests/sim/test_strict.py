@@ -207,7 +207,7 @@ def test_the_maxon_fifo_overflows_past_64_records_and_ignores_records_while_disa
     b = _epos2()
     node = b.nodes["y"]
     node.sdo[0x20C1].raw = pack_pvt(10**6, 0, 2)  # buffer access not enabled: dropped
-    assert len(b.robot.drives["y"].fifo) == 0
+    assert len(b.robot.drives["y"].pvt.records) == 0
     node.sdo[0x60C4][6].raw = 1
     for _ in range(64):
         node.sdo[0x20C1].raw = pack_pvt(0, 0, 2)

@@ -1,0 +1,68 @@
+"""maxon's PVT input buffer (EPOS Application Note "Interpolation Position Mode", Dec 2008,
+pp. 13-16): the records interpolated position mode takes one a period, its status 0x20C4:1 and
+what an underflow or an overflow does.  The EMCY codes are the simulation's choice (maxon's are
+not in ../shared)."""
+
+from __future__ import annotations
+
+from collections import deque
+
+from ..cia.setpoint import unpack_pvt
+
+RECORDS = 64  # the buffer's size
+#: 0x20C4:1 status bits
+UNDERFLOW_WARNING, OVERFLOW_WARNING, UNDERFLOW, OVERFLOW = 0x0001, 0x0002, 0x0100, 0x0200
+ENABLED, ACTIVE = 0x4000, 0x8000
+#: the EMCY codes of an underflow and an overflow (the trajectory aborted: a fault)
+ERR_UNDERFLOW, ERR_OVERFLOW = 0xFF02, 0xFF03
+
+
+class PvtBuffer:
+    """The records (position, velocity, time [ms], in device units) received and not yet taken,
+    whether access to the buffer is enabled, and the error bits latched since it was last cleared."""
+
+    def __init__(self) -> None:
+        self.records: deque[tuple[int, int, int]] = deque()
+        self.enabled = False
+        self.errors = 0
+
+    def reset(self) -> None:
+        """Power-up: empty, disabled, no error."""
+        self.records.clear()
+        self.enabled, self.errors = False, 0
+
+    def control(self, value: int) -> None:
+        """0x60C4:6, buffer clear: 0 clears and disables it, 1 enables it."""
+        if value == 0:
+            self.records.clear()
+            self.errors = 0
+        self.enabled = value == 1
+
+    def put(self, value: int) -> int | None:
+        """A PVT record (0x20C1 as written) into the buffer: None, or the EMCY code of the fault it
+        causes (an overflow).  With access disabled it is dropped."""
+        if not self.enabled:
+            return None
+        if len(self.records) >= RECORDS:
+            self.errors |= OVERFLOW
+            return ERR_OVERFLOW
+        self.records.append(unpack_pvt(value))
+        return None
+
+    def take(self) -> tuple[int, int, int] | None:
+        """The next record, or None where the buffer ran dry (an underflow, latched)."""
+        if self.records:
+            return self.records.popleft()
+        self.errors |= UNDERFLOW
+        return None
+
+    def status(self, active: bool, low: int, high: int) -> int:
+        """0x20C4:1: the latched errors, enabled, ``active`` (interpolating), and the warnings of a
+        fill below ``low`` or above ``high`` records (0x20C4:2 and :3)."""
+        n = len(self.records)
+        status = self.errors | (ENABLED if self.enabled else 0) | (ACTIVE if active else 0)
+        if n < low:
+            status |= UNDERFLOW_WARNING
+        if n > high:
+            status |= OVERFLOW_WARNING
+        return status
