@@ -80,10 +80,10 @@ from . import cyclic, kernel
 from .adapters import local_node
 from .emergency import EmcyProducer
 from .heartbeats import HeartbeatConsumer
-from .home_search import HomeSearch
 from .nmt_slave import RESET_COMMUNICATION, NmtSlave
 from .pdo_map import ABORT_RANGE, PdoMapping
 from .plant import Plant
+from .profile_motion import ProfileMotion
 from .pvt_buffer import ERR_UNDERFLOW, PvtBuffer
 from .robot_config import SimAxis
 from .state_machine import next_state
@@ -99,9 +99,6 @@ SAVE_SIGNATURE = 0x65766173  # 'save'
 RESERVED_FROM = {0x605A: 9, 0x6007: 4}
 LOAD_SIGNATURE = 0x64616F6C  # 'load'
 
-#: profile velocity's windows where the drive has no object for them (0x606D velocity window,
-#: 0x606F velocity threshold, "speed = 0"), about 5 rpm [rad/s]; their times 0x606E / 0x6070 [ms]
-VELOCITY_WINDOW_RAD_S = 0.5
 SETPOINT_TIMEOUT_PERIODS = 10  # CSP: no setpoint for this many interpolation periods -> fault
 
 ABORT_TOO_LOW = 0x06090032
@@ -202,27 +199,6 @@ class _Held:
 
     def __set__(self, drive: SimDrive, value: Any) -> None:
         drive.drive_values[self.column] = value
-
-
-class Dwell:
-    """A condition that counts once it has held for a time: CiA 402's windows and their window times
-    (position window 0x6067 for 0x6068, velocity window 0x606D for 0x606E, threshold 0x606F for 0x6070)."""
-
-    def __init__(self) -> None:
-        self.since: float | None = None
-
-    def restart(self) -> None:
-        """Not inside since any time: the next ``held`` starts the count."""
-        self.since = None
-
-    def held(self, inside: bool, now: float, duration: float) -> bool:
-        """Whether ``inside`` has been true since at least ``duration`` [s] before ``now`` [s]."""
-        if not inside:
-            self.restart()
-            return False
-        if self.since is None:
-            self.since = now
-        return now - self.since >= duration - 1e-9
 
 
 class SimDrive:
@@ -441,20 +417,15 @@ class SimDrive:
         self.mode = self.objects.get(0x6060)
         self.emcy = EmcyProducer(self.node_id, self._send)  # EMCY, 0x603F and 0x1003
         self.internal_limit = False
-        self.target_reached = False
         self.new_target = False
         self.setpoint_inc = 0
         self.setpoint_armed = False
         self.last_setpoint_time = 0.0
         self.v_dem = 0.0
         self.pending_rpdo: list[tuple[PdoCodec, bytes]] = []
-        self.pp_target: float | None = None  # PP: the demand is still travelling to it
-        self.pp_goal: float | None = None  # PP: the target of the last set-point accepted
-        self.setpoint_ack = False
         self.origin_rad = 0.0
-        self.homing = HomeSearch(self)  # HM: the search for home
-        # bit 10 of profile position / velocity, bit 12 of profile velocity (speed = 0)
-        self.position_window, self.velocity_window, self.threshold = Dwell(), Dwell(), Dwell()
+        #: the motion it makes itself (quick stop, halt, PV, PP, homing) and the bits that watch it
+        self.profile = ProfileMotion(self)
         s[kernel.ENABLED] = 0.0
         self._sync_count = 0
         self._last_count = math.floor(s[kernel.Q] * self.inc_per_rad)
@@ -715,20 +686,21 @@ class SimDrive:
         sw = STATUSWORD[self.state] | SW_REMOTE
         if self.state in VOLTAGE_ENABLED:
             sw |= SW_VOLTAGE_ENABLED
-        if self.target_reached:
+        if self.profile.reached:
             sw |= SW_TARGET_REACHED
         if self.internal_limit:
             sw |= SW_INTERNAL_LIMIT
         if self.mode == HM:  # bit 12 homing attained, bit 13 homing error
+            homing = self.profile.homing
             return (  # bit 10: at rest (not started, interrupted, or ended), as CiA 402 tables them
                 (sw & ~SW_TARGET_REACHED)
-                | (SW_TARGET_REACHED if self.state != ENABLED or self.homing.phase is None else 0)
-                | (SW_HOMING_ATTAINED if self.homing.attained else 0)
-                | (SW_HOMING_ERROR if self.homing.error else 0)
+                | (SW_TARGET_REACHED if self.state != ENABLED or homing.phase is None else 0)
+                | (SW_HOMING_ATTAINED if homing.attained else 0)
+                | (SW_HOMING_ERROR if homing.error else 0)
             )
         if self.mode == PV:  # bit 12: speed = 0 (0x606F for 0x6070); bit 13 (max slippage) unwatched
-            return sw | (SW_SPEED_ZERO if self.speed_zero() else 0)
-        if self.following or (self.state == ENABLED and self.mode == PP and self.setpoint_ack):
+            return sw | (SW_SPEED_ZERO if self.profile.speed_zero() else 0)
+        if self.following or (self.state == ENABLED and self.mode == PP and self.profile.acknowledged):
             sw |= SW_FOLLOWING  # CSP: follows the command value; IP: active; PP: set-point acknowledged
         if self.plant_state.item(kernel.FE_COUNT) > 0:
             sw |= SW_FOLLOWING_ERROR
@@ -753,23 +725,17 @@ class SimDrive:
             return
         self._go(next_state(self.state, cw, previous, self.objects.get_or(0x605A, 0, 2)))
         if not cw & 0x10:
-            self.setpoint_ack = False  # the handshake: bit 12 follows bit 4 down
+            self.profile.acknowledged = False  # the handshake: bit 12 follows bit 4 down
         if self.state == ENABLED and self.mode == PP and new_setpoint:
-            target = self.objects.get(0x607A) / self.pos_per_rad
-            self.pp_target = (
-                target + self.origin_rad if not cw & 0x40 else self.plant_demand[kernel.P1] + target
-            )
-            self.pp_goal = self.pp_target
-            self.setpoint_ack = True  # statusword bit 12: set-point acknowledged
-            self.target_reached = False
-            self.position_window.restart()
+            self.profile.new_setpoint(cw)
+        homing = self.profile.homing
         if self.state == ENABLED and self.mode == HM:
             if new_setpoint and not cw & CW_HALT_BIT:
-                self.homing.start()
+                homing.start()
             elif not cw & 0x10 or cw & CW_HALT_BIT:
-                self.homing.interrupt()  # bit 4 down or halt: homing interrupted, ramp to rest
+                homing.interrupt()  # bit 4 down or halt: homing interrupted, ramp to rest
         else:
-            self.homing.phase = None  # left OPERATION ENABLED: no homing goes on
+            homing.phase = None  # left OPERATION ENABLED: no homing goes on
 
     def _go(self, state: int) -> None:
         if state == self.state:
@@ -783,7 +749,7 @@ class SimDrive:
                 self._take_target()
         elif state != QUICK_STOP:
             self.plant_state[kernel.ENABLED] = 0.0
-        self.target_reached = False  # bit 10 belongs to the state it was set in
+        self.profile.reached = False  # bit 10 belongs to the state it was set in
         log.debug(
             "simulated drive %s: state %d -> %d (mode %d)", self.axis.name, self.state, state, self.mode
         )
@@ -793,7 +759,7 @@ class SimDrive:
         """CSP from now on: the demand is the target position 0x607A as it stands, wherever the
         axis is (a stale target makes it jump, as on a real drive)."""
         self.setpoint_inc = self.objects.get(0x607A)
-        self.plant_demand[kernel.P0] = self.plant_demand[kernel.P1] = self._limit(
+        self.plant_demand[kernel.P0] = self.plant_demand[kernel.P1] = self.within_limits(
             self._plant(self.setpoint_inc)
         )
 
@@ -802,8 +768,7 @@ class SimDrive:
         self.plant_demand[kernel.A_FF] = 0.0
         self.v_dem = 0.0
         self.new_target = False
-        self.pp_target = self.pp_goal = None
-        self.homing.phase = None
+        self.profile.hold()
 
     def fault(self, code: int) -> None:
         if self.state == FAULT:
@@ -887,68 +852,16 @@ class SimDrive:
         self.plant.period_ticks[self.index] = self.plant.ticks_per_period  # its own profile's period
         v_old = self.v_dem
         self.internal_limit = False
-        if self.state == QUICK_STOP:
-            self.ramp(
-                0.0,
-                self.objects.get_or(0x6085, 0, factory().quick_stop_rad_s2 * self.vel_per_si)
-                / self.vel_per_si,
-                T,
-            )
-            if self.v_dem == 0.0 and self.objects.get_or(0x605A, 0, 2) in (0, 1, 2, 3):
-                self._go(SWITCH_ON_DISABLED)
-        elif self.state == ENABLED and self.mode in (PV, PP) and self.halted:
-            self.ramp(0.0, self._deceleration(), T)  # halt (0x605D 1): down on the profile deceleration
-        elif self.state == ENABLED and self.mode == PV:
-            self.ramp(
-                self.objects.get(0x60FF) / self.vel_per_si, self.objects.get(0x6083) / self.vel_per_si, T
-            )
-        elif self.state == ENABLED and self.mode == PP and self.pp_target is not None:
-            dist = self.pp_target - d[kernel.P0]
-            acc, dec = self.objects.get(0x6083) / self.vel_per_si, self._deceleration()
-            v_max = min(
-                self.objects.get_or(0x6081, 0, factory().profile_velocity_rad_s * self.vel_per_si)
-                / self.vel_per_si,
-                math.sqrt(2 * dec * abs(dist)),
-            )
-            self.ramp(math.copysign(v_max, dist), acc, T)
-            if abs(dist) <= abs(self.v_dem) * T or abs(dist) < 1.0 / self.inc_per_rad:
-                d[kernel.P1] = self.pp_target
-                self.v_dem = 0.0
-                self.pp_target = None  # the demand is there; the axis is when it settles
-        elif self.state == ENABLED and self.mode == HM and self.homing.phase:
-            self.homing.period(T)
-        else:
-            self.v_dem = 0.0
+        if self.profile.period(T):
+            self._go(SWITCH_ON_DISABLED)  # the quick stop came to rest
         d[kernel.A_FF] = (self.v_dem - v_old) / T
         self.new_target = False
-
-    @property
-    def halted(self) -> bool:
-        """Controlword bit 8 (halt) in a mode whose profile the drive makes itself."""
-        return bool(self.controlword & CW_HALT_BIT) and self.mode in (PV, PP, HM)
-
-    def _deceleration(self) -> float:
-        """The profile deceleration 0x6084 [rad/s²] (the acceleration 0x6083 where it has none)."""
-        return self.objects.get_or(0x6084, 0, self.objects.get(0x6083)) / self.vel_per_si
-
-    def ramp(self, v_target: float, accel: float, T: float, limit: bool = True) -> None:
-        """Move the demand velocity toward ``v_target`` at ``accel`` and integrate P1 (inside the
-        software position limits unless ``limit`` is False)."""
-        step = accel * T
-        v_new = (
-            v_target
-            if abs(v_target - self.v_dem) <= step
-            else self.v_dem + math.copysign(step, v_target - self.v_dem)
-        )
-        p1 = self.plant_demand[kernel.P0] + 0.5 * (self.v_dem + v_new) * T
-        self.plant_demand[kernel.P1] = self._limit(p1) if limit else p1
-        self.v_dem = v_new
 
     def _plant(self, position: int) -> float:
         """A position in the drive's units as the plant's [rad]: through the origin homing set."""
         return cyclic.plant_position(self.drive_values, position)
 
-    def _limit(self, position: float) -> float:
+    def within_limits(self, position: float) -> float:
         """``position`` [rad, plant] inside the software position limits 0x607D."""
         return cyclic.soft_limit(self.drive_values, position, *self.software_limits())
 
@@ -956,51 +869,12 @@ class SimDrive:
         """0x607D: (min, max) [position unit]; no limits where min >= max."""
         return self.objects.get(0x607D, 1), self.objects.get(0x607D, 2)
 
-    def speed_zero(self) -> bool:
-        """The speed inside the velocity threshold 0x606F for the threshold time 0x6070."""
-        speed = self.plant_state.item(kernel.VMEAS)
-        return self.threshold.held(
-            abs(speed) <= self._velocity_window(0x606F),
-            self.plant.time,
-            self.objects.get_or(0x6070, 0, 0) / 1000.0,
-        )
-
-    def _velocity_window(self, index: int) -> float:
-        """0x606D (velocity window) or 0x606F (velocity threshold) [rad/s], where the drive has none
-        ``VELOCITY_WINDOW_RAD_S``."""
-        return self.objects.get_or(index, 0, VELOCITY_WINDOW_RAD_S * self.vel_per_si) / self.vel_per_si
-
-    def _update_reached(self) -> None:
-        """Bits 10 and 12 as the axis moves, each over its window and window time: speed = 0 inside
-        the velocity threshold 0x606F for 0x6070; quick stop and halt reached once the demand is 0 and
-        the axis stands; profile velocity reached with the demand at 0x60FF and the speed inside the
-        velocity window 0x606D for 0x606E; profile position reached once the demand is at the target
-        and the axis has stood inside the position window 0x6067 for 0x6068."""
-        if self.state != QUICK_STOP and self.mode not in (PV, PP, HM):
-            return  # (CSP and IP: bit 10 is not theirs)
-        now, speed = self.plant.time, self.plant_state.item(kernel.VMEAS)
-        if self.state == QUICK_STOP or self.halted:
-            self.target_reached = self.v_dem == 0.0 and self.speed_zero()
-        elif self.mode == PV:
-            target = self.objects.get(0x60FF) / self.vel_per_si
-            inside = self.v_dem == target and abs(speed - target) <= self._velocity_window(0x606D)
-            self.target_reached = self.velocity_window.held(
-                inside, now, self.objects.get_or(0x606E, 0, 0) / 1000.0
-            )
-        elif self.mode == PP and self.pp_target is None and self.pp_goal is not None:
-            inside = abs(
-                self.plant_state[kernel.ENC] - self.pp_goal
-            ) * self.pos_per_rad <= self.objects.get_or(0x6067, 0, 1000)
-            self.target_reached = self.position_window.held(
-                inside, now, self.objects.get_or(0x6068, 0, 10) / 1000.0
-            )
-
     def check_faults(self) -> None:
         """After the plant advanced: following error, loss of setpoint, and bits 10 and 12 as the
-        axis moves (:meth:`_update_reached`)."""
+        axis moves (:meth:`.ProfileMotion.update_reached`)."""
         if self.state not in (ENABLED, QUICK_STOP):
             return
-        self._update_reached()
+        self.profile.update_reached()
         over = self.plant_state.item(kernel.FE_COUNT)  # ticks outside the following error window
         if over > 0 and over >= self.following_error_ticks():
             self.fault(ERR_FOLLOWING)

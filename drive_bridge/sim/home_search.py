@@ -10,6 +10,7 @@ there); 35/37 take the position where the axis stands as home.  The homing accel
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Protocol
 
 import numpy as np
@@ -34,16 +35,16 @@ class HomingDrive(Protocol):
     v_dem: float  # the demand velocity [rad/s]
     objects: ObjectStorage  # its objects (the homing method, offset, speeds and acceleration)
 
-    def ramp(self, v_target: float, accel: float, T: float, limit: bool = True) -> None: ...
-
 
 class HomeSearch:
     """The homing of ``drive``: ``phase`` of a search under way ("switch", "leave", "stop"; None:
     none), and whether home was ``attained`` or the method ended in an ``error`` (statusword bits 12
-    and 13 in homing mode)."""
+    and 13 in homing mode).  ``ramp(v_target [rad/s], accel [rad/s²], period [s], limit=False)``
+    moves the demand as the drive's profiles do (:meth:`.profile_motion.ProfileMotion.ramp`)."""
 
-    def __init__(self, drive: HomingDrive):
+    def __init__(self, drive: HomingDrive, ramp: Callable[..., None]):
         self.drive = drive
+        self._ramp = ramp
         self.phase: str | None = None
         self.attained = self.error = False
 
@@ -74,7 +75,7 @@ class HomeSearch:
         direction = HOMING_SWITCH.get(drive.objects.get_or(0x6098, 0, 0), -1)
         accel = drive.objects.get_or(0x609A, 0, 0) / drive.vel_per_si
         if self.phase == "switch":
-            drive.ramp(
+            self._ramp(
                 direction * drive.objects.get_or(0x6099, 1, 0) / drive.vel_per_si,
                 accel,
                 period_s,
@@ -83,7 +84,7 @@ class HomeSearch:
             if self._on_switch(direction):
                 self.phase = "leave"
         elif self.phase == "leave":
-            drive.ramp(
+            self._ramp(
                 -direction * drive.objects.get_or(0x6099, 2, 0) / drive.vel_per_si,
                 accel,
                 period_s,
@@ -96,7 +97,7 @@ class HomeSearch:
                 self.phase = "stop"
                 self.attained = True
         else:
-            drive.ramp(0.0, accel, period_s, limit=False)
+            self._ramp(0.0, accel, period_s, limit=False)
             if drive.v_dem == 0.0:
                 self.phase = None  # at rest: statusword bit 10
 
