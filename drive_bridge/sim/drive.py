@@ -25,7 +25,6 @@ import logging
 import math
 from collections.abc import Callable
 from functools import partial
-from pathlib import Path
 from typing import Any, Protocol
 
 import numpy as np
@@ -74,11 +73,10 @@ from ..cia.p402 import (
 )
 from ..cia.pdo import PdoCodec
 from ..cia.setpoint import PVT, SETPOINT_OBJECTS, position_of, supported_modes
-from ..params.controller import Controller
-from ..params.profile import SELECT, load_profile
 from . import cyclic, kernel
 from .adapters import local_node
 from .emergency import EmcyProducer
+from .gain_objects import GainObjects
 from .heartbeats import HeartbeatConsumer
 from .nmt_slave import RESET_COMMUNICATION, NmtSlave
 from .pdo_map import ABORT_RANGE, PdoMapping
@@ -101,58 +99,8 @@ LOAD_SIGNATURE = 0x64616F6C  # 'load'
 
 SETPOINT_TIMEOUT_PERIODS = 10  # CSP: no setpoint for this many interpolation periods -> fault
 
-ABORT_TOO_LOW = 0x06090032
-
-
-#: drive-profile parameter -> kernel parameter: the gains, and the model feed-forward of a drive
-#: that has one
-GAIN_PARAMS = {
-    "KpP": kernel.KPP,
-    "FwF": kernel.FWF,
-    "KpS": kernel.KPS,
-    "KiS": kernel.KIS,
-    "KpC": kernel.KPC,
-    "KiC": kernel.KIC,
-}
-PID_PARAMS = {
-    "PidP": kernel.PID_P,
-    "PidI": kernel.PID_I,
-    "PidD": kernel.PID_D,
-    "PidFFv": kernel.PID_FFV,
-    "PidFFa": kernel.PID_FFA,
-}
-MODEL_PARAMS = {
-    "ff_enable": kernel.FF_EN,
-    "J": kernel.FF_J,
-    "c0": kernel.FF_C0,
-    "c1": kernel.FF_C1,
-    "offset": kernel.FF_OFF,
-    "cp": kernel.FF_CP,
-    "dc0": kernel.FF_DC0,
-    "dc1": kernel.FF_DC1,
-    "periodic_amplitude": kernel.FF_PER_AMP,
-    "periodic_period": kernel.FF_PER_PERIOD,
-    "periodic_phase": kernel.FF_PER_PHASE,
-}
 _MOTOR_OBJECTS = {1: "R", 2: "L", 3: "kt", 4: "vbus"}  # 0x2002 of the project's drive
 DEVICE_TYPE_SERVO = 0x00020192  # CiA 402, servo drive
-
-
-def _loop_divider(controller: Controller, eds_path: str | Path) -> int:
-    """Kernel ticks per tick of the drive's position/velocity loop: the simulator runs loops at
-    2 kHz / n and its current loop at 8 kHz; ValueError for a profile declaring other rates."""
-    inner = controller.timing
-    div = inner.tick_s / kernel.VELOCITY_TICK_S
-    if (
-        abs(div - round(div)) > 1e-9
-        or round(div) < 1
-        or inner.current_hz != kernel.CURRENT_SUBSTEPS / kernel.VELOCITY_TICK_S
-    ):
-        raise ValueError(
-            f"{eds_path}: the simulator runs a drive's loops at 2 kHz / n and its current loop at 8 kHz, "
-            f"not at {1 / inner.tick_s:g} Hz / {inner.current_hz:g} Hz as its profile declares"
-        )
-    return round(div)
 
 
 def plant_params(p: np.ndarray, axis: SimAxis, axis_names: list[str]) -> None:
@@ -242,30 +190,8 @@ class SimDrive:
         self.axis_names = axis_names
         self.node_id = axis.node_id
         self.spec = spec_for(eds_path)
-        profile = load_profile(self.spec.profile).bind(axis.motor.kt)  # current through its own motor
-        #: the controller the drive runs (its profile's): structure and rates
-        self.controller = profile.controller
-        self.loop_div = _loop_divider(self.controller, eds_path)
-        #: the factory gains in the drive's controller's terms: the project drive's cascade (its EDS
-        #: defaults) with its loops slowed by the drive's loop rate (the same crossover share of the
-        #: rate, the same margins)
-        self.factory_gains = self.controller.to_drive(
-            {k: v / self.loop_div if k in ("KpP", "KpS", "KiS") else v for k, v in factory().gains.items()}
-        )
-        #: the object that selects the profile's gain objects (Nanotec's 3212h:04) and the value that does;
-        #: the other value runs the objects of the profile ``otherwise`` names
-        self.select = None if profile.select is None else profile.select[:2]
-        otherwise = profile.otherwise() or profile
-        #: selected or not -> {(index, sub): (kernel parameter, profile entry)} of the gain / model objects
-        self.gain_sets = {
-            on: {
-                (e.index, e.sub): ((GAIN_PARAMS | PID_PARAMS | MODEL_PARAMS)[name], e)
-                for name, e in p.entries.items()
-                if name != SELECT
-            }
-            for on, p in ((True, profile), (False, otherwise))
-        }
-        self.params = self.gain_sets[True]  # the objects that run now (set at power-up)
+        #: its controller: loops, rates, factory gains, and the objects that hold its gains and model
+        self.gains = GainObjects(self.spec.profile, axis.motor.kt, eds_path)
         # heartbeat and NMT run in simulation time here, not in canopen's timer thread
         self.node = local_node(axis.node_id, load_od(eds_path, axis.node_id), self._send)
         self.node.add_write_callback(self._on_sdo_write)
@@ -335,10 +261,8 @@ class SimDrive:
         self._units()
         if not self.spec.factory_in_file:
             f = factory()
-            for params in self.gain_sets.values():
-                for (index, sub), (_, entry) in params.items():
-                    if entry.parameter in self.factory_gains:
-                        self.objects.set(index, sub, entry.to_device(self.factory_gains[entry.parameter]))
+            for index, sub, value in self.gains.factory_values():
+                self.objects.set(index, sub, value)
             for index, value in (
                 (0x6072, f.max_torque_permille),
                 (0x6066, f.fe_timeout_ms),
@@ -359,20 +283,6 @@ class SimDrive:
             ):
                 if self.od.get_variable(index, sub) is not None:
                     self.objects.set(index, sub, round(value))
-
-    def _load_gains(self, selected: bool) -> None:
-        """The loops run the gain objects of the profile (``selected``) or of the one that runs
-        otherwise, as they hold them now."""
-        p = self.plant_param
-        self.params = self.gain_sets[selected]
-        for name, col in (
-            GAIN_PARAMS | PID_PARAMS
-        ).items():  # a gain without an object keeps the factory value
-            p[col] = self.factory_gains.get(name, 0.0)
-        for col in MODEL_PARAMS.values():
-            p[col] = 0.0
-        for (index, sub), (col, entry) in self.params.items():
-            p[col] = entry.to_si(self.objects.get(index, sub))
 
     def _units(self) -> None:
         """Device units per rad and per rad/s from the factor group the drive holds (its EDS
@@ -402,10 +312,10 @@ class SimDrive:
         )
         self.drive_values[cyclic.X_NOISE] = self.axis.torque_noise_Nm
         p[kernel.STRUCT] = (
-            kernel.POSITION_PID if self.controller.structure == "position_pid" else kernel.CASCADE
+            kernel.POSITION_PID if self.gains.controller.structure == "position_pid" else kernel.CASCADE
         )
-        p[kernel.LOOP_DIV] = self.loop_div
-        self._load_gains(self.select is None or self.objects.get(*self.select[0].index_sub) == self.select[1])
+        p[kernel.LOOP_DIV] = self.gains.loop_div
+        self.gains.load(self.gains.selected(self.objects.get), p, self.objects.get)
         p[kernel.TMAX] = (
             self.objects.get_or(0x6072, 0, factory().max_torque_permille) / 1000.0 * self.rated_torque
         )
@@ -585,22 +495,11 @@ class SimDrive:
                 self.last_setpoint_time = self.plant.time
                 if self.following:
                     self.setpoint_armed = True
-        elif self.select is not None and (index, sub) == self.select[0].index_sub:
+        elif self.gains.selects(index, sub):
             self.objects.written(index, sub, value)  # (stored after this call: the loops read it now)
-            self._load_gains(value == self.select[1])
-        elif (index, sub) in self.params:
-            col, entry = self.params[(index, sub)]
-            si = entry.to_si(value)
-            if (
-                not math.isfinite(si)
-                or si < 0
-                and col
-                not in (kernel.FF_OFF, kernel.FF_CP, kernel.FF_DC0, kernel.FF_DC1, kernel.FF_PER_PHASE)
-                or col == kernel.FF_EN
-                and value not in (0, 1)
-            ):
-                raise SdoAbortedError(ABORT_TOO_LOW if si < 0 else ABORT_RANGE)
-            self.plant_param[col] = si
+            self.gains.load(self.gains.selected(self.objects.get), self.plant_param, self.objects.get)
+        elif (taken := self.gains.written(index, sub, value)) is not None:
+            self.plant_param[taken[0]] = taken[1]
         elif index == 0x1017:
             self.nmt.heartbeat_time_written(self.plant.time, value)
         elif index == 0x1006:

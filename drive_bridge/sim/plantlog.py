@@ -15,7 +15,8 @@ from pathlib import Path
 import numpy as np
 
 from . import kernel
-from .drive import GAIN_PARAMS, plant_params
+from .drive import plant_params
+from .gain_objects import GAIN_PARAMS
 from .robot_config import SimConfig
 from .vendors import factory
 

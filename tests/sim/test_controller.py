@@ -9,7 +9,8 @@ import pytest
 
 from drive_bridge.params.controller import Controller
 from drive_bridge.sim import kernel
-from drive_bridge.sim.drive import GAIN_PARAMS, PID_PARAMS, plant_params
+from drive_bridge.sim.drive import plant_params
+from drive_bridge.sim.gain_objects import GAIN_PARAMS, PID_PARAMS
 from harness.support import clean_config
 
 PID = Controller("position_pid", {"position": 1000.0, "velocity": None, "current": 8000.0})
