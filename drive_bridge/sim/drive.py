@@ -332,12 +332,10 @@ class SimDrive:
         self.setpoint_armed = False
         self.last_setpoint_time = 0.0
         self.v_dem = 0.0
-        self.pending_rpdo: list[tuple[PdoCodec, bytes]] = []
         self.origin_rad = 0.0
         #: the motion it makes itself (quick stop, halt, PV, PP, homing) and the bits that watch it
         self.profile = ProfileMotion(self)
         s[kernel.ENABLED] = 0.0
-        self._sync_count = 0
         self._last_count = math.floor(s[kernel.Q] * self.inc_per_rad)
         self._last_sync_sample = self._sampled_at = self.plant.time
         self._velocity = 0
@@ -347,9 +345,9 @@ class SimDrive:
         )
         if self.pvt is not None:
             self.pvt.reset()
-        self._rebuild_pdos()
+        self.pdos.reset()
         self.heartbeats = HeartbeatConsumer(partial(self.objects.get_or, fallback=None))
-        self.host.routes_changed()
+        self.host.routes_changed()  # (its RPDOs' and the heartbeats it consumes)
         self._refresh_actuals(noise=False)
 
     # ------------------------------------------------------------------ NMT
@@ -390,10 +388,8 @@ class SimDrive:
         self.nmt.beat(now)
         if self.nmt.state == NMT_OPERATIONAL and self.pdos.events:
             self.refresh_actuals()
-            for pdo in self.pdos.events:
-                data = pdo.codec.struct.pack(*[g() for g in pdo.getters])
-                if pdo.due(now, data):
-                    self._send(pdo.codec.cob_id, data)
+            for cob_id, data in self.pdos.event_frames(now):
+                self._send(cob_id, data)
 
     # ------------------------------------------------------------------ heartbeat consumer
     def _consumers_changed(self) -> None:
@@ -542,7 +538,7 @@ class SimDrive:
             self.emcy.send(ERR_PDO_LENGTH)  # CiA 301: not processed, length error
             return
         if ttype <= 240:
-            self.pending_rpdo.append((codec, data))  # synchronous: applied on the next SYNC
+            self.pdos.pending.append((codec, data))  # synchronous: applied on the next SYNC
         else:
             self._apply_rpdo(codec, data)
 
@@ -568,16 +564,10 @@ class SimDrive:
         else:
             self.fault(ERR_SOFTWARE)
 
-    def count_sync(self) -> int:
-        """One more SYNC: the count a synchronous TPDO's transmission type divides."""
-        self._sync_count += 1
-        return self._sync_count
-
     def send_tpdos(self) -> None:
-        count = self.count_sync()
-        for codec, ttype, getters in self.pdos.tpdos:
-            if 1 <= ttype <= 240 and count % ttype == 0:
-                self._send(codec.cob_id, codec.struct.pack(*[g() for g in getters]))
+        """A SYNC: the synchronous TPDOs due at it."""
+        for cob_id, data in self.pdos.synchronous_frames():
+            self._send(cob_id, data)
 
     # ------------------------------------------------------------------ CiA 402
     @property
@@ -701,7 +691,7 @@ class SimDrive:
     def on_sync(self) -> None:
         """SYNC: send TPDOs with the values at this instant, then latch new setpoints."""
         self.sample_sync()
-        self.start_period(self.pending_rpdo)
+        self.start_period(self.pdos.pending)
 
     def sample_sync(self) -> None:
         """A SYNC received: the synchronous TPDOs, with the actual values at this instant."""

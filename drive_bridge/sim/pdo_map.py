@@ -2,12 +2,13 @@
 change: the COB-ID changes only while the PDO is invalid and never to a restricted CAN-ID, the
 mapping only while the PDO is invalid and its sub-index 0 is 0, only PDO-mappable objects of the
 right direction with their own length, at most 8 entries and 64 bits; no reserved transmission
-type.  Event-driven TPDOs (254, 255) go out on a change of their data (no sooner than the
-inhibit time after the last) and when their event timer runs out."""
+type.  Synchronous RPDOs wait for the next SYNC; synchronous TPDOs go out on every n-th SYNC their
+transmission type says; event-driven TPDOs (254, 255) go out on a change of their data (no sooner
+than the inhibit time after the last) and when their event timer runs out."""
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 
 import canopen
@@ -63,7 +64,8 @@ class EventPdo:
 
 class PdoMapping:
     """The valid RPDOs (COB-ID -> codec, transmission type) and TPDOs (codec, transmission type,
-    the getters of their objects) of one drive, rebuilt from its object dictionary.
+    the getters of their objects) of one drive, rebuilt from its object dictionary; the
+    synchronous RPDOs received for the next SYNC (``pending``) and the SYNCs counted.
 
     ``value(index, sub)`` reads an object as the drive holds it; ``getter(index, sub)`` gives
     the callable a TPDO samples an object with."""
@@ -78,6 +80,34 @@ class PdoMapping:
         self.rpdos: dict[int, tuple[PdoCodec, int]] = {}
         self.tpdos: list[tuple[PdoCodec, int, list[Callable[[], int]]]] = []
         self.events: list[EventPdo] = []
+        #: the synchronous RPDOs (codec, data) received since the last SYNC: the next period's
+        self.pending: list[tuple[PdoCodec, bytes]] = []
+        self._syncs = 0  # SYNCs counted (what a synchronous TPDO's transmission type divides)
+
+    def reset(self) -> None:
+        """Power-up: no RPDO pending, the SYNCs counted from 0, the PDOs as the objects map them."""
+        self.pending = []
+        self._syncs = 0
+        self.rebuild()
+
+    def count_sync(self) -> int:
+        """One more SYNC: its count."""
+        self._syncs += 1
+        return self._syncs
+
+    def synchronous_frames(self) -> Iterator[tuple[int, bytes]]:
+        """A SYNC counted: (COB-ID, data) of each synchronous TPDO due at it, its objects read now."""
+        count = self.count_sync()
+        for codec, ttype, getters in self.tpdos:
+            if 1 <= ttype <= 240 and count % ttype == 0:
+                yield codec.cob_id, codec.struct.pack(*[g() for g in getters])
+
+    def event_frames(self, now: float) -> Iterator[tuple[int, bytes]]:
+        """(COB-ID, data) of each event-driven TPDO due at ``now`` [s], its objects read now."""
+        for pdo in self.events:
+            data = pdo.codec.struct.pack(*[g() for g in pdo.getters])
+            if pdo.due(now, data):
+                yield pdo.codec.cob_id, data
 
     def check_write(self, index: int, sub: int, value: int) -> None:
         """Raise SdoAbortedError when a write to a PDO parameter breaks CiA 301's rules."""

@@ -351,8 +351,8 @@ class SimRobot:
     def _arm(self) -> None:
         """The RPDOs received since the last SYNC are the next period's."""
         for drive, armed in zip(self.drives.values(), self._armed):
-            armed.extend(drive.pending_rpdo)
-            drive.pending_rpdo.clear()
+            armed.extend(drive.pdos.pending)
+            drive.pdos.pending.clear()
 
     def _sample(self) -> None:
         for drive in self.drives.values():

@@ -148,7 +148,7 @@ class SteadyStream:
         taken = []
         for a, drive in enumerate(self.drives):
             axes[a, cyclic.A_HAS_SETPOINT] = 0.0
-            for codec, data in drive.pending_rpdo:
+            for codec, data in drive.pdos.pending:
                 values = codec.struct.unpack_from(data)
                 for (index, _), value in zip(codec.entries, values):
                     if index == 0x6040 and value != drive.controlword:
@@ -185,8 +185,8 @@ class SteadyStream:
                 drive.objects.keep(i, sub, data[lo:hi], value)
         out, send = self.out, self.send
         for drive, tpdos in zip(self.drives, self.tpdos):
-            drive.pending_rpdo.clear()
-            count = drive.count_sync()
+            drive.pdos.pending.clear()
+            count = drive.pdos.count_sync()
             for row, cob_id, ttype, size in tpdos:
                 if count % ttype == 0:
                     send(cob_id, out[row, :size].tobytes())
