@@ -66,7 +66,7 @@ def main(robots: list[str]) -> None:
                 vals = "  ".join(f"{k} {p[k]:.5g} ± {sd[k]:.2g}" for k in ("J", "c0", "c1"))
                 print(
                     f"    {d:<5} {motion[a]:6.1f} s  {vals}  effects {[t.effect.name for t in r.effects]}  "
-                    f"RMSE {r.after.rmse:.4g} (noise floor {r.noise_floor:.3g})"
+                    f"RMSE {r.after.rmse:.4g} (noise floor {r.diagnostics.noise_floor:.3g})"
                 )
             full, short = runs["paper"][0][a].model, runs["short"][0][a].model
             print(

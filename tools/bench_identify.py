@@ -147,7 +147,7 @@ def coverage(cases: int, verbose: bool = False) -> None:
             if verbose:
                 print(
                     f"  case {case}: {kind}; effects {[e.effect.name for e in r.effects]}; "
-                    f"consistent {r.consistency.get('consistent')}; "
+                    f"consistent {r.diagnostics.consistency.get('consistent')}; "
                     + ", ".join(
                         f"{k} {(r.model.params_[k] - plant[k]) / r.model.param_std_[k]:+.1f} std"
                         for k in inside
@@ -218,7 +218,7 @@ results = identify(sys.argv[1], seed=0)
 print(json.dumps({"wall": time.perf_counter() - t0,
                   "params": {a: {k: r.model.params_[k] for k in ("J", "c0", "c1")} for a, r in results.items()},
                   "std": {a: {k: r.model.param_std_[k] for k in ("J", "c0", "c1")} for a, r in results.items()},
-                  "ga": {a: {k: float(c) for k, c in zip(r.model.coef_names, r.ga_coef) if k in ("J", "c0", "c1")}
+                  "ga": {a: {k: float(c) for k, c in zip(r.model.coef_names, r.ga.coef) if k in ("J", "c0", "c1")}
                          for a, r in results.items()},
                   "effects": {a: [t.effect.name for t in r.effects] for a, r in results.items()}}))
 """

@@ -61,7 +61,72 @@ DEGENERATE_COND = 1e8  # ... as is one whose (column-scaled) regressors have a c
 
 
 @dataclass
+class GeneticFit:
+    """The paper's genetic algorithm (differential evolution) on the final model's structure and
+    the same cost: its coefficients (where the search stood, where it did not converge before its
+    generation limit), its errors on the validation samples, and how far it lies from the
+    least-squares minimum, at most, in the least-squares std (0 where every std is 0)."""
+
+    coef: np.ndarray
+    errors: Errors
+    converged: bool
+    std_from_lse: float
+
+    @classmethod
+    def of(cls, fitted: AxisModel, lse: AxisModel, val: Samples) -> GeneticFit:
+        """The GA's model ``fitted`` set beside the least-squares ``lse``, validated on ``val``."""
+        std = lse.coef_std_
+        ok = std > 0
+        far = float(np.max(np.abs(fitted.coef_ - lse.coef_)[ok] / std[ok])) if ok.any() else 0.0
+        return cls(fitted.coef_, errors(fitted, val), fitted.converged_, far)
+
+
+@dataclass
+class DriveFit:
+    """What is written to a drive where the model has effects no drive model carries
+    (effects.DRIVE_EFFECTS): the model refitted with only those a drive holds (the best values
+    within that structure) and its validation errors -- or, where that refit leaves J, c0 or c1
+    undetermined, the full model and its errors, and the ``note`` that says why."""
+
+    model: AxisModel
+    errors: Errors
+    note: str | None = None
+
+
+@dataclass
+class Diagnostics:
+    """What the log and the fit tell beside the model, each apart from it (scikit-learn's rule:
+    the estimator holds its fit, not the verdicts on it)."""
+
+    noise_floor: float  # the torque's noise the log allows no model to go below [Nm | N]
+    unexplained: list[dict]  # what the residual still depends on (trace.unexplained, resonance, reversal)
+    dropped: list[str]  # samples the log could not give, and why
+    sampling: dict  # what the log's time stamps held (Log.sampling), the torque delay and clipping
+    consistency: dict  # J, c0, c1 refitted on parts of the data (consistency())
+    #: the speeds c0 and c1 hold for, and whether they depend on which (friction_range())
+    friction: dict
+    #: a resonance in the whole-band residual (resonance.find_mode), and the cut-off it moved from
+    resonance: dict | None = None
+    #: residual energy concentrated after torque reversals (reversal.find_backlash)
+    backlash: dict | None = None
+    #: what the motion covers and which of c0, c1 it cannot determine (motion.what_the_motion_tells)
+    motion: dict = field(default_factory=dict)
+    #: J refitted in half the band (band_dependence): the band it holds across, or why not
+    band: dict = field(default_factory=dict)
+    #: J, c0, c1 the data do not determine, and why (identifiable.undetermined)
+    undetermined: dict[str, str] = field(default_factory=dict)
+    #: the plant's torque -> velocity response read from the log (frf.log_response), for reference
+    response: dict | None = None
+
+
+@dataclass
 class AxisResult:
+    """One axis identified: its units and settings, the estimation and validation samples, the
+    base and final models with the effects traced on the way and their validation errors, the
+    genetic algorithm beside them (``ga``), what is written to the drive where it differs from the
+    model (``drive``: None where the model's effects are all ones a drive holds), and the
+    diagnostics."""
+
     axis: str
     kind: str  # rotary | linear
     units: dict[str, str]
@@ -74,35 +139,9 @@ class AxisResult:
     effects: list[TracedEffect]
     before: Errors  # base model on the validation samples
     after: Errors  # final model on the validation samples
-    noise_floor: float
-    unexplained: list[dict]
-    ga_coef: np.ndarray
-    ga_errors: Errors
-    dropped: list[str] = field(default_factory=list)
-    sampling: dict = field(default_factory=dict)  # what the log's time stamps held (Log.sampling)
-    consistency: dict = field(default_factory=dict)  # J, c0, c1 refitted on parts of the data (consistency())
-    #: the speeds c0 and c1 hold for, and whether they depend on which (friction_range())
-    friction: dict = field(default_factory=dict)
-    #: a resonance in the whole-band residual (resonance.find_mode), and the cut-off it moved from
-    resonance: dict | None = None
-    #: residual energy concentrated after torque reversals (reversal.find_backlash)
-    backlash: dict | None = None
-    #: what the motion covers and which of c0, c1 it cannot determine (motion.what_the_motion_tells)
-    motion: dict = field(default_factory=dict)
-    #: J refitted in half the band (band_dependence): the band it holds across, or why not
-    band: dict = field(default_factory=dict)
-    #: J, c0, c1 the data do not determine, and why (identifiable.undetermined)
-    undetermined: dict[str, str] = field(default_factory=dict)
-    #: the model refitted with only the effects a drive's model carries (effects.DRIVE_EFFECTS):
-    #: what is written, the best values within the structure the drive holds (the model itself
-    #: where every effect is one of those)
-    drive_model: AxisModel | None = None
-    drive_errors: Errors | None = None
-    drive_note: str | None = None  # why the drive gets the full model's values after all
-    #: the plant's torque -> velocity response read from the log (frf.log_response), for reference
-    response: dict | None = None
-    #: whether the GA converged before its generation limit (``ga_coef`` otherwise: where the search stood)
-    ga_converged: bool = True
+    ga: GeneticFit
+    diagnostics: Diagnostics
+    drive: DriveFit | None = None
 
     def attach(self, log: Log) -> None:
         """Give the samples back the log they were made of (a result from a worker process comes
@@ -111,15 +150,10 @@ class AxisResult:
             if s.source is not None:
                 s.source.log = log
 
-    @property
-    def ga_std_from_lse(self) -> float:
-        """How far the GA's coefficients lie from the least-squares minimum of the same cost, at
-        most, in the least-squares std (0 where every std is 0)."""
-        std = self.model.coef_std_
-        ok = std > 0
-        return float(np.max(np.abs(self.ga_coef - self.model.coef_)[ok] / std[ok])) if ok.any() else 0.0
-
     def as_json(self) -> dict:
+        """The result as identify.json holds it per axis (schema ``identify``)."""
+        diagnostics = self.diagnostics
+        drive = self.drive or DriveFit(self.model, self.after)
         return {
             "units": self.units,
             "samples": int(self.est.moving.sum()),
@@ -137,7 +171,7 @@ class AxisResult:
             "rmse_before": self.before.rmse,
             "rmse_after": self.after.rmse,
             "torque_rms": self.after.torque_rms,
-            "noise_floor": self.noise_floor,
+            "noise_floor": diagnostics.noise_floor,
             "relative_error_before": self.before.relative_error,
             "relative_error_after": self.after.relative_error,
             "fit_relative_error_before": self.base.relative_error_,
@@ -155,37 +189,37 @@ class AxisResult:
                 }
                 for t in self.effects
             ],
-            "unexplained": self.unexplained,
+            "unexplained": diagnostics.unexplained,
             "validation": self.validation,
             "validation_samples": self.after.samples,
             "condition_number": self.model.cond_,
             "residual_std": self.model.sigma_,
             "ga": {
-                "params": dict(zip(self.model.coef_names, map(float, self.ga_coef))),
-                "rmse": self.ga_errors.rmse,
-                "converged": self.ga_converged,
-                "std_from_lse": self.ga_std_from_lse,
+                "params": dict(zip(self.model.coef_names, map(float, self.ga.coef))),
+                "rmse": self.ga.errors.rmse,
+                "converged": self.ga.converged,
+                "std_from_lse": self.ga.std_from_lse,
             },
             "settings": {
                 "cutoff_hz": self.settings.cutoff_hz,
                 "decimation": self.settings.decimation,
                 "rate_hz": self.settings.rate_hz,
             },
-            "dropped": self.dropped,
-            "sampling": self.sampling,
-            "consistency": self.consistency,
-            "friction": self.friction,
-            "drive_params": (self.drive_model or self.model).params_,
-            "drive_param_std": (self.drive_model or self.model).param_std_,
-            "drive_rmse": (self.drive_errors or self.after).rmse,
-            "drive_note": self.drive_note,
-            "motion": self.motion,
-            "band": self.band,
-            "identifiable": {p: p not in self.undetermined for p in ("J", "c0", "c1")},
-            "undetermined": self.undetermined,
-            "resonance": self.resonance,
-            "backlash": self.backlash,
-            "response": self.response,
+            "dropped": diagnostics.dropped,
+            "sampling": diagnostics.sampling,
+            "consistency": diagnostics.consistency,
+            "friction": diagnostics.friction,
+            "drive_params": drive.model.params_,
+            "drive_param_std": drive.model.param_std_,
+            "drive_rmse": drive.errors.rmse,
+            "drive_note": drive.note,
+            "motion": diagnostics.motion,
+            "band": diagnostics.band,
+            "identifiable": {p: p not in diagnostics.undetermined for p in ("J", "c0", "c1")},
+            "undetermined": diagnostics.undetermined,
+            "resonance": diagnostics.resonance,
+            "backlash": diagnostics.backlash,
+            "response": diagnostics.response,
         }
 
 
@@ -473,8 +507,8 @@ def identify_axis(
                 mode = {**mode, "cutoff_moved_from_hz": round(settings.cutoff_hz, 2)}
                 if result.settings.torque_delay_s != settings.torque_delay_s:
                     wide = whole_band(log, axis, result.settings)  # the positions as the new fit reads them
-        result.resonance = mode
-        result.unexplained.append(
+        result.diagnostics.resonance = mode
+        result.diagnostics.unexplained.append(
             {
                 "depends_on": "frequency",
                 "form": "even",
@@ -493,25 +527,29 @@ def identify_axis(
         )
     levels = clipped_levels(log.axes[axis].tau)
     if levels:
-        result.sampling["torque_clipped"] = {
+        result.diagnostics.sampling["torque_clipped"] = {
             "levels": levels,
             "share": round(float(np.isin(log.axes[axis].tau, levels).mean()), 4),
         }
     _check_sign(log, axis, result.model, result.est)
-    result.motion = what_the_motion_tells(result.est, result.units["position"])
-    result.band = band_dependence(log, axis, result)
-    result.undetermined = undetermined(
+    diagnostics = result.diagnostics
+    diagnostics.motion = what_the_motion_tells(result.est, result.units["position"])
+    diagnostics.band = band_dependence(log, axis, result)
+    diagnostics.undetermined = undetermined(
         result.model,
         result.est,
         result.after,
-        result.consistency,
-        {**result.motion["cannot_tell"], **({"J": result.band["why"]} if "why" in result.band else {})},
+        diagnostics.consistency,
+        {
+            **diagnostics.motion["cannot_tell"],
+            **({"J": diagnostics.band["why"]} if "why" in diagnostics.band else {}),
+        },
     )
     _refit_for_the_drive(result, seed)
     J, c1 = result.model.params_["J"], result.model.params_["c1"]
     predicted = result.model.predict(wide)
     demand = log.axes[axis].demand
-    result.response = log_response(
+    diagnostics.response = log_response(
         wide.t,
         wide.qd,
         wide.tau_f - (predicted - J * wide.qdd - c1 * wide.qd),
@@ -523,8 +561,8 @@ def identify_axis(
     if found is not None:
         standstill = found["reversal"] == "velocity"
         if not standstill:
-            result.backlash = found
-        result.unexplained.append(
+            diagnostics.backlash = found
+        diagnostics.unexplained.append(
             {
                 "depends_on": f"{found['reversal']}_reversal",
                 "form": "odd" if standstill else "even",
@@ -532,7 +570,9 @@ def identify_axis(
                 "fraction": found["share"],
                 "evidence": None,
                 **{k: found[k] for k in ("delay_ms", "ratio", "events")},
-                **({"fitted_from": round(result.friction["velocity_range"][0], 4)} if standstill else {}),
+                **(
+                    {"fitted_from": round(diagnostics.friction["velocity_range"][0], 4)} if standstill else {}
+                ),
             }
         )
     return result
@@ -540,8 +580,8 @@ def identify_axis(
 
 def _refit_for_the_drive(result: AxisResult, seed: int) -> None:
     """Where the model has effects no drive model carries, its refit with only those a drive holds
-    (``result.drive_model``) -- or, where that refit leaves J, c0 or c1 undetermined, why the full
-    model's values are written (``result.drive_note``)."""
+    (``result.drive``) -- or, where that refit leaves J, c0 or c1 undetermined, the full model with
+    why its values are written (``result.drive.note``)."""
     held = [e for e in result.model.effects if e.name in DRIVE_EFFECTS]
     if len(held) == len(result.model.effects):
         return
@@ -550,12 +590,14 @@ def _refit_for_the_drive(result: AxisResult, seed: int) -> None:
     lost = undetermined(drive, result.est, drive_errors, {})
     if lost:  # the drive's structure cannot hold this machine
         left = ", ".join(e.name for e in result.model.effects if e not in held)
-        result.drive_note = (
+        result.drive = DriveFit(
+            result.model,
+            result.after,
             f"refitted without {left}, which no drive model holds, the model leaves "
-            f"{', '.join(lost)} undetermined: the full model's values are what is written"
+            f"{', '.join(lost)} undetermined: the full model's values are what is written",
         )
     else:
-        result.drive_model, result.drive_errors = drive, drive_errors
+        result.drive = DriveFit(drive, drive_errors)
 
 
 def _check_sign(log: Log, axis: str, model: AxisModel, est: Samples) -> None:
@@ -669,20 +711,20 @@ def _identify_axis(
         traced,
         errors(base, val),
         errors(model, val),
-        floor,
-        unexplained(model, val, settings.rate_hz / settings.decimation),
-        ga_model.coef_,
-        errors(ga_model, val),
-        list(log.axes[axis].dropped),
-        {
-            **log.sampling,
-            "torque_delay_ms": round(1e3 * settings.torque_delay_s, 4),
-            "torque_aligned": settings.torque_delay_s != 0.0,
-            **timing,
-        },
-        agreement,
-        friction=friction,
-        ga_converged=ga_model.converged_,
+        GeneticFit.of(ga_model, model, val),
+        Diagnostics(
+            floor,
+            unexplained(model, val, settings.rate_hz / settings.decimation),
+            list(log.axes[axis].dropped),
+            {
+                **log.sampling,
+                "torque_delay_ms": round(1e3 * settings.torque_delay_s, 4),
+                "torque_aligned": settings.torque_delay_s != 0.0,
+                **timing,
+            },
+            agreement,
+            friction,
+        ),
     )
 
 

@@ -57,17 +57,21 @@ def summary(results: dict[str, AxisResult]) -> str:
             f"{r.settings.decimation}, {int(r.est.moving.sum())} moving samples fitted; "
             f"validation: {r.validation})"
         )
-        if r.motion:
-            lines.append(f"  {motion_text(r.motion)}")
+        if r.diagnostics.motion:
+            lines.append(f"  {motion_text(r.diagnostics.motion)}")
         std = r.model.param_std_
         for k in ("J", "c0", "c1"):
             v = r.model.params_[k]
             rel = abs(std[k] / v) * 100 if v else float("inf")
             lines.append(
                 f"  {k:<3} = {measured(v, std[k])} ± {std[k]:.2g} {unit(k, r.kind)}  ({rel:.2f} %)"
-                + (f"  UNDETERMINED: {r.undetermined[k]}" if k in r.undetermined else "")
+                + (
+                    f"  UNDETERMINED: {r.diagnostics.undetermined[k]}"
+                    if k in r.diagnostics.undetermined
+                    else ""
+                )
             )
-        if r.friction:
+        if r.diagnostics.friction:
             lines.append(f"  {friction_text(r)}")
         lines.append(
             f"  base model J, c0, c1: validation RMSE {r.before.rmse:.4g} {tu} "
@@ -81,31 +85,31 @@ def summary(results: dict[str, AxisResult]) -> str:
             lines.append("  no effect found beyond J, c0, c1")
         lines.append(
             f"  final: validation RMSE {r.after.rmse:.4g} {tu} (measured torque RMS {r.after.torque_rms:.4g}, "
-            f"noise floor {r.noise_floor:.3g}); relative error {r.after.relative_error:.2%}"
+            f"noise floor {r.diagnostics.noise_floor:.3g}); relative error {r.after.relative_error:.2%}"
         )
-        if r.drive_model is not None or r.drive_note:
+        if r.drive is not None:
             lines.append(f"  {drive_text(r)}")
         lines.append(
-            f"  GA (differential evolution) on the same data: validation RMSE {r.ga_errors.rmse:.4g} "
-            f"{tu}, J {r.ga_coef[0]:.6g}, c1 {r.ga_coef[1]:.6g}, c0 {r.ga_coef[2]:.6g}; {ga_text(r)}"
+            f"  GA (differential evolution) on the same data: validation RMSE {r.ga.errors.rmse:.4g} "
+            f"{tu}, J {r.ga.coef[0]:.6g}, c1 {r.ga.coef[1]:.6g}, c0 {r.ga.coef[2]:.6g}; {ga_text(r)}"
         )
-        for u_ in r.unexplained:
+        for u_ in r.diagnostics.unexplained:
             lines.append(f"  unexplained: {describe_unexplained(u_)}")
-        for d in r.dropped:
+        for d in r.diagnostics.dropped:
             lines.append(f"  dropped: {d}")
-        if r.sampling.get("resampled"):
-            lines.append(f"  {sampling_text(r.sampling)}")
-        if r.sampling.get("torque_clipped"):
-            lines.append(f"  {clipped_text(r.sampling['torque_clipped'], tu)}")
-        if r.sampling.get("torque_aligned") or r.sampling.get("torque_delay_note"):
-            lines.append(f"  {delay_text(r.sampling)}")
-        if r.consistency and r.consistency["consistent"] is False:
-            lines.append(f"  NOT CONSISTENT: {consistency_text(r.consistency)}")
-        if r.consistency and r.consistency["consistent"] is None:
-            lines.append(f"  consistency not checked: {not_run_text(r.consistency)}")
-        if runs := (r.consistency or {}).get("between_runs"):
+        if r.diagnostics.sampling.get("resampled"):
+            lines.append(f"  {sampling_text(r.diagnostics.sampling)}")
+        if r.diagnostics.sampling.get("torque_clipped"):
+            lines.append(f"  {clipped_text(r.diagnostics.sampling['torque_clipped'], tu)}")
+        if r.diagnostics.sampling.get("torque_aligned") or r.diagnostics.sampling.get("torque_delay_note"):
+            lines.append(f"  {delay_text(r.diagnostics.sampling)}")
+        if r.diagnostics.consistency and r.diagnostics.consistency["consistent"] is False:
+            lines.append(f"  NOT CONSISTENT: {consistency_text(r.diagnostics.consistency)}")
+        if r.diagnostics.consistency and r.diagnostics.consistency["consistent"] is None:
+            lines.append(f"  consistency not checked: {not_run_text(r.diagnostics.consistency)}")
+        if runs := (r.diagnostics.consistency or {}).get("between_runs"):
             lines.append(f"  two runs: {between_runs_text(runs)}")
-        for part, why in (r.consistency or {}).get("degenerate", {}).items():
+        for part, why in (r.diagnostics.consistency or {}).get("degenerate", {}).items():
             lines.append(f"  consistency: the {part} not compared: {why}")
     return "\n".join(lines)
 
@@ -113,14 +117,17 @@ def summary(results: dict[str, AxisResult]) -> str:
 def drive_text(r: AxisResult) -> str:
     """The values written: the model refitted within what a drive's model holds, beside the full one
     (or why the full model's are)."""
-    if r.drive_model is None or r.drive_errors is None:
-        return f"for the drive: {r.drive_note}"
-    d, sd = r.drive_model.params_, r.drive_model.param_std_
-    held = ", ".join(e.name for e in r.drive_model.effects) or "no effect"
+    drive = r.drive
+    if drive is None:
+        return "for the drive: the model as it is (a drive's model holds every term of it)"
+    if drive.note:
+        return f"for the drive: {drive.note}"
+    d, sd = drive.model.params_, drive.model.param_std_
+    held = ", ".join(e.name for e in drive.model.effects) or "no effect"
     return (
         f"for the drive (its model holds J, c0, c1 and {held}; refitted without the rest): "
         + ", ".join(f"{k} {measured(d[k], sd[k])} ± {sd[k]:.2g}" for k in ("J", "c0", "c1"))
-        + f"; validation RMSE {r.drive_errors.rmse:.4g} {r.units['torque']} (every term: {r.after.rmse:.4g})"
+        + f"; validation RMSE {drive.errors.rmse:.4g} {r.units['torque']} (every term: {r.after.rmse:.4g})"
     )
 
 
@@ -130,8 +137,8 @@ GA_WITHIN_STD = 1.0  # a GA result this close to the least-squares minimum (in i
 def ga_text(r: AxisResult) -> str:
     """Whether the GA's values are an estimate: converged, or how far from the least-squares
     minimum of the same cost its search stood when it reached its generation limit."""
-    far = r.ga_std_from_lse
-    if r.ga_converged:
+    far = r.ga.std_from_lse
+    if r.ga.converged:
         return f"converged, within {far:.2g} std of the least-squares values"
     if far <= GA_WITHIN_STD:
         return f"stopped at its generation limit within {far:.2g} std of the least-squares values"
@@ -143,7 +150,7 @@ def ga_text(r: AxisResult) -> str:
 
 def friction_text(r: AxisResult) -> str:
     """The speeds c0 and c1 hold for, and where friction is not linear in velocity over them."""
-    f = r.friction
+    f = r.diagnostics.friction
     q = "m" if r.kind == "linear" else "rad"
     text = f"c0 and c1 hold for speeds {f['velocity_range'][0]:.3g} to {f['velocity_range'][1]:.3g} {q}/s"
     if f["linear"]:
@@ -300,7 +307,7 @@ def _plot_fit(r: AxisResult, path: Path) -> None:
 def plot_response(r: AxisResult, path: Path) -> bool:
     """The log's torque → velocity response beside the rigid model's (magnitude, phase, coherence;
     bands below ``MIN_COHERENCE`` hollow); False where the log has none."""
-    x = r.response
+    x = r.diagnostics.response
     if not x or not x["frequency_hz"]:
         return False
     plt = pyplot()
@@ -420,7 +427,8 @@ def build_report(results: dict[str, AxisResult], out: Path, source: str, figures
         doc.para(
             f"Cut-off {r.settings.cutoff_hz:.1f} Hz (motion bandwidth {r.settings.motion_bandwidth_hz:.2f} Hz), "
             f"decimation {r.settings.decimation}, {int(r.est.moving.sum())} moving samples fitted. "
-            f"Validation: {r.validation}." + (f" {motion_text(r.motion).capitalize()}." if r.motion else "")
+            f"Validation: {r.validation}."
+            + (f" {motion_text(r.diagnostics.motion).capitalize()}." if r.diagnostics.motion else "")
         )
         rows = []
         for i, name in enumerate(r.model.coef_names):
@@ -433,13 +441,13 @@ def build_report(results: dict[str, AxisResult], out: Path, source: str, figures
                     measured(v, sd),
                     f"{sd:.2g}",
                     f"{abs(sd / v) * 100 if v else 0:.2f} %",
-                    measured(r.ga_coef[i], sd),
+                    measured(r.ga.coef[i], sd),
                 ]
             )
         doc.table(["coefficient", "unit", "LSE", "std", "rel. std", "GA"], rows)
         doc.para(
             f"Condition number {r.model.cond_:.1f}; residual std {r.model.sigma_:.4g} {tu}; "
-            f"GA validation RMSE {r.ga_errors.rmse:.4g} {tu} (LSE {r.after.rmse:.4g} {tu}); {ga_text(r)}."
+            f"GA validation RMSE {r.ga.errors.rmse:.4g} {tu} (LSE {r.after.rmse:.4g} {tu}); {ga_text(r)}."
         )
         rows = [["J, c0, c1", f"{r.before.rmse:.4g}", f"{r.before.relative_error:.2%}"]]
         names = []
@@ -451,7 +459,7 @@ def build_report(results: dict[str, AxisResult], out: Path, source: str, figures
         )
         doc.para(
             f"Measured torque RMS on the same samples {r.after.torque_rms:.4g} {tu}; "
-            f"noise floor {r.noise_floor:.3g} {tu}."
+            f"noise floor {r.diagnostics.noise_floor:.3g} {tu}."
         )
         doc.figure(out / f"{axis}_fit.png", f"axis {axis}: measured and predicted torque and the residual")
         if drawn[axis]:
@@ -467,29 +475,29 @@ def build_report(results: dict[str, AxisResult], out: Path, source: str, figures
             doc.heading(2, f"{t.effect.name} (depends on {t.effect.depends_on})")
             doc.para(_sentence(t.evidence))
             doc.figure(png, t.effect.name)
-        if r.unexplained:
+        if r.diagnostics.unexplained:
             doc.para("Unexplained structure left in the residual:")
-            doc.bullets([describe_unexplained(x) for x in r.unexplained])
-        if r.dropped:
+            doc.bullets([describe_unexplained(x) for x in r.diagnostics.unexplained])
+        if r.diagnostics.dropped:
             doc.para("Dropped from the log:")
-            doc.bullets(list(r.dropped))
-        if r.sampling.get("resampled"):
-            doc.para(_sentence(sampling_text(r.sampling)))
-        if r.sampling.get("torque_clipped"):
-            doc.para(_sentence(clipped_text(r.sampling["torque_clipped"], tu)))
-        if r.sampling.get("torque_aligned") or r.sampling.get("torque_delay_note"):
-            doc.para(_sentence(delay_text(r.sampling)))
-        if r.drive_model is not None or r.drive_note:
+            doc.bullets(list(r.diagnostics.dropped))
+        if r.diagnostics.sampling.get("resampled"):
+            doc.para(_sentence(sampling_text(r.diagnostics.sampling)))
+        if r.diagnostics.sampling.get("torque_clipped"):
+            doc.para(_sentence(clipped_text(r.diagnostics.sampling["torque_clipped"], tu)))
+        if r.diagnostics.sampling.get("torque_aligned") or r.diagnostics.sampling.get("torque_delay_note"):
+            doc.para(_sentence(delay_text(r.diagnostics.sampling)))
+        if r.drive is not None:
             doc.para(_sentence(drive_text(r)))
-        if r.friction:
+        if r.diagnostics.friction:
             doc.para(_sentence(friction_text(r)))
-        if r.consistency and r.consistency["consistent"] is False:
-            doc.para([Strong("Not consistent:"), f" {consistency_text(r.consistency)}."])
-        if r.consistency and r.consistency["consistent"] is None:
-            doc.para([Strong("Consistency not checked:"), f" {not_run_text(r.consistency)}."])
-        if runs := (r.consistency or {}).get("between_runs"):
+        if r.diagnostics.consistency and r.diagnostics.consistency["consistent"] is False:
+            doc.para([Strong("Not consistent:"), f" {consistency_text(r.diagnostics.consistency)}."])
+        if r.diagnostics.consistency and r.diagnostics.consistency["consistent"] is None:
+            doc.para([Strong("Consistency not checked:"), f" {not_run_text(r.diagnostics.consistency)}."])
+        if runs := (r.diagnostics.consistency or {}).get("between_runs"):
             doc.para([Strong("Two runs:"), f" {between_runs_text(runs)}."])
-        for name, why in r.undetermined.items():
+        for name, why in r.diagnostics.undetermined.items():
             doc.para(
                 [Strong(f"{name} undetermined:"), f" {why}; it is not used to tune nor written to a drive."]
             )

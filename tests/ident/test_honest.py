@@ -34,7 +34,7 @@ def test_a_joints_gravity_is_named_and_leaves_the_inertia_to_j(tmp_path):
         abs(p["gravity.a_cos"] - G) <= 3 * sd["gravity.a_cos"]
         and abs(p["gravity.b_sin"]) <= 3 * sd["gravity.b_sin"]
     )
-    assert r.undetermined == {}
+    assert r.diagnostics.undetermined == {}
 
 
 def test_a_motion_that_cannot_tell_inertia_from_gravity_says_so_and_tune_refuses_it(tmp_path):
@@ -46,8 +46,8 @@ def test_a_motion_that_cannot_tell_inertia_from_gravity_says_so_and_tune_refuses
     cols = joint_log(J=J, gravity_Nm=G, sines=((0.15, 0.3),), duration_s=45.0, noise_Nm=1.0)
     steady = cols["time_s"] >= 5.0
     r = identify(write_log(tmp_path / "one.csv", {k: v[steady] for k, v in cols.items()}))
-    why = r["j"].undetermined.get("J", "")
-    assert "negative" in why and "collinear with a joint's gravity" in why, r["j"].undetermined
+    why = r["j"].diagnostics.undetermined.get("J", "")
+    assert "negative" in why and "collinear with a joint's gravity" in why, r["j"].diagnostics.undetermined
     doc = json.loads(as_json(r))
     assert doc["axes"]["j"]["identifiable"]["J"] is False and doc["axes"]["j"]["undetermined"]["J"] == why
     (tmp_path / "identify.json").write_text(json.dumps(doc))
@@ -64,7 +64,7 @@ def test_a_clipped_torque_is_named_and_its_samples_left_out(tmp_path):
     clean = joint_log(J=J, gravity_Nm=G)
     clip = 0.9 * float(abs(clean["j_torque_Nm"]).max())
     r = identify(write_log(tmp_path / "clipped.csv", joint_log(J=J, gravity_Nm=G, clip_Nm=clip)))
-    c = r["j"].sampling["torque_clipped"]
+    c = r["j"].diagnostics.sampling["torque_clipped"]
     assert c["levels"] == [round(clip, 3)] and c["share"] > 0.03
     assert "clipped at" in summary(r) and "were not fitted" in summary(r)
     p, sd = r["j"].model.params_, r["j"].model.param_std_
@@ -127,13 +127,13 @@ def test_friction_that_is_not_linear_in_velocity_says_over_which_speeds_c0_c1_ho
             closed_loop_log(np.arange(30000) / 1000.0, extra=lambda q, v, a, t: 4e-6 * v * abs(v)),
         )
     )["y"]
-    f = r.friction
+    f = r.diagnostics.friction
     lo, hi = f["velocity_range"]
     assert 0 < lo < hi and not f["linear"] and f["sigmas"]
     for p in f["sigmas"]:
         assert r.model.param_std_[p] >= abs(f["slower"][p] - f["faster"][p]) / 2
     clean = identify(write_log(tmp_path / "clean.csv", closed_loop_log(np.arange(30000) / 1000.0)))["y"]
-    assert clean.friction["linear"]
+    assert clean.diagnostics.friction["linear"]
 
 
 @pytest.mark.parametrize("acceleration", [1000.0, 5000.0])
@@ -145,7 +145,7 @@ def test_no_backlash_on_a_rigid_axis_moved_by_trapezoids(tmp_path, acceleration)
     from harness.plants import trapezoid_log
 
     r = identify(write_log(tmp_path / "trapezoids.csv", trapezoid_log(acceleration)))["y"]
-    assert r.backlash is None, r.backlash
+    assert r.diagnostics.backlash is None, r.diagnostics.backlash
 
 
 def test_stribeck_friction_in_the_independent_plant_is_found_and_leaves_the_inertia_alone(tmp_path):
@@ -175,7 +175,9 @@ def test_stribeck_friction_in_the_independent_plant_is_found_and_leaves_the_iner
     p, sd = r.model.params_, r.model.param_std_
     for name, true in (("J", 1e-4), ("c0", 0.3), ("c1", 5e-4)):
         assert abs(p[name] - true) <= 3 * sd[name], (name, p[name], sd[name])
-    assert r.backlash is None and not any(u.get("kind") for u in r.unexplained), r.unexplained
+    assert r.diagnostics.backlash is None and not any(u.get("kind") for u in r.diagnostics.unexplained), (
+        r.diagnostics.unexplained
+    )
 
 
 def _short_campaign_log(tmp_path, effects: dict | None):
@@ -212,13 +214,15 @@ def test_stribeck_friction_below_the_speeds_fitted_is_named_as_friction_at_stand
     from drive_bridge.ident.presentation import summary
 
     clean = identify(_short_campaign_log(tmp_path, None), axes=["y"])["y"]
-    assert clean.backlash is None and not any(u.get("kind") for u in clean.unexplained), clean.unexplained
+    assert clean.diagnostics.backlash is None and not any(
+        u.get("kind") for u in clean.diagnostics.unexplained
+    ), clean.diagnostics.unexplained
     results = identify(
         _short_campaign_log(tmp_path, {"stribeck": {"STR_AMP": 0.3, "STR_VEL": 2.0}}), axes=["y"]
     )
     r = results["y"]
-    assert r.backlash is None
-    standstill = [u for u in r.unexplained if u.get("kind") == "standstill_friction"]
+    assert r.diagnostics.backlash is None
+    standstill = [u for u in r.diagnostics.unexplained if u.get("kind") == "standstill_friction"]
     assert len(standstill) == 1 and standstill[0]["depends_on"] == "velocity_reversal"
     assert standstill[0]["fitted_from"] > 2.0 and standstill[0]["form"] == "odd"
     assert "friction at standstill" in summary(results) and "not play" in summary(results)
@@ -241,11 +245,15 @@ def test_a_two_mass_mode_under_a_stiff_velocity_loop_is_found(tmp_path, locked_h
     r = identify(
         write_log(tmp_path / "two_mass.csv", two_mass_log(locked_hz=locked_hz, velocity_loop_hz=loop_hz))
     )["y"]
-    assert r.resonance is not None and r.resonance["frequency_hz"] == pytest.approx(locked_hz, rel=0.1)
-    assert r.resonance["damping"] < 0.1
+    assert r.diagnostics.resonance is not None and r.diagnostics.resonance["frequency_hz"] == pytest.approx(
+        locked_hz, rel=0.1
+    )
+    assert r.diagnostics.resonance["damping"] < 0.1
     J, sd = r.model.params_["J"], r.model.param_std_["J"]
     assert abs(J - 1e-4) <= 3 * sd and J == pytest.approx(1e-4, rel=0.02)
-    assert r.backlash is None and [u.get("kind") for u in r.unexplained if u.get("kind")] == ["resonance"]
+    assert r.diagnostics.backlash is None and [
+        u.get("kind") for u in r.diagnostics.unexplained if u.get("kind")
+    ] == ["resonance"]
 
 
 def test_the_response_read_from_the_log_matches_the_plant_where_its_coherence_says(tmp_path):
@@ -262,7 +270,7 @@ def test_the_response_read_from_the_log_matches_the_plant_where_its_coherence_sa
 
     J, c1 = 1e-4, 5e-4
     cols = closed_loop_log(np.arange(30000) / 1000.0, J=J, c1=c1, multisine_hz=(1.0, 60.0))
-    x = identify(write_log(tmp_path / "multisine.csv", cols))["y"].response
+    x = identify(write_log(tmp_path / "multisine.csv", cols))["y"].diagnostics.response
     assert x["method"].startswith("the position demand as instrument")
     f, coh = np.array(x["frequency_hz"]), np.array(x["coherence"])
     g = np.array(x["magnitude"]) * np.exp(1j * np.radians(x["phase_deg"]))
@@ -273,7 +281,7 @@ def test_the_response_read_from_the_log_matches_the_plant_where_its_coherence_sa
     assert np.all(np.abs(np.degrees(np.angle(g[good] / plant[good]))) < 5.0)
     assert f.max() > 0.4 * 1000 and np.all(coh[f > 80] < 0.1)
     del cols["y_position_demand_rad"]
-    plain = identify(write_log(tmp_path / "no_demand.csv", cols))["y"].response
+    plain = identify(write_log(tmp_path / "no_demand.csv", cols))["y"].diagnostics.response
     assert plain["method"].startswith("no position demand in the log") and "biased" in plain["method"]
 
 
@@ -286,8 +294,10 @@ def test_a_log_that_never_turns_back_says_c0_is_collinear_with_the_offset(tmp_pa
     r = identify(
         write_log(tmp_path / "oneway.csv", closed_loop_log(jittered(1000.0, 12.0, 0.0), drift_rad_s=40.0))
     )["y"]
-    assert r.motion["directions"]["positive"] == 1.0 and set(r.motion["cannot_tell"]) == {"c0"}
-    assert "collinear with the offset" in r.undetermined["c0"]
+    assert r.diagnostics.motion["directions"]["positive"] == 1.0 and set(
+        r.diagnostics.motion["cannot_tell"]
+    ) == {"c0"}
+    assert "collinear with the offset" in r.diagnostics.undetermined["c0"]
     p, sd = r.model.params_, r.model.param_std_
-    assert "J" not in r.undetermined and abs(p["J"] - 1e-4) <= 3 * sd["J"]
-    assert "c1" not in r.undetermined and abs(p["c1"] - 5e-4) <= 3 * sd["c1"]
+    assert "J" not in r.diagnostics.undetermined and abs(p["J"] - 1e-4) <= 3 * sd["J"]
+    assert "c1" not in r.diagnostics.undetermined and abs(p["c1"] - 5e-4) <= 3 * sd["c1"]

@@ -74,9 +74,9 @@ def check_base(result, plant=PLANT, tol=0.05):
 # ---------------------------------------------------------------- effects nobody declared
 def test_clean_log_gets_no_effect(tmp_path):
     r = identify(log_of(tmp_path), axes=["y"])["y"]
-    assert r.effects == [] and r.unexplained == []
+    assert r.effects == [] and r.diagnostics.unexplained == []
     check_base(r, tol=0.03)
-    assert r.after.rmse < 1.3 * r.noise_floor  # the base model is all there is
+    assert r.after.rmse < 1.3 * r.diagnostics.noise_floor  # the base model is all there is
 
 
 @pytest.mark.parametrize(
@@ -133,7 +133,7 @@ def test_injected_effect_is_traced(tmp_path, effects, name, depends_on, check):
         mean = 15.0 * (np.exp(-e.start / 15.0) - np.exp(-e.end / 15.0)) / span
         plant["c0"] = PLANT["c0"] * (1 + 0.3 * mean)
     check_base(r, plant)
-    assert r.after.rmse < 0.97 * r.before.rmse and r.after.rmse < 1.3 * r.noise_floor
+    assert r.after.rmse < 0.97 * r.before.rmse and r.after.rmse < 1.3 * r.diagnostics.noise_floor
 
 
 def test_paper_y_axis_position_spring_and_weight(tmp_path):
@@ -308,8 +308,8 @@ def test_time_is_what_the_stamps_say(tmp_path, capsys, kind):
     p = r.model.params_
     assert p["J"] == pytest.approx(1e-4, rel=0.03) and p["c0"] == pytest.approx(0.3, rel=0.02)
     assert p["c1"] == pytest.approx(5e-4, rel=0.10)
-    assert r.sampling["resampled"] and r.sampling["max_step_deviation_s"] >= 45e-6
-    assert (r.sampling["gaps"] > 0) == (kind == "irregular")
+    assert r.diagnostics.sampling["resampled"] and r.diagnostics.sampling["max_step_deviation_s"] >= 45e-6
+    assert (r.diagnostics.sampling["gaps"] > 0) == (kind == "irregular")
     assert main(["identify", str(path), "--axis", "y"]) == 0
     assert "resampled onto a uniform 1.0" in capsys.readouterr().out
 
@@ -338,7 +338,7 @@ def test_emps_benchmark_offset_then_asymmetry(tmp_path):
     # sample, but reading the positions that much later does not lower the validation error of the
     # force as logged: the log's instants stay as they are, and the output says why
     r = identify(est, val, cutoff_hz=100, decimation=10)["emps"]
-    timing = r.sampling
+    timing = r.diagnostics.sampling
     assert not timing["torque_aligned"] and -1.0 < timing["torque_delay_estimate_ms"] < -0.5
     assert "did not lower the validation error" in timing["torque_delay_note"]
     assert r.units == {"position": "m", "torque": "N"}
@@ -395,7 +395,7 @@ def test_an_effect_beyond_the_library_is_fitted_as_a_spline(tmp_path, case, form
         )
         assert r.after.rmse < 0.85 * r.before.rmse
     else:
-        assert r.after.rmse < 1.7 * r.noise_floor < 0.2 * r.before.rmse
+        assert r.after.rmse < 1.7 * r.diagnostics.noise_floor < 0.2 * r.before.rmse
         assert r.model.params_["J"] == pytest.approx(1e-4, rel=0.02)
     if form != "odd":  # an odd term's mean over the stroke is Coulomb friction: c0 takes it
         assert r.model.params_["c0"] == pytest.approx(0.3, rel=0.02)
@@ -410,7 +410,7 @@ def test_clean_closed_loop_log_leaves_nothing_unexplained(tmp_path, seed):
     from harness.plants import closed_loop_log
 
     r = identify(write_log(tmp_path / "log.csv", closed_loop_log(np.arange(40000) / 1000, seed=seed)))["y"]
-    assert r.effects == [] and r.unexplained == []
+    assert r.effects == [] and r.diagnostics.unexplained == []
     p, sd = r.model.params_, r.model.param_std_
     for name, true in (("J", 1e-4), ("c0", 0.3), ("c1", 5e-4)):
         assert abs(p[name] - true) <= 3 * sd[name], (name, p[name], sd[name])
@@ -426,8 +426,8 @@ def test_a_payload_change_halfway_is_flagged_not_averaged(tmp_path, capsys):
         tmp_path / "log.csv", closed_loop_log(np.arange(40000) / 1000, seed=3, payload=(20.0, 1.3e-4))
     )
     r = identify(path)["y"]
-    assert not r.consistency["consistent"] and "J" in r.consistency["moved"]
-    halves = r.consistency["moved"]["J"]["values"]
+    assert not r.diagnostics.consistency["consistent"] and "J" in r.diagnostics.consistency["moved"]
+    halves = r.diagnostics.consistency["moved"]["J"]["values"]
     assert halves["first half"] == pytest.approx(1e-4, rel=0.03) and halves["second half"] == pytest.approx(
         1.3e-4, rel=0.05
     )
@@ -451,12 +451,12 @@ def test_uncertainty_widens_with_structure_the_model_lacks(tmp_path, structure):
         write_log(tmp_path / "x.csv", closed_loop_log(np.arange(40000) / 1000, seed=3, extra=extra))
     )["y"]
     if structure == "q·v":
-        assert r.after.rmse > 10 * r.noise_floor  # no effect describes it
+        assert r.after.rmse > 10 * r.diagnostics.noise_floor  # no effect describes it
     p, sd = r.model.params_, r.model.param_std_
     for name, true in (("J", 1e-4), ("c0", 0.3), ("c1", 5e-4)):
         assert abs(p[name] - true) <= 3 * sd[name], (name, p[name], sd[name])
     clean = identify(write_log(tmp_path / "clean.csv", closed_loop_log(np.arange(40000) / 1000, seed=3)))["y"]
-    assert clean.consistency["consistent"]
+    assert clean.diagnostics.consistency["consistent"]
 
 
 def test_a_compliant_coupling_mode_is_reported_and_the_cut_off_moved_below_it(tmp_path, capsys):
@@ -468,12 +468,12 @@ def test_a_compliant_coupling_mode_is_reported_and_the_cut_off_moved_below_it(tm
     cols = closed_loop_log(np.arange(40000) / 1000, seed=3, J=0.5e-4, coupling=(0.5e-4, 40.0, 0.03, 0.0))
     path = write_log(tmp_path / "log.csv", cols)
     r = identify(path)["y"]
-    mode = r.resonance
+    mode = r.diagnostics.resonance
     assert mode is not None and 20 < mode["frequency_hz"] < 45 and 0.005 < mode["damping"] < 0.1
     assert mode["cutoff_moved_from_hz"] > r.settings.cutoff_hz and r.settings.cutoff_hz < mode["frequency_hz"]
     assert r.model.params_["J"] == pytest.approx(1e-4, rel=0.03)  # motor + load
-    assert any(u.get("kind") == "resonance" for u in r.unexplained)
-    assert r.backlash is None
+    assert any(u.get("kind") == "resonance" for u in r.diagnostics.unexplained)
+    assert r.diagnostics.backlash is None
     assert main(["identify", str(path)]) == 0
     assert "a resonance at" in capsys.readouterr().out
 
@@ -483,8 +483,8 @@ def test_no_resonance_or_backlash_on_clean_logs(tmp_path):
 
     for name, stamps in (("even", np.arange(40000) / 1000), ("jitter", jittered(1000, 40, 50e-6))):
         r = identify(write_log(tmp_path / f"{name}.csv", closed_loop_log(stamps, seed=3)))["y"]
-        assert r.resonance is None, (name, r.resonance)
-        assert r.backlash is None, (name, r.backlash)
+        assert r.diagnostics.resonance is None, (name, r.diagnostics.resonance)
+        assert r.diagnostics.backlash is None, (name, r.diagnostics.backlash)
 
 
 @pytest.mark.parametrize(
@@ -505,9 +505,9 @@ def test_backlash_is_reported_at_torque_reversal(tmp_path, capsys, J_motor, coup
         tmp_path / "log.csv", closed_loop_log(np.arange(40000) / 1000, seed=3, J=J_motor, coupling=coupling)
     )
     r = identify(path)["y"]
-    assert r.backlash is not None and r.backlash["reversal"] == "acceleration"
-    assert 20 < r.backlash["delay_ms"] < 150 and r.backlash["ratio"] > 2
-    entry = next(u for u in r.unexplained if u.get("kind") == "backlash")
+    assert r.diagnostics.backlash is not None and r.diagnostics.backlash["reversal"] == "acceleration"
+    assert 20 < r.diagnostics.backlash["delay_ms"] < 150 and r.diagnostics.backlash["ratio"] > 2
+    entry = next(u for u in r.diagnostics.unexplained if u.get("kind") == "backlash")
     assert entry["depends_on"] == "acceleration_reversal"
     assert r.model.params_["J"] == pytest.approx(1e-4, rel=0.03)
     assert main(["identify", str(path)]) == 0
@@ -516,7 +516,7 @@ def test_backlash_is_reported_at_torque_reversal(tmp_path, capsys, J_motor, coup
         tmp_path / "stiff.csv",
         closed_loop_log(np.arange(40000) / 1000, seed=3, J=J_motor, coupling=(*coupling[:3], 0.0)),
     )
-    assert identify(stiff)["y"].backlash is None
+    assert identify(stiff)["y"].diagnostics.backlash is None
 
 
 def test_a_torque_averaged_over_each_period(tmp_path):
@@ -526,7 +526,7 @@ def test_a_torque_averaged_over_each_period(tmp_path):
     from harness.plants import averaged_torque_log
 
     r = identify(write_log(tmp_path / "log.csv", averaged_torque_log(40.0)))["y"]
-    assert r.sampling["torque_delay_ms"] == pytest.approx(1.0, abs=0.05)
+    assert r.diagnostics.sampling["torque_delay_ms"] == pytest.approx(1.0, abs=0.05)
     assert r.effects == []
     for name, true in (("J", 1e-4), ("c0", 0.3), ("c1", 5e-4)):
         assert abs(r.model.params_[name] - true) < 3 * r.model.param_std_[name], name
@@ -563,9 +563,9 @@ def test_cogging_above_the_cut_off_and_a_late_torque(tmp_path, lag_s, period, am
     assert found["position_periodic"]["amplitude"] == pytest.approx(amplitude, rel=0.05)
     assert found["position_periodic"]["period"] == pytest.approx(period, rel=0.01)
     assert found["stribeck"]["amplitude"] == pytest.approx(stribeck, rel=0.1)
-    assert r.sampling["torque_delay_ms"] == pytest.approx(lag_s * 1e3, abs=0.3)
+    assert r.diagnostics.sampling["torque_delay_ms"] == pytest.approx(lag_s * 1e3, abs=0.3)
     check_base(r, {"J": 1e-4, "c0": 0.3, "c1": 5e-4}, tol=0.03)
-    assert r.after.rmse < 1.1 * r.noise_floor
+    assert r.after.rmse < 1.1 * r.diagnostics.noise_floor
 
 
 def test_a_position_in_a_coarse_unit_does_not_bias_the_inertia(tmp_path):
@@ -603,15 +603,15 @@ def test_emps_writes_the_best_values_the_drive_model_holds(tmp_path):
     results = identify(est, val)
     r = results["emps"]
     assert "stribeck" in [t.effect.name for t in r.effects]
-    assert [e.name for e in r.drive_model.effects] == [
+    assert [e.name for e in r.drive.model.effects] == [
         t.effect.name for t in r.effects if t.effect.name != "stribeck"
     ]
-    full, drive = r.model.params_, r.drive_model.params_
+    full, drive = r.model.params_, r.drive.model.params_
     for k, published in (("c0", 20.3935), ("c1", 203.5034)):
         assert abs(drive[k] - published) < abs(full[k] - published)
     (tmp_path / "identify.json").write_text(as_json(results))
     assert read_identify_json(tmp_path / "identify.json")["emps"]["c1"] == pytest.approx(drive["c1"])
-    assert json.loads(as_json(results))["axes"]["emps"]["drive_rmse"] == pytest.approx(r.drive_errors.rmse)
+    assert json.loads(as_json(results))["axes"]["emps"]["drive_rmse"] == pytest.approx(r.drive.errors.rmse)
 
 
 def test_an_axis_is_filtered_only_around_where_it_moves(tmp_path, monkeypatch):

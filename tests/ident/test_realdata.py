@@ -37,15 +37,15 @@ def test_ur10e_shoulder_gravity_is_named_and_its_inertia_holds_across_the_log():
     for r in (split, whole):
         gravity = [t for t in r.effects if t.effect.name == "gravity"]
         assert gravity and 90 < gravity[0].params["amplitude"] < 130
-        assert "J" not in r.undetermined and r.model.params_["J"] > 0
+        assert "J" not in r.diagnostics.undetermined and r.model.params_["J"] > 0
         assert not any("acceleration" in t.effect.name for t in r.effects)
     assert combined_sigmas(split, whole) < 3
     # the GA minimises the same cost as least squares: on the split, whose 30-odd coefficients the data
     # leave collinear, it stops at its generation limit far from the minimum, and the report says its
     # values are no estimate; on the whole log it lands on the least-squares values
-    assert not split.ga_converged and split.ga_std_from_lse > 1 and "not an estimate" in ga_text(split)
-    assert whole.ga_std_from_lse < 1 and "not an estimate" not in ga_text(whole)
-    assert whole.as_json()["ga"]["std_from_lse"] == pytest.approx(whole.ga_std_from_lse, rel=1e-6)
+    assert not split.ga.converged and split.ga.std_from_lse > 1 and "not an estimate" in ga_text(split)
+    assert whole.ga.std_from_lse < 1 and "not an estimate" not in ga_text(whole)
+    assert whole.as_json()["ga"]["std_from_lse"] == pytest.approx(whole.ga.std_from_lse, rel=1e-6)
 
 
 def test_ur10e_base_joint_inertia_is_determined_on_the_split_and_not_claimed_on_the_whole_log():
@@ -54,10 +54,10 @@ def test_ur10e_base_joint_inertia_is_determined_on_the_split_and_not_claimed_on_
     with other terms, J is either the same within 3 combined std or said to be undetermined (before:
     a consistency refit printed c0 = -2.3e6 Nm with a std)."""
     split, whole = fit("ur10e_j1", "est.csv", "val.csv")["j1"], fit("ur10e_j1", "full.csv")["j1"]
-    assert "J" not in split.undetermined and split.model.params_["J"] > 0
-    assert "J" in whole.undetermined or combined_sigmas(split, whole) < 3
-    for part, why in whole.consistency.get("degenerate", {}).items():
-        assert part not in whole.consistency["parts"] and "does not determine" in why
+    assert "J" not in split.diagnostics.undetermined and split.model.params_["J"] > 0
+    assert "J" in whole.diagnostics.undetermined or combined_sigmas(split, whole) < 3
+    for part, why in whole.diagnostics.consistency.get("degenerate", {}).items():
+        assert part not in whole.diagnostics.consistency["parts"] and "does not determine" in why
 
 
 @pytest.mark.parametrize(
@@ -70,7 +70,7 @@ def test_a_log_that_cannot_determine_the_inertia_says_so(name, est, val, axis):
     torque): J is reported undetermined with its reason (before: the pendulum's J 0.005 ± 0.0016,
     a number a pipeline would write)."""
     r = fit(name, est, val)[axis]
-    assert "J" in r.undetermined and r.undetermined["J"]
+    assert "J" in r.diagnostics.undetermined and r.diagnostics.undetermined["J"]
 
 
 @pytest.mark.parametrize(
@@ -86,12 +86,16 @@ def test_a_log_moving_one_way_never_gives_a_determined_c0(name, axis, cannot):
     the std: one direction makes c0 collinear with the offset, one speed does the same to c1 (the
     anticogging ODrive printed c0 = 0.240 ± 0.024 A as determined before)."""
     r = fit(name, "est.csv", "val.csv")[axis]
-    assert set(r.motion["cannot_tell"]) == cannot and r.motion["directions"]["positive"] > 0.95
     assert (
-        "one direction only" in r.undetermined["c0"] and "collinear with the offset" in r.undetermined["c0"]
+        set(r.diagnostics.motion["cannot_tell"]) == cannot
+        and r.diagnostics.motion["directions"]["positive"] > 0.95
+    )
+    assert (
+        "one direction only" in r.diagnostics.undetermined["c0"]
+        and "collinear with the offset" in r.diagnostics.undetermined["c0"]
     )
     if "c1" in cannot:
-        assert "narrow band" in r.undetermined["c1"]
+        assert "narrow band" in r.diagnostics.undetermined["c1"]
     assert not r.as_json()["identifiable"]["c0"]
 
 
@@ -99,8 +103,10 @@ def test_a_log_moving_one_way_never_gives_a_determined_c0(name, axis, cannot):
 def test_a_log_moving_both_ways_at_many_speeds_leaves_c0_and_c1_to_the_fit(name, axis):
     """Both directions, speeds over a wide band: the motion itself rules nothing out."""
     r = fit(name, "est.csv", "val.csv")[axis]
-    assert r.motion["cannot_tell"] == {} and min(r.motion["directions"].values()) > 0.3
-    assert r.motion["speed"]["p90"] / r.motion["speed"]["p10"] > 1.5
+    assert (
+        r.diagnostics.motion["cannot_tell"] == {} and min(r.diagnostics.motion["directions"].values()) > 0.3
+    )
+    assert r.diagnostics.motion["speed"]["p90"] / r.diagnostics.motion["speed"]["p10"] > 1.5
 
 
 def test_two_runs_that_disagree_beyond_their_std_widen_it_and_say_so():
@@ -109,7 +115,7 @@ def test_two_runs_that_disagree_beyond_their_std_widen_it_and_say_so():
     reported covers half the difference, and the output shows both values (before: 9.5e-5 ±
     0.8e-5, nothing said)."""
     r = fit("hsm150", "est.csv", "val.csv")["hsm"]
-    runs = r.consistency["between_runs"]
+    runs = r.diagnostics.consistency["between_runs"]
     j = runs["J"]
     gap = abs(j["estimation"] - j["validation"])
     assert gap > j["std_before"] and r.model.param_std_["J"] == pytest.approx(j["std_after"])
@@ -123,7 +129,7 @@ def test_where_no_two_parts_of_the_data_can_be_compared_it_is_said_and_the_std_c
     said (consistent: null, not 'true' as before, with nothing said), and each of J, c0, c1 whose
     delete-one-block jackknife std exceeds the HAC std gets the jackknife's, stated with both."""
     r = fit("kuka_kr300_a2", "est.csv", "val.csv")["a2"]
-    c = r.consistency
+    c = r.diagnostics.consistency
     assert c["consistent"] is None and "no two parts could be compared" in c["not_run"]
     assert set(c["degenerate"]) == {"first half", "second half", "validation"}
     assert c["inflated"], "the jackknife finds c0 and c1 less certain than the HAC std (1.7x, 1.2x)"
@@ -142,12 +148,12 @@ def test_a_short_log_with_a_low_mode_is_answered_in_the_band_it_supports(name, a
     usable run is shorter than the filter needs'); the fit keeps the band above the mode, says so,
     and answers -- the inertia, which varies with the other axes' pose, said to vary along the log."""
     r = fit(name, "est.csv", "val.csv")[axis]
-    assert r.resonance["frequency_hz"] == pytest.approx(mode_hz, rel=0.1)
-    assert r.resonance["cutoff_kept_hz"] == pytest.approx(r.settings.cutoff_hz, rel=0.01)
-    assert "below the mode" in r.resonance["why_kept"]
-    assert "parts of the data disagree" in r.undetermined["J"]
+    assert r.diagnostics.resonance["frequency_hz"] == pytest.approx(mode_hz, rel=0.1)
+    assert r.diagnostics.resonance["cutoff_kept_hz"] == pytest.approx(r.settings.cutoff_hz, rel=0.01)
+    assert "below the mode" in r.diagnostics.resonance["why_kept"]
+    assert "parts of the data disagree" in r.diagnostics.undetermined["J"]
     if axis == "a1":
-        assert "c0" not in r.undetermined and "c1" not in r.undetermined
+        assert "c0" not in r.diagnostics.undetermined and "c1" not in r.diagnostics.undetermined
 
 
 def test_an_inertia_that_depends_on_the_band_is_given_as_a_range_not_a_value():
@@ -155,7 +161,11 @@ def test_an_inertia_that_depends_on_the_band_is_given_as_a_range_not_a_value():
     while half that band gives 0.033 (5 std apart): J is undetermined, with both bands, both values
     and the range it lies in at best. A log whose J holds across the bands keeps it (HSM150)."""
     r = fit("kinova_gen3_j1", "full.csv")["j1"]
-    assert r.band["sigmas"] > 3 and r.band["relative"] > 0.25 and "depends on the band" in r.undetermined["J"]
-    assert f"{r.band['J_half']:.4g}" in r.undetermined["J"]
+    assert (
+        r.diagnostics.band["sigmas"] > 3
+        and r.diagnostics.band["relative"] > 0.25
+        and "depends on the band" in r.diagnostics.undetermined["J"]
+    )
+    assert f"{r.diagnostics.band['J_half']:.4g}" in r.diagnostics.undetermined["J"]
     held = fit("hsm150", "est.csv", "val.csv")["hsm"]
-    assert held.band["sigmas"] <= 3 and "J" not in held.undetermined
+    assert held.diagnostics.band["sigmas"] <= 3 and "J" not in held.diagnostics.undetermined
