@@ -1,13 +1,18 @@
 """One simulated CiA 402 servo drive: a CANopen slave on the robot's bus.
 
-The SDO server and the object storage are canopen's ``LocalNode``; this module
-adds what a real drive does with those objects: NMT, heartbeat, EMCY, PDOs as
-the master maps them (:mod:`.pdo_map`; TPDOs sent on SYNC, synchronous RPDOs
-applied on SYNC), the CiA 402 state machine (:mod:`.state_machine`), the operating modes CSP (8),
-IP (7), PV (3), PP (1) and homing (6) where its 0x6502 lists them (positions counted from home
-once it has homed), and the safety functions (following-error window, software position limits,
-loss of setpoint).  The loops and the
-plant live in :mod:`.kernel`; this module converts between device units and SI at its edge.
+As canopen builds a node from its services, a drive is built from its own: the SDO server is
+canopen's ``LocalNode``, its objects :mod:`.storage`'s, and beside them the NMT slave with the
+heartbeat producer (:mod:`.nmt_slave`), the heartbeat consumer (:mod:`.heartbeats`), the
+emergency producer (:mod:`.emergency`), the PDOs as the master maps them (:mod:`.pdo_map`; TPDOs
+sent on SYNC, synchronous RPDOs applied on SYNC), its controller's objects (:mod:`.gain_objects`),
+the motion it makes itself in PV (3), PP (1), homing (6) and quick stop (:mod:`.profile_motion`,
+:mod:`.home_search`) and maxon's PVT buffer (:mod:`.pvt_buffer`).  This module holds what ties
+them to the drive: the SDO hooks, the CiA 402 device control (:mod:`.state_machine`'s
+transitions, the statusword), the modes it lists in 0x6502 (positions counted from home once it
+has homed), the cyclic part -- following the master in CSP (8) and IP (7) with the safety
+functions (following-error window, software position limits, loss of setpoint) -- and the actual
+values.  The loops and the plant live in :mod:`.kernel`; this module converts between device
+units and SI at its edge.
 
 A drive is built from an EDS/DCF -- the project's own or a vendor's (:mod:`.vendors`) -- and
 behaves as that drive: its object dictionary and identity, only the modes it lists, its
