@@ -17,6 +17,7 @@ import numpy as np
 
 from ..errors import UserError
 from ..forking import fork_map, processes
+from .coverage import what_the_motion_tells
 from .effects import DRIVE_EFFECTS, Effect, Gravity, Offset
 from .frf import log_response
 from .identifiable import SPREAD_MAX, T_MIN, undetermined
@@ -31,7 +32,6 @@ from .model import (
     errors,
     torque_delay,
 )
-from .motion import what_the_motion_tells
 from .resonance import find_mode
 from .reversal import find_reversal_transient
 from .signals import (
@@ -109,7 +109,7 @@ class Diagnostics:
     resonance: dict | None = None
     #: residual energy concentrated after torque reversals (reversal.find_backlash)
     backlash: dict | None = None
-    #: what the motion covers and which of c0, c1 it cannot determine (motion.what_the_motion_tells)
+    #: what the motion covers and which of c0, c1 it cannot determine (coverage.what_the_motion_tells)
     motion: dict = field(default_factory=dict)
     #: J refitted in half the band (band_dependence): the band it holds across, or why not
     band: dict = field(default_factory=dict)

@@ -11,9 +11,9 @@ import numpy as np
 from ..document import Document, Strong, measured, number
 from ..figures import pyplot, side_by_side
 from ..outputs import json_text, stamped, write_text
+from .coverage import motion_text
 from .frf import MIN_COHERENCE
 from .identify import AxisResult
-from .motion import motion_text
 from .trace import describe_unexplained
 
 
