@@ -13,7 +13,7 @@ if TYPE_CHECKING:
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    from ..commissioning import STEPS
+    from ..commissioning.steps import STEP_FUNCTIONS
 
     p = sub.add_parser(
         "commission",
@@ -30,7 +30,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     )
     p.add_argument(
         "--steps",
-        help=f"run only these steps, comma-separated ({', '.join(STEPS)}); "
+        help=f"run only these steps, comma-separated ({', '.join(STEP_FUNCTIONS)}); "
         "default: resume after the last completed one",
     )
     p.add_argument("--restart", action="store_true", help="start over: discard the previous run in --out")

@@ -19,12 +19,15 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-import control
 import numpy as np
 
 from .controller import LOOP_TICK_S
 
+# python-control (with matplotlib and scipy.signal, over a second to import) is imported in the
+# functions that compute a loop: every command would otherwise wait for it at start
 if TYPE_CHECKING:
+    import control
+
     from ..ident.frf import Frf
 
 PM_MIN_DEG, GM_MIN_DB = 45.0, 8.0  # what must hold (industrial tuners' defaults)
@@ -56,6 +59,8 @@ class Margins:
 
 def margins_of(open_loop: control.TransferFunction) -> Margins:
     """Phase and gain margins [°, dB] and the gain crossover [Hz] of an open loop."""
+    import control
+
     gm, pm, _, wc = control.margin(open_loop)
     gm_db = float(20 * np.log10(gm)) if np.isfinite(gm) and gm > 0 else float("inf")
     return Margins(float(pm), gm_db, float(wc / (2 * np.pi)))
@@ -64,6 +69,8 @@ def margins_of(open_loop: control.TransferFunction) -> Margins:
 def _plant_paths(
     J: float, c1: float, current_bw_rad_s: float, tick_s: float = LOOP_TICK_S
 ) -> tuple[control.TransferFunction, control.TransferFunction]:
+    import control
+
     s = control.tf("s")
     num, den = control.pade(tick_s, PADE_ORDER)  # ½ T hold + ½ T velocity difference
     delay = control.tf(num, den)
@@ -87,6 +94,8 @@ def position_open_loop(
     current_bw_rad_s: float,
     tick_s: float = LOOP_TICK_S,
 ) -> control.TransferFunction:
+    import control
+
     s = control.tf("s")
     closed_velocity = control.feedback(velocity_open_loop(J, c1, KpS, KiS, current_bw_rad_s, tick_s), 1)
     return KpP / s * closed_velocity
@@ -213,6 +222,8 @@ def following_error(
     following error (demand − position) of the cascade on the identified plant: velocity
     feed-forward FwF, and where ``torque_feedforward`` the model torque, which enters through the
     current loop alone (the drive adds it in the tick it computes it: no velocity-difference delay)."""
+    import control
+
     w_i = gains["KpC"] / L
     s = control.tf("s")
     rigid = 1 / (J * s + max(c1, 0.0))

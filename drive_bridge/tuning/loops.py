@@ -15,7 +15,6 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-import control
 import numpy as np
 
 from ..figures import pyplot, save
@@ -23,6 +22,8 @@ from ..params.cascade import following_error, open_loop_at, open_loops
 from ..params.controller import LOOP_TICK_S
 from .feedforward import model_torque
 
+# python-control (with matplotlib and scipy.signal, over a second to import) is imported in the
+# functions that compute a loop: every command would otherwise wait for it at start
 if TYPE_CHECKING:
     from ..ident.frf import Frf
 
@@ -41,6 +42,8 @@ def loop_figure(
     """Write the Bode plots and the step responses of one axis to ``path`` (PNG); ``frf``: the
     plant's measured response (:class:`drive_bridge.ident.frf.Frf`), drawn as points; ``tick_s``:
     the period of the drive's loop [s]."""
+    import control
+
     plt = pyplot()
     from matplotlib.ticker import LogLocator
 
@@ -154,6 +157,8 @@ def predicted_following_error(
     c0, offset, ...) predicts along ``demand`` [rad] at ``t`` [s] with ``gains``: the linear cascade
     (:func:`drive_bridge.params.cascade.following_error`) driven by the demand and by the model's torque beyond J·q̈ + c1·q̇
     along it (held from the start: the axis waits at rest holding it)."""
+    import control
+
     J, c1 = model["J"], model["c1"]
     to_error, from_torque = following_error(J, c1, gains, L, torque_feedforward, tick_s)
     dt = float(np.median(np.diff(t)))

@@ -12,7 +12,6 @@ import numpy as np
 
 from ..config import BusConfig
 from ..errors import UserError
-from ..ident.effects import DRIVE_EFFECTS
 from ..ident.frf import Frf
 from ..outputs import stamped
 from ..params.cascade import (
@@ -182,6 +181,8 @@ def read_resonances(path: str | Path) -> dict[str, dict | None]:
 def unwritable_effects(path: str | Path) -> dict[str, list[str]]:
     """axis -> the traced effects of an ``identify --json`` result that no drive model parameter
     (nor the master's feed-forward, which sends the same model) can carry: reported, not dropped."""
+    from ..ident.effects import DRIVE_EFFECTS  # (here: identification's modules load scipy's statistics)
+
     axes = _axes_of(Path(path), "identify --json result")
     writable = set(DRIVE_EFFECTS)
     return {
