@@ -53,3 +53,39 @@ def test_importing_the_package_imports_none_of_the_layers_above():
 def test_the_version_is_the_one_pyproject_declares():
     declared = re.search(r'^version = "([^"]+)"', (ROOT / "pyproject.toml").read_text(), re.M)
     assert declared is not None and drive_bridge.__version__ == declared.group(1)
+
+
+def test_the_command_line_starts_without_the_libraries_its_commands_load_when_they_run():
+    """``drive-bridge --help`` and every command's start: python-control, matplotlib and scipy's
+    signal processing (over a second to import here) are loaded by the commands that compute with
+    them, not by the parser."""
+    code = "import sys, drive_bridge.cli; print(sorted(m.split('.')[0] for m in sys.modules))"
+    loaded = set(
+        eval(subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout)
+    )
+    assert not loaded & {"control", "matplotlib"}, loaded & {"control", "matplotlib"}
+    code = "import sys, drive_bridge.cli; print('scipy.signal' in sys.modules)"
+    assert (
+        subprocess.run(
+            [sys.executable, "-c", code], capture_output=True, text=True, check=True
+        ).stdout.strip()
+        == "False"
+    )
+
+
+def test_a_packages_names_are_its_functions_whatever_was_imported_before():
+    """``from drive_bridge.ident import identify`` is the function even where the module of the same
+    name was imported first (as the report's modules do), and the commissioning package's names,
+    imported on first use, are run's."""
+    code = (
+        "import drive_bridge.ident.identify, drive_bridge.ident.presentation, drive_bridge.commissioning.run\n"
+        "from drive_bridge.ident import identify, AxisResult\n"
+        "from drive_bridge.commissioning import STEPS, commission, CommissionResult, Options\n"
+        "from drive_bridge.commissioning import run\n"
+        "import sys\n"
+        "assert callable(identify) and identify is sys.modules['drive_bridge.ident.identify'].identify\n"
+        "assert commission is run.commission and STEPS == run.STEPS and CommissionResult is run.CommissionResult\n"
+        "import drive_bridge.session\n"
+        "assert Options is drive_bridge.session.Options\n"
+    )
+    subprocess.run([sys.executable, "-c", code], check=True)

@@ -7,12 +7,12 @@ import logging
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..config import BusConfig
 from ..errors import UserError
-from ..ident.frf import Frf
 from ..outputs import stamped
 from ..params.cascade import (
     Margins,
@@ -28,6 +28,9 @@ from ..yamlconf import too_large
 from .design import GainDesign, current_bandwidth, design_gains
 from .experiment import ExperimentResult
 from .feedforward import MODEL_KEYS
+
+if TYPE_CHECKING:  # (identification's package loads scipy's signal processing: imported where used)
+    from ..ident.frf import Frf
 
 log = logging.getLogger(__name__)
 
@@ -136,6 +139,8 @@ def _numbers(path: Path, where: str, values: object) -> dict[str, float]:
 
 def read_frf_json(path: str | Path) -> dict[str, Frf]:
     """axis -> its measured response, from frf.json (the measure step's)."""
+    from ..ident.frf import Frf
+
     path = Path(path)
     try:
         doc = json.loads(path.read_text(encoding="utf-8"))
