@@ -286,12 +286,6 @@ class SimRobot:
         self._thread.start()
 
     def _run_realtime(self) -> None:
-        # Each frame is applied at the time it reached this process's socket (the kernel's stamp):
-        # the plant first runs up to it.  The time the drives then catch up to is read *before* the
-        # socket is drained, so a frame that waited in it while this process was held up (a stall of
-        # the simulator, not of the master) is applied at its own time and never found missing.
-        # Between frames the plant catches up on an absolute grid of IDLE_WAKE_S (heartbeats,
-        # profiles, time-outs); a late wake-up takes the next point of the grid, never a burst.
         try:  # the drives are hardware's stand-in: first in line for the CPU
             os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(60))
         except (AttributeError, OSError):
@@ -299,15 +293,32 @@ class SimRobot:
         self.clock_from(time.time())
         wake = time.monotonic()
         while self._running:
-            msg = self.bus.recv(timeout=max(0.0, wake - time.monotonic()))
-            now = time.time()
-            while msg is not None:
-                self.take(msg)
-                msg = self.bus.recv(0)
-            self.run_until(now)
-            late = time.monotonic() - wake
-            if late >= 0:
-                wake += IDLE_WAKE_S * (1 + int(late // IDLE_WAKE_S))
+            wake = self.serve(wake, time.time, time.monotonic)
+
+    def serve(self, wake: float, wall: Callable[[], float], monotonic: Callable[[], float]) -> float:
+        """Wall clock: one turn of the drives' loop -- wait for a frame until ``wake`` (on the
+        ``monotonic`` clock), take every frame there is, run the plant up to now (on the ``wall``
+        clock, the frames' stamps'); the next wake.
+
+        Each frame is applied at the time it reached this process's socket (the kernel's stamp): the
+        plant first runs up to it.  The time the drives then catch up to is read *before* the socket
+        is drained -- also when the wait ended without a frame -- so a frame that waited in it while
+        this process was held up (a stall of the simulator, not of the master) is applied at its own
+        time and never found missing.  Between frames the plant catches up on an absolute grid of
+        ``IDLE_WAKE_S`` (heartbeats, profiles, time-outs); a late wake-up takes the next point of the
+        grid, never a burst."""
+        msg = self.bus.recv(timeout=max(0.0, wake - monotonic()))
+        now = wall()
+        if msg is None:  # the wait ended without one: any that came while this thread was held up since
+            msg = self.bus.recv(0)
+        while msg is not None:
+            self.take(msg)
+            msg = self.bus.recv(0)
+        self.run_until(now)
+        late = monotonic() - wake
+        if late >= 0:
+            wake += IDLE_WAKE_S * (1 + int(late // IDLE_WAKE_S))
+        return wake
 
     def clock_from(self, now: float) -> None:
         """Wall clock: the simulation time reached is the wall-clock time ``now`` [s]."""

@@ -107,3 +107,49 @@ def test_a_master_gone_at_speed_is_bridged_only_until_the_setpoint_timeout(bench
     emcy = [struct.unpack_from("<H", data)[0] for cob_id, data in sent if cob_id == 0x080 + node.id]
     assert 0x8250 in emcy
     assert robot.drives["x"].statusword & 0x6F != 0x27  # no longer OPERATION ENABLED
+
+
+class _HeldAfterTheWait:
+    """A bus whose frames reach the socket at their stamps on a clock of its own (``now``): a wait
+    that ends without a frame leaves the reading thread held up ``held`` [s] before it runs on (the
+    simulator's process preempted, or its other thread holding the interpreter), while the frames
+    of that time arrive."""
+
+    def __init__(self, frames: list[can.Message], now: float, held: float):
+        self.frames, self.now, self.held = frames, now, held
+
+    def recv(self, timeout: float = 0.0) -> can.Message | None:
+        if self.frames and self.frames[0].timestamp <= self.now:
+            return self.frames.pop(0)
+        if timeout > 0:  # nothing came in the wait (the clock runs to its end); then the thread is held up
+            self.now += timeout + self.held
+            self.held = 0.0
+        return None
+
+
+def test_frames_that_came_while_the_simulator_was_held_up_are_taken_before_its_clock_runs_on(bench):
+    """A drive watches the master's heartbeat (100 ms, consumer time 1 s).  The simulator's thread is
+    held up 1.5 s right after a wait that ended without a frame, while the heartbeats go on reaching
+    its socket: they are taken at their own stamps before the drive's clock runs on, and the drive
+    stays in operation.  (Draining only when the wait brought a frame, the plant ran 1.5 s first and
+    the drive read the master as silent: EMCY 0x8130 -- the SocketCAN guest's emulation holds threads
+    up that long.)"""
+    b = bench()
+    node = started(b)
+    node.sdo[0x1016][1].raw = (0x7F << 16) | 1000
+    robot = b.robot
+    sent: list[tuple[int, bytes]] = []
+    robot.send = lambda cob_id, data: sent.append((cob_id, data))
+    robot.clock_from(START)
+    beats = [frame(0x77F, START + 0.1 * k, b"\x05") for k in range(40)]
+    bus, kept = _HeldAfterTheWait(beats, START, held=1.5), robot.bus
+    robot.bus = bus
+    try:
+        wake = START
+        while bus.now < START + 3.0:
+            wake = robot.serve(wake, lambda: bus.now, lambda: bus.now)
+    finally:
+        robot.bus = kept
+    emcy = [struct.unpack_from("<H", data)[0] for cob_id, data in sent if cob_id == 0x80 + node.id]
+    assert 0x8130 not in emcy and not any(emcy), [hex(code) for code in emcy]
+    assert bus.now >= START + 3.0 and robot.plant.time >= 3.0 - 0.01  # (the plant ran on the whole time)
