@@ -139,9 +139,8 @@ def test_sim_and_record_over_socketcan_with_a_candump_of_the_stream(tmp_path):
         interface="socketcan",
         channel="vcan0",
         sync_period=20000,
-        # the drives' consumer time of the master's heartbeat (the kernel's broadcast manager, 100 ms):
-        # emulated, a vCPU's soft timers can be held up for seconds (CI once saw 0x8130 at 2 s)
-        heartbeat_consumer_ms=5000,
+        # the drives' consumer time of the master's heartbeat (the kernel's broadcast manager, 100 ms)
+        heartbeat_consumer_ms=2000,
         sdo_timeout_s=2.0,
         state_timeout_s=5.0,
     )
