@@ -17,11 +17,7 @@ if TYPE_CHECKING:
 
 
 def __getattr__(name: str) -> Any:
-    if name == "Options":
-        from ..session import Options
-
-        return Options
-    if name in __all__:
+    if name in __all__:  # (Options is run's too: it imports it from the session)
         value = getattr(importlib.import_module(".run", __name__), name)
         globals()[name] = value
         return value

@@ -320,7 +320,7 @@ class SimDrive:
             kernel.POSITION_PID if self.gains.controller.structure == "position_pid" else kernel.CASCADE
         )
         p[kernel.LOOP_DIV] = self.gains.loop_div
-        self.gains.load(self.gains.selected(self.objects.get), p, self.objects.get)
+        self.gains.load(p, self.objects.get)
         p[kernel.TMAX] = (
             self.objects.get_or(0x6072, 0, factory().max_torque_permille) / 1000.0 * self.rated_torque
         )
@@ -498,7 +498,7 @@ class SimDrive:
                     self.setpoint_armed = True
         elif self.gains.selects(index, sub):
             self.objects.written(index, sub, value)  # (stored after this call: the loops read it now)
-            self.gains.load(self.gains.selected(self.objects.get), self.plant_param, self.objects.get)
+            self.gains.load(self.plant_param, self.objects.get)
         elif (taken := self.gains.written(index, sub, value)) is not None:
             self.plant_param[taken[0]] = taken[1]
         elif index == 0x1017:

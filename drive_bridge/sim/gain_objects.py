@@ -113,14 +113,12 @@ class GainObjects:
         """Whether (``index``, ``sub``) is the object that selects which set runs."""
         return self.select is not None and (index, sub) == self.select[0].index_sub
 
-    def selected(self, read: Callable[[int, int], int]) -> bool:
-        """Whether the profile's own set runs, as the select object (read by ``read``) says."""
-        return self.select is None or read(*self.select[0].index_sub) == self.select[1]
-
-    def load(self, selected: bool, params: np.ndarray, read: Callable[[int, int], int]) -> None:
+    def load(self, params: np.ndarray, read: Callable[[int, int], int]) -> None:
         """The loops (the kernel parameter row ``params``) run the objects of the profile's own set
-        (``selected``) or of the one that runs otherwise, as ``read`` gives them now; a gain without
-        an object keeps the factory value, a model term without one is 0."""
+        where the select object says so (or where there is none), else of the one that runs
+        otherwise, each as ``read`` gives it now; a gain without an object keeps the factory value,
+        a model term without one is 0."""
+        selected = self.select is None or read(*self.select[0].index_sub) == self.select[1]
         self.running = self.sets[selected]
         for name, col in (GAIN_PARAMS | PID_PARAMS).items():
             params[col] = self.factory_gains.get(name, 0.0)
