@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import copy
+import functools
 import math
 from collections.abc import Iterable, Mapping
 from pathlib import Path
@@ -13,7 +15,7 @@ from .errors import ConfigError
 
 
 def load_yaml(path: str | Path) -> dict:
-    """Read a YAML mapping with ``yaml.safe_load``; errors name the file."""
+    """Read a YAML mapping with ``yaml.safe_load`` (a text read before: parsed once); errors name the file."""
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")
@@ -26,7 +28,7 @@ def load_yaml(path: str | Path) -> dict:
     except UnicodeDecodeError as exc:
         raise ConfigError(path, "", f"not UTF-8 text (byte {exc.start}): save it as UTF-8") from exc
     try:
-        data = yaml.safe_load(text)
+        data = copy.deepcopy(_parsed(text))  # the caller's own objects, as a fresh parse gives
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" at line {mark.line + 1}" if mark else ""
@@ -38,6 +40,15 @@ def load_yaml(path: str | Path) -> dict:
     if not isinstance(data, dict):
         raise ConfigError(path, "", "the top level must be a mapping of keys")
     return data
+
+
+@functools.lru_cache(maxsize=64)
+def _parsed(text: str) -> Any:
+    """``yaml.safe_load(text)``, kept for the next read of the same text: a command reads the
+    profile and the bus configuration from several places, and PyYAML's pure-Python parser took
+    more of the test suite's time than any computation in it (a copy of the parsed data costs a
+    twentieth of a parse).  A parse that fails is not kept: it fails again, with its message."""
+    return yaml.safe_load(text)
 
 
 def too_large(value: int) -> str:

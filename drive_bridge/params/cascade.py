@@ -15,6 +15,7 @@ KpS [Nm·s/rad], KiS [1/s], KpP [1/s], KpC [V/A], L [H].
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
@@ -66,9 +67,14 @@ def margins_of(open_loop: control.TransferFunction) -> Margins:
     return Margins(float(pm), gm_db, float(wc / (2 * np.pi)))
 
 
+@functools.lru_cache(maxsize=32)
 def _plant_paths(
     J: float, c1: float, current_bw_rad_s: float, tick_s: float = LOOP_TICK_S
 ) -> tuple[control.TransferFunction, control.TransferFunction]:
+    """``s`` and the plant behind the loop's delay and the closed current loop, built once per
+    plant: a tuner's bisection asks for some thirty loops on one plant, and python-control's
+    polynomial products and Padé approximant were half of the tuning's time (the loops are new
+    objects each; these two are never changed)."""
     import control
 
     s = control.tf("s")
