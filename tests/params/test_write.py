@@ -137,8 +137,9 @@ def vendor_node(profile):
         canopen.Network(can.Bus(interface="virtual", channel=channel)),
         canopen.Network(can.Bus(interface="virtual", channel=channel)),
     )
-    server.connect()
-    client.connect()
+    for network in (server, client):
+        network.NOTIFIER_CYCLE = 0.05  # (its disconnect waits out one: canopen's 1 s, each test)
+        network.connect()
     try:
         local = canopen.LocalNode(7, profile.object_dictionary(7))
         for e in profile.entries.values():  # files without defaults: start at 1
