@@ -54,7 +54,7 @@ def test_scan_bring_up_campaign_write_and_store_against_durand_slaves(example, t
     config = replace(
         config,
         master=replace(config.master, tpdo_miss_limit=1000, heartbeat_timeout_s=5.0),
-        campaign=replace(config.campaign, design="short", short_time_s=8.0, move_fraction=0.3),
+        campaign=replace(config.campaign, design="short", short_time_s=3.0, move_fraction=0.3),
     )
     link = BusLink.open("virtual", channel)
     aborts = Aborts()
