@@ -22,7 +22,7 @@ from .cia.p301 import SYNC_COB_ID
 from .cia.p402 import MODE_NAMES
 from .cia.pdo import PdoCodec
 from .errors import UserError
-from .outputs import atomic, write_text
+from .outputs import write_table, write_text
 from .units import Scaling
 from .yamlconf import load_yaml
 
@@ -117,8 +117,7 @@ def _logged(
 
 def save_table(path: Path, names: list[str], values: np.ndarray, fmts: list[str]) -> None:
     """A log table as CSV, complete or not at all."""
-    with atomic(path) as tmp:
-        np.savetxt(tmp, values, fmt=fmts, delimiter=",", header=",".join(names), comments="")
+    write_table(path, names, values, fmts)
 
 
 def write_csv(path: Path, rec: Recording, scaling: dict[str, Scaling], period: float) -> None:

@@ -7,10 +7,13 @@ from __future__ import annotations
 import json
 import math
 import os
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    import numpy as np
 
 
 @contextmanager
@@ -31,6 +34,23 @@ def atomic(path: str | Path) -> Iterator[Path]:
 def write_text(path: str | Path, text: str) -> Path:
     with atomic(path) as tmp:
         tmp.write_text(text, encoding="utf-8")
+    return Path(path)
+
+
+CSV_ROWS_AT_ONCE = 4096  # rows formatted by one % operation (write_table)
+
+
+def write_table(path: str | Path, names: Sequence[str], values: np.ndarray, fmts: Sequence[str]) -> Path:
+    """A table as CSV, complete or not at all: a header of ``names``, then each row of ``values``
+    (rows x columns) formatted by ``fmts`` (one %-format per column), as ``numpy.savetxt`` writes
+    them, byte for byte -- in blocks of rows, each formatted by one ``%`` operation (savetxt
+    formats row by row in Python: a 90 s campaign's log took it 0.17 s, this 0.11 s)."""
+    row = ",".join(fmts) + "\n"
+    with atomic(path) as tmp, open(tmp, "w", encoding="utf-8", newline="") as f:
+        f.write(",".join(names) + "\n")
+        for start in range(0, len(values), CSV_ROWS_AT_ONCE):
+            block = values[start : start + CSV_ROWS_AT_ONCE]
+            f.write((row * len(block)) % tuple(block.ravel().tolist()))
     return Path(path)
 
 

@@ -345,6 +345,39 @@ def advance(
         tick0[a] += n_ticks
 
 
+@njit(cache=True, nogil=True)
+def follow(
+    state: np.ndarray,
+    param: np.ndarray,
+    demand: np.ndarray,
+    targets: np.ndarray,
+    offsets: np.ndarray,
+    n_ticks: int,
+    period_ticks: np.ndarray,
+    position: np.ndarray,
+    current: np.ndarray,
+) -> None:
+    """Every axis through one SYNC period of ``n_ticks`` ticks per row of ``targets`` (position
+    setpoints [rad], rows x axes) and ``offsets`` (torque offsets [Nm]), as a drive in CSP takes
+    them: at each SYNC the position and the mean current since the last (into the rows of
+    ``position`` and ``current``) are sampled, then the new setpoint starts its interpolation
+    period (:func:`advance`, whose arithmetic is the same called from here: a bus-free log, one
+    Python call per period before, is this loop's)."""
+    n_axes = state.shape[0]
+    tick0 = np.zeros(n_axes, dtype=np.int64)
+    for k in range(targets.shape[0]):
+        for a in range(n_axes):
+            position[k, a] = state[a, Q]
+        for a in range(n_axes):
+            current[k, a] = mean_current(state[a])
+        for a in range(n_axes):
+            demand[a, P0] = demand[a, P1]
+            demand[a, P1] = targets[k, a]
+            demand[a, T_OFF] = offsets[k, a]
+            tick0[a] = 0
+        advance(state, param, demand, tick0, n_ticks, period_ticks)
+
+
 def new_arrays(n_axes: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Zeroed (state, param, demand) arrays for ``n_axes`` axes."""
     state = np.zeros((n_axes, N_STATE))

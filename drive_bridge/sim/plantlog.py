@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..outputs import write_table
 from . import kernel
 from .drive import plant_params
 from .gain_objects import GAIN_PARAMS
@@ -54,18 +55,10 @@ def plant_log(
         state[i, kernel.Q] = state[i, kernel.ENC] = dem[i, kernel.P0] = dem[i, kernel.P1] = targets[0, i]
         state[i, kernel.ENABLED] = 1.0
     ticks = round(period / kernel.VELOCITY_TICK_S)
-    tick0 = np.zeros(len(names), dtype=np.int64)
     period_ticks = np.full(len(names), ticks, dtype=np.int64)  # interpolation over each SYNC period
     q = np.empty((n, len(names)))
     current = np.empty((n, len(names)))
-    for k in range(n):
-        q[k] = state[:, kernel.Q]  # sampled at SYNC, like the TPDOs
-        current[k] = [kernel.mean_current(row) for row in state]
-        dem[:, kernel.P0] = dem[:, kernel.P1]
-        dem[:, kernel.P1] = targets[k]
-        dem[:, kernel.T_OFF] = offsets[k]
-        tick0[:] = 0
-        kernel.advance(state, param, dem, tick0, ticks, period_ticks)
+    kernel.follow(state, param, dem, targets, offsets, ticks, period_ticks, q, current)  # sampled at SYNC
     cols = {"time_s": np.arange(n) * period}
     for i, (name, axis) in enumerate(config.axes.items()):
         rated = axis.motor.rated_torque_Nm
@@ -77,13 +70,4 @@ def plant_log(
 
 
 def write_log(path: str | Path, cols: dict[str, np.ndarray]) -> Path:
-    path = Path(path)
-    np.savetxt(
-        path,
-        np.column_stack(list(cols.values())),
-        delimiter=",",
-        header=",".join(cols),
-        comments="",
-        fmt="%.9g",
-    )
-    return path
+    return write_table(path, list(cols), np.column_stack(list(cols.values())), ["%.9g"] * len(cols))
