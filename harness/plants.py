@@ -11,6 +11,8 @@ replaced, bit for bit, in a tenth of the time.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 from numba import cfunc, njit, types
 
@@ -22,8 +24,10 @@ def _none(q: float, v: float, a: float, t: float) -> float:
     return 0.0
 
 
+@functools.cache
 def _compiled(extra):
-    """``extra`` (a Python function of plain arithmetic and numpy ufuncs) compiled for the loop."""
+    """``extra`` (a Python function of plain arithmetic and numpy ufuncs) compiled for the loop
+    (once per function: most logs have none, and each compilation took 26 ms)."""
     return cfunc(EXTRA)(extra if extra is not None else _none)
 
 
@@ -224,22 +228,7 @@ def joint_log(
     v_ref, a_ref = np.gradient(q_ref, T), np.gradient(np.gradient(q_ref, T), T)
     wn = 2 * np.pi * 15.0
     kp, kd = J * wn**2, 2 * 0.7 * J * wn
-    q, v = np.empty_like(t), np.empty_like(t)
-    tau = np.empty_like(t)
-    qk, vk = q_ref[0], 0.0
-    for k in range(len(t)):
-        u = (
-            J * a_ref[k]
-            + c1 * v_ref[k]
-            + c0 * np.sign(v_ref[k])
-            + gravity_Nm * np.cos(q_ref[k])
-            + kp * (q_ref[k] - qk)
-            + kd * (v_ref[k] - vk)
-        )
-        acc = (u - c1 * vk - c0 * np.sign(vk) - gravity_Nm * np.cos(qk)) / J
-        vk += acc * T
-        qk += vk * T
-        q[k], v[k], tau[k] = qk, vk, u
+    q, tau = _joint(q_ref, v_ref, a_ref, T, J, c0, c1, gravity_Nm, kp, kd)
     stamps = np.arange(int(duration_s * rate_hz)) / rate_hz
     rng = np.random.default_rng(seed)
     tau_s = np.interp(stamps, t, tau) + noise_Nm * rng.standard_normal(len(stamps))
@@ -291,18 +280,7 @@ def trapezoid_log(
     q_ref = np.concatenate(pieces)[:n]
     v_ref = np.gradient(q_ref, T)
     a_ref = np.gradient(v_ref, T)
-    q, tau = np.empty(n), np.empty(n)
-    qk, vk, integ = q_ref[0], 0.0, 0.0
-    for k in range(n):
-        e_v = 60.0 * (q_ref[k] - qk) + v_ref[k] - vk
-        integ += 25.0 * e_v * T
-        u = 0.08 * (e_v + integ) + J * a_ref[k]
-        if not (vk == 0.0 and abs(u) <= c0):
-            s_dir = np.sign(vk) if vk != 0.0 else np.sign(u)
-            v_new = vk + T / J * (u - c1 * vk - c0 * s_dir)
-            vk = 0.0 if vk != 0.0 and v_new * vk < 0 else v_new
-        qk += vk * T
-        q[k], tau[k] = qk, u
+    q, tau = _trapezoid(q_ref, v_ref, a_ref, T, J, c0, c1)
     stamps = np.arange(int(duration_s * 1000)) / 1000.0
     t = np.arange(n) * T
     rng = np.random.default_rng(seed)
@@ -347,6 +325,66 @@ def two_mass_log(
     v_ref = np.gradient(q_ref, T)
     wc = 2 * np.pi * velocity_loop_hz
     kv, ti, kp = J_motor * wc, 4 / wc, wc / 8
+    q, tau = _two_mass(q_ref, v_ref, T, kp, kv, ti, k, d, J_motor, J_load, c0, c1)
+    stamps = np.arange(int(duration_s * 1000)) / 1000.0
+    rng = np.random.default_rng(seed)
+    inc = 2**16 / (2 * np.pi)
+    return {
+        "time_s": stamps,
+        "y_position_rad": np.floor(np.interp(stamps, t, q) * inc) / inc,
+        "y_torque_Nm": np.round(np.interp(stamps, t, tau) + noise_Nm * rng.standard_normal(len(stamps)), 3),
+    }
+
+
+# The loops of the plants above, compiled as closed_loop_log's is (the same numbers as the plain
+# Python loops they replaced, bit for bit)
+
+
+@njit(cache=True)
+def _joint(q_ref, v_ref, a_ref, T, J, c0, c1, gravity_Nm, kp, kd):
+    """joint_log's plant under its PD loop with the inverse dynamics fed forward: position, torque."""
+    n = len(q_ref)
+    q, tau = np.empty(n), np.empty(n)
+    qk, vk = q_ref[0], 0.0
+    for k in range(n):
+        u = (
+            J * a_ref[k]
+            + c1 * v_ref[k]
+            + c0 * np.sign(v_ref[k])
+            + gravity_Nm * np.cos(q_ref[k])
+            + kp * (q_ref[k] - qk)
+            + kd * (v_ref[k] - vk)
+        )
+        acc = (u - c1 * vk - c0 * np.sign(vk) - gravity_Nm * np.cos(qk)) / J
+        vk += acc * T
+        qk += vk * T
+        q[k], tau[k] = qk, u
+    return q, tau
+
+
+@njit(cache=True)
+def _trapezoid(q_ref, v_ref, a_ref, T, J, c0, c1):
+    """trapezoid_log's rigid axis under its cascade with the inertia fed forward: position, torque."""
+    n = len(q_ref)
+    q, tau = np.empty(n), np.empty(n)
+    qk, vk, integ = q_ref[0], 0.0, 0.0
+    for k in range(n):
+        e_v = 60.0 * (q_ref[k] - qk) + v_ref[k] - vk
+        integ += 25.0 * e_v * T
+        u = 0.08 * (e_v + integ) + J * a_ref[k]
+        if not (vk == 0.0 and abs(u) <= c0):
+            s_dir = np.sign(vk) if vk != 0.0 else np.sign(u)
+            v_new = vk + T / J * (u - c1 * vk - c0 * s_dir)
+            vk = 0.0 if vk != 0.0 and v_new * vk < 0 else v_new
+        qk += vk * T
+        q[k], tau[k] = qk, u
+    return q, tau
+
+
+@njit(cache=True)
+def _two_mass(q_ref, v_ref, T, kp, kv, ti, k, d, J_motor, J_load, c0, c1):
+    """two_mass_log's motor, spring and load under the stiff velocity PI: motor position, torque."""
+    n = len(q_ref)
     qm = vm = ql = vl = integ = 0.0
     q, tau = np.empty(n), np.empty(n)
     for i in range(n):
@@ -362,11 +400,4 @@ def two_mass_log(
             vm = 0.0 if vm != 0.0 and v_new * vm < 0 else v_new
         qm += T * vm
         q[i], tau[i] = qm, u
-    stamps = np.arange(int(duration_s * 1000)) / 1000.0
-    rng = np.random.default_rng(seed)
-    inc = 2**16 / (2 * np.pi)
-    return {
-        "time_s": stamps,
-        "y_position_rad": np.floor(np.interp(stamps, t, q) * inc) / inc,
-        "y_torque_Nm": np.round(np.interp(stamps, t, tau) + noise_Nm * rng.standard_normal(len(stamps)), 3),
-    }
+    return q, tau
