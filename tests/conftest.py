@@ -19,6 +19,7 @@ atexit.register(shutil.rmtree, os.environ["XDG_DATA_HOME"], ignore_errors=True) 
 os.environ.pop("DRIVE_BRIDGE_DB", None)
 
 
+@pytest.hookimpl(optionalhook=True)  # xdist's hook: without xdist (-p no:xdist) there is none
 def pytest_xdist_auto_num_workers(config: pytest.Config) -> int:
     """``-n auto``: a worker per core, and one more. The suite waits as well as computes -- the
     wall-clock tests on their drives' processes and on the bus, others on the tools they run -- and
