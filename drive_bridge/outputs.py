@@ -44,7 +44,8 @@ def write_table(path: str | Path, names: Sequence[str], values: np.ndarray, fmts
     """A table as CSV, complete or not at all: a header of ``names``, then each row of ``values``
     (rows x columns) formatted by ``fmts`` (one %-format per column), as ``numpy.savetxt`` writes
     them, byte for byte -- in blocks of rows, each formatted by one ``%`` operation (savetxt
-    formats row by row in Python: a 90 s campaign's log took it 0.17 s, this 0.11 s)."""
+    formats row by row in Python: the short campaign's log, 45 000 rows of 20 columns, took it
+    0.22 s, this 0.16-0.17 s)."""
     row = ",".join(fmts) + "\n"
     with atomic(path) as tmp, open(tmp, "w", encoding="utf-8", newline="") as f:
         f.write(",".join(names) + "\n")

@@ -25,7 +25,8 @@ def pytest_xdist_auto_num_workers(config: pytest.Config) -> int:
     wall-clock tests on their drives' processes and on the bus, others on the tools they run -- and
     a worker waiting holds its core idle: on this 2-core machine three workers took 204 s where two
     took 216-220 s, and beside two CPU-bound loops 353 s where two took 407 s (2026-11-27)."""
-    return len(os.sched_getaffinity(0)) + 1 if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1) + 1
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+    return cores + 1
 
 
 @pytest.fixture(autouse=True, scope="module")
