@@ -309,13 +309,31 @@ class Acceptance:
 
 @dataclass(frozen=True)
 class BusConfig:
+    """A bus configuration (bus.yml), checked (:func:`load_bus_config`).
+
+    Parameters
+    ----------
+    path : Path
+        The file it was read from.
+    master : MasterConfig
+        The master's side: the bus, SYNC period [s], heartbeats, timing limits.
+    nodes : dict of str to NodeConfig
+        Per axis: node id, EDS/DCF, units and scaling, limits, PDO mapping.
+    campaign : CampaignConfig
+        The excitation campaign (speed and acceleration levels, times).
+    accept_identity : frozenset of int
+        Node ids whose identity may differ from their EDS/DCF (``--accept-identity``: a
+        deliberate override).
+    acceptance : Acceptance
+        What the commissioning's verdict checks.
+    """
+
     path: Path
     master: MasterConfig
     nodes: dict[str, NodeConfig]
     campaign: CampaignConfig
-    #: node ids whose identity may differ from their EDS/DCF (--accept-identity: a deliberate override)
     accept_identity: frozenset[int] = frozenset()
-    acceptance: Acceptance = Acceptance()  # what the commissioning's verdict checks
+    acceptance: Acceptance = Acceptance()
 
     @property
     def profile(self) -> str | None:
@@ -337,7 +355,23 @@ class BusConfig:
         return {a: n.scaling.torque_constant_Nm_per_A for a, n in self.nodes.items()}
 
     def only(self, axes: list[str]) -> BusConfig:
-        """The same configuration restricted to ``axes`` (errors name unknown ones)."""
+        """The same configuration restricted to some of its axes.
+
+        Parameters
+        ----------
+        axes : list of str
+            The axes to keep.
+
+        Returns
+        -------
+        BusConfig
+            A copy with only those nodes.
+
+        Raises
+        ------
+        ConfigError
+            An axis the configuration does not have, named.
+        """
         unknown = [a for a in axes if a not in self.nodes]
         if unknown:
             raise ConfigError(

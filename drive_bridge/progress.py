@@ -54,7 +54,15 @@ class CampaignProgress:
 
 class StepReporter:
     """Progress of a multi-step run: a line when a step starts and when it ends, a
-    :class:`CampaignProgress` bar for each motion inside a step, and notes in between."""
+    :class:`CampaignProgress` bar for each motion inside a step, and notes in between.
+
+    Parameters
+    ----------
+    steps : list of str
+        The run's steps, in order (``[k/n]`` counts them).
+    stream : file-like, optional
+        Where the lines go; default standard error.
+    """
 
     def __init__(self, steps: list[str], stream: TextIO | None = None):
         self.steps = steps
@@ -66,27 +74,77 @@ class StepReporter:
         self.stream.flush()
 
     def start(self, step: str, what: str) -> None:
+        """A step starts: ``[k/n] step: what``.
+
+        Parameters
+        ----------
+        step : str
+            One of the run's steps.
+        what : str
+            What it does, in words.
+        """
         self._print(f"[{self.steps.index(step) + 1}/{len(self.steps)}] {step}: {what}")
 
     def done(self, step: str, seconds: float, line: str) -> None:
+        """A step ended well.
+
+        Parameters
+        ----------
+        step : str
+            The step.
+        seconds : float
+            How long it took [s].
+        line : str
+            What it found, in one line.
+        """
         self.end_motion()
         self._print(f"  done: {step} in {seconds:.1f} s: {line}")
 
     def failed(self, step: str, seconds: float, reason: str) -> None:
+        """A step failed.
+
+        Parameters
+        ----------
+        step : str
+            The step.
+        seconds : float
+            How long it ran [s].
+        reason : str
+            Why it failed, and what to do.
+        """
         self.end_motion()
         self._print(f"  FAILED: {step} after {seconds:.1f} s: {reason}")
 
     def note(self, text: str) -> None:
+        """A line inside a step (a motion's bar ends first).
+
+        Parameters
+        ----------
+        text : str
+            The note.
+        """
         self.end_motion()
         self._print(f"  {text}")
 
     def motion(self, plan: Plan) -> CampaignProgress:
-        """``on_plan`` for record / motion.run: a fresh bar for this motion."""
+        """``on_plan`` for record / motion.run: a fresh bar for this motion.
+
+        Parameters
+        ----------
+        plan : Plan
+            The motion about to run.
+
+        Returns
+        -------
+        CampaignProgress
+            Its progress bar (the previous one closed).
+        """
         self.end_motion()
         self.bar = CampaignProgress(plan, self.stream)
         return self.bar
 
     def end_motion(self) -> None:
+        """Close the motion's bar, where one is shown."""
         if self.bar is not None:
             self.bar.close()
             self.bar = None

@@ -21,7 +21,18 @@ def shipped(*parts: str) -> Path:
 
 
 def data(*parts: str) -> Path:
-    """Path of ``drive_bridge/data/<parts...>``: the project's EDS and bus configurations."""
+    """A file shipped with the package: the project's EDS and bus configurations.
+
+    Parameters
+    ----------
+    *parts : str
+        Its path under ``drive_bridge/data`` (``"config", "bus.yml"``).
+
+    Returns
+    -------
+    Path
+        ``drive_bridge/data/<parts...>``.
+    """
     return shipped("data", *parts)
 
 

@@ -127,16 +127,22 @@ class Session:
         self.close()
 
     def close(self) -> None:
+        """Close what the session opened (the link it opened, and with it the simulated drives);
+        a link given to the session stays open."""
         self._stack.close()
 
     @property
     def profile(self) -> Profile:
+        """The drive profile in use: the options', else the one bus.yml names, else the project's
+        drive (loaded on first use)."""
         if self._profile is None:
             self._profile = load_profile(self.options.profile or self.config.profile or DEFAULT_PROFILE)
         return self._profile
 
     @property
     def link(self) -> Link:
+        """The link the master talks through, opened on first use as the options say
+        (:func:`drive_bridge.open_link`)."""
         if self._link is None:
             o = self.options
             self._link = self._stack.enter_context(open_link(self.config, o.sim, o.realtime, o.sim_config))
@@ -163,8 +169,15 @@ class Session:
         return self._identities
 
     def holding(self) -> dict[str, str]:
-        """How each brought-up axis is held now, read from the drives (empty where none was
-        brought up; an axis that does not answer says so)."""
+        """How each brought-up axis is held now, read from the drives.
+
+        Returns
+        -------
+        dict of str to str
+            Per axis, in words (``switched off, on its brake``, ``powered, holding its position
+            (profile position, halt)``, ...); ``unknown: ...`` for a drive that does not answer;
+            empty where no axis was brought up.
+        """
         from .master.hold import holding_of
 
         out = {}

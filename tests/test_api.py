@@ -89,3 +89,84 @@ def test_a_packages_names_are_its_functions_whatever_was_imported_before():
         "assert Options is drive_bridge.session.Options\n"
     )
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+#: the API a user meets: the package's names, what they return or take, and what the Python
+#: tutorial imports (docs/tutorials/python-api.md); each with its public methods and properties
+API = [
+    *(f"drive_bridge.{name}" for name in drive_bridge.__all__ if name != "__version__"),
+    "drive_bridge.commissioning.run.CommissionResult",
+    "drive_bridge.config.BusConfig",
+    "drive_bridge.master.link.Link",
+    "drive_bridge.master.bringup.AxisLink",
+    "drive_bridge.params.profile.Profile",
+    "drive_bridge.params.profile.load_profile",
+    "drive_bridge.params.write.WriteOutcome",
+    "drive_bridge.progress.StepReporter",
+    "drive_bridge.ident.identify.AxisResult",
+    "drive_bridge.ident.identify.Diagnostics",
+    "drive_bridge.ident.identify.GeneticFit",
+    "drive_bridge.ident.identify.DriveFit",
+    "drive_bridge.ident.model.AxisModel",
+    "drive_bridge.ident.model.Errors",
+    "drive_bridge.tuning.tune.AxisTuning",
+    "drive_bridge.tuning.tune.tune_axis",
+    "drive_bridge.sim.robot_config.load_sim_config",
+    "drive_bridge.sim.robot_config.SimConfig",
+    "drive_bridge.sim.plantlog.plant_log",
+    "drive_bridge.sim.plantlog.write_log",
+    "drive_bridge.resources.data",
+    "drive_bridge.history.compare.History",
+    "drive_bridge.history.compare.Comparison",
+    "drive_bridge.history.compare.compare",
+    "drive_bridge.history.store.HistoryStore",
+    "drive_bridge.history.store.ParameterRow",
+]
+#: numpydoc's checks of the sections: every parameter documented and none unknown, a Returns
+#: section where something is returned, a docstring at all
+SECTIONS = ("PR01", "PR02", "RT01", "GL08")
+
+
+def _with_members(path: str) -> list[str]:
+    """``path`` and, for a class, the public methods and properties it defines itself."""
+    import importlib
+    import inspect
+
+    module, _, name = path.rpartition(".")
+    obj = getattr(importlib.import_module(module), name)
+    if not inspect.isclass(obj):
+        return [f"{obj.__module__}.{obj.__qualname__}"]
+    own = f"{obj.__module__}.{obj.__qualname__}"
+    return [own] + [
+        f"{own}.{member}"
+        for member, value in vars(obj).items()
+        if not member.startswith("_")
+        and (inspect.isfunction(value) or isinstance(value, (property, classmethod, staticmethod)))
+    ]
+
+
+def _protocol(name: str) -> bool:
+    """Whether ``name`` is a typing.Protocol: an interface, with no constructor to document."""
+    import importlib
+
+    module, _, attr = name.rpartition(".")
+    try:
+        obj = getattr(importlib.import_module(module), attr)
+    except ModuleNotFoundError:
+        return False
+    return bool(getattr(obj, "_is_protocol", False))
+
+
+def test_the_public_api_has_numpydocs_sections():
+    """As python-control writes them (numpydoc's own validator): Parameters, with units in
+    brackets, and Returns on every function, method and class of the API a user meets."""
+    from numpydoc.validate import validate
+
+    missing = [
+        f"{name}: {code} {message}"
+        for path in API
+        for name in _with_members(path)
+        for code, message in validate(name)["errors"]
+        if code in SECTIONS and not (code == "PR01" and _protocol(name))
+    ]
+    assert not missing, "\n".join(missing)

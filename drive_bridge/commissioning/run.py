@@ -52,7 +52,27 @@ WHAT = {
 
 @dataclass
 class CommissionResult:
-    status: str  # "ok", "failed" or "partial" (a subset of the steps ran)
+    """How a commissioning ended (:func:`commission`).
+
+    Parameters
+    ----------
+    status : {"ok", "failed", "partial"}
+        "partial": a subset of the steps ran, and ended well.
+    exit_code : int
+        The command's exit code (:data:`drive_bridge.errors.EXIT_TABLE`).
+    failed_step : str or None
+        The step that failed; None where none did.
+    reason : str or None
+        Why it failed, in words.
+    ran : list of str
+        The steps this run was to run, in order (a resumed run: those that were left).
+    out : Path
+        The run directory (summary.json, report.html, each step's files).
+    summary : dict
+        summary.json as written.
+    """
+
+    status: str
     exit_code: int
     failed_step: str | None
     reason: str | None
@@ -62,6 +82,7 @@ class CommissionResult:
 
     @property
     def ok(self) -> bool:
+        """Whether every step asked for ran to its end (``status == "ok"``)."""
         return self.status == "ok"
 
 

@@ -34,7 +34,48 @@ MIN_SIBLINGS = 3  # fewer siblings than this give no median and spread worth a w
 
 @dataclass
 class Comparison:
-    """One parameter of one drive's axis in its latest run, against its past and its siblings."""
+    """One parameter of one drive's axis in its latest run, against its past and its siblings.
+
+    Parameters
+    ----------
+    axis : str
+        The axis role.
+    serial : int or None
+        The drive's serial number (0x1018:4); None: unknown.
+    drive_type : (int or None, int or None)
+        The drive's vendor and product (0x1018:1, :2).
+    name : str
+        The parameter (J, c0, c1, KpS, ...).
+    unit : str or None
+        Its unit.
+    value, std : float
+        Its value and std in this run (std None: not reported).
+    run_id : str
+        The run.
+    when : datetime
+        When the run started.
+    previous, previous_std : float, optional
+        The value and std in the drive's previous run on that axis.
+    previous_when : datetime, optional
+        When that run started.
+    sigmas : float, optional
+        (value - previous) / their combined std.
+    relative : float, optional
+        (value - previous) / |previous|.
+    siblings : int
+        How many other drives of the same type in the same axis role have a determined value.
+    median, spread : float, optional
+        Their median and spread (1.4826 × the median absolute deviation, at least the median of
+        their std).
+    spreads : float, optional
+        (value - median) / spread.
+    relative_to_median : float, optional
+        (value - median) / |median|.
+    changed : bool
+        Named against its own past.
+    stands_out : bool
+        Named against its siblings.
+    """
 
     axis: str
     serial: int | None
@@ -48,22 +89,30 @@ class Comparison:
     previous: float | None = None
     previous_std: float | None = None
     previous_when: datetime | None = None
-    sigmas: float | None = None  # (value - previous) / combined std
-    relative: float | None = None  # (value - previous) / |previous|
+    sigmas: float | None = None
+    relative: float | None = None
     siblings: int = 0
     median: float | None = None
     spread: float | None = None
-    spreads: float | None = None  # (value - median) / spread
+    spreads: float | None = None
     relative_to_median: float | None = None
-    changed: bool = False  # named against its own past
-    stands_out: bool = False  # named against its siblings
+    changed: bool = False
+    stands_out: bool = False
 
     @property
     def named(self) -> bool:
+        """Named at all: changed against its past or standing out among its siblings."""
         return self.changed or self.stands_out
 
     def words(self) -> str:
-        """'serial 1002, axis y: c0 +38 % (21 σ) since 2026-06-02 and 3.1 spread above its 11 siblings'."""
+        """The comparison in one line.
+
+        Returns
+        -------
+        str
+            As ``serial 1002, axis y: c0 +38 % (21 σ) since 2026-06-02 and 3.1 spread above its 11
+            siblings``.
+        """
         parts = []
         if self.previous is not None and self.relative is not None and self.previous_when is not None:
             parts.append(
@@ -77,6 +126,13 @@ class Comparison:
         )
 
     def as_dict(self) -> dict:
+        """The comparison as ``history compare --json`` gives it.
+
+        Returns
+        -------
+        dict
+            Every field (the serial in hex, times in ISO 8601), ``named`` and ``words``.
+        """
         return {
             "axis": self.axis,
             "serial": None if self.serial is None else hex32(self.serial),
@@ -115,7 +171,13 @@ def sigma_text(z: float | None) -> str:
 @dataclass
 class History:
     """The parameters of every run, grouped: per (simulated, vendor, product, serial, axis) the
-    runs in time order, each a dict of its parameter rows by name."""
+    runs in time order, each a dict of its parameter rows by name.
+
+    Parameters
+    ----------
+    rows : list of ParameterRow
+        Every parameter of every run (:meth:`.store.HistoryStore.parameters`).
+    """
 
     rows: list[ParameterRow]
     runs: dict[tuple, list[tuple[str, datetime, dict[str, ParameterRow]]]] = field(init=False)
@@ -133,14 +195,55 @@ class History:
 
     @staticmethod
     def key(r: ParameterRow) -> tuple:
+        """The drive-axis a row belongs to.
+
+        Parameters
+        ----------
+        r : ParameterRow
+            A parameter of a run.
+
+        Returns
+        -------
+        tuple
+            (simulated, vendor, product, serial, axis).
+        """
         return (r.simulated, r.vendor_id, r.product_code, r.serial, r.axis)
 
     def series(self, key: tuple, name: str) -> list[ParameterRow]:
-        """One drive-axis's values of ``name``, oldest first (undetermined ones included)."""
+        """One drive-axis's values of a parameter, oldest first (undetermined ones included).
+
+        Parameters
+        ----------
+        key : tuple
+            The drive-axis (:meth:`key`).
+        name : str
+            The parameter.
+
+        Returns
+        -------
+        list of ParameterRow
+            Its value in each run.
+        """
         return [p[name] for _, _, p in self.runs.get(key, []) if name in p]
 
     def siblings(self, key: tuple, name: str, upto: datetime | None = None) -> list[ParameterRow]:
-        """The latest determined value of ``name`` of every other drive of the same type and axis role."""
+        """The latest determined value of a parameter of every other drive of the same type and axis
+        role.
+
+        Parameters
+        ----------
+        key : tuple
+            The drive-axis (:meth:`key`) whose siblings are asked for.
+        name : str
+            The parameter.
+        upto : datetime, optional
+            Only runs up to then (the siblings as they stood then).
+
+        Returns
+        -------
+        list of ParameterRow
+            One per sibling.
+        """
         sim, vendor, product, serial, axis = key
         out = []
         for k, runs in self.runs.items():
@@ -204,8 +307,24 @@ def compare_one(
 def compare(
     history: History, axis: str | None = None, serial: int | None = None, threshold: float = THRESHOLD
 ) -> list[Comparison]:
-    """Every drive-axis's latest run (only ``axis``, only the drive ``serial``, when given),
-    ordered by serial, axis and parameter."""
+    """Every drive-axis's latest run against its past and its siblings.
+
+    Parameters
+    ----------
+    history : History
+        The parameters of every run.
+    axis : str, optional
+        Only this axis role.
+    serial : int, optional
+        Only the drive of this serial number.
+    threshold : float
+        The relative change a difference must reach to be named, besides its significance.
+
+    Returns
+    -------
+    list of Comparison
+        Per drive-axis and parameter, ordered by serial, axis and parameter.
+    """
     out = []
     for key, runs in sorted(history.runs.items(), key=lambda kv: (str(kv[0][3]), kv[0][4], kv[0][0])):
         if (axis is None or key[4] == axis) and (serial is None or key[3] == serial):

@@ -40,7 +40,31 @@ class RecordRefused(DriveBridgeError):
 
 @dataclass
 class ParameterRow:
-    """One identified parameter of one axis of one run, with the run's time and the drive."""
+    """One identified parameter of one axis of one run, with the run's time and the drive.
+
+    Parameters
+    ----------
+    run_id : str
+        The run.
+    started : datetime
+        When it started (UTC).
+    simulated : bool
+        A run on the simulated drives.
+    axis : str
+        The axis role.
+    vendor_id, product_code, serial : int or None
+        The drive's identity (0x1018:1, :2, :4); None where it was not read.
+    name : str
+        The parameter (J, c0, c1, ...).
+    value : float
+        Its value, SI.
+    std : float or None
+        Its std (None: not reported).
+    unit : str or None
+        Its unit.
+    determined : bool
+        Whether the data determined it (an undetermined value is never compared).
+    """
 
     run_id: str
     started: datetime
@@ -57,10 +81,12 @@ class ParameterRow:
 
     @property
     def drive_type(self) -> tuple[int | None, int | None]:
+        """(vendor, product): the drive's type."""
         return self.vendor_id, self.product_code
 
     @property
     def drive(self) -> tuple[int | None, int | None, int | None]:
+        """(vendor, product, serial): the drive itself."""
         return self.vendor_id, self.product_code, self.serial
 
 
@@ -69,7 +95,19 @@ def _time(text: str) -> datetime:
 
 
 class HistoryStore:
-    """The history database at ``url`` (``--db``; default :func:`~.location.database_url`)."""
+    """The history database: every commissioning, write, identification and monitor window kept.
+
+    Parameters
+    ----------
+    url : str or sqlalchemy.URL, optional
+        The database (``--db``): a SQLAlchemy URL (SQLite, PostgreSQL); default
+        :func:`~.location.database_url` (``DRIVE_BRIDGE_DB``, else the user's SQLite file).
+
+    Raises
+    ------
+    HistoryUnavailable
+        The database cannot be used (named, never with its password).
+    """
 
     def __init__(self, url: str | sa.URL | None = None):
         self.url = url if isinstance(url, sa.URL) else database_url(url)
@@ -92,6 +130,7 @@ class HistoryStore:
 
     @property
     def where(self) -> str:
+        """The database as it may be shown: its URL without the password."""
         return shown(self.url)
 
     def _guard(self, work: Any, *args: Any) -> Any:
@@ -135,16 +174,38 @@ class HistoryStore:
                 log.info("history database %s: schema at revision %s", self.where, script.get_current_head())
 
     def revision(self) -> str | None:
+        """The database schema's revision.
+
+        Returns
+        -------
+        str or None
+            Alembic's revision id; None before the first migration.
+        """
         from alembic.runtime.migration import MigrationContext
 
         with self.engine.connect() as conn:
             return MigrationContext.configure(conn).get_current_revision()
 
     def add(self, record: dict) -> bool:
-        """Keep ``record``; False where the database holds it already (the same run id, updated
-        as late or later): adding a record twice never duplicates it.  Raises
-        :class:`RecordRefused` for a record that does not follow its schema, or whose content the
-        database refuses, and :class:`HistoryUnavailable` where the database cannot be used."""
+        """Keep a run's record; adding a record twice never duplicates it.
+
+        Parameters
+        ----------
+        record : dict
+            The run's record (schema ``record``: :mod:`.record`).
+
+        Returns
+        -------
+        bool
+            False where the database holds it already (the same run id, updated as late or later).
+
+        Raises
+        ------
+        RecordRefused
+            A record that does not follow its schema, or whose content the database refuses.
+        HistoryUnavailable
+            The database cannot be used.
+        """
         wrong = problems(record)
         if wrong:
             raise RecordRefused(f"the record does not follow its schema: {'; '.join(wrong)}")
@@ -213,8 +274,23 @@ class HistoryStore:
     def runs(
         self, limit: int | None = None, axis: str | None = None, serial: int | None = None
     ) -> list[dict]:
-        """The runs, newest first: id, kind, times, status, verdict, axes (with their drives'
-        serials, hex), run directory."""
+        """The runs kept, newest first.
+
+        Parameters
+        ----------
+        limit : int, optional
+            At most this many.
+        axis : str, optional
+            Only runs with this axis.
+        serial : int, optional
+            Only runs with the drive of this serial number.
+
+        Returns
+        -------
+        list of dict
+            Per run: id, kind, times, status, verdict, axes (with their drives' serials, hex), run
+            directory.
+        """
         return list(self._guard(self._runs, limit, axis, serial))
 
     def _runs(self, limit: int | None, axis: str | None, serial: int | None) -> list[dict]:
@@ -252,9 +328,25 @@ class HistoryStore:
         return rows
 
     def last_commissioning(self, axis: str, node_id: int, config: Path, simulated: bool) -> dict | None:
-        """The newest commissioning of ``axis`` at node ``node_id`` under the bus configuration
-        ``config`` (the same path, or the same bytes): its ``run_id``, ``started`` and the axis's
-        entry of its record (drive identity, parameters); None where none is kept."""
+        """The newest commissioning of an axis at a node under a bus configuration.
+
+        Parameters
+        ----------
+        axis : str
+            The axis.
+        node_id : int
+            Its node id.
+        config : Path
+            The bus configuration (the same path, or the same bytes).
+        simulated : bool
+            On the simulated drives, or real ones.
+
+        Returns
+        -------
+        dict or None
+            Its ``run_id``, ``started`` and the axis's entry of its record (drive identity,
+            parameters); None where none is kept.
+        """
         return self._guard(self._last_commissioning, axis, node_id, config, simulated)
 
     def _last_commissioning(self, axis: str, node_id: int, config: Path, simulated: bool) -> dict | None:
@@ -280,7 +372,23 @@ class HistoryStore:
         return None
 
     def record(self, run: str) -> dict:
-        """The record of run ``run`` (its id, or a prefix of it no other run id shares)."""
+        """The record of one run.
+
+        Parameters
+        ----------
+        run : str
+            Its id, or a prefix of it no other run id shares.
+
+        Returns
+        -------
+        dict
+            The record as kept.
+
+        Raises
+        ------
+        UserError
+            No such run, or a prefix more than one run id shares.
+        """
         rows = self._guard(self._records, run)
         if not rows:
             raise UserError(
@@ -303,7 +411,13 @@ class HistoryStore:
             ]
 
     def parameters(self) -> list[ParameterRow]:
-        """Every identified parameter of every run that has a drive identity, oldest run first."""
+        """Every identified parameter of every run that has a drive identity.
+
+        Returns
+        -------
+        list of ParameterRow
+            Oldest run first.
+        """
         return list(self._guard(self._parameters))
 
     def _parameters(self) -> list[ParameterRow]:
@@ -351,6 +465,7 @@ class HistoryStore:
             ]
 
     def close(self) -> None:
+        """Close the database's connections."""
         self.engine.dispose()
 
 

@@ -63,9 +63,21 @@ DEGENERATE_COND = 1e8  # ... as is one whose (column-scaled) regressors have a c
 @dataclass
 class GeneticFit:
     """The paper's genetic algorithm (differential evolution) on the final model's structure and
-    the same cost: its coefficients (where the search stood, where it did not converge before its
-    generation limit), its errors on the validation samples, and how far it lies from the
-    least-squares minimum, at most, in the least-squares std (0 where every std is 0)."""
+    the same cost.
+
+    Parameters
+    ----------
+    coef : numpy.ndarray
+        Its coefficients (``AxisModel.coef_names`` order, SI); where it did not converge before its
+        generation limit, where the search stood.
+    errors : Errors
+        Its errors on the validation samples.
+    converged : bool
+        Whether the search converged before its generation limit.
+    std_from_lse : float
+        How far it lies from the least-squares minimum, at most, in the least-squares std (0
+        where every std is 0).
+    """
 
     coef: np.ndarray
     errors: Errors
@@ -74,7 +86,22 @@ class GeneticFit:
 
     @classmethod
     def of(cls, fitted: AxisModel, lse: AxisModel, val: Samples) -> GeneticFit:
-        """The GA's model ``fitted`` set beside the least-squares ``lse``, validated on ``val``."""
+        """The GA's model set beside the least-squares one.
+
+        Parameters
+        ----------
+        fitted : AxisModel
+            The model fitted with ``method="ga"``.
+        lse : AxisModel
+            The same structure fitted by least squares.
+        val : Samples
+            The validation samples.
+
+        Returns
+        -------
+        GeneticFit
+            The GA's coefficients, errors on ``val`` and distance from ``lse``.
+        """
         std = lse.coef_std_
         ok = std > 0
         far = float(np.max(np.abs(fitted.coef_ - lse.coef_)[ok] / std[ok])) if ok.any() else 0.0
@@ -84,9 +111,18 @@ class GeneticFit:
 @dataclass
 class DriveFit:
     """What is written to a drive where the model has effects no drive model carries
-    (effects.DRIVE_EFFECTS): the model refitted with only those a drive holds (the best values
-    within that structure) and its validation errors -- or, where that refit leaves J, c0 or c1
-    undetermined, the full model and its errors, and the ``note`` that says why."""
+    (effects.DRIVE_EFFECTS).
+
+    Parameters
+    ----------
+    model : AxisModel
+        The model refitted with only the effects a drive holds (the best values within that
+        structure); or, where that refit leaves J, c0 or c1 undetermined, the full model.
+    errors : Errors
+        Its validation errors.
+    note : str, optional
+        Why the full model is written, where it is.
+    """
 
     model: AxisModel
     errors: Errors
@@ -96,62 +132,127 @@ class DriveFit:
 @dataclass
 class Diagnostics:
     """What the log and the fit tell beside the model, each apart from it (scikit-learn's rule:
-    the estimator holds its fit, not the verdicts on it)."""
+    the estimator holds its fit, not the verdicts on it).
 
-    noise_floor: float  # the torque's noise the log allows no model to go below [Nm | N]
-    unexplained: list[dict]  # what the residual still depends on (trace.unexplained, resonance, reversal)
-    dropped: list[str]  # samples the log could not give, and why
-    sampling: dict  # what the log's time stamps held (Log.sampling), the torque delay and clipping
-    consistency: dict  # J, c0, c1 refitted on parts of the data (consistency())
-    #: the speeds c0 and c1 hold for, and whether they depend on which (friction_range())
+    Parameters
+    ----------
+    noise_floor : float
+        The torque's noise the log allows no model to go below [Nm | N].
+    unexplained : list of dict
+        What the residual still depends on (:func:`.trace.unexplained`, a resonance, a transient
+        after reversals).
+    dropped : list of str
+        Samples the log could not give, and why.
+    sampling : dict
+        What the log's time stamps held (``Log.sampling``), the torque's delay and clipping.
+    consistency : dict
+        J, c0, c1 refitted on parts of the data (:func:`consistency`).
+    friction : dict
+        The speeds c0 and c1 hold for, and whether they depend on which (:func:`friction_range`).
+    resonance : dict, optional
+        A resonance in the whole-band residual (:func:`.resonance.find_mode`), and the cut-off it
+        moved from.
+    backlash : dict, optional
+        Residual energy concentrated after torque reversals (:mod:`.reversal`).
+    motion : dict
+        What the motion covers and which of c0, c1 it cannot determine
+        (:func:`.coverage.what_the_motion_tells`).
+    band : dict
+        J refitted in half the band (:func:`band_dependence`): the band it holds across, or why not.
+    undetermined : dict of str to str
+        J, c0, c1 the data do not determine, and why (:func:`.identifiable.undetermined`).
+    response : dict, optional
+        The plant's torque -> velocity response read from the log (:func:`.frf.log_response`), for
+        reference.
+    """
+
+    noise_floor: float
+    unexplained: list[dict]
+    dropped: list[str]
+    sampling: dict
+    consistency: dict
     friction: dict
-    #: a resonance in the whole-band residual (resonance.find_mode), and the cut-off it moved from
     resonance: dict | None = None
-    #: residual energy concentrated after torque reversals (reversal.find_backlash)
     backlash: dict | None = None
-    #: what the motion covers and which of c0, c1 it cannot determine (coverage.what_the_motion_tells)
     motion: dict = field(default_factory=dict)
-    #: J refitted in half the band (band_dependence): the band it holds across, or why not
     band: dict = field(default_factory=dict)
-    #: J, c0, c1 the data do not determine, and why (identifiable.undetermined)
     undetermined: dict[str, str] = field(default_factory=dict)
-    #: the plant's torque -> velocity response read from the log (frf.log_response), for reference
     response: dict | None = None
 
 
 @dataclass
 class AxisResult:
-    """One axis identified: its units and settings, the estimation and validation samples, the
-    base and final models with the effects traced on the way and their validation errors, the
-    genetic algorithm beside them (``ga``), what is written to the drive where it differs from the
-    model (``drive``: None where the model's effects are all ones a drive holds), and the
-    diagnostics."""
+    """One axis identified (:func:`identify`).
+
+    Parameters
+    ----------
+    axis : str
+        The axis.
+    kind : {"rotary", "linear"}
+        What its position is: an angle [rad] or a length [m].
+    units : dict of str to str
+        The units of its position, velocity, torque and parameters.
+    settings : Settings
+        How the samples were made: cut-off [Hz], decimation, rate [Hz], torque delay [s].
+    validation : str
+        Which samples validate, in words.
+    est, val : Samples
+        The estimation and validation samples.
+    base : AxisModel
+        The rigid model J·q̈ + c1·q̇ + c0·sign(q̇).
+    model : AxisModel
+        The final model: the base and the effects traced, its std from the jackknife too.
+    effects : list of TracedEffect
+        The effects traced, in the order they were added, each with its evidence.
+    before, after : Errors
+        The base and the final model's errors on the validation samples.
+    ga : GeneticFit
+        The genetic algorithm beside the least squares.
+    diagnostics : Diagnostics
+        What the log and the fit tell beside the model.
+    drive : DriveFit, optional
+        What is written to the drive where it differs from the model (None where the model's
+        effects are all ones a drive holds).
+    """
 
     axis: str
-    kind: str  # rotary | linear
+    kind: str
     units: dict[str, str]
     settings: Settings
-    validation: str  # which samples validate
+    validation: str
     est: Samples
     val: Samples
     base: AxisModel
     model: AxisModel
     effects: list[TracedEffect]
-    before: Errors  # base model on the validation samples
-    after: Errors  # final model on the validation samples
+    before: Errors
+    after: Errors
     ga: GeneticFit
     diagnostics: Diagnostics
     drive: DriveFit | None = None
 
     def attach(self, log: Log) -> None:
         """Give the samples back the log they were made of (a result from a worker process comes
-        without it: :meth:`.signals.Parallel.__getstate__`)."""
+        without it: :meth:`.signals.Parallel.__getstate__`).
+
+        Parameters
+        ----------
+        log : Log
+            The log identified.
+        """
         for s in (self.est, self.val):
             if s.source is not None:
                 s.source.log = log
 
     def as_json(self) -> dict:
-        """The result as identify.json holds it per axis (schema ``identify``)."""
+        """The result as identify.json holds it per axis.
+
+        Returns
+        -------
+        dict
+            The axis in schema ``identify``: parameters and their std, errors before and after,
+            the effects, the GA, the diagnostics, what is undetermined and why.
+        """
         diagnostics = self.diagnostics
         drive = self.drive or DriveFit(self.model, self.after)
         return {

@@ -43,9 +43,36 @@ class AxisModel:
     fitted by least squares (``method="lse"``) or differential evolution (``"ga"``, seeded).
 
     As scikit-learn's estimators: the settings are given here, and the fitted values (``coef_``,
-    ``cov_``, ``sigma_``, ...) are set by :meth:`fit` alone. With ``jackknife_blocks`` > 0 the fit's
-    covariance is widened to the delete-one-block jackknife over that many stretches of the log in
-    time where that is larger (:data:`JACKKNIFE_BEYOND`); 0: the least-squares (HAC) covariance.
+    ``cov_``, ``sigma_``, ...) are set by :meth:`fit` alone.
+
+    Parameters
+    ----------
+    effects : sequence of Effect
+        The effects beside J, c1, c0 (fitted ones: their nonlinear parameters learned).
+    method : {"lse", "ga"}
+        Least squares, or differential evolution (the paper's genetic algorithm) on the same cost.
+    seed : int
+        Seed of the differential evolution (the same seed, the same numbers).
+    jackknife_blocks : int
+        With more than 0, the fit's covariance is widened to the delete-one-block jackknife over
+        that many stretches of the log in time where that is larger (:data:`JACKKNIFE_BEYOND`); 0:
+        the least-squares (HAC) covariance.
+
+    Attributes
+    ----------
+    coef_ : numpy.ndarray
+        The coefficients, in :attr:`coef_names` order: J [kg·m² | kg], c1 [Nm·s/rad | N·s/m],
+        c0 [Nm | N], then each effect's.
+    cov_ : numpy.ndarray
+        Their covariance (HAC; widened by the jackknife where asked for).
+    sigma_ : float
+        The residual's std [Nm | N].
+    cond_ : float
+        The condition number of the regressor matrix.
+    sse_ : float
+        The sum of squared residuals [Nm² | N²].
+    relative_error_ : float
+        ||residual|| / ||filtered torque|| on the fitted samples (the paper's measure).
     """
 
     METHODS = ("lse", "ga")
@@ -65,24 +92,61 @@ class AxisModel:
         self.jackknife_blocks = jackknife_blocks
 
     def with_effect(self, effect: Effect) -> AxisModel:
-        """The same model, unfitted, with ``effect`` added."""
+        """The same model, unfitted, with one more effect.
+
+        Parameters
+        ----------
+        effect : Effect
+            The effect to add.
+
+        Returns
+        -------
+        AxisModel
+            A new, unfitted model with the same settings.
+        """
         return AxisModel(self.effects + [effect], self.method, self.seed, self.jackknife_blocks)
 
     def design(self, s: Samples, logged: bool = False) -> np.ndarray:
-        """Regressor matrix at ``s``: every column filtered as the torque the fit uses, or
-        (``logged``) as the torque as logged (the base columns are smooth: the same either way)."""
+        """The regressor matrix.
+
+        Parameters
+        ----------
+        s : Samples
+            The samples.
+        logged : bool
+            Every column filtered as the torque as logged, not as the filtered torque the fit
+            uses (the base columns are smooth: the same either way).
+
+        Returns
+        -------
+        numpy.ndarray
+            n × len(:attr:`coef_names`), SI.
+        """
         return np.column_stack([base_columns(s)] + [e.columns(s, logged) for e in self.effects])
 
     @property
     def coef_names(self) -> list[str]:
+        """The coefficients' names: J, c1, c0, then ``<effect>.<coefficient>`` for each effect."""
         return list(BASE) + [f"{e.name}.{c}" for e in self.effects for c in e.coef_names]
 
     def fit(self, s: Samples) -> AxisModel:
-        """Fit every coefficient on the moving samples of ``s``.  ``cov_``, ``sigma_`` and
-        ``cond_`` are those of the least-squares problem (with ``"ga"`` too: differential
-        evolution gives no covariance), ``cov_`` widened by the jackknife where
+        """Fit every coefficient on the moving samples.
+
+        ``cov_``, ``sigma_`` and ``cond_`` are those of the least-squares problem (with ``"ga"``
+        too: differential evolution gives no covariance), ``cov_`` widened by the jackknife where
         ``jackknife_blocks`` says (``jackknife_``: the ratio jackknife / HAC std per coefficient,
-        ones without it)."""
+        ones without it).
+
+        Parameters
+        ----------
+        s : Samples
+            The samples (:func:`.signals.prepare`); only the moving ones are fitted.
+
+        Returns
+        -------
+        AxisModel
+            This model, fitted.
+        """
         m = s.moving
         phi, y = self.design(s)[m], s.tau_f[m]
         scale = np.sqrt(np.mean(phi**2, axis=0))
@@ -133,7 +197,20 @@ class AxisModel:
         self.cov_ = self.cov_ * np.outer(scale, scale)
 
     def predict(self, s: Samples, logged: bool = False) -> np.ndarray:
-        """The filtered torque at ``s`` (``logged``: the torque as logged)."""
+        """The torque the model predicts.
+
+        Parameters
+        ----------
+        s : Samples
+            The samples.
+        logged : bool
+            The torque as logged, not the filtered torque.
+
+        Returns
+        -------
+        numpy.ndarray
+            The torque at each sample [Nm | N].
+        """
         return self.design(s, logged) @ self.coef_
 
     # ---------------------------------------------------------------- reading the fit
@@ -165,6 +242,7 @@ class AxisModel:
 
     @property
     def param_std_(self) -> dict[str, float]:
+        """The std of J, c0, c1 and of every effect's parameters (``<effect>.<name>``), SI."""
         sd = self.coef_std_
         out = {"J": float(sd[0]), "c0": float(sd[2]), "c1": float(sd[1])}
         for e, sl in self._blocks():
@@ -179,10 +257,35 @@ class AxisModel:
         raise KeyError(effect)
 
     def effect_term(self, effect: Effect, s: Samples) -> np.ndarray:
-        """The torque ``effect`` contributes to the prediction at ``s`` (filtered as the fit's)."""
+        """The torque one of the model's effects contributes to the prediction.
+
+        Parameters
+        ----------
+        effect : Effect
+            One of the model's effects.
+        s : Samples
+            The samples.
+
+        Returns
+        -------
+        numpy.ndarray
+            Its torque at each sample [Nm | N], filtered as the fit's.
+        """
         return effect.columns(s, False) @ self._coef_of(effect)
 
     def effect_params(self, effect: Effect) -> dict:
+        """One effect's physical parameters from the fitted coefficients.
+
+        Parameters
+        ----------
+        effect : Effect
+            One of the model's effects.
+
+        Returns
+        -------
+        dict
+            Its parameters by name (amplitude, period, ...; SI).
+        """
         return effect.params(self._coef_of(effect))
 
 
@@ -263,11 +366,23 @@ def torque_delay(model: AxisModel, s: Samples, dt: float) -> tuple[float, float]
 
 @dataclass
 class Errors:
-    """Errors of a model on one set of samples (moving samples only)."""
+    """Errors of a model on one set of samples (moving samples only).
 
-    rmse: float  # measured torque as logged minus predicted [Nm | N]
-    torque_rms: float  # RMS of the measured torque on the same samples
-    relative_error: float  # ||filtered torque - predicted|| / ||filtered torque|| (paper, EMPS)
+    Parameters
+    ----------
+    rmse : float
+        RMS of the measured torque as logged minus the predicted [Nm | N].
+    torque_rms : float
+        RMS of the measured torque on the same samples [Nm | N].
+    relative_error : float
+        ||filtered torque - predicted|| / ||filtered torque|| (the paper's measure, EMPS's).
+    samples : int
+        How many samples.
+    """
+
+    rmse: float
+    torque_rms: float
+    relative_error: float
     samples: int
 
 

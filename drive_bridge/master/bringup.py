@@ -43,34 +43,72 @@ CONSUMER_PERIODS = 3
 
 @dataclass
 class AxisLink:
-    """A brought-up axis: its node, state machine, PDO codecs and live monitors."""
+    """A brought-up axis: its node, state machine, PDO codecs and live monitors.
+
+    Parameters
+    ----------
+    name : str
+        The axis (bus.yml's key).
+    cfg : NodeConfig
+        Its node's configuration.
+    node : canopen.RemoteNode
+        The drive on the bus, with its object dictionary.
+    drive : Drive402
+        Its CiA 402 state machine as the master drives it.
+    identity : dict
+        The drive's identity (0x1018: vendor, product, revision, serial) as read.
+    mode : int
+        The operating mode the master streams in (8 CSP, 7 IP; 0 before it is chosen).
+    setpoint : (int, int)
+        The object carrying its setpoints (index, subindex).
+    modes : list of int
+        The operating modes the drive supports (0x6502).
+    rpdos, tpdos : list of PdoCodec
+        The PDOs as mapped, master to drive and back.
+    last_heartbeat : float or None
+        When the drive's last heartbeat came [s, the link's clock].
+    nmt_state : int or None
+        The NMT state that heartbeat said.
+    emcy : list of (float, int)
+        The drive's EMCY messages: (time [s], error code).
+    units : dict
+        What the drive said about its units (:mod:`.drive_units`).
+    drive_limits : dict
+        The limits and stop behaviour written into it, as read back ("0xIIII:S" -> value).
+    homed : bool
+        Referenced by homing: the drive's homing has run in this bring-up.
+    before : dict
+        Every object bring-up overwrote, as the drive held it before ("0xIIII:S" -> raw value):
+        what a store of all parameters must put back to leave the stored set as it was.
+    """
 
     name: str
     cfg: NodeConfig
     node: canopen.RemoteNode
     drive: Drive402
     identity: dict
-    #: the operating mode the master streams in (8 CSP, 7 IP) and the object carrying its setpoints
     mode: int = 0
     setpoint: tuple[int, int] = (0x607A, 0)
-    modes: list[int] = field(default_factory=list)  # the operating modes the drive supports (0x6502)
+    modes: list[int] = field(default_factory=list)
     rpdos: list[PdoCodec] = field(default_factory=list)
     tpdos: list[PdoCodec] = field(default_factory=list)
     last_heartbeat: float | None = None
     nmt_state: int | None = None
-    emcy: list[tuple[float, int]] = field(default_factory=list)  # (time, code)
-    #: what the drive said about its units (:mod:`.drive_units`), and the limits and stop behaviour
-    #: written into it as read back ("0xIIII:S" -> value)
+    emcy: list[tuple[float, int]] = field(default_factory=list)
     units: dict = field(default_factory=dict)
     drive_limits: dict = field(default_factory=dict)
-    homed: bool = False  # reference: home, and the drive's homing has run in this bring-up
-    #: every object bring-up overwrote, as the drive held it before ("0xIIII:S" -> raw value):
-    #: what a store of all parameters must put back to leave the stored set as it was
+    homed: bool = False
     before: dict = field(default_factory=dict)
 
     def process_data(self) -> dict:
-        """How the master exchanges this axis' process data (bringup.json): the operating mode, the
-        setpoint object and each PDO's COB-ID and mapping, in hex as CANopen writes them."""
+        """How the master exchanges this axis' process data, as bringup.json holds it.
+
+        Returns
+        -------
+        dict
+            The operating mode (number and name), the setpoint object and each PDO's COB-ID and
+            mapping, in hex as CANopen writes them; the drive's units and limits as read back.
+        """
 
         def pdos(codecs: list[PdoCodec]) -> list[dict[str, Any]]:
             return [
@@ -89,8 +127,14 @@ class AxisLink:
         }
 
     def start_rad(self) -> float:
-        """Where a motion planned now starts [rad]: where the axis stands, or for an axis that homes
-        first, its home (the home offset 0x607C where the drive has one, else 0)."""
+        """Where a motion planned now starts.
+
+        Returns
+        -------
+        float
+            Where the axis stands [rad], or for an axis that homes first, its home (the home
+            offset 0x607C where the drive has one, else 0).
+        """
         if self.cfg.homing is None or self.homed:
             return self.position_rad()
         offset = read_if_readable(self.node, 0x607C, 0, f"axis {self.name}'s home offset") or 0
@@ -102,7 +146,18 @@ class AxisLink:
         return self.cfg.scaling.torque_constant_Nm_per_A
 
     def position_rad(self) -> float:
-        """Position actual (0x6064) now [rad | rad motor side], read by SDO; BusError naming the axis."""
+        """The drive's position actual (0x6064) now, read by SDO.
+
+        Returns
+        -------
+        float
+            The position [rad, motor side].
+
+        Raises
+        ------
+        BusError
+            The drive did not answer, naming the axis.
+        """
         try:
             return float(self.cfg.scaling.position_from_device(self.node.sdo[0x6064].raw))
         except (canopen.SdoCommunicationError, canopen.SdoAbortedError) as exc:

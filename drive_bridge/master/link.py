@@ -219,15 +219,35 @@ class Link(Protocol):
         """The time the master waits on and stamps with."""
 
     def add_trace(self, trace: TraceRecorder) -> None:
-        """Send every frame from now on, sent and received, to ``trace`` too."""
+        """Send every frame from now on, sent and received, to a trace too.
+
+        Parameters
+        ----------
+        trace : TraceRecorder
+            The recorder (a python-can log file: BLF, ASC, ...).
+        """
 
     def remove_trace(self, trace: TraceRecorder) -> None:
-        """Stop sending frames to ``trace``."""
+        """Stop sending frames to a trace.
+
+        Parameters
+        ----------
+        trace : TraceRecorder
+            A recorder :meth:`add_trace` was given.
+        """
 
     def start_heartbeat(self, node_id: int, period: float) -> None:
-        """Produce the master's heartbeat (COB-ID 0x700 + ``node_id``, NMT state operational) every
-        ``period`` [s] until the link closes, independent of what the master is busy with: the
-        drives' heartbeat consumers stop the axes when it falls silent."""
+        """Produce the master's heartbeat until the link closes, independent of what the master is
+        busy with: the drives' heartbeat consumers stop the axes when it falls silent.
+
+        Parameters
+        ----------
+        node_id : int
+            The master's node id: the heartbeat's COB-ID is 0x700 + ``node_id`` (NMT state
+            operational).
+        period : float
+            Its period [s].
+        """
 
     def stop_heartbeat(self) -> None:
         """Stop the master's heartbeat (the drives then stop as if the master had died)."""
@@ -239,8 +259,31 @@ class Link(Protocol):
         progress: Callable[[int], None] | None,
         on_start: Callable[[int], None] | None,
     ) -> tuple[Outcome, Arrays, str]:
-        """Run the cyclic engine on ``job`` (``fill`` writes the setpoint table into its arrays before
-        it starts): its outcome, its arrays and where it ran (what was granted it)."""
+        """Run the cyclic engine on a job: SYNC, setpoints and actual values every period.
+
+        Parameters
+        ----------
+        job : Job
+            The streamed motion as plain data: the axes, their PDOs, the plan's rows (one SYNC
+            each) and what the engine supervises.
+        fill : callable
+            Writes the setpoint table into the engine's arrays before it starts.
+        progress : callable or None
+            Called with the plan's rows sent so far, now and then while the engine runs.
+        on_start : callable or None
+            Called once, with the SYNC cycles enabling took, when the plan's first row has gone
+            out.
+
+        Returns
+        -------
+        outcome : Outcome
+            How the run ended: the rows sent, why it stopped, each axis's last statusword, the
+            run's timing.
+        arrays : Arrays
+            The setpoints sent and the actual values received, per cycle.
+        where : str
+            Where it ran and what was granted it (a process of its own, SCHED_FIFO, ...).
+        """
 
     def close(self) -> None:
         """Close the bus (and whatever runs behind it)."""

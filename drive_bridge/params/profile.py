@@ -139,31 +139,96 @@ class Entry:
 
 @dataclass
 class Profile:
+    """One drive model's objects for the abstract parameters, and their units (see the module).
+
+    Parameters
+    ----------
+    name : str
+        The profile's name (its file's stem).
+    path : Path
+        The profile's YAML file.
+    drive : str
+        The drive model, in words.
+    eds : Path
+        The drive's EDS/DCF.
+    entries : dict of str to Entry
+        Per abstract parameter (J, c0, KpS, ...): its object, data type and scaling.
+    save : (int, int) or None
+        The store-parameters object (index, subindex); None: the drive cannot store.
+    motor : dict of str to (int, int), optional
+        Where the drive reports its motor's R [Ω] and L [H] (index, subindex).
+    controller : Controller
+        The structure and loop rates the drive runs (:mod:`.controller`).
+    select : (Entry, int, Profile or None), optional
+        The object that must hold a value for the profile's gain objects to run, that value, and
+        the profile that runs otherwise.
+    setpoint_timeout : (float, str), optional
+        How long the drive follows without a new setpoint before it stops on its own, in
+        interpolation periods (0x60C2), and the source that says so (None: not documented).
+    """
+
     name: str
     path: Path
     drive: str
     eds: Path
     entries: dict[str, Entry]
     save: tuple[int, int] | None
-    motor: dict[str, tuple[int, int]] | None = None  # R [Ω], L [H]: (index, sub) where the drive reports them
+    motor: dict[str, tuple[int, int]] | None = None
     controller: Controller = Controller()
-    #: (object's entry, the value that selects the profile's gain objects, the profile that runs otherwise)
     select: tuple[Entry, int, Profile | None] | None = None
-    #: how long the drive follows without a new setpoint before it stops on its own, in interpolation
-    #: periods (0x60C2), and the source that says so (None: not documented)
     setpoint_timeout: tuple[float, str] | None = None
 
     def object_dictionary(self, node_id: int) -> canopen.ObjectDictionary:
+        """The drive's object dictionary from its EDS/DCF.
+
+        Parameters
+        ----------
+        node_id : int
+            The node id its ``$NODEID`` entries resolve to.
+
+        Returns
+        -------
+        canopen.ObjectDictionary
+            The drive's objects.
+        """
         return load_od(self.eds, node_id)
 
     def for_axis(self, ax: MotorAxis) -> Profile:
-        """:meth:`bind` for an axis, with its motor's torque constant."""
+        """:meth:`bind` for an axis, with its motor's torque constant.
+
+        Parameters
+        ----------
+        ax : MotorAxis
+            The axis (its name and torque constant [Nm/A]).
+
+        Returns
+        -------
+        Profile
+            The profile bound to that motor.
+        """
         return self.bind(ax.torque_constant, ax.name)
 
     def bind(self, torque_constant: float | None, axis: str = "") -> Profile:
-        """This profile for one axis whose motor has ``torque_constant`` [Nm/A]: the entries the
-        drive holds in current get their scale per Nm (the profile that runs otherwise too).
-        UserError where one needs it and it is not given."""
+        """This profile for one axis: the entries the drive holds in current get their scale per Nm
+        (the profile that runs otherwise too).
+
+        Parameters
+        ----------
+        torque_constant : float or None
+            The axis motor's torque constant [Nm/A].
+        axis : str
+            The axis, for the error's words.
+
+        Returns
+        -------
+        Profile
+            A copy whose entries are all in SI torque units.
+
+        Raises
+        ------
+        UserError
+            An entry needs the torque constant and it is not given.
+        """
         select = self.select
         if select is not None and select[2] is not None:
             select = (select[0], select[1], select[2].bind(torque_constant, axis))
@@ -188,21 +253,56 @@ class Profile:
         )
 
     def otherwise(self) -> Profile | None:
-        """The profile whose objects run while the select object does not select this one's (bound
-        to the same motor)."""
+        """The profile whose objects run while the select object does not select this one's.
+
+        Returns
+        -------
+        Profile or None
+            That profile (bound to the same motor); None where the profile has no select object.
+        """
         return None if self.select is None else self.select[2]
 
     def drive_values(self, values: dict[str, float]) -> dict[str, float]:
-        """A parameter set in the cascade's terms (tune's) as this drive holds it: its controller's
-        parameters (:meth:`.controller.Controller.to_drive`) and the select object
-        (:meth:`with_select`).  UserError for a set the drive cannot hold."""
+        """A parameter set in the cascade's terms (tune's) as this drive holds it.
+
+        Parameters
+        ----------
+        values : dict of str to float
+            The set in the cascade's terms, SI.
+
+        Returns
+        -------
+        dict of str to float
+            Its controller's parameters (:meth:`.controller.Controller.to_drive`) and the select
+            object (:meth:`with_select`).
+
+        Raises
+        ------
+        UserError
+            A set the drive cannot hold.
+        """
         return self.with_select(self.controller.to_drive(values))
 
     def with_select(self, values: dict[str, float]) -> dict[str, float]:
         """A drive's parameter set with the select object set where it writes a gain object of this
-        profile; a set that names ``gain_objects`` itself keeps its value.  UserError for a set that
-        would switch the drive onto the profile's gain objects without all of them (the others
-        would run with whatever those objects hold)."""
+        profile; a set that names ``gain_objects`` itself keeps its value.
+
+        Parameters
+        ----------
+        values : dict of str to float
+            The drive's parameter set.
+
+        Returns
+        -------
+        dict of str to float
+            The set, with ``gain_objects`` first where it is needed.
+
+        Raises
+        ------
+        UserError
+            A set that would switch the drive onto the profile's gain objects without all of them
+            (the others would run with whatever those objects hold).
+        """
         gains = [k for k in self.entries if k != SELECT]
         if self.select is None or SELECT in values or not any(k in gains for k in values):
             return values
@@ -221,8 +321,23 @@ def available() -> list[str]:
 
 
 def load_profile(name_or_path: str | Path) -> Profile:
-    """A shipped profile by name (see :func:`available`) or a profile YAML file, checked
-    against its EDS (every object present, of the declared type, writable)."""
+    """A shipped profile by name or a profile YAML file, checked against its EDS.
+
+    Parameters
+    ----------
+    name_or_path : str or Path
+        A shipped profile's name (see :func:`available`) or a profile YAML file.
+
+    Returns
+    -------
+    Profile
+        The profile, every object present in its EDS, of the declared type, writable.
+
+    Raises
+    ------
+    ConfigError
+        No such profile, or a key that does not hold, named with its file.
+    """
     path = Path(name_or_path)
     if not path.suffix:
         path = PROFILE_DIR / f"{name_or_path}.yaml"

@@ -515,21 +515,43 @@ class _Transaction:
 
 @dataclass
 class WriteOutcome:
-    """The write step: per drive its result, the loop margins of the gains written on the model
-    they were designed for, and the checks ``force`` overrode."""
+    """The write step's outcome (:func:`write_drives`).
+
+    Parameters
+    ----------
+    results : dict of str to WriteResult
+        Per drive: what was written and read back, stored, or rolled back, and why.
+    margins : dict of str to dict
+        Per axis, the loop margins [°, dB] of the gains written, on the model they were designed
+        for.
+    forced : list of str
+        The checks ``force`` overrode.
+    axes : list of str
+        The axes asked for.
+    unverified_scales : list of str
+        Values written through a profile scale without a documented source (``"KpS (0x3210:3)"``).
+    """
 
     results: dict[str, WriteResult]
     margins: dict[str, dict]
     forced: list[str]
     axes: list[str]
-    unverified_scales: list[str] = field(default_factory=list)  # "KpS (0x3210:3)" written without a source
+    unverified_scales: list[str] = field(default_factory=list)
 
     @property
     def ok(self) -> bool:
+        """Whether every drive asked for has a result and none of them an error."""
         return len(self.results) == len(self.axes) and all(r.ok for r in self.results.values())
 
     def as_dict(self) -> dict:
-        """write.json / ``write --json``."""
+        """The outcome as write.json and ``write --json`` hold it.
+
+        Returns
+        -------
+        dict
+            ``ok``, ``forced``, ``margins``, ``unverified_scales`` and per axis its result
+            (schema ``write``, stamped with the tool's version).
+        """
         return stamped(
             "write",
             {

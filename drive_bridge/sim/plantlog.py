@@ -31,11 +31,28 @@ def plant_log(
     torque_offset: dict[str, np.ndarray] | None = None,
     gains: dict[str, dict[str, float]] | None = None,
 ) -> dict[str, np.ndarray]:
-    """Columns ``time_s`` and per axis ``<axis>_position_rad``, ``_position_demand_rad``,
-    ``_torque_Nm`` of the plant following ``demand`` (axis -> positions per period [rad]), with
-    ``torque_offset`` (axis -> [Nm] per period) added to the torque command as 0x60B2 is, and the
-    ``gains`` given per axis (SI; else the factory's).  Axes without a demand hold their start
-    position."""
+    """The simulated plant and its drives' loops following a demand, bus-free, as a log.
+
+    Parameters
+    ----------
+    config : SimConfig
+        The simulated robot (:func:`~drive_bridge.sim.robot_config.load_sim_config`).
+    demand : dict of str to numpy.ndarray
+        Per axis, its position demand [rad] each period; axes without one hold their start
+        position.
+    period : float
+        The period [s] (a SYNC's).
+    torque_offset : dict of str to numpy.ndarray, optional
+        Per axis, a torque [Nm] each period added to the torque command, as 0x60B2 is.
+    gains : dict of str to dict, optional
+        Per axis, the drive's gains (SI); else the factory's.
+
+    Returns
+    -------
+    dict of str to numpy.ndarray
+        The log's columns: ``time_s`` and per axis ``<axis>_position_rad``,
+        ``<axis>_position_demand_rad`` and ``<axis>_torque_Nm``.
+    """
     names = list(config.axes)
     n = len(next(iter(demand.values())))
     state, param, dem = kernel.new_arrays(len(names))
@@ -70,4 +87,18 @@ def plant_log(
 
 
 def write_log(path: str | Path, cols: dict[str, np.ndarray]) -> Path:
+    """Write columns as a log CSV (the format ``identify`` reads).
+
+    Parameters
+    ----------
+    path : str or Path
+        The file to write.
+    cols : dict of str to numpy.ndarray
+        The columns by name, as :func:`plant_log` gives them.
+
+    Returns
+    -------
+    Path
+        The file written.
+    """
     return write_table(path, list(cols), np.column_stack(list(cols.values())), ["%.9g"] * len(cols))

@@ -99,6 +99,19 @@ class SavedLimits:
 
 @dataclass
 class SimConfig:
+    """The simulated robot (:func:`load_sim_config`).
+
+    Parameters
+    ----------
+    axes : dict of str to SimAxis
+        Per axis: its plant (J, c0, c1, the effects it hides, its noise), motor, brake, end stops
+        and what its drive saved.
+    seed : int
+        Seed of the plant's noise (the same seed, the same log).
+    path : Path, optional
+        The YAML file it was read from.
+    """
+
     axes: dict[str, SimAxis]
     seed: int = 0
     path: Path | None = None
@@ -134,8 +147,24 @@ def _saved_limits(sec: Section) -> SavedLimits | None:
 
 
 def load_sim_config(path: str | Path = DEFAULT_CONFIG) -> SimConfig:
-    """Read and check a simulator YAML file (see ``robot.yaml`` for the format), or a shipped one
-    by its name in :data:`SHIPPED`."""
+    """Read and check a simulator YAML file.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file (see ``robot.yaml`` for the format), or a shipped robot by its name in
+        :data:`SHIPPED`; default the shipped robot.
+
+    Returns
+    -------
+    SimConfig
+        The simulated robot.
+
+    Raises
+    ------
+    ConfigError
+        A key that does not hold, named with the file.
+    """
     path = SHIPPED.get(str(path), Path(path))
     top = Section(path, "", load_yaml(path))
     seed = top.get("seed", int, 0, low=0, high=2**32 - 1)

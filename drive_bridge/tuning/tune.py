@@ -45,22 +45,63 @@ LOOP_RINGING = (
 
 @dataclass
 class AxisTuning:
+    """One axis tuned (:func:`tune_axis`).
+
+    Parameters
+    ----------
+    axis : str
+        The axis.
+    model : dict of str to float
+        J, c0, c1 and the effect terms a drive holds, SI, motor side.
+    design : GainDesign
+        The gains designed (KpP, FwF, KpS, KiS, KpC, KiC; SI) and the loops' margins.
+    before : dict of str to float
+        The drive's gains before tuning.
+    before_margins : (Margins, Margins) or None
+        The velocity and position loops' margins with those gains, on the model.
+    motor : dict of str to float
+        R [Ω] and L [H] the current loop was designed for.
+    experiment : ExperimentResult, optional
+        The velocity gain raised on the machine until it oscillated, where that ran.
+    frf : Frf, optional
+        The plant's response measured through the drive, designed on too.
+    controller : Controller
+        The structure and rates the gains are designed for.
+    mode : dict, optional
+        A mode of the transmission, where one is known, and how the design meets it.
+    """
+
     axis: str
-    model: dict[str, float]  # J, c0, c1 (+ effect terms), SI motor side
+    model: dict[str, float]
     design: GainDesign
-    before: dict[str, float]  # the drive's gains before tuning
+    before: dict[str, float]
     before_margins: tuple[Margins, Margins] | None
-    motor: dict[str, float]  # R [Ω], L [H] the current loop was designed for
+    motor: dict[str, float]
     experiment: ExperimentResult | None = None
-    frf: Frf | None = None  # the plant's response measured through the drive, designed on too
-    controller: Controller = Controller()  # the structure and rates the gains are designed for
-    mode: dict | None = None  # a mode of the transmission, where one is known, and how it is met
+    frf: Frf | None = None
+    controller: Controller = Controller()
+    mode: dict | None = None
 
     def parameters(self) -> dict[str, float]:
-        """Everything to write: the designed gains, the model, and the model feed-forward on."""
+        """Everything to write.
+
+        Returns
+        -------
+        dict of str to float
+            The designed gains, the model, and the model feed-forward on (``ff_enable`` 1), SI.
+        """
         return {**self.design.gains(), **self.model, "ff_enable": 1.0}
 
     def as_dict(self) -> dict:
+        """The axis as tune.json holds it.
+
+        Returns
+        -------
+        dict
+            The model, motor, gains before and after, their margins (on the model and, where
+            measured, on the response), the experiment, the controller, the mode and the
+            parameters to write.
+        """
         return {
             "model": self.model,
             "motor": self.motor,
@@ -78,8 +119,15 @@ class AxisTuning:
         }
 
     def measured(self) -> dict:
-        """The margins before and after on the measured response, and the band they hold for [Hz]
-        (a loop whose crossover lies above it: None, not verified)."""
+        """The margins before and after on the measured response.
+
+        Returns
+        -------
+        dict
+            ``band_hz``: the band the response is reliable in [Hz]; ``margins`` and
+            ``margins_before``: the velocity and position loops' margins [°, dB] (a loop whose
+            crossover lies above the band: None, not verified); empty without a response.
+        """
         frf = self.frf
         if frf is None:
             return {}
@@ -315,9 +363,41 @@ def tune_axis(
     resonance: dict | None = None,
     drive: str = "drive",
 ) -> AxisTuning:
-    """Gains for one axis from its identified ``model`` for the ``controller`` its drive runs (and,
-    where given, the margins kept on its measured response ``frf`` too; a mode -- ``resonance``
-    from identify, or one the response shows -- met as :func:`_mode` says)."""
+    """Gains for one axis from its identified model, for the controller its drive runs.
+
+    Parameters
+    ----------
+    axis : str
+        The axis (named in errors).
+    model : dict of str to float
+        J [kg·m² | kg], c0 [Nm | N], c1 [Nm·s/rad | N·s/m], motor side (and effect terms).
+    R : float
+        The motor's resistance [Ω].
+    L : float
+        The motor's inductance [H].
+    before : dict of str to float
+        The drive's gains before tuning (their margins are reported beside the new ones).
+    frf : Frf, optional
+        The plant's response measured through the drive: the margins are kept on it too.
+    controller : Controller
+        The structure and loop rates the drive runs (default: the project drive's cascade at
+        2 kHz).
+    resonance : dict, optional
+        A mode identify found (``diagnostics.resonance``); one the response shows counts too.
+    drive : str
+        The drive model, in words.
+
+    Returns
+    -------
+    AxisTuning
+        The gains (``design.gains()``: KpP, FwF, KpS, KiS, KpC, KiC), the margins before and
+        after, and how a mode was met.
+
+    Raises
+    ------
+    UserError
+        A model or motor values no gains can be designed from, named with the axis.
+    """
     check_model(axis, model)
     if not (math.isfinite(R) and math.isfinite(L) and R > 0 and L > 0):
         raise UserError(f"axis {axis}: motor R = {R} Ω, L = {L} H must be positive numbers")
