@@ -113,26 +113,66 @@ TPDO_OBJECTS = {0x6064, 0x606C, 0x6077, 0x6041, 0x60F4, 0x6078, 0x6061, 0x20C4}
 
 @dataclass(frozen=True)
 class TimingLimits:
-    """Limits of a wall-clock run (bus.yml ``master.timing``)."""
+    """Limits of a wall-clock run (bus.yml ``master.timing``): a run past them is degraded.
 
-    max_late_pct: float = 1.0  # late cycles [% of all]
-    max_gap_periods: float = 5.0  # largest SYNC gap [periods]
-    max_missing_pct: float = 0.5  # samples missing, any axis [% of rows]
+    Parameters
+    ----------
+    max_late_pct : float
+        Late cycles [% of all].
+    max_gap_periods : float
+        The largest SYNC gap [periods].
+    max_missing_pct : float
+        Samples missing, any axis [% of rows].
+    """
+
+    max_late_pct: float = 1.0
+    max_gap_periods: float = 5.0
+    max_missing_pct: float = 0.5
 
 
 @dataclass(frozen=True)
 class PdoConfig:
-    number: int  # 1..4
+    """One PDO as bus.yml maps it (written at bring-up).
+
+    Parameters
+    ----------
+    number : int
+        The PDO's number, 1..4.
+    transmission : int
+        Its transmission type (1..240: every n-th SYNC; 254/255: event-driven).
+    mapping : tuple of (int, int)
+        The objects it carries, (index, subindex), in order.
+    cob_id : int, optional
+        Its COB-ID; None: the predefined connection set (ros2_canopen's ``auto``).
+    event_timer_ms : int, optional
+        A TPDO's event timer (sub 5) [ms], where given (else 0: off).
+    inhibit_time_100us : int
+        A TPDO's inhibit time (sub 3) [100 µs]; 0 for synchronous PDOs.
+    """
+
+    number: int
     transmission: int
-    mapping: tuple[tuple[int, int], ...]  # (index, subindex)
-    cob_id: int | None = None  # None: the predefined connection set (ros2_canopen's "auto")
-    event_timer_ms: int | None = None  # TPDO event timer (sub 5) [ms], where given (else 0: off)
-    inhibit_time_100us: int = 0  # TPDO inhibit time (sub 3) [100 µs]; 0 for synchronous PDOs
+    mapping: tuple[tuple[int, int], ...]
+    cob_id: int | None = None
+    event_timer_ms: int | None = None
+    inhibit_time_100us: int = 0
 
 
 @dataclass(frozen=True)
 class Limits:
-    """Axis limits, motor side: rad, rad/s, rad/s², rad/s³ (jerk: None where not configured)."""
+    """Axis limits, motor side.
+
+    Parameters
+    ----------
+    position_min, position_max : float
+        The stroke [rad].
+    max_velocity : float
+        [rad/s].
+    max_acceleration : float
+        [rad/s²].
+    max_jerk : float, optional
+        [rad/s³]; None where not configured.
+    """
 
     position_min: float
     position_max: float
@@ -141,7 +181,18 @@ class Limits:
     max_jerk: float | None = None
 
     def fits_32_bits(self, per_rad: float) -> bool:
-        """Whether the stroke fits a drive's 32-bit position at ``per_rad`` device units per rad."""
+        """Whether the stroke fits a drive's 32-bit position.
+
+        Parameters
+        ----------
+        per_rad : float
+            The drive's position units per rad.
+
+        Returns
+        -------
+        bool
+            Both ends of the stroke within ±2³¹ units.
+        """
         return max(abs(self.position_min), abs(self.position_max)) * per_rad < 2**31
 
 
@@ -163,10 +214,19 @@ DRIVE_LIMIT_MARGIN = 1.25
 
 @dataclass(frozen=True)
 class Homing:
-    """``reference: home``: the drive's own homing (CiA 402 mode 6), run before the first motion:
-    ``method`` (0x6098, as the drive's manual numbers them for how the axis is wired), the speeds
-    searching for the switch and for zero [rad/s] (0x6099:1, :2), the acceleration [rad/s²] (0x609A),
-    and how long it may take [s]."""
+    """``reference: home``: the drive's own homing (CiA 402 mode 6), run before the first motion.
+
+    Parameters
+    ----------
+    method : int
+        The homing method (0x6098), as the drive's manual numbers them for how the axis is wired.
+    switch_speed, zero_speed : float
+        The speeds searching for the switch and for zero [rad/s] (0x6099:1, :2).
+    acceleration : float
+        The homing acceleration [rad/s²] (0x609A).
+    timeout_s : float
+        How long it may take [s].
+    """
 
     method: int
     switch_speed: float
@@ -177,12 +237,22 @@ class Homing:
 
 @dataclass(frozen=True)
 class DriveLimits:
-    """What bring-up writes into the drive besides the software position limits, SI motor side:
-    the velocity it may never exceed [rad/s], the quick-stop deceleration [rad/s²], the
-    following-error timeout [ms], the max torque [Nm] (None: the drive's own, read and
-    recorded), and how the axis is held when no motion runs (``holding``: ``brake`` -- the
-    drive's brake holds it with the power stage off; ``enabled`` -- the drive holds it at its
-    position, powered)."""
+    """What bring-up writes into the drive besides the software position limits, SI motor side.
+
+    Parameters
+    ----------
+    max_velocity : float
+        The velocity it may never exceed [rad/s].
+    quick_stop_deceleration : float
+        [rad/s²].
+    following_error_timeout_ms : int
+        [ms].
+    max_torque_Nm : float or None
+        [Nm]; None: the drive's own, read and recorded.
+    holding : {"enabled", "brake"}
+        How the axis is held when no motion runs: ``brake`` -- the drive's brake holds it with
+        the power stage off; ``enabled`` -- the drive holds it at its position, powered.
+    """
 
     max_velocity: float
     quick_stop_deceleration: float
@@ -193,6 +263,57 @@ class DriveLimits:
 
 @dataclass(frozen=True)
 class NodeConfig:
+    """One axis's node as bus.yml configures it.
+
+    Parameters
+    ----------
+    axis : str
+        The axis (bus.yml's key).
+    node_id : int
+        Its node id.
+    dcf : Path
+        Its EDS/DCF.
+    od : canopen.ObjectDictionary
+        The object dictionary read from it.
+    scaling : Scaling
+        Its units: device values to SI, motor side (:mod:`drive_bridge.units`).
+    limits : Limits
+        The stroke, velocity and acceleration the campaign stays within.
+    linear : bool
+        A linear axis: a feed constant given, bus.yml's positions in m, load side.
+    heartbeat_producer_ms : int
+        The drive's heartbeat period written at bring-up [ms].
+    following_error_window_rad : float
+        The following-error window written at bring-up [rad].
+    rpdo, tpdo : tuple of PdoConfig
+        The PDOs written at bring-up.
+    sdo : tuple of (int, int, int or float)
+        Objects written at bring-up as given: (index, subindex, value).
+    profile : str, optional
+        The drive profile (``params/profiles``) of this node's drive.
+    motor : (float, float), optional
+        Winding R [Ω], L [H] where the drive does not report them.
+    source : dict
+        The node's entry as bus.yml gives it, defaults merged in (load units, as written).
+    drive_limits : DriveLimits, optional
+        What bring-up writes into the drive besides the position limits.
+    units_from_drive : bool
+        ``scaling: from_drive``: the position and velocity units (and the rated torque where
+        bus.yml gives none) are the drive's own, read at bring-up.
+    limits_from_drive : bool
+        No ``limits`` in bus.yml: the stroke, velocity and acceleration are the drive's own
+        (0x607D, 0x607F or 0x6080, 0x60C5/0x60C6 or 0x6083/0x6084), read at bring-up; until then
+        ``limits`` is :data:`NO_MOTION`.
+    reference : {"absolute", "here", "home"}
+        Where the stroke is: positions as the drive counts them, laid out around the position the
+        axis stands at when it is brought up, or as the drive counts them after its homing has run.
+    homing : Homing, optional
+        The drive's homing, with ``reference: home``.
+    position_mode : int, optional
+        ros2_canopen's ``position_mode``: the one streaming mode to use (8 CSP, 7 IP); None: CSP
+        where the drive and the RPDOs allow it, else IP.
+    """
+
     axis: str
     node_id: int
     dcf: Path
@@ -205,25 +326,14 @@ class NodeConfig:
     rpdo: tuple[PdoConfig, ...]
     tpdo: tuple[PdoConfig, ...]
     sdo: tuple[tuple[int, int, int | float], ...]
-    profile: str | None = None  # the drive profile (params/profiles) of this node's drive
-    motor: tuple[float, float] | None = None  # winding R [Ω], L [H] where the drive does not report them
-    #: the node's entry as bus.yml gives it, defaults merged in (load units, as written)
+    profile: str | None = None
+    motor: tuple[float, float] | None = None
     source: dict = field(default_factory=dict, repr=False, compare=False)
     drive_limits: DriveLimits | None = None
-    #: ``scaling: from_drive``: the position and velocity units (and the rated torque where bus.yml
-    #: gives none) are the drive's own, read at bring-up
     units_from_drive: bool = False
-    #: no ``limits`` in bus.yml: the stroke, velocity and acceleration are the drive's own (0x607D,
-    #: 0x607F or 0x6080, 0x60C5/0x60C6 or 0x6083/0x6084), read at bring-up; until then ``limits`` is
-    #: :data:`NO_MOTION`
     limits_from_drive: bool = False
-    #: where the stroke is: ``absolute`` (positions as the drive counts them), ``here`` (laid out
-    #: around the position the axis stands at when it is brought up) or ``home`` (as the drive counts
-    #: them after its homing, ``homing``, has run)
     reference: str = "absolute"
     homing: Homing | None = None
-    #: ros2_canopen's ``position_mode``: the one streaming mode to use (8 CSP, 7 IP); None: CSP
-    #: where the drive and the RPDOs allow it, else IP
     position_mode: int | None = None
 
 
@@ -232,9 +342,37 @@ DEFAULT_BITRATE = 1_000_000  # bit/s, when nothing names the bitrate
 
 @dataclass(frozen=True)
 class MasterConfig:
-    """``interface``, ``channel`` and ``bitrate`` [bit/s] as bus.yml names them (None: not named;
-    :func:`drive_bridge.canconf.resolve` fills them from the command line and python-can's own
-    configuration); ``can_options``: interface-specific arguments for ``can.Bus``."""
+    """The master's side of bus.yml.
+
+    Parameters
+    ----------
+    interface, channel : str, optional
+        The python-can interface and channel as bus.yml names them (None: not named;
+        :func:`drive_bridge.canconf.resolve` fills them from the command line and python-can's own
+        configuration).
+    bitrate : int, optional
+        [bit/s], as named.
+    sync_period_s : float
+        The SYNC period [s].
+    heartbeat_timeout_s : float
+        The heartbeat consumer time written to the drives [s].
+    sdo_timeout_s : float
+        How long an SDO answer is waited for [s].
+    state_timeout_s : float
+        How long a CiA 402 state change is waited for [s].
+    tpdo_miss_limit : int or None
+        Periods of missing feedback before a stop (None: as the drives wait).
+    timing : TimingLimits
+        The limits of a wall-clock run.
+    can_options : dict
+        Interface-specific arguments for ``can.Bus``.
+    notes : tuple of str
+        Where the interface came from, what was neutralised or ignored.
+    node_id : int, optional
+        The master's own node id (a ros2_canopen / Lely bus.yml).
+    heartbeat_period_s : float
+        The master's heartbeat period [s], which every drive's consumer watches.
+    """
 
     interface: str | None
     channel: str | int | None
@@ -243,12 +381,12 @@ class MasterConfig:
     heartbeat_timeout_s: float
     sdo_timeout_s: float
     state_timeout_s: float
-    tpdo_miss_limit: int | None  # periods of missing feedback before a stop (None: as the drives wait)
+    tpdo_miss_limit: int | None
     timing: TimingLimits = TimingLimits()
     can_options: dict = field(default_factory=dict)
-    notes: tuple[str, ...] = ()  # where the interface came from, what was neutralised, ignored
-    node_id: int | None = None  # the master's own node-ID (a ros2_canopen / Lely bus.yml)
-    heartbeat_period_s: float = 0.1  # the master's heartbeat, which every drive's consumer watches
+    notes: tuple[str, ...] = ()
+    node_id: int | None = None
+    heartbeat_period_s: float = 0.1
 
     @property
     def heartbeat_node_id(self) -> int:
@@ -264,6 +402,31 @@ class MasterConfig:
 
 @dataclass(frozen=True)
 class CampaignConfig:
+    """The excitation campaign (bus.yml ``campaign``).
+
+    Parameters
+    ----------
+    velocity_levels : tuple of float
+        The trapezoids' speeds, as shares of the axis's max velocity.
+    acceleration_levels : tuple of float
+        Their accelerations, as shares of the axis's max acceleration.
+    cycles : int
+        Forward and backward cycles per level ...
+    max_axis_time_s : float
+        ... or this cap per axis [s], whichever comes first.
+    move_fraction : float
+        The share of the stroke moved over, centred.
+    dwell_s : float
+        The pause at each end of a move [s].
+    together : bool
+        All axes move at once (exposes a coupling between them), not one after the other.
+    design : {"paper", "short"}
+        ``paper``: the paper's trapezoids at velocity × acceleration levels (the reference);
+        ``short``: a multisine per axis designed for the identification, ``short_time_s`` per axis.
+    short_time_s : float
+        The short campaign's time per axis [s].
+    """
+
     velocity_levels: tuple[float, ...] = (0.2, 0.4, 0.8)
     acceleration_levels: tuple[float, ...] = (0.2, 0.4, 0.8)
     cycles: int = 25
@@ -271,13 +434,17 @@ class CampaignConfig:
     move_fraction: float = 0.8
     dwell_s: float = 0.05
     together: bool = False
-    #: "paper": the paper's trapezoids at velocity x acceleration levels (the reference);
-    #: "short": a multisine per axis designed for the identification, ``short_time_s`` per axis
     design: str = "paper"
     short_time_s: float = 30.0
 
     def quick(self) -> CampaignConfig:
-        """A few seconds of motion per axis, for demos and tests."""
+        """A few seconds of motion per axis, for demos and tests.
+
+        Returns
+        -------
+        CampaignConfig
+            The two highest levels, one cycle, at most 5 s per axis (the short design: 8 s).
+        """
         return replace(
             self,
             velocity_levels=self.velocity_levels[-2:],
@@ -295,9 +462,24 @@ DESIGNS = ("paper", "short")
 @dataclass(frozen=True)
 class Acceptance:
     """What the commissioning's verdict checks (bus.yml ``acceptance``; see
-    :mod:`drive_bridge.commissioning.verdict`): loop margins [°, dB], the following-error
-    improvement over the factory set, the model's RMSE over the noise floor, the relative std
-    of J, c0, c1, and consistency."""
+    :mod:`drive_bridge.commissioning.verdict`).
+
+    Parameters
+    ----------
+    min_phase_margin_deg : float
+        The loops' phase margin at least [°].
+    min_gain_margin_db : float
+        Their gain margin at least [dB].
+    min_fe_improvement : float
+        The following error over the reference trajectories at least this many times smaller
+        than with the factory set.
+    max_rmse_over_noise : float
+        The model's RMSE at most this many times the log's noise floor.
+    max_relative_std : float
+        The relative std of J, c0, c1 at most.
+    require_consistent : bool
+        J, c0, c1 consistent between the parts of the data.
+    """
 
     min_phase_margin_deg: float = 45.0
     min_gain_margin_db: float = 8.0

@@ -21,7 +21,27 @@ BACKENDS = {"bus": "drive_bridge.connect:bus_link", "simulated": "drive_bridge.s
 
 
 def bus_link(config: BusConfig, **_: object) -> Link:
-    """The bus bus.yml (or the command line, or python-can's configuration) names."""
+    """The link backend ``bus``: the bus bus.yml (or the command line, or python-can's
+    configuration) names.
+
+    Parameters
+    ----------
+    config : BusConfig
+        The bus configuration: ``master.interface``, ``channel``, ``bitrate`` and the interface's
+        options.
+    **_ : object
+        What the simulated backend takes and a bus does not (``realtime``, ``sim_config``).
+
+    Returns
+    -------
+    Link
+        A :class:`~drive_bridge.master.link.BusLink` on the open bus.
+
+    Raises
+    ------
+    UserError
+        No interface named, or the bus does not open (python-can's reason said).
+    """
     m = config.master
     if m.interface is None:
         raise UserError(

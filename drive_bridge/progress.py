@@ -11,7 +11,17 @@ from .master.campaign import Plan
 
 
 class CampaignProgress:
-    """Callable(k) for the streaming loop; draws on a terminal, prints a line per segment otherwise."""
+    """Callable(k) for the streaming loop; draws on a terminal, prints a line per segment otherwise.
+
+    Parameters
+    ----------
+    plan : Plan
+        The motion streamed (its segments name what runs).
+    stream : file-like, optional
+        Where it draws; default standard error.
+    width : int
+        The bar's width [characters].
+    """
 
     def __init__(self, plan: Plan, stream: TextIO | None = None, width: int = 28):
         self.plan = plan
@@ -47,6 +57,7 @@ class CampaignProgress:
         self._last_segment = i
 
     def close(self) -> None:
+        """End the bar's line (on a terminal)."""
         if self.tty:
             self.stream.write("\n")
             self.stream.flush()

@@ -16,7 +16,18 @@ from pathlib import Path
 
 
 def shipped(*parts: str) -> Path:
-    """Path of the file ``drive_bridge/<parts...>`` of the installed package."""
+    """A file of the installed package.
+
+    Parameters
+    ----------
+    *parts : str
+        Its path under ``drive_bridge/`` (``"profiles", "maxon_epos2.yaml"``).
+
+    Returns
+    -------
+    Path
+        ``drive_bridge/<parts...>``.
+    """
     return Path(str(resources.files("drive_bridge").joinpath(*parts)))
 
 
@@ -43,10 +54,16 @@ DEFAULT_BUS_CONFIG = data("config", "bus.yml")
 
 
 def vendor_dir() -> Path:
-    """Where vendor EDS/DCF files are read in place (they never ship with drive-bridge):
-    ``$DRIVE_BRIDGE_VENDOR_EDS``, else ``../shared/eds-vendor`` or ``shared/eds-vendor`` from the
-    working directory.  A bus.yml ``dcf`` and a profile ``eds`` starting with ``vendor/`` name a
-    file there."""
+    """Where vendor EDS/DCF files are read in place (they never ship with drive-bridge).
+
+    A bus.yml ``dcf`` and a profile ``eds`` starting with ``vendor/`` name a file there.
+
+    Returns
+    -------
+    Path
+        ``$DRIVE_BRIDGE_VENDOR_EDS``, else ``../shared/eds-vendor`` or ``shared/eds-vendor`` from
+        the working directory (the first, where neither exists).
+    """
     if "DRIVE_BRIDGE_VENDOR_EDS" in os.environ:
         return Path(os.environ["DRIVE_BRIDGE_VENDOR_EDS"])
     here = Path.cwd()

@@ -287,7 +287,20 @@ def _keep(
 
 
 def resume_hint(state: dict, subset: bool) -> str:
-    """What a rerun does: a plain rerun resumes after the last completed step."""
+    """What a rerun does: a plain rerun resumes after the last completed step.
+
+    Parameters
+    ----------
+    state : dict
+        The run directory's state (its ``completed`` steps).
+    subset : bool
+        The run was asked for some of the steps (``--steps``).
+
+    Returns
+    -------
+    str
+        The command to give, in words, and the step it resumes at.
+    """
     done = [STEPS.index(s) for s in state["completed"] if s in STEPS]
     at = STEPS[max(done) + 1] if done and max(done) + 1 < len(STEPS) else (None if done else STEPS[0])
     again = "run the same command again without --steps" if subset else "run the same command again"

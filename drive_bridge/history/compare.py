@@ -160,11 +160,34 @@ class Comparison:
 
 
 def drive_name(serial: int | str | None) -> str:
+    """A drive as the words name it.
+
+    Parameters
+    ----------
+    serial : int or str or None
+        Its serial number (None: unknown).
+
+    Returns
+    -------
+    str
+        ``serial 1002``, or ``drive of unknown serial``.
+    """
     return "drive of unknown serial" if serial is None else f"serial {serial}"
 
 
 def sigma_text(z: float | None) -> str:
-    """A change in combined std as the words say it: two digits below 10, whole above, ∞ without a std."""
+    """A change in combined std as the words say it.
+
+    Parameters
+    ----------
+    z : float or None
+        The change in combined std (None: no std).
+
+    Returns
+    -------
+    str
+        Two digits below 10, whole above, ∞ without a std.
+    """
     return "∞" if z is None or math.isinf(z) else f"{abs(z):.2g}" if abs(z) < 10 else f"{abs(z):.0f}"
 
 
@@ -261,9 +284,27 @@ class History:
 def compare_one(
     history: History, key: tuple, run_id: str, threshold: float = THRESHOLD, latest_siblings: bool = False
 ) -> list[Comparison]:
-    """The parameters of ``run_id`` on the drive-axis ``key``, each against the run before it on
-    that drive-axis and against the siblings as they stood then (``latest_siblings``: as they
-    stand now)."""
+    """One run's parameters on one drive-axis, each against the run before it on that drive-axis
+    and against the siblings.
+
+    Parameters
+    ----------
+    history : History
+        The parameters of every run.
+    key : tuple
+        The drive-axis (:meth:`History.key`).
+    run_id : str
+        The run.
+    threshold : float
+        The relative change a difference must reach to be named, besides its significance.
+    latest_siblings : bool
+        The siblings as they stand now, not as they stood at the run.
+
+    Returns
+    -------
+    list of Comparison
+        One per determined parameter of the run; empty where the drive-axis has no such run.
+    """
     runs = history.runs.get(key, [])
     at = next((i for i, (rid, _, _) in enumerate(runs) if rid == run_id), None)
     if at is None:

@@ -76,7 +76,13 @@ class Effect:
         return False
 
     def get_params(self) -> dict:
-        """The constructor's keyword parameters and their values."""
+        """The constructor's keyword parameters and their values.
+
+        Returns
+        -------
+        dict
+            Name -> value (the starting values and search ranges; never changed by ``fit``).
+        """
         init = type(self).__init__
         if init is object.__init__:
             return {}
@@ -87,16 +93,39 @@ class Effect:
         }
 
     def bounds(self) -> dict[str, tuple[float, float]]:
-        """Search range of each nonlinear parameter."""
+        """Search range of each nonlinear parameter.
+
+        Returns
+        -------
+        dict of str to (float, float)
+            Name -> (low, high), in the parameter's unit; empty for an effect without one.
+        """
         return {}
 
     def _signed(self, s: Signals, cols: np.ndarray) -> np.ndarray:
         return cols * s.sgn[:, None] if self.odd else cols
 
     def columns(self, s: Samples, logged: bool = False) -> np.ndarray:
-        """Regressor columns (n × len(coef_names)) at the samples ``s``, with the fitted nonlinear
-        parameters, filtered and decimated as the torque is (``logged``: as the torque as logged
-        is; :meth:`Samples.parallel`)."""
+        """The effect's regressor columns, with the fitted nonlinear parameters.
+
+        Parameters
+        ----------
+        s : Samples
+            The samples.
+        logged : bool
+            Filtered and decimated as the torque as logged is, not as the filtered torque
+            (:meth:`~.signals.Samples.parallel`).
+
+        Returns
+        -------
+        numpy.ndarray
+            n × len(``coef_names``).
+
+        Raises
+        ------
+        NotFittedError
+            An effect with nonlinear parameters that ``fit`` has not learned.
+        """
         learned: dict[str, float] = {}
         for k in self.nonlinear:
             if not hasattr(self, k + "_"):
@@ -113,7 +142,24 @@ class Effect:
         differential evolution seeded with ``seed`` finds the minimum on every ``n //
         SEARCH_SAMPLES``-th sample, L-BFGS-B polishes it on them all (on a log of up to
         ``SEARCH_SAMPLES`` samples: scipy's own polish).  An effect without nonlinear parameters
-        has nothing to learn."""
+        has nothing to learn.
+
+        Parameters
+        ----------
+        s : Samples
+            The samples the columns are made at (the moving ones).
+        fixed : numpy.ndarray
+            The model so far's columns at them, n × p.
+        y : numpy.ndarray
+            The observation: the filtered torque at them [Nm | N].
+        seed : int
+            Seed of the differential evolution.
+
+        Returns
+        -------
+        Effect
+            This effect, its nonlinear parameters learned (``<name>_``).
+        """
         if not self.nonlinear:
             return self
         bounds = [self.bounds()[k] for k in self.nonlinear]
@@ -154,10 +200,36 @@ class Effect:
         return sse
 
     def params(self, coef: np.ndarray) -> dict[str, float | str]:
-        """Physical parameters from the fitted coefficients (and the learned nonlinear ones)."""
+        """Physical parameters from the fitted coefficients.
+
+        Parameters
+        ----------
+        coef : numpy.ndarray
+            The effect's coefficients (``coef_names`` order).
+
+        Returns
+        -------
+        dict
+            Name -> value, SI (and the learned nonlinear parameters; a name where the effect has
+            one, as a coupling's source).
+        """
         return dict(zip(self.coef_names, map(float, coef)))
 
     def param_std(self, coef: np.ndarray, cov: np.ndarray) -> dict[str, float]:
+        """The std of the physical parameters.
+
+        Parameters
+        ----------
+        coef : numpy.ndarray
+            The effect's coefficients.
+        cov : numpy.ndarray
+            Their covariance.
+
+        Returns
+        -------
+        dict of str to float
+            Name -> std, SI.
+        """
         return {k: float(math.sqrt(max(cov[i, i], 0.0))) for i, k in enumerate(self.coef_names)}
 
     def __repr__(self) -> str:
@@ -204,10 +276,19 @@ class PositionLinear(Effect):
 class PositionPeriodic(Effect):
     """A sin(2π q / period + phase): cogging, belt-tooth or screw-lead ripple.
 
-    ``period`` [rad | m] is the starting value (from the residual's spectrum over position);
-    ``fit`` searches ``period`` ± ``spread`` (the spectrum's resolution) and learns ``period_``.
     An axis may have several (a motor's torque ripple and a cogging at another period): the
-    ``order``-th is named ``position_periodic_<order>`` from the second on."""
+    ``order``-th is named ``position_periodic_<order>`` from the second on.
+
+    Parameters
+    ----------
+    period : float
+        The starting value [rad | m] (from the residual's spectrum over position).
+    spread : float
+        ``fit`` searches ``period`` ± this share of it (the spectrum's resolution) and learns
+        ``period_``.
+    order : int
+        Which of the axis's periodic terms this is (1: the first).
+    """
 
     depends_on, coef_names, nonlinear = "position", ("a_sin", "a_cos"), ("period",)
     period_: float
@@ -245,7 +326,13 @@ class Stribeck(Effect):
     """Extra friction near standstill: amplitude · exp(-(q̇/velocity)²) · sign(q̇), with q̇ over the
     log's band: it changes within a filter period of each reversal.
 
-    ``velocity`` [rad/s | m/s] starts the search over [``low``, ``high``]; ``fit`` learns ``velocity_``."""
+    Parameters
+    ----------
+    velocity : float
+        The Stribeck velocity's starting value [rad/s | m/s]; ``fit`` learns ``velocity_``.
+    low, high : float
+        Its search range [rad/s | m/s].
+    """
 
     name, depends_on, coef_names, nonlinear = "stribeck", "velocity", ("amplitude",), ("velocity",)
     odd = True
@@ -268,7 +355,12 @@ class DirectionAsymmetry(Effect):
     """Friction that differs with the direction of motion: c1 ± dc1, c0 ± dc0.
 
     While moving, dc0 is a constant torque: with an offset already in the model
-    the two cannot be told apart, so ``with_dc0=False`` fits dc1 only.
+    the two cannot be told apart.
+
+    Parameters
+    ----------
+    with_dc0 : bool
+        Fit dc0 too (False: dc1 only, where the model has an offset).
     """
 
     name, depends_on = "direction_asymmetry", "direction"
@@ -287,9 +379,14 @@ class DirectionAsymmetry(Effect):
 class CrossAxis(Effect):
     """Coupling with another axis of the same log.
 
-    ``form``: ``position_friction`` (Coulomb friction changing with the other
-    axis's position: coef · q_src · sign(q̇)), ``position`` (coef · q_src),
-    ``velocity`` (coef · q̇_src) or ``acceleration`` (coef · q̈_src, inertial).
+    Parameters
+    ----------
+    source : str
+        The other axis.
+    form : {"position_friction", "position", "velocity", "acceleration"}
+        ``position_friction``: Coulomb friction changing with the other axis's position
+        (coef · q_src · sign(q̇)); ``position``: coef · q_src; ``velocity``: coef · q̇_src;
+        ``acceleration``: coef · q̈_src (inertial).
     """
 
     name, coef_names = "cross_axis", ("coefficient",)
@@ -323,9 +420,18 @@ class Drift(Effect):
     """Coulomb friction that changes with time (warm-up):
     amplitude · (exp(-t/time_constant) − its mean over [``start``, ``end``]) · sign(q̇).
 
-    Centred on the log's span [``start``, ``end``] [s], so c0 stays the Coulomb friction over the
-    log (not an extrapolation to the end of a warm-up the log may never reach).
-    ``time_constant`` [s] starts the search over [``low``, ``high``]; ``fit`` learns ``time_constant_``."""
+    Centred on the log's span, so c0 stays the Coulomb friction over the log (not an
+    extrapolation to the end of a warm-up the log may never reach).
+
+    Parameters
+    ----------
+    time_constant : float
+        Its starting value [s]; ``fit`` learns ``time_constant_``.
+    low, high : float
+        Its search range [s].
+    start, end : float
+        The log's span [s].
+    """
 
     name, depends_on, coef_names, nonlinear = "drift", "time", ("amplitude",), ("time_constant",)
     odd = True
@@ -361,7 +467,21 @@ class Spline(Effect):
     the variable's range (``grid``: evenly spaced points of it), to a constant and a
     straight line (even: the offset, cp·q, c1·q̇, J·q̈) or to a constant (odd: c0·sign(q̇);
     inertial: J·q̈), over the axis's own velocity to its sign as well (c0·sign(q̇)), and
-    reduced to a full-rank set (SVD), deterministically from the constructor's parameters."""
+    reduced to a full-rank set (SVD), deterministically from the constructor's parameters.
+
+    Parameters
+    ----------
+    variable : str
+        The variable (:func:`~.dependence.variables`: position, velocity, an other axis's ...).
+    form : {"even", "odd", "inertial"}
+        As above.
+    knots : tuple of float
+        The interior knots, in the variable's unit.
+    low, high : float
+        The variable's range.
+    grid : tuple of float
+        Evenly spaced points of the range the basis is made orthogonal over.
+    """
 
     GRID = 512
 
@@ -446,8 +566,19 @@ STILL_SHARE = 0.01  # another axis whose RMS speed is below this share of the ax
 
 
 def shape_of(e: Effect) -> tuple[str, str]:
-    """(variable, form) of the torque ``e`` adds, as a spline names it: a torque over the axis's
-    own velocity, friction or not, is one even shape in the signed velocity."""
+    """The shape of the torque an effect adds, as a spline names it.
+
+    Parameters
+    ----------
+    e : Effect
+        The effect.
+
+    Returns
+    -------
+    (str, str)
+        (variable, form); a torque over the axis's own velocity, friction or not, is one even
+        shape in the signed velocity.
+    """
     if isinstance(e, Spline):
         return e.variable, e.form
     if e.depends_on in ("velocity", "direction"):
@@ -458,7 +589,18 @@ def shape_of(e: Effect) -> tuple[str, str]:
 def standing_others(s: Samples) -> set[str]:
     """The other axes of the log that stand still while this one moves (RMS speed below
     ``STILL_SHARE`` of its own): their position is a constant there, their velocity and
-    acceleration numerical dust."""
+    acceleration numerical dust.
+
+    Parameters
+    ----------
+    s : Samples
+        The axis's samples, with the other axes' at the same instants.
+
+    Returns
+    -------
+    set of str
+        Those axes.
+    """
     m = s.moving
     own = float(np.sqrt(np.mean(s.qd[m] ** 2)))
     return {o for o, (_, qd, _) in s.others.items() if np.sqrt(np.mean(qd[m] ** 2)) < STILL_SHARE * own}
@@ -477,7 +619,24 @@ def spline_candidates(
     """Even or odd splines in each variable the residual depends on (not in ``NO_SPLINE_IN``),
     at each smoothness of ``SPLINE_KNOTS``; made as they are asked for, and none of a shape
     (:func:`shape_of`) in ``taken`` as it stands then (a named effect of that shape passed: its
-    columns are not even filtered)."""
+    columns are not even filtered).
+
+    Parameters
+    ----------
+    present : list of Effect
+        The model's effects so far.
+    s : Samples
+        The estimation samples.
+    residual : numpy.ndarray
+        The model's residual at them [Nm | N].
+    taken : container of (str, str)
+        Shapes a named effect adds significantly this round.
+
+    Yields
+    ------
+    Spline
+        Each candidate, unfitted.
+    """
     have = {e.name for e in present}
     m = s.moving
     still = standing_others(s)
@@ -521,6 +680,18 @@ def position_period(s: Samples, residual: np.ndarray) -> float | None:
     the slow passes' spacing -- the 10th percentile of the steps -- so that a short period is not
     averaged away where the fast ones skip it), gaps are interpolated, and the spectrum of that
     profile gives the period; at least 3 periods must fit in the travelled range.
+
+    Parameters
+    ----------
+    s : Samples
+        The (moving) samples.
+    residual : numpy.ndarray
+        The residual at them [Nm | N].
+
+    Returns
+    -------
+    float or None
+        The period [rad | m]; None where the range or the samples allow none.
     """
     q = s.q
     span = float(np.ptp(q))
@@ -551,7 +722,25 @@ def candidates(
     present: list[Effect], s: Samples, residual: np.ndarray, taken: Container[tuple[str, str]] = ()
 ) -> Iterator[Effect]:
     """Effects not yet in the model that the residual could reveal, unfitted, with starting values:
-    the named ones, then the splines (:func:`spline_candidates`, ``taken`` read as they are made)."""
+    the named ones, then the splines.
+
+    Parameters
+    ----------
+    present : list of Effect
+        The model's effects so far.
+    s : Samples
+        The estimation samples.
+    residual : numpy.ndarray
+        The model's residual at them [Nm | N].
+    taken : container of (str, str)
+        Shapes a named effect adds significantly this round (read as the splines are made:
+        :func:`spline_candidates`).
+
+    Yields
+    ------
+    Effect
+        Each candidate.
+    """
     names = {e.name for e in present}
     m = s.moving
     out: list[Effect] = []

@@ -342,9 +342,24 @@ def _holdout(s: Samples) -> tuple[Samples, Samples, str]:
 
 
 def refit_part(model: AxisModel, part: Samples) -> tuple[AxisModel | None, str | None]:
-    """``model``'s effects refitted on a part of the data; (None, why) where the part cannot carry
-    them (its J, c0 or c1 std over ``DEGENERATE`` times the whole fit's, or its column-scaled
-    regressors dependent beyond ``DEGENERATE_COND``), (None, None) where it is too short."""
+    """A model's effects refitted on a part of the data.
+
+    Parameters
+    ----------
+    model : AxisModel
+        The fitted model (its effects' nonlinear parameters are kept).
+    part : Samples
+        The part of the data.
+
+    Returns
+    -------
+    fit : AxisModel or None
+        The refit; None where the part cannot carry the model or is too short.
+    why : str or None
+        Why it cannot: its J, c0 or c1 std over ``DEGENERATE`` times the whole fit's, or its
+        column-scaled regressors dependent beyond ``DEGENERATE_COND``; None where it can, or is
+        merely too short.
+    """
     if part.moving.sum() <= 3 * len(model.coef_):
         return None, None
     fit = AxisModel(model.effects, seed=model.seed).fit(part)
@@ -376,7 +391,26 @@ def consistency(model: AxisModel, est: Samples, val: Samples, second_run: bool =
     whole estimation fit and the validation refit are two answers to one question: where a
     parameter differs between them by more than their combined std, ``model``'s std of it is
     widened to cover half the difference (``between_runs``: both values, by how many std, the std
-    before and after), and beyond ``CONSISTENT_SIGMAS`` it is said to differ between the runs."""
+    before and after), and beyond ``CONSISTENT_SIGMAS`` it is said to differ between the runs.
+
+    Parameters
+    ----------
+    model : AxisModel
+        The final model (its std may be widened here).
+    est : Samples
+        The estimation samples (split in time at their moving samples' median).
+    val : Samples
+        The validation samples.
+    second_run : bool
+        The validation samples are a run of their own (``--validate``).
+
+    Returns
+    -------
+    dict
+        ``consistent`` (None where no two parts could be compared), ``parts``, ``moved``,
+        ``degenerate``; ``between_runs`` with a second run; ``not_run`` and ``inflated`` (the
+        jackknife's widening) where no two parts could be compared.
+    """
     moving_t = est.t[est.moving]
     split = float(np.median(moving_t)) if len(moving_t) else 0.0
     parts = {
@@ -489,7 +523,21 @@ def friction_range(model: AxisModel, est: Samples) -> dict:
     they depend on which: the model refitted on the slower and on the faster half of the moving
     samples.  Where c0 or c1 differ between the halves by more than ``CONSISTENT_SIGMAS`` combined
     std, friction is not linear in velocity over the range: ``model``'s std of c0 and c1 is widened
-    by half the difference (the split depends on the speeds used), and ``linear`` is False."""
+    by half the difference (the split depends on the speeds used), and ``linear`` is False.
+
+    Parameters
+    ----------
+    model : AxisModel
+        The final model (its std of c0 and c1 may be widened here).
+    est : Samples
+        The estimation samples.
+
+    Returns
+    -------
+    dict
+        ``velocity_range`` [rad/s | m/s], ``linear``; the halves' c0 and c1 (``slower``,
+        ``faster``) and by how many std they differ (``sigmas``) where both halves could be fitted.
+    """
     speed = np.abs(est.qd)
     moving = speed[est.moving]
     low, high = (float(x) for x in np.percentile(moving, [5, 95]))
@@ -523,7 +571,23 @@ def band_dependence(log: Log, axis: str, result: AxisResult) -> dict:
     on the band the fit uses (a mode, a torque delay, a term the model lacks between them) and gets
     ``why`` with both values, the range it lies in at best.
     Not checked where half the cut-off would cut into the motion itself, or the log holds too
-    little there (said in ``not_checked``)."""
+    little there (said in ``not_checked``).
+
+    Parameters
+    ----------
+    log : Log
+        The log identified.
+    axis : str
+        The axis.
+    result : AxisResult
+        Its identification.
+
+    Returns
+    -------
+    dict
+        ``cutoff_hz``, ``half_hz``, ``J_half``, ``sigmas``, ``relative``, and ``why`` where J depends
+        on the band; or ``not_checked`` and why.
+    """
     settings = result.settings
     half = replace(settings, cutoff_hz=settings.cutoff_hz / 2, edge=2 * settings.edge)
     floor = MIN_CUTOFF_BANDWIDTHS * settings.motion_bandwidth_hz
@@ -568,9 +632,39 @@ def identify_axis(
     decimation: int | None = None,
     torque_delay_s: float | None = None,
 ) -> AxisResult:
-    """Identify one axis; a resonance close enough above the cut-off to bias the rigid fit moves
-    the cut-off below it (unless the cut-off was given), and the result says so; backlash or
-    impacts at torque reversal are reported (:mod:`.reversal`)."""
+    """Identify one axis of a log (:func:`identify` does it for each).
+
+    A resonance close enough above the cut-off to bias the rigid fit moves the cut-off below it
+    (unless the cut-off was given), and the result says so; backlash or impacts at torque
+    reversal are reported (:mod:`.reversal`).
+
+    Parameters
+    ----------
+    log : Log
+        The log (:func:`.logdata.read_log`).
+    axis : str
+        The axis.
+    val_log : Log, optional
+        A second run to validate on; default blocks held out of ``log``.
+    seed : int
+        Seed of the searches (the same seed, the same numbers).
+    cutoff_hz : float, optional
+        The low-pass cut-off [Hz]; default chosen from the motion's bandwidth.
+    decimation : int, optional
+        The decimation factor; default chosen with the cut-off.
+    torque_delay_s : float, optional
+        The logged torque's delay behind the position [s]; None: estimated.
+
+    Returns
+    -------
+    AxisResult
+        The models, effects, errors and diagnostics.
+
+    Raises
+    ------
+    UserError
+        An axis the log cannot identify, and why.
+    """
     given = None if torque_delay_s is None else (float(torque_delay_s), "given")
     result = _identify_axis(log, axis, val_log, seed, cutoff_hz, decimation, given)
     wide = whole_band(log, axis, result.settings)
@@ -830,8 +924,22 @@ def _identify_axis(
 
 
 def workers(log: Log, axes: list[str]) -> int:
-    """How many processes identify ``axes`` of ``log`` (1: here, one after the other): one per
-    axis up to :func:`processes`; for a small log only where ``DRIVE_BRIDGE_WORKERS`` asks."""
+    """How many processes identify the axes of a log.
+
+    Parameters
+    ----------
+    log : Log
+        The log.
+    axes : list of str
+        The axes to identify.
+
+    Returns
+    -------
+    int
+        One per axis up to :func:`~drive_bridge.forking.processes`; for a small log (fewer than
+        :data:`MIN_PARALLEL_SAMPLES` rows × axes) 1 -- here, one after the other -- unless
+        ``DRIVE_BRIDGE_WORKERS`` asks.
+    """
     if len(axes) < 2 or (
         not os.environ.get("DRIVE_BRIDGE_WORKERS") and len(log.t) * len(axes) < MIN_PARALLEL_SAMPLES
     ):

@@ -35,6 +35,18 @@ JACKKNIFE_BEYOND = 2.0  # ... which replaces the HAC std where larger by this fa
 
 
 def base_columns(s: Samples) -> np.ndarray:
+    """The rigid model's regressor columns.
+
+    Parameters
+    ----------
+    s : Samples
+        The samples.
+
+    Returns
+    -------
+    numpy.ndarray
+        n × 3: q̈, q̇ and sign(q̇) (filtered as the torque), for J, c1 and c0.
+    """
     return np.column_stack((s.qdd, s.qd, s.sgn))
 
 
@@ -293,8 +305,19 @@ DIRECT_LAGS = 64  # hac_lags: lags of the autocorrelation summed directly, beyon
 
 
 def hac_lags(resid: np.ndarray) -> int:
-    """Correlation length of the residual [samples]: the Newey-West (1994) rule 4·(n/100)^(2/9),
-    or longer while its autocorrelation stays above the white-noise band 2/√n (at most n/10)."""
+    """Correlation length of a residual.
+
+    Parameters
+    ----------
+    resid : numpy.ndarray
+        The residual, in time order.
+
+    Returns
+    -------
+    int
+        [samples] the Newey-West (1994) rule 4·(n/100)^(2/9), or longer while its autocorrelation
+        stays above the white-noise band 2/√n (at most n/10).
+    """
     n = len(resid)
     rule = int(4 * (n / 100) ** (2 / 9))
     r = resid - resid.mean()
@@ -318,7 +341,24 @@ def hac_covariance(phi: np.ndarray, resid: np.ndarray, gram_inv: np.ndarray, dof
     """Autocorrelation- and heteroskedasticity-consistent sandwich covariance of least-squares
     coefficients: the long-run covariance of the scores φ·e by batch means over blocks as long
     as the residual's correlation length (one sample: White's estimator), with the small-sample
-    factor n/dof."""
+    factor n/dof.
+
+    Parameters
+    ----------
+    phi : numpy.ndarray
+        The regressors, n × p.
+    resid : numpy.ndarray
+        The residual, n, in time order.
+    gram_inv : numpy.ndarray
+        (φᵀφ)⁻¹, p × p.
+    dof : int
+        The residual's degrees of freedom, n - p.
+
+    Returns
+    -------
+    numpy.ndarray
+        The coefficients' covariance, p × p.
+    """
     n, p = phi.shape
     u = phi * resid[:, None]
     b = hac_lags(resid) + 1
@@ -358,7 +398,24 @@ def torque_delay(model: AxisModel, s: Samples, dt: float) -> tuple[float, float]
     has.  Estimated with the model's effects in it: a structure the columns lack (cogging at
     speed) biases it, so it is estimated again as effects are added.  An estimate beyond
     ±``MAX_DELAY_SAMPLES`` log samples is no plain delay (a compliant transmission or a filter
-    shifts the phase too): the caller leaves it alone."""
+    shifts the phase too): the caller leaves it alone.
+
+    Parameters
+    ----------
+    model : AxisModel
+        The model so far (its effects are fitted again with the torque's rate beside them).
+    s : Samples
+        The samples, as aligned so far.
+    dt : float
+        The log's sample period [s].
+
+    Returns
+    -------
+    delay : float
+        The delay [s] beyond the alignment ``s`` has.
+    std : float
+        Its std [s] (HAC).
+    """
     lead = AxisModel(model.effects + [_TorqueRate(dt)], seed=model.seed).fit(s)
     coef, cov = lead.coef_, lead.cov_
     return float(coef[-1]), float(np.sqrt(max(cov[-1, -1], 0.0)))
@@ -387,6 +444,21 @@ class Errors:
 
 
 def errors(model: AxisModel, s: Samples) -> Errors:
+    """A model's errors on a set of samples.
+
+    Parameters
+    ----------
+    model : AxisModel
+        A fitted model.
+    s : Samples
+        The samples (only the moving ones count).
+
+    Returns
+    -------
+    Errors
+        The RMS error of the torque as logged, the torque's RMS, the relative error of the
+        filtered torque, and the count.
+    """
     m = s.moving
     pred, logged = model.predict(s)[m], model.predict(s, logged=True)[m]
     tau, tau_f = s.tau[m], s.tau_f[m]
@@ -399,9 +471,24 @@ def errors(model: AxisModel, s: Samples) -> Errors:
 
 
 def extend(model: AxisModel, effect: Effect, s: Samples) -> AxisModel:
-    """``model`` with ``effect`` added and fitted: the effect's nonlinear parameters learned with
-    every column of ``model`` solved inside (seeded with the model's seed), then every
-    coefficient refitted together."""
+    """A model with one more effect, fitted: the effect's nonlinear parameters learned with every
+    column of the model solved inside (seeded with the model's seed), then every coefficient
+    refitted together.
+
+    Parameters
+    ----------
+    model : AxisModel
+        The fitted model.
+    effect : Effect
+        The effect to add (its nonlinear parameters are learned here).
+    s : Samples
+        The samples.
+
+    Returns
+    -------
+    AxisModel
+        A new model, fitted.
+    """
     m = s.moving
     effect.fit(s.take(m), model.design(s)[m], s.tau_f[m], seed=model.seed)
     return model.with_effect(effect).fit(s)

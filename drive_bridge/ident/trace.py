@@ -63,22 +63,61 @@ UNEXPLAINED_SHARE = 0.05  # report a dependence that explains this share of the 
 
 @dataclass
 class TracedEffect:
+    """One effect the tracing added, and why.
+
+    Parameters
+    ----------
+    effect : Effect
+        The effect, its nonlinear parameters learned.
+    params : dict
+        Its parameters in the final model (all parameters refitted together), SI.
+    rmse_before, rmse_after : float
+        The validation RMSE on the logged torque before and after it was added [Nm | N].
+    relative_error_before, relative_error_after : float
+        The validation relative error on the filtered torque (the paper's measure), likewise.
+    f_stat, p_value : float
+        The partial F-test of the model with it against the model without.
+    share : float
+        The share of the residual variance (estimation) it explains.
+    model_params : dict
+        Every parameter of the model once this effect was added.
+    fit_relative_error : float
+        The relative error on the estimation samples once it was added.
+    evidence : str
+        Why it was added, in words, once the final fit is known.
+    """
+
     effect: Effect
-    params: dict  # in the final model (all parameters refitted together)
-    rmse_before: float  # validation RMSE on the logged torque
+    params: dict
+    rmse_before: float
     rmse_after: float
-    relative_error_before: float  # validation, filtered torque (paper's measure)
+    relative_error_before: float
     relative_error_after: float
     f_stat: float
     p_value: float
-    share: float  # share of the residual variance (estimation) it explains
-    model_params: dict  # every parameter of the model once this effect was added
-    fit_relative_error: float  # relative error on the estimation samples once it was added
-    evidence: str = ""  # in words, once the final fit is known
+    share: float
+    model_params: dict
+    fit_relative_error: float
+    evidence: str = ""
 
 
 def f_test(small: AxisModel, big: AxisModel) -> tuple[float, float]:
-    """Partial F statistic and p-value of ``big`` against the nested ``small``."""
+    """The partial F-test of two nested models.
+
+    Parameters
+    ----------
+    small : AxisModel
+        The fitted model without the added terms.
+    big : AxisModel
+        The fitted model with them, on the same samples.
+
+    Returns
+    -------
+    f : float
+        The partial F statistic.
+    p : float
+        Its p-value.
+    """
     k = len(big.coef_) - len(small.coef_)
     dof = big.n_samples_ - len(big.coef_)
     f = ((small.sse_ - big.sse_) / k) / (big.sse_ / dof) if big.sse_ > 0 else np.inf
@@ -166,7 +205,28 @@ def trace(
     """Base model, final model, and the effects added on the way (in order); ``seed`` seeds
     the search of every effect's nonlinear parameters.  ``realign(model)``, asked after the base
     fit and after each added effect, may return new estimation and validation samples (the
-    torque aligned with the position anew): the model is refitted on them and tracing goes on."""
+    torque aligned with the position anew): the model is refitted on them and tracing goes on.
+
+    Parameters
+    ----------
+    est : Samples
+        The estimation samples.
+    val : Samples
+        The validation samples.
+    seed : int
+        Seed of every effect's search.
+    realign : callable, optional
+        Given the model so far, new (estimation, validation) samples, or None to keep them.
+
+    Returns
+    -------
+    base : AxisModel
+        The rigid model, fitted on the final samples.
+    model : AxisModel
+        The final model.
+    traced : list of TracedEffect
+        The effects added, in order.
+    """
     model, traced = AxisModel(seed=seed).fit(est), []
     est, val, model = _realigned(realign, model, est, val)
     err = errors(model, val)
@@ -253,9 +313,22 @@ def trace(
 
 
 def hides_inertia(model: AxisModel, fitted: AxisModel) -> bool:
-    """Whether the effect ``fitted`` adds leaves J undetermined where ``model`` determined it: a
+    """Whether an added effect leaves J undetermined where the model without it determined it: a
     term the data cannot tell from J·q̈ (on a near-sinusoidal motion a gravity or a spline over
-    position is nearly proportional to the acceleration) would take the inertia with it."""
+    position is nearly proportional to the acceleration) would take the inertia with it.
+
+    Parameters
+    ----------
+    model : AxisModel
+        The fitted model without the effect.
+    fitted : AxisModel
+        The fitted model with it.
+
+    Returns
+    -------
+    bool
+        J determined (beyond ``T_MIN`` std) in ``model`` and not in ``fitted``.
+    """
 
     def determined(m: AxisModel) -> bool:
         return abs(m.params_["J"]) >= T_MIN * m.param_std_["J"]
@@ -287,7 +360,18 @@ def physical(model: AxisModel) -> bool:
     """No friction (c0, c1) negative beyond ``T_MIN`` of its std: an effect does not buy its fit
     with a friction that drives the motion.  A value within its std of zero is one the data do
     not determine, and an inertia that comes out negative stands in for a term the model lacks:
-    :mod:`.identifiable` says so of either, and the effects stay."""
+    :mod:`.identifiable` says so of either, and the effects stay.
+
+    Parameters
+    ----------
+    model : AxisModel
+        A fitted model.
+
+    Returns
+    -------
+    bool
+        Neither c0 nor c1 negative beyond ``T_MIN`` of its std.
+    """
     p, sd = model.params_, model.param_std_
     return all(p[k] > -T_MIN * sd[k] for k in ("c0", "c1"))
 
@@ -295,7 +379,22 @@ def physical(model: AxisModel) -> bool:
 def unexplained(model: AxisModel, s: Samples, rate_hz: float) -> list[dict]:
     """What the residual on ``s`` still depends on (see the module docstring): per entry
     ``depends_on``, ``form`` (even | odd), ``fraction`` of the residual variance, ``evidence``
-    (F statistic), and ``after`` (the added effects that depend on it already) where any does."""
+    (F statistic), and ``after`` (the added effects that depend on it already) where any does.
+
+    Parameters
+    ----------
+    model : AxisModel
+        The final model.
+    s : Samples
+        The samples whose residual (torque as logged) is read: the validation samples.
+    rate_hz : float
+        Their sample rate [Hz] (for a dominant frequency).
+
+    Returns
+    -------
+    list of dict
+        By the strength of the evidence; a spectral peak last.
+    """
     m = s.moving
     residual = s.tau - model.predict(s, logged=True)
     r = residual[m]
@@ -338,7 +437,18 @@ def unexplained(model: AxisModel, s: Samples, rate_hz: float) -> list[dict]:
 
 
 def describe_unexplained(d: dict) -> str:
-    """One entry of :func:`unexplained` in words."""
+    """One entry of :func:`unexplained` in words.
+
+    Parameters
+    ----------
+    d : dict
+        The entry (a dependence, a resonance, a transient after reversals).
+
+    Returns
+    -------
+    str
+        What the residual depends on, how much of it, and what it likely is.
+    """
     what = {
         "even": "the residual",
         "odd": "the residual times the direction of motion (a torque against the motion, friction-like)",

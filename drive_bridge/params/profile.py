@@ -44,7 +44,9 @@ class MotorAxis(Protocol):
     :class:`~drive_bridge.master.bringup.AxisLink`)."""
 
     @property
-    def name(self) -> str: ...
+    def name(self) -> str:
+        """The axis."""
+        ...
 
     @property
     def torque_constant(self) -> float | None:
@@ -92,7 +94,29 @@ TYPES = {
 
 @dataclass(frozen=True)
 class Entry:
-    """Where one abstract parameter lives on the drive, and its scaling."""
+    """Where one abstract parameter lives on the drive, and its scaling.
+
+    Parameters
+    ----------
+    parameter : str
+        The abstract parameter (J, c0, KpS, ...).
+    index, sub : int
+        Its object on the drive.
+    type : str
+        The object's data type (``INTEGER32``, ``REAL32``, ...).
+    scale : float
+        Device value = scale × SI value (or scale / SI value, ``reciprocal``).
+    reciprocal : bool
+        The drive holds the inverse (a reset time written for an integral rate).
+    unit : str
+        The parameter's SI unit (and, where it differs, what the bus carries).
+    min, max : float, optional
+        The drive's range [SI], where the profile states it.
+    source : str, optional
+        The document (and section) the scale and unit come from; None: unverified.
+    per_torque_constant : bool
+        Held in current: the scale is per kt until :meth:`Profile.bind` divides it out.
+    """
 
     parameter: str
     index: int
@@ -113,27 +137,70 @@ class Entry:
 
     @property
     def is_integer(self) -> bool:
+        """The object holds an integer (any type but REAL32/REAL64)."""
         return not self.type.startswith("REAL")
 
     def to_device(self, value: float) -> int | float:
+        """An SI value in the object's units.
+
+        Parameters
+        ----------
+        value : float
+            The value, SI.
+
+        Returns
+        -------
+        int or float
+            The device value: rounded for an integer object; infinite for a reciprocal of 0.
+        """
         raw = (self.scale / value if value else float("inf")) if self.reciprocal else value * self.scale
         return round(raw) if self.is_integer else float(raw)
 
     def held(self, device: float) -> int | float:
-        """A device value as the drive holds it: an integer, or a float rounded to the object's
-        REAL32 (what a read-back returns)."""
+        """A device value as the drive holds it (what a read-back returns).
+
+        Parameters
+        ----------
+        device : float
+            The device value written.
+
+        Returns
+        -------
+        int or float
+            An integer, or a float rounded to the object's REAL32.
+        """
         if self.is_integer:
             return int(device)
         return float(np.float32(device)) if self.type == "REAL32" else float(device)
 
     def to_si(self, raw: float) -> float:
+        """A device value in SI.
+
+        Parameters
+        ----------
+        raw : float
+            The value the object holds.
+
+        Returns
+        -------
+        float
+            The value, SI (infinite for a reciprocal of 0).
+        """
         return (self.scale / raw if raw else float("inf")) if self.reciprocal else raw / self.scale
 
     def where(self) -> str:
+        """The object as CANopen writes it.
+
+        Returns
+        -------
+        str
+            ``0xIIII:S``.
+        """
         return f"0x{self.index:04X}:{self.sub}"
 
     @property
     def index_sub(self) -> tuple[int, int]:
+        """(index, subindex) of the object."""
         return self.index, self.sub
 
 
@@ -317,6 +384,13 @@ class Profile:
 
 
 def available() -> list[str]:
+    """The shipped drive profiles.
+
+    Returns
+    -------
+    list of str
+        Their names, sorted.
+    """
     return sorted(p.stem for p in PROFILE_DIR.glob("*.yaml"))
 
 
@@ -493,9 +567,22 @@ def _shipped_setpoint_timeouts() -> dict[str, tuple[str, float, str]]:
 
 
 def setpoint_timeout_for(dcfs: list[Path], period: float) -> tuple[float | None, str]:
-    """How long [s] the drives of ``dcfs`` (their EDS/DCF files) follow without a new setpoint before
-    they stop on their own, at interpolation period ``period`` [s]: the shortest a shipped profile
-    for one of those files names, and where it comes from; (None, "") where none names one."""
+    """How long the drives follow without a new setpoint before they stop on their own.
+
+    Parameters
+    ----------
+    dcfs : list of Path
+        The drives' EDS/DCF files.
+    period : float
+        The interpolation period [s].
+
+    Returns
+    -------
+    timeout : float or None
+        [s] the shortest a shipped profile for one of those files names; None where none names one.
+    source : str
+        Where it comes from ("" where none names one).
+    """
     known = [_shipped_setpoint_timeouts().get(Path(d).name) for d in dcfs]
     found = [
         (periods * period, f"drive profile {name}: {periods:g} interpolation periods ({source})")

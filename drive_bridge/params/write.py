@@ -33,6 +33,28 @@ SAVE_SIGNATURE = 0x65766173  # "save"
 
 @dataclass
 class ObjectWrite:
+    """One object of a write, as far as it went.
+
+    Parameters
+    ----------
+    parameter : str
+        The abstract parameter (J, KpS, ...).
+    index, sub : int
+        Its object on the drive.
+    unit : str
+        The parameter's SI unit.
+    old_si, new_si : float, optional
+        The value before (as backed up) and the value to write, SI.
+    old_device, new_device : float or int, optional
+        The same in the object's units.
+    attempted : bool
+        A write was sent (its answer may have been lost).
+    written : bool
+        The drive confirmed the write.
+    verified : bool
+        Read back equal to what was written (and still in force).
+    """
+
     parameter: str
     index: int
     sub: int
@@ -41,9 +63,9 @@ class ObjectWrite:
     new_si: float | None = None
     old_device: float | int | None = None
     new_device: float | int | None = None
-    attempted: bool = False  # a write was sent (its answer may have been lost)
-    written: bool = False  # the drive confirmed the write
-    verified: bool = False  # read back equal to what was written (and still in force)
+    attempted: bool = False
+    written: bool = False
+    verified: bool = False
 
 
 #: what a drive's RAM or its stored (non-volatile) set holds after a transaction
@@ -72,10 +94,44 @@ NO_BRING_UP = "this write did not bring the drives up"
 
 @dataclass
 class WriteResult:
-    """What happened on one drive; ``ok`` only when every object was written and verified
-    (and stored if asked).  ``ram`` and ``stored_set`` say what the drive is known to hold
-    (``new``, ``backup`` = as before, ``unchanged`` = never touched, ``unknown`` = could not
-    be read back or confirmed): never more than was read back."""
+    """What happened on one drive: never more than was read back.
+
+    Parameters
+    ----------
+    node_id : int or None
+        The drive's node id.
+    drive : str
+        The drive model.
+    objects : list of ObjectWrite
+        Each object of the set, as far as it went.
+    unsupported : list of str
+        Parameters of the set the drive's profile has no object for.
+    dry_run : bool
+        Only the backup phase ran.
+    stored : bool
+        The new set was stored (made permanent).
+    restored : bool
+        The backup was put back.
+    error : str, optional
+        What failed on this drive; None: ``ok``, every object written and verified (and stored
+        if asked).
+    backup : str, optional
+        Where the backup was written.
+    notes : list of str
+        What else happened, in words.
+    ram, stored_set : {"new", "backup", "unchanged", "unknown"}
+        What the drive is known to hold in RAM and in its stored set (``backup``: as before;
+        ``unchanged``: never touched; ``unknown``: could not be read back or confirmed).
+    interrupted : str, optional
+        The signal that cut the transaction short (Ctrl-C, SIGTERM, SIGHUP).
+    caused : bool
+        This drive's failure ended the transaction.
+    store_scope : str, optional
+        What a store sent to this drive made permanent besides the objects written (None: no store
+        sent).
+    restore_covers : str, optional
+        What a restore after it puts back.
+    """
 
     node_id: int | None
     drive: str
@@ -89,15 +145,19 @@ class WriteResult:
     notes: list[str] = field(default_factory=list)
     ram: str = UNCHANGED
     stored_set: str = UNCHANGED
-    interrupted: str | None = None  # the signal that cut the transaction short (Ctrl-C, SIGTERM, SIGHUP)
-    caused: bool = False  # this drive's failure ended the transaction
-    #: what a store sent to this drive made permanent besides the objects written (None: no store sent),
-    #: and what a restore after it puts back
+    interrupted: str | None = None
+    caused: bool = False
     store_scope: str | None = None
     restore_covers: str | None = None
 
     def holds(self) -> str:
-        """What the drive is known to hold, in words."""
+        """What the drive is known to hold.
+
+        Returns
+        -------
+        str
+            Its RAM and its stored set, in words.
+        """
         ram = {
             NEW: "new values in RAM",
             BACKUP: "restored (read back)",
@@ -108,10 +168,17 @@ class WriteResult:
 
     @property
     def ok(self) -> bool:
+        """Every object written and verified (and stored if asked): no error."""
         return self.error is None
 
     def as_dict(self) -> dict:
-        """One drive in write.json: each object's address as "0x2000:3"."""
+        """One drive as write.json holds it.
+
+        Returns
+        -------
+        dict
+            Every field and ``ok``; each object's address as ``"0x2000:3"``.
+        """
         d = asdict(self)
         d["objects"] = [
             {"parameter": o.pop("parameter"), "object": hex_object(o.pop("index"), o.pop("sub")), **o}
@@ -149,8 +216,27 @@ def _describe(exc: BaseException, phase: str, w: ObjectWrite | None, entry: Entr
 def bind_axes(
     profile: Profile, axes: Iterable[str], torque_constants: dict[str, float | None] | None
 ) -> dict[str, Profile]:
-    """``profile`` for each of ``axes``, with its motor's torque constant [Nm/A] where the drive
-    holds values in current (:meth:`~.profile.Profile.bind`)."""
+    """A drive profile bound to each axis's motor.
+
+    Parameters
+    ----------
+    profile : Profile
+        The drive profile.
+    axes : iterable of str
+        The axes.
+    torque_constants : dict of str to float or None, optional
+        Per axis, its motor's torque constant [Nm/A], where the drive holds values in current.
+
+    Returns
+    -------
+    dict of str to Profile
+        Per axis, :meth:`~.profile.Profile.bind`.
+
+    Raises
+    ------
+    UserError
+        A profile that needs a torque constant an axis does not have.
+    """
     return {a: profile.bind((torque_constants or {}).get(a), a) for a in axes}
 
 
@@ -162,10 +248,32 @@ def plan_writes(
     check: bool = True,
     dry_run: bool = False,
 ) -> dict[str, WriteResult]:
-    """The objects each drive will get (``values`` in the cascade's terms, as tune gives them, turned
-    into the parameters of the controller its profile declares); with ``check`` every value is
-    checked first (:func:`~drive_bridge.params.check.check_set`) and ValueRefused names every
-    problem of every drive before anything is written."""
+    """The objects each drive will get, checked before anything is written.
+
+    Parameters
+    ----------
+    nodes : dict of str to canopen.RemoteNode
+        The drives, by axis.
+    profiles : dict of str to Profile
+        Their profiles, bound to their motors.
+    values : dict of str to dict
+        Per axis, the set in the cascade's terms (as tune gives them, SI), turned into the
+        parameters of the controller its profile declares.
+    check : bool
+        Check every value first (:func:`~drive_bridge.params.check.check_set`).
+    dry_run : bool
+        Mark the results as a dry run.
+
+    Returns
+    -------
+    dict of str to WriteResult
+        Per axis, its objects with the values to write (nothing written yet).
+
+    Raises
+    ------
+    ValueRefused
+        Every problem of every drive, named, before anything is written.
+    """
     problems = []
     results = {}
     for axis, node in nodes.items():
@@ -218,8 +326,38 @@ def write_all(
     restores the backup on every drive that was written, reads it back and compares, and
     stores it again where the new set had been stored -- with ``settings_before`` (per axis what
     bring-up overwrote, :attr:`~drive_bridge.master.bringup.AxisLink.before`) put back for that
-    store, so the stored set is the one the drive had.  ``dry_run``: the backup phase only.
-    ``torque_constants`` [Nm/A] per axis: where the drive holds values in current.
+    store, so the stored set is the one the drive had.
+
+    Parameters
+    ----------
+    nodes : dict of str to canopen.RemoteNode
+        The drives, by axis.
+    profile : Profile
+        Their drive profile.
+    values : dict of str to dict
+        Per axis, name -> value, SI.
+    backup_dir : str or Path, optional
+        Where each drive's backup is written (a DCF per drive).
+    store : bool
+        Store the new set on each drive once every drive holds it.
+    dry_run : bool
+        The backup phase only.
+    check : bool
+        Check every value before anything is written.
+    settings_before : dict of str to dict, optional
+        Per axis, what bring-up overwrote (:attr:`~drive_bridge.master.bringup.AxisLink.before`).
+    torque_constants : dict of str to float or None, optional
+        Per axis [Nm/A], where the drive holds values in current.
+
+    Returns
+    -------
+    dict of str to WriteResult
+        Per axis, what happened and what the drive is known to hold.
+
+    Raises
+    ------
+    ValueRefused
+        A value refused before anything was written.
     """
     profiles = bind_axes(profile, nodes, torque_constants)
     results = plan_writes(nodes, profiles, values, check=check, dry_run=dry_run)
@@ -243,8 +381,35 @@ def write_parameters(
     backup_path: str | Path | None = None,
     check: bool = True,
 ) -> WriteResult:
-    """:func:`write_all` for one drive (``backup_path``: where its backup goes; ``profile`` bound to
-    its motor: :meth:`~.profile.Profile.bind`)."""
+    """:func:`write_all` for one drive.
+
+    Parameters
+    ----------
+    node : canopen.RemoteNode
+        The drive.
+    profile : Profile
+        Its profile, bound to its motor (:meth:`~.profile.Profile.bind`).
+    values : dict of str to float
+        Name -> value, SI.
+    dry_run : bool
+        The backup phase only.
+    store : bool
+        Store the new set once it is verified.
+    backup_path : str or Path, optional
+        Where its backup goes.
+    check : bool
+        Check every value before anything is written.
+
+    Returns
+    -------
+    WriteResult
+        What happened and what the drive is known to hold.
+
+    Raises
+    ------
+    ValueRefused
+        A value refused before anything was written.
+    """
     results = plan_writes({"": node}, {"": profile}, {"": values}, check=check, dry_run=dry_run)
     _Transaction(
         {"": node}, {"": profile}, results, {"": None if backup_path is None else Path(backup_path)}
@@ -666,7 +831,24 @@ def write_drives(
 
 
 def raise_for_failure(outcome: WriteOutcome, backup_dir: str | Path | None) -> None:
-    """The error a failed write ends with: what failed, and per drive what it holds now."""
+    """The error a failed write ends with: what failed, and per drive what it holds now.
+
+    Parameters
+    ----------
+    outcome : WriteOutcome
+        The write step's outcome (nothing is raised where it is ``ok``).
+    backup_dir : str or Path, optional
+        Where the backups are, said in the message.
+
+    Raises
+    ------
+    WriteInterrupted
+        A signal cut the transaction short.
+    BusError
+        A dry run that could not read a drive.
+    DriveRefused
+        A drive refused or lost the set.
+    """
     if outcome.ok:
         return
     axis = next((a for a, r in outcome.results.items() if r.caused), None)

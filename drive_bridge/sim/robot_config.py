@@ -57,7 +57,21 @@ EFFECTS = {
 
 @dataclass
 class Motor:
-    """Motor and power stage: R [Ohm], L [H], kt [Nm/A], DC link [V], rated torque [Nm]."""
+    """Motor and power stage.
+
+    Parameters
+    ----------
+    R : float
+        Winding resistance [Ω].
+    L : float
+        Winding inductance [H].
+    kt : float
+        Torque constant [Nm/A].
+    vbus : float
+        DC link voltage [V].
+    rated_torque_Nm : float
+        Rated torque [Nm] (0x6076).
+    """
 
     R: float = 0.8
     L: float = 0.002
@@ -68,6 +82,43 @@ class Motor:
 
 @dataclass
 class SimAxis:
+    """One simulated axis: its plant, motor and drive, SI, motor side.
+
+    Parameters
+    ----------
+    name : str
+        The axis.
+    node_id : int
+        Its drive's node id.
+    serial : int
+        Its drive's serial number (0x1018:4).
+    J : float
+        Inertia [kg·m²].
+    c0 : float
+        Coulomb friction [Nm].
+    c1 : float
+        Viscous friction [Nm·s/rad].
+    cp : float
+        A torque proportional to position [Nm/rad] (the paper's cp).
+    D : float
+        A constant torque [Nm] (the paper's D).
+    torque_noise_Nm : float
+        The std of the noise on the measured torque [Nm].
+    motor : Motor
+        Motor and power stage.
+    effects : dict
+        The hidden effects, by name: {kernel parameter: value} (a coupling's source as an axis
+        name).
+    brake : bool
+        A holding brake that holds the axis whenever the power stage is off.
+    end_stops_rad : (float, float), optional
+        Mechanical end stops [rad].
+    initial_position_rad : float
+        Where the axis stands at power-on [rad].
+    saved_limits : SavedLimits, optional
+        What the machine's integrator saved in the drive (None: the drive's factory values).
+    """
+
     name: str
     node_id: int
     serial: int
@@ -78,19 +129,26 @@ class SimAxis:
     D: float = 0.0
     torque_noise_Nm: float = 0.0
     motor: Motor = field(default_factory=Motor)
-    effects: dict = field(default_factory=dict)  # name -> {kernel param: value}; source as axis name
-    brake: bool = True  # a holding brake that holds the axis whenever the power stage is off
-    end_stops_rad: tuple[float, float] | None = None  # mechanical end stops, motor side
-    initial_position_rad: float = 0.0  # where the axis stands at power-on
-    #: what the machine's integrator saved in the drive (SI, motor side): the software position
-    #: limits 0x607D [rad], the max profile velocity 0x607F [rad/s], the profile acceleration and
-    #: deceleration 0x6083 / 0x6084 [rad/s²] (None: the drive's factory values)
+    effects: dict = field(default_factory=dict)
+    brake: bool = True
+    end_stops_rad: tuple[float, float] | None = None
+    initial_position_rad: float = 0.0
     saved_limits: SavedLimits | None = None
 
 
 @dataclass(frozen=True)
 class SavedLimits:
-    """The limits a machine's drive holds from its commissioning (``saved_limits`` in the YAML)."""
+    """The limits a machine's drive holds from its commissioning (``saved_limits`` in the YAML).
+
+    Parameters
+    ----------
+    stroke_rad : (float, float)
+        The software position limits 0x607D [rad].
+    max_velocity_rad_s : float
+        The max profile velocity 0x607F [rad/s].
+    acceleration_rad_s2 : float
+        The profile acceleration and deceleration 0x6083 / 0x6084 [rad/s²].
+    """
 
     stroke_rad: tuple[float, float]
     max_velocity_rad_s: float

@@ -147,12 +147,35 @@ class AxisTuning:
 
 
 def model_from_identify(params: dict[str, float]) -> dict[str, float]:
-    """The drive-model subset of ``identify``'s parameters (effects the drive cannot add are left out)."""
+    """The drive-model subset of ``identify``'s parameters.
+
+    Parameters
+    ----------
+    params : dict of str to float
+        An axis's identified parameters (``model.params_``: J, c0, c1, ``<effect>.<name>``).
+
+    Returns
+    -------
+    dict of str to float
+        J, c0, c1 and the effect terms a drive model holds, by their short names (effects the
+        drive cannot add are left out).
+    """
     return {short: float(params[key]) for key, short in MODEL_KEYS.items() if key in params}
 
 
 def drive_model(parameters: dict[str, float]) -> dict[str, float]:
-    """The model part (J, c0, c1 and effect terms) of a parameter set to write."""
+    """The model part of a parameter set to write.
+
+    Parameters
+    ----------
+    parameters : dict of str to float
+        A parameter set (gains and model).
+
+    Returns
+    -------
+    dict of str to float
+        J, c0, c1 and the effect terms in it.
+    """
     return {k: v for k, v in parameters.items() if k in MODEL_KEYS.values()}
 
 
@@ -186,7 +209,23 @@ def _numbers(path: Path, where: str, values: object) -> dict[str, float]:
 
 
 def read_frf_json(path: str | Path) -> dict[str, Frf]:
-    """axis -> its measured response, from frf.json (the measure step's)."""
+    """The measured responses the measure step wrote.
+
+    Parameters
+    ----------
+    path : str or Path
+        frf.json.
+
+    Returns
+    -------
+    dict of str to Frf
+        Per axis, its measured torque -> velocity response.
+
+    Raises
+    ------
+    UserError
+        A file that is not one the measure step writes.
+    """
     from ..ident.frf import Frf
 
     path = Path(path)
@@ -201,8 +240,24 @@ def read_frf_json(path: str | Path) -> dict[str, Frf]:
 
 
 def read_identify_json(path: str | Path) -> dict[str, dict[str, float]]:
-    """axis -> the drive-model subset of its identified parameters, from ``identify --json``;
-    UserError for an axis whose J, c0 or c1 the identification says it could not determine."""
+    """The drive-model subset of every axis's identified parameters.
+
+    Parameters
+    ----------
+    path : str or Path
+        An ``identify --json`` result (identify.json).
+
+    Returns
+    -------
+    dict of str to dict
+        Per axis, :func:`model_from_identify` of what its drive's model holds, SI.
+
+    Raises
+    ------
+    UserError
+        A file that is not such a result, a value that is not a number, or an axis whose J, c0 or
+        c1 the identification says it could not determine.
+    """
     path = Path(path)
     axes = _axes_of(path, "identify --json result")
     out = {}
@@ -224,7 +279,18 @@ def read_identify_json(path: str | Path) -> dict[str, dict[str, float]]:
 
 
 def read_resonances(path: str | Path) -> dict[str, dict | None]:
-    """axis -> the resonance an ``identify --json`` result reports for it (None: none)."""
+    """The resonance an identification reports per axis.
+
+    Parameters
+    ----------
+    path : str or Path
+        An ``identify --json`` result.
+
+    Returns
+    -------
+    dict of str to dict or None
+        Per axis, its ``resonance`` (None: none).
+    """
     return {
         a: r.get("resonance") if isinstance(r.get("resonance"), dict) else None
         for a, r in _axes_of(Path(path), "identify --json result").items()
@@ -232,8 +298,19 @@ def read_resonances(path: str | Path) -> dict[str, dict | None]:
 
 
 def unwritable_effects(path: str | Path) -> dict[str, list[str]]:
-    """axis -> the traced effects of an ``identify --json`` result that no drive model parameter
-    (nor the master's feed-forward, which sends the same model) can carry: reported, not dropped."""
+    """The traced effects no drive model parameter (nor the master's feed-forward, which sends the
+    same model) can carry: reported, not dropped.
+
+    Parameters
+    ----------
+    path : str or Path
+        An ``identify --json`` result.
+
+    Returns
+    -------
+    dict of str to list of str
+        Per axis, those effects' names.
+    """
     from ..ident.effects import DRIVE_EFFECTS  # (here: identification's modules load scipy's statistics)
 
     axes = _axes_of(Path(path), "identify --json result")
@@ -251,7 +328,21 @@ PLAUSIBLE = {"J": 1e4, "c0": 1e5, "c1": 1e5}
 
 
 def check_model(axis: str, model: dict[str, float]) -> None:
-    """UserError naming the axis and parameter when an identified model is not physical."""
+    """Check that an identified model is physical: J > 0, c0 and c1 ≥ 0, all finite and within
+    :data:`PLAUSIBLE`.
+
+    Parameters
+    ----------
+    axis : str
+        The axis (named in the error).
+    model : dict of str to float
+        J [kg·m² | kg], c0 [Nm | N], c1 [Nm·s/rad | N·s/m].
+
+    Raises
+    ------
+    UserError
+        Naming the axis and each parameter that is not.
+    """
     bad = [f"{k} missing" for k in ("J", "c0", "c1") if k not in model]
     bad += [f"{k} = {v}" for k, v in model.items() if not math.isfinite(v)]
     if not bad:
@@ -272,8 +363,25 @@ def check_model(axis: str, model: dict[str, float]) -> None:
 
 
 def measured_mode(frf: Frf, J: float, c1: float, current_bw_rad_s: float) -> float | None:
-    """The frequency [Hz] of a mode the measured response shows (its reliable bins): where |G|
-    stands at least ``MODE_PEAK`` times the rigid model's; None where it does not."""
+    """The frequency of a mode the measured response shows.
+
+    Parameters
+    ----------
+    frf : Frf
+        The measured torque -> velocity response (its reliable bins are read).
+    J : float
+        The identified inertia [kg·m² | kg].
+    c1 : float
+        The identified viscous friction [Nm·s/rad | N·s/m].
+    current_bw_rad_s : float
+        The current loop's bandwidth [rad/s].
+
+    Returns
+    -------
+    float or None
+        [Hz] where |G| stands at least ``MODE_PEAK`` times the rigid model's; None where it does
+        not.
+    """
     ok = frf.reliable()
     if not ok.any():
         return None
@@ -286,9 +394,27 @@ def measured_mode(frf: Frf, J: float, c1: float, current_bw_rad_s: float) -> flo
 def loop_amplification(
     model: dict[str, float], gains: dict[str, float], current_bw_rad_s: float, tick_s: float, f_hz: float
 ) -> float:
-    """How much the drive's loop with ``gains`` amplifies at ``f_hz`` on the rigid ``model``: the
-    larger of |1 / (1 + K·G)| and |K·G / (1 + K·G)|, broken at the torque command (whatever the
-    structure, the same loop).  Above 1 the loop rings there by itself."""
+    """How much a drive's loop amplifies at one frequency on the rigid model.
+
+    Parameters
+    ----------
+    model : dict of str to float
+        J [kg·m² | kg] and c1 [Nm·s/rad | N·s/m].
+    gains : dict of str to float
+        The loop's gains (KpP, KpS, KiS; SI).
+    current_bw_rad_s : float
+        The current loop's bandwidth [rad/s].
+    tick_s : float
+        The drive's control period [s].
+    f_hz : float
+        The frequency [Hz].
+
+    Returns
+    -------
+    float
+        The larger of |1 / (1 + K·G)| and |K·G / (1 + K·G)|, broken at the torque command
+        (whatever the structure, the same loop): above 1 the loop rings there by itself.
+    """
     w = np.array([2 * np.pi * f_hz])
     open_loop = loop_controller(gains, tick_s)(w) * rigid_response(
         model["J"], model["c1"], current_bw_rad_s, w
@@ -483,8 +609,21 @@ def tune(
 
 
 def tune_doc(results: dict[str, AxisTuning], unwritable: dict[str, list[str]] | None = None) -> dict:
-    """tune.json: per axis the model, gains before and after, margins, the parameters to write, and
-    the identified effects no drive parameter can carry (``not_writable``)."""
+    """tune.json's document.
+
+    Parameters
+    ----------
+    results : dict of str to AxisTuning
+        Per axis, its tuning.
+    unwritable : dict of str to list of str, optional
+        Per axis, the identified effects no drive parameter can carry (:func:`unwritable_effects`).
+
+    Returns
+    -------
+    dict
+        Per axis the model, gains before and after, margins, the parameters to write and
+        ``not_writable``; stamped with the tool's version (schema ``tune``).
+    """
     return stamped(
         "tune",
         {
@@ -497,15 +636,41 @@ def tune_doc(results: dict[str, AxisTuning], unwritable: dict[str, list[str]] | 
 
 @dataclass
 class TuneFile:
-    """A ``tune`` result as written: per axis the parameters to write, and the motor inductance
-    [H] its current loop was designed for (None in a file without it)."""
+    """A ``tune`` result as written (:func:`read_tune_json`).
+
+    Parameters
+    ----------
+    path : Path
+        The file.
+    parameters : dict of str to dict
+        Per axis, the parameters to write, SI.
+    inductance : dict of str to float or None
+        Per axis, the motor inductance [H] its current loop was designed for (None in a file
+        without it).
+    """
 
     path: Path
     parameters: dict[str, dict[str, float]]
     inductance: dict[str, float | None]
 
     def only(self, config: BusConfig) -> TuneFile:
-        """The axes of ``config``; an axis of the file that ``config`` does not have is an error."""
+        """This result, checked against a bus configuration.
+
+        Parameters
+        ----------
+        config : BusConfig
+            The bus configuration the values are to be written on.
+
+        Returns
+        -------
+        TuneFile
+            This result.
+
+        Raises
+        ------
+        UserError
+            An axis of the file that ``config`` does not have.
+        """
         unknown = [a for a in self.parameters if a not in config.nodes]
         if unknown:
             raise UserError(
@@ -516,7 +681,23 @@ class TuneFile:
 
 
 def read_tune_json(path: str | Path) -> TuneFile:
-    """A ``tune`` result file."""
+    """Read a ``tune`` result file.
+
+    Parameters
+    ----------
+    path : str or Path
+        tune.json.
+
+    Returns
+    -------
+    TuneFile
+        Per axis the parameters to write and the motor inductance [H].
+
+    Raises
+    ------
+    UserError
+        A file that is not a tune result, or a value that is not a number, named.
+    """
     path = Path(path)
     axes = _axes_of(path, "tune result")
     params, inductance = {}, {}
