@@ -245,6 +245,7 @@ def decode_trace(
     except Exception as exc:  # python-can's readers raise many kinds on a damaged file
         where = f"after {frames} frames" + (f" (t = {last:.6f} s)" if last is not None else "")
         problem = f"the trace is damaged {where}: {type(exc).__name__}: {exc}"
+    rec.truncate()  # (the plan's last periods without a SYNC are rows: meta.yaml names them)
     if problem is None and rec.rows < sent and meta.get("status") != "running":
         problem = f"the trace holds {rec.rows} of the {sent} SYNC cycles meta.yaml counts: it was cut short"
     if problem is None and meta.get("status") == "running":
@@ -252,6 +253,5 @@ def decode_trace(
             f"the recording never ended (meta.yaml status 'running': the process was killed); "
             f"{rec.rows} SYNC cycles decoded"
         )
-    rec.truncate()
     names, values, fmts = to_table(rec, scaling, period)
     return names, values, fmts, meta, problem

@@ -149,7 +149,11 @@ class Recording:
         return {axis: int(np.count_nonzero(~self.valid(axis)[: self.rows])) for axis in self.axes}
 
     def truncate(self) -> None:
-        """Drop rows after the last SYNC (the plan was not finished)."""
+        """Drop rows after the last SYNC (the plan was not finished) -- but for the plan's last
+        periods a late master sent no SYNC in (``skipped``): rows of the run like any period
+        skipped, as the engine counts them (:meth:`.engine.Engine._on_sync`)."""
+        while self.rows < len(self.raw) and self.rows in self.skipped:
+            self.rows += 1
         n = self.rows
         self.raw, self.got, self.demand, self.sync_time = (
             self.raw[:n],

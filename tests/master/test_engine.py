@@ -123,6 +123,12 @@ def test_a_plan_whose_last_periods_passed_without_sync_counts_them_missing(tmp_p
     assert len(rec_time) == len(result.plan.demand)
     assert np.isnan(rec_time[-1]) and result.missing["y"] == np.count_nonzero(np.isnan(rec_time)) >= 1
     assert result.samples["y"] + result.missing["y"] == len(result.plan.demand)
+    # decode rebuilds the same rows, the last ones too: a run whose trace ends before the plan's last
+    # periods is whole where meta.yaml says they got no SYNC (it was "cut short" on the wall clock)
+    from drive_bridge.logs import decode_trace
+
+    _, decoded, _, _, problem = decode_trace(tmp_path / "trace.blf")
+    assert problem is None and np.array_equal(np.isnan(decoded[:, 1]), np.isnan(rec_time))
 
 
 class _Drives:
