@@ -24,11 +24,23 @@ NARROW_BAND = 1.5  # p90/p10 of the moving speeds below this: one speed, as far 
 
 
 def what_the_motion_tells(est: Samples, unit: str) -> dict:
-    """The motion of the fitted samples ``est`` (``unit``: the axis's position unit, rad or m):
-    ``directions`` (share of the moving samples each way), ``reversals`` (changes of direction
-    between moving samples), ``speed`` (p10, p50, p90, max of |q̇|) and ``acceleration`` (p90,
-    max of |q̈|) in ``unit``/s and ``unit``/s², and ``cannot_tell``: c0 / c1 -> why the motion does
-    not determine it (absent where it may)."""
+    """What the motion of the fitted samples covers, and what it cannot determine.
+
+    Parameters
+    ----------
+    est : Samples
+        The estimation samples (their moving ones).
+    unit : str
+        The axis's position unit, rad or m.
+
+    Returns
+    -------
+    dict
+        ``directions`` (share of the moving samples each way), ``reversals`` (changes of
+        direction between moving samples), ``speed`` (p10, p50, p90, max of |q̇|) and
+        ``acceleration`` (p90, max of |q̈|) in ``unit``/s and ``unit``/s², and ``cannot_tell``:
+        c0 / c1 -> why the motion does not determine it (absent where it may).
+    """
     velocity = est.qd[est.moving]
     if not len(velocity):
         return {"directions": {}, "reversals": 0, "cannot_tell": {}}
@@ -64,7 +76,18 @@ def what_the_motion_tells(est: Samples, unit: str) -> dict:
 
 
 def motion_text(motion: dict) -> str:
-    """One line: what the motion covers and what it cannot tell."""
+    """What the motion covers and what it cannot tell, in one line.
+
+    Parameters
+    ----------
+    motion : dict
+        :func:`what_the_motion_tells`'s answer.
+
+    Returns
+    -------
+    str
+        The line.
+    """
     d = motion.get("directions")
     if not d:
         return "motion: none fitted"

@@ -17,7 +17,24 @@ BINS = 20
 
 
 def eta2(x: np.ndarray, r: np.ndarray) -> tuple[float, float, float]:
-    """Share of var(r) explained by its mean in quantile bins of x, the ANOVA p-value and F."""
+    """How much of a residual its mean in bins of a variable explains (one-way ANOVA).
+
+    Parameters
+    ----------
+    x : numpy.ndarray
+        The variable (binned at its quantiles, ``BINS`` bins).
+    r : numpy.ndarray
+        The residual at the same samples.
+
+    Returns
+    -------
+    share : float
+        The share of var(r) explained (η²).
+    p : float
+        The ANOVA p-value.
+    f : float
+        The F statistic.
+    """
     edges = np.unique(np.quantile(x, np.linspace(0, 1, BINS + 1)))
     if len(edges) < 3:
         return 0.0, 1.0, 0.0
@@ -34,9 +51,20 @@ def eta2(x: np.ndarray, r: np.ndarray) -> tuple[float, float, float]:
 
 
 def variables(s: Signals) -> dict[str, np.ndarray]:
-    """The candidate variables of a residual: position, velocity, acceleration, |acceleration|
-    (the transmitted inertial torque's size), time, direction, and the other axes' position,
-    velocity and acceleration."""
+    """The candidate variables of a residual.
+
+    Parameters
+    ----------
+    s : Samples or Channels
+        The signals.
+
+    Returns
+    -------
+    dict of str to numpy.ndarray
+        Position, velocity, acceleration, |acceleration| (the transmitted inertial torque's size),
+        time, direction, and the other axes' position, velocity and acceleration
+        (``<axis>_position``, ...).
+    """
     out = {
         "position": s.q,
         "velocity": s.qd,
@@ -51,9 +79,25 @@ def variables(s: Signals) -> dict[str, np.ndarray]:
 
 
 def dependences(s: Samples, residual: np.ndarray, min_share: float, p_value: float) -> list[dict]:
-    """Per variable, the stronger of its even and odd dependence passing ``min_share`` of the
-    residual variance at ANOVA p < ``p_value``: ``depends_on``, ``form``, ``fraction``, ``evidence``
-    (F), on the moving samples of ``s``."""
+    """What a residual depends on, on the moving samples.
+
+    Parameters
+    ----------
+    s : Samples
+        The samples.
+    residual : numpy.ndarray
+        The residual at them [Nm | N].
+    min_share : float
+        The share of the residual variance a dependence must explain ...
+    p_value : float
+        ... at an ANOVA p-value below this.
+
+    Returns
+    -------
+    list of dict
+        Per variable that passes, the strongest of its forms (even, odd; over position also
+        inertial): ``depends_on``, ``form``, ``fraction``, ``evidence`` (F).
+    """
     m = s.moving
     r = residual[m]
     direction = np.sign(s.qd[m])

@@ -22,8 +22,25 @@ DONORS = 5  # as scipy draws: enough for every strategy (rand2 uses five)
 
 
 def donors(rng: np.random.Generator, candidates: np.ndarray, members: int, k: int = DONORS) -> np.ndarray:
-    """For each of ``candidates``, ``k`` distinct population indices in [0, ``members``) other than
-    the candidate itself, each ordered tuple equally likely (rows with a repeat drawn again)."""
+    """Donors for every member at once.
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+        The solver's generator.
+    candidates : numpy.ndarray
+        The population indices donors are drawn for.
+    members : int
+        The population's size.
+    k : int
+        Donors per candidate.
+
+    Returns
+    -------
+    numpy.ndarray
+        len(candidates) × k: distinct population indices in [0, ``members``) other than the
+        candidate itself, each ordered tuple equally likely (rows with a repeat drawn again).
+    """
     out = np.empty((len(candidates), k), dtype=np.intp)
     todo = np.arange(len(candidates))
     while todo.size:
@@ -59,7 +76,24 @@ def differential_evolution(
     cost: Callable[[np.ndarray], np.ndarray], bounds: list[tuple[float, float]], seed: int, **options: object
 ) -> OptimizeResult:
     """``scipy.optimize.differential_evolution(cost, bounds, rng=default_rng(seed), vectorized=True,
-    updating="deferred", **options)``, through :class:`DonorsAtOnce`."""
+    updating="deferred", **options)``, through :class:`DonorsAtOnce`.
+
+    Parameters
+    ----------
+    cost : callable
+        The cost of a population (p × S parameters -> S costs).
+    bounds : list of (float, float)
+        Each parameter's range.
+    seed : int
+        Seed of the generator (the same seed, the same result).
+    **options : object
+        scipy's other options (popsize, maxiter, tol, polish, ...).
+
+    Returns
+    -------
+    scipy.optimize.OptimizeResult
+        scipy's result: ``x``, ``fun``, ``success``, ...
+    """
     with DonorsAtOnce(
         cost, bounds, rng=np.random.default_rng(seed), vectorized=True, updating="deferred", **options
     ) as solver:

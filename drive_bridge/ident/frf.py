@@ -39,9 +39,21 @@ MAX_LOOP_GAIN = 10.0  # nor the bins below the first whose loop gain |K·G| is u
 
 @dataclass
 class Frf:
-    """``frequency_hz`` of the excited bins, the plant ``response`` G(jω) there [rad/s per Nm],
-    its ``coherence`` (0..1), the drive's ``loop_gain`` |K·G| with the gains it ran with, and the
-    SYNC rate it was measured at [Hz]."""
+    """The plant's frequency response measured through the drive (:func:`measure`).
+
+    Parameters
+    ----------
+    frequency_hz : numpy.ndarray
+        The excited bins [Hz].
+    response : numpy.ndarray
+        The plant G(jω) there [rad/s per Nm], complex.
+    coherence : numpy.ndarray
+        Each bin's coherence (0..1).
+    loop_gain : numpy.ndarray
+        The drive's loop gain |K·G| with the gains it ran with.
+    rate_hz : float
+        The SYNC rate it was measured at [Hz].
+    """
 
     frequency_hz: np.ndarray
     response: np.ndarray
@@ -53,7 +65,13 @@ class Frf:
         """The bins that measure the plant: coherence at least ``MIN_COHERENCE``, from the lowest
         frequency whose loop gain stays at most ``MAX_LOOP_GAIN`` over the octave above it (one bin
         alone may read low where a disturbance at a fixed frequency -- a belt's teeth at the sweep's
-        speed -- spoils it) up to ``TOP_SHARE`` of the SYNC rate."""
+        speed -- spoils it) up to ``TOP_SHARE`` of the SYNC rate.
+
+        Returns
+        -------
+        numpy.ndarray
+            A boolean per bin.
+        """
         f = self.frequency_hz
         high = self.loop_gain > MAX_LOOP_GAIN
         starts = [fi for fi in f if not high[(f >= fi) & (f <= 2 * fi)].any()]
@@ -61,6 +79,14 @@ class Frf:
         return (self.coherence >= MIN_COHERENCE) & above & (f <= TOP_SHARE * self.rate_hz)
 
     def as_json(self) -> dict:
+        """The response as frf.json holds it.
+
+        Returns
+        -------
+        dict
+            ``rate_hz``, and per bin its frequency, magnitude [dB], phase [°], coherence, loop gain
+            and whether it is reliable.
+        """
         return {
             "rate_hz": self.rate_hz,
             "frequency_hz": [round(float(f), 4) for f in self.frequency_hz],
@@ -73,6 +99,18 @@ class Frf:
 
     @classmethod
     def from_json(cls, doc: dict) -> Frf:
+        """A response as :meth:`as_json` wrote it.
+
+        Parameters
+        ----------
+        doc : dict
+            The document.
+
+        Returns
+        -------
+        Frf
+            The response.
+        """
         mag = 10 ** (np.asarray(doc["magnitude_db"], dtype=float) / 20)
         return cls(
             np.asarray(doc["frequency_hz"], dtype=float),
@@ -84,14 +122,42 @@ class Frf:
 
 
 def excited_bins(rate_hz: float, samples: int = PERIOD_SAMPLES) -> np.ndarray:
-    """DFT bins of one period that the excitation drives."""
+    """The DFT bins of one period that the excitation drives.
+
+    Parameters
+    ----------
+    rate_hz : float
+        The SYNC rate [Hz].
+    samples : int
+        One period, in SYNC periods.
+
+    Returns
+    -------
+    numpy.ndarray
+        Their indices: from ``F_LOW_HZ`` to ``F_HIGH_SHARE`` × the rate.
+    """
     f = np.fft.rfftfreq(samples, 1.0 / rate_hz)
     return np.flatnonzero((f >= F_LOW_HZ) & (f <= F_HIGH_SHARE * rate_hz))
 
 
 def excitation(rate_hz: float, rms_Nm: float, samples: int = PERIOD_SAMPLES) -> np.ndarray:
-    """One period [Nm] of the torque offset: equal amplitudes on :func:`excited_bins`, Schroeder's
-    phases (a low crest factor, deterministic), ``rms_Nm`` in all."""
+    """One period of the torque offset: equal amplitudes on :func:`excited_bins`, Schroeder's
+    phases (a low crest factor, deterministic).
+
+    Parameters
+    ----------
+    rate_hz : float
+        The SYNC rate [Hz].
+    rms_Nm : float
+        Its RMS [Nm].
+    samples : int
+        One period, in SYNC periods.
+
+    Returns
+    -------
+    numpy.ndarray
+        The offset at each SYNC of the period [Nm].
+    """
     bins = excited_bins(rate_hz, samples)
     k = np.arange(1, len(bins) + 1)
     spectrum = np.zeros(samples // 2 + 1, dtype=complex)
@@ -107,9 +173,31 @@ def measure(
     controller: Callable[[np.ndarray], np.ndarray],
     samples: int = PERIOD_SAMPLES,
 ) -> Frf:
-    """G(jω) from the positions [rad] sampled at each SYNC while the periodic ``offset`` [Nm] was
-    applied (both from the first sample of a period, whole periods); ``controller(ω)``: the
-    drive's K(jω) with the gains it ran with [Nm per rad/s]."""
+    """The plant G(jω) from the positions sampled at each SYNC while the periodic offset was applied.
+
+    Parameters
+    ----------
+    position : numpy.ndarray
+        The positions [rad], from the first sample of a period, whole periods.
+    offset : numpy.ndarray
+        The torque offset applied [Nm], likewise.
+    rate_hz : float
+        The SYNC rate [Hz].
+    controller : callable
+        K(ω): the drive's controller with the gains it ran with [Nm per rad/s].
+    samples : int
+        One period, in SYNC periods.
+
+    Returns
+    -------
+    Frf
+        The response per excited bin, its coherence and the loop gain.
+
+    Raises
+    ------
+    ValueError
+        Fewer than three whole periods.
+    """
     periods = len(position) // samples
     if periods < 3 or len(offset) < periods * samples:
         raise ValueError(
@@ -150,8 +238,29 @@ def log_response(
     towards the inverse controller), its coherence the smaller of the demand's with each;
     without, the plain cross- over auto-spectrum and its coherence (``method`` says which).
     Where the setpoints do not move the axis -- above the campaign's band -- the coherence falls:
-    it says how little is left.  None for a log without a stretch long enough.  SI: Hz, rad/s per
-    Nm (m/s per N)."""
+    it says how little is left.  SI: Hz, rad/s per Nm (m/s per N).
+
+    Parameters
+    ----------
+    t : numpy.ndarray
+        The samples' instants [s].
+    qd : numpy.ndarray
+        The velocity [rad/s | m/s].
+    tau : numpy.ndarray
+        The torque as logged, aligned, less what the model says is not J·q̈ + c1·q̇ [Nm | N].
+    J : float
+        The identified inertia [kg·m² | kg].
+    c1 : float
+        The identified viscous friction [Nm·s/rad | N·s/m].
+    reference : numpy.ndarray, optional
+        The position demand at the same instants [rad | m].
+
+    Returns
+    -------
+    dict or None
+        Per band its frequency, magnitude, phase and coherence, the rigid model's magnitude, and
+        ``method``; None for a log without a stretch long enough.
+    """
     from scipy import signal
 
     dt = float(np.median(np.diff(t)))

@@ -32,9 +32,27 @@ SPREAD_MAX = 0.25  # parts of the data that disagree (beyond their std) by more 
 def undetermined(
     model: AxisModel, est: Samples, after: Errors, consistency: dict, cannot_tell: dict | None = None
 ) -> dict[str, str]:
-    """Parameter (J, c0, c1) -> why the data do not determine it; absent where they do.
-    ``cannot_tell``: what is undetermined whatever the std -- what the motion itself cannot tell
-    (:mod:`.motion`), a J that depends on the band (:func:`.identify.band_dependence`)."""
+    """What the data do not determine of J, c0, c1, and why.
+
+    Parameters
+    ----------
+    model : AxisModel
+        The final model.
+    est : Samples
+        The estimation samples (its columns' collinearity is read there).
+    after : Errors
+        Its validation errors (a model that explains too little vouches for nothing).
+    consistency : dict
+        :func:`.identify.consistency`'s answer (parts of the data that disagree).
+    cannot_tell : dict, optional
+        What is undetermined whatever the std: what the motion itself cannot tell
+        (:mod:`.coverage`), a J that depends on the band (:func:`.identify.band_dependence`).
+
+    Returns
+    -------
+    dict of str to str
+        Parameter -> why; absent where the data determine it.
+    """
     out = dict(cannot_tell or {})
     if after.relative_error > FIT_MAX:
         reason = (

@@ -51,29 +51,67 @@ JITTER_TOLERANCE = 1e-3  # steps within this fraction of the median period count
 
 @dataclass
 class AxisLog:
-    """One axis of a log: position [rad | m] and torque [Nm | N] on the log's time base."""
+    """One axis of a log on the log's time base.
+
+    Parameters
+    ----------
+    name : str
+        The axis.
+    kind : {"rotary", "linear"}
+        What its position is.
+    units : dict of str to str
+        The units of its position and torque, as the log's columns name them.
+    q : numpy.ndarray
+        Position [rad | m].
+    tau : numpy.ndarray
+        Torque [Nm | N].
+    segments : list of (int, int)
+        [start, stop) row ranges that are usable.
+    dropped : list of str
+        Samples the log could not give, and why.
+    demand : numpy.ndarray, optional
+        The position demand, where the log has it [rad | m].
+    filled : numpy.ndarray, optional
+        True where a short run of missing samples was filled.
+    """
 
     name: str
-    kind: str  # "rotary" | "linear"
+    kind: str
     units: dict[str, str]
     q: np.ndarray
     tau: np.ndarray
-    segments: list[tuple[int, int]]  # [start, stop) row ranges that are usable
+    segments: list[tuple[int, int]]
     dropped: list[str] = field(default_factory=list)
-    demand: np.ndarray | None = None  # the position demand, where the log has it
-    filled: np.ndarray | None = None  # True where a short run of missing samples was filled
+    demand: np.ndarray | None = None
+    filled: np.ndarray | None = None
 
 
 @dataclass
 class Log:
+    """A log, read and checked (:func:`read_log`).
+
+    Parameters
+    ----------
+    path : Path
+        The CSV file.
+    t : numpy.ndarray
+        Time [s], evenly spaced within segments (see ``sampling``).
+    dt : float
+        The median sample period [s].
+    axes : dict of str to AxisLog
+        Its axes.
+    sampling : dict
+        What the time stamps held: period, jitter, gaps, and whether the log was resampled.
+    speeds : dict
+        Each axis's filtered speed over a segment, by (axis, start, stop, cut-off), for the part
+        of the segment identification filters (a cache: :meth:`.signals.Parallel._active`).
+    """
+
     path: Path
-    t: np.ndarray  # [s], evenly spaced within segments (see sampling)
-    dt: float  # median sample period [s]
+    t: np.ndarray
+    dt: float
     axes: dict[str, AxisLog]
-    #: what the time stamps held: period, jitter, gaps, and whether the log was resampled
     sampling: dict = field(default_factory=dict)
-    #: each axis's filtered speed over a segment, by (axis, start, stop, cut-off), for the part
-    #: of the segment identification filters (:meth:`.signals.Parallel._active`)
     speeds: dict = field(default_factory=dict, repr=False)
 
 
@@ -187,7 +225,23 @@ def _parse_rows(path: Path, span: tuple[int, int] | None) -> np.ndarray:
 
 
 def read_log(path: str | Path) -> Log:
-    """Read and check a log; see the module docstring for the format."""
+    """Read and check a log (the format: the module's docstring).
+
+    Parameters
+    ----------
+    path : str or Path
+        The CSV file, or a record directory holding ``log.csv``.
+
+    Returns
+    -------
+    Log
+        The log, its axes and what its time stamps held.
+
+    Raises
+    ------
+    UserError
+        A file that cannot be read as a log, named with what to do.
+    """
     path = _csv_path(Path(path))
     try:
         with open(path, encoding="utf-8") as f:

@@ -18,8 +18,20 @@ from .trace import describe_unexplained
 
 
 def unit(name: str, kind: str) -> str:
-    """The unit of a parameter or coefficient (``J``, ``offset.offset``, ``spline_odd_position.b3``)
-    on a ``rotary`` or ``linear`` axis; "" where it has none or depends on the effect's form."""
+    """The unit of a parameter or coefficient.
+
+    Parameters
+    ----------
+    name : str
+        The parameter (``J``, ``offset.offset``, ``spline_odd_position.b3``).
+    kind : {"rotary", "linear"}
+        The axis's kind.
+
+    Returns
+    -------
+    str
+        Its unit; "" where it has none or depends on the effect's form.
+    """
     q, f = ("rad", "Nm") if kind == "rotary" else ("m", "N")
     inertia = "kg·m²" if kind == "rotary" else "kg"
     last = name.split(".")[-1]
@@ -49,6 +61,19 @@ def unit(name: str, kind: str) -> str:
 
 
 def summary(results: dict[str, AxisResult]) -> str:
+    """What ``identify`` prints.
+
+    Parameters
+    ----------
+    results : dict of str to AxisResult
+        Each axis identified.
+
+    Returns
+    -------
+    str
+        Per axis its settings, what the motion tells, the parameters with their std (or why
+        undetermined), the effects, the errors before and after, and the diagnostics, in words.
+    """
     lines = []
     for axis, r in results.items():
         tu = r.units["torque"]
@@ -116,7 +141,19 @@ def summary(results: dict[str, AxisResult]) -> str:
 
 def drive_text(r: AxisResult) -> str:
     """The values written: the model refitted within what a drive's model holds, beside the full one
-    (or why the full model's are)."""
+    (or why the full model's are).
+
+    Parameters
+    ----------
+    r : AxisResult
+        The axis identified.
+
+    Returns
+    -------
+    str
+        The sentence (where the model's effects are all ones a drive holds, that it is the model
+        as it is).
+    """
     drive = r.drive
     if drive is None:
         return "for the drive: the model as it is (a drive's model holds every term of it)"
@@ -136,7 +173,18 @@ GA_WITHIN_STD = 1.0  # a GA result this close to the least-squares minimum (in i
 
 def ga_text(r: AxisResult) -> str:
     """Whether the GA's values are an estimate: converged, or how far from the least-squares
-    minimum of the same cost its search stood when it reached its generation limit."""
+    minimum of the same cost its search stood when it reached its generation limit.
+
+    Parameters
+    ----------
+    r : AxisResult
+        The axis identified.
+
+    Returns
+    -------
+    str
+        The sentence.
+    """
     far = r.ga.std_from_lse
     if r.ga.converged:
         return f"converged, within {far:.2g} std of the least-squares values"
@@ -149,7 +197,18 @@ def ga_text(r: AxisResult) -> str:
 
 
 def friction_text(r: AxisResult) -> str:
-    """The speeds c0 and c1 hold for, and where friction is not linear in velocity over them."""
+    """The speeds c0 and c1 hold for, and where friction is not linear in velocity over them.
+
+    Parameters
+    ----------
+    r : AxisResult
+        The axis identified.
+
+    Returns
+    -------
+    str
+        The sentence.
+    """
     f = r.diagnostics.friction
     q = "m" if r.kind == "linear" else "rad"
     text = f"c0 and c1 hold for speeds {f['velocity_range'][0]:.3g} to {f['velocity_range'][1]:.3g} {q}/s"
@@ -164,7 +223,18 @@ def friction_text(r: AxisResult) -> str:
 
 
 def between_runs_text(runs: dict) -> str:
-    """The parameters the estimation and the validation run give differently, and the std widened."""
+    """The parameters the estimation and the validation run give differently, and the std widened.
+
+    Parameters
+    ----------
+    runs : dict
+        ``consistency``'s ``between_runs``.
+
+    Returns
+    -------
+    str
+        The sentence ("" where no parameter was widened).
+    """
     return "; ".join(
         f"{p} {m['estimation']:.4g} from the estimation run, {m['validation']:.4g} from the validation "
         f"run ({m['sigmas']:.3g} std apart): its std widened {m['std_before']:.2g} -> {m['std_after']:.2g}"
@@ -173,7 +243,18 @@ def between_runs_text(runs: dict) -> str:
 
 
 def not_run_text(c: dict) -> str:
-    """Why the parts of the data were not compared, and the std widened instead."""
+    """Why the parts of the data were not compared, and the std widened instead.
+
+    Parameters
+    ----------
+    c : dict
+        ``consistency``'s answer.
+
+    Returns
+    -------
+    str
+        The sentence.
+    """
     widened = ", ".join(
         f"{p} std {m['std_before']:.2g} -> {m['std_after']:.2g} (jackknife {m['jackknife_over_hac']:.3g}x HAC)"
         for p, m in (c.get("inflated") or {}).items()
@@ -186,7 +267,18 @@ def not_run_text(c: dict) -> str:
 
 
 def consistency_text(c: dict) -> str:
-    """Which parameters moved between parts of the data, and by how much."""
+    """Which parameters moved between parts of the data, and by how much.
+
+    Parameters
+    ----------
+    c : dict
+        ``consistency``'s answer.
+
+    Returns
+    -------
+    str
+        The sentence.
+    """
     return (
         "; ".join(
             f"{p} differs between the {m['between'][0]} and the {m['between'][1]} by {m['sigmas']:.3g} std ("
@@ -199,7 +291,18 @@ def consistency_text(c: dict) -> str:
 
 
 def sampling_text(s: dict) -> str:
-    """What the time stamps held and what was done about it, in one sentence."""
+    """What the time stamps held and what was done about it, in one sentence.
+
+    Parameters
+    ----------
+    s : dict
+        ``diagnostics.sampling``.
+
+    Returns
+    -------
+    str
+        The sentence.
+    """
     return (
         f"time stamps not evenly spaced (steps off the median {s['period_s'] * 1e3:.3f} ms by up to "
         f"{s['max_step_deviation_s'] * 1e6:.0f} µs, std {s['jitter_std_s'] * 1e6:.0f} µs; {s['gaps']} gap(s) "
@@ -209,7 +312,20 @@ def sampling_text(s: dict) -> str:
 
 
 def clipped_text(c: dict, unit_: str) -> str:
-    """Where the logged torque was clipped and what was done about it, in one sentence."""
+    """Where the logged torque was clipped and what was done about it, in one sentence.
+
+    Parameters
+    ----------
+    c : dict
+        ``diagnostics.sampling["torque_clipped"]``: the levels and their share.
+    unit_ : str
+        The torque's unit.
+
+    Returns
+    -------
+    str
+        The sentence.
+    """
     return (
         f"the logged torque is clipped at {' and '.join(f'{v:g}' for v in c['levels'])} {unit_} on "
         f"{c['share']:.1%} of the samples: those (and one cut-off period around them) were not fitted"
@@ -217,7 +333,18 @@ def clipped_text(c: dict, unit_: str) -> str:
 
 
 def delay_text(s: dict) -> str:
-    """How the torque was (or was not) aligned with the position, in one sentence."""
+    """How the torque was (or was not) aligned with the position, in one sentence.
+
+    Parameters
+    ----------
+    s : dict
+        ``diagnostics.sampling``.
+
+    Returns
+    -------
+    str
+        The sentence.
+    """
     if not s["torque_aligned"]:
         d = s["torque_delay_estimate_ms"]
         return (
@@ -237,6 +364,18 @@ def delay_text(s: dict) -> str:
 
 
 def as_json(results: dict[str, AxisResult]) -> str:
+    """identify.json and ``identify --json``.
+
+    Parameters
+    ----------
+    results : dict of str to AxisResult
+        Each axis identified.
+
+    Returns
+    -------
+    str
+        The JSON text (schema ``identify``: per axis :meth:`.identify.AxisResult.as_json`).
+    """
     return json_text(stamped("identify", {"axes": {a: r.as_json() for a, r in results.items()}}))
 
 
@@ -306,7 +445,20 @@ def _plot_fit(r: AxisResult, path: Path) -> None:
 
 def plot_response(r: AxisResult, path: Path) -> bool:
     """The log's torque → velocity response beside the rigid model's (magnitude, phase, coherence;
-    bands below ``MIN_COHERENCE`` hollow); False where the log has none."""
+    bands below ``MIN_COHERENCE`` hollow).
+
+    Parameters
+    ----------
+    r : AxisResult
+        The axis identified.
+    path : Path
+        The PNG to draw.
+
+    Returns
+    -------
+    bool
+        Drawn; False where the log has no response.
+    """
     x = r.diagnostics.response
     if not x or not x["frequency_hz"]:
         return False
@@ -395,8 +547,21 @@ def _sentence(text: str) -> str:
 
 
 def draw_figures(results: dict[str, AxisResult], out: Path) -> dict[str, bool]:
-    """Each axis's figures, drawn into ``out``: its fit, its response read from the log (where the
-    log shows one: True) and each effect's; the axes side by side where work is shared out."""
+    """Each axis's figures: its fit, its response read from the log and each effect's; the axes side
+    by side where work is shared out.
+
+    Parameters
+    ----------
+    results : dict of str to AxisResult
+        Each axis identified.
+    out : Path
+        The directory they are drawn into.
+
+    Returns
+    -------
+    dict of str to bool
+        Per axis, whether its response was drawn (the log shows one).
+    """
     return dict(zip(results, side_by_side(_draw_axis, list(results), (results, out))))
 
 
@@ -417,8 +582,25 @@ def _effect_png(out: Path, axis: str, k: int, name: str) -> Path:
 
 
 def build_report(results: dict[str, AxisResult], out: Path, source: str, figures: bool = True) -> Document:
-    """The identification report (with ``figures``, drawn into ``out``: each axis's in a process of
-    its own where the work is shared out, :func:`draw_figures`)."""
+    """The identification report.
+
+    Parameters
+    ----------
+    results : dict of str to AxisResult
+        Each axis identified.
+    out : Path
+        Where its figures are drawn.
+    source : str
+        What was identified (the log), for the title.
+    figures : bool
+        Draw the figures (each axis's in a process of its own where the work is shared out,
+        :func:`draw_figures`); without, the report says so.
+
+    Returns
+    -------
+    Document
+        The report, not yet written.
+    """
     drawn = draw_figures(results, out) if figures else dict.fromkeys(results, False)
     doc = Document(f"Identification of {source}", figures=figures)
     for axis, r in results.items():
@@ -508,8 +690,25 @@ REPORT, REPORT_MD = "identify.html", "identify.md"
 
 
 def write_report(results: dict[str, AxisResult], out: Path, source: str, figures: bool = True) -> Path:
-    """``out/identify.html`` (self-contained) and ``out/identify.md`` (its plots beside it, where
-    ``figures`` are drawn), and ``out/identify.json``; the Markdown's path."""
+    """Write the identification report and its JSON.
+
+    Parameters
+    ----------
+    results : dict of str to AxisResult
+        Each axis identified.
+    out : Path
+        The directory: ``identify.html`` (self-contained), ``identify.md`` (its plots beside it,
+        where ``figures`` are drawn) and ``identify.json``.
+    source : str
+        What was identified (the log), for the title.
+    figures : bool
+        Draw the figures.
+
+    Returns
+    -------
+    Path
+        The Markdown report.
+    """
     out.mkdir(parents=True, exist_ok=True)
     if not figures:  # no figure of an earlier identification is left beside this one
         for axis in results:

@@ -34,9 +34,23 @@ MAINS_HZ = (50.0, 60.0, 100.0, 120.0)  # ± 1 Hz: electrical pickup rather than 
 
 
 def find_mode(s: Samples, resid: np.ndarray, settings: Settings) -> dict | None:
-    """The dominant resonance in the whole-band residual ``resid`` at the samples ``s``
-    (:func:`~.signals.whole_band`): frequency [Hz], damping ratio, share of the residual power,
-    prominence; None when there is none."""
+    """The dominant resonance in the whole-band residual.
+
+    Parameters
+    ----------
+    s : Samples
+        The whole-band samples (:func:`~.signals.whole_band`).
+    resid : numpy.ndarray
+        The residual at them [Nm | N].
+    settings : Settings
+        How they were made (their rate).
+
+    Returns
+    -------
+    dict or None
+        ``frequency_hz``, ``damping`` (ratio), ``share`` of the residual power, prominence, and
+        whether it is the mains frequency; None when there is none.
+    """
     fs = settings.rate_hz
     r = resid[s.moving]
     speed = np.abs(s.qd) / max(float(np.max(np.abs(s.qd))), 1e-300)

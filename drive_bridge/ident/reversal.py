@@ -60,9 +60,24 @@ AGAINST_T = 5.0  # ... and acts against the motion by this many standard errors 
 def reversals(
     x: np.ndarray, moving: np.ndarray, hysteresis: float = HYSTERESIS
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Indices where ``x`` crosses zero on its way from below -h to above +h or back
-    (h = ``hysteresis`` × max |x|), kept where the axis moves; and how many samples each swing
-    took from one threshold to the other."""
+    """Where a signal reverses: crosses zero on its way from below -h to above +h or back.
+
+    Parameters
+    ----------
+    x : numpy.ndarray
+        The signal (an acceleration, a torque, a velocity).
+    moving : numpy.ndarray
+        Where the axis moves: reversals elsewhere are not kept.
+    hysteresis : float
+        h as a share of max |x|.
+
+    Returns
+    -------
+    index : numpy.ndarray
+        The samples where each reversal crosses zero.
+    took : numpy.ndarray
+        How many samples each swing took from one threshold to the other.
+    """
     h = hysteresis * float(np.max(np.abs(x)))
     state = np.where(x > h, 1, np.where(x < -h, -1, 0))
     idx = np.flatnonzero(state)
@@ -77,7 +92,20 @@ def reversals(
 
 
 def crossings(x: np.ndarray, level: float) -> np.ndarray:
-    """Indices where ``x`` crosses ``level`` (either way)."""
+    """Where a signal crosses a level.
+
+    Parameters
+    ----------
+    x : numpy.ndarray
+        The signal.
+    level : float
+        The level.
+
+    Returns
+    -------
+    numpy.ndarray
+        The indices just past each crossing, either way.
+    """
     above = x > level
     return np.flatnonzero(above[1:] != above[:-1]) + 1
 
@@ -116,9 +144,28 @@ def find_reversal_transient(
 ) -> dict | None:
     """Residual energy concentrated after reversals beyond what equally sharp changes without
     reversal leave: which reversal (``acceleration``: the inertial torque, ``torque``: the
-    model's -- backlash; ``velocity``: friction at standstill), the delay of the peak [ms], its
-    ratio to the controls, the share of the residual power in excess, the number of reversals;
-    None when there is none."""
+    model's -- backlash; ``velocity``: friction at standstill).
+
+    Parameters
+    ----------
+    s : Samples
+        The whole-band samples.
+    resid : numpy.ndarray
+        The residual at them [Nm | N].
+    predicted : numpy.ndarray
+        The model's torque at them [Nm | N].
+    settings : Settings
+        How the fitted samples were made (the cut-off the reversals are read at).
+    seed : int
+        Seed of the controls: equally sharp changes without reversal, drawn at random.
+
+    Returns
+    -------
+    dict or None
+        ``reversal``, the delay of the peak [ms] (``delay_ms``), its ``ratio`` to the controls,
+        the ``share`` of the residual power in excess, the number of reversals (``events``); None
+        when there is none.
+    """
     m = s.moving
     power = np.concatenate(([0.0], np.cumsum(np.where(m, resid**2, 0.0))))
     count = np.concatenate(([0], np.cumsum(m)))

@@ -56,9 +56,25 @@ ACTIVE_DECAY = 1e-12  # filtered around where the axis moves: the filters' trans
 
 @dataclass
 class Settings:
-    """How the samples were made: cut-off [Hz], decimation factor, log rate [Hz], edge cut, and
-    the delay [s] of the logged torque behind the logged position (:func:`.model.torque_delay`):
-    the positions are read that much earlier, at the instants the torque stands for."""
+    """How the samples were made (:func:`choose_settings`).
+
+    Parameters
+    ----------
+    cutoff_hz : float
+        The low-pass cut-off [Hz].
+    decimation : int
+        The decimation factor.
+    rate_hz : float
+        The log's rate [Hz].
+    edge : int
+        The samples cut at each end of a segment, where the filter has not settled.
+    motion_bandwidth_hz : float
+        The motion's bandwidth [Hz] (:func:`motion_bandwidth`).
+    torque_delay_s : float
+        The delay [s] of the logged torque behind the logged position
+        (:func:`.model.torque_delay`): the positions are read that much earlier, at the instants
+        the torque stands for.
+    """
 
     cutoff_hz: float
     decimation: int
@@ -70,21 +86,47 @@ class Settings:
 
 @dataclass
 class Samples:
-    """Decimated samples of one axis (and the other axes of the log at the same instants)."""
+    """Decimated samples of one axis (and the other axes of the log at the same instants).
+
+    Parameters
+    ----------
+    axis : str
+        The axis.
+    t : numpy.ndarray
+        Their instants [s].
+    q, qd, qdd : numpy.ndarray
+        Position [rad | m], velocity and acceleration of the filtered position.
+    sgn : numpy.ndarray
+        sign(q̇) through the same filters as the torque (the Coulomb column).
+    tau_f : numpy.ndarray
+        The filtered torque [Nm | N].
+    tau : numpy.ndarray
+        The torque as logged (mean over each decimation interval) [Nm | N].
+    moving : numpy.ndarray
+        |q̇| above the near-zero threshold, settled, not clipped: the samples fitted.
+    others : dict of str to (numpy.ndarray, numpy.ndarray, numpy.ndarray)
+        The other axes' (q, q̇, q̈) at the same instants.
+    source : Parallel, optional
+        The full-rate signals these samples were made from ...
+    index : numpy.ndarray, optional
+        ... and which of its samples these are.
+    rotary : bool
+        A joint whose position is its angle (one turn: 2π).
+    """
 
     axis: str
     t: np.ndarray
     q: np.ndarray
     qd: np.ndarray
     qdd: np.ndarray
-    sgn: np.ndarray  # sign(q̇) through the same filters as the torque (Coulomb column)
-    tau_f: np.ndarray  # filtered torque
-    tau: np.ndarray  # torque as logged (mean over each decimation interval)
-    moving: np.ndarray  # |qd| above the near-zero threshold
-    others: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]  # axis -> (q, qd, qdd)
-    source: Parallel | None = None  # the full-rate signals these samples were made from
-    index: np.ndarray | None = None  # ... and which of its samples these are
-    rotary: bool = False  # a joint whose position is its angle (one turn: 2π)
+    sgn: np.ndarray
+    tau_f: np.ndarray
+    tau: np.ndarray
+    moving: np.ndarray
+    others: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]
+    source: Parallel | None = None
+    index: np.ndarray | None = None
+    rotary: bool = False
 
     @property
     def qd_band(self) -> np.ndarray:
@@ -92,6 +134,18 @@ class Samples:
         return self.qd
 
     def take(self, mask: np.ndarray) -> Samples:
+        """Some of the samples.
+
+        Parameters
+        ----------
+        mask : numpy.ndarray
+            Which (a boolean mask or indices).
+
+        Returns
+        -------
+        Samples
+            Those, with the same source (their columns are read from its cache).
+        """
         index = np.arange(len(self)) if self.index is None else self.index
         return Samples(
             self.axis,
@@ -115,7 +169,22 @@ class Samples:
         """``columns`` (a function of the signals, n × k) at these samples, computed at the log's
         rate and filtered and decimated as the torque is (``logged``: as the torque as logged
         is, by the mean over each decimation interval); at the samples as they are when they
-        carry no source.  ``key`` names the function for the source's cache."""
+        carry no source.
+
+        Parameters
+        ----------
+        key : object
+            Names the function for the source's cache.
+        columns : callable
+            The columns as a function of the signals (n × k).
+        logged : bool
+            As the torque as logged is (the mean over each decimation interval).
+
+        Returns
+        -------
+        numpy.ndarray
+            len(self) × k.
+        """
         if self.source is None:
             return columns(self)
         cols = self.source.columns(key, columns, logged)
@@ -133,7 +202,27 @@ class Channels:
     within a filter period of a reversal, as Stribeck friction does, which the filtered
     velocity would smear), the direction of motion unfiltered, the other axes alike, the
     torque as logged, and where the axis is moving: the torque, and every column, count only
-    there before the low-pass (:func:`standing`)."""
+    there before the low-pass (:func:`standing`).
+
+    Parameters
+    ----------
+    t : numpy.ndarray
+        The instants [s].
+    q : numpy.ndarray
+        The logged position, read at the torque's instants [rad | m].
+    qd, qdd : numpy.ndarray
+        Velocity and acceleration of the filtered position.
+    sgn : numpy.ndarray
+        The direction of motion, unfiltered (:func:`direction`).
+    others : dict of str to (numpy.ndarray, numpy.ndarray, numpy.ndarray)
+        The other axes' (q, q̇, q̈) alike.
+    tau : numpy.ndarray
+        The torque as logged [Nm | N].
+    gate : numpy.ndarray
+        0 where the encoder shows the axis standing still, else 1.
+    qd_band : numpy.ndarray
+        The logged position's derivative (the differentiator's own band).
+    """
 
     t: np.ndarray
     q: np.ndarray
@@ -142,8 +231,8 @@ class Channels:
     sgn: np.ndarray
     others: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]
     tau: np.ndarray
-    gate: np.ndarray  # 0 where the encoder shows the axis standing still, else 1
-    qd_band: np.ndarray  # the logged position's derivative (the differentiator's own band)
+    gate: np.ndarray
+    qd_band: np.ndarray
 
     def __len__(self) -> int:
         return len(self.t)
@@ -158,14 +247,26 @@ class Parallel:
     """Parallel filtering (IDIM: filter the regressor as the torque): a function of the full-rate
     signals goes through the same low-pass, edge cut and decimation as the torque in
     :func:`prepare`, segment by segment; the segments' signals and the results are cached (a
-    fitted model asks for the same columns many times)."""
+    fitted model asks for the same columns many times).
+
+    Parameters
+    ----------
+    log : Log
+        The log.
+    axis : str
+        The axis.
+    settings : Settings
+        How the samples are made.
+    length : int
+        The prepared samples' count (set by :func:`prepare`).
+    """
 
     log: Log
     axis: str
     settings: Settings
-    length: int = 0  # the prepared samples' count (set by prepare)
-    _cache: dict = field(default_factory=dict, repr=False)
-    _segments: list = field(default_factory=list, repr=False)
+    length: int = 0
+    _cache: dict = field(default_factory=dict, repr=False, init=False)
+    _segments: list = field(default_factory=list, repr=False, init=False)
 
     def __getstate__(self) -> dict[str, Any]:
         """Without the log and what was filtered from it (a result sent back from a worker process:
@@ -175,6 +276,22 @@ class Parallel:
     def columns(
         self, key: object, columns: Callable[[Channels], np.ndarray], logged: bool = False
     ) -> np.ndarray:
+        """A function of the full-rate signals, filtered, cut and decimated as the torque is.
+
+        Parameters
+        ----------
+        key : object
+            Names the function for the cache.
+        columns : callable
+            The columns as a function of a segment's signals (n × k).
+        logged : bool
+            As the torque as logged is (the mean over each decimation interval).
+
+        Returns
+        -------
+        numpy.ndarray
+            ``length`` × k, at the prepared samples.
+        """
         if (key, logged) not in self._cache:
             sos, r = self.sos, self.settings.decimation
             parts = []
@@ -198,7 +315,13 @@ class Parallel:
         return signal.butter(FILTER_ORDER, self.settings.cutoff_hz, fs=self.settings.rate_hz, output="sos")
 
     def segments(self) -> list[tuple[slice, Channels]]:
-        """(the part kept after the edge cut, the segment's signals) of each usable segment."""
+        """The usable segments' signals (made once).
+
+        Returns
+        -------
+        list of (slice, Channels)
+            Per segment, the part kept after the edge cut and its signals.
+        """
         if not self._segments:
             sos, dt = self.sos, self.log.dt
             lag = self.settings.torque_delay_s / dt
@@ -284,8 +407,21 @@ _DERIVATIVE = 2 * np.pi * signal.remez(51, [0.0, 0.2, 0.3, 0.5], [1.0, 0.0], typ
 
 
 def derivative(x: np.ndarray, dt: float) -> np.ndarray:
-    """Time derivative of the signal ``x`` sampled every ``dt`` [s] up to 0.2 × its rate, nothing
-    above 0.3 × (the 25 samples at each end by np.gradient)."""
+    """Time derivative of a signal up to 0.2 × its rate, nothing above 0.3 × (the 25 samples at
+    each end by np.gradient).
+
+    Parameters
+    ----------
+    x : numpy.ndarray
+        The signal.
+    dt : float
+        Its sample period [s].
+
+    Returns
+    -------
+    numpy.ndarray
+        dx/dt, per second.
+    """
     out = np.gradient(x, dt)
     m = len(_DERIVATIVE) // 2
     if len(x) > 2 * m:
@@ -353,8 +489,19 @@ def _delayed_steps(x: np.ndarray, samples: float) -> np.ndarray:
 
 
 def count_step(q: np.ndarray) -> float | None:
-    """The count of the logged position ``q`` where it is an encoder's (or a drive's position
-    unit): on a grid of counts (as written, to 0.1 count), not noisy or interpolated; else None."""
+    """The count of a logged position where it is an encoder's (or a drive's position unit).
+
+    Parameters
+    ----------
+    q : numpy.ndarray
+        The logged position.
+
+    Returns
+    -------
+    float or None
+        One count, in the position's unit, where the position is on a grid of counts (as
+        written, to 0.1 count), not noisy or interpolated; else None.
+    """
     finite = q[np.isfinite(q)]
     moved = np.abs(np.diff(finite))
     # (a step below the float's resolution at the position is rounding, not a count)
@@ -395,6 +542,18 @@ def direction(q: np.ndarray, qd: np.ndarray) -> np.ndarray:
     tells the truth: the sign of its central difference, zero where it stays on one count for
     ``STILL_SAMPLES`` samples; between two counts of a slow motion, and for a position that is
     not an encoder's, the filtered velocity's sign.
+
+    Parameters
+    ----------
+    q : numpy.ndarray
+        The logged position.
+    qd : numpy.ndarray
+        The filtered velocity.
+
+    Returns
+    -------
+    numpy.ndarray
+        -1, 0 or 1 per sample.
     """
     fallback = np.sign(qd)
     if not _on_counts(q):
@@ -411,6 +570,16 @@ def standing(q: np.ndarray) -> np.ndarray:
     torque; the torque and every column are set to zero there before the low-pass, so the
     filtered torque and columns still agree next to a standstill (none where ``q`` is not an
     encoder's).
+
+    Parameters
+    ----------
+    q : numpy.ndarray
+        The logged position.
+
+    Returns
+    -------
+    numpy.ndarray
+        True where the axis stands still.
     """
     if not _on_counts(q):
         return np.zeros(len(q), dtype=bool)
@@ -426,7 +595,26 @@ def _filled(q: np.ndarray) -> np.ndarray:
 
 
 def motion_bandwidth(log: Log, axis: str) -> float:
-    """Frequency [Hz] below which MOTION_POWER of the axis's velocity power lies."""
+    """The motion's bandwidth: the frequency below which ``MOTION_POWER`` of the axis's velocity
+    power lies (over its segment with the most motion).
+
+    Parameters
+    ----------
+    log : Log
+        The log.
+    axis : str
+        The axis.
+
+    Returns
+    -------
+    float
+        [Hz].
+
+    Raises
+    ------
+    UserError
+        An axis that does not move.
+    """
     ax = log.axes[axis]
     # the segment with the most motion (a log split by missing rows may hold a long standstill)
     a, b = max(ax.segments, key=lambda s: int(np.count_nonzero(np.diff(ax.q[s[0] : s[1]]))))
@@ -447,7 +635,22 @@ def quantisation_cutoff(log: Log, axis: str, bw: float) -> float:
 
     Quantisation is white up to the Nyquist frequency (variance count²/12); its acceleration's
     power below ``fc`` is (2π)⁴·count²/12·fc⁵ / (5·fs/2).  The motion's acceleration power is
-    read from the velocity's spectrum below ``QUANTISATION_BAND`` × the motion bandwidth."""
+    read from the velocity's spectrum below ``QUANTISATION_BAND`` × the motion bandwidth.
+
+    Parameters
+    ----------
+    log : Log
+        The log.
+    axis : str
+        The axis.
+    bw : float
+        Its motion's bandwidth [Hz].
+
+    Returns
+    -------
+    float
+        [Hz]; inf for a position that is not on counts.
+    """
     ax = log.axes[axis]
     a, b = max(ax.segments, key=lambda s: s[1] - s[0])
     step = count_step(ax.q[a:b])
@@ -464,8 +667,30 @@ def quantisation_cutoff(log: Log, axis: str, bw: float) -> float:
 def choose_settings(
     log: Log, axis: str, cutoff_hz: float | None = None, decimation: int | None = None
 ) -> Settings:
-    """Cut-off and decimation from the data (overridable): the cut-off follows the motion's
-    bandwidth, within a share of the rate and below what the position's quantisation allows."""
+    """Cut-off and decimation from the data: the cut-off follows the motion's bandwidth, within a
+    share of the rate and below what the position's quantisation allows.
+
+    Parameters
+    ----------
+    log : Log
+        The log.
+    axis : str
+        The axis.
+    cutoff_hz : float, optional
+        The cut-off [Hz], given (an expert's ``--cutoff``).
+    decimation : int, optional
+        The decimation factor, given.
+
+    Returns
+    -------
+    Settings
+        Cut-off, decimation, rate, edge cut and the motion's bandwidth.
+
+    Raises
+    ------
+    UserError
+        A cut-off outside (0, Nyquist), or an axis that does not move.
+    """
     fs = 1.0 / log.dt
     bw = motion_bandwidth(log, axis)
     fc = (
@@ -535,9 +760,20 @@ CLIP_RUN = 3  # ... in runs of identical values this long, at the log's extreme:
 
 
 def clipped_levels(tau: np.ndarray) -> list[float]:
-    """The levels the logged torque is clipped at (a drive's current limit, a logger's range): its
-    highest or lowest value where the log holds it, identical, on at least ``CLIP_SHARE`` of the
-    samples and in runs of at least ``CLIP_RUN``; a measured torque at its peak does neither."""
+    """The levels the logged torque is clipped at (a drive's current limit, a logger's range).
+
+    Parameters
+    ----------
+    tau : numpy.ndarray
+        The torque as logged.
+
+    Returns
+    -------
+    list of float
+        Its highest or lowest value where the log holds it, identical, on at least
+        ``CLIP_SHARE`` of the samples and in runs of at least ``CLIP_RUN`` (a measured torque at
+        its peak does neither).
+    """
     out = []
     for level in (float(np.max(tau)), float(np.min(tau))):
         at = tau == level
@@ -556,7 +792,29 @@ def prepare(log: Log, axis: str, settings: Settings) -> Samples:
     """Filtered, differentiated, decimated samples of ``axis`` (all segments), from the same
     full-rate signals the regressor columns are made of (:class:`Parallel`); samples within one
     cut-off period of a clipped torque (:func:`clipped_levels`) or of a filled sample
-    (:attr:`.logdata.AxisLog.filled`: what the axis did there is not known) are not fitted."""
+    (:attr:`.logdata.AxisLog.filled`: what the axis did there is not known) are not fitted.
+
+    Parameters
+    ----------
+    log : Log
+        The log.
+    axis : str
+        The axis.
+    settings : Settings
+        How to make them.
+
+    Returns
+    -------
+    Samples
+        The samples, with their full-rate source.
+
+    Raises
+    ------
+    FilterTooNarrow
+        Every usable run is shorter than the filter needs, or too few moving samples are left.
+    UserError
+        An axis that does not move.
+    """
     r, edge = settings.decimation, settings.edge
     source = Parallel(log, axis, settings)
     sos = source.sos
@@ -632,7 +890,22 @@ def prepare(log: Log, axis: str, settings: Settings) -> Samples:
 
 def whole_band(log: Log, axis: str, settings: Settings) -> Samples:
     """Samples over the log's whole band (a light low-pass at ``WIDE_BAND`` × the sample rate, no
-    decimation), for what the fitted samples cannot show: resonances, transients at reversals."""
+    decimation), for what the fitted samples cannot show: resonances, transients at reversals.
+
+    Parameters
+    ----------
+    log : Log
+        The log.
+    axis : str
+        The axis.
+    settings : Settings
+        The fitted samples' settings (their motion bandwidth and torque delay are kept).
+
+    Returns
+    -------
+    Samples
+        The whole-band samples.
+    """
     fs = settings.rate_hz
     return prepare(
         log,
@@ -670,6 +943,20 @@ def noise_floor(log: Log, axis: str, settings: Settings) -> float:
     What the low-pass removes from the logged torque, scaled to the full band
     (white noise: the removed part holds 1 - fc/fN of it) and through the
     interval mean.  No model can have a smaller validation RMSE.
+
+    Parameters
+    ----------
+    log : Log
+        The log.
+    axis : str
+        The axis.
+    settings : Settings
+        The fitted samples' settings (cut-off, decimation, edge).
+
+    Returns
+    -------
+    float
+        The noise's std [Nm | N].
     """
     ax = log.axes[axis]
     sos = signal.butter(FILTER_ORDER, settings.cutoff_hz, fs=settings.rate_hz, output="sos")
