@@ -45,7 +45,25 @@ PROJECT = Timing()
 
 @dataclass
 class GainDesign:
-    """Gains (SI, motor side) and the margins of the velocity and position loops."""
+    """Gains (SI, motor side) and the margins of the velocity and position loops.
+
+    Parameters
+    ----------
+    KpP : float
+        Position gain [1/s].
+    FwF : float
+        Velocity feed-forward factor [1].
+    KpS : float
+        Velocity gain [Nm·s/rad].
+    KiS : float
+        Velocity integral rate [1/s].
+    KpC : float
+        Current gain [V/A].
+    KiC : float
+        Current integral rate [1/s].
+    velocity, position : Margins
+        The velocity and position loops' margins with these gains.
+    """
 
     KpP: float
     FwF: float
@@ -57,9 +75,23 @@ class GainDesign:
     position: Margins
 
     def gains(self) -> dict[str, float]:
+        """The gains by name.
+
+        Returns
+        -------
+        dict of str to float
+            KpP, FwF, KpS, KiS, KpC, KiC, SI.
+        """
         return {k: getattr(self, k) for k in ("KpP", "FwF", "KpS", "KiS", "KpC", "KiC")}
 
     def as_dict(self) -> dict:
+        """The gains and margins as a dict (JSON's).
+
+        Returns
+        -------
+        dict
+            Every field, the margins as dicts.
+        """
         return asdict(self)
 
 
@@ -71,18 +103,61 @@ def measurement_gains(J: float, rate_hz: float) -> dict[str, float]:
     crossing over at ``MEASURE_CROSSOVER_SHARE`` of the SYNC rate ``rate_hz`` on the rigid model
     of inertia ``J`` (KiS a sixth of it), the position loop a sixth of that.  A stiffer loop on a
     compliant machine may ring above the log's Nyquist frequency, where the log cannot see it and
-    its alias spoils the bins below; and the closer |K·G| is to 1 the better the plant is seen."""
+    its alias spoils the bins below; and the closer |K·G| is to 1 the better the plant is seen.
+
+    Parameters
+    ----------
+    J : float
+        The axis's inertia [kg·m²].
+    rate_hz : float
+        The SYNC rate [Hz].
+
+    Returns
+    -------
+    dict of str to float
+        KpP, KpS, KiS (SI).
+    """
     wc = 2 * np.pi * MEASURE_CROSSOVER_SHARE * rate_hz
     return {"KpP": wc / INTEGRAL_RATIO, "KpS": J * wc, "KiS": wc / INTEGRAL_RATIO}
 
 
 def current_bandwidth(current_hz: float = CURRENT_RATE_HZ) -> float:
-    """The closed current loop's bandwidth [rad/s] the design gives it: an eighth of its rate [Hz]."""
+    """The closed current loop's bandwidth the design gives it: an eighth of its rate.
+
+    Parameters
+    ----------
+    current_hz : float
+        The current loop's rate [Hz].
+
+    Returns
+    -------
+    float
+        [rad/s].
+    """
     return 2 * np.pi * current_hz / 8
 
 
 def current_gains(R: float, L: float, current_hz: float = CURRENT_RATE_HZ) -> tuple[float, float, float]:
-    """KpC [V/A], KiC [1/s] and the closed current-loop bandwidth [rad/s] (:func:`current_bandwidth`)."""
+    """The current loop's gains: its zero on the motor's electrical pole.
+
+    Parameters
+    ----------
+    R : float
+        Winding resistance [Ω].
+    L : float
+        Winding inductance [H].
+    current_hz : float
+        The current loop's rate [Hz].
+
+    Returns
+    -------
+    KpC : float
+        [V/A].
+    KiC : float
+        [1/s].
+    bandwidth : float
+        The closed current loop's bandwidth [rad/s] (:func:`current_bandwidth`).
+    """
     w_i = current_bandwidth(current_hz)
     return L * w_i, R / L, w_i
 
@@ -122,7 +197,35 @@ def design_gains(
     """Gains for the plant J [kg·m²], c1 [Nm·s/rad] and motor R [Ω], L [H], for loops at the
     drive's rates ``timing``; with a measured plant ``frf`` (:class:`drive_bridge.ident.frf.Frf`)
     every candidate must keep the margins on it too (the worse of the two counts), its crossover
-    within the bins measured; the velocity crossover at most ``max_crossover_hz`` where given."""
+    within the bins measured.
+
+    Parameters
+    ----------
+    J : float
+        Inertia [kg·m²].
+    c1 : float
+        Viscous friction [Nm·s/rad].
+    R : float
+        Winding resistance [Ω].
+    L : float
+        Winding inductance [H].
+    frf : Frf, optional
+        The plant measured through the drive.
+    timing : Timing
+        The drive's loop rates.
+    max_crossover_hz : float, optional
+        The velocity crossover at most this [Hz] (a mode to keep clear of).
+
+    Returns
+    -------
+    GainDesign
+        The gains and the loops' margins.
+
+    Raises
+    ------
+    ValueError
+        No gain meets the margins on this plant.
+    """
     if not J > 0:
         raise ValueError(f"J must be positive to design a velocity loop, got {J}")
     KpC, KiC, w_i = current_gains(R, L, timing.current_hz)

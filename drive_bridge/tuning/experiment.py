@@ -56,26 +56,79 @@ RECOVER_S = 0.5
 
 @dataclass
 class Step:
+    """One gain of the experiment, as it ran.
+
+    Parameters
+    ----------
+    KpS : float
+        The velocity gain [Nm·s/rad].
+    oscillation : float
+        The RMS velocity error on the flat parts over the step height.
+    oscillating : bool
+        Beyond ``OSCILLATION_RATIO``.
+    aborted : str or None
+        The procedure's own stop that ended it (following error, velocity guard), where one did.
+    """
+
     KpS: float
-    oscillation: float  # RMS velocity error on the flat parts / step height
+    oscillation: float
     oscillating: bool
     aborted: str | None
 
 
 @dataclass
 class ExperimentResult:
+    """The experiment on one axis (:func:`run_experiment`).
+
+    Parameters
+    ----------
+    axis : str
+        The axis.
+    KpS : float or None
+        The last velocity gain without oscillation [Nm·s/rad]; None: none.
+    steps : list of Step
+        Every gain tried, in order.
+    gated : str, optional
+        Why the raising stopped before the velocity oscillated: the next gain the gate refused.
+    """
+
     axis: str
-    KpS: float | None  # the last gain without oscillation
+    KpS: float | None
     steps: list[Step] = field(default_factory=list)
-    #: why the raising stopped before the velocity oscillated: the next gain the gate refused
     gated: str | None = None
 
     def as_dict(self) -> dict:
+        """The experiment as tune.json holds it.
+
+        Returns
+        -------
+        dict
+            Every field, the steps as dicts.
+        """
         return asdict(self)
 
 
 def square_wave(v_step: float, a_max: float, period: float, start: float) -> tuple[np.ndarray, np.ndarray]:
-    """Position demand [rad] of the velocity square wave, and the velocity demand [rad/s]."""
+    """The velocity square wave, as a position demand.
+
+    Parameters
+    ----------
+    v_step : float
+        The step height [rad/s].
+    a_max : float
+        The edges' acceleration [rad/s²].
+    period : float
+        The SYNC period [s].
+    start : float
+        Where it starts [rad].
+
+    Returns
+    -------
+    position : numpy.ndarray
+        The position demand [rad] per period.
+    velocity : numpy.ndarray
+        The velocity demand [rad/s] per period.
+    """
     n_half = round(HALF_PERIOD_S / period)
     ramp = max(1, int(np.ceil(v_step / a_max / period)))  # edges at the acceleration limit
     k = np.arange(1, n_half + 1)
@@ -97,8 +150,24 @@ def _oscillation(m: motion.Motion, axis: str, vel: np.ndarray, period: float, v_
 
 
 def demand_of(lim: Limits, period: float) -> tuple[np.ndarray, np.ndarray, float]:
-    """What each step of the experiment runs on an axis of limits ``lim``: the square wave's position
-    demand [rad] around the stroke's centre, its velocity demand [rad/s], and the step height [rad/s]."""
+    """What each step of the experiment runs on an axis.
+
+    Parameters
+    ----------
+    lim : Limits
+        The axis's limits.
+    period : float
+        The SYNC period [s].
+
+    Returns
+    -------
+    position : numpy.ndarray
+        The square wave's position demand [rad] around the stroke's centre.
+    velocity : numpy.ndarray
+        Its velocity demand [rad/s].
+    v_step : float
+        The step height [rad/s].
+    """
     v_step = STEP_FRACTION * lim.max_velocity
     centre = 0.5 * (lim.position_min + lim.position_max)
     demand, vel = square_wave(
@@ -108,7 +177,22 @@ def demand_of(lim: Limits, period: float) -> tuple[np.ndarray, np.ndarray, float
 
 
 def check_start(axis: str, start_KpS: float, admit: Callable[[float], str | None] | None) -> None:
-    """ValueRefused, before anything is written, when the gate refuses the experiment's first gain."""
+    """Refuse, before anything is written, a first gain the gate refuses.
+
+    Parameters
+    ----------
+    axis : str
+        The axis (named in the error).
+    start_KpS : float
+        The experiment's first velocity gain [Nm·s/rad].
+    admit : callable or None
+        ``admit(KpS)``: why a gain must not reach the drive (None: it may); None: no gate.
+
+    Raises
+    ------
+    ValueRefused
+        The gate refuses it.
+    """
     if admit is not None and (why := admit(start_KpS)):
         raise ValueRefused(
             f"axis {axis}: the experiment's first gain KpS = {start_KpS:.5g} is refused before "
@@ -128,7 +212,41 @@ def run_experiment(
     """The procedure on ``axis`` from ``start_KpS``. ``admit(KpS)`` says why a gain must not reach
     the drive (the gain gate, :func:`~drive_bridge.params.check.screen`; None: it may): a start it
     refuses raises ValueRefused before anything is written, a raise it refuses ends the raising
-    there (``ExperimentResult.gated``); without ``admit`` every gain the ranges allow is tried."""
+    there (``ExperimentResult.gated``); without ``admit`` every gain the ranges allow is tried.
+
+    Parameters
+    ----------
+    config : BusConfig
+        The bus configuration.
+    link : Link
+        The link to the drives.
+    axes : dict of str to AxisLink
+        The brought-up axes.
+    axis : str
+        The axis to run it on.
+    profile : Profile
+        Its drive's profile (where the gains are written).
+    start_KpS : float
+        The first velocity gain [Nm·s/rad].
+    admit : callable, optional
+        The gain gate.
+
+    Returns
+    -------
+    ExperimentResult
+        Every gain tried and the last one without oscillation.
+
+    Raises
+    ------
+    UserError
+        A drive that runs no velocity loop of its own (not a cascade).
+    ValueRefused
+        The gate refuses the first gain.
+    DriveRefused
+        A gain the drive does not take.
+    MotionAborted
+        A stop that is not the procedure's own (the axes are stopped and held).
+    """
     ax = axes[axis]
     if profile.controller.structure != "cascade":
         raise UserError(

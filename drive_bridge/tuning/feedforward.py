@@ -40,7 +40,24 @@ MODEL = set(MODEL_KEYS.values())  # J, c0, c1 and the effect terms
 
 
 def model_torque_at(p: dict[str, float], q: np.ndarray, v: np.ndarray, a: np.ndarray) -> np.ndarray:
-    """The model torque [Nm] at positions ``q``, velocities ``v``, accelerations ``a``."""
+    """The model torque at given positions, velocities and accelerations.
+
+    Parameters
+    ----------
+    p : dict of str to float
+        The model: J, c0, c1 and the drive-model effect terms (SI).
+    q : numpy.ndarray
+        Positions [rad].
+    v : numpy.ndarray
+        Velocities [rad/s].
+    a : numpy.ndarray
+        Accelerations [rad/s²].
+
+    Returns
+    -------
+    numpy.ndarray
+        The torque [Nm].
+    """
     sg = np.sign(np.where(np.abs(v) > 1e-6, v, 0.0))
     period = p.get("periodic_period", 0.0)
     ripple = (
@@ -59,14 +76,42 @@ def model_torque_at(p: dict[str, float], q: np.ndarray, v: np.ndarray, a: np.nda
 
 
 def model_torque(p: dict[str, float], q: np.ndarray, period: float) -> np.ndarray:
-    """The model torque along a trajectory sampled every ``period`` [s] (derivatives by differences)."""
+    """The model torque along a trajectory (derivatives by differences).
+
+    Parameters
+    ----------
+    p : dict of str to float
+        The model (SI).
+    q : numpy.ndarray
+        The positions [rad], one per period.
+    period : float
+        The period [s].
+
+    Returns
+    -------
+    numpy.ndarray
+        The torque [Nm] per period.
+    """
     v = np.gradient(q, period)
     return model_torque_at(p, q, v, np.gradient(v, period))
 
 
 def segments(demand: np.ndarray, period: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Middle of the segment each setpoint opens: position, velocity and acceleration (the
-    parabola through the last three setpoints, as the drive interpolates)."""
+    parabola through the last three setpoints, as the drive interpolates).
+
+    Parameters
+    ----------
+    demand : numpy.ndarray
+        The setpoints [rad].
+    period : float
+        The SYNC period [s].
+
+    Returns
+    -------
+    position, velocity, acceleration : numpy.ndarray
+        [rad], [rad/s], [rad/s²] per setpoint.
+    """
     prev = np.concatenate([demand[:1], demand[:-1]])
     v = (demand - prev) / period
     a = np.diff(v, prepend=0.0) / period
@@ -76,14 +121,39 @@ def segments(demand: np.ndarray, period: float) -> tuple[np.ndarray, np.ndarray,
 @dataclass(frozen=True)
 class MasterFeedForward:
     """What the master sends one axis with each setpoint: the model torque as torque offset
-    (``torque``: the RPDOs map 0x60B2) and the demand velocity as velocity offset (``velocity``)."""
+    and the demand velocity as velocity offset.
+
+    Parameters
+    ----------
+    model : dict of str to float
+        The model (SI).
+    torque : bool
+        The model torque is sent (the RPDOs map 0x60B2).
+    velocity : bool
+        The demand velocity is sent (the RPDOs map 0x60B1).
+    """
 
     model: dict[str, float]
     torque: bool
     velocity: bool
 
     def offsets(self, demand: np.ndarray, period: float) -> tuple[np.ndarray, np.ndarray]:
-        """Torque [Nm] and velocity [rad/s] offsets, one per setpoint of ``demand`` [rad]."""
+        """The offsets sent with each setpoint.
+
+        Parameters
+        ----------
+        demand : numpy.ndarray
+            The setpoints [rad].
+        period : float
+            The SYNC period [s].
+
+        Returns
+        -------
+        torque : numpy.ndarray
+            [Nm] per setpoint (zeros without ``torque``).
+        velocity : numpy.ndarray
+            [rad/s] per setpoint (zeros without ``velocity``).
+        """
         q, v, a = segments(demand, period)
         return (
             model_torque_at(self.model, q, v, a) if self.torque else np.zeros_like(demand),
@@ -91,6 +161,13 @@ class MasterFeedForward:
         )
 
     def describe(self) -> str:
+        """What the master sends, in words.
+
+        Returns
+        -------
+        str
+            ``master: torque offset 0x60B2 + velocity offset 0x60B1`` (or one of them).
+        """
         sent = [
             o
             for o, on in (("torque offset 0x60B2", self.torque), ("velocity offset 0x60B1", self.velocity))
@@ -102,8 +179,25 @@ class MasterFeedForward:
 def route(
     ax: AxisLink, profile: Profile, model: dict[str, float], force_master: bool = False
 ) -> MasterFeedForward | str:
-    """How an axis gets its model feed-forward: "drive" (the profile writes the model to the drive),
-    a :class:`MasterFeedForward`, or a sentence saying why it gets none and what that costs."""
+    """How an axis gets its model feed-forward.
+
+    Parameters
+    ----------
+    ax : AxisLink
+        The brought-up axis (its RPDOs).
+    profile : Profile
+        Its drive's profile (whether it holds the model).
+    model : dict of str to float
+        The model (SI).
+    force_master : bool
+        The master sends it even where the drive could hold it.
+
+    Returns
+    -------
+    MasterFeedForward or str
+        "drive" (the profile writes the model to the drive), what the master sends, or a sentence
+        saying why the axis gets none and what that costs.
+    """
     if not model:
         return "none: no model in this parameter set"
     held = [k for k in model if any(n in profile.entries for n in profile.controller.drive_names([k]))]

@@ -39,9 +39,34 @@ def loop_figure(
     frf: Frf | None = None,
     tick_s: float = LOOP_TICK_S,
 ) -> Path:
-    """Write the Bode plots and the step responses of one axis to ``path`` (PNG); ``frf``: the
-    plant's measured response (:class:`drive_bridge.ident.frf.Frf`), drawn as points; ``tick_s``:
-    the period of the drive's loop [s]."""
+    """Write the Bode plots and the step responses of one axis.
+
+    Parameters
+    ----------
+    J : float
+        Inertia [kg·m²].
+    c1 : float
+        Viscous friction [Nm·s/rad].
+    before : dict of str to float or None
+        The gains before tuning (None: not known).
+    after : dict of str to float
+        The gains designed.
+    L : float
+        Winding inductance [H].
+    path : str or Path
+        The PNG to write.
+    title : str
+        The figure's title.
+    frf : Frf, optional
+        The plant's measured response (:class:`drive_bridge.ident.frf.Frf`), drawn as points.
+    tick_s : float
+        The period of the drive's loop [s].
+
+    Returns
+    -------
+    Path
+        The PNG written.
+    """
     import control
 
     plt = pyplot()
@@ -156,7 +181,30 @@ def predicted_following_error(
     """The following error [rad] the identified ``model`` (J, c1 and what the drive model holds:
     c0, offset, ...) predicts along ``demand`` [rad] at ``t`` [s] with ``gains``: the linear cascade
     (:func:`drive_bridge.params.cascade.following_error`) driven by the demand and by the model's torque beyond J·q̈ + c1·q̇
-    along it (held from the start: the axis waits at rest holding it)."""
+    along it (held from the start: the axis waits at rest holding it).
+
+    Parameters
+    ----------
+    model : dict of str to float
+        The identified model (SI).
+    gains : dict of str to float
+        The cascade's gains (SI).
+    L : float
+        Winding inductance [H].
+    torque_feedforward : bool
+        The model torque is fed forward (the drive's or the master's).
+    t : numpy.ndarray
+        The instants [s].
+    demand : numpy.ndarray
+        The position demand at them [rad].
+    tick_s : float
+        The period of the drive's loop [s].
+
+    Returns
+    -------
+    numpy.ndarray
+        The following error [rad] at ``t``.
+    """
     import control
 
     J, c1 = model["J"], model["c1"]

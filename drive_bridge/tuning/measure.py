@@ -41,8 +41,24 @@ SOFT = ("KpP", "KpS", "KiS")
 def sweep(ax: AxisLink, period: float) -> tuple[np.ndarray, slice, float]:
     """The position demand [rad] of the measurement on ``ax``: from rest up to a constant speed at
     half the axis's acceleration limit, ``PERIODS`` periods of the excitation at that speed, and
-    back to rest, over ``SWEEP_SHARE`` of the stroke, centred; the setpoints of the constant part,
-    and the speed [rad/s]."""
+    back to rest, over ``SWEEP_SHARE`` of the stroke, centred.
+
+    Parameters
+    ----------
+    ax : AxisLink
+        The axis (its limits).
+    period : float
+        The SYNC period [s].
+
+    Returns
+    -------
+    demand : numpy.ndarray
+        The position demand [rad].
+    steady : slice
+        The setpoints of the constant part.
+    speed : float
+        The constant speed [rad/s].
+    """
     lim = ax.cfg.limits
     n = PERIOD_SAMPLES * PERIODS
     span = SWEEP_SHARE * (lim.position_max - lim.position_min)
@@ -60,8 +76,25 @@ def sweep(ax: AxisLink, period: float) -> tuple[np.ndarray, slice, float]:
 
 
 def offset_of(ax: AxisLink, period: float, steady: slice, length: int) -> np.ndarray:
-    """The torque offset [Nm] per setpoint of a demand of ``length`` (the excitation over ``steady``,
-    nothing before or after), as the drive's units carry it."""
+    """The torque offset per setpoint of a demand: the excitation over the steady part, nothing
+    before or after.
+
+    Parameters
+    ----------
+    ax : AxisLink
+        The axis (its units and rated torque).
+    period : float
+        The SYNC period [s].
+    steady : slice
+        The setpoints of the constant part.
+    length : int
+        The demand's length.
+
+    Returns
+    -------
+    numpy.ndarray
+        [Nm] per setpoint, as the drive's units carry it.
+    """
     sc = ax.cfg.scaling
     u = np.zeros(length)
     u[steady] = np.tile(excitation(1.0 / period, OFFSET_SHARE * sc.rated_torque_Nm), PERIODS)
@@ -69,7 +102,20 @@ def offset_of(ax: AxisLink, period: float, steady: slice, length: int) -> np.nda
 
 
 def unmeasurable(ax: AxisLink, profile: Profile) -> str | None:
-    """Why the response of ``ax`` cannot be measured (None: it can)."""
+    """Why an axis's response cannot be measured.
+
+    Parameters
+    ----------
+    ax : AxisLink
+        The brought-up axis (its RPDOs must carry the torque offset 0x60B2).
+    profile : Profile
+        Its drive's profile (it must hold the measurement's soft gains).
+
+    Returns
+    -------
+    str or None
+        Why; None: it can.
+    """
     if 0x60B2 not in {i for c in ax.rpdos for i in c.objects}:
         return "the torque offset 0x60B2 is not in its RPDO mapping (map it in the node's rpdo in bus.yml)"
     missing = [g for g in profile.controller.drive_names(SOFT) if g not in profile.entries]
@@ -88,7 +134,30 @@ def measure_axes(
 ) -> tuple[dict[str, Frf], dict[str, str]]:
     """The frequency response of each axis of ``axes`` that can be measured (``inertia``: its
     identified J, for the soft gains; ``on_plan``: :func:`~drive_bridge.tuning.motion.run`'s
-    progress hook), and why each other one was not."""
+    progress hook), and why each other one was not.
+
+    Parameters
+    ----------
+    config : BusConfig
+        The bus configuration.
+    link : Link
+        The link to the drives.
+    axes : dict of str to AxisLink
+        The brought-up axes.
+    profile : Profile
+        Their drive's profile.
+    inertia : dict of str to float
+        Per axis, its identified J [kg·m²], for the soft gains.
+    on_plan : callable, optional
+        :func:`~drive_bridge.tuning.motion.run`'s progress hook.
+
+    Returns
+    -------
+    frfs : dict of str to Frf
+        Per axis measured, its response.
+    skipped : dict of str to str
+        Per axis not measured, why.
+    """
     period = config.master.sync_period_s
     skipped = {a: why for a, ax in axes.items() if (why := unmeasurable(ax, profile))}
     out = {}
@@ -167,8 +236,24 @@ def _filled(axis: str, position: np.ndarray, limits: TimingLimits) -> np.ndarray
 def measure_plans(
     config: BusConfig, axes: dict[str, AxisLink], profile: Profile, start: dict[str, float]
 ) -> list:
-    """(title, Plan) of each axis's measurement from ``start``, one after the other, for the preview
-    (an axis that cannot be measured does not move)."""
+    """Each axis's measurement, one after the other, for the preview.
+
+    Parameters
+    ----------
+    config : BusConfig
+        The bus configuration.
+    axes : dict of str to AxisLink
+        The brought-up axes.
+    profile : Profile
+        Their drive's profile.
+    start : dict of str to float
+        Where each axis starts [rad].
+
+    Returns
+    -------
+    list of (str, Plan)
+        Per axis that can be measured, a title and its plan (one that cannot does not move).
+    """
     period = config.master.sync_period_s
     out = []
     for a, ax in axes.items():
@@ -194,6 +279,19 @@ def measure_plans(
 
 
 def frf_doc(frfs: dict[str, Frf], skipped: dict[str, str]) -> dict:
-    """frf.json: per axis the measured response (:meth:`Frf.as_json`), and why an axis was not
-    measured."""
+    """frf.json's document.
+
+    Parameters
+    ----------
+    frfs : dict of str to Frf
+        Per axis measured, its response.
+    skipped : dict of str to str
+        Per axis not measured, why.
+
+    Returns
+    -------
+    dict
+        ``axes``: per axis measured its response (:meth:`Frf.as_json`); ``not_measured``: per
+        other axis why; stamped (schema ``frf``).
+    """
     return stamped("frf", {"axes": {a: f.as_json() for a, f in frfs.items()}, "not_measured": skipped})

@@ -23,8 +23,21 @@ from .feedforward import MasterFeedForward
 
 @dataclass
 class Motion:
-    """One run, approach move excluded. Per axis [rad, rad/s, Nm]: ``position``, ``velocity``,
-    ``torque`` measured at each SYNC; ``demand`` the setpoint the drive was following then."""
+    """One run, approach move excluded (:func:`run`).
+
+    Parameters
+    ----------
+    t : numpy.ndarray
+        The SYNC instants [s].
+    position, velocity, torque : dict of str to numpy.ndarray
+        Per axis, measured at each SYNC [rad, rad/s, Nm].
+    demand : dict of str to numpy.ndarray
+        Per axis, the setpoint the drive was following then [rad].
+    aborted : MotionAborted or None
+        What stopped the run, where something did (the axes were stopped and held).
+    timing : Timing
+        The run's timing (late cycles, gaps, what was granted the engine).
+    """
 
     t: np.ndarray
     position: dict[str, np.ndarray]
@@ -50,8 +63,42 @@ def plan(
     """The plan :func:`run` streams from ``start`` (axis -> position [rad]): the approach to the
     first setpoint of ``demand`` at ``approach_level`` of the limits, 0.2 s settling there, then the
     demand; checked against the axes' limits (UserError before anything moves). And the number of
-    cycles before the demand.  ``torque_offset`` (axis -> [Nm] per setpoint of ``demand``) is sent
-    as torque offset 0x60B2 with the demand's setpoints, beside any ``feedforward``."""
+    cycles before the demand.
+
+    Parameters
+    ----------
+    config : BusConfig
+        The bus configuration (the SYNC period).
+    axes : dict of str to AxisLink
+        The brought-up axes (their limits).
+    demand : dict of str to numpy.ndarray
+        Per axis, its positions per SYNC [rad].
+    start : dict of str to float
+        Per axis, where it stands [rad].
+    kind : str
+        What the demand is, for the progress line.
+    level : float
+        The demand's share of the limits, for the progress line.
+    feedforward : dict of str to MasterFeedForward, optional
+        Per axis, what the master sends with every setpoint, the approach included.
+    approach_level : float
+        The approach's share of the limits.
+    torque_offset : dict of str to numpy.ndarray, optional
+        Per axis, [Nm] per setpoint of ``demand``, sent as torque offset 0x60B2 with the demand's
+        setpoints, beside any ``feedforward``.
+
+    Returns
+    -------
+    plan : Plan
+        The plan.
+    before : int
+        The cycles before the demand (approach and settling).
+
+    Raises
+    ------
+    UserError
+        A demand outside the axes' limits, before anything moves.
+    """
     period = config.master.sync_period_s
     names = list(demand)
     limits = {a: axes[a].cfg.limits for a in names}
@@ -111,7 +158,43 @@ def run(
     ``on_plan`` may return a progress callback (as in ``record``); ``kind`` and ``level`` (fraction
     of the limits) label the demand's segment for it.  ``feedforward`` (per axis) is the model
     feed-forward the master sends with every setpoint, the approach included; ``torque_offset``
-    (per axis, per setpoint of ``demand`` [Nm]) is added to it over the demand."""
+    (per axis, per setpoint of ``demand`` [Nm]) is added to it over the demand.
+
+    Parameters
+    ----------
+    config : BusConfig
+        The bus configuration.
+    link : Link
+        The link to the drives.
+    axes : dict of str to AxisLink
+        The brought-up axes.
+    demand : dict of str to numpy.ndarray
+        Per axis, its positions per SYNC [rad].
+    guard : VelocityGuard, optional
+        Sees each cycle's measured velocities and may stop the run.
+    on_plan : callable, optional
+        Given the plan, may return a progress callback.
+    kind : str
+        What the demand is, for the progress line.
+    level : float
+        The demand's share of the limits, for the progress line.
+    feedforward : dict of str to MasterFeedForward, optional
+        Per axis, the model feed-forward the master sends.
+    approach_level : float
+        The approach's share of the limits.
+    torque_offset : dict of str to numpy.ndarray, optional
+        Per axis, [Nm] per setpoint of ``demand``.
+
+    Returns
+    -------
+    Motion
+        What was measured, the approach excluded, and what stopped the run if anything did.
+
+    Raises
+    ------
+    UserError
+        A demand outside the axes' limits, before anything moves.
+    """
     period = config.master.sync_period_s
     names = list(demand)
     home(link, {a: axes[a] for a in names}, config)  # reference: home, before the first motion

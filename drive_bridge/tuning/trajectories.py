@@ -30,7 +30,23 @@ def _centre_half(lim: Limits) -> tuple[float, float]:
 def point_to_point(
     limits: dict[str, Limits], period: float
 ) -> tuple[dict[str, np.ndarray], dict[str, list[tuple[int, float, float]]]]:
-    """Demands per axis, and per axis its moves as (row where the demand ends, start, target)."""
+    """The point-to-point reference: every axis centre → −40 % → +40 % → centre at 80 % of its
+    limits, 0.4 s of rest after each move.
+
+    Parameters
+    ----------
+    limits : dict of str to Limits
+        Per axis, its limits.
+    period : float
+        The SYNC period [s].
+
+    Returns
+    -------
+    demand : dict of str to numpy.ndarray
+        Per axis, its positions per period [rad].
+    moves : dict of str to list of (int, float, float)
+        Per axis, its moves as (row where the move's demand ends, start, target) [rad].
+    """
     rest = round(REST_S / period)
     out, moves = {}, {}
     for a, lim in limits.items():
@@ -52,6 +68,21 @@ def point_to_point(
 
 
 def path(limits: dict[str, Limits], period: float) -> dict[str, np.ndarray]:
+    """The path reference: a closed 3-D path through the corners of a box like the paper's Fig. 7,
+    the axes together on each edge (the slowest at 60 % of its limits sets the edge's duration).
+
+    Parameters
+    ----------
+    limits : dict of str to Limits
+        Per axis, its limits.
+    period : float
+        The SYNC period [s].
+
+    Returns
+    -------
+    dict of str to numpy.ndarray
+        Per axis, its positions per period [rad].
+    """
     axes = list(limits)
     corners = [
         [_centre_half(limits[a])[0] + f[i % 3] * _centre_half(limits[a])[1] for i, a in enumerate(axes)]

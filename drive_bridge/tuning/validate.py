@@ -51,7 +51,25 @@ class AxisMetrics:
     compared with the logged torque ``torque_lag_cycles`` later: the whole-cycle delay (0 to
     :data:`MAX_TORQUE_LAG`) from a setpoint to the torque that answers it that fits the run best.
     ``torque_rmse_between_steps`` leaves out the samples around the demand's acceleration steps,
-    where a sub-cycle timing difference dominates the error."""
+    where a sub-cycle timing difference dominates the error.
+
+    Parameters
+    ----------
+    fe_rms, fe_max : float
+        The following error's RMS and largest magnitude [rad].
+    overshoot_pct : float or None
+        The largest overshoot of a point-to-point move [% of the move]; None on the path.
+    settling_s : float or None
+        The longest settling into ``SETTLE_BAND`` of a move [s]; None on the path.
+    torque_rmse : float
+        The model torque's RMS error against the logged torque [Nm].
+    torque_rms : float
+        The logged torque's RMS [Nm].
+    torque_lag_cycles : int, optional
+        The lag the RMS error is taken at [SYNC cycles].
+    torque_rmse_between_steps : float, optional
+        The RMS error away from the acceleration steps [Nm].
+    """
 
     fe_rms: float
     fe_max: float
@@ -65,15 +83,40 @@ class AxisMetrics:
 
 @dataclass
 class Run:
+    """One scenario on one reference trajectory.
+
+    Parameters
+    ----------
+    scenario : str
+        The scenario (factory, tuned, ...).
+    trajectory : str
+        The reference trajectory (point_to_point, path).
+    axes : dict of str to AxisMetrics
+        Per axis, what was measured.
+    aborted : str or None
+        What stopped the run, where something did.
+    motion : Motion, optional
+        The logged run, for the plots.
+    feedforward : dict of str to str
+        Per axis, how the model feed-forward ran ("drive", "master: ...", "none: why").
+    """
+
     scenario: str
     trajectory: str
     axes: dict[str, AxisMetrics]
     aborted: str | None
-    motion: motion.Motion | None = field(default=None, repr=False)  # the logged run, for plots
-    #: per axis: how the model feed-forward ran ("drive", "master: ...", "none: why")
+    motion: motion.Motion | None = field(default=None, repr=False)
     feedforward: dict[str, str] = field(default_factory=dict)
 
     def as_dict(self) -> dict:
+        """The run as validate.json holds it.
+
+        Returns
+        -------
+        dict
+            Scenario, trajectory, what stopped it, per axis its metrics, the feed-forward and the
+            run's timing.
+        """
         return {
             "scenario": self.scenario,
             "trajectory": self.trajectory,
@@ -90,6 +133,25 @@ def metrics(
     period: float,
     moves: dict[str, list[tuple[int, float, float]]] | None,
 ) -> dict[str, AxisMetrics]:
+    """What one run shows per axis.
+
+    Parameters
+    ----------
+    m : Motion
+        The logged run.
+    model : dict of str to dict
+        Per axis, the model whose torque the logged torque is compared with (SI).
+    period : float
+        The SYNC period [s].
+    moves : dict of str to list of (int, float, float), optional
+        Per axis, the point-to-point moves overshoot and settling are measured on (None: the
+        path).
+
+    Returns
+    -------
+    dict of str to AxisMetrics
+        Per axis (NaN where the run stopped before the trajectory began).
+    """
     out = {}
     rest = round(trajectories.REST_S / period)
     for a in m.position:
@@ -159,8 +221,21 @@ def _torque_error(
 def reference_demands(
     limits: dict[str, Limits], period: float
 ) -> list[tuple[str, dict[str, np.ndarray], dict | None, float]]:
-    """What each scenario runs, in order: (trajectory, axis -> demand [rad] per SYNC, the moves
-    overshoot and settling are measured on, the share of the limits it runs at)."""
+    """What each scenario runs, in order.
+
+    Parameters
+    ----------
+    limits : dict of str to Limits
+        Per axis, its limits.
+    period : float
+        The SYNC period [s].
+
+    Returns
+    -------
+    list of (str, dict, dict or None, float)
+        Per reference trajectory: its name, per axis its demand [rad] per SYNC, the moves
+        overshoot and settling are measured on, and the share of the limits it runs at.
+    """
     ptp, moves = trajectories.point_to_point(limits, period)
     return [
         ("point_to_point", ptp, moves, trajectories.PTP_LEVEL),
@@ -186,6 +261,31 @@ def validate(
     written without storing it; a scenario's model runs in the drive where the profile can write
     it, else from the master, and from the master in the scenarios named in
     ``master_feedforward`` (the drive's own model feed-forward then off).
+
+    Parameters
+    ----------
+    config : BusConfig
+        The bus configuration.
+    link : Link
+        The link to the drives.
+    axes : dict of str to AxisLink
+        The brought-up axes.
+    profile : Profile
+        Their drive's profile.
+    scenarios : dict of str to dict
+        Scenario name -> axis -> parameter values (SI).
+    model : dict of str to dict
+        Per axis, J, c0, c1, ... (SI).
+    on_plan : callable, optional
+        May return a progress callback for each run.
+    master_feedforward : collection of str
+        The scenarios whose model feed-forward the master sends.
+
+    Returns
+    -------
+    list of Run
+        Every scenario on both trajectories, in order; a stopped run last (the runs after it did
+        not move).
     """
     period = config.master.sync_period_s
     demands = reference_demands({a: axes[a].cfg.limits for a in axes}, period)
@@ -251,7 +351,36 @@ def run_scenarios(
     before (every parameter a scenario sets, read first and written back, not stored), and,
     with ``out_dir``, ``validate.json`` and the logged runs (``traces.npz``) kept there.
     A stopped run is in the result (see :func:`stopped`); the runs after it did not move.
-    ``refused``: the scenarios the gain gate kept from the drives, and why (into validate.json)."""
+    ``refused``: the scenarios the gain gate kept from the drives, and why (into validate.json).
+
+    Parameters
+    ----------
+    config : BusConfig
+        The bus configuration.
+    link : Link
+        The link to the drives.
+    axes : dict of str to AxisLink
+        The brought-up axes.
+    profile : Profile
+        Their drive's profile.
+    scenarios : dict of str to dict
+        Scenario name -> axis -> parameter values (SI).
+    model : dict of str to dict
+        Per axis, J, c0, c1, ... (SI).
+    out_dir : str or Path, optional
+        Where validate.json and traces.npz are kept.
+    on_plan : callable, optional
+        May return a progress callback for each run.
+    master_feedforward : collection of str
+        The scenarios whose model feed-forward the master sends.
+    refused : dict of str to str, optional
+        The scenarios the gain gate kept from the drives, and why.
+
+    Returns
+    -------
+    list of Run
+        As :func:`validate`.
+    """
     bound = {a: profile.for_axis(ax) for a, ax in axes.items()}  # each drive's, with its motor
     problems = [
         f"scenario {name}, axis {a}: {p}"
@@ -295,13 +424,36 @@ def run_scenarios(
 
 
 def validate_doc(runs: list[Run], refused: dict[str, str] | None = None) -> dict:
-    """validate.json / ``validate --json``: the runs, and the scenarios refused before anything
-    moved (scenario -> why)."""
+    """validate.json's and ``validate --json``'s document.
+
+    Parameters
+    ----------
+    runs : list of Run
+        The runs.
+    refused : dict of str to str, optional
+        The scenarios refused before anything moved, and why.
+
+    Returns
+    -------
+    dict
+        The runs and the refused scenarios, stamped (schema ``validate``).
+    """
     return stamped("validate", {"runs": [r.as_dict() for r in runs], "refused": refused or {}})
 
 
 def degraded(runs: list[Run]) -> list[str]:
-    """Why wall-clock runs missed their timing limits (empty: none did)."""
+    """Why wall-clock runs missed their timing limits.
+
+    Parameters
+    ----------
+    runs : list of Run
+        The runs.
+
+    Returns
+    -------
+    list of str
+        One per degraded run, with why (empty: none was).
+    """
     return [
         f"{r.scenario}, {r.trajectory}: {'; '.join(r.motion.timing.reasons)}"
         for r in runs
@@ -310,7 +462,18 @@ def degraded(runs: list[Run]) -> list[str]:
 
 
 def stopped(runs: list[Run]) -> MotionAborted | None:
-    """The stop of the first run that was stopped, as the error to end the command with."""
+    """The stop of the first run that was stopped, as the error to end the command with.
+
+    Parameters
+    ----------
+    runs : list of Run
+        The runs.
+
+    Returns
+    -------
+    MotionAborted or None
+        None where no run was stopped.
+    """
     aborted = next((r for r in runs if r.aborted), None)
     if aborted is None:
         return None
