@@ -151,6 +151,23 @@ MODULES = [
     "drive_bridge.ident.resonance",
     "drive_bridge.ident.reversal",
     "drive_bridge.ident.signals",
+    "drive_bridge.history.location",
+    "drive_bridge.history.outbox",
+    "drive_bridge.history.record",
+    "drive_bridge.history.schema",
+    "drive_bridge.history.since",
+    "drive_bridge.params.cascade",
+    "drive_bridge.params.check",
+    "drive_bridge.params.controller",
+    "drive_bridge.params.read",
+    "drive_bridge.tuning.design",
+    "drive_bridge.tuning.experiment",
+    "drive_bridge.tuning.feedforward",
+    "drive_bridge.tuning.loops",
+    "drive_bridge.tuning.measure",
+    "drive_bridge.tuning.motion",
+    "drive_bridge.tuning.trajectories",
+    "drive_bridge.tuning.validate",
 ]
 #: numpydoc's checks of the sections: every parameter documented and none unknown, a Returns
 #: section where something is returned, a docstring at all

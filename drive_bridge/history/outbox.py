@@ -24,18 +24,45 @@ log = logging.getLogger(__name__)
 
 @dataclass
 class Kept:
-    """Where a record went: into the database, or into the outbox (and why)."""
+    """Where a record went: into the database, or into the outbox (and why).
+
+    Parameters
+    ----------
+    run_id : str
+        The run.
+    database : str
+        The database's URL, its password masked.
+    stored : bool
+        The database holds it.
+    reason : str, optional
+        Why it waits in the outbox.
+    outbox : Path, optional
+        Its file there.
+    sent_from_outbox : list of str
+        Earlier records sent with it.
+    interrupted : bool
+        Ctrl-C while it was sent: the record waits in the outbox.
+    refused : bool
+        Refused for its content: set aside in the outbox's ``rejected/``.
+    """
 
     run_id: str
-    database: str  # the URL, password masked
+    database: str
     stored: bool
-    reason: str | None = None  # why it waits in the outbox
+    reason: str | None = None
     outbox: Path | None = None
-    sent_from_outbox: list[str] = field(default_factory=list)  # earlier records sent with it
-    interrupted: bool = False  # Ctrl-C while it was sent: the record waits in the outbox
-    refused: bool = False  # refused for its content: set aside in the outbox's rejected/
+    sent_from_outbox: list[str] = field(default_factory=list)
+    interrupted: bool = False
+    refused: bool = False
 
     def line(self) -> str:
+        """Where the record went, in one line for the command's output.
+
+        Returns
+        -------
+        str
+            Kept in the database, set aside and why, or waiting in the outbox and what sends it.
+        """
         if self.stored:
             extra = (
                 f" (and {len(self.sent_from_outbox)} earlier record(s) from the outbox)"
@@ -65,7 +92,18 @@ def _entry(path: Path) -> dict | None:
 
 
 def waiting(url: sa.URL | None = None) -> list[tuple[Path, dict]]:
-    """The outbox's entries (for the database ``url`` only, when given), oldest first."""
+    """The outbox's entries, oldest first.
+
+    Parameters
+    ----------
+    url : sqlalchemy.URL, optional
+        Only those for this database.
+
+    Returns
+    -------
+    list of (Path, dict)
+        Each entry's file and its content (the record and its database).
+    """
     paths = (
         sorted(outbox_dir().glob("*.json"), key=lambda p: p.stat().st_mtime) if outbox_dir().is_dir() else []
     )
@@ -76,7 +114,20 @@ def waiting(url: sa.URL | None = None) -> list[tuple[Path, dict]]:
 def keep(record: dict, db: str | None = None) -> Kept:
     """Keep ``record`` in the history database ``db`` (default :func:`~.location.database_url`),
     through the outbox; never raises for the database, nor for Ctrl-C while sending: the result
-    says where the record is."""
+    says where the record is.
+
+    Parameters
+    ----------
+    record : dict
+        The run's record (schema ``record``).
+    db : str, optional
+        The database URL (``--db``).
+
+    Returns
+    -------
+    Kept
+        Where the record went.
+    """
     url = database_url(db)
     path = outbox_dir() / f"{record['run_id']}.json"
     write_text(path, json.dumps({"database": shown(url), "record": record}, indent=1))
@@ -117,15 +168,37 @@ def keep(record: dict, db: str | None = None) -> Kept:
 
 @dataclass
 class Sent:
-    sent: list[str] = field(default_factory=list)  # run ids the database did not hold before
-    already: list[str] = field(default_factory=list)  # run ids it held already (a retry)
-    failed: str | None = None  # why sending stopped
-    left: int = 0  # entries still waiting for this database
-    rejected: list[tuple[str, str]] = field(default_factory=list)  # (run id, why) set aside
+    """What sending the outbox did (:func:`send`).
+
+    Parameters
+    ----------
+    sent : list of str
+        Run ids the database did not hold before.
+    already : list of str
+        Run ids it held already (a retry).
+    failed : str, optional
+        Why sending stopped.
+    left : int
+        Entries still waiting for this database.
+    rejected : list of (str, str)
+        (run id, why) of the records set aside.
+    """
+
+    sent: list[str] = field(default_factory=list)
+    already: list[str] = field(default_factory=list)
+    failed: str | None = None
+    left: int = 0
+    rejected: list[tuple[str, str]] = field(default_factory=list)
 
 
 def rejected_dir() -> Path:
-    """Where records refused for their content are set aside, each with the reason."""
+    """Where records refused for their content are set aside, each with the reason.
+
+    Returns
+    -------
+    Path
+        ``rejected/`` in the outbox.
+    """
     return outbox_dir() / "rejected"
 
 
@@ -133,7 +206,18 @@ def send(store: HistoryStore) -> Sent:
     """Send the outbox's entries for ``store``'s database, oldest first; each leaves the outbox
     once the database holds it, or is set aside in :func:`rejected_dir` where it is refused for
     what it holds (the others go on).  Stops at the first failure of the database itself (it went
-    away again)."""
+    away again).
+
+    Parameters
+    ----------
+    store : HistoryStore
+        The database.
+
+    Returns
+    -------
+    Sent
+        What was sent, held already, set aside, and what is left.
+    """
     out = Sent()
     entries = waiting(store.url)
     for i, (path, entry) in enumerate(entries):
@@ -155,7 +239,13 @@ def send(store: HistoryStore) -> Sent:
 
 
 def rejected() -> list[dict]:
-    """The records set aside (oldest first): run id, database, reason, when, file."""
+    """The records set aside.
+
+    Returns
+    -------
+    list of dict
+        Oldest first: ``run_id``, ``database``, ``reason``, ``set_aside`` (when) and ``path``.
+    """
     folder = rejected_dir()
     paths = sorted(folder.glob("*.json"), key=lambda p: p.stat().st_mtime) if folder.is_dir() else []
     out = []

@@ -29,16 +29,41 @@ KINDS = ("commission", "write", "identify", "monitor")
 
 
 def new_run_id() -> str:
+    """A new run's id.
+
+    Returns
+    -------
+    str
+        32 hex digits (a random UUID).
+    """
     return uuid.uuid4().hex
 
 
 def now() -> str:
     """The time of day as records keep it: UTC, ISO 8601, to the millisecond (two runs a second
-    apart, or less, keep their order)."""
+    apart, or less, keep their order).
+
+    Returns
+    -------
+    str
+        Now.
+    """
     return datetime.now(timezone.utc).isoformat(timespec="milliseconds")
 
 
 def file_sha256(path: str | Path) -> str | None:
+    """A file's SHA-256.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file.
+
+    Returns
+    -------
+    str or None
+        Its digest in hex; None where it cannot be read.
+    """
     try:
         return hashlib.sha256(Path(path).read_bytes()).hexdigest()
     except OSError:
@@ -47,7 +72,18 @@ def file_sha256(path: str | Path) -> str | None:
 
 def identity(found: dict | None) -> dict[str, str] | None:
     """0x1018's fields of a scan result's entry (hex strings) or a bring-up's (numbers), as records
-    keep them: hex strings ("0x000003EA"), as every output of drive-bridge writes identities."""
+    keep them: hex strings ("0x000003EA"), as every output of drive-bridge writes identities.
+
+    Parameters
+    ----------
+    found : dict or None
+        The identity as the scan or bring-up read it.
+
+    Returns
+    -------
+    dict of str to str or None
+        Each 0x1018 field it has, in hex; None without one.
+    """
     if not found:
         return None
     return {
@@ -58,7 +94,18 @@ def identity(found: dict | None) -> dict[str, str] | None:
 
 
 def identity_number(value: str | None) -> int | None:
-    """An identity field of a record as a number (the database's columns)."""
+    """An identity field of a record as a number (the database's columns).
+
+    Parameters
+    ----------
+    value : str or None
+        The field, in hex.
+
+    Returns
+    -------
+    int or None
+        Its number; None where it has none.
+    """
     return None if value is None else int(value, 16)
 
 
@@ -82,7 +129,19 @@ def _parameters(ident: dict) -> dict[str, dict[str, Any]]:
 
 
 def identified(ident: dict) -> dict[str, Any]:
-    """What an axis of identify.json adds to the record."""
+    """What an axis of identify.json adds to the record.
+
+    Parameters
+    ----------
+    ident : dict
+        The axis in identify.json.
+
+    Returns
+    -------
+    dict
+        Its parameters (with std and whether determined), effects, what is undetermined,
+        consistency, the errors before and after and the noise floor.
+    """
     return {
         "parameters": _parameters(ident),
         "effects": [e["name"] for e in ident.get("effects") or []],
@@ -95,6 +154,19 @@ def identified(ident: dict) -> dict[str, Any]:
 
 
 def following_error(validation: dict) -> dict[str, dict[str, Any]]:
+    """The following error before and after, per reference trajectory, as the record keeps it.
+
+    Parameters
+    ----------
+    validation : dict
+        An axis's validation in the summary, per trajectory.
+
+    Returns
+    -------
+    dict of str to dict
+        Per trajectory, ``fe_rms_before``, ``fe_rms_after``, ``fe_max_before``, ``fe_max_after``
+        [rad].
+    """
     return {
         traj: {k: v.get(k) for k in ("fe_rms_before", "fe_rms_after", "fe_max_before", "fe_max_after")}
         for traj, v in validation.items()
@@ -114,7 +186,36 @@ def record(
     simulated: bool,
     failed: dict | None = None,
 ) -> dict:
-    """A record document; ``updated`` is now (a later record of the same run replaces an earlier one)."""
+    """A record document; ``updated`` is now (a later record of the same run replaces an earlier one).
+
+    Parameters
+    ----------
+    kind : {"commission", "write", "identify", "monitor"}
+        What ran.
+    run_id : str
+        The run.
+    started : str
+        When it started (:func:`now`'s form).
+    axes : list of dict
+        Per axis, its drive identity and what the run found or wrote.
+    config : str or Path, optional
+        The bus configuration (its path and SHA-256 are kept).
+    out : str or Path, optional
+        The run directory.
+    status : str, optional
+        How it ended.
+    verdict : str, optional
+        Its verdict (PASS, WARN, FAIL, INCOMPLETE).
+    simulated : bool
+        A run on the simulated drives.
+    failed : dict, optional
+        The step that failed, and why.
+
+    Returns
+    -------
+    dict
+        The record (schema ``record``, version :data:`SCHEMA_VERSION`).
+    """
     return {
         "schema": SCHEMA,
         "schema_version": SCHEMA_VERSION,
@@ -144,8 +245,30 @@ def write_record(
     simulated: bool,
     out: str | Path | None,
 ) -> dict:
-    """The record of a ``write``: what was written and read back, and stored, per drive
-    (``outcome`` is the write result's JSON document)."""
+    """The record of a ``write``: what was written and read back, and stored, per drive.
+
+    Parameters
+    ----------
+    run_id : str
+        The run.
+    started : str
+        When it started.
+    outcome : dict
+        The write result's JSON document (:meth:`.write.WriteOutcome.as_dict`).
+    identities : dict of str to dict
+        Per axis, its drive's identity.
+    config_path : Path
+        The bus configuration.
+    simulated : bool
+        A run on the simulated drives.
+    out : str or Path, optional
+        Where its output is.
+
+    Returns
+    -------
+    dict
+        The record.
+    """
     axes = []
     for a, w in outcome["axes"].items():
         axes.append(
@@ -184,7 +307,26 @@ def write_record(
 
 
 def identify_record(run_id: str, started: str, doc: dict, source: str | Path, out: str | Path | None) -> dict:
-    """The record of an ``identify`` of a log (``doc``: its identify.json); no drive identity."""
+    """The record of an ``identify`` of a log; no drive identity.
+
+    Parameters
+    ----------
+    run_id : str
+        The run.
+    started : str
+        When it started.
+    doc : dict
+        Its identify.json.
+    source : str or Path
+        The log identified.
+    out : str or Path, optional
+        Where its output is.
+
+    Returns
+    -------
+    dict
+        The record.
+    """
     axes = [
         {"axis": a, "node_id": None, "drive": None, "source": str(Path(source).resolve()), **identified(r)}
         for a, r in doc["axes"].items()
@@ -195,14 +337,36 @@ def identify_record(run_id: str, started: str, doc: dict, source: str | Path, ou
 
 
 def numeric(value: Any) -> bool:
-    """A parameter value the history compares: a number (not a name an effect holds, nor a bool)."""
+    """Whether a parameter value is one the history compares.
+
+    Parameters
+    ----------
+    value : object
+        The value.
+
+    Returns
+    -------
+    bool
+        A number (not a name an effect holds, nor a bool).
+    """
     return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
 def problems(record: Any) -> list[str]:
     """What in ``record`` does not follow the record's schema (:data:`SCHEMA`, version
     :data:`SCHEMA_VERSION`), in words naming the key; empty where it does.  A parameter's value
-    may be a number or what an effect names (a string, a list): only numbers are compared."""
+    may be a number or what an effect names (a string, a list): only numbers are compared.
+
+    Parameters
+    ----------
+    record : object
+        The record.
+
+    Returns
+    -------
+    list of str
+        What does not follow, each naming the key.
+    """
     if not isinstance(record, dict):
         return ["the record is not a JSON object"]
     out = []

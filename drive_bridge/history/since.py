@@ -20,7 +20,24 @@ FIGURE = "figures/history_{axis}.png"
 def since_last_time(record: dict, kept: Kept, db: str | None) -> dict:
     """``summary.json``'s ``history``: where the record went and, per axis whose drive has history
     in the database, its comparisons and the series of the trended parameters (none where Ctrl-C
-    came while the history was read back: ``interrupted``)."""
+    came while the history was read back: ``interrupted``).
+
+    Parameters
+    ----------
+    record : dict
+        This run's record.
+    kept : Kept
+        Where it went.
+    db : str, optional
+        The database URL.
+
+    Returns
+    -------
+    dict
+        Where the record went (``database``, ``run_id``, ``kept``, ``outbox``, ``reason``,
+        ``interrupted``) and ``axes``: per axis its drive's serial, comparisons, what is named and
+        the series.
+    """
     doc: dict = {
         "database": kept.database,
         "run_id": kept.run_id,
@@ -121,7 +138,20 @@ def _trend_png(axis: str, entry: dict, path: Path) -> Path:
 
 
 def trend_figures(out: Path, history: dict | None) -> dict[str, Path]:
-    """Every axis's trend plot (drawn side by side where work is shared out)."""
+    """Every axis's trend plot (drawn side by side where work is shared out).
+
+    Parameters
+    ----------
+    out : Path
+        The directory they are drawn into.
+    history : dict or None
+        :func:`since_last_time`'s answer.
+
+    Returns
+    -------
+    dict of str to Path
+        Per axis with a trend, its PNG.
+    """
     axes = list((history or {}).get("axes", {}))
     return dict(zip(axes, side_by_side(_draw_trend, axes, (out, history))))
 
@@ -132,7 +162,19 @@ def _draw_trend(shared: tuple[Path, dict], axis: str) -> Path:
 
 
 def report_section(doc: Document, history: dict | None, axis: str, figures: dict[str, Path]) -> None:
-    """The axis's "since last time": named changes, the comparison table, the trend plot."""
+    """The axis's "since last time": named changes, the comparison table, the trend plot.
+
+    Parameters
+    ----------
+    doc : Document
+        The report it is added to.
+    history : dict or None
+        :func:`since_last_time`'s answer.
+    axis : str
+        The axis.
+    figures : dict of str to Path
+        The trend plots (:func:`trend_figures`).
+    """
     entry = (history or {}).get("axes", {}).get(axis)
     if entry is None:
         return
@@ -188,7 +230,15 @@ def report_section(doc: Document, history: dict | None, axis: str, figures: dict
 
 
 def history_note(doc: Document, history: dict | None) -> None:
-    """Where this run's record went (the database, or the outbox and why)."""
+    """Where this run's record went (the database, or the outbox and why).
+
+    Parameters
+    ----------
+    doc : Document
+        The report it is added to.
+    history : dict or None
+        :func:`since_last_time`'s answer.
+    """
     if history is None:
         return
     if history["kept"]:

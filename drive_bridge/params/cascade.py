@@ -41,16 +41,46 @@ CROSSOVER_SHARE = 0.3  # a loop's gain crossover must lie below this share of th
 
 @dataclass
 class Margins:
+    """A loop's stability margins.
+
+    Parameters
+    ----------
+    phase_margin_deg : float
+        [°].
+    gain_margin_db : float
+        [dB].
+    crossover_hz : float
+        The gain crossover [Hz].
+    """
+
     phase_margin_deg: float
     gain_margin_db: float
     crossover_hz: float
 
     def ok(self) -> bool:
+        """Whether both hold: at least ``PM_MIN_DEG`` and ``GM_MIN_DB``.
+
+        Returns
+        -------
+        bool
+            Both margins at least the industrial tuners' defaults.
+        """
         return self.phase_margin_deg >= PM_MIN_DEG and self.gain_margin_db >= GM_MIN_DB
 
     def worse(self, other: Margins) -> Margins:
         """The smaller phase and gain margin of the two, at this crossover (the model's and the
-        measured plant's margins of one loop)."""
+        measured plant's margins of one loop).
+
+        Parameters
+        ----------
+        other : Margins
+            The same loop's margins on the other plant.
+
+        Returns
+        -------
+        Margins
+            The worse of each.
+        """
         return Margins(
             min(self.phase_margin_deg, other.phase_margin_deg),
             min(self.gain_margin_db, other.gain_margin_db),
@@ -59,7 +89,18 @@ class Margins:
 
 
 def margins_of(open_loop: control.TransferFunction) -> Margins:
-    """Phase and gain margins [°, dB] and the gain crossover [Hz] of an open loop."""
+    """The margins of an open loop.
+
+    Parameters
+    ----------
+    open_loop : control.TransferFunction
+        The open loop.
+
+    Returns
+    -------
+    Margins
+        Phase and gain margins [°, dB] and the gain crossover [Hz].
+    """
     import control
 
     gm, pm, _, wc = control.margin(open_loop)
@@ -87,6 +128,29 @@ def _plant_paths(
 def velocity_open_loop(
     J: float, c1: float, KpS: float, KiS: float, current_bw_rad_s: float, tick_s: float = LOOP_TICK_S
 ) -> control.TransferFunction:
+    """The velocity loop, open, on the rigid plant: KpS·(1 + KiS/s) times the plant behind the closed
+    current loop and the loop's delay (Padé).
+
+    Parameters
+    ----------
+    J : float
+        Inertia [kg·m²].
+    c1 : float
+        Viscous friction [Nm·s/rad].
+    KpS : float
+        Velocity gain [Nm·s/rad].
+    KiS : float
+        Velocity integral rate [1/s].
+    current_bw_rad_s : float
+        The closed current loop's bandwidth [rad/s].
+    tick_s : float
+        The period of the drive's loop [s].
+
+    Returns
+    -------
+    control.TransferFunction
+        The open loop.
+    """
     s, plant = _plant_paths(J, c1, current_bw_rad_s, tick_s)
     return KpS * (1 + KiS / s) * plant
 
@@ -100,6 +164,30 @@ def position_open_loop(
     current_bw_rad_s: float,
     tick_s: float = LOOP_TICK_S,
 ) -> control.TransferFunction:
+    """The position loop, open: KpP/s around the closed velocity loop.
+
+    Parameters
+    ----------
+    J : float
+        Inertia [kg·m²].
+    c1 : float
+        Viscous friction [Nm·s/rad].
+    KpS : float
+        Velocity gain [Nm·s/rad].
+    KiS : float
+        Velocity integral rate [1/s].
+    KpP : float
+        Position gain [1/s].
+    current_bw_rad_s : float
+        The closed current loop's bandwidth [rad/s].
+    tick_s : float
+        The period of the drive's loop [s].
+
+    Returns
+    -------
+    control.TransferFunction
+        The open loop.
+    """
     import control
 
     s = control.tf("s")
@@ -110,7 +198,20 @@ def position_open_loop(
 def controller(gains: dict[str, float], tick_s: float = LOOP_TICK_S) -> Callable[[np.ndarray], np.ndarray]:
     """K(jω) of the drive's cascade as seen at its torque command [Nm per rad/s]: the velocity PI
     around the measured velocity, the position P around that, the loop's delay (½ T hold + ½ T
-    velocity difference) -- what a torque offset added to the command sees close the loop."""
+    velocity difference) -- what a torque offset added to the command sees close the loop.
+
+    Parameters
+    ----------
+    gains : dict of str to float
+        The cascade's gains by name (KpP, FwF, KpS, KiS, KpC; SI): those the loop uses.
+    tick_s : float
+        The period of the drive's loop [s].
+
+    Returns
+    -------
+    callable
+        K(ω) for ω [rad/s] (an array), complex.
+    """
 
     def k(w: np.ndarray) -> np.ndarray:
         s = 1j * np.asarray(w, dtype=float)
@@ -126,7 +227,24 @@ def _velocity_pi(gains: dict[str, float], s: np.ndarray, tick_s: float) -> np.nd
 
 def rigid_response(J: float, c1: float, current_bw_rad_s: float, w: np.ndarray) -> np.ndarray:
     """G(jω) of the identified rigid plant: torque command → velocity through the closed current
-    loop [rad/s per Nm]."""
+    loop.
+
+    Parameters
+    ----------
+    J : float
+        Inertia [kg·m²].
+    c1 : float
+        Viscous friction [Nm·s/rad].
+    current_bw_rad_s : float
+        The closed current loop's bandwidth [rad/s].
+    w : numpy.ndarray
+        The frequencies [rad/s].
+
+    Returns
+    -------
+    numpy.ndarray
+        [rad/s per Nm], complex.
+    """
     s = 1j * np.asarray(w, dtype=float)
     return 1 / (s / current_bw_rad_s + 1) / (J * s + max(c1, 0.0))
 
@@ -139,8 +257,25 @@ def measured_margins(
     KpS·(1 + KiS/jω)·e^(−jωT)·G(jω), the position loop KpP/jω around it closed.  Above the bins
     measured the plant is taken as the inertia their top shows, behind the closed current loop
     (``current_bw_rad_s``), up to the loops' Nyquist frequency: a gain margin beyond the band
-    counts on no mode there.  None for a loop whose gain crossover lies above ``CROSSOVER_SHARE``
-    of the SYNC rate (not verified)."""
+    counts on no mode there.
+
+    Parameters
+    ----------
+    gains : dict of str to float
+        The cascade's gains by name (KpP, FwF, KpS, KiS, KpC; SI): those the loop uses.
+    frf : Frf
+        The measured plant.
+    current_bw_rad_s : float
+        The closed current loop's bandwidth [rad/s].
+    tick_s : float
+        The period of the drive's loop [s].
+
+    Returns
+    -------
+    velocity, position : Margins or None
+        Each loop's margins; None for a loop whose gain crossover lies above
+        ``CROSSOVER_SHARE`` of the SYNC rate (not verified).
+    """
     return (
         measured_loop(gains, frf, "velocity", current_bw_rad_s, tick_s),
         measured_loop(gains, frf, "position", current_bw_rad_s, tick_s),
@@ -151,8 +286,26 @@ def open_loop_at(
     gains: dict[str, float], f: np.ndarray, g: np.ndarray, loop: str, tick_s: float = LOOP_TICK_S
 ) -> np.ndarray:
     """The open ``loop`` ("velocity" or "position") with ``gains`` on a plant whose response is
-    ``g`` [rad/s per Nm] at the frequencies ``f`` [Hz]: KpS·(1 + KiS/jω)·e^(−jωT)·G, and KpP/jω
-    around that closed."""
+    ``g`` at some frequencies: KpS·(1 + KiS/jω)·e^(−jωT)·G, and KpP/jω around that closed.
+
+    Parameters
+    ----------
+    gains : dict of str to float
+        The cascade's gains by name (KpP, FwF, KpS, KiS, KpC; SI): those the loop uses.
+    f : numpy.ndarray
+        The frequencies [Hz].
+    g : numpy.ndarray
+        The plant's response there [rad/s per Nm], complex.
+    loop : {"velocity", "position"}
+        Which loop.
+    tick_s : float
+        The period of the drive's loop [s].
+
+    Returns
+    -------
+    numpy.ndarray
+        The open loop at ``f``, complex.
+    """
     s = 2j * np.pi * np.asarray(f, dtype=float)
     velocity = _velocity_pi(gains, s, tick_s) * g
     return velocity if loop == "velocity" else gains["KpP"] / s * velocity / (1 + velocity)
@@ -161,7 +314,26 @@ def open_loop_at(
 def measured_loop(
     gains: dict[str, float], frf: Frf, loop: str, current_bw_rad_s: float, tick_s: float = LOOP_TICK_S
 ) -> Margins | None:
-    """One loop's margins of :func:`measured_margins` (``loop``: "velocity" or "position")."""
+    """One loop's margins of :func:`measured_margins`.
+
+    Parameters
+    ----------
+    gains : dict of str to float
+        The cascade's gains by name (KpP, FwF, KpS, KiS, KpC; SI): those the loop uses.
+    frf : Frf
+        The measured plant.
+    loop : {"velocity", "position"}
+        Which loop.
+    current_bw_rad_s : float
+        The closed current loop's bandwidth [rad/s].
+    tick_s : float
+        The period of the drive's loop [s].
+
+    Returns
+    -------
+    Margins or None
+        None where its crossover lies beyond what was measured (not verified).
+    """
     ok = frf.reliable()
     f, g = frf.frequency_hz[ok], frf.response[ok]
     if len(f) < 2:
@@ -183,8 +355,20 @@ def margins_at_points(f: np.ndarray, loop: np.ndarray) -> Margins | None:
     −1, at each phase crossover of −180° (± 360°) how far its gain stays below 1; the worst of each
     where it crosses more than once (a mode's resonance and anti-resonance make several).  A loop
     whose gain is below 1 throughout has its crossover below ``f``: no phase margin is measured
-    (infinite, crossover nan).  None where the gain still exceeds 1 at the highest frequency: its
-    crossover lies beyond."""
+    (infinite, crossover nan).
+
+    Parameters
+    ----------
+    f : numpy.ndarray
+        The frequencies [Hz], ascending.
+    loop : numpy.ndarray
+        The open loop there, complex.
+
+    Returns
+    -------
+    Margins or None
+        None where the gain still exceeds 1 at the highest frequency: its crossover lies beyond.
+    """
     mag = np.log(np.abs(loop))
     if mag[-1] > 0:
         return None
@@ -208,7 +392,26 @@ def margins_at_points(f: np.ndarray, loop: np.ndarray) -> Margins | None:
 def open_loops(
     J: float, c1: float, gains: dict[str, float], L: float, tick_s: float = LOOP_TICK_S
 ) -> tuple[control.TransferFunction, control.TransferFunction]:
-    """The velocity and the position loop, open, with given gains on the identified plant."""
+    """The velocity and the position loop, open, with given gains on the identified plant.
+
+    Parameters
+    ----------
+    J : float
+        Inertia [kg·m²].
+    c1 : float
+        Viscous friction [Nm·s/rad].
+    gains : dict of str to float
+        The cascade's gains by name (KpP, FwF, KpS, KiS, KpC; SI): those the loop uses.
+    L : float
+        Winding inductance [H] (the current loop's bandwidth is KpC / L).
+    tick_s : float
+        The period of the drive's loop [s].
+
+    Returns
+    -------
+    velocity, position : control.TransferFunction
+        The open loops.
+    """
     w_i = gains["KpC"] / L
     return (
         velocity_open_loop(J, c1, gains["KpS"], gains["KiS"], w_i, tick_s),
@@ -227,7 +430,29 @@ def following_error(
     """Transfer functions from the position demand, and from a torque disturbance, to the
     following error (demand − position) of the cascade on the identified plant: velocity
     feed-forward FwF, and where ``torque_feedforward`` the model torque, which enters through the
-    current loop alone (the drive adds it in the tick it computes it: no velocity-difference delay)."""
+    current loop alone (the drive adds it in the tick it computes it: no velocity-difference delay).
+
+    Parameters
+    ----------
+    J : float
+        Inertia [kg·m²].
+    c1 : float
+        Viscous friction [Nm·s/rad].
+    gains : dict of str to float
+        The cascade's gains by name (KpP, FwF, KpS, KiS, KpC; SI): those the loop uses.
+    L : float
+        Winding inductance [H].
+    torque_feedforward : bool
+        The model torque is fed forward.
+    tick_s : float
+        The period of the drive's loop [s].
+
+    Returns
+    -------
+    from_demand, from_disturbance : control.TransferFunction
+        Position demand [rad] → following error [rad], and torque disturbance [Nm] → following
+        error [rad].
+    """
     import control
 
     w_i = gains["KpC"] / L
@@ -243,6 +468,27 @@ def following_error(
 def loop_margins(
     J: float, c1: float, gains: dict[str, float], R: float, L: float, tick_s: float = LOOP_TICK_S
 ) -> tuple[Margins, Margins]:
-    """Margins of given gains on the identified plant (e.g. the factory or the paper's sets)."""
+    """Margins of given gains on the identified plant (e.g. the factory or the paper's sets).
+
+    Parameters
+    ----------
+    J : float
+        Inertia [kg·m²].
+    c1 : float
+        Viscous friction [Nm·s/rad].
+    gains : dict of str to float
+        The cascade's gains by name (KpP, FwF, KpS, KiS, KpC; SI): those the loop uses.
+    R : float
+        Winding resistance [Ω].
+    L : float
+        Winding inductance [H].
+    tick_s : float
+        The period of the drive's loop [s].
+
+    Returns
+    -------
+    velocity, position : Margins
+        Each loop's margins.
+    """
     velocity, position = open_loops(J, c1, gains, L, tick_s)
     return margins_of(velocity), margins_of(position)

@@ -65,7 +65,22 @@ class ValueRefused(UserError):
 
 
 def check_value(entry: Entry, var: canopen.objectdictionary.ODVariable, value: Any) -> str | None:
-    """Why ``value`` [SI] of ``entry`` must not be written (None: it may)."""
+    """Why a value must not be written to an object.
+
+    Parameters
+    ----------
+    entry : Entry
+        The parameter's object and scaling (its range, where the profile states one).
+    var : canopen.objectdictionary.ODVariable
+        The object as the drive's EDS describes it (data type, range, access).
+    value : object
+        The value, SI.
+
+    Returns
+    -------
+    str or None
+        Why; None: it may be written.
+    """
     name, unit = entry.parameter, f" {entry.unit}" if entry.unit else ""
     try:
         value = float(value)
@@ -102,7 +117,22 @@ def check_value(entry: Entry, var: canopen.objectdictionary.ODVariable, value: A
 
 
 def check_set(profile: Profile, od: canopen.ObjectDictionary, values: dict) -> list[str]:
-    """Every reason the parameter set ``values`` (name -> SI) must not be written to a drive of ``profile``."""
+    """Every reason a parameter set must not be written to a drive.
+
+    Parameters
+    ----------
+    profile : Profile
+        The drive's profile.
+    od : canopen.ObjectDictionary
+        Its object dictionary.
+    values : dict
+        The set: name -> value, SI.
+
+    Returns
+    -------
+    list of str
+        Every reason, each naming the parameter (empty: it may be written).
+    """
     problems = [
         p
         for name, v in values.items()
@@ -125,13 +155,30 @@ def check_set(profile: Profile, od: canopen.ObjectDictionary, values: dict) -> l
 @dataclass
 class MarginCheck:
     """The margins of the gains written, on the model they were designed for (and on the plant's
-    measured response where there is one: the worse of the two)."""
+    measured response where there is one: the worse of the two).
+
+    Parameters
+    ----------
+    phase_margin_deg : float
+        [°].
+    gain_margin_db : float
+        [dB].
+    ok : bool
+        Both at least the floor.
+    """
 
     phase_margin_deg: float
     gain_margin_db: float
     ok: bool
 
     def as_dict(self) -> dict:
+        """The margins as write.json holds them.
+
+        Returns
+        -------
+        dict
+            ``phase_margin_deg``, ``gain_margin_db``, ``ok``.
+        """
         return {
             "phase_margin_deg": self.phase_margin_deg,
             "gain_margin_db": self.gain_margin_db,
@@ -140,8 +187,21 @@ class MarginCheck:
 
 
 def written_si(profile: Profile, values: dict) -> dict[str, float]:
-    """``values`` (the cascade's terms) as the drive will hold them: through its controller's
-    parameters and device units and back (rounding, REAL32)."""
+    """A parameter set as the drive will hold it: through its controller's parameters and device
+    units and back (rounding, REAL32).
+
+    Parameters
+    ----------
+    profile : Profile
+        The drive's profile.
+    values : dict
+        The set in the cascade's terms, SI.
+
+    Returns
+    -------
+    dict of str to float
+        The same set as the drive will hold it, SI.
+    """
     held = {
         name: float(e.to_si(e.held(e.to_device(v)))) if (e := profile.entries.get(name)) else float(v)
         for name, v in profile.controller.to_drive(values).items()
@@ -163,7 +223,30 @@ def check_margins(
     measured (``frf``: :class:`~drive_bridge.ident.frf.Frf`), on that too -- the worse of the two; a
     loop whose crossover lies above the band measured is not verified -- and why the set must not
     be written (None: it may).  A set without gains, or without J, cannot be checked: that is a
-    reason too."""
+    reason too.
+
+    Parameters
+    ----------
+    profile : Profile
+        The drive's profile.
+    values : dict
+        The set: gains and model, SI.
+    L : float or None
+        The motor's inductance [H] (None: not known).
+    pm_floor : float
+        The phase margin floor [°].
+    gm_floor : float
+        The gain margin floor [dB].
+    frf : Frf, optional
+        The axis's measured response.
+
+    Returns
+    -------
+    margins : dict
+        The velocity and position loops' margins (:class:`MarginCheck` as dicts).
+    why : str or None
+        Why the set must not be written; None: it may.
+    """
     gains = ("KpP", "KpS", "KiS", "KpC")
     if not any(g in values for g in gains):
         return {}, None  # no gains in this set: nothing to check
@@ -214,8 +297,17 @@ def check_margins(
 
 @dataclass
 class GateResult:
-    """What the gate let through: per axis the margins of its set, the sets written below the
-    floor because ``force`` said so, and the scales without a documented source it writes."""
+    """What the gate let through (:func:`screen`).
+
+    Parameters
+    ----------
+    margins : dict of str to dict
+        Per axis, the margins of its set.
+    forced : list of str
+        The sets written below the floor because ``force`` said so.
+    unverified : list of str
+        The scales without a documented source it writes.
+    """
 
     margins: dict[str, dict]
     forced: list[str]
@@ -239,8 +331,36 @@ def screen(
     them), and the loop margins of each axis's set on its model (J, c1) with the motor inductance
     ``inductance[axis]`` [H] -- and on its measured response, where ``frf`` has one -- above the
     floor (else only with ``force``, recorded).  ``profiles``: each axis's, bound to its motor
-    (:func:`~.write.bind_axes`).  What passed,
-    and why the sets must not reach the drives (None: they may; ranges are :func:`check_set`'s)."""
+    (:func:`~.write.bind_axes`).
+
+    Parameters
+    ----------
+    profiles : dict of str to Profile
+        Per axis, its drive's profile, bound to its motor.
+    values : dict of str to dict
+        Per axis, the set (SI).
+    inductance : dict of str to float or None
+        Per axis, the motor inductance [H].
+    force : bool
+        Let a set below the floor through (recorded).
+    pm_floor : float
+        The phase margin floor [°].
+    gm_floor : float
+        The gain margin floor [dB].
+    allow_unverified_scales : bool
+        Let a scale without a documented source through.
+    dry_run : bool
+        Nothing will be written: unverified scales are shown, not refused.
+    frf : dict, optional
+        Per axis, its measured response.
+
+    Returns
+    -------
+    result : GateResult
+        What passed.
+    why : str or None
+        Why the sets must not reach the drives; None: they may (ranges are :func:`check_set`'s).
+    """
     drive_sets, unheld = {}, []
     for a, v in values.items():
         try:
@@ -282,7 +402,29 @@ def screen(
 def gate(
     profiles: dict[str, Profile], values: dict[str, dict], inductance: dict[str, float | None], **checks: Any
 ) -> GateResult:
-    """:func:`screen`, refusing with ValueRefused before anything is written."""
+    """:func:`screen`, refusing before anything is written.
+
+    Parameters
+    ----------
+    profiles : dict of str to Profile
+        Per axis, its drive's profile, bound to its motor.
+    values : dict of str to dict
+        Per axis, the set (SI).
+    inductance : dict of str to float or None
+        Per axis, the motor inductance [H].
+    **checks : object
+        :func:`screen`'s keyword arguments.
+
+    Returns
+    -------
+    GateResult
+        What passed.
+
+    Raises
+    ------
+    ValueRefused
+        A set the gate refuses, and why.
+    """
     result, refused = screen(profiles, values, inductance, **checks)
     if refused:
         raise ValueRefused(f"refused before anything was written: {refused}")

@@ -42,9 +42,16 @@ CURRENT_RATE_HZ = 8000.0  # ... and its current loop's rate
 
 @dataclass(frozen=True)
 class Timing:
-    """The rates of the loops a design is for: ``tick_s`` the period of the loop closed around the
-    position and velocity [s] (the velocity loop of a cascade, a position PID), ``current_hz`` the
-    current loop's rate [Hz]."""
+    """The rates of the loops a design is for.
+
+    Parameters
+    ----------
+    tick_s : float
+        The period of the loop closed around the position and velocity [s] (the velocity loop of a
+        cascade, a position PID).
+    current_hz : float
+        The current loop's rate [Hz].
+    """
 
     tick_s: float = LOOP_TICK_S
     current_hz: float = CURRENT_RATE_HZ
@@ -52,9 +59,18 @@ class Timing:
 
 @dataclass(frozen=True)
 class Controller:
-    """What runs in the drive: ``structure`` (:data:`STRUCTURES`), the loop rates [Hz] (a
-    position PID has no velocity loop: None), and per item (``structure`` or a rate) its source
-    (absent: unverified)."""
+    """What runs in the drive.
+
+    Parameters
+    ----------
+    structure : {"cascade", "position_pid"}
+        The controller's structure (:data:`STRUCTURES`).
+    rates_hz : dict of str to float or None
+        The loop rates [Hz]: position, velocity, current (a position PID has no velocity loop:
+        None).
+    sources : dict of str to str
+        Per item (``structure`` or a rate), the document that says so (absent: unverified).
+    """
 
     structure: str = "cascade"
     rates_hz: dict[str, float | None] = field(
@@ -77,7 +93,13 @@ class Controller:
         return Timing(1.0 / inner, current)
 
     def unverified(self) -> list[str]:
-        """The items declared without a source."""
+        """The items declared without a source.
+
+        Returns
+        -------
+        list of str
+            ``structure`` and the rates, where unverified.
+        """
         return [
             k
             for k in ("structure", *RATES)
@@ -85,6 +107,13 @@ class Controller:
         ]
 
     def as_dict(self) -> dict:
+        """The controller as tune.json holds it.
+
+        Returns
+        -------
+        dict
+            Structure, rates, sources and what is unverified.
+        """
         return {
             "structure": self.structure,
             "rates_hz": dict(self.rates_hz),
@@ -94,8 +123,18 @@ class Controller:
 
     @classmethod
     def from_dict(cls, d: dict | None) -> Controller:
-        """:meth:`as_dict` read back (tune.json's ``controller``); the project's cascade for None (a
-        tune.json written before the controller was recorded)."""
+        """:meth:`as_dict` read back (tune.json's ``controller``).
+
+        Parameters
+        ----------
+        d : dict or None
+            The dict; None: a tune.json written before the controller was recorded.
+
+        Returns
+        -------
+        Controller
+            The controller; the project's cascade for None.
+        """
         if not d:
             return cls()
         return cls(d["structure"], dict(d["rates_hz"]), dict(d.get("sources") or {}))
@@ -103,7 +142,23 @@ class Controller:
     def to_drive(self, values: dict[str, float]) -> dict[str, float]:
         """A parameter set in the cascade's terms (tune's) as this drive's parameters, SI: the
         same for a cascade; for a position PID the gains and the model's J and c1 as the PID and
-        its feed-forward.  UserError for a set the drive's structure cannot hold."""
+        its feed-forward.
+
+        Parameters
+        ----------
+        values : dict of str to float
+            The set in the cascade's terms, SI.
+
+        Returns
+        -------
+        dict of str to float
+            The drive's parameters, SI.
+
+        Raises
+        ------
+        UserError
+            A set the drive's structure cannot hold.
+        """
         if self.structure == "cascade":
             return dict(values)
         out = {k: v for k, v in values.items() if k not in (*CASCADE, "J", "c1")}
@@ -127,7 +182,18 @@ class Controller:
         return out
 
     def drive_names(self, names: Iterable[str]) -> list[str]:
-        """The drive's parameters that hold ``names`` (the cascade's terms)."""
+        """The drive's parameters that hold some of the cascade's terms.
+
+        Parameters
+        ----------
+        names : iterable of str
+            The cascade's terms (KpP, KpS, ...).
+
+        Returns
+        -------
+        list of str
+            The drive's parameters that hold them.
+        """
         if self.structure == "cascade":
             return list(names)
         held = {
@@ -141,7 +207,18 @@ class Controller:
         return list(dict.fromkeys(d for n in names for d in held.get(n, (n,))))
 
     def from_drive(self, values: dict[str, float]) -> dict[str, float]:
-        """This drive's parameters, SI, in the cascade's terms (:meth:`to_drive` undone)."""
+        """This drive's parameters in the cascade's terms (:meth:`to_drive` undone).
+
+        Parameters
+        ----------
+        values : dict of str to float
+            The drive's parameters, SI.
+
+        Returns
+        -------
+        dict of str to float
+            The cascade's terms, SI.
+        """
         if self.structure == "cascade":
             return dict(values)
         out = {k: v for k, v in values.items() if k not in PID}
@@ -159,8 +236,24 @@ class Controller:
 
 
 def load_controller(sec: Section) -> Controller:
-    """The ``controller`` section of a profile (a :class:`~drive_bridge.yamlconf.Section`); the
-    project drive's cascade and rates, unverified, where the profile has none."""
+    """The ``controller`` section of a profile.
+
+    Parameters
+    ----------
+    sec : Section
+        The section (:class:`~drive_bridge.yamlconf.Section`).
+
+    Returns
+    -------
+    Controller
+        The controller; the project drive's cascade and rates, unverified, where the profile has
+        none.
+
+    Raises
+    ------
+    ConfigError
+        A key that does not hold, named with the file.
+    """
     if not sec.keys():
         return Controller()
     structure = sec.get("structure", str)

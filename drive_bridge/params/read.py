@@ -15,7 +15,20 @@ from .profile import SELECT, Entry, Profile
 
 
 def sdo_variable(node: canopen.RemoteNode, entry: Entry) -> SdoVariable:
-    """The SDO accessor of ``entry``'s object on ``node`` (canopen's own lookup)."""
+    """The SDO accessor of a parameter's object on a drive (canopen's own lookup).
+
+    Parameters
+    ----------
+    node : canopen.RemoteNode
+        The drive.
+    entry : Entry
+        The parameter's object.
+
+    Returns
+    -------
+    SdoVariable
+        canopen's accessor (``.raw`` reads and writes it).
+    """
     return sdo_object(node, entry.index, entry.sub)
 
 
@@ -28,7 +41,25 @@ def read_parameters(
     profile has a select object, its value too (``gain_objects``), and a drive not on the
     profile's gain objects is read through the profile that runs there: what the drive runs.
 
-    Raises BusError naming the object when the drive does not answer or refuses a read."""
+    Parameters
+    ----------
+    node : canopen.RemoteNode
+        The drive.
+    profile : Profile
+        Its profile, bound to the axis's motor.
+    names : collection of str, optional
+        The parameters (default: every parameter of the profile).
+
+    Returns
+    -------
+    dict of str to float
+        Name -> value, SI.
+
+    Raises
+    ------
+    BusError
+        The drive does not answer or refuses a read, naming the object.
+    """
     out = {}
     if profile.select is not None:  # a drive not on the profile's gain objects runs others
         entry = profile.select[0]
@@ -56,8 +87,31 @@ def _read(node: canopen.RemoteNode, entry: Entry) -> float:
 def motor_data(
     node: canopen.RemoteNode, profile: Profile, R: float | None = None, L: float | None = None
 ) -> tuple[float, float]:
-    """Motor R [Ω] and L [H]: ``R``, ``L`` where given, else from the objects the drive profile
-    names for them (``motor`` in the profile)."""
+    """The motor's winding resistance and inductance.
+
+    Parameters
+    ----------
+    node : canopen.RemoteNode
+        The drive.
+    profile : Profile
+        Its profile (``motor``: the objects that hold them).
+    R : float, optional
+        [Ω], given.
+    L : float, optional
+        [H], given.
+
+    Returns
+    -------
+    R, L : float
+        [Ω], [H]: as given, else read from the drive.
+
+    Raises
+    ------
+    BusError
+        Reading them failed.
+    UserError
+        Not given, and the profile names no objects for them.
+    """
     if R and L:
         return R, L
     if profile.motor is not None:
@@ -76,7 +130,20 @@ def motor_data(
 
 
 def require_profile_objects(nodes: dict[str, canopen.RemoteNode], profile: Profile) -> None:
-    """UserError naming the axis when its EDS/DCF lacks an object of ``profile`` (wrong profile)."""
+    """Check that every drive's EDS/DCF holds every object of the profile.
+
+    Parameters
+    ----------
+    nodes : dict of str to canopen.RemoteNode
+        The drives, by axis.
+    profile : Profile
+        The profile.
+
+    Raises
+    ------
+    UserError
+        Naming the axis and the object (a wrong profile).
+    """
     for a, node in nodes.items():
         missing = [
             e.where()
@@ -95,7 +162,25 @@ def drive_state(axes: dict, profile: Profile, motor: tuple[float, float] | None 
     motor R [Ω] / L [H] (``motor``, else the node's bus configuration, else the drive's objects) and
     every parameter of ``profile`` as the drive holds it now [SI].
 
-    Raises UserError when the drive's EDS/DCF lacks an object of the profile (wrong profile)."""
+    Parameters
+    ----------
+    axes : dict
+        The brought-up axes.
+    profile : Profile
+        Their drive's profile.
+    motor : (float, float), optional
+        R [Ω], L [H] for every axis.
+
+    Returns
+    -------
+    dict of str to dict
+        Per axis: ``node_id``, ``identity``, ``motor`` and ``parameters_before``.
+
+    Raises
+    ------
+    UserError
+        A drive whose EDS/DCF lacks an object of the profile (a wrong profile).
+    """
     require_profile_objects({a: ax.node for a, ax in axes.items()}, profile)
     out = {}
     for a, ax in axes.items():
