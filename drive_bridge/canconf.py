@@ -30,7 +30,13 @@ LINK_KEYS = ("interface", "channel", "bitrate")
 
 def python_can_config() -> dict:
     """python-can's own configuration (``can.rc``, environment, files), merged in its order
-    without its check of the interface name (there may be none: ``--sim`` needs no bus)."""
+    without its check of the interface name (there may be none: ``--sim`` needs no bus).
+
+    Returns
+    -------
+    dict
+        The keys it sets (interface, channel, bitrate, the interface's own).
+    """
     out: dict = {}
     sources = (lambda: can.rc, can.util.load_environment_config, lambda: can.util.load_file_config(None))
     for source in sources:
@@ -48,7 +54,28 @@ def resolve(
     bitrate: int | None = None,
 ) -> BusConfig:
     """``config`` with its master's interface, channel, bitrate and bus arguments filled in as
-    the module docstring says, and notes on where they came from."""
+    the module docstring says, and notes on where they came from.
+
+    Parameters
+    ----------
+    config : BusConfig
+        The bus configuration.
+    interface, channel : str, optional
+        As the command line gives them (``-i``, ``-c``).
+    bitrate : int, optional
+        [bit/s], as the command line gives it.
+
+    Returns
+    -------
+    BusConfig
+        The configuration, its master's bus filled in.
+
+    Raises
+    ------
+    ConfigError
+        An interface python-can refuses (``master.interface``), or a bitrate that is not a
+        number (``master.bitrate``).
+    """
     m = config.master
     cli = {"interface": interface, "channel": channel, "bitrate": bitrate}
     yml = {"interface": m.interface, "channel": m.channel, "bitrate": m.bitrate}

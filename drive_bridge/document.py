@@ -36,6 +36,14 @@ FIGURES_LEFT_OUT = "Figures not drawn (--no-figures): the numbers are all here, 
 
 @dataclass(frozen=True)
 class Strong:
+    """Bold text in a run of text.
+
+    Parameters
+    ----------
+    text : str
+        The text.
+    """
+
     text: str
 
 
@@ -53,7 +61,20 @@ def _numeric(text: object) -> bool:
 def number(value: object, fmt: str = ".6g") -> str:
     """A number for a table or a sentence: a float in ``fmt`` (a REAL32 read back as
     0.11999999731779099 is 0.12), anything else (a whole number, a name) as it is, "–" where
-    there is none."""
+    there is none.
+
+    Parameters
+    ----------
+    value : object
+        The value.
+    fmt : str
+        The format of a float.
+
+    Returns
+    -------
+    str
+        The text.
+    """
     if value is None:
         return "–"
     return format(value, fmt) if isinstance(value, (float, np.floating)) else str(value)
@@ -61,7 +82,20 @@ def number(value: object, fmt: str = ".6g") -> str:
 
 def measured(value: float, std: float | None) -> str:
     """``value`` with the digits its ``std`` supports: the last one at the std's second significant
-    digit (2 to 7 significant digits); 6 where there is no std."""
+    digit (2 to 7 significant digits); 6 where there is no std.
+
+    Parameters
+    ----------
+    value : float
+        The value.
+    std : float or None
+        Its std.
+
+    Returns
+    -------
+    str
+        The value's text.
+    """
     if std is None or not np.isfinite(std) or not std > 0 or not value or not np.isfinite(value):
         return f"{value:.6g}"
     digits = int(np.floor(np.log10(abs(value))) - np.floor(np.log10(std))) + 2
@@ -92,7 +126,17 @@ def _md(text: Text, cell: bool = False) -> str:
 class Document:
     """Blocks in reading order; ``html()`` and ``markdown()`` render them.  Without ``figures``
     (``--no-figures``) it holds none, whatever files a run directory still has from an earlier run,
-    and says so under its title."""
+    and says so under its title.
+
+    Parameters
+    ----------
+    title : str
+        The title.
+    blocks : list of tuple
+        The blocks, in reading order (as the methods below add them).
+    figures : bool
+        Figures are shown (``--no-figures``: none).
+    """
 
     title: str
     blocks: list[tuple] = field(default_factory=list)
@@ -103,27 +147,81 @@ class Document:
             self.para(FIGURES_LEFT_OUT, "note")
 
     def heading(self, level: int, text: Text) -> None:
+        """A heading.
+
+        Parameters
+        ----------
+        level : int
+            1 under the title, 2 under that, ...
+        text : str, Strong or sequence of them
+            Its text.
+        """
         self.blocks.append(("h", level, text))
 
     def para(self, text: Text, style: str | None = None) -> None:
+        """A paragraph.
+
+        Parameters
+        ----------
+        text : str, Strong or sequence of them
+            Its text.
+        style : str, optional
+            One of :data:`STYLES` (a verdict's colour, a note).
+
+        Raises
+        ------
+        ValueError
+            Another style.
+        """
         if style is not None and style not in STYLES:
             raise ValueError(f"style must be one of {STYLES}")
         self.blocks.append(("p", text, style))
 
     def bullets(self, items: list) -> None:
+        """A bulleted list (nothing where it is empty).
+
+        Parameters
+        ----------
+        items : list
+            Its items (text).
+        """
         if items:
             self.blocks.append(("ul", items))
 
     def table(self, head: list, rows: list[list]) -> None:
+        """A table (numbers right-aligned in HTML).
+
+        Parameters
+        ----------
+        head : list
+            The column heads.
+        rows : list of list
+            The rows' cells (text).
+        """
         self.blocks.append(("table", head, rows))
 
     def figure(self, path: str | Path, alt: str) -> None:
-        """A PNG file (left out where it was not made, or the document has no figures)."""
+        """A PNG file (left out where it was not made, or the document has no figures).
+
+        Parameters
+        ----------
+        path : str or Path
+            The PNG.
+        alt : str
+            What it shows, in words.
+        """
         if self.figures and Path(path).is_file():
             self.blocks.append(("img", Path(path), alt))
 
     # ---------------------------------------------------------------- rendering
     def html(self) -> str:
+        """The document as one self-contained HTML page (figures embedded).
+
+        Returns
+        -------
+        str
+            The page.
+        """
         body = [f"<h1>{html.escape(self.title)}</h1>"]
         for kind, *b in self.blocks:
             if kind == "h":
@@ -152,7 +250,18 @@ class Document:
         )
 
     def markdown(self, where: Path) -> str:
-        """Markdown for a file in the directory ``where``: figures linked by their path from there."""
+        """Markdown for a file in the directory ``where``: figures linked by their path from there.
+
+        Parameters
+        ----------
+        where : Path
+            The Markdown file's directory.
+
+        Returns
+        -------
+        str
+            The Markdown.
+        """
         md = [f"# {self.title}", ""]
         for kind, *b in self.blocks:
             if kind == "h":
@@ -173,6 +282,19 @@ class Document:
         return "\n".join(md)
 
     def write(self, html_path: str | Path, md_path: str | Path) -> tuple[Path, Path]:
-        """Both renderings; the Markdown's figures are the files the document names."""
+        """Both renderings; the Markdown's figures are the files the document names.
+
+        Parameters
+        ----------
+        html_path : str or Path
+            The HTML file to write.
+        md_path : str or Path
+            The Markdown file to write.
+
+        Returns
+        -------
+        (Path, Path)
+            The two files.
+        """
         write_text(html_path, self.html())
         return Path(html_path), write_text(md_path, self.markdown(Path(md_path).parent))

@@ -60,7 +60,18 @@ EXIT_CODES = {kind: code for code, kind, _ in EXIT_TABLE}
 
 
 def exit_codes_text(width: int = 100) -> str:
-    """The exit-code table as lines of text at most ``width`` long (``drive-bridge --help``)."""
+    """The exit-code table as lines of text at most ``width`` long (``drive-bridge --help``).
+
+    Parameters
+    ----------
+    width : int
+        The lines' width [characters].
+
+    Returns
+    -------
+    str
+        The table.
+    """
     import textwrap
 
     return "\n".join(
@@ -76,6 +87,7 @@ class DriveBridgeError(Exception):
 
     @property
     def exit_code(self) -> int:
+        """The exit code a command ends with after this error (:data:`EXIT_TABLE`)."""
         return EXIT_CODES[self.kind]
 
     def __str__(self) -> str:
@@ -94,7 +106,17 @@ class UserError(DriveBridgeError):
 
 
 class ConfigError(UserError):
-    """A configuration file is wrong; the message names the file and key."""
+    """A configuration file is wrong; the message names the file and key.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file.
+    key : str
+        The key (dotted), "" for the file as a whole.
+    problem : str
+        What is wrong, and what to do.
+    """
 
     def __init__(self, path: str | os.PathLike[str], key: str, problem: str):
         where = f"{path}: {key}" if key else f"{path}"
@@ -124,6 +146,15 @@ class MotionAborted(DriveBridgeError):
     """Motion was stopped by a fault or by the user; data up to the stop is kept.
 
     ``axis`` names the axis that caused the stop (None for Ctrl-C or a bus-wide cause).
+
+    Parameters
+    ----------
+    reason : str
+        Why, in words.
+    axis : str, optional
+        The axis that caused it.
+    emcy : int, optional
+        The drive's EMCY error code, where one caused it.
     """
 
     kind = "motion"
@@ -140,7 +171,15 @@ class GuardStop(MotionAborted):
 
 
 class Interrupted(MotionAborted):
-    """Motion stopped because the user pressed Ctrl-C, or a SIGTERM / SIGHUP arrived."""
+    """Motion stopped because the user pressed Ctrl-C, or a SIGTERM / SIGHUP arrived.
+
+    Parameters
+    ----------
+    detail : str
+        What was running.
+    signal : str
+        Ctrl-C, SIGTERM or SIGHUP.
+    """
 
     def __init__(self, detail: str = "", signal: str = "Ctrl-C"):
         who = "by the user (Ctrl-C)" if signal == "Ctrl-C" else f"by {signal}"
@@ -149,7 +188,18 @@ class Interrupted(MotionAborted):
 
 
 def exit_code(exc: BaseException) -> int:
-    """The exit code a command ends with after ``exc`` (see the table above)."""
+    """The exit code a command ends with after ``exc`` (see the table above).
+
+    Parameters
+    ----------
+    exc : BaseException
+        What ended it.
+
+    Returns
+    -------
+    int
+        The exit code.
+    """
     if isinstance(exc, DriveBridgeError):
         return exc.exit_code
     if isinstance(exc, KeyboardInterrupt):

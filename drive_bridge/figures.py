@@ -15,7 +15,13 @@ from .forking import fork_map, processes
 
 
 def pyplot() -> ModuleType:
-    """``matplotlib.pyplot`` on the Agg backend."""
+    """``matplotlib.pyplot`` on the Agg backend.
+
+    Returns
+    -------
+    module
+        ``matplotlib.pyplot``.
+    """
     import matplotlib
 
     matplotlib.use("Agg")
@@ -25,7 +31,20 @@ def pyplot() -> ModuleType:
 
 
 def save(fig: Any, path: Path) -> Path:
-    """``fig`` as a PNG at ``path`` (its folder made), then closed: the report figures' resolution."""
+    """``fig`` as a PNG at ``path`` (its folder made), then closed: the report figures' resolution.
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+        The figure.
+    path : Path
+        The PNG.
+
+    Returns
+    -------
+    Path
+        The PNG.
+    """
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=80)
     pyplot().close(fig)
@@ -34,6 +53,21 @@ def save(fig: Any, path: Path) -> Path:
 
 def side_by_side(draw: Callable[[Any, Any], Any], items: Sequence[Any], shared: Any) -> list[Any]:
     """``draw(shared, item)`` for each of ``items``, in processes of their own where work is shared
-    out (one per item up to :func:`~drive_bridge.forking.processes`), matplotlib imported first."""
+    out (one per item up to :func:`~drive_bridge.forking.processes`), matplotlib imported first.
+
+    Parameters
+    ----------
+    draw : callable
+        ``draw(shared, item)``.
+    items : sequence
+        The items.
+    shared : object
+        What every call shares (found where it is by a forked process).
+
+    Returns
+    -------
+    list
+        ``draw``'s results, in the items' order.
+    """
     pyplot()
     return fork_map(draw, items, min(len(items), processes()), shared)

@@ -37,7 +37,18 @@ _shared: Any = None  # what the forked processes of fork_map find where it is
 
 def processes() -> int:
     """How many processes work may be shared out to here: one per core, or the environment's
-    ``DRIVE_BRIDGE_WORKERS`` (1: none); 1 where this process may not fork (see the module)."""
+    ``DRIVE_BRIDGE_WORKERS`` (1: none); 1 where this process may not fork (see the module).
+
+    Returns
+    -------
+    int
+        The count.
+
+    Raises
+    ------
+    UserError
+        ``DRIVE_BRIDGE_WORKERS`` is not a number.
+    """
     given = os.environ.get("DRIVE_BRIDGE_WORKERS")
     try:
         cap = int(given) if given else os.cpu_count() or 1
@@ -58,7 +69,24 @@ def fork_map(
 ) -> list[Any]:
     """``func(shared, item)`` for each of ``items``, in their order: here, one after the other,
     where ``count`` is 1; else in ``count`` processes forked from this one, each with one BLAS
-    thread, which find ``shared`` where it is (only ``func`` and the items are sent, by pickle)."""
+    thread, which find ``shared`` where it is (only ``func`` and the items are sent, by pickle).
+
+    Parameters
+    ----------
+    func : callable
+        ``func(shared, item)``.
+    items : sequence
+        The items.
+    count : int
+        The processes.
+    shared : object
+        What every call shares.
+
+    Returns
+    -------
+    list
+        ``func``'s results, in the items' order.
+    """
     if count < 2:
         return [func(shared, item) for item in items]
     global _shared

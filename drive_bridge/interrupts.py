@@ -20,7 +20,13 @@ if hasattr(signal, "SIGHUP"):
 
 
 class Terminated(KeyboardInterrupt):
-    """A stop asked for by a signal; ``name`` says which (Ctrl-C, SIGTERM, SIGHUP)."""
+    """A stop asked for by a signal; ``name`` says which (Ctrl-C, SIGTERM, SIGHUP).
+
+    Parameters
+    ----------
+    name : str
+        Ctrl-C, SIGTERM or SIGHUP.
+    """
 
     def __init__(self, name: str = "Ctrl-C"):
         super().__init__(name)
@@ -44,7 +50,18 @@ def _handler(signum: int, frame: object) -> None:
 
 
 def signal_name(exc: BaseException) -> str:
-    """Ctrl-C, SIGTERM or SIGHUP for an interrupt (a plain KeyboardInterrupt is Ctrl-C)."""
+    """Ctrl-C, SIGTERM or SIGHUP for an interrupt (a plain KeyboardInterrupt is Ctrl-C).
+
+    Parameters
+    ----------
+    exc : BaseException
+        The interrupt.
+
+    Returns
+    -------
+    str
+        Its name.
+    """
     return getattr(exc, "name", "Ctrl-C")
 
 
@@ -65,7 +82,18 @@ def handled() -> Iterator[None]:
 @contextmanager
 def deferred(raise_after: bool = True) -> Iterator[dict[str, str | None]]:
     """Hold every handled signal until the block ends; then raise it (``raise_after``), or leave
-    its name in the yielded dict's ``"signal"`` for the caller to report."""
+    its name in the yielded dict's ``"signal"`` for the caller to report.
+
+    Parameters
+    ----------
+    raise_after : bool
+        Raise the signal held when the block ends.
+
+    Yields
+    ------
+    dict
+        ``{"signal": name or None}``.
+    """
     held: dict[str, str | None] = {"signal": None}
     _state.deferring += 1
     try:

@@ -57,7 +57,26 @@ def _codecs(entries: list[dict]) -> list[PdoCodec]:
 def to_table(
     rec: Recording, scaling: dict[str, Scaling], period: float
 ) -> tuple[list[str], np.ndarray, list[str]]:
-    """Columns, values and formats of log.csv; missing samples are NaN with ``<axis>_valid`` = 0."""
+    """Columns, values and formats of log.csv; missing samples are NaN with ``<axis>_valid`` = 0.
+
+    Parameters
+    ----------
+    rec : Recording
+        The recording.
+    scaling : dict of str to Scaling
+        Per axis, its units.
+    period : float
+        The SYNC period [s].
+
+    Returns
+    -------
+    names : list of str
+        The columns.
+    values : numpy.ndarray
+        Rows × columns, SI.
+    fmts : list of str
+        A %-format per column.
+    """
     n = len(rec.raw)
     # each column made when it is written into the table (a list of them all, stacked, held the
     # campaign's table twice: 70 MB more at the main job's peak)
@@ -116,26 +135,82 @@ def _logged(
 
 
 def save_table(path: Path, names: list[str], values: np.ndarray, fmts: list[str]) -> None:
-    """A log table as CSV, complete or not at all."""
+    """A log table as CSV, complete or not at all.
+
+    Parameters
+    ----------
+    path : Path
+        The file.
+    names : list of str
+        The columns.
+    values : numpy.ndarray
+        Rows × columns.
+    fmts : list of str
+        A %-format per column.
+    """
     write_table(path, names, values, fmts)
 
 
 def write_csv(path: Path, rec: Recording, scaling: dict[str, Scaling], period: float) -> None:
+    """log.csv of a recording (:func:`to_table`, :func:`save_table`).
+
+    Parameters
+    ----------
+    path : Path
+        The file.
+    rec : Recording
+        The recording.
+    scaling : dict of str to Scaling
+        Per axis, its units.
+    period : float
+        The SYNC period [s].
+    """
     save_table(path, *to_table(rec, scaling, period))
 
 
 def write_meta(path: Path, meta: dict) -> None:
+    """meta.yaml, complete or not at all.
+
+    Parameters
+    ----------
+    path : Path
+        The file.
+    meta : dict
+        Its content.
+    """
     write_text(path, meta_text(meta))
 
 
 def meta_text(meta: dict) -> str:
-    """meta.yaml's content (YAML, in the dict's order)."""
+    """meta.yaml's content (YAML, in the dict's order).
+
+    Parameters
+    ----------
+    meta : dict
+        The content.
+
+    Returns
+    -------
+    str
+        The YAML text.
+    """
     return yaml.safe_dump(meta, sort_keys=False)
 
 
 def layout_meta(axes: dict[str, AxisLink]) -> dict:
     """Per axis: scaling, the operating mode streamed in and the PDO layout (what decode needs to
-    rebuild the log)."""
+    rebuild the log).
+
+    Parameters
+    ----------
+    axes : dict of str to AxisLink
+        The brought-up axes.
+
+    Returns
+    -------
+    dict
+        Per axis: node id, identity, scaling, mode, setpoint object and its PDOs.
+    """
     out = {}
     for name, ax in axes.items():
         sc = ax.cfg.scaling
@@ -173,7 +248,33 @@ def decode_trace(
     """Rebuild the log table from a raw trace and the meta.yaml beside it.
 
     A damaged or cut-short trace gives the rows before the damage and, last, what is wrong
-    with it (None for a whole trace)."""
+    with it (None for a whole trace).
+
+    Parameters
+    ----------
+    trace : Path
+        The trace (BLF, ASC, ...: what python-can reads).
+    meta_path : Path, optional
+        Its meta.yaml; default the one beside it.
+
+    Returns
+    -------
+    names : list of str
+        The columns.
+    values : numpy.ndarray
+        The rows.
+    fmts : list of str
+        A %-format per column.
+    meta : dict
+        meta.yaml.
+    problem : str or None
+        What is wrong with the trace.
+
+    Raises
+    ------
+    UserError
+        No trace, no meta.yaml, or a meta.yaml drive-bridge did not write.
+    """
     from .master.recording import Recording
 
     trace = Path(trace)

@@ -19,7 +19,18 @@ if TYPE_CHECKING:
 @contextmanager
 def atomic(path: str | Path) -> Iterator[Path]:
     """A temporary path to write ``path``'s content to; renamed to ``path`` when the block ends
-    normally, removed otherwise."""
+    normally, removed otherwise.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file.
+
+    Yields
+    ------
+    Path
+        The temporary path (in the same directory).
+    """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.tmp")
@@ -32,6 +43,20 @@ def atomic(path: str | Path) -> Iterator[Path]:
 
 
 def write_text(path: str | Path, text: str) -> Path:
+    """A text file, complete or not at all (:func:`atomic`).
+
+    Parameters
+    ----------
+    path : str or Path
+        The file.
+    text : str
+        Its content (UTF-8).
+
+    Returns
+    -------
+    Path
+        The file.
+    """
     with atomic(path) as tmp:
         tmp.write_text(text, encoding="utf-8")
     return Path(path)
@@ -45,7 +70,24 @@ def write_table(path: str | Path, names: Sequence[str], values: np.ndarray, fmts
     (rows x columns) formatted by ``fmts`` (one %-format per column), as ``numpy.savetxt`` writes
     them, byte for byte -- in blocks of rows, each formatted by one ``%`` operation (savetxt
     formats row by row in Python: the short campaign's log, 45 000 rows of 20 columns, took it
-    0.22 s, this 0.16-0.17 s)."""
+    0.22 s, this 0.16-0.17 s).
+
+    Parameters
+    ----------
+    path : str or Path
+        The file.
+    names : sequence of str
+        The header.
+    values : numpy.ndarray
+        Rows × columns.
+    fmts : sequence of str
+        A %-format per column.
+
+    Returns
+    -------
+    Path
+        The file.
+    """
     row = ",".join(fmts) + "\n"
     with atomic(path) as tmp, open(tmp, "w", encoding="utf-8", newline="") as f:
         f.write(",".join(names) + "\n")
@@ -61,7 +103,20 @@ SCHEMA_VERSION = 2  # 2 (2026-11-23): object addresses, identities and COB-IDs a
 
 def stamped(name: str, doc: dict) -> dict:
     """``doc`` opening with ``schema`` ("drive-bridge/<name>") and ``schema_version``: the JSON
-    Schema it follows ships as ``drive_bridge/data/schemas/<name>.schema.json``."""
+    Schema it follows ships as ``drive_bridge/data/schemas/<name>.schema.json``.
+
+    Parameters
+    ----------
+    name : str
+        The schema's name.
+    doc : dict
+        The document.
+
+    Returns
+    -------
+    dict
+        The document, stamped.
+    """
     return {"schema": f"drive-bridge/{name}", "schema_version": SCHEMA_VERSION, **doc}
 
 
@@ -72,7 +127,18 @@ SIGNIFICANT = 7  # digits of a float in a result: more than any measured or iden
 def meaningful(x: Any) -> Any:
     """``x`` (a result, nested) ready for JSON: floats to :data:`SIGNIFICANT` significant digits
     (whole numbers, such as device increments, exactly), a non-finite float as ``None``, numpy
-    scalars and arrays as Python numbers and lists."""
+    scalars and arrays as Python numbers and lists.
+
+    Parameters
+    ----------
+    x : object
+        The result.
+
+    Returns
+    -------
+    object
+        The same, ready for ``json.dumps``.
+    """
     if isinstance(x, dict):
         return {k: meaningful(v) for k, v in x.items()}
     if isinstance(x, (list, tuple)):
@@ -87,25 +153,88 @@ def meaningful(x: Any) -> Any:
 
 
 def json_text(doc: Any, indent: int | None = None) -> str:
-    """A result as JSON text (:func:`meaningful`): what every JSON output and ``--json`` prints."""
+    """A result as JSON text (:func:`meaningful`): what every JSON output and ``--json`` prints.
+
+    Parameters
+    ----------
+    doc : object
+        The result.
+    indent : int, optional
+        Indentation (None: one line).
+
+    Returns
+    -------
+    str
+        The JSON text.
+    """
     return json.dumps(meaningful(doc), indent=indent, allow_nan=False)
 
 
 def hex_object(index: int, sub: int | None = None) -> str:
-    """An object dictionary address as CANopen writes it: "0x2000:3", or "0x1018" for a whole object."""
+    """An object dictionary address as CANopen writes it: "0x2000:3", or "0x1018" for a whole object.
+
+    Parameters
+    ----------
+    index : int
+        The index.
+    sub : int, optional
+        The subindex.
+
+    Returns
+    -------
+    str
+        The address.
+    """
     return f"0x{index:04X}" if sub is None else f"0x{index:04X}:{sub}"
 
 
 def hex32(value: int) -> str:
-    """An identity value or the device type: "0x00000DB1"."""
+    """An identity value or the device type: "0x00000DB1".
+
+    Parameters
+    ----------
+    value : int
+        The value.
+
+    Returns
+    -------
+    str
+        Eight hex digits.
+    """
     return f"0x{value:08X}"
 
 
 def identity_hex(ident: dict) -> dict:
-    """A node's identity (0x1000, 0x1018 fields) as its JSON carries it, each in :func:`hex32`."""
+    """A node's identity (0x1000, 0x1018 fields) as its JSON carries it, each in :func:`hex32`.
+
+    Parameters
+    ----------
+    ident : dict
+        Field -> number.
+
+    Returns
+    -------
+    dict
+        Field -> hex.
+    """
     return {k: hex32(v) for k, v in ident.items()}
 
 
 def write_json(path: str | Path, doc: Any, exact: bool = False) -> Path:
-    """``doc`` as :func:`json_text`; ``exact`` keeps every float as it is (a backup to restore from)."""
+    """``doc`` as :func:`json_text`; ``exact`` keeps every float as it is (a backup to restore from).
+
+    Parameters
+    ----------
+    path : str or Path
+        The file.
+    doc : object
+        The document.
+    exact : bool
+        Every float as it is.
+
+    Returns
+    -------
+    Path
+        The file.
+    """
     return write_text(path, json.dumps(doc, indent=1, default=float) if exact else json_text(doc, indent=1))

@@ -33,7 +33,31 @@ def pick_and_place(
 ) -> Plan:
     """At least ``duration_s`` [s] of pick-and-place for the axes of ``limits`` from the positions
     ``start`` [rad], sampled every ``period`` [s]; the stations, levels and dwells drawn from
-    ``seed``.  Checked against ``limits`` (a move outside them raises :class:`UserError`)."""
+    ``seed``.  Checked against ``limits`` (a move outside them raises :class:`UserError`).
+
+    Parameters
+    ----------
+    limits : dict of str to Limits
+        Per axis, its limits.
+    start : dict of str to float
+        Per axis, where it stands [rad].
+    period : float
+        The SYNC period [s].
+    duration_s : float
+        At least this long [s].
+    seed : int
+        Seed of the stations, levels and dwells.
+
+    Returns
+    -------
+    Plan
+        The plan.
+
+    Raises
+    ------
+    UserError
+        A move outside the limits.
+    """
     rng = np.random.default_rng(seed)
     n = max(1, round(duration_s / period))
     columns = []
@@ -67,7 +91,17 @@ def pick_and_place(
 
 @dataclass
 class Shift:
-    """One shift of production: the plan streamed and how it ended."""
+    """One shift of production: the plan streamed and how it ended.
+
+    Parameters
+    ----------
+    plan : Plan
+        The plan streamed.
+    cycles_sent : int
+        Its rows sent.
+    aborted : MotionAborted or None
+        What stopped it, where something did.
+    """
 
     plan: Plan
     cycles_sent: int
@@ -78,7 +112,26 @@ def run_shift(
     link: Link, config: BusConfig, axes: dict[str, AxisLink], duration_s: float, seed: int
 ) -> Shift:
     """Stream ``duration_s`` [s] of pick-and-place to the drives ``axes`` (brought up and
-    homed) from where they stand; the axes are held at its end as every stream holds them."""
+    homed) from where they stand; the axes are held at its end as every stream holds them.
+
+    Parameters
+    ----------
+    link : Link
+        The link to the drives.
+    config : BusConfig
+        The bus configuration.
+    axes : dict of str to AxisLink
+        The brought-up axes.
+    duration_s : float
+        How long [s].
+    seed : int
+        Seed of the pick-and-place.
+
+    Returns
+    -------
+    Shift
+        The plan and how it ended.
+    """
     start = {name: ax.position_rad() for name, ax in axes.items()}
     plan = pick_and_place(
         {n: a.cfg.limits for n, a in axes.items()}, start, config.master.sync_period_s, duration_s, seed

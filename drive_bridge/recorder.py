@@ -33,23 +33,57 @@ log = logging.getLogger(__name__)
 
 @dataclass
 class RecordResult:
+    """A campaign recorded (:func:`record`).
+
+    Parameters
+    ----------
+    out_dir : Path
+        Where log.csv, meta.yaml and trace.blf are.
+    plan : Plan
+        The campaign streamed.
+    cycles_sent : int
+        The plan's rows sent.
+    samples : dict of str to int
+        Per axis, the rows with a complete sample.
+    missing : dict of str to int
+        Per axis, the rows without.
+    aborted : MotionAborted or None
+        What stopped the motion, where something did.
+    bus_load : str
+        The bus load, in words.
+    wall_time_s : float
+        How long it took [s].
+    timing : Timing
+        The run's timing.
+    holding : dict of str to str, optional
+        Per axis, how it is held after the motion.
+    """
+
     out_dir: Path
     plan: Plan
     cycles_sent: int
-    samples: dict[str, int]  # rows with a complete sample, per axis
+    samples: dict[str, int]
     missing: dict[str, int]
     aborted: MotionAborted | None
     bus_load: str
     wall_time_s: float
     timing: Timing
-    holding: dict[str, str] | None = None  # per axis, how it is held after the motion
+    holding: dict[str, str] | None = None
 
     @property
     def ok(self) -> bool:
+        """The motion ran to its end."""
         return self.aborted is None
 
     def as_dict(self) -> dict:
-        """``record --json``."""
+        """The result as ``record --json`` prints it.
+
+        Returns
+        -------
+        dict
+            Files, per axis samples and missing, times, bus load, timing, what stopped it, how the
+            axes are held (schema ``record``).
+        """
         return stamped(
             "record",
             {
@@ -69,7 +103,20 @@ class RecordResult:
 
 def stream_supervision(config: BusConfig, axes: dict[str, AxisLink]) -> Supervision:
     """The limits a stream of ``axes`` is judged by: what bring-up wrote into the drives, the drive
-    profile's setpoint-loss timeout for their EDS/DCF, bus.yml's master section."""
+    profile's setpoint-loss timeout for their EDS/DCF, bus.yml's master section.
+
+    Parameters
+    ----------
+    config : BusConfig
+        The bus configuration.
+    axes : dict of str to AxisLink
+        The brought-up axes.
+
+    Returns
+    -------
+    Supervision
+        The limits (feedback and setpoint timeouts, heartbeat timeout) and their sources.
+    """
     m, period = config.master, config.master.sync_period_s
     timeout, source = setpoint_timeout_for([ax.cfg.dcf for ax in axes.values()], period)
     return supervision_for(
@@ -96,6 +143,29 @@ def record(
     ``on_plan`` receives the checked plan before anything moves and may return a
     progress callback; ``axes`` are drives already brought up (default: bring them
     up here).  Data recorded before a fault is always written.
+
+    Parameters
+    ----------
+    config : BusConfig
+        The bus configuration (the campaign).
+    link : Link
+        The link to the drives.
+    out_dir : str or Path
+        Where the files go.
+    on_plan : callable, optional
+        Given the plan, may return a progress callback.
+    axes : dict of str to AxisLink, optional
+        The brought-up axes.
+
+    Returns
+    -------
+    RecordResult
+        What was recorded, and what stopped the motion if anything did.
+
+    Raises
+    ------
+    UserError
+        A stream the bus cannot carry (its load at the bitrate), before anything moves.
     """
     t_start = time.perf_counter()
     load = check_bus_load(config)

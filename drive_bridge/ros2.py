@@ -49,7 +49,20 @@ MASTER_NODE_ID = 127
 
 
 def export(config: BusConfig, out: str | Path) -> list[Path]:
-    """Write ``bus.yml`` and ``<axis>.dcf`` for every node of ``config`` into ``out``."""
+    """Write ``bus.yml`` and ``<axis>.dcf`` for every node of ``config`` into ``out``.
+
+    Parameters
+    ----------
+    config : BusConfig
+        The bus configuration.
+    out : str or Path
+        The directory.
+
+    Returns
+    -------
+    list of Path
+        The files written.
+    """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     m = config.master

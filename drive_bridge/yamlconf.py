@@ -15,7 +15,23 @@ from .errors import ConfigError
 
 
 def load_yaml(path: str | Path) -> dict:
-    """Read a YAML mapping with ``yaml.safe_load`` (a text read before: parsed once); errors name the file."""
+    """Read a YAML mapping with ``yaml.safe_load`` (a text read before: parsed once); errors name the file.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file.
+
+    Returns
+    -------
+    dict
+        The mapping (a copy of its own).
+
+    Raises
+    ------
+    ConfigError
+        A file that cannot be read, or is not a YAML mapping.
+    """
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")
@@ -52,7 +68,18 @@ def _parsed(text: str) -> Any:
 
 
 def too_large(value: int) -> str:
-    """Why an integer no float can hold is refused (it is not printed: it may have thousands of digits)."""
+    """Why an integer no float can hold is refused (it is not printed: it may have thousands of digits).
+
+    Parameters
+    ----------
+    value : int
+        The integer.
+
+    Returns
+    -------
+    str
+        The words.
+    """
     return f"an integer of about 10^{int(value.bit_length() * math.log10(2))} is too large a number"
 
 
@@ -62,7 +89,18 @@ def _short(value: Any) -> str:
 
 
 def finite_number(value: Any) -> TypeGuard[float]:
-    """A real, finite number (bool is not a number here)."""
+    """A real, finite number (bool is not a number here).
+
+    Parameters
+    ----------
+    value : object
+        The value.
+
+    Returns
+    -------
+    bool
+        Whether it is one.
+    """
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         return False
     try:
@@ -76,6 +114,20 @@ class Section:
 
     ``get`` checks types and ranges (a float must be finite); ``done`` refuses keys
     nobody asked for, so a typo is an error instead of a silently ignored setting.
+
+    Parameters
+    ----------
+    path : Path
+        The file it was read from.
+    key : str
+        Its key in the file (dotted), "" at the top.
+    data : object
+        Its content (a mapping).
+
+    Raises
+    ------
+    ConfigError
+        ``data`` is not a mapping.
     """
 
     def __init__(self, path: Path, key: str, data: Any):
@@ -92,6 +144,20 @@ class Section:
         return f"{self.key}.{key}" if self.key else str(key)
 
     def error(self, key: str | int, problem: str) -> ConfigError:
+        """The error naming a key of this section.
+
+        Parameters
+        ----------
+        key : str or int
+            The key.
+        problem : str
+            What is wrong, and what to do.
+
+        Returns
+        -------
+        ConfigError
+            The error (to raise).
+        """
         return ConfigError(self.path, self._name(key), problem)
 
     def get(
@@ -105,7 +171,31 @@ class Section:
         choices: Iterable[Any] | None = None,
     ) -> Any:
         """``key``'s value, checked to be of ``kind`` (a float may be written as an int), finite, within
-        [``low``, ``high``] and one of ``choices``; ``default`` where it is absent (``...``: required)."""
+        [``low``, ``high``] and one of ``choices``; ``default`` where it is absent (``...``: required).
+
+        Parameters
+        ----------
+        key : str or int
+            The key.
+        kind : type or tuple of type
+            What it must be.
+        default : object
+            Its value where it is absent; ``...``: required.
+        low, high : float, optional
+            Its range.
+        choices : iterable, optional
+            The values it may take.
+
+        Returns
+        -------
+        object
+            The value.
+
+        Raises
+        ------
+        ConfigError
+            Absent where required, of another kind, out of range, not a choice: naming file and key.
+        """
         self._used.add(key)
         if key not in self.data:
             if default is ...:
@@ -133,19 +223,63 @@ class Section:
         return value
 
     def accept(self, keys: Iterable[str]) -> set[str]:
-        """Mark ``keys`` as known without reading them (keys another tool reads); the ones present."""
+        """Mark ``keys`` as known without reading them (keys another tool reads); the ones present.
+
+        Parameters
+        ----------
+        keys : iterable of str
+            The keys.
+
+        Returns
+        -------
+        set of str
+            Those present.
+        """
         found = {k for k in keys if k in self.data}
         self._used.update(found)
         return found
 
     def section(self, key: str | int, required: bool = True) -> Section:
+        """A sub-section.
+
+        Parameters
+        ----------
+        key : str or int
+            Its key.
+        required : bool
+            It must be there (else an empty one where it is absent).
+
+        Returns
+        -------
+        Section
+            The sub-section.
+
+        Raises
+        ------
+        ConfigError
+            Absent where required, or not a mapping.
+        """
         value = self.get(key, dict, ... if required else {})
         return Section(self.path, self._name(key), value)
 
     def keys(self) -> list[Any]:
+        """The section's keys, in the file's order.
+
+        Returns
+        -------
+        list
+            The keys.
+        """
         return list(self.data.keys())
 
     def done(self) -> None:
+        """Refuse the keys nobody asked for (a typo is an error, not a silently ignored setting).
+
+        Raises
+        ------
+        ConfigError
+            The first unknown key, with the known ones.
+        """
         unknown = [k for k in self.data if k not in self._used]
         if unknown:
             known = ", ".join(sorted(map(str, self._used))) or "none"

@@ -14,8 +14,19 @@ from .multicast import UDP_GROUP, UDP_PORT
 
 @dataclass(frozen=True)
 class BusSpec:
-    """A python-can bus as :func:`open_bus` opens it: interface, channel, bitrate and the
-    interface's own arguments."""
+    """A python-can bus as :func:`open_bus` opens it.
+
+    Parameters
+    ----------
+    interface : str
+        python-can's interface name.
+    channel : str or int, optional
+        Its channel.
+    bitrate : int, optional
+        [bit/s], where the interface takes one.
+    options : dict
+        The interface's own arguments.
+    """
 
     interface: str
     channel: str | int | None = None
@@ -23,6 +34,13 @@ class BusSpec:
     options: dict = field(default_factory=dict)
 
     def open(self) -> can.BusABC:
+        """Open it (:func:`open_bus`).
+
+        Returns
+        -------
+        can.BusABC
+            The bus.
+        """
         return open_bus(self.interface, self.channel, self.bitrate, self.options)
 
     @property
@@ -35,7 +53,24 @@ def open_bus(
     interface: str, channel: str | int | None, bitrate: int | None = None, options: dict | None = None
 ) -> can.BusABC:
     """A python-can bus that does not hand its own frames back (``bitrate`` where the interface
-    takes one; ``options``: the interface's own arguments, :mod:`drive_bridge.canconf`)."""
+    takes one; ``options``: the interface's own arguments, :mod:`drive_bridge.canconf`).
+
+    Parameters
+    ----------
+    interface : str
+        python-can's interface name (``udp_multicast`` opens the echo-free one).
+    channel : str or int, optional
+        Its channel.
+    bitrate : int, optional
+        [bit/s].
+    options : dict, optional
+        The interface's own arguments.
+
+    Returns
+    -------
+    can.BusABC
+        The bus.
+    """
     if interface in ("udp_multicast", MULTICAST_NOECHO):  # python-can's echoes every frame to its sender
         opts = dict(options or {})
         return can.Bus(

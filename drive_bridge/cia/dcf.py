@@ -29,7 +29,18 @@ NOT_VALUES = (datatypes.DOMAIN, datatypes.OCTET_STRING)
 
 
 def configuration(od: canopen.ObjectDictionary) -> list[ODVariable]:
-    """The node's configuration objects: readable and writable, 0x1000-0x9FFF, no command."""
+    """The node's configuration objects: readable and writable, 0x1000-0x9FFF, no command.
+
+    Parameters
+    ----------
+    od : canopen.ObjectDictionary
+        The node's object dictionary.
+
+    Returns
+    -------
+    list of ODVariable
+        Those objects.
+    """
     return [
         v
         for v in variables(od)
@@ -43,7 +54,25 @@ def configuration(od: canopen.ObjectDictionary) -> list[ODVariable]:
 
 def read_back(node: canopen.RemoteNode, objects: list[ODVariable]) -> dict[tuple[int, int], Any]:
     """Each object's value as the drive reports it (SDO upload); objects the drive does not
-    have (an abort) are left out."""
+    have (an abort) are left out.
+
+    Parameters
+    ----------
+    node : canopen.RemoteNode
+        The drive.
+    objects : list of ODVariable
+        The objects.
+
+    Returns
+    -------
+    dict of (int, int) to object
+        (index, sub) -> value.
+
+    Raises
+    ------
+    SdoCommunicationError
+        The drive does not answer.
+    """
     values: dict[tuple[int, int], Any] = {}
     for var in objects:
         try:
@@ -55,7 +84,18 @@ def read_back(node: canopen.RemoteNode, objects: list[ODVariable]) -> dict[tuple
 
 
 def mapped(values: dict[tuple[int, int], Any]) -> set[tuple[int, int]]:
-    """The objects the PDO mappings in ``values`` map (process data)."""
+    """The objects the PDO mappings in ``values`` map (process data).
+
+    Parameters
+    ----------
+    values : dict of (int, int) to object
+        Objects' values, the PDO mappings among them.
+
+    Returns
+    -------
+    set of (int, int)
+        (index, sub) of each object mapped.
+    """
     out = set()
     for (index, sub), v in values.items():
         if sub and any(index in r for r in MAPPING) and isinstance(v, int) and v:
@@ -65,7 +105,20 @@ def mapped(values: dict[tuple[int, int], Any]) -> set[tuple[int, int]]:
 
 def parameter_value(var: ODVariable, value: Any) -> str:
     """``value`` as a DCF entry of ``var``'s type (a signed value that a vendor file wrote as its
-    two's complement, 0xFFFF for an INTEGER16 -1, as the negative number CiA 306 tools expect)."""
+    two's complement, 0xFFFF for an INTEGER16 -1, as the negative number CiA 306 tools expect).
+
+    Parameters
+    ----------
+    var : ODVariable
+        The object.
+    value : object
+        Its value.
+
+    Returns
+    -------
+    str
+        The entry's text.
+    """
     if var.data_type in datatypes.FLOAT_TYPES:
         return float_bits(float(value), var.data_type)
     if isinstance(value, int):
@@ -75,7 +128,27 @@ def parameter_value(var: ODVariable, value: Any) -> str:
 
 
 def export_dcf(node: canopen.RemoteNode, path: str | Path, bitrate: int) -> Path:
-    """Read every configuration object back from ``node`` and write the DCF to ``path``."""
+    """Read every configuration object back from ``node`` and write the DCF to ``path``.
+
+    Parameters
+    ----------
+    node : canopen.RemoteNode
+        The drive (with its node id).
+    path : str or Path
+        The DCF to write.
+    bitrate : int
+        The bus's bitrate [bit/s], written into the DCF.
+
+    Returns
+    -------
+    Path
+        The DCF written.
+
+    Raises
+    ------
+    SdoCommunicationError
+        The drive does not answer, naming the node.
+    """
     od = node.object_dictionary
     try:
         values = read_back(node, configuration(od))
@@ -98,7 +171,26 @@ def write_dcf(
 ) -> Path:
     """``od`` (changed in place) as a CiA 306 clean DCF at ``path``: the node-ID and bitrate,
     defaults resolved (``$NODEID``, REALs as bit patterns, signed as such), no descriptions, and
-    ``values`` (by index and sub-index) as the only ParameterValues."""
+    ``values`` (by index and sub-index) as the only ParameterValues.
+
+    Parameters
+    ----------
+    od : canopen.ObjectDictionary
+        The object dictionary (changed in place).
+    path : str or Path
+        The DCF to write.
+    node_id : int
+        The node id.
+    bitrate : int
+        The bitrate [bit/s].
+    values : dict of (int, int) to object
+        The ParameterValues.
+
+    Returns
+    -------
+    Path
+        The DCF written.
+    """
     for var in variables(od):  # *_raw: the text canopen's exporter writes
         var.description = ""  # not a CiA 306 key of an object
         if isinstance(var.default, (int, float)):

@@ -64,16 +64,38 @@ ROLES = {
 
 @dataclass
 class Report:
+    """What :func:`check` found in an EDS/DCF.
+
+    Parameters
+    ----------
+    path : Path
+        The file.
+    findings : list of str
+        What is not CiA 306.
+    lely : list of str, optional
+        Lely's dcfchk lint; None: not installed.
+    drive : list of str
+        What drive-bridge finds it can use.
+    """
+
     path: Path
-    findings: list[str] = field(default_factory=list)  # what is not CiA 306
-    lely: list[str] | None = None  # Lely's dcfchk lint; None: not installed
-    drive: list[str] = field(default_factory=list)  # what drive-bridge finds it can use
+    findings: list[str] = field(default_factory=list)
+    lely: list[str] | None = None
+    drive: list[str] = field(default_factory=list)
 
     @property
     def standard(self) -> bool:
+        """Nothing found that is not CiA 306 (by this check and by Lely's, where installed)."""
         return not self.findings and not self.lely
 
     def as_dict(self) -> dict:
+        """The report as ``check-eds --json`` gives it.
+
+        Returns
+        -------
+        dict
+            ``path``, ``standard``, ``findings``, ``lely``, ``drive``.
+        """
         return {
             "path": str(self.path),
             "standard": self.standard,
@@ -91,7 +113,23 @@ class _CaseKeeping(configparser.RawConfigParser):
 
 
 def check(path: str | Path) -> Report:
-    """Check the EDS/DCF at ``path`` (ConfigError when canopen cannot read it at all)."""
+    """Check the EDS/DCF at ``path`` (ConfigError when canopen cannot read it at all).
+
+    Parameters
+    ----------
+    path : str or Path
+        The EDS or DCF.
+
+    Returns
+    -------
+    Report
+        What was found.
+
+    Raises
+    ------
+    ConfigError
+        No such file, or one canopen cannot read at all.
+    """
     path = Path(path)
     report = Report(path)
     raw = path.read_bytes() if path.is_file() else None

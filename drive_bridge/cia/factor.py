@@ -42,13 +42,37 @@ OBJECTS = {0x608F: (1, 2), 0x6091: (1, 2), 0x6092: (1, 2), 0x60A8: (0,), 0x60A9:
 
 
 def exponent(code: int) -> int:
-    """The power of ten of a 0x60A8 / 0x60A9 code (bits 24-31, signed)."""
+    """The power of ten of a 0x60A8 / 0x60A9 code (bits 24-31, signed).
+
+    Parameters
+    ----------
+    code : int
+        The unit code.
+
+    Returns
+    -------
+    int
+        The exponent.
+    """
     b = (code >> 24) & 0xFF
     return b - 256 if b >= 128 else b
 
 
 def describe(code: int | None, velocity: bool = False) -> str:
-    """A unit code in words, as "0.1 °" or "rev/min" (None: a unit the drive does not name)."""
+    """A unit code in words, as "0.1 °" or "rev/min" (None: a unit the drive does not name).
+
+    Parameters
+    ----------
+    code : int or None
+        0x60A8's or 0x60A9's value.
+    velocity : bool
+        A velocity unit (its time base named too).
+
+    Returns
+    -------
+    str
+        The unit in words, with the code in hex.
+    """
     if code is None:
         return "a unit the drive does not name"
     e, unit, time = exponent(code), (code >> 16) & 0xFF, (code >> 8) & 0xFF
@@ -67,17 +91,42 @@ def _ratio(pair: tuple[int, int] | None) -> float | None:
 
 @dataclass(frozen=True)
 class FactorGroup:
-    """The factor group as a drive holds it (None: the drive has no such object)."""
+    """The factor group as a drive holds it (None: the drive has no such object).
 
-    encoder: tuple[int, int] | None = None  # 0x608F: increments, motor revolutions
-    gear: tuple[int, int] | None = None  # 0x6091: motor revolutions, shaft revolutions
-    feed: tuple[int, int] | None = None  # 0x6092: feed [position units], shaft revolutions
-    position_unit: int | None = None  # 0x60A8
-    velocity_unit: int | None = None  # 0x60A9
+    Parameters
+    ----------
+    encoder : (int, int), optional
+        0x608F: increments, motor revolutions.
+    gear : (int, int), optional
+        0x6091: motor revolutions, shaft revolutions.
+    feed : (int, int), optional
+        0x6092: feed [position units], shaft revolutions.
+    position_unit : int, optional
+        0x60A8.
+    velocity_unit : int, optional
+        0x60A9.
+    """
+
+    encoder: tuple[int, int] | None = None
+    gear: tuple[int, int] | None = None
+    feed: tuple[int, int] | None = None
+    position_unit: int | None = None
+    velocity_unit: int | None = None
 
     @classmethod
     def read(cls, value: Callable[[int, int], Any]) -> FactorGroup:
-        """From ``value(index, sub)``, which returns None where the drive has no such object."""
+        """From ``value(index, sub)``, which returns None where the drive has no such object.
+
+        Parameters
+        ----------
+        value : callable
+            ``value(index, sub)``: the object's value, or None.
+
+        Returns
+        -------
+        FactorGroup
+            The factor group.
+        """
 
         def pair(index: int) -> tuple[int, int] | None:
             a, b = value(index, 1), value(index, 2)

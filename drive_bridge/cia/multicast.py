@@ -40,6 +40,22 @@ class LoopbackMulticastBus(UdpMulticastBus):
 
     The receive buffer is raised (to ``RECEIVE_BUFFER`` bytes where the OS allows): the default
     holds a few hundred frames, a few tens of ms of a 3-axis stream.
+
+    Parameters
+    ----------
+    channel : str
+        The multicast group.
+    port : int
+        The UDP port.
+    stamps : {"sender", "kernel"}
+        Which time stamp a received frame carries (above).
+    **kwargs : object
+        python-can's ``UdpMulticastBus`` arguments.
+
+    Raises
+    ------
+    ValueError
+        Another ``stamps``.
     """
 
     RECEIVE_BUFFER = 4 << 20

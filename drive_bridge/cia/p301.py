@@ -31,5 +31,16 @@ EMCY_TEXT = {
 
 
 def emcy_text(code: int) -> str:
-    """An emergency error code in words (its number where drive-bridge has none)."""
+    """An emergency error code in words (its number where drive-bridge has none).
+
+    Parameters
+    ----------
+    code : int
+        The EMCY error code.
+
+    Returns
+    -------
+    str
+        Its text.
+    """
     return EMCY_TEXT.get(code, f"EMCY 0x{code:04X}")

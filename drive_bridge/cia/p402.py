@@ -75,7 +75,18 @@ FAULT_REACTION_QUICK_STOP_RAMP = 2
 
 
 def state_name(statusword: int) -> str:
-    """Name of the CiA 402 state a statusword shows (canopen's names)."""
+    """Name of the CiA 402 state a statusword shows (canopen's names).
+
+    Parameters
+    ----------
+    statusword : int
+        0x6041's value.
+
+    Returns
+    -------
+    str
+        ``OPERATION ENABLED``, ...; ``UNKNOWN (0x....)`` for none.
+    """
     for name, (mask, value) in State402.SW_MASK.items():
         if statusword & mask == value:
             return name

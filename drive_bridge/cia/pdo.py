@@ -17,15 +17,45 @@ from .od import variable
 
 @dataclass(frozen=True)
 class PdoCodec:
-    """Packs and unpacks one PDO; built once per mapping."""
+    """Packs and unpacks one PDO; built once per mapping.
+
+    Parameters
+    ----------
+    cob_id : int
+        The PDO's COB-ID.
+    entries : tuple of (int, int)
+        (index, sub-index) of each object, in mapping order.
+    struct : struct.Struct
+        The frame's layout (little-endian, each object's type).
+    """
 
     cob_id: int
-    entries: tuple[tuple[int, int], ...]  # (index, sub-index) in mapping order
+    entries: tuple[tuple[int, int], ...]
     struct: struct.Struct
 
     @classmethod
     def of(cls, cob_id: int, od: canopen.ObjectDictionary, entries: Iterable[tuple[int, int]]) -> PdoCodec:
-        """The codec of ``entries`` ((index, sub-index) pairs) with their types from ``od``."""
+        """The codec of ``entries`` ((index, sub-index) pairs) with their types from ``od``.
+
+        Parameters
+        ----------
+        cob_id : int
+            The PDO's COB-ID.
+        od : canopen.ObjectDictionary
+            The drive's object dictionary (the objects' types).
+        entries : iterable of (int, int)
+            The objects, in mapping order.
+
+        Returns
+        -------
+        PdoCodec
+            The codec.
+
+        Raises
+        ------
+        KeyError
+            An object ``od`` does not have.
+        """
         entries = tuple((int(i), int(s)) for i, s in entries)
         variables = [variable(od, i, s) for i, s in entries]
         return cls(cob_id, entries, struct.Struct("<" + "".join(_struct_format(v) for v in variables)))
@@ -46,7 +76,13 @@ class PdoCodec:
         return out
 
     def as_dict(self) -> dict:
-        """How meta.yaml records it (enough to decode a trace without the EDS)."""
+        """How meta.yaml records it (enough to decode a trace without the EDS).
+
+        Returns
+        -------
+        dict
+            ``cob_id``, ``format``, ``objects``, ``sub_indices``.
+        """
         return {
             "cob_id": self.cob_id,
             "format": self.struct.format,
@@ -56,6 +92,18 @@ class PdoCodec:
 
     @classmethod
     def from_dict(cls, d: dict) -> PdoCodec:
+        """:meth:`as_dict` read back (a meta.yaml without ``sub_indices``: sub-index 0 each).
+
+        Parameters
+        ----------
+        d : dict
+            The dict.
+
+        Returns
+        -------
+        PdoCodec
+            The codec.
+        """
         subs = d.get("sub_indices", [0] * len(d["objects"]))
         return cls(d["cob_id"], tuple(zip(d["objects"], subs)), struct.Struct(d["format"]))
 

@@ -28,14 +28,47 @@ SDO_ERRORS = (canopen.SdoAbortedError, canopen.SdoCommunicationError)
 
 
 def sdo_object(node: canopen.RemoteNode, index: int, sub: int) -> SdoVariable:
-    """The SDO accessor of object ``index``:``sub`` on ``node``."""
+    """The SDO accessor of object ``index``:``sub`` on ``node``.
+
+    Parameters
+    ----------
+    node : canopen.RemoteNode
+        The drive.
+    index, sub : int
+        The object.
+
+    Returns
+    -------
+    SdoVariable
+        canopen's accessor (``.raw`` reads and writes it).
+    """
     return SdoVariable(node.sdo, variable(node.object_dictionary, index, sub))
 
 
 def read_if_readable(node: canopen.RemoteNode, index: int, sub: int, what: str) -> Any:
     """Object ``index``:``sub`` as the drive holds it; None where its EDS/DCF has no such object or
     the drive refuses the read (an abort: the object is not there to read); BusError naming
-    ``what`` where the drive does not answer."""
+    ``what`` where the drive does not answer.
+
+    Parameters
+    ----------
+    node : canopen.RemoteNode
+        The drive.
+    index, sub : int
+        The object.
+    what : str
+        What it is, for the error.
+
+    Returns
+    -------
+    object
+        Its value in device units, or None.
+
+    Raises
+    ------
+    BusError
+        The drive does not answer.
+    """
     if node.object_dictionary.get_variable(index, sub) is None:
         return None
     try:
@@ -47,7 +80,18 @@ def read_if_readable(node: canopen.RemoteNode, index: int, sub: int, what: str) 
 
 
 def describe_sdo_error(exc: Exception) -> str:
-    """One phrase for an SDO failure: the abort code and its CiA 301 text, or the lost answer."""
+    """One phrase for an SDO failure: the abort code and its CiA 301 text, or the lost answer.
+
+    Parameters
+    ----------
+    exc : Exception
+        canopen's SdoAbortedError or SdoCommunicationError.
+
+    Returns
+    -------
+    str
+        The phrase.
+    """
     if isinstance(exc, canopen.SdoAbortedError):
         return (
             f"SDO abort 0x{exc.code:08X}: {canopen.SdoAbortedError.CODES.get(exc.code, 'unknown abort code')}"
@@ -62,7 +106,26 @@ PDO_INVALID = 0x80000000
 
 
 def write_setting(node: canopen.RemoteNode, axis: str, index: int, sub: int, value: int | float) -> None:
-    """SDO download of ``value``, checked against the range the drive's EDS/DCF gives first."""
+    """SDO download of ``value``, checked against the range the drive's EDS/DCF gives first.
+
+    Parameters
+    ----------
+    node : canopen.RemoteNode
+        The drive.
+    axis : str
+        Its axis, for the errors.
+    index, sub : int
+        The object.
+    value : int or float
+        The value, in device units.
+
+    Raises
+    ------
+    DriveRefused
+        Outside the range its EDS/DCF gives (nothing written), or the drive refuses it.
+    BusError
+        The drive does not answer.
+    """
     lo, hi = limits(variable(node.object_dictionary, index, sub))
     if (lo is not None and value < lo) or (hi is not None and value > hi):
         raise DriveRefused(
@@ -80,7 +143,18 @@ def write_setting(node: canopen.RemoteNode, axis: str, index: int, sub: int, val
 
 def pdo_objects(od: canopen.ObjectDictionary) -> list[tuple[int, int]]:
     """The communication (COB-ID, transmission type, inhibit time, event timer) and mapping
-    objects of PDOs 1-4 that the drive's EDS/DCF has writable."""
+    objects of PDOs 1-4 that the drive's EDS/DCF has writable.
+
+    Parameters
+    ----------
+    od : canopen.ObjectDictionary
+        The drive's object dictionary.
+
+    Returns
+    -------
+    list of (int, int)
+        (index, sub) of each.
+    """
     out = []
     for base in PDO_COMM:
         for num in range(4):
@@ -95,7 +169,27 @@ def pdo_objects(od: canopen.ObjectDictionary) -> list[tuple[int, int]]:
 
 def snapshot(node: canopen.RemoteNode, axis: str, objects: Iterable[tuple[int, int]]) -> dict[str, int]:
     """``objects`` ((index, sub) pairs) as the drive holds them now, by address "0xIIII:S";
-    those it does not let be read and written are left out."""
+    those it does not let be read and written are left out.
+
+    Parameters
+    ----------
+    node : canopen.RemoteNode
+        The drive.
+    axis : str
+        Its axis, for the errors.
+    objects : iterable of (int, int)
+        The objects.
+
+    Returns
+    -------
+    dict of str to int
+        Address -> raw value, in the order given.
+
+    Raises
+    ------
+    BusError
+        The drive does not answer.
+    """
     out = {}
     for index, sub in objects:
         var = node.object_dictionary.get_variable(index, sub)
@@ -108,7 +202,18 @@ def snapshot(node: canopen.RemoteNode, axis: str, objects: Iterable[tuple[int, i
 
 
 def address(key: str) -> tuple[int, int]:
-    """The (index, sub) of an address "0xIIII:S"."""
+    """The (index, sub) of an address "0xIIII:S".
+
+    Parameters
+    ----------
+    key : str
+        The address.
+
+    Returns
+    -------
+    (int, int)
+        Index and subindex.
+    """
     index, sub = key.split(":")
     return int(index, 16), int(sub)
 
@@ -116,7 +221,24 @@ def address(key: str) -> tuple[int, int]:
 def put_back(node: canopen.RemoteNode, axis: str, values: dict[str, int]) -> None:
     """Write a :func:`snapshot` back, in its order; each PDO it holds is made invalid first, its
     mapping count set to 0 while the entries are written, and its COB-ID (valid or not, as it was)
-    written last.  DriveRefused / BusError at the first object the drive does not take."""
+    written last.  DriveRefused / BusError at the first object the drive does not take.
+
+    Parameters
+    ----------
+    node : canopen.RemoteNode
+        The drive.
+    axis : str
+        Its axis, for the errors.
+    values : dict of str to int
+        The snapshot: address -> raw value.
+
+    Raises
+    ------
+    DriveRefused
+        The first object the drive refuses.
+    BusError
+        The drive does not answer.
+    """
     pdos: dict[int, dict[tuple[int, int], int]] = {}
     for key, value in values.items():
         index, sub = address(key)

@@ -374,7 +374,22 @@ def _status(doc: Document, summary: dict) -> None:
 
 def build_report(out: Path, summary: dict, figures: bool = True) -> Document:
     """The commissioning report of the run in ``out`` (with ``figures``: the validation and trend
-    figures drawn into it)."""
+    figures drawn into it).
+
+    Parameters
+    ----------
+    out : Path
+        The run directory.
+    summary : dict
+        Its summary.json.
+    figures : bool
+        Draw the figures.
+
+    Returns
+    -------
+    Document
+        The report, not yet written.
+    """
     from ..history.since import history_note, report_section, trend_figures
 
     doc = Document("Commissioning report", figures=figures)
@@ -410,5 +425,20 @@ def build_report(out: Path, summary: dict, figures: bool = True) -> Document:
 
 
 def write_report(out: Path, summary: dict, figures: bool = True) -> Path:
-    """``report.html`` and ``report.md`` (figures in the run directory, where drawn); the HTML's path."""
+    """``report.html`` and ``report.md`` (figures in the run directory, where drawn); the HTML's path.
+
+    Parameters
+    ----------
+    out : Path
+        The run directory.
+    summary : dict
+        Its summary.json.
+    figures : bool
+        Draw the figures.
+
+    Returns
+    -------
+    Path
+        report.html.
+    """
     return build_report(out, summary, figures).write(out / REPORT, out / REPORT_MD)[0]

@@ -49,7 +49,17 @@ LOOPS = "loops_{axis}.png"  # the tune step's loop pictures, per axis
 
 
 class Context:
-    """What the steps share: the session with the drives, the run directory and the reporter."""
+    """What the steps share: the session with the drives, the run directory and the reporter.
+
+    Parameters
+    ----------
+    session : Session
+        The drives, reached as the options say.
+    out : Path
+        The run directory.
+    reporter : StepReporter
+        Where progress goes.
+    """
 
     def __init__(self, session: Session, out: Path, reporter: StepReporter):
         self.session, self.out, self.reporter = session, out, reporter
@@ -57,7 +67,23 @@ class Context:
         self.degraded: list[str] = []  # the running step's wall-clock runs past their timing limits
 
     def require(self, name: str) -> Path:
-        """A previous step's output; a clear error naming the step to run when it is missing."""
+        """A previous step's output; a clear error naming the step to run when it is missing.
+
+        Parameters
+        ----------
+        name : str
+            Its path in the run directory (``tune.json``, ``identify/identify.json``).
+
+        Returns
+        -------
+        Path
+            The file.
+
+        Raises
+        ------
+        UserError
+            It is missing: the step that makes it is named.
+        """
         path = self.out / name
         if not path.exists():
             step = next(s for s, o in OUTPUT.items() if name == o or name.startswith(o + "/"))
@@ -65,6 +91,23 @@ class Context:
         return path
 
     def read_json(self, name: str) -> dict:
+        """A previous step's JSON output.
+
+        Parameters
+        ----------
+        name : str
+            Its path in the run directory.
+
+        Returns
+        -------
+        dict
+            The document.
+
+        Raises
+        ------
+        UserError
+            Missing (the step to run is named) or not readable JSON.
+        """
         path = self.require(name)
         try:
             return json.loads(path.read_text())
@@ -73,6 +116,18 @@ class Context:
 
 
 def scan(ctx: Context) -> str:
+    """The scan step: the configured nodes found on the bus, their identities checked (scan.json).
+
+    Parameters
+    ----------
+    ctx : Context
+        The run's session, directory and reporter.
+
+    Returns
+    -------
+    str
+        What it found or did, in one line for the reporter.
+    """
     config = ctx.config
     result = scan_bus(ctx.session.link, config)
     write_json(ctx.out / OUTPUT["scan"], result.as_dict(config))
@@ -90,6 +145,18 @@ def scan(ctx: Context) -> str:
 
 
 def bringup(ctx: Context) -> str:
+    """The bring-up step: PDO mapping, heartbeat, limits written, the drives' state read (bringup.json).
+
+    Parameters
+    ----------
+    ctx : Context
+        The run's session, directory and reporter.
+
+    Returns
+    -------
+    str
+        What it found or did, in one line for the reporter.
+    """
     profile = ctx.session.profile
     axes = ctx.session.axes
     state = drive_state(axes, profile, ctx.options.motor)
@@ -106,6 +173,18 @@ def bringup(ctx: Context) -> str:
 
 
 def campaign(ctx: Context) -> str:
+    """The campaign step: the excitation campaign streamed to every axis and recorded (the robot moves).
+
+    Parameters
+    ----------
+    ctx : Context
+        The run's session, directory and reporter.
+
+    Returns
+    -------
+    str
+        What it found or did, in one line for the reporter.
+    """
     from ..recorder import record
 
     # brought up once more inside the campaign's trace (the bringup step's writes, the same again),
@@ -131,6 +210,18 @@ def campaign(ctx: Context) -> str:
 
 
 def identify(ctx: Context) -> str:
+    """The identify step: J, c0, c1 and the traced effects from the campaign's log (identify/).
+
+    Parameters
+    ----------
+    ctx : Context
+        The run's session, directory and reporter.
+
+    Returns
+    -------
+    str
+        What it found or did, in one line for the reporter.
+    """
     from ..ident import identify as identify_log
     from ..ident.presentation import write_report
 
@@ -147,6 +238,18 @@ def identify(ctx: Context) -> str:
 
 
 def measure(ctx: Context) -> str:
+    """The measure step: each axis's frequency response through its drive (frf.json; the robot moves).
+
+    Parameters
+    ----------
+    ctx : Context
+        The run's session, directory and reporter.
+
+    Returns
+    -------
+    str
+        What it found or did, in one line for the reporter.
+    """
     from ..tuning.measure import frf_doc, measure_axes
 
     models = read_identify_json(ctx.require(IDENTIFY_JSON))
@@ -181,6 +284,18 @@ def _measured(ctx: Context) -> dict | None:
 
 
 def tune(ctx: Context) -> str:
+    """The tune step: gains from the identified models, their margins (tune.json).
+
+    Parameters
+    ----------
+    ctx : Context
+        The run's session, directory and reporter.
+
+    Returns
+    -------
+    str
+        What it found or did, in one line for the reporter.
+    """
     models = read_identify_json(ctx.require(IDENTIFY_JSON))
     state = ctx.read_json(OUTPUT["bringup"])["axes"]
     missing = [a for a in ctx.config.nodes if a not in state]
@@ -234,6 +349,18 @@ def _loop_figure(shared: tuple[Path, dict, dict, float], a: str) -> None:
 
 
 def write(ctx: Context) -> str:
+    """The write step: the tuned set written in one transaction, read back, stored (write/).
+
+    Parameters
+    ----------
+    ctx : Context
+        The run's session, directory and reporter.
+
+    Returns
+    -------
+    str
+        What it found or did, in one line for the reporter.
+    """
     tuned = read_tune_json(ctx.require(OUTPUT["tune"])).only(ctx.config)
     # brought up (PDO mapping, heartbeat, limits; drives stay disabled): what is stored and what
     # the DCF reads back is the whole commissioning, not the gains alone
@@ -277,6 +404,18 @@ def write(ctx: Context) -> str:
 
 
 def validate(ctx: Context) -> str:
+    """The validate step: the reference trajectories before and after (validate/; the robot moves).
+
+    Parameters
+    ----------
+    ctx : Context
+        The run's session, directory and reporter.
+
+    Returns
+    -------
+    str
+        What it found or did, in one line for the reporter.
+    """
     params = read_tune_json(ctx.require(OUTPUT["tune"])).only(ctx.config).parameters
     before = {a: v["parameters_before"] for a, v in ctx.read_json(OUTPUT["bringup"])["axes"].items()}
     scenarios = {"before": {a: before[a] for a in params}, "after": params}

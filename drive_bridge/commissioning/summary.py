@@ -49,6 +49,13 @@ IDENTIFY_FIELDS = (
 
 
 def versions() -> dict[str, str]:
+    """The versions summary.json records: drive-bridge's, Python's and its libraries'.
+
+    Returns
+    -------
+    dict of str to str
+        Name -> version (``not installed`` where a package is missing).
+    """
     out = {"drive-bridge": __version__, "python": platform.python_version()}
     for name in PACKAGES:
         try:
@@ -135,7 +142,26 @@ def _meta(out: Path) -> dict:
 
 def history_record(out: Path, state: dict, summary: dict, config: BusConfig, simulated: bool) -> dict:
     """The history's record of the commissioning in ``out`` (whatever steps ran), from its summary,
-    its scan (the drives' identities) and its identification (what the data left undetermined)."""
+    its scan (the drives' identities) and its identification (what the data left undetermined).
+
+    Parameters
+    ----------
+    out : Path
+        The run directory.
+    state : dict
+        The run's state (its id, when it started, what failed).
+    summary : dict
+        summary.json.
+    config : BusConfig
+        The bus configuration.
+    simulated : bool
+        A run on the simulated drives.
+
+    Returns
+    -------
+    dict
+        The record (schema ``record``).
+    """
     from ..history.record import following_error, identified, identity, record
 
     found = (_load(out, step_functions.OUTPUT["scan"]) or {}).get("found", {})
@@ -180,6 +206,24 @@ def history_record(out: Path, state: dict, summary: dict, config: BusConfig, sim
 
 
 def build_summary(out: Path, state: dict, config: BusConfig, options: Options) -> dict:
+    """summary.json of the commissioning in ``out``, whatever steps ran.
+
+    Parameters
+    ----------
+    out : Path
+        The run directory.
+    state : dict
+        The run's state (steps completed, their durations, what failed).
+    config : BusConfig
+        The bus configuration.
+    options : Options
+        How it ran.
+
+    Returns
+    -------
+    dict
+        Steps, per axis what each step found, the verdict, versions (schema ``summary``).
+    """
     failed = state.get("failed")
     completed = state["completed"]
     steps = [

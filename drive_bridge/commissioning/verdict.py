@@ -28,7 +28,20 @@ def _criterion(name: str, severity: str, value: Any, limit: Any, ok: bool | None
 
 
 def axis_criteria(entry: dict, acc: Acceptance) -> list[dict]:
-    """The criteria of one axis of summary.json, each met, unmet or None (not evaluated)."""
+    """The criteria of one axis of summary.json, each met, unmet or None (not evaluated).
+
+    Parameters
+    ----------
+    entry : dict
+        The axis in summary.json.
+    acc : Acceptance
+        What the verdict checks.
+
+    Returns
+    -------
+    list of dict
+        Per criterion: ``criterion`` (its name), ``severity``, ``value``, ``limit``, ``unit``, ``met``.
+    """
     out = []
     margins = entry.get("margins") or {}
     for loop in ("velocity", "position"):
@@ -114,6 +127,19 @@ def axis_criteria(entry: dict, acc: Acceptance) -> list[dict]:
 
 
 def axis_verdict(criteria: list[dict]) -> str:
+    """One axis's verdict from its criteria.
+
+    Parameters
+    ----------
+    criteria : list of dict
+        :func:`axis_criteria`'s answer.
+
+    Returns
+    -------
+    {"PASS", "WARN", "FAIL", "INCOMPLETE"}
+        FAIL where a FAIL criterion is unmet, else INCOMPLETE where one was not evaluated, else WARN
+        where a WARN criterion is unmet, else PASS.
+    """
     if any(c["met"] is False and c["severity"] == "FAIL" for c in criteria):
         return "FAIL"
     if any(c["met"] is None for c in criteria):
@@ -122,7 +148,20 @@ def axis_verdict(criteria: list[dict]) -> str:
 
 
 def verdict(axes: dict[str, dict], acc: Acceptance) -> dict:
-    """``{"overall": …, "axes": {axis: {"verdict", "unmet", "not_evaluated", "criteria"}}, "acceptance"}``."""
+    """``{"overall": …, "axes": {axis: {"verdict", "unmet", "not_evaluated", "criteria"}}, "acceptance"}``.
+
+    Parameters
+    ----------
+    axes : dict of str to dict
+        Per axis, its entry in summary.json.
+    acc : Acceptance
+        What the verdict checks.
+
+    Returns
+    -------
+    dict
+        As above.
+    """
     out = {}
     for a, entry in axes.items():
         criteria = axis_criteria(entry, acc)
@@ -137,7 +176,18 @@ def verdict(axes: dict[str, dict], acc: Acceptance) -> dict:
 
 
 def describe(c: dict) -> str:
-    """An unmet criterion in words: name, value, limit."""
+    """An unmet criterion in words: name, value, limit.
+
+    Parameters
+    ----------
+    c : dict
+        The criterion.
+
+    Returns
+    -------
+    str
+        The words.
+    """
     v = c["value"]
     if isinstance(v, bool):
         return f"{c['criterion']}: no"
@@ -152,14 +202,36 @@ def describe(c: dict) -> str:
 
 
 def reasons(x: dict) -> str:
-    """Why one axis has its verdict: the criteria it misses, else those not evaluated ("" for PASS)."""
+    """Why one axis has its verdict: the criteria it misses, else those not evaluated ("" for PASS).
+
+    Parameters
+    ----------
+    x : dict
+        The axis's verdict entry.
+
+    Returns
+    -------
+    str
+        The reasons.
+    """
     return "; ".join(x["unmet"]) or (
         f"not evaluated: {', '.join(x['not_evaluated'])}" if x["not_evaluated"] else ""
     )
 
 
 def headline(v: dict) -> str:
-    """One line: the overall verdict and each axis's, with what it misses."""
+    """One line: the overall verdict and each axis's, with what it misses.
+
+    Parameters
+    ----------
+    v : dict
+        :func:`verdict`'s answer.
+
+    Returns
+    -------
+    str
+        The line.
+    """
     return f"{v['overall']}: " + ", ".join(
         f"{a} {x['verdict']}" + (f" ({why})" if (why := reasons(x)) else "") for a, x in v["axes"].items()
     )

@@ -31,7 +31,18 @@ def _torque(traj: str, v: dict) -> str:
 
 
 def worse(a: dict) -> list[str]:
-    """Sentences, one per figure of the axis summary ``a``'s validation that got worse."""
+    """Sentences, one per figure of the axis summary ``a``'s validation that got worse.
+
+    Parameters
+    ----------
+    a : dict
+        The axis in summary.json.
+
+    Returns
+    -------
+    list of str
+        The sentences (empty: nothing got worse).
+    """
     notes = []
     gb, ga = a.get("gains_before") or {}, a.get("gains_after") or {}
     for traj, v in (a.get("validation") or {}).items():
