@@ -65,7 +65,19 @@ _HEADER_SIZE = 32
 class BatchedBLFWriter(can.BLFWriter):
     """``BLFWriter`` that packs classic frames in batches; ``epoch`` [s] is added to every time stamp
     it is given (a lockstep link's clock starts at 0); ``container_thread``: containers compressed
-    and written by a thread of their own."""
+    and written by a thread of their own.
+
+    Parameters
+    ----------
+    file : str or os.PathLike
+        The BLF file.
+    epoch : float
+        Added to every time stamp [s].
+    container_thread : bool
+        Containers compressed and written by a thread of their own.
+    **kwargs : object
+        python-can's ``BLFWriter`` arguments.
+    """
 
     def __init__(
         self,

@@ -166,18 +166,46 @@ class AxisLink:
 
 @dataclass
 class ScanResult:
-    found: dict[int, dict]  # node id -> identity
-    missing: list[str]  # configured axes that did not answer
-    unexpected: list[int]  # node ids that answered but are not configured
-    wrong_type: list[str]  # configured axes that are not CiA 402 drives
-    #: axis -> how the node's identity (0x1018) differs from its EDS/DCF; accepted ones are overridden
+    """What a scan found (:func:`scan`).
+
+    Parameters
+    ----------
+    found : dict of int to dict
+        Node id -> its identity.
+    missing : list of str
+        Configured axes that did not answer.
+    unexpected : list of int
+        Node ids that answered but are not configured.
+    wrong_type : list of str
+        Configured axes that are not CiA 402 drives.
+    identity_mismatch : dict of str to str
+        Axis -> how the node's identity (0x1018) differs from its EDS/DCF.
+    identity_accepted : dict of str to str
+        The same, for those accepted with ``--accept-identity``.
+    """
+
+    found: dict[int, dict]
+    missing: list[str]
+    unexpected: list[int]
+    wrong_type: list[str]
     identity_mismatch: dict[str, str] = field(default_factory=dict)
     identity_accepted: dict[str, str] = field(default_factory=dict)
 
     def as_dict(self, config: BusConfig) -> dict:
         """scan.json / ``scan --json``: the nodes found (by axis where configured), missing,
         unexpected, wrong type, identities that differ from the EDS/DCF (and those accepted with
-        --accept-identity)."""
+        --accept-identity).
+
+        Parameters
+        ----------
+        config : BusConfig
+            The bus configuration (the axes' names).
+
+        Returns
+        -------
+        dict
+            The document (schema ``scan``).
+        """
         by_id = {n.node_id: a for a, n in config.nodes.items()}
         return stamped(
             "scan",
@@ -220,7 +248,20 @@ IDENTITY_FIELDS = (
 
 def identity_mismatch(ident: dict, od: canopen.ObjectDictionary) -> str | None:
     """How a node's identity differs from what its EDS/DCF names (fields the file leaves out are
-    not compared); None when it matches."""
+    not compared); None when it matches.
+
+    Parameters
+    ----------
+    ident : dict
+        The identity the node reported.
+    od : canopen.ObjectDictionary
+        Its EDS/DCF.
+
+    Returns
+    -------
+    str or None
+        The differences, in words.
+    """
     info = od.device_information
     wrong = [
         (label, ident[key], getattr(info, attr))
@@ -235,7 +276,20 @@ def identity_mismatch(ident: dict, od: canopen.ObjectDictionary) -> str | None:
 
 
 def remote_node(net: canopen.Network, node_id: int) -> canopen.RemoteNode:
-    """The master's view of node ``node_id``, as :func:`scan` added it to ``net``."""
+    """The master's view of node ``node_id``, as :func:`scan` added it to ``net``.
+
+    Parameters
+    ----------
+    net : canopen.Network
+        The master's network.
+    node_id : int
+        The node.
+
+    Returns
+    -------
+    canopen.RemoteNode
+        The node.
+    """
     node = net[node_id]
     if not isinstance(node, canopen.RemoteNode):
         raise InternalError(f"node {node_id} is on the network as a {type(node).__name__}, not a remote node")
@@ -243,7 +297,20 @@ def remote_node(net: canopen.Network, node_id: int) -> canopen.RemoteNode:
 
 
 def scan(link: Link, config: BusConfig) -> ScanResult:
-    """Ask every node id who is there; compare with the configuration."""
+    """Ask every node id who is there; compare with the configuration.
+
+    Parameters
+    ----------
+    link : Link
+        The link to the bus.
+    config : BusConfig
+        The bus configuration.
+
+    Returns
+    -------
+    ScanResult
+        What answered, what did not, and how each compares with its EDS/DCF.
+    """
     net = link.network
     net.scanner.reset()
     net.scanner.search()
@@ -307,7 +374,20 @@ def _configure_pdos(
 
 def check_scan(result: ScanResult, config: BusConfig) -> None:
     """Raise BusError naming the axis when a configured node is missing, is not the drive its
-    EDS/DCF describes (identity 0x1018, unless accepted), or is no CiA 402 drive."""
+    EDS/DCF describes (identity 0x1018, unless accepted), or is no CiA 402 drive.
+
+    Parameters
+    ----------
+    result : ScanResult
+        The scan.
+    config : BusConfig
+        The bus configuration.
+
+    Raises
+    ------
+    BusError
+        As above.
+    """
     if result.missing:
         ids = ", ".join(f"{a} (node {config.nodes[a].node_id})" for a in result.missing)
         raise BusError(
@@ -334,7 +414,24 @@ def check_scan(result: ScanResult, config: BusConfig) -> None:
 def bring_up(link: Link, config: BusConfig) -> dict[str, AxisLink]:
     """Scan, check and configure every configured drive (drives stay disabled).
 
-    Raises BusError naming the axis when a node is missing or is no CiA 402 drive.
+    Parameters
+    ----------
+    link : Link
+        The link to the bus.
+    config : BusConfig
+        The bus configuration.
+
+    Returns
+    -------
+    dict of str to AxisLink
+        The brought-up axes.
+
+    Raises
+    ------
+    BusError
+        A node missing or no CiA 402 drive, naming the axis.
+    DriveRefused
+        A drive that refuses a setting or keeps another value.
     """
     result = scan(link, config)
     check_scan(result, config)
@@ -449,7 +546,25 @@ def plan_bring_up(link: Link, config: BusConfig) -> dict[str, AxisLink]:
     """What :func:`bring_up` would do, read only (``--dry-run``): scan and its checks, the drive's
     units reconciled with bus.yml (the node's ``sdo`` list taken as written), the streaming mode,
     and in ``drive_limits`` the settings bring-up would write; nothing that changes a drive's
-    behaviour is sent."""
+    behaviour is sent.
+
+    Parameters
+    ----------
+    link : Link
+        The link to the bus.
+    config : BusConfig
+        The bus configuration.
+
+    Returns
+    -------
+    dict of str to AxisLink
+        The axes as bring-up would leave them (``drive_limits``: what it would write).
+
+    Raises
+    ------
+    BusError
+        A node missing or no CiA 402 drive, naming the axis.
+    """
     result = scan(link, config)
     check_scan(result, config)
     axes = {}
@@ -508,7 +623,24 @@ def settings(
     axis: str, ncfg: NodeConfig, period: float, master: MasterConfig | None = None
 ) -> list[tuple[int, int, int | float]]:
     """The SDO writes of a node's settings besides its PDOs, in order (also what ``export ros2``
-    gives Lely's master): the node's own ``sdo`` list, then :func:`drive_settings`."""
+    gives Lely's master): the node's own ``sdo`` list, then :func:`drive_settings`.
+
+    Parameters
+    ----------
+    axis : str
+        The axis.
+    ncfg : NodeConfig
+        Its node's configuration.
+    period : float
+        The SYNC period [s].
+    master : MasterConfig, optional
+        The master's configuration (its heartbeat).
+
+    Returns
+    -------
+    list of (int, int, int or float)
+        (index, sub, value), in order.
+    """
     return [*ncfg.sdo, *drive_settings(axis, ncfg, period, master)]
 
 
@@ -521,7 +653,24 @@ def drive_settings(
     reaction as a quick-stop ramp (0x605E); in the drive's units (once known), the following-error
     window and timeout, software position limits, max profile velocity and max motor speed, the
     quick-stop deceleration, the max torque where bus.yml gives one; the interpolation period
-    0x60C2 and the communication cycle 0x1006."""
+    0x60C2 and the communication cycle 0x1006.
+
+    Parameters
+    ----------
+    axis : str
+        The axis.
+    ncfg : NodeConfig
+        Its node's configuration.
+    period : float
+        The SYNC period [s].
+    master : MasterConfig, optional
+        The master's configuration (its heartbeat).
+
+    Returns
+    -------
+    list of (int, int, int or float)
+        (index, sub, value), in order.
+    """
     od, sc, lim = ncfg.od, ncfg.scaling, ncfg.drive_limits
 
     def has(index: int, sub: int = 0) -> bool:
@@ -604,7 +753,27 @@ def _check_range(ncfg: NodeConfig, path: str | os.PathLike[str]) -> None:
 def read_back(
     node: canopen.RemoteNode, axis: str, written: Sequence[tuple[int, int, int | float]]
 ) -> dict[str, int | float]:
-    """Each setting as the drive now holds it; DriveRefused where it kept another value."""
+    """Each setting as the drive now holds it; DriveRefused where it kept another value.
+
+    Parameters
+    ----------
+    node : canopen.RemoteNode
+        The drive.
+    axis : str
+        Its axis, for the errors.
+    written : sequence of (int, int, int or float)
+        What was written.
+
+    Returns
+    -------
+    dict of str to int or float
+        Address -> value as read back.
+
+    Raises
+    ------
+    DriveRefused
+        A setting it kept another value of.
+    """
     out = {}
     for index, sub, value in written:
         if not variable(node.object_dictionary, index, sub).readable:

@@ -27,17 +27,43 @@ MIN_EXCITATION_CYCLES = 600  # the short campaign's multisine needs at least thi
 
 @dataclass(frozen=True)
 class Segment:
-    """A span of SYNC cycles [start, end) with one velocity / acceleration level."""
+    """A span of SYNC cycles [start, end) with one velocity / acceleration level.
 
-    kind: str  # "approach", "level" or "return"
+    Parameters
+    ----------
+    kind : {"approach", "level", "return"}
+        What it is.
+    axes : tuple of str
+        The axes that move in it.
+    velocity_fraction, acceleration_fraction : float
+        Its level, as shares of the limits.
+    cycles : int
+        Complete forward and backward cycles (0 for an approach or return).
+    start, end : int
+        Its plan rows [start, end).
+    """
+
+    kind: str
     axes: tuple[str, ...]
     velocity_fraction: float
     acceleration_fraction: float
-    cycles: int  # complete forward + backward cycles (0 for approach/return)
+    cycles: int
     start: int
     end: int
 
     def as_dict(self, period: float) -> dict:
+        """The segment as meta.yaml holds it.
+
+        Parameters
+        ----------
+        period : float
+            The SYNC period [s].
+
+        Returns
+        -------
+        dict
+            Every field, and ``start_s``, ``end_s`` [s].
+        """
         d = asdict(self)
         d["axes"] = list(self.axes)
         d["start_s"] = round(self.start * period, 6)
@@ -47,24 +73,59 @@ class Segment:
 
 @dataclass
 class Plan:
+    """What a stream sends, one row per SYNC.
+
+    Parameters
+    ----------
+    axes : list of str
+        The axes, in the demand's column order.
+    demand : numpy.ndarray
+        (n_cycles, n_axes) position demand [rad].
+    segments : list of Segment
+        Its spans of one level each.
+    period : float
+        The SYNC period [s].
+    torque_ff_Nm, velocity_ff_rad_s : numpy.ndarray, optional
+        Feed-forward the master sends with each setpoint, (n_cycles, n_axes), as torque offset
+        0x60B2 [Nm] and velocity offset 0x60B1 [rad/s] where the RPDOs map them (None: zero
+        offsets).
+    limits : dict of str to Limits
+        The limits of each axis the plan was checked against (as bring-up found them).
+    """
+
     axes: list[str]
-    demand: np.ndarray  # (n_cycles, n_axes) position demand [rad]
+    demand: np.ndarray
     segments: list[Segment]
     period: float
-    #: feed-forward the master sends with each setpoint, (n_cycles, n_axes), as torque offset 0x60B2
-    #: [Nm] and velocity offset 0x60B1 [rad/s] where the RPDOs map them (None: zero offsets)
     torque_ff_Nm: np.ndarray | None = None
     velocity_ff_rad_s: np.ndarray | None = None
-    #: the limits of each axis the plan was checked against (as bring-up found them)
     limits: dict[str, Limits] = field(default_factory=dict)
 
     @property
     def duration(self) -> float:
+        """How long it runs [s]."""
         return len(self.demand) * self.period
 
 
 def trapezoid(p0: float, p1: float, v: float, a: float, period: float) -> np.ndarray:
-    """Positions at t = period, 2*period, ... of a trapezoidal (or triangular) move."""
+    """Positions at t = period, 2*period, ... of a trapezoidal (or triangular) move.
+
+    Parameters
+    ----------
+    p0, p1 : float
+        From, to [rad].
+    v : float
+        Peak velocity [rad/s].
+    a : float
+        Acceleration [rad/s²].
+    period : float
+        The SYNC period [s].
+
+    Returns
+    -------
+    numpy.ndarray
+        The positions [rad], ending at ``p1``.
+    """
     dist = abs(p1 - p0)
     if dist == 0.0:
         return np.empty(0)
@@ -102,7 +163,30 @@ def _allocate(cycle_times: list[float], wanted: int, budget: float) -> list[int]
 def build_plan(
     cfg: CampaignConfig, limits: dict[str, Limits], start: dict[str, float], period: float
 ) -> Plan:
-    """Plan of the whole campaign for the axes in ``limits``, from positions ``start`` [rad]."""
+    """Plan of the whole campaign for the axes in ``limits``, from positions ``start`` [rad].
+
+    Parameters
+    ----------
+    cfg : CampaignConfig
+        The campaign.
+    limits : dict of str to Limits
+        Per axis, its limits.
+    start : dict of str to float
+        Per axis, where it stands [rad].
+    period : float
+        The SYNC period [s].
+
+    Returns
+    -------
+    Plan
+        The plan.
+
+    Raises
+    ------
+    UserError
+        The short design with too little time for its excitation, or an axis it cannot excite
+        within its limits.
+    """
     if cfg.design == "short":
         return short_plan(cfg, limits, start, period)
     axes = list(limits)
@@ -194,7 +278,30 @@ def short_plan(
     cfg: CampaignConfig, limits: dict[str, Limits], start: dict[str, float], period: float
 ) -> Plan:
     """The short campaign: per axis (or all at once with ``together``) an approach to the centre
-    of the stroke, the designed multisine, and the return, within ``short_time_s`` per axis."""
+    of the stroke, the designed multisine, and the return, within ``short_time_s`` per axis.
+
+    Parameters
+    ----------
+    cfg : CampaignConfig
+        The campaign.
+    limits : dict of str to Limits
+        Per axis, its limits.
+    start : dict of str to float
+        Per axis, where it stands [rad].
+    period : float
+        The SYNC period [s].
+
+    Returns
+    -------
+    Plan
+        The plan.
+
+    Raises
+    ------
+    UserError
+        The short design with too little time for its excitation, or an axis it cannot excite
+        within its limits.
+    """
     from .excitation import MARGIN, design_axis
 
     axes = list(limits)
@@ -232,7 +339,24 @@ def approach_move(
     """A move at ``level`` of the limits (the approach level by default) from wherever the axis
     stands: a trapezoid whose positions are smoothed so that the acceleration ramps (an S-curve of
     the same travel) within the jerk limit where one is set, else over ``APPROACH_RAMP_S``: no
-    acceleration step at the start of motion."""
+    acceleration step at the start of motion.
+
+    Parameters
+    ----------
+    lim : Limits
+        The axis's limits.
+    p0, p1 : float
+        From, to [rad].
+    period : float
+        The SYNC period [s].
+    level : float
+        The share of the limits.
+
+    Returns
+    -------
+    numpy.ndarray
+        The positions [rad].
+    """
     move = trapezoid(p0, p1, level * lim.max_velocity, level * lim.max_acceleration, period)
     if len(move) == 0:
         return move
@@ -244,7 +368,20 @@ def approach_move(
 
 def plan_summary(plan: Plan, limits: dict[str, Limits]) -> dict[str, dict]:
     """Per axis what the plan does, motor side SI: where it starts, the span it covers, its peak
-    velocity, acceleration and jerk, and the limits it stays inside; the plan's duration [s]."""
+    velocity, acceleration and jerk, and the limits it stays inside; the plan's duration [s].
+
+    Parameters
+    ----------
+    plan : Plan
+        The plan.
+    limits : dict of str to Limits
+        Per axis, its limits.
+
+    Returns
+    -------
+    dict of str to dict
+        Per axis what it does; ``duration_s``.
+    """
     T = plan.period
     out = {}
     for i, ax in enumerate(plan.axes):
@@ -270,7 +407,22 @@ def plan_summary(plan: Plan, limits: dict[str, Limits]) -> dict[str, dict]:
 
 def check_plan(plan: Plan, limits: dict[str, Limits], tolerance: float = 1e-6) -> None:
     """Refuse a plan that leaves the stroke or exceeds velocity, acceleration or (where
-    configured) jerk limits."""
+    configured) jerk limits.
+
+    Parameters
+    ----------
+    plan : Plan
+        The plan.
+    limits : dict of str to Limits
+        Per axis, its limits.
+    tolerance : float
+        A relative margin for rounding.
+
+    Raises
+    ------
+    UserError
+        The first limit it breaks, naming the axis.
+    """
     T = plan.period
     for i, ax in enumerate(plan.axes):
         lim = limits[ax]

@@ -123,7 +123,13 @@ def _receive(sock: socket.socket) -> tuple[object, list[int]]:
 
 
 class EngineProcess:
-    """The cyclic engine in a child process with its own handle on the bus of ``spec``."""
+    """The cyclic engine in a child process with its own handle on the bus of ``spec``.
+
+    Parameters
+    ----------
+    spec : BusSpec
+        The bus.
+    """
 
     def __init__(self, spec: BusSpec):
         self.spec = spec
@@ -155,7 +161,22 @@ class EngineProcess:
         self._mapping: mmap.mmap | None = None
 
     def start(self, job: Job, fill: Callable[[Arrays], None]) -> tuple[Arrays, TraceRing]:
-        """Lay out the run in shared memory, let ``fill`` write the setpoint table, hand it over."""
+        """Lay out the run in shared memory, let ``fill`` write the setpoint table, hand it over.
+
+        Parameters
+        ----------
+        job : Job
+            The job.
+        fill : callable
+            Writes the setpoint table into the arrays.
+
+        Returns
+        -------
+        arrays : Arrays
+            The run's arrays, in shared memory.
+        ring : TraceRing
+            The frames' ring, in shared memory.
+        """
         places, size = _layout(job, RING_FRAMES)
         fd, mapping = _shared(size)
         try:
@@ -169,7 +190,23 @@ class EngineProcess:
         return arrays, ring
 
     def result(self, timeout: float) -> Outcome | None:
-        """The outcome once the engine has ended the run (None: still running)."""
+        """The outcome once the engine has ended the run (None: still running).
+
+        Parameters
+        ----------
+        timeout : float
+            How long to wait for it [s].
+
+        Returns
+        -------
+        Outcome or None
+            The outcome.
+
+        Raises
+        ------
+        EngineError
+            The engine's process is gone.
+        """
         self._sock.settimeout(timeout)
         try:
             reply, _ = _receive(self._sock)
@@ -187,6 +224,7 @@ class EngineProcess:
         raise EngineError(f"the cyclic engine answered {reply!r}")
 
     def close(self) -> None:
+        """End the engine's process."""
         try:
             self._sock.close()
         finally:
@@ -199,7 +237,15 @@ class EngineProcess:
 
 
 class EngineThread:
-    """The same engine as a thread of the master's process (python-can's virtual bus lives there)."""
+    """The same engine as a thread of the master's process (python-can's virtual bus lives there).
+
+    Parameters
+    ----------
+    spec : BusSpec
+        The bus.
+    why : str
+        Why a thread (for :attr:`description`).
+    """
 
     def __init__(self, spec: BusSpec, why: str):
         self.spec = spec
@@ -211,6 +257,22 @@ class EngineThread:
         self._error: BaseException | None = None
 
     def start(self, job: Job, fill: Callable[[Arrays], None]) -> tuple[Arrays, TraceRing]:
+        """:meth:`EngineProcess.start`, in this process's memory.
+
+        Parameters
+        ----------
+        job : Job
+            The job.
+        fill : callable
+            Writes the setpoint table into the arrays.
+
+        Returns
+        -------
+        arrays : Arrays
+            The run's arrays.
+        ring : TraceRing
+            The frames' ring.
+        """
         arrays = Arrays(job, np.zeros)
         ring = TraceRing(RING_FRAMES, np.zeros)
         fill(arrays)
@@ -227,6 +289,18 @@ class EngineThread:
         return arrays, ring
 
     def result(self, timeout: float) -> Outcome | None:
+        """:meth:`EngineProcess.result`.
+
+        Parameters
+        ----------
+        timeout : float
+            How long to wait for it [s].
+
+        Returns
+        -------
+        Outcome or None
+            The outcome (None: still running).
+        """
         assert self._thread is not None
         self._thread.join(timeout)
         if self._thread.is_alive():
@@ -236,12 +310,24 @@ class EngineThread:
         return self._outcome
 
     def close(self) -> None:
+        """Close the engine's handle on the bus."""
         self._bus.shutdown()
 
 
 def engine_for(spec: BusSpec) -> EngineProcess | EngineThread:
     """The engine's host for the bus of ``spec``: a process of its own where the bus can be opened
-    a second time, else a thread (said in :attr:`description`)."""
+    a second time, else a thread (said in :attr:`description`).
+
+    Parameters
+    ----------
+    spec : BusSpec
+        The bus.
+
+    Returns
+    -------
+    EngineProcess or EngineThread
+        The host.
+    """
     if spec.in_process:
         return EngineThread(spec, f"python-can's {spec.interface} bus lives in that process")
     try:
@@ -309,6 +395,13 @@ def _serve(sock: socket.socket) -> None:
 
 
 def main(fd: str) -> None:
+    """The engine's process: serve runs over the socket the master handed down.
+
+    Parameters
+    ----------
+    fd : str
+        The socket's file descriptor.
+    """
     with socket.socket(fileno=int(fd)) as sock:
         _serve(sock)
 

@@ -41,7 +41,29 @@ def read_limits(
 ) -> tuple[NodeConfig, list[str]]:
     """``ncfg`` with the limits its drive holds (``ncfg.scaling`` in the drive's units already),
     and what was read and what defaulted, in words with the values; DriveRefused where the drive
-    holds no stroke, velocity or acceleration."""
+    holds no stroke, velocity or acceleration.
+
+    Parameters
+    ----------
+    node : canopen.RemoteNode
+        The drive.
+    ncfg : NodeConfig
+        The node's configuration.
+    path : str or os.PathLike
+        bus.yml, for the errors.
+
+    Returns
+    -------
+    ncfg : NodeConfig
+        The configuration with the drive's limits.
+    read : list of str
+        What was read and what defaulted, with the values.
+
+    Raises
+    ------
+    DriveRefused
+        A drive that holds no stroke, velocity or acceleration.
+    """
     axis, sc = ncfg.axis, ncfg.scaling
     per_rad, per_rad_s = sc.inc_per_rad, sc.velocity_per_rad_s
 

@@ -29,17 +29,37 @@ TORQUE_TOLERANCE = 1e-3  # rated torque / current: the drive reports mNm / mA
 
 @dataclass
 class DriveUnits:
-    """What one drive reported (None: it has no such object or did not answer)."""
+    """What one drive reported (None: it has no such object or did not answer).
+
+    Parameters
+    ----------
+    group : FactorGroup
+        Its factor group.
+    rated_torque_Nm : float, optional
+        0x6076 [Nm].
+    rated_current_A : float, optional
+        0x6075 [A].
+    max_torque_permille : int, optional
+        0x6072 [per mille of the rated torque].
+    assumed : list of str
+        What bus.yml assumed because the drive does not say it.
+    """
 
     group: FactorGroup
     rated_torque_Nm: float | None = None
     rated_current_A: float | None = None
     max_torque_permille: int | None = None
-    #: what bus.yml assumed because the drive does not say it
     assumed: list[str] = field(default_factory=list)
 
     def as_dict(self) -> dict:
-        """bringup.json / meta.yaml: what the drive said, in its units and per SI unit."""
+        """bringup.json / meta.yaml: what the drive said, in its units and per SI unit.
+
+        Returns
+        -------
+        dict
+            Units in words and per SI unit, the factor group, rated torque and current, max torque, what
+            was assumed.
+        """
         g = self.group
         return {
             "position_unit": None if g.position_unit is None else describe(g.position_unit),
@@ -60,7 +80,27 @@ def read_units(
     node: canopen.RemoteNode, axis: str, planned: dict[tuple[int, int], Any] | None = None
 ) -> DriveUnits:
     """Read every unit object the drive's EDS/DCF has (an object the drive refuses to read counts as
-    absent); ``planned`` ((index, sub) -> value) stands for values about to be written."""
+    absent); ``planned`` ((index, sub) -> value) stands for values about to be written.
+
+    Parameters
+    ----------
+    node : canopen.RemoteNode
+        The drive.
+    axis : str
+        Its axis, for the errors.
+    planned : dict of (int, int) to object, optional
+        Values about to be written.
+
+    Returns
+    -------
+    DriveUnits
+        What it reported.
+
+    Raises
+    ------
+    BusError
+        The drive does not answer.
+    """
 
     def value(index: int, sub: int) -> Any:
         if (
@@ -83,7 +123,27 @@ def reconcile(ncfg: NodeConfig, units: DriveUnits, path: str | os.PathLike[str])
 
     With ``from_drive`` the drive's units replace what bus.yml leaves open; otherwise every unit the
     drive reports must agree with bus.yml, else DriveRefused (nothing of the node's limits, PDOs or
-    motion has been written yet); a rated torque bus.yml does not give is the drive's 0x6076."""
+    motion has been written yet); a rated torque bus.yml does not give is the drive's 0x6076.
+
+    Parameters
+    ----------
+    ncfg : NodeConfig
+        The node's configuration.
+    units : DriveUnits
+        What the drive reported.
+    path : str or os.PathLike
+        bus.yml, for the errors.
+
+    Returns
+    -------
+    NodeConfig
+        The configuration in the drive's units.
+
+    Raises
+    ------
+    DriveRefused
+        A unit the drive reports that bus.yml contradicts.
+    """
     axis, sc = ncfg.axis, ncfg.scaling
     pos, vel = units.group.position_per_rad, units.group.velocity_per_rad_s
     if ncfg.units_from_drive:

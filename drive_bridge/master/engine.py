@@ -82,18 +82,46 @@ Handler = Callable[[bytes | bytearray, float], None]
 # ---------------------------------------------------------------------------------------- the job
 @dataclass(frozen=True)
 class RpdoJob:
-    """One RPDO: its COB-ID, struct format and what each field carries, ``(kind, argument)``."""
+    """One RPDO.
+
+    Parameters
+    ----------
+    cob_id : int
+        Its COB-ID.
+    format : str
+        Its struct format.
+    fields : tuple of (int, int)
+        What each field carries: ``(kind, argument)``.
+    axis : int
+        Its axis, an index into :attr:`Job.axes`.
+    around_plan : bool
+        Also sent while enabling, holding and stopping (not: interpolation data records).
+    """
 
     cob_id: int
     format: str
     fields: tuple[tuple[int, int], ...]
-    axis: int  # index into :attr:`Job.axes`
-    around_plan: bool = True  # also sent while enabling, holding and stopping (not: IP records)
+    axis: int
+    around_plan: bool = True
 
 
 @dataclass(frozen=True)
 class TpdoJob:
-    """One TPDO: its values go to ``raw[row, first:first + count]``, its arrival to ``got[row, slot]``."""
+    """One TPDO: its values go to ``raw[row, first:first + count]``, its arrival to ``got[row, slot]``.
+
+    Parameters
+    ----------
+    cob_id : int
+        Its COB-ID.
+    format : str
+        Its struct format.
+    first : int
+        Its first column of ``raw``.
+    slot : int
+        Its column of ``got``.
+    axis : int
+        Its axis, an index into :attr:`Job.axes`.
+    """
 
     cob_id: int
     format: str
@@ -104,47 +132,112 @@ class TpdoJob:
 
 @dataclass(frozen=True)
 class AxisJob:
-    """What the engine needs of one axis, in the drive's units."""
+    """What the engine needs of one axis, in the drive's units.
+
+    Parameters
+    ----------
+    name : str
+        The axis.
+    node_id : int
+        Its node id.
+    slots : tuple of int
+        Its TPDOs' columns of ``got``: a row is complete when all arrived.
+    statusword : int
+        Its statusword's column of ``raw``.
+    velocity : int
+        Its velocity actual's column of ``raw`` (-1: not mapped).
+    torque : int
+        Its torque feedback's column of ``raw`` (-1: not mapped).
+    buffer_status : int
+        The column of maxon's interpolation buffer status 0x20C4:1 (-1: none).
+    position_column : int
+        The column of the setpoint table that holds its position [increments].
+    enable_controlword : int
+        The controlword during the plan (interpolated position: + bit 4).
+    interpolating : bool
+        Streamed in interpolated position mode.
+    standstill : float
+        |velocity actual| at or below this is standing [velocity units].
+    on_brake : bool
+        Held switched off onto its brake.
+    quick_stop_holds : bool
+        0x605A = 6: a quick stop holds the axis powered (leaves CSP safely).
+    csp : bool
+        Streamed in cyclic synchronous position mode.
+    torque_Nm_per_raw : float
+        Where the master sends a torque offset: at each move start the torque the velocity loop
+        holds at rest (feedback [raw] × Nm per raw unit, in per mille of the rated torque) is taken
+        out of the offsets (0: not done).
+    rated_torque_Nm : float
+        The drive's rated torque [Nm].
+    move_starts : tuple of int
+        The plan rows where moves start.
+    velocity_guard : float
+        |velocity actual| beyond this stops the run [velocity units].
+    """
 
     name: str
     node_id: int
-    slots: tuple[int, ...]  # its TPDOs' columns of ``got``: a row is complete when all arrived
-    statusword: int  # column of ``raw``
-    velocity: int  # column of ``raw`` (-1: not mapped)
-    torque: int = -1  # column of ``raw`` of the torque feedback (-1: not mapped)
-    buffer_status: int = -1  # column of maxon's interpolation buffer status 0x20C4:1 (-1: none)
-    position_column: int = -1  # column of the setpoint table that holds its position [increments]
-    enable_controlword: int = CW_ENABLE  # during the plan (interpolated position: + bit 4)
+    slots: tuple[int, ...]
+    statusword: int
+    velocity: int
+    torque: int = -1
+    buffer_status: int = -1
+    position_column: int = -1
+    enable_controlword: int = CW_ENABLE
     interpolating: bool = False
-    standstill: float = 0.0  # |velocity actual| at or below this is standing [velocity units]
-    on_brake: bool = False  # held switched off onto its brake
-    quick_stop_holds: bool = False  # 0x605A = 6: a quick stop holds the axis powered (leaves CSP safely)
+    standstill: float = 0.0
+    on_brake: bool = False
+    quick_stop_holds: bool = False
     csp: bool = True
-    #: where the master sends a torque offset: at each move start the torque the velocity loop holds
-    #: at rest (feedback [raw] x Nm per raw unit, in per mille of the rated torque) is taken out of the
-    #: offsets (0: not done)
     torque_Nm_per_raw: float = 0.0
     rated_torque_Nm: float = 1.0
     move_starts: tuple[int, ...] = ()
-    velocity_guard: float = math.inf  # |velocity actual| beyond this stops the run [velocity units]
+    velocity_guard: float = math.inf
 
 
 @dataclass(frozen=True)
 class Supervision:
     """The time limits the engine judges by, and what they come from (written into the drives at
-    bring-up, or the drive profile's own)."""
+    bring-up, or the drive profile's own).
 
-    period_s: float  # SYNC period = 0x1006
-    window_s: float  # synchronous window 0x1007 (the period where none is written)
-    feedback_timeout_s: float  # a drive's feedback missing this long stops the run
-    setpoint_timeout_s: float  # the drives stop on their own after this long without setpoints
-    heartbeat_timeout_s: float  # a node silent this long is lost (the wall-clock backstop)
-    state_timeout_s: float  # enabling, holding
-    stop_timeout_s: float  # quick stop until standing still
+    Parameters
+    ----------
+    period_s : float
+        The SYNC period = 0x1006 [s].
+    window_s : float
+        The synchronous window 0x1007 [s] (the period where none is written).
+    feedback_timeout_s : float
+        A drive's feedback missing this long stops the run [s].
+    setpoint_timeout_s : float
+        The drives stop on their own after this long without setpoints [s].
+    heartbeat_timeout_s : float
+        A node silent this long is lost [s] (the wall-clock backstop).
+    state_timeout_s : float
+        Enabling, holding [s].
+    stop_timeout_s : float
+        Quick stop until standing still [s].
+    sources : dict of str to str
+        Where each limit comes from.
+    """
+
+    period_s: float
+    window_s: float
+    feedback_timeout_s: float
+    setpoint_timeout_s: float
+    heartbeat_timeout_s: float
+    state_timeout_s: float
+    stop_timeout_s: float
     sources: dict[str, str] = field(default_factory=dict)
 
     def as_dict(self) -> dict:
-        """meta.yaml's ``supervision``: each limit in ms, and where it comes from."""
+        """meta.yaml's ``supervision``.
+
+        Returns
+        -------
+        dict
+            Each limit in ms, and where it comes from (``sources``).
+        """
         out: dict = {
             k: round(getattr(self, k) * 1e3, 3)
             for k in (
@@ -162,14 +255,32 @@ class Supervision:
 
 @dataclass(frozen=True)
 class Job:
-    """A streamed motion as plain data: what :class:`Engine` runs."""
+    """A streamed motion as plain data: what :class:`Engine` runs.
+
+    Parameters
+    ----------
+    axes : tuple of AxisJob
+        The axes.
+    rpdos, tpdos : tuple of RpdoJob, TpdoJob
+        Their PDOs.
+    rows : int
+        The plan's rows (one SYNC each, on time).
+    columns : int
+        Of ``raw``.
+    table_columns : int
+        Of the setpoint table.
+    supervision : Supervision
+        The time limits the engine judges by.
+    heartbeat : (int, float), optional
+        The master's heartbeat the engine sends while it runs: COB-ID, period [s].
+    """
 
     axes: tuple[AxisJob, ...]
     rpdos: tuple[RpdoJob, ...]
     tpdos: tuple[TpdoJob, ...]
-    rows: int  # plan rows (one SYNC each, on time)
-    columns: int  # of ``raw``
-    table_columns: int  # of the setpoint table
+    rows: int
+    columns: int
+    table_columns: int
     supervision: Supervision
     #: the master's heartbeat (COB-ID, period [s]) where the engine is to produce it while it runs (the
     #: link's own is a thread of the master's process there, which the master's other work can hold up)
@@ -181,7 +292,15 @@ class Arrays:
     lockstep, one shared mapping for an engine in its own process): the setpoint table (what the
     RPDOs carry per plan row), the TPDO values and arrivals per row, the position each drive took at
     each SYNC, the SYNC time stamps (NaN: no SYNC in that period), the torque held back per axis, the
-    feedback age histogram and the control slots the host reads and writes while the engine runs."""
+    feedback age histogram and the control slots the host reads and writes while the engine runs.
+
+    Parameters
+    ----------
+    job : Job
+        The job (the arrays' sizes).
+    allocate : callable
+        ``allocate(shape, dtype)``: plain memory, or a shared mapping.
+    """
 
     table: np.ndarray
     raw: np.ndarray
@@ -199,7 +318,18 @@ class Arrays:
 
     @staticmethod
     def layout(job: Job) -> list[tuple[str, tuple[int, ...], type]]:
-        """(name, shape, type) of each array, in the order they are allocated."""
+        """(name, shape, type) of each array, in the order they are allocated.
+
+        Parameters
+        ----------
+        job : Job
+            The job.
+
+        Returns
+        -------
+        list of (str, tuple of int, type)
+            The layout.
+        """
         n = job.rows
         return [
             ("table", (n, max(1, job.table_columns)), np.int64),
@@ -217,7 +347,35 @@ class Arrays:
 class Outcome:
     """How a run ended, for the host to turn into words: the rows sent, why it stopped (``abort``:
     kind, axis, detail, EMCY code), each axis's last statusword, the axes whose feedback was gone
-    (the host stops those by SDO), problems while stopping or holding, and the run's timing."""
+    (the host stops those by SDO), problems while stopping or holding, and the run's timing.
+
+    Parameters
+    ----------
+    rows_sent : int
+        The plan's rows sent.
+    enable_cycles : int
+        The SYNC cycles enabling took.
+    abort : (str, str or None, str, int or None), optional
+        Why it stopped: kind, axis, detail, EMCY code.
+    statuswords : dict of str to int or None
+        Each axis's last statusword.
+    lost : list of str
+        The axes whose feedback was gone.
+    problems : list of str
+        Problems while stopping or holding.
+    late_cycles : int
+        Cycles that started more than half a period late.
+    periods_skipped : int
+        Periods that got no SYNC (a late cycle sends the one it is in).
+    setpoints_late : int
+        Interface-sent SYNCs the engine had sent no new setpoints before.
+    worst_wake_ms : float
+        The latest a cycle started after its deadline [ms].
+    largest_sync_gap_ms : float
+        The largest gap between two SYNCs [ms].
+    sync_source : str
+        What sent SYNC, in words.
+    """
 
     rows_sent: int = 0
     enable_cycles: int = 0
@@ -225,16 +383,27 @@ class Outcome:
     statuswords: dict[str, int | None] = field(default_factory=dict)
     lost: list[str] = field(default_factory=list)
     problems: list[str] = field(default_factory=list)
-    late_cycles: int = 0  # cycles that started more than half a period late
-    periods_skipped: int = 0  # periods that got no SYNC (a late cycle sends the one it is in)
-    setpoints_late: int = 0  # interface-sent SYNCs the engine had sent no new setpoints before
-    worst_wake_ms: float = 0.0  # the latest a cycle started after its deadline
+    late_cycles: int = 0
+    periods_skipped: int = 0
+    setpoints_late: int = 0
+    worst_wake_ms: float = 0.0
     largest_sync_gap_ms: float = 0.0
     sync_source: str = ""
 
 
 def stop_code(signal_name: str) -> int:
-    """The ``STOP_REQUEST`` value of a stop asked for by ``signal_name`` (Ctrl-C, SIGTERM, SIGHUP)."""
+    """The ``STOP_REQUEST`` value of a stop asked for by ``signal_name`` (Ctrl-C, SIGTERM, SIGHUP).
+
+    Parameters
+    ----------
+    signal_name : str
+        Ctrl-C, SIGTERM or SIGHUP.
+
+    Returns
+    -------
+    int
+        The value (1 for another name).
+    """
     return STOP_SIGNALS.index(signal_name) if signal_name in STOP_SIGNALS else 1
 
 
@@ -242,7 +411,22 @@ def reporter(
     arrays: Arrays, progress: Callable[[int], None] | None, on_start: Callable[[int], None] | None
 ) -> Callable[[], None]:
     """What the host calls now and then while the engine runs: ``on_start`` (once, with the SYNC
-    cycles enabling took) when the plan's first row has gone out, ``progress`` with the rows sent."""
+    cycles enabling took) when the plan's first row has gone out, ``progress`` with the rows sent.
+
+    Parameters
+    ----------
+    arrays : Arrays
+        The engine's arrays (its control slots are read).
+    progress : callable or None
+        Called with the rows sent.
+    on_start : callable or None
+        Called once with the SYNC cycles enabling took.
+
+    Returns
+    -------
+    callable
+        What the host calls.
+    """
     started = [on_start is None]
     shown = [-1]
     control = arrays.control
@@ -277,22 +461,58 @@ class Port(Protocol):
         """The time [s] frames are stamped in."""
 
     def start_sync(self, period: float) -> None:
-        """Let the interface send SYNC every ``period`` [s] (``periodic_sync`` only)."""
+        """Let the interface send SYNC every ``period`` [s] (``periodic_sync`` only).
+
+        Parameters
+        ----------
+        period : float
+            The SYNC period [s].
+        """
 
     def wait_sync(self, timeout_at: float) -> None:
-        """Hand over frames until a SYNC has been seen, or until ``timeout_at`` (``periodic_sync`` only)."""
+        """Hand over frames until a SYNC has been seen, or until ``timeout_at`` (``periodic_sync`` only).
+
+        Parameters
+        ----------
+        timeout_at : float
+            The latest time [s, :meth:`now`'s].
+        """
 
     def stop_sync(self) -> None:
         """Stop the interface's SYNC, where it was started (a no-op otherwise)."""
 
     def wait_until(self, deadline: float) -> None:
-        """Return at ``deadline``, handing over every frame that arrives meanwhile."""
+        """Return at ``deadline``, handing over every frame that arrives meanwhile.
+
+        Parameters
+        ----------
+        deadline : float
+            [s, :meth:`now`'s].
+        """
 
     def send(self, cob_id: int, data: bytes | bytearray, stamp: float) -> None:
-        """Send one frame stamped ``stamp`` [s] (taken just before, from :meth:`now`)."""
+        """Send one frame stamped ``stamp`` [s] (taken just before, from :meth:`now`).
+
+        Parameters
+        ----------
+        cob_id : int
+            Its COB-ID.
+        data : bytes or bytearray
+            Its data.
+        stamp : float
+            Its time stamp [s].
+        """
 
     def receive(self, handlers: dict[int, Handler], on_error_frame: Callable[[], None]) -> None:
-        """From now on, hand received frames to ``handlers`` by COB-ID, error frames to ``on_error_frame``."""
+        """From now on, hand received frames to ``handlers`` by COB-ID, error frames to ``on_error_frame``.
+
+        Parameters
+        ----------
+        handlers : dict of int to Handler
+            COB-ID -> ``handler(data, timestamp)``.
+        on_error_frame : callable
+            Called for each error frame.
+        """
 
     def release(self) -> None:
         """Hand no more frames to the handlers."""
@@ -300,7 +520,20 @@ class Port(Protocol):
 
 # ---------------------------------------------------------------------------------------- the engine
 class Engine:
-    """Runs one :class:`Job` over ``port``: enable, stream, then hold, or stop on the first fault."""
+    """Runs one :class:`Job` over ``port``: enable, stream, then hold, or stop on the first fault.
+
+    Parameters
+    ----------
+    job : Job
+        The job.
+    arrays : Arrays
+        Its arrays.
+    port : Port
+        How it reaches the bus.
+    on_check : callable, optional
+        Called after a period's frames are out whenever the engine checks its watches (about every
+        ``CHECK_EVERY_S``): the host's own checks in lockstep.
+    """
 
     def __init__(self, job: Job, arrays: Arrays, port: Port, on_check: Callable[[], None] | None = None):
         self.job, self.arrays, self.port = job, arrays, port
@@ -349,7 +582,13 @@ class Engine:
 
     # ------------------------------------------------------------------ receiving
     def handlers(self) -> dict[int, Handler]:
-        """COB-ID -> handler of every frame the engine listens to."""
+        """COB-ID -> handler of every frame the engine listens to.
+
+        Returns
+        -------
+        dict of int to Handler
+            COB-ID -> ``handler(data, timestamp)``.
+        """
         out: dict[int, Handler] = {}
         for tpdo in self.job.tpdos:
             out[tpdo.cob_id] = self._tpdo_handler(tpdo)
@@ -532,7 +771,13 @@ class Engine:
     def run(self) -> Outcome:
         """Enable, stream every row, hold; on a fault, a stop request (a signal included) or any
         failure, quick-stop every axis in the controlword and cycle until each stands still (where
-        the cyclic path itself failed, every axis is left to the host to stop by SDO)."""
+        the cyclic path itself failed, every axis is left to the host to stop by SDO).
+
+        Returns
+        -------
+        Outcome
+            How the run ended.
+        """
         job, port, out, control = self.job, self.port, self.outcome, self.arrays.control
         port.receive(self.handlers(), self._on_error_frame)
         try:

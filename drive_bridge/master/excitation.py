@@ -73,7 +73,31 @@ def design_axis(
     lim: Limits, duration_s: float, period: float, move_fraction: float, seed: int = 0
 ) -> np.ndarray:
     """Positions [rad] at t = period, 2·period, ... of ``duration_s``: the designed excitation,
-    from and back to the centre of the stroke, at rest at both ends."""
+    from and back to the centre of the stroke, at rest at both ends.
+
+    Parameters
+    ----------
+    lim : Limits
+        The axis's limits.
+    duration_s : float
+        How long [s].
+    period : float
+        The SYNC period [s].
+    move_fraction : float
+        The share of the stroke it moves over.
+    seed : int
+        Seed of the multisine's phases.
+
+    Returns
+    -------
+    numpy.ndarray
+        The positions [rad].
+
+    Raises
+    ------
+    ValueError
+        No multisine covers the stroke within these limits.
+    """
     centre = 0.5 * (lim.position_min + lim.position_max)
     half = 0.5 * (lim.position_max - lim.position_min) * move_fraction
     n = int(round(duration_s / period))

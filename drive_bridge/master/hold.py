@@ -26,7 +26,22 @@ STANDSTILL_MIN_RAD_S = 0.05  # ... or below this, whichever is larger (encoder d
 
 def at_rest(ax: AxisLink, statusword: int, velocity: int) -> bool:
     """Out of OPERATION ENABLED (quick stop active, switched off or faulted) and its measured
-    velocity [device units] within ``STANDSTILL`` of its limit (or ``STANDSTILL_MIN_RAD_S``)."""
+    velocity [device units] within ``STANDSTILL`` of its limit (or ``STANDSTILL_MIN_RAD_S``).
+
+    Parameters
+    ----------
+    ax : AxisLink
+        The axis.
+    statusword : int
+        Its statusword.
+    velocity : int
+        Its velocity actual [device units].
+
+    Returns
+    -------
+    bool
+        Whether it is at rest.
+    """
     speed = abs(float(ax.cfg.scaling.velocity_from_device(velocity)))
     return state_name(statusword) != "OPERATION ENABLED" and speed <= max(
         STANDSTILL * ax.cfg.limits.max_velocity, STANDSTILL_MIN_RAD_S
@@ -34,18 +49,44 @@ def at_rest(ax: AxisLink, statusword: int, velocity: int) -> bool:
 
 
 def on_brake(ax: AxisLink) -> bool:
-    """Whether the axis is held by its brake (``holding: brake``) rather than powered."""
+    """Whether the axis is held by its brake (``holding: brake``) rather than powered.
+
+    Parameters
+    ----------
+    ax : AxisLink
+        The axis.
+
+    Returns
+    -------
+    bool
+        Held by its brake.
+    """
     return ax.cfg.drive_limits is not None and ax.cfg.drive_limits.holding == "brake"
 
 
 def quick_stop(link: Link, axes: dict[str, AxisLink], timeout: float) -> list[str]:
     """Quick stop every axis by SDO, then wait until each stands still (the fallback where an axis's
-    cyclic feedback is gone, and for a master that no longer streams). Returns problems seen.
+    cyclic feedback is gone, and for a master that no longer streams).
 
     An axis stands still when a fresh read shows it out of OPERATION ENABLED (quick stop active,
     switched off or faulted) and its measured velocity (0x606C) within ``STANDSTILL`` of its
     limit on two reads in a row: never a statusword bit left from an earlier stop, and a drive
-    that switched off while its axis coasts is waited for too."""
+    that switched off while its axis coasts is waited for too.
+
+    Parameters
+    ----------
+    link : Link
+        The link to the drives.
+    axes : dict of str to AxisLink
+        The axes.
+    timeout : float
+        How long each may take to stand still [s].
+
+    Returns
+    -------
+    list of str
+        The problems seen (empty: every axis stands still).
+    """
     problems = []
     for name, ax in axes.items():
         try:
@@ -79,7 +120,15 @@ def quick_stop(link: Link, axes: dict[str, AxisLink], timeout: float) -> list[st
 def prepare_enable(ax: AxisLink, target: int) -> None:
     """Before SYNC starts: a fault reset (SDO), the target position set to where the axis stands
     (CSP: a drive that takes 0x607A on enable must not jump), a record buffer emptied of whatever
-    an earlier run left in it (IP with 0x60C4), then the operating mode."""
+    an earlier run left in it (IP with 0x60C4), then the operating mode.
+
+    Parameters
+    ----------
+    ax : AxisLink
+        The axis.
+    target : int
+        Where it stands [increments].
+    """
     ax.drive.reset_fault()
     if ax.mode == IP and ax.setpoint == PVT and 0x60C4 in ax.node.object_dictionary:
         try:
@@ -110,7 +159,20 @@ def prepare_enable(ax: AxisLink, target: int) -> None:
 
 
 def holding_of(ax: AxisLink, state: str | None) -> str:
-    """How an axis in CiA 402 ``state`` is held, in words, for the command's last lines."""
+    """How an axis in CiA 402 ``state`` is held, in words, for the command's last lines.
+
+    Parameters
+    ----------
+    ax : AxisLink
+        The axis.
+    state : str or None
+        Its CiA 402 state (None: not known).
+
+    Returns
+    -------
+    str
+        How it is held.
+    """
     if state in ("SWITCH ON DISABLED", "READY TO SWITCH ON", "SWITCHED ON"):
         return "switched off, on its brake" if on_brake(ax) else "switched off: NOT HELD"
     if state == "OPERATION ENABLED":

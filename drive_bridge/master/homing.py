@@ -40,13 +40,39 @@ POLL_S = 0.01
 
 
 def to_home(axes: dict[str, AxisLink]) -> list[str]:
-    """The axes that home before they move (``reference: home``) and have not in this bring-up."""
+    """The axes that home before they move (``reference: home``) and have not in this bring-up.
+
+    Parameters
+    ----------
+    axes : dict of str to AxisLink
+        The brought-up axes.
+
+    Returns
+    -------
+    list of str
+        Those axes.
+    """
     return [a for a, ax in axes.items() if ax.cfg.homing is not None and not ax.homed]
 
 
 def home(link: Link, axes: dict[str, AxisLink], config: BusConfig) -> None:
     """Home each axis of :func:`to_home`, one after the other; MotionAborted (the axis quick-stopped
-    and held) when one does not home."""
+    and held) when one does not home.
+
+    Parameters
+    ----------
+    link : Link
+        The link to the drives.
+    axes : dict of str to AxisLink
+        The brought-up axes.
+    config : BusConfig
+        The bus configuration.
+
+    Raises
+    ------
+    MotionAborted
+        An axis that does not home (quick-stopped and held).
+    """
     for name in to_home(axes):
         _home(link, axes[name], config)
 

@@ -43,11 +43,25 @@ class WallClock:
 
     @staticmethod
     def sleep(seconds: float) -> None:
+        """Sleep.
+
+        Parameters
+        ----------
+        seconds : float
+            How long [s] (nothing for a negative time).
+        """
         time.sleep(max(0.0, seconds))
 
     def wait_until(self, deadline: float) -> None:
-        # One sleep, no spinning: a thread that polls with sleep(0) hands the GIL to the
-        # others and then waits a switch interval to get it back. Linux wakes within ~0.1 ms.
+        """Sleep until a time: one sleep, no spinning (a thread that polls with sleep(0) hands the
+        GIL to the others and then waits a switch interval to get it back; Linux wakes within
+        ~0.1 ms).
+
+        Parameters
+        ----------
+        deadline : float
+            Unix time [s].
+        """
         left = deadline - time.time()
         if left > 0:
             time.sleep(left)
@@ -69,6 +83,17 @@ class TraceRecorder(can.Listener):
     With ``background`` (frames come from several threads) a frame is only queued where it is
     seen, and a writer thread of its own sorts, formats and compresses: the thread that sends
     setpoints never waits for the file.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file; its suffix names the format (``.blf``, ``.asc``, ...).
+    background : bool
+        Frames come from several threads: a writer thread of its own writes them.
+    flush_every_s : float
+        How often that thread writes [s].
+    epoch : float
+        Added to every time stamp [s] (a lockstep link's start on the wall clock).
     """
 
     def __init__(
@@ -161,7 +186,15 @@ class TraceRecorder(can.Listener):
 
 class MasterNetwork(canopen.Network):
     """canopen Network that stamps sent frames with the link clock, records them
-    to the trace, and lets a lockstep link run the other side after each send."""
+    to the trace, and lets a lockstep link run the other side after each send.
+
+    Parameters
+    ----------
+    bus : can.BusABC
+        The bus.
+    clock : Clock
+        The link's clock (frames are stamped with it).
+    """
 
     #: [s] how long canopen's notifier thread waits in one ``recv`` (a frame ends the wait at
     #: once): closing the network joins the thread, which with canopen's 1 s held every
@@ -290,7 +323,20 @@ class Link(Protocol):
 
 
 def heartbeat_frame(node_id: int, timestamp: float = 0.0) -> can.Message:
-    """The master's heartbeat: NMT state operational (0x05)."""
+    """The master's heartbeat: NMT state operational (0x05).
+
+    Parameters
+    ----------
+    node_id : int
+        The master's node id.
+    timestamp : float
+        The frame's time stamp [s].
+
+    Returns
+    -------
+    can.Message
+        The frame (COB-ID 0x700 + node id).
+    """
     return can.Message(
         arbitration_id=0x700 + node_id, data=b"\x05", is_extended_id=False, timestamp=timestamp
     )
@@ -310,7 +356,15 @@ class BusErrors(can.Listener):
 
 class BusLink:
     """A python-can bus with canopen's Notifier thread and the wall clock; the cyclic engine on a
-    handle of its own on the same bus (``spec``), in a process of its own where it can be."""
+    handle of its own on the same bus (``spec``), in a process of its own where it can be.
+
+    Parameters
+    ----------
+    bus : can.BusABC
+        The master's bus (canopen's notifier reads it).
+    spec : BusSpec
+        How the engine opens a handle of its own on the same bus.
+    """
 
     threaded = True  # frames arrive on the Notifier thread
     epoch = 0.0  # the clock is the wall clock
@@ -346,7 +400,24 @@ class BusLink:
         bitrate: int | None = None,
         options: dict | None = None,
     ) -> BusLink:
-        """A link on :func:`~drive_bridge.cia.buses.open_bus`."""
+        """A link on :func:`~drive_bridge.cia.buses.open_bus`.
+
+        Parameters
+        ----------
+        interface : str
+            python-can's interface name.
+        channel : str or int, optional
+            Its channel.
+        bitrate : int, optional
+            [bit/s].
+        options : dict, optional
+            The interface's own arguments.
+
+        Returns
+        -------
+        BusLink
+            The link, its network connected.
+        """
         spec = BusSpec(interface, channel, bitrate, dict(options or {}))
         return cls(spec.open(), spec)
 
@@ -357,6 +428,29 @@ class BusLink:
         progress: Callable[[int], None] | None,
         on_start: Callable[[int], None] | None,
     ) -> tuple[Outcome, Arrays, str]:
+        """:meth:`Link.run_cycles`: the engine in a process of its own where it can be (else a
+        thread of this one), its trace ring drained into the traces every ``POLL_S``.
+
+        Parameters
+        ----------
+        job : Job
+            The streamed motion as plain data.
+        fill : callable
+            Writes the setpoint table into the engine's arrays.
+        progress : callable or None
+            Called with the plan's rows sent so far.
+        on_start : callable or None
+            Called once when the plan's first row has gone out.
+
+        Returns
+        -------
+        outcome : Outcome
+            How the run ended.
+        arrays : Arrays
+            The setpoints and actual values per cycle.
+        where : str
+            Where it ran and what was granted it.
+        """
         if self.engine is None:
             self.engine = engine_for(self.spec)
         engine = self.engine
@@ -408,16 +502,39 @@ class BusLink:
                 self.notifier.add_listener(trace)
 
     def add_trace(self, trace: TraceRecorder) -> None:
+        """:meth:`Link.add_trace`.
+
+        Parameters
+        ----------
+        trace : TraceRecorder
+            The recorder.
+        """
         self.network.traces += (trace,)
         self.notifier.add_listener(trace)
 
     def remove_trace(self, trace: TraceRecorder) -> None:
+        """:meth:`Link.remove_trace`.
+
+        Parameters
+        ----------
+        trace : TraceRecorder
+            A recorder :meth:`add_trace` was given.
+        """
         self.notifier.remove_listener(trace)
         self.network.traces = tuple(t for t in self.network.traces if t is not trace)
 
     def start_heartbeat(self, node_id: int, period: float) -> None:
-        # python-can's periodic send: the kernel's broadcast manager on socketcan, a thread of
-        # its own elsewhere; either way it ends with this process, as a master's heartbeat must
+        """:meth:`Link.start_heartbeat` by python-can's periodic send: the kernel's broadcast manager
+        on socketcan, a thread of its own elsewhere (SCHED_FIFO where granted); either way it ends
+        with this process, as a master's heartbeat must.
+
+        Parameters
+        ----------
+        node_id : int
+            The master's node id.
+        period : float
+            The heartbeat's period [s].
+        """
         self.stop_heartbeat()
         self._beat = (node_id, period)
         self._heartbeat = self.bus.send_periodic(heartbeat_frame(node_id), period)
@@ -431,12 +548,14 @@ class BusLink:
                 log.debug("the heartbeat thread keeps its ordinary priority (%s)", exc)
 
     def stop_heartbeat(self) -> None:
+        """:meth:`Link.stop_heartbeat`."""
         self._beat = None
         if self._heartbeat is not None:
             self._heartbeat.stop()
             self._heartbeat = None
 
     def close(self) -> None:
+        """:meth:`Link.close`: the engine, the heartbeat, the network, then the callbacks."""
         if self.engine is not None:
             self.engine.close()
             self.engine = None

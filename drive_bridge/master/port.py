@@ -32,7 +32,15 @@ class TraceRing:
 
     The producer writes a frame, then moves the head; the consumer reads up to the head, then moves
     the tail.  A frame that finds the ring full is counted in ``DROPPED`` instead (the engine never
-    waits for the trace)."""
+    waits for the trace).
+
+    Parameters
+    ----------
+    capacity : int
+        Frames it holds.
+    allocate : callable
+        ``allocate(shape, dtype)``: plain memory, or a shared mapping.
+    """
 
     def __init__(self, capacity: int, allocate: Callable[[tuple[int, ...], type], np.ndarray]):
         self.capacity = capacity
@@ -48,6 +56,18 @@ class TraceRing:
 
     @staticmethod
     def layout(capacity: int) -> list[tuple[str, tuple[int, ...], type]]:
+        """(name, shape, type) of each array, in the order they are allocated.
+
+        Parameters
+        ----------
+        capacity : int
+            Frames it holds.
+
+        Returns
+        -------
+        list of (str, tuple of int, type)
+            The layout.
+        """
         return [
             ("stamp", (capacity,), np.float64),
             ("cob_id", (capacity,), np.uint32),
@@ -58,6 +78,19 @@ class TraceRing:
         ]
 
     def put(self, stamp: float, cob_id: int, flags: int, data: bytes | bytearray) -> None:
+        """One frame (the producer's side; counted dropped where the ring is full).
+
+        Parameters
+        ----------
+        stamp : float
+            Its time stamp [s].
+        cob_id : int
+            Its COB-ID.
+        flags : int
+            ``RX``, ``ERROR``, ``REMOTE``, ``EXTENDED`` bits.
+        data : bytes or bytearray
+            Its data.
+        """
         counters = self.counters
         head = int(counters[HEAD])
         if head - int(counters[TAIL]) >= self.capacity:
@@ -74,7 +107,13 @@ class TraceRing:
         counters[HEAD] = head + 1
 
     def take(self) -> list[can.Message]:
-        """Every frame put since the last take, as python-can messages."""
+        """Every frame put since the last take, as python-can messages.
+
+        Returns
+        -------
+        list of can.Message
+            In the order they were put.
+        """
         counters = self.counters
         head, tail = int(counters[HEAD]), int(counters[TAIL])
         out = []
@@ -99,12 +138,24 @@ class TraceRing:
 
     @property
     def dropped(self) -> int:
+        """Frames that found the ring full (the trace misses them)."""
         return int(self.counters[DROPPED])
 
 
 def periodic_send_of(bus: can.BusABC) -> str | None:
     """What sends a periodic frame on ``bus`` where its interface does so itself (the kernel's broadcast
-    manager on socketcan, an adapter's own periodic send), else None (python-can's thread)."""
+    manager on socketcan, an adapter's own periodic send), else None (python-can's thread).
+
+    Parameters
+    ----------
+    bus : can.BusABC
+        The bus.
+
+    Returns
+    -------
+    str or None
+        What sends it, in words.
+    """
     if type(bus)._send_periodic_internal is can.BusABC._send_periodic_internal:
         return None
     if "socketcan" in type(bus).__module__:
@@ -119,7 +170,15 @@ class BusPort:
     it leaves on time whatever the interpreter does, and the engine takes each SYNC as the bus shows
     it (its receive stamp) and sends the RPDOs of the next period right after it.  Should the first
     SYNC not come back within a few periods, the engine's own loop sends SYNC instead (said in
-    :attr:`sync_source`)."""
+    :attr:`sync_source`).
+
+    Parameters
+    ----------
+    bus : can.BusABC
+        The engine's own handle on the bus.
+    ring : TraceRing
+        Where every frame goes.
+    """
 
     ECHO_PERIODS = 5  # periods to wait for the interface's first SYNC before taking over
 
@@ -136,9 +195,23 @@ class BusPort:
         self._messages: dict[int, can.Message] = {}  # one per COB-ID sent, its data filled in place
 
     def now(self) -> float:
+        """:meth:`Port.now`: the monotonic clock moved once onto the wall clock's epoch.
+
+        Returns
+        -------
+        float
+            [s].
+        """
         return time.monotonic() + self._offset
 
     def wait_until(self, deadline: float) -> None:
+        """:meth:`Port.wait_until`, inside the bus's ``recv``.
+
+        Parameters
+        ----------
+        deadline : float
+            [s, :meth:`now`'s].
+        """
         self._receive_until(deadline, sync=False)
 
     def _receive_until(self, deadline: float, sync: bool) -> None:
@@ -156,6 +229,13 @@ class BusPort:
                 return
 
     def start_sync(self, period: float) -> None:
+        """:meth:`Port.start_sync`: the interface's periodic send.
+
+        Parameters
+        ----------
+        period : float
+            The SYNC period [s].
+        """
         self._task = self.bus.send_periodic(
             can.Message(arbitration_id=SYNC_COB_ID, data=b"", is_extended_id=False), period
         )
@@ -182,9 +262,17 @@ class BusPort:
             )
 
     def wait_sync(self, timeout_at: float) -> None:
+        """:meth:`Port.wait_sync`.
+
+        Parameters
+        ----------
+        timeout_at : float
+            The latest time [s, :meth:`now`'s].
+        """
         self._receive_until(timeout_at, sync=True)
 
     def stop_sync(self) -> None:
+        """:meth:`Port.stop_sync`."""
         if self._task is not None:
             self._task.stop()
             self._task = None
@@ -209,6 +297,17 @@ class BusPort:
             handler(msg.data, stamp)
 
     def send(self, cob_id: int, data: bytes | bytearray, stamp: float) -> None:
+        """:meth:`Port.send` (one message object per COB-ID, reused: nothing allocated per frame).
+
+        Parameters
+        ----------
+        cob_id : int
+            Its COB-ID.
+        data : bytes or bytearray
+            Its data.
+        stamp : float
+            Its time stamp [s].
+        """
         msg = self._messages.get(cob_id)
         if msg is None or len(msg.data) != len(data):
             msg = self._messages[cob_id] = can.Message(
@@ -221,9 +320,19 @@ class BusPort:
         self.bus.send(msg)
 
     def receive(self, handlers: dict[int, Handler], on_error_frame: Callable[[], None]) -> None:
+        """:meth:`Port.receive`.
+
+        Parameters
+        ----------
+        handlers : dict of int to Handler
+            COB-ID -> ``handler(data, timestamp)``.
+        on_error_frame : callable
+            Called for each error frame.
+        """
         self._handlers = dict(handlers)
         self._on_error = on_error_frame
 
     def release(self) -> None:
+        """:meth:`Port.release`."""
         self._handlers = {}
         self._on_error = None

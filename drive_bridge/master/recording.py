@@ -33,6 +33,17 @@ class Recording:
     A TPDO belongs to the last SYNC sent before it; when it is read after the
     next SYNC went out, its frame time stamp (taken when it reached the bus,
     before that SYNC) still places it in its own row.
+
+    Parameters
+    ----------
+    tpdos : dict of str to list of PdoCodec
+        Per axis, its TPDOs.
+    rpdos : dict of str to list of PdoCodec
+        Per axis, its RPDOs.
+    n_cycles : int
+        The plan's rows.
+    arrays : Arrays, optional
+        The cyclic engine's arrays, where it writes them live.
     """
 
     def __init__(
@@ -82,10 +93,30 @@ class Recording:
         self.skipped: set[int] = set()
 
     def column(self, axis: str, index: int) -> int:
+        """The column of ``raw`` that holds an object of an axis.
+
+        Parameters
+        ----------
+        axis : str
+            The axis.
+        index : int
+            The object's index.
+
+        Returns
+        -------
+        int
+            The column.
+        """
         return self.columns.index((axis, index))
 
     def handlers(self) -> dict[int, Callable]:
-        """COB-ID -> callback(can_id, data, timestamp) for every TPDO and RPDO of the plan."""
+        """COB-ID -> callback(can_id, data, timestamp) for every TPDO and RPDO of the plan.
+
+        Returns
+        -------
+        dict of int to callable
+            The callbacks.
+        """
         out: dict[int, Callable[..., None]] = {}
         raw, got, sync_time = self.raw, self.got, self.sync_time
         for cob, codec, first, slot in self._tpdo_slots:
@@ -128,6 +159,14 @@ class Recording:
         return out
 
     def on_sync(self, timestamp: float) -> None:
+        """A SYNC: the next row (past the periods a late master skipped), the SYNCs that enabled
+        the drives before the plan's first not counted.
+
+        Parameters
+        ----------
+        timestamp : float
+            Its time stamp [s].
+        """
         if self.skip_syncs > 0:
             self.skip_syncs -= 1
             return
@@ -141,11 +180,28 @@ class Recording:
             self.rows = self.sync_index + 1
 
     def valid(self, axis: str) -> np.ndarray:
-        """Per row: every TPDO of ``axis`` arrived (a complete sample)."""
+        """Per row: every TPDO of ``axis`` arrived (a complete sample).
+
+        Parameters
+        ----------
+        axis : str
+            The axis.
+
+        Returns
+        -------
+        numpy.ndarray
+            A boolean per row.
+        """
         return np.asarray(self.got[:, self.slots[axis]].all(axis=1))
 
     def missing(self) -> dict[str, int]:
-        """Rows without a complete sample, per axis (rows of periods without a SYNC included)."""
+        """Rows without a complete sample, per axis (rows of periods without a SYNC included).
+
+        Returns
+        -------
+        dict of str to int
+            Per axis, the count.
+        """
         return {axis: int(np.count_nonzero(~self.valid(axis)[: self.rows])) for axis in self.axes}
 
     def truncate(self) -> None:

@@ -22,7 +22,19 @@ if TYPE_CHECKING:
 
 
 class Drive402:
-    """Power state machine of ``node`` with waits on ``clock`` bounded by ``timeout`` [s]."""
+    """Power state machine of ``node`` with waits on ``clock`` bounded by ``timeout`` [s].
+
+    Parameters
+    ----------
+    node : canopen.RemoteNode
+        The drive.
+    axis : str
+        Its axis, for the errors.
+    clock : Clock
+        The link's clock.
+    timeout : float
+        How long a state change is waited for [s].
+    """
 
     def __init__(self, node: canopen.RemoteNode, axis: str, clock: Clock, timeout: float):
         self.node = node
@@ -31,9 +43,23 @@ class Drive402:
         self.timeout = timeout
 
     def statusword(self) -> int:
+        """0x6041, read by SDO.
+
+        Returns
+        -------
+        int
+            The statusword.
+        """
         return self.node.sdo[0x6041].raw
 
     def state(self) -> str:
+        """The CiA 402 state the drive shows now.
+
+        Returns
+        -------
+        str
+            ``OPERATION ENABLED``, ...
+        """
         return state_name(self.statusword())
 
     def _wait_for(self, target: str, doing: str) -> None:
@@ -56,11 +82,33 @@ class Drive402:
 
     def command(self, controlword: int, target: str, doing: str) -> None:
         """Write ``controlword`` by SDO and wait for the state ``target`` (BusError naming what the
-        drive shows otherwise); for a mode the drive runs on its own, such as homing."""
+        drive shows otherwise); for a mode the drive runs on its own, such as homing.
+
+        Parameters
+        ----------
+        controlword : int
+            0x6040's value.
+        target : str
+            The state to wait for.
+        doing : str
+            What it is for, for the error.
+
+        Raises
+        ------
+        BusError
+            The drive does not reach the state within the timeout.
+        """
         self.node.sdo[0x6040].raw = controlword
         self._wait_for(target, doing)
 
     def reset_fault(self) -> None:
+        """Reset a fault, where the drive shows one, and wait for SWITCH ON DISABLED.
+
+        Raises
+        ------
+        DriveRefused
+            A fault that does not clear with a fault reset.
+        """
         if not self.statusword() & SW_FAULT:
             return
         code = self.node.sdo[0x603F].raw
@@ -75,7 +123,20 @@ class Drive402:
             ) from exc
 
     def set_mode(self, mode: int) -> None:
-        """Select the operating mode and confirm it in 0x6061 (no silent failure)."""
+        """Select the operating mode and confirm it in 0x6061 (no silent failure).
+
+        Parameters
+        ----------
+        mode : int
+            The mode (0x6060).
+
+        Raises
+        ------
+        DriveRefused
+            The drive refuses it.
+        BusError
+            0x6061 does not show it within the timeout.
+        """
         try:
             self.node.sdo[0x6060].raw = mode
         except canopen.SdoAbortedError as exc:

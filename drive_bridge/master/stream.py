@@ -71,14 +71,33 @@ INT32 = (-(2**31), 2**31 - 1)
 
 @dataclass
 class StreamResult:
+    """A plan streamed (:func:`stream`).
+
+    Parameters
+    ----------
+    recording : Recording
+        What was recorded.
+    cycles_sent : int
+        The plan's rows sent.
+    aborted : MotionAborted or None
+        What stopped the motion, where something did.
+    missing : dict of str to int
+        Per axis, rows without a complete sample.
+    timing : Timing
+        The run's timing.
+    holding : dict of str to str, optional
+        Per axis, how it is held now that the motion is over (for the command's last line).
+    sync_before_plan : int
+        SYNC cycles that enabled the drives before the plan's first.
+    """
+
     recording: Recording
     cycles_sent: int
     aborted: MotionAborted | None
-    missing: dict[str, int]  # samples (rows) missing per axis
+    missing: dict[str, int]
     timing: Timing
-    #: per axis, how it is held now that the motion is over (for the command's last line)
     holding: dict[str, str] | None = None
-    sync_before_plan: int = 0  # SYNC cycles that enabled the drives before the plan's first
+    sync_before_plan: int = 0
 
 
 def _job(
@@ -213,6 +232,30 @@ def stream(
     CAN error frame), the ``guard`` or Ctrl-C quick-stops every axis; the recording up to that point
     is kept and the cause is in ``aborted``.  ``on_start`` is told how many SYNC cycles enabling
     took, once the plan's first goes out.
+
+    Parameters
+    ----------
+    link : Link
+        The link to the drives.
+    axes : dict of str to AxisLink
+        The brought-up axes.
+    plan : Plan
+        The plan.
+    supervision : Supervision
+        The limits it is judged by.
+    progress : callable, optional
+        Called with the rows sent.
+    guard : VelocityGuard, optional
+        The run's velocity guard.
+    timing_limits : TimingLimits
+        The limits of a wall-clock run.
+    on_start : callable, optional
+        Told how many SYNC cycles enabling took.
+
+    Returns
+    -------
+    StreamResult
+        The recording, how it ended, the timing.
     """
     net = link.network
     n = len(plan.demand)

@@ -24,11 +24,31 @@ NO_TIMEOUT = None
 
 @dataclass(frozen=True)
 class VelocityGuard:
-    """A run's own limit on each axis's measured velocity [rad/s]: beyond it the run stops."""
+    """A run's own limit on each axis's measured velocity [rad/s]: beyond it the run stops.
+
+    Parameters
+    ----------
+    limits : dict of str to float
+        Per axis, its limit [rad/s].
+    """
 
     limits: dict[str, float]
 
     def reason(self, axis: str, velocity: float) -> str:
+        """Why the guard stopped the run, in words.
+
+        Parameters
+        ----------
+        axis : str
+            The axis.
+        velocity : float
+            Its measured velocity [rad/s].
+
+        Returns
+        -------
+        str
+            The words.
+        """
         return f"axis {axis}: velocity {velocity:.3g} rad/s beyond the guard {self.limits[axis]:.3g} rad/s: stopped"
 
 
@@ -48,7 +68,30 @@ def supervision_for(
     profile names one (``setpoint_timeout`` [s]).  A drive's feedback may be missing as long as a
     drive waits for the master's setpoints before it stops on its own: the setpoint-loss timeout,
     else the heartbeat consumer time.  ``miss_limit`` (bus.yml ``master.tpdo_miss_limit``) sets it
-    to that many periods instead."""
+    to that many periods instead.
+
+    Parameters
+    ----------
+    axes : dict of str to AxisLink
+        The brought-up axes (what was read back).
+    period : float
+        The SYNC period [s].
+    heartbeat_timeout : float
+        The master's heartbeat consumer time [s].
+    state_timeout : float
+        How long a state change is waited for [s].
+    setpoint_timeout : float, optional
+        The drives' setpoint-loss timeout [s], where their profile names one.
+    miss_limit : int, optional
+        Periods of missing feedback before a stop.
+    setpoint_source : str
+        Where the setpoint timeout comes from.
+
+    Returns
+    -------
+    Supervision
+        The limits and their sources.
+    """
     sources = {"period": "master.sync_period (0x1006 written)"}
     windows = [ax.drive_limits.get("0x1007:0") for ax in axes.values()]
     window = min((w for w in windows if w), default=None)
@@ -93,7 +136,24 @@ def supervision_for(
 def stop_reason(
     outcome: Outcome, axes: dict[str, AxisLink], supervision: Supervision, guard: VelocityGuard | None
 ) -> MotionAborted | None:
-    """Why the engine stopped, in words (None: it did not)."""
+    """Why the engine stopped, in words (None: it did not).
+
+    Parameters
+    ----------
+    outcome : Outcome
+        How the run ended.
+    axes : dict of str to AxisLink
+        The axes.
+    supervision : Supervision
+        The limits it was judged by.
+    guard : VelocityGuard or None
+        The run's velocity guard.
+
+    Returns
+    -------
+    MotionAborted or None
+        The error the run ends with.
+    """
     if outcome.abort is None:
         return None
     kind, axis, detail, code = outcome.abort
@@ -159,7 +219,24 @@ def _buffer_cause(ax: AxisLink) -> MotionAborted | None:
 def check_heartbeats(
     axes: dict[str, AxisLink], names: list[str], now: float, timeout: float
 ) -> MotionAborted | None:
-    """The first of ``names`` whose drive's heartbeat has been silent longer than ``timeout`` [s]."""
+    """The first of ``names`` whose drive's heartbeat has been silent longer than ``timeout`` [s].
+
+    Parameters
+    ----------
+    axes : dict of str to AxisLink
+        The axes (their last heartbeat).
+    names : list of str
+        The axes to check.
+    now : float
+        Now [s, the link's clock].
+    timeout : float
+        [s].
+
+    Returns
+    -------
+    MotionAborted or None
+        The stop, naming that axis.
+    """
     for name in names:
         last = axes[name].last_heartbeat
         if last is not None and now - last > timeout:

@@ -23,33 +23,79 @@ MCL_CURRENT, MCL_FUTURE = 1, 2
 
 
 class Clock(Protocol):
+    """The time a link waits on and stamps with (the wall clock, or a lockstep link's)."""
+
     def now(self) -> float:
         """Time stamp [s] used for frames and logs."""
 
     def sleep(self, seconds: float) -> None:
-        """Let ``seconds`` pass (the link keeps receiving meanwhile)."""
+        """Let ``seconds`` pass (the link keeps receiving meanwhile).
+
+        Parameters
+        ----------
+        seconds : float
+            [s].
+        """
 
     def wait_until(self, deadline: float) -> None:
-        """Return when ``now() >= deadline``, yielding the CPU meanwhile."""
+        """Return when ``now() >= deadline``, yielding the CPU meanwhile.
+
+        Parameters
+        ----------
+        deadline : float
+            [s, :meth:`now`'s].
+        """
 
 
 @dataclass
 class Timing:
-    clock: str  # "wall" or "lockstep" (simulation time: always on time)
+    """How a run kept its time (:func:`measure`).
+
+    Parameters
+    ----------
+    clock : {"wall", "lockstep"}
+        The wall clock, or simulation time (always on time).
+    cycles : int
+        SYNC cycles.
+    late_cycles_pct : float
+        SYNC gaps over 1.5 periods [% of all].
+    max_sync_gap_ms : float
+        The largest SYNC gap [ms].
+    mean_sync_period_ms : float
+        [ms].
+    samples_missing : dict of str to int
+        Per axis, rows without a complete sample.
+    priority : str
+        What the OS granted the sending thread.
+    degraded : bool
+        Past the timing limits.
+    reasons : list of str
+        Which, and by how much.
+    engine : dict
+        How the cyclic engine ran: its host (a process of its own, a thread, lockstep), where SYNC
+        came from, late cycles and skipped periods as it counted them, its worst wake-up, the
+        feedback's age when it had it, and the supervision limits it judged by.
+    """
+
+    clock: str
     cycles: int
     late_cycles_pct: float
     max_sync_gap_ms: float
     mean_sync_period_ms: float
     samples_missing: dict[str, int]
-    priority: str  # what the OS granted the sending thread
+    priority: str
     degraded: bool = False
     reasons: list[str] = field(default_factory=list)
-    #: how the cyclic engine ran: its host (a process of its own, a thread, lockstep), where SYNC came
-    #: from, late cycles and skipped periods as it counted them, its worst wake-up, the feedback's age
-    #: when it had it, and the supervision limits it judged by
     engine: dict = field(default_factory=dict)
 
     def as_dict(self) -> dict:
+        """The timing as meta.yaml and ``--json`` hold it.
+
+        Returns
+        -------
+        dict
+            Every field.
+        """
         return asdict(self)
 
 
@@ -62,7 +108,28 @@ def measure(
     priority: str,
     limits: TimingLimits,
 ) -> Timing:
-    """The timing of a run from its SYNC time stamps [s] and missing samples per axis."""
+    """The timing of a run from its SYNC time stamps [s] and missing samples per axis.
+
+    Parameters
+    ----------
+    sync_time : numpy.ndarray
+        Per plan row, its SYNC's time stamp [s] (NaN: none).
+    period : float
+        The SYNC period [s].
+    missing : dict of str to int
+        Per axis, rows without a complete sample.
+    wall : bool
+        On the wall clock (else lockstep: always on time).
+    priority : str
+        What the OS granted.
+    limits : TimingLimits
+        The limits a wall-clock run is judged by.
+
+    Returns
+    -------
+    Timing
+        The timing, and whether it is degraded.
+    """
     gaps = np.diff(sync_time[np.isfinite(sync_time)])
     n = len(sync_time)
     late = float(np.count_nonzero(gaps > LATE_FACTOR * period) / len(gaps) * 100) if len(gaps) else 0.0
@@ -91,7 +158,20 @@ def measure(
 
 def raise_priority(priority: int = RT_PRIORITY) -> tuple[str, tuple[int, os.sched_param] | None]:
     """Ask for SCHED_FIFO ``priority`` for the calling thread; (what was granted, how to undo it:
-    None when nothing was granted)."""
+    None when nothing was granted).
+
+    Parameters
+    ----------
+    priority : int
+        The SCHED_FIFO priority.
+
+    Returns
+    -------
+    granted : str
+        What was granted, in words.
+    undo : (int, os.sched_param) or None
+        The policy and parameters to put back.
+    """
     if not hasattr(os, "sched_setscheduler"):
         return "normal (this OS has no SCHED_FIFO)", None
     try:
@@ -106,7 +186,13 @@ def raise_priority(priority: int = RT_PRIORITY) -> tuple[str, tuple[int, os.sche
 
 
 def lock_memory() -> str:
-    """Lock the process's memory, now and to come (mlockall), where the OS allows; what was granted."""
+    """Lock the process's memory, now and to come (mlockall), where the OS allows; what was granted.
+
+    Returns
+    -------
+    str
+        What was granted, in words.
+    """
     import ctypes
 
     try:
