@@ -217,6 +217,14 @@ MODULES = [
     "drive_bridge.master.stream",
     "drive_bridge.master.supervision",
     "drive_bridge.master.timing",
+    "drive_bridge.monitor.drift",
+    "drive_bridge.monitor.layout",
+    "drive_bridge.monitor.listen",
+    "drive_bridge.monitor.live",
+    "drive_bridge.monitor.rolling",
+    "drive_bridge.monitor.simulated",
+    "drive_bridge.monitor.watch",
+    "drive_bridge.monitor.window",
 ]
 #: numpydoc's checks of the sections: every parameter documented and none unknown, a Returns
 #: section where something is returned, a docstring at all

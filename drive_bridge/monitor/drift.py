@@ -24,22 +24,46 @@ RECENT = 5  # the windows a new one is also set against (their mean)
 
 @dataclass
 class Reference:
-    """What an axis's windows are set against: value and std per parameter, where they come from."""
+    """What an axis's windows are set against: value and std per parameter, where they come from.
 
-    values: dict[str, tuple[float, float]]  # name -> (value, std), SI
-    source: str  # "commissioning <run id> of <time>" or "first monitored window of <time>"
+    Parameters
+    ----------
+    values : dict of str to (float, float)
+        Name -> (value, std), SI.
+    source : str
+        ``commissioning <run id> of <time>`` or ``first monitored window of <time>``.
+    """
+
+    values: dict[str, tuple[float, float]]
+    source: str
 
 
 @dataclass
 class AxisDrift:
-    """One axis's reference, its recent windows and the changes running."""
+    """One axis's reference, its recent windows and the changes running.
+
+    Parameters
+    ----------
+    reference : Reference, optional
+        What its windows are set against.
+    recent : list of dict
+        The last windows' values.
+    runs : dict of str to list
+        Parameter -> [side (+1/-1), windows in a row beyond, first window's start, named].
+    """
 
     reference: Reference | None = None
-    recent: list[dict[str, float]] = field(default_factory=list)  # the last windows' values
-    #: parameter -> [side (+1/-1), windows in a row beyond, first window's start, named]
+    recent: list[dict[str, float]] = field(default_factory=list)
     runs: dict[str, list[Any]] = field(default_factory=dict)
 
     def as_dict(self) -> dict:
+        """The state as the monitor's state file holds it.
+
+        Returns
+        -------
+        dict
+            ``reference``, ``recent``, ``runs``.
+        """
         ref = self.reference
         return {
             "reference": None if ref is None else {"values": ref.values, "source": ref.source},
@@ -49,6 +73,18 @@ class AxisDrift:
 
     @classmethod
     def from_dict(cls, d: dict) -> AxisDrift:
+        """:meth:`as_dict` read back.
+
+        Parameters
+        ----------
+        d : dict
+            The dict.
+
+        Returns
+        -------
+        AxisDrift
+            The state.
+        """
         ref = d.get("reference")
         return cls(
             None
@@ -83,7 +119,22 @@ def _event(w: Window, serial: str | None, name: str, ref: Reference, sigmas: flo
 def judge(state: AxisDrift, w: Window, serial: str | None) -> list[dict]:
     """Set the determined window ``w`` against the axis's reference and recent windows; the
     changes to name now (``event``: ``drift``, or ``back`` for one that came back within the
-    noise), as JSON-ready dicts with their words."""
+    noise), as JSON-ready dicts with their words.
+
+    Parameters
+    ----------
+    state : AxisDrift
+        The axis's state (updated here).
+    w : Window
+        The window.
+    serial : str or None
+        The drive's serial number, for the words.
+
+    Returns
+    -------
+    list of dict
+        The events.
+    """
     assert w.values is not None
     values = {n: w.values[n]["value"] for n in PARAMETERS}
     if state.reference is None:

@@ -25,20 +25,46 @@ def _codecs(ncfg: NodeConfig, pdos: tuple[PdoConfig, ...], base: int) -> list[Pd
 
 @dataclass
 class Layout:
-    """The PDOs of every axis a listener decodes, their units and the SYNC period [s]."""
+    """The PDOs of every axis a listener decodes, their units and the SYNC period.
+
+    Parameters
+    ----------
+    tpdos, rpdos : dict of str to list of PdoCodec
+        Per axis, its PDOs.
+    scaling : dict of str to Scaling
+        Per axis, its units.
+    period : float
+        The SYNC period [s].
+    moving_rad_s : dict of str to float
+        Per axis, the speed [rad/s] above which it is taken to be moving.
+    """
 
     tpdos: dict[str, list[PdoCodec]]
     rpdos: dict[str, list[PdoCodec]]
     scaling: dict[str, Scaling]
     period: float
-    #: per axis, the speed [rad/s] above which it is taken to be moving
     moving_rad_s: dict[str, float]
 
     @classmethod
     def of(cls, config: BusConfig) -> Layout:
-        """The layout of ``config``'s axes.  Raises :class:`UserError` naming the axis where
-        listening alone cannot read it: the units are the drive's own (``from_drive``, read by SDO),
-        or a TPDO lacks the position or the torque."""
+        """The layout of a bus configuration's axes.
+
+        Parameters
+        ----------
+        config : BusConfig
+            The bus configuration.
+
+        Returns
+        -------
+        Layout
+            The layout.
+
+        Raises
+        ------
+        UserError
+            Naming the axis where listening alone cannot read it: the units are the drive's own
+            (``from_drive``, read by SDO), or a TPDO lacks the position or the torque.
+        """
         tpdos, rpdos, scaling, moving = {}, {}, {}, {}
         for axis, ncfg in config.nodes.items():
             where = f"{config.path}: nodes.{axis}"
@@ -74,4 +100,5 @@ class Layout:
 
     @property
     def cob_ids(self) -> set[int]:
+        """The COB-IDs of every PDO it decodes."""
         return {c.cob_id for codecs in (*self.tpdos.values(), *self.rpdos.values()) for c in codecs}

@@ -28,7 +28,21 @@ IDLE_S = 1.0  # no SYNC for this long: the samples so far are handed on (the mac
 class Chunk:
     """The samples of one axis over a stretch of SYNCs: ``time`` [s] (each row's SYNC, as
     stamped on the bus), ``columns`` (log.csv's names, SI) with ``values`` (rows x columns) and,
-    per row, whether the axis moved."""
+    per row, whether the axis moved.
+
+    Parameters
+    ----------
+    axis : str
+        The axis.
+    time : numpy.ndarray
+        Each row's SYNC time stamp [s].
+    columns : list of str
+        log.csv's names.
+    values : numpy.ndarray
+        Rows × columns, SI.
+    moving : numpy.ndarray
+        Per row, whether the axis moved.
+    """
 
     axis: str
     time: np.ndarray
@@ -47,7 +61,17 @@ class Chunk:
 class Listener(can.Listener):
     """Samples of every axis of ``layout`` from the frames it is handed (:meth:`frame`, or as a
     python-can listener); ``on_chunk`` gets each axis's :class:`Chunk` every :data:`CHUNK_S` of
-    SYNCs, and when the SYNCs stop for :data:`IDLE_S` (:meth:`idle`)."""
+    SYNCs, and when the SYNCs stop for :data:`IDLE_S` (:meth:`idle`).
+
+    Parameters
+    ----------
+    layout : Layout
+        What it decodes.
+    on_chunk : callable
+        Gets each :class:`Chunk`.
+    chunk_s : float
+        SYNC time per chunk [s].
+    """
 
     def __init__(self, layout: Layout, on_chunk: Callable[[Chunk], None], chunk_s: float = CHUNK_S):
         self.layout = layout
@@ -75,7 +99,17 @@ class Listener(can.Listener):
         self._handlers = self._rec.handlers()
 
     def frame(self, can_id: int, data: bytes | bytearray, timestamp: float) -> None:
-        """One frame seen on the bus at ``timestamp`` [s]."""
+        """One frame seen on the bus at ``timestamp`` [s].
+
+        Parameters
+        ----------
+        can_id : int
+            Its COB-ID.
+        data : bytes or bytearray
+            Its data.
+        timestamp : float
+            [s].
+        """
         if can_id == SYNC_COB_ID and len(data) <= 1:
             if self._rec.rows >= self._rows:
                 self.flush()
@@ -118,7 +152,13 @@ class Listener(can.Listener):
 
     def idle(self, now: float) -> None:
         """Hand on the samples so far where no SYNC came for :data:`IDLE_S` up to ``now`` [s]
-        (on the clock the frames are stamped with)."""
+        (on the clock the frames are stamped with).
+
+        Parameters
+        ----------
+        now : float
+            [s].
+        """
         if self._rec.rows and self.last_sync is not None and now - self.last_sync >= IDLE_S:
             self.flush()
 

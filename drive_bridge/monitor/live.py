@@ -31,7 +31,13 @@ RECV_S = 0.2  # the longest wait for a frame before the monitor looks at the tim
 
 
 class ListenOnly(can.BusABC):
-    """A python-can bus that receives and refuses to send."""
+    """A python-can bus that receives and refuses to send.
+
+    Parameters
+    ----------
+    bus : can.BusABC
+        The bus it wraps.
+    """
 
     def __init__(self, bus: can.BusABC):
         self._bus = bus
@@ -59,7 +65,19 @@ class ListenOnly(can.BusABC):
 
 @dataclass
 class Listening:
-    """What a run on a bus saw: frames, error frames, reconnections, how it ended."""
+    """What a run on a bus saw.
+
+    Parameters
+    ----------
+    frames : int
+        Frames seen.
+    error_frames : int
+        Error frames seen.
+    reconnections : int
+        Times the bus was lost and reopened.
+    stopped_by : str, optional
+        The signal that ended it (Ctrl-C, SIGTERM); None where it ended otherwise.
+    """
 
     frames: int = 0
     error_frames: int = 0
@@ -79,7 +97,28 @@ def listen(
     """Feed ``monitor`` from the bus of ``config`` until Ctrl-C or SIGTERM (raised as
     KeyboardInterrupt, caught here: the state is kept), or, with ``once``, until every axis has
     closed a window, or until ``stop`` is set (another thread's way to end it).  ``opener`` opens
-    the bus (default: bus.yml's interface and channel)."""
+    the bus (default: bus.yml's interface and channel).
+
+    Parameters
+    ----------
+    monitor : Monitor
+        The monitor fed.
+    config : BusConfig
+        The bus configuration.
+    say : callable
+        Where lines for the user go.
+    once : bool
+        Until every axis has closed a window.
+    opener : callable, optional
+        Opens the bus.
+    stop : threading.Event, optional
+        Set by another thread to end it.
+
+    Returns
+    -------
+    Listening
+        What it saw, and how it ended.
+    """
     m = config.master
     if opener is None and m.interface is None:
         raise UserError(

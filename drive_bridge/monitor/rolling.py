@@ -25,7 +25,17 @@ _NAME = re.compile(r"(\d+)_(\d+)_(\d+)\.csv")  # first and last stamp [µs], mov
 
 @dataclass(frozen=True)
 class Stored:
-    """A chunk file: where, its first and last time stamp [s] and its moving time [s]."""
+    """A chunk file: where, its first and last time stamp [s] and its moving time [s].
+
+    Parameters
+    ----------
+    path : Path
+        The file.
+    first, last : float
+        Its first and last time stamp [s since the epoch].
+    moving_s : float
+        Its moving time [s].
+    """
 
     path: Path
     first: float
@@ -34,7 +44,15 @@ class Stored:
 
 
 class RollingLog:
-    """The chunks of one axis not yet identified, in ``directory``."""
+    """The chunks of one axis not yet identified, in ``directory``.
+
+    Parameters
+    ----------
+    directory : Path
+        Where they are kept.
+    axis : str
+        The axis.
+    """
 
     def __init__(self, directory: Path, axis: str):
         self.axis = axis
@@ -52,18 +70,32 @@ class RollingLog:
 
     @property
     def moving_s(self) -> float:
+        """The chunks' moving time [s]."""
         return sum(c.moving_s for c in self.chunks)
 
     @property
     def first(self) -> float | None:
+        """The first chunk's first time stamp [s] (None: no chunk)."""
         return self.chunks[0].first if self.chunks else None
 
     @property
     def last(self) -> float | None:
+        """The last chunk's last time stamp [s] (None: no chunk)."""
         return self.chunks[-1].last if self.chunks else None
 
     def add(self, chunk: Chunk) -> Stored | None:
-        """Keep the rows of ``chunk`` near motion; None where it did not move."""
+        """Keep the rows of ``chunk`` near motion; None where it did not move.
+
+        Parameters
+        ----------
+        chunk : Chunk
+            The samples.
+
+        Returns
+        -------
+        Stored or None
+            The chunk file.
+        """
         if not chunk.moving.any() or len(chunk.time) < 2:
             return None
         dt = float(np.median(np.diff(chunk.time)))
@@ -87,7 +119,18 @@ class RollingLog:
     def window(self, path: Path) -> tuple[float, float]:
         """Write the chunks as one log at ``path`` (time from the first stamp; the stretches
         between chunks are time gaps the identification does not bridge); their first and
-        last time stamp [s]."""
+        last time stamp [s].
+
+        Parameters
+        ----------
+        path : Path
+            The log to write.
+
+        Returns
+        -------
+        first, last : float
+            [s since the epoch].
+        """
         tables = [np.loadtxt(c.path, delimiter=",", skiprows=1, ndmin=2) for c in self.chunks]
         with open(self.chunks[0].path, encoding="utf-8") as f:
             names = f.readline().strip().split(",")

@@ -34,7 +34,13 @@ SHIFT_S = 60.0  # motion simulated per shift [s]
 
 
 class Tap(can.Listener):
-    """Every frame on the simulated bus, handed to the monitor stamped at its hour of the week."""
+    """Every frame on the simulated bus, handed to the monitor stamped at its hour of the week.
+
+    Parameters
+    ----------
+    monitor : Monitor
+        The monitor.
+    """
 
     def __init__(self, monitor: Monitor):
         self.monitor = monitor
@@ -52,7 +58,17 @@ class Tap(can.Listener):
 @dataclass
 class Week:
     """The shifts run, how the last ended, and each axis's travel [rad, motor side] (the
-    distance its wear grows with)."""
+    distance its wear grows with).
+
+    Parameters
+    ----------
+    shifts : int
+        The shifts run.
+    aborted : MotionAborted or None
+        How the last ended, where it was stopped.
+    travel_rad : dict of str to float
+        Per axis, its travel [rad, motor side].
+    """
 
     shifts: int
     aborted: MotionAborted | None
@@ -70,7 +86,30 @@ def simulated_week(
     seed: int = 0,
 ) -> Week:
     """Run ``shifts`` shifts of ``shift_s`` seconds of production on the simulated robot
-    ``sim_config`` with ``monitor`` listening; the last window of every axis closed at the end."""
+    ``sim_config`` with ``monitor`` listening; the last window of every axis closed at the end.
+
+    Parameters
+    ----------
+    config : BusConfig
+        The bus configuration.
+    monitor : Monitor
+        The monitor.
+    say : callable
+        Where lines for the user go.
+    sim_config : str, optional
+        The simulated robot (a YAML, or a shipped one's name).
+    shifts : int
+        How many shifts.
+    shift_s : float
+        Each shift's production [s].
+    seed : int
+        Seed of the production.
+
+    Returns
+    -------
+    Week
+        The shifts run, how the last ended, each axis's travel.
+    """
     tap = Tap(monitor)
     # the lockstep link hands a trace every frame on the bus as it is seen: the tap takes a trace's place
     as_trace = cast(TraceRecorder, tap)

@@ -46,7 +46,23 @@ CLOSING = "closing"  # closed windows' logs until they are identified and kept
 class Settings:
     """How the monitor windows and keeps: moving time per window [s], the longest span of one
     [s], the seed of the identification's evolutionary fits, the history database (None: the
-    default; ``history`` False: nothing kept) and whether the machine is the simulated one."""
+    default; ``history`` False: nothing kept) and whether the machine is the simulated one.
+
+    Parameters
+    ----------
+    window_s : float
+        Moving time per window [s].
+    max_span_s : float
+        The longest span of one window [s].
+    seed : int
+        Seed of the identification's evolutionary fits.
+    db : str, optional
+        The history database (None: the default).
+    history : bool
+        Keep the windows in it.
+    simulated : bool
+        The machine is the simulated one.
+    """
 
     window_s: float = WINDOW_S
     max_span_s: float = MAX_SPAN_S
@@ -59,20 +75,45 @@ class Settings:
 @dataclass
 class Drive:
     """What the monitor knows of an axis's drive without asking it: its node, and the identity
-    its last commissioning under this bus configuration found (kept in the history), if any."""
+    its last commissioning under this bus configuration found (kept in the history), if any.
+
+    Parameters
+    ----------
+    node_id : int
+        Its node id.
+    identity : dict of str to str, optional
+        The identity its last commissioning found (hex).
+    """
 
     node_id: int
     identity: dict[str, str] | None = None
 
     @property
     def serial(self) -> str | None:
+        """Its serial number (hex), where its last commissioning found one."""
         return (self.identity or {}).get("serial")
 
 
 @dataclass
 class Job:
     """A closed window to identify: the axis, its first and last time stamp [s], its moving time
-    [s], its log, the seed, and what keeping it needs (None: not kept)."""
+    [s], its log, the seed, and what keeping it needs (None: not kept).
+
+    Parameters
+    ----------
+    axis : str
+        The axis.
+    first, last : float
+        Its first and last time stamp [s since the epoch].
+    moving_s : float
+        Its moving time [s].
+    log : Path
+        Its log.
+    seed : int
+        The identification's seed.
+    keeping : dict or None
+        What keeping it needs (None: not kept).
+    """
 
     axis: str
     first: float
@@ -83,16 +124,48 @@ class Job:
     keeping: dict | None
 
     def as_dict(self) -> dict:
+        """The job as the monitor's state file holds it.
+
+        Returns
+        -------
+        dict
+            Every field, the log's path as text.
+        """
         return {**asdict(self), "log": str(self.log)}
 
     @classmethod
     def from_dict(cls, d: dict) -> Job:
+        """:meth:`as_dict` read back.
+
+        Parameters
+        ----------
+        d : dict
+            The dict.
+
+        Returns
+        -------
+        Job
+            The job.
+        """
         return cls(**{**d, "log": Path(d["log"])})
 
 
 def work(job: Job) -> tuple[Window, dict | None]:
     """Identify ``job``'s window and keep it where its values are determined (in a worker process
-    while the monitor listens on; nothing here touches the monitor's state)."""
+    while the monitor listens on; nothing here touches the monitor's state).
+
+    Parameters
+    ----------
+    job : Job
+        The window.
+
+    Returns
+    -------
+    window : Window
+        What it gave.
+    kept : dict or None
+        The history record kept, where one was.
+    """
     if job.moving_s > 0 and job.log.is_file():
         try:
             window = identify_window(job.log, job.axis, job.first, job.last, job.moving_s, job.seed)
@@ -155,7 +228,21 @@ class Monitor:
     """Listens to the axes of ``config``, keeps its state in ``directory``; ``emit`` gets each
     window and each drift as a JSON-ready dict (``event``: ``window`` or ``drift`` or ``back``).
     With ``background``, windows are identified in a worker process (a live bus: the listening
-    never waits for an identification or the history database)."""
+    never waits for an identification or the history database).
+
+    Parameters
+    ----------
+    config : BusConfig
+        The bus configuration (the axes' PDOs).
+    directory : Path
+        Where its state, rolling logs and events are kept.
+    settings : Settings
+        How it windows and keeps.
+    emit : callable
+        Gets each event as a JSON-ready dict.
+    background : bool
+        Identify windows in a worker process.
+    """
 
     def __init__(
         self,
@@ -238,12 +325,28 @@ class Monitor:
 
     # --- frames and chunks -----------------------------------------------------------------
     def frame(self, can_id: int, data: bytes | bytearray, timestamp: float) -> None:
-        """One frame seen on the bus at ``timestamp`` [s since the epoch]."""
+        """One frame seen on the bus at ``timestamp`` [s since the epoch].
+
+        Parameters
+        ----------
+        can_id : int
+            Its COB-ID.
+        data : bytes or bytearray
+            Its data.
+        timestamp : float
+            [s since the epoch].
+        """
         self.listener.frame(can_id, data, timestamp)
 
     def tick(self, now_s: float) -> None:
         """Time passes (``now_s``, on the frames' clock): samples of a machine that stopped are
-        handed on, and a window that spans its longest is closed."""
+        handed on, and a window that spans its longest is closed.
+
+        Parameters
+        ----------
+        now_s : float
+            Now [s, on the frames' clock].
+        """
         self.listener.idle(now_s)
         self.collect()
         for axis, opened in self.opened.items():
@@ -251,7 +354,13 @@ class Monitor:
                 self.close(axis, now_s)
 
     def add(self, chunk: Chunk) -> None:
-        """An axis's samples of a stretch of SYNCs (the listener's chunks)."""
+        """An axis's samples of a stretch of SYNCs (the listener's chunks).
+
+        Parameters
+        ----------
+        chunk : Chunk
+            The samples.
+        """
         axis = chunk.axis
         first = float(chunk.time[0])
         opened = self.opened[axis]
@@ -268,7 +377,15 @@ class Monitor:
     def close(self, axis: str, until: float) -> None:
         """Close ``axis``'s open window at ``until`` [s]: its samples become one log in
         ``closing/``, identified and kept (:func:`work`) here or, with ``background``, in a worker
-        process while the listening goes on (:meth:`collect` finishes it)."""
+        process while the listening goes on (:meth:`collect` finishes it).
+
+        Parameters
+        ----------
+        axis : str
+            The axis.
+        until : float
+            [s since the epoch].
+        """
         rolling = self.logs[axis]
         opened = self.opened[axis]
         first = opened if opened is not None else (rolling.first or until)
@@ -316,7 +433,13 @@ class Monitor:
         self._pending.append((job, self._pool.submit(work, job)))
 
     def collect(self, wait: float = 0.0) -> None:
-        """Finish the windows whose work is done (waiting up to ``wait`` [s] for the rest)."""
+        """Finish the windows whose work is done (waiting up to ``wait`` [s] for the rest).
+
+        Parameters
+        ----------
+        wait : float
+            [s].
+        """
         if wait and self._pending:
             futures.wait([f for _, f in self._pending], timeout=wait)
         for job, future in [(j, f) for j, f in self._pending if f.done()]:
@@ -360,7 +483,13 @@ class Monitor:
     def stop(self, wait: float = 60.0) -> None:
         """Hand the samples in memory to the rolling log, finish the windows being identified
         (waiting up to ``wait`` [s]; the others are identified at the next start) and keep the
-        state (Ctrl-C, SIGTERM, the end)."""
+        state (Ctrl-C, SIGTERM, the end).
+
+        Parameters
+        ----------
+        wait : float
+            [s].
+        """
         self.listener.flush()
         self.collect(wait)
         if self._pool is not None:

@@ -22,7 +22,18 @@ MIN_MOVING_S = 5.0  # less motion than this in a window: standing still, as far 
 
 
 def when(stamp: float) -> str:
-    """A frame time stamp [s since the epoch] as an ISO 8601 time (UTC)."""
+    """A frame time stamp [s since the epoch] as an ISO 8601 time (UTC).
+
+    Parameters
+    ----------
+    stamp : float
+        [s since the epoch].
+
+    Returns
+    -------
+    str
+        The time.
+    """
     return datetime.fromtimestamp(stamp, timezone.utc).isoformat(timespec="milliseconds")
 
 
@@ -40,7 +51,25 @@ def _short(name: str, reason: str) -> str:
 @dataclass
 class Window:
     """An axis's window: its span (frame time stamps [s]), moving time [s], and either the
-    parameters (``values``: name -> value, std, unit, determined) or ``why`` not, in words."""
+    parameters or why not.
+
+    Parameters
+    ----------
+    axis : str
+        The axis.
+    first, last : float
+        Its span [s since the epoch].
+    moving_s : float
+        Its moving time [s].
+    values : dict of str to dict, optional
+        Name -> value, std, unit, determined.
+    why : str, optional
+        Why it gave none, in words.
+    reasons : dict of str to str
+        Per parameter, the identification's words.
+    ident : dict, optional
+        The axis's identify.json, where it was identified.
+    """
 
     axis: str
     first: float
@@ -48,14 +77,22 @@ class Window:
     moving_s: float
     values: dict[str, dict[str, Any]] | None = None
     why: str | None = None
-    reasons: dict[str, str] = field(default_factory=dict)  # per parameter, the identification's words
-    ident: dict | None = None  # the axis's identify.json, where it was identified
+    reasons: dict[str, str] = field(default_factory=dict)
+    ident: dict | None = None
 
     @property
     def determined(self) -> bool:
+        """J, c0 and c1 all determined: the window has values."""
         return self.values is not None
 
     def as_dict(self) -> dict:
+        """The window as the monitor's ``window`` event.
+
+        Returns
+        -------
+        dict
+            Axis, span, moving time, values or why not.
+        """
         return {
             "axis": self.axis,
             "from": when(self.first),
@@ -69,14 +106,48 @@ class Window:
 
 
 def standing(axis: str, first: float, last: float, moving_s: float) -> Window:
-    """A window in which ``axis`` moved too little to identify anything."""
+    """A window in which ``axis`` moved too little to identify anything.
+
+    Parameters
+    ----------
+    axis : str
+        The axis.
+    first, last : float
+        Its span [s since the epoch].
+    moving_s : float
+        Its moving time [s].
+
+    Returns
+    -------
+    Window
+        The window, with why.
+    """
     why = f"standing still: {moving_s:.1f} s of motion in {last - first:.0f} s"
     return Window(axis, first, last, moving_s, why=why)
 
 
 def identify_window(log: Path, axis: str, first: float, last: float, moving_s: float, seed: int) -> Window:
     """Identify ``axis`` on the window's log ``log``; the window keeps values only where J, c0 and
-    c1 are all determined."""
+    c1 are all determined.
+
+    Parameters
+    ----------
+    log : Path
+        The window's log.
+    axis : str
+        The axis.
+    first, last : float
+        Its span [s since the epoch].
+    moving_s : float
+        Its moving time [s].
+    seed : int
+        The identification's seed.
+
+    Returns
+    -------
+    Window
+        Its values, or why not.
+    """
     if moving_s < MIN_MOVING_S:
         return standing(axis, first, last, moving_s)
     try:
