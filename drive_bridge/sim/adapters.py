@@ -40,6 +40,9 @@ from canopen.sdo import SdoServer
 
 
 class FastVirtualBus(VirtualBus):
+    """python-can's virtual bus without its per-frame cost (see the module); ``direct``: frames
+    handed over as the sender's own objects (lockstep)."""
+
     direct = False
 
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
@@ -125,7 +128,22 @@ def local_node(
     """A LocalNode (SDO server, object store) for a simulated drive that sends with ``send``.
 
     Its SDO server is fed by the drive (``node.sdo.on_request``); heartbeat, NMT, PDOs and
-    EMCY are the drive's own."""
+    EMCY are the drive's own.
+
+    Parameters
+    ----------
+    node_id : int
+        The node.
+    od : canopen.ObjectDictionary
+        The drive's object dictionary.
+    send : callable
+        ``send(cob_id, data)``.
+
+    Returns
+    -------
+    canopen.LocalNode
+        The node.
+    """
     node = _LocalNodeWithoutNmtTimer(node_id, od)
     node.sdo = _SdoServerThatAnswers(0x600 + node_id, 0x580 + node_id, node)
     node.sdo.network = _Replies(send)

@@ -22,7 +22,27 @@ log = logging.getLogger(__name__)
 def simulated_link(config: BusConfig, *, realtime: bool = False, sim_config: str | None = None) -> Link:
     """The simulated robot ``sim_config`` (a YAML, or a shipped robot by name; default the shipped
     ``robot``) as the drives of ``config``: in lockstep, or with ``realtime`` on the wall clock.
-    Raises UserError for a SYNC period the drives cannot run or a node without a simulated drive."""
+    Raises UserError for a SYNC period the drives cannot run or a node without a simulated drive.
+
+    Parameters
+    ----------
+    config : BusConfig
+        The bus configuration (its nodes get simulated drives).
+    realtime : bool
+        On the wall clock, the drives in a process of their own.
+    sim_config : str, optional
+        The simulated robot.
+
+    Returns
+    -------
+    Link
+        The link.
+
+    Raises
+    ------
+    UserError
+        A SYNC period the drives cannot run, or a node without a simulated drive.
+    """
     robot_cfg = load_sim_config(sim_config or SIM_DEFAULT)  # errors show here, not in the child
     ticks = config.master.sync_period_s / VELOCITY_TICK_S
     if abs(ticks - round(ticks)) > 1e-6:

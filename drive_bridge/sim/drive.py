@@ -109,7 +109,17 @@ DEVICE_TYPE_SERVO = 0x00020192  # CiA 402, servo drive
 
 
 def plant_params(p: np.ndarray, axis: SimAxis, axis_names: list[str]) -> None:
-    """Write the plant, motor and hidden effects of ``axis`` into its kernel parameter row ``p``."""
+    """Write the plant, motor and hidden effects of ``axis`` into its kernel parameter row ``p``.
+
+    Parameters
+    ----------
+    p : numpy.ndarray
+        The axis's parameter row (written in place).
+    axis : SimAxis
+        The axis.
+    axis_names : list of str
+        Every axis of the robot in row order (a cross-axis effect names its source).
+    """
     m = axis.motor
     p[kernel.J], p[kernel.C0], p[kernel.C1], p[kernel.CP], p[kernel.D] = (
         axis.J,
@@ -131,13 +141,27 @@ class DriveHost(Protocol):
     """What a simulated drive needs of the robot it sits in."""
 
     def send(self, cob_id: int, data: bytes) -> None:
-        """Put a frame on the bus, stamped with the robot's clock."""
+        """Put a frame on the bus, stamped with the robot's clock.
+
+        Parameters
+        ----------
+        cob_id : int
+            Its COB-ID.
+        data : bytes
+            Its data.
+        """
 
     def routes_changed(self) -> None:
         """The drive's RPDO COB-IDs changed."""
 
     def cycle_period_written(self, period_us: int) -> None:
-        """0x1006 written: the SYNC period [µs] the drives' loops lock to."""
+        """0x1006 written: the SYNC period [µs] the drives' loops lock to.
+
+        Parameters
+        ----------
+        period_us : int
+            [µs].
+        """
 
 
 class _Held:
@@ -155,10 +179,25 @@ class _Held:
 
 
 class SimDrive:
-    """A servo drive of one axis in ``host``.  ``index`` is the axis' row in the ``plant``'s arrays
-    (:meth:`.plant.Plant.rows`: state, param, demand, and the drive array of :mod:`.cyclic`, views
-    of this axis's rows; the plant's clock and seeded noise are the drive's); ``axis_names`` are every axis of the robot in row order (a cross-axis effect names its
-    source)."""
+    """A servo drive of one axis in ``host``.
+
+    Parameters
+    ----------
+    host : DriveHost
+        The robot it sits in.
+    index : int
+        The axis's row in the plant's arrays (:meth:`.plant.Plant.rows`: state, param, demand, and
+        the drive array of :mod:`.cyclic`, views of this axis's rows; the plant's clock and seeded
+        noise are the drive's).
+    axis : SimAxis
+        The axis.
+    eds_path : str
+        The drive's EDS (its object dictionary).
+    plant : Plant
+        The plant's arrays, clock and noise.
+    axis_names : list of str
+        Every axis of the robot in row order (a cross-axis effect names its source).
+    """
 
     pos_per_rad = _Held(cyclic.X_POS_PER_RAD, float)  # position unit per rad (motor side)
     vel_per_si = _Held(cyclic.X_VEL_PER_SI, float)  # velocity unit per rad/s
@@ -362,7 +401,13 @@ class SimDrive:
 
     def on_nmt(self, data: bytes) -> None:
         """An NMT command; a reset restores the stored parameters (reset communication: only
-        those of the communication area 0x1000-0x1FFF) and boots the drive again."""
+        those of the communication area 0x1000-0x1FFF) and boots the drive again.
+
+        Parameters
+        ----------
+        data : bytes
+            The NMT frame's data.
+        """
         reset = self.nmt.command(data)
         if reset is None:
             return
@@ -389,7 +434,13 @@ class SimDrive:
             self.objects.set(0x6502, 0, self.spec.supported_modes)
 
     def heartbeat_due(self, now: float) -> None:
-        """Its own heartbeat and its event-driven TPDOs, when due."""
+        """Its own heartbeat and its event-driven TPDOs, when due.
+
+        Parameters
+        ----------
+        now : float
+            The robot's time [s].
+        """
         self.nmt.beat(now)
         if self.nmt.state == NMT_OPERATIONAL and self.pdos.events:
             self.refresh_actuals()
@@ -403,12 +454,25 @@ class SimDrive:
         self.host.routes_changed()
 
     def on_heartbeat(self, node: int) -> None:
+        """A heartbeat heard from a node its consumer watches (0x1016).
+
+        Parameters
+        ----------
+        node : int
+            The node.
+        """
         self.heartbeats.heard(node, self.plant.time)
 
     def supervise(self, now: float) -> None:
         """A watched node silent for longer than its consumer time: EMCY 0x8130, the NMT state
         falls back to pre-operational (0x1029's default) and, in OPERATION ENABLED, the drive does
-        what its abort connection option 0x6007 says (a drive without 0x6007 does nothing)."""
+        what its abort connection option 0x6007 says (a drive without 0x6007 does nothing).
+
+        Parameters
+        ----------
+        now : float
+            The robot's time [s].
+        """
         for _node in self.heartbeats.fallen_silent(now):
             if self.nmt.state == NMT_OPERATIONAL:
                 self.nmt.state = NMT_PREOP
@@ -460,7 +524,20 @@ class SimDrive:
             self._consumers_changed()
 
     def write(self, index: int, sub: int, value: Any) -> None:
-        """Apply a value written by SDO or RPDO; raise SdoAbortedError to refuse it."""
+        """Apply a value written by SDO or RPDO; raise SdoAbortedError to refuse it.
+
+        Parameters
+        ----------
+        index, sub : int
+            The object.
+        value : object
+            The value, in device units.
+
+        Raises
+        ------
+        SdoAbortedError
+            The drive refuses it (with the abort code a real drive gives).
+        """
         if 0x1400 <= index <= 0x1BFF:
             self.pdos.check_write(index, sub, value)
             self.objects.set(index, sub, value)
@@ -533,9 +610,20 @@ class SimDrive:
 
     @property
     def rpdos(self) -> dict[int, tuple[PdoCodec, int]]:
+        """Its RPDOs as mapped: COB-ID -> (codec, transmission type)."""
         return self.pdos.rpdos
 
     def on_rpdo(self, cob_id: int, data: bytes) -> None:
+        """An RPDO received (only in OPERATIONAL): an asynchronous one takes effect now, a
+        synchronous one at the next SYNC.
+
+        Parameters
+        ----------
+        cob_id : int
+            Its COB-ID.
+        data : bytes
+            Its data.
+        """
         if self.nmt.state != NMT_OPERATIONAL:
             return
         codec, ttype = self.rpdos[cob_id]
@@ -577,6 +665,13 @@ class SimDrive:
     # ------------------------------------------------------------------ CiA 402
     @property
     def statusword(self) -> int:
+        """0x6041 as the drive shows it now.
+
+        Returns
+        -------
+        int
+            The statusword (its state, remote, voltage enabled, target reached, limits, ...).
+        """
         sw = STATUSWORD[self.state] | SW_REMOTE
         if self.state in VOLTAGE_ENABLED:
             sw |= SW_VOLTAGE_ENABLED
@@ -665,6 +760,13 @@ class SimDrive:
         self.profile.hold()
 
     def fault(self, code: int) -> None:
+        """Fault: power off through FAULT REACTION, and its EMCY (nothing where it is in FAULT).
+
+        Parameters
+        ----------
+        code : int
+            The EMCY error code.
+        """
         if self.state == FAULT:
             return
         self.state = FAULT_REACTION
@@ -706,7 +808,13 @@ class SimDrive:
 
     def start_period(self, rpdos: list[tuple[PdoCodec, bytes]]) -> None:
         """A SYNC period starts: the synchronous RPDOs received for it (``rpdos``, emptied) take
-        effect and the interpolation period's demand is set."""
+        effect and the interpolation period's demand is set.
+
+        Parameters
+        ----------
+        rpdos : list of (PdoCodec, bytes)
+            The synchronous RPDOs received for it (emptied here).
+        """
         if not self.online:
             rpdos.clear()
             return
@@ -756,11 +864,28 @@ class SimDrive:
         return cyclic.plant_position(self.drive_values, position)
 
     def within_limits(self, position: float) -> float:
-        """``position`` [rad, plant] inside the software position limits 0x607D."""
+        """``position`` [rad, plant] inside the software position limits 0x607D.
+
+        Parameters
+        ----------
+        position : float
+            [rad, plant].
+
+        Returns
+        -------
+        float
+            The position held within the limits.
+        """
         return cyclic.soft_limit(self.drive_values, position, *self.software_limits())
 
     def software_limits(self) -> tuple[int, int]:
-        """0x607D: (min, max) [position unit]; no limits where min >= max."""
+        """0x607D: (min, max) [position unit]; no limits where min >= max.
+
+        Returns
+        -------
+        (int, int)
+            [position unit].
+        """
         return self.objects.get(0x607D, 1), self.objects.get(0x607D, 2)
 
     def check_faults(self) -> None:
@@ -782,14 +907,26 @@ class SimDrive:
             self._connection_lost(ERR_RPDO_TIMEOUT, self.objects.get_or(0x6007, 0, ABORT_FAULT))
 
     def following_error_ticks(self) -> int:
-        """Loop ticks outside the following error window that fault the drive (0x6066)."""
+        """Loop ticks outside the following error window that fault the drive (0x6066).
+
+        Returns
+        -------
+        int
+            At least one.
+        """
         return max(
             1,
             round(self.objects.get_or(0x6066, 0, factory().fe_timeout_ms) / 1000.0 / kernel.VELOCITY_TICK_S),
         )
 
     def setpoint_timeout(self) -> float:
-        """How long [s] the drive follows without a new setpoint before the stream counts as lost."""
+        """How long [s] the drive follows without a new setpoint before the stream counts as lost.
+
+        Returns
+        -------
+        float
+            [s].
+        """
         return SETPOINT_TIMEOUT_PERIODS * self._interpolation_period() + 1e-9
 
     def _interpolation_period(self) -> float:
@@ -799,7 +936,13 @@ class SimDrive:
         return self.objects.get(0x60C2, 1) * 10.0 ** self.objects.get(0x60C2, 2)
 
     def interpolation_ticks(self) -> int:
-        """The interpolation time period 0x60C2 in whole loop ticks (at least one)."""
+        """The interpolation time period 0x60C2 in whole loop ticks (at least one).
+
+        Returns
+        -------
+        int
+            Loop ticks.
+        """
         return max(1, round(self._interpolation_period() / kernel.VELOCITY_TICK_S))
 
     def _follow_period_s(self, record_s: float | None = None) -> float:
@@ -812,13 +955,25 @@ class SimDrive:
         )
 
     def next_due(self) -> float:
-        """The earliest time [s] its heartbeat or a watched node's silence needs it (inf: never)."""
+        """The earliest time [s] its heartbeat or a watched node's silence needs it (inf: never).
+
+        Returns
+        -------
+        float
+            [s].
+        """
         return min(self.nmt.next_due(), self.heartbeats.next_due())
 
     # ------------------------------------------------------------------ actual values
     def refresh_actuals(self, sync: bool = False) -> None:
         """Sample the measured values the drive reports (at a SYNC: ``sync``, the velocity its mean
-        over the period)."""
+        over the period).
+
+        Parameters
+        ----------
+        sync : bool
+            At a SYNC (the velocity its mean over the period).
+        """
         self._refresh_actuals(noise=True, sync=sync)
 
     def _refresh_actuals(self, noise: bool, sync: bool = False) -> None:

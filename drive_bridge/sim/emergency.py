@@ -10,7 +10,15 @@ HISTORY = 8  # entries 0x1003 holds
 
 
 class EmcyProducer:
-    """The EMCY producer of node ``node_id``; ``send(cob_id, data)`` puts a frame on the bus."""
+    """The EMCY producer of node ``node_id``; ``send(cob_id, data)`` puts a frame on the bus.
+
+    Parameters
+    ----------
+    node_id : int
+        The node.
+    send : callable
+        ``send(cob_id, data)``.
+    """
 
     def __init__(self, node_id: int, send: Callable[[int, bytes], None]):
         self.node_id = node_id
@@ -21,11 +29,23 @@ class EmcyProducer:
         self.history: list[int] = []
 
     def send(self, code: int) -> None:
-        """An EMCY with error ``code`` (0x0000: error reset, the error register cleared)."""
+        """An EMCY with error ``code`` (0x0000: error reset, the error register cleared).
+
+        Parameters
+        ----------
+        code : int
+            The error code.
+        """
         self._send(0x80 + self.node_id, struct.pack("<HB5s", code, 0x01 if code else 0x00, b"\x00" * 5))
 
     def fault(self, code: int) -> None:
-        """A fault with error ``code``: held in 0x603F, kept in 0x1003, said by EMCY."""
+        """A fault with error ``code``: held in 0x603F, kept in 0x1003, said by EMCY.
+
+        Parameters
+        ----------
+        code : int
+            The error code.
+        """
         self.error_code = code
         self.history.insert(0, code)
         del self.history[HISTORY:]
@@ -37,7 +57,18 @@ class EmcyProducer:
         self.send(0x0000)
 
     def field(self, sub: int) -> int:
-        """0x1003 as read: sub-index 0 the number of errors, 1.. each one, newest first."""
+        """0x1003 as read: sub-index 0 the number of errors, 1.. each one, newest first.
+
+        Parameters
+        ----------
+        sub : int
+            The sub-index.
+
+        Returns
+        -------
+        int
+            Its value.
+        """
         if sub == 0:
             return len(self.history)
         return self.history[sub - 1] if sub <= len(self.history) else 0

@@ -73,7 +73,22 @@ def _loop_divider(controller: Controller, eds_path: str | Path) -> int:
 
 class GainObjects:
     """The controller of a drive of profile ``profile`` (its current through a motor of torque
-    constant ``torque_constant`` [Nm/A]) described by the file ``eds_path``."""
+    constant ``torque_constant`` [Nm/A]) described by the file ``eds_path``.
+
+    Parameters
+    ----------
+    profile : str
+        The drive profile's name.
+    torque_constant : float
+        [Nm/A].
+    eds_path : str or Path
+        The drive's EDS/DCF.
+
+    Raises
+    ------
+    ValueError
+        A profile without the gains the simulated loops run.
+    """
 
     def __init__(self, profile: str, torque_constant: float, eds_path: str | Path):
         bound = load_profile(profile).bind(torque_constant)
@@ -110,14 +125,33 @@ class GainObjects:
                     yield index, sub, entry.to_device(self.factory_gains[entry.parameter])
 
     def selects(self, index: int, sub: int) -> bool:
-        """Whether (``index``, ``sub``) is the object that selects which set runs."""
+        """Whether (``index``, ``sub``) is the object that selects which set runs.
+
+        Parameters
+        ----------
+        index, sub : int
+            The object.
+
+        Returns
+        -------
+        bool
+            It is.
+        """
         return self.select is not None and (index, sub) == self.select[0].index_sub
 
     def load(self, params: np.ndarray, read: Callable[[int, int], int]) -> None:
         """The loops (the kernel parameter row ``params``) run the objects of the profile's own set
         where the select object says so (or where there is none), else of the one that runs
         otherwise, each as ``read`` gives it now; a gain without an object keeps the factory value,
-        a model term without one is 0."""
+        a model term without one is 0.
+
+        Parameters
+        ----------
+        params : numpy.ndarray
+            The kernel parameter row (written in place).
+        read : callable
+            ``read(index, sub)``: an object's value now.
+        """
         selected = self.select is None or read(*self.select[0].index_sub) == self.select[1]
         self.running = self.sets[selected]
         for name, col in (GAIN_PARAMS | PID_PARAMS).items():
@@ -130,7 +164,25 @@ class GainObjects:
     def written(self, index: int, sub: int, value: int | float) -> tuple[int, float] | None:
         """A value written to a running gain or model object: (kernel parameter, value in SI units),
         None where it is not one; SdoAbortedError where the drive cannot take it (not finite,
-        negative where the term cannot be, a model switch other than 0 or 1)."""
+        negative where the term cannot be, a model switch other than 0 or 1).
+
+        Parameters
+        ----------
+        index, sub : int
+            The object.
+        value : int or float
+            The value written [device units].
+
+        Returns
+        -------
+        (int, float) or None
+            The kernel parameter and its value, SI.
+
+        Raises
+        ------
+        SdoAbortedError
+            A value the drive cannot take.
+        """
         if (index, sub) not in self.running:
             return None
         col, entry = self.running[(index, sub)]

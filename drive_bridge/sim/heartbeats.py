@@ -11,7 +11,13 @@ from collections.abc import Callable, Iterator
 
 class HeartbeatConsumer:
     """The heartbeat consumer of one drive, configured from its object 0x1016 through ``read``
-    ((index, sub) -> value; None where the object does not exist)."""
+    ((index, sub) -> value; None where the object does not exist).
+
+    Parameters
+    ----------
+    read : callable
+        ``read(index, sub)``.
+    """
 
     def __init__(self, read: Callable[[int, int], int | None]):
         self._read = read
@@ -32,17 +38,42 @@ class HeartbeatConsumer:
         self._heard = {node: t for node, t in self._heard.items() if node in self.watched}
 
     def heard(self, node: int, now: float) -> None:
-        """A heartbeat of ``node`` at ``now`` [s]."""
+        """A heartbeat of ``node`` at ``now`` [s].
+
+        Parameters
+        ----------
+        node : int
+            The node.
+        now : float
+            [s].
+        """
         if node in self.watched:
             self._heard[node] = now
 
     def fallen_silent(self, now: float) -> Iterator[int]:
-        """Each watched node silent at ``now`` [s] for longer than its consumer time (once)."""
+        """Each watched node silent at ``now`` [s] for longer than its consumer time (once).
+
+        Parameters
+        ----------
+        now : float
+            [s].
+
+        Yields
+        ------
+        int
+            The node.
+        """
         for node, last in list(self._heard.items()):
             if now - last > self.watched[node] + 1e-9:
                 del self._heard[node]
                 yield node
 
     def next_due(self) -> float:
-        """The earliest time [s] a watched node's silence would be found (inf: none watched yet)."""
+        """The earliest time [s] a watched node's silence would be found (inf: none watched yet).
+
+        Returns
+        -------
+        float
+            [s].
+        """
         return min((last + self.watched[node] for node, last in self._heard.items()), default=math.inf)

@@ -40,7 +40,15 @@ class HomeSearch:
     """The homing of ``drive``: ``phase`` of a search under way ("switch", "leave", "stop"; None:
     none), and whether home was ``attained`` or the method ended in an ``error`` (statusword bits 12
     and 13 in homing mode).  ``ramp(v_target [rad/s], accel [rad/s²], period [s], limit=False)``
-    moves the demand as the drive's profiles do (:meth:`.profile_motion.ProfileMotion.ramp`)."""
+    moves the demand as the drive's profiles do (:meth:`.profile_motion.ProfileMotion.ramp`).
+
+    Parameters
+    ----------
+    drive : HomingDrive
+        The drive.
+    ramp : callable
+        Moves the demand.
+    """
 
     def __init__(self, drive: HomingDrive, ramp: Callable[..., None]):
         self.drive = drive
@@ -70,7 +78,13 @@ class HomeSearch:
 
     def period(self, period_s: float) -> None:
         """One period [s] of a homing on a limit switch: toward it, off it (its edge is home), then
-        to rest."""
+        to rest.
+
+        Parameters
+        ----------
+        period_s : float
+            [s].
+        """
         drive = self.drive
         direction = HOMING_SWITCH.get(drive.objects.get_or(0x6098, 0, 0), -1)
         accel = drive.objects.get_or(0x609A, 0, 0) / drive.vel_per_si

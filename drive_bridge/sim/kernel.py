@@ -379,7 +379,18 @@ def follow(
 
 
 def new_arrays(n_axes: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Zeroed (state, param, demand) arrays for ``n_axes`` axes."""
+    """Zeroed (state, param, demand) arrays for ``n_axes`` axes.
+
+    Parameters
+    ----------
+    n_axes : int
+        The axes.
+
+    Returns
+    -------
+    state, param, demand : numpy.ndarray
+        One row per axis.
+    """
     state = np.zeros((n_axes, N_STATE))
     param = np.zeros((n_axes, N_PARAM))
     param[:, CPL_SRC] = -1.0

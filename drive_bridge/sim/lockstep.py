@@ -29,25 +29,57 @@ SDO_REQUESTS = (0x601, 0x67F)  # COB-IDs of SDO requests to nodes 1-127 (the mas
 
 
 class LockstepClock:
-    """Simulation time of ``robot``; sleeping lets the drives run without SYNC."""
+    """Simulation time of ``robot``; sleeping lets the drives run without SYNC.
+
+    Parameters
+    ----------
+    link : LockstepLink
+        The link (its robot's time).
+    """
 
     def __init__(self, link: LockstepLink):
         self._link = link
 
     def now(self) -> float:
+        """The robot's time.
+
+        Returns
+        -------
+        float
+            [s].
+        """
         return self._link.robot.time
 
     def sleep(self, seconds: float) -> None:
+        """Let the robot run ``seconds`` without SYNC, its frames handed to the master.
+
+        Parameters
+        ----------
+        seconds : float
+            [s].
+        """
         self._link.robot.idle(seconds)
         self._link.pump()
 
     def wait_until(self, deadline: float) -> None:
-        """SYNC frames move time in lockstep; there is nothing to wait for."""
+        """SYNC frames move time in lockstep; there is nothing to wait for.
+
+        Parameters
+        ----------
+        deadline : float
+            [s] (not waited for).
+        """
 
 
 class LinkPort:
     """The cyclic engine on a link's canopen network and clock: in lockstep, the simulated drives
-    answer each frame before ``send`` returns (how the engine reaches the bus: :mod:`..master.port`)."""
+    answer each frame before ``send`` returns (how the engine reaches the bus: :mod:`..master.port`).
+
+    Parameters
+    ----------
+    link : LockstepLink
+        The link.
+    """
 
     sync_source = "lockstep (simulated time)"
     periodic_sync = False
@@ -60,15 +92,43 @@ class LinkPort:
         self._on_error: Callable[[], None] | None = None
 
     def wait_until(self, deadline: float) -> None:
+        """:meth:`~drive_bridge.master.engine.Port.wait_until`: nothing to wait for; an error frame
+        seen meanwhile is handed on.
+
+        Parameters
+        ----------
+        deadline : float
+            [s].
+        """
         self.link.clock.wait_until(deadline)
         if self._on_error is not None and self.link.bus_errors.count > self._errors:
             self._errors = self.link.bus_errors.count
             self._on_error()
 
     def send(self, cob_id: int, data: bytes | bytearray, stamp: float) -> None:
+        """:meth:`~drive_bridge.master.engine.Port.send`: the drives answer before it returns.
+
+        Parameters
+        ----------
+        cob_id : int
+            Its COB-ID.
+        data : bytes or bytearray
+            Its data.
+        stamp : float
+            Its time stamp [s].
+        """
         self.link.network.send_message(cob_id, bytes(data), False, stamp)
 
     def receive(self, handlers: dict[int, Handler], on_error_frame: Callable[[], None]) -> None:
+        """:meth:`~drive_bridge.master.engine.Port.receive`: subscribed on the canopen network.
+
+        Parameters
+        ----------
+        handlers : dict of int to Handler
+            COB-ID -> ``handler(data, timestamp)``.
+        on_error_frame : callable
+            Called for each error frame.
+        """
         net = self.link.network
         for cob_id, handler in handlers.items():
 
@@ -80,15 +140,40 @@ class LinkPort:
         self._on_error = on_error_frame
 
     def start_sync(self, period: float) -> None:
+        """Not in lockstep: the engine sends SYNC itself (``periodic_sync`` is False).
+
+        Parameters
+        ----------
+        period : float
+            [s].
+
+        Raises
+        ------
+        NotImplementedError
+            Always.
+        """
         raise NotImplementedError("in lockstep the engine sends SYNC itself")
 
     def wait_sync(self, timeout_at: float) -> None:
+        """Not in lockstep: the engine sends SYNC itself.
+
+        Parameters
+        ----------
+        timeout_at : float
+            [s].
+
+        Raises
+        ------
+        NotImplementedError
+            Always.
+        """
         raise NotImplementedError("in lockstep the engine sends SYNC itself")
 
     def stop_sync(self) -> None:
         """The engine sends SYNC itself: nothing to stop."""
 
     def release(self) -> None:
+        """:meth:`~drive_bridge.master.engine.Port.release`: unsubscribed."""
         for cob_id, callback in self._subscribed:
             self.link.network.unsubscribe(cob_id, callback)
         self._subscribed.clear()
@@ -96,7 +181,20 @@ class LinkPort:
 
 
 class LockstepLink:
-    """Master side of the virtual bus, pumped synchronously with ``robot``."""
+    """Master side of the virtual bus, pumped synchronously with ``robot``.
+
+    Parameters
+    ----------
+    robot : SimRobot
+        The simulated robot, on its own in-process bus.
+    channel : str
+        The virtual bus's channel.
+
+    Raises
+    ------
+    ValueError
+        A robot not on a FastVirtualBus.
+    """
 
     threaded = False  # every frame is seen on the calling thread
 
@@ -122,9 +220,23 @@ class LockstepLink:
         self.pump()
 
     def add_trace(self, trace: TraceRecorder) -> None:
+        """:meth:`~drive_bridge.master.link.Link.add_trace`.
+
+        Parameters
+        ----------
+        trace : TraceRecorder
+            The recorder.
+        """
         self.network.traces += (trace,)
 
     def remove_trace(self, trace: TraceRecorder) -> None:
+        """:meth:`~drive_bridge.master.link.Link.remove_trace` (the heartbeats until now written first).
+
+        Parameters
+        ----------
+        trace : TraceRecorder
+            A recorder :meth:`add_trace` was given.
+        """
         self._trace_beats(self.robot.time)
         self.network.traces = tuple(t for t in self.network.traces if t is not trace)
 
@@ -160,7 +272,15 @@ class LockstepLink:
 
     def start_heartbeat(self, node_id: int, period: float) -> None:
         """In simulation time: each beat is handed to the drives at the instant it is due while the
-        robot advances, however long the master waits (and to the trace in time order, :meth:`pump`)."""
+        robot advances, however long the master waits (and to the trace in time order, :meth:`pump`).
+
+        Parameters
+        ----------
+        node_id : int
+            The master's node id.
+        period : float
+            The heartbeat's period [s].
+        """
         self.stop_heartbeat()
         due = [self.robot.time]
 
@@ -176,6 +296,7 @@ class LockstepLink:
         beat(self.robot.time)
 
     def stop_heartbeat(self) -> None:
+        """:meth:`~drive_bridge.master.link.Link.stop_heartbeat`."""
         if self._heartbeat is not None:
             self.robot.timers.remove(self._heartbeat)
             self._heartbeat = None
@@ -187,13 +308,35 @@ class LockstepLink:
         progress: Callable[[int], None] | None,
         on_start: Callable[[int], None] | None,
     ) -> tuple[Outcome, Arrays, str]:
-        """The cyclic engine on this thread, in simulation time."""
+        """The cyclic engine on this thread, in simulation time.
+
+        Parameters
+        ----------
+        job : Job
+            The streamed motion as plain data.
+        fill : callable
+            Writes the setpoint table into the engine's arrays.
+        progress : callable or None
+            Called with the plan's rows sent so far.
+        on_start : callable or None
+            Called once when the plan's first row has gone out.
+
+        Returns
+        -------
+        outcome : Outcome
+            How the run ended.
+        arrays : Arrays
+            The setpoints and actual values per cycle.
+        where : str
+            ``lockstep``.
+        """
         arrays = Arrays(job, np.zeros)
         fill(arrays)
         outcome = Engine(job, arrays, LinkPort(self), on_check=reporter(arrays, progress, on_start)).run()
         return outcome, arrays, "lockstep (no wall clock)"
 
     def close(self) -> None:
+        """:meth:`~drive_bridge.master.link.Link.close`: the heartbeat, the bus, the robot."""
         self.stop_heartbeat()
         self.bus.shutdown()
         self.robot.shutdown()

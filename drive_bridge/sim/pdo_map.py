@@ -37,13 +37,40 @@ CAN_29BIT = 0x2000_0000
 
 
 def restricted(cob_id: int) -> bool:
-    """Whether a PDO COB-ID's CAN-ID is one CiA 301 reserves for other services."""
+    """Whether a PDO COB-ID's CAN-ID is one CiA 301 reserves for other services.
+
+    Parameters
+    ----------
+    cob_id : int
+        The COB-ID.
+
+    Returns
+    -------
+    bool
+        Reserved.
+    """
     return any((cob_id & 0x7FF) in r for r in RESTRICTED_IDS)
 
 
 @dataclass
 class EventPdo:
-    """An event-driven TPDO: its codec, the getters of its objects, inhibit time and event timer [s]."""
+    """An event-driven TPDO: its codec, the getters of its objects, inhibit time and event timer [s].
+
+    Parameters
+    ----------
+    codec : PdoCodec
+        Its codec.
+    getters : list of callable
+        The readers of its objects.
+    inhibit_s : float
+        Its inhibit time [s].
+    timer_s : float
+        Its event timer [s] (0: off).
+    last_time : float
+        When it was last sent [s].
+    last_data : bytes, optional
+        What it last sent.
+    """
 
     codec: PdoCodec
     getters: list[Callable[[], int]]
@@ -53,7 +80,20 @@ class EventPdo:
     last_data: bytes | None = field(default=None, repr=False)
 
     def due(self, now: float, data: bytes) -> bool:
-        """Whether to send ``data`` now (and, if so, noted as sent)."""
+        """Whether to send ``data`` now (and, if so, noted as sent).
+
+        Parameters
+        ----------
+        now : float
+            [s].
+        data : bytes
+            Its data now.
+
+        Returns
+        -------
+        bool
+            Due: changed, or the event timer ran out, and the inhibit time passed.
+        """
         if now - self.last_time < self.inhibit_s - 1e-9:
             return False
         if data == self.last_data and not (self.timer_s and now - self.last_time >= self.timer_s - 1e-9):
@@ -68,7 +108,17 @@ class PdoMapping:
     synchronous RPDOs received for the next SYNC (``pending``) and the SYNCs counted.
 
     ``value(index, sub)`` reads an object as the drive holds it; ``getter(index, sub)`` gives
-    the callable a TPDO samples an object with."""
+    the callable a TPDO samples an object with.
+
+    Parameters
+    ----------
+    od : canopen.ObjectDictionary
+        The drive's object dictionary.
+    value : callable
+        ``value(index, sub)``.
+    getter : callable
+        ``getter(index, sub)``.
+    """
 
     def __init__(
         self,
@@ -91,7 +141,13 @@ class PdoMapping:
         self.rebuild()
 
     def count_sync(self) -> int:
-        """One more SYNC: its count."""
+        """One more SYNC: its count.
+
+        Returns
+        -------
+        int
+            The SYNCs counted.
+        """
         self._syncs += 1
         return self._syncs
 
@@ -103,14 +159,38 @@ class PdoMapping:
                 yield codec.cob_id, codec.struct.pack(*[g() for g in getters])
 
     def event_frames(self, now: float) -> Iterator[tuple[int, bytes]]:
-        """(COB-ID, data) of each event-driven TPDO due at ``now`` [s], its objects read now."""
+        """(COB-ID, data) of each event-driven TPDO due at ``now`` [s], its objects read now.
+
+        Parameters
+        ----------
+        now : float
+            [s].
+
+        Yields
+        ------
+        (int, bytes)
+            COB-ID, data.
+        """
         for pdo in self.events:
             data = pdo.codec.struct.pack(*[g() for g in pdo.getters])
             if pdo.due(now, data):
                 yield pdo.codec.cob_id, data
 
     def check_write(self, index: int, sub: int, value: int) -> None:
-        """Raise SdoAbortedError when a write to a PDO parameter breaks CiA 301's rules."""
+        """Raise SdoAbortedError when a write to a PDO parameter breaks CiA 301's rules.
+
+        Parameters
+        ----------
+        index, sub : int
+            The object.
+        value : int
+            The value.
+
+        Raises
+        ------
+        SdoAbortedError
+            With the abort code a drive gives.
+        """
         is_map = (index & 0xFF00) in (0x1600, 0x1A00)
         comm = (index & ~0x0200) if is_map else index  # 0x16xx -> 0x14xx, 0x1Axx -> 0x18xx
         cob = self._value(comm, 1)

@@ -31,6 +31,13 @@ START_TIMEOUT_S = 120.0  # the child imports numpy/numba and loads the kernel
 
 
 def free_port() -> int:
+    """A UDP port free now.
+
+    Returns
+    -------
+    int
+        The port.
+    """
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
         s.bind(("", 0))
         return s.getsockname()[1]
@@ -41,6 +48,15 @@ class SimProcess:
 
     The child prints ``ready`` once its drives are on the bus and stops when
     its standard input closes (so it also stops when this process dies).
+
+    Parameters
+    ----------
+    config_path : str or Path
+        The simulator's YAML.
+    sync_period : float
+        [s].
+    eds : mapping of str to str or Path, optional
+        Per axis, its drive's EDS/DCF.
     """
 
     def __init__(
@@ -72,6 +88,7 @@ class SimProcess:
             raise BusError(f"simulated drives did not start within {START_TIMEOUT_S:.0f} s")
 
     def shutdown(self) -> None:
+        """Stop the child (its standard input closed), killed where it does not end."""
         if self.process.poll() is None:
             self._stdin.close()
             try:
@@ -90,7 +107,21 @@ def serve(
     until: Callable[[], object],
 ) -> None:
     """Run the simulated drives of ``config_path`` on ``bus`` against the wall clock; print
-    ``ready`` once they are on the bus; ``until()`` returns when they are to stop."""
+    ``ready`` once they are on the bus; ``until()`` returns when they are to stop.
+
+    Parameters
+    ----------
+    config_path : str or Path
+        The simulator's YAML.
+    bus : can.BusABC
+        The bus.
+    sync_period : float
+        [s].
+    eds : dict of str to str
+        Per axis, its drive's EDS/DCF.
+    until : callable
+        Returns when they are to stop.
+    """
     from .robot import SimRobot
     from .robot_config import load_sim_config
 
@@ -110,6 +141,19 @@ def serve(
 
 
 def main(config_path: str, port: str, sync_period: str, eds: str = "{}") -> None:
+    """The child process: the drives on the UDP multicast bus until standard input closes.
+
+    Parameters
+    ----------
+    config_path : str
+        The simulator's YAML.
+    port : str
+        The UDP port.
+    sync_period : str
+        [s].
+    eds : str
+        JSON: per axis, its drive's EDS/DCF.
+    """
     serve(
         config_path,
         LoopbackMulticastBus(GROUP, int(port), stamps="kernel"),

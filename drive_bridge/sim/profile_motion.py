@@ -36,7 +36,22 @@ class Dwell:
         self.since = None
 
     def held(self, inside: bool, now: float, duration: float) -> bool:
-        """Whether ``inside`` has been true since at least ``duration`` [s] before ``now`` [s]."""
+        """Whether ``inside`` has been true since at least ``duration`` [s] before ``now`` [s].
+
+        Parameters
+        ----------
+        inside : bool
+            The condition now.
+        now : float
+            [s].
+        duration : float
+            [s].
+
+        Returns
+        -------
+        bool
+            Held long enough.
+        """
         if not inside:
             self.restart()
             return False
@@ -62,13 +77,32 @@ class ProfileDrive(Protocol):
     v_dem: float  # the demand velocity [rad/s]
     objects: ObjectStorage
 
-    def within_limits(self, position: float) -> float: ...
+    def within_limits(self, position: float) -> float:
+        """A position held inside the software position limits.
+
+        Parameters
+        ----------
+        position : float
+            [rad, plant].
+
+        Returns
+        -------
+        float
+            The position within the limits.
+        """
+        ...
 
 
 class ProfileMotion:
     """The profiles of ``drive``: the profile position move under way (``target``, and the ``goal``
     of the last set-point accepted), whether the set-point was ``acknowledged``, whether the target
-    is ``reached``, and the homing search (``homing``)."""
+    is ``reached``, and the homing search (``homing``).
+
+    Parameters
+    ----------
+    drive : ProfileDrive
+        The drive.
+    """
 
     def __init__(self, drive: ProfileDrive):
         self.drive = drive
@@ -86,13 +120,31 @@ class ProfileMotion:
         return bool(self.drive.controlword & CW_HALT_BIT) and self.drive.mode in (PV, PP, HM)
 
     def deceleration(self) -> float:
-        """The profile deceleration 0x6084 [rad/s²] (the acceleration 0x6083 where it has none)."""
+        """The profile deceleration 0x6084 [rad/s²] (the acceleration 0x6083 where it has none).
+
+        Returns
+        -------
+        float
+            [rad/s²].
+        """
         objects = self.drive.objects
         return objects.get_or(0x6084, 0, objects.get(0x6083)) / self.drive.vel_per_si
 
     def ramp(self, v_target: float, accel: float, T: float, limit: bool = True) -> None:
         """Move the demand velocity toward ``v_target`` at ``accel`` and integrate P1 (inside the
-        software position limits unless ``limit`` is False)."""
+        software position limits unless ``limit`` is False).
+
+        Parameters
+        ----------
+        v_target : float
+            [rad/s].
+        accel : float
+            [rad/s²].
+        T : float
+            The period [s].
+        limit : bool
+            Held inside the software position limits.
+        """
         drive = self.drive
         step = accel * T
         v_new = (
@@ -106,7 +158,18 @@ class ProfileMotion:
 
     def period(self, T: float) -> bool:
         """The demand of the period of ``T`` [s] that starts now; True where a quick stop came to
-        rest with an option code 0x605A that then disables the drive."""
+        rest with an option code 0x605A that then disables the drive.
+
+        Parameters
+        ----------
+        T : float
+            The period [s].
+
+        Returns
+        -------
+        bool
+            A quick stop came to rest and disables the drive.
+        """
         drive, objects, d = self.drive, self.drive.objects, self.drive.plant_demand
         state, mode, per_si = drive.state, drive.mode, drive.vel_per_si
         if state == QUICK_STOP:
@@ -136,7 +199,13 @@ class ProfileMotion:
 
     def new_setpoint(self, controlword: int) -> None:
         """Profile position: a new set-point (bit 4 up) taken -- the target 0x607A, absolute or
-        relative (bit 6) -- and acknowledged."""
+        relative (bit 6) -- and acknowledged.
+
+        Parameters
+        ----------
+        controlword : int
+            0x6040's value.
+        """
         drive = self.drive
         target = drive.objects.get(0x607A) / drive.pos_per_rad
         self.target = (
@@ -153,7 +222,13 @@ class ProfileMotion:
         self.homing.phase = None
 
     def speed_zero(self) -> bool:
-        """The speed inside the velocity threshold 0x606F for the threshold time 0x6070."""
+        """The speed inside the velocity threshold 0x606F for the threshold time 0x6070.
+
+        Returns
+        -------
+        bool
+            Held long enough.
+        """
         drive = self.drive
         return self.threshold.held(
             abs(drive.plant_state.item(kernel.VMEAS)) <= self._velocity_window(0x606F),

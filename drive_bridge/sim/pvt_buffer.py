@@ -32,7 +32,13 @@ class PvtBuffer:
         self.enabled, self.errors = False, 0
 
     def control(self, value: int) -> None:
-        """0x60C4:6, buffer clear: 0 clears and disables it, 1 enables it."""
+        """0x60C4:6, buffer clear: 0 clears and disables it, 1 enables it.
+
+        Parameters
+        ----------
+        value : int
+            0 or 1.
+        """
         if value == 0:
             self.records.clear()
             self.errors = 0
@@ -40,7 +46,18 @@ class PvtBuffer:
 
     def put(self, value: int) -> int | None:
         """A PVT record (0x20C1 as written) into the buffer: None, or the EMCY code of the fault it
-        causes (an overflow).  With access disabled it is dropped."""
+        causes (an overflow).  With access disabled it is dropped.
+
+        Parameters
+        ----------
+        value : int
+            The record.
+
+        Returns
+        -------
+        int or None
+            The EMCY code of the fault it causes.
+        """
         if not self.enabled:
             return None
         if len(self.records) >= RECORDS:
@@ -50,7 +67,13 @@ class PvtBuffer:
         return None
 
     def take(self) -> tuple[int, int, int] | None:
-        """The next record, or None where the buffer ran dry (an underflow, latched)."""
+        """The next record, or None where the buffer ran dry (an underflow, latched).
+
+        Returns
+        -------
+        (int, int, int) or None
+            Position, velocity, time.
+        """
         if self.records:
             return self.records.popleft()
         self.errors |= UNDERFLOW
@@ -58,7 +81,20 @@ class PvtBuffer:
 
     def status(self, active: bool, low: int, high: int) -> int:
         """0x20C4:1: the latched errors, enabled, ``active`` (interpolating), and the warnings of a
-        fill below ``low`` or above ``high`` records (0x20C4:2 and :3)."""
+        fill below ``low`` or above ``high`` records (0x20C4:2 and :3).
+
+        Parameters
+        ----------
+        active : bool
+            Interpolating.
+        low, high : int
+            The warning limits [records].
+
+        Returns
+        -------
+        int
+            The status.
+        """
         n = len(self.records)
         status = self.errors | (ENABLED if self.enabled else 0) | (ACTIVE if active else 0)
         if n < low:

@@ -47,6 +47,19 @@ class SimRobot:
     ``sync_period`` [s] is the SYNC period the drives interpolate over (0x60C2
     is written by the master; the kernel needs the tick count up front).  ``eds`` is the EDS/DCF
     every drive is built from, or one per axis name (the project's drive where an axis has none).
+
+    Parameters
+    ----------
+    config : SimConfig
+        The simulated robot.
+    channel : str
+        The virtual bus's channel.
+    bus : can.BusABC, optional
+        The bus to answer on (default: a virtual bus of its own on ``channel``).
+    sync_period : float
+        [s].
+    eds : str, Path or mapping of str to str or Path
+        The EDS/DCF of every drive, or one per axis.
     """
 
     def __init__(
@@ -102,7 +115,13 @@ class SimRobot:
     def cycle_period_written(self, period_us: int) -> None:
         """0x1006 written on a drive: the drives' loops lock to that SYNC period, as a drive's
         phase-locked loop does (one grid: the SYNC is the bus's), from the next SYNC on; 0 (no
-        SYNC expected) and a period that is not a whole number of loop ticks leave it as it is."""
+        SYNC expected) and a period that is not a whole number of loop ticks leave it as it is.
+
+        Parameters
+        ----------
+        period_us : int
+            [µs].
+        """
         ticks = whole_ticks(period_us / 1e6)
         if ticks is not None and ticks != self.plant.ticks_per_period:
             self.plant.set_sync_period(period_us / 1e6)
@@ -118,6 +137,15 @@ class SimRobot:
             drive.boot()
 
     def send(self, cob_id: int, data: bytes) -> None:
+        """Put a drive's frame on the bus, stamped with the robot's clock.
+
+        Parameters
+        ----------
+        cob_id : int
+            Its COB-ID.
+        data : bytes
+            Its data.
+        """
         self.bus.send(
             can.Message(arbitration_id=cob_id, data=data, is_extended_id=False, timestamp=self._stamp())
         )
@@ -176,6 +204,14 @@ class SimRobot:
         return handle
 
     def dispatch(self, msg: can.Message) -> None:
+        """Hand a frame to the drive (or drives) it is for; a frame outside the steady stream ends
+        the compiled SYNC path's run.
+
+        Parameters
+        ----------
+        msg : can.Message
+            The frame.
+        """
         handler = self._routes.get(msg.arbitration_id)
         if handler is not None and not msg.is_remote_frame:
             if msg.arbitration_id in self._watched:
@@ -219,7 +255,13 @@ class SimRobot:
                 self.dispatch(frame)
 
     def idle(self, duration: float) -> None:
-        """Lockstep: let ``duration`` seconds pass without SYNC (drives hold, heartbeats go out)."""
+        """Lockstep: let ``duration`` seconds pass without SYNC (drives hold, heartbeats go out).
+
+        Parameters
+        ----------
+        duration : float
+            [s].
+        """
         ticks = max(1, round(duration / kernel.VELOCITY_TICK_S))
         while ticks > 0:  # in SYNC-period steps so heartbeats go out on time
             step = min(ticks, self.plant.ticks_per_period)
@@ -230,7 +272,13 @@ class SimRobot:
     def advance(self, n_ticks: int) -> None:
         """Run loops and plant for ``n_ticks`` velocity-loop ticks, then faults and heartbeats; a drive
         that makes its own profile (quick stop, PV, PP, homing) starts its next period on the tick its
-        period ends, however the ticks are asked for (its demand never waits a tick for it)."""
+        period ends, however the ticks are asked for (its demand never waits a tick for it).
+
+        Parameters
+        ----------
+        n_ticks : int
+            Velocity-loop ticks.
+        """
         self._run_plant(self._through_profile_periods(n_ticks))
         self._supervise()
 
@@ -306,7 +354,22 @@ class SimRobot:
         this process was held up (a stall of the simulator, not of the master) is applied at its own
         time and never found missing.  Between frames the plant catches up on an absolute grid of
         ``IDLE_WAKE_S`` (heartbeats, profiles, time-outs); a late wake-up takes the next point of the
-        grid, never a burst."""
+        grid, never a burst.
+
+        Parameters
+        ----------
+        wake : float
+            The latest time to wait until [s, ``monotonic``'s].
+        wall : callable
+            The wall clock (the frames' stamps').
+        monotonic : callable
+            The monotonic clock.
+
+        Returns
+        -------
+        float
+            The next wake [s, ``monotonic``'s].
+        """
         msg = self.bus.recv(timeout=max(0.0, wake - monotonic()))
         now = wall()
         if msg is None:  # the wait ended without one: any that came while this thread was held up since
@@ -321,11 +384,23 @@ class SimRobot:
         return wake
 
     def clock_from(self, now: float) -> None:
-        """Wall clock: the simulation time reached is the wall-clock time ``now`` [s]."""
+        """Wall clock: the simulation time reached is the wall-clock time ``now`` [s].
+
+        Parameters
+        ----------
+        now : float
+            [s].
+        """
         self._t0 = now - self.plant.time
 
     def take(self, msg: can.Message) -> None:
-        """Wall clock: a frame received at ``msg.timestamp`` [s]; the loops run up to it first."""
+        """Wall clock: a frame received at ``msg.timestamp`` [s]; the loops run up to it first.
+
+        Parameters
+        ----------
+        msg : can.Message
+            The frame.
+        """
         self._bus_time = max(self._bus_time, msg.timestamp)
         if msg.arbitration_id == SYNC_COB_ID and not msg.is_remote_frame:
             self._sync_received(msg.timestamp)
@@ -334,7 +409,13 @@ class SimRobot:
             self.dispatch(msg)
 
     def run_until(self, now: float) -> None:
-        """Wall clock: the loops and plant run up to ``now`` [s] (whole ticks)."""
+        """Wall clock: the loops and plant run up to ``now`` [s] (whole ticks).
+
+        Parameters
+        ----------
+        now : float
+            [s].
+        """
         self._run_ticks(int((now - self._t0 - self.plant.time) / kernel.VELOCITY_TICK_S))
 
     # The drives' loops run on a grid of their own, locked to the SYNCs they receive as a drive's
@@ -425,6 +506,7 @@ class SimRobot:
                 self.plant.tick0[drive.index] = 0
 
     def shutdown(self) -> None:
+        """Stop the drives' thread (where it runs) and close the bus."""
         self._running = False
         if self._thread is not None:
             self._thread.join(timeout=2)

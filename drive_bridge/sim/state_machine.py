@@ -38,12 +38,40 @@ TRANSITIONS = {
 
 
 def command(controlword: int) -> str | None:
-    """The device control command a controlword gives (None: none, e.g. bit 7 set)."""
+    """The device control command a controlword gives (None: none, e.g. bit 7 set).
+
+    Parameters
+    ----------
+    controlword : int
+        0x6040's value.
+
+    Returns
+    -------
+    str or None
+        The command.
+    """
     return next((name for name, mask, value in COMMANDS if controlword & mask == value), None)
 
 
 def next_state(state: int, controlword: int, previous: int, quick_stop_option: int) -> int:
-    """The state after ``controlword`` (``previous`` is the controlword before it)."""
+    """The state after ``controlword`` (``previous`` is the controlword before it).
+
+    Parameters
+    ----------
+    state : int
+        The state now.
+    controlword : int
+        The controlword.
+    previous : int
+        The controlword before it (a fault reset is its bit 7's rising edge).
+    quick_stop_option : int
+        0x605A.
+
+    Returns
+    -------
+    int
+        The next state.
+    """
     if state == FAULT:
         return SWITCH_ON_DISABLED if controlword & 0x80 and not previous & 0x80 else FAULT
     cmd = command(controlword)

@@ -61,7 +61,17 @@ STATUS_PER_PERIOD = 0x0800 | 0x2000
 class SteadyStream:
     """The streaming SYNC of the ``drives`` of ``plant`` (in its row order), sending through
     ``send`` (COB-ID, data): their PDOs laid out for :func:`.cyclic.steady_period` (``supported``
-    False where one cannot be)."""
+    False where one cannot be).
+
+    Parameters
+    ----------
+    plant : Plant
+        The plant.
+    drives : list of SimDrive
+        Its drives, in row order.
+    send : callable
+        ``send(cob_id, data)``.
+    """
 
     def __init__(self, plant: Plant, drives: list[SimDrive], send: Callable[[int, bytes], None]):
         self.plant = plant
@@ -130,7 +140,13 @@ class SteadyStream:
 
     def period(self) -> bool:
         """Run this SYNC of every drive (the plant has advanced to it); False, having changed
-        nothing, where it is the Python drive's to run."""
+        nothing, where it is the Python drive's to run.
+
+        Returns
+        -------
+        bool
+            Run here.
+        """
         if not self.supported:
             return False
         for drive in self.drives:

@@ -23,13 +23,26 @@ from ..resources import PROJECT_EDS, vendor_dir
 
 @dataclass(frozen=True)
 class DriveSpec:
-    """``profile``: the drive profile whose objects and scales hold the gains (and model);
-    ``increments_per_rev``: the encoder, where the file has no 0x608F default;
-    ``factory_in_file``: the file itself holds the factory gains and the motor data (0x2002: the
-    project's drive); ``velocity_unit``: of 0x606C and every velocity/acceleration object ("inc/s": inc/s and
-    inc/s²; "rpm": rpm and rpm/s); ``current_unit`` of 0x6078 ("permille" of the rated current
-    0x6075, or "mA") and of any vendor object in ``current_objects``; ``supported_modes``: 0x6502
-    where the file has no default."""
+    """What a simulated drive of a vendor's EDS/DCF is.
+
+    Parameters
+    ----------
+    profile : str
+        The drive profile whose objects and scales hold the gains (and model).
+    factory_in_file : bool
+        The file itself holds the factory gains and the motor data (0x2002: the project's drive).
+    increments_per_rev : int, optional
+        The encoder, where the file has no 0x608F default.
+    velocity_unit : {"inc/s", "rpm"}
+        Of 0x606C and every velocity/acceleration object (inc/s and inc/s²; rpm and rpm/s).
+    current_unit : {"permille", "mA"}
+        Of 0x6078 (per mille of the rated current 0x6075, or mA) and of any vendor object in
+        ``current_objects``.
+    supported_modes : int, optional
+        0x6502, where the file has no default.
+    current_objects : tuple of int
+        The objects reporting the averaged current.
+    """
 
     profile: str
     factory_in_file: bool = False
@@ -37,7 +50,7 @@ class DriveSpec:
     velocity_unit: str = "inc/s"
     current_unit: str = "permille"
     supported_modes: int | None = None
-    current_objects: tuple[int, ...] = (0x6078,)  # objects reporting the averaged current
+    current_objects: tuple[int, ...] = (0x6078,)
 
 
 #: by EDS/DCF file name
@@ -67,7 +80,23 @@ SPECS = {
 def spec_for(eds_path: str | Path) -> DriveSpec:
     """The description of the drive an EDS/DCF is for: by its file name, else by the vendor and
     product number of its [DeviceInfo] (a DCF exported from one of the files); ValueError naming
-    the known files."""
+    the known files.
+
+    Parameters
+    ----------
+    eds_path : str or Path
+        The EDS/DCF.
+
+    Returns
+    -------
+    DriveSpec
+        The description.
+
+    Raises
+    ------
+    ValueError
+        A file of no known drive, naming the known files.
+    """
     name = Path(eds_path).name
     if name in SPECS:
         return SPECS[name]
@@ -95,14 +124,30 @@ def _identity(path: Path) -> tuple[int, int] | None:
 @dataclass(frozen=True)
 class Factory:
     """The factory set-up every simulated drive starts from, SI: the project drive's EDS
-    defaults, so that each vendor drive runs the same loops on the same plant."""
+    defaults, so that each vendor drive runs the same loops on the same plant.
 
-    gains: dict[str, float]  # KpP, FwF, KpS, KiS, KpC, KiC
-    max_torque_permille: int  # 0x6072
-    quick_stop_rad_s2: float  # 0x6085
-    profile_velocity_rad_s: float  # 0x6081
-    profile_acceleration_rad_s2: float  # 0x6083, 0x6084
-    fe_timeout_ms: int  # 0x6066
+    Parameters
+    ----------
+    gains : dict of str to float
+        KpP, FwF, KpS, KiS, KpC, KiC.
+    max_torque_permille : int
+        0x6072.
+    quick_stop_rad_s2 : float
+        0x6085 [rad/s²].
+    profile_velocity_rad_s : float
+        0x6081 [rad/s].
+    profile_acceleration_rad_s2 : float
+        0x6083, 0x6084 [rad/s²].
+    fe_timeout_ms : int
+        0x6066 [ms].
+    """
+
+    gains: dict[str, float]
+    max_torque_permille: int
+    quick_stop_rad_s2: float
+    profile_velocity_rad_s: float
+    profile_acceleration_rad_s2: float
+    fe_timeout_ms: int
 
 
 @cache
