@@ -24,6 +24,13 @@ COMMANDS = (bus, identification, tuning, commission, history, monitor)
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The command line: every command's parser, the exit-code table in its epilog.
+
+    Returns
+    -------
+    argparse.ArgumentParser
+        The parser.
+    """
     lines = __doc__.splitlines()
     parser = argparse.ArgumentParser(
         prog="drive-bridge",
@@ -55,7 +62,20 @@ LIBRARY_LOGGERS = ("canopen", "can", "py.warnings")
 def log_to_stderr(verbose: int, quiet: bool) -> logging.Handler:
     """drive-bridge's log on stderr at warning level (-v info, -vv debug, -q errors only); python-can's
     and canopen's only with -vv (at the default their lines are not for the person at the machine:
-    what matters is in drive-bridge's own message).  Returns the handler (to remove it again)."""
+    what matters is in drive-bridge's own message).
+
+    Parameters
+    ----------
+    verbose : int
+        ``-v`` given this many times.
+    quiet : bool
+        ``-q``.
+
+    Returns
+    -------
+    logging.Handler
+        The handler (to remove it again).
+    """
     handler = logging.StreamHandler(sys.stderr)
     handler.setFormatter(logging.Formatter("drive-bridge: %(levelname)s %(name)s: %(message)s"))
     level = logging.ERROR if quiet else {0: logging.WARNING, 1: logging.INFO}.get(verbose, logging.DEBUG)
@@ -73,7 +93,18 @@ def log_to_stderr(verbose: int, quiet: bool) -> logging.Handler:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run one command; SIGTERM and SIGHUP end it like Ctrl-C (:mod:`drive_bridge.interrupts`)."""
+    """Run one command; SIGTERM and SIGHUP end it like Ctrl-C (:mod:`drive_bridge.interrupts`).
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        The arguments (default: the process's).
+
+    Returns
+    -------
+    int
+        The exit code (:data:`drive_bridge.errors.EXIT_TABLE`).
+    """
     with interrupts.handled(), warnings.catch_warnings():
         try:
             return _run(argv)

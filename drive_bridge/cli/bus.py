@@ -25,6 +25,13 @@ if TYPE_CHECKING:
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """Add this module's commands to the command line.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        The command line's subparsers.
+    """
     p = sub.add_parser(
         "scan",
         help="list the nodes on the bus and check them against the configuration",
@@ -145,6 +152,18 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 
 
 def cmd_scan(args: argparse.Namespace) -> int:
+    """The ``scan`` command: the configured nodes found on the bus.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The command line.
+
+    Returns
+    -------
+    int
+        The exit code (:data:`drive_bridge.errors.EXIT_TABLE`).
+    """
     config = options.config(args)
     with Session(config, options.session_options(args)) as session:
         result = scan(session.link, config)
@@ -174,6 +193,18 @@ def cmd_scan(args: argparse.Namespace) -> int:
 
 
 def cmd_record(args: argparse.Namespace) -> int:
+    """The ``record`` command: the excitation campaign streamed and recorded (the robot moves).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The command line.
+
+    Returns
+    -------
+    int
+        The exit code (:data:`drive_bridge.errors.EXIT_TABLE`).
+    """
     from ..progress import CampaignProgress
     from ..recorder import record
 
@@ -215,6 +246,18 @@ def cmd_record(args: argparse.Namespace) -> int:
 
 
 def cmd_sim(args: argparse.Namespace) -> int:
+    """The ``sim`` command: the simulated drives on a bus of their own, for other masters.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The command line.
+
+    Returns
+    -------
+    int
+        The exit code (:data:`drive_bridge.errors.EXIT_TABLE`).
+    """
     from ..cia.buses import open_bus
     from ..sim.process import serve
     from ..sim.robot_config import DEFAULT_CONFIG
@@ -249,6 +292,18 @@ JOG_LEVEL = 0.1  # a jog's default speed and acceleration: this share of the axi
 
 
 def cmd_jog(args: argparse.Namespace) -> int:
+    """The ``jog`` command: one axis moved to a position (the robot moves).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The command line.
+
+    Returns
+    -------
+    int
+        The exit code (:data:`drive_bridge.errors.EXIT_TABLE`).
+    """
     import math
 
     import numpy as np
@@ -328,13 +383,39 @@ def cmd_jog(args: argparse.Namespace) -> int:
 
 
 def own_units(ncfg: NodeConfig) -> tuple[float, str]:
-    """An axis's own unit (m for a linear axis, rad for a rotary one) and the factor from motor rad to it."""
+    """An axis's own unit (m for a linear axis, rad for a rotary one) and the factor from motor rad to it.
+
+    Parameters
+    ----------
+    ncfg : NodeConfig
+        The axis's node.
+
+    Returns
+    -------
+    factor : float
+        Own units per motor rad.
+    unit : str
+        ``m`` or ``rad``.
+    """
     return 1.0 / float(ncfg.scaling.load_to_motor(1.0)), "m" if ncfg.linear else "rad"
 
 
 def plan_lines(plan: Plan, config: BusConfig) -> str:
     """The plan as the person beside the machine reads it: per axis, where it starts, the span it
-    covers, its peaks, inside which limits (the axis's own units: m for a linear axis)."""
+    covers, its peaks, inside which limits (the axis's own units: m for a linear axis).
+
+    Parameters
+    ----------
+    plan : Plan
+        The plan.
+    config : BusConfig
+        The bus configuration (each axis's unit).
+
+    Returns
+    -------
+    str
+        The lines.
+    """
     from ..master.campaign import plan_summary
 
     lines = []
@@ -356,7 +437,22 @@ def motion_preview(session: Session, config: BusConfig, plans: options.Plans) ->
     """Motion as it would run from where the axes stand, planned and checked over a read-only
     bring-up of ``session`` (nothing that changes a drive's behaviour is written): for --dry-run
     and for the question before a real run. ``plans(axes)`` gives (title, Plan) pairs, each checked
-    against the axes' limits as it is planned."""
+    against the axes' limits as it is planned.
+
+    Parameters
+    ----------
+    session : Session
+        The drives (brought up read-only here).
+    config : BusConfig
+        The bus configuration.
+    plans : callable
+        ``plans(axes)``: (title, Plan) pairs.
+
+    Returns
+    -------
+    str
+        The motion in words.
+    """
     from ..master.bringup import plan_bring_up
     from ..master.busload import check_bus_load
 
@@ -381,7 +477,18 @@ def motion_preview(session: Session, config: BusConfig, plans: options.Plans) ->
 
 
 def campaign_plans(config: BusConfig) -> options.Plans:
-    """The campaign planned from where the axes stand, for :func:`motion_preview`."""
+    """The campaign planned from where the axes stand, for :func:`motion_preview`.
+
+    Parameters
+    ----------
+    config : BusConfig
+        The bus configuration.
+
+    Returns
+    -------
+    callable
+        ``plans(axes)``.
+    """
     from ..master.campaign import build_plan
 
     def plans(axes: dict[str, AxisLink]) -> list[tuple[str, Plan]]:
@@ -396,7 +503,20 @@ def campaign_plans(config: BusConfig) -> options.Plans:
 
 def validate_plans(config: BusConfig, scenarios: str) -> Callable[..., list[tuple[str, Plan]]]:
     """The validation's reference trajectories, one after the other from ``start`` (axis ->
-    [rad]; default: where the axes stand), each ``scenarios`` runs both, for :func:`motion_preview`."""
+    [rad]; default: where the axes stand), each ``scenarios`` runs both, for :func:`motion_preview`.
+
+    Parameters
+    ----------
+    config : BusConfig
+        The bus configuration.
+    scenarios : str
+        The scenarios, in words (the titles).
+
+    Returns
+    -------
+    callable
+        ``plans(axes, start=None)``.
+    """
     from ..tuning import motion
     from ..tuning.validate import reference_demands
 
@@ -419,13 +539,39 @@ def validate_plans(config: BusConfig, scenarios: str) -> Callable[..., list[tupl
 
 
 def preview(args: argparse.Namespace, config: BusConfig, plans: options.Plans) -> str:
-    """:func:`motion_preview` in a session of its own."""
+    """:func:`motion_preview` in a session of its own.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The command line.
+    config : BusConfig
+        The bus configuration.
+    plans : callable
+        ``plans(axes)``.
+
+    Returns
+    -------
+    str
+        The motion in words.
+    """
     with Session(config, options.session_options(args)) as session:
         return motion_preview(session, config, plans)
 
 
 def dry_run_end(text: str) -> int:
-    """What ``--dry-run`` prints last: the plan, and that nothing moved."""
+    """What ``--dry-run`` prints last: the plan, and that nothing moved.
+
+    Parameters
+    ----------
+    text : str
+        The plan in words.
+
+    Returns
+    -------
+    int
+        0.
+    """
     print(text)
     print("dry run: nothing was written that changes a drive's behaviour, nothing moved")
     return 0
@@ -433,14 +579,36 @@ def dry_run_end(text: str) -> int:
 
 def holding_lines(holding: dict[str, str] | None) -> str:
     """The command's last lines: how each axis is held now (an axis held powered stays so until the
-    master's heartbeat stops with this command; then the drive quick-stops and holds by itself)."""
+    master's heartbeat stops with this command; then the drive quick-stops and holds by itself).
+
+    Parameters
+    ----------
+    holding : dict of str to str or None
+        Per axis, how it is held.
+
+    Returns
+    -------
+    str
+        The lines ("" without).
+    """
     if not holding:
         return "no axis was enabled"
     return "\n".join(f"  axis {a}: {how}" for a, how in holding.items())
 
 
 def timing_line(t: Timing) -> str:
-    """One line on how a run kept its clock."""
+    """One line on how a run kept its clock.
+
+    Parameters
+    ----------
+    t : Timing
+        The run's timing.
+
+    Returns
+    -------
+    str
+        The line.
+    """
     if t.clock != "wall":
         return "timing: lockstep (simulation time, every SYNC on time)"
     return (
@@ -450,7 +618,18 @@ def timing_line(t: Timing) -> str:
 
 
 def degraded_exit(reasons: list[str]) -> int:
-    """0, or the degraded exit code with a warning naming what missed its limits."""
+    """0, or the degraded exit code with a warning naming what missed its limits.
+
+    Parameters
+    ----------
+    reasons : list of str
+        What missed its timing limits.
+
+    Returns
+    -------
+    int
+        The exit code.
+    """
     if not reasons:
         return 0
     print(
@@ -462,6 +641,18 @@ def degraded_exit(reasons: list[str]) -> int:
 
 
 def cmd_decode(args: argparse.Namespace) -> int:
+    """The ``decode`` command: log.csv rebuilt from a trace and its meta.yaml.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The command line.
+
+    Returns
+    -------
+    int
+        The exit code (:data:`drive_bridge.errors.EXIT_TABLE`).
+    """
     from ..errors import UserError
     from ..logs import decode_trace, save_table
 
@@ -491,6 +682,18 @@ def cmd_decode(args: argparse.Namespace) -> int:
 
 
 def cmd_check_eds(args: argparse.Namespace) -> int:
+    """The ``check-eds`` command: an EDS/DCF checked against CiA 306.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The command line.
+
+    Returns
+    -------
+    int
+        The exit code (:data:`drive_bridge.errors.EXIT_TABLE`).
+    """
     from ..cia.edscheck import check
 
     reports = [check(name) for name in args.files]
@@ -515,6 +718,18 @@ def cmd_check_eds(args: argparse.Namespace) -> int:
 
 
 def cmd_export(args: argparse.Namespace) -> int:
+    """The ``export`` command: the bus configuration for another master (ros2_canopen, Lely).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The command line.
+
+    Returns
+    -------
+    int
+        The exit code (:data:`drive_bridge.errors.EXIT_TABLE`).
+    """
     from ..config import load_bus_config
     from ..resources import DEFAULT_BUS_CONFIG
     from ..ros2 import export

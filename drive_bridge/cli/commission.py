@@ -13,6 +13,13 @@ if TYPE_CHECKING:
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """Add this module's commands to the command line.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        The command line's subparsers.
+    """
     from ..commissioning.steps import STEP_FUNCTIONS
 
     p = sub.add_parser(
@@ -49,6 +56,18 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 
 
 def cmd_commission(args: argparse.Namespace) -> int:
+    """The ``commission`` command: the whole job, step by step.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The command line.
+
+    Returns
+    -------
+    int
+        The exit code (:data:`drive_bridge.errors.EXIT_TABLE`).
+    """
     from ..commissioning import commission
 
     options.out_dir(args.out)

@@ -17,6 +17,13 @@ if TYPE_CHECKING:
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """Add this module's commands to the command line.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        The command line's subparsers.
+    """
     p = sub.add_parser(
         "history",
         help="what was commissioned when, and what changed since: list, show, compare, sync",
@@ -78,6 +85,18 @@ def _store(args: argparse.Namespace) -> HistoryStore:
 
 
 def cmd_list(args: argparse.Namespace) -> int:
+    """The ``history list`` command (``history list``): the runs kept.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The command line.
+
+    Returns
+    -------
+    int
+        The exit code (:data:`drive_bridge.errors.EXIT_TABLE`).
+    """
     store = _store(args)
     runs = store.runs(args.limit, args.axis, args.drive)
     if args.json:
@@ -97,6 +116,18 @@ def cmd_list(args: argparse.Namespace) -> int:
 
 
 def cmd_show(args: argparse.Namespace) -> int:
+    """The ``history show`` command (``history show``): one run in full.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The command line.
+
+    Returns
+    -------
+    int
+        The exit code (:data:`drive_bridge.errors.EXIT_TABLE`).
+    """
     store = _store(args)
     rec = store.record(args.run)
     if args.json:
@@ -149,6 +180,18 @@ def cmd_show(args: argparse.Namespace) -> int:
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
+    """The ``history compare`` command (``history compare``): each drive against its past and its siblings.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The command line.
+
+    Returns
+    -------
+    int
+        The exit code (:data:`drive_bridge.errors.EXIT_TABLE`).
+    """
     from ..history import History, compare
     from ..history.compare import drive_name
 
@@ -193,6 +236,18 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
 
 def cmd_sync(args: argparse.Namespace) -> int:
+    """The ``history sync`` command (``history sync``): the outbox sent to the database.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The command line.
+
+    Returns
+    -------
+    int
+        The exit code (:data:`drive_bridge.errors.EXIT_TABLE`).
+    """
     from ..history import HistoryUnavailable, send
     from ..history.outbox import waiting
 
@@ -234,6 +289,18 @@ def cmd_sync(args: argparse.Namespace) -> int:
 
 
 def cmd_rejected(args: argparse.Namespace) -> int:
+    """The ``history rejected`` command (``history rejected``): the records set aside.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The command line.
+
+    Returns
+    -------
+    int
+        The exit code (:data:`drive_bridge.errors.EXIT_TABLE`).
+    """
     from ..history.outbox import rejected, rejected_dir
 
     entries = rejected()

@@ -11,6 +11,13 @@ from . import options
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """Add this module's commands to the command line.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        The command line's subparsers.
+    """
     p = sub.add_parser(
         "identify",
         help="identify J, c0, c1 from a log and trace the residual to its effects",
@@ -47,6 +54,18 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 
 
 def cmd_identify(args: argparse.Namespace) -> int:
+    """The ``identify`` command: J, c0, c1 and the effects of a log.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The command line.
+
+    Returns
+    -------
+    int
+        The exit code (:data:`drive_bridge.errors.EXIT_TABLE`).
+    """
     from ..history.record import now
     from ..ident import identify
     from ..ident.presentation import as_json, summary, write_report

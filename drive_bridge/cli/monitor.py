@@ -12,6 +12,13 @@ from . import options
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """Add this module's commands to the command line.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        The command line's subparsers.
+    """
     p = sub.add_parser(
         "monitor",
         help="listen only: identify J, c0, c1 from a running machine's production motion, name drift",
@@ -79,6 +86,18 @@ def _positive(text: str) -> float:
 
 
 def cmd_monitor(args: argparse.Namespace) -> int:
+    """The ``monitor`` command: a running machine watched without sending a frame.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The command line.
+
+    Returns
+    -------
+    int
+        The exit code (:data:`drive_bridge.errors.EXIT_TABLE`).
+    """
     from ..monitor import Monitor, Settings, listen, simulated_week
     from ..outputs import json_text, stamped
 
@@ -171,7 +190,18 @@ def _window_words(event: dict) -> str:
 
 
 def default_dir(config: Path) -> Path:
-    """``monitor/<bus config name>-<hash of its path>`` in the user's data directory."""
+    """``monitor/<bus config name>-<hash of its path>`` in the user's data directory.
+
+    Parameters
+    ----------
+    config : Path
+        The bus configuration.
+
+    Returns
+    -------
+    Path
+        The directory.
+    """
     from ..history.location import data_dir
 
     digest = hashlib.sha256(str(config.resolve()).encode()).hexdigest()[:8]

@@ -27,7 +27,13 @@ if TYPE_CHECKING:
 
 
 def bus(p: argparse.ArgumentParser) -> None:
-    """How to reach the drives: the bus configuration, or the simulated robot."""
+    """How to reach the drives: the bus configuration, or the simulated robot.
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+        The command's parser (the arguments are added to it).
+    """
     p.add_argument(
         "--config",
         default=str(DEFAULT_BUS_CONFIG),
@@ -65,7 +71,13 @@ def bus(p: argparse.ArgumentParser) -> None:
 
 
 def campaign(p: argparse.ArgumentParser) -> None:
-    """Which excitation: the paper's campaign or the short designed one."""
+    """Which excitation: the paper's campaign or the short designed one.
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+        The command's parser (the arguments are added to it).
+    """
     from ..config import DESIGNS
 
     p.add_argument(
@@ -79,13 +91,32 @@ def campaign(p: argparse.ArgumentParser) -> None:
 
 def can_channel(text: str) -> str | int:
     """A channel as python-can's configuration files read it: digits are a number (kvaser, vector);
-    anything else (a name, "1.5", "true") is the text as given."""
+    anything else (a name, "1.5", "true") is the text as given.
+
+    Parameters
+    ----------
+    text : str
+        The channel as given.
+
+    Returns
+    -------
+    str or int
+        The channel.
+    """
     value = can.util.cast_from_string(text)
     return value if isinstance(value, int) and not isinstance(value, bool) else text
 
 
 def drive(p: argparse.ArgumentParser, params: bool = True) -> None:
-    """Bus, drive profile, --params (a tune result) and --json: what tune/write/validate share."""
+    """Bus, drive profile, --params (a tune result) and --json: what tune/write/validate share.
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+        The command's parser (the arguments are added to it).
+    params : bool
+        With ``--params``.
+    """
     bus(p)
     p.add_argument(
         "--profile",
@@ -99,7 +130,13 @@ def drive(p: argparse.ArgumentParser, params: bool = True) -> None:
 
 
 def motion(p: argparse.ArgumentParser) -> None:
-    """``--yes``: a command that moves a real machine asks the person beside it first."""
+    """``--yes``: a command that moves a real machine asks the person beside it first.
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+        The command's parser (the arguments are added to it).
+    """
     p.add_argument(
         "--yes",
         action="store_true",
@@ -109,7 +146,13 @@ def motion(p: argparse.ArgumentParser) -> None:
 
 
 def dry_run(p: argparse.ArgumentParser) -> None:
-    """``--dry-run`` on a command that moves: everything up to the first setpoint, read only."""
+    """``--dry-run`` on a command that moves: everything up to the first setpoint, read only.
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+        The command's parser (the arguments are added to it).
+    """
     p.add_argument(
         "--dry-run",
         action="store_true",
@@ -121,7 +164,27 @@ def dry_run(p: argparse.ArgumentParser) -> None:
 
 def asks(args: argparse.Namespace, config: BusConfig, what: str) -> bool:
     """Whether :func:`confirm_motion` will ask a person (not with --sim or --yes); UserError, before
-    anything is sent, when it would have to and no one is at a terminal."""
+    anything is sent, when it would have to and no one is at a terminal.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The command line.
+    config : BusConfig
+        The bus configuration.
+    what : str
+        What will move, in words.
+
+    Returns
+    -------
+    bool
+        A person will be asked.
+
+    Raises
+    ------
+    UserError
+        Asking is needed and no one is at a terminal.
+    """
     if args.sim or getattr(args, "yes", False) or getattr(args, "dry_run", False):
         return False
     if not sys.stdin.isatty():
@@ -140,7 +203,24 @@ def confirm_motion(
     """Before a command that moves a real machine writes anything: ``--yes``, or a person at a
     terminal who types ``yes`` after reading what will move (``preview()``: the plan, read without
     writing anything); otherwise UserError (nothing written, nothing moved).  --sim moves nothing
-    real and is never asked about."""
+    real and is never asked about.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The command line.
+    config : BusConfig
+        The bus configuration.
+    what : str
+        What will move, in words.
+    preview : callable, optional
+        The plan in words, read without writing anything.
+
+    Raises
+    ------
+    UserError
+        Not confirmed (nothing written, nothing moved).
+    """
     if not asks(args, config, what):
         return
     axes = ", ".join(f"{a} (node {n.node_id})" for a, n in config.nodes.items())
@@ -160,7 +240,13 @@ def confirm_motion(
 
 
 def json_flag(p: argparse.ArgumentParser) -> None:
-    """``--json``: every command has it."""
+    """``--json``: every command has it.
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+        The command's parser (the arguments are added to it).
+    """
     p.add_argument(
         "--json",
         action="store_true",
@@ -171,18 +257,36 @@ def json_flag(p: argparse.ArgumentParser) -> None:
 
 def print_json(doc: dict) -> None:
     """The one JSON object a ``--json`` command prints: a result :func:`~drive_bridge.outputs.stamped`
-    with its schema."""
+    with its schema.
+
+    Parameters
+    ----------
+    doc : dict
+        The result.
+    """
     print(json_text(doc))
 
 
 def motor(p: argparse.ArgumentParser) -> None:
-    """Motor data for drives that do not report it (tune and commission design the current loop)."""
+    """Motor data for drives that do not report it (tune and commission design the current loop).
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+        The command's parser (the arguments are added to it).
+    """
     p.add_argument("--motor-R", type=float, help="motor resistance [Ω] if the drive does not report it")
     p.add_argument("--motor-L", type=float, help="motor inductance [H] if the drive does not report it")
 
 
 def write_checks(p: argparse.ArgumentParser) -> None:
-    """The margin floor a written gain set must keep, and the deliberate override."""
+    """The margin floor a written gain set must keep, and the deliberate override.
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+        The command's parser (the arguments are added to it).
+    """
     from ..params.check import GM_FLOOR_DB, PM_FLOOR_DEG
 
     p.add_argument(
@@ -221,7 +325,13 @@ def _seed(text: str) -> int:
 
 
 def db(p: argparse.ArgumentParser) -> None:
-    """``--db``: the history database."""
+    """``--db``: the history database.
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+        The command's parser (the arguments are added to it).
+    """
     p.add_argument(
         "--db",
         metavar="URL",
@@ -233,7 +343,15 @@ def db(p: argparse.ArgumentParser) -> None:
 
 def history(p: argparse.ArgumentParser, asked: bool = False) -> None:
     """Whether the run is kept in the history database: by default (``--no-history`` not to), or
-    only when ``asked`` (``--history``)."""
+    only when ``asked`` (``--history``).
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+        The command's parser (the arguments are added to it).
+    asked : bool
+        Kept only when asked.
+    """
     if asked:
         p.add_argument(
             "--history", action="store_true", help="keep the identification in the history database"
@@ -249,6 +367,13 @@ def history(p: argparse.ArgumentParser, asked: bool = False) -> None:
 
 
 def figures(p: argparse.ArgumentParser) -> None:
+    """``--no-figures``: the reports without their figures.
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+        The command's parser (the arguments are added to it).
+    """
     p.add_argument(
         "--no-figures",
         dest="figures",
@@ -259,23 +384,68 @@ def figures(p: argparse.ArgumentParser) -> None:
 
 
 def seed(p: argparse.ArgumentParser) -> None:
+    """``--seed``: the seed of the evolutionary fits.
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+        The command's parser (the arguments are added to it).
+    """
     p.add_argument("--seed", type=_seed, default=0, help="seed of the evolutionary fits (default: 0)")
 
 
 def out_dir(path: str | None) -> None:
-    """UserError before any work when ``--out`` names something that is not a directory."""
+    """UserError before any work when ``--out`` names something that is not a directory.
+
+    Parameters
+    ----------
+    path : str or None
+        ``--out``.
+
+    Raises
+    ------
+    UserError
+        A file of that name exists.
+    """
     if path and Path(path).exists() and not Path(path).is_dir():
         raise UserError(f"--out {path}: a file of that name exists; --out names a directory")
 
 
 def axes_list(text: str | None) -> list[str] | None:
-    """A comma-separated list of names (None when not given)."""
+    """A comma-separated list of names (None when not given).
+
+    Parameters
+    ----------
+    text : str or None
+        The list.
+
+    Returns
+    -------
+    list of str or None
+        The names.
+    """
     return [a.strip() for a in text.split(",") if a.strip()] if text else None
 
 
 def config(args: argparse.Namespace) -> BusConfig:
     """The bus configuration of ``--config``, restricted to ``--axes`` and with the campaign
-    options (``--campaign``, ``--quick``, ``--together``) applied."""
+    options (``--campaign``, ``--quick``, ``--together``) applied.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The command line.
+
+    Returns
+    -------
+    BusConfig
+        The configuration.
+
+    Raises
+    ------
+    UserError
+        A combination of options that does not hold, or a configuration that is wrong.
+    """
     if getattr(args, "realtime", False) and not args.sim:
         raise UserError("--realtime only applies with --sim")
     cfg = load_bus_config(args.config)
@@ -302,7 +472,18 @@ def config(args: argparse.Namespace) -> BusConfig:
 
 
 def session_options(args: argparse.Namespace) -> Options:
-    """What a Session needs from the command line."""
+    """What a Session needs from the command line.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The command line.
+
+    Returns
+    -------
+    Options
+        The session's options.
+    """
     R, L = getattr(args, "motor_R", None), getattr(args, "motor_L", None)
     return Options(
         sim=args.sim,

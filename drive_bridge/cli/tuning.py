@@ -42,6 +42,13 @@ from .bus import degraded_exit, dry_run_end, holding_lines, motion_preview, vali
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """Add this module's commands to the command line.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        The command line's subparsers.
+    """
     p = sub.add_parser(
         "tune",
         help="design the cascade gains from identified models (margins with python-control)",
@@ -153,6 +160,18 @@ def _motor_given(args: argparse.Namespace, axes: Iterable[str]) -> dict[str, dic
 
 
 def cmd_tune(args: argparse.Namespace) -> int:
+    """The ``tune`` command: gains from the identified models.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The command line.
+
+    Returns
+    -------
+    int
+        The exit code (:data:`drive_bridge.errors.EXIT_TABLE`).
+    """
     from ..tuning.experiment import run_experiment
 
     models = read_identify_json(args.ident)
@@ -307,6 +326,18 @@ def _experiment_preview(
 
 
 def cmd_write(args: argparse.Namespace) -> int:
+    """The ``write`` command: a parameter set written in one transaction.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The command line.
+
+    Returns
+    -------
+    int
+        The exit code (:data:`drive_bridge.errors.EXIT_TABLE`).
+    """
     config = options.config(args)
     tuned = read_tune_json(args.params)
     config = config.only(_axes_in(config, tuned.parameters, args.params))
@@ -383,6 +414,18 @@ def _print_write(outcome: WriteOutcome, backup_dir: str | None, profile: Profile
 
 
 def cmd_validate(args: argparse.Namespace) -> int:
+    """The ``validate`` command: the reference trajectories before and after (the robot moves).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The command line.
+
+    Returns
+    -------
+    int
+        The exit code (:data:`drive_bridge.errors.EXIT_TABLE`).
+    """
     from ..paper import TABLE_III
     from ..tuning.validate import degraded, run_scenarios, stopped, validate_doc
 
