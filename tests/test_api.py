@@ -125,7 +125,8 @@ def _with_members(path: str) -> list[str]:
 
 
 def _defined_in(module: str) -> list[str]:
-    """The public functions and classes ``module`` defines (not those it imports)."""
+    """The public functions and classes ``module`` defines (not those it imports), numba's compiled
+    functions among them."""
     import importlib
     import inspect
 
@@ -134,8 +135,12 @@ def _defined_in(module: str) -> list[str]:
         f"{module}.{name}"
         for name, value in vars(mod).items()
         if not name.startswith("_")
-        and (inspect.isfunction(value) or inspect.isclass(value))
-        and value.__module__ == module
+        and (
+            (inspect.isfunction(value) or inspect.isclass(value))
+            and value.__module__ == module
+            or inspect.isfunction(getattr(value, "py_func", None))
+            and value.py_func.__module__ == module
+        )
     ]
 
 

@@ -50,7 +50,23 @@ def actual_values(s: np.ndarray, p: np.ndarray, x: np.ndarray, now: float, noise
     unit, counted from its origin], velocity [velocity unit: at a SYNC (``sync``) from the encoder
     counts since the SYNC before, the mean over the period; between SYNCs the velocity loop's own
     measurement, whoever asked before], torque [per mille of rated, its measurement noise ``x[X_NOISE]`` · ``noise``
-    added] and current [its current unit], each rounded and clamped as the drive's object holds it."""
+    added] and current [its current unit], each rounded and clamped as the drive's object holds it.
+
+    Parameters
+    ----------
+    s : numpy.ndarray
+        The axis's kernel state row.
+    p : numpy.ndarray
+        Its kernel parameter row.
+    x : numpy.ndarray
+        Its drive row (written).
+    now : float
+        [s].
+    noise : float
+        A standard-normal sample.
+    sync : bool
+        At a SYNC.
+    """
     inc = p[INC_PER_RAD]
     count = math.floor(s[Q] * inc)
     if not sync:
@@ -75,14 +91,42 @@ def actual_values(s: np.ndarray, p: np.ndarray, x: np.ndarray, now: float, noise
 
 @njit("float64(float64[::1], float64)", cache=True)
 def plant_position(x: np.ndarray, position: float) -> float:
-    """A position in the drive's unit as the plant's [rad]: through the origin homing set."""
+    """A position in the drive's unit as the plant's [rad]: through the origin homing set.
+
+    Parameters
+    ----------
+    x : numpy.ndarray
+        The drive row (its units, its origin).
+    position : float
+        [position unit].
+
+    Returns
+    -------
+    float
+        [rad, plant].
+    """
     return position / x[X_POS_PER_RAD] + x[X_ORIGIN]
 
 
 @njit("float64(float64[::1], float64, float64, float64)", cache=True)
 def soft_limit(x: np.ndarray, position: float, lo: float, hi: float) -> float:
     """``position`` [rad, plant] inside the software position limits ``lo`` < ``hi`` [position
-    unit] (none where ``lo`` >= ``hi``); ``x[X_LIMITED]`` set when it had to be moved."""
+    unit] (none where ``lo`` >= ``hi``); ``x[X_LIMITED]`` set when it had to be moved.
+
+    Parameters
+    ----------
+    x : numpy.ndarray
+        The drive row.
+    position : float
+        [rad, plant].
+    lo, hi : float
+        The limits [position unit].
+
+    Returns
+    -------
+    float
+        The position within them [rad, plant].
+    """
     if lo >= hi:
         return position
     lo, hi = plant_position(x, lo), plant_position(x, hi)
@@ -99,7 +143,21 @@ def follow_period(d: np.ndarray, x: np.ndarray, T: float, lo: float, hi: float, 
     software limits (``lo``, ``hi``); over ``T`` [s], with the acceleration feed-forward of the
     velocity change (none for linear interpolation).  A period without a new setpoint (its SYNC or
     RPDO missing) goes on at the last period's velocity, a substitute setpoint as drives make them
-    (SEW's FCB19 extrapolates at constant speed) until the setpoint timeout stops the drive."""
+    (SEW's FCB19 extrapolates at constant speed) until the setpoint timeout stops the drive.
+
+    Parameters
+    ----------
+    d : numpy.ndarray
+        The axis's demand row (written).
+    x : numpy.ndarray
+        Its drive row.
+    T : float
+        The period [s].
+    lo, hi : float
+        The software limits [position unit].
+    linear : bool
+        Linear interpolation (no acceleration feed-forward).
+    """
     p0 = d[P1]
     d[P0] = p0
     v_old = x[X_V_DEM]
@@ -171,7 +229,32 @@ def steady_period(
     of ``out`` as ``entries`` lay them out, takes the setpoint ``axes`` carries and starts the
     interpolation period of ``T`` [s].  Returns the next noise index, or ``SLOW`` before changing
     anything where a drive faults this period (following error, lost setpoints) -- the Python
-    drive does that -- or ``OUT_OF_RANGE`` where a value does not fit its TPDO entry."""
+    drive does that -- or ``OUT_OF_RANGE`` where a value does not fit its TPDO entry.
+
+    Parameters
+    ----------
+    state, param, demand, drive : numpy.ndarray
+        The plant's and drives' rows.
+    axes : numpy.ndarray
+        Per axis, what the compiled path needs of it.
+    entries : numpy.ndarray
+        The TPDO entries' layout.
+    noise : numpy.ndarray
+        The noise samples drawn ahead.
+    noise_i : int
+        The first unused one.
+    now : float
+        [s].
+    T : float
+        The period [s].
+    out : numpy.ndarray
+        The TPDO frames' bytes (written).
+
+    Returns
+    -------
+    int
+        The next noise index, ``SLOW`` or ``OUT_OF_RANGE``.
+    """
     n = state.shape[0]
     for a in range(n):
         over = state[a, FE_COUNT]

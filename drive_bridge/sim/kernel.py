@@ -146,7 +146,18 @@ N_DEMAND = 5
 @njit("float64(float64[::1])", cache=True)
 def mean_current(state_row: np.ndarray) -> float:
     """Current [A] averaged since the last call (what a drive reports as actual torque/current
-    is filtered over its report period, not one sample of the 8 kHz loop), then restart."""
+    is filtered over its report period, not one sample of the 8 kHz loop), then restart.
+
+    Parameters
+    ----------
+    state_row : numpy.ndarray
+        The axis's state row (its sum and count restarted).
+
+    Returns
+    -------
+    float
+        [A].
+    """
     n = state_row[I_COUNT]
     mean = state_row[I_SUM] / n if n > 0 else state_row[I]
     state_row[I_SUM] = 0.0
@@ -178,6 +189,17 @@ def advance(
     current interpolation period (counted on by ``n_ticks`` here); the position demand moves from
     ``P0`` to ``P1`` over ``period_ticks[a]`` ticks (its interpolation period, 0x60C2) and holds
     at ``P1`` after.
+
+    Parameters
+    ----------
+    state, param, demand : numpy.ndarray
+        One row per axis.
+    tick0 : numpy.ndarray
+        Per axis, the ticks done in its interpolation period.
+    n_ticks : int
+        Velocity-loop ticks.
+    period_ticks : numpy.ndarray
+        Per axis, its interpolation period in ticks.
     """
     n_axes = state.shape[0]
     dt_c = VELOCITY_TICK_S / CURRENT_SUBSTEPS
@@ -362,7 +384,23 @@ def follow(
     them: at each SYNC the position and the mean current since the last (into the rows of
     ``position`` and ``current``) are sampled, then the new setpoint starts its interpolation
     period (:func:`advance`, whose arithmetic is the same called from here: a bus-free log, one
-    Python call per period before, is this loop's)."""
+    Python call per period before, is this loop's).
+
+    Parameters
+    ----------
+    state, param, demand : numpy.ndarray
+        One row per axis.
+    targets : numpy.ndarray
+        Position setpoints [rad], rows × axes.
+    offsets : numpy.ndarray
+        Torque offsets [Nm], rows × axes.
+    n_ticks : int
+        Velocity-loop ticks per period.
+    period_ticks : numpy.ndarray
+        Per axis, its interpolation period in ticks.
+    position, current : numpy.ndarray
+        Rows × axes, written: sampled at each SYNC.
+    """
     n_axes = state.shape[0]
     tick0 = np.zeros(n_axes, dtype=np.int64)
     for k in range(targets.shape[0]):
