@@ -9,6 +9,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 import drive_bridge
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -158,6 +160,7 @@ def _inherited_constructor(name: str) -> bool:
     return inspect.isclass(obj) and (getattr(obj, "_is_protocol", False) or "__init__" not in vars(obj))
 
 
+@pytest.mark.slow  # it imports every module of the package: CI's, not the quick run's
 def test_every_public_function_has_numpydocs_sections():
     """As python-control writes them (numpydoc's own validator): Parameters, with units in
     brackets, and Returns on every public function, method and class of every module (the package's
