@@ -164,7 +164,8 @@ def work(job: Job) -> tuple[Window, dict | None]:
     window : Window
         What it gave.
     kept : dict or None
-        The history record kept, where one was.
+        Where its record went (``run_id``, ``stored``, ``where`` in words); None where nothing is
+        kept (no values, or no history).
     """
     if job.moving_s > 0 and job.log.is_file():
         try:

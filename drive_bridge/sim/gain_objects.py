@@ -87,7 +87,8 @@ class GainObjects:
     Raises
     ------
     ValueError
-        A profile without the gains the simulated loops run.
+        A profile whose controller runs at rates the simulator's loops do not (2 kHz / n, current
+        8 kHz).
     """
 
     def __init__(self, profile: str, torque_constant: float, eds_path: str | Path):
