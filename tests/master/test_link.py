@@ -55,7 +55,11 @@ def test_one_scenario_over_every_link(realtime, tmp_path):
     # on the wall clock a period the master was late in has no SYNC and no sample: counted, and the rest
     skipped = m.timing.engine.get("periods_skipped", 0)
     assert np.count_nonzero(np.isnan(m.position["y"])) <= 0.01 * len(m.position["y"]) + skipped
-    assert abs(np.nanmax(m.position["y"]) - (here + 2.0)) < 0.01  # it arrived
+    arrived = m.position["y"][np.isfinite(m.position["y"])][-1]
+    assert abs(arrived - (here + 2.0)) < 0.01  # it arrived
+    if not skipped:  # on time it does not overshoot (a period a late master skipped, a drive in CSP
+        # goes on at its last velocity: it may overshoot then, and come back)
+        assert np.nanmax(m.position["y"]) - (here + 2.0) < 0.01
     assert elapsed >= 0  # the link's clock moved
     with can.LogReader(str(tmp_path / "trace.blf")) as reader:
         frames = list(reader)
