@@ -7,6 +7,7 @@ import pkgutil
 import re
 import subprocess
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -106,57 +107,40 @@ MODULES = sorted(
 SECTIONS = ("PR01", "PR02", "RT01", "GL08")
 
 
-def _with_members(path: str) -> list[str]:
-    """``path`` and, for a class, the public methods and properties it defines itself (an override
-    of a base class's is documented there, as Sphinx's autodoc inherits it)."""
+def _public_objects() -> Iterator[tuple[str, object]]:
+    """(dotted name, object) of every public function and class each module defines (not those it
+    imports; numba's compiled functions among them), and of the public methods and properties each
+    class defines itself (an override of a base class's is documented there, as Sphinx's autodoc
+    inherits it)."""
     import importlib
     import inspect
 
-    module, _, name = path.rpartition(".")
-    obj = getattr(importlib.import_module(module), name)
-    if not inspect.isclass(obj):
-        return [f"{obj.__module__}.{obj.__qualname__}"]
-    own = f"{obj.__module__}.{obj.__qualname__}"
-    return [own] + [
-        f"{own}.{member}"
-        for member, value in vars(obj).items()
-        if not member.startswith("_")
-        and (inspect.isfunction(value) or isinstance(value, (property, classmethod, staticmethod)))
-        and not any(member in vars(base) for base in obj.__mro__[1:])
-    ]
+    for module in MODULES:
+        for name, value in vars(importlib.import_module(module)).items():
+            defined = getattr(value, "py_func", value)  # a numba dispatcher: its Python function
+            if name.startswith("_") or not (
+                (inspect.isfunction(defined) or inspect.isclass(defined)) and defined.__module__ == module
+            ):
+                continue
+            yield f"{module}.{name}", value
+            if inspect.isclass(value):
+                for member, attribute in vars(value).items():
+                    if (
+                        not member.startswith("_")
+                        and (
+                            inspect.isfunction(attribute)
+                            or isinstance(attribute, (property, classmethod, staticmethod))
+                        )
+                        and not any(member in vars(base) for base in value.__mro__[1:])
+                    ):
+                        yield f"{module}.{name}.{member}", attribute
 
 
-def _defined_in(module: str) -> list[str]:
-    """The public functions and classes ``module`` defines (not those it imports), numba's compiled
-    functions among them."""
-    import importlib
-    import inspect
-
-    mod = importlib.import_module(module)
-    return [
-        f"{module}.{name}"
-        for name, value in vars(mod).items()
-        if not name.startswith("_")
-        and (
-            (inspect.isfunction(value) or inspect.isclass(value))
-            and value.__module__ == module
-            or inspect.isfunction(getattr(value, "py_func", None))
-            and value.py_func.__module__ == module
-        )
-    ]
-
-
-def _inherited_constructor(name: str) -> bool:
-    """Whether ``name`` is a class whose constructor is documented elsewhere: a typing.Protocol (an
+def _constructor_elsewhere(obj: object) -> bool:
+    """Whether ``obj`` is a class whose constructor is documented elsewhere: a typing.Protocol (an
     interface, none to document) or a class that inherits its base's."""
-    import importlib
     import inspect
 
-    module, _, attr = name.rpartition(".")
-    try:
-        obj = getattr(importlib.import_module(module), attr)
-    except ModuleNotFoundError:
-        return False
     return inspect.isclass(obj) and (getattr(obj, "_is_protocol", False) or "__init__" not in vars(obj))
 
 
@@ -169,9 +153,8 @@ def test_every_public_function_has_numpydocs_sections():
 
     missing = [
         f"{name}: {code} {message}"
-        for path in (p for m in MODULES for p in _defined_in(m))
-        for name in _with_members(path)
+        for name, obj in _public_objects()
         for code, message in validate(name)["errors"]
-        if code in SECTIONS and not (code in ("PR01", "PR02") and _inherited_constructor(name))
+        if code in SECTIONS and not (code in ("PR01", "PR02") and _constructor_elsewhere(obj))
     ]
     assert not missing, "\n".join(missing)
