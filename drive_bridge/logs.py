@@ -134,25 +134,8 @@ def _logged(
     return np.where(valid, convert(raw) if convert else raw.astype(float), np.nan)
 
 
-def save_table(path: Path, names: list[str], values: np.ndarray, fmts: list[str]) -> None:
-    """A log table as CSV, complete or not at all.
-
-    Parameters
-    ----------
-    path : Path
-        The file.
-    names : list of str
-        The columns.
-    values : numpy.ndarray
-        Rows × columns.
-    fmts : list of str
-        A %-format per column.
-    """
-    write_table(path, names, values, fmts)
-
-
 def write_csv(path: Path, rec: Recording, scaling: dict[str, Scaling], period: float) -> None:
-    """log.csv of a recording (:func:`to_table`, :func:`save_table`).
+    """log.csv of a recording (:func:`to_table`, :func:`~drive_bridge.outputs.write_table`).
 
     Parameters
     ----------
@@ -165,7 +148,7 @@ def write_csv(path: Path, rec: Recording, scaling: dict[str, Scaling], period: f
     period : float
         The SYNC period [s].
     """
-    save_table(path, *to_table(rec, scaling, period))
+    write_table(path, *to_table(rec, scaling, period))
 
 
 def write_meta(path: Path, meta: dict) -> None:

@@ -10,10 +10,15 @@ Columns: ``time_s``, ``emps_position_m`` (qm, load side) and ``emps_force_N``
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 import numpy as np
 from scipy import io
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from drive_bridge.outputs import write_table  # noqa: E402
 
 AXIS = "emps"
 
@@ -32,15 +37,7 @@ def write_csv(mat_path: str | Path, csv_path: str | Path) -> Path:
     cols = emps_columns(mat_path)
     csv_path = Path(csv_path)
     csv_path.parent.mkdir(parents=True, exist_ok=True)
-    np.savetxt(
-        csv_path,
-        np.column_stack(list(cols.values())),
-        delimiter=",",
-        header=",".join(cols),
-        comments="",
-        fmt=["%.6f", "%.10g", "%.10g"],
-    )
-    return csv_path
+    return write_table(csv_path, list(cols), np.column_stack(list(cols.values())), ["%.6f", "%.10g", "%.10g"])
 
 
 if __name__ == "__main__":

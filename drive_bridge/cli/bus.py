@@ -654,13 +654,14 @@ def cmd_decode(args: argparse.Namespace) -> int:
         The exit code (:data:`drive_bridge.errors.EXIT_TABLE`).
     """
     from ..errors import UserError
-    from ..logs import decode_trace, save_table
+    from ..logs import decode_trace
+    from ..outputs import write_table
 
     names, values, fmts, _, problem = decode_trace(Path(args.trace), args.meta)
     out = Path(args.out) if args.out else Path(args.trace).with_name("decoded.csv")
     if out.is_dir():
         raise UserError(f"--out {out} is a directory; name the CSV file to write")
-    save_table(out, names, values, fmts)
+    write_table(out, names, values, fmts)
     if args.json:
         options.print_json(
             stamped(

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..logs import save_table
+from ..outputs import write_table
 from .listen import Chunk
 
 MARGIN_S = 0.5  # the rows this close to motion are kept with it (the filters' run-in)
@@ -104,7 +104,7 @@ class RollingLog:
         time, values = chunk.time[near], chunk.values[near]
         first, last, moving = round(time[0] * 1e6), round(time[-1] * 1e6), round(chunk.moving_s * 1e3)
         path = self.directory / f"{first}_{last}_{moving}.csv"
-        save_table(
+        write_table(
             path,
             ["time_s", *chunk.columns],
             np.column_stack([time, values]),
@@ -137,7 +137,7 @@ class RollingLog:
         table = np.concatenate(tables)
         first = float(table[0, 0])
         table[:, 0] -= first
-        save_table(path, names, table, ["%.6f"] + ["%.9g"] * (len(names) - 1))
+        write_table(path, names, table, ["%.6f"] + ["%.9g"] * (len(names) - 1))
         return first, float(table[-1, 0]) + first
 
     def drop(self) -> None:
