@@ -104,11 +104,7 @@ def test_a_late_cycle_sends_the_setpoint_of_its_own_period_and_never_a_burst(tmp
     meta = yaml.safe_load((tmp_path / "meta.yaml").read_text())
     assert meta["timing"]["engine"]["rows_skipped"] == skipped.tolist()
     assert meta["timing"]["engine"]["periods_skipped"] == 3
-    # decode rebuilds the same rows from the trace and meta.yaml
-    from drive_bridge.logs import decode_trace
-
-    _, decoded, _, _, problem = decode_trace(tmp_path / "trace.blf")
-    assert problem is None and np.array_equal(np.isnan(decoded[:, 1]), np.isnan(rec_time))
+    _decodes_with_the_same_syncs(tmp_path, rec_time)  # from the trace and meta.yaml
 
 
 def test_a_plan_whose_last_periods_passed_without_sync_counts_them_missing(tmp_path):
@@ -123,11 +119,17 @@ def test_a_plan_whose_last_periods_passed_without_sync_counts_them_missing(tmp_p
     assert len(rec_time) == len(result.plan.demand)
     assert np.isnan(rec_time[-1]) and result.missing["y"] == np.count_nonzero(np.isnan(rec_time)) >= 1
     assert result.samples["y"] + result.missing["y"] == len(result.plan.demand)
-    # decode rebuilds the same rows, the last ones too: a run whose trace ends before the plan's last
-    # periods is whole where meta.yaml says they got no SYNC (it was "cut short" on the wall clock)
+    # the last rows too: a run whose trace ends before the plan's last periods is whole where
+    # meta.yaml says they got no SYNC (it was "cut short" on the wall clock)
+    _decodes_with_the_same_syncs(tmp_path, rec_time)
+
+
+def _decodes_with_the_same_syncs(out, rec_time) -> None:
+    """``decode`` rebuilds the run's rows from its trace and meta.yaml, whole, each with a SYNC
+    where log.csv's ``rec_time`` (its sync_time_s) has one and none where it has none."""
     from drive_bridge.logs import decode_trace
 
-    _, decoded, _, _, problem = decode_trace(tmp_path / "trace.blf")
+    _, decoded, _, _, problem = decode_trace(out / "trace.blf")
     assert problem is None and np.array_equal(np.isnan(decoded[:, 1]), np.isnan(rec_time))
 
 
