@@ -94,7 +94,6 @@ LELY_MASTER_KEYS = {
     "sync_overflow",
     "time_cob_id",
     "emcy_inhibit_time",
-    "heartbeat_multiplier",
     "heartbeat_consumer",
     "error_behavior",
     "nmt_inhibit_time",
@@ -208,6 +207,8 @@ ROS_SCALES = (("scale_pos_to_dev", "scale_pos_from_dev"), ("scale_vel_to_dev", "
 HOLDING = ("brake", "enabled")
 REFERENCES = ("absolute", "here", "home")
 DEFAULT_MASTER_NODE_ID = 127
+#: the drives' consumer time of the master's heartbeat, in its periods, unless bus.yml says (Lely's default)
+HEARTBEAT_MULTIPLIER = 3.0
 #: the drive's own limits are set this much beyond the configured ones (the campaign stays inside those)
 DRIVE_LIMIT_MARGIN = 1.25
 
@@ -355,7 +356,8 @@ class MasterConfig:
     sync_period_s : float
         The SYNC period [s].
     heartbeat_timeout_s : float
-        The heartbeat consumer time written to the drives [s].
+        How long the master waits for a drive's heartbeat before it takes the drive as lost [s]
+        (``master.heartbeat_consumer_ms``).
     sdo_timeout_s : float
         How long an SDO answer is waited for [s].
     state_timeout_s : float
@@ -372,6 +374,9 @@ class MasterConfig:
         The master's own node id (a ros2_canopen / Lely bus.yml).
     heartbeat_period_s : float
         The master's heartbeat period [s], which every drive's consumer watches.
+    heartbeat_multiplier : float
+        The drives' consumer time of the master's heartbeat, in its periods (Lely's
+        ``heartbeat_multiplier``; bring-up writes it to 0x1016).
     """
 
     interface: str | None
@@ -387,6 +392,12 @@ class MasterConfig:
     notes: tuple[str, ...] = ()
     node_id: int | None = None
     heartbeat_period_s: float = 0.1
+    heartbeat_multiplier: float = HEARTBEAT_MULTIPLIER
+
+    @property
+    def drive_consumer_ms(self) -> int:
+        """The drives' consumer time of the master's heartbeat, as bring-up writes it (0x1016:1) [ms]."""
+        return round(self.heartbeat_multiplier * self.heartbeat_period_s * 1000)
 
     @property
     def heartbeat_node_id(self) -> int:
@@ -1023,8 +1034,9 @@ def load_bus_config(path: str | Path) -> BusConfig:
     top = Section(path, "", load_yaml(path))
     options = top.section("options", required=False)
     dcf_path = options.get("dcf_path", str, None)
-    for key in ("heartbeat_multiplier", "retry_factor"):
-        options.get(key, (int, float), None)  # Lely's, for the master it generates
+    # Lely's: the drives' consumer time of the master's heartbeat, in its periods (master's own, else this)
+    multiplier = options.get("heartbeat_multiplier", float, HEARTBEAT_MULTIPLIER, low=1.5, high=100.0)
+    options.get("retry_factor", int, None)  # Lely's, for the master it generates
     options.done()
     m = top.section("master")
     notes: list[str] = []
@@ -1047,6 +1059,7 @@ def load_bus_config(path: str | Path) -> BusConfig:
         state_timeout_s=m.get("state_timeout_s", float, 1.0, low=0.01, high=60.0),
         tpdo_miss_limit=m.get("tpdo_miss_limit", int, None, low=1, high=10000),
         heartbeat_period_s=m.get("heartbeat_producer", int, 100, low=10, high=100) / 1000.0,
+        heartbeat_multiplier=m.get("heartbeat_multiplier", float, multiplier, low=1.5, high=100.0),
         timing=_timing(m.section("timing", required=False)),
         node_id=m.get("node_id", int, None, low=1, high=127),
     )

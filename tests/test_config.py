@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import pytest
+import yaml
 
 from drive_bridge.cli import main
 from drive_bridge.config import load_bus_config
-from harness.support import BUS_CONFIG, bus_yml_beside
+from harness.support import BUS_CONFIG, EDS, bus_yml_beside
 
 BAD_CONFIGS = [
     ("  sync_period: 2000", "  sync_period: 2000\n  colour: red", "master.colour: unknown key"),
@@ -19,6 +20,11 @@ BAD_CONFIGS = [
         "nodes.y.limits.max_velocity_m_s: 0.8 m/s is 4800 rpm at the motor, above the drive's max motor speed",
     ),
     ("        - {index: 0x607A, sub_index: 0}", "", "nodes.x.rpdo: must map a position setpoint (0x607A"),
+    (
+        "  heartbeat_producer: 100     # ms: the master's",
+        "  heartbeat_multiplier: 1\n  heartbeat_producer: 100     # ms: the master's",
+        "master.heartbeat_multiplier: must be >= 1.5, got 1.0",
+    ),
 ]
 
 
@@ -50,3 +56,40 @@ def test_three_axes_at_500_hz_fit_at_1_mbit():
 
     load = bus_load(load_bus_config(BUS_CONFIG))
     assert 0.4 < load.load < 0.8
+
+
+@pytest.mark.parametrize(
+    "form,options,master,drive_consumer_ms",
+    [
+        ("bus.yml", None, None, 300),
+        ("bus.yml", None, 20, 2000),
+        ("ros2_canopen.yml", None, None, 300),
+        ("ros2_canopen.yml", 5, None, 500),
+        ("ros2_canopen.yml", 5, 2.5, 250),
+    ],
+)
+def test_the_drives_consumer_time_of_the_master_heartbeat_is_lelys_heartbeat_multiplier(
+    tmp_path, form, options, master, drive_consumer_ms
+):
+    """Lely's ``heartbeat_multiplier`` (the master's own, else ``options``', else 3) times the
+    master's ``heartbeat_producer`` is the consumer time bring-up writes to each drive (0x1016:1)."""
+    from drive_bridge.master.bringup import drive_settings
+    from drive_bridge.resources import data
+
+    doc = yaml.safe_load(data("config", form).read_text())
+    doc.setdefault("options", {})
+    if form == "bus.yml":
+        doc.pop("options")
+        doc["defaults"]["dcf"] = str(EDS)
+    else:
+        doc["options"]["dcf_path"] = str(EDS.parent)
+    if options is not None:
+        doc["options"]["heartbeat_multiplier"] = options
+    if master is not None:
+        doc["master"]["heartbeat_multiplier"] = master
+    cfg = tmp_path / "bus.yml"
+    cfg.write_text(yaml.safe_dump(doc))
+    config = load_bus_config(cfg)
+    assert config.master.drive_consumer_ms == drive_consumer_ms
+    settings = drive_settings("x", config.nodes["x"], config.master.sync_period_s, config.master)
+    assert (0x1016, 1, 127 << 16 | drive_consumer_ms) in settings

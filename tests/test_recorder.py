@@ -248,11 +248,11 @@ def test_wall_clock_campaign_against_drives_in_their_own_process(tmp_path, capsy
 
 def test_a_run_past_its_timing_limits_is_degraded_with_exit_5(tmp_path, capsys):
     """Limits no wall clock can keep (every SYNC exactly on time): the run says so.  The master's
-    supervision of the feedback widened (the drives' of the master's heartbeat cannot be): on a
+    supervision of the feedback widened (the drives' of the master's heartbeat kept as shipped): on a
     loaded machine it would stop the run first, rightly, and this test is about the timing limits."""
     cfg = bus_yml_beside(
         tmp_path,
-        "heartbeat_consumer_ms: 300  # a node silent this long is lost\n"
+        "heartbeat_consumer_ms: 300  # a drive whose heartbeat is silent this long is lost\n"
         "  sdo_timeout_s: 0.5\n  state_timeout_s: 1.0\n"
         "  heartbeat_producer: 100",
         "heartbeat_consumer_ms: 2000\n  sdo_timeout_s: 0.5\n  state_timeout_s: 1.0\n"

@@ -37,8 +37,6 @@ from .sdo_states import Drive402
 log = logging.getLogger(__name__)
 
 CIA402_PROFILE = 402
-#: the drive's heartbeat consumer times out after this many of the master's heartbeat periods
-CONSUMER_PERIODS = 3
 
 
 @dataclass
@@ -648,8 +646,9 @@ def drive_settings(
     axis: str, ncfg: NodeConfig, period: float, master: MasterConfig | None = None
 ) -> list[tuple[int, int, int | float]]:
     """What bring-up writes after reading the drive's units, each where the drive's EDS/DCF has the
-    object: its heartbeat; the consumer of the master's heartbeat (0x1016:1, about 3 periods) and
-    what to do when it stops (0x6007: quick stop); quick stop as ramp-and-hold (0x605A), fault
+    object: its heartbeat; the consumer of the master's heartbeat (0x1016:1,
+    ``master.heartbeat_multiplier`` of its periods, 3 by default) and what to do when it stops
+    (0x6007: quick stop); quick stop as ramp-and-hold (0x605A), fault
     reaction as a quick-stop ramp (0x605E); in the drive's units (once known), the following-error
     window and timeout, software position limits, max profile velocity and max motor speed, the
     quick-stop deceleration, the max torque where bus.yml gives one; the interpolation period
@@ -679,8 +678,7 @@ def drive_settings(
 
     out: list[tuple[int, int, int | float]] = [(0x1017, 0, ncfg.heartbeat_producer_ms)]
     if master is not None and has(0x1016, 1):
-        ms = round(CONSUMER_PERIODS * master.heartbeat_period_s * 1000)
-        out.append((0x1016, 1, master.heartbeat_node_id << 16 | ms))
+        out.append((0x1016, 1, master.heartbeat_node_id << 16 | master.drive_consumer_ms))
     # when it loses the master (0x6007): quick stop; on a quick stop (0x605A): ramp down on the
     # quick-stop deceleration, then stay in QUICK STOP ACTIVE, holding the axis; on a fault
     # (0x605E): ramp down on the quick-stop deceleration

@@ -139,7 +139,10 @@ def test_sim_and_record_over_socketcan_with_a_candump_of_the_stream(tmp_path):
         interface="socketcan",
         channel="vcan0",
         sync_period=20000,
-        # the drives' consumer time of the master's heartbeat (the kernel's broadcast manager, 100 ms)
+        # how long the drives wait for the master's heartbeat (the kernel's broadcast manager, 100 ms):
+        # 50 periods, as emulated a vCPU can be held up for more than the 3 of a real machine (CI saw
+        # 584 ms between two, the SYNCs of the other vCPU on time); and how long the master waits for theirs
+        heartbeat_multiplier=50,
         heartbeat_consumer_ms=2000,
         sdo_timeout_s=2.0,
         state_timeout_s=5.0,
