@@ -62,16 +62,16 @@ def main(robots: list[str]) -> None:
             print(f"  axis {a} (hidden: {hidden})")
             for d, (res, motion, _, _) in runs.items():
                 r = res[a]
-                p, sd = r.model.params_, r.model.param_std_
+                p, sd = r.model.params_, r.param_std
                 vals = "  ".join(f"{k} {p[k]:.5g} ± {sd[k]:.2g}" for k in ("J", "c0", "c1"))
                 print(
                     f"    {d:<5} {motion[a]:6.1f} s  {vals}  effects {[t.effect.name for t in r.effects]}  "
                     f"RMSE {r.after.rmse:.4g} (noise floor {r.diagnostics.noise_floor:.3g})"
                 )
-            full, short = runs["paper"][0][a].model, runs["short"][0][a].model
+            full, short = runs["paper"][0][a].param_std, runs["short"][0][a].param_std
             print(
                 "    std short / full: "
-                + ", ".join(f"{k} {short.param_std_[k] / full.param_std_[k]:.2f}" for k in ("J", "c0", "c1"))
+                + ", ".join(f"{k} {short[k] / full[k]:.2f}" for k in ("J", "c0", "c1"))
                 + f"; plant J {ax.J:.5g}, c0 {ax.c0:.5g}, c1 {ax.c1:.5g}"
             )
 

@@ -99,7 +99,7 @@ def crb(seeds: int) -> None:
             for c in cols:
                 r = identify(write_log(Path(tmp) / "log.csv", c), axes=["y"])["y"]
                 estimates.append([r.model.params_[k] for k in ("J", "c1", "c0")])
-                bounds.append([r.model.param_std_[k] for k in ("J", "c1", "c0")])
+                bounds.append([r.param_std[k] for k in ("J", "c1", "c0")])
         est, bound = np.array(estimates), np.mean(bounds, axis=0)
         print(f"{seeds} seeds, {name}")
         for i, k in enumerate(("J", "c1", "c0")):
@@ -149,12 +149,11 @@ def coverage(cases: int, verbose: bool = False) -> None:
                     f"  case {case}: {kind}; effects {[e.effect.name for e in r.effects]}; "
                     f"consistent {r.diagnostics.consistency.get('consistent')}; "
                     + ", ".join(
-                        f"{k} {(r.model.params_[k] - plant[k]) / r.model.param_std_[k]:+.1f} std"
-                        for k in inside
+                        f"{k} {(r.model.params_[k] - plant[k]) / r.param_std[k]:+.1f} std" for k in inside
                     )
                 )
             for k in inside:
-                z = abs(r.model.params_[k] - plant[k]) / r.model.param_std_[k]
+                z = abs(r.model.params_[k] - plant[k]) / r.param_std[k]
                 inside[k] += z <= 3
                 worst[k] = max(worst[k], z)
     print(
@@ -217,7 +216,7 @@ t0 = time.perf_counter()
 results = identify(sys.argv[1], seed=0)
 print(json.dumps({"wall": time.perf_counter() - t0,
                   "params": {a: {k: r.model.params_[k] for k in ("J", "c0", "c1")} for a, r in results.items()},
-                  "std": {a: {k: r.model.param_std_[k] for k in ("J", "c0", "c1")} for a, r in results.items()},
+                  "std": {a: {k: r.param_std[k] for k in ("J", "c0", "c1")} for a, r in results.items()},
                   "ga": {a: {k: float(c) for k, c in zip(r.model.coef_names, r.ga.coef) if k in ("J", "c0", "c1")}
                          for a, r in results.items()},
                   "effects": {a: [t.effect.name for t in r.effects] for a, r in results.items()}}))

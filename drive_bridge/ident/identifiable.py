@@ -30,7 +30,12 @@ SPREAD_MAX = 0.25  # parts of the data that disagree (beyond their std) by more 
 
 
 def undetermined(
-    model: AxisModel, est: Samples, after: Errors, consistency: dict, cannot_tell: dict | None = None
+    model: AxisModel,
+    est: Samples,
+    after: Errors,
+    consistency: dict,
+    cannot_tell: dict | None = None,
+    std: dict[str, float] | None = None,
 ) -> dict[str, str]:
     """What the data do not determine of J, c0, c1, and why.
 
@@ -47,6 +52,9 @@ def undetermined(
     cannot_tell : dict, optional
         What is undetermined whatever the std: what the motion itself cannot tell
         (:mod:`.coverage`), a J that depends on the band (:func:`.identify.band_dependence`).
+    std : dict of str to float, optional
+        The std of J, c0, c1 as reported [SI] (:class:`.uncertainty.Uncertainty`); default
+        ``model.param_std_``.
 
     Returns
     -------
@@ -61,6 +69,7 @@ def undetermined(
         )
         return dict.fromkeys(BASE, reason)
     moved = (consistency or {}).get("moved", {})
+    reported = model.param_std_ if std is None else std
     phi, names = model.design(est)[est.moving], list(model.coef_names)
     if est.rotary and not any(isinstance(e, Gravity) for e in model.effects):
         phi = np.column_stack([phi, Gravity().columns(est)[est.moving]])  # what a joint's weight would be
@@ -68,7 +77,7 @@ def undetermined(
     for i, p in enumerate(BASE):
         if p in out:
             continue  # the motion cannot tell it: said so, whatever its std
-        value, std = model.params_[p], model.param_std_[p]
+        value, sd = model.params_[p], reported[p]
         spread = np.ptp(list(moved[p]["values"].values())) if p in moved else 0.0
         if spread > SPREAD_MAX * abs(value):
             m = moved[p]
@@ -77,14 +86,14 @@ def undetermined(
                 + ", ".join(f"{n} {v:.4g}" for n, v in m["values"].items())
                 + f" ({m['sigmas']:.3g} std apart, a spread of {spread / abs(value) if value else np.inf:.0%})"
             )
-        elif not abs(value) >= T_MIN * std:
+        elif not abs(value) >= T_MIN * sd:
             out[p] = (
-                f"{value:.4g} ± {std:.2g} is within {abs(value) / std if std else 0.0:.2g} std of zero"
+                f"{value:.4g} ± {sd:.2g} is within {abs(value) / sd if sd else 0.0:.2g} std of zero"
                 + _collinear(phi, i, names)
             )
         elif value < 0:
             out[p] = (
-                f"{value:.4g} ± {std:.2g} comes out negative, which no plant has: it stands in for a term "
+                f"{value:.4g} ± {sd:.2g} comes out negative, which no plant has: it stands in for a term "
                 f"the model lacks" + _collinear(phi, i, names)
             )
     for p, why in out.items():

@@ -45,6 +45,7 @@ from .signals import (
     whole_band,
 )
 from .trace import MIN_GAIN, TracedEffect, trace, unexplained
+from .uncertainty import Uncertainty
 
 logger = logging.getLogger(__name__)
 
@@ -85,7 +86,9 @@ class GeneticFit:
     std_from_lse: float
 
     @classmethod
-    def of(cls, fitted: AxisModel, lse: AxisModel, val: Samples) -> GeneticFit:
+    def of(
+        cls, fitted: AxisModel, lse: AxisModel, val: Samples, coef_std: np.ndarray | None = None
+    ) -> GeneticFit:
         """The GA's model set beside the least-squares one.
 
         Parameters
@@ -96,13 +99,15 @@ class GeneticFit:
             The same structure fitted by least squares.
         val : Samples
             The validation samples.
+        coef_std : numpy.ndarray, optional
+            The least-squares coefficients' std as reported [SI]; default ``lse.coef_std_``.
 
         Returns
         -------
         GeneticFit
             The GA's coefficients, errors on ``val`` and distance from ``lse``.
         """
-        std = lse.coef_std_
+        std = lse.coef_std_ if coef_std is None else coef_std
         ok = std > 0
         far = float(np.max(np.abs(fitted.coef_ - lse.coef_)[ok] / std[ok])) if ok.any() else 0.0
         return cls(fitted.coef_, errors(fitted, val), fitted.converged_, far)
@@ -120,12 +125,15 @@ class DriveFit:
         structure); or, where that refit leaves J, c0 or c1 undetermined, the full model.
     errors : Errors
         Its validation errors.
+    param_std : dict of str to float
+        The std of its parameters as reported [SI] (the full model's: the identification's).
     note : str, optional
         Why the full model is written, where it is.
     """
 
     model: AxisModel
     errors: Errors
+    param_std: dict[str, float]
     note: str | None = None
 
 
@@ -202,6 +210,9 @@ class AxisResult:
         The rigid model J·q̈ + c1·q̇ + c0·sign(q̇).
     model : AxisModel
         The final model: the base and the effects traced, its std from the jackknife too.
+    uncertainty : Uncertainty
+        The std of the model's parameters as reported: the model's, widened apart from it where
+        the runs, the friction's speeds or the jackknife show it larger (:attr:`param_std`).
     effects : list of TracedEffect
         The effects traced, in the order they were added, each with its evidence.
     before, after : Errors
@@ -224,12 +235,18 @@ class AxisResult:
     val: Samples
     base: AxisModel
     model: AxisModel
+    uncertainty: Uncertainty
     effects: list[TracedEffect]
     before: Errors
     after: Errors
     ga: GeneticFit
     diagnostics: Diagnostics
     drive: DriveFit | None = None
+
+    @property
+    def param_std(self) -> dict[str, float]:
+        """The std of J, c0, c1 and every effect's parameters as reported (:attr:`uncertainty`) [SI]."""
+        return self.uncertainty.param_std
 
     def attach(self, log: Log) -> None:
         """Give the samples back the log they were made of (a result from a worker process comes
@@ -254,12 +271,12 @@ class AxisResult:
             the effects, the GA, the diagnostics, what is undetermined and why.
         """
         diagnostics = self.diagnostics
-        drive = self.drive or DriveFit(self.model, self.after)
+        drive = self.drive or DriveFit(self.model, self.after, self.param_std)
         return {
             "units": self.units,
             "samples": int(self.est.moving.sum()),
             "params": self.model.params_,
-            "param_std": self.model.param_std_,
+            "param_std": self.param_std,
             "uncertainty": {
                 "method": "HAC (batch means over the residual's correlation length), widened to the "
                 f"delete-one-block jackknife over {JACKKNIFE_BLOCKS} stretches in time where that is "
@@ -311,7 +328,7 @@ class AxisResult:
             "consistency": diagnostics.consistency,
             "friction": diagnostics.friction,
             "drive_params": drive.model.params_,
-            "drive_param_std": drive.model.param_std_,
+            "drive_param_std": drive.param_std,
             "drive_rmse": drive.errors.rmse,
             "drive_note": drive.note,
             "motion": diagnostics.motion,
@@ -341,7 +358,9 @@ def _holdout(s: Samples) -> tuple[Samples, Samples, str]:
     )
 
 
-def refit_part(model: AxisModel, part: Samples) -> tuple[AxisModel | None, str | None]:
+def refit_part(
+    model: AxisModel, part: Samples, std: dict[str, float] | None = None
+) -> tuple[AxisModel | None, str | None]:
     """A model's effects refitted on a part of the data.
 
     Parameters
@@ -350,6 +369,8 @@ def refit_part(model: AxisModel, part: Samples) -> tuple[AxisModel | None, str |
         The fitted model (its effects' nonlinear parameters are kept).
     part : Samples
         The part of the data.
+    std : dict of str to float, optional
+        The whole fit's std of J, c0, c1 as reported [SI]; default ``model.param_std_``.
 
     Returns
     -------
@@ -366,7 +387,8 @@ def refit_part(model: AxisModel, part: Samples) -> tuple[AxisModel | None, str |
     phi = fit.design(part)[part.moving]
     scale = np.sqrt(np.mean(phi**2, axis=0))
     cond = float(np.linalg.cond(phi / np.where(scale > 0, scale, 1.0)))
-    wide = [p for p in ("J", "c0", "c1") if not fit.param_std_[p] <= DEGENERATE * model.param_std_[p]]
+    whole = model.param_std_ if std is None else std
+    wide = [p for p in ("J", "c0", "c1") if not fit.param_std_[p] <= DEGENERATE * whole[p]]
     if not wide and cond <= DEGENERATE_COND:
         return fit, None
     return None, (
@@ -380,7 +402,7 @@ def refit_part(model: AxisModel, part: Samples) -> tuple[AxisModel | None, str |
     )
 
 
-def consistency(model: AxisModel, est: Samples, val: Samples, second_run: bool = False) -> dict:
+def consistency(reported: Uncertainty, est: Samples, val: Samples, second_run: bool = False) -> dict:
     """The final model's coefficients refitted (its effects' nonlinear parameters kept) on the
     first and second half in time of the estimation samples and on the validation samples: J, c0
     and c1 must agree between every two within ``CONSISTENT_SIGMAS`` of their combined reported
@@ -389,14 +411,15 @@ def consistency(model: AxisModel, est: Samples, val: Samples, second_run: bool =
 
     With ``second_run`` (the validation samples are a run of their own, ``--validate``), the
     whole estimation fit and the validation refit are two answers to one question: where a
-    parameter differs between them by more than their combined std, ``model``'s std of it is
+    parameter differs between them by more than their combined std, its reported std is
     widened to cover half the difference (``between_runs``: both values, by how many std, the std
     before and after), and beyond ``CONSISTENT_SIGMAS`` it is said to differ between the runs.
 
     Parameters
     ----------
-    model : AxisModel
-        The final model (its std may be widened here).
+    reported : Uncertainty
+        The final model's std as reported (widened here where the runs disagree, or by the
+        jackknife where no two parts can be compared).
     est : Samples
         The estimation samples (split in time at their moving samples' median).
     val : Samples
@@ -419,8 +442,9 @@ def consistency(model: AxisModel, est: Samples, val: Samples, second_run: bool =
         "validation": val,
     }
     fits, degenerate = {}, {}
+    model = reported.model
     for name, part in parts.items():
-        fit, why = refit_part(model, part)
+        fit, why = refit_part(model, part, reported.param_std)
         if fit is not None:
             fits[name] = fit
         elif why:  # the part cannot carry the model: named, not compared
@@ -443,7 +467,7 @@ def consistency(model: AxisModel, est: Samples, val: Samples, second_run: bool =
                 "sigmas": round(float(worst[0]), 1),
                 "between": [worst[1], worst[2]],
             }
-    runs = _between_runs(model, fits["validation"], moved) if second_run and "validation" in fits else None
+    runs = _between_runs(reported, fits["validation"], moved) if second_run and "validation" in fits else None
     out: dict = {"consistent": not moved, "parts": list(fits), "moved": moved, "degenerate": degenerate}
     if runs is not None:
         out["between_runs"] = runs
@@ -454,33 +478,27 @@ def consistency(model: AxisModel, est: Samples, val: Samples, second_run: bool =
             f"its own ({', '.join(degenerate) or 'the others'}: see degenerate), so no two parts could "
             f"be compared"
         )
-        out["inflated"] = _jackknife_inflation(model)
+        out["inflated"] = _jackknife_inflation(reported)
     return out
 
 
-def _jackknife_inflation(model: AxisModel) -> dict:
+def _jackknife_inflation(reported: Uncertainty) -> dict:
     """J, c0, c1 whose delete-one-block jackknife std is larger than the HAC std but short of the
     factor that widens it anyway (:data:`.model.JACKKNIFE_BEYOND`): widened to the jackknife's,
     with the std before and after -- the one check of the std left where the parts of the data
     cannot be compared."""
     out = {}
     for p in ("J", "c0", "c1"):
-        ratio = float(model.jackknife_[BASE.index(p)])
-        std = model.param_std_[p]
+        ratio = float(reported.model.jackknife_[BASE.index(p)])
+        std = reported.param_std[p]
         if 1.0 < ratio <= JACKKNIFE_BEYOND and std > 0:
-            _widen(model, p, 2 * std * np.sqrt(ratio**2 - 1))
+            reported.widen(p, 2 * std * np.sqrt(ratio**2 - 1))
             out[p] = {
                 "jackknife_over_hac": round(ratio, 3),
                 "std_before": std,
-                "std_after": model.param_std_[p],
+                "std_after": reported.param_std[p],
             }
     return out
-
-
-def _widen(model: AxisModel, p: str, gap: float) -> None:
-    """``model``'s std of J, c0 or c1 (``p``) widened, in quadrature, by half ``gap``."""
-    i = BASE.index(p)
-    model.cov_[i, i] += (gap / 2) ** 2
 
 
 def _reason(exc: Exception, axis: str) -> str:
@@ -488,26 +506,27 @@ def _reason(exc: Exception, axis: str) -> str:
     return str(exc).split(f"axis {axis!r}: ", 1)[-1]
 
 
-def _between_runs(model: AxisModel, other: AxisModel, moved: dict) -> dict:
-    """J, c0, c1 of ``model`` (the estimation run) against ``other`` (the validation run's refit):
-    each that differs beyond their combined std has ``model``'s std widened by half the difference
+def _between_runs(reported: Uncertainty, other: AxisModel, moved: dict) -> dict:
+    """J, c0, c1 of the estimation run's model (``reported``) against ``other`` (the validation
+    run's refit): each that differs beyond their combined std has its reported std widened by half
+    the difference
     (in quadrature); beyond ``CONSISTENT_SIGMAS`` it is added to ``moved`` as differing between the
     runs, with both values."""
     out = {}
     for p in ("J", "c0", "c1"):
-        a, b = model.params_[p], other.params_[p]
-        sa, sb = model.param_std_[p], other.param_std_[p]
+        a, b = reported.model.params_[p], other.params_[p]
+        sa, sb = reported.param_std[p], other.param_std_[p]
         combined = float(np.hypot(sa, sb))
         if not combined or abs(a - b) <= combined:
             continue
-        _widen(model, p, a - b)
+        reported.widen(p, a - b)
         sigmas = round(float(abs(a - b) / combined), 1)
         out[p] = {
             "estimation": a,
             "validation": b,
             "sigmas": sigmas,
             "std_before": sa,
-            "std_after": model.param_std_[p],
+            "std_after": reported.param_std[p],
         }
         if sigmas > CONSISTENT_SIGMAS and p not in moved:
             moved[p] = {
@@ -518,17 +537,17 @@ def _between_runs(model: AxisModel, other: AxisModel, moved: dict) -> dict:
     return out
 
 
-def friction_range(model: AxisModel, est: Samples) -> dict:
+def friction_range(reported: Uncertainty, est: Samples) -> dict:
     """The speeds c0 and c1 hold for (5th to 95th percentile of |q̇| while moving), and whether
     they depend on which: the model refitted on the slower and on the faster half of the moving
     samples.  Where c0 or c1 differ between the halves by more than ``CONSISTENT_SIGMAS`` combined
-    std, friction is not linear in velocity over the range: ``model``'s std of c0 and c1 is widened
+    std, friction is not linear in velocity over the range: the reported std of c0 and c1 is widened
     by half the difference (the split depends on the speeds used), and ``linear`` is False.
 
     Parameters
     ----------
-    model : AxisModel
-        The final model (its std of c0 and c1 may be widened here).
+    reported : Uncertainty
+        The final model's std as reported (of c0 and c1 widened here where the halves differ).
     est : Samples
         The estimation samples.
 
@@ -544,7 +563,7 @@ def friction_range(model: AxisModel, est: Samples) -> dict:
     split = float(np.median(moving))
     out = {"velocity_range": [low, high], "linear": True}
     fits = {
-        name: refit_part(model, part)[0]
+        name: refit_part(reported.model, part, reported.param_std)[0]
         for name, part in (("slower", est.take(speed < split)), ("faster", est.take(speed >= split)))
     }
     halves = {name: fit for name, fit in fits.items() if fit is not None}
@@ -557,7 +576,7 @@ def friction_range(model: AxisModel, est: Samples) -> dict:
         gap = abs(slow.params_[p] - fast.params_[p])
         if gap > CONSISTENT_SIGMAS * np.hypot(slow.param_std_[p], fast.param_std_[p]):
             widen[p] = round(float(gap / np.hypot(slow.param_std_[p], fast.param_std_[p])), 1)
-            _widen(model, p, gap)
+            reported.widen(p, gap)
     if widen:
         out.update(linear=False, sigmas=widen)
     return out
@@ -595,12 +614,12 @@ def band_dependence(log: Log, axis: str, result: AxisResult) -> dict:
         # log's rate says the motion's bandwidth was read off noise: checked all the same)
         return {"not_checked": f"half the cut-off, {half.cutoff_hz:.3g} Hz, would cut into the motion"}
     try:
-        fit, why = refit_part(result.model, prepare(log, axis, half))
+        fit, why = refit_part(result.model, prepare(log, axis, half), result.param_std)
     except FilterTooNarrow as exc:
         return {"not_checked": _reason(exc, axis)}
     if fit is None:
         return {"not_checked": why or "too few samples in half the band"}
-    j, sj = result.model.params_["J"], result.model.param_std_["J"]
+    j, sj = result.model.params_["J"], result.param_std["J"]
     j2, sj2 = fit.params_["J"], fit.param_std_["J"]
     combined = float(np.hypot(sj, sj2))
     sigmas = abs(j - j2) / combined if combined else 0.0
@@ -726,7 +745,7 @@ def identify_axis(
             "levels": levels,
             "share": round(float(np.isin(log.axes[axis].tau, levels).mean()), 4),
         }
-    _check_sign(log, axis, result.model, result.est)
+    _check_sign(log, axis, result.model, result.param_std, result.est)
     diagnostics = result.diagnostics
     diagnostics.motion = what_the_motion_tells(result.est, result.units["position"])
     diagnostics.band = band_dependence(log, axis, result)
@@ -739,6 +758,7 @@ def identify_axis(
             **diagnostics.motion["cannot_tell"],
             **({"J": diagnostics.band["why"]} if "why" in diagnostics.band else {}),
         },
+        result.param_std,
     )
     _refit_for_the_drive(result, seed)
     J, c1 = result.model.params_["J"], result.model.params_["c1"]
@@ -788,22 +808,24 @@ def _refit_for_the_drive(result: AxisResult, seed: int) -> None:
         result.drive = DriveFit(
             result.model,
             result.after,
+            result.param_std,
             f"refitted without {left}, which no drive model holds, the model leaves "
             f"{', '.join(lost)} undetermined: the full model's values are what is written",
         )
     else:
-        result.drive = DriveFit(drive, drive_errors)
+        result.drive = DriveFit(drive, drive_errors, drive.param_std_)
 
 
-def _check_sign(log: Log, axis: str, model: AxisModel, est: Samples) -> None:
+def _check_sign(log: Log, axis: str, model: AxisModel, std: dict[str, float], est: Samples) -> None:
     """UserError where the inertia and a friction come out negative beyond their std -- in the
     final model, or in the base model with the load a joint may carry (an offset; on a rotary
     joint its gravity), which the tracer may have dropped as unphysical: the torque and the
     position were logged with opposite sign conventions (no plant has a negative inertia and a
     friction that drives the motion)."""
     load: list[Effect] = [Offset(), Gravity()] if est.rotary else [Offset()]
-    for m in (model, AxisModel(load, seed=model.seed).fit(est)):
-        p, sd = m.params_, m.param_std_
+    loaded = AxisModel(load, seed=model.seed).fit(est)
+    for m, sd in ((model, std), (loaded, loaded.param_std_)):
+        p = m.params_
         if p["J"] < -T_MIN * sd["J"] and (p["c0"] < -T_MIN * sd["c0"] or p["c1"] < -T_MIN * sd["c1"]):
             raise UserError(
                 f"{log.path}: axis {axis}: J {p['J']:.4g}, c0 {p['c0']:.4g} and c1 {p['c1']:.4g} come "
@@ -881,8 +903,9 @@ def _identify_axis(
     model = AxisModel(model.effects, model.method, model.seed, JACKKNIFE_BLOCKS).fit(
         est
     )  # its std from the jackknife too
-    agreement = consistency(model, est, val, second_run=val_log is not None)
-    friction = friction_range(model, est)
+    reported = Uncertainty(model)
+    agreement = consistency(reported, est, val, second_run=val_log is not None)
+    friction = friction_range(reported, est)
     floor = noise_floor(val_log, axis, vs) if val_log is not None else noise_floor(log, axis, settings)
     ga_model = AxisModel(model.effects, method="ga", seed=seed).fit(est)
     logger.info(
@@ -903,10 +926,11 @@ def _identify_axis(
         val,
         base,
         model,
+        reported,
         traced,
         errors(base, val),
         errors(model, val),
-        GeneticFit.of(ga_model, model, val),
+        GeneticFit.of(ga_model, model, val, reported.coef_std),
         Diagnostics(
             floor,
             unexplained(model, val, settings.rate_hz / settings.decimation),
@@ -991,7 +1015,7 @@ def identify(
     Returns
     -------
     dict of str to AxisResult
-        Per axis: the fitted model (``model.params_``, ``model.param_std_``), the effects
+        Per axis: the fitted model (``model.params_``) and the std as reported (``param_std``), the effects
         added, the validation errors before and after, and what is undetermined.
 
     Raises

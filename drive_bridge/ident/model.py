@@ -255,10 +255,27 @@ class AxisModel:
     @property
     def param_std_(self) -> dict[str, float]:
         """The std of J, c0, c1 and of every effect's parameters (``<effect>.<name>``), SI."""
-        sd = self.coef_std_
+        return self.std_of(self.cov_)
+
+    def std_of(self, cov: np.ndarray) -> dict[str, float]:
+        """The std of J, c0, c1 and of every effect's parameters from a covariance of the fitted
+        coefficients (``cov_`` gives :attr:`param_std_`; an identification's reported one,
+        :class:`.uncertainty.Uncertainty`).
+
+        Parameters
+        ----------
+        cov : numpy.ndarray
+            The coefficients' covariance (``coef_names`` order) [SI²].
+
+        Returns
+        -------
+        dict of str to float
+            Name -> std [SI].
+        """
+        sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
         out = {"J": float(sd[0]), "c0": float(sd[2]), "c1": float(sd[1])}
         for e, sl in self._blocks():
-            for k, v in e.param_std(self.coef_[sl], self.cov_[sl, sl]).items():
+            for k, v in e.param_std(self.coef_[sl], cov[sl, sl]).items():
                 out[f"{e.name}.{k}"] = v
         return out
 

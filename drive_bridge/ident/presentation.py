@@ -84,7 +84,7 @@ def summary(results: dict[str, AxisResult]) -> str:
         )
         if r.diagnostics.motion:
             lines.append(f"  {motion_text(r.diagnostics.motion)}")
-        std = r.model.param_std_
+        std = r.param_std
         for k in ("J", "c0", "c1"):
             v = r.model.params_[k]
             rel = abs(std[k] / v) * 100 if v else float("inf")
@@ -159,7 +159,7 @@ def drive_text(r: AxisResult) -> str:
         return "for the drive: the model as it is (a drive's model holds every term of it)"
     if drive.note:
         return f"for the drive: {drive.note}"
-    d, sd = drive.model.params_, drive.model.param_std_
+    d, sd = drive.model.params_, drive.param_std
     held = ", ".join(e.name for e in drive.model.effects) or "no effect"
     return (
         f"for the drive (its model holds J, c0, c1 and {held}; refitted without the rest): "
@@ -613,9 +613,10 @@ def build_report(results: dict[str, AxisResult], out: Path, source: str, figures
             + (f" {motion_text(r.diagnostics.motion).capitalize()}." if r.diagnostics.motion else "")
         )
         rows = []
+        coef_std = r.uncertainty.coef_std
         for i, name in enumerate(r.model.coef_names):
             v = r.model.coef_[i]
-            sd = float(np.sqrt(r.model.cov_[i, i]))
+            sd = float(coef_std[i])
             rows.append(
                 [
                     name,

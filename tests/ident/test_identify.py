@@ -411,7 +411,7 @@ def test_clean_closed_loop_log_leaves_nothing_unexplained(tmp_path, seed):
 
     r = identify(write_log(tmp_path / "log.csv", closed_loop_log(np.arange(40000) / 1000, seed=seed)))["y"]
     assert r.effects == [] and r.diagnostics.unexplained == []
-    p, sd = r.model.params_, r.model.param_std_
+    p, sd = r.model.params_, r.param_std
     for name, true in (("J", 1e-4), ("c0", 0.3), ("c1", 5e-4)):
         assert abs(p[name] - true) <= 3 * sd[name], (name, p[name], sd[name])
     assert sd["J"] < 0.01 * 1e-4 and sd["c1"] < 0.02 * 5e-4 and sd["c0"] < 0.001 * 0.3
@@ -452,7 +452,7 @@ def test_uncertainty_widens_with_structure_the_model_lacks(tmp_path, structure):
     )["y"]
     if structure == "q·v":
         assert r.after.rmse > 10 * r.diagnostics.noise_floor  # no effect describes it
-    p, sd = r.model.params_, r.model.param_std_
+    p, sd = r.model.params_, r.param_std
     for name, true in (("J", 1e-4), ("c0", 0.3), ("c1", 5e-4)):
         assert abs(p[name] - true) <= 3 * sd[name], (name, p[name], sd[name])
     clean = identify(write_log(tmp_path / "clean.csv", closed_loop_log(np.arange(40000) / 1000, seed=3)))["y"]
@@ -529,7 +529,7 @@ def test_a_torque_averaged_over_each_period(tmp_path):
     assert r.diagnostics.sampling["torque_delay_ms"] == pytest.approx(1.0, abs=0.05)
     assert r.effects == []
     for name, true in (("J", 1e-4), ("c0", 0.3), ("c1", 5e-4)):
-        assert abs(r.model.params_[name] - true) < 3 * r.model.param_std_[name], name
+        assert abs(r.model.params_[name] - true) < 3 * r.param_std[name], name
     assert r.model.params_["J"] == pytest.approx(1e-4, rel=5e-4)
 
 
@@ -580,7 +580,7 @@ def test_a_position_in_a_coarse_unit_does_not_bias_the_inertia(tmp_path):
     log["y_position_rad"] = np.round(log["y_position_rad"] / count) * count
     r = identify(write_log(tmp_path / "log.csv", log))["y"]
     assert r.model.params_["J"] == pytest.approx(1e-4, rel=0.01)
-    assert abs(r.model.params_["J"] - 1e-4) < 3 * r.model.param_std_["J"]
+    assert abs(r.model.params_["J"] - 1e-4) < 3 * r.param_std["J"]
 
 
 @pytest.mark.skipif(not (EMPS / "DATA_EMPS.mat").exists(), reason="../shared/data/emps not present")
@@ -648,7 +648,7 @@ def test_an_axis_is_filtered_only_around_where_it_moves(tmp_path, monkeypatch):
     assert len(part.est) + len(part.val) < 0.5 * (len(whole.est) + len(whole.val))
     assert [t.effect.name for t in part.effects] == [t.effect.name for t in whole.effects]
     for k in ("J", "c0", "c1"):
-        assert abs(part.model.params_[k] - whole.model.params_[k]) <= 1e-6 * whole.model.param_std_[k], k
+        assert abs(part.model.params_[k] - whole.model.params_[k]) <= 1e-6 * whole.param_std[k], k
 
 
 PARALLEL_RUN = """import json, sys
@@ -658,7 +658,7 @@ from drive_bridge.ident.logdata import read_log
 results = identify(sys.argv[1], seed=0)
 print(json.dumps({"workers": workers(read_log(sys.argv[1]), ["x", "y"]),
                   "params": {a: r.model.params_ for a, r in results.items()},
-                  "std": {a: r.model.param_std_ for a, r in results.items()},
+                  "std": {a: r.param_std for a, r in results.items()},
                   "predicted": {a: r.model.predict(r.val).tolist() for a, r in results.items()}}))
 """
 

@@ -24,7 +24,7 @@ def fit(name: str, est: str, val: str | None = None):
 def combined_sigmas(a, b) -> float:
     return (
         abs(a.model.params_["J"] - b.model.params_["J"])
-        / (a.model.param_std_["J"] ** 2 + b.model.param_std_["J"] ** 2) ** 0.5
+        / (a.param_std["J"] ** 2 + b.param_std["J"] ** 2) ** 0.5
     )
 
 
@@ -118,7 +118,7 @@ def test_two_runs_that_disagree_beyond_their_std_widen_it_and_say_so():
     runs = r.diagnostics.consistency["between_runs"]
     j = runs["J"]
     gap = abs(j["estimation"] - j["validation"])
-    assert gap > j["std_before"] and r.model.param_std_["J"] == pytest.approx(j["std_after"])
+    assert gap > j["std_before"] and r.param_std["J"] == pytest.approx(j["std_after"])
     assert j["std_after"] ** 2 == pytest.approx(j["std_before"] ** 2 + (gap / 2) ** 2, rel=1e-6)
     assert "two runs: J" in summary({"hsm": r})
 
@@ -135,7 +135,7 @@ def test_where_no_two_parts_of_the_data_can_be_compared_it_is_said_and_the_std_c
     assert c["inflated"], "the jackknife finds c0 and c1 less certain than the HAC std (1.7x, 1.2x)"
     for p, m in c["inflated"].items():
         assert m["std_after"] == pytest.approx(m["std_before"] * m["jackknife_over_hac"], rel=1e-3)
-        assert r.model.param_std_[p] == pytest.approx(m["std_after"])
+        assert r.param_std[p] == pytest.approx(m["std_after"])
     text = summary({"a2": r})
     assert "consistency not checked: no part of the data carries the model" in text
     assert "NOT CONSISTENT" not in text
