@@ -1036,7 +1036,7 @@ def load_bus_config(path: str | Path) -> BusConfig:
     dcf_path = options.get("dcf_path", str, None)
     # Lely's: the drives' consumer time of the master's heartbeat, in its periods (master's own, else this)
     multiplier = options.get("heartbeat_multiplier", float, HEARTBEAT_MULTIPLIER, low=1.5, high=100.0)
-    options.get("retry_factor", int, None)  # Lely's, for the master it generates
+    options.get("retry_factor", (int, float), None)  # Lely's, for the master it generates
     options.done()
     m = top.section("master")
     notes: list[str] = []

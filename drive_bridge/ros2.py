@@ -75,6 +75,9 @@ def export(config: BusConfig, out: str | Path) -> list[Path]:
             "baudrate": m.nominal_bitrate // 1000,
             "sync_period": round(m.sync_period_s * 1e6),
             "heartbeat_consumer": True,
+            # the heartbeat the drives are told to watch (0x1016:1 in each node's sdo), and for how long
+            "heartbeat_producer": round(m.heartbeat_period_s * 1000),
+            "heartbeat_multiplier": m.heartbeat_multiplier,
         },
         "nodes": {},
     }

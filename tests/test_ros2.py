@@ -113,6 +113,10 @@ def test_export_ros2_round_trips_and_lely_dcfgen_takes_it(tmp_path, capsys):
     assert "defaults" not in text and "index: 0x6040" in text
     assert "inhibit_time: 0" in text and "index: 0x1016" in text  # as bring-up writes them
     own, back = load_bus_config(DEFAULT_BUS_CONFIG), load_bus_config(out / "bus.yml")
+    assert (back.master.heartbeat_period_s, back.master.drive_consumer_ms) == (
+        own.master.heartbeat_period_s,
+        own.master.drive_consumer_ms,
+    )
     for axis, n in own.nodes.items():
         b = back.nodes[axis]
         assert (
@@ -152,6 +156,11 @@ def test_export_ros2_round_trips_and_lely_dcfgen_takes_it(tmp_path, capsys):
         assert r.returncode == 0, r.stderr
         master = (out / "gen" / "master.dcf").read_text()
         assert "NodeID=127" in master and "Baudrate=1000" in master
+        # the master produces the heartbeat each drive's consumer (0x1016:1, in its sdo) watches
+        assert (
+            "[1017]\nParameterName=Producer heartbeat time\nDataType=0x0006\nAccessType=rw\nDefaultValue=100"
+            in master
+        )
         assert "x: writing 4 bytes to 0x1801/1: 81 02 00 00" in r.stdout  # TPDO2 enabled
         assert (
             "x: writing 4 bytes to 0x6065/0" in r.stdout
