@@ -10,9 +10,12 @@ its own: :mod:`.coprocess`).
 
 Schedule.  Period ``k`` starts at ``t0 + k * period`` (an absolute monotonic schedule).  At its
 start the SYNC goes out, then, inside the synchronous window, the RPDOs the drives take at the
-next SYNC.  A cycle that starts late sends the SYNC of the period it is in, never the ones it
-missed: the plan rows of missed periods get no SYNC (``sync_time`` NaN), and the setpoints that
-follow are those of their own time.
+next SYNC.  A SYNC goes out within half a period of its period's start or not at all: a cycle
+that starts later sends the SYNC of the period whose start is within half a period (waiting for
+the next one's), never the ones it missed, so no two SYNCs are closer than half a period (a
+drive's answer to one would reach the bus after the next, and its interpolation would see a
+period of a few microseconds).  The plan rows of missed periods get no SYNC (``sync_time`` NaN),
+and the setpoints that follow are those of their own time.
 
 Supervision is judged in time.  A drive must answer a SYNC within the synchronous window
 (0x1007, or the period where none is written).  A row's feedback is judged once the bus shows
@@ -366,7 +369,7 @@ class Outcome:
     late_cycles : int
         Cycles that started more than half a period late.
     periods_skipped : int
-        Periods that got no SYNC (a late cycle sends the one it is in).
+        Periods that got no SYNC (a late cycle sends the one whose start is within half a period).
     setpoints_late : int
         Interface-sent SYNCs the engine had sent no new setpoints before.
     worst_wake_ms : float
@@ -838,10 +841,16 @@ class Engine:
             out.worst_wake_ms = max(out.worst_wake_ms, late * 1e3)
             if late > period / 2:
                 out.late_cycles += 1
-            if late > period:  # the period it is in: the missed ones get no SYNC
-                behind = int(late // period)
+            while late > period / 2:  # the period whose start is within half a period (passed, or
+                # the next one's, waited for -- and again if held up meanwhile): the missed ones get
+                # no SYNC, and no two SYNCs come closer than half a period
+                behind = max(1, round(late / period))
                 self.slot += behind
                 out.periods_skipped += behind
+                deadline = self.t0 + self.slot * period
+                port.wait_until(deadline)
+                now = port.now()
+                late = now - deadline
             stamp = port.now()
             self._on_sync(stamp)  # (before it goes: in lockstep the replies come at once)
             port.send(SYNC_COB_ID, b"", stamp)
