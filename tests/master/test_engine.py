@@ -166,7 +166,7 @@ class _Drives:
 
 
 def _streaming_job(rows: int) -> tuple[Job, Arrays]:
-    """One axis streaming ``rows`` periods of a ramp, judged by the limits of the shipped drive."""
+    """One axis streaming ``rows`` periods of a ramp (the job and its arrays)."""
     sup = Supervision(PERIOD, PERIOD, 0.02, 0.02, 0.3, 1.0, 2.0)
     job = Job(
         (AxisJob("y", 1, (0,), statusword=0, velocity=-1, position_column=0),),
@@ -222,18 +222,7 @@ def test_the_cyclic_path_does_not_grow_while_it_streams():
     """Past its start, a stream of 6000 periods keeps no memory per period (tracemalloc: the Python
     heap at row 1000 and at row 5000)."""
     rows = 6000
-    sup = Supervision(PERIOD, PERIOD, 0.02, 0.02, 0.3, 1.0, 2.0)
-    job = Job(
-        (AxisJob("y", 1, (0,), statusword=0, velocity=-1, position_column=0),),
-        (RpdoJob(0x201, "<Hl", ((CONTROLWORD, 0), (TABLE, 0)), 0),),
-        (TpdoJob(0x181, "<Hhl", 0, 0, 0),),
-        rows,
-        3,
-        1,
-        sup,
-    )
-    arrays = Arrays(job, np.zeros)
-    arrays.table[:, 0] = np.arange(rows)
+    job, arrays = _streaming_job(rows)
     seen = {}
 
     def check():
