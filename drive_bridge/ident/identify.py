@@ -86,30 +86,26 @@ class GeneticFit:
     std_from_lse: float
 
     @classmethod
-    def of(
-        cls, fitted: AxisModel, lse: AxisModel, val: Samples, coef_std: np.ndarray | None = None
-    ) -> GeneticFit:
+    def of(cls, fitted: AxisModel, lse: Uncertainty, val: Samples) -> GeneticFit:
         """The GA's model set beside the least-squares one.
 
         Parameters
         ----------
         fitted : AxisModel
             The model fitted with ``method="ga"``.
-        lse : AxisModel
-            The same structure fitted by least squares.
+        lse : Uncertainty
+            The same structure fitted by least squares, with its std as reported.
         val : Samples
             The validation samples.
-        coef_std : numpy.ndarray, optional
-            The least-squares coefficients' std as reported [SI]; default ``lse.coef_std_``.
 
         Returns
         -------
         GeneticFit
             The GA's coefficients, errors on ``val`` and distance from ``lse``.
         """
-        std = lse.coef_std_ if coef_std is None else coef_std
+        std = lse.coef_std
         ok = std > 0
-        far = float(np.max(np.abs(fitted.coef_ - lse.coef_)[ok] / std[ok])) if ok.any() else 0.0
+        far = float(np.max(np.abs(fitted.coef_ - lse.model.coef_)[ok] / std[ok])) if ok.any() else 0.0
         return cls(fitted.coef_, errors(fitted, val), fitted.converged_, far)
 
 
@@ -358,19 +354,15 @@ def _holdout(s: Samples) -> tuple[Samples, Samples, str]:
     )
 
 
-def refit_part(
-    model: AxisModel, part: Samples, std: dict[str, float] | None = None
-) -> tuple[AxisModel | None, str | None]:
+def refit_part(reported: Uncertainty, part: Samples) -> tuple[AxisModel | None, str | None]:
     """A model's effects refitted on a part of the data.
 
     Parameters
     ----------
-    model : AxisModel
-        The fitted model (its effects' nonlinear parameters are kept).
+    reported : Uncertainty
+        The fitted model (its effects' nonlinear parameters are kept) and its std as reported.
     part : Samples
         The part of the data.
-    std : dict of str to float, optional
-        The whole fit's std of J, c0, c1 as reported [SI]; default ``model.param_std_``.
 
     Returns
     -------
@@ -381,13 +373,14 @@ def refit_part(
         column-scaled regressors dependent beyond ``DEGENERATE_COND``; None where it can, or is
         merely too short.
     """
+    model = reported.model
     if part.moving.sum() <= 3 * len(model.coef_):
         return None, None
     fit = AxisModel(model.effects, seed=model.seed).fit(part)
     phi = fit.design(part)[part.moving]
     scale = np.sqrt(np.mean(phi**2, axis=0))
     cond = float(np.linalg.cond(phi / np.where(scale > 0, scale, 1.0)))
-    whole = model.param_std_ if std is None else std
+    whole = reported.param_std
     wide = [p for p in ("J", "c0", "c1") if not fit.param_std_[p] <= DEGENERATE * whole[p]]
     if not wide and cond <= DEGENERATE_COND:
         return fit, None
@@ -442,9 +435,8 @@ def consistency(reported: Uncertainty, est: Samples, val: Samples, second_run: b
         "validation": val,
     }
     fits, degenerate = {}, {}
-    model = reported.model
     for name, part in parts.items():
-        fit, why = refit_part(model, part, reported.param_std)
+        fit, why = refit_part(reported, part)
         if fit is not None:
             fits[name] = fit
         elif why:  # the part cannot carry the model: named, not compared
@@ -509,9 +501,8 @@ def _reason(exc: Exception, axis: str) -> str:
 def _between_runs(reported: Uncertainty, other: AxisModel, moved: dict) -> dict:
     """J, c0, c1 of the estimation run's model (``reported``) against ``other`` (the validation
     run's refit): each that differs beyond their combined std has its reported std widened by half
-    the difference
-    (in quadrature); beyond ``CONSISTENT_SIGMAS`` it is added to ``moved`` as differing between the
-    runs, with both values."""
+    the difference (in quadrature); beyond ``CONSISTENT_SIGMAS`` it is added to ``moved`` as
+    differing between the runs, with both values."""
     out = {}
     for p in ("J", "c0", "c1"):
         a, b = reported.model.params_[p], other.params_[p]
@@ -563,7 +554,7 @@ def friction_range(reported: Uncertainty, est: Samples) -> dict:
     split = float(np.median(moving))
     out = {"velocity_range": [low, high], "linear": True}
     fits = {
-        name: refit_part(reported.model, part, reported.param_std)[0]
+        name: refit_part(reported, part)[0]
         for name, part in (("slower", est.take(speed < split)), ("faster", est.take(speed >= split)))
     }
     halves = {name: fit for name, fit in fits.items() if fit is not None}
@@ -614,7 +605,7 @@ def band_dependence(log: Log, axis: str, result: AxisResult) -> dict:
         # log's rate says the motion's bandwidth was read off noise: checked all the same)
         return {"not_checked": f"half the cut-off, {half.cutoff_hz:.3g} Hz, would cut into the motion"}
     try:
-        fit, why = refit_part(result.model, prepare(log, axis, half), result.param_std)
+        fit, why = refit_part(result.uncertainty, prepare(log, axis, half))
     except FilterTooNarrow as exc:
         return {"not_checked": _reason(exc, axis)}
     if fit is None:
@@ -745,7 +736,7 @@ def identify_axis(
             "levels": levels,
             "share": round(float(np.isin(log.axes[axis].tau, levels).mean()), 4),
         }
-    _check_sign(log, axis, result.model, result.param_std, result.est)
+    _check_sign(log, axis, result.uncertainty, result.est)
     diagnostics = result.diagnostics
     diagnostics.motion = what_the_motion_tells(result.est, result.units["position"])
     diagnostics.band = band_dependence(log, axis, result)
@@ -816,15 +807,15 @@ def _refit_for_the_drive(result: AxisResult, seed: int) -> None:
         result.drive = DriveFit(drive, drive_errors, drive.param_std_)
 
 
-def _check_sign(log: Log, axis: str, model: AxisModel, std: dict[str, float], est: Samples) -> None:
+def _check_sign(log: Log, axis: str, reported: Uncertainty, est: Samples) -> None:
     """UserError where the inertia and a friction come out negative beyond their std -- in the
     final model, or in the base model with the load a joint may carry (an offset; on a rotary
     joint its gravity), which the tracer may have dropped as unphysical: the torque and the
     position were logged with opposite sign conventions (no plant has a negative inertia and a
     friction that drives the motion)."""
     load: list[Effect] = [Offset(), Gravity()] if est.rotary else [Offset()]
-    loaded = AxisModel(load, seed=model.seed).fit(est)
-    for m, sd in ((model, std), (loaded, loaded.param_std_)):
+    loaded = AxisModel(load, seed=reported.model.seed).fit(est)
+    for m, sd in ((reported.model, reported.param_std), (loaded, loaded.param_std_)):
         p = m.params_
         if p["J"] < -T_MIN * sd["J"] and (p["c0"] < -T_MIN * sd["c0"] or p["c1"] < -T_MIN * sd["c1"]):
             raise UserError(
@@ -930,7 +921,7 @@ def _identify_axis(
         traced,
         errors(base, val),
         errors(model, val),
-        GeneticFit.of(ga_model, model, val, reported.coef_std),
+        GeneticFit.of(ga_model, reported, val),
         Diagnostics(
             floor,
             unexplained(model, val, settings.rate_hz / settings.decimation),
