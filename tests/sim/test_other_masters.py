@@ -466,7 +466,12 @@ def test_a_lockstep_trace_replayed_by_can_player_reaches_the_drives_frame_for_fr
             bus_kwargs = ["--bus-kwargs", f"port={port}", "--gap", "0"]  # (an option ends the list)
             with subprocess.Popen([*player, *bus_kwargs, str(replay)]) as replaying:
                 _cycle_priority(replaying.pid)
-                assert replaying.wait(120) == 0
+                try:
+                    code = replaying.wait(120)
+                except subprocess.TimeoutExpired:
+                    replaying.kill()  # (the with's exit waits for it)
+                    raise
+            assert code == 0
             time.sleep(0.2)
             notifier.stop()
     finally:
