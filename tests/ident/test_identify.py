@@ -401,15 +401,32 @@ def test_an_effect_beyond_the_library_is_fitted_as_a_spline(tmp_path, case, form
         assert r.model.params_["c0"] == pytest.approx(0.3, rel=0.02)
 
 
-@pytest.mark.parametrize("seed", [3, 4])
-def test_clean_closed_loop_log_leaves_nothing_unexplained(tmp_path, seed):
+CLEAN_SEED = 3  # the independent plant's log several tests read clean (:func:`clean`)
+
+
+@pytest.fixture(scope="module")
+def clean(tmp_path_factory):
+    """The independent closed-loop plant, nothing but J, c0 and c1 and its stick-slip (seed
+    ``CLEAN_SEED``, 40 s at 1 kHz), identified once for the tests that read it."""
+    from harness.plants import closed_loop_log
+
+    path = tmp_path_factory.mktemp("clean") / "log.csv"
+    return identify(write_log(path, closed_loop_log(np.arange(40000) / 1000, seed=CLEAN_SEED)))["y"]
+
+
+@pytest.mark.parametrize("seed", [CLEAN_SEED, 4])
+def test_clean_closed_loop_log_leaves_nothing_unexplained(tmp_path, seed, clean):
     """The independent plant sticks ~45 ms at each of its 88 reversals, held by whatever torque
     static friction allows: J, c0 and c1 still come out within 3 reported std of the plant's (the
     encoder's standstills count for nothing before the low-pass; with the filtered velocity's
     sign alone c0 and c1 came out 4 std apart)."""
     from harness.plants import closed_loop_log
 
-    r = identify(write_log(tmp_path / "log.csv", closed_loop_log(np.arange(40000) / 1000, seed=seed)))["y"]
+    if seed == CLEAN_SEED:
+        r = clean
+    else:
+        path = write_log(tmp_path / "log.csv", closed_loop_log(np.arange(40000) / 1000, seed=seed))
+        r = identify(path)["y"]
     assert r.effects == [] and r.diagnostics.unexplained == []
     p, sd = r.model.params_, r.param_std
     for name, true in (("J", 1e-4), ("c0", 0.3), ("c1", 5e-4)):
@@ -436,7 +453,7 @@ def test_a_payload_change_halfway_is_flagged_not_averaged(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("structure", ["q·v", "sin(q)·a"])
-def test_uncertainty_widens_with_structure_the_model_lacks(tmp_path, structure):
+def test_uncertainty_widens_with_structure_the_model_lacks(tmp_path, structure, clean):
     """Viscous friction that grows along the stroke (0.002·q·q̇: two variables at once, which no
     effect and no one-variable spline models), or an inertia that varies ±20 % along it
     (2e-5·sin(q)·q̈, which the inertial spline form approximates): the reported std
@@ -448,14 +465,13 @@ def test_uncertainty_widens_with_structure_the_model_lacks(tmp_path, structure):
         structure
     ]
     r = identify(
-        write_log(tmp_path / "x.csv", closed_loop_log(np.arange(40000) / 1000, seed=3, extra=extra))
+        write_log(tmp_path / "x.csv", closed_loop_log(np.arange(40000) / 1000, seed=CLEAN_SEED, extra=extra))
     )["y"]
     if structure == "q·v":
         assert r.after.rmse > 10 * r.diagnostics.noise_floor  # no effect describes it
     p, sd = r.model.params_, r.param_std
     for name, true in (("J", 1e-4), ("c0", 0.3), ("c1", 5e-4)):
         assert abs(p[name] - true) <= 3 * sd[name], (name, p[name], sd[name])
-    clean = identify(write_log(tmp_path / "clean.csv", closed_loop_log(np.arange(40000) / 1000, seed=3)))["y"]
     assert clean.diagnostics.consistency["consistent"]
 
 
@@ -478,11 +494,11 @@ def test_a_compliant_coupling_mode_is_reported_and_the_cut_off_moved_below_it(tm
     assert "a resonance at" in capsys.readouterr().out
 
 
-def test_no_resonance_or_backlash_on_clean_logs(tmp_path):
+def test_no_resonance_or_backlash_on_clean_logs(tmp_path, clean):
     from harness.plants import closed_loop_log, jittered
 
-    for name, stamps in (("even", np.arange(40000) / 1000), ("jitter", jittered(1000, 40, 50e-6))):
-        r = identify(write_log(tmp_path / f"{name}.csv", closed_loop_log(stamps, seed=3)))["y"]
+    jitter = write_log(tmp_path / "jitter.csv", closed_loop_log(jittered(1000, 40, 50e-6), seed=CLEAN_SEED))
+    for name, r in (("even", clean), ("jitter", identify(jitter)["y"])):
         assert r.diagnostics.resonance is None, (name, r.diagnostics.resonance)
         assert r.diagnostics.backlash is None, (name, r.diagnostics.backlash)
 
