@@ -4,6 +4,8 @@ inertia that is negative or that the parts of the log contradict, printed as a d
 
 from __future__ import annotations
 
+import functools
+
 import pytest
 
 from drive_bridge.ident.identify import identify
@@ -17,7 +19,10 @@ pytestmark = [
 ]
 
 
+@functools.cache
 def fit(name: str, est: str, val: str | None = None):
+    """The log's identification, with the defaults a user gets; each log once (several tests read
+    HSM150's and KUKA axis 2's, and none changes what it reads)."""
     return identify(REAL / name / est, REAL / name / val if val else None)
 
 
