@@ -56,8 +56,12 @@ def test_a_master_killed_mid_campaign_leaves_every_drive_stopped_by_its_heartbea
         )
         wait_for(master.stderr, "campaign:", 120)
         node = monitor.add_node(1, None)  # SDO only: no object dictionary needed
-        time.sleep(1.5)  # X is on its way to the campaign's start (6 s) ...
-        moving = abs(int.from_bytes(node.sdo.upload(0x606C, 0), "little", signed=True))
+        # X on its way to the campaign's start (6 s): read until it moves (a loaded machine's master
+        # got there later than the 1.5 s this waited once) ...
+        moving, patience = 0, time.time() + 30
+        while moving <= 0.5 * 166886 and time.time() < patience:
+            time.sleep(0.05)
+            moving = abs(int.from_bytes(node.sdo.upload(0x606C, 0), "little", signed=True))
         os.killpg(master.pid, signal.SIGKILL)  # the master and its cyclic engine, as a power cut would
         killed = time.time()
         assert moving > 0.5 * 166886  # ... at more than 0.5 rad/s when the master dies
