@@ -248,11 +248,6 @@ class AxisModel:
         return out
 
     @property
-    def coef_std_(self) -> np.ndarray:
-        """The std of each coefficient (``coef_names`` order) from ``cov_``."""
-        return np.sqrt(np.maximum(np.diag(self.cov_), 0.0))
-
-    @property
     def param_std_(self) -> dict[str, float]:
         """The std of J, c0, c1 and of every effect's parameters (``<effect>.<name>``), SI."""
         return self.std_of(self.cov_)
@@ -272,7 +267,7 @@ class AxisModel:
         dict of str to float
             Name -> std [SI].
         """
-        sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
+        sd = std_from_cov(cov)
         out = {"J": float(sd[0]), "c0": float(sd[2]), "c1": float(sd[1])}
         for e, sl in self._blocks():
             for k, v in e.param_std(self.coef_[sl], cov[sl, sl]).items():
@@ -316,6 +311,22 @@ class AxisModel:
             Its parameters by name (amplitude, period, ...; SI).
         """
         return effect.params(self._coef_of(effect))
+
+
+def std_from_cov(cov: np.ndarray) -> np.ndarray:
+    """The std of each coefficient from their covariance (a negative variance, rounding's: 0).
+
+    Parameters
+    ----------
+    cov : numpy.ndarray
+        The coefficients' covariance, p × p [SI²].
+
+    Returns
+    -------
+    numpy.ndarray
+        p std [SI].
+    """
+    return np.sqrt(np.maximum(np.diag(cov), 0.0))
 
 
 DIRECT_LAGS = 64  # hac_lags: lags of the autocorrelation summed directly, beyond them by FFT
@@ -521,7 +532,7 @@ def _differential_evolution(
     not O(n).  The result's ``success`` says whether it converged within its generation limit.
     """
     gram, b, yy = phi.T @ phi, phi.T @ y, float(y @ y)
-    half = np.maximum(0.5 * np.abs(centre), 10 * np.sqrt(np.maximum(np.diag(cov), 0.0))) + 1e-12
+    half = np.maximum(0.5 * np.abs(centre), 10 * std_from_cov(cov)) + 1e-12
     lo, hi = centre - half, centre + half
 
     def sse(theta: np.ndarray) -> np.ndarray:  # theta: (p, S) population

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .model import BASE, AxisModel
+from .model import BASE, AxisModel, std_from_cov
 
 
 class Uncertainty:
@@ -41,7 +41,7 @@ class Uncertainty:
     @property
     def coef_std(self) -> np.ndarray:
         """The std of each coefficient (``coef_names`` order), as reported [SI]."""
-        return np.sqrt(np.maximum(np.diag(self.cov), 0.0))
+        return std_from_cov(self.cov)
 
     @property
     def param_std(self) -> dict[str, float]:
