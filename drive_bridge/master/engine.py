@@ -834,10 +834,7 @@ class Engine:
                 out.late_cycles += 1  # past the window: the drives keep the setpoints they have
             out.setpoints_late += self.syncs_seen - seen - 1  # SYNCs that came before their setpoints
         else:
-            deadline = self.t0 + self.slot * period
-            port.wait_until(deadline)
-            now = port.now()
-            late = now - deadline
+            now, late = self._wake()
             out.worst_wake_ms = max(out.worst_wake_ms, late * 1e3)
             if late > period / 2:
                 out.late_cycles += 1
@@ -847,10 +844,7 @@ class Engine:
                 behind = max(1, round(late / period))
                 self.slot += behind
                 out.periods_skipped += behind
-                deadline = self.t0 + self.slot * period
-                port.wait_until(deadline)
-                now = port.now()
-                late = now - deadline
+                now, late = self._wake()
             stamp = port.now()
             self._on_sync(stamp)  # (before it goes: in lockstep the replies come at once)
             port.send(SYNC_COB_ID, b"", stamp)
@@ -885,6 +879,14 @@ class Engine:
         if self.phase == STOPPING:
             return self._stopping(now)
         return self._switching_off(now)
+
+    def _wake(self) -> tuple[float, float]:
+        """Wait for the start of period ``slot`` on the absolute schedule: the time then, and how
+        late that is [s]."""
+        deadline = self.t0 + self.slot * self.period
+        self.port.wait_until(deadline)
+        now = self.port.now()
+        return now, now - deadline
 
     def _on_sync(self, stamp: float) -> None:
         """A SYNC at ``stamp``: the row of the period (while streaming), the feedback's age."""
