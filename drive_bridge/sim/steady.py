@@ -6,11 +6,11 @@ for each: sample the actual values, send the synchronous TPDOs, take the target 
 brought, start the next interpolation period.  :class:`SteadyStream` lays the drives' PDOs out
 once and runs that SYNC as :func:`.cyclic.steady_period` (the Python drive's own functions for
 actual values and the period, compiled), sending the TPDO bytes it packed.  Whatever else may
-happen in a period -- a fault, a heartbeat due or a watched node's silence, a controlword that
-changes, an RPDO writing anything else, a TPDO mapping an object the compiled path does not
-know -- is the Python drive's: :meth:`SteadyStream.period` declines before changing anything, and
-the robot runs the SYNC as before.  Both give the same frames byte for byte
-(``tests/sim/test_steady.py``).
+happen in a period -- a fault, a heartbeat due or a watched node's silence, a controlword or a
+modes of operation that changes, an RPDO writing anything else, a TPDO mapping an object the
+compiled path does not know -- is the Python drive's: :meth:`SteadyStream.period` declines
+before changing anything, and the robot runs the SYNC as before.  Both give the same frames byte
+for byte (``tests/sim/test_steady.py``).
 """
 
 from __future__ import annotations
@@ -37,10 +37,11 @@ MEASURED = {
     0x6077: cyclic.SRC_TORQUE,
     0x60F4: cyclic.SRC_FOLLOWING_ERROR,
 }
-#: what an RPDO of a streaming drive may write: the controlword (held), the CSP target and the
-#: torque and velocity offsets (the kernel reads those only as the plant advances: they are
-#: written as the Python drive writes them)
-STREAMED = {(0x6040, 0), (0x607A, 0), (0x60B2, 0), (0x60B1, 0)}
+#: what an RPDO of a streaming drive may write: the controlword and the modes of operation (both
+#: held: a master may send its mode every period, as ros2_canopen's mapping does), the CSP target
+#: and the torque and velocity offsets (the kernel reads those only as the plant advances: they
+#: are written as the Python drive writes them)
+STREAMED = {(0x6040, 0), (0x6060, 0), (0x607A, 0), (0x60B2, 0), (0x60B1, 0)}
 OFFSETS = (0x60B2, 0x60B1)
 #: struct codes of the integer types a TPDO entry may have -> (signed, size in bytes)
 INTEGERS = {
@@ -167,7 +168,9 @@ class SteadyStream:
             for codec, data in drive.pdos.pending:
                 values = codec.struct.unpack_from(data)
                 for (index, _), value in zip(codec.entries, values):
-                    if index == 0x6040 and value != drive.controlword:
+                    if (index == 0x6040 and value != drive.controlword) or (
+                        index == 0x6060 and value != drive.mode
+                    ):
                         return False
                     if index == 0x607A:
                         axes[a, cyclic.A_SETPOINT] = value
