@@ -59,9 +59,13 @@ def test_a_master_killed_mid_campaign_leaves_every_drive_stopped_by_its_heartbea
         # X on its way to the campaign's start (6 s): read until it moves (a loaded machine's master
         # got there later than the 1.5 s this waited once) ...
         moving, patience = 0, time.time() + 30
-        while moving <= 0.5 * 166886 and time.time() < patience:
+        while moving <= 0.5 * 166886 and time.time() < patience and master.poll() is None:
             time.sleep(0.05)
             moving = abs(int.from_bytes(node.sdo.upload(0x606C, 0), "little", signed=True))
+        if master.poll() is not None:  # it stopped on its own before X moved: there is nothing to kill
+            pytest.fail(
+                f"the master ended (exit {master.returncode}) before X moved: {master.stderr.read()[-1500:]}"
+            )
         os.killpg(master.pid, signal.SIGKILL)  # the master and its cyclic engine, as a power cut would
         killed = time.time()
         assert moving > 0.5 * 166886  # ... at more than 0.5 rad/s when the master dies
