@@ -76,9 +76,9 @@ class Bench:
             self.link.close()
 
 
-def quick_config(**campaign):
-    """The shipped bus configuration with a campaign of a few seconds per axis."""
-    cfg = load_bus_config(BUS_CONFIG)
+def quick_config(path: Path = BUS_CONFIG, **campaign):
+    """A bus configuration (default the shipped one) with a campaign of a few seconds per axis."""
+    cfg = load_bus_config(path)
     return replace(cfg, campaign=replace(cfg.campaign.quick(), **campaign))
 
 

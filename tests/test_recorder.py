@@ -206,19 +206,21 @@ def test_cli_exit_code_after_a_fault(tmp_path, capsys):
 
 
 # ---------------------------------------------------------------- wall clock
+def wall_clock_record(out, *options: str) -> tuple[int, dict]:
+    """``record --sim --realtime --quick --axes y`` (and ``options``) into ``out``: its exit code
+    and its meta.yaml."""
+    code = main(["record", "--sim", "--realtime", "--quick", "--axes", "y", *options, "--out", str(out)])
+    return code, yaml.safe_load((out / "meta.yaml").read_text())
+
+
 def test_wall_clock_campaign_against_drives_in_their_own_process(tmp_path, capsys):
     """--realtime: the drives run in a child process on python-can's udp_multicast bus and the
     master streams at 500 Hz against the wall clock; the trace still decodes to the same CSV, and
     the run reports its timing as the log shows it -- degraded (exit 5) when a loaded machine
     made it miss its limits, never a silent ok."""
     out = tmp_path / "rt"
-
-    def wall_clock_record() -> tuple[int, dict]:
-        code = main(["record", "--sim", "--realtime", "--quick", "--axes", "y", "--out", str(out)])
-        return code, yaml.safe_load((out / "meta.yaml").read_text())
-
     # a run the machine itself stalled past the drive's watch (its own floor held up as long) runs again
-    code, meta = beside_the_floor(wall_clock_record, lambda run: meta_stall_ms(run[1]))
+    code, meta = beside_the_floor(lambda: wall_clock_record(out), lambda run: meta_stall_ms(run[1]))
     captured = capsys.readouterr()
     names, data = read_csv(out / "log.csv")
     counts, timing = meta["counts"], meta["timing"]
@@ -260,15 +262,11 @@ def test_a_run_past_its_timing_limits_is_degraded_with_exit_5(tmp_path, capsys):
     )
     assert "tpdo_miss_limit: 100" in cfg.read_text()
     out = tmp_path / "rt"
-
-    def wall_clock_record() -> tuple[int, dict]:
-        args = ["record", "--sim", "--realtime", "--quick", "--axes", "y", "--config", str(cfg)]
-        code = main([*args, "--out", str(out)])
-        return code, yaml.safe_load((out / "meta.yaml").read_text())
-
     # a run the machine itself stalled past the drive's setpoint watch (its own floor held up as
     # long in the same attempt) runs again; a stall the floor does not show is ours and fails here
-    code, meta = beside_the_floor(wall_clock_record, lambda run: meta_stall_ms(run[1]))
+    code, meta = beside_the_floor(
+        lambda: wall_clock_record(out, "--config", str(cfg)), lambda run: meta_stall_ms(run[1])
+    )
     assert code == 5, meta.get("abort")
     timing = meta["timing"]
     assert (

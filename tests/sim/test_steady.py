@@ -5,11 +5,9 @@ byte with it and without it, and it runs for most of a campaign's SYNCs."""
 from __future__ import annotations
 
 import struct
-from dataclasses import replace
 
 import pytest
 
-from drive_bridge.config import load_bus_config
 from drive_bridge.recorder import record
 from drive_bridge.sim import kernel
 from drive_bridge.sim.steady import SteadyStream
@@ -42,19 +40,18 @@ def _mode_of_y_changed(bench, k):
         bench.net.send_message(0x202, struct.pack("<Hb", 0x000F, 1))
 
 
-#: the RPDO as ros2_canopen's users map it: the modes of operation sent with the controlword every period
-MODE_IN_RPDO = """  rpdo:
-    1:
-      transmission: 1
-      mapping:
-        - {index: 0x6040, sub_index: 0}
+#: the shipped bus.yml's RPDO, and as ros2_canopen's users map it: the modes of operation sent with the
+#: controlword every period
+SHIPPED_RPDO = """        - {index: 0x6040, sub_index: 0}   # controlword
+        - {index: 0x607A, sub_index: 0}   # target position
+"""
+MODE_IN_RPDO = """        - {index: 0x6040, sub_index: 0}
         - {index: 0x6060, sub_index: 0}
     2:
       transmission: 1
       mapping:
         - {index: 0x607A, sub_index: 0}
-        - {index: 0x60B2, sub_index: 0}
-  tpdo:"""
+"""
 
 
 def recording(tmp_path, monkeypatch, compiled: bool, hook=None, config=None) -> tuple[bytes, bytes, int]:
@@ -98,12 +95,11 @@ def test_a_master_that_sends_the_mode_every_period_streams_on_the_compiled_path(
     do, is streamed to on the compiled path (it once ran every SYNC in Python: a campaign took
     twice as long), with the same frames as the Python drive's -- and where the mode the RPDO
     brings is not the drive's, the Python drive takes the SYNC."""
-    text = bus_yml_beside(tmp_path).read_text()
-    start, end = text.index("  rpdo:\n"), text.index("  tpdo:")
-    (tmp_path / "bus.yml").write_text(text[:start] + MODE_IN_RPDO + text[end + len("  tpdo:") :])
-    cfg = load_bus_config(tmp_path / "bus.yml")
-    assert cfg.nodes["y"].rpdo[0].mapping == ((0x6040, 0), (0x6060, 0))
-    cfg = replace(cfg, campaign=replace(cfg.campaign.quick(), together=True))
+    cfg = quick_config(bus_yml_beside(tmp_path, SHIPPED_RPDO, MODE_IN_RPDO), together=True)
+    assert [r.mapping for r in cfg.nodes["y"].rpdo] == [
+        ((0x6040, 0), (0x6060, 0)),
+        ((0x607A, 0), (0x60B2, 0)),
+    ]
     trace, log, ran = recording(tmp_path, monkeypatch, True, hook, cfg)
     trace_py, log_py, ran_py = recording(tmp_path, monkeypatch, False, hook, cfg)
     assert ran_py == 0 and ran > 250
