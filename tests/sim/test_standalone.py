@@ -35,6 +35,12 @@ def test_a_master_killed_mid_campaign_leaves_every_drive_stopped_by_its_heartbea
                 0x80 + node_id,
                 lambda cob, data, ts: emcy.append((cob & 0x7F, data[0] | data[1] << 8, time.time())),
             )
+        # X's velocity actual as its TPDO 2 carries it, listened to: an SDO request from here would
+        # share node 1's one SDO channel with the master's own requests while it runs
+        velocity = [0]
+        monitor.subscribe(
+            0x281, lambda cob, data, ts: velocity.append(int.from_bytes(data[:4], "little", signed=True))
+        )
         master = subprocess.Popen(
             [
                 sys.executable,
@@ -57,12 +63,12 @@ def test_a_master_killed_mid_campaign_leaves_every_drive_stopped_by_its_heartbea
         )
         wait_for(master.stderr, "campaign:", 120)
         node = monitor.add_node(1, None)  # SDO only: no object dictionary needed
-        # X on its way to the campaign's start (6 s): read until it moves (a loaded machine's master
+        # X on its way to the campaign's start (6 s): wait until it moves (a loaded machine's master
         # got there later than the 1.5 s this waited once) ...
-        moving, patience = 0, time.time() + 30
-        while moving <= 0.5 * 166886 and time.time() < patience and master.poll() is None:
-            time.sleep(0.05)
-            moving = abs(int.from_bytes(node.sdo.upload(0x606C, 0), "little", signed=True))
+        patience = time.time() + 30
+        while abs(velocity[-1]) <= 0.5 * 166886 and time.time() < patience and master.poll() is None:
+            time.sleep(0.01)
+        moving = abs(velocity[-1])
         if master.poll() is not None:  # it stopped on its own before X moved
             with contextlib.suppress(ProcessLookupError):  # what is left of its session (its stderr ends)
                 os.killpg(master.pid, signal.SIGKILL)
