@@ -877,7 +877,7 @@ def _identify_axis(
             return None
         moves += 1
         candidate = aligned(total)
-        refit = AxisModel(model.effects, seed=seed, condition=False).fit(candidate[2])
+        refit = AxisModel(model.effects, seed=seed, condition_number=False).fit(candidate[2])
         if errors(refit, candidate[3]).rmse > (1 - MIN_GAIN) * errors(model, val).rmse:
             timing["torque_delay_note"] = (
                 f"aligning the positions with it did not lower the validation "

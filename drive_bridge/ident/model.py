@@ -69,7 +69,7 @@ class AxisModel:
         With more than 0, the fit's covariance is widened to the delete-one-block jackknife over
         that many stretches of the log in time where that is larger (:data:`JACKKNIFE_BEYOND`); 0:
         the least-squares (HAC) covariance.
-    condition : bool
+    condition_number : bool
         Compute ``cond_`` (a singular value decomposition of the regressor matrix: a fifth of a
         fit's time); False where nobody reads it (the tracing's candidates, the jackknife's parts).
 
@@ -83,7 +83,7 @@ class AxisModel:
     sigma_ : float
         The residual's std [Nm | N].
     cond_ : float or None
-        The condition number of the regressor matrix (None: made with ``condition=False``).
+        The condition number of the regressor matrix (None: made with ``condition_number=False``).
     sse_ : float
         The sum of squared residuals [Nm² | N²].
     relative_error_ : float
@@ -98,7 +98,7 @@ class AxisModel:
         method: str = "lse",
         seed: int = 0,
         jackknife_blocks: int = 0,
-        condition: bool = True,
+        condition_number: bool = True,
     ):
         if method not in self.METHODS:
             raise ValueError(f"method must be one of {self.METHODS}, got {method!r}")
@@ -106,7 +106,7 @@ class AxisModel:
         self.method = method
         self.seed = seed
         self.jackknife_blocks = jackknife_blocks
-        self.condition = condition
+        self.condition_number = condition_number
 
     def with_effect(self, effect: Effect) -> AxisModel:
         """The same model, unfitted, with one more effect.
@@ -122,7 +122,7 @@ class AxisModel:
             A new, unfitted model with the same settings.
         """
         return AxisModel(
-            self.effects + [effect], self.method, self.seed, self.jackknife_blocks, self.condition
+            self.effects + [effect], self.method, self.seed, self.jackknife_blocks, self.condition_number
         )
 
     def design(self, s: Samples, logged: bool = False) -> np.ndarray:
@@ -178,7 +178,7 @@ class AxisModel:
         self.sigma_ = float(np.sqrt(float(resid @ resid) / max(1, n - p)))  # residual std
         gram_inv = np.linalg.pinv(scaled.T @ scaled) / np.outer(scale, scale)
         self.cov_ = hac_covariance(phi, resid, gram_inv, n - p)
-        self.cond_ = float(np.linalg.cond(phi)) if self.condition else None
+        self.cond_ = float(np.linalg.cond(phi)) if self.condition_number else None
         self.converged_ = True  # "ga": whether the search converged before its generation limit
         if self.method == "ga":
             result = _differential_evolution(phi, y, coef, self.cov_, self.seed)
@@ -205,7 +205,7 @@ class AxisModel:
         for b in range(blocks):
             part = s.take(order != b)
             if part.moving.sum() > 3 * len(self.coef_):
-                coefs.append(AxisModel(self.effects, seed=self.seed, condition=False).fit(part).coef_)
+                coefs.append(AxisModel(self.effects, seed=self.seed, condition_number=False).fit(part).coef_)
         if len(coefs) < 3:
             return
         c = np.array(coefs)

@@ -353,7 +353,7 @@ def _realigned(
     new = realign(model) if realign else None
     if new is None:
         return est, val, model
-    return new[0], new[1], AxisModel(model.effects, seed=model.seed, condition=False).fit(new[0])
+    return new[0], new[1], AxisModel(model.effects, seed=model.seed, condition_number=False).fit(new[0])
 
 
 def physical(model: AxisModel) -> bool:

@@ -11,13 +11,13 @@ from .test_effects import samples
 
 
 def test_a_fit_without_its_condition_number_is_the_same_fit():
-    """``condition=False`` (the tracing's candidates) leaves out only ``cond_``: every other fitted
+    """``condition_number=False`` (the tracing's candidates) leaves out only ``cond_``: every other fitted
     value is the same number; with it, ``cond_`` is the condition number of the moving samples'
     regressor matrix."""
     s = samples(seed=3)
     effects = [Offset(), PositionLinear()]
     full = AxisModel(effects, seed=1).fit(s)
-    bare = AxisModel(effects, seed=1, condition=False).fit(s)
+    bare = AxisModel(effects, seed=1, condition_number=False).fit(s)
     assert bare.cond_ is None
     assert full.cond_ == np.linalg.cond(full.design(s)[s.moving])
     fitted = {k: v for k, v in vars(full).items() if k.endswith("_") and k != "cond_"}
