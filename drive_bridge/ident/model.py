@@ -523,11 +523,11 @@ def extend(model: AxisModel, effect: Effect, s: Samples) -> AxisModel:
     Returns
     -------
     AxisModel
-        A new model, fitted (a candidate: without ``cond_``).
+        A new model with ``model``'s settings, fitted.
     """
     rows = np.flatnonzero(s.moving)
     effect.fit(s.take(rows), model.design(s).take(rows, axis=0), s.tau_f[rows], seed=model.seed)
-    return AxisModel(model.effects + [effect], model.method, model.seed, model.jackknife_blocks, False).fit(s)
+    return model.with_effect(effect).fit(s)
 
 
 def _differential_evolution(

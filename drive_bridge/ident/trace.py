@@ -223,11 +223,12 @@ def trace(
     base : AxisModel
         The rigid model, fitted on the final samples.
     model : AxisModel
-        The final model.
+        The final model (made without its condition number, as every model the tracing fits).
     traced : list of TracedEffect
         The effects added, in order.
     """
-    model, traced = AxisModel(seed=seed).fit(est), []
+    # (the tracing's models go without the condition number: nobody reads it of them)
+    model, traced = AxisModel(seed=seed, condition_number=False).fit(est), []
     est, val, model = _realigned(realign, model, est, val)
     err = errors(model, val)
     for _ in range(MAX_EFFECTS):
@@ -305,7 +306,7 @@ def trace(
     while traced and not physical(model):  # effects that bought their fit with a negative friction go
         log.info("effect %s removed: the model with it is not physical", traced[-1].effect.name)
         traced.pop()  # again, last first (a base model stays as it is)
-        model = AxisModel([t.effect for t in traced], seed=seed).fit(est)
+        model = AxisModel([t.effect for t in traced], seed=seed, condition_number=False).fit(est)
     for t in traced:  # every effect's parameters as the final joint fit has them
         t.params = model.effect_params(t.effect)
         t.evidence = _evidence(t)
@@ -353,7 +354,11 @@ def _realigned(
     new = realign(model) if realign else None
     if new is None:
         return est, val, model
-    return new[0], new[1], AxisModel(model.effects, seed=model.seed, condition_number=False).fit(new[0])
+    return (
+        new[0],
+        new[1],
+        AxisModel(model.effects, seed=model.seed, condition_number=model.condition_number).fit(new[0]),
+    )
 
 
 def physical(model: AxisModel) -> bool:

@@ -28,10 +28,12 @@ def test_a_fit_without_its_condition_number_is_the_same_fit():
 
 def test_an_extended_model_is_fitted_as_the_model_with_the_effect():
     """:func:`extend` learns nothing here (an effect without nonlinear parameters): its model is the
-    one made with the effect from the start, fitted alike, without the condition number."""
+    one made with the effect from the start, with the model's settings, fitted alike."""
     s = samples(seed=4)
-    base = AxisModel([Offset()], seed=2).fit(s)
-    grown = extend(base, PositionLinear(), s)
-    direct = AxisModel([Offset(), PositionLinear()], seed=2).fit(s)
-    assert grown.cond_ is None and [e.name for e in grown.effects] == ["offset", "position_linear"]
-    assert np.array_equal(grown.coef_, direct.coef_) and np.array_equal(grown.cov_, direct.cov_)
+    for condition_number in (True, False):
+        base = AxisModel([Offset()], seed=2, condition_number=condition_number).fit(s)
+        grown = extend(base, PositionLinear(), s)
+        direct = AxisModel([Offset(), PositionLinear()], seed=2, condition_number=condition_number).fit(s)
+        assert [e.name for e in grown.effects] == ["offset", "position_linear"]
+        assert grown.cond_ == direct.cond_ and (grown.cond_ is None) is not condition_number
+        assert np.array_equal(grown.coef_, direct.coef_) and np.array_equal(grown.cov_, direct.cov_)

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import contextlib
 import math
-import os
 import subprocess
 import sys
 import threading
@@ -22,7 +21,7 @@ from drive_bridge.cia.multicast import UDP_GROUP
 from drive_bridge.cia.p301 import ERR_PARAMETER, MASTER_LOSS
 from drive_bridge.cli import main
 from drive_bridge.master.campaign import trapezoid
-from drive_bridge.master.timing import RT_PRIORITY
+from drive_bridge.master.timing import raise_priority
 from drive_bridge.resources import PROJECT_EDS
 from harness.machine_floor import beside_the_floor
 from harness.support import start_sim
@@ -413,12 +412,9 @@ def test_homing_on_the_limit_switch_says_attained_and_reached_as_cia_402_tables_
         assert completed > attained and abs(position[-1]) < 0.01 * PER_REV
 
 
-def _real_time() -> None:
-    """In a child before it runs: SCHED_FIFO at the streaming threads' priority where granted (a
-    player at a normal priority is late by periods beside CPU-bound work, and a drive faults on that
-    as it should); at a normal priority where not."""
-    with contextlib.suppress(OSError):
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(RT_PRIORITY))
+def _emcy_code(frame: can.Message) -> int:
+    """The error code of an EMCY frame (0: an error reset)."""
+    return int.from_bytes(frame.data[:2], "little")
 
 
 def _is_masters(cob_id: int) -> bool:
@@ -469,7 +465,7 @@ def test_a_lockstep_trace_replayed_by_can_player_reaches_the_drives_frame_for_fr
                 player = [sys.executable, "-m", "can.player", "-i", "udp_multicast", "-c", UDP_GROUP]
                 bus_kwargs = ["--bus-kwargs", f"port={port}", "--gap", "0"]  # (an option ends the list)
                 subprocess.run(
-                    [*player, *bus_kwargs, str(replay)], check=True, timeout=120, preexec_fn=_real_time
+                    [*player, *bus_kwargs, str(replay)], check=True, timeout=120, preexec_fn=raise_priority
                 )
                 time.sleep(0.2)
                 notifier.stop()
@@ -484,9 +480,7 @@ def test_a_lockstep_trace_replayed_by_can_player_reaches_the_drives_frame_for_fr
         lost = [
             m
             for m in heard
-            if 0x81 <= m.arbitration_id <= 0xFF
-            and int.from_bytes(m.data[:2], "little") in MASTER_LOSS
-            and m.timestamp <= until
+            if 0x81 <= m.arbitration_id <= 0xFF and _emcy_code(m) in MASTER_LOSS and m.timestamp <= until
         ]
         gaps = np.diff([m.timestamp for m in heard if m.arbitration_id == 0x080])
         return 1e3 * float(gaps.max()) if lost else None
@@ -503,9 +497,9 @@ def test_a_lockstep_trace_replayed_by_can_player_reaches_the_drives_frame_for_fr
     assert count(heard, 0x080) == count(frames, 0x080)  # the whole replay went out
     for cob_id in (0x581, 0x582, 0x583, 0x183, 0x283):
         assert count(drives, cob_id) == count(frames, cob_id), hex(cob_id)
-    emcy = [m for m in drives if 0x81 <= m.arbitration_id <= 0xFF and any(m.data[:2])]
+    emcy = [m for m in drives if 0x81 <= m.arbitration_id <= 0xFF and _emcy_code(m)]
     assert not [m for m in emcy if m.timestamp <= replayed_until], (  # none while the master's frames came
-        f"EMCY {[hex(int.from_bytes(m.data[:2], 'little')) for m in emcy]} while the replay lasted, its "
+        f"EMCY {[hex(_emcy_code(m)) for m in emcy]} while the replay lasted, its "
         f"SYNCs up to {1e3 * syncs.max():.1f} ms apart (a master-loss code: longer than the machine's "
         f"floor was held up beside it)"
     )
