@@ -11,7 +11,9 @@ pyproject.toml bounds python-can above by the version that test passed on.
 
 from __future__ import annotations
 
+import platform
 import socket
+import sys
 from typing import Any
 
 import can
@@ -22,6 +24,14 @@ from can.interfaces.udp_multicast.utils import unpack_message
 UDP_GROUP, UDP_PORT = "239.74.163.2", 43113
 #: the name python-can knows this bus by (pyproject.toml's entry point)
 INTERFACE = "udp_multicast_noecho"
+#: Linux's SO_RCVBUFFORCE (a receive buffer beyond net.core.rmem_max, with CAP_NET_ADMIN), which
+#: Python's socket module does not name: 33 in asm-generic/socket.h (x86, ARM, RISC-V, MIPS,
+#: POWER); sparc, parisc and alpha number it otherwise and go without
+RECEIVE_BUFFER_FORCE = getattr(socket, "SO_RCVBUFFORCE", None) or (
+    33
+    if sys.platform == "linux" and not platform.machine().startswith(("sparc", "parisc", "alpha"))
+    else None
+)
 
 
 class LoopbackMulticastBus(UdpMulticastBus):
@@ -38,8 +48,9 @@ class LoopbackMulticastBus(UdpMulticastBus):
     reads the simulated drives' frames by, since a simulated drive stamps each reply with the time
     its hardware would have sent it, whenever its process got round to it.
 
-    The receive buffer is raised (to ``RECEIVE_BUFFER`` bytes where the OS allows): the default
-    holds a few hundred frames, a few tens of ms of a 3-axis stream.
+    The receive buffer is raised (to ``receive_buffer`` bytes where the OS allows): the default
+    holds a few hundred frames, a few tens of ms of a 3-axis stream; ``RECEIVE_BUFFER`` holds about
+    10 000 (a frame takes some 830 bytes of it on Linux).
 
     Parameters
     ----------
@@ -49,6 +60,10 @@ class LoopbackMulticastBus(UdpMulticastBus):
         The UDP port.
     stamps : {"sender", "kernel"}
         Which time stamp a received frame carries (above).
+    receive_buffer : int
+        The socket's receive buffer [bytes]: a listener that may be held up for longer than
+        ``RECEIVE_BUFFER`` lasts (one recording a whole stream at normal priority beside drives
+        and a master first in line for the CPU) asks for more.
     **kwargs : object
         python-can's ``UdpMulticastBus`` arguments.
 
@@ -60,18 +75,25 @@ class LoopbackMulticastBus(UdpMulticastBus):
 
     RECEIVE_BUFFER = 4 << 20
 
-    def __init__(self, channel: str = UDP_GROUP, port: int = UDP_PORT, stamps: str = "sender", **kwargs: Any):
+    def __init__(
+        self,
+        channel: str = UDP_GROUP,
+        port: int = UDP_PORT,
+        stamps: str = "sender",
+        receive_buffer: int = RECEIVE_BUFFER,
+        **kwargs: Any,
+    ):
         if stamps not in ("sender", "kernel"):
             raise ValueError(f"stamps must be 'sender' or 'kernel', not {stamps!r}")
         super().__init__(channel, port, **kwargs)
         self._sent_ids: set[int] = set()
         self._kernel_stamps = stamps == "kernel"
         sock = self._multicast._socket
-        for option in (getattr(socket, "SO_RCVBUFFORCE", None), socket.SO_RCVBUF):
+        for option in (RECEIVE_BUFFER_FORCE, socket.SO_RCVBUF):
             if option is None:
                 continue
             try:
-                sock.setsockopt(socket.SOL_SOCKET, option, self.RECEIVE_BUFFER)
+                sock.setsockopt(socket.SOL_SOCKET, option, receive_buffer)
                 break
             except OSError:
                 continue

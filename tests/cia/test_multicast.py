@@ -4,6 +4,7 @@ opens the echo-free bus by its registered name."""
 
 from __future__ import annotations
 
+import socket
 import time
 
 import can
@@ -47,3 +48,25 @@ def test_python_can_opens_the_echo_free_bus_by_its_name_as_bus_yml_names_udp_mul
     finally:
         named.shutdown()
         configured.shutdown()
+
+
+def test_a_listener_asks_for_a_receive_buffer_that_holds_a_whole_stream_it_falls_behind_on():
+    """20 000 frames sent while the listener reads none (a listener held up for seconds beside a
+    master and drives first in line for the CPU): every one is there when it reads them, with the
+    buffer it asked for (the default holds about half as many)."""
+    port = free_port()
+    listener = LoopbackMulticastBus(GROUP, port, receive_buffer=32 << 20)
+    sender = LoopbackMulticastBus(GROUP, port)
+    try:
+        granted = listener._multicast._socket.getsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF)
+        if granted < 32 << 20:
+            pytest.skip(f"the OS granted {granted} bytes (SO_RCVBUFFORCE needs CAP_NET_ADMIN)")
+        for index in range(20_000):
+            sender.send(frame(0x080, index.to_bytes(2, "little"), float(index)))
+        held = []
+        while (msg := listener.recv(timeout=0.5)) is not None:
+            held.append(int.from_bytes(msg.data, "little"))
+        assert held == list(range(20_000))
+    finally:
+        listener.shutdown()
+        sender.shutdown()

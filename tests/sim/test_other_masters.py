@@ -444,10 +444,10 @@ def test_a_lockstep_trace_replayed_by_can_player_reaches_the_drives_frame_for_fr
         if request.arbitration_id == 0x603 and answer.arbitration_id == 0x583:
             assert answer.timestamp - request.timestamp >= 0.0004
     replay = tmp_path / "replay.blf"
+    masters = [frame for frame in frames if _is_masters(frame.arbitration_id)]
     with can.Logger(str(replay)) as writer:
-        for frame in frames:
-            if _is_masters(frame.arbitration_id):
-                writer.on_message_received(frame)
+        for frame in masters:
+            writer.on_message_received(frame)
 
     def replayed() -> list[can.Message]:
         """The frames a fresh ``drive-bridge sim`` heard while ``can.player`` replayed the master's,
@@ -455,11 +455,17 @@ def test_a_lockstep_trace_replayed_by_can_player_reaches_the_drives_frame_for_fr
         process, _, port = start_sim(tmp_path)
         heard: list[can.Message] = []
         try:
-            # (python-can's udp_multicast_noecho: this project's, its receive buffer raised for the
-            # stream; every frame stamped when it reached this socket, the master's and the drives' on
-            # one clock)
+            # (python-can's udp_multicast_noecho: this project's; every frame stamped when it reached
+            # this socket, the master's and the drives' on one clock, so this listener may read them
+            # late: at normal priority beside the player and the drives, first in line for the CPU,
+            # it can be held up for seconds -- its receive buffer holds the whole replay, and it
+            # listens until it has read the last of it)
             with can.Bus(
-                interface="udp_multicast_noecho", channel=UDP_GROUP, port=port, stamps="kernel"
+                interface="udp_multicast_noecho",
+                channel=UDP_GROUP,
+                port=port,
+                stamps="kernel",
+                receive_buffer=64 << 20,
             ) as bus:
                 notifier = can.Notifier(bus, [heard.append])
                 player = [sys.executable, "-m", "can.player", "-i", "udp_multicast", "-c", UDP_GROUP]
@@ -467,7 +473,12 @@ def test_a_lockstep_trace_replayed_by_can_player_reaches_the_drives_frame_for_fr
                 subprocess.run(
                     [*player, *bus_kwargs, str(replay)], check=True, timeout=120, preexec_fn=raise_priority
                 )
-                time.sleep(0.2)
+                deadline = time.monotonic() + 60
+                while sum(_is_masters(m.arbitration_id) for m in list(heard)) < len(masters):
+                    if time.monotonic() > deadline:
+                        break  # (what did not come is counted below)
+                    time.sleep(0.1)
+                time.sleep(0.2)  # the drives' answers to the last
                 notifier.stop()
         finally:
             process.terminate()
