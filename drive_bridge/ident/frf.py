@@ -261,7 +261,7 @@ def log_response(
         Per band its frequency, magnitude, phase and coherence, the rigid model's magnitude, and
         ``method``; None for a log without a stretch long enough.
     """
-    from scipy import signal
+    from .spectra import csd, welch  # (scipy.signal: imported where it is used)
 
     dt = float(np.median(np.diff(t)))
     fs = 1.0 / dt
@@ -278,17 +278,17 @@ def log_response(
         if b - a < nper:
             continue
         sl = slice(a, b)
-        f, pxx = signal.welch(x[sl], fs, nperseg=nper)
+        f, pxx = welch(x[sl], fs, nper)
         sums += (
             (b - a)
             / nper
             * np.array(
                 [
                     pxx,
-                    signal.welch(qd[sl], fs, nperseg=nper)[1],
-                    signal.welch(tau[sl], fs, nperseg=nper)[1],
-                    signal.csd(x[sl], qd[sl], fs, nperseg=nper)[1],
-                    signal.csd(x[sl], tau[sl], fs, nperseg=nper)[1],
+                    welch(qd[sl], fs, nper)[1],
+                    welch(tau[sl], fs, nper)[1],
+                    csd(x[sl], qd[sl], fs, nper)[1],
+                    csd(x[sl], tau[sl], fs, nper)[1],
                 ]
             )
         )

@@ -20,9 +20,9 @@ pickup (``mains: true``), not as a mode.  SI: Hz.
 from __future__ import annotations
 
 import numpy as np
-from scipy import signal
 
 from .signals import WIDE_BAND, Samples, Settings
+from .spectra import welch
 
 ABOVE_MOTION = 5.0  # a mode lies above this many motion bandwidths (below: the pace of the moves)
 PROMINENCE = 8.0  # its peak stands this many times above the residual's median level around it
@@ -103,4 +103,4 @@ def _segment(fs: float, n: int) -> int:
 
 
 def _welch(r: np.ndarray, fs: float, nper: int) -> tuple[np.ndarray, np.ndarray]:
-    return signal.welch(r - r.mean(), fs=fs, nperseg=nper)
+    return welch(r - r.mean(), fs, nper)

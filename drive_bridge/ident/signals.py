@@ -25,6 +25,7 @@ from scipy import signal
 
 from ..errors import UserError
 from .logdata import Log
+from .spectra import welch
 
 logger = logging.getLogger(__name__)
 
@@ -620,7 +621,7 @@ def motion_bandwidth(log: Log, axis: str) -> float:
     a, b = max(ax.segments, key=lambda s: int(np.count_nonzero(np.diff(ax.q[s[0] : s[1]]))))
     fs = 1.0 / log.dt
     v = np.gradient(ax.q[a:b], log.dt)
-    f, pxx = signal.welch(v - v.mean(), fs=fs, nperseg=min(len(v), 4096))
+    f, pxx = welch(v - v.mean(), fs, min(len(v), 4096))
     cum = np.cumsum(pxx)
     if cum[-1] <= 0:
         raise UserError(f"{log.path}: axis {axis!r} does not move (its position is constant)")
@@ -657,7 +658,7 @@ def quantisation_cutoff(log: Log, axis: str, bw: float) -> float:
     if step is None:
         return np.inf
     fs = 1.0 / log.dt
-    f, pxx = signal.welch(np.gradient(ax.q[a:b], log.dt), fs=fs, nperseg=min(b - a, 4096))
+    f, pxx = welch(np.gradient(ax.q[a:b], log.dt), fs, min(b - a, 4096))
     band = f <= QUANTISATION_BAND * bw
     power = float(np.sum((2 * np.pi * f[band]) ** 2 * pxx[band]) * (f[1] - f[0]))
     noise = (2 * np.pi) ** 4 * step**2 / 12 / (5 * fs / 2)

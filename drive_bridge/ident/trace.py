@@ -44,13 +44,14 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import signal, stats
+from scipy import stats
 
 from .dependence import dependences
 from .effects import Effect, PositionPeriodic, Spline, candidates, shape_of
 from .identifiable import T_MIN
 from .model import AxisModel, Errors, errors, extend
 from .signals import Samples
+from .spectra import welch
 
 log = logging.getLogger(__name__)
 
@@ -421,7 +422,7 @@ def unexplained(model: AxisModel, s: Samples, rate_hz: float) -> list[dict]:
         )
     out += dependences(s, residual, UNEXPLAINED_SHARE, P_VALUE)
     if len(r) >= 256:
-        f, pxx = signal.welch(r - r.mean(), fs=rate_hz, nperseg=256)
+        f, pxx = welch(r - r.mean(), rate_hz, 256)
         peak = int(np.argmax(pxx[1:])) + 1
         band = float(pxx[max(1, peak - 1) : peak + 2].sum() / pxx[1:].sum())
         if band >= 0.25:
