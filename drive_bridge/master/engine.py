@@ -62,8 +62,10 @@ ENABLE_STEP = {
     "QUICK STOP ACTIVE": CW_ENABLE,
 }
 HEARTBEAT_OPERATIONAL = b"\x05"  # the master's heartbeat: NMT state operational
-#: rows after the first setpoint by which the drive must show statusword bit 12 (following / IP active)
-FOLLOW_GRACE_ROWS = 2
+#: SYNCs of the plan after its first by which the drive must show statusword bit 12 (following / IP
+#: active): SYNCs, not rows -- where the master woke late at the plan's start, its first rows passed
+#: without one, and the drive was told nothing in them
+FOLLOW_GRACE_SYNCS = 2
 #: how often [s] the engine checks the drives' heartbeats, the bus's error frames and its stop request
 CHECK_EVERY_S = 0.05
 INT16 = (-(2**15), 2**15 - 1)
@@ -555,6 +557,7 @@ class Engine:
         self.bus_errors = 0
         self.evidence = -math.inf  # newest time stamp of a frame from the drives
         self.judged = 0  # rows before this are judged
+        self.judged_syncs = 0  # SYNCs of the plan among them
         self.row = -1  # plan row of the last SYNC (-1: none yet)
         self.pending = [0] * n_axes  # position the last RPDO carried, per axis
         self.outcome = Outcome(sync_source=port.sync_source)
@@ -721,6 +724,7 @@ class Engine:
             if evidence < t + sup.window_s:
                 break
             self.judged += 1
+            self.judged_syncs += 1
             for axis, ax in enumerate(job.axes):
                 if not all(got[r, s] for s in ax.slots):
                     silent = t - self.last_complete[axis]
@@ -737,7 +741,7 @@ class Engine:
                 sw = int(raw[r, ax.statusword])
                 if sw & SW_FAULT:
                     return ("fault", ax.name, f"drive reports {state_name(sw)} (statusword 0x{sw:04X})", None)
-                if r >= FOLLOW_GRACE_ROWS and not sw & SW_FOLLOWING:
+                if self.judged_syncs > FOLLOW_GRACE_SYNCS and not sw & SW_FOLLOWING:
                     what = (
                         "interpolation is not active"
                         if ax.interpolating
@@ -905,7 +909,8 @@ class Engine:
         self.last_sync = stamp
         self.syncs_seen += 1
         if row >= 0:
-            if row == 0:  # a drive's silence counts from the plan's first SYNC
+            if self.row < 0:  # a drive's silence counts from the plan's first SYNC (row 0, or a
+                # later one where the master woke late at the plan's start)
                 self.last_complete = [stamp] * len(job.axes)
             arrays.sync_time[row] = stamp
             arrays.demand[row] = self.pending

@@ -21,6 +21,7 @@ from drive_bridge.connect import open_link
 from drive_bridge.master.bringup import bring_up
 from drive_bridge.master.engine import (
     CONTROLWORD,
+    PHASE,
     ROWS_SENT,
     STREAMING,
     TABLE,
@@ -165,11 +166,13 @@ class _Drives:
         self.handlers = {}
 
 
-def _streaming_job(rows: int) -> tuple[Job, Arrays]:
-    """One axis streaming ``rows`` periods of a ramp (the job and its arrays)."""
+def _streaming_job(rows: int, interpolating: bool = False) -> tuple[Job, Arrays]:
+    """One axis streaming ``rows`` periods of a ramp (the job and its arrays), in cyclic synchronous
+    position or (``interpolating``) in interpolated position mode, its controlword's bit 4 set."""
     sup = Supervision(PERIOD, PERIOD, 0.02, 0.02, 0.3, 1.0, 2.0)
+    mode = {"enable_controlword": 0x1F, "interpolating": True, "csp": False} if interpolating else {}
     job = Job(
-        (AxisJob("y", 1, (0,), statusword=0, velocity=-1, position_column=0),),
+        (AxisJob("y", 1, (0,), statusword=0, velocity=-1, position_column=0, **mode),),
         (RpdoJob(0x201, "<Hl", ((CONTROLWORD, 0), (TABLE, 0)), 0),),
         (TpdoJob(0x181, "<Hhl", 0, 0, 0),),
         rows,
@@ -216,6 +219,67 @@ def test_no_two_syncs_closer_than_half_a_period_whenever_the_master_wakes(late):
     assert outcome.late_cycles == (late > 0.5)
     # every period of the plan a sample or a counted miss
     assert np.count_nonzero(np.isnan(arrays.sync_time)) == outcome.periods_skipped
+
+
+class _ActuatedAtSync(_Drives):
+    """:class:`_Drives` whose drive takes its synchronous RPDO at the next SYNC, as CiA 301 has it,
+    answering that SYNC with the statusword it had before (bit 12, interpolation active, set from
+    the SYNC after the one that brought the controlword's bit 4), whose master wakes ``late``
+    periods late at its first wait of the plan."""
+
+    def __init__(self, arrays: Arrays, late: float):
+        super().__init__()
+        self.arrays, self.late, self.held = arrays, late, False
+        self.received = self.actuated = 0x0F
+
+    def wait_until(self, deadline):
+        if not self.held and self.arrays.control[PHASE] == STREAMING:
+            self.held = True
+            deadline += self.late * PERIOD
+        super().wait_until(deadline)
+
+    def send(self, cob_id, data, stamp):
+        if cob_id == 0x201:
+            self.received = int.from_bytes(data[:2], "little")
+        elif cob_id == SYNC_COB_ID:
+            following = 0x1000 if self.actuated & 0x10 else 0
+            self.reply = (0x0237 | following).to_bytes(2, "little") + bytes(6)
+            self.actuated = self.received
+            super().send(cob_id, data, stamp)
+
+
+@pytest.mark.parametrize("late", [0.0, 3.5])
+def test_a_drive_has_its_grace_to_follow_from_the_plans_first_sync_however_late_it_came(late):
+    """A drive that shows bit 12 (interpolation active) at the second SYNC after the controlword's bit
+    4 is not stopped, also where the master woke 3.5 periods late at the plan's start: the plan's
+    first rows passed without a SYNC, and its grace counts SYNCs, not rows (before: the first SYNC
+    the drive saw was row 3, already past the two rows' grace -- "interpolation is not active",
+    the failure a CI run met with durand's slave)."""
+    job, arrays = _streaming_job(200, interpolating=True)
+    outcome = Engine(job, arrays, _ActuatedAtSync(arrays, late)).run()
+    assert outcome.abort is None and outcome.rows_sent == job.rows
+    assert outcome.periods_skipped == (3 if late else 0)
+
+
+class _SilentOnceStreaming(_ActuatedAtSync):
+    """:class:`_ActuatedAtSync` whose drive beats but sends no TPDO once the plan has begun."""
+
+    def send(self, cob_id, data, stamp):
+        if cob_id == SYNC_COB_ID and self.arrays.control[PHASE] == STREAMING:
+            self.handlers[0x701](b"\x05", stamp + 1e-4)
+        else:
+            super().send(cob_id, data, stamp)
+
+
+@pytest.mark.parametrize("late", [0.0, 3.5])
+def test_a_drive_silent_from_the_plans_first_sync_is_caught_however_late_it_came(late):
+    """A drive whose feedback stops as the plan begins stops the run once it has been silent for the
+    feedback limit, counted from the plan's first SYNC -- also where that SYNC was row 3 (before:
+    from row 0's, which never came, so the silence was never counted)."""
+    job, arrays = _streaming_job(200, interpolating=True)
+    outcome = Engine(job, arrays, _SilentOnceStreaming(arrays, late)).run()
+    assert outcome.abort is not None and outcome.abort[:2] == ("silent", "y"), outcome.abort
+    assert outcome.rows_sent < 0.2 * job.rows
 
 
 def test_the_cyclic_path_does_not_grow_while_it_streams():
