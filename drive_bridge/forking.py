@@ -14,7 +14,6 @@ processes) and for a small job, the work is done here, one part after the other.
 
 from __future__ import annotations
 
-import ctypes
 import multiprocessing
 import os
 import threading
@@ -22,15 +21,8 @@ from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from typing import Any
 
+from .blas import set_one_thread, thread_counts
 from .errors import UserError
-
-#: the functions that set OpenBLAS's thread count, as numpy's and scipy's wheels name them
-BLAS_THREADS = (
-    "scipy_openblas_set_num_threads64_",
-    "scipy_openblas_set_num_threads",
-    "openblas_set_num_threads64_",
-    "openblas_set_num_threads",
-)
 
 _shared: Any = None  # what the forked processes of fork_map find where it is
 
@@ -58,7 +50,7 @@ def processes() -> int:
         cap < 2
         or multiprocessing.current_process().daemon
         or threading.active_count() > 1
-        or not _blas_setters()
+        or not thread_counts()
     ):
         return 1
     return cap
@@ -93,34 +85,11 @@ def fork_map(
     _shared = shared
     try:
         with ProcessPoolExecutor(
-            count, mp_context=multiprocessing.get_context("fork"), initializer=_one_blas_thread
+            count, mp_context=multiprocessing.get_context("fork"), initializer=set_one_thread
         ) as pool:
             return list(pool.map(_call, [(func, item) for item in items]))
     finally:
         _shared = None
-
-
-def _blas_setters() -> list[Callable[[int], None]]:
-    """The thread-count setters of every OpenBLAS this process has loaded (numpy's and scipy's);
-    none where one of them has no setter known here."""
-    try:
-        with open("/proc/self/maps", encoding="utf-8", errors="replace") as f:  # Linux
-            paths = sorted({line.split()[-1] for line in f if "openblas" in line.lower() and "/" in line})
-    except OSError:
-        return []
-    setters = []
-    for path in paths:
-        lib = ctypes.CDLL(path)
-        found = [getattr(lib, name) for name in BLAS_THREADS if hasattr(lib, name)]
-        if not found:
-            return []
-        setters.append(found[0])
-    return setters
-
-
-def _one_blas_thread() -> None:
-    for setter in _blas_setters():
-        setter(1)
 
 
 def _call(task: tuple[Callable[[Any, Any], Any], Any]) -> Any:

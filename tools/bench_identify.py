@@ -210,14 +210,19 @@ def full_log(directory: Path) -> Path:
     )
 
 
+# (a result's reported std and genetic fit as the code since issue 45 names them, and as the code
+# before it did: the model's own std, ``ga_coef``; so that --against reaches back to that code)
 TIMED = """import json, sys, time
 from drive_bridge.ident import identify
 t0 = time.perf_counter()
 results = identify(sys.argv[1], seed=0)
-print(json.dumps({"wall": time.perf_counter() - t0,
+wall = time.perf_counter() - t0
+std = {a: getattr(r, "param_std", None) or r.model.param_std_ for a, r in results.items()}
+ga = {a: r.ga.coef if hasattr(r, "ga") else r.ga_coef for a, r in results.items()}
+print(json.dumps({"wall": wall,
                   "params": {a: {k: r.model.params_[k] for k in ("J", "c0", "c1")} for a, r in results.items()},
-                  "std": {a: {k: r.param_std[k] for k in ("J", "c0", "c1")} for a, r in results.items()},
-                  "ga": {a: {k: float(c) for k, c in zip(r.model.coef_names, r.ga.coef) if k in ("J", "c0", "c1")}
+                  "std": {a: {k: std[a][k] for k in ("J", "c0", "c1")} for a in results},
+                  "ga": {a: {k: float(c) for k, c in zip(r.model.coef_names, ga[a]) if k in ("J", "c0", "c1")}
                          for a, r in results.items()},
                   "effects": {a: [t.effect.name for t in r.effects] for a, r in results.items()}}))
 """

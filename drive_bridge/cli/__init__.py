@@ -15,6 +15,7 @@ import sys
 import warnings
 
 from .. import interrupts
+from ..blas import one_thread
 from ..errors import EXIT_CODES, DriveBridgeError, MotionAborted, exit_code, exit_codes_text
 from ..version import __version__
 from . import bus, commission, history, identification, monitor, tuning
@@ -124,7 +125,8 @@ def _run(argv: list[str] | None) -> int:
         warnings.simplefilter("ignore")  # library warnings are not for the person at the machine
     handler = log_to_stderr(args.verbose, args.quiet)
     try:
-        return _command(args)
+        with one_thread():  # OpenBLAS's own threads would spin between its calls (drive_bridge.blas)
+            return _command(args)
     finally:  # main() may run again in this process (tests, the API)
         for name in ("drive_bridge", *LIBRARY_LOGGERS):
             logging.getLogger(name).removeHandler(handler)

@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from ..blas import one_thread
 from ..errors import UserError
 from ..forking import fork_map, processes
 from .coverage import what_the_motion_tells
@@ -980,6 +981,8 @@ def identify(
     algorithm on filtered, decimated samples; the residual is traced to effects the model
     lacks (each kept only where it improves the validation error); what the data cannot
     determine is said, not printed with a small std.
+    OpenBLAS computes with one thread meanwhile, its count restored after
+    (:func:`drive_bridge.blas.one_thread`).
 
     Parameters
     ----------
@@ -1014,42 +1017,44 @@ def identify(
     UserError
         A log that cannot be read or has no such axis, or settings out of range.
     """
-    log = read_log(path)
-    val_log = read_log(validate) if validate else None
-    if torque_sign not in (1.0, -1.0):
-        raise UserError(f"--torque-sign must be 1 or -1, got {torque_sign:g}")
-    for lg in (log, val_log) if val_log is not None else (log,):
-        for ax in lg.axes.values():
-            ax.tau = torque_sign * ax.tau
-    names = axes or list(log.axes)
-    for a in names:
-        if a not in log.axes:
-            raise UserError(f"{log.path}: no axis {a!r} in the log (it has {', '.join(log.axes)})")
-    options = {
-        "seed": seed,
-        "cutoff_hz": cutoff_hz,
-        "decimation": decimation,
-        "torque_delay_s": torque_delay_s,
-    }
-    count = workers(log, names)
-    if count > 1 and progress:  # side by side: every axis starts now
+    with one_thread():  # (its own threads spin between calls: :mod:`drive_bridge.blas`)
+        log = read_log(path)
+        val_log = read_log(validate) if validate else None
+        if torque_sign not in (1.0, -1.0):
+            raise UserError(f"--torque-sign must be 1 or -1, got {torque_sign:g}")
+        for lg in (log, val_log) if val_log is not None else (log,):
+            for ax in lg.axes.values():
+                ax.tau = torque_sign * ax.tau
+        names = axes or list(log.axes)
         for a in names:
-            progress(a)
-    outcomes = dict(
-        zip(
-            names, fork_map(_outcome, names, count, (log, val_log, options, progress if count == 1 else None))
+            if a not in log.axes:
+                raise UserError(f"{log.path}: no axis {a!r} in the log (it has {', '.join(log.axes)})")
+        options = {
+            "seed": seed,
+            "cutoff_hz": cutoff_hz,
+            "decimation": decimation,
+            "torque_delay_s": torque_delay_s,
+        }
+        count = workers(log, names)
+        if count > 1 and progress:  # side by side: every axis starts now
+            for a in names:
+                progress(a)
+        outcomes = dict(
+            zip(
+                names,
+                fork_map(_outcome, names, count, (log, val_log, options, progress if count == 1 else None)),
+            )
         )
-    )
-    results = {a: r for a, (status, r) in outcomes.items() if status == "ok"}
-    if count > 1:
-        for r in results.values():
-            r.attach(log)
-    failed = [UserError(message) for status, message in outcomes.values() if status == "error"]
-    if failed and (axes or not results):  # asked for by name: its problem is the answer
-        raise failed[0]
-    for error in failed:  # the others answered: this one is said, not lost
-        logger.warning("%s", error)
-    return results
+        results = {a: r for a, (status, r) in outcomes.items() if status == "ok"}
+        if count > 1:
+            for r in results.values():
+                r.attach(log)
+        failed = [UserError(message) for status, message in outcomes.values() if status == "error"]
+        if failed and (axes or not results):  # asked for by name: its problem is the answer
+            raise failed[0]
+        for error in failed:  # the others answered: this one is said, not lost
+            logger.warning("%s", error)
+        return results
 
 
 def _outcome(
