@@ -117,7 +117,7 @@ class TimingLimits:
     Parameters
     ----------
     max_late_pct : float
-        Late cycles [% of all].
+        Late cycles (SYNC gaps over 1.5 periods) and, judged apart, SYNCs before their setpoints [% of all].
     max_gap_periods : float
         The largest SYNC gap [periods].
     max_missing_pct : float

@@ -15,7 +15,10 @@ that starts later sends the SYNC of the period whose start is within half a peri
 the next one's), never the ones it missed, so no two SYNCs are closer than half a period (a
 drive's answer to one would reach the bus after the next, and its interpolation would see a
 period of a few microseconds).  The plan rows of missed periods get no SYNC (``sync_time`` NaN),
-and the setpoints that follow are those of their own time.
+and the setpoints that follow are those of their own time.  Where the interface sends SYNC itself
+(the kernel's broadcast manager), the engine answers each SYNC as the bus hands it over; SYNCs handed
+over together are answered once, the last (the others are counted ``setpoints_late``), and one that
+does not come is waited for as long as the drives wait for setpoints.
 
 Supervision is judged in time.  A drive must answer a SYNC within the synchronous window
 (0x1007, or the period where none is written).  A row's feedback is judged once the bus shows
@@ -828,10 +831,7 @@ class Engine:
         period, control = self.period, arrays.control
         if port.periodic_sync:
             seen = self.syncs_seen
-            port.wait_sync(self.last_sync + 3 * period if self.last_sync > -math.inf else port.now() + 1.0)
-            now = port.now()
-            if self.syncs_seen == seen:
-                raise RuntimeError(f"no SYNC from {port.sync_source} for {3 * period * 1e3:.0f} ms")
+            now = self._await_sync()
             late = now - self.last_sync  # the RPDOs that follow go out this long after their SYNC
             out.worst_wake_ms = max(out.worst_wake_ms, late * 1e3)
             if late > job.supervision.window_s:
@@ -883,6 +883,39 @@ class Engine:
         if self.phase == STOPPING:
             return self._stopping(now)
         return self._switching_off(now)
+
+    def _await_sync(self) -> float:
+        """Wait for the interface's next SYNC (``periodic_sync``); the time it was handed over [s].
+
+        A SYNC may come late -- the interface held up, or its frame handed over late (the kernel's
+        softirqs behind a real-time task, an emulated vCPU): the drives then keep the setpoints they
+        have, and wait for new ones as long as their setpoint-loss timeout, so the engine waits as
+        long (the gap is judged with the timing).  Meanwhile it looks every :data:`CHECK_EVERY_S`
+        for what :meth:`_watch` judges: where that asks for a stop, or where no SYNC came for longer
+        than the drives wait, the cyclic path cannot act (its RPDOs take effect at a SYNC) and ends,
+        leaving every axis to the host to stop by SDO.
+        """
+        port, control, out = self.port, self.arrays.control, self.outcome
+        seen = self.syncs_seen
+        if self.last_sync > -math.inf:
+            limit = max(3 * self.period, self.job.supervision.setpoint_timeout_s)
+            given_up = self.last_sync + limit
+        else:  # (its first, where start_sync did not see one)
+            limit, given_up = 1.0, port.now() + 1.0
+        while True:
+            port.wait_sync(min(given_up, port.now() + CHECK_EVERY_S))
+            now = port.now()
+            if self.syncs_seen != seen:
+                return now
+            out.abort = out.abort or self._watch(now, int(control[STOP_REQUEST]))
+            if out.abort is not None:
+                raise RuntimeError("a stop while the interface sent no SYNC")  # (the abort says why)
+            if now >= given_up:
+                gap = now - self.last_sync if self.last_sync > -math.inf else limit
+                raise RuntimeError(
+                    f"no SYNC from {port.sync_source} for {gap * 1e3:.0f} ms, longer than the drives "
+                    f"wait for setpoints ({limit * 1e3:.0f} ms)"
+                )
 
     def _wake(self) -> tuple[float, float]:
         """Wait for the start of period ``slot`` on the absolute schedule: the time then, and how

@@ -13,6 +13,7 @@ a run moves no deadline.
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 
@@ -215,7 +216,9 @@ class BusPort:
         self._receive_until(deadline, sync=False)
 
     def _receive_until(self, deadline: float, sync: bool) -> None:
-        """Hand over every frame that arrives until ``deadline`` (``sync``: or until a SYNC came)."""
+        """Hand over every frame that arrives until ``deadline`` (``sync``: or until a SYNC came, and
+        every frame queued behind it -- SYNCs handed over late come together, and the engine answers
+        the last of them only, rather than a burst of a period's RPDOs for each)."""
         recv, monotonic, offset = self.bus.recv, time.monotonic, self._offset
         while True:
             left = deadline - monotonic() - offset
@@ -226,7 +229,7 @@ class BusPort:
                 continue
             self._dispatch(msg)
             if sync and msg.arbitration_id == SYNC_COB_ID and not msg.is_error_frame:
-                return
+                deadline = -math.inf
 
     def start_sync(self, period: float) -> None:
         """:meth:`Port.start_sync`: the interface's periodic send.

@@ -318,6 +318,7 @@ def stream(
         wall=link.threaded,
         priority=host or "lockstep (no wall clock)",
         limits=timing_limits,
+        setpoints_late=outcome.setpoints_late,
     )
     timing.engine = {
         "host": host or "lockstep",

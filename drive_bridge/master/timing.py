@@ -1,7 +1,8 @@
 """How well a wall-clock run kept its SYNC period, and the thread priority it asked for.
 
 Every run reports its timing: late cycles (a SYNC more than ``LATE_FACTOR`` periods after the
-one before), the largest SYNC gap and the samples missing.  A run past its limits is
+one before), the largest SYNC gap, the samples missing and, where the interface sends SYNC
+itself, the SYNCs that came before their setpoints.  A run past its limits is
 ``degraded``: its data are kept and usable with care, and the command ends with exit code 5.
 The cyclic engine's process (:mod:`.coprocess`) asks the OS for a real-time (SCHED_FIFO)
 priority and locked memory where it allows them; the report says what it got.
@@ -107,8 +108,10 @@ def measure(
     wall: bool,
     priority: str,
     limits: TimingLimits,
+    setpoints_late: int = 0,
 ) -> Timing:
-    """The timing of a run from its SYNC time stamps [s] and missing samples per axis.
+    """The timing of a run from its SYNC time stamps [s], missing samples per axis and the SYNCs that
+    came before their setpoints.
 
     Parameters
     ----------
@@ -124,6 +127,9 @@ def measure(
         What the OS granted.
     limits : TimingLimits
         The limits a wall-clock run is judged by.
+    setpoints_late : int
+        SYNCs the interface sent (on time) that the engine answered with no setpoints, as they were
+        handed over together, late: judged as late cycles are.
 
     Returns
     -------
@@ -146,6 +152,7 @@ def measure(
         worst = max(missing.values(), default=0) / n * 100
         for what, value, limit in (
             ("late cycles", t.late_cycles_pct, limits.max_late_pct),
+            ("SYNCs before their setpoints", setpoints_late / n * 100, limits.max_late_pct),
             ("largest SYNC gap", t.max_sync_gap_ms / (period * 1e3), limits.max_gap_periods),
             ("samples missing", worst, limits.max_missing_pct),
         ):
