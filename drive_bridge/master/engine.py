@@ -478,7 +478,8 @@ class Port(Protocol):
         """
 
     def wait_sync(self, timeout_at: float) -> None:
-        """Hand over frames until a SYNC has been seen, or until ``timeout_at`` (``periodic_sync`` only).
+        """Hand over frames until a SYNC has been seen, and every frame queued behind it (SYNCs handed
+        over late come in one call), or until ``timeout_at`` (``periodic_sync`` only).
 
         Parameters
         ----------
