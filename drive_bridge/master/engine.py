@@ -898,24 +898,21 @@ class Engine:
         """
         port, control, out = self.port, self.arrays.control, self.outcome
         seen = self.syncs_seen
-        if self.last_sync > -math.inf:
-            limit = max(3 * self.period, self.job.supervision.setpoint_timeout_s)
-            given_up = self.last_sync + limit
-        else:  # (its first, where start_sync did not see one)
-            limit, given_up = 1.0, port.now() + 1.0
+        first = self.last_sync == -math.inf  # (where start_sync did not see one)
+        since = port.now() if first else self.last_sync
+        limit = 1.0 if first else max(3 * self.period, self.job.supervision.setpoint_timeout_s)
         while True:
-            port.wait_sync(min(given_up, port.now() + CHECK_EVERY_S))
+            port.wait_sync(min(since + limit, port.now() + CHECK_EVERY_S))
             now = port.now()
             if self.syncs_seen != seen:
                 return now
             out.abort = out.abort or self._watch(now, int(control[STOP_REQUEST]))
             if out.abort is not None:
                 raise RuntimeError("a stop while the interface sent no SYNC")  # (the abort says why)
-            if now >= given_up:
-                gap = now - self.last_sync if self.last_sync > -math.inf else limit
+            if now >= since + limit:
                 raise RuntimeError(
-                    f"no SYNC from {port.sync_source} for {gap * 1e3:.0f} ms, longer than the drives "
-                    f"wait for setpoints ({limit * 1e3:.0f} ms)"
+                    f"no SYNC from {port.sync_source} for {(now - since) * 1e3:.0f} ms"
+                    + ("" if first else f", longer than the drives wait for setpoints ({limit * 1e3:.0f} ms)")
                 )
 
     def _wake(self) -> tuple[float, float]:
