@@ -16,13 +16,32 @@ from .signals import Samples, Signals
 BINS = 20
 
 
-def eta2(x: np.ndarray, r: np.ndarray) -> tuple[float, float, float]:
-    """How much of a residual its mean in bins of a variable explains (one-way ANOVA).
+def bins(x: np.ndarray) -> np.ndarray | None:
+    """The bin of each sample of a variable, binned at its quantiles (``BINS`` bins).
 
     Parameters
     ----------
     x : numpy.ndarray
-        The variable (binned at its quantiles, ``BINS`` bins).
+        The variable.
+
+    Returns
+    -------
+    numpy.ndarray or None
+        Each sample's bin; None where the variable's values give fewer than two bins.
+    """
+    edges = np.unique(np.quantile(x, np.linspace(0, 1, BINS + 1)))
+    if len(edges) < 3:
+        return None
+    return np.clip(np.searchsorted(edges, x, side="right") - 1, 0, len(edges) - 2)
+
+
+def eta2(idx: np.ndarray | None, r: np.ndarray) -> tuple[float, float, float]:
+    """How much of a residual its mean in bins of a variable explains (one-way ANOVA).
+
+    Parameters
+    ----------
+    idx : numpy.ndarray or None
+        The variable's bin at each sample (:func:`bins`).
     r : numpy.ndarray
         The residual at the same samples.
 
@@ -35,10 +54,8 @@ def eta2(x: np.ndarray, r: np.ndarray) -> tuple[float, float, float]:
     f : float
         The F statistic.
     """
-    edges = np.unique(np.quantile(x, np.linspace(0, 1, BINS + 1)))
-    if len(edges) < 3:
+    if idx is None:
         return 0.0, 1.0, 0.0
-    idx = np.clip(np.searchsorted(edges, x, side="right") - 1, 0, len(edges) - 2)
     counts = np.bincount(idx)
     means = np.bincount(idx, r) / np.maximum(counts, 1)
     between = float(np.sum(counts * (means - r.mean()) ** 2))
@@ -105,12 +122,13 @@ def dependences(s: Samples, residual: np.ndarray, min_share: float, p_value: flo
     out = []
     for name, x in variables(s).items():
         found: list[dict[str, Any]] = []
+        idx = bins(x[m])  # (binned once: the forms share the variable's bins)
         for form, resid in (("even", r), ("odd", r * direction), ("inertial", r * accel)):
             if form == "odd" and name in ("direction", "velocity"):
                 continue  # sign(q̇)·r over q̇ or its sign: the even test sees it already
             if form == "inertial" and name != "position":
                 continue  # an inertia changes with where the load is, not with speed
-            share, p, f = eta2(x[m], resid)
+            share, p, f = eta2(idx, resid)
             if share >= min_share and p < p_value:
                 found.append(
                     {"depends_on": name, "form": form, "fraction": round(share, 4), "evidence": round(f, 1)}

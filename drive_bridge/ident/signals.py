@@ -304,9 +304,7 @@ class Parallel:
                     )
                 else:
                     xf = signal.sosfiltfilt(sos, x * ch.gate[:, None], axis=0)[keep]
-                    parts.append(
-                        np.column_stack([_decimate(xf[:, j], self.settings) for j in range(x.shape[1])])
-                    )
+                    parts.append(_decimate(xf, self.settings))
             self._cache[key, logged] = np.concatenate(parts)[: self.length]
         return self._cache[key, logged]
 
@@ -730,15 +728,16 @@ def _interval_mean(x: np.ndarray, r: int) -> np.ndarray:
 
 
 def _decimate(x: np.ndarray, settings: Settings) -> np.ndarray:
-    """Keep every r-th sample.  When the Butterworth already removed what would alias (the
-    decimated Nyquist frequency is at least twice the cut-off) nothing more is needed;
-    otherwise scipy's decimate, with its Chebyshev filter's DC gain set to 1 (an even-order
-    Chebyshev I passes DC at its ripple minimum, and filtered twice that scales every signal
-    by 0.989 while sign(q̇) stays ±1: c0 would come out 1 % low)."""
+    """Keep every r-th sample (of each column, where ``x`` has several).  When the Butterworth
+    already removed what would alias (the decimated Nyquist frequency is at least twice the
+    cut-off) nothing more is needed; otherwise the Chebyshev filter forward and backward first,
+    as scipy's decimate runs it (its ``filtfilt``: the filter's poles are complex), with its DC
+    gain set to 1 (an even-order Chebyshev I passes DC at its ripple minimum, and filtered twice
+    that scales every signal by 0.989 while sign(q̇) stays ±1: c0 would come out 1 % low)."""
     ba = _decimation_filter(settings)
-    if ba is None:
-        return x[:: settings.decimation]
-    return signal.decimate(x, settings.decimation, ftype=signal.dlti(*ba), zero_phase=True)
+    if ba is not None:  # (along the last axis of a contiguous copy: lfilter strides slowly)
+        x = signal.filtfilt(*ba, np.ascontiguousarray(x.T)).T
+    return x[:: settings.decimation]
 
 
 def _decimation_filter(settings: Settings) -> tuple[np.ndarray, np.ndarray] | None:
@@ -828,16 +827,21 @@ def prepare(log: Log, axis: str, settings: Settings) -> Samples:
     other_parts: dict[str, list[list[np.ndarray]]] = {o: [[], [], []] for o in log.axes if o != axis}
     for keep, ch in source.segments():  # (too short to filter, cut and decimate: skipped)
         # parallel filtering of the Coulomb column: the torque's step at a reversal is smoothed
-        # by the low-pass, so sign(q̇) gets the same filter (IDIM: filter W and τ alike)
-        channels = {
-            "q": signal.sosfiltfilt(sos, ch.q),
-            "qd": ch.qd,
-            "tau_f": signal.sosfiltfilt(sos, ch.tau * ch.gate),
-            "qdd": ch.qdd,
-            "sgn": signal.sosfiltfilt(sos, ch.sgn * ch.gate),
-        }
-        for k, x in channels.items():
-            parts[k].append(_decimate(x[keep], settings))
+        # by the low-pass, so sign(q̇) gets the same filter (IDIM: filter W and τ alike); the
+        # channels go through the low-pass (where they have not yet), then the decimation, as the
+        # columns of one array
+        others = {o: ch.others[o] for o in other_parts}
+        low = signal.sosfiltfilt(
+            sos,
+            np.column_stack([ch.q, ch.tau * ch.gate, ch.sgn * ch.gate, *(q for q, _, _ in others.values())]),
+            axis=0,
+        )
+        names = ["q", "tau_f", "sgn", *(f"{o}.q" for o in others), "qd", "qdd"]
+        names += [f"{o}.{k}" for o in others for k in ("qd", "qdd")]
+        rest = [ch.qd, ch.qdd, *(x for _, qd, qdd in others.values() for x in (qd, qdd))]
+        column = dict(zip(names, _decimate(np.column_stack([low, *rest])[keep], settings).T))
+        for k in ("q", "qd", "tau_f", "qdd", "sgn"):
+            parts[k].append(column[k])
         parts["settled"].append(_settled(ch.qd, settings)[keep][::r])
         unknown = np.isin(ch.tau, levels)
         if filled is not None:
@@ -848,9 +852,8 @@ def prepare(log: Log, axis: str, settings: Settings) -> Samples:
         parts["t"].append(ch.t[keep][::r])
         parts["tau"].append(_interval_mean(ch.tau, r)[keep][::r])
         for o, lists in other_parts.items():
-            oq, oqd, oqdd = ch.others[o]
-            for i, x in enumerate((signal.sosfiltfilt(sos, oq), oqd, oqdd)):
-                lists[i].append(_decimate(x[keep], settings))
+            for i, k in enumerate(("q", "qd", "qdd")):
+                lists[i].append(column[f"{o}.{k}"])
     if not parts["t"]:
         raise FilterTooNarrow(
             f"{log.path}: axis {axis!r}: every usable run is shorter than the filter needs "
