@@ -187,15 +187,22 @@ class Effect:
         scale[scale == 0] = 1.0
         q, _ = np.linalg.qr(fixed / scale)
         y_perp = y - q @ (q.T @ y)
+        yy = float(y_perp @ y_perp)
 
         def sse(x: np.ndarray) -> float:
             extra = self._signed(s, self._columns(s, **dict(zip(self.nonlinear, x))))
-            extra = extra - q @ (q.T @ extra)
-            # the few extra columns' least squares through their Gram matrix (k × k): the n × k
-            # problem's SVD was most of the search's time
-            coef, *_ = np.linalg.lstsq(extra.T @ extra, extra.T @ y_perp, rcond=None)
-            r = y_perp - extra @ coef
-            return float(r @ r)
+            # the few extra columns' least squares through their Gram matrix (k × k) with the
+            # fixed columns projected out, G = XᵀX − (QᵀX)ᵀ(QᵀX), b = Xᵀy⊥ (y⊥ has no part along
+            # Q), and the error y⊥ᵀy⊥ − bᵀG⁻¹b: no n × k product beyond QᵀX (an n × k SVD was
+            # once most of the search's time, the projected columns and the residual the rest)
+            along = q.T @ extra
+            gram = extra.T @ extra - along.T @ along
+            b = extra.T @ y_perp
+            try:
+                coef = np.linalg.solve(gram, b)
+            except np.linalg.LinAlgError:  # columns the fixed ones (or each other) span
+                coef = np.linalg.lstsq(gram, b, rcond=None)[0]
+            return max(yy - float(b @ coef), 0.0)
 
         return sse
 
