@@ -198,11 +198,12 @@ class Effect:
             along = q.T @ extra
             gram = extra.T @ extra - along.T @ along
             b = extra.T @ y_perp
-            try:
-                coef = np.linalg.solve(gram, b)
-            except np.linalg.LinAlgError:  # columns the fixed ones (or each other) span
-                coef = np.linalg.lstsq(gram, b, rcond=None)[0]
-            return max(yy - float(b @ coef), 0.0)
+            # (through its eigenvalues, those below lstsq's own cut-off left out: a column the
+            # fixed ones nearly span explains nothing, not everything by round-off)
+            value, vector = np.linalg.eigh(gram)
+            kept = value > np.finfo(float).eps * len(value) * value[-1]
+            along_b = vector[:, kept].T @ b
+            return max(yy - float(along_b @ (along_b / value[kept])), 0.0)
 
         return sse
 
