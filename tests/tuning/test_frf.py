@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import json
 
-import control
 import numpy as np
 import pytest
 
@@ -116,6 +115,8 @@ def test_the_design_on_the_measured_response_of_a_rigid_axis_keeps_the_margins_o
 
 def test_margins_on_points_agree_with_python_control():
     """The margins read off a loop's frequency points are python-control's for a rigid loop."""
+    import control  # (here, not at the top: with matplotlib it is over a second of every worker's collection)
+
     gains = design_gains(J, C1, MOTOR.R, MOTOR.L).gains()
     loop = velocity_open_loop(J, C1, gains["KpS"], gains["KiS"], W_I)
     f = np.geomspace(1.0, 999.0, 3000)
