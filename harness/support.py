@@ -27,11 +27,8 @@ from drive_bridge.sim.process import free_port
 from drive_bridge.sim.robot import SimRobot
 from drive_bridge.sim.robot_config import Motor, SimAxis, SimConfig
 
-ROOT = Path(__file__).resolve().parents[1]
-SHARED = ROOT.parent / "shared"
 EDS = PROJECT_EDS
 BUS_CONFIG = DEFAULT_BUS_CONFIG
-VENDOR_EDS = Path(os.environ.get("DRIVE_BRIDGE_VENDOR_EDS", SHARED / "eds-vendor"))
 PAPER = TABLE_II
 _channels = itertools.count(1)
 

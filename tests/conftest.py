@@ -7,6 +7,7 @@ import os
 import shutil
 import sys
 import tempfile
+from typing import TYPE_CHECKING
 
 import pytest
 
@@ -14,12 +15,18 @@ import pytest
 # where PYTHONDONTWRITEBYTECODE is set, as container images set it: without the cache each worker
 # compiled the package and rewrote every test module anew at each run (6.0 s of collection where
 # the cache makes it 3.5), and each drive-bridge process a test starts compiled the package again;
-# `pytest -m "not slow"` took 29.2-30.6 s here, 24.2-24.5 s with it (2026-11-27). Set before the
-# imports below: the package's modules are among them.
+# `pytest -m "not slow"` took 29.2-30.6 s here, 24.2-24.5 s with it (2026-11-27). Set before any
+# module of the package is imported (the test modules import them as they are collected).
 sys.dont_write_bytecode = False
 
-from drive_bridge.sim.robot_config import DEFAULT_CONFIG, SimConfig, load_sim_config  # noqa: E402
-from harness.support import VENDOR_EDS, Bench, clean_config  # noqa: E402
+# The simulator and its helpers are imported where a fixture uses them, not here: pytest-xdist's
+# controlling process, which runs no test, loads this file too, and importing them (numba's
+# kernels, scipy) cost it 1.3 of its 2.8 s of CPU in every run (2026-11-29).
+from harness.paths import VENDOR_EDS  # noqa: E402
+
+if TYPE_CHECKING:
+    from drive_bridge.sim.robot_config import SimConfig
+    from harness.support import Bench
 
 os.environ.setdefault("DRIVE_BRIDGE_VENDOR_EDS", str(VENDOR_EDS))  # vendor files, read in place
 # every run the tests commission is kept in a history database of the tests', never the user's
@@ -65,6 +72,8 @@ def _history_of_the_test(tmp_path_factory, monkeypatch):
 
 @pytest.fixture
 def bench():
+    from harness.support import Bench, clean_config
+
     benches = []
 
     def make(config: SimConfig | None = None) -> Bench:
@@ -81,12 +90,16 @@ def bench():
 def _close_benches():
     """Benches a test opened without the fixture are closed after it."""
     yield
+    from harness.support import Bench
+
     for b in list(Bench.open):
         b.close()
 
 
 @pytest.fixture
 def shipped_sim_config():
+    from drive_bridge.sim.robot_config import DEFAULT_CONFIG, load_sim_config
+
     return load_sim_config(DEFAULT_CONFIG)
 
 

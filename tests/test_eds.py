@@ -10,7 +10,8 @@ import pytest
 from drive_bridge.cia.edscheck import check
 from drive_bridge.cia.od import float_bits, float_from_bits, load_od
 from drive_bridge.cli import main
-from harness.support import EDS, VENDOR_EDS, tool
+from harness.paths import VENDOR_EDS
+from harness.support import EDS, tool
 
 pytestmark = pytest.mark.third_party
 

@@ -3,7 +3,7 @@
     python tools/bench_identify.py crb [--seeds 50]       # estimator spread against the reported std
     python tools/bench_identify.py coverage [--cases 40]  # true values within 3 reported std?
     python tools/bench_identify.py speed                   # 3 axes, 300 s at 500 Hz, with residual tracing
-    python tools/bench_identify.py full [--log DIR] [--against REV] [--profile N]
+    python tools/bench_identify.py full [--log DIR] [--against REV] [--profile N] [--floor]
                                                            # the full paper campaign (867 s), where the time goes
 
 crb: a log measured 50 times with different torque-noise seeds, identified as a user would
@@ -22,6 +22,10 @@ leaves in ``campaign/``; default: the shipped robot's plant run bus-free through
 axes (the same-run reference), and with ``--against REV`` the same log identified by the code of
 git revision REV (a worktree, in a process of its own, the runs alternated): the speed-up measured
 in one run.  ``--profile N``: the N functions the time goes to (cProfile, internal time).
+``--floor``: the axes identified one after the other in this process, the CPU time of the stages a
+faster implementation of the same method could at most remove counted apart (:data:`REMOVABLE`),
+and the least time the rest would take on this machine's cores, the log's parse added (as
+measured): what any implementation of these stages leaves of the run.
 """
 
 from __future__ import annotations
@@ -29,6 +33,8 @@ from __future__ import annotations
 import argparse
 import contextlib
 import cProfile
+import importlib
+import itertools
 import json
 import os
 import pstats
@@ -237,7 +243,94 @@ def _timed(root: Path, log: Path) -> dict:
     return json.loads(out.strip().splitlines()[-1])
 
 
-def full(log_dir: str | None, against: str | None, profile: int, runs: int) -> None:
+#: the stages of identification a faster implementation of the same method could at most remove, as
+#: (module, function): the filters at the log's rate (the low-pass every regressor column goes through
+#: as the torque does, and the decimation's), the differentiator and the fractional delay of the
+#: positions, and the effects' searches of their nonlinear parameters (differential evolution)
+REMOVABLE = {
+    "filters": [("scipy.signal", "sosfiltfilt"), ("scipy.signal", "filtfilt")],
+    "derivatives and delays": [
+        ("drive_bridge.ident.signals", "derivative"),
+        ("drive_bridge.ident.signals", "_delayed"),
+    ],
+    "effects' searches": [("scipy.optimize", "differential_evolution")],
+}
+
+
+@contextlib.contextmanager
+def _stage_clocks(spent: dict[str, float]):
+    """The CPU time spent in each stage of :data:`REMOVABLE` added to ``spent`` while inside (a call
+    within a call counted once, by the outer one)."""
+    depth = [0]
+    saved = []
+
+    def clocked(stage: str, func):
+        def call(*args, **kwargs):
+            depth[0] += 1
+            start = time.process_time()
+            try:
+                return func(*args, **kwargs)
+            finally:
+                depth[0] -= 1
+                if not depth[0]:
+                    spent[stage] += time.process_time() - start
+
+        return call
+
+    for stage, places in REMOVABLE.items():
+        spent[stage] = 0.0
+        for module, name in places:
+            owner = importlib.import_module(module)
+            saved.append((owner, name, getattr(owner, name)))
+            setattr(owner, name, clocked(stage, getattr(owner, name)))
+    try:
+        yield spent
+    finally:
+        for owner, name, func in saved:
+            setattr(owner, name, func)
+
+
+def floor(log: Path) -> None:
+    """``--floor``: see the module's docstring."""
+    from drive_bridge.blas import one_thread
+    from drive_bridge.forking import processes
+    from drive_bridge.ident.logdata import read_log
+
+    per_axis = importlib.import_module("drive_bridge.ident.identify").identify_axis
+    start = time.perf_counter()
+    data = read_log(log)
+    parse = time.perf_counter() - start
+    total, rest, spent = {}, {}, {}
+    with one_thread():
+        for axis in data.axes:
+            with _stage_clocks({}) as clocks:
+                start = time.process_time()
+                per_axis(data, axis, seed=0)
+                total[axis] = time.process_time() - start
+            rest[axis] = total[axis] - sum(clocks.values())
+            for stage, seconds in clocks.items():
+                spent[stage] = spent.get(stage, 0.0) + seconds
+    cores = min(processes(), len(rest))
+    best = min(  # the axes shared out to the cores as well as they can be (every assignment tried)
+        max(sum(r for r, core in zip(rest.values(), cores_of) if core == c) for c in range(cores))
+        for cores_of in itertools.product(range(cores), repeat=len(rest))
+    )
+    cpu = sum(total.values())
+    print(
+        f"the axes one after the other, one process: {cpu:.2f} s of CPU ("
+        + ", ".join(f"{a} {t:.2f}" for a, t in total.items())
+        + "); of it "
+        + ", ".join(f"{stage} {t:.2f} s ({t / cpu:.0%})" for stage, t in spent.items())
+    )
+    print(
+        f"without those stages: {sum(rest.values()):.2f} s of CPU ("
+        + ", ".join(f"{a} {t:.2f}" for a, t in rest.items())
+        + f"): on {cores} cores at best {best:.2f} s, the parse {parse:.2f} s -> at least "
+        f"{best + parse:.2f} s for any implementation of them"
+    )
+
+
+def full(log_dir: str | None, against: str | None, profile: int, runs: int, at_floor: bool = False) -> None:
     with (
         tempfile.TemporaryDirectory() as tmp,
         worktree(ROOT, against) if against else contextlib.nullcontext() as other,
@@ -287,6 +380,8 @@ def full(log_dir: str | None, against: str | None, profile: int, runs: int) -> N
             print(
                 f"  {a}: J {p['J']:.6g}, c0 {p['c0']:.6g}, c1 {p['c1']:.6g}; effects {mine[0]['effects'][a]}"
             )
+        if at_floor:
+            floor(log)
         if profile:
             os.environ["DRIVE_BRIDGE_WORKERS"] = "1"  # in this process: a profile sees no forked worker
             prof = cProfile.Profile()
@@ -307,6 +402,11 @@ if __name__ == "__main__":
     )
     parser.add_argument("--profile", type=int, default=0, help="full: print the N largest internal times")
     parser.add_argument("--runs", type=int, default=2, help="full: timed runs of each code")
+    parser.add_argument(
+        "--floor",
+        action="store_true",
+        help="full: what the run takes at least without its filters and searches",
+    )
     parser.add_argument("--seeds", type=int, default=50)
     parser.add_argument("--cases", type=int, default=42)
     parser.add_argument("--verbose", action="store_true", help="coverage: one line per case")
@@ -316,6 +416,6 @@ if __name__ == "__main__":
     elif args.mode == "coverage":
         coverage(args.cases, args.verbose)
     elif args.mode == "full":
-        full(args.log, args.against, args.profile, args.runs)
+        full(args.log, args.against, args.profile, args.runs, args.floor)
     else:
         speed()

@@ -8,7 +8,8 @@ import json
 import pytest
 
 from drive_bridge.cli import main
-from harness.support import EDS, VENDOR_EDS, follows_schema
+from harness.paths import VENDOR_EDS
+from harness.support import EDS, follows_schema
 
 pytestmark = pytest.mark.slow
 

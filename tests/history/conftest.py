@@ -11,7 +11,7 @@ import uuid
 import pytest
 import sqlalchemy as sa
 
-from harness.support import ROOT
+from harness.paths import ROOT
 
 SERVER = ROOT / "tools" / "test_postgres.sh"
 WHY_NO_POSTGRES = "no PostgreSQL server: tools/test_postgres.sh could not start one ({})"

@@ -21,7 +21,8 @@ from drive_bridge.ident.logdata import read_log
 from drive_bridge.master.campaign import build_plan
 from drive_bridge.sim.plantlog import plant_log, write_log
 from drive_bridge.sim.robot_config import Motor, SimAxis, SimConfig
-from harness.support import BUS_CONFIG, ROOT, SHARED
+from harness.paths import ROOT, SHARED
+from harness.support import BUS_CONFIG
 
 pytestmark = pytest.mark.slow
 

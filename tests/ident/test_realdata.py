@@ -10,7 +10,7 @@ import pytest
 
 from drive_bridge.ident.identify import identify
 from drive_bridge.ident.presentation import ga_text, summary
-from harness.support import SHARED
+from harness.paths import SHARED
 
 REAL = SHARED / "data" / "realdata"
 pytestmark = [

@@ -19,7 +19,7 @@ import pytest
 import yaml
 
 from drive_bridge.resources import DEFAULT_BUS_CONFIG, PROJECT_EDS
-from harness.support import ROOT
+from harness.paths import ROOT
 
 pytestmark = [pytest.mark.slow, pytest.mark.realtime, pytest.mark.third_party]
 

@@ -9,7 +9,8 @@ import canopen
 import pytest
 
 from drive_bridge.sim import kernel
-from harness.support import VENDOR_EDS, Bench, clean_config
+from harness.paths import VENDOR_EDS
+from harness.support import Bench, clean_config
 
 pytestmark = pytest.mark.slow
 
