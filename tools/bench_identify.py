@@ -245,12 +245,14 @@ def _timed(root: Path, log: Path) -> dict:
 
 #: the stages of identification a faster implementation of the same method could at most remove, as
 #: (module, function): the filters at the log's rate (the low-pass every regressor column goes through
-#: as the torque does, and the decimation's), the differentiator and the fractional delay of the
-#: positions, and the effects' searches of their nonlinear parameters (differential evolution)
+#: as the torque does, and the decimation's), the differentiator (of the positions, and of the torque
+#: for its delay) and the positions' fractional delay, and the effects' searches of their nonlinear
+#: parameters (differential evolution); under every name a module calls them by
 REMOVABLE = {
     "filters": [("scipy.signal", "sosfiltfilt"), ("scipy.signal", "filtfilt")],
     "derivatives and delays": [
         ("drive_bridge.ident.signals", "derivative"),
+        ("drive_bridge.ident.model", "derivative"),  # (the torque's rate, for its delay)
         ("drive_bridge.ident.signals", "_delayed"),
     ],
     "effects' searches": [("scipy.optimize", "differential_evolution")],

@@ -221,7 +221,10 @@ def _value_problem(value: str, dtype: int) -> str | None:
 
 
 def _lely(path: Path) -> list[str] | None:
-    """Lely's linter (PyPI dcf-tools) on the file; None when it is not installed."""
+    """Lely's linter (PyPI dcf-tools) on the file; None when it is not installed.  It says what it
+    finds as UserWarnings (``warnings.warn`` without a category); a warning of another kind caught
+    meanwhile is not about the file -- a ResourceWarning for a file other code left open, which the
+    garbage collector happened to free during the lint, once made the project's EDS "not standard"."""
     try:
         from dcf.lint import lint
         from dcf.parse import parse_file
@@ -233,7 +236,7 @@ def _lely(path: Path) -> list[str] | None:
             lint(parse_file(str(path)))
         except Exception as exc:  # its parser on a file it cannot take: that is the finding
             return [f"dcf-tools could not read it: {exc}"]
-    return [str(w.message) for w in caught]
+    return [str(w.message) for w in caught if issubclass(w.category, UserWarning)]
 
 
 def _drive(od: canopen.ObjectDictionary) -> list[str]:
