@@ -60,9 +60,9 @@ def monitor(tmp_path, events: list, **settings) -> Monitor:
 
 @pytest.fixture(autouse=True)
 def _released():
-    """Every monitor a test made lets go of its directory's lock after it (a lock file left open
-    until the garbage collector found it once made Lely's lint in another test of the worker see a
-    ResourceWarning)."""
+    """Every monitor a test made lets go of its directory's lock after it, not when the garbage
+    collector finds the file (a file freed so during Lely's lint in another test of the worker once
+    made the project's EDS "not standard")."""
     yield
     while _made:
         _made.pop().release()
