@@ -42,7 +42,7 @@ import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
-from harness.machine_floor import PERIOD_S, floor_during  # noqa: E402
+from harness.machine_floor import PERIOD_S, floor_during, machine_explains  # noqa: E402
 from tools.reference import stamp, worktree  # noqa: E402
 
 
@@ -62,8 +62,14 @@ def against_floor(trace: Path, held: list[list[tuple[float, float]]]) -> dict:
             float(stalls[(starts >= syncs[i] - PERIOD_S) & (starts <= syncs[i + 1])].max(initial=0.0))
             for starts, stalls in per_cpu
         ]
-        explained = late_ms - PERIOD_S * 1e3
-        kind = "machine" if min(held_ms) >= explained else "vcpu" if max(held_ms) >= explained else "ours"
+        gap_ms = late_ms + PERIOD_S * 1e3
+        kind = (
+            "machine"
+            if machine_explains(gap_ms, min(held_ms))
+            else "vcpu"
+            if machine_explains(gap_ms, max(held_ms))
+            else "ours"
+        )
         kinds[kind].append(late_ms)
     return {
         "late_syncs": sum(map(len, kinds.values())),

@@ -19,8 +19,10 @@ from harness.support import follows_schema
 
 pytestmark = pytest.mark.slow
 
-SHIFTS, SHIFT_S = 8, 25.0
-Y_TRAVEL_RAD = 9000.0  # Y's travel over those shifts, about (the week prints it)
+# six shifts name Y's c0 with room to spare (+15 %, 43 σ, 17 of 18 windows determined); eight took a
+# third longer, 21 s of the suite's CPU (2026-11-29)
+SHIFTS, SHIFT_S = 6, 25.0
+Y_TRAVEL_RAD = 6750.0  # Y's travel over those shifts, about (the week prints it)
 
 
 def test_a_wearing_axis_is_named_within_the_week_and_no_other(tmp_path, capsys):
