@@ -6,6 +6,7 @@ import atexit
 import gc
 import os
 import shutil
+import subprocess
 import sys
 import tempfile
 from typing import TYPE_CHECKING
@@ -23,7 +24,7 @@ sys.dont_write_bytecode = False
 # The simulator and its helpers are imported where a fixture uses them, not here: pytest-xdist's
 # controlling process, which runs no test, loads this file too, and importing them (numba's
 # kernels, scipy) cost it 1.3 of its 2.8 s of CPU in every run (2026-11-29).
-from harness.paths import VENDOR_EDS  # noqa: E402
+from harness.paths import ROOT, VENDOR_EDS  # noqa: E402
 
 if TYPE_CHECKING:
     from drive_bridge.sim.robot_config import SimConfig
@@ -44,6 +45,24 @@ def pytest_xdist_auto_num_workers(config: pytest.Config) -> int:
     took 216-220 s, and beside two CPU-bound loops 353 s where two took 407 s (2026-11-27)."""
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
     return cores + 1
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """On a fresh checkout, before pytest-xdist starts its workers: the simulator's compiled kernels
+    made once, by a quick recording in a process of its own, for every worker and every process a
+    test starts to load from numba's cache (``drive_bridge/sim/__pycache__``).  Without it each of
+    them compiled the kernels itself, 2 s of CPU apiece, until one had written them: the suite's first
+    run on a clone took 125 s where the next took 114 s (2026-11-29).  Where the cache holds them,
+    nothing runs."""
+    if hasattr(config, "workerinput") or not getattr(config.option, "numprocesses", None):
+        return  # a worker, or a run in one process (it compiles them once anyway)
+    version = f"py{sys.version_info.major}{sys.version_info.minor}"
+    if any((ROOT / "drive_bridge" / "sim" / "__pycache__").glob(f"*.{version}.nbi")):
+        return
+    env = {name: value for name, value in os.environ.items() if name != "PYTHONDONTWRITEBYTECODE"}
+    with tempfile.TemporaryDirectory() as tmp:  # (what it records is not kept; a failure shows in the tests)
+        command = [sys.executable, "-m", "drive_bridge", "record", "--sim", "--quick", "--out", f"{tmp}/run"]
+        subprocess.run(command, cwd=ROOT, env=env, capture_output=True, timeout=600, check=False)
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
