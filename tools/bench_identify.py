@@ -296,9 +296,9 @@ def floor(log: Path) -> None:
     """``--floor``: see the module's docstring."""
     from drive_bridge.blas import one_thread
     from drive_bridge.forking import processes
+    from drive_bridge.ident.identify import identify_axis
     from drive_bridge.ident.logdata import read_log
 
-    per_axis = importlib.import_module("drive_bridge.ident.identify").identify_axis
     start = time.perf_counter()
     data = read_log(log)
     parse = time.perf_counter() - start
@@ -307,7 +307,7 @@ def floor(log: Path) -> None:
         for axis in data.axes:
             with _stage_clocks() as clocks:
                 start = time.process_time()
-                per_axis(data, axis, seed=0)
+                identify_axis(data, axis, seed=0)
                 total[axis] = time.process_time() - start
             rest[axis] = total[axis] - sum(clocks.values())
             for stage, seconds in clocks.items():

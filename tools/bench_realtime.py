@@ -57,12 +57,12 @@ def against_floor(trace: Path, held: list[list[tuple[float, float]]]) -> dict:
     per_cpu = [(np.array([t for t, _ in cpu]), np.array([w for _, w in cpu])) for cpu in held]
     kinds: dict[str, list[float]] = {"machine": [], "vcpu": [], "ours": []}
     for i in np.flatnonzero(np.diff(syncs) > 1.5 * PERIOD_S):
-        late_ms = (syncs[i + 1] - syncs[i]) * 1e3 - PERIOD_S * 1e3
+        gap_ms = (syncs[i + 1] - syncs[i]) * 1e3
+        late_ms = gap_ms - PERIOD_S * 1e3
         held_ms = [
             float(stalls[(starts >= syncs[i] - PERIOD_S) & (starts <= syncs[i + 1])].max(initial=0.0))
             for starts, stalls in per_cpu
         ]
-        gap_ms = late_ms + PERIOD_S * 1e3
         kind = (
             "machine"
             if machine_explains(gap_ms, min(held_ms))
