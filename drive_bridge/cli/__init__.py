@@ -123,13 +123,16 @@ def _run(argv: list[str] | None) -> int:
         logging.captureWarnings(True)  # library warnings as log lines
     else:
         warnings.simplefilter("ignore")  # library warnings are not for the person at the machine
+    loggers = [logging.getLogger(name) for name in ("drive_bridge", *LIBRARY_LOGGERS)]
+    levels = [logger.level for logger in loggers]
     handler = log_to_stderr(args.verbose, args.quiet)
     try:
         with one_thread():  # OpenBLAS's own threads would spin between its calls (drive_bridge.blas)
             return _command(args)
-    finally:  # main() may run again in this process (tests, the API)
-        for name in ("drive_bridge", *LIBRARY_LOGGERS):
-            logging.getLogger(name).removeHandler(handler)
+    finally:  # main() may run again in this process (tests, the API): its loggers left as they were
+        for logger, level in zip(loggers, levels):
+            logger.removeHandler(handler)
+            logger.setLevel(level)
         logging.captureWarnings(False)
 
 

@@ -78,3 +78,20 @@ def test_verbose_shows_drive_bridge_log_lines_and_quiet_only_errors(tmp_path, ca
     assert " INFO " not in capsys.readouterr().err
     assert main(["-q"] + args + [str(tmp_path / "c")]) == 0
     assert " INFO " not in capsys.readouterr().err
+
+
+def test_a_command_leaves_the_loggers_as_it_found_them(caplog):
+    """main() may run again in the same process (the API, a test after another): -q or -vv in one
+    command leaves no level behind that silences, or opens up, the next one's log."""
+    import logging
+
+    from drive_bridge.cli import LIBRARY_LOGGERS, main
+
+    names = ("drive_bridge", *LIBRARY_LOGGERS)
+    before = [logging.getLogger(name).level for name in names]
+    for flag in ("-q", "-vv"):
+        assert main([flag, "scan", "--sim"]) == 0
+        assert [logging.getLogger(name).level for name in names] == before
+    with caplog.at_level(logging.WARNING):
+        logging.getLogger("drive_bridge.monitor.listen").warning("after -q: still said")
+    assert "after -q: still said" in caplog.text
