@@ -4,11 +4,14 @@ from __future__ import annotations
 
 import atexit
 import gc
+import json
 import os
 import shutil
+import statistics
 import subprocess
 import sys
 import tempfile
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import pytest
@@ -65,14 +68,52 @@ def pytest_configure(config: pytest.Config) -> None:
         subprocess.run(command, cwd=ROOT, env=env, capture_output=True, timeout=600, check=False)
 
 
+#: each test file's time in the last run measured with ``pytest --store-durations`` [s, wall, beside
+#: the other workers], for the order the files are handed out in
+DURATIONS = Path(__file__).with_name("durations.json")
+
+
+def pytest_addoption(parser: pytest.Parser) -> None:
+    parser.addoption(
+        "--store-durations",
+        action="store_true",
+        help=f"write each test file's time in this run to {DURATIONS.name} (the order files are run in)",
+    )
+
+
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """The test files with a slow test first, the quick ones after, each in its collected order
-    (with ``--no-loadscope-reorder``, pyproject.toml): xdist hands a worker a whole file at a
-    time, by default the files with the most tests first, which left one-test files of a minute
-    (the monitor's simulated week) to start last and run alone at the end -- one worker busy for
-    55 s after the others were done.  Long files first, short ones to even out the end."""
+    """The longest test files first, by their times in tests/durations.json; a file not in it as long
+    as the median file of its kind (slow, or not).  xdist hands a worker a whole file at a time (each
+    file's module fixtures are built once), in this order (``--no-loadscope-reorder``,
+    pyproject.toml): a long file left to start late ran on alone after the others were done, and
+    files that wait (on drives' processes, on the wall clock) coming one after another left cores idle
+    together.  Longest first, every worker takes its next file until the last, short ones, even out
+    the end: the cores stood idle 10-11 core-seconds of a run where the slow files first, in their
+    collected order, left them idle 16, and the suite took 119-124 s where that order took 126-127 s
+    (2026-11-29, alternated)."""
+    known = json.loads(DURATIONS.read_text()) if DURATIONS.is_file() else {}
     slow = {item.path for item in items if item.get_closest_marker("slow")}
-    items.sort(key=lambda item: item.path not in slow)  # (a stable sort: each file's order kept)
+    files = list(dict.fromkeys(item.path for item in items))  # (in their collected order)
+    names = {
+        path: path.relative_to(ROOT).as_posix() if path.is_relative_to(ROOT) else str(path) for path in files
+    }
+
+    def median(kind: bool) -> float:
+        times = [known[names[f]] for f in files if names[f] in known and (f in slow) == kind]
+        return statistics.median(times) if times else float(kind)
+
+    guess = {True: median(True), False: median(False)}
+    duration = {f: known.get(names[f], guess[f in slow]) for f in files}
+    items.sort(key=lambda item: -duration[item.path])  # (a stable sort: each file's order kept)
+
+
+_durations: dict[str, float] = {}
+
+
+def pytest_runtest_logreport(report: pytest.TestReport) -> None:
+    """(``--store-durations``) Each test's setup, call and teardown, added to its file's time."""
+    path = report.nodeid.split("::", 1)[0]
+    _durations[path] = _durations.get(path, 0.0) + report.duration
 
 
 def pytest_collection_finish(session: pytest.Session) -> None:
@@ -156,7 +197,15 @@ def pytest_terminal_summary(terminalreporter, exitstatus, config):
 
 def pytest_sessionfinish(session, exitstatus):
     """With DRIVE_BRIDGE_REQUIRE_SHARED set (CI, where ../shared is beside the clone), a test
-    skipped for want of it fails the run."""
+    skipped for want of it fails the run.  With ``--store-durations``, the files' times written
+    (by the process that saw every test's report: xdist's controller, or the one process)."""
     reporter = session.config.pluginmanager.get_plugin("terminalreporter")
     if os.environ.get("DRIVE_BRIDGE_REQUIRE_SHARED") and _shared_skips(reporter):
         session.exitstatus = pytest.ExitCode.TESTS_FAILED
+    if session.config.getoption("store_durations") and not hasattr(session.config, "workerinput"):
+        kept = json.loads(DURATIONS.read_text()) if DURATIONS.is_file() else {}
+        times = {**kept, **{path: round(seconds, 1) for path, seconds in _durations.items()}}
+        times = {
+            path: times[path] for path in sorted(times) if (ROOT / path).is_file()
+        }  # (a part run: the rest kept)
+        DURATIONS.write_text(json.dumps(times, indent=1) + "\n")
