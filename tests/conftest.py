@@ -91,20 +91,26 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     the end: the cores stood idle 10-11 core-seconds of a run where the slow files first, in their
     collected order, left them idle 16, and the suite took 119-124 s where that order took 126-127 s
     (2026-11-29, alternated)."""
-    known = json.loads(DURATIONS.read_text()) if DURATIONS.is_file() else {}
-    slow = {item.path for item in items if item.get_closest_marker("slow")}
-    files = list(dict.fromkeys(item.path for item in items))  # (in their collected order)
-    names = {
-        path: path.relative_to(ROOT).as_posix() if path.is_relative_to(ROOT) else str(path) for path in files
-    }
+    known = _stored_durations()
+    slow = {_file_of(item.nodeid) for item in items if item.get_closest_marker("slow")}
+    files = list(dict.fromkeys(_file_of(item.nodeid) for item in items))  # (in their collected order)
 
     def median(kind: bool) -> float:
-        times = [known[names[f]] for f in files if names[f] in known and (f in slow) == kind]
+        times = [known[f] for f in files if f in known and (f in slow) == kind]
         return statistics.median(times) if times else float(kind)
 
     guess = {True: median(True), False: median(False)}
-    duration = {f: known.get(names[f], guess[f in slow]) for f in files}
-    items.sort(key=lambda item: -duration[item.path])  # (a stable sort: each file's order kept)
+    duration = {f: known.get(f, guess[f in slow]) for f in files}
+    items.sort(key=lambda item: -duration[_file_of(item.nodeid)])  # (a stable sort: each file's order kept)
+
+
+def _file_of(nodeid: str) -> str:
+    """A test's file, as its node id names it (relative to the repository): the durations' key."""
+    return nodeid.split("::", 1)[0]
+
+
+def _stored_durations() -> dict[str, float]:
+    return json.loads(DURATIONS.read_text()) if DURATIONS.is_file() else {}
 
 
 _durations: dict[str, float] = {}
@@ -112,7 +118,7 @@ _durations: dict[str, float] = {}
 
 def pytest_runtest_logreport(report: pytest.TestReport) -> None:
     """(``--store-durations``) Each test's setup, call and teardown, added to its file's time."""
-    path = report.nodeid.split("::", 1)[0]
+    path = _file_of(report.nodeid)
     _durations[path] = _durations.get(path, 0.0) + report.duration
 
 
@@ -203,9 +209,7 @@ def pytest_sessionfinish(session, exitstatus):
     if os.environ.get("DRIVE_BRIDGE_REQUIRE_SHARED") and _shared_skips(reporter):
         session.exitstatus = pytest.ExitCode.TESTS_FAILED
     if session.config.getoption("store_durations") and not hasattr(session.config, "workerinput"):
-        kept = json.loads(DURATIONS.read_text()) if DURATIONS.is_file() else {}
-        times = {**kept, **{path: round(seconds, 1) for path, seconds in _durations.items()}}
-        times = {
-            path: times[path] for path in sorted(times) if (ROOT / path).is_file()
-        }  # (a part run: the rest kept)
-        DURATIONS.write_text(json.dumps(times, indent=1) + "\n")
+        # a part run: the other files' times kept, those of files no longer there dropped
+        times = {**_stored_durations(), **{path: round(seconds, 1) for path, seconds in _durations.items()}}
+        kept = {path: times[path] for path in sorted(times) if (ROOT / path).is_file()}
+        DURATIONS.write_text(json.dumps(kept, indent=1) + "\n")
