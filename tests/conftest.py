@@ -88,9 +88,7 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     pyproject.toml): a long file left to start late ran on alone after the others were done, and
     files that wait (on drives' processes, on the wall clock) coming one after another left cores idle
     together.  Longest first, every worker takes its next file until the last, short ones, even out
-    the end: the cores stood idle 10-11 core-seconds of a run where the slow files first, in their
-    collected order, left them idle 16, and the suite took 119-124 s where that order took 126-127 s
-    (2026-11-29, alternated)."""
+    the end (the orders measured: docs/benchmarks.md)."""
     known = _stored_durations()
     slow = {_file_of(item.nodeid) for item in items if item.get_closest_marker("slow")}
     files = list(dict.fromkeys(_file_of(item.nodeid) for item in items))  # (in their collected order)

@@ -69,10 +69,10 @@ class WallClock:
 
 TRACE_PRIORITY = 10  # SCHED_FIFO priority of the trace writer (the streaming threads: 50)
 
-#: zlib level of a BLF trace's containers: the fastest. On a campaign's trace (a CAN frame is 48 bytes
-#: of BLF, mostly the same from one SYNC to the next) it writes 5 % more bytes than python-can's
-#: default (6) in a quarter of the time: 1.1-1.8 s less CPU in a 242 s lockstep campaign of 20 s
-#: (2026-11-29), time the second core gives the drives and the master on the wall clock
+#: zlib level of a BLF trace's containers: the fastest. A campaign's frames (48 bytes of BLF each,
+#: mostly the same from one SYNC to the next) take a quarter of the CPU python-can's default (6)
+#: takes, for a file 5 % larger -- CPU the drives and the master have on the wall clock
+#: (docs/benchmarks.md)
 TRACE_COMPRESSION = 1
 
 
