@@ -98,7 +98,7 @@ def cmd_monitor(args: argparse.Namespace) -> int:
     int
         The exit code (:data:`drive_bridge.errors.EXIT_TABLE`).
     """
-    from ..monitor import Monitor, Settings, listen, simulated_week
+    from ..monitor import Monitor, Settings, listen
     from ..outputs import json_text, stamped
 
     config = options.config(args)  # (the interface from -i/-c/-b, bus.yml or python-can's; its notes said)
@@ -152,6 +152,8 @@ def cmd_monitor(args: argparse.Namespace) -> int:
         )
     say(f"state and rolling log in {directory}")
     if args.sim:
+        from ..monitor.simulated import simulated_week
+
         week = simulated_week(
             config,
             monitor,

@@ -10,8 +10,19 @@ listen-only, reopened when lost) or :mod:`.simulated` (a simulated week of produ
 
 from __future__ import annotations
 
+from typing import Any
+
 from .live import listen
-from .simulated import simulated_week
 from .watch import Monitor, Settings
 
 __all__ = ["Monitor", "Settings", "listen", "simulated_week"]
+
+
+def __getattr__(name: str) -> Any:
+    """``simulated_week`` imported when asked for: it brings the simulator (numba and its compiled
+    kernels), which a monitor listening on a real bus never needs."""
+    if name == "simulated_week":
+        from .simulated import simulated_week
+
+        return simulated_week
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -13,8 +13,6 @@ from typing import Any
 
 from ..errors import UserError
 from ..history.record import identified
-from ..ident import identify
-from ..ident.presentation import as_json
 
 #: the parameters a window must determine to be kept
 PARAMETERS = ("J", "c0", "c1")
@@ -150,6 +148,11 @@ def identify_window(log: Path, axis: str, first: float, last: float, moving_s: f
     """
     if moving_s < MIN_MOVING_S:
         return standing(axis, first, last, moving_s)
+    # (imported here: the identification's scipy, in the process that identifies; the listening
+    # process needs none of it)
+    from ..ident import identify
+    from ..ident.presentation import as_json
+
     try:
         results = identify(log, None, [axis], seed=seed)
     except UserError as exc:

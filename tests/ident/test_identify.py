@@ -668,15 +668,19 @@ def test_an_axis_is_filtered_only_around_where_it_moves(tmp_path, monkeypatch):
         assert abs(part.model.params_[k] - whole.model.params_[k]) <= 1e-6 * whole.param_std[k], k
 
 
-PARALLEL_RUN = """import json, sys
+PARALLEL_RUN = """import json, os, sys
 from drive_bridge.ident import identify
 from drive_bridge.ident.identify import workers
 from drive_bridge.ident.logdata import read_log
-results = identify(sys.argv[1], seed=0)
-print(json.dumps({"workers": workers(read_log(sys.argv[1]), ["x", "y"]),
-                  "params": {a: r.model.params_ for a, r in results.items()},
-                  "std": {a: r.param_std for a, r in results.items()},
-                  "predicted": {a: r.model.predict(r.val).tolist() for a, r in results.items()}}))
+runs = {}
+for n in ("1", "2"):
+    os.environ["DRIVE_BRIDGE_WORKERS"] = n
+    results = identify(sys.argv[1], seed=0)
+    runs[n] = {"workers": workers(read_log(sys.argv[1]), ["x", "y"]),
+               "params": {a: r.model.params_ for a, r in results.items()},
+               "std": {a: r.param_std for a, r in results.items()},
+               "predicted": {a: r.model.predict(r.val).tolist() for a, r in results.items()}}
+print(json.dumps(runs))
 """
 
 
@@ -699,17 +703,14 @@ def test_axes_identified_in_worker_processes_give_what_one_after_the_other_gives
             "y_torque_Nm": y["y_torque_Nm"],
         },
     )
-    runs = {}
-    for n in ("1", "2"):
-        out = subprocess.run(
-            [sys.executable, "-c", PARALLEL_RUN, str(path)],
-            capture_output=True,
-            text=True,
-            env={**os.environ, "DRIVE_BRIDGE_WORKERS": n},
-            cwd=tmp_path,
-            check=True,
-        )
-        runs[n] = json.loads(out.stdout)
+    out = subprocess.run(
+        [sys.executable, "-c", PARALLEL_RUN, str(path)],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+        check=True,
+    )
+    runs = json.loads(out.stdout)  # one process, one axis after the other, then side by side
     assert runs["1"]["workers"] == 1 and runs["2"]["workers"] == 2
     for key in ("params", "std", "predicted"):
         assert runs["2"][key] == runs["1"][key], key

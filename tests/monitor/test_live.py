@@ -152,3 +152,21 @@ def test_sigterm_ends_the_monitor_cleanly_and_keeps_its_state(tmp_path):
     assert "stopped (SIGTERM): 0 frames" in out and "kept in" in out
     assert (tmp_path / "monitor" / "state.json").is_file()
     assert "Traceback" not in err
+
+
+def test_a_monitor_listens_without_the_simulator_or_the_identification_loaded():
+    """On a real bus the monitor's process loads neither the simulator (numba and its compiled
+    kernels) nor the identification (scipy's signal processing): a window is identified in a worker
+    process of its own, which loads them; ``monitor`` listened after 1.8-2.2 s of start where it
+    loaded them, 0.55 s without (2026-11-29)."""
+    code = (
+        "import sys; import drive_bridge.cli.monitor; "
+        "from drive_bridge.monitor import Monitor, Settings, listen; "
+        "heavy = ('numba', 'scipy.signal', 'drive_bridge.sim.kernel', 'drive_bridge.ident.identify'); "
+        "print(sorted(m for m in heavy if m in sys.modules))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"
+    from drive_bridge import monitor
+
+    assert callable(monitor.simulated_week)  # the simulated week, loaded when asked for
