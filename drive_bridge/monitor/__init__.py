@@ -10,19 +10,24 @@ listen-only, reopened when lost) or :mod:`.simulated` (a simulated week of produ
 
 from __future__ import annotations
 
-from typing import Any
+import importlib
+from typing import TYPE_CHECKING, Any
 
 from .live import listen
 from .watch import Monitor, Settings
 
 __all__ = ["Monitor", "Settings", "listen", "simulated_week"]
 
+if TYPE_CHECKING:
+    from .simulated import simulated_week
+
 
 def __getattr__(name: str) -> Any:
-    """``simulated_week`` imported when asked for: it brings the simulator (numba and its compiled
-    kernels), which a monitor listening on a real bus never needs."""
+    """``simulated_week`` imported on first use, as :mod:`drive_bridge.commissioning` imports its
+    names: it brings the simulator (numba and its compiled kernels), which a monitor listening on a
+    real bus never needs."""
     if name == "simulated_week":
-        from .simulated import simulated_week
-
-        return simulated_week
+        value = getattr(importlib.import_module(".simulated", __name__), name)
+        globals()[name] = value
+        return value
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
