@@ -253,6 +253,9 @@ class DriveLimits:
     holding : {"enabled", "brake"}
         How the axis is held when no motion runs: ``brake`` -- the drive's brake holds it with
         the power stage off; ``enabled`` -- the drive holds it at its position, powered.
+    hold_tolerance : float
+        How far an axis held ``enabled`` may stray while no motion is commanded [rad]: past it, a
+        gain set just written is put back (it does not hold the load).
     """
 
     max_velocity: float
@@ -260,6 +263,7 @@ class DriveLimits:
     following_error_timeout_ms: int
     max_torque_Nm: float | None
     holding: str = "enabled"
+    hold_tolerance: float = 0.05  # HOLD_TOLERANCE_RAD
 
 
 @dataclass(frozen=True)
@@ -338,6 +342,7 @@ class NodeConfig:
     position_mode: int | None = None
 
 
+HOLD_TOLERANCE_RAD = 0.05  # motor side: how far a held axis may stray uncommanded, where bus.yml does not say
 DEFAULT_BITRATE = 1_000_000  # bit/s, when nothing names the bitrate
 
 
@@ -891,12 +896,14 @@ def _node(
             f"nodes.{axis}.tpdo: {', '.join(torque_added)} (drive-bridge logs the torque; "
             f"the mapping written for ros2_canopen does not carry it)"
         )
+    hold = sec.get(f"hold_tolerance_{unit}", float, None, low=1e-9, high=1e3)
     drive_limits = DriveLimits(
         max_velocity=DRIVE_LIMIT_MARGIN * limits.max_velocity,
         quick_stop_deceleration=float(scaling.load_to_motor(qs)) if qs else 2 * limits.max_acceleration,
         following_error_timeout_ms=fe_timeout,
         max_torque_Nm=max_torque,
         holding=sec.get("holding", str, "enabled", choices=list(HOLDING)),
+        hold_tolerance=HOLD_TOLERANCE_RAD if hold is None else float(scaling.load_to_motor(hold)),
     )
     cfg = NodeConfig(
         axis=axis,

@@ -44,7 +44,16 @@ class _Dumper(yaml.SafeDumper):
 
 _Dumper.add_representer(Hex, lambda d, v: d.represent_scalar("tag:yaml.org,2002:int", f"0x{int(v):04X}"))
 
-OWN_KEYS = ("scaling", "limits", "profile", "motor", "following_error_window_rad", "holding")
+OWN_KEYS = (
+    "scaling",
+    "limits",
+    "profile",
+    "motor",
+    "following_error_window_rad",
+    "holding",
+    "hold_tolerance_rad",
+    "hold_tolerance_m",
+)
 MASTER_NODE_ID = 127
 
 

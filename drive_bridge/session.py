@@ -15,6 +15,7 @@ import canopen
 
 from .config import BusConfig
 from .connect import open_link
+from .errors import BusError
 from .master.bringup import AxisLink, bring_up, check_scan, remote_node, scan
 from .master.link import Link
 from .params.check import GM_FLOOR_DB, PM_FLOOR_DEG
@@ -175,16 +176,16 @@ class Session:
         -------
         dict of str to str
             Per axis, in words (``switched off, on its brake``, ``powered, holding its position
-            (profile position, halt)``, ...); ``unknown: ...`` for a drive that does not answer;
-            empty where no axis was brought up.
+            (profile position, halt)``, ...) and where it stands [rad, motor side]; ``unknown: ...``
+            for a drive that does not answer; empty where no axis was brought up.
         """
         from .master.hold import holding_of
 
         out = {}
         for name, ax in (self._axes or {}).items():
             try:
-                out[name] = holding_of(ax, ax.drive.state())
-            except (canopen.SdoCommunicationError, canopen.SdoAbortedError) as exc:
+                out[name] = f"{holding_of(ax, ax.drive.state())}, at {ax.position_rad():.4f} rad (0x6064)"
+            except (canopen.SdoCommunicationError, canopen.SdoAbortedError, BusError) as exc:
                 out[name] = f"unknown: the drive does not answer ({exc})"
         return out
 

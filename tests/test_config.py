@@ -93,3 +93,18 @@ def test_the_drives_consumer_time_of_the_master_heartbeat_is_lelys_heartbeat_mul
     assert config.master.drive_consumer_ms == drive_consumer_ms
     settings = drive_settings("x", config.nodes["x"], config.master.sync_period_s, config.master)
     assert (0x1016, 1, 127 << 16 | drive_consumer_ms) in settings
+
+
+def test_a_hold_tolerance_is_read_in_the_axis_own_units(tmp_path):
+    """``hold_tolerance_m`` on a linear axis (Z: a 10 mm lead), at the motor in rad; without it 0.05 rad;
+    a negative one is one clear message."""
+    from drive_bridge.config import HOLD_TOLERANCE_RAD
+    from drive_bridge.errors import UserError
+
+    holding = "    holding: enabled\n"
+    assert load_bus_config(BUS_CONFIG).nodes["z"].drive_limits.hold_tolerance == HOLD_TOLERANCE_RAD
+    cfg = load_bus_config(bus_yml_beside(tmp_path, holding, holding + "    hold_tolerance_m: 0.0001\n"))
+    assert cfg.nodes["z"].drive_limits.hold_tolerance == pytest.approx(0.0001 / 0.010 * 2 * 3.141592653589793)
+    bad = bus_yml_beside(tmp_path, holding, holding + "    hold_tolerance_m: -1\n")
+    with pytest.raises(UserError, match="nodes.z.hold_tolerance_m"):
+        load_bus_config(bad)

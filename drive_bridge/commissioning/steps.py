@@ -10,8 +10,9 @@ from pathlib import Path
 
 from ..errors import UserError
 from ..figures import side_by_side
-from ..master.bringup import check_scan
+from ..master.bringup import AxisLink, check_scan
 from ..master.bringup import scan as scan_bus
+from ..master.hold import HeldAxes, hold_powered
 from ..outputs import stamped, write_json
 from ..params.read import drive_state
 from ..params.write import raise_for_failure, write_drives
@@ -65,6 +66,29 @@ class Context:
         self.session, self.out, self.reporter = session, out, reporter
         self.config, self.options = session.config, session.options
         self.degraded: list[str] = []  # the running step's wall-clock runs past their timing limits
+        self._held = False
+
+    @property
+    def axes(self) -> dict[str, AxisLink]:
+        """The session's drives, brought up (:meth:`brought_up`)."""
+        return self.brought_up()
+
+    def brought_up(self) -> dict[str, AxisLink]:
+        """The session's drives brought up; the first time, every axis without a brake is powered
+        and held where it stands, from then to the run's end (:func:`~drive_bridge.master.hold.hold_powered`,
+        said).
+
+        Returns
+        -------
+        dict of str to AxisLink
+            The axes.
+        """
+        axes = self.session.axes
+        if not self._held:
+            self._held = True
+            for line in hold_powered(axes):
+                self.reporter.note(line)
+        return axes
 
     def require(self, name: str) -> Path:
         """A previous step's output; a clear error naming the step to run when it is missing.
@@ -158,7 +182,7 @@ def bringup(ctx: Context) -> str:
         What it found or did, in one line for the reporter.
     """
     profile = ctx.session.profile
-    axes = ctx.session.axes
+    axes = ctx.axes
     state = drive_state(axes, profile, ctx.options.motor)
     for a, ax in axes.items():
         state[a]["process_data"] = ax.process_data()
@@ -187,6 +211,7 @@ def campaign(ctx: Context) -> str:
     """
     from ..recorder import record
 
+    ctx.brought_up()  # an axis without a brake held before the campaign brings the drives up again
     # brought up once more inside the campaign's trace (the bringup step's writes, the same again),
     # so that it holds bring-up, streaming and stop as a capture from the bus's opening would
     result = record(ctx.config, ctx.session.link, ctx.out / OUTPUT["campaign"], on_plan=ctx.reporter.motion)
@@ -253,7 +278,7 @@ def measure(ctx: Context) -> str:
     from ..tuning.measure import frf_doc, measure_axes
 
     models = read_identify_json(ctx.require(IDENTIFY_JSON))
-    axes = {a: ax for a, ax in ctx.session.axes.items() if a in models}
+    axes = {a: ax for a, ax in ctx.axes.items() if a in models}
     try:
         frfs, skipped = measure_axes(
             ctx.config,
@@ -265,7 +290,7 @@ def measure(ctx: Context) -> str:
         )
     finally:
         ctx.reporter.end_motion()
-    skipped |= {a: "not identified (see the identify step)" for a in ctx.session.axes if a not in models}
+    skipped |= {a: "not identified (see the identify step)" for a in ctx.axes if a not in models}
     write_json(ctx.out / OUTPUT["measure"], frf_doc(frfs, skipped))
     return "; ".join(
         [
@@ -325,8 +350,23 @@ def tune(ctx: Context) -> str:
         f"KpP {d['gains']['KpP']:.0f}, PM {d['margins']['velocity']['phase_margin_deg']:.1f}°, "
         f"GM {d['margins']['velocity']['gain_margin_db']:.1f} dB"
         + (f", not writable: {', '.join(d['not_writable'])}" if d["not_writable"] else "")
+        + _measured_response(d.get("measured_response"))
         for a, d in doc["axes"].items()
     )
+
+
+def _measured_response(record: dict | None) -> str:
+    """How the tune step's line says the measured response was set aside (nothing where it was used
+    or not measured)."""
+    if not record:
+        return ""
+    if record["used"]:
+        return (
+            f"; designed on the measured response although {record['departs']}"
+            if record.get("departs")
+            else ""
+        )
+    return f"; MEASURED RESPONSE SUSPECT, gains from the model alone: {record['suspect']}"
 
 
 def _loop_figure(shared: tuple[Path, dict, dict, float], a: str) -> None:
@@ -364,8 +404,15 @@ def write(ctx: Context) -> str:
     tuned = read_tune_json(ctx.require(OUTPUT["tune"])).only(ctx.config)
     # brought up (PDO mapping, heartbeat, limits; drives stay disabled): what is stored and what
     # the DCF reads back is the whole commissioning, not the gains alone
-    axes = {a: ctx.session.axes[a] for a in tuned.parameters}
+    axes = {a: ctx.axes[a] for a in tuned.parameters}
     out, o = ctx.out / OUTPUT["write"], ctx.options
+    # the gains keep their margins on the responses they were designed on, not on one set aside
+    designed_on = {
+        a: f
+        for a, f in (_measured(ctx) or {}).items()
+        if (ctx.read_json(OUTPUT["tune"])["axes"].get(a, {}).get("measured_response") or {}).get("used", True)
+    }
+    held = HeldAxes(ctx.axes)  # an axis held powered must still stand once the set is written
     outcome = write_drives(
         {a: ax.node for a, ax in axes.items()},
         ctx.session.profile,
@@ -379,8 +426,9 @@ def write(ctx: Context) -> str:
         allow_unverified_scales=o.writes_unverified,
         bitrate=ctx.config.master.nominal_bitrate,
         settings_before={a: ax.before for a, ax in axes.items()},
-        frf=_measured(ctx),
+        frf=designed_on,
         torque_constants=ctx.config.torque_constants,
+        strayed=held.strayed,
     )
     write_json(ctx.out / WRITE_JSON, outcome.as_dict())
     raise_for_failure(outcome, out)
@@ -420,7 +468,7 @@ def validate(ctx: Context) -> str:
     before = {a: v["parameters_before"] for a, v in ctx.read_json(OUTPUT["bringup"])["axes"].items()}
     scenarios = {"before": {a: before[a] for a in params}, "after": params}
     model = {a: drive_model(p) for a, p in params.items()}
-    axes = {a: ctx.session.axes[a] for a in params}
+    axes = {a: ctx.axes[a] for a in params}
     try:
         runs = run_scenarios(
             ctx.config,

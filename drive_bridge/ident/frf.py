@@ -53,6 +53,11 @@ class Frf:
         The drive's loop gain |K·G| with the gains it ran with.
     rate_hz : float
         The SYNC rate it was measured at [Hz].
+    filled : int
+        Position samples that were missing (late SYNCs) and filled in linearly before the DFT.
+    late : int
+        SYNC periods of the run whose set-point and torque offset reached the drive late (it
+        applied the ones before again).
     """
 
     frequency_hz: np.ndarray
@@ -60,6 +65,8 @@ class Frf:
     coherence: np.ndarray
     loop_gain: np.ndarray
     rate_hz: float
+    filled: int = 0
+    late: int = 0
 
     def reliable(self) -> np.ndarray:
         """The bins that measure the plant: coherence at least ``MIN_COHERENCE``, from the lowest
@@ -84,11 +91,13 @@ class Frf:
         Returns
         -------
         dict
-            ``rate_hz``, and per bin its frequency, magnitude [dB], phase [°], coherence, loop gain
-            and whether it is reliable.
+            ``rate_hz``, ``filled_samples``, ``late_setpoints``, and per bin its frequency, magnitude [dB], phase [°],
+            coherence, loop gain and whether it is reliable.
         """
         return {
             "rate_hz": self.rate_hz,
+            "filled_samples": self.filled,
+            "late_setpoints": self.late,
             "frequency_hz": [round(float(f), 4) for f in self.frequency_hz],
             "magnitude_db": [round(float(20 * np.log10(abs(g))), 3) for g in self.response],
             "phase_deg": [round(float(np.degrees(np.angle(g))), 2) for g in self.response],
@@ -118,6 +127,8 @@ class Frf:
             np.asarray(doc["coherence"], dtype=float),
             np.asarray(doc["loop_gain"], dtype=float),
             float(doc["rate_hz"]),
+            int(doc.get("filled_samples", 0)),  # (frf.json before they were said)
+            int(doc.get("late_setpoints", 0)),
         )
 
 

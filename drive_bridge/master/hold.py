@@ -9,11 +9,16 @@ import canopen
 
 from ..cia.p402 import (
     CSP,
+    CW_HALT,
     CW_QUICK_STOP,
+    CW_SHUTDOWN,
+    CW_SWITCH_ON,
     IP,
+    PP,
     state_name,
 )
 from ..cia.setpoint import PVT
+from ..config import HOLD_TOLERANCE_RAD
 from ..errors import MotionAborted
 from .bringup import AxisLink
 from .link import Link
@@ -156,6 +161,100 @@ def prepare_enable(ax: AxisLink, target: int) -> None:
                 ax.name,
             ) from exc
     ax.drive.set_mode(ax.mode)
+
+
+SETTLE_S = 1.0  # how long a held axis is given to stand still before where it stands is taken
+HELD = ("OPERATION ENABLED", "QUICK STOP ACTIVE")  # the states an axis held ``enabled`` is powered in
+
+
+class HeldAxes:
+    """The axes held powered now (not on their brake; enabled or in quick stop) and where each
+    stands: :meth:`strayed` says whether one has since left its hold tolerance or its power (a
+    gain set that does not hold its load, written while it holds).
+
+    Parameters
+    ----------
+    axes : dict of str to AxisLink
+        The brought-up axes; those that do not answer are left out.
+    """
+
+    def __init__(self, axes: dict[str, AxisLink]):
+        self.axes: dict[str, AxisLink] = {}
+        self.at: dict[str, float] = {}
+        for name, ax in axes.items():
+            if on_brake(ax):
+                continue
+            try:
+                if ax.drive.state() in HELD:
+                    self.axes[name] = ax
+            except (canopen.SdoCommunicationError, canopen.SdoAbortedError):
+                continue
+        still = dict.fromkeys(self.axes, 0)
+        if self.axes:  # where each stands once it stands still (what ended before may still settle)
+            clock = next(iter(self.axes.values())).drive.clock
+            deadline = clock.now() + SETTLE_S
+            while min(still.values()) < 2 and clock.now() < deadline:
+                for name, ax in self.axes.items():
+                    speed = abs(float(ax.cfg.scaling.velocity_from_device(ax.node.sdo[0x606C].raw)))
+                    still[name] = still[name] + 1 if speed <= STANDSTILL_MIN_RAD_S else 0
+                clock.sleep(0.01)
+        self.at = {name: ax.position_rad() for name, ax in self.axes.items()}
+
+    def strayed(self) -> str | None:
+        """The first held axis that left its power or its hold tolerance, in words (None: each holds).
+
+        Returns
+        -------
+        str or None
+            What it did.
+        """
+        for name, ax in self.axes.items():
+            tolerance = ax.cfg.drive_limits.hold_tolerance if ax.cfg.drive_limits else HOLD_TOLERANCE_RAD
+            state, moved = ax.drive.state(), abs(ax.position_rad() - self.at[name])
+            if state not in HELD:
+                return f"axis {name}: held powered before, {state} now"
+            if moved > tolerance:
+                return (
+                    f"axis {name}: left the position it was held at by {moved:.3g} rad (hold tolerance "
+                    f"{tolerance:g} rad): the new gains do not hold its load"
+                )
+        return None
+
+
+def hold_powered(axes: dict[str, AxisLink]) -> list[str]:
+    """Power every axis held ``enabled`` that is not powered now and hold it where it stands: profile
+    position with halt, in which a drive takes no target and holds its position (an axis without a
+    brake is never left without torque while the master runs).  An axis in FAULT is left as it is
+    (a fault is for a person to clear); one whose drive has no profile position is said.
+
+    Parameters
+    ----------
+    axes : dict of str to AxisLink
+        The brought-up axes.
+
+    Returns
+    -------
+    list of str
+        What was done to each axis it touched, or why one could not be held, in words.
+    """
+    said = []
+    for name, ax in axes.items():
+        if on_brake(ax):
+            continue
+        state = ax.drive.state()
+        if state in HELD:
+            continue
+        if state == "FAULT":
+            said.append(f"axis {name}: in FAULT, not held powered: clear the fault at the drive")
+        elif PP not in ax.modes:
+            said.append(f"axis {name}: its drive has no profile position: not held powered between motions")
+        else:
+            ax.drive.set_mode(PP)
+            ax.drive.command(CW_SHUTDOWN, "READY TO SWITCH ON", "powering it to hold it")
+            ax.drive.command(CW_SWITCH_ON, "SWITCHED ON", "powering it to hold it")
+            ax.drive.command(CW_HALT, "OPERATION ENABLED", "powering it to hold it")
+            said.append(f"axis {name}: powered and held where it stands ({ax.position_rad():.4f} rad)")
+    return said
 
 
 def holding_of(ax: AxisLink, state: str | None) -> str:

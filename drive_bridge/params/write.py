@@ -9,7 +9,7 @@ result lists every object with its old and new value in SI and device units.
 from __future__ import annotations
 
 import logging
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -425,8 +425,10 @@ class _Transaction:
         results: dict[str, WriteResult],
         backup_paths: dict[str, Path | None],
         settings_before: dict[str, dict[str, int]] | None = None,
+        strayed: Callable[[], str | None] | None = None,
     ):
         self.nodes, self.profiles, self.results = nodes, profiles, results
+        self.strayed = strayed  # after the read-back: an axis held powered that the new set let go
         self.profile = next(iter(profiles.values()))  # the drive model's (name, store object)
         self.backup_paths = backup_paths
         self.settings_before = settings_before or {}
@@ -481,6 +483,9 @@ class _Transaction:
                             f"{w.parameter} ({self._entry(a, w).where()}) reads back "
                             f"{back}, not the {w.new_device} written"
                         )
+            problem = self.strayed() if self.strayed is not None else None
+            if problem is not None:
+                raise _Failed(problem)
             phase = "store"
             for a, r in self.results.items():
                 where = (a, None)
@@ -746,6 +751,7 @@ def write_drives(
     settings_before: dict[str, dict[str, int]] | None = None,
     frf: dict | None = None,
     torque_constants: dict[str, float | None] | None = None,
+    strayed: Callable[[], str | None] | None = None,
 ) -> WriteOutcome:
     """The write step: every value checked, then one transaction over every drive.
 
@@ -787,6 +793,10 @@ def write_drives(
         Per axis the response measured through the drive: the gains keep their margins on it too.
     torque_constants : dict of str to float, optional
         Per axis [Nm/A], where the drive holds values in current.
+    strayed : callable, optional
+        Asked once every value reads back, before anything is stored: an axis held powered that
+        the new set let go of, in words (:meth:`drive_bridge.master.hold.HeldAxes.strayed`); one
+        it names puts every drive back to its backup.
 
     Returns
     -------
@@ -820,7 +830,7 @@ def write_drives(
         dry_run=dry_run,
         frf=frf,
     )
-    _Transaction(nodes, profiles, results, _backup_paths(nodes, backup_dir), settings_before).run(
+    _Transaction(nodes, profiles, results, _backup_paths(nodes, backup_dir), settings_before, strayed).run(
         True, dry_run
     )
     outcome = WriteOutcome(results, checked.margins, checked.forced, list(nodes), checked.unverified)

@@ -5,6 +5,7 @@ udp_multicast, each drive the one its node's EDS/DCF describes."""
 from __future__ import annotations
 
 import logging
+from pathlib import Path
 
 from ..cia.buses import BusSpec
 from ..config import BusConfig
@@ -19,7 +20,13 @@ from .vendors import spec_for
 log = logging.getLogger(__name__)
 
 
-def simulated_link(config: BusConfig, *, realtime: bool = False, sim_config: str | None = None) -> Link:
+def simulated_link(
+    config: BusConfig,
+    *,
+    realtime: bool = False,
+    sim_config: str | None = None,
+    watch: str | Path | None = None,
+) -> Link:
     """The simulated robot ``sim_config`` (a YAML, or a shipped robot by name; default the shipped
     ``robot``) as the drives of ``config``: in lockstep, or with ``realtime`` on the wall clock.
     Raises UserError for a SYNC period the drives cannot run or a node without a simulated drive.
@@ -32,6 +39,9 @@ def simulated_link(config: BusConfig, *, realtime: bool = False, sim_config: str
         On the wall clock, the drives in a process of their own.
     sim_config : str, optional
         The simulated robot.
+    watch : str or Path, optional
+        With ``realtime``: where the drives' process writes the plant as it moves
+        (:func:`~drive_bridge.sim.process.watch_plant`).
 
     Returns
     -------
@@ -65,7 +75,7 @@ def simulated_link(config: BusConfig, *, realtime: bool = False, sim_config: str
         ", ".join(f"{a}: {p.name}" for a, p in eds.items()),
     )
     if realtime:
-        drives = SimProcess(sim_config or SIM_DEFAULT, config.master.sync_period_s, eds)
+        drives = SimProcess(sim_config or SIM_DEFAULT, config.master.sync_period_s, eds, watch)
         bus_link = BusLink(drives.bus, BusSpec("udp_multicast", drives.group, None, {"port": drives.port}))
         bus_link.simulator = drives  # the drives' process (tests stall it to prove the supervision)
         bus_link.on_close.append(drives.shutdown)

@@ -18,13 +18,17 @@ import subprocess
 import sys
 from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import IO, cast
+from typing import IO, TYPE_CHECKING, cast
 
 import can
 
 from ..cia.multicast import UDP_GROUP, LoopbackMulticastBus
 from ..errors import BusError
 from ..master.timing import lock_memory
+from .kernel import Q
+
+if TYPE_CHECKING:
+    from .robot import SimRobot
 
 GROUP = UDP_GROUP  # python-can's default IPv4 group; each run gets its own port
 START_TIMEOUT_S = 120.0  # the child imports numpy/numba and loads the kernel
@@ -57,10 +61,17 @@ class SimProcess:
         [s].
     eds : mapping of str to str or Path, optional
         Per axis, its drive's EDS/DCF.
+    watch : str or Path, optional
+        Where the child writes the plant as it moves (:func:`watch_plant`; tests judge the axes on
+        the wall clock by it).
     """
 
     def __init__(
-        self, config_path: str | Path, sync_period: float, eds: Mapping[str, str | Path] | None = None
+        self,
+        config_path: str | Path,
+        sync_period: float,
+        eds: Mapping[str, str | Path] | None = None,
+        watch: str | Path | None = None,
     ):
         self.group, self.port = GROUP, free_port()
         self.bus = LoopbackMulticastBus(GROUP, self.port)  # the master's end, open before boot-up
@@ -73,6 +84,7 @@ class SimProcess:
                 str(self.port),
                 repr(sync_period),
                 json.dumps({a: str(p) for a, p in (eds or {}).items()}),
+                str(watch or ""),
             ],
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
@@ -99,12 +111,50 @@ class SimProcess:
         self.bus.shutdown()
 
 
+WATCH_PERIOD_S = 0.005  # the plant watch's sample period [s of plant time]
+
+
+def watch_plant(robot: SimRobot, path: Path) -> IO[str]:
+    """Write ``robot``'s plant to ``path`` as it moves, a line every :data:`WATCH_PERIOD_S` of its
+    time: the wall-clock time it stands for [s, ``time.time()``'s], then per axis its position
+    [rad] and its drive's CiA 402 power state (:data:`~drive_bridge.cia.p402.STATUSWORD`'s keys).
+    The plant's own truth, beside anything a master reads from the drives.
+
+    Parameters
+    ----------
+    robot : SimRobot
+        The simulated robot, on the wall clock.
+    path : Path
+        The file (a header line names the columns).
+
+    Returns
+    -------
+    file
+        The open file: close it once the robot stopped.
+    """
+    out = path.open("w", buffering=1 << 16)
+    drives = list(robot.drives.values())
+    out.write("wall_s " + " ".join(f"{n}_rad {n}_state" for n in robot.drives) + "\n")
+    due = [robot.time]
+
+    def sample(t: float) -> None:
+        if t < due[0]:
+            return
+        due[0] = t + WATCH_PERIOD_S
+        row = " ".join(f"{robot.plant.state[d.index, Q]:.7f} {d.state}" for d in drives)
+        out.write(f"{robot.wall_time(t):.6f} {row}\n")
+
+    robot.timers.append(sample)
+    return out
+
+
 def serve(
     config_path: str | Path,
     bus: can.BusABC,
     sync_period: float,
     eds: dict[str, str],
     until: Callable[[], object],
+    watch: str = "",
 ) -> None:
     """Run the simulated drives of ``config_path`` on ``bus`` against the wall clock; print
     ``ready`` once they are on the bus; ``until()`` returns when they are to stop.
@@ -121,11 +171,14 @@ def serve(
         Per axis, its drive's EDS/DCF.
     until : callable
         Returns when they are to stop.
+    watch : str
+        Where to write the plant as it moves (:func:`watch_plant`); empty: nowhere.
     """
     from .robot import SimRobot
     from .robot_config import load_sim_config
 
     robot = SimRobot(load_sim_config(config_path), bus=bus, sync_period=sync_period, eds=eds)
+    watched = watch_plant(robot, Path(watch)) if watch else None
     # Out of the cycle collector's reach: a full collection walking three object dictionaries
     # stops the drives for tens of ms, longer than the master's missing-feedback limit.
     gc.collect()
@@ -138,9 +191,11 @@ def serve(
         until()
     finally:
         robot.shutdown()
+        if watched is not None:
+            watched.close()
 
 
-def main(config_path: str, port: str, sync_period: str, eds: str = "{}") -> None:
+def main(config_path: str, port: str, sync_period: str, eds: str = "{}", watch: str = "") -> None:
     """The child process: the drives on the UDP multicast bus until standard input closes.
 
     Parameters
@@ -153,6 +208,8 @@ def main(config_path: str, port: str, sync_period: str, eds: str = "{}") -> None
         [s].
     eds : str
         JSON: per axis, its drive's EDS/DCF.
+    watch : str
+        Where to write the plant as it moves; empty: nowhere.
     """
     serve(
         config_path,
@@ -160,6 +217,7 @@ def main(config_path: str, port: str, sync_period: str, eds: str = "{}") -> None
         float(sync_period),
         json.loads(eds),
         sys.stdin.read,
+        watch,
     )  # until the master closes the pipe
 
 

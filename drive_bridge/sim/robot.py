@@ -383,6 +383,21 @@ class SimRobot:
             wake += IDLE_WAKE_S * (1 + int(late // IDLE_WAKE_S))
         return wake
 
+    def wall_time(self, t: float) -> float:
+        """Wall clock: the time [s, ``time.time()``'s] simulation time ``t`` stands for.
+
+        Parameters
+        ----------
+        t : float
+            [s, simulation time].
+
+        Returns
+        -------
+        float
+            [s].
+        """
+        return self._t0 + t
+
     def clock_from(self, now: float) -> None:
         """Wall clock: the simulation time reached is the wall-clock time ``now`` [s].
 

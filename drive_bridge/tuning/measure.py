@@ -196,6 +196,7 @@ def measure_axes(
         q = m.position[a][steady]
         if len(q) < steady.stop - steady.start:
             raise DriveRefused(f"axis {a}: position samples missing during the frequency response")
+        filled = int(np.count_nonzero(~np.isfinite(q)))
         q = _filled(a, q, config.master.timing)
         if np.any(np.diff(q[PERIOD_SAMPLES:]) * np.sign(speed) < 0):
             raise UserError(
@@ -204,6 +205,7 @@ def measure_axes(
                 f"is not the plant's; a longer stroke in the limits, or leave the measure step out"
             )
         out[a] = measure(q, u[steady], 1.0 / period, controller(held, profile.controller.timing.tick_s))
+        out[a].filled, out[a].late = filled, int(m.timing.engine.get("setpoints_late", 0) or 0)
     return out, skipped
 
 

@@ -23,7 +23,7 @@ from ..params.cascade import (
 from ..params.cascade import (
     controller as loop_controller,
 )
-from ..params.controller import GAINS, Controller
+from ..params.controller import GAINS, Controller, Timing
 from ..yamlconf import too_large
 from .design import GainDesign, current_bandwidth, design_gains
 from .experiment import ExperimentResult
@@ -41,6 +41,11 @@ MODE_PEAK = 2.0  # a measured |G| this many times the rigid model's (6 dB) at it
 LOOP_RINGING = (
     2**0.5
 )  # an identified peak where the drive's own loop amplifies this much (3 dB) is the loop's
+MEASURED_FACTOR = 3.0  # a design on the measured response whose velocity or position crossover lies
+# further than this factor (either way) from the model-based design's sets the response aside
+MIN_MEASURED_BINS = 20  # reliable bins a measured response needs to be designed on
+MODE_AGREES = 2**0.5  # a mode explains a departing design where, below half its frequency, the response
+MODE_BELOW_BINS = 5  # (the median over at least this many reliable bins) is the rigid model's within 3 dB
 
 
 @dataclass
@@ -69,6 +74,10 @@ class AxisTuning:
         The structure and rates the gains are designed for.
     mode : dict, optional
         A mode of the transmission, where one is known, and how the design meets it.
+    measured_response : dict, optional
+        With a measured response: whether the design used it, why not (``suspect``), why it was
+        used although its design departs from the model-based one (``departs``), and the loops'
+        crossovers on it and on the model alone (:func:`tune_axis`).
     """
 
     axis: str
@@ -81,6 +90,7 @@ class AxisTuning:
     frf: Frf | None = None
     controller: Controller = Controller()
     mode: dict | None = None
+    measured_response: dict | None = None
 
     def parameters(self) -> dict[str, float]:
         """Everything to write.
@@ -115,6 +125,7 @@ class AxisTuning:
             "measured": None if self.frf is None else self.measured(),
             "controller": self.controller.as_dict(),
             "mode": self.mode,
+            "measured_response": self.measured_response,
             "parameters": self.parameters(),
         }
 
@@ -527,12 +538,30 @@ def tune_axis(
     check_model(axis, model)
     if not (math.isfinite(R) and math.isfinite(L) and R > 0 and L > 0):
         raise UserError(f"axis {axis}: motor R = {R} Ω, L = {L} H must be positive numbers")
-    mode, cap = _mode(axis, model, resonance, frf, controller, drive, before)
     timing = controller.timing
-    try:
-        design = design_gains(model["J"], model["c1"], R, L, frf, timing, cap)
-    except (KeyError, ValueError) as exc:
-        raise UserError(f"axis {axis}: cannot design gains from the model {model}: {exc}") from exc
+    mode, cap = _mode(axis, model, resonance, None, controller, drive, before)
+    design = _designed(axis, model, R, L, None, timing, cap)  # on the model alone: the reference
+    measured_response = None
+    if frf is not None:
+        on_frf, suspect, departs = _on_measured(
+            axis, model, R, L, frf, controller, resonance, drive, before, design
+        )
+        measured_response = {
+            "used": suspect is None,
+            "suspect": suspect,
+            "departs": departs,
+            "factor": MEASURED_FACTOR,
+            "crossover_hz": {
+                "model": _crossovers(design),
+                "measured": None if on_frf is None else _crossovers(on_frf[0]),
+            },
+        }
+        if suspect is None and on_frf is not None:
+            design, mode = on_frf
+        else:
+            log.warning(
+                "axis %s: the measured response is suspect (%s): gains from the model alone", axis, suspect
+            )
     margins = (
         loop_margins(model["J"], model["c1"], before, R, L, timing.tick_s)
         if set(GAINS) <= set(before)
@@ -546,8 +575,104 @@ def tune_axis(
         design.velocity.crossover_hz,
     )
     return AxisTuning(
-        axis, model, design, before, margins, {"R": R, "L": L}, frf=frf, controller=controller, mode=mode
+        axis,
+        model,
+        design,
+        before,
+        margins,
+        {"R": R, "L": L},
+        frf=frf,
+        controller=controller,
+        mode=mode,
+        measured_response=measured_response,
     )
+
+
+def _designed(
+    axis: str, model: dict[str, float], R: float, L: float, frf: Frf | None, timing: Timing, cap: float | None
+) -> GainDesign:
+    """:func:`~.design.design_gains`, a failure a UserError naming the axis."""
+    try:
+        return design_gains(model["J"], model["c1"], R, L, frf, timing, cap)
+    except (KeyError, ValueError) as exc:
+        raise UserError(f"axis {axis}: cannot design gains from the model {model}: {exc}") from exc
+
+
+def _crossovers(design: GainDesign) -> dict[str, float]:
+    """The velocity and position loops' crossovers [Hz]."""
+    return {
+        "velocity": round(float(design.velocity.crossover_hz), 3),
+        "position": round(float(design.position.crossover_hz), 3),
+    }
+
+
+def _on_measured(
+    axis: str,
+    model: dict[str, float],
+    R: float,
+    L: float,
+    frf: Frf,
+    controller: Controller,
+    resonance: dict | None,
+    drive: str,
+    before: dict[str, float],
+    reference: GainDesign,
+) -> tuple[tuple[GainDesign, dict | None] | None, str | None, str | None]:
+    """The design on the measured response ``frf`` with its mode record, why the response is
+    suspect (None: it is designed on) and, where its design departs from the model-based
+    ``reference`` by more than ``MEASURED_FACTOR`` but is used, why.
+
+    It is not designed on where samples were filled in (a linear fill spreads its error over every
+    bin) or too few bins are reliable.  Its design is set aside where a loop's crossover lies further
+    than ``MEASURED_FACTOR`` from the model-based one's and nothing the response shows explains it:
+    a corrupted measurement, or a plant that changed since the identification -- either way not one
+    to write gains from unasked.  A mode it shows (one the rigid model lacks) explains it."""
+    if frf.filled or frf.late:
+        return (
+            None,
+            f"the master was late during the measurement ({frf.filled} position samples missing and filled "
+            f"in, {frf.late} set-points and torque offsets late): the response holds its timing errors",
+            None,
+        )
+    bins = int(frf.reliable().sum())
+    if bins < MIN_MEASURED_BINS:
+        return None, f"only {bins} bins are reliable (at least {MIN_MEASURED_BINS} are needed)", None
+    mode, cap = _mode(axis, model, resonance, frf, controller, drive, before)
+    try:
+        design = design_gains(model["J"], model["c1"], R, L, frf, controller.timing, cap)
+    except ValueError as exc:
+        return None, f"no gains keep the margins on it ({exc}) while the model has some", None
+    for loop in ("velocity", "position"):
+        on_frf, on_model = getattr(design, loop).crossover_hz, getattr(reference, loop).crossover_hz
+        ratio = max(on_frf / on_model, on_model / on_frf)
+        if ratio <= MEASURED_FACTOR:
+            continue
+        departs = (
+            f"the {loop} loop's crossover designed on it, {on_frf:.3g} Hz, is {ratio:.2g}× "
+            f"{'below' if on_frf < on_model else 'above'} the model-based design's {on_model:.3g} Hz "
+            f"(more than {MEASURED_FACTOR:g}×)"
+        )
+        shown = _mode_explains(frf, model, current_bandwidth(controller.timing.current_hz))
+        if shown is None:
+            return (design, mode), departs + " and the response shows no mode that explains it", None
+        return (design, mode), None, f"{departs}: the mode at {shown:.3g} Hz the response shows explains it"
+    return (design, mode), None, None
+
+
+def _mode_explains(frf: Frf, model: dict[str, float], current_bw_rad_s: float) -> float | None:
+    """The mode [Hz] the measured response shows on a plant the rigid model explains below it (its
+    reliable bins under half the mode within ``MODE_AGREES`` of the model's, a few at least); None
+    where it shows none, or where the response departs from the model everywhere (a wrong
+    measurement, not a mode)."""
+    f_mode = measured_mode(frf, model["J"], model["c1"], current_bw_rad_s)
+    if f_mode is None:
+        return None
+    ok = frf.reliable() & (frf.frequency_hz < f_mode / 2)
+    if ok.sum() < MODE_BELOW_BINS:
+        return None
+    rigid = rigid_response(model["J"], model["c1"], current_bw_rad_s, 2 * np.pi * frf.frequency_hz[ok])
+    ratio = float(np.median(np.abs(frf.response[ok] / rigid)))
+    return f_mode if 1 / MODE_AGREES <= ratio <= MODE_AGREES else None
 
 
 def tune(

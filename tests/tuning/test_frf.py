@@ -239,3 +239,64 @@ def test_write_refuses_gains_the_measured_response_does_not_admit(tmp_path, caps
         "axis y: the velocity loop crosses over above the band its response was measured in"
         in capsys.readouterr().err
     )
+
+
+# ---------------------------------------------------------------- the measured response checked against the model
+def _tuned(frf: Frf) -> dict:
+    """The tune step's record of how ``frf`` was used for the Y axis of model J, C1."""
+    from drive_bridge.tuning.tune import tune_axis
+
+    tuned = tune_axis("y", {"J": J, "c0": 0.0, "c1": C1}, MOTOR.R, MOTOR.L, dict(factory().gains), frf)
+    return {**tuned.measured_response, "gains": tuned.design.gains()}
+
+
+def _model_gains() -> dict:
+    from drive_bridge.tuning.tune import tune_axis
+
+    return tune_axis("y", {"J": J, "c0": 0.0, "c1": C1}, MOTOR.R, MOTOR.L, dict(factory().gains)).design.gains()
+
+
+def test_a_response_the_model_explains_is_designed_on():
+    record = _tuned(measured())
+    assert record["used"] and record["suspect"] is None and record["departs"] is None
+
+
+@pytest.mark.parametrize("scale", [0.1, 10.0])
+def test_a_response_the_model_does_not_explain_is_set_aside_and_the_gains_are_the_models(scale):
+    """A response off by a factor everywhere (a wrong unit, a corrupted run: no mode to explain it)
+    would put a loop's crossover far from the model-based design's: the tune step says it is suspect
+    and why, and designs on the model alone."""
+    from dataclasses import replace
+
+    from drive_bridge.tuning.tune import MEASURED_FACTOR
+
+    frf = measured()
+    record = _tuned(replace(frf, response=frf.response * scale))
+    assert not record["used"] and "shows no mode that explains it" in record["suspect"]
+    measured_hz, model_hz = record["crossover_hz"]["measured"], record["crossover_hz"]["model"]
+    assert max(
+        max(measured_hz[loop] / model_hz[loop], model_hz[loop] / measured_hz[loop]) for loop in model_hz
+    ) > MEASURED_FACTOR
+    assert record["gains"] == _model_gains()
+
+
+def test_a_response_measured_while_the_master_was_late_is_not_designed_on():
+    """Samples missing and filled in, or set-points late, during the measurement (a wall-clock master
+    held up): the response holds the timing's errors; the gains come from the model alone."""
+    from dataclasses import replace
+
+    record = _tuned(replace(measured(), filled=3, late=2))
+    assert not record["used"] and "the master was late" in record["suspect"]
+    assert "3 position samples missing" in record["suspect"] and "2 set-points" in record["suspect"]
+    assert record["gains"] == _model_gains()
+
+
+def test_a_compliant_axis_is_designed_on_its_response_and_the_mode_is_said_to_explain_the_departure():
+    """The mode the rigid model lacks lowers the crossover more than the factor: the response explains
+    it (a peak over a response that is the model's below it), so the design is on the response, and
+    the record says why."""
+    share, k, d = two_mass()
+    record = _tuned(measured({"compliance": {"TM_SHARE": share, "TM_K": k, "TM_D": d}}))
+    assert record["used"] and record["suspect"] is None
+    mode_hz = float(record["departs"].split("the mode at ")[1].split(" Hz")[0])
+    assert abs(mode_hz - RESONANCE_HZ) < 0.1 * RESONANCE_HZ
