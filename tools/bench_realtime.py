@@ -17,7 +17,10 @@ task of the engine's priority); "a vCPU" where the loop on one CPU was (a virtua
 did not run: every timer on it fires late, the engine's too when it slept there -- which CPU it
 slept on is not recorded, so this is the most the machine can explain); "ours" where neither
 was.  The largest of ours is what the engine adds to the machine.
-``loaded``: two CPU-bound processes beside it (the floor measured beside them too).
+``loaded``: two CPU-bound processes beside it (the floor measured beside them too); ``stalled``: every
+process of the master (its main process and its engine's, never the simulated drives') stopped for
+``--stall-ms`` at random moments, ``--stall-every`` seconds apart on average (``harness/stalls.py``;
+issue 68's third condition), the stalls made counted per run.
 ``--against REV`` runs git revision REV the same way, alternated with this code.
 The acceptance (issue 42): every run PASS, 0 aborts, 0 samples missing, late cycles <= 0.1 %
 idle (<= 0.5 % loaded) and the largest SYNC gap <= 5 periods.
@@ -43,6 +46,7 @@ import yaml
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 from harness.machine_floor import PERIOD_S, floor_during, machine_explains  # noqa: E402
+from harness.stalls import injector  # noqa: E402
 from tools.reference import stamp, worktree  # noqa: E402
 
 
@@ -101,33 +105,31 @@ def load(kind: str) -> Iterator[None]:
             hog.wait()
 
 
-def commission(code: Path, campaign: str) -> dict:
-    """One ``commission --sim --realtime`` run of the code under ``code``; its figures."""
+def commission(code: Path, campaign: str, stalls: tuple[float, float] | None = None) -> dict:
+    """One ``commission --sim --realtime`` run of the code under ``code``, with ``stalls`` (length,
+    mean wait [s]) of the master's processes where given; its figures."""
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "run"
         env = {**os.environ, "PYTHONPATH": str(code), "XDG_DATA_HOME": tmp}
+        command = [sys.executable, "-m", "drive_bridge", "commission", "--sim", "--realtime"]
+        command += ["--campaign", campaign, "--out", str(out), "--no-history", "--yes"]
+        made = Path(tmp) / "stalls.jsonl"
         t0 = time.perf_counter()
         with floor_during() as beside:
-            proc = subprocess.run(
-                [
-                    sys.executable,
-                    "-m",
-                    "drive_bridge",
-                    "commission",
-                    "--sim",
-                    "--realtime",
-                    "--campaign",
-                    campaign,
-                    "--out",
-                    str(out),
-                    "--no-history",
-                ],
-                cwd=code,
-                env=env,
-                capture_output=True,
-                text=True,
+            proc = subprocess.Popen(
+                command, cwd=code, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
             )
+            stalling = (
+                injector(proc.pid, *stalls, seed=len(list(Path(tmp).iterdir())), log=made) if stalls else None
+            )
+            try:
+                stdout, stderr = proc.communicate()
+            finally:
+                if stalling is not None:
+                    stalling.terminate()
+                    stalling.wait()
         wall = time.perf_counter() - t0
+        stalled = len(made.read_text().splitlines()) if made.exists() else 0
         trace = out / "campaign" / "trace.blf"
         matched = against_floor(trace, beside.held) if trace.exists() else {}
         summary = json.loads((out / "summary.json").read_text()) if (out / "summary.json").exists() else {}
@@ -145,6 +147,7 @@ def commission(code: Path, campaign: str) -> dict:
     return {
         "exit": proc.returncode,
         "wall_s": wall,
+        "stalls": stalled,
         "verdict": verdict.get("overall") if isinstance(verdict, dict) else verdict,
         "late_pct": timing.get("late_cycles_pct"),
         "p99_ms": float(np.percentile(gaps, 99)),
@@ -157,19 +160,17 @@ def commission(code: Path, campaign: str) -> dict:
         "floor": asdict(beside),
         "matched": matched,
         "aborts": aborts
-        or [line.strip() for line in (proc.stdout + proc.stderr).splitlines() if "FAILED:" in line]
-        or (
-            [proc.stderr.strip().splitlines()[-1]]
-            if proc.returncode not in (0, 5, 6) and proc.stderr.strip()
-            else []
-        ),
+        or [line.strip() for line in (stdout + stderr).splitlines() if "FAILED:" in line]
+        or ([stderr.strip().splitlines()[-1]] if proc.returncode not in (0, 5, 6) and stderr.strip() else []),
     }
 
 
 def line(name: str, r: dict) -> str:
     age = r["age"]
     return (
-        f"  {name}: {r['verdict']} (exit {r['exit']}, {r['wall_s']:.0f} s): late cycles {r['late_pct']} %, "
+        f"  {name}: {r['verdict']} (exit {r['exit']}, {r['wall_s']:.0f} s"
+        + (f", {r['stalls']} stalls of the master" if r["stalls"] else "")
+        + f"): late cycles {r['late_pct']} %, "
         f"SYNC period p99 {r['p99_ms']:.2f} ms, max {r['max_ms']:.2f} ms ({r['gap_periods']:.1f} periods), "
         f"feedback age p99 {age.get('p99', '?')} ms max {age.get('max', '?')} ms, samples missing "
         f"{r['missing']}, periods skipped {r['skipped']}, aborts {len(r['aborts'])}"
@@ -189,12 +190,17 @@ def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--campaign", choices=["short", "paper"], default="short")
     parser.add_argument("--runs", type=int, default=3)
-    parser.add_argument("--load", choices=["idle", "loaded", "both"], default="both")
+    parser.add_argument("--load", choices=["idle", "loaded", "stalled", "both", "all"], default="both")
+    parser.add_argument("--stall-ms", type=float, default=200.0, help="with stalled: each stall [ms]")
+    parser.add_argument("--stall-every", type=float, default=2.0, help="with stalled: the mean wait [s]")
     parser.add_argument("--floor-seconds", type=float, default=30.0)
     parser.add_argument("--against", help="a git revision run the same way, alternated with this code")
     args = parser.parse_args()
     print(stamp())
-    conditions = ["idle", "loaded"] if args.load == "both" else [args.load]
+    conditions = {"both": ["idle", "loaded"], "all": ["idle", "loaded", "stalled"]}.get(
+        args.load, [args.load]
+    )
+    stalls = (args.stall_ms / 1e3, args.stall_every)
     with worktree(ROOT, args.against) if args.against else contextlib.nullcontext() as other:
         for condition in conditions:
             with load(condition):
@@ -206,10 +212,14 @@ def main() -> None:
                     flush=True,
                 )
                 for run in range(args.runs):
-                    print(line(f"{args.campaign} run {run + 1}", commission(ROOT, args.campaign)), flush=True)
+                    stalled = stalls if condition == "stalled" else None
+                    print(
+                        line(f"{args.campaign} run {run + 1}", commission(ROOT, args.campaign, stalled)),
+                        flush=True,
+                    )
                     if other is not None:
                         print(
-                            line(f"{args.against} run {run + 1}", commission(other, args.campaign)),
+                            line(f"{args.against} run {run + 1}", commission(other, args.campaign, stalled)),
                             flush=True,
                         )
 

@@ -40,14 +40,19 @@ from ..cia.factor import OBJECTS as FACTOR_OBJECTS
 from ..cia.factor import FactorGroup
 from ..cia.od import default, limits, load_od
 from ..cia.p301 import (
+    COB_ID_SYNC,
+    CYCLE_PERIOD,
     ERR_FOLLOWING,
     ERR_HEARTBEAT,
     ERR_PARAMETER,
     ERR_PDO_LENGTH,
     ERR_RPDO_TIMEOUT,
     ERR_SOFTWARE,
+    MAX_SYNC_COUNTER,
     NMT_OPERATIONAL,
     NMT_PREOP,
+    SYNC_COUNTER_OVERFLOW,
+    SYNC_PRODUCER,
 )
 from ..cia.p402 import (
     ABORT_DISABLE,
@@ -84,7 +89,7 @@ from .emergency import EmcyProducer
 from .gain_objects import GainObjects
 from .heartbeats import HeartbeatConsumer
 from .nmt_slave import RESET_COMMUNICATION, NmtSlave
-from .pdo_map import ABORT_RANGE, PdoMapping
+from .pdo_map import ABORT_RANGE, ABORT_STATE, PdoMapping
 from .plant import Plant
 from .profile_motion import ProfileMotion
 from .pvt_buffer import ERR_UNDERFLOW, PvtBuffer
@@ -161,6 +166,17 @@ class DriveHost(Protocol):
         ----------
         period_us : int
             [µs].
+        """
+
+    def sync_producer_written(self, drive: SimDrive, producing: bool) -> None:
+        """0x1005 written on ``drive``: whether it produces SYNC (bit 30).
+
+        Parameters
+        ----------
+        drive : SimDrive
+            The drive written.
+        producing : bool
+            Bit 30.
         """
 
 
@@ -580,8 +596,15 @@ class SimDrive:
             self.plant_param[taken[0]] = taken[1]
         elif index == 0x1017:
             self.nmt.heartbeat_time_written(self.plant.time, value)
-        elif index == 0x1006:
+        elif index == CYCLE_PERIOD:
             self.host.cycle_period_written(value)
+        elif index == COB_ID_SYNC:
+            self.host.sync_producer_written(self, bool(value & SYNC_PRODUCER))
+        elif index == SYNC_COUNTER_OVERFLOW:  # CiA 301: only while no cycle period runs; 1 is not a value
+            if self.objects.get_or(CYCLE_PERIOD, 0, 0):
+                raise SdoAbortedError(ABORT_STATE)
+            if value == 1 or value > MAX_SYNC_COUNTER:
+                raise SdoAbortedError(ABORT_RANGE)
         elif index == 0x6065:
             self.plant_param[kernel.FE_WINDOW] = value / self.pos_per_rad
         elif index == 0x6072:

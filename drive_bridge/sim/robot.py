@@ -21,7 +21,7 @@ from pathlib import Path
 
 import can
 
-from ..cia.p301 import NMT_STOPPED, SYNC_COB_ID
+from ..cia.p301 import CYCLE_PERIOD, NMT_STOPPED, SYNC_COB_ID, SYNC_COUNTER_OVERFLOW
 from ..cia.pdo import PdoCodec
 from ..resources import PROJECT_EDS
 from . import cyclic, kernel
@@ -101,6 +101,9 @@ class SimRobot:
         self.routes_changed()
         self._thread: threading.Thread | None = None
         self._running = False
+        self._wall = False  # on the wall clock (clock_from called): a drive may produce SYNC
+        self._producer: SimDrive | None = None  # the drive whose 0x1005 bit 30 is set
+        self._counter = 0  # the last SYNC counter it sent
 
     @property
     def time(self) -> float:
@@ -129,6 +132,52 @@ class SimRobot:
             self._last_sync = -math.inf  # the next SYNC sets the grid's phase
             if self._steady is not None:
                 self._steady.stale = True
+
+    def sync_producer_written(self, drive: SimDrive, producing: bool) -> None:
+        """0x1005 written on ``drive``: on the wall clock, while its cycle period 0x1006 is set, it
+        sends SYNC at each period boundary of the drives' grid, with the counter 1..0x1019 where
+        0x1019 is 2 or more (CiA 301: the counter starts at 1 when production starts), and every
+        drive takes it as a SYNC received.  A stall of the drives' own process does not skip any:
+        the boundaries it passes meanwhile each send theirs, in order, when it runs again.
+
+        Parameters
+        ----------
+        drive : SimDrive
+            The drive written.
+        producing : bool
+            Bit 30.
+        """
+        if producing:
+            self._producer, self._counter = drive, 0
+        elif self._producer is drive:
+            self._producer = None
+
+    def _producing(self) -> SimDrive | None:
+        """The drive that sends SYNC now (on the wall clock, online, its cycle period set, not
+        stopped), or None."""
+        drive = self._producer
+        if (
+            drive is None
+            or not self._wall
+            or not drive.online
+            or drive.nmt.state == NMT_STOPPED
+            or not drive.objects.get_or(CYCLE_PERIOD, 0, 0)
+        ):
+            return None
+        return drive
+
+    def _produce_sync(self, drive: SimDrive) -> None:
+        """The producer's SYNC at the boundary reached now: sent with its counter, and taken by every
+        drive as a SYNC received on that boundary's tick (which starts the next period)."""
+        overflow = drive.objects.get_or(SYNC_COUNTER_OVERFLOW, 0, 0)
+        data = b""
+        if overflow >= 2:
+            self._counter = self._counter % overflow + 1
+            data = bytes([self._counter])
+        stamp = self._t0 + self.plant.time
+        self._bus_time = max(self._bus_time, stamp)
+        self.send(SYNC_COB_ID, data)
+        self._sync_received(stamp)
 
     # ------------------------------------------------------------------ bus
     def power_on(self) -> None:
@@ -407,6 +456,7 @@ class SimRobot:
             [s].
         """
         self._t0 = now - self.plant.time
+        self._wall = True
 
     def take(self, msg: can.Message) -> None:
         """Wall clock: a frame received at ``msg.timestamp`` [s]; the loops run up to it first.
@@ -418,7 +468,8 @@ class SimRobot:
         """
         self._bus_time = max(self._bus_time, msg.timestamp)
         if msg.arbitration_id == SYNC_COB_ID and not msg.is_remote_frame:
-            self._sync_received(msg.timestamp)
+            if self._producing() is None:  # (while a drive produces SYNC, another's is not taken)
+                self._sync_received(msg.timestamp)
         else:
             self.run_until(msg.timestamp)
             self.dispatch(msg)
@@ -447,7 +498,11 @@ class SimRobot:
             n_ticks -= step
             self._phase += step
             if self._phase == self.plant.ticks_per_period:
-                self._next_boundary()
+                producer = self._producing()
+                if producer is not None:
+                    self._produce_sync(producer)  # (its period starts there)
+                else:
+                    self._next_boundary()
         self._bus_time = max(self._bus_time, self._t0 + self.plant.time)
 
     def _next_boundary(self) -> None:
