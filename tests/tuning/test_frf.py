@@ -253,7 +253,9 @@ def _tuned(frf: Frf) -> dict:
 def _model_gains() -> dict:
     from drive_bridge.tuning.tune import tune_axis
 
-    return tune_axis("y", {"J": J, "c0": 0.0, "c1": C1}, MOTOR.R, MOTOR.L, dict(factory().gains)).design.gains()
+    return tune_axis(
+        "y", {"J": J, "c0": 0.0, "c1": C1}, MOTOR.R, MOTOR.L, dict(factory().gains)
+    ).design.gains()
 
 
 def test_a_response_the_model_explains_is_designed_on():
@@ -274,9 +276,10 @@ def test_a_response_the_model_does_not_explain_is_set_aside_and_the_gains_are_th
     record = _tuned(replace(frf, response=frf.response * scale))
     assert not record["used"] and "shows no mode that explains it" in record["suspect"]
     measured_hz, model_hz = record["crossover_hz"]["measured"], record["crossover_hz"]["model"]
-    assert max(
-        max(measured_hz[loop] / model_hz[loop], model_hz[loop] / measured_hz[loop]) for loop in model_hz
-    ) > MEASURED_FACTOR
+    assert (
+        max(max(measured_hz[loop] / model_hz[loop], model_hz[loop] / measured_hz[loop]) for loop in model_hz)
+        > MEASURED_FACTOR
+    )
     assert record["gains"] == _model_gains()
 
 
