@@ -168,15 +168,9 @@ HELD = ("OPERATION ENABLED", "QUICK STOP ACTIVE")  # the states an axis held ``e
 
 
 class HeldAxes:
-    """The axes held powered now (not on their brake; enabled or in quick stop) and where each
-    stands: :meth:`strayed` says whether one has since left its hold tolerance or its power (a
-    gain set that does not hold its load, written while it holds).
-
-    Parameters
-    ----------
-    axes : dict of str to AxisLink
-        The brought-up axes; those that do not answer are left out.
-    """
+    """The axes of ``axes`` held powered now (not on their brake; enabled or in quick stop) and where
+    each stands once it stands still: :meth:`strayed` says whether one has since left its hold
+    tolerance or its power (a gain set that does not hold its load, written while it holds)."""
 
     def __init__(self, axes: dict[str, AxisLink]):
         self.axes: dict[str, AxisLink] = {}
@@ -201,13 +195,7 @@ class HeldAxes:
         self.at = {name: ax.position_rad() for name, ax in self.axes.items()}
 
     def strayed(self) -> str | None:
-        """The first held axis that left its power or its hold tolerance, in words (None: each holds).
-
-        Returns
-        -------
-        str or None
-            What it did.
-        """
+        """The first held axis that left its power or its hold tolerance, in words (None: each holds)."""
         for name, ax in self.axes.items():
             tolerance = ax.cfg.drive_limits.hold_tolerance if ax.cfg.drive_limits else HOLD_TOLERANCE_RAD
             state, moved = ax.drive.state(), abs(ax.position_rad() - self.at[name])
@@ -222,21 +210,9 @@ class HeldAxes:
 
 
 def hold_powered(axes: dict[str, AxisLink]) -> list[str]:
-    """Power every axis held ``enabled`` that is not powered now and hold it where it stands: profile
-    position with halt, in which a drive takes no target and holds its position (an axis without a
-    brake is never left without torque while the master runs).  An axis in FAULT is left as it is
-    (a fault is for a person to clear); one whose drive has no profile position is said.
-
-    Parameters
-    ----------
-    axes : dict of str to AxisLink
-        The brought-up axes.
-
-    Returns
-    -------
-    list of str
-        What was done to each axis it touched, or why one could not be held, in words.
-    """
+    """Every axis held ``enabled`` that is not powered now powered and held where it stands, in
+    profile position with halt (a drive takes no target then): what was done, or why an axis could
+    not be (in FAULT: left for a person; no profile position), in words."""
     said = []
     for name, ax in axes.items():
         if on_brake(ax):

@@ -134,19 +134,10 @@ class SimRobot:
                 self._steady.stale = True
 
     def sync_producer_written(self, drive: SimDrive, producing: bool) -> None:
-        """0x1005 written on ``drive``: on the wall clock, while its cycle period 0x1006 is set, it
-        sends SYNC at each period boundary of the drives' grid, with the counter 1..0x1019 where
-        0x1019 is 2 or more (CiA 301: the counter starts at 1 when production starts), and every
-        drive takes it as a SYNC received.  A stall of the drives' own process does not skip any:
-        the boundaries it passes meanwhile each send theirs, in order, when it runs again.
-
-        Parameters
-        ----------
-        drive : SimDrive
-            The drive written.
-        producing : bool
-            Bit 30.
-        """
+        """:meth:`DriveHost.sync_producer_written`: on the wall clock, while its cycle period 0x1006
+        is set, ``drive`` sends SYNC at each period boundary of the drives' grid (:meth:`_produce_sync`),
+        with the counter 1..0x1019 where 0x1019 is 2 or more, starting at 1 (CiA 301); a stall of the
+        drives' own process skips none: the boundaries it passes meanwhile each send theirs, in order."""
         if producing:
             self._producer, self._counter = drive, 0
         elif self._producer is drive:
