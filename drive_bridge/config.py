@@ -16,6 +16,30 @@ from pathlib import Path
 import canopen
 from canopen.objectdictionary import datatypes
 
+from .cia.objects import (
+    CONTROLWORD,
+    CURRENT_ACTUAL,
+    FOLLOWING_ERROR_ACTUAL,
+    HOMING_ACCELERATION,
+    HOMING_METHOD,
+    HOMING_SPEEDS,
+    INTERPOLATION_DATA_RECORD,
+    MAX_MOTOR_SPEED,
+    MODES_OF_OPERATION,
+    MODES_OF_OPERATION_DISPLAY,
+    POSITION_ACTUAL,
+    RPDO_COMMUNICATION,
+    STATUSWORD,
+    TARGET_POSITION,
+    TARGET_TORQUE,
+    TARGET_VELOCITY,
+    TORQUE_ACTUAL,
+    TORQUE_OFFSET,
+    TPDO_COMMUNICATION,
+    VELOCITY_ACTUAL,
+    VELOCITY_OFFSET,
+    torque_object,
+)
 from .cia.od import default, load_od, variable
 from .cia.p402 import CSP, IP, MODE_NAMES
 from .cia.setpoint import SETPOINT_OBJECTS
@@ -27,8 +51,12 @@ from .yamlconf import Section, finite_number, load_yaml
 log = logging.getLogger(__name__)
 
 #: objects the master must find in the PDO mapping: what it streams and what it logs
-REQUIRED_RPDO = {0x6040: "controlword"}
-REQUIRED_TPDO = {0x6064: "position actual", 0x606C: "velocity actual", 0x6041: "statusword"}
+REQUIRED_RPDO = {CONTROLWORD: "controlword"}
+REQUIRED_TPDO = {
+    POSITION_ACTUAL: "position actual",
+    VELOCITY_ACTUAL: "velocity actual",
+    STATUSWORD: "statusword",
+}
 #: what the master logs the torque from (scaling.torque_feedback): 0x6077, 0x6078, or a vendor object
 TORQUE_FEEDBACK = {
     "torque": "torque actual",
@@ -106,8 +134,27 @@ LELY_MASTER_KEYS = {
 }
 # what the master fills in an RPDO (0x6060: the streaming mode; 0x60FF, 0x6071: zero, as a
 # ros2_canopen CiA 402 mapping has them) and logs from a TPDO (0x6061: the mode the drive runs)
-RPDO_OBJECTS = {0x6040, 0x607A, 0x60C1, 0x20C1, 0x60B1, 0x60B2, 0x6060, 0x60FF, 0x6071}
-TPDO_OBJECTS = {0x6064, 0x606C, 0x6077, 0x6041, 0x60F4, 0x6078, 0x6061, 0x20C4}
+RPDO_OBJECTS = {
+    CONTROLWORD,
+    TARGET_POSITION,
+    INTERPOLATION_DATA_RECORD,
+    0x20C1,
+    VELOCITY_OFFSET,
+    TORQUE_OFFSET,
+    MODES_OF_OPERATION,
+    TARGET_VELOCITY,
+    TARGET_TORQUE,
+}
+TPDO_OBJECTS = {
+    POSITION_ACTUAL,
+    VELOCITY_ACTUAL,
+    TORQUE_ACTUAL,
+    STATUSWORD,
+    FOLLOWING_ERROR_ACTUAL,
+    CURRENT_ACTUAL,
+    MODES_OF_OPERATION_DISPLAY,
+    0x20C4,
+}
 
 
 @dataclass(frozen=True)
@@ -595,7 +642,7 @@ def _pdos(
     for num in pdo_sec.keys():
         if not isinstance(num, int) or not 1 <= num <= 4:
             raise pdo_sec.error(str(num), "PDO numbers are 1 to 4")
-        if (0x1400 if key == "rpdo" else 0x1800) + num - 1 not in od:
+        if (RPDO_COMMUNICATION if key == "rpdo" else TPDO_COMMUNICATION) + num - 1 not in od:
             raise pdo_sec.error(str(num), f"the drive has no {key.upper()} {num} in its EDS/DCF")
         p = pdo_sec.section(num)
         enabled = p.get("enabled", bool, True)
@@ -637,7 +684,7 @@ def _pdos(
                 raise e.error("index", f"0x{index:04X} is not PDO-mappable in the drive's EDS/DCF")
             if index == 0x20C4 and sub != 1:
                 raise e.error("sub_index", "0x20C4:1 is the interpolation buffer status the master checks")
-            if index in (0x60C1, 0x20C1) and (index, sub) not in SETPOINT_OBJECTS:
+            if index in (INTERPOLATION_DATA_RECORD, 0x20C1) and (index, sub) not in SETPOINT_OBJECTS:
                 raise e.error(
                     "sub_index",
                     f"0x{index:04X}:{sub} carries no position setpoint (use "
@@ -718,7 +765,7 @@ def _add_missing(
             p = pdos[room[0]]
             pdos[room[0]] = replace(p, mapping=(*p.mapping, (index, 0)))
         else:
-            base = 0x1400 if key == "rpdo" else 0x1800
+            base = RPDO_COMMUNICATION if key == "rpdo" else TPDO_COMMUNICATION
             free = [n for n in range(1, 5) if base + n - 1 in od and n not in bits]
             if not free:
                 continue
@@ -856,8 +903,8 @@ def _node(
             None if jmax is None else float(scaling.load_to_motor(jmax)),
         )
     lim.done()
-    if default(od, 0x6080) and not limits_from_drive:
-        drive_max = default(od, 0x6080) * 2 * math.pi / 60.0
+    if default(od, MAX_MOTOR_SPEED) and not limits_from_drive:
+        drive_max = default(od, MAX_MOTOR_SPEED) * 2 * math.pi / 60.0
         if limits.max_velocity > drive_max * (1 + 1e-9):
             raise lim.error(
                 f"max_velocity_{unit}_s",
@@ -887,8 +934,11 @@ def _node(
         sec,
         "tpdo",
         od,
-        TPDO_OBJECTS | {scaling.torque_object},
-        {**REQUIRED_TPDO, scaling.torque_object: TORQUE_FEEDBACK[feedback]},
+        TPDO_OBJECTS | {torque_object(scaling.torque_feedback, scaling.torque_index)},
+        {
+            **REQUIRED_TPDO,
+            torque_object(scaling.torque_feedback, scaling.torque_index): TORQUE_FEEDBACK[feedback],
+        },
         added=torque_added if ros_units else None,
     )
     if torque_added and notes is not None:
@@ -939,7 +989,7 @@ def _node(
 
 
 #: the CiA 402 homing objects a drive needs for ``reference: home``
-HOMING_OBJECTS = ((0x6098, 0), (0x6099, 1), (0x6099, 2), (0x609A, 0))
+HOMING_OBJECTS = ((HOMING_METHOD, 0), (HOMING_SPEEDS, 1), (HOMING_SPEEDS, 2), (HOMING_ACCELERATION, 0))
 
 
 def _homing(

@@ -18,6 +18,16 @@ import can
 import numpy as np
 import yaml
 
+from .cia.objects import (
+    CURRENT_ACTUAL,
+    FOLLOWING_ERROR_ACTUAL,
+    MODES_OF_OPERATION_DISPLAY,
+    POSITION_ACTUAL,
+    STATUSWORD,
+    TORQUE_ACTUAL,
+    VELOCITY_ACTUAL,
+    torque_object,
+)
 from .cia.p301 import SYNC_COB_ID
 from .cia.p402 import MODE_NAMES
 from .cia.pdo import PdoCodec
@@ -35,13 +45,13 @@ LOG_NAME, META_NAME, TRACE_NAME = "log.csv", "meta.yaml", "trace.blf"
 #: TPDO object -> (column suffix, converter name on Scaling or None for raw integers, format;
 #: integers as %.0f so that a missing sample can be written as nan)
 _COLUMNS: dict[int, tuple[str, str | None, str]] = {  # object: column suffix, Scaling method, format
-    0x6064: ("position_rad", "position_from_device", "%.9g"),
-    0x606C: ("velocity_rad_s", "velocity_from_device", "%.9g"),
-    0x6077: ("torque_Nm", "torque_from_device", "%.6g"),
-    0x6041: ("statusword", None, "%.0f"),
-    0x60F4: ("following_error_rad", "position_from_device", "%.9g"),
-    0x6078: ("current_permille", None, "%.0f"),
-    0x6061: ("mode_display", None, "%.0f"),
+    POSITION_ACTUAL: ("position_rad", "position_from_device", "%.9g"),
+    VELOCITY_ACTUAL: ("velocity_rad_s", "velocity_from_device", "%.9g"),
+    TORQUE_ACTUAL: ("torque_Nm", "torque_from_device", "%.6g"),
+    STATUSWORD: ("statusword", None, "%.0f"),
+    FOLLOWING_ERROR_ACTUAL: ("following_error_rad", "position_from_device", "%.9g"),
+    CURRENT_ACTUAL: ("current_permille", None, "%.0f"),
+    MODES_OF_OPERATION_DISPLAY: ("mode_display", None, "%.0f"),
     0x20C4: ("ip_buffer_status", None, "%.0f"),  # maxon's interpolation buffer status (0x20C4:1)
 }
 
@@ -89,10 +99,15 @@ def to_table(
         valid = rec.valid(axis)
         indices = [i for a, i in rec.columns if a == axis]
         order = list(_COLUMNS)
-        for index in sorted(indices, key=lambda i: order.index(0x6077 if i == sc.torque_object else i)):
+        for index in sorted(
+            indices,
+            key=lambda i: order.index(
+                TORQUE_ACTUAL if i == torque_object(sc.torque_feedback, sc.torque_index) else i
+            ),
+        ):
             suffix, conv, fmt = (
                 ("torque_Nm", "torque_from_feedback", "%.6g")
-                if index == sc.torque_object
+                if index == torque_object(sc.torque_feedback, sc.torque_index)
                 else _COLUMNS[index]
             )  # the axis's torque: from what the drive reports
             spec.append(
@@ -107,7 +122,7 @@ def to_table(
                     ),
                 )
             )
-            if index == 0x6064:  # (NaN in a period without a SYNC: no setpoint was taken)
+            if index == POSITION_ACTUAL:  # (NaN in a period without a SYNC: no setpoint was taken)
                 spec.append(
                     (
                         f"{axis}_position_demand_rad",
@@ -291,7 +306,7 @@ def decode_trace(
             for a, cs in tpdos.items()
             for c in cs
             for i in c.objects
-            if i not in _COLUMNS and i != scaling[a].torque_object
+            if i not in _COLUMNS and i != torque_object(scaling[a].torque_feedback, scaling[a].torque_index)
         ]
         if unknown:
             raise ValueError(f"TPDO object 0x{unknown[0]:04X} is not one the log has a column for")

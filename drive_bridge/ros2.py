@@ -29,6 +29,13 @@ from typing import Any
 import yaml
 
 from .cia.dcf import write_dcf
+from .cia.objects import (
+    CYCLE_PERIOD,
+    HEARTBEAT_PRODUCER,
+    RPDO_COMMUNICATION,
+    TARGET_POSITION,
+    TPDO_COMMUNICATION,
+)
 from .config import BusConfig, MasterConfig, NodeConfig, PdoConfig
 from .errors import UserError
 from .master.bringup import settings
@@ -113,7 +120,7 @@ def _node(n: NodeConfig, dcf_name: str, master: MasterConfig, own: dict) -> dict
     period_s = master.sync_period_s
     feed = n.scaling.feed_m_per_rev  # a linear axis: device units per m
     inc_per_unit = n.scaling.inc_per_rad if feed is None else n.scaling.increments_per_rev / feed
-    mode = 8 if any((0x607A, 0) in p.mapping for p in n.rpdo) else 7
+    mode = 8 if any((TARGET_POSITION, 0) in p.mapping for p in n.rpdo) else 7
     entry = {
         "node_id": n.node_id,
         "dcf": dcf_name,
@@ -124,8 +131,8 @@ def _node(n: NodeConfig, dcf_name: str, master: MasterConfig, own: dict) -> dict
         "scale_pos_to_dev": float(inc_per_unit),
         "scale_pos_from_dev": float(1 / inc_per_unit),
         "heartbeat_producer": n.heartbeat_producer_ms,
-        "rpdo": _pdos(n, n.rpdo, 0x1400),
-        "tpdo": _pdos(n, n.tpdo, 0x1800),
+        "rpdo": _pdos(n, n.rpdo, RPDO_COMMUNICATION),
+        "tpdo": _pdos(n, n.tpdo, TPDO_COMMUNICATION),
         "sdo": _sdo(n, period_s, master),
     }
     entry.update(own)
@@ -150,7 +157,7 @@ def _pdos(n: NodeConfig, pdos: tuple[PdoConfig, ...], comm: int) -> dict:
         }
         if p.event_timer_ms is not None:
             out[num]["event_timer"] = p.event_timer_ms
-        if comm == 0x1800:  # as bring-up writes it (0: never the EDS default)
+        if comm == TPDO_COMMUNICATION:  # as bring-up writes it (0: never the EDS default)
             out[num]["inhibit_time"] = p.inhibit_time_100us
     return out
 
@@ -162,5 +169,5 @@ def _sdo(n: NodeConfig, period_s: float, master: MasterConfig) -> list[dict]:
     return [
         {"index": Hex(i), "sub_index": s, "value": v}
         for i, s, v in settings(n.axis, n, period_s, master)
-        if i not in (0x1017, 0x1006) and n.od.get_variable(i, s) is not None
+        if i not in (HEARTBEAT_PRODUCER, CYCLE_PERIOD) and n.od.get_variable(i, s) is not None
     ]

@@ -188,7 +188,7 @@ class Scaling:
         return np.asarray(per_mille, dtype=float) * (self.rated_torque_Nm / 1000.0)
 
     def torque_from_feedback(self, raw: ArrayLike) -> np.ndarray:
-        """The axis's torque feedback (its :attr:`torque_object`, device units) -> Nm.
+        """The axis's torque feedback (its object's value, device units) -> Nm.
 
         Parameters
         ----------
@@ -213,11 +213,3 @@ class Scaling:
         if self.torque_feedback == "torque":
             return self.rated_torque_Nm / 1000.0
         raise ValueError(f"torque feedback {self.torque_feedback!r} without its scale")
-
-    @property
-    def torque_object(self) -> int:
-        """The object the axis's torque is measured by: 0x6077, 0x6078 for current feedback, or the
-        configured vendor object."""
-        if self.torque_feedback == "object" and self.torque_index is not None:
-            return self.torque_index
-        return 0x6078 if self.torque_feedback == "current" else 0x6077

@@ -1,6 +1,6 @@
 """Judging an axis's hold on the wall clock by the plant itself: a commissioning's motions timed as
 the master streams them (:class:`MotionSpans`), set against the simulated plant as its drives'
-process wrote it (:func:`drive_bridge.sim.process.watch_plant`): how far an axis strayed while no
+process wrote it (:class:`drive_bridge.sim.process.PlantWatch`): how far an axis strayed while no
 motion was commanded, and its power state at the end."""
 
 from __future__ import annotations
@@ -59,7 +59,7 @@ class MotionSpans(StepReporter):
 def uncommanded(watch: Path, spans: list[list[float]], axis: str) -> tuple[float, int]:
     """How far ``axis`` strayed [rad, motor side] while no motion was commanded (each stretch between
     motions on its own, from where it stood at the stretch's start), and its power state at the end
-    (:data:`drive_bridge.cia.p402.STATUSWORD`'s keys).
+    (:data:`drive_bridge.cia.p402.STATE_BITS`'s keys).
 
     Parameters
     ----------

@@ -58,7 +58,9 @@ def test_the_cia_402_vocabulary_is_written_once():
         "PV",
         "HM",
         "MODE_NAMES",
+        "STATE_BITS",
         "STATUSWORD",
+        "CONTROLWORD",
         "SYNC_COB_ID",
         "NMT_OPERATIONAL",
         "ERR_FOLLOWING",
@@ -79,3 +81,23 @@ def test_the_cia_402_vocabulary_is_written_once():
                 assert not names & vocabulary, (
                     f"{path.relative_to(PACKAGE)} defines {sorted(names & vocabulary)}"
                 )
+
+
+def test_no_cia_object_number_stands_outside_the_floor():
+    """Every CiA 301/402 object (0x1000-0x1FFF, 0x6000-0x67FF) the package uses is named once in
+    ``drive_bridge/cia`` (:mod:`drive_bridge.cia.objects`): read with Python's tokenizer, no other
+    module writes one as a number (comments and docstrings may cite them)."""
+    import io
+    import tokenize
+
+    found = []
+    for path in sorted(PACKAGE.rglob("*.py")):
+        if path.parent.name == "cia":
+            continue
+        for token in tokenize.generate_tokens(io.StringIO(path.read_text()).readline):
+            if token.type != tokenize.NUMBER or not token.string.lower().startswith("0x"):
+                continue
+            value = int(token.string, 16)
+            if 0x1000 <= value <= 0x1FFF or 0x6000 <= value <= 0x67FF:
+                found.append(f"{path.relative_to(PACKAGE)}:{token.start[0]} {token.string}")
+    assert not found, "object numbers outside drive_bridge/cia: " + ", ".join(found)

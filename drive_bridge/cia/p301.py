@@ -6,11 +6,8 @@ from __future__ import annotations
 #: NMT states as a heartbeat carries them
 NMT_STOPPED, NMT_OPERATIONAL, NMT_PREOP = 0x04, 0x05, 0x7F
 SYNC_COB_ID = 0x080
-#: the SYNC objects: its COB-ID (bit 30: this node produces SYNC), the communication cycle period
-#: [µs] and the synchronous counter's overflow value (0: SYNC without a counter; 2..240)
-COB_ID_SYNC, CYCLE_PERIOD, SYNC_COUNTER_OVERFLOW = 0x1005, 0x1006, 0x1019
-SYNC_PRODUCER = 1 << 30  # 0x1005 bit 30
-MAX_SYNC_COUNTER = 240
+SYNC_PRODUCER = 1 << 30  # COB-ID SYNC (0x1005) bit 30: this node produces SYNC
+MAX_SYNC_COUNTER = 240  # the SYNC counter's largest overflow value (0x1019)
 
 ERR_FOLLOWING = 0x8611  # CiA 402: following error
 ERR_RPDO_TIMEOUT = 0x8250  # RPDO timeout: the master's setpoints stopped

@@ -36,7 +36,7 @@ SW_HOMING_ERROR = 0x2000  # homing
 #: the power states, the drive's side
 NOT_READY, SWITCH_ON_DISABLED, READY, SWITCHED_ON, ENABLED, QUICK_STOP, FAULT_REACTION, FAULT = range(8)
 #: statusword bits 0-3, 5, 6 of each state
-STATUSWORD = {
+STATE_BITS = {
     NOT_READY: 0x00,
     SWITCH_ON_DISABLED: 0x40,
     READY: 0x21,

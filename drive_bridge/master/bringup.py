@@ -14,6 +14,32 @@ import canopen
 from canopen.emcy import EmcyError
 from canopen.pdo.base import PdoBase, PdoMap
 
+from ..cia.objects import (
+    ABORT_CONNECTION_OPTION,
+    CYCLE_PERIOD,
+    DEVICE_TYPE,
+    FAULT_REACTION_OPTION,
+    FOLLOWING_ERROR_TIMEOUT,
+    FOLLOWING_ERROR_WINDOW,
+    HEARTBEAT_CONSUMER,
+    HEARTBEAT_PRODUCER,
+    HOME_OFFSET,
+    IDENTITY_OBJECT,
+    INTERPOLATION_DATA_CONFIGURATION,
+    INTERPOLATION_SUB_MODE,
+    INTERPOLATION_TIME_PERIOD,
+    MAX_MOTOR_SPEED,
+    MAX_PROFILE_VELOCITY,
+    MAX_TORQUE,
+    POSITION_ACTUAL,
+    QUICK_STOP_DECELERATION,
+    QUICK_STOP_OPTION,
+    RPDO_COMMUNICATION,
+    SOFTWARE_POSITION_LIMIT,
+    SUPPORTED_DRIVE_MODES,
+    TARGET_POSITION,
+    TPDO_COMMUNICATION,
+)
 from ..cia.od import default, limits, variable
 from ..cia.p402 import (
     ABORT_QUICK_STOP,
@@ -86,7 +112,7 @@ class AxisLink:
     drive: Drive402
     identity: dict
     mode: int = 0
-    setpoint: tuple[int, int] = (0x607A, 0)
+    setpoint: tuple[int, int] = (TARGET_POSITION, 0)
     modes: list[int] = field(default_factory=list)
     rpdos: list[PdoCodec] = field(default_factory=list)
     tpdos: list[PdoCodec] = field(default_factory=list)
@@ -135,7 +161,7 @@ class AxisLink:
         """
         if self.cfg.homing is None or self.homed:
             return self.position_rad()
-        offset = read_if_readable(self.node, 0x607C, 0, f"axis {self.name}'s home offset") or 0
+        offset = read_if_readable(self.node, HOME_OFFSET, 0, f"axis {self.name}'s home offset") or 0
         return float(self.cfg.scaling.position_from_device(offset))
 
     @property
@@ -157,7 +183,7 @@ class AxisLink:
             The drive did not answer, naming the axis.
         """
         try:
-            return float(self.cfg.scaling.position_from_device(self.node.sdo[0x6064].raw))
+            return float(self.cfg.scaling.position_from_device(self.node.sdo[POSITION_ACTUAL].raw))
         except (canopen.SdoCommunicationError, canopen.SdoAbortedError) as exc:
             raise BusError(f"axis {self.name}: reading its position (0x6064) failed ({exc})") from exc
 
@@ -224,11 +250,11 @@ class ScanResult:
 def _identity(node: canopen.RemoteNode, axis: str) -> dict:
     try:
         return {
-            "device_type": node.sdo[0x1000].raw,
-            "vendor_id": node.sdo[0x1018][1].raw,
-            "product_code": node.sdo[0x1018][2].raw,
-            "revision": node.sdo[0x1018][3].raw,
-            "serial": node.sdo[0x1018][4].raw,
+            "device_type": node.sdo[DEVICE_TYPE].raw,
+            "vendor_id": node.sdo[IDENTITY_OBJECT][1].raw,
+            "product_code": node.sdo[IDENTITY_OBJECT][2].raw,
+            "revision": node.sdo[IDENTITY_OBJECT][3].raw,
+            "serial": node.sdo[IDENTITY_OBJECT][4].raw,
         }
     except (canopen.SdoCommunicationError, canopen.SdoAbortedError) as exc:
         raise BusError(
@@ -346,7 +372,7 @@ def _configure_pdos(
     """Map the configured PDOs and disable the drive's others (of PDOs 1-4, those its EDS/DCF has)."""
     codecs = []
     by_num = {p.number: p for p in configured}
-    comm_base = 0x1400 if base == 0x200 else 0x1800
+    comm_base = RPDO_COMMUNICATION if base == 0x200 else TPDO_COMMUNICATION
     for num in range(1, 5):
         if comm_base + num - 1 not in node.object_dictionary:
             continue
@@ -461,8 +487,8 @@ def bring_up(link: Link, config: BusConfig) -> dict[str, AxisLink]:
         written = drive_settings(name, ncfg, period, config.master)
         before |= _unseen(snapshot(node, name, [(i, s) for i, s, _ in written]), before)
         before |= _unseen(snapshot(node, name, pdo_objects(node.object_dictionary)), before)
-        if ncfg.rpdo and 0x60C0 in ncfg.od:
-            before |= _unseen(snapshot(node, name, [(0x60C0, 0)]), before)
+        if ncfg.rpdo and INTERPOLATION_SUB_MODE in ncfg.od:
+            before |= _unseen(snapshot(node, name, [(INTERPOLATION_SUB_MODE, 0)]), before)
         ax.before = before
         for index, sub, value in written:
             write_setting(node, name, index, sub, value)
@@ -485,11 +511,13 @@ def bring_up(link: Link, config: BusConfig) -> dict[str, AxisLink]:
             hex_object(*ax.setpoint),
         )
         if ax.mode == IP:
-            if 0x60C0 in ncfg.od:
-                write_setting(node, name, 0x60C0, 0, IP_SUB_MODE[ax.setpoint])
-            if ax.setpoint == PVT and 0x60C4 in ncfg.od:  # clear the record buffer, then enable it
-                write_setting(node, name, 0x60C4, 6, 0)
-                write_setting(node, name, 0x60C4, 6, 1)
+            if INTERPOLATION_SUB_MODE in ncfg.od:
+                write_setting(node, name, INTERPOLATION_SUB_MODE, 0, IP_SUB_MODE[ax.setpoint])
+            if (
+                ax.setpoint == PVT and INTERPOLATION_DATA_CONFIGURATION in ncfg.od
+            ):  # clear the record buffer, then enable it
+                write_setting(node, name, INTERPOLATION_DATA_CONFIGURATION, 6, 0)
+                write_setting(node, name, INTERPOLATION_DATA_CONFIGURATION, 6, 1)
         _watch(net, ax, clock)
         axes[name] = ax
     return axes
@@ -519,7 +547,7 @@ def _axis(
         log.warning("axis %s: no limits in %s, the drive's: %s", name, config.path, "; ".join(from_drive))
     if ncfg.reference == "here":  # the stroke around where the axis stands now
         try:
-            here = float(ncfg.scaling.position_from_device(sdo_object(node, 0x6064, 0).raw))
+            here = float(ncfg.scaling.position_from_device(sdo_object(node, POSITION_ACTUAL, 0).raw))
         except (canopen.SdoCommunicationError, canopen.SdoAbortedError) as exc:
             raise BusError(
                 f"axis {name}: reading its position (0x6064) for reference: here failed ({exc})"
@@ -585,11 +613,11 @@ def _streaming_mode(
     objects the RPDOs map; and every mode the drive lists."""
     axis = ncfg.axis
     bits = None
-    if 0x6502 in ncfg.od:
+    if SUPPORTED_DRIVE_MODES in ncfg.od:
         try:
-            bits = int(sdo_object(node, 0x6502, 0).raw)
+            bits = int(sdo_object(node, SUPPORTED_DRIVE_MODES, 0).raw)
         except canopen.SdoAbortedError:
-            bits = default(ncfg.od, 0x6502)
+            bits = default(ncfg.od, SUPPORTED_DRIVE_MODES)
         except canopen.SdoCommunicationError as exc:
             raise BusError(f"axis {axis}: no SDO answer reading its supported modes 0x6502 ({exc})") from exc
     if bits is None:
@@ -676,40 +704,43 @@ def drive_settings(
         var = od.get_variable(index, sub)
         return var is not None and var.writable
 
-    out: list[tuple[int, int, int | float]] = [(0x1017, 0, ncfg.heartbeat_producer_ms)]
-    if master is not None and has(0x1016, 1):
-        out.append((0x1016, 1, master.heartbeat_node_id << 16 | master.drive_consumer_ms))
+    out: list[tuple[int, int, int | float]] = [(HEARTBEAT_PRODUCER, 0, ncfg.heartbeat_producer_ms)]
+    if master is not None and has(HEARTBEAT_CONSUMER, 1):
+        out.append((HEARTBEAT_CONSUMER, 1, master.heartbeat_node_id << 16 | master.drive_consumer_ms))
     # when it loses the master (0x6007): quick stop; on a quick stop (0x605A): ramp down on the
     # quick-stop deceleration, then stay in QUICK STOP ACTIVE, holding the axis; on a fault
     # (0x605E): ramp down on the quick-stop deceleration
     for index, value in (
-        (0x6007, ABORT_QUICK_STOP),
-        (0x605A, QUICK_STOP_RAMP_AND_HOLD),
-        (0x605E, FAULT_REACTION_QUICK_STOP_RAMP),
+        (ABORT_CONNECTION_OPTION, ABORT_QUICK_STOP),
+        (QUICK_STOP_OPTION, QUICK_STOP_RAMP_AND_HOLD),
+        (FAULT_REACTION_OPTION, FAULT_REACTION_QUICK_STOP_RAMP),
     ):
         if has(index):
             out.append((index, 0, value))
     if sc.increments_per_rev:  # the drive's units are known (from_drive: after bring-up read them)
         inc, vel = sc.inc_per_rad, sc.velocity_per_rad_s
         out += [
-            (0x6065, 0, round(ncfg.following_error_window_rad * inc)),
-            (0x607D, 1, round(ncfg.limits.position_min * inc)),
-            (0x607D, 2, round(ncfg.limits.position_max * inc)),
+            (FOLLOWING_ERROR_WINDOW, 0, round(ncfg.following_error_window_rad * inc)),
+            (SOFTWARE_POSITION_LIMIT, 1, round(ncfg.limits.position_min * inc)),
+            (SOFTWARE_POSITION_LIMIT, 2, round(ncfg.limits.position_max * inc)),
         ]
         if lim is not None:
             optional = [
-                (0x6066, lim.following_error_timeout_ms),
-                (0x6085, round(lim.quick_stop_deceleration * vel)),  # velocity units per second
-                (0x607F, round(lim.max_velocity * vel)),
-                (0x6080, math.ceil(lim.max_velocity * 60 / (2 * math.pi))),
+                (FOLLOWING_ERROR_TIMEOUT, lim.following_error_timeout_ms),
+                (
+                    QUICK_STOP_DECELERATION,
+                    round(lim.quick_stop_deceleration * vel),
+                ),  # velocity units per second
+                (MAX_PROFILE_VELOCITY, round(lim.max_velocity * vel)),
+                (MAX_MOTOR_SPEED, math.ceil(lim.max_velocity * 60 / (2 * math.pi))),
             ]  # rpm
             if lim.max_torque_Nm is not None:
-                optional.append((0x6072, round(lim.max_torque_Nm / sc.rated_torque_Nm * 1000)))
+                optional.append((MAX_TORQUE, round(lim.max_torque_Nm / sc.rated_torque_Nm * 1000)))
             out += [(index, 0, value) for index, value in optional if has(index)]
-    if 0x60C2 in ncfg.od:
+    if INTERPOLATION_TIME_PERIOD in ncfg.od:
         out += _interpolation_period(axis, ncfg, period)
-    if 0x1006 in ncfg.od:
-        out.append((0x1006, 0, round(period * 1e6)))
+    if CYCLE_PERIOD in ncfg.od:
+        out.append((CYCLE_PERIOD, 0, round(period * 1e6)))
     return out
 
 
@@ -717,8 +748,8 @@ def _interpolation_period(axis: str, ncfg: NodeConfig, period: float) -> list[tu
     """0x60C2: the SYNC period as value × 10^index, in the first unit (ms, 0.1 ms ... µs) both
     fit within the drive's EDS/DCF limits.  maxon's PVT records carry their own time: a drive
     whose 0x60C2 cannot hold the period is left as it is for them; any other is refused."""
-    lo1, hi1 = limits(variable(ncfg.od, 0x60C2, 1))
-    lo2, hi2 = limits(variable(ncfg.od, 0x60C2, 2))
+    lo1, hi1 = limits(variable(ncfg.od, INTERPOLATION_TIME_PERIOD, 1))
+    lo2, hi2 = limits(variable(ncfg.od, INTERPOLATION_TIME_PERIOD, 2))
     for exponent in (-3, -4, -5, -6):
         value = period * 10**-exponent
         if abs(value - round(value)) > 1e-6 or not 1 <= round(value) <= 255:
@@ -729,7 +760,7 @@ def _interpolation_period(axis: str, ncfg: NodeConfig, period: float) -> list[tu
             and (lo2 is None or lo2 <= exponent)
             and (hi2 is None or exponent <= hi2)
         ):
-            return [(0x60C2, 1, round(value)), (0x60C2, 2, exponent)]
+            return [(INTERPOLATION_TIME_PERIOD, 1, round(value)), (INTERPOLATION_TIME_PERIOD, 2, exponent)]
     if any(entry == PVT for p in ncfg.rpdo for entry in p.mapping):
         return []
     raise DriveRefused(

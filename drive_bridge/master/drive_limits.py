@@ -27,6 +27,16 @@ from dataclasses import replace
 import canopen
 from canopen.objectdictionary import datatypes
 
+from ..cia.objects import (
+    MAX_ACCELERATION,
+    MAX_DECELERATION,
+    MAX_MOTOR_SPEED,
+    MAX_PROFILE_VELOCITY,
+    PROFILE_ACCELERATION,
+    PROFILE_DECELERATION,
+    QUICK_STOP_DECELERATION,
+    SOFTWARE_POSITION_LIMIT,
+)
 from ..cia.od import variable
 from ..cia.sdo import read_if_readable
 from ..config import DRIVE_LIMIT_MARGIN, DriveLimits, Limits, NodeConfig
@@ -84,15 +94,15 @@ def read_limits(
         )
 
     said: list[str] = []
-    low, high = read(0x607D, 1), read(0x607D, 2)
-    full = _type_range(ncfg, 0x607D, 1)
+    low, high = read(SOFTWARE_POSITION_LIMIT, 1), read(SOFTWARE_POSITION_LIMIT, 2)
+    full = _type_range(ncfg, SOFTWARE_POSITION_LIMIT, 1)
     if low is None or high is None or low >= high or (low, high) == full:
         raise refused("stroke", "software position limits 0x607D")
     stroke = (low / per_rad, high / per_rad)
     said.append(f"stroke {stroke[0]:.6g} .. {stroke[1]:.6g} rad (0x607D)")
-    if (velocity := limit(0x607F)) is not None:
+    if (velocity := limit(MAX_PROFILE_VELOCITY)) is not None:
         drive_max, source = velocity / per_rad_s, "0x607F"
-    elif (rpm := limit(0x6080)) is not None:
+    elif (rpm := limit(MAX_MOTOR_SPEED)) is not None:
         drive_max, source = rpm * 2 * math.pi / 60.0, "0x6080"
     else:
         raise refused("velocity limit", "max profile velocity 0x607F or max motor speed 0x6080")
@@ -100,7 +110,7 @@ def read_limits(
         f"max velocity {drive_max / DRIVE_LIMIT_MARGIN:.6g} rad/s (1/{DRIVE_LIMIT_MARGIN:g} of {source})"
     )
     acceleration = None
-    for pair in ((0x60C5, 0x60C6), (0x6083, 0x6084)):
+    for pair in ((MAX_ACCELERATION, MAX_DECELERATION), (PROFILE_ACCELERATION, PROFILE_DECELERATION)):
         values = [v for v in map(limit, pair) if v is not None]
         if values:
             acceleration = min(values) / per_rad_s  # acceleration units: velocity units per s
@@ -108,7 +118,7 @@ def read_limits(
             break
     if acceleration is None:
         raise refused("acceleration limit", "0x60C5/0x60C6 or 0x6083/0x6084")
-    quick_stop = limit(0x6085)
+    quick_stop = limit(QUICK_STOP_DECELERATION)
     if quick_stop is None:
         deceleration = 2 * acceleration
         said.append(f"quick-stop deceleration {deceleration:.6g} rad/s² (default: twice the acceleration)")

@@ -19,6 +19,7 @@ from typing import Any
 import canopen
 
 from ..cia.factor import FactorGroup, describe
+from ..cia.objects import MAX_TORQUE, MOTOR_RATED_CURRENT, MOTOR_RATED_TORQUE
 from ..cia.sdo import read_if_readable
 from ..config import NodeConfig
 from ..errors import DriveRefused
@@ -112,7 +113,11 @@ def read_units(
         return read_if_readable(node, index, sub, f"axis {axis}'s units")
 
     group = FactorGroup.read(value)
-    torque, current, max_torque = value(0x6076, 0), value(0x6075, 0), value(0x6072, 0)
+    torque, current, max_torque = (
+        value(MOTOR_RATED_TORQUE, 0),
+        value(MOTOR_RATED_CURRENT, 0),
+        value(MAX_TORQUE, 0),
+    )
     return DriveUnits(
         group, torque / 1000.0 if torque else None, current / 1000.0 if current else None, max_torque
     )

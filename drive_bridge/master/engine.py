@@ -74,7 +74,7 @@ CHECK_EVERY_S = 0.05
 INT16 = (-(2**15), 2**15 - 1)
 #: kinds of an RPDO field: the controlword, a column of the setpoint table, a constant, a column of
 #: the torque offsets (less what the velocity loop holds at rest, see :attr:`AxisJob.torque_Nm_per_raw`)
-CONTROLWORD, TABLE, CONSTANT, TORQUE_OFFSET = range(4)
+FIELD_CONTROLWORD, FIELD_TABLE, FIELD_CONSTANT, FIELD_TORQUE_OFFSET = range(4)
 #: the engine's phases (shared with the host through ``Arrays.control``)
 ENABLING, STREAMING, HOLDING, STOPPING, SWITCHING_OFF, ENDED = range(6)
 #: slots of ``Arrays.control`` (int64): what the host reads while the engine runs, and its stop request
@@ -584,7 +584,13 @@ class Engine:
         #: per axis, the setpoint table's column of the torque offsets it is sent (-1: none)
         self._offset_columns = [
             next(
-                (arg for r in job.rpdos if r.axis == axis for kind, arg in r.fields if kind == TORQUE_OFFSET),
+                (
+                    arg
+                    for r in job.rpdos
+                    if r.axis == axis
+                    for kind, arg in r.fields
+                    if kind == FIELD_TORQUE_OFFSET
+                ),
                 -1,
             )
             for axis in range(n_axes)
@@ -676,11 +682,11 @@ class Engine:
                 continue
             axis = rpdo.axis
             for i, (kind, arg) in enumerate(rpdo.fields):
-                if kind == CONTROLWORD:
+                if kind == FIELD_CONTROLWORD:
                     values[i] = controlwords[axis]
-                elif kind == TABLE:
+                elif kind == FIELD_TABLE:
                     values[i] = int(table[row, arg])
-                elif kind == TORQUE_OFFSET:
+                elif kind == FIELD_TORQUE_OFFSET:
                     values[i] = max(INT16[0], min(INT16[1], int(table[row, arg]) - int(offsets[axis])))
                 else:
                     values[i] = arg

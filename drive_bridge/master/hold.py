@@ -7,6 +7,14 @@ from __future__ import annotations
 
 import canopen
 
+from ..cia.objects import (
+    CONTROLWORD,
+    INTERPOLATION_DATA_CONFIGURATION,
+    POSITION_ACTUAL,
+    STATUSWORD,
+    TARGET_POSITION,
+    VELOCITY_ACTUAL,
+)
 from ..cia.p402 import (
     CSP,
     CW_HALT,
@@ -95,7 +103,7 @@ def quick_stop(link: Link, axes: dict[str, AxisLink], timeout: float) -> list[st
     problems = []
     for name, ax in axes.items():
         try:
-            ax.node.sdo[0x6040].raw = CW_QUICK_STOP
+            ax.node.sdo[CONTROLWORD].raw = CW_QUICK_STOP
         except (canopen.SdoCommunicationError, canopen.SdoAbortedError) as exc:
             problems.append(f"axis {name}: quick stop not confirmed ({exc})")
     deadline = link.clock.now() + timeout
@@ -106,7 +114,7 @@ def quick_stop(link: Link, axes: dict[str, AxisLink], timeout: float) -> list[st
         for name in list(pending):
             ax = axes[name]
             try:
-                sw, velocity = ax.node.sdo[0x6041].raw, ax.node.sdo[0x606C].raw
+                sw, velocity = ax.node.sdo[STATUSWORD].raw, ax.node.sdo[VELOCITY_ACTUAL].raw
             except (canopen.SdoCommunicationError, canopen.SdoAbortedError):
                 continue
             speed[name] = abs(float(ax.cfg.scaling.velocity_from_device(velocity)))
@@ -135,17 +143,17 @@ def prepare_enable(ax: AxisLink, target: int) -> None:
         Where it stands [increments].
     """
     ax.drive.reset_fault()
-    if ax.mode == IP and ax.setpoint == PVT and 0x60C4 in ax.node.object_dictionary:
+    if ax.mode == IP and ax.setpoint == PVT and INTERPOLATION_DATA_CONFIGURATION in ax.node.object_dictionary:
         try:
-            ax.node.sdo[0x60C4][6].raw = 0
-            ax.node.sdo[0x60C4][6].raw = 1
+            ax.node.sdo[INTERPOLATION_DATA_CONFIGURATION][6].raw = 0
+            ax.node.sdo[INTERPOLATION_DATA_CONFIGURATION][6].raw = 1
         except (canopen.SdoCommunicationError, canopen.SdoAbortedError) as exc:
             raise MotionAborted(
                 f"clearing the interpolation buffer (0x60C4:6) failed ({exc}); nothing was enabled", ax.name
             ) from exc
     if ax.mode == CSP:
         try:
-            actual = ax.node.sdo[0x6064].raw
+            actual = ax.node.sdo[POSITION_ACTUAL].raw
             tolerance = max(1, round(ax.cfg.following_error_window_rad * ax.cfg.scaling.inc_per_rad / 2))
             if abs(actual - target) > tolerance:
                 raise MotionAborted(
@@ -153,7 +161,7 @@ def prepare_enable(ax: AxisLink, target: int) -> None:
                     f"moved since the plan was made; nothing was enabled",
                     ax.name,
                 )
-            ax.node.sdo[0x607A].raw = actual
+            ax.node.sdo[TARGET_POSITION].raw = actual
         except (canopen.SdoCommunicationError, canopen.SdoAbortedError) as exc:
             raise MotionAborted(
                 f"setting the target position 0x607A to the actual position before enabling "
@@ -168,9 +176,15 @@ HELD = ("OPERATION ENABLED", "QUICK STOP ACTIVE")  # the states an axis held ``e
 
 
 class HeldAxes:
-    """The axes of ``axes`` held powered now (not on their brake; enabled or in quick stop) and where
-    each stands once it stands still: :meth:`strayed` says whether one has since left its hold
-    tolerance or its power (a gain set that does not hold its load, written while it holds)."""
+    """The axes held powered now (not on their brake; enabled or in quick stop) and where each
+    stands once it stands still: :meth:`strayed` says whether one has since left its hold
+    tolerance or its power (a gain set that does not hold its load, written while it holds).
+
+    Parameters
+    ----------
+    axes : dict of str to AxisLink
+        The brought-up axes; those that do not answer are left out.
+    """
 
     def __init__(self, axes: dict[str, AxisLink]):
         self.axes: dict[str, AxisLink] = {}
@@ -189,13 +203,19 @@ class HeldAxes:
             deadline = clock.now() + SETTLE_S
             while min(still.values()) < 2 and clock.now() < deadline:
                 for name, ax in self.axes.items():
-                    speed = abs(float(ax.cfg.scaling.velocity_from_device(ax.node.sdo[0x606C].raw)))
+                    speed = abs(float(ax.cfg.scaling.velocity_from_device(ax.node.sdo[VELOCITY_ACTUAL].raw)))
                     still[name] = still[name] + 1 if speed <= STANDSTILL_MIN_RAD_S else 0
                 clock.sleep(0.01)
         self.at = {name: ax.position_rad() for name, ax in self.axes.items()}
 
     def strayed(self) -> str | None:
-        """The first held axis that left its power or its hold tolerance, in words (None: each holds)."""
+        """The first held axis that left its power or its hold tolerance, in words.
+
+        Returns
+        -------
+        str or None
+            What it did; None where each holds.
+        """
         for name, ax in self.axes.items():
             tolerance = ax.cfg.drive_limits.hold_tolerance if ax.cfg.drive_limits else HOLD_TOLERANCE_RAD
             state, moved = ax.drive.state(), abs(ax.position_rad() - self.at[name])
@@ -211,8 +231,19 @@ class HeldAxes:
 
 def hold_powered(axes: dict[str, AxisLink]) -> list[str]:
     """Every axis held ``enabled`` that is not powered now powered and held where it stands, in
-    profile position with halt (a drive takes no target then): what was done, or why an axis could
-    not be (in FAULT: left for a person; no profile position), in words."""
+    profile position with halt (a drive takes no target then).
+
+    Parameters
+    ----------
+    axes : dict of str to AxisLink
+        The brought-up axes.
+
+    Returns
+    -------
+    list of str
+        What was done, or why an axis could not be held (in FAULT: left for a person; no profile
+        position), in words.
+    """
     said = []
     for name, ax in axes.items():
         if on_brake(ax):

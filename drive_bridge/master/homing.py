@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import logging
 
+from ..cia.objects import CONTROLWORD, HOMING_ACCELERATION, HOMING_METHOD, HOMING_SPEEDS
 from ..cia.p402 import (
     CW_ENABLE,
     CW_SHUTDOWN,
@@ -83,10 +84,10 @@ def _home(link: Link, ax: AxisLink, config: BusConfig) -> None:
         raise ValueError(f"axis {ax.name} has no homing configured")  # to_home only names axes that have
     vel = sc.velocity_per_rad_s
     settings = [
-        (0x6098, 0, h.method),
-        (0x6099, 1, round(h.switch_speed * vel)),
-        (0x6099, 2, round(h.zero_speed * vel)),
-        (0x609A, 0, round(h.acceleration * vel)),
+        (HOMING_METHOD, 0, h.method),
+        (HOMING_SPEEDS, 1, round(h.switch_speed * vel)),
+        (HOMING_SPEEDS, 2, round(h.zero_speed * vel)),
+        (HOMING_ACCELERATION, 0, round(h.acceleration * vel)),
     ]
     for index, sub, value in settings:
         write_setting(node, ax.name, index, sub, value)
@@ -107,7 +108,7 @@ def _home(link: Link, ax: AxisLink, config: BusConfig) -> None:
         drive.command(CW_SHUTDOWN, "READY TO SWITCH ON", "enabling for homing")
         drive.command(CW_SWITCH_ON, "SWITCHED ON", "enabling for homing")
         drive.command(CW_ENABLE, "OPERATION ENABLED", "enabling for homing")
-        node.sdo[0x6040].raw = CW_START
+        node.sdo[CONTROLWORD].raw = CW_START
         deadline = clock.now() + h.timeout_s
         while True:
             clock.sleep(POLL_S)
@@ -131,7 +132,7 @@ def _home(link: Link, ax: AxisLink, config: BusConfig) -> None:
                 raise MotionAborted(
                     f"not homed within homing.timeout_s = {h.timeout_s:g} s (statusword 0x{sw:04X})", ax.name
                 )
-        node.sdo[0x6040].raw = CW_ENABLE  # bit 4 down: homing done, the drive holds
+        node.sdo[CONTROLWORD].raw = CW_ENABLE  # bit 4 down: homing done, the drive holds
         if ax.cfg.drive_limits is not None and ax.cfg.drive_limits.holding == "brake":
             drive.command(CW_SHUTDOWN, "READY TO SWITCH ON", "putting the axis on its brake after homing")
     except (KeyboardInterrupt, Exception) as exc:

@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING
 
 import canopen
 
+from ..cia.objects import CONTROLWORD, ERROR_CODE, MODES_OF_OPERATION, MODES_OF_OPERATION_DISPLAY, STATUSWORD
 from ..cia.p402 import CW_FAULT_RESET, SW_FAULT, state_name
 from ..errors import BusError, DriveRefused
 
@@ -50,7 +51,7 @@ class Drive402:
         int
             The statusword.
         """
-        return self.node.sdo[0x6041].raw
+        return self.node.sdo[STATUSWORD].raw
 
     def state(self) -> str:
         """The CiA 402 state the drive shows now.
@@ -98,7 +99,7 @@ class Drive402:
         BusError
             The drive does not reach the state within the timeout.
         """
-        self.node.sdo[0x6040].raw = controlword
+        self.node.sdo[CONTROLWORD].raw = controlword
         self._wait_for(target, doing)
 
     def reset_fault(self) -> None:
@@ -111,9 +112,9 @@ class Drive402:
         """
         if not self.statusword() & SW_FAULT:
             return
-        code = self.node.sdo[0x603F].raw
-        self.node.sdo[0x6040].raw = 0x00
-        self.node.sdo[0x6040].raw = CW_FAULT_RESET
+        code = self.node.sdo[ERROR_CODE].raw
+        self.node.sdo[CONTROLWORD].raw = 0x00
+        self.node.sdo[CONTROLWORD].raw = CW_FAULT_RESET
         try:
             self._wait_for("SWITCH ON DISABLED", f"resetting fault 0x{code:04X}")
         except BusError as exc:
@@ -138,11 +139,11 @@ class Drive402:
             0x6061 does not show it within the timeout.
         """
         try:
-            self.node.sdo[0x6060].raw = mode
+            self.node.sdo[MODES_OF_OPERATION].raw = mode
         except canopen.SdoAbortedError as exc:
             raise DriveRefused(f"axis {self.axis}: drive refused operating mode {mode} ({exc})") from exc
         deadline = self.clock.now() + self.timeout
-        while (shown := self.node.sdo[0x6061].raw) != mode:
+        while (shown := self.node.sdo[MODES_OF_OPERATION_DISPLAY].raw) != mode:
             if self.clock.now() >= deadline:
                 raise BusError(
                     f"axis {self.axis}: mode {mode} requested, drive still shows {shown} "

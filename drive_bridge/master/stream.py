@@ -28,6 +28,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..cia.objects import (
+    CONTROLWORD,
+    MODES_OF_OPERATION,
+    STATUSWORD,
+    TORQUE_OFFSET,
+    VELOCITY_ACTUAL,
+    VELOCITY_OFFSET,
+    torque_object,
+)
 from ..cia.p402 import (
     CSP,
     CW_ENABLE,
@@ -46,10 +55,10 @@ from .bringup import AxisLink
 from .campaign import Plan
 from .engine import (
     AGE_BIN_S,
-    CONSTANT,
-    CONTROLWORD,
-    TABLE,
-    TORQUE_OFFSET,
+    FIELD_CONSTANT,
+    FIELD_CONTROLWORD,
+    FIELD_TABLE,
+    FIELD_TORQUE_OFFSET,
     Arrays,
     AxisJob,
     Job,
@@ -124,8 +133,8 @@ def _job(
             fields: list[tuple[int, int]] = []
             for entry in codec.entries:
                 index = entry[0]
-                if index == 0x6040:
-                    fields.append((CONTROLWORD, 0))
+                if index == CONTROLWORD:
+                    fields.append((FIELD_CONTROLWORD, 0))
                 elif entry == PVT:  # position, velocity at that position, time to reach it [ms]
                     vel = np.clip(
                         sc.velocity_to_device(np.gradient(demand, plan.period)), -(2**23), 2**23 - 1
@@ -136,25 +145,25 @@ def _job(
                         dtype=np.uint64,
                     )
                     columns.append(records.view(np.int64))
-                    fields.append((TABLE, len(columns) - 1))
+                    fields.append((FIELD_TABLE, len(columns) - 1))
                 elif entry in SETPOINT_OBJECTS:
-                    fields.append((TABLE, position_column))
-                elif index == 0x60B2 and plan.torque_ff_Nm is not None:
+                    fields.append((FIELD_TABLE, position_column))
+                elif index == TORQUE_OFFSET and plan.torque_ff_Nm is not None:
                     columns.append(np.asarray(sc.torque_to_device(plan.torque_ff_Nm[:, ai]), dtype=np.int64))
-                    fields.append((TORQUE_OFFSET, len(columns) - 1))
+                    fields.append((FIELD_TORQUE_OFFSET, len(columns) - 1))
                     torque_gain = sc.feedback_Nm_per_unit
-                elif index == 0x6060:  # modes of operation, where an RPDO maps it
-                    fields.append((CONSTANT, ax.mode))
-                elif index == 0x60B1 and plan.velocity_ff_rad_s is not None:
+                elif index == MODES_OF_OPERATION:  # modes of operation, where an RPDO maps it
+                    fields.append((FIELD_CONSTANT, ax.mode))
+                elif index == VELOCITY_OFFSET and plan.velocity_ff_rad_s is not None:
                     columns.append(
                         np.asarray(
                             np.clip(sc.velocity_to_device(plan.velocity_ff_rad_s[:, ai]), *INT32),
                             dtype=np.int64,
                         )
                     )
-                    fields.append((TABLE, len(columns) - 1))
+                    fields.append((FIELD_TABLE, len(columns) - 1))
                 else:
-                    fields.append((CONSTANT, 0))
+                    fields.append((FIELD_CONSTANT, 0))
             # around the plan, an interpolating drive's setpoint records stay off the bus: a FIFO (maxon's
             # PVT) would keep them and play them when interpolation starts
             rpdos.append(
@@ -168,7 +177,12 @@ def _job(
         )
         cols = {
             index: rec.column(a, index)
-            for index in (0x6041, 0x606C, sc.torque_object, 0x20C4)
+            for index in (
+                STATUSWORD,
+                VELOCITY_ACTUAL,
+                torque_object(sc.torque_feedback, sc.torque_index),
+                0x20C4,
+            )
             if (a, index) in rec.columns
         }
         powered = not on_brake(ax)
@@ -180,9 +194,9 @@ def _job(
                 a,
                 ax.cfg.node_id,
                 tuple(rec.slots[a]),
-                cols[0x6041],
-                cols.get(0x606C, -1),
-                cols.get(sc.torque_object, -1),
+                cols[STATUSWORD],
+                cols.get(VELOCITY_ACTUAL, -1),
+                cols.get(torque_object(sc.torque_feedback, sc.torque_index), -1),
                 cols.get(0x20C4, -1),
                 position_column,
                 CW_ENABLE_IP if ax.mode == IP else CW_ENABLE,
@@ -375,7 +389,7 @@ def _after(
                 continue
             try:
                 ax.drive.set_mode(PP)
-                ax.node.sdo[0x6040].raw = CW_HALT
+                ax.node.sdo[CONTROLWORD].raw = CW_HALT
                 state[a] = ax.drive.state()
             except Exception as exc:  # noqa: BLE001 - any failure: it holds as it is
                 problems.append(f"axis {a}: could not hold it in profile position ({exc})")
@@ -413,4 +427,8 @@ def _inside_drive_limits(ax: AxisLink, demand: np.ndarray) -> None:
 
 def _records_only(ax: AxisLink, codec: PdoCodec) -> bool:
     """An RPDO of an interpolating axis that carries setpoint records and no controlword."""
-    return ax.mode == IP and 0x6040 not in codec.objects and any(e in SETPOINT_OBJECTS for e in codec.entries)
+    return (
+        ax.mode == IP
+        and CONTROLWORD not in codec.objects
+        and any(e in SETPOINT_OBJECTS for e in codec.entries)
+    )

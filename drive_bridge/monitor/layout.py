@@ -6,13 +6,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from ..cia.objects import POSITION_ACTUAL, torque_object
 from ..cia.pdo import PdoCodec
 from ..cia.setpoint import SETPOINT_OBJECTS
 from ..config import BusConfig, NodeConfig, PdoConfig
 from ..errors import UserError
 from ..units import Scaling
 
-POSITION = 0x6064
+POSITION = POSITION_ACTUAL
 
 
 def _codecs(ncfg: NodeConfig, pdos: tuple[PdoConfig, ...], base: int) -> list[PdoCodec]:
@@ -82,7 +83,10 @@ class Layout:
                 )
             tpdos[axis] = _codecs(ncfg, ncfg.tpdo, 0x180)
             mapped = {i for c in tpdos[axis] for i in c.objects}
-            for index, what in ((POSITION, "position 0x6064"), (sc.torque_object, "torque")):
+            for index, what in (
+                (POSITION, "position 0x6064"),
+                (torque_object(sc.torque_feedback, sc.torque_index), "torque"),
+            ):
                 if index not in mapped:
                     raise UserError(
                         f"{where}.tpdo: no TPDO maps the {what} (0x{index:04X}); monitor identifies "

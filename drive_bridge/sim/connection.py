@@ -41,7 +41,7 @@ def simulated_link(
         The simulated robot.
     watch : str or Path, optional
         With ``realtime``: where the drives' process writes the plant as it moves
-        (:func:`~drive_bridge.sim.process.watch_plant`).
+        (:class:`~drive_bridge.sim.process.PlantWatch`).
 
     Returns
     -------

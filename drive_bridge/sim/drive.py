@@ -38,10 +38,53 @@ from canopen.sdo import SdoAbortedError
 
 from ..cia.factor import OBJECTS as FACTOR_OBJECTS
 from ..cia.factor import FactorGroup
+from ..cia.objects import (
+    ABORT_CONNECTION_OPTION,
+    COB_ID_SYNC,
+    CONTROLWORD,
+    CYCLE_PERIOD,
+    DEVICE_TYPE,
+    ERROR_CODE,
+    ERROR_FIELD,
+    ERROR_REGISTER,
+    FOLLOWING_ERROR_ACTUAL,
+    FOLLOWING_ERROR_TIMEOUT,
+    FOLLOWING_ERROR_WINDOW,
+    HEARTBEAT_CONSUMER,
+    HEARTBEAT_PRODUCER,
+    IDENTITY_OBJECT,
+    INTERPOLATION_DATA_CONFIGURATION,
+    INTERPOLATION_SUB_MODE,
+    INTERPOLATION_TIME_PERIOD,
+    MAX_PROFILE_VELOCITY,
+    MAX_TORQUE,
+    MODES_OF_OPERATION,
+    MODES_OF_OPERATION_DISPLAY,
+    MOTOR_RATED_CURRENT,
+    MOTOR_RATED_TORQUE,
+    PDO_PARAMETERS_END,
+    POSITION_ACTUAL,
+    POSITION_ENCODER_RESOLUTION,
+    PROFILE_ACCELERATION,
+    PROFILE_DECELERATION,
+    PROFILE_VELOCITY,
+    QUICK_STOP_DECELERATION,
+    QUICK_STOP_OPTION,
+    RESTORE_DEFAULTS,
+    RPDO_COMMUNICATION,
+    SOFTWARE_POSITION_LIMIT,
+    STATUSWORD,
+    STORE_PARAMETERS,
+    SUPPORTED_DRIVE_MODES,
+    SYNC_COUNTER_OVERFLOW,
+    TARGET_POSITION,
+    TORQUE_ACTUAL,
+    TORQUE_OFFSET,
+    VELOCITY_ACTUAL,
+    VELOCITY_OFFSET,
+)
 from ..cia.od import default, limits, load_od
 from ..cia.p301 import (
-    COB_ID_SYNC,
-    CYCLE_PERIOD,
     ERR_FOLLOWING,
     ERR_HEARTBEAT,
     ERR_PARAMETER,
@@ -51,7 +94,6 @@ from ..cia.p301 import (
     MAX_SYNC_COUNTER,
     NMT_OPERATIONAL,
     NMT_PREOP,
-    SYNC_COUNTER_OVERFLOW,
     SYNC_PRODUCER,
 )
 from ..cia.p402 import (
@@ -68,7 +110,7 @@ from ..cia.p402 import (
     PP,
     PV,
     QUICK_STOP,
-    STATUSWORD,
+    STATE_BITS,
     SW_FOLLOWING,
     SW_FOLLOWING_ERROR,
     SW_HOMING_ATTAINED,
@@ -104,7 +146,7 @@ IMPLEMENTED_MODES = (PP, PV, HM, IP, CSP)
 SAVE_SIGNATURE = 0x65766173  # 'save'
 #: option codes -> the first value CiA 402 reserves (negative values: the manufacturer's): the
 #: quick stop option code 0x605A defines 0..8, the abort connection option 0x6007 0..3
-RESERVED_FROM = {0x605A: 9, 0x6007: 4}
+RESERVED_FROM = {QUICK_STOP_OPTION: 9, ABORT_CONNECTION_OPTION: 4}
 LOAD_SIGNATURE = 0x64616F6C  # 'load'
 
 SETPOINT_TIMEOUT_PERIODS = 10  # CSP: no setpoint for this many interpolation periods -> fault
@@ -260,10 +302,14 @@ class SimDrive:
         #: its objects' values, the measured ones read live, and the parameter set a reset restores
         self.objects = ObjectStorage(self.node, self._live_objects())
         self.pdos = PdoMapping(self.od, self.objects.get, self.objects.getter)
-        encoder = self.od.get_variable(0x608F, 1)
+        encoder = self.od.get_variable(POSITION_ENCODER_RESOLUTION, 1)
         #: the encoder's increments per rad (what the kernel quantises the position with)
         if encoder is not None and encoder.default:
-            self.inc_per_rad = self.objects.get(0x608F, 1) / self.objects.get(0x608F, 2) / (2 * math.pi)
+            self.inc_per_rad = (
+                self.objects.get(POSITION_ENCODER_RESOLUTION, 1)
+                / self.objects.get(POSITION_ENCODER_RESOLUTION, 2)
+                / (2 * math.pi)
+            )
         elif self.spec.increments_per_rev is not None:
             self.inc_per_rad = self.spec.increments_per_rev / (2 * math.pi)
         else:
@@ -277,7 +323,8 @@ class SimDrive:
         #: maxon's PVT input buffer, where the drive takes PVT records
         self.pvt: PvtBuffer | None = (
             PvtBuffer()
-            if self.od.get_variable(*PVT) is not None and self.od.get_variable(0x60C4, 6) is not None
+            if self.od.get_variable(*PVT) is not None
+            and self.od.get_variable(INTERPOLATION_DATA_CONFIGURATION, 6) is not None
             else None
         )
         self._init_storage()
@@ -286,7 +333,7 @@ class SimDrive:
 
     # ------------------------------------------------------------------ storage
     def _supported_bits(self) -> int:
-        var = self.od.get_variable(0x6502, 0)
+        var = self.od.get_variable(SUPPORTED_DRIVE_MODES, 0)
         return (
             var.default if var is not None and var.default is not None else (self.spec.supported_modes or 0)
         )
@@ -310,36 +357,36 @@ class SimDrive:
                     self.objects.set(var.index, var.subindex, min(value, hi) if hi is not None else value)
         self._init_storage_missing()
         m = self.axis.motor
-        if 0x6076 in self.od:
-            self.objects.set(0x6076, 0, round(m.rated_torque_Nm * 1000))  # mNm
-        if 0x6075 in self.od:
-            self.objects.set(0x6075, 0, round(m.rated_torque_Nm / m.kt * 1000))  # mA
-        if encoder_var := self.od.get_variable(0x608F, 1):
+        if MOTOR_RATED_TORQUE in self.od:
+            self.objects.set(MOTOR_RATED_TORQUE, 0, round(m.rated_torque_Nm * 1000))  # mNm
+        if MOTOR_RATED_CURRENT in self.od:
+            self.objects.set(MOTOR_RATED_CURRENT, 0, round(m.rated_torque_Nm / m.kt * 1000))  # mA
+        if encoder_var := self.od.get_variable(POSITION_ENCODER_RESOLUTION, 1):
             if not encoder_var.default:
-                self.objects.set(0x608F, 1, round(self.inc_per_rad * 2 * math.pi))
-                self.objects.set(0x608F, 2, 1)
+                self.objects.set(POSITION_ENCODER_RESOLUTION, 1, round(self.inc_per_rad * 2 * math.pi))
+                self.objects.set(POSITION_ENCODER_RESOLUTION, 2, 1)
         self._units()
         if not self.spec.factory_in_file:
             f = factory()
             for index, sub, value in self.gains.factory_values():
                 self.objects.set(index, sub, value)
             for index, value in (
-                (0x6072, f.max_torque_permille),
-                (0x6066, f.fe_timeout_ms),
-                (0x6085, f.quick_stop_rad_s2 * self.vel_per_si),
-                (0x6081, f.profile_velocity_rad_s * self.vel_per_si),
-                (0x6083, f.profile_acceleration_rad_s2 * self.vel_per_si),
-                (0x6084, f.profile_acceleration_rad_s2 * self.vel_per_si),
+                (MAX_TORQUE, f.max_torque_permille),
+                (FOLLOWING_ERROR_TIMEOUT, f.fe_timeout_ms),
+                (QUICK_STOP_DECELERATION, f.quick_stop_rad_s2 * self.vel_per_si),
+                (PROFILE_VELOCITY, f.profile_velocity_rad_s * self.vel_per_si),
+                (PROFILE_ACCELERATION, f.profile_acceleration_rad_s2 * self.vel_per_si),
+                (PROFILE_DECELERATION, f.profile_acceleration_rad_s2 * self.vel_per_si),
             ):
                 if index in self.od:
                     self.objects.set(index, 0, round(value))
         if (saved := self.axis.saved_limits) is not None:  # the machine's commissioning, kept in the drive
             for (index, sub), value in (
-                ((0x607D, 1), saved.stroke_rad[0] * self.pos_per_rad),
-                ((0x607D, 2), saved.stroke_rad[1] * self.pos_per_rad),
-                ((0x607F, 0), saved.max_velocity_rad_s * self.vel_per_si),
-                ((0x6083, 0), saved.acceleration_rad_s2 * self.vel_per_si),
-                ((0x6084, 0), saved.acceleration_rad_s2 * self.vel_per_si),
+                ((SOFTWARE_POSITION_LIMIT, 1), saved.stroke_rad[0] * self.pos_per_rad),
+                ((SOFTWARE_POSITION_LIMIT, 2), saved.stroke_rad[1] * self.pos_per_rad),
+                ((MAX_PROFILE_VELOCITY, 0), saved.max_velocity_rad_s * self.vel_per_si),
+                ((PROFILE_ACCELERATION, 0), saved.acceleration_rad_s2 * self.vel_per_si),
+                ((PROFILE_DECELERATION, 0), saved.acceleration_rad_s2 * self.vel_per_si),
             ):
                 if self.od.get_variable(index, sub) is not None:
                     self.objects.set(index, sub, round(value))
@@ -356,7 +403,7 @@ class SimDrive:
             60 / (2 * math.pi) if self.spec.velocity_unit == "rpm" else self.pos_per_rad
         )
         self.plant_param[kernel.FE_WINDOW] = (
-            self.objects.get(0x6065) / self.pos_per_rad
+            self.objects.get(FOLLOWING_ERROR_WINDOW) / self.pos_per_rad
         )  # the window is in position units
 
     def _power_up(self) -> None:
@@ -365,8 +412,10 @@ class SimDrive:
         plant_params(p, self.axis, self.axis_names)
         p[kernel.INC_PER_RAD] = self.inc_per_rad
         m = self.axis.motor
-        self.rated_torque = self.objects.get_or(0x6076, 0, m.rated_torque_Nm * 1000) / 1000.0
-        self.rated_current_A = self.objects.get_or(0x6075, 0, m.rated_torque_Nm / m.kt * 1000) / 1000.0
+        self.rated_torque = self.objects.get_or(MOTOR_RATED_TORQUE, 0, m.rated_torque_Nm * 1000) / 1000.0
+        self.rated_current_A = (
+            self.objects.get_or(MOTOR_RATED_CURRENT, 0, m.rated_torque_Nm / m.kt * 1000) / 1000.0
+        )
         self.drive_values[cyclic.X_CURRENT_UNIT] = (
             1e-3 if self.spec.current_unit == "mA" else self.rated_current_A / 1000.0
         )
@@ -377,14 +426,14 @@ class SimDrive:
         p[kernel.LOOP_DIV] = self.gains.loop_div
         self.gains.load(p, self.objects.get)
         p[kernel.TMAX] = (
-            self.objects.get_or(0x6072, 0, factory().max_torque_permille) / 1000.0 * self.rated_torque
+            self.objects.get_or(MAX_TORQUE, 0, factory().max_torque_permille) / 1000.0 * self.rated_torque
         )
         self._units()
         self.state = SWITCH_ON_DISABLED
         #: its NMT state, boot-up and heartbeat producer
-        self.nmt = NmtSlave(self.node_id, self._send, lambda: self.objects.get(0x1017))
+        self.nmt = NmtSlave(self.node_id, self._send, lambda: self.objects.get(HEARTBEAT_PRODUCER))
         self.controlword = 0
-        self.mode = self.objects.get(0x6060)
+        self.mode = self.objects.get(MODES_OF_OPERATION)
         self.emcy = EmcyProducer(self.node_id, self._send)  # EMCY, 0x603F and 0x1003
         self.internal_limit = False
         self.new_target = False
@@ -440,14 +489,14 @@ class SimDrive:
                 self.objects.set(0x2002, sub, getattr(m, name))
         info = self.od.device_information
         for sub, value in ((1, info.vendor_number), (2, info.product_number), (3, info.revision_number)):
-            var = self.od.get_variable(0x1018, sub)
+            var = self.od.get_variable(IDENTITY_OBJECT, sub)
             if var is not None and var.default is None:
-                self.objects.set(0x1018, sub, value or 0)
-        self.objects.set(0x1018, 4, self.axis.serial)
-        if default(self.od, 0x1000) is None:
-            self.objects.set(0x1000, 0, DEVICE_TYPE_SERVO)
-        if 0x6502 in self.od and default(self.od, 0x6502) is None:
-            self.objects.set(0x6502, 0, self.spec.supported_modes)
+                self.objects.set(IDENTITY_OBJECT, sub, value or 0)
+        self.objects.set(IDENTITY_OBJECT, 4, self.axis.serial)
+        if default(self.od, DEVICE_TYPE) is None:
+            self.objects.set(DEVICE_TYPE, 0, DEVICE_TYPE_SERVO)
+        if SUPPORTED_DRIVE_MODES in self.od and default(self.od, SUPPORTED_DRIVE_MODES) is None:
+            self.objects.set(SUPPORTED_DRIVE_MODES, 0, self.spec.supported_modes)
 
     def heartbeat_due(self, now: float) -> None:
         """Its own heartbeat and its event-driven TPDOs, when due.
@@ -492,7 +541,7 @@ class SimDrive:
         for _node in self.heartbeats.fallen_silent(now):
             if self.nmt.state == NMT_OPERATIONAL:
                 self.nmt.state = NMT_PREOP
-            self._connection_lost(ERR_HEARTBEAT, self.objects.get_or(0x6007, 0, 0))
+            self._connection_lost(ERR_HEARTBEAT, self.objects.get_or(ABORT_CONNECTION_OPTION, 0, 0))
 
     def _connection_lost(self, code: int, option: int) -> None:
         """EMCY ``code``; in OPERATION ENABLED, what the abort connection option says."""
@@ -519,9 +568,9 @@ class SimDrive:
             if self.plant.time not in (self._last_sync_sample, self._sampled_at):  # once per instant
                 self.refresh_actuals()
             return live()
-        if index in (0x1010, 0x1011) and subindex == 1:
+        if index in (STORE_PARAMETERS, RESTORE_DEFAULTS) and subindex == 1:
             return 1  # device saves/restores on command
-        if index == 0x1003:
+        if index == ERROR_FIELD:
             return self.emcy.field(subindex)
         return None
 
@@ -536,7 +585,7 @@ class SimDrive:
         self.objects.written(index, subindex, value)
         if index in FACTOR_OBJECTS:  # new units: every position value is read anew
             self._units()
-        elif index == 0x1016:
+        elif index == HEARTBEAT_CONSUMER:
             self._consumers_changed()
 
     def write(self, index: int, sub: int, value: Any) -> None:
@@ -554,17 +603,17 @@ class SimDrive:
         SdoAbortedError
             The drive refuses it (with the abort code a real drive gives).
         """
-        if 0x1400 <= index <= 0x1BFF:
+        if RPDO_COMMUNICATION <= index <= PDO_PARAMETERS_END:
             self.pdos.check_write(index, sub, value)
             self.objects.set(index, sub, value)
             self._rebuild_pdos()
             return
-        if index == 0x6040:
+        if index == CONTROLWORD:
             self._on_controlword(value)
         elif index in RESERVED_FROM:  # an option code whose value CiA 402 reserves
             if RESERVED_FROM[index] <= value:
                 raise SdoAbortedError(ABORT_RANGE)
-        elif index == 0x6060:
+        elif index == MODES_OF_OPERATION:
             if value != 0 and value not in self.modes:
                 raise SdoAbortedError(ABORT_RANGE)
             if value != self.mode and self.state == ENABLED:
@@ -573,14 +622,14 @@ class SimDrive:
                     self.mode = value
                     self._take_target()
             self.mode = value
-        elif index == 0x60B2:  # torque offset [per mille of rated torque]
+        elif index == TORQUE_OFFSET:  # torque offset [per mille of rated torque]
             self.plant_demand[kernel.T_OFF] = value / 1000.0 * self.rated_torque
-        elif index == 0x60B1:  # velocity offset [velocity unit]
+        elif index == VELOCITY_OFFSET:  # velocity offset [velocity unit]
             self.plant_demand[kernel.V_OFF] = value / self.vel_per_si
         elif (index, sub) == PVT and self.pvt is not None:  # maxon: into the buffer, taken one a period
             if (code := self.pvt.put(value)) is not None:
                 self._buffer_error(code)
-        elif index == 0x60C4 and sub == 6 and self.pvt is not None:
+        elif index == INTERPOLATION_DATA_CONFIGURATION and sub == 6 and self.pvt is not None:
             self.pvt.control(value)
         elif (index, sub) in SETPOINT_OBJECTS:
             if SETPOINT_OBJECTS[(index, sub)] == self.mode:  # 0x607A in PP is read on the set-point edge
@@ -594,7 +643,7 @@ class SimDrive:
             self.gains.load(self.plant_param, self.objects.get)
         elif (taken := self.gains.written(index, sub, value)) is not None:
             self.plant_param[taken[0]] = taken[1]
-        elif index == 0x1017:
+        elif index == HEARTBEAT_PRODUCER:
             self.nmt.heartbeat_time_written(self.plant.time, value)
         elif index == CYCLE_PERIOD:
             self.host.cycle_period_written(value)
@@ -605,21 +654,21 @@ class SimDrive:
                 raise SdoAbortedError(ABORT_STATE)
             if value == 1 or value > MAX_SYNC_COUNTER:
                 raise SdoAbortedError(ABORT_RANGE)
-        elif index == 0x6065:
+        elif index == FOLLOWING_ERROR_WINDOW:
             self.plant_param[kernel.FE_WINDOW] = value / self.pos_per_rad
-        elif index == 0x6072:
+        elif index == MAX_TORQUE:
             self.plant_param[kernel.TMAX] = value / 1000.0 * self.rated_torque
-        elif index == 0x1010 and sub == 1:
+        elif index == STORE_PARAMETERS and sub == 1:
             if value != SAVE_SIGNATURE:
                 raise SdoAbortedError(0x08000020)
             self.objects.save()
             return
-        elif index == 0x1011 and sub == 1:
+        elif index == RESTORE_DEFAULTS and sub == 1:
             if value != LOAD_SIGNATURE:
                 raise SdoAbortedError(0x08000020)
             self.objects.saved = {}
             return
-        elif index == 0x1003 and sub == 0:
+        elif index == ERROR_FIELD and sub == 0:
             if value != 0:
                 raise SdoAbortedError(ABORT_RANGE)
             self.emcy.history.clear()
@@ -663,7 +712,7 @@ class SimDrive:
         set-point takes the target of the same PDO).  A value the drive cannot take is not taken:
         an EMCY says so (parameter error) and the rest of the PDO is."""
         entries = list(zip(codec.entries, codec.spans, codec.struct.unpack_from(data)))
-        for (index, sub), (lo, hi), value in sorted(entries, key=lambda entry: entry[0][0] == 0x6040):
+        for (index, sub), (lo, hi), value in sorted(entries, key=lambda entry: entry[0][0] == CONTROLWORD):
             try:
                 self.write(index, sub, value)
             except SdoAbortedError:
@@ -695,7 +744,7 @@ class SimDrive:
         int
             The statusword (its state, remote, voltage enabled, target reached, limits, ...).
         """
-        sw = STATUSWORD[self.state] | SW_REMOTE
+        sw = STATE_BITS[self.state] | SW_REMOTE
         if self.state in VOLTAGE_ENABLED:
             sw |= SW_VOLTAGE_ENABLED
         if self.profile.reached:
@@ -735,7 +784,7 @@ class SimDrive:
                 self.state = SWITCH_ON_DISABLED
                 self.emcy.reset()
             return
-        self._go(next_state(self.state, cw, previous, self.objects.get_or(0x605A, 0, 2)))
+        self._go(next_state(self.state, cw, previous, self.objects.get_or(QUICK_STOP_OPTION, 0, 2)))
         if not cw & 0x10:
             self.profile.acknowledged = False  # the handshake: bit 12 follows bit 4 down
         if self.state == ENABLED and self.mode == PP and new_setpoint:
@@ -770,7 +819,7 @@ class SimDrive:
     def _take_target(self) -> None:
         """CSP from now on: the demand is the target position 0x607A as it stands, wherever the
         axis is (a stale target makes it jump, as on a real drive)."""
-        self.setpoint_inc = self.objects.get(0x607A)
+        self.setpoint_inc = self.objects.get(TARGET_POSITION)
         self.plant_demand[kernel.P0] = self.plant_demand[kernel.P1] = self.within_limits(
             self._plant(self.setpoint_inc)
         )
@@ -870,7 +919,7 @@ class SimDrive:
                 self.drive_values,
                 self._follow_period_s(record_s),
                 *self.software_limits(),
-                self.mode == IP and self.objects.get_or(0x60C0, 0, 0) == 0,
+                self.mode == IP and self.objects.get_or(INTERPOLATION_SUB_MODE, 0, 0) == 0,
             )
             return
         d[kernel.P0] = d.item(kernel.P1)
@@ -909,7 +958,7 @@ class SimDrive:
         (int, int)
             [position unit].
         """
-        return self.objects.get(0x607D, 1), self.objects.get(0x607D, 2)
+        return self.objects.get(SOFTWARE_POSITION_LIMIT, 1), self.objects.get(SOFTWARE_POSITION_LIMIT, 2)
 
     def check_faults(self) -> None:
         """After the plant advanced: following error, loss of setpoint, and bits 10 and 12 as the
@@ -927,7 +976,9 @@ class SimDrive:
         ):
             # the master's stream is gone: the drive's connection-abort reaction (a fault where
             # the drive has no 0x6007, or it is left at CiA 402's default)
-            self._connection_lost(ERR_RPDO_TIMEOUT, self.objects.get_or(0x6007, 0, ABORT_FAULT))
+            self._connection_lost(
+                ERR_RPDO_TIMEOUT, self.objects.get_or(ABORT_CONNECTION_OPTION, 0, ABORT_FAULT)
+            )
 
     def following_error_ticks(self) -> int:
         """Loop ticks outside the following error window that fault the drive (0x6066).
@@ -939,7 +990,11 @@ class SimDrive:
         """
         return max(
             1,
-            round(self.objects.get_or(0x6066, 0, factory().fe_timeout_ms) / 1000.0 / kernel.VELOCITY_TICK_S),
+            round(
+                self.objects.get_or(FOLLOWING_ERROR_TIMEOUT, 0, factory().fe_timeout_ms)
+                / 1000.0
+                / kernel.VELOCITY_TICK_S
+            ),
         )
 
     def setpoint_timeout(self) -> float:
@@ -954,9 +1009,11 @@ class SimDrive:
 
     def _interpolation_period(self) -> float:
         """0x60C2 [s]: value × 10^index (the SYNC period where the drive has no such object)."""
-        if self.od.get_variable(0x60C2, 1) is None:
+        if self.od.get_variable(INTERPOLATION_TIME_PERIOD, 1) is None:
             return self.plant.sync_period
-        return self.objects.get(0x60C2, 1) * 10.0 ** self.objects.get(0x60C2, 2)
+        return self.objects.get(INTERPOLATION_TIME_PERIOD, 1) * 10.0 ** self.objects.get(
+            INTERPOLATION_TIME_PERIOD, 2
+        )
 
     def interpolation_ticks(self) -> int:
         """The interpolation time period 0x60C2 in whole loop ticks (at least one).
@@ -1012,14 +1069,14 @@ class SimDrive:
         """Objects whose value the drive measures or computes instead of storing."""
         current = {index: (lambda: self._current) for index in self.spec.current_objects}
         return current | {
-            0x6041: lambda: self.statusword,
-            0x6061: lambda: self.mode,
-            0x6064: lambda: self._position_inc,
-            0x606C: lambda: self._velocity,
-            0x6077: lambda: self._torque_pm,
-            0x60F4: lambda: round(self.plant_state[kernel.FERR] * self.pos_per_rad),
-            0x603F: lambda: self.emcy.error_code,
-            0x1001: lambda: 0x01 if self.state == FAULT else 0x00,
+            STATUSWORD: lambda: self.statusword,
+            MODES_OF_OPERATION_DISPLAY: lambda: self.mode,
+            POSITION_ACTUAL: lambda: self._position_inc,
+            VELOCITY_ACTUAL: lambda: self._velocity,
+            TORQUE_ACTUAL: lambda: self._torque_pm,
+            FOLLOWING_ERROR_ACTUAL: lambda: round(self.plant_state[kernel.FERR] * self.pos_per_rad),
+            ERROR_CODE: lambda: self.emcy.error_code,
+            ERROR_REGISTER: lambda: 0x01 if self.state == FAULT else 0x00,
         }
 
     def _buffer_error(self, code: int) -> None:

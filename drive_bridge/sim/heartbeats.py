@@ -8,6 +8,8 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Iterator
 
+from ..cia.objects import HEARTBEAT_CONSUMER
+
 
 class HeartbeatConsumer:
     """The heartbeat consumer of one drive, configured from its object 0x1016 through ``read``
@@ -31,7 +33,7 @@ class HeartbeatConsumer:
         a node no longer watched is forgotten."""
         self.watched = {}
         sub = 1
-        while (value := self._read(0x1016, sub)) is not None:
+        while (value := self._read(HEARTBEAT_CONSUMER, sub)) is not None:
             if value >> 16 & 0x7F and value & 0xFFFF:
                 self.watched[value >> 16 & 0x7F] = (value & 0xFFFF) / 1000.0
             sub += 1

@@ -15,6 +15,7 @@ from typing import Protocol
 
 import numpy as np
 
+from ..cia.objects import HOME_OFFSET, HOMING_ACCELERATION, HOMING_METHOD, HOMING_SPEEDS
 from . import kernel
 from .robot_config import SimAxis
 from .storage import ObjectStorage
@@ -59,11 +60,11 @@ class HomeSearch:
     def start(self) -> None:
         """Bit 4 up in homing mode: the method 0x6098 says how home is found."""
         drive = self.drive
-        method = drive.objects.get_or(0x6098, 0, 0)
+        method = drive.objects.get_or(HOMING_METHOD, 0, 0)
         self.attained = self.error = False
         if method in HOMING_HERE:
             drive.origin_rad = (
-                drive.plant_state[kernel.ENC] - drive.objects.get_or(0x607C, 0, 0) / drive.pos_per_rad
+                drive.plant_state[kernel.ENC] - drive.objects.get_or(HOME_OFFSET, 0, 0) / drive.pos_per_rad
             )
             self.attained = True
         elif method in HOMING_SWITCH:
@@ -86,11 +87,11 @@ class HomeSearch:
             [s].
         """
         drive = self.drive
-        direction = HOMING_SWITCH.get(drive.objects.get_or(0x6098, 0, 0), -1)
-        accel = drive.objects.get_or(0x609A, 0, 0) / drive.vel_per_si
+        direction = HOMING_SWITCH.get(drive.objects.get_or(HOMING_METHOD, 0, 0), -1)
+        accel = drive.objects.get_or(HOMING_ACCELERATION, 0, 0) / drive.vel_per_si
         if self.phase == "switch":
             self._ramp(
-                direction * drive.objects.get_or(0x6099, 1, 0) / drive.vel_per_si,
+                direction * drive.objects.get_or(HOMING_SPEEDS, 1, 0) / drive.vel_per_si,
                 accel,
                 period_s,
                 limit=False,
@@ -99,7 +100,7 @@ class HomeSearch:
                 self.phase = "leave"
         elif self.phase == "leave":
             self._ramp(
-                -direction * drive.objects.get_or(0x6099, 2, 0) / drive.vel_per_si,
+                -direction * drive.objects.get_or(HOMING_SPEEDS, 2, 0) / drive.vel_per_si,
                 accel,
                 period_s,
                 limit=False,
@@ -107,7 +108,7 @@ class HomeSearch:
             if not self._on_switch(direction):
                 edge = self._switch_edge(direction)
                 assert edge is not None  # the switch was made: the axis has end stops
-                drive.origin_rad = edge - drive.objects.get_or(0x607C, 0, 0) / drive.pos_per_rad
+                drive.origin_rad = edge - drive.objects.get_or(HOME_OFFSET, 0, 0) / drive.pos_per_rad
                 self.phase = "stop"
                 self.attained = True
         else:

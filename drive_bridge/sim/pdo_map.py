@@ -15,6 +15,7 @@ import canopen
 from canopen.objectdictionary import ODVariable
 from canopen.sdo import SdoAbortedError
 
+from ..cia.objects import RPDO_COMMUNICATION, RPDO_MAPPING, TPDO_COMMUNICATION, TPDO_MAPPING
 from ..cia.pdo import PdoCodec
 
 PDO_INVALID = 0x8000_0000
@@ -191,7 +192,7 @@ class PdoMapping:
         SdoAbortedError
             With the abort code a drive gives.
         """
-        is_map = (index & 0xFF00) in (0x1600, 0x1A00)
+        is_map = (index & 0xFF00) in (RPDO_MAPPING, TPDO_MAPPING)
         comm = (index & ~0x0200) if is_map else index  # 0x16xx -> 0x14xx, 0x1Axx -> 0x18xx
         cob = self._value(comm, 1)
         if not is_map:
@@ -204,7 +205,7 @@ class PdoMapping:
                 raise SdoAbortedError(ABORT_RANGE)  # change the COB-ID only while invalid
             if sub == 1 and (value & CAN_29BIT or (not value & PDO_INVALID and restricted(value))):
                 raise SdoAbortedError(ABORT_RANGE)  # a restricted CAN-ID, or 29-bit (not supported)
-            if sub == 2 and value in RESERVED_TRANSMISSION["t" if index >= 0x1800 else "r"]:
+            if sub == 2 and value in RESERVED_TRANSMISSION["t" if index >= TPDO_COMMUNICATION else "r"]:
                 raise SdoAbortedError(ABORT_RANGE)  # reserved transmission type
             return
         if not cob & PDO_INVALID:
@@ -213,7 +214,10 @@ class PdoMapping:
             bits = 0
             for n in range(1, value + 1):
                 entry = self._value(index, n)
-                if self._mappable(entry >> 16, (entry >> 8) & 0xFF, index >= 0x1A00, entry & 0xFF) is None:
+                if (
+                    self._mappable(entry >> 16, (entry >> 8) & 0xFF, index >= TPDO_MAPPING, entry & 0xFF)
+                    is None
+                ):
                     raise SdoAbortedError(ABORT_NOT_MAPPABLE)
                 bits += entry & 0xFF
             if value > 8 or bits > 64:
@@ -223,7 +227,8 @@ class PdoMapping:
                 raise SdoAbortedError(ABORT_STATE)  # sub 0 must be 0 while entries change
             if (
                 value
-                and self._mappable(value >> 16, (value >> 8) & 0xFF, index >= 0x1A00, value & 0xFF) is None
+                and self._mappable(value >> 16, (value >> 8) & 0xFF, index >= TPDO_MAPPING, value & 0xFF)
+                is None
             ):
                 raise SdoAbortedError(ABORT_NOT_MAPPABLE)
 
@@ -246,7 +251,10 @@ class PdoMapping:
         """Compile the codecs of every valid PDO."""
         self.rpdos, self.tpdos, self.events = {}, [], []
         for n in range(4):
-            for comm, mapping, table in ((0x1400 + n, 0x1600 + n, "r"), (0x1800 + n, 0x1A00 + n, "t")):
+            for comm, mapping, table in (
+                (RPDO_COMMUNICATION + n, RPDO_MAPPING + n, "r"),
+                (TPDO_COMMUNICATION + n, TPDO_MAPPING + n, "t"),
+            ):
                 if comm not in self.od:  # the drive has fewer PDOs
                     continue
                 cob = self._value(comm, 1)

@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import IO, TYPE_CHECKING, cast
 
 import can
+import numpy as np
 
 from ..cia.multicast import UDP_GROUP, LoopbackMulticastBus
 from ..errors import BusError
@@ -62,7 +63,7 @@ class SimProcess:
     eds : mapping of str to str or Path, optional
         Per axis, its drive's EDS/DCF.
     watch : str or Path, optional
-        Where the child writes the plant as it moves (:func:`watch_plant`; tests judge the axes on
+        Where the child writes the plant as it moves (:class:`PlantWatch`; tests judge the axes on
         the wall clock by it).
     """
 
@@ -112,13 +113,15 @@ class SimProcess:
 
 
 WATCH_PERIOD_S = 0.005  # the plant watch's sample period [s of plant time]
+WATCH_ROWS = 1 << 14  # rows of the watch kept in memory per block (82 s of plant time)
 
 
-def watch_plant(robot: SimRobot, path: Path) -> IO[str]:
-    """Write ``robot``'s plant to ``path`` as it moves, a line every :data:`WATCH_PERIOD_S` of its
-    time: the wall-clock time it stands for [s, ``time.time()``'s], then per axis its position
-    [rad] and its drive's CiA 402 power state (:data:`~drive_bridge.cia.p402.STATUSWORD`'s keys).
-    The plant's own truth, beside anything a master reads from the drives.
+class PlantWatch:
+    """``robot``'s plant as it moves, a row every :data:`WATCH_PERIOD_S` of its time: the wall-clock
+    time it stands for [s, ``time.time()``'s], then per axis its position [rad] and its drive's CiA
+    402 power state (:data:`~drive_bridge.cia.p402.STATE_BITS`'s keys).  The plant's own truth,
+    beside anything a master reads from the drives.  Kept in memory while the drives run (nothing
+    but a copy on their thread) and written to ``path`` by :meth:`close`.
 
     Parameters
     ----------
@@ -126,26 +129,47 @@ def watch_plant(robot: SimRobot, path: Path) -> IO[str]:
         The simulated robot, on the wall clock.
     path : Path
         The file (a header line names the columns).
-
-    Returns
-    -------
-    file
-        The open file: close it once the robot stopped.
     """
-    out = path.open("w", buffering=1 << 16)
-    drives = list(robot.drives.values())
-    out.write("wall_s " + " ".join(f"{n}_rad {n}_state" for n in robot.drives) + "\n")
-    due = [robot.time]
 
-    def sample(t: float) -> None:
-        if t < due[0]:
+    def __init__(self, robot: SimRobot, path: Path):
+        self.robot, self.path = robot, path
+        self.names, self.drives = list(robot.drives), list(robot.drives.values())
+        self.index = np.array([d.index for d in self.drives])
+        self.blocks: list[np.ndarray] = []
+        self.rows = 0
+        self.due = robot.time
+        robot.timers.append(self.sample)
+
+    def sample(self, t: float) -> None:
+        """The plant at plant time ``t``, where a row is due.
+
+        Parameters
+        ----------
+        t : float
+            [s].
+        """
+        if t < self.due:
             return
-        due[0] = t + WATCH_PERIOD_S
-        row = " ".join(f"{robot.plant.state[d.index, Q]:.7f} {d.state}" for d in drives)
-        out.write(f"{robot.wall_time(t):.6f} {row}\n")
+        self.due = t + WATCH_PERIOD_S
+        if self.rows == len(self.blocks) * WATCH_ROWS:
+            self.blocks.append(np.empty((WATCH_ROWS, 1 + 2 * len(self.drives))))
+        row = self.blocks[-1][self.rows % WATCH_ROWS]
+        row[0] = self.robot.wall_time(t)
+        row[1::2] = self.robot.plant.state[self.index, Q]
+        row[2::2] = [d.state for d in self.drives]
+        self.rows += 1
 
-    robot.timers.append(sample)
-    return out
+    def close(self) -> None:
+        """Write what was watched."""
+        rows = (
+            np.concatenate(self.blocks)[: self.rows]
+            if self.blocks
+            else np.empty((0, 1 + 2 * len(self.drives)))
+        )
+        header = "wall_s " + " ".join(f"{name}_rad {name}_state" for name in self.names)
+        np.savetxt(
+            self.path, rows, fmt=["%.6f"] + ["%.7f", "%d"] * len(self.drives), header=header, comments=""
+        )
 
 
 def serve(
@@ -172,13 +196,13 @@ def serve(
     until : callable
         Returns when they are to stop.
     watch : str
-        Where to write the plant as it moves (:func:`watch_plant`); empty: nowhere.
+        Where to write the plant as it moves (:class:`PlantWatch`); empty: nowhere.
     """
     from .robot import SimRobot
     from .robot_config import load_sim_config
 
     robot = SimRobot(load_sim_config(config_path), bus=bus, sync_period=sync_period, eds=eds)
-    watched = watch_plant(robot, Path(watch)) if watch else None
+    watched = PlantWatch(robot, Path(watch)) if watch else None
     # Out of the cycle collector's reach: a full collection walking three object dictionaries
     # stops the drives for tens of ms, longer than the master's missing-feedback limit.
     gc.collect()

@@ -11,6 +11,21 @@ from typing import Protocol
 
 import numpy as np
 
+from ..cia.objects import (
+    POSITION_WINDOW,
+    POSITION_WINDOW_TIME,
+    PROFILE_ACCELERATION,
+    PROFILE_DECELERATION,
+    PROFILE_VELOCITY,
+    QUICK_STOP_DECELERATION,
+    QUICK_STOP_OPTION,
+    TARGET_POSITION,
+    TARGET_VELOCITY,
+    VELOCITY_THRESHOLD,
+    VELOCITY_THRESHOLD_TIME,
+    VELOCITY_WINDOW,
+    VELOCITY_WINDOW_TIME,
+)
 from ..cia.p402 import CW_HALT_BIT, ENABLED, HM, PP, PV, QUICK_STOP
 from . import kernel
 from .home_search import HomeSearch
@@ -128,7 +143,9 @@ class ProfileMotion:
             [rad/s²].
         """
         objects = self.drive.objects
-        return objects.get_or(0x6084, 0, objects.get(0x6083)) / self.drive.vel_per_si
+        return (
+            objects.get_or(PROFILE_DECELERATION, 0, objects.get(PROFILE_ACCELERATION)) / self.drive.vel_per_si
+        )
 
     def ramp(self, v_target: float, accel: float, T: float, limit: bool = True) -> None:
         """Move the demand velocity toward ``v_target`` at ``accel`` and integrate P1 (inside the
@@ -173,17 +190,21 @@ class ProfileMotion:
         drive, objects, d = self.drive, self.drive.objects, self.drive.plant_demand
         state, mode, per_si = drive.state, drive.mode, drive.vel_per_si
         if state == QUICK_STOP:
-            self.ramp(0.0, objects.get_or(0x6085, 0, factory().quick_stop_rad_s2 * per_si) / per_si, T)
-            return drive.v_dem == 0.0 and objects.get_or(0x605A, 0, 2) in (0, 1, 2, 3)
+            self.ramp(
+                0.0,
+                objects.get_or(QUICK_STOP_DECELERATION, 0, factory().quick_stop_rad_s2 * per_si) / per_si,
+                T,
+            )
+            return drive.v_dem == 0.0 and objects.get_or(QUICK_STOP_OPTION, 0, 2) in (0, 1, 2, 3)
         if state == ENABLED and mode in (PV, PP) and self.halted:
             self.ramp(0.0, self.deceleration(), T)  # halt (0x605D 1): down on the profile deceleration
         elif state == ENABLED and mode == PV:
-            self.ramp(objects.get(0x60FF) / per_si, objects.get(0x6083) / per_si, T)
+            self.ramp(objects.get(TARGET_VELOCITY) / per_si, objects.get(PROFILE_ACCELERATION) / per_si, T)
         elif state == ENABLED and mode == PP and self.target is not None:
             dist = self.target - d[kernel.P0]
-            acc, dec = objects.get(0x6083) / per_si, self.deceleration()
+            acc, dec = objects.get(PROFILE_ACCELERATION) / per_si, self.deceleration()
             v_max = min(
-                objects.get_or(0x6081, 0, factory().profile_velocity_rad_s * per_si) / per_si,
+                objects.get_or(PROFILE_VELOCITY, 0, factory().profile_velocity_rad_s * per_si) / per_si,
                 math.sqrt(2 * dec * abs(dist)),
             )
             self.ramp(math.copysign(v_max, dist), acc, T)
@@ -207,7 +228,7 @@ class ProfileMotion:
             0x6040's value.
         """
         drive = self.drive
-        target = drive.objects.get(0x607A) / drive.pos_per_rad
+        target = drive.objects.get(TARGET_POSITION) / drive.pos_per_rad
         self.target = (
             target + drive.origin_rad if not controlword & 0x40 else drive.plant_demand[kernel.P1] + target
         )
@@ -231,9 +252,9 @@ class ProfileMotion:
         """
         drive = self.drive
         return self.threshold.held(
-            abs(drive.plant_state.item(kernel.VMEAS)) <= self._velocity_window(0x606F),
+            abs(drive.plant_state.item(kernel.VMEAS)) <= self._velocity_window(VELOCITY_THRESHOLD),
             drive.plant.time,
-            drive.objects.get_or(0x6070, 0, 0) / 1000.0,
+            drive.objects.get_or(VELOCITY_THRESHOLD_TIME, 0, 0) / 1000.0,
         )
 
     def _velocity_window(self, index: int) -> float:
@@ -255,11 +276,15 @@ class ProfileMotion:
         if drive.state == QUICK_STOP or self.halted:
             self.reached = drive.v_dem == 0.0 and self.speed_zero()
         elif drive.mode == PV:
-            target = objects.get(0x60FF) / drive.vel_per_si
-            inside = drive.v_dem == target and abs(speed - target) <= self._velocity_window(0x606D)
-            self.reached = self.velocity_window.held(inside, now, objects.get_or(0x606E, 0, 0) / 1000.0)
+            target = objects.get(TARGET_VELOCITY) / drive.vel_per_si
+            inside = drive.v_dem == target and abs(speed - target) <= self._velocity_window(VELOCITY_WINDOW)
+            self.reached = self.velocity_window.held(
+                inside, now, objects.get_or(VELOCITY_WINDOW_TIME, 0, 0) / 1000.0
+            )
         elif drive.mode == PP and self.target is None and self.goal is not None:
             inside = abs(drive.plant_state[kernel.ENC] - self.goal) * drive.pos_per_rad <= objects.get_or(
-                0x6067, 0, 1000
+                POSITION_WINDOW, 0, 1000
             )
-            self.reached = self.position_window.held(inside, now, objects.get_or(0x6068, 0, 10) / 1000.0)
+            self.reached = self.position_window.held(
+                inside, now, objects.get_or(POSITION_WINDOW_TIME, 0, 10) / 1000.0
+            )

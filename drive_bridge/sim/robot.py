@@ -21,7 +21,8 @@ from pathlib import Path
 
 import can
 
-from ..cia.p301 import CYCLE_PERIOD, NMT_STOPPED, SYNC_COB_ID, SYNC_COUNTER_OVERFLOW
+from ..cia.objects import CYCLE_PERIOD, SYNC_COUNTER_OVERFLOW
+from ..cia.p301 import NMT_STOPPED, SYNC_COB_ID
 from ..cia.pdo import PdoCodec
 from ..resources import PROJECT_EDS
 from . import cyclic, kernel
@@ -137,7 +138,15 @@ class SimRobot:
         """:meth:`DriveHost.sync_producer_written`: on the wall clock, while its cycle period 0x1006
         is set, ``drive`` sends SYNC at each period boundary of the drives' grid (:meth:`_produce_sync`),
         with the counter 1..0x1019 where 0x1019 is 2 or more, starting at 1 (CiA 301); a stall of the
-        drives' own process skips none: the boundaries it passes meanwhile each send theirs, in order."""
+        drives' own process skips none: the boundaries it passes meanwhile each send theirs, in order.
+
+        Parameters
+        ----------
+        drive : SimDrive
+            The drive written.
+        producing : bool
+            Bit 30.
+        """
         if producing:
             self._producer, self._counter = drive, 0
         elif self._producer is drive:

@@ -22,6 +22,18 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..cia.objects import (
+    CONTROLWORD,
+    FOLLOWING_ERROR_ACTUAL,
+    MODES_OF_OPERATION,
+    POSITION_ACTUAL,
+    STATUSWORD,
+    TARGET_POSITION,
+    TORQUE_ACTUAL,
+    TORQUE_OFFSET,
+    VELOCITY_ACTUAL,
+    VELOCITY_OFFSET,
+)
 from . import cyclic
 from .plant import Plant
 
@@ -31,18 +43,24 @@ if TYPE_CHECKING:
 #: TPDO objects whose value changes every period -> what steady_period computes for them
 #: (every other mapped object is constant while the drive streams, read when the plan is refreshed)
 MEASURED = {
-    0x6041: cyclic.SRC_STATUSWORD,
-    0x6064: cyclic.SRC_POSITION,
-    0x606C: cyclic.SRC_VELOCITY,
-    0x6077: cyclic.SRC_TORQUE,
-    0x60F4: cyclic.SRC_FOLLOWING_ERROR,
+    STATUSWORD: cyclic.SRC_STATUSWORD,
+    POSITION_ACTUAL: cyclic.SRC_POSITION,
+    VELOCITY_ACTUAL: cyclic.SRC_VELOCITY,
+    TORQUE_ACTUAL: cyclic.SRC_TORQUE,
+    FOLLOWING_ERROR_ACTUAL: cyclic.SRC_FOLLOWING_ERROR,
 }
 #: what an RPDO of a streaming drive may write: the controlword and the modes of operation (both
 #: held: a master may send its mode every period, as ros2_canopen's mapping does), the CSP target
 #: and the torque and velocity offsets (the kernel reads those only as the plant advances: they
 #: are written as the Python drive writes them)
-STREAMED = {(0x6040, 0), (0x6060, 0), (0x607A, 0), (0x60B2, 0), (0x60B1, 0)}
-OFFSETS = (0x60B2, 0x60B1)
+STREAMED = {
+    (CONTROLWORD, 0),
+    (MODES_OF_OPERATION, 0),
+    (TARGET_POSITION, 0),
+    (TORQUE_OFFSET, 0),
+    (VELOCITY_OFFSET, 0),
+}
+OFFSETS = (TORQUE_OFFSET, VELOCITY_OFFSET)
 #: struct codes of the integer types a TPDO entry may have -> (signed, size in bytes)
 INTEGERS = {
     "b": (True, 1),
@@ -168,11 +186,11 @@ class SteadyStream:
             for codec, data in drive.pdos.pending:
                 values = codec.struct.unpack_from(data)
                 for (index, _), value in zip(codec.entries, values):
-                    if (index == 0x6040 and value != drive.controlword) or (
-                        index == 0x6060 and value != drive.mode
+                    if (index == CONTROLWORD and value != drive.controlword) or (
+                        index == MODES_OF_OPERATION and value != drive.mode
                     ):
                         return False
-                    if index == 0x607A:
+                    if index == TARGET_POSITION:
                         axes[a, cyclic.A_SETPOINT] = value
                         axes[a, cyclic.A_HAS_SETPOINT] = 1.0
                 taken.append((a, drive, codec, data, values))

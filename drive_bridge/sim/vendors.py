@@ -17,6 +17,15 @@ from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
 
+from ..cia.objects import (
+    CURRENT_ACTUAL,
+    FOLLOWING_ERROR_TIMEOUT,
+    MAX_TORQUE,
+    POSITION_ENCODER_RESOLUTION,
+    PROFILE_ACCELERATION,
+    PROFILE_VELOCITY,
+    QUICK_STOP_DECELERATION,
+)
 from ..cia.od import load_od
 from ..resources import PROJECT_EDS, vendor_dir
 
@@ -50,7 +59,7 @@ class DriveSpec:
     velocity_unit: str = "inc/s"
     current_unit: str = "permille"
     supported_modes: int | None = None
-    current_objects: tuple[int, ...] = (0x6078,)
+    current_objects: tuple[int, ...] = (CURRENT_ACTUAL,)
 
 
 #: by EDS/DCF file name
@@ -66,7 +75,7 @@ SPECS = {
         velocity_unit="rpm",
         current_unit="mA",
         supported_modes=0x00070065,
-        current_objects=(0x6078, 0x2027),
+        current_objects=(CURRENT_ACTUAL, 0x2027),
     ),
     # C5-E: 0x608F:1 has no default; 65536 increments per revolution (the simulation's choice).
     "nanotec_C5-E-2-09.eds": DriveSpec("nanotec_c5e", increments_per_rev=65536),
@@ -160,13 +169,15 @@ def factory() -> Factory:
             raise ValueError(f"{PROJECT_EDS.name} has no default for 0x{index:04X}:{sub}")
         return var.default
 
-    inc_per_rad = default(0x608F, 1) / default(0x608F, 2) / (2 * math.pi)
+    inc_per_rad = (
+        default(POSITION_ENCODER_RESOLUTION, 1) / default(POSITION_ENCODER_RESOLUTION, 2) / (2 * math.pi)
+    )
     names = ("KpP", "FwF", "KpS", "KiS", "KpC", "KiC")
     return Factory(
         {n: float(default(0x2000, i + 1)) for i, n in enumerate(names)},
-        int(default(0x6072)),
-        default(0x6085) / inc_per_rad,
-        default(0x6081) / inc_per_rad,
-        default(0x6083) / inc_per_rad,
-        int(default(0x6066)),
+        int(default(MAX_TORQUE)),
+        default(QUICK_STOP_DECELERATION) / inc_per_rad,
+        default(PROFILE_VELOCITY) / inc_per_rad,
+        default(PROFILE_ACCELERATION) / inc_per_rad,
+        int(default(FOLLOWING_ERROR_TIMEOUT)),
     )

@@ -26,6 +26,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
+from ..cia.objects import FOLLOWING_ERROR_WINDOW
 from ..cia.p301 import ERR_FOLLOWING
 from ..config import BusConfig, Limits
 from ..errors import DriveRefused, GuardStop, MotionAborted, UserError
@@ -259,10 +260,10 @@ def run_experiment(
     demand, vel, v_step = demand_of(lim, period)
     check_start(axis, start_KpS, admit)
     inc = ax.cfg.scaling.inc_per_rad
-    window = ax.node.sdo[0x6065].raw
+    window = ax.node.sdo[FOLLOWING_ERROR_WINDOW].raw
     original: dict[str, float] | None = None  # the gains before, read before anything moves
     result = ExperimentResult(axis, None)
-    ax.node.sdo[0x6065].raw = round(FE_GUARD_RAD * inc)
+    ax.node.sdo[FOLLOWING_ERROR_WINDOW].raw = round(FE_GUARD_RAD * inc)
 
     v_limit = VELOCITY_GUARD * max(v_step, APPROACH_LEVEL * lim.max_velocity)  # the approach runs at 20 %
 
@@ -324,7 +325,7 @@ def run_experiment(
         if not step.oscillating:
             result.KpS = kps
     finally:
-        ax.node.sdo[0x6065].raw = window
+        ax.node.sdo[FOLLOWING_ERROR_WINDOW].raw = window
         if original is not None:
             write_parameters(ax.node, profile, original, store=False)
     return result

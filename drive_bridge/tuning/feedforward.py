@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..cia.objects import TORQUE_OFFSET, VELOCITY_OFFSET
 from ..master.bringup import AxisLink
 from ..params.profile import Profile
 
@@ -205,13 +206,13 @@ def route(
         left = [k for k, v in model.items() if k not in held and v]
         return "drive" + (f" ({', '.join(held)}; no object for {', '.join(left)})" if left else "")
     mapped = {i for c in ax.rpdos for i in c.objects}
-    torque = 0x60B2 in mapped
-    velocity = 0x60B1 in mapped and not any(
+    torque = TORQUE_OFFSET in mapped
+    velocity = VELOCITY_OFFSET in mapped and not any(
         n in profile.entries for n in profile.controller.drive_names(["FwF"])
     )
     if torque or velocity:
         return MasterFeedForward(model, torque, velocity)
-    if 0x60B2 in ax.cfg.od:
+    if TORQUE_OFFSET in ax.cfg.od:
         return (
             "none: the torque offset 0x60B2 is not in the RPDO mapping (map it in the node's rpdo): the model "
             "torque is left to the velocity loop"

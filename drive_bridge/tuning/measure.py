@@ -16,6 +16,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from ..cia.objects import TORQUE_OFFSET
 from ..config import BusConfig, TimingLimits
 from ..errors import DriveRefused, UserError
 from ..ident.frf import PERIOD_SAMPLES, PERIODS, Frf, excitation, measure
@@ -116,7 +117,7 @@ def unmeasurable(ax: AxisLink, profile: Profile) -> str | None:
     str or None
         Why; None: it can.
     """
-    if 0x60B2 not in {i for c in ax.rpdos for i in c.objects}:
+    if TORQUE_OFFSET not in {i for c in ax.rpdos for i in c.objects}:
         return "the torque offset 0x60B2 is not in its RPDO mapping (map it in the node's rpdo in bus.yml)"
     missing = [g for g in profile.controller.drive_names(SOFT) if g not in profile.entries]
     if missing:

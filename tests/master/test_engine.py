@@ -23,12 +23,12 @@ from drive_bridge.connect import open_link
 from drive_bridge.master.bringup import bring_up
 from drive_bridge.master.engine import (
     CHECK_EVERY_S,
-    CONTROLWORD,
+    FIELD_CONTROLWORD,
+    FIELD_TABLE,
     PHASE,
     ROWS_SENT,
     STOP_REQUEST,
     STREAMING,
-    TABLE,
     Arrays,
     AxisJob,
     Engine,
@@ -178,7 +178,7 @@ def _streaming_job(rows: int, interpolating: bool = False) -> tuple[Job, Arrays]
     mode = {"enable_controlword": 0x1F, "interpolating": True, "csp": False} if interpolating else {}
     job = Job(
         (AxisJob("y", 1, (0,), statusword=0, velocity=-1, position_column=0, **mode),),
-        (RpdoJob(0x201, "<Hl", ((CONTROLWORD, 0), (TABLE, 0)), 0),),
+        (RpdoJob(0x201, "<Hl", ((FIELD_CONTROLWORD, 0), (FIELD_TABLE, 0)), 0),),
         (TpdoJob(0x181, "<Hhl", 0, 0, 0),),
         rows,
         3,

@@ -9,13 +9,8 @@ import numpy as np
 import pytest
 from canopen.sdo import SdoAbortedError
 
-from drive_bridge.cia.p301 import (
-    COB_ID_SYNC,
-    CYCLE_PERIOD,
-    SYNC_COB_ID,
-    SYNC_COUNTER_OVERFLOW,
-    SYNC_PRODUCER,
-)
+from drive_bridge.cia.objects import COB_ID_SYNC, CYCLE_PERIOD, SYNC_COUNTER_OVERFLOW
+from drive_bridge.cia.p301 import SYNC_COB_ID, SYNC_PRODUCER
 
 PERIOD = 0.002
 START = 1000.0  # [s] the wall-clock time the drives start at (stamps, not sleeps)
