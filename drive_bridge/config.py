@@ -250,6 +250,9 @@ NO_MOTION = Limits(0.0, 0.0, 0.0, 0.0)
 BUS_CONFIG_PATH = "@BUS_CONFIG_PATH@"
 #: ros2_canopen's scale pairs: to the device and back, each the other's inverse
 ROS_SCALES = (("scale_pos_to_dev", "scale_pos_from_dev"), ("scale_vel_to_dev", "scale_vel_from_dev"))
+#: how far a ``_from_dev`` may be from its ``_to_dev``'s inverse, relative: the rounding of a value
+#: written with five significant digits (ros2_canopen uses each as given)
+ROS_SCALE_AGREEMENT = 1e-4
 
 HOLDING = ("brake", "enabled")
 REFERENCES = ("absolute", "here", "home")
@@ -728,21 +731,33 @@ def _position_mode(sec: Section, ignored: set[str]) -> int | None:
     return mode
 
 
-def _ros_velocity_scale(sec: Section, data: dict, feed: float | None) -> float | None:
+def _ros_velocity_scale(
+    sec: Section, data: dict, feed: float | None, notes: list[str] | None = None
+) -> float | None:
     """Device velocity units per motor rad/s from ros2_canopen's ``scale_vel_to_dev`` (device units
     per rad/s of the axis, or per m/s with a feed); None where it is not given (the position's
     units per second, :class:`~drive_bridge.units.Scaling`'s own). Each ``_from_dev`` given must
-    be its ``_to_dev``'s inverse."""
+    be its ``_to_dev``'s inverse to what a person writes (:data:`ROS_SCALE_AGREEMENT`); the
+    ``_to_dev`` is the one used, and a pair that agrees only that far is said in ``notes``."""
     for to_dev, from_dev in ROS_SCALES:
         forth, back = data.get(to_dev), data.get(from_dev)
         for key, value in ((to_dev, forth), (from_dev, back)):
             if value is not None and not (finite_number(value) and value > 0):
                 raise sec.error(key, f"must be a number above 0, got {value!r}")
-        if forth is not None and back is not None and abs(forth * back - 1) > 1e-6:
+        if forth is None or back is None:
+            continue
+        mismatch = abs(forth * back - 1)
+        if mismatch > ROS_SCALE_AGREEMENT:
             raise sec.error(
                 from_dev,
-                f"{back} is not 1/{to_dev} = {1 / forth:.6g}: ros2_canopen commands the drive with one "
+                f"{back} is not 1/{to_dev} = 1/{forth} = {1 / forth:.6g} (they differ by {mismatch:.2g} "
+                f"relative, more than {ROS_SCALE_AGREEMENT:g}): ros2_canopen commands the drive with one "
                 f"and reads it with the other; give them as each other's inverse",
+            )
+        if mismatch > 1e-9 and notes is not None:
+            notes.append(
+                f"{sec.path}: {sec.key}.{from_dev} {back} is 1/{to_dev} to {mismatch:.2g} relative (as written, "
+                f"rounded); {to_dev} = {forth} is used"
             )
     per_axis_unit = data.get("scale_vel_to_dev")
     if per_axis_unit is None:
@@ -866,7 +881,7 @@ def _node(
         rated_torque_Nm=sc.get(
             "rated_torque_Nm", float, 0.0 if from_drive or ros_units else ..., low=1e-6, high=1e6
         ),
-        velocity_units_per_rad_s=_ros_velocity_scale(sec, data, feed) if ros_units else None,
+        velocity_units_per_rad_s=_ros_velocity_scale(sec, data, feed, notes) if ros_units else None,
         feed_m_per_rev=feed,
         torque_feedback=feedback,
         current_per_unit_A=per_unit,

@@ -233,10 +233,10 @@ defaults:
   period: 2
   heartbeat_producer: 100
   position_mode: 8
-  scale_pos_to_dev: 166886.05360752725
-  scale_pos_from_dev: 5.9921124526782858e-06
-  scale_vel_to_dev: 166886.05360752725
-  scale_vel_from_dev: 5.9921124526782858e-06
+  scale_pos_to_dev: 166886.05
+  scale_pos_from_dev: 0.0000059921
+  scale_vel_to_dev: 166886.05
+  scale_vel_from_dev: 0.0000059921
   sdo:
     - {index: 0x60C2, sub_index: 1, value: 2}
     - {index: 0x60C2, sub_index: 2, value: -3}
@@ -284,8 +284,12 @@ def test_a_bus_yml_as_ros2_canopens_users_write_it_scans_and_commissions(tmp_pat
     config = load_bus_config(bus)
     x = config.nodes["x"]
     assert x.limits_from_drive and x.position_mode == 8
-    assert x.scaling.increments_per_rev == 2**20 and x.scaling.velocity_per_rad_s == pytest.approx(
-        2**20 / 6.283185307
+    # five significant digits, as people write them: 1/166886.05 is 5.99211e-06 (2.1e-6 apart), the
+    # _to_dev is the one used, and the run says so
+    assert x.scaling.increments_per_rev == pytest.approx(2**20, rel=1e-6)
+    assert x.scaling.velocity_per_rad_s == pytest.approx(2**20 / 6.283185307, rel=1e-6)
+    assert "nodes.x.scale_pos_from_dev 5.9921e-06 is 1/scale_pos_to_dev to 2.1e-06 relative" in " ".join(
+        config.master.notes
     )
     assert x.tpdo[0].mapping == ((0x6041, 0), (0x6061, 0), (0x6077, 0))  # the torque where it fits
     assert "nodes.x.tpdo: 0x6077 to TPDO 1" in " ".join(config.master.notes)
@@ -317,7 +321,16 @@ def test_a_bus_yml_as_ros2_canopens_users_write_it_scans_and_commissions(tmp_pat
     [
         ({"position_mode": 1}, "position_mode", "drive-bridge streams its setpoints"),
         ({"period": 10}, "period", "sends a setpoint with every SYNC"),
-        ({"scale_pos_from_dev": 1e-3}, "scale_pos_from_dev", "each other's inverse"),
+        (
+            {"scale_pos_from_dev": 1e-3},
+            "scale_pos_from_dev",
+            "1/166886.05 = 5.99211e-06 (they differ by 1.7e+02",
+        ),
+        (
+            {"scale_vel_from_dev": 5.9932e-06},
+            "scale_vel_from_dev",
+            "more than 0.0001): ros2_canopen commands",
+        ),
         ({"scale_vel_to_dev": -1.0}, "scale_vel_to_dev", "above 0"),
     ],
 )

@@ -34,6 +34,7 @@ from .verdict import headline
 log = logging.getLogger(__name__)
 
 STEPS = tuple(step_functions.STEP_FUNCTIONS)
+UNCOMMITTED = ("scan", "bringup")  # steps after which nothing moved, was identified or written
 STATE = "state.json"
 SUMMARY = "summary.json"
 ERROR_LOG = "error.log"
@@ -233,7 +234,16 @@ def commission(
             reporter.done(step, state["durations_s"][step], line)
         holding = session.holding()
     summary = build_summary(out, state, config, options)
-    reporter.note(f"verdict: {headline(summary['verdict'])}")
+    # a run that stopped before anything moved, was identified or was written is no commissioning
+    reached = (
+        failure is None
+        or any(s not in UNCOMMITTED for s in state["completed"])
+        or (failure["step"] not in UNCOMMITTED)
+    )
+    if reached:
+        reporter.note(f"verdict: {headline(summary['verdict'])}")
+    else:
+        reporter.note(f"verdict: INCOMPLETE: stopped in {failure['step']}: {failure['reason']}")
     if failure is None and summary["verdict"]["overall"] == "FAIL":
         code = EXIT_CODES["not_accepted"]
         reporter.note(f"the commissioning completed but did not pass its acceptance criteria (exit {code})")
@@ -243,7 +253,9 @@ def commission(
             f"WARNING: timing degraded ({'; '.join(summary['timing_degraded'])}); the data are kept "
             f"(exit {code})"
         )
-    if options.history:
+    if options.history and not reached:
+        reporter.note("history: nothing kept (the run reached no drive's motion, model or parameters)")
+    elif options.history:
         summary["history"] = _keep(out, state, summary, config, options, reporter)
         if summary["history"]["interrupted"] and code == 0:
             code = EXIT_CODES["interrupted"]

@@ -414,9 +414,16 @@ def check_scan(result: ScanResult, config: BusConfig) -> None:
     """
     if result.missing:
         ids = ", ".join(f"{a} (node {config.nodes[a].node_id})" for a in result.missing)
+        alone = config.master.interface == "virtual" and len(result.missing) == len(config.nodes)
         raise BusError(
             f"no answer from {ids} on {config.master.interface}:{config.master.channel}; "
-            f"check power, wiring, bitrate and node_id in {config.path}"
+            + (
+                "python-can's virtual bus carries only what this process puts on it: --sim runs the "
+                "simulated robot, or name your adapter's interface and channel in "
+                f"{config.path} (master.interface, master.channel)"
+                if alone
+                else f"check power, wiring, bitrate and node_id in {config.path}"
+            )
         )
     if result.identity_mismatch:
         ax, why = next(iter(result.identity_mismatch.items()))

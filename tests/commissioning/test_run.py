@@ -487,3 +487,22 @@ def test_ctrl_c_during_the_measurement_stops_and_leaves_the_drive_its_own_gains(
     assert result.exit_code == 4 and result.failed_step == "measure" and "Ctrl-C" in result.reason
     assert not (out / "frf.json").exists()
     capsys.readouterr()
+
+
+def test_a_commissioning_that_reaches_no_drive_is_no_commissioning(tmp_path, capsys):
+    """The shipped bus.yml (python-can's virtual bus) with no drive on it: the run stops in scan,
+    says so in one verdict line and that --sim runs the simulated robot, and keeps nothing in the
+    history (before: thirty "not evaluated" criteria, and a commissioning kept)."""
+    from drive_bridge.history import HistoryStore
+
+    db = f"sqlite:///{tmp_path / 'history.sqlite'}"
+    assert main(["commission", "--yes", "--db", db, "--no-figures", "--out", str(tmp_path / "run")]) == 3
+    err = capsys.readouterr().err
+    verdicts = [line for line in err.splitlines() if "verdict:" in line]
+    assert (
+        len(verdicts) == 1
+        and "verdict: INCOMPLETE: stopped in scan: no answer from x (node 1)" in verdicts[0]
+    )
+    assert "--sim runs the simulated robot" in verdicts[0] and "not evaluated" not in err
+    assert "history: nothing kept" in err
+    assert HistoryStore(db).runs() == []
