@@ -235,15 +235,16 @@ def commission(
         holding = session.holding()
     summary = build_summary(out, state, config, options)
     # a run that stopped before anything moved, was identified or was written is no commissioning
-    reached = (
-        failure is None
-        or any(s not in UNCOMMITTED for s in state["completed"])
-        or (failure["step"] not in UNCOMMITTED)
+    stopped_early = (
+        failure is not None
+        and failure["step"] in UNCOMMITTED
+        and all(s in UNCOMMITTED for s in state["completed"])
     )
-    if reached:
-        reporter.note(f"verdict: {headline(summary['verdict'])}")
-    else:
+    reached = failure is None or not stopped_early
+    if failure is not None and stopped_early:
         reporter.note(f"verdict: INCOMPLETE: stopped in {failure['step']}: {failure['reason']}")
+    else:
+        reporter.note(f"verdict: {headline(summary['verdict'])}")
     if failure is None and summary["verdict"]["overall"] == "FAIL":
         code = EXIT_CODES["not_accepted"]
         reporter.note(f"the commissioning completed but did not pass its acceptance criteria (exit {code})")
