@@ -240,7 +240,6 @@ def commission(
         and failure["step"] in UNCOMMITTED
         and all(s in UNCOMMITTED for s in state["completed"])
     )
-    reached = failure is None or not stopped_early
     if failure is not None and stopped_early:
         reporter.note(f"verdict: INCOMPLETE: stopped in {failure['step']}: {failure['reason']}")
     else:
@@ -254,7 +253,7 @@ def commission(
             f"WARNING: timing degraded ({'; '.join(summary['timing_degraded'])}); the data are kept "
             f"(exit {code})"
         )
-    if options.history and not reached:
+    if options.history and stopped_early:
         reporter.note("history: nothing kept (the run reached no drive's motion, model or parameters)")
     elif options.history:
         summary["history"] = _keep(out, state, summary, config, options, reporter)
