@@ -132,7 +132,7 @@ from .gain_objects import GainObjects
 from .heartbeats import HeartbeatConsumer
 from .nmt_slave import RESET_COMMUNICATION, NmtSlave
 from .pdo_map import ABORT_RANGE, ABORT_STATE, PdoMapping
-from .plant import Plant, whole_ticks
+from .plant import Plant
 from .profile_motion import ProfileMotion
 from .pvt_buffer import ERR_UNDERFLOW, PvtBuffer
 from .robot_config import SimAxis
@@ -647,8 +647,6 @@ class SimDrive:
             self.nmt.heartbeat_time_written(self.plant.time, value)
         elif index == CYCLE_PERIOD:
             self.host.cycle_period_written(value)
-        elif index == INTERPOLATION_TIME_PERIOD and sub in (1, 2):
-            self._interpolation_period_written(sub, value)
         elif index == COB_ID_SYNC:
             self.host.sync_producer_written(self, bool(value & SYNC_PRODUCER))
         elif index == SYNC_COUNTER_OVERFLOW:  # CiA 301: only while no cycle period runs; 1 is not a value
@@ -1008,25 +1006,6 @@ class SimDrive:
             [s].
         """
         return SETPOINT_TIMEOUT_PERIODS * self._interpolation_period() + 1e-9
-
-    def _interpolation_period_written(self, sub: int, value: int) -> None:
-        """0x60C2:``sub`` written: the period it makes with the other sub-index becomes the drives'
-        interpolation grid, as the SYNC period 0x1006 does (a master may write only 0x60C2) -- any
-        whole number of loop ticks, changed only while the drive is not enabled; others are refused
-        with CiA 301's aborts (value range; device state)."""
-        other = self.objects.get(INTERPOLATION_TIME_PERIOD, 2 if sub == 1 else 1)
-        mantissa, exponent = (value, other) if sub == 1 else (other, value)
-        period = mantissa * 10.0**exponent
-        ticks = whole_ticks(period)
-        if ticks is None:
-            if exponent < -6 or mantissa == 0:  # (one sub-index of two written: a step on the way)
-                return
-            raise SdoAbortedError(ABORT_RANGE)
-        if ticks == self.plant.ticks_per_period:
-            return
-        if self.state == ENABLED:
-            raise SdoAbortedError(ABORT_STATE)
-        self.host.cycle_period_written(round(ticks * kernel.VELOCITY_TICK_S * 1e6))
 
     def _interpolation_period(self) -> float:
         """0x60C2 [s]: value × 10^index (the SYNC period where the drive has no such object)."""
