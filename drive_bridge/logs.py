@@ -56,6 +56,28 @@ _COLUMNS: dict[int, tuple[str, str | None, str]] = {  # object: column suffix, S
 }
 
 
+def since_start(sync_time: np.ndarray, period: float) -> np.ndarray:
+    """Each row's SYNC stamp [s] from the plan's first period on the SYNCs' own schedule: the first
+    row that had a SYNC, less its rows × ``period`` (a wall-clock master late at the plan's start
+    skipped its first periods: before, every row of such a log read NaN), rounded to the µs.
+
+    Parameters
+    ----------
+    sync_time : numpy.ndarray
+        Per row, its SYNC's stamp [s] (NaN: no SYNC in that period).
+    period : float
+        The SYNC period [s].
+
+    Returns
+    -------
+    numpy.ndarray
+        [s], NaN where there was no SYNC.
+    """
+    seen = np.flatnonzero(np.isfinite(sync_time))
+    origin = float(sync_time[seen[0]]) - seen[0] * period if len(seen) else 0.0
+    return np.round(sync_time - origin, 6)
+
+
 def _codec_meta(codecs: list[PdoCodec]) -> list[dict]:
     return [c.as_dict() for c in codecs]
 
@@ -92,7 +114,7 @@ def to_table(
     # campaign's table twice: 70 MB more at the main job's peak)
     spec: list[tuple[str, str, Callable[[], np.ndarray]]] = [
         ("time_s", "%.6f", lambda: np.arange(n) * period),
-        ("sync_time_s", "%.6f", lambda: np.round(rec.sync_time - (rec.sync_time[0] if n else 0.0), 6)),
+        ("sync_time_s", "%.6f", lambda: since_start(rec.sync_time, period)),
     ]
     for ai, axis in enumerate(rec.axes):
         sc = scaling[axis]

@@ -406,3 +406,17 @@ def test_streaming_starts_without_a_yaml_dump_while_the_drives_watch_for_setpoin
     assert told and told[0][0] > 0 and told[0][0] == told[0][1] == meta["counts"]["sync_before_plan"]
     assert main(["decode", str(tmp_path / "trace.blf")]) == 0
     decodes_to_the_log(tmp_path)
+
+
+def test_a_log_whose_first_periods_had_no_sync_keeps_its_sync_times():
+    """A wall-clock master late at the plan's start skipped its first periods (no SYNC, NaN): the other
+    rows' SYNC times are counted from the plan's first period on the SYNCs' schedule (before, the
+    whole column read NaN, and with it every check of the run's timing against its log)."""
+    from drive_bridge.logs import since_start
+
+    stamps = 1000.0 + np.arange(6) * 0.002 + np.array([0, 0, 0, 1e-4, 0, 3e-3])
+    stamps[:2] = np.nan
+    times = since_start(stamps, 0.002)
+    assert np.isnan(times[:2]).all()
+    assert times[2:] == pytest.approx([0.004, 0.0061, 0.008, 0.013])
+    assert since_start(1000.0 + np.arange(3) * 0.002, 0.002) == pytest.approx([0.0, 0.002, 0.004])
