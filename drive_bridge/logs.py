@@ -121,16 +121,10 @@ def to_table(
         valid = rec.valid(axis)
         indices = [i for a, i in rec.columns if a == axis]
         order = list(_COLUMNS)
-        for index in sorted(
-            indices,
-            key=lambda i: order.index(
-                TORQUE_ACTUAL if i == torque_object(sc.torque_feedback, sc.torque_index) else i
-            ),
-        ):
+        torque = torque_object(sc.torque_feedback, sc.torque_index)
+        for index in sorted(indices, key=lambda i: order.index(TORQUE_ACTUAL if i == torque else i)):
             suffix, conv, fmt = (
-                ("torque_Nm", "torque_from_feedback", "%.6g")
-                if index == torque_object(sc.torque_feedback, sc.torque_index)
-                else _COLUMNS[index]
+                ("torque_Nm", "torque_from_feedback", "%.6g") if index == torque else _COLUMNS[index]
             )  # the axis's torque: from what the drive reports
             spec.append(
                 (

@@ -105,9 +105,10 @@ def load(kind: str) -> Iterator[None]:
             hog.wait()
 
 
-def commission(code: Path, campaign: str, stalls: tuple[float, float] | None = None) -> dict:
+def commission(code: Path, campaign: str, stalls: tuple[float, float] | None = None, seed: int = 0) -> dict:
     """One ``commission --sim --realtime`` run of the code under ``code``, with ``stalls`` (length,
-    mean wait [s]) of the master's processes where given; its figures."""
+    mean wait [s]) of the master's processes where given, their moments drawn with ``seed``; its
+    figures."""
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "run"
         env = {**os.environ, "PYTHONPATH": str(code), "XDG_DATA_HOME": tmp}
@@ -119,9 +120,7 @@ def commission(code: Path, campaign: str, stalls: tuple[float, float] | None = N
             proc = subprocess.Popen(
                 command, cwd=code, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
             )
-            stalling = (
-                injector(proc.pid, *stalls, seed=len(list(Path(tmp).iterdir())), log=made) if stalls else None
-            )
+            stalling = injector(proc.pid, *stalls, seed=seed, log=made) if stalls else None
             try:
                 stdout, stderr = proc.communicate()
             finally:
@@ -214,12 +213,15 @@ def main() -> None:
                 for run in range(args.runs):
                     stalled = stalls if condition == "stalled" else None
                     print(
-                        line(f"{args.campaign} run {run + 1}", commission(ROOT, args.campaign, stalled)),
+                        line(f"{args.campaign} run {run + 1}", commission(ROOT, args.campaign, stalled, run)),
                         flush=True,
                     )
                     if other is not None:
                         print(
-                            line(f"{args.against} run {run + 1}", commission(other, args.campaign, stalled)),
+                            line(
+                                f"{args.against} run {run + 1}",
+                                commission(other, args.campaign, stalled, run),
+                            ),
                             flush=True,
                         )
 

@@ -69,6 +69,7 @@ def run(campaign: str, axis: str) -> dict:
         moved, state = uncommanded(watch, reporter.spans, axis)
         tolerance = config.nodes[axis].drive_limits.hold_tolerance
         tune = json.loads((out / "tune.json").read_text())["axes"] if (out / "tune.json").exists() else {}
+        stored_unsaid = unsaid(out)
         return {
             "exit": result.exit_code,
             "failed_step": result.failed_step,
@@ -85,8 +86,8 @@ def run(campaign: str, axis: str) -> dict:
                 for a, t in tune.items()
                 if (t.get("measured_response") or {}).get("suspect")
             },
-            "stored_unsaid": unsaid(out),
-            "ok": moved <= tolerance and state in HELD and not unsaid(out),
+            "stored_unsaid": stored_unsaid,
+            "ok": moved <= tolerance and state in HELD and not stored_unsaid,
         }
 
 

@@ -407,11 +407,12 @@ def write(ctx: Context) -> str:
     axes = {a: ctx.axes[a] for a in tuned.parameters}
     out, o = ctx.out / OUTPUT["write"], ctx.options
     # the gains keep their margins on the responses they were designed on, not on one set aside
-    designed_on = {
-        a: f
-        for a, f in (_measured(ctx) or {}).items()
-        if (ctx.read_json(OUTPUT["tune"])["axes"].get(a, {}).get("measured_response") or {}).get("used", True)
+    set_aside = {
+        a
+        for a, d in ctx.read_json(OUTPUT["tune"])["axes"].items()
+        if not (d.get("measured_response") or {}).get("used", True)
     }
+    designed_on = {a: f for a, f in (_measured(ctx) or {}).items() if a not in set_aside}
     held = HeldAxes(ctx.axes)  # an axis held powered must still stand once the set is written
     outcome = write_drives(
         {a: ax.node for a, ax in axes.items()},

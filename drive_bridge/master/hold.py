@@ -19,8 +19,6 @@ from ..cia.p402 import (
     CSP,
     CW_HALT,
     CW_QUICK_STOP,
-    CW_SHUTDOWN,
-    CW_SWITCH_ON,
     IP,
     PP,
     state_name,
@@ -257,9 +255,7 @@ def hold_powered(axes: dict[str, AxisLink]) -> list[str]:
             said.append(f"axis {name}: its drive has no profile position: not held powered between motions")
         else:
             ax.drive.set_mode(PP)
-            ax.drive.command(CW_SHUTDOWN, "READY TO SWITCH ON", "powering it to hold it")
-            ax.drive.command(CW_SWITCH_ON, "SWITCHED ON", "powering it to hold it")
-            ax.drive.command(CW_HALT, "OPERATION ENABLED", "powering it to hold it")
+            ax.drive.enable("powering it to hold it", CW_HALT)
             said.append(f"axis {name}: powered and held where it stands ({ax.position_rad():.4f} rad)")
     return said
 

@@ -18,7 +18,6 @@ from ..cia.objects import CONTROLWORD, HOMING_ACCELERATION, HOMING_METHOD, HOMIN
 from ..cia.p402 import (
     CW_ENABLE,
     CW_SHUTDOWN,
-    CW_SWITCH_ON,
     HM,
     SW_FAULT,
     SW_HOMING_ATTAINED,
@@ -105,9 +104,7 @@ def _home(link: Link, ax: AxisLink, config: BusConfig) -> None:
     drive.set_mode(HM)
     clock = link.clock
     try:
-        drive.command(CW_SHUTDOWN, "READY TO SWITCH ON", "enabling for homing")
-        drive.command(CW_SWITCH_ON, "SWITCHED ON", "enabling for homing")
-        drive.command(CW_ENABLE, "OPERATION ENABLED", "enabling for homing")
+        drive.enable("enabling for homing")
         node.sdo[CONTROLWORD].raw = CW_START
         deadline = clock.now() + h.timeout_s
         while True:

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 import canopen
 
 from ..cia.objects import CONTROLWORD, ERROR_CODE, MODES_OF_OPERATION, MODES_OF_OPERATION_DISPLAY, STATUSWORD
-from ..cia.p402 import CW_FAULT_RESET, SW_FAULT, state_name
+from ..cia.p402 import CW_ENABLE, CW_FAULT_RESET, CW_SHUTDOWN, CW_SWITCH_ON, SW_FAULT, state_name
 from ..errors import BusError, DriveRefused
 
 if TYPE_CHECKING:
@@ -101,6 +101,26 @@ class Drive402:
         """
         self.node.sdo[CONTROLWORD].raw = controlword
         self._wait_for(target, doing)
+
+    def enable(self, doing: str, operation: int = CW_ENABLE) -> None:
+        """Shutdown, switch on, then ``operation`` (enable operation, with halt where the drive is to
+        hold) by SDO, each waited for in the state it leads to; for a mode the drive runs on its own.
+
+        Parameters
+        ----------
+        doing : str
+            What it is for, for the error.
+        operation : int
+            The controlword that enables operation.
+
+        Raises
+        ------
+        BusError
+            The drive does not reach a state within the timeout.
+        """
+        self.command(CW_SHUTDOWN, "READY TO SWITCH ON", doing)
+        self.command(CW_SWITCH_ON, "SWITCHED ON", doing)
+        self.command(operation, "OPERATION ENABLED", doing)
 
     def reset_fault(self) -> None:
         """Reset a fault, where the drive shows one, and wait for SWITCH ON DISABLED.

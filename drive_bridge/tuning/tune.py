@@ -23,7 +23,7 @@ from ..params.cascade import (
 from ..params.cascade import (
     controller as loop_controller,
 )
-from ..params.controller import GAINS, Controller, Timing
+from ..params.controller import GAINS, Controller
 from ..yamlconf import too_large
 from .design import GainDesign, current_bandwidth, design_gains
 from .experiment import ExperimentResult
@@ -540,7 +540,10 @@ def tune_axis(
         raise UserError(f"axis {axis}: motor R = {R} Ω, L = {L} H must be positive numbers")
     timing = controller.timing
     mode, cap = _mode(axis, model, resonance, None, controller, drive, before)
-    design = _designed(axis, model, R, L, None, timing, cap)  # on the model alone: the reference
+    try:  # on the model alone: the reference
+        design = design_gains(model["J"], model["c1"], R, L, None, timing, cap)
+    except (KeyError, ValueError) as exc:
+        raise UserError(f"axis {axis}: cannot design gains from the model {model}: {exc}") from exc
     measured_response = None
     if frf is not None:
         on_frf, suspect, departs = _on_measured(
@@ -586,16 +589,6 @@ def tune_axis(
         mode=mode,
         measured_response=measured_response,
     )
-
-
-def _designed(
-    axis: str, model: dict[str, float], R: float, L: float, frf: Frf | None, timing: Timing, cap: float | None
-) -> GainDesign:
-    """:func:`~.design.design_gains`, a failure a UserError naming the axis."""
-    try:
-        return design_gains(model["J"], model["c1"], R, L, frf, timing, cap)
-    except (KeyError, ValueError) as exc:
-        raise UserError(f"axis {axis}: cannot design gains from the model {model}: {exc}") from exc
 
 
 def _crossovers(design: GainDesign) -> dict[str, float]:
