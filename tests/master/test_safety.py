@@ -301,3 +301,32 @@ def test_reference_here_lays_the_stroke_around_the_axis_and_the_drive_limits_bou
     with pytest.raises(UserError, match="outside the software position limits the drive holds"):
         run(config, b.link, axes, {"y": np.full(50, 102.0)})
     assert float(b.robot.plant.state[1, kernel.Q]) == pytest.approx(101.0, abs=1e-3)
+
+
+def test_a_gain_set_that_lets_a_held_axis_sag_is_put_back_before_it_is_stored(robot):
+    """Z held powered at mid-stroke; a set written while it holds that cannot carry its load (the
+    velocity loop 28x soft, no model feed-forward: what issue 67's corrupted measurement gave):
+    watched once it reads back, Z leaves its hold tolerance within the watch, so the whole set is
+    put back and nothing stored (before, one read right after the read-back found Z 42 mrad down,
+    under its 50 mrad tolerance, and the set was stored while Z went on sagging)."""
+    from drive_bridge.master.hold import HeldAxes
+    from drive_bridge.params.profile import load_profile
+    from drive_bridge.params.write import write_drives
+
+    b, config, axes = robot
+    z = axes["z"]
+    assert run(config, b.link, {"z": z}, {"z": np.full(50, 0.0)}).aborted is None
+    soft = {"KpP": 11.6, "KpS": 0.0043, "KiS": 5.0, "ff_enable": 0.0}
+    held = HeldAxes({"z": z})
+    outcome = write_drives(
+        {"z": z.node},
+        load_profile("drive_bridge_servo"),
+        {"z": soft},
+        backup_dir=None,
+        force=True,
+        strayed=held.strayed,
+    )
+    result = outcome.results["z"]
+    assert not outcome.ok and "axis z: left the position it was held at" in result.error
+    assert result.ram == "backup" and result.stored_set == "unchanged"
+    assert state_name(z.drive.statusword()) == "OPERATION ENABLED"  # still held, powered
