@@ -259,6 +259,12 @@ REFERENCES = ("absolute", "here", "home")
 DEFAULT_MASTER_NODE_ID = 127
 #: the drives' consumer time of the master's heartbeat, in its periods, unless bus.yml says (Lely's default)
 HEARTBEAT_MULTIPLIER = 3.0
+#: how setpoints reach the drives (master.streaming): see MasterConfig
+STREAMING_WAYS = ("auto", "per_sync", "buffered")
+#: the longest stall of the master's host the drives' FIFOs ride out, where bus.yml does not say: a
+#: host without PREEMPT_RT is held up 10-100 ms, a loaded one longer, and two stalls may come
+#: before a refill is done [s]
+STALL_COVER_S = 0.5
 #: the drive's own limits are set this much beyond the configured ones (the campaign stays inside those)
 DRIVE_LIMIT_MARGIN = 1.25
 
@@ -432,6 +438,17 @@ class MasterConfig:
     heartbeat_multiplier : float
         The drives' consumer time of the master's heartbeat, in its periods (Lely's
         ``heartbeat_multiplier``; bring-up writes it to 0x1016).
+    streaming : {"auto", "per_sync", "buffered"}
+        How setpoints reach the drives: ``auto`` ahead into each drive's interpolation FIFO on the
+        wall clock where the drive has one, else one per SYNC as the RPDOs map them; ``per_sync``;
+        ``buffered`` (required, refused where a drive cannot) -- :mod:`drive_bridge.master.buffered`.
+    stall_cover_s : float
+        The longest stall of the master's host the drives' FIFOs ride out [s]
+        (``master.stall_cover_ms``): the records kept ahead.
+    sync_producer : {"auto", "master"}
+        Who sends SYNC on the wall clock: ``auto`` a drive that can, else the interface where it
+        sends periodic frames itself, else the engine; ``master`` the engine's own loop
+        (host-timed) -- :mod:`drive_bridge.master.timekeeper`.
     """
 
     interface: str | None
@@ -448,6 +465,9 @@ class MasterConfig:
     node_id: int | None = None
     heartbeat_period_s: float = 0.1
     heartbeat_multiplier: float = HEARTBEAT_MULTIPLIER
+    streaming: str = "auto"
+    stall_cover_s: float = STALL_COVER_S
+    sync_producer: str = "auto"
 
     @property
     def drive_consumer_ms(self) -> int:
@@ -1134,6 +1154,9 @@ def load_bus_config(path: str | Path) -> BusConfig:
         heartbeat_multiplier=m.get("heartbeat_multiplier", float, multiplier, low=1.5, high=100.0),
         timing=_timing(m.section("timing", required=False)),
         node_id=m.get("node_id", int, None, low=1, high=127),
+        streaming=m.get("streaming", str, "auto", choices=STREAMING_WAYS),
+        stall_cover_s=m.get("stall_cover_ms", int, round(STALL_COVER_S * 1000), low=10, high=5000) / 1000.0,
+        sync_producer=m.get("sync_producer", str, "auto", choices=("auto", "master")),
     )
     m.done()
     if ignored:

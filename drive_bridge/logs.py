@@ -21,6 +21,7 @@ import yaml
 from .cia.objects import (
     CURRENT_ACTUAL,
     FOLLOWING_ERROR_ACTUAL,
+    INTERPOLATION_DATA_CONFIGURATION,
     MODES_OF_OPERATION_DISPLAY,
     POSITION_ACTUAL,
     STATUSWORD,
@@ -53,6 +54,7 @@ _COLUMNS: dict[int, tuple[str, str | None, str]] = {  # object: column suffix, S
     CURRENT_ACTUAL: ("current_permille", None, "%.0f"),
     MODES_OF_OPERATION_DISPLAY: ("mode_display", None, "%.0f"),
     0x20C4: ("ip_buffer_status", None, "%.0f"),  # maxon's interpolation buffer status (0x20C4:1)
+    INTERPOLATION_DATA_CONFIGURATION: ("ip_buffer_fill", None, "%.0f"),  # records in the FIFO (0x60C4:2)
 }
 
 
@@ -346,12 +348,17 @@ def decode_trace(
     ) as exc:
         raise UserError(f"{meta_path}: not a drive-bridge record meta.yaml (missing or bad {exc})") from exc
     handlers = rec.handlers()
-    frames, last, problem = 0, None, None
+    # the run's SYNCs (the master's, or a drive's) are those after the first RPDO: the cyclic engine
+    # sends one before it takes the first SYNC it counts (a producing drive's earlier ones are not)
+    rpdo_ids = {c.cob_id for cs in rpdos.values() for c in cs}
+    frames, last, problem, started = 0, None, None, False
     try:
         with can.LogReader(str(trace)) as reader:
             for msg in reader:
-                if msg.arbitration_id == SYNC_COB_ID and not msg.is_rx:
-                    rec.on_sync(msg.timestamp)
+                started = started or msg.arbitration_id in rpdo_ids
+                if msg.arbitration_id == SYNC_COB_ID:
+                    if started:
+                        rec.on_sync(msg.timestamp)
                 else:
                     handler = handlers.get(msg.arbitration_id)
                     if handler is not None:

@@ -142,5 +142,6 @@ def run_shift(
         plan,
         supervision=stream_supervision(config, axes),
         timing_limits=config.master.timing,
+        sync_producer=config.master.sync_producer,
     )
     return Shift(plan, result.cycles_sent, result.aborted)

@@ -236,6 +236,7 @@ def _record(
         supervision=stream_supervision(config, {a: axes[a] for a in plan.axes}),
         progress=progress,
         timing_limits=config.master.timing,
+        sync_producer=config.master.sync_producer,
         on_start=started,
     )
     rec = result.recording

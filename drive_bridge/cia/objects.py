@@ -71,7 +71,10 @@ TORQUE_OFFSET = 0x60B2
 INTERPOLATION_SUB_MODE = 0x60C0
 INTERPOLATION_DATA_RECORD = 0x60C1
 INTERPOLATION_TIME_PERIOD = 0x60C2  # sub 1 value, 2 index (the power of ten)
-INTERPOLATION_DATA_CONFIGURATION = 0x60C4  # sub 6: buffer clear
+INTERPOLATION_DATA_CONFIGURATION = 0x60C4
+#: its sub-indices: the records it holds at most, the records it holds now (the project drive's
+#: fill; CiA 402's "actual buffer size"), 0 FIFO / 1 ring, 0 clears and disables / 1 enables access
+BUFFER_MAXIMUM, BUFFER_FILL, BUFFER_ORGANISATION, BUFFER_CLEAR = 1, 2, 3, 6
 MAX_ACCELERATION = 0x60C5
 MAX_DECELERATION = 0x60C6
 FOLLOWING_ERROR_ACTUAL = 0x60F4

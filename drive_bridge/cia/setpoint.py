@@ -14,10 +14,11 @@ from __future__ import annotations
 from .p402 import CSP, IP, MODE_NAMES
 
 PVT = (0x20C1, 0)
+IP_RECORD = (0x60C1, 1)  # CiA 402's interpolation data record: a position
 #: object that carries a position setpoint -> the mode it is streamed in
-SETPOINT_OBJECTS = {(0x607A, 0): CSP, (0x60C1, 1): IP, PVT: IP}
+SETPOINT_OBJECTS = {(0x607A, 0): CSP, IP_RECORD: IP, PVT: IP}
 #: interpolation sub-mode (0x60C0) of each interpolated-position setpoint object
-IP_SUB_MODE = {(0x60C1, 1): 0, PVT: -1}
+IP_SUB_MODE = {IP_RECORD: 0, PVT: -1}
 
 
 def supported_modes(bits: int) -> list[int]:

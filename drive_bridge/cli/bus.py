@@ -611,10 +611,16 @@ def timing_line(t: Timing) -> str:
     """
     if t.clock != "wall":
         return "timing: lockstep (simulation time, every SYNC on time)"
-    return (
+    line = (
         f"timing: wall clock, {t.late_cycles_pct:.3g} % late cycles, largest SYNC gap {t.max_sync_gap_ms:.3g} ms, "
         f"mean period {t.mean_sync_period_ms:.4g} ms; sending thread {t.priority}"
     )
+    source, ways = t.engine.get("sync_source"), t.engine.get("streaming") or {}
+    if source:
+        line += f"\n  SYNC from {source}"
+    for axis, why in ways.items():
+        line += f"\n  axis {axis} streams {why}"
+    return line
 
 
 def degraded_exit(reasons: list[str]) -> int:

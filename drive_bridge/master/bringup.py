@@ -16,6 +16,8 @@ from canopen.pdo.base import PdoBase, PdoMap
 
 from ..cia.objects import (
     ABORT_CONNECTION_OPTION,
+    BUFFER_CLEAR,
+    BUFFER_MAXIMUM,
     CYCLE_PERIOD,
     DEVICE_TYPE,
     FAULT_REACTION_OPTION,
@@ -51,10 +53,11 @@ from ..cia.p402 import (
 )
 from ..cia.pdo import PdoCodec
 from ..cia.sdo import pdo_objects, read_if_readable, sdo_object, snapshot, write_setting
-from ..cia.setpoint import IP_SUB_MODE, PVT, choose, describe_modes, supported_modes
+from ..cia.setpoint import IP_RECORD, IP_SUB_MODE, PVT, choose, describe_modes, supported_modes
 from ..config import BusConfig, MasterConfig, NodeConfig, PdoConfig
 from ..errors import BusError, DriveRefused, InternalError
 from ..outputs import hex_object, identity_hex, stamped
+from .buffered import Streaming, buffered_node, capacity_in, records_ahead, why_not
 from .drive_limits import read_limits
 from .drive_units import read_units, reconcile
 from .link import Clock, Link
@@ -104,6 +107,10 @@ class AxisLink:
     before : dict
         Every object bring-up overwrote, as the drive held it before ("0xIIII:S" -> raw value):
         what a store of all parameters must put back to leave the stored set as it was.
+    streaming : Streaming
+        How its setpoints reach the drive (ahead into its FIFO, or one per SYNC) and why.
+    sync_producer : bool
+        Its drive produces the SYNC on its own clock while the master streams (:mod:`.timekeeper`).
     """
 
     name: str
@@ -123,6 +130,8 @@ class AxisLink:
     drive_limits: dict = field(default_factory=dict)
     homed: bool = False
     before: dict = field(default_factory=dict)
+    streaming: Streaming = Streaming(0, "one setpoint per SYNC, as the RPDOs map it")
+    sync_producer: bool = False
 
     def process_data(self) -> dict:
         """How the master exchanges this axis' process data, as bringup.json holds it.
@@ -491,7 +500,13 @@ def bring_up(link: Link, config: BusConfig) -> dict[str, AxisLink]:
             ax.units.get("position_unit") or "not reported",
             "; ".join(ax.units.get("assumed_from_bus_yml") or []) or "nothing",
         )
-        written = drive_settings(name, ncfg, period, config.master)
+        ax.mode, ax.setpoint, ax.modes = _streaming_mode(node, ncfg, config.path)
+        ax.streaming = _streaming(link, config, node, ax)
+        if ax.streaming.buffered:
+            ax.cfg = ncfg = buffered_node(ncfg)
+            ax.mode, ax.setpoint = IP, IP_RECORD
+        log.info("axis %s: %s", name, ax.streaming.why)
+        written = drive_settings(name, ncfg, period, config.master, ax.streaming.depth)
         before |= _unseen(snapshot(node, name, [(i, s) for i, s, _ in written]), before)
         before |= _unseen(snapshot(node, name, pdo_objects(node.object_dictionary)), before)
         if ncfg.rpdo and INTERPOLATION_SUB_MODE in ncfg.od:
@@ -509,7 +524,6 @@ def bring_up(link: Link, config: BusConfig) -> dict[str, AxisLink]:
                 f"axis {name}: the drive refused the PDO mapping ({exc}); "
                 f"check nodes.{name}.rpdo / tpdo in {config.path}"
             ) from exc
-        ax.mode, ax.setpoint, ax.modes = _streaming_mode(node, ncfg, config.path)
         log.info(
             "axis %s: streams in mode %d (%s), setpoint %s",
             name,
@@ -522,9 +536,9 @@ def bring_up(link: Link, config: BusConfig) -> dict[str, AxisLink]:
                 write_setting(node, name, INTERPOLATION_SUB_MODE, 0, IP_SUB_MODE[ax.setpoint])
             if (
                 ax.setpoint == PVT and INTERPOLATION_DATA_CONFIGURATION in ncfg.od
-            ):  # clear the record buffer, then enable it
-                write_setting(node, name, INTERPOLATION_DATA_CONFIGURATION, 6, 0)
-                write_setting(node, name, INTERPOLATION_DATA_CONFIGURATION, 6, 1)
+            ) or ax.streaming.buffered:  # clear the record buffer, then enable it
+                write_setting(node, name, INTERPOLATION_DATA_CONFIGURATION, BUFFER_CLEAR, 0)
+                write_setting(node, name, INTERPOLATION_DATA_CONFIGURATION, BUFFER_CLEAR, 1)
         _watch(net, ax, clock)
         axes[name] = ax
     return axes
@@ -603,11 +617,17 @@ def plan_bring_up(link: Link, config: BusConfig) -> dict[str, AxisLink]:
     axes = {}
     for name, ncfg in config.nodes.items():
         ax = _axis(link, config, result, name, ncfg, {(i, s): v for i, s, v in ncfg.sdo})
+        ax.mode, ax.setpoint, ax.modes = _streaming_mode(ax.node, ax.cfg, config.path)
+        ax.streaming = _streaming(link, config, ax.node, ax)
+        if ax.streaming.buffered:
+            ax.cfg = buffered_node(ax.cfg)
+            ax.mode, ax.setpoint = IP, IP_RECORD
         ax.drive_limits = {
             hex_object(i, s): v
-            for i, s, v in drive_settings(name, ax.cfg, config.master.sync_period_s, config.master)
+            for i, s, v in drive_settings(
+                name, ax.cfg, config.master.sync_period_s, config.master, ax.streaming.depth
+            )
         }
-        ax.mode, ax.setpoint, ax.modes = _streaming_mode(ax.node, ax.cfg, config.path)
         axes[name] = ax
     return axes
 
@@ -652,6 +672,38 @@ def _streaming_mode(
     return (*chosen, supported_modes(bits))
 
 
+def _streaming(link: Link, config: BusConfig, node: canopen.RemoteNode, ax: AxisLink) -> Streaming:
+    """How the axis streams in this run (``master.streaming``): ahead into its drive's FIFO on the
+    wall clock where the drive has one (``auto``; ``buffered``: required), else one setpoint per SYNC."""
+    way, ncfg = config.master.streaming, ax.cfg
+    as_mapped = (
+        f"one setpoint per SYNC in mode {ax.mode} ({MODE_NAMES.get(ax.mode, '?')}), as the RPDOs map it"
+    )
+    if way == "per_sync":
+        return Streaming(0, f"{as_mapped} (master.streaming: per_sync)")
+    if way == "auto" and not link.threaded:
+        return Streaming(0, f"{as_mapped} (lockstep: simulated time keeps every SYNC on time)")
+    depth = records_ahead(config.master)
+    said = read_if_readable(
+        node, INTERPOLATION_DATA_CONFIGURATION, BUFFER_MAXIMUM, f"axis {ax.name}'s interpolation buffer size"
+    )
+    capacity = capacity_in(ncfg) if said is None else int(said)  # what the drive says wins
+    reason = why_not(ncfg, ax.modes, capacity, depth)
+    if reason is None:
+        return Streaming(
+            depth,
+            f"ahead into its interpolation FIFO ({capacity} records): {depth} records "
+            f"({config.master.stall_cover_s * 1e3:.0f} ms, master.stall_cover_ms) kept ahead of the "
+            f"SYNCs that take them, so a stall of this host that long leaves the motion untouched",
+        )
+    if way == "buffered":
+        raise DriveRefused(
+            f"axis {ax.name}: master.streaming in {config.path} is buffered, but {reason}; "
+            f"set master.streaming to auto or per_sync"
+        )
+    return Streaming(0, f"{as_mapped}: not ahead, {reason}; a stall of this host stops its setpoints")
+
+
 def settings(
     axis: str, ncfg: NodeConfig, period: float, master: MasterConfig | None = None
 ) -> list[tuple[int, int, int | float]]:
@@ -678,7 +730,7 @@ def settings(
 
 
 def drive_settings(
-    axis: str, ncfg: NodeConfig, period: float, master: MasterConfig | None = None
+    axis: str, ncfg: NodeConfig, period: float, master: MasterConfig | None = None, ahead: int = 0
 ) -> list[tuple[int, int, int | float]]:
     """What bring-up writes after reading the drive's units, each where the drive's EDS/DCF has the
     object: its heartbeat; the consumer of the master's heartbeat (0x1016:1,
@@ -699,6 +751,9 @@ def drive_settings(
         The SYNC period [s].
     master : MasterConfig, optional
         The master's configuration (its heartbeat).
+    ahead : int
+        Records the master keeps ahead in the drive's FIFO (0: none): the consumer time of the
+        master's heartbeat then also covers the stall they cover, and a heartbeat period more.
 
     Returns
     -------
@@ -713,7 +768,10 @@ def drive_settings(
 
     out: list[tuple[int, int, int | float]] = [(HEARTBEAT_PRODUCER, 0, ncfg.heartbeat_producer_ms)]
     if master is not None and has(HEARTBEAT_CONSUMER, 1):
-        out.append((HEARTBEAT_CONSUMER, 1, master.heartbeat_node_id << 16 | master.drive_consumer_ms))
+        consumer_ms = master.drive_consumer_ms
+        if ahead:
+            consumer_ms = max(consumer_ms, math.ceil((ahead * period + 2 * master.heartbeat_period_s) * 1000))
+        out.append((HEARTBEAT_CONSUMER, 1, master.heartbeat_node_id << 16 | consumer_ms))
     # when it loses the master (0x6007): quick stop; on a quick stop (0x605A): ramp down on the
     # quick-stop deceleration, then stay in QUICK STOP ACTIVE, holding the axis; on a fault
     # (0x605E): ramp down on the quick-stop deceleration

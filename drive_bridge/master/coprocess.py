@@ -280,7 +280,7 @@ class EngineThread:
 
         def run() -> None:
             try:
-                self._outcome = Engine(job, arrays, BusPort(self._bus, ring)).run()
+                self._outcome = Engine(job, arrays, BusPort(self._bus, ring, job.sync_from)).run()
             except BaseException as exc:  # noqa: BLE001 - handed to the master's thread
                 self._error = exc
 
@@ -381,7 +381,7 @@ def _serve(sock: socket.socket) -> None:
         arrays, ring = _views(mapping, job, ring_frames)
         control.append(arrays.control)
         try:
-            outcome = Engine(job, arrays, BusPort(bus, ring)).run()
+            outcome = Engine(job, arrays, BusPort(bus, ring, job.sync_from)).run()
         finally:
             control.clear()
         del arrays, ring

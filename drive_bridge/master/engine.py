@@ -83,6 +83,9 @@ PHASE, ROWS_SENT, STOP_REQUEST, ENABLE_CYCLES, CONTROL_SLOTS = range(5)
 STOP_SIGNALS = ("", "Ctrl-C", "SIGTERM", "SIGHUP")
 AGE_BIN_S, AGE_BINS = 1e-4, 1000  # histogram of feedback age: 0.1 ms bins up to 100 ms
 PROGRESS_ROWS = 50  # the host's progress is told the plan row in steps of this many
+#: records a period and axis fed into a drive's FIFO at most (one is taken a period): a refill
+#: after a stall comes back two records a period faster than the drive takes them, never a flood
+FEED_PER_PERIOD = 3
 #: what a port hands each received frame to: (data, time stamp [s])
 Handler = Callable[[bytes | bytearray, float], None]
 
@@ -104,6 +107,8 @@ class RpdoJob:
         Its axis, an index into :attr:`Job.axes`.
     around_plan : bool
         Also sent while enabling, holding and stopping (not: interpolation data records).
+    ahead : bool
+        Records fed ahead into the drive's FIFO (:attr:`AxisJob.ahead`), not one per SYNC.
     """
 
     cob_id: int
@@ -111,6 +116,7 @@ class RpdoJob:
     fields: tuple[tuple[int, int], ...]
     axis: int
     around_plan: bool = True
+    ahead: bool = False
 
 
 @dataclass(frozen=True)
@@ -182,6 +188,11 @@ class AxisJob:
         The plan rows where moves start.
     velocity_guard : float
         |velocity actual| beyond this stops the run [velocity units].
+    ahead : int
+        Records kept ahead in the drive's interpolation FIFO (0: one setpoint per SYNC): the plan's
+        rows go out ahead of the SYNCs that take them, at most ``FEED_PER_PERIOD`` a period.
+    fill : int
+        The column of the FIFO's fill 0x60C4:2 in ``raw`` (-1: not mapped).
     """
 
     name: str
@@ -202,6 +213,8 @@ class AxisJob:
     rated_torque_Nm: float = 1.0
     move_starts: tuple[int, ...] = ()
     velocity_guard: float = math.inf
+    ahead: int = 0
+    fill: int = -1
 
 
 @dataclass(frozen=True)
@@ -281,6 +294,9 @@ class Job:
         The time limits the engine judges by.
     heartbeat : (int, float), optional
         The master's heartbeat the engine sends while it runs: COB-ID, period [s].
+    sync_from : str, optional
+        The drive that produces SYNC while the engine runs, in words (None: the interface or the
+        engine sends it).
     """
 
     axes: tuple[AxisJob, ...]
@@ -293,6 +309,7 @@ class Job:
     #: the master's heartbeat (COB-ID, period [s]) where the engine is to produce it while it runs (the
     #: link's own is a thread of the master's process there, which the master's other work can hold up)
     heartbeat: tuple[int, float] | None = None
+    sync_from: str | None = None
 
 
 class Arrays:
@@ -580,6 +597,8 @@ class Engine:
             (r, struct.Struct(r.format), bytearray(struct.calcsize(r.format)), [0] * len(r.fields))
             for r in job.rpdos
         ]
+        self._ahead = [entry for entry in self._rpdos if entry[0].ahead]
+        self.fed = [0] * n_axes  # plan rows written into each axis's FIFO
         self._starts = [set(a.move_starts) for a in job.axes]
         #: per axis, the setpoint table's column of the torque offsets it is sent (-1: none)
         self._offset_columns = [
@@ -678,7 +697,7 @@ class Engine:
         table, offsets = self.arrays.table, self.arrays.torque_offset
         send, now = self.port.send, self.port.now
         for rpdo, codec, buffer, values in self._rpdos:
-            if not (records or rpdo.around_plan):
+            if rpdo.ahead or not (records or rpdo.around_plan):
                 continue
             axis = rpdo.axis
             for i, (kind, arg) in enumerate(rpdo.fields):
@@ -695,6 +714,27 @@ class Engine:
         for axis, ax in enumerate(self.job.axes):
             if ax.position_column >= 0:
                 self.pending[axis] = int(table[row, ax.position_column])
+
+    def _feed(self, taken: int) -> bool:
+        """Each buffered axis's FIFO topped up to its ``ahead`` records past the ``taken`` plan rows
+        (at most :data:`FEED_PER_PERIOD` records this period); True when every one holds them."""
+        job, table, send, now = self.job, self.arrays.table, self.port.send, self.port.now
+        for rpdo, codec, buffer, values in self._ahead:
+            axis = rpdo.axis
+            wanted = min(job.rows, taken + job.axes[axis].ahead)
+            for _ in range(FEED_PER_PERIOD):
+                row = self.fed[axis]
+                if row >= wanted:
+                    break
+                for i, (kind, arg) in enumerate(rpdo.fields):
+                    values[i] = int(table[row, arg]) if kind == FIELD_TABLE else arg
+                codec.pack_into(buffer, 0, *values)
+                send(rpdo.cob_id, buffer, now())
+                self.fed[axis] = row + 1
+        return all(
+            self.fed[rpdo.axis] >= min(job.rows, taken + job.axes[rpdo.axis].ahead)
+            for rpdo, *_ in self._ahead
+        )
 
     def _unload(self, row: int) -> None:
         """Before the RPDOs of plan ``row``: at a move start, what the velocity loop holds at rest (the
@@ -752,6 +792,13 @@ class Engine:
                 if sw & SW_FAULT:
                     return ("fault", ax.name, f"drive reports {state_name(sw)} (statusword 0x{sw:04X})", None)
                 if self.judged_syncs > FOLLOW_GRACE_SYNCS and not sw & SW_FOLLOWING:
+                    if ax.ahead and ax.fill >= 0:  # its FIFO ran dry: a planned stop
+                        return (
+                            "dry",
+                            ax.name,
+                            f"at row {r}; it holds {int(raw[r, ax.fill])} records now",
+                            None,
+                        )
                     what = (
                         "interpolation is not active"
                         if ax.interpolating
@@ -843,7 +890,8 @@ class Engine:
             out.worst_wake_ms = max(out.worst_wake_ms, late * 1e3)
             if late > job.supervision.window_s:
                 out.late_cycles += 1  # past the window: the drives keep the setpoints they have
-            out.setpoints_late += self.syncs_seen - seen - 1  # SYNCs that came before their setpoints
+            if not self._ahead or len(self._ahead) < len(job.axes):
+                out.setpoints_late += self.syncs_seen - seen - 1  # SYNCs that came before their setpoints
         else:
             now, late = self._wake()
             out.worst_wake_ms = max(out.worst_wake_ms, late * 1e3)
@@ -883,6 +931,7 @@ class Engine:
             if nxt < job.rows:
                 self._unload(nxt)
                 self._send_rpdos(nxt, [a.enable_controlword for a in job.axes], records=True)
+                self._feed(nxt)
                 return False
             self._enter(HOLDING, now)  # the plan's last SYNC went out: hold from the next
         if self.phase == HOLDING:
@@ -894,19 +943,24 @@ class Engine:
     def _await_sync(self) -> float:
         """Wait for the interface's next SYNC (``periodic_sync``); the time it was handed over [s].
 
-        A SYNC may come late -- the interface held up, or its frame handed over late (the kernel's
-        softirqs behind a real-time task, an emulated vCPU): the drives then keep the setpoints they
-        have, and wait for new ones as long as their setpoint-loss timeout, so the engine waits as
-        long (the gap is judged with the timing).  Meanwhile it looks every :data:`CHECK_EVERY_S`
-        for what :meth:`_watch` judges: where that asks for a stop, or where no SYNC came for longer
-        than the drives wait, the cyclic path cannot act (its RPDOs take effect at a SYNC) and ends,
-        leaving every axis to the host to stop by SDO.
+        A SYNC may come late -- the interface or the producing drive held up, or its frame handed
+        over late (the kernel's softirqs behind a real-time task, an emulated vCPU): the drives then
+        keep the setpoints they have and wait for new ones as long as their setpoint-loss timeout,
+        or take the records fed ahead.  So the engine waits as long as the longer of these (the gap
+        is judged with the timing).
+        Meanwhile it looks every :data:`CHECK_EVERY_S` for what :meth:`_watch` judges: where that
+        asks for a stop, or where no SYNC came for longer, the cyclic path cannot act (its RPDOs take
+        effect at a SYNC) and ends, leaving every axis to the host to stop by SDO.
         """
         port, control, out = self.port, self.arrays.control, self.outcome
         seen = self.syncs_seen
         first = self.last_sync == -math.inf  # (where start_sync did not see one)
         since = port.now() if first else self.last_sync
-        limit = 1.0 if first else max(3 * self.period, self.job.supervision.setpoint_timeout_s)
+        sup = self.job.supervision
+        # (a SYNC from elsewhere may come late, and the ones it owes then: the drives stop on their own
+        # after their setpoint timeout, or once the records fed ahead run out)
+        ahead = max((a.ahead for a in self.job.axes), default=0) * self.period
+        limit = 1.0 if first else max(3 * self.period, sup.setpoint_timeout_s, ahead)
         while True:
             port.wait_sync(min(since + limit, port.now() + CHECK_EVERY_S))
             now = port.now()
@@ -951,6 +1005,9 @@ class Engine:
                 self.last_complete = [stamp] * len(job.axes)
             arrays.sync_time[row] = stamp
             arrays.demand[row] = self.pending
+            for axis, ax in enumerate(job.axes):
+                if ax.ahead and row < self.fed[axis]:  # its FIFO's record of this SYNC, fed in order
+                    arrays.demand[row, axis] = arrays.table[row, ax.position_column]
             self.row = row
             out.rows_sent = row + 1
             arrays.control[ROWS_SENT] = row + 1
@@ -967,6 +1024,9 @@ class Engine:
     def _enabling(self, now: float) -> bool:
         job, out, sup = self.job, self.outcome, self.job.supervision
         if self._all(lambda a: self._state(a) == "OPERATION ENABLED" and self.age[a] <= 1):
+            if not self._feed(0):  # the FIFOs filled before interpolation starts
+                self._send_rpdos(0, self._enable_words(), records=False)
+                return False
             out.enable_cycles = self.enable_cycles
             self.arrays.control[ENABLE_CYCLES] = self.enable_cycles
             self._enter(STREAMING, now)

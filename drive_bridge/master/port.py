@@ -173,27 +173,37 @@ class BusPort:
     SYNC not come back within a few periods, the engine's own loop sends SYNC instead (said in
     :attr:`sync_source`).
 
+    Where a drive produces SYNC (``sync_from``), the engine likewise answers each SYNC as the bus shows
+    it; should none come within :attr:`FIRST_SYNC_S`, the run ends (the engine never sends SYNC beside
+    another producer).
+
     Parameters
     ----------
     bus : can.BusABC
         The engine's own handle on the bus.
     ring : TraceRing
         Where every frame goes.
+    sync_from : str, optional
+        The drive that produces SYNC, in words (None: the interface or the engine sends it).
     """
 
     ECHO_PERIODS = 5  # periods to wait for the interface's first SYNC before taking over
+    FIRST_SYNC_S = 0.5  # how long a drive's first SYNC is waited for
 
-    def __init__(self, bus: can.BusABC, ring: TraceRing):
+    def __init__(self, bus: can.BusABC, ring: TraceRing, sync_from: str | None = None):
         self.bus = bus
         self.ring = ring
-        native = periodic_send_of(bus)
-        self.periodic_sync = native is not None
-        self.sync_source = native or "the engine's own loop"
+        native = None if sync_from else periodic_send_of(bus)
+        self.periodic_sync = bool(sync_from) or native is not None
+        self._drive_sync = bool(sync_from)
+        self.sync_source = sync_from or native or "the engine's own loop"
         self._task: can.broadcastmanager.CyclicSendTaskABC | None = None
         self._offset = time.time() - time.monotonic()
         self._handlers: dict[int, Handler] = {}
         self._on_error: Callable[[], None] | None = None
         self._messages: dict[int, can.Message] = {}  # one per COB-ID sent, its data filled in place
+        while bus.recv(0.0) is not None:  # what queued since the last run (the master's trace has it)
+            pass
 
     def now(self) -> float:
         """:meth:`Port.now`: the monotonic clock moved once onto the wall clock's epoch.
@@ -239,9 +249,23 @@ class BusPort:
         period : float
             The SYNC period [s].
         """
+        if self._drive_sync:
+            if not self._first_sync(self.FIRST_SYNC_S):
+                raise RuntimeError(f"no SYNC within {self.FIRST_SYNC_S} s from the {self.sync_source}")
+            return
         self._task = self.bus.send_periodic(
             can.Message(arbitration_id=SYNC_COB_ID, data=b"", is_extended_id=False), period
         )
+        if not self._first_sync(self.ECHO_PERIODS * period):  # it does not show its own frames
+            self.stop_sync()
+            self.periodic_sync = False
+            self.sync_source = (
+                f"the engine's own loop ({self.sync_source} did not show its SYNC within "
+                f"{self.ECHO_PERIODS} periods)"
+            )
+
+    def _first_sync(self, timeout: float) -> bool:
+        """Whether a SYNC came within ``timeout`` [s] (handed to the engine as any other)."""
         handler = self._handlers.get(SYNC_COB_ID)
         seen: list[float] = []
 
@@ -252,17 +276,11 @@ class BusPort:
 
         self._handlers[SYNC_COB_ID] = first
         try:
-            self.wait_sync(self.now() + self.ECHO_PERIODS * period)
+            self.wait_sync(self.now() + timeout)
         finally:
             if handler is not None:
                 self._handlers[SYNC_COB_ID] = handler
-        if not seen:  # it does not show its own frames: the engine sends SYNC
-            self.stop_sync()
-            self.periodic_sync = False
-            self.sync_source = (
-                f"the engine's own loop ({self.sync_source} did not show its SYNC within "
-                f"{self.ECHO_PERIODS} periods)"
-            )
+        return bool(seen)
 
     def wait_sync(self, timeout_at: float) -> None:
         """:meth:`Port.wait_sync`.
@@ -283,7 +301,12 @@ class BusPort:
     def _dispatch(self, msg: can.Message) -> None:
         stamp = msg.timestamp or self.now()
         # (the interface's SYNC is the master's own frame, not a received one)
-        own = self.periodic_sync and msg.arbitration_id == SYNC_COB_ID and not msg.is_error_frame
+        own = (
+            self.periodic_sync
+            and not self._drive_sync
+            and msg.arbitration_id == SYNC_COB_ID
+            and not msg.is_error_frame
+        )
         flags = (
             (0 if own else RX)
             | (ERROR if msg.is_error_frame else 0)

@@ -4,10 +4,12 @@ trace (SI once, afterwards, in :mod:`drive_bridge.logs`)."""
 
 from __future__ import annotations
 
+from collections import deque
 from collections.abc import Callable
 
 import numpy as np
 
+from ..cia.objects import CONTROLWORD
 from ..cia.pdo import PdoCodec
 from ..cia.setpoint import SETPOINT_OBJECTS, position_of
 from .engine import (
@@ -61,11 +63,17 @@ class Recording:
                 self._tpdo_slots.append((codec.cob_id, codec, len(self.columns), len(self._tpdo_slots)))
                 self.columns.extend((axis, index) for index in codec.objects)
         self._rpdo_slots = []
+        #: decode: per axis whose setpoints come in RPDOs of records alone (interpolation data,
+        #: streamed one a SYNC or fed ahead into the drive's FIFO), the records not yet taken: one
+        #: each SYNC, in order, as the drive takes them
+        self._queued: dict[int, deque[int]] = {}
         for ai, codecs in enumerate(rpdos.values()):
             for codec in codecs:
                 for pos, entry in enumerate(codec.entries):
                     if entry in SETPOINT_OBJECTS:
                         self._rpdo_slots.append((codec.cob_id, codec, pos, ai, entry))
+                        if CONTROLWORD not in codec.objects:
+                            self._queued[ai] = deque()
         #: per axis, the columns of ``got`` (its TPDOs): a row is complete when all of them arrived
         self.slots = {
             axis: [slot for _, _, first, slot in self._tpdo_slots if self.columns[first][0] == axis]
@@ -153,7 +161,11 @@ class Recording:
                 ai: int = ai,
                 entry: tuple[int, int] = entry,
             ) -> None:
-                self.pending[ai] = position_of(entry, unpack(data)[pos])
+                position = position_of(entry, unpack(data)[pos])
+                if ai in self._queued:
+                    self._queued[ai].append(position)
+                else:
+                    self.pending[ai] = position
 
             out[cob] = on_rpdo
         return out
@@ -170,6 +182,9 @@ class Recording:
         if self.skip_syncs > 0:
             self.skip_syncs -= 1
             return
+        for ai, records in self._queued.items():
+            if records:
+                self.pending[ai] = records.popleft()
         self.last_sync_time = timestamp
         self.sync_index += 1
         while self.sync_index in self.skipped:

@@ -24,12 +24,13 @@ from __future__ import annotations
 import logging
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ..cia.objects import (
     CONTROLWORD,
+    INTERPOLATION_DATA_CONFIGURATION,
     MODES_OF_OPERATION,
     STATUSWORD,
     TORQUE_OFFSET,
@@ -71,6 +72,7 @@ from .hold import STANDSTILL, STANDSTILL_MIN_RAD_S, holding_of, on_brake, prepar
 from .link import Link
 from .recording import Recording
 from .supervision import VelocityGuard, stop_reason
+from .timekeeper import choose_producer, described, producing
 from .timing import Timing, measure
 
 log = logging.getLogger(__name__)
@@ -166,8 +168,16 @@ def _job(
                     fields.append((FIELD_CONSTANT, 0))
             # around the plan, an interpolating drive's setpoint records stay off the bus: a FIFO (maxon's
             # PVT) would keep them and play them when interpolation starts
+            records_only = _records_only(ax, codec)
             rpdos.append(
-                RpdoJob(codec.cob_id, codec.struct.format, tuple(fields), ai, not _records_only(ax, codec))
+                RpdoJob(
+                    codec.cob_id,
+                    codec.struct.format,
+                    tuple(fields),
+                    ai,
+                    not records_only,
+                    records_only and ax.streaming.buffered,
+                )
             )
         moving = np.abs(np.diff(demand, prepend=demand[0])) > 0
         starts = (
@@ -182,6 +192,7 @@ def _job(
                 VELOCITY_ACTUAL,
                 torque_object(sc.torque_feedback, sc.torque_index),
                 0x20C4,
+                INTERPOLATION_DATA_CONFIGURATION,
             )
             if (a, index) in rec.columns
         }
@@ -211,6 +222,8 @@ def _job(
                 math.inf
                 if guard is None or a not in guard.limits
                 else guard.limits[a] * sc.velocity_per_rad_s,
+                ax.streaming.depth,
+                cols.get(INTERPOLATION_DATA_CONFIGURATION, -1),
             )
         )
     tpdos = [
@@ -239,8 +252,10 @@ def stream(
     guard: VelocityGuard | None = None,
     timing_limits: TimingLimits = TimingLimits(),
     on_start: Callable[[int], None] | None = None,
+    sync_producer: str = "auto",
 ) -> StreamResult:
-    """Enable the axes without a jump, stream ``plan`` one setpoint per SYNC, hold, return the recording.
+    """Enable the axes without a jump, stream ``plan`` (a setpoint per SYNC, or records fed ahead into
+    each drive's FIFO: :mod:`.buffered`), hold, return the recording.
 
     A fault (EMCY, fault bit, heartbeat loss, feedback missing longer than ``supervision`` allows, a
     CAN error frame), the ``guard`` or Ctrl-C quick-stops every axis; the recording up to that point
@@ -265,6 +280,8 @@ def stream(
         The limits of a wall-clock run.
     on_start : callable, optional
         Told how many SYNC cycles enabling took.
+    sync_producer : {"auto", "master"}
+        Who sends SYNC on the wall clock (bus.yml ``master.sync_producer``, :mod:`.timekeeper`).
 
     Returns
     -------
@@ -275,6 +292,9 @@ def stream(
     n = len(plan.demand)
     rec = Recording({a: axes[a].tpdos for a in plan.axes}, {a: axes[a].rpdos for a in plan.axes}, 0)
     job, columns = _job(axes, plan, rec, supervision, guard)
+    producer = choose_producer(axes, link.threaded, sync_producer)
+    if producer is not None:
+        job = replace(job, sync_from=described(producer))
     for i, a in enumerate(plan.axes):
         _inside_drive_limits(axes[a], columns[job.axes[i].position_column])
     for cob in {c.cob_id for a in plan.axes for c in axes[a].tpdos}:
@@ -293,7 +313,10 @@ def stream(
             prepare_enable(axes[a], int(columns[job.axes[i].position_column][0]) if n else 0)
         for a in plan.axes:
             axes[a].node.nmt.send_command(0x01)  # operational: PDOs flow
-        outcome, arrays, host = link.run_cycles(job, fill, progress, on_start)
+        with producing(producer) as produces:
+            if not produces:
+                job = replace(job, sync_from=None)  # the engine sends SYNC
+            outcome, arrays, host = link.run_cycles(job, fill, progress, on_start)
     except KeyboardInterrupt as exc:  # before the engine ran: stop by SDO
         outcome = Outcome(
             abort=("interrupt", None, getattr(exc, "name", "Ctrl-C"), None), lost=list(plan.axes)
@@ -337,6 +360,7 @@ def stream(
     timing.engine = {
         "host": host or "lockstep",
         "sync_source": outcome.sync_source,
+        "streaming": {a: axes[a].streaming.why for a in plan.axes},
         "late_cycles": outcome.late_cycles,
         "periods_skipped": outcome.periods_skipped,
         "setpoints_late": outcome.setpoints_late,

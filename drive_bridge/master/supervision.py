@@ -177,6 +177,14 @@ def stop_reason(
         return buffer or MotionAborted(f"drive sent {emcy_text(code)} (EMCY 0x{code:04X})", axis, code)
     if kind == "silent":
         return MotionAborted(f"no TPDO: {detail}", axis)
+    if kind == "dry" and axis is not None:
+        cover = axes[axis].streaming.depth * supervision.period_s
+        return MotionAborted(
+            f"its interpolation FIFO ran dry ({detail}): this host was away longer than the "
+            f"{cover * 1e3:.0f} ms of records kept ahead (master.stall_cover_ms); the drive made a planned "
+            f"stop and holds, no fault",
+            axis,
+        )
     if kind == "guard" and axis is not None and guard is not None:
         return GuardStop(guard.reason(axis, float(axes[axis].cfg.scaling.velocity_from_device(int(detail)))))
     if kind == "buffer" and axis is not None:

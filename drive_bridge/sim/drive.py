@@ -40,6 +40,9 @@ from ..cia.factor import OBJECTS as FACTOR_OBJECTS
 from ..cia.factor import FactorGroup
 from ..cia.objects import (
     ABORT_CONNECTION_OPTION,
+    BUFFER_CLEAR,
+    BUFFER_FILL,
+    BUFFER_MAXIMUM,
     COB_ID_SYNC,
     CONTROLWORD,
     CYCLE_PERIOD,
@@ -124,12 +127,13 @@ from ..cia.p402 import (
     VOLTAGE_ENABLED,
 )
 from ..cia.pdo import PdoCodec
-from ..cia.setpoint import PVT, SETPOINT_OBJECTS, position_of, supported_modes
+from ..cia.setpoint import IP_RECORD, PVT, SETPOINT_OBJECTS, position_of, supported_modes
 from . import cyclic, kernel
 from .adapters import local_node
 from .emergency import EmcyProducer
 from .gain_objects import GainObjects
 from .heartbeats import HeartbeatConsumer
+from .ip_fifo import IpFifo
 from .nmt_slave import RESET_COMMUNICATION, NmtSlave
 from .pdo_map import ABORT_RANGE, ABORT_STATE, PdoMapping
 from .plant import Plant
@@ -324,9 +328,12 @@ class SimDrive:
         self.pvt: PvtBuffer | None = (
             PvtBuffer()
             if self.od.get_variable(*PVT) is not None
-            and self.od.get_variable(INTERPOLATION_DATA_CONFIGURATION, 6) is not None
+            and self.od.get_variable(INTERPOLATION_DATA_CONFIGURATION, BUFFER_CLEAR) is not None
             else None
         )
+        #: the project drive's deep FIFO of 0x60C1:1 records (0x60C4:1 above one record)
+        capacity = default(self.od, INTERPOLATION_DATA_CONFIGURATION, BUFFER_MAXIMUM) or 0
+        self.fifo: IpFifo | None = IpFifo(int(capacity)) if self.pvt is None and capacity > 1 else None
         self._init_storage()
         self.objects.save()
         self._power_up()
@@ -454,6 +461,9 @@ class SimDrive:
         )
         if self.pvt is not None:
             self.pvt.reset()
+        if self.fifo is not None:
+            self.fifo.reset()
+            self._fill_changed()
         self.pdos.reset()
         self.heartbeats = HeartbeatConsumer(partial(self.objects.get_or, fallback=None))
         self.host.routes_changed()  # (its RPDOs' and the heartbeats it consumes)
@@ -629,8 +639,15 @@ class SimDrive:
         elif (index, sub) == PVT and self.pvt is not None:  # maxon: into the buffer, taken one a period
             if (code := self.pvt.put(value)) is not None:
                 self._buffer_error(code)
-        elif index == INTERPOLATION_DATA_CONFIGURATION and sub == 6 and self.pvt is not None:
+        elif index == INTERPOLATION_DATA_CONFIGURATION and sub == BUFFER_CLEAR and self.pvt is not None:
             self.pvt.control(value)
+        elif index == INTERPOLATION_DATA_CONFIGURATION and sub == BUFFER_CLEAR and self.fifo is not None:
+            self.fifo.control(value)
+            self._fill_changed()
+        elif (index, sub) == IP_RECORD and self.fifo is not None and self.fifo.enabled:
+            if (code := self.fifo.put(value)) is not None:  # into the FIFO, taken one a period
+                self.fault(code)
+            self._fill_changed()
         elif (index, sub) in SETPOINT_OBJECTS:
             if SETPOINT_OBJECTS[(index, sub)] == self.mode:  # 0x607A in PP is read on the set-point edge
                 self.setpoint_inc = position_of((index, sub), value)
@@ -769,15 +786,23 @@ class SimDrive:
 
     @property
     def following(self) -> bool:
-        """Enabled and taking the master's setpoints: CSP, or IP with interpolation enabled (bit 4)."""
+        """Enabled and taking the master's setpoints: CSP, or IP with interpolation enabled (bit 4)
+        and its FIFO not run dry."""
         return self.state == ENABLED and (
-            self.mode == CSP or (self.mode == IP and bool(self.controlword & 0x10))
+            self.mode == CSP or (self.mode == IP and bool(self.controlword & 0x10) and not self.ran_dry)
         )
+
+    @property
+    def ran_dry(self) -> bool:
+        """Interpolating, its FIFO ran dry: the planned stop (:mod:`.ip_fifo`)."""
+        return self.fifo is not None and self.fifo.dry and self.mode == IP
 
     def _on_controlword(self, cw: int) -> None:
         if cw == self.controlword and cw in (0x0F, 0x1F) and self.state == ENABLED:
             return  # the streaming steady state
         new_setpoint = cw & 0x10 and not self.controlword & 0x10
+        if new_setpoint and self.fifo is not None:
+            self.fifo.dry = False  # interpolation enabled again: the records take over
         previous, self.controlword = self.controlword, cw
         if self.state == FAULT:
             if next_state(FAULT, cw, previous, 0) != FAULT:  # fault reset
@@ -900,8 +925,20 @@ class SimDrive:
     def next_period(self) -> None:
         """Set the demand P0 -> P1 of the interpolation period that starts now."""
         d, T = self.plant_demand, self.plant.sync_period
+        if self.state == ENABLED and self.ran_dry:
+            self._planned_stop(T)
+            return
         if self.following:
             record_s = None  # a PVT record's own time
+            if self.fifo is not None and self.mode == IP:
+                position = self.fifo.take()
+                self._fill_changed()
+                if position is None:  # dry: the planned stop starts
+                    self.new_target = False
+                    self._planned_stop(T)
+                    return
+                self.setpoint_inc, self.new_target = position, True
+                self.last_setpoint_time = self.plant.time
             if self.pvt is not None and self.mode == IP:
                 if (record := self.pvt.take()) is not None:
                     self.setpoint_inc, _, record_ms = record
@@ -930,6 +967,19 @@ class SimDrive:
             self._go(SWITCH_ON_DISABLED)  # the quick stop came to rest
         d[kernel.A_FF] = (self.v_dem - v_old) / T
         self.new_target = False
+
+    def _planned_stop(self, T: float) -> None:
+        """A period of the planned stop after the FIFO ran dry: the demand velocity ramped down on
+        the quick-stop deceleration 0x6085, then held."""
+        d = self.plant_demand
+        d[kernel.P0] = d.item(kernel.P1)
+        self.plant.period_ticks[self.index] = self.plant.ticks_per_period
+        v_old = self.v_dem
+        deceleration = self.objects.get_or(
+            QUICK_STOP_DECELERATION, 0, factory().quick_stop_rad_s2 * self.vel_per_si
+        )
+        self.profile.ramp(0.0, deceleration / self.vel_per_si, T)
+        d[kernel.A_FF] = (self.v_dem - v_old) / T
 
     def _plant(self, position: int) -> float:
         """A position in the drive's units as the plant's [rad]: through the origin homing set."""
@@ -1078,6 +1128,11 @@ class SimDrive:
             ERROR_CODE: lambda: self.emcy.error_code,
             ERROR_REGISTER: lambda: 0x01 if self.state == FAULT else 0x00,
         }
+
+    def _fill_changed(self) -> None:
+        """0x60C4:2 follows the FIFO's fill."""
+        if self.fifo is not None:
+            self.objects.set(INTERPOLATION_DATA_CONFIGURATION, BUFFER_FILL, self.fifo.fill)
 
     def _buffer_error(self, code: int) -> None:
         """An underflow or overflow of the PVT buffer (latched in its status): 0x20C4:1 at once, and

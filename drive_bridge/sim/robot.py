@@ -466,12 +466,13 @@ class SimRobot:
         msg : can.Message
             The frame.
         """
-        self._bus_time = max(self._bus_time, msg.timestamp)
         if msg.arbitration_id == SYNC_COB_ID and not msg.is_remote_frame:
+            self._bus_time = max(self._bus_time, msg.timestamp)
             if self._producing() is None:  # (while a drive produces SYNC, another's is not taken)
                 self._sync_received(msg.timestamp)
-        else:
+        else:  # (the loops first: what they send up to it is stamped with its own time)
             self.run_until(msg.timestamp)
+            self._bus_time = max(self._bus_time, msg.timestamp)
             self.dispatch(msg)
 
     def run_until(self, now: float) -> None:

@@ -218,6 +218,7 @@ def run(
         supervision=stream_supervision(config, {a: axes[a] for a in names}),
         progress=progress,
         timing_limits=m.timing,
+        sync_producer=m.sync_producer,
         guard=guard,
     )
     names_, values, _ = to_table(result.recording, {a: axes[a].cfg.scaling for a in names}, period)

@@ -48,14 +48,17 @@ def identified(tmp_path_factory) -> tuple:
 #: subject (a stall is never a fault), not this file's
 MACHINE_STALL = ("the master was late", "following error")
 ATTEMPTS = 3
+#: the engine's stall [s]: three times the records the master keeps ahead in Z's FIFO (0.5 s,
+#: master.stall_cover_ms), so the FIFO runs dry, the drive makes its planned stop and the step fails
+STALL_S = 1.5
 
 
 def _on_the_wall_clock(
     config, lockstep: Path, tmp_path: Path, steps: list[str], stall_in: str, nth: int, prepare=None
 ) -> tuple:
     """``steps`` of a copy of the run ``lockstep`` on the wall clock with the plant watched, the
-    engine stopped for 200 ms halfway through motion ``nth`` of step ``stall_in`` (ten times what the
-    drives wait for set-points: they stop by themselves and the step fails); ``prepare(out)`` first.
+    engine stopped for :data:`STALL_S` halfway through motion ``nth`` of step ``stall_in`` (longer than
+    the records fed ahead last: the drives stop by themselves and the step fails); ``prepare(out)`` first.
     Run again, up to :data:`ATTEMPTS` times, where the machine's own stall stopped it before ours.
     The result, the motions' spans, the run directory and the plant watch."""
     for attempt in range(ATTEMPTS):
@@ -64,7 +67,7 @@ def _on_the_wall_clock(
         if prepare is not None:
             prepare(out)
         link = simulated_link(config, realtime=True, watch=watch)
-        reporter = MotionSpans((stall_in, nth, 0.2, lambda link=link: link.engine.pid))
+        reporter = MotionSpans((stall_in, nth, STALL_S, lambda link=link: link.engine.pid))
         try:
             result = commission(
                 config,

@@ -217,3 +217,72 @@ def test_the_maxon_fifo_overflows_past_64_records_and_ignores_records_while_disa
     node.sdo[0x20C1].raw = pack_pvt(0, 0, 2)
     b.robot.drives["y"].refresh_actuals()
     assert node.sdo[0x20C4][1].raw & 0x0200 and node.sdo[0x6041].raw & 0x0008
+
+
+def _filling(b, node):
+    """The project's drive y in interpolated position with its deep FIFO (0x60C4) enabled, enabled
+    without interpolation (bit 4 clear): records wait in the buffer."""
+    node.nmt.send_command(0x80)
+    node.sdo[0x60C4][6].raw = 0
+    node.sdo[0x60C4][6].raw = 1
+    node.sdo[0x6060].raw = 7
+    for cw in (0x06, 0x07, 0x0F):
+        node.sdo[0x6040].raw = cw
+
+
+def test_the_deep_fifo_takes_one_record_a_period_and_a_run_dry_is_a_planned_stop(bench):
+    """Records written ahead wait while interpolation is off, then go one a SYNC; past the last the
+    drive ramps down on its quick-stop deceleration and holds, enabled, bit 12 clear, no EMCY (a
+    strict drive with a one-record buffer would fault on the missing setpoint instead); bit 4 off
+    and on again resumes from the records written meanwhile."""
+    b = bench()
+    node, drive = b.nodes["y"], b.robot.drives["y"]
+    codes = []
+    node.emcy.add_callback(lambda e: codes.append(e.code))
+    _filling(b, node)
+    start = node.sdo[0x6064].raw
+    step = 2000  # increments a period: about 6 rad/s
+    for k in range(1, 301):
+        node.sdo[0x60C1][1].raw = start + k * step
+    assert node.sdo[0x60C4][2].raw == 300  # all held while interpolation is off
+    b.net.sync.transmit()
+    assert node.sdo[0x60C4][2].raw == 300 and abs(node.sdo[0x6064].raw - start) < 50
+    node.sdo[0x6040].raw = 0x1F
+    for _ in range(100):
+        b.net.sync.transmit()
+    b.link.pump()
+    assert node.sdo[0x60C4][2].raw == 200 and node.sdo[0x6041].raw & 0x1000  # interpolation active
+    moved = node.sdo[0x6064].raw - start
+    assert 95 * step < moved < 101 * step
+    for _ in range(250):  # 200 records left, then 50 periods without one
+        b.net.sync.transmit()
+    b.link.pump()
+    status = node.sdo[0x6041].raw
+    assert drive.ran_dry and status & 0x006F == 0x0027 and not status & 0x1000 and codes == []
+    stopped_at = node.sdo[0x6064].raw
+    assert stopped_at > start + 300 * step  # it ramped down past the last record, not a jump back
+    for _ in range(20):
+        b.net.sync.transmit()
+    assert abs(node.sdo[0x6064].raw - stopped_at) < 200  # held
+    for k in range(1, 11):  # the master back: its records, then bit 4 again
+        node.sdo[0x60C1][1].raw = stopped_at - k * step
+    node.sdo[0x6040].raw = 0x0F
+    node.sdo[0x6040].raw = 0x1F
+    for _ in range(12):
+        b.net.sync.transmit()
+    b.link.pump()
+    assert not drive.ran_dry or node.sdo[0x60C4][2].raw == 0
+    assert node.sdo[0x6064].raw < stopped_at - 5 * step and codes == []
+
+
+def test_the_deep_fifo_faults_on_an_overflow(bench):
+    b = bench()
+    node = b.nodes["y"]
+    _filling(b, node)
+    capacity = node.sdo[0x60C4][1].raw
+    start = node.sdo[0x6064].raw
+    for _ in range(capacity):
+        node.sdo[0x60C1][1].raw = start
+    assert not node.sdo[0x6041].raw & 0x0008
+    node.sdo[0x60C1][1].raw = start
+    assert node.sdo[0x6041].raw & 0x0008  # FAULT
