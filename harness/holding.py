@@ -50,6 +50,7 @@ class MotionSpans(StepReporter):
                 os.kill(pid, signal.SIGSTOP)
                 time.sleep(self.stall[2])
                 os.kill(pid, signal.SIGCONT)
+                span[1] = time.time()  # (what was fed ahead of the stall ran on through it: commanded)
                 self.stalled.append(k)
             bar(k)
 

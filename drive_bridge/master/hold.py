@@ -8,6 +8,7 @@ from __future__ import annotations
 import canopen
 
 from ..cia.objects import (
+    BUFFER_CLEAR,
     CONTROLWORD,
     INTERPOLATION_DATA_CONFIGURATION,
     POSITION_ACTUAL,
@@ -129,9 +130,10 @@ def quick_stop(link: Link, axes: dict[str, AxisLink], timeout: float) -> list[st
 
 
 def prepare_enable(ax: AxisLink, target: int) -> None:
-    """Before SYNC starts: a fault reset (SDO), the target position set to where the axis stands
-    (CSP: a drive that takes 0x607A on enable must not jump), a record buffer emptied of whatever
-    an earlier run left in it (IP with 0x60C4), then the operating mode.
+    """Before SYNC starts: a fault reset (SDO), a record buffer emptied of whatever an earlier run
+    left in it (IP with 0x60C4), the axis checked to stand at the plan's start (CSP and IP: the first
+    setpoint must not make it jump) and, in CSP, the target position set to where it stands (a drive
+    that takes 0x607A on enable), then the operating mode.
 
     Parameters
     ----------
@@ -141,15 +143,18 @@ def prepare_enable(ax: AxisLink, target: int) -> None:
         Where it stands [increments].
     """
     ax.drive.reset_fault()
-    if ax.mode == IP and ax.setpoint == PVT and INTERPOLATION_DATA_CONFIGURATION in ax.node.object_dictionary:
+    if ax.mode == IP and (
+        ax.streaming.buffered
+        or (ax.setpoint == PVT and INTERPOLATION_DATA_CONFIGURATION in ax.node.object_dictionary)
+    ):
         try:
-            ax.node.sdo[INTERPOLATION_DATA_CONFIGURATION][6].raw = 0
-            ax.node.sdo[INTERPOLATION_DATA_CONFIGURATION][6].raw = 1
+            ax.node.sdo[INTERPOLATION_DATA_CONFIGURATION][BUFFER_CLEAR].raw = 0
+            ax.node.sdo[INTERPOLATION_DATA_CONFIGURATION][BUFFER_CLEAR].raw = 1
         except (canopen.SdoCommunicationError, canopen.SdoAbortedError) as exc:
             raise MotionAborted(
                 f"clearing the interpolation buffer (0x60C4:6) failed ({exc}); nothing was enabled", ax.name
             ) from exc
-    if ax.mode == CSP:
+    if ax.mode in (CSP, IP):  # (the first setpoint, a target or a record, is the plan's start)
         try:
             actual = ax.node.sdo[POSITION_ACTUAL].raw
             tolerance = max(1, round(ax.cfg.following_error_window_rad * ax.cfg.scaling.inc_per_rad / 2))
@@ -159,7 +164,8 @@ def prepare_enable(ax: AxisLink, target: int) -> None:
                     f"moved since the plan was made; nothing was enabled",
                     ax.name,
                 )
-            ax.node.sdo[TARGET_POSITION].raw = actual
+            if ax.mode == CSP:
+                ax.node.sdo[TARGET_POSITION].raw = actual
         except (canopen.SdoCommunicationError, canopen.SdoAbortedError) as exc:
             raise MotionAborted(
                 f"setting the target position 0x607A to the actual position before enabling "
