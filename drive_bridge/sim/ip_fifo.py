@@ -11,13 +11,11 @@ holds there, still enabled, its statusword's bit 12 clear until interpolation is
 
 from __future__ import annotations
 
-from collections import deque
-
-#: the EMCY code of an overflow (a record written into a full buffer: a fault, the master's error)
-ERR_OVERFLOW = 0xFF03
+from .pvt_buffer import ERR_OVERFLOW  # (a record into a full buffer: a fault, the master's error)
+from .record_buffer import RecordBuffer
 
 
-class IpFifo:
+class IpFifo(RecordBuffer[int]):
     """Position records [position unit] received and not yet taken, whether access is enabled
     (0x60C4:6) and whether the buffer ran dry while interpolating.
 
@@ -28,27 +26,14 @@ class IpFifo:
     """
 
     def __init__(self, capacity: int) -> None:
+        super().__init__()
         self.capacity = capacity
-        self.records: deque[int] = deque()
-        self.enabled = False
         self.dry = False
 
     def reset(self) -> None:
         """Power-up: empty, access disabled."""
-        self.records.clear()
-        self.enabled = self.dry = False
-
-    def control(self, value: int) -> None:
-        """0x60C4:6, buffer clear: 0 clears it and disables access, 1 enables access.
-
-        Parameters
-        ----------
-        value : int
-            0 or 1.
-        """
-        if value == 0:
-            self.records.clear()
-        self.enabled = value == 1
+        super().reset()
+        self.dry = False
 
     def put(self, position: int) -> int | None:
         """A record 0x60C1:1 into the buffer (dropped while access is disabled): None, or the EMCY

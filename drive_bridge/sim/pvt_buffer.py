@@ -5,9 +5,8 @@ not in ../shared)."""
 
 from __future__ import annotations
 
-from collections import deque
-
 from ..cia.setpoint import unpack_pvt
+from .record_buffer import RecordBuffer
 
 RECORDS = 64  # the buffer's size
 #: 0x20C4:1 status bits
@@ -17,32 +16,30 @@ ENABLED, ACTIVE = 0x4000, 0x8000
 ERR_UNDERFLOW, ERR_OVERFLOW = 0xFF02, 0xFF03
 
 
-class PvtBuffer:
+class PvtBuffer(RecordBuffer[tuple[int, int, int]]):
     """The records (position, velocity, time [ms], in device units) received and not yet taken,
     whether access to the buffer is enabled, and the error bits latched since it was last cleared."""
 
     def __init__(self) -> None:
-        self.records: deque[tuple[int, int, int]] = deque()
-        self.enabled = False
+        super().__init__()
         self.errors = 0
 
     def reset(self) -> None:
         """Power-up: empty, disabled, no error."""
-        self.records.clear()
-        self.enabled, self.errors = False, 0
+        super().reset()
+        self.errors = 0
 
     def control(self, value: int) -> None:
-        """0x60C4:6, buffer clear: 0 clears and disables it, 1 enables it.
+        """0x60C4:6, buffer clear: 0 clears and disables it (and its errors), 1 enables it.
 
         Parameters
         ----------
         value : int
             0 or 1.
         """
+        super().control(value)
         if value == 0:
-            self.records.clear()
             self.errors = 0
-        self.enabled = value == 1
 
     def put(self, value: int) -> int | None:
         """A PVT record (0x20C1 as written) into the buffer: None, or the EMCY code of the fault it
