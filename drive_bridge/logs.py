@@ -25,6 +25,7 @@ from .cia.objects import (
     MODES_OF_OPERATION_DISPLAY,
     POSITION_ACTUAL,
     STATUSWORD,
+    SYNC_COUNTER_OVERFLOW,
     TORQUE_ACTUAL,
     VELOCITY_ACTUAL,
     torque_object,
@@ -33,7 +34,7 @@ from .cia.p301 import SYNC_COB_ID
 from .cia.p402 import MODE_NAMES
 from .cia.pdo import PdoCodec
 from .errors import UserError
-from .outputs import write_table, write_text
+from .outputs import hex_object, write_table, write_text
 from .units import Scaling
 from .yamlconf import load_yaml
 
@@ -351,14 +352,21 @@ def decode_trace(
     # the run's SYNCs (the master's, or a drive's) are those after the first RPDO: the cyclic engine
     # sends one before it takes the first SYNC it counts (a producing drive's earlier ones are not)
     rpdo_ids = {c.cob_id for cs in rpdos.values() for c in cs}
-    frames, last, problem, started = 0, None, None, False
+    # each SYNC's count (0x1019 on every node): a gap is SYNCs lost, their periods rows without one
+    overflows = {
+        int((v.get("drive_limits") or {}).get(hex_object(SYNC_COUNTER_OVERFLOW, 0), 0)) for v in axes.values()
+    }
+    overflow = overflows.pop() if len(overflows) == 1 else 0
+    frames, last, problem, started, count = 0, None, None, False, 0
     try:
         with can.LogReader(str(trace)) as reader:
             for msg in reader:
                 started = started or msg.arbitration_id in rpdo_ids
                 if msg.arbitration_id == SYNC_COB_ID:
                     if started:
-                        rec.on_sync(msg.timestamp)
+                        lost = (msg.data[0] - count - 1) % overflow if overflow and count and msg.data else 0
+                        count = msg.data[0] if overflow and msg.data else 0
+                        rec.on_sync(msg.timestamp, lost)
                 else:
                     handler = handlers.get(msg.arbitration_id)
                     if handler is not None:

@@ -13,6 +13,7 @@ ERR_FOLLOWING = 0x8611  # CiA 402: following error
 ERR_RPDO_TIMEOUT = 0x8250  # RPDO timeout: the master's setpoints stopped
 ERR_HEARTBEAT = 0x8130  # heartbeat consumer: a watched node fell silent (life guard error)
 ERR_PDO_LENGTH = 0x8210  # PDO not processed: shorter than its mapping
+ERR_SYNC_LENGTH = 0x8240  # a SYNC of another length than the consumer's 0x1019 says (a counter or none)
 ERR_PARAMETER = 0x6320  # a value the device cannot take (parameter error)
 ERR_SOFTWARE = 0x6100  # internal software
 #: the codes a drive sends when its master went silent
@@ -23,6 +24,7 @@ EMCY_TEXT = {
     ERR_RPDO_TIMEOUT: "RPDO timeout (loss of setpoint)",
     ERR_HEARTBEAT: "heartbeat or life guard error",
     ERR_PDO_LENGTH: "PDO not processed (length error)",
+    ERR_SYNC_LENGTH: "unexpected SYNC data length (the SYNC counter 0x1019 differs between nodes)",
     ERR_PARAMETER: "parameter error (a value the drive cannot take)",
     ERR_SOFTWARE: "internal software error",
     0x8400: "velocity speed controller",

@@ -39,10 +39,12 @@ from ..cia.objects import (
     RPDO_COMMUNICATION,
     SOFTWARE_POSITION_LIMIT,
     SUPPORTED_DRIVE_MODES,
+    SYNC_COUNTER_OVERFLOW,
     TARGET_POSITION,
     TPDO_COMMUNICATION,
 )
 from ..cia.od import default, limits, variable
+from ..cia.p301 import MAX_SYNC_COUNTER
 from ..cia.p402 import (
     ABORT_QUICK_STOP,
     CSP,
@@ -485,6 +487,7 @@ def bring_up(link: Link, config: BusConfig) -> dict[str, AxisLink]:
         config.master.heartbeat_node_id,
         config.master.heartbeat_period_s,
     )
+    counter = sync_counter(config)
     for name, ncfg in config.nodes.items():
         node = remote_node(net, ncfg.node_id)
         node.nmt.send_command(0x80)  # pre-operational
@@ -506,7 +509,7 @@ def bring_up(link: Link, config: BusConfig) -> dict[str, AxisLink]:
             ax.cfg = ncfg = buffered_node(ncfg)
             ax.mode, ax.setpoint = IP, IP_RECORD
         log.info("axis %s: %s", name, ax.streaming.why)
-        written = drive_settings(name, ncfg, period, config.master, ax.streaming.depth)
+        written = drive_settings(name, ncfg, period, config.master, ax.streaming.depth, counter)
         before |= _unseen(snapshot(node, name, [(i, s) for i, s, _ in written]), before)
         before |= _unseen(snapshot(node, name, pdo_objects(node.object_dictionary)), before)
         if ncfg.rpdo and INTERPOLATION_SUB_MODE in ncfg.od:
@@ -625,7 +628,12 @@ def plan_bring_up(link: Link, config: BusConfig) -> dict[str, AxisLink]:
         ax.drive_limits = {
             hex_object(i, s): v
             for i, s, v in drive_settings(
-                name, ax.cfg, config.master.sync_period_s, config.master, ax.streaming.depth
+                name,
+                ax.cfg,
+                config.master.sync_period_s,
+                config.master,
+                ax.streaming.depth,
+                sync_counter(config),
             )
         }
         axes[name] = ax
@@ -729,8 +737,36 @@ def settings(
     return [*ncfg.sdo, *drive_settings(axis, ncfg, period, master)]
 
 
+def sync_counter(config: BusConfig) -> int:
+    """The SYNC counter's overflow value the bus runs with: :data:`~drive_bridge.cia.p301.MAX_SYNC_COUNTER`
+    where every node's EDS/DCF has 0x1019 writable (each SYNC then carries its count, 1..240, and a
+    lost one shows as a gap), else 0 (a consumer expecting another length answers with EMCY 0x8240).
+
+    Parameters
+    ----------
+    config : BusConfig
+        The bus configuration.
+
+    Returns
+    -------
+    int
+        0x1019 for every node.
+    """
+
+    def writable(ncfg: NodeConfig) -> bool:
+        var = ncfg.od.get_variable(SYNC_COUNTER_OVERFLOW, 0)
+        return var is not None and var.writable and CYCLE_PERIOD in ncfg.od
+
+    return MAX_SYNC_COUNTER if config.nodes and all(writable(n) for n in config.nodes.values()) else 0
+
+
 def drive_settings(
-    axis: str, ncfg: NodeConfig, period: float, master: MasterConfig | None = None, ahead: int = 0
+    axis: str,
+    ncfg: NodeConfig,
+    period: float,
+    master: MasterConfig | None = None,
+    ahead: int = 0,
+    counter: int = 0,
 ) -> list[tuple[int, int, int | float]]:
     """What bring-up writes after reading the drive's units, each where the drive's EDS/DCF has the
     object: its heartbeat; the consumer of the master's heartbeat (0x1016:1,
@@ -754,6 +790,9 @@ def drive_settings(
     ahead : int
         Records the master keeps ahead in the drive's FIFO (0: none): the consumer time of the
         master's heartbeat then also covers the stall they cover, and a heartbeat period more.
+    counter : int
+        The SYNC counter's overflow value 0x1019 (:func:`sync_counter`; 0: not written), written
+        while the cycle period 0x1006 is 0, as CiA 301 allows.
 
     Returns
     -------
@@ -805,6 +844,8 @@ def drive_settings(
     if INTERPOLATION_TIME_PERIOD in ncfg.od:
         out += _interpolation_period(axis, ncfg, period)
     if CYCLE_PERIOD in ncfg.od:
+        if counter:
+            out += [(CYCLE_PERIOD, 0, 0), (SYNC_COUNTER_OVERFLOW, 0, counter)]
         out.append((CYCLE_PERIOD, 0, round(period * 1e6)))
     return out
 
@@ -869,7 +910,7 @@ def read_back(
         A setting it kept another value of.
     """
     out = {}
-    for index, sub, value in written:
+    for (index, sub), value in {(i, s): v for i, s, v in written}.items():  # (the last of each written)
         if not variable(node.object_dictionary, index, sub).readable:
             continue
         held = read_if_readable(node, index, sub, f"axis {axis}'s setting back")

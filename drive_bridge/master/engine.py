@@ -297,6 +297,9 @@ class Job:
     sync_from : str, optional
         The drive that produces SYNC while the engine runs, in words (None: the interface or the
         engine sends it).
+    sync_counter : int
+        The SYNC counter's overflow value every node holds (0x1019; 0: SYNC without a counter): each
+        SYNC carries its count 1..``sync_counter``, and a gap in those received is SYNCs lost.
     """
 
     axes: tuple[AxisJob, ...]
@@ -310,6 +313,7 @@ class Job:
     #: link's own is a thread of the master's process there, which the master's other work can hold up)
     heartbeat: tuple[int, float] | None = None
     sync_from: str | None = None
+    sync_counter: int = 0
 
 
 class Arrays:
@@ -394,6 +398,8 @@ class Outcome:
         Periods that got no SYNC (a late cycle sends the one whose start is within half a period).
     setpoints_late : int
         Interface-sent SYNCs the engine had sent no new setpoints before.
+    syncs_lost : int
+        SYNCs the counter says were sent and never reached the engine.
     worst_wake_ms : float
         The latest a cycle started after its deadline [ms].
     largest_sync_gap_ms : float
@@ -411,6 +417,7 @@ class Outcome:
     late_cycles: int = 0
     periods_skipped: int = 0
     setpoints_late: int = 0
+    syncs_lost: int = 0
     worst_wake_ms: float = 0.0
     largest_sync_gap_ms: float = 0.0
     sync_source: str = ""
@@ -485,13 +492,16 @@ class Port(Protocol):
     def now(self) -> float:
         """The time [s] frames are stamped in."""
 
-    def start_sync(self, period: float) -> None:
-        """Let the interface send SYNC every ``period`` [s] (``periodic_sync`` only).
+    def start_sync(self, period: float, counter: int = 0) -> None:
+        """Let the interface send SYNC every ``period`` [s] (``periodic_sync`` only), with the counter
+        1..``counter`` where it is not 0.
 
         Parameters
         ----------
         period : float
             The SYNC period [s].
+        counter : int
+            The counter's overflow value (0: none).
         """
 
     def wait_sync(self, timeout_at: float) -> None:
@@ -592,6 +602,9 @@ class Engine:
         self.check_due = False
         self.fence = math.inf  # time stamp of the first SYNC after the plan's rows
         self.syncs_seen = 0
+        #: the SYNC frames' data in turn (the counter 1..N, or none) and the count of the last one
+        self._sync_data = [bytes([k]) for k in range(1, job.sync_counter + 1)] or [b""]
+        self.count = 0
         self.next_beat = -math.inf  # when the master's heartbeat is due (job.heartbeat)
         self._rpdos = [
             (r, struct.Struct(r.format), bytearray(struct.calcsize(r.format)), [0] * len(r.fields))
@@ -852,7 +865,7 @@ class Engine:
             self._send_rpdos(0, self._enable_words(), records=False)
             self.t0 = port.now()
             if port.periodic_sync:
-                port.start_sync(self.period)
+                port.start_sync(self.period, job.sync_counter)
             while True:
                 try:
                     done = self._cycle()
@@ -906,7 +919,8 @@ class Engine:
                 now, late = self._wake()
             stamp = port.now()
             self._on_sync(stamp)  # (before it goes: in lockstep the replies come at once)
-            port.send(SYNC_COB_ID, b"", stamp)
+            port.send(SYNC_COB_ID, self._sync_data[self.count], stamp)
+            self.count = (self.count + 1) % len(self._sync_data)
         if job.heartbeat is not None and now >= self.next_beat:  # the master's heartbeat, no burst when late
             cob_id, beat = job.heartbeat
             port.send(cob_id, HEARTBEAT_OPERATIONAL, port.now())
@@ -1018,7 +1032,15 @@ class Engine:
         self.slot += 1
 
     def _on_sync_frame(self, data: bytes | bytearray, stamp: float) -> None:
-        """The SYNC the interface sent, as the bus shows it (its receive stamp)."""
+        """The SYNC the interface or a drive sent, as the bus shows it (its stamp); where it carries
+        the counter, the SYNCs its count skipped are lost ones: their periods pass without a row."""
+        overflow = self.job.sync_counter
+        if overflow and data:
+            if self.count:
+                lost = (data[0] - self.count - 1) % overflow
+                self.slot += lost
+                self.outcome.syncs_lost += lost
+            self.count = data[0]
         self._on_sync(stamp)
 
     def _enabling(self, now: float) -> bool:

@@ -241,21 +241,27 @@ class BusPort:
             if sync and msg.arbitration_id == SYNC_COB_ID and not msg.is_error_frame:
                 deadline = -math.inf
 
-    def start_sync(self, period: float) -> None:
-        """:meth:`Port.start_sync`: the interface's periodic send.
+    def start_sync(self, period: float, counter: int = 0) -> None:
+        """:meth:`Port.start_sync`: the interface's periodic send (with the counter: one job of
+        ``counter`` frames carrying 1..``counter``, sent one a period: python-can's sequence, the
+        kernel's broadcast manager on socketcan); a producing drive's first SYNC waited for.
 
         Parameters
         ----------
         period : float
             The SYNC period [s].
+        counter : int
+            The counter's overflow value (0: none).
         """
         if self._drive_sync:
             if not self._first_sync(self.FIRST_SYNC_S):
                 raise RuntimeError(f"no SYNC within {self.FIRST_SYNC_S} s from the {self.sync_source}")
             return
-        self._task = self.bus.send_periodic(
-            can.Message(arbitration_id=SYNC_COB_ID, data=b"", is_extended_id=False), period
-        )
+        frames = [
+            can.Message(arbitration_id=SYNC_COB_ID, data=data, is_extended_id=False)
+            for data in ([bytes([k]) for k in range(1, counter + 1)] or [b""])
+        ]
+        self._task = self.bus.send_periodic(frames, period)
         if not self._first_sync(self.ECHO_PERIODS * period):  # it does not show its own frames
             self.stop_sync()
             self.periodic_sync = False

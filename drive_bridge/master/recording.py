@@ -170,15 +170,21 @@ class Recording:
             out[cob] = on_rpdo
         return out
 
-    def on_sync(self, timestamp: float) -> None:
-        """A SYNC: the next row (past the periods a late master skipped), the SYNCs that enabled
-        the drives before the plan's first not counted.
+    def on_sync(self, timestamp: float, lost: int = 0) -> None:
+        """A SYNC: the next row (past the periods a late master skipped, and the SYNCs its counter
+        says were ``lost`` before it), the SYNCs that enabled the drives before the plan's first not
+        counted.
 
         Parameters
         ----------
         timestamp : float
             Its time stamp [s].
+        lost : int
+            SYNCs sent before it that the trace does not hold.
         """
+        lost_before_plan = min(lost, self.skip_syncs)
+        self.skip_syncs -= lost_before_plan
+        self.sync_index += lost - lost_before_plan
         if self.skip_syncs > 0:
             self.skip_syncs -= 1
             return

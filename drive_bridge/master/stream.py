@@ -33,6 +33,7 @@ from ..cia.objects import (
     INTERPOLATION_DATA_CONFIGURATION,
     MODES_OF_OPERATION,
     STATUSWORD,
+    SYNC_COUNTER_OVERFLOW,
     TORQUE_OFFSET,
     VELOCITY_ACTUAL,
     VELOCITY_OFFSET,
@@ -52,6 +53,7 @@ from ..cia.pdo import PdoCodec
 from ..cia.setpoint import PVT, SETPOINT_OBJECTS, pack_pvt
 from ..config import TimingLimits
 from ..errors import Interrupted, MotionAborted, UserError
+from ..outputs import hex_object
 from .bringup import AxisLink
 from .campaign import Plan
 from .engine import (
@@ -292,6 +294,9 @@ def stream(
     n = len(plan.demand)
     rec = Recording({a: axes[a].tpdos for a in plan.axes}, {a: axes[a].rpdos for a in plan.axes}, 0)
     job, columns = _job(axes, plan, rec, supervision, guard)
+    counters = {ax.drive_limits.get(hex_object(SYNC_COUNTER_OVERFLOW, 0), 0) for ax in axes.values()}
+    if len(counters) == 1:  # (every node holds the same: each SYNC carries its count)
+        job = replace(job, sync_counter=int(counters.pop()))
     producer = choose_producer(axes, link.threaded, sync_producer)
     if producer is not None:
         job = replace(job, sync_from=described(producer))
@@ -364,6 +369,7 @@ def stream(
         "late_cycles": outcome.late_cycles,
         "periods_skipped": outcome.periods_skipped,
         "setpoints_late": outcome.setpoints_late,
+        "syncs_lost": outcome.syncs_lost,
         "rows_skipped": sorted(rec.skipped),
         "worst_wake_ms": round(outcome.worst_wake_ms, 3),
         "feedback_age_ms": _ages(arrays),

@@ -139,13 +139,15 @@ class LinkPort:
             self._subscribed.append((cob_id, on_frame))
         self._on_error = on_error_frame
 
-    def start_sync(self, period: float) -> None:
+    def start_sync(self, period: float, counter: int = 0) -> None:
         """Not in lockstep: the engine sends SYNC itself (``periodic_sync`` is False).
 
         Parameters
         ----------
         period : float
             [s].
+        counter : int
+            The counter's overflow value.
 
         Raises
         ------

@@ -22,7 +22,7 @@ from pathlib import Path
 import can
 
 from ..cia.objects import CYCLE_PERIOD, SYNC_COUNTER_OVERFLOW
-from ..cia.p301 import NMT_STOPPED, SYNC_COB_ID
+from ..cia.p301 import ERR_SYNC_LENGTH, NMT_STOPPED, SYNC_COB_ID
 from ..cia.pdo import PdoCodec
 from ..resources import PROJECT_EDS
 from . import cyclic, kernel
@@ -201,7 +201,7 @@ class SimRobot:
 
     def routes_changed(self) -> None:
         """Rebuild the COB-ID -> handler table (after a PDO mapping change)."""
-        routes = {0x000: self._on_nmt, SYNC_COB_ID: self._on_sync}
+        routes: dict[int, Callable[[bytes], None]] = {0x000: self._on_nmt, SYNC_COB_ID: self._on_sync}
         watchers: dict[int, list[SimDrive]] = {}
         for drive in self.drives.values():
             routes[0x600 + drive.node_id] = self._sdo_handler(drive)
@@ -278,9 +278,19 @@ class SimRobot:
                 except Exception:  # no value from the bus ends a drive's service
                     drive.internal_error()
 
-    def _on_sync(self, _data: bytes) -> None:
+    def _sync_length(self, data: bytes) -> None:
+        """CiA 301: a SYNC consumer expects the counter byte where its 0x1019 is 2 or more, none
+        otherwise; a SYNC of another length is answered with EMCY 0x8240 (and taken all the same)."""
+        for drive in self.drives.values():
+            if drive.online and drive.nmt.state != NMT_STOPPED:
+                expected = 1 if drive.objects.get_or(SYNC_COUNTER_OVERFLOW, 0, 0) >= 2 else 0
+                if len(data) != expected:
+                    drive.emcy.send(ERR_SYNC_LENGTH)
+
+    def _on_sync(self, data: bytes) -> None:
         # lockstep: the SYNC period passes now (on the wall clock SYNC is :meth:`_sync_received`'s);
         # a drive making its own profile off the SYNC's grid starts its periods on their own ticks
+        self._sync_length(data)
         self._run_plant(self._through_profile_periods(self.plant.ticks_per_period))
         if self._steady is None and all(drive.streaming for drive in self.drives.values()):
             self._steady = SteadyStream(self.plant, list(self.drives.values()), self.send)
@@ -469,6 +479,7 @@ class SimRobot:
         if msg.arbitration_id == SYNC_COB_ID and not msg.is_remote_frame:
             self._bus_time = max(self._bus_time, msg.timestamp)
             if self._producing() is None:  # (while a drive produces SYNC, another's is not taken)
+                self._sync_length(bytes(msg.data))
                 self._sync_received(msg.timestamp)
         else:  # (the loops first: what they send up to it is stamped with its own time)
             self.run_until(msg.timestamp)

@@ -306,7 +306,7 @@ class _InterfaceSync(_Drives):
         self.next = 0  # the next SYNC to hand over
         self.sent: list[float] = []  # when each RPDO went out
 
-    def start_sync(self, period):
+    def start_sync(self, period, counter=0):
         self.period, self.first = period, self.t + period
 
     def stamp(self, k: int) -> float:
@@ -361,6 +361,44 @@ def test_syncs_the_interface_hands_over_late_are_waited_for_and_answered_once():
         setpoints_late=outcome.setpoints_late,
     )
     assert timing.degraded and timing.reasons == ["SYNCs before their setpoints 5 % > 1 %"]
+
+
+class _CountedSync(_InterfaceSync):
+    """:class:`_InterfaceSync` whose SYNCs carry their count 1..240 (0x1019 = 240), SYNC ``dropped``
+    lost on its way (a full receive buffer, a dropped frame)."""
+
+    def __init__(self, arrays: Arrays, dropped: int):
+        super().__init__(arrays, held=10**9, delay=0.0)
+        self.dropped = dropped
+
+    def wait_sync(self, timeout_at):
+        self.t = max(self.t, min(self.handed(self.next), timeout_at))
+        while self.handed(self.next) <= self.t:
+            k, stamp = self.next, self.stamp(self.next)
+            self.next += 1
+            if k != self.dropped:
+                self.handlers[SYNC_COB_ID](bytes([k % 240 + 1]), stamp)
+            self.handlers[0x181](self.reply, stamp + 1e-4)
+            self.handlers[0x701](b"\x05", stamp + 1e-4)
+
+
+def test_a_sync_lost_on_its_way_is_a_gap_in_the_counter_its_row_without_a_sync():
+    """Every node counts SYNCs (0x1019 = 240): a SYNC that never reached the engine is found by the
+    gap in the counter, its period's row left without a SYNC (a missing sample, said), and every row
+    after it belongs to its own SYNC by count -- not shifted one period early."""
+    job, arrays = _streaming_job(1000)
+    job = dataclasses.replace(job, supervision=WAITS_FOR_SETPOINTS, sync_counter=240)
+    port = _CountedSync(arrays, dropped=500)
+    outcome = Engine(job, arrays, port).run()
+    assert outcome.abort is None and outcome.syncs_lost == 1
+    assert outcome.rows_sent == job.rows
+    missing = np.flatnonzero(np.isnan(arrays.sync_time))
+    assert len(missing) == 1
+    row = int(missing[0])
+    # each row after the lost one stamped with its own SYNC: the period of row 0's plus its rows
+    rows = np.arange(job.rows)
+    offset = arrays.sync_time[0] - port.stamp(0)
+    assert np.allclose(arrays.sync_time[rows != row], port.stamp(0) + offset + rows[rows != row] * PERIOD)
 
 
 def test_syncs_that_stop_coming_end_the_run_when_the_drives_stop_waiting_for_setpoints():

@@ -286,3 +286,25 @@ def test_the_deep_fifo_faults_on_an_overflow(bench):
     assert not node.sdo[0x6041].raw & 0x0008
     node.sdo[0x60C1][1].raw = start
     assert node.sdo[0x6041].raw & 0x0008  # FAULT
+
+
+def test_a_sync_of_another_length_than_its_counter_says_is_answered_with_emcy_8240(bench):
+    """CiA 301: a SYNC consumer whose 0x1019 is 0 expects no data, one whose 0x1019 is 2..240 the
+    counter byte; any other length is answered with EMCY 0x8240 (the SYNC still taken)."""
+    b = bench()
+    node = b.nodes["y"]
+    codes = []
+    node.emcy.add_callback(lambda e: codes.append(e.code))
+    node.nmt.send_command(0x80)
+    b.net.send_message(0x80, b"\x01")  # a counted SYNC; the drive counts none
+    b.link.pump()
+    assert 0x8240 in codes
+    codes.clear()
+    node.sdo[0x1006].raw = 0
+    node.sdo[0x1019].raw = 240
+    b.net.send_message(0x80, b"\x02")
+    b.link.pump()
+    assert codes == []
+    b.net.sync.transmit()  # a SYNC without the counter, now
+    b.link.pump()
+    assert 0x8240 in codes
