@@ -445,10 +445,10 @@ class MasterConfig:
     stall_cover_s : float
         The longest stall of the master's host the drives' FIFOs ride out [s]
         (``master.stall_cover_ms``): the records kept ahead.
-    sync_producer : {"auto", "master"}
+    sync_producer : {"auto", "interface"}
         Who sends SYNC on the wall clock: ``auto`` a drive that can, else the interface where it
-        sends periodic frames itself, else the engine; ``master`` the engine's own loop
-        (host-timed) -- :mod:`drive_bridge.master.timekeeper`.
+        sends periodic frames itself (the kernel's broadcast manager on socketcan), else the
+        engine's own loop (host-timed); ``interface`` no drive -- :mod:`drive_bridge.master.timekeeper`.
     """
 
     interface: str | None
@@ -1156,7 +1156,7 @@ def load_bus_config(path: str | Path) -> BusConfig:
         node_id=m.get("node_id", int, None, low=1, high=127),
         streaming=m.get("streaming", str, "auto", choices=STREAMING_WAYS),
         stall_cover_s=m.get("stall_cover_ms", int, round(STALL_COVER_S * 1000), low=10, high=5000) / 1000.0,
-        sync_producer=m.get("sync_producer", str, "auto", choices=("auto", "master")),
+        sync_producer=m.get("sync_producer", str, "auto", choices=("auto", "interface")),
     )
     m.done()
     if ignored:

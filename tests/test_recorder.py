@@ -260,7 +260,7 @@ def test_a_run_past_its_timing_limits_is_degraded_with_exit_5(tmp_path, capsys):
         "  heartbeat_producer: 100",
         "heartbeat_consumer_ms: 2000\n  sdo_timeout_s: 0.5\n  state_timeout_s: 1.0\n"
         "  tpdo_miss_limit: 100\n  timing: {max_gap_periods: 1.0}\n  heartbeat_producer: 100\n"
-        "  sync_producer: master\n  streaming: per_sync",
+        "  sync_producer: interface\n  streaming: per_sync",
     )
     cfg.write_text(
         cfg.read_text().replace("following_error_window_rad: 0.6", "following_error_window_rad: 10.0", 1)

@@ -282,7 +282,7 @@ def stream(
         The limits of a wall-clock run.
     on_start : callable, optional
         Told how many SYNC cycles enabling took.
-    sync_producer : {"auto", "master"}
+    sync_producer : {"auto", "interface"}
         Who sends SYNC on the wall clock (bus.yml ``master.sync_producer``, :mod:`.timekeeper`).
 
     Returns

@@ -51,7 +51,7 @@ def choose_producer(axes: dict[str, AxisLink], wall_clock: bool, choice: str = "
     """The axis whose drive produces SYNC in this run (None: the interface or the master does).
 
     On the wall clock, the first axis that can, unless ``choice`` (bus.yml ``master.sync_producer``)
-    is ``master``; in lockstep none.
+    is ``interface``; in lockstep none.
 
     Parameters
     ----------
@@ -59,7 +59,7 @@ def choose_producer(axes: dict[str, AxisLink], wall_clock: bool, choice: str = "
         The brought-up axes (the chosen one is marked ``sync_producer``).
     wall_clock : bool
         The run is on the wall clock.
-    choice : {"auto", "master"}
+    choice : {"auto", "interface"}
         bus.yml's ``master.sync_producer``.
 
     Returns

@@ -504,11 +504,11 @@ def test_a_stalled_simulator_is_no_fault_of_the_master_or_the_drives(tmp_path):
 @pytest.mark.realtime
 @pytest.mark.slow  # seconds on the wall clock
 def test_a_master_stalled_past_the_drives_timeout_is_caught_by_the_drives_and_said(tmp_path):
-    """Host-timed (master.sync_producer: master, streaming: per_sync): the master's cyclic engine
+    """Host-timed (master.sync_producer: interface, streaming: per_sync): the master's cyclic engine
     stopped for 80 ms mid-stream, four times the 20 ms the drive waits for setpoints: the drive
     stops on its own (EMCY 0x8250), and the run says the master was late."""
     config = quick_config().only(["y"])
-    config = replace(config, master=replace(config.master, sync_producer="master", streaming="per_sync"))
+    config = replace(config, master=replace(config.master, sync_producer="interface", streaming="per_sync"))
 
     def stalled() -> tuple[RecordResult, list[int], int]:
         with open_link(config, sim=True, realtime=True) as link:

@@ -68,8 +68,9 @@ def _in_guest(tmp_path: Path, script: str, timeout: float = 600) -> subprocess.C
 
 def test_sync_from_the_broadcast_manager_and_error_frames(tmp_path):
     """The engine's port takes SYNC from the kernel's broadcast manager (python-can's periodic send on
-    socketcan), sees each SYNC with its kernel stamp, records it as the master's own frame, and passes
-    an error frame on to the engine."""
+    socketcan: one job of 240 frames carrying the counter 1..240), sees each SYNC with its kernel stamp
+    and its count, in order, records it as the master's own frame, and passes an error frame on to
+    the engine."""
     probe = tmp_path / "guest" / "probe.py"
     probe.parent.mkdir(exist_ok=True)
     probe.write_text(
@@ -78,9 +79,9 @@ def test_sync_from_the_broadcast_manager_and_error_frames(tmp_path):
         from drive_bridge.cia.buses import open_bus
         from drive_bridge.master.port import BusPort, TraceRing
         port = BusPort(open_bus("socketcan", "vcan0"), TraceRing(4096, np.zeros))
-        stamps, errors = [], []
-        port.receive({0x80: lambda data, t: stamps.append(t)}, lambda: errors.append(1))
-        port.start_sync(0.01)
+        stamps, counts, errors = [], [], []
+        port.receive({0x80: lambda data, t: (stamps.append(t), counts.append(data[0]))}, lambda: errors.append(1))
+        port.start_sync(0.01, 240)
         end = port.now() + 1.0
         while port.now() < end:
             port.wait_sync(end)
@@ -91,7 +92,7 @@ def test_sync_from_the_broadcast_manager_and_error_frames(tmp_path):
             port.wait_sync(end)
         port.stop_sync()
         frames = port.ring.take()
-        json.dump({"periodic": port.periodic_sync, "source": port.sync_source, "syncs": len(stamps),
+        json.dump({"periodic": port.periodic_sync, "source": port.sync_source, "syncs": len(stamps), "counts": counts,
                    "period_ms": float(np.median(np.diff(stamps)) * 1e3), "errors": len(errors),
                    "own_syncs": sum(1 for m in frames if m.arbitration_id == 0x80 and not m.is_rx),
                    "error_frames": sum(1 for m in frames if m.is_error_frame)}, open(sys.argv[1], "w"))
@@ -106,6 +107,8 @@ def test_sync_from_the_broadcast_manager_and_error_frames(tmp_path):
     assert got["periodic"] and "broadcast manager" in got["source"]
     assert got["syncs"] >= 80 and 9.5 < got["period_ms"] < 12.0  # BCM re-arms after each frame
     assert got["own_syncs"] == got["syncs"]  # in the trace as the master's frames, not received ones
+    counts = got["counts"]
+    assert counts[0] == 1 and all(b == a % 240 + 1 for a, b in zip(counts, counts[1:]))  # in order, none lost
     assert got["errors"] == 1 and got["error_frames"] == 1
 
 
@@ -132,8 +135,10 @@ def _said(share: Path) -> str:
 
 def test_sim_and_record_over_socketcan_with_a_candump_of_the_stream(tmp_path):
     """``drive-bridge sim`` and ``record`` as two processes on vcan0: bring-up, a quick campaign on one
-    axis with SYNC from the kernel's broadcast manager at 20 ms, the engine in its own process; candump
-    sees the SYNCs and the stream the trace holds."""
+    axis with SYNC from the kernel's broadcast manager at 20 ms (``master.sync_producer: interface``),
+    each carrying its count, the engine in its own process, the master's processes stopped 200 ms
+    at a time, every second on average (``harness/stalls.py``); candump sees every count in order and
+    the stream the trace holds, and no row is missing."""
     doc = yaml.safe_load(DEFAULT_BUS_CONFIG.read_text())
     doc["master"].update(
         interface="socketcan",
@@ -144,6 +149,7 @@ def test_sim_and_record_over_socketcan_with_a_candump_of_the_stream(tmp_path):
         # 584 ms between two, the SYNCs of the other vCPU on time); and how long the master waits for theirs
         heartbeat_multiplier=50,
         heartbeat_consumer_ms=2000,
+        sync_producer="interface",
         sdo_timeout_s=2.0,
         state_timeout_s=5.0,
     )
@@ -170,7 +176,10 @@ def test_sim_and_record_over_socketcan_with_a_candump_of_the_stream(tmp_path):
         candump -L vcan0 > {share}/candump.log 2>&1 &
         DUMP=$!
         {db} record -i socketcan -c vcan0 --config {cfg} --quick --axes y --yes --out {share}/rec \\
-            > {share}/record.out 2> {share}/record.err
+            > {share}/record.out 2> {share}/record.err &
+        REC=$!
+        {PYTHON} -m harness.stalls --master $REC --length 0.2 --every 1.0 --seed 1 --log {share}/stalls.jsonl &
+        wait $REC
         echo $? > {share}/record.rc
         sleep 0.5; kill $DUMP; kill -INT $SIM; wait $SIM
         true
@@ -187,4 +196,8 @@ def test_sim_and_record_over_socketcan_with_a_candump_of_the_stream(tmp_path):
     dump = (share / "candump.log").read_text().splitlines()
     syncs = [line for line in dump if " vcan0 080#" in line]
     assert len(syncs) >= meta["counts"]["cycles_sent"]  # every row's SYNC on the bus
+    counts = [int(line.split("#")[1], 16) for line in syncs]
+    assert all(b == a % 240 + 1 for a, b in zip(counts, counts[1:]))  # each with its count, in order
+    assert meta["timing"]["samples_missing"] == {"y": 0} and engine["syncs_lost"] == 0
+    assert (share / "stalls.jsonl").exists()  # (the master was stopped meanwhile)
     assert any(" vcan0 202#" in line for line in dump) and any(" vcan0 182#" in line for line in dump)
