@@ -23,7 +23,10 @@ process of the master (its main process and its engine's, never the simulated dr
 issue 68's third condition), the stalls made counted per run.
 ``--against REV`` runs git revision REV the same way, alternated with this code.
 The acceptance (issue 42): every run PASS, 0 aborts, 0 samples missing, late cycles <= 0.1 %
-idle (<= 0.5 % loaded) and the largest SYNC gap <= 5 periods.
+idle (<= 0.5 % loaded) and the largest SYNC gap <= 5 periods.  Issue 68's: in each condition every run
+completes with 0 drive faults and 0 samples missing, its verdict lockstep's and J, c0 and c1 of every
+axis within 3 combined standard deviations of lockstep's -- the same campaign run once in lockstep
+first, each run's distance printed beside it.
 """
 
 from __future__ import annotations
@@ -31,6 +34,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
+import math
 import os
 import subprocess
 import sys
@@ -105,6 +109,59 @@ def load(kind: str) -> Iterator[None]:
             hog.wait()
 
 
+#: the identified parameters compared with the lockstep run's
+COMPARED = ("J", "c0", "c1")
+
+
+def identified(out: Path) -> dict[str, dict[str, tuple[float, float]]]:
+    """Per axis, J, c0 and c1 of a run's identify.json with their standard deviations."""
+    path = out / "identify" / "identify.json"
+    if not path.exists():
+        return {}
+    axes = json.loads(path.read_text())["axes"]
+    return {
+        axis: {
+            k: (float(a["params"][k]), float(a["param_std"].get(k) or 0.0))
+            for k in COMPARED
+            if k in a["params"]
+        }
+        for axis, a in axes.items()
+    }
+
+
+def lockstep(code: Path, campaign: str) -> dict:
+    """The same campaign in lockstep (the same plan and seed): its verdict and parameters, the reference."""
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "run"
+        env = {**os.environ, "PYTHONPATH": str(code), "XDG_DATA_HOME": tmp}
+        command = [sys.executable, "-m", "drive_bridge", "commission", "--sim", "--campaign", campaign]
+        command += ["--out", str(out), "--no-history", "--yes"]
+        proc = subprocess.run(command, cwd=code, env=env, capture_output=True, text=True)
+        summary = json.loads((out / "summary.json").read_text()) if (out / "summary.json").exists() else {}
+        verdict = summary.get("verdict", {})
+        return {
+            "exit": proc.returncode,
+            "verdict": verdict.get("overall") if isinstance(verdict, dict) else verdict,
+            "params": identified(out),
+        }
+
+
+def against_lockstep(params: dict, reference: dict) -> tuple[float, str]:
+    """The largest |wall clock - lockstep| of J, c0, c1 over any axis, in combined standard deviations
+    (sqrt(std_wall² + std_lockstep²)), and which."""
+    worst, which = 0.0, ""
+    for axis, values in reference.items():
+        for name, (ref, ref_std) in values.items():
+            if axis not in params or name not in params[axis]:
+                return math.inf, f"{axis} {name} not identified"
+            value, std = params[axis][name]
+            combined = math.hypot(std, ref_std)
+            distance = abs(value - ref) / combined if combined > 0 else (0.0 if value == ref else math.inf)
+            if distance >= worst:
+                worst, which = distance, f"{axis} {name}"
+    return worst, which
+
+
 def commission(code: Path, campaign: str, stalls: tuple[float, float] | None = None, seed: int = 0) -> dict:
     """One ``commission --sim --realtime`` run of the code under ``code``, with ``stalls`` (length,
     mean wait [s]) of the master's processes where given, their moments drawn with ``seed``; its
@@ -138,6 +195,7 @@ def commission(code: Path, campaign: str, stalls: tuple[float, float] | None = N
         sync = np.empty(0)
         if (out / "campaign" / "log.csv").exists():
             sync = np.loadtxt(out / "campaign" / "log.csv", delimiter=",", skiprows=1, usecols=(1,), ndmin=1)
+        params = identified(out)
     timing = meta.get("timing", {})
     engine = timing.get("engine", {})
     gaps = np.diff(sync[np.isfinite(sync)]) * 1e3 if sync.size > 1 else np.zeros(1)
@@ -158,14 +216,23 @@ def commission(code: Path, campaign: str, stalls: tuple[float, float] | None = N
         "host": engine.get("host", timing.get("priority")),
         "floor": asdict(beside),
         "matched": matched,
+        "params": params,
+        "faults": sum(1 for a in aborts if a and "EMCY" in str(a)),
         "aborts": aborts
         or [line.strip() for line in (stdout + stderr).splitlines() if "FAILED:" in line]
         or ([stderr.strip().splitlines()[-1]] if proc.returncode not in (0, 5, 6) and stderr.strip() else []),
     }
 
 
-def line(name: str, r: dict) -> str:
+def line(name: str, r: dict, reference: dict | None = None) -> str:
     age = r["age"]
+    compared = ""
+    if reference is not None:
+        worst, which = against_lockstep(r["params"], reference["params"])
+        compared = (
+            f"; verdict {'as' if r['verdict'] == reference['verdict'] else 'NOT as'} lockstep's "
+            f"({reference['verdict']}), J/c0/c1 at most {worst:.2f} combined std from lockstep's ({which})"
+        )
     return (
         f"  {name}: {r['verdict']} (exit {r['exit']}, {r['wall_s']:.0f} s"
         + (f", {r['stalls']} stalls of the master" if r["stalls"] else "")
@@ -174,6 +241,7 @@ def line(name: str, r: dict) -> str:
         f"feedback age p99 {age.get('p99', '?')} ms max {age.get('max', '?')} ms, samples missing "
         f"{r['missing']}, periods skipped {r['skipped']}, aborts {len(r['aborts'])}"
         + (f" ({'; '.join(str(a) for a in r['aborts'])})" if r["aborts"] else "")
+        + compared
         + f"\n    the floor during the run: max {r['floor']['max']:.2f} ms, {r['floor']['over_3ms_pct']:.3f} % over 3 ms"
         + (
             f"; late SYNCs {m['late_syncs']}: {m['machine']} the machine's (every CPU's floor held; up to "
@@ -200,6 +268,8 @@ def main() -> None:
         args.load, [args.load]
     )
     stalls = (args.stall_ms / 1e3, args.stall_every)
+    reference = lockstep(ROOT, args.campaign)
+    print(f"lockstep (the same plan and seed): {reference['verdict']} (exit {reference['exit']})", flush=True)
     with worktree(ROOT, args.against) if args.against else contextlib.nullcontext() as other:
         for condition in conditions:
             with load(condition):
@@ -213,7 +283,11 @@ def main() -> None:
                 for run in range(args.runs):
                     stalled = stalls if condition == "stalled" else None
                     print(
-                        line(f"{args.campaign} run {run + 1}", commission(ROOT, args.campaign, stalled, run)),
+                        line(
+                            f"{args.campaign} run {run + 1}",
+                            commission(ROOT, args.campaign, stalled, run),
+                            reference,
+                        ),
                         flush=True,
                     )
                     if other is not None:
