@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 import can
 
 from .multicast import INTERFACE as MULTICAST_NOECHO
-from .multicast import UDP_GROUP, UDP_PORT
+from .multicast import RECEIVE_BUFFER, UDP_GROUP, UDP_PORT, raise_receive_buffer
 
 
 @dataclass(frozen=True)
@@ -84,4 +84,8 @@ def open_bus(
         kwargs["bitrate"] = bitrate
     if interface == "virtual":
         kwargs["preserve_timestamps"] = False
-    return can.Bus(**kwargs)
+    bus = can.Bus(**kwargs)
+    sock = getattr(bus, "socket", None)
+    if interface == "socketcan" and sock is not None:  # (a lost frame shows as a gap in the SYNC counter)
+        raise_receive_buffer(sock, RECEIVE_BUFFER)
+    return bus

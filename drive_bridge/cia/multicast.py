@@ -24,6 +24,10 @@ from can.interfaces.udp_multicast.utils import unpack_message
 UDP_GROUP, UDP_PORT = "239.74.163.2", 43113
 #: the name python-can knows this bus by (pyproject.toml's entry point)
 INTERFACE = "udp_multicast_noecho"
+#: the receive buffer a bus of the master's asks for [bytes]: some 20 000 frames (a frame takes about
+#: 830 bytes of it on Linux), a few seconds of a 3-axis stream -- what queues while the master's
+#: host is stalled, the drives keeping time meanwhile
+RECEIVE_BUFFER = 16 << 20
 #: Linux's SO_RCVBUFFORCE (a receive buffer beyond net.core.rmem_max, with CAP_NET_ADMIN), which
 #: Python's socket module does not name: 33 in asm-generic/socket.h (x86, ARM, RISC-V, MIPS,
 #: POWER); sparc, parisc and alpha number it otherwise and go without
@@ -32,6 +36,27 @@ RECEIVE_BUFFER_FORCE = getattr(socket, "SO_RCVBUFFORCE", None) or (
     if sys.platform == "linux" and not platform.machine().startswith(("sparc", "parisc", "alpha"))
     else None
 )
+
+
+def raise_receive_buffer(sock: socket.socket, size: int) -> None:
+    """Ask for a receive buffer of ``size`` bytes on ``sock``: beyond net.core.rmem_max where the
+    process may (SO_RCVBUFFORCE), else as far as rmem_max allows.
+
+    Parameters
+    ----------
+    sock : socket.socket
+        The socket.
+    size : int
+        [bytes].
+    """
+    for option in (RECEIVE_BUFFER_FORCE, socket.SO_RCVBUF):
+        if option is None:
+            continue
+        try:
+            sock.setsockopt(socket.SOL_SOCKET, option, size)
+            return
+        except OSError:
+            continue
 
 
 class LoopbackMulticastBus(UdpMulticastBus):
@@ -49,8 +74,8 @@ class LoopbackMulticastBus(UdpMulticastBus):
     its hardware would have sent it, whenever its process got round to it.
 
     The receive buffer is raised (to ``receive_buffer`` bytes where the OS allows): the default
-    holds a few hundred frames, a few tens of ms of a 3-axis stream; ``RECEIVE_BUFFER`` holds about
-    10 000 (a frame takes some 830 bytes of it on Linux).
+    holds a few hundred frames, a few tens of ms of a 3-axis stream; :data:`RECEIVE_BUFFER` holds
+    about 20 000.
 
     Parameters
     ----------
@@ -73,8 +98,6 @@ class LoopbackMulticastBus(UdpMulticastBus):
         Another ``stamps``.
     """
 
-    RECEIVE_BUFFER = 4 << 20
-
     def __init__(
         self,
         channel: str = UDP_GROUP,
@@ -88,15 +111,7 @@ class LoopbackMulticastBus(UdpMulticastBus):
         super().__init__(channel, port, **kwargs)
         self._sent_ids: set[int] = set()
         self._kernel_stamps = stamps == "kernel"
-        sock = self._multicast._socket
-        for option in (RECEIVE_BUFFER_FORCE, socket.SO_RCVBUF):
-            if option is None:
-                continue
-            try:
-                sock.setsockopt(socket.SOL_SOCKET, option, receive_buffer)
-                break
-            except OSError:
-                continue
+        raise_receive_buffer(self._multicast._socket, receive_buffer)
 
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
         self._sent_ids.add(msg.arbitration_id)
