@@ -217,6 +217,11 @@ def commission(code: Path, campaign: str, stalls: tuple[float, float] | None = N
         "floor": asdict(beside),
         "matched": matched,
         "params": params,
+        "unmet": {
+            axis: v.get("unmet")
+            for axis, v in ((verdict.get("axes") or {}) if isinstance(verdict, dict) else {}).items()
+            if v.get("unmet")
+        },
         "faults": sum(1 for a in aborts if a and "EMCY" in str(a)),
         "aborts": aborts
         or [line.strip() for line in (stdout + stderr).splitlines() if "FAILED:" in line]
@@ -233,6 +238,8 @@ def line(name: str, r: dict, reference: dict | None = None) -> str:
             f"; verdict {'as' if r['verdict'] == reference['verdict'] else 'NOT as'} lockstep's "
             f"({reference['verdict']}), J/c0/c1 at most {worst:.2f} combined std from lockstep's ({which})"
         )
+        if r["verdict"] != reference["verdict"] and r["unmet"]:
+            compared += f"; unmet: {r['unmet']}"
     return (
         f"  {name}: {r['verdict']} (exit {r['exit']}, {r['wall_s']:.0f} s"
         + (f", {r['stalls']} stalls of the master" if r["stalls"] else "")

@@ -1046,7 +1046,13 @@ class Engine:
     def _enabling(self, now: float) -> bool:
         job, out, sup = self.job, self.outcome, self.job.supervision
         if self._all(lambda a: self._state(a) == "OPERATION ENABLED" and self.age[a] <= 1):
-            if not self._feed(0):  # the FIFOs filled before interpolation starts
+            # the FIFOs filled before interpolation starts; and where a drive keeps time, started in a
+            # period the engine answers early in (bit 4 sent late would be taken a SYNC after row 0's:
+            # every row's record a period off) -- for half the state timeout at most
+            answer_late = (
+                now - self.last_sync > self.period / 2 and now - self.phase_start < sup.state_timeout_s / 2
+            )
+            if not self._feed(0) or (self._ahead and self.port.periodic_sync and answer_late):
                 self._send_rpdos(0, self._enable_words(), records=False)
                 return False
             out.enable_cycles = self.enable_cycles

@@ -401,6 +401,64 @@ def test_a_sync_lost_on_its_way_is_a_gap_in_the_counter_its_row_without_a_sync()
     assert np.allclose(arrays.sync_time[rows != row], port.stamp(0) + offset + rows[rows != row] * PERIOD)
 
 
+class _LateAtFirst(_InterfaceSync):
+    """:class:`_InterfaceSync` whose first ``late`` SYNCs reach the engine 1.2 periods after their
+    stamp (a host held up as the stream starts); the controlwords sent, with when."""
+
+    def __init__(self, arrays: Arrays, late: int):
+        super().__init__(arrays, held=10**9, delay=0.0)
+        self.late = late
+        self.controlwords: list[tuple[float, int]] = []
+
+    def handed(self, k: int) -> float:
+        return self.stamp(k) + (1.2 * self.period if k < self.late else 0.0)
+
+    def send(self, cob_id, data, stamp):
+        if cob_id == 0x201:
+            self.controlwords.append((self.t, int.from_bytes(data[:2], "little")))
+        super().send(cob_id, data, stamp)
+
+
+def test_a_buffered_stream_starts_interpolating_in_a_period_the_engine_answers_on_time():
+    """Fed ahead with a drive keeping time: the records go into the FIFO first, and bit 4 (the drive
+    takes record 0 at the next SYNC) goes out only right after a SYNC, not 1.2 periods after one --
+    which the drive would take a SYNC later, every row's record a period off its row."""
+    rows = 400
+    sup = Supervision(PERIOD, PERIOD, 0.02, 0.02, 0.3, 1.0, 2.0)
+    axis = AxisJob(
+        "y",
+        1,
+        (0,),
+        statusword=0,
+        velocity=-1,
+        position_column=0,
+        enable_controlword=0x1F,
+        interpolating=True,
+        csp=False,
+        ahead=10,
+    )
+    rpdos = (
+        RpdoJob(0x201, "<H", ((FIELD_CONTROLWORD, 0),), 0),
+        RpdoJob(0x301, "<l", ((FIELD_TABLE, 0),), 0, around_plan=False, ahead=True),
+    )
+    job = Job((axis,), rpdos, (TpdoJob(0x181, "<Hhl", 0, 0, 0),), rows, 3, 1, sup)
+    arrays = Arrays(job, np.zeros)
+    arrays.table[:, 0] = np.arange(rows)
+    port = _LateAtFirst(arrays, late=30)
+    records = []
+    plain_send = port.send
+    port.send = lambda cob_id, data, stamp: (
+        records.append(port.t) if cob_id == 0x301 else None,
+        plain_send(cob_id, data, stamp),
+    )
+    outcome = Engine(job, arrays, port).run()
+    assert outcome.abort is None and outcome.rows_sent == rows
+    started = next(t for t, cw in port.controlwords if cw & 0x10)
+    answered = max(k for k in range(port.next) if port.handed(k) <= started)  # the SYNC it answered
+    assert started < port.stamp(answered + 1)  # before the next SYNC on the bus: taken there
+    assert sum(t <= started for t in records) >= 10  # the FIFO held its records first
+
+
 def test_syncs_that_stop_coming_end_the_run_when_the_drives_stop_waiting_for_setpoints():
     """Where the interface's SYNCs stop coming, the engine waits as long as the drives wait for
     setpoints (300 ms), then ends, saying so, and leaves the axis to the host to stop by SDO (its RPDOs
