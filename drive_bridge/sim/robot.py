@@ -38,6 +38,12 @@ IDLE_WAKE_S = 0.002  # wall clock: the drives' thread wakes on this grid between
 SYNC_LOCK_GAIN = 0.1
 #: ... for errors within this fraction of a period (a late master's SYNC does not move the grid)
 SYNC_LOCK_RANGE = 0.25
+#: wall clock: how much of that error goes into the grid's period (the loop's integral part: a SYNC
+#: producer whose period is not the drives' -- the kernel's broadcast manager re-arms its timer
+#: after each SYNC, late by its wake-up every period -- is tracked, one grid period per SYNC)
+SYNC_TRACK_GAIN = 0.01
+#: ... up to this fraction of a period longer or shorter (the loop's pull-in range)
+SYNC_TRACK_RANGE = 0.05
 #: wall clock: after this long without SYNC [s] the next one sets the loop grid's phase at once
 SYNC_RELOCK_S = 0.1
 
@@ -83,6 +89,7 @@ class SimRobot:
         self._boundary = 0
         self._sync_tag = -2
         self._last_sync = -math.inf
+        self._drift = 0.0  # [s] how much longer the SYNC producer's period is than the grid's own
         self._armed: list[list[tuple[PdoCodec, bytes]]] = [[] for _ in config.axes]
         self._stamp = lambda: self.plant.time  # lockstep: frames carry simulation time
         # compile (or load from numba's cache) now, not while a clock is running
@@ -567,7 +574,10 @@ class SimRobot:
             self._sample()
         error = since - period if early else since  # [s] against its own boundary
         if abs(error) < SYNC_LOCK_RANGE * period:
+            limit = SYNC_TRACK_RANGE * period
+            self._drift = min(limit, max(-limit, self._drift + SYNC_TRACK_GAIN * error))
             self._t0 += SYNC_LOCK_GAIN * error
+        self._t0 += self._drift  # the grid's next period as long as the producer's
 
     def _period_starts(self) -> None:
         """A period boundary of the drives' grid: the period of the SYNC received for it (or of the

@@ -153,3 +153,19 @@ def test_frames_that_came_while_the_simulator_was_held_up_are_taken_before_its_c
     emcy = [struct.unpack_from("<H", data)[0] for cob_id, data in sent if cob_id == 0x80 + node.id]
     assert 0x8130 not in emcy and not any(emcy), [hex(code) for code in emcy]
     assert bus.now >= START + 3.0 and robot.plant.time >= 3.0 - 0.01  # (the plant ran on the whole time)
+
+
+def test_a_sync_producer_slower_than_the_drives_clock_is_tracked_one_period_per_sync(bench):
+    """The kernel's broadcast manager re-arms its timer after each SYNC, so its SYNCs come a little
+    late every period (2.2 % slow measured in the SocketCAN guest): the drives' loop grid follows the
+    producer's period as a drive's phase-locked loop does, one interpolation period per SYNC, no
+    extra period of its own in between."""
+    move = smooth_move(20.0, 0.6, hold=0.05)
+    slow = np.arange(len(move)) * 0.03 * PERIOD  # a producer 3 % slow: k periods late by 0.03 k
+    on_time, _ = stream(bench(), move)
+    tracked, status = stream(bench(), move, slow)
+    assert not np.any(status & 0x0008)
+    # after the lock-in (its first 100 SYNCs), each SYNC sampled the motion as on time, to the
+    # increment: a grid on its own period gains a whole period every 33 SYNCs and bridges it at the
+    # last velocity, off the motion by the distance of a period at speed
+    assert np.max(np.abs(tracked[100:] - on_time[100:])) <= 2.0 / INC_PER_RAD
