@@ -594,6 +594,9 @@ class BusConfig:
         deliberate override).
     acceptance : Acceptance
         What the commissioning's verdict checks.
+    left_out : tuple of str
+        Axes bus.yml names that this run leaves out (:meth:`only`): their drives are on the bus but
+        not brought up.
     """
 
     path: Path
@@ -602,6 +605,7 @@ class BusConfig:
     campaign: CampaignConfig
     accept_identity: frozenset[int] = frozenset()
     acceptance: Acceptance = Acceptance()
+    left_out: tuple[str, ...] = ()
 
     @property
     def profile(self) -> str | None:
@@ -645,7 +649,11 @@ class BusConfig:
             raise ConfigError(
                 self.path, "nodes", f"no axis named {unknown[0]!r} (configured: {', '.join(self.nodes)})"
             )
-        return replace(self, nodes={a: self.nodes[a] for a in axes})
+        return replace(
+            self,
+            nodes={a: self.nodes[a] for a in axes},
+            left_out=self.left_out + tuple(a for a in self.nodes if a not in axes),
+        )
 
 
 def _pdos(

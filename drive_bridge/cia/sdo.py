@@ -20,6 +20,7 @@ from canopen.sdo import SdoVariable
 
 from ..errors import BusError, DriveRefused
 from ..outputs import hex_object
+from .objects import CYCLE_PERIOD, SYNC_COUNTER_OVERFLOW
 from .od import limits, variable
 
 log = logging.getLogger(__name__)
@@ -221,7 +222,9 @@ def address(key: str) -> tuple[int, int]:
 def put_back(node: canopen.RemoteNode, axis: str, values: dict[str, int]) -> None:
     """Write a :func:`snapshot` back, in its order; each PDO it holds is made invalid first, its
     mapping count set to 0 while the entries are written, and its COB-ID (valid or not, as it was)
-    written last.  DriveRefused / BusError at the first object the drive does not take.
+    written last; the SYNC counter's overflow 0x1019 with the communication cycle period 0x1006 at 0
+    (CiA 301 takes it only then), the period written after it.  DriveRefused / BusError at the first
+    object the drive does not take.
 
     Parameters
     ----------
@@ -240,6 +243,16 @@ def put_back(node: canopen.RemoteNode, axis: str, values: dict[str, int]) -> Non
         The drive does not answer.
     """
     pdos: dict[int, dict[tuple[int, int], int]] = {}
+    counter, period = hex_object(SYNC_COUNTER_OVERFLOW, 0), hex_object(CYCLE_PERIOD, 0)
+    if counter in values:
+        cycle = values.get(period)
+        if cycle is None:
+            cycle = read_if_readable(node, CYCLE_PERIOD, 0, f"axis {axis}'s communication cycle period")
+        write_setting(node, axis, CYCLE_PERIOD, 0, 0)
+        write_setting(node, axis, SYNC_COUNTER_OVERFLOW, 0, values[counter])
+        if cycle is not None:
+            write_setting(node, axis, CYCLE_PERIOD, 0, cycle)
+        values = {key: value for key, value in values.items() if key not in (counter, period)}
     for key, value in values.items():
         index, sub = address(key)
         comm = index - 0x200 if 0x1600 <= index <= 0x17FF or 0x1A00 <= index <= 0x1BFF else index

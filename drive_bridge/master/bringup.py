@@ -739,8 +739,10 @@ def settings(
 
 def sync_counter(config: BusConfig) -> int:
     """The SYNC counter's overflow value the bus runs with: :data:`~drive_bridge.cia.p301.MAX_SYNC_COUNTER`
-    where every node's EDS/DCF has 0x1019 writable (each SYNC then carries its count, 1..240, and a
-    lost one shows as a gap), else 0 (a consumer expecting another length answers with EMCY 0x8240).
+    where every node's EDS/DCF has 0x1019 writable and the run brings up every node bus.yml names
+    (each SYNC then carries its count, 1..240, and a lost one shows as a gap), else 0: a SYNC
+    consumer expecting another length answers with EMCY 0x8240, and a drive left out of the run is
+    not told the counter.
 
     Parameters
     ----------
@@ -757,7 +759,8 @@ def sync_counter(config: BusConfig) -> int:
         var = ncfg.od.get_variable(SYNC_COUNTER_OVERFLOW, 0)
         return var is not None and var.writable and CYCLE_PERIOD in ncfg.od
 
-    return MAX_SYNC_COUNTER if config.nodes and all(writable(n) for n in config.nodes.values()) else 0
+    every = config.nodes and not config.left_out and all(writable(n) for n in config.nodes.values())
+    return MAX_SYNC_COUNTER if every else 0
 
 
 def drive_settings(
@@ -791,8 +794,8 @@ def drive_settings(
         Records the master keeps ahead in the drive's FIFO (0: none): the consumer time of the
         master's heartbeat then also covers the stall they cover, and a heartbeat period more.
     counter : int
-        The SYNC counter's overflow value 0x1019 (:func:`sync_counter`; 0: not written), written
-        while the cycle period 0x1006 is 0, as CiA 301 allows.
+        The SYNC counter's overflow value 0x1019 (:func:`sync_counter`; 0: none), written where the
+        drive has it writable while the cycle period 0x1006 is 0, as CiA 301 allows.
 
     Returns
     -------
@@ -844,7 +847,7 @@ def drive_settings(
     if INTERPOLATION_TIME_PERIOD in ncfg.od:
         out += _interpolation_period(axis, ncfg, period)
     if CYCLE_PERIOD in ncfg.od:
-        if counter:
+        if has(SYNC_COUNTER_OVERFLOW):  # (0 where the bus runs without: one left from before is cleared)
             out += [(CYCLE_PERIOD, 0, 0), (SYNC_COUNTER_OVERFLOW, 0, counter)]
         out.append((CYCLE_PERIOD, 0, round(period * 1e6)))
     return out

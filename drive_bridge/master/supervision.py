@@ -156,6 +156,32 @@ def stop_reason(
     """
     if outcome.abort is None:
         return None
+    reason = _stop_reason(outcome, axes, supervision, guard)
+    axis = outcome.abort[1]
+    if (
+        isinstance(reason, MotionAborted)
+        and axis in axes
+        and axes[axis].sync_producer
+        and outcome.abort[0] in KEEPER_LOST
+    ):
+        return MotionAborted(
+            f"{reason.reason}; it kept time for the bus (the SYNC producer): the SYNCs stopped with it, "
+            "and the other drives took no new set-point after them",
+            axis,
+            reason.emcy,
+        )
+    return reason
+
+
+#: the engine's stop kinds that say a drive is gone (a drive in fault still sends its SYNCs)
+KEEPER_LOST = ("heartbeat", "silent")
+
+
+def _stop_reason(
+    outcome: Outcome, axes: dict[str, AxisLink], supervision: Supervision, guard: VelocityGuard | None
+) -> MotionAborted | None:
+    """:func:`stop_reason` before the time keeper is named."""
+    assert outcome.abort is not None
     kind, axis, detail, code = outcome.abort
     if kind == "interrupt":
         return Interrupted(signal=detail or "Ctrl-C")

@@ -147,3 +147,66 @@ def test_the_simulator_starts_without_the_tuning_tools():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]"
+
+
+def test_a_sync_producer_that_drops_out_mid_campaign_ends_the_run_with_the_other_axis_held(tmp_path):
+    """The drive that keeps time (x, the first that can produce SYNC) resets mid-campaign -- a power
+    blip, its watchdog -- and its SYNCs stop: y, fed ahead, takes no more records and stands; the
+    master ends the stream within the time its drives wait, names x and the SYNC, stops y by SDO and
+    leaves it held under power; the data recorded so far is kept, no traceback."""
+    drives, cfg, port = start_sim(tmp_path)
+    monitor = None
+    try:
+        monitor = canopen.Network(LoopbackMulticastBus(UDP_GROUP, port))
+        monitor.connect()
+        syncs: list[float] = []
+        monitor.subscribe(0x080, lambda cob, data, ts: syncs.append(time.time()))
+        velocity = [0]  # x's velocity actual from its TPDO 2, listened to
+        monitor.subscribe(
+            0x281, lambda cob, data, ts: velocity.append(int.from_bytes(data[:4], "little", signed=True))
+        )
+        master = subprocess.Popen(
+            [
+                sys.executable,
+                "-m",
+                "drive_bridge",
+                "record",
+                "--config",
+                str(cfg),
+                "--axes",
+                "x,y",
+                "--quick",
+                "--yes",
+                "--out",
+                str(tmp_path / "run"),
+            ],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.PIPE,
+            text=True,
+            env={**os.environ, "PYTHONUNBUFFERED": "1"},
+        )
+        said = wait_for(master.stderr, "campaign:", 120)
+        patience = time.time() + 60
+        while abs(velocity[-1]) <= 0.2 * 166886 and time.time() < patience and master.poll() is None:
+            time.sleep(0.005)
+        assert master.poll() is None, said + master.stderr.read()
+        monitor.send_message(0x000, bytes([0x81, 1]))  # NMT reset node, to x (node 1)
+        reset = time.time()
+        _, err = master.communicate(timeout=120)
+        said += err
+        assert master.returncode == 4, said
+        assert "Traceback" not in said
+        assert "axis x" in said and "SYNC" in said, said
+        assert not [t for t in syncs if t > reset + 0.1]  # nobody else took over the SYNC
+        node = monitor.add_node(2, None)
+        statusword = int.from_bytes(node.sdo.upload(0x6041, 0), "little")
+        assert state_name(statusword) in ("QUICK STOP ACTIVE", "OPERATION ENABLED"), state_name(statusword)
+        assert (tmp_path / "run" / "log.csv").exists()
+    finally:
+        if monitor is not None:
+            monitor.disconnect()
+        drives.send_signal(signal.SIGINT)
+        try:
+            drives.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            drives.kill()
