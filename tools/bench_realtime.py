@@ -2,7 +2,7 @@
 starts it, beside the machine's own floor measured in the same run.
 
     python tools/bench_realtime.py [--campaign short|paper] [--runs 3] [--load idle|loaded|both]
-                                   [--floor-seconds 30] [--against REV]
+                                   [--floor-seconds 30] [--against REV] [--config BUS_YML]
 
 The floor (``harness/machine_floor.py``): a plain Python loop pinned to each CPU at SCHED_FIFO on the same
 2 ms absolute schedule (as cyclictest measures: sleep to the next deadline, note how late it woke),
@@ -21,7 +21,8 @@ was.  The largest of ours is what the engine adds to the machine.
 process of the master (its main process and its engine's, never the simulated drives') stopped for
 ``--stall-ms`` at random moments, ``--stall-every`` seconds apart on average (``harness/stalls.py``;
 issue 68's third condition), the stalls made counted per run.
-``--against REV`` runs git revision REV the same way, alternated with this code.
+``--against REV`` runs git revision REV the same way, alternated with this code; ``--config`` runs
+another bus.yml (ros2_canopen's, ``drive_bridge/data/config/ros2_canopen.yml``), lockstep's too.
 The acceptance (issue 42): every run PASS, 0 aborts, 0 samples missing, late cycles <= 0.1 %
 idle (<= 0.5 % loaded) and the largest SYNC gap <= 5 periods.  Issue 68's: in each condition every run
 completes with 0 drive faults and 0 samples missing, its verdict lockstep's and J, c0 and c1 of every
@@ -129,13 +130,13 @@ def identified(out: Path) -> dict[str, dict[str, tuple[float, float]]]:
     }
 
 
-def lockstep(code: Path, campaign: str) -> dict:
+def lockstep(code: Path, campaign: str, config: tuple[str, ...]) -> dict:
     """The same campaign in lockstep (the same plan and seed): its verdict and parameters, the reference."""
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "run"
         env = {**os.environ, "PYTHONPATH": str(code), "XDG_DATA_HOME": tmp}
         command = [sys.executable, "-m", "drive_bridge", "commission", "--sim", "--campaign", campaign]
-        command += ["--out", str(out), "--no-history", "--yes"]
+        command += ["--out", str(out), "--no-history", "--yes", *config]
         proc = subprocess.run(command, cwd=code, env=env, capture_output=True, text=True)
         summary = json.loads((out / "summary.json").read_text()) if (out / "summary.json").exists() else {}
         verdict = summary.get("verdict", {})
@@ -162,7 +163,13 @@ def against_lockstep(params: dict, reference: dict) -> tuple[float, str]:
     return worst, which
 
 
-def commission(code: Path, campaign: str, stalls: tuple[float, float] | None = None, seed: int = 0) -> dict:
+def commission(
+    code: Path,
+    campaign: str,
+    stalls: tuple[float, float] | None = None,
+    seed: int = 0,
+    config: tuple[str, ...] = (),
+) -> dict:
     """One ``commission --sim --realtime`` run of the code under ``code``, with ``stalls`` (length,
     mean wait [s]) of the master's processes where given, their moments drawn with ``seed``; its
     figures."""
@@ -170,7 +177,7 @@ def commission(code: Path, campaign: str, stalls: tuple[float, float] | None = N
         out = Path(tmp) / "run"
         env = {**os.environ, "PYTHONPATH": str(code), "XDG_DATA_HOME": tmp}
         command = [sys.executable, "-m", "drive_bridge", "commission", "--sim", "--realtime"]
-        command += ["--campaign", campaign, "--out", str(out), "--no-history", "--yes"]
+        command += ["--campaign", campaign, "--out", str(out), "--no-history", "--yes", *config]
         made = Path(tmp) / "stalls.jsonl"
         t0 = time.perf_counter()
         with floor_during() as beside:
@@ -269,13 +276,15 @@ def main() -> None:
     parser.add_argument("--stall-every", type=float, default=2.0, help="with stalled: the mean wait [s]")
     parser.add_argument("--floor-seconds", type=float, default=30.0)
     parser.add_argument("--against", help="a git revision run the same way, alternated with this code")
+    parser.add_argument("--config", help="a bus.yml (default: the simulated robot's own)")
     args = parser.parse_args()
+    config = ("--config", str(Path(args.config).resolve())) if args.config else ()
     print(stamp())
     conditions = {"both": ["idle", "loaded"], "all": ["idle", "loaded", "stalled"]}.get(
         args.load, [args.load]
     )
     stalls = (args.stall_ms / 1e3, args.stall_every)
-    reference = lockstep(ROOT, args.campaign)
+    reference = lockstep(ROOT, args.campaign, config)
     print(f"lockstep (the same plan and seed): {reference['verdict']} (exit {reference['exit']})", flush=True)
     with worktree(ROOT, args.against) if args.against else contextlib.nullcontext() as other:
         for condition in conditions:
@@ -292,7 +301,7 @@ def main() -> None:
                     print(
                         line(
                             f"{args.campaign} run {run + 1}",
-                            commission(ROOT, args.campaign, stalled, run),
+                            commission(ROOT, args.campaign, stalled, run, config),
                             reference,
                         ),
                         flush=True,
@@ -301,7 +310,7 @@ def main() -> None:
                         print(
                             line(
                                 f"{args.against} run {run + 1}",
-                                commission(other, args.campaign, stalled, run),
+                                commission(other, args.campaign, stalled, run, config),
                             ),
                             flush=True,
                         )

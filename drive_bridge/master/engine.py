@@ -704,11 +704,15 @@ class Engine:
         self.bus_errors += 1
 
     # ------------------------------------------------------------------ sending
-    def _send_rpdos(self, row: int, controlwords: list[int], records: bool) -> None:
+    def _send_rpdos(
+        self, row: int, controlwords: list[int], records: bool, stamp: float | None = None
+    ) -> None:
         """The RPDOs the drives take at the next SYNC: ``row`` of the setpoint table, a controlword
-        per axis (``records``: also interpolation records, which a drive's FIFO would otherwise keep)."""
+        per axis (``records``: also interpolation records, which a drive's FIFO would otherwise keep),
+        stamped ``stamp`` where given (else when each goes)."""
         table, offsets = self.arrays.table, self.arrays.torque_offset
-        send, now = self.port.send, self.port.now
+        send = self.port.send
+        now = self.port.now if stamp is None else lambda: stamp
         for rpdo, codec, buffer, values in self._rpdos:
             if rpdo.ahead or not (records or rpdo.around_plan):
                 continue
@@ -862,7 +866,9 @@ class Engine:
             self.heard = [self.start] * len(job.axes)
             self.beat = [self.start] * len(job.axes)
             self._enter(ENABLING, self.start)
-            self._send_rpdos(0, self._enable_words(), records=False)
+            # the first RPDOs: the run's SYNCs are those stamped after them (a SYNC the bus had
+            # before, read only now, is not one -- nor is it in the trace, where decode counts them)
+            self._send_rpdos(0, self._enable_words(), records=False, stamp=self.start)
             self.t0 = port.now()
             if port.periodic_sync:
                 port.start_sync(self.period, job.sync_counter)
@@ -1034,6 +1040,8 @@ class Engine:
     def _on_sync_frame(self, data: bytes | bytearray, stamp: float) -> None:
         """The SYNC the interface or a drive sent, as the bus shows it (its stamp); where it carries
         the counter, the SYNCs its count skipped are lost ones: their periods pass without a row."""
+        if stamp < self.start:  # before the first RPDO: not a SYNC of this run
+            return
         overflow = self.job.sync_counter
         if overflow and data:
             if self.count:

@@ -401,6 +401,29 @@ def test_a_sync_lost_on_its_way_is_a_gap_in_the_counter_its_row_without_a_sync()
     assert np.allclose(arrays.sync_time[rows != row], port.stamp(0) + offset + rows[rows != row] * PERIOD)
 
 
+class _StaleSyncFirst(_InterfaceSync):
+    """:class:`_InterfaceSync` whose socket hands over, with the first SYNC of the run, one the bus
+    carried a period before the engine's first RPDO (read only after it)."""
+
+    def wait_sync(self, timeout_at):
+        if self.next == 0 and not getattr(self, "stale_sent", False):
+            self.stale_sent = True
+            self.handlers[SYNC_COB_ID](b"", self.first - 2 * self.period)
+        super().wait_sync(timeout_at)
+
+
+def test_a_sync_the_bus_carried_before_the_first_rpdo_is_not_one_of_the_run():
+    """The run's SYNCs are those stamped after its first RPDO, as decode counts them in the trace
+    (in time order): one that came before and was read after does not take row 0 -- a wall-clock
+    run under load once decoded every row one SYNC off its live log."""
+    job, arrays = _streaming_job(200)
+    port = _StaleSyncFirst(arrays, held=10**9, delay=0.0)
+    outcome = Engine(job, arrays, port).run()
+    assert outcome.abort is None and outcome.rows_sent == job.rows
+    assert arrays.sync_time[0] >= port.first  # row 0 and the enabling SYNCs after the first RPDO
+    assert outcome.enable_cycles == round((arrays.sync_time[0] - port.first) / PERIOD)
+
+
 class _LateAtFirst(_InterfaceSync):
     """:class:`_InterfaceSync` whose first ``late`` SYNCs reach the engine 1.2 periods after their
     stamp (a host held up as the stream starts); the controlwords sent, with when."""
