@@ -22,9 +22,42 @@ from harness.support import bus_yml_beside, start_sim, wait_for
 pytestmark = [pytest.mark.slow, pytest.mark.realtime]
 
 
+def _x_velocity(monitor: canopen.Network) -> list[int]:
+    """X's velocity actual as its TPDO 2 carries it, listened to (the newest last): an SDO request
+    from here would share node 1's one SDO channel with the master's own requests while it runs."""
+    velocity = [0]
+    monitor.subscribe(
+        0x281, lambda cob, data, ts: velocity.append(int.from_bytes(data[:4], "little", signed=True))
+    )
+    return velocity
+
+
+def _end(drives: subprocess.Popen, monitor: canopen.Network | None) -> None:
+    """The listener disconnected, the simulated drives stopped with Ctrl-C (killed after 10 s)."""
+    if monitor is not None:
+        monitor.disconnect()
+    drives.send_signal(signal.SIGINT)
+    try:
+        drives.wait(timeout=10)
+    except subprocess.TimeoutExpired:
+        drives.kill()
+
+
+def _record(cfg, out, axes: str, *options: str, **popen) -> subprocess.Popen:
+    """``drive-bridge record --yes`` of ``axes`` in a process of its own, its stderr piped."""
+    return subprocess.Popen(
+        [sys.executable, "-m", "drive_bridge", "record", "--config", str(cfg), "--axes", axes, *options]
+        + ["--yes", "--out", str(out)],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "PYTHONUNBUFFERED": "1"},
+        **popen,
+    )
+
+
 def test_a_master_killed_mid_campaign_leaves_every_drive_stopped_by_its_heartbeat_consumer(tmp_path):
     drives, cfg, port = start_sim(tmp_path)
-    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
     monitor = None
     try:
         monitor = canopen.Network(LoopbackMulticastBus(UDP_GROUP, port))
@@ -35,32 +68,8 @@ def test_a_master_killed_mid_campaign_leaves_every_drive_stopped_by_its_heartbea
                 0x80 + node_id,
                 lambda cob, data, ts: emcy.append((cob & 0x7F, data[0] | data[1] << 8, time.time())),
             )
-        # X's velocity actual as its TPDO 2 carries it, listened to: an SDO request from here would
-        # share node 1's one SDO channel with the master's own requests while it runs
-        velocity = [0]
-        monitor.subscribe(
-            0x281, lambda cob, data, ts: velocity.append(int.from_bytes(data[:4], "little", signed=True))
-        )
-        master = subprocess.Popen(
-            [
-                sys.executable,
-                "-m",
-                "drive_bridge",
-                "record",
-                "--config",
-                str(cfg),
-                "--axes",
-                "x",
-                "--yes",
-                "--out",
-                str(tmp_path / "run"),
-            ],
-            stdout=subprocess.DEVNULL,
-            stderr=subprocess.PIPE,
-            text=True,
-            env=env,
-            start_new_session=True,
-        )
+        velocity = _x_velocity(monitor)
+        master = _record(cfg, tmp_path / "run", "x", start_new_session=True)
         wait_for(master.stderr, "campaign:", 120)
         node = monitor.add_node(1, None)  # SDO only: no object dictionary needed
         # X on its way to the campaign's start (6 s): wait until it moves (a loaded machine's master
@@ -95,13 +104,7 @@ def test_a_master_killed_mid_campaign_leaves_every_drive_stopped_by_its_heartbea
         statusword = int.from_bytes(node.sdo.upload(0x6041, 0), "little")
         assert state_name(statusword) == "QUICK STOP ACTIVE"  # stopped, and holding
     finally:
-        if monitor is not None:
-            monitor.disconnect()
-        drives.send_signal(signal.SIGINT)
-        try:
-            drives.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            drives.kill()
+        _end(drives, monitor)
 
 
 def test_on_a_terminal_the_plan_is_shown_and_yes_moves(tmp_path, capsys, monkeypatch):
@@ -161,30 +164,8 @@ def test_a_sync_producer_that_drops_out_mid_campaign_ends_the_run_with_the_other
         monitor.connect()
         syncs: list[float] = []
         monitor.subscribe(0x080, lambda cob, data, ts: syncs.append(time.time()))
-        velocity = [0]  # x's velocity actual from its TPDO 2, listened to
-        monitor.subscribe(
-            0x281, lambda cob, data, ts: velocity.append(int.from_bytes(data[:4], "little", signed=True))
-        )
-        master = subprocess.Popen(
-            [
-                sys.executable,
-                "-m",
-                "drive_bridge",
-                "record",
-                "--config",
-                str(cfg),
-                "--axes",
-                "x,y",
-                "--quick",
-                "--yes",
-                "--out",
-                str(tmp_path / "run"),
-            ],
-            stdout=subprocess.DEVNULL,
-            stderr=subprocess.PIPE,
-            text=True,
-            env={**os.environ, "PYTHONUNBUFFERED": "1"},
-        )
+        velocity = _x_velocity(monitor)
+        master = _record(cfg, tmp_path / "run", "x,y", "--quick")
         said = wait_for(master.stderr, "campaign:", 120)
         patience = time.time() + 60
         while abs(velocity[-1]) <= 0.2 * 166886 and time.time() < patience and master.poll() is None:
@@ -203,10 +184,4 @@ def test_a_sync_producer_that_drops_out_mid_campaign_ends_the_run_with_the_other
         assert state_name(statusword) in ("QUICK STOP ACTIVE", "OPERATION ENABLED"), state_name(statusword)
         assert (tmp_path / "run" / "log.csv").exists()
     finally:
-        if monitor is not None:
-            monitor.disconnect()
-        drives.send_signal(signal.SIGINT)
-        try:
-            drives.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            drives.kill()
+        _end(drives, monitor)
