@@ -86,6 +86,9 @@ PROGRESS_ROWS = 50  # the host's progress is told the plan row in steps of this 
 #: records a period and axis fed into a drive's FIFO at most (one is taken a period): a refill
 #: after a stall comes back two records a period faster than the drive takes them, never a flood
 FEED_PER_PERIOD = 3
+#: the plan's last rows in which a FIFO found empty, every record fed, is the plan's end (a drive
+#: whose interpolation began a SYNC before the engine's row 0 takes its last record a row early)
+PLAN_END_ROWS = 2
 #: what a port hands each received frame to: (data, time stamp [s])
 Handler = Callable[[bytes | bytearray, float], None]
 
@@ -808,7 +811,11 @@ class Engine:
                 sw = int(raw[r, ax.statusword])
                 if sw & SW_FAULT:
                     return ("fault", ax.name, f"drive reports {state_name(sw)} (statusword 0x{sw:04X})", None)
-                if self.judged_syncs > FOLLOW_GRACE_SYNCS and not sw & SW_FOLLOWING:
+                if (
+                    self.judged_syncs > FOLLOW_GRACE_SYNCS
+                    and not sw & SW_FOLLOWING
+                    and not self._taken_all(axis, r)
+                ):
                     if ax.ahead and ax.fill >= 0:  # its FIFO ran dry: a planned stop
                         return (
                             "dry",
@@ -832,6 +839,13 @@ class Engine:
                 if ax.velocity >= 0 and abs(int(raw[r, ax.velocity])) > ax.velocity_guard:
                     return ("guard", ax.name, str(int(raw[r, ax.velocity])), None)
         return None
+
+    def _taken_all(self, axis: int, row: int) -> bool:
+        """The axis, fed ahead, was fed every record of the plan and ``row`` is one of its last
+        :data:`PLAN_END_ROWS`: a FIFO empty there is the plan's end (it ends at rest, where the
+        drive's planned stop holds it), not a master that was away."""
+        ax = self.job.axes[axis]
+        return bool(ax.ahead) and self.fed[axis] >= self.job.rows and row >= self.job.rows - PLAN_END_ROWS
 
     def _watch(self, now: float, stop_request: int) -> tuple[str, str | None, str, int | None] | None:
         """What is judged in time rather than per row: EMCY, a node's heartbeat, error frames, a stop."""
