@@ -163,7 +163,8 @@ def test_a_sync_producer_that_drops_out_mid_campaign_ends_the_run_with_the_other
         monitor = canopen.Network(LoopbackMulticastBus(UDP_GROUP, port))
         monitor.connect()
         syncs: list[float] = []
-        monitor.subscribe(0x080, lambda cob, data, ts: syncs.append(time.time()))
+        # (each SYNC by the time its producer sent it: this listener may read them late under load)
+        monitor.subscribe(0x080, lambda cob, data, ts: syncs.append(ts))
         velocity = _x_velocity(monitor)
         master = _record(cfg, tmp_path / "run", "x,y", "--quick")
         said = wait_for(master.stderr, "campaign:", 120)
