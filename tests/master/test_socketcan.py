@@ -120,22 +120,27 @@ KERNEL_LATE_PERIODS = 1.5
 KERNEL_LATE_RUNS = 3
 
 
+def _candump(share: Path) -> list[tuple[float, str]]:
+    """The run's candump as (stamp [s], COB-ID in hex) per frame, in order (none where it left none)."""
+    dump = share / "candump.log"
+    frames = []
+    for line in dump.read_text().splitlines() if dump.exists() else []:
+        stamp, _channel, frame = line.split()[:3]
+        frames.append((float(stamp.strip("()")), frame.split("#")[0]))
+    return frames
+
+
 def _longest_sync_gap(share: Path) -> float:
     """The longest time between two SYNCs in the run's candump [s]."""
-    dump = share / "candump.log"
-    stamps = [
-        float(line.split()[0].strip("()"))
-        for line in (dump.read_text().splitlines() if dump.exists() else [])
-        if " vcan0 080#" in line
-    ]
+    stamps = [stamp for stamp, cob_id in _candump(share) if cob_id == "080"]
     return float(np.max(np.diff(stamps))) if len(stamps) > 1 else 0.0
 
 
-def _drive_late(dump: list[str], cob_id: str) -> int:
-    """The SYNCs in a candump followed by the next SYNC before the frame ``cob_id`` answered them."""
-    frames = [line.split()[2].split("#")[0] for line in dump if " vcan0 " in line]
+def _drive_late(share: Path, cob_id: str) -> int:
+    """The SYNCs in the run's candump followed by the next SYNC before the frame ``cob_id`` answered
+    them."""
     late, answered = 0, True
-    for frame in frames:
+    for _stamp, frame in _candump(share):
         if frame == "080":
             late += not answered
             answered = False
@@ -148,12 +153,9 @@ def _said(share: Path) -> str:
     """What a failed run left: the record's errors, the simulated drives' output and, from the
     candump, the longest gap between the SYNCs and between the heartbeats of each node."""
     stamps: dict[str, list[float]] = {}
-    dump = share / "candump.log"
-    for line in dump.read_text().splitlines() if dump.exists() else []:
-        stamp, _channel, frame = line.split()[:3]
-        cob_id = frame.split("#")[0]
+    for stamp, cob_id in _candump(share):
         if cob_id == "080" or cob_id.startswith("7"):
-            stamps.setdefault(cob_id, []).append(float(stamp.strip("()")))
+            stamps.setdefault(cob_id, []).append(stamp)
     gaps = [
         f"{cob_id}: {len(times)} frames, longest gap {np.diff(times).max(initial=0.0) * 1e3:.0f} ms"
         for cob_id, times in sorted(stamps.items())
@@ -245,7 +247,7 @@ def test_sim_and_record_over_socketcan_with_a_candump_of_the_stream(tmp_path):
     # every row has its sample, but where the emulated drive itself answered a SYNC only after the
     # next one was on the bus (its process held up under TCG: a real drive's synchronous TPDO is
     # within the SYNC's window) -- a TPDO belongs to the SYNC before it in bus order
-    assert meta["timing"]["samples_missing"]["y"] <= _drive_late(dump, "182"), _said(share)
+    assert meta["timing"]["samples_missing"]["y"] <= _drive_late(share, "182"), _said(share)
     assert engine["syncs_lost"] == 0
     assert (share / "stalls.jsonl").exists()  # (the master was stopped meanwhile)
     assert any(" vcan0 202#" in line for line in dump) and any(" vcan0 182#" in line for line in dump)
