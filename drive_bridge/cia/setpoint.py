@@ -4,9 +4,16 @@ simulated drives.
 
 * cyclic synchronous position (mode 8): one target position 0x607A per SYNC;
 * interpolated position (mode 7): one interpolation data record per SYNC, either the standard
-  0x60C1:1 (sub-mode 0, linear interpolation) or maxon's 0x20C1 PVT record (sub-mode -1:
-  position 32 bit, velocity 24 bit, time 8 bit in ms); controlword bit 4 enables interpolation
-  and statusword bit 12 confirms it.
+  0x60C1:1 (a position; sub-mode 0, linear interpolation, or a vendor's higher-order sub-mode of
+  position records) or maxon's 0x20C1 PVT record (sub-mode -1: position 32 bit, velocity 24 bit,
+  time 8 bit in ms); controlword bit 4 enables interpolation and statusword bit 12 confirms it.
+
+Linear interpolation, the one sub-mode CiA 402 defines, makes a demand without acceleration inside
+a record: a drive's acceleration feed-forward has nothing to act on, and the following error of a
+stiff axis grows with the acceleration (10x CSP's on the project's drive).  Vendors give position
+records a higher-order sub-mode under a negative, manufacturer-specific number (Parker SLVD-N: -2,
+"cubic interpolation only position"); the master selects one only where the drive's vendor is
+named in :data:`POSITION_RECORD_SUB_MODES` and its object dictionary admits the value.
 """
 
 from __future__ import annotations
@@ -19,6 +26,47 @@ IP_RECORD = (0x60C1, 1)  # CiA 402's interpolation data record: a position
 SETPOINT_OBJECTS = {(0x607A, 0): CSP, IP_RECORD: IP, PVT: IP}
 #: interpolation sub-mode (0x60C0) of each interpolated-position setpoint object
 IP_SUB_MODE = {IP_RECORD: 0, PVT: -1}
+#: vendor (0x1018:1) -> (0x60C0 value, in words) of its drives' higher-order interpolation of
+#: position records 0x60C1:1: the demand through the records with its acceleration, as in CSP
+POSITION_RECORD_SUB_MODES = {
+    0x00000DB1: (-2, "the parabola through the last three records (drive-bridge servo)"),
+}
+
+
+def record_sub_mode(vendor_id: int, limits: tuple[float | None, float | None]) -> tuple[int, str]:
+    """The interpolation sub-mode (0x60C0) to stream position records 0x60C1:1 in, and why.
+
+    Parameters
+    ----------
+    vendor_id : int
+        The drive's vendor (0x1018:1) as read.
+    limits : (float or None, float or None)
+        The range 0x60C0 admits, as its EDS/DCF gives it (None: not given).
+
+    Returns
+    -------
+    (int, str)
+        The sub-mode and the reason in words.
+    """
+    known = POSITION_RECORD_SUB_MODES.get(vendor_id)
+    lowest, highest = limits
+    if (
+        known is not None
+        and (lowest is None or lowest <= known[0])
+        and (highest is None or known[0] <= highest)
+    ):
+        return known[
+            0
+        ], f"interpolation sub-mode {known[0]} (0x60C0): {known[1]}, its acceleration fed forward"
+    why = (
+        "its vendor's higher-order sub-mode is outside the range 0x60C0 admits"
+        if known is not None
+        else "no higher-order sub-mode is known for its vendor"
+    )
+    return 0, (
+        f"interpolation sub-mode 0 (0x60C0, linear; {why}): no acceleration inside a record, "
+        "so the following error grows with the acceleration"
+    )
 
 
 def supported_modes(bits: int) -> list[int]:

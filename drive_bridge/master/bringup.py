@@ -55,7 +55,15 @@ from ..cia.p402 import (
 )
 from ..cia.pdo import PdoCodec
 from ..cia.sdo import pdo_objects, read_if_readable, sdo_object, snapshot, write_setting
-from ..cia.setpoint import IP_RECORD, IP_SUB_MODE, PVT, choose, describe_modes, supported_modes
+from ..cia.setpoint import (
+    IP_RECORD,
+    IP_SUB_MODE,
+    PVT,
+    choose,
+    describe_modes,
+    record_sub_mode,
+    supported_modes,
+)
 from ..config import BusConfig, MasterConfig, NodeConfig, PdoConfig
 from ..errors import BusError, DriveRefused, InternalError
 from ..outputs import hex_object, identity_hex, stamped
@@ -536,7 +544,7 @@ def bring_up(link: Link, config: BusConfig) -> dict[str, AxisLink]:
         )
         if ax.mode == IP:
             if INTERPOLATION_SUB_MODE in ncfg.od:
-                write_setting(node, name, INTERPOLATION_SUB_MODE, 0, IP_SUB_MODE[ax.setpoint])
+                write_setting(node, name, INTERPOLATION_SUB_MODE, 0, _sub_mode(ax))
             if (
                 ax.setpoint == PVT and INTERPOLATION_DATA_CONFIGURATION in ncfg.od
             ) or ax.streaming.buffered:  # clear the record buffer, then enable it
@@ -625,6 +633,8 @@ def plan_bring_up(link: Link, config: BusConfig) -> dict[str, AxisLink]:
         if ax.streaming.buffered:
             ax.cfg = buffered_node(ax.cfg)
             ax.mode, ax.setpoint = IP, IP_RECORD
+        if ax.mode == IP and INTERPOLATION_SUB_MODE in ax.cfg.od:
+            _sub_mode(ax)
         ax.drive_limits = {
             hex_object(i, s): v
             for i, s, v in drive_settings(
@@ -638,6 +648,19 @@ def plan_bring_up(link: Link, config: BusConfig) -> dict[str, AxisLink]:
         }
         axes[name] = ax
     return axes
+
+
+def _sub_mode(ax: AxisLink) -> int:
+    """The interpolation sub-mode (0x60C0) the axis's records are taken in; for position records
+    (:func:`~..cia.setpoint.record_sub_mode`) the choice is said and added to ``ax.streaming``."""
+    if ax.setpoint != IP_RECORD:
+        return IP_SUB_MODE[ax.setpoint]
+    sub_mode, words = record_sub_mode(
+        int(ax.identity.get("vendor_id") or 0), limits(variable(ax.cfg.od, INTERPOLATION_SUB_MODE))
+    )
+    log.info("axis %s: %s", ax.name, words)
+    ax.streaming = replace(ax.streaming, why=f"{ax.streaming.why}; {words}")
+    return sub_mode
 
 
 def _streaming_mode(

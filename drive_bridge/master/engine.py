@@ -816,18 +816,16 @@ class Engine:
                     and not sw & SW_FOLLOWING
                     and not self._taken_all(axis, r)
                 ):
-                    if ax.ahead and ax.fill >= 0:  # its FIFO ran dry: a planned stop
-                        return (
-                            "dry",
-                            ax.name,
-                            f"at row {r}; it holds {int(raw[r, ax.fill])} records now",
-                            None,
-                        )
+                    left = int(raw[r, ax.fill]) if ax.ahead and ax.fill >= 0 else -1
+                    if left == 0:  # its FIFO ran dry: a planned stop
+                        return ("dry", ax.name, f"at row {r}", None)
                     what = (
                         "interpolation is not active"
                         if ax.interpolating
                         else "the drive does not follow the setpoints"
                     )
+                    if left > 0:  # records waiting: the drive did not take interpolation up
+                        what += f" with {left} records in its FIFO"
                     return (
                         "following",
                         ax.name,

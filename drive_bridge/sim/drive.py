@@ -28,7 +28,8 @@ from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from functools import partial
 from typing import Any, Protocol
 
@@ -657,9 +658,11 @@ class SimDrive:
                     self.setpoint_armed = True
         elif self.gains.selects(index, sub):
             self.objects.written(index, sub, value)  # (stored after this call: the loops read it now)
-            self.gains.load(self.plant_param, self.objects.get)
+            with self._bumpless():
+                self.gains.load(self.plant_param, self.objects.get)
         elif (taken := self.gains.written(index, sub, value)) is not None:
-            self.plant_param[taken[0]] = taken[1]
+            with self._bumpless():
+                self.plant_param[taken[0]] = taken[1]
         elif index == HEARTBEAT_PRODUCER:
             self.nmt.heartbeat_time_written(self.plant.time, value)
         elif index == CYCLE_PERIOD:
@@ -967,6 +970,22 @@ class SimDrive:
             self._go(SWITCH_ON_DISABLED)  # the quick stop came to rest
         d[kernel.A_FF] = (self.v_dem - v_old) / T
         self.new_target = False
+
+    @contextmanager
+    def _bumpless(self) -> Iterator[None]:
+        """Gains changed inside keep the torque the velocity integrator holds (KpS times its
+        integral of KiS·e; a position PID's integrator holds torque already): a held axis does not
+        sag or jump when new gains are written."""
+        state, param = self.plant_state, self.plant_param
+        gain = float(param[kernel.KPS])
+        held = gain * float(state[kernel.V_INT])
+        yield
+        if (
+            param[kernel.KPS] != gain
+            and param[kernel.KPS] > 0
+            and param[kernel.STRUCT] != kernel.POSITION_PID
+        ):
+            state[kernel.V_INT] = held / param[kernel.KPS]
 
     def _planned_stop(self, T: float) -> None:
         """A period of the planned stop after the FIFO ran dry: the demand velocity ramped down on

@@ -13,15 +13,19 @@ import numpy as np
 import pytest
 import yaml
 
+from drive_bridge.cia.setpoint import record_sub_mode
 from drive_bridge.cli import main
 from drive_bridge.config import load_bus_config
 from drive_bridge.master.buffered import buffered_node, records_ahead, why_not
 from drive_bridge.master.engine import FEED_PER_PERIOD
+from drive_bridge.params.profile import load_profile
+from drive_bridge.params.write import write_parameters
 from drive_bridge.recorder import record
 from drive_bridge.resources import DEFAULT_BUS_CONFIG as BUS_CONFIG
+from drive_bridge.tuning.design import design_gains
 from harness.paths import VENDOR_EDS
 from harness.stalls import injector
-from harness.support import Bench, bus_yml_beside, clean_config, quick_config, read_csv
+from harness.support import PAPER, Bench, bus_yml_beside, clean_config, quick_config, read_csv
 
 
 def buffered(config, **master):
@@ -55,6 +59,44 @@ def test_in_lockstep_the_fifo_is_fed_ahead_and_the_axis_follows_the_plan(tmp_pat
     position = column(names, data, "z_position_rad")
     demand = column(names, data, "z_position_demand_rad")
     assert np.max(np.abs(position - demand)) < 0.05 * np.ptp(demand)
+
+
+def test_records_fed_ahead_follow_as_closely_as_csp_on_the_drives_higher_order_sub_mode(tmp_path):
+    """The project's drive takes position records in its sub-mode -2 (the parabola through the
+    records, acceleration fed forward): z's following error fed ahead, on tuned gains with the
+    drive's model feed-forward, is CSP's (in linear interpolation, sub-mode 0, a multiple of it),
+    and the run says the choice."""
+    fe_rms = {}
+    plant = PAPER["z"]
+    tuned = {**design_gains(plant["J"], plant["c1"], R=0.8, L=0.002).gains(), **plant, "ff_enable": 1.0}
+    for way in ("buffered", "per_sync"):
+        config = replace(quick_config(), master=replace(quick_config().master, streaming=way)).only(["z"])
+        out = tmp_path / way
+        bench = Bench(clean_config())
+        assert write_parameters(bench.nodes["z"], load_profile("drive_bridge_servo"), tuned, store=False).ok
+        assert record(config, bench.link, out).ok
+        names, data = read_csv(out / "log.csv")
+        demand, position = column(names, data, "z_position_demand_rad"), column(names, data, "z_position_rad")
+        # the position a row answers is read at a later SYNC: the error at the lag that fits best
+        fe_rms[way] = min(
+            float(np.sqrt(np.mean((demand[: -lag or None] - position[lag:]) ** 2))) for lag in range(4)
+        )
+        streaming = yaml.safe_load((out / "meta.yaml").read_text())["timing"]["engine"]["streaming"]["z"]
+    assert fe_rms["buffered"] == pytest.approx(fe_rms["per_sync"], rel=0.1)
+    meta = yaml.safe_load((tmp_path / "buffered" / "meta.yaml").read_text())
+    assert "interpolation sub-mode -2 (0x60C0): the parabola" in meta["timing"]["engine"]["streaming"]["z"]
+    assert "sub-mode" not in streaming  # CSP: no interpolation sub-mode to choose
+
+
+def test_position_records_are_linear_where_no_higher_order_sub_mode_is_known():
+    """A vendor not named, or a range 0x60C0 does not admit: linear, the cost said."""
+    assert record_sub_mode(0x0DB1, (-2, 0))[0] == -2
+    assert record_sub_mode(0x0DB1, (None, None))[0] == -2
+    for vendor, limits in ((0x9A, (-32768, 32767)), (0x0DB1, (0, 0))):
+        sub_mode, why = record_sub_mode(vendor, limits)
+        assert sub_mode == 0 and "following error grows with the acceleration" in why
+    assert "no higher-order sub-mode is known for its vendor" in record_sub_mode(0x9A, (None, None))[1]
+    assert "outside the range 0x60C0 admits" in record_sub_mode(0x0DB1, (0, 0))[1]
 
 
 def test_auto_streams_per_sync_in_lockstep_and_says_why(tmp_path):

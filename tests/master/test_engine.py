@@ -424,8 +424,9 @@ def test_a_sync_the_bus_carried_before_the_first_rpdo_is_not_one_of_the_run():
     assert outcome.enable_cycles == round((arrays.sync_time[0] - port.first) / PERIOD)
 
 
-def _fed_ahead(rows: int) -> tuple[Job, Arrays]:
-    """One axis in interpolated position, fed 10 records ahead, ``rows`` of a ramp."""
+def _fed_ahead(rows: int, fill: int = -1) -> tuple[Job, Arrays]:
+    """One axis in interpolated position, fed 10 records ahead, ``rows`` of a ramp; ``fill``: the
+    raw column its FIFO's fill is in (the TPDO's INTEGER16; -1: not mapped)."""
     sup = Supervision(PERIOD, PERIOD, 0.02, 0.02, 0.3, 1.0, 2.0)
     axis = AxisJob(
         "y",
@@ -438,6 +439,7 @@ def _fed_ahead(rows: int) -> tuple[Job, Arrays]:
         interpolating=True,
         csp=False,
         ahead=10,
+        fill=fill,
     )
     rpdos = (
         RpdoJob(0x201, "<H", ((FIELD_CONTROLWORD, 0),), 0),
@@ -489,16 +491,17 @@ def test_a_buffered_stream_starts_interpolating_in_a_period_the_engine_answers_o
 
 
 class _RunsOutAt(_InterfaceSync):
-    """:class:`_InterfaceSync` whose drive reports its interpolation inactive (bit 12 clear: its FIFO
-    empty) once the engine has sent the rows after ``row`` (its replies then fall a row later)."""
+    """:class:`_InterfaceSync` whose drive reports its interpolation inactive (bit 12 clear) with
+    ``left`` records in its FIFO once the engine has sent the rows after ``row`` (its replies then
+    fall a row later)."""
 
-    def __init__(self, arrays: Arrays, row: int):
+    def __init__(self, arrays: Arrays, row: int, left: int = 0):
         super().__init__(arrays, held=10**9, delay=0.0)
-        self.row = row
+        self.row, self.left = row, left
 
     def wait_sync(self, timeout_at):
         if self.arrays.control[ROWS_SENT] > self.row:
-            self.reply = (0x0237).to_bytes(2, "little") + bytes(6)
+            self.reply = (0x0237).to_bytes(2, "little") + self.left.to_bytes(2, "little") + bytes(4)
         super().wait_sync(timeout_at)
 
 
@@ -513,6 +516,20 @@ def test_a_fifo_empty_in_the_plans_last_row_is_its_end_and_earlier_a_stop():
     job, arrays = _fed_ahead(300)
     outcome = Engine(job, arrays, _RunsOutAt(arrays, job.rows - 10)).run()
     assert outcome.abort is not None and outcome.abort[0] == "following"
+
+
+def test_interpolation_inactive_is_a_dry_fifo_only_where_the_drive_says_it_is_empty():
+    """Bit 12 clear mid-plan with the fill mapped: a FIFO the drive reports empty ran dry (the
+    master was away: a planned stop); one that still holds records did not -- the drive stopped
+    taking them (in the guest, a drive that took bit 4 late was once told "ran dry at row 2" with
+    21 records in its FIFO)."""
+    job, arrays = _fed_ahead(300, fill=1)
+    outcome = Engine(job, arrays, _RunsOutAt(arrays, 100, left=0)).run()
+    assert outcome.abort is not None and outcome.abort[0] == "dry"
+    job, arrays = _fed_ahead(300, fill=1)
+    outcome = Engine(job, arrays, _RunsOutAt(arrays, 100, left=21)).run()
+    assert outcome.abort is not None and outcome.abort[:2] == ("following", "y")
+    assert "interpolation is not active with 21 records in its FIFO" in outcome.abort[2]
 
 
 def test_syncs_that_stop_coming_end_the_run_when_the_drives_stop_waiting_for_setpoints():

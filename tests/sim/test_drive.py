@@ -189,6 +189,22 @@ def test_gain_write_changes_the_step_response(bench):
     assert np.max(stiff) > np.max(soft)  # and the stiff one overshoots the step
 
 
+def test_gains_written_to_a_held_axis_keep_the_torque_it_holds(bench):
+    """z held against its load for 1 s (its velocity integrator carries the load), then KpS written
+    a third lower: the torque goes on as it was and z stays put (an integrator that held the
+    velocity error, scaled by KpS, dropped a third of its torque and let z sag)."""
+    b = bench(clean_config(effects={"z": {"load": {"LOAD": 0.4}}}))  # gravity, as robot.yaml's z
+    node = started(b, "z")
+    pos, torque, _ = run_csp(b, node, np.zeros(500))
+    held = np.mean(torque[-20:])
+    assert abs(held) > 0.1  # the integrator carries the load
+    node.sdo[0x2000][3].raw = node.sdo[0x2000][3].raw * 2 / 3
+    after, torque_after, sw = run_csp(b, node, np.zeros(100))
+    assert np.max(np.abs(torque_after - held)) < 0.05 * abs(held)
+    assert np.max(np.abs(after - pos[-1])) < 1e-4
+    assert all(s & 0x6F == 0x27 for s in sw)
+
+
 def test_unstable_gains_oscillate_then_fault_with_emcy(bench):
     b = bench()
     node = started(b)
