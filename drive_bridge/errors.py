@@ -170,6 +170,25 @@ class GuardStop(MotionAborted):
     """Motion stopped by a guard of the run itself (e.g. the gain experiment's velocity guard)."""
 
 
+class RanDry(MotionAborted):
+    """Motion stopped where a drive's interpolation FIFO ran dry: the master was away longer than
+    the records kept ahead cover; the drive made a planned stop and holds (no fault).
+
+    Parameters
+    ----------
+    reason : str
+        Why, in words.
+    axis : str
+        The axis whose FIFO ran dry.
+    row : int
+        The plan row it ran dry at.
+    """
+
+    def __init__(self, reason: str, axis: str, row: int):
+        super().__init__(reason, axis)
+        self.row = row
+
+
 class Interrupted(MotionAborted):
     """Motion stopped because the user pressed Ctrl-C, or a SIGTERM / SIGHUP arrived.
 

@@ -259,6 +259,31 @@ def layout_meta(axes: dict[str, AxisLink]) -> dict:
     return out
 
 
+def _replay(trace: Path, rec: Recording, rpdo_ids: set[int], overflow: int) -> str | None:
+    """The frames of one trace into ``rec``: its SYNCs from the first RPDO on, each with its count
+    (a gap: SYNCs lost); what is wrong with the trace, or None."""
+    handlers = rec.handlers()
+    frames, last, started, count = 0, None, False, 0
+    try:
+        with can.LogReader(str(trace)) as reader:
+            for msg in reader:
+                started = started or msg.arbitration_id in rpdo_ids
+                if msg.arbitration_id == SYNC_COB_ID:
+                    if started:
+                        lost = (msg.data[0] - count - 1) % overflow if overflow and count and msg.data else 0
+                        count = msg.data[0] if overflow and msg.data else 0
+                        rec.on_sync(msg.timestamp, lost)
+                else:
+                    handler = handlers.get(msg.arbitration_id)
+                    if handler is not None:
+                        handler(msg.arbitration_id, msg.data, msg.timestamp)
+                frames, last = frames + 1, msg.timestamp
+    except Exception as exc:  # python-can's readers raise many kinds on a damaged file
+        where = f"after {frames} frames" + (f" (t = {last:.6f} s)" if last is not None else "")
+        return f"the trace {trace.name} is damaged {where}: {type(exc).__name__}: {exc}"
+    return None
+
+
 def decode_trace(
     trace: Path, meta_path: Path | None = None
 ) -> tuple[list[str], np.ndarray, list[str], dict, str | None]:
@@ -348,7 +373,6 @@ def decode_trace(
         yaml.YAMLError,
     ) as exc:
         raise UserError(f"{meta_path}: not a drive-bridge record meta.yaml (missing or bad {exc})") from exc
-    handlers = rec.handlers()
     # the run's SYNCs (the master's, or a drive's) are those after the first RPDO: the cyclic engine
     # sends one before it takes the first SYNC it counts (a producing drive's earlier ones are not)
     rpdo_ids = {c.cob_id for cs in rpdos.values() for c in cs}
@@ -357,25 +381,30 @@ def decode_trace(
         int((v.get("drive_limits") or {}).get(hex_object(SYNC_COUNTER_OVERFLOW, 0), 0)) for v in axes.values()
     }
     overflow = overflows.pop() if len(overflows) == 1 else 0
-    frames, last, problem, started, count = 0, None, None, False, 0
-    try:
-        with can.LogReader(str(trace)) as reader:
-            for msg in reader:
-                started = started or msg.arbitration_id in rpdo_ids
-                if msg.arbitration_id == SYNC_COB_ID:
-                    if started:
-                        lost = (msg.data[0] - count - 1) % overflow if overflow and count and msg.data else 0
-                        count = msg.data[0] if overflow and msg.data else 0
-                        rec.on_sync(msg.timestamp, lost)
-                else:
-                    handler = handlers.get(msg.arbitration_id)
-                    if handler is not None:
-                        handler(msg.arbitration_id, msg.data, msg.timestamp)
-                frames, last = frames + 1, msg.timestamp
-    except Exception as exc:  # python-can's readers raise many kinds on a damaged file
-        where = f"after {frames} frames" + (f" (t = {last:.6f} s)" if last is not None else "")
-        problem = f"the trace is damaged {where}: {type(exc).__name__}: {exc}"
+    problem = _replay(trace, rec, rpdo_ids, overflow)
     rec.truncate()  # (the plan's last periods without a SYNC are rows: meta.yaml names them)
+    try:
+        repeats = [
+            (
+                trace.with_name(Path(str(r["trace"])).name),
+                int(r["from_row"]),
+                int(r["approach_rows"]),
+                int(r["cycles_sent"]),
+                int(r["sync_before_plan"]),
+                {int(k) for k in r.get("rows_skipped") or []},
+            )
+            for r in meta.get("repeats") or []
+        ]
+    except (KeyError, TypeError, ValueError, AttributeError) as exc:
+        raise UserError(f"{meta_path}: not a drive-bridge record meta.yaml (bad repeats: {exc})") from exc
+    for path, from_row, approach, cycles, before, skipped in repeats:  # segments streamed again
+        if problem is not None:
+            break
+        again = Recording(tpdos, rpdos, cycles)
+        again.skip_syncs, again.skipped = before, skipped
+        problem = _replay(path, again, rpdo_ids, overflow) if path.is_file() else f"{path}: not found"
+        again.truncate()
+        rec.resume(from_row, again, approach)
     if problem is None and rec.rows < sent and meta.get("status") != "running":
         problem = f"the trace holds {rec.rows} of the {sent} SYNC cycles meta.yaml counts: it was cut short"
     if problem is None and meta.get("status") == "running":

@@ -5,23 +5,24 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from .config import BusConfig
-from .errors import MotionAborted
+from .errors import MotionAborted, RanDry
 from .interrupts import deferred
 from .logs import LOG_NAME, META_NAME, TRACE_NAME, layout_meta, meta_text, write_csv, write_meta
 from .master.bringup import AxisLink, bring_up
+from .master.buffered import MAX_REPEATS
 from .master.busload import BusLoad, check_bus_load
-from .master.campaign import Plan, build_plan
+from .master.campaign import Plan, build_plan, resume_plan
 from .master.engine import Supervision
 from .master.homing import home
 from .master.link import Link, TraceRecorder
 from .master.stream import stream
 from .master.supervision import supervision_for
-from .master.timing import Timing
+from .master.timing import Timing, measure
 from .outputs import stamped, write_text
 from .params.profile import setpoint_timeout_for
 from .version import __version__
@@ -57,6 +58,9 @@ class RecordResult:
         The run's timing.
     holding : dict of str to str, optional
         Per axis, how it is held after the motion.
+    repeats : list of dict
+        The segments streamed again after a FIFO ran dry: which, from which row, why, the
+        approach's rows and the repeat's own trace (meta.yaml's ``repeats``).
     """
 
     out_dir: Path
@@ -69,6 +73,21 @@ class RecordResult:
     wall_time_s: float
     timing: Timing
     holding: dict[str, str] | None = None
+    repeats: list[dict] = field(default_factory=list)
+
+    def repeated(self) -> str:
+        """The segments streamed again, in words ("": none).
+
+        Returns
+        -------
+        str
+            One clause per repeat.
+        """
+        return "; ".join(
+            f"segment {r['segment']} ({self.plan.segments[r['segment']].kind}) streamed again from row "
+            f"{r['from_row']}: axis {r['ran_dry']['axis']}'s FIFO ran dry at row {r['ran_dry']['row']}"
+            for r in self.repeats
+        )
 
     @property
     def ok(self) -> bool:
@@ -88,7 +107,7 @@ class RecordResult:
             "record",
             {
                 "out": str(self.out_dir),
-                "files": ["log.csv", "meta.yaml", "trace.blf"],
+                "files": ["log.csv", "meta.yaml", "trace.blf", *(r["trace"] for r in self.repeats)],
                 "axes": {a: {"samples": self.samples[a], "missing": self.missing[a]} for a in self.plan.axes},
                 "motion_s": self.plan.duration,
                 "cycles_sent": self.cycles_sent,
@@ -97,6 +116,7 @@ class RecordResult:
                 "timing": self.timing.as_dict(),
                 "aborted": None if self.aborted is None else str(self.aborted),
                 "holding": self.holding,
+                "repeats": self.repeats,
             },
         )
 
@@ -171,13 +191,20 @@ def record(
     load = check_bus_load(config)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    trace = TraceRecorder(out / TRACE_NAME, background=link.threaded, epoch=link.epoch)
-    link.add_trace(trace)  # from here: bring-up (when done here), streaming and stop
+    traces = [TraceRecorder(out / TRACE_NAME, background=link.threaded, epoch=link.epoch)]
+    link.add_trace(traces[0])  # from here: bring-up (when done here), streaming and stop
+
+    def next_trace(name: str) -> None:  # a repeated segment's stream goes into a trace of its own
+        link.remove_trace(traces[-1])
+        traces[-1].stop()
+        traces.append(TraceRecorder(out / name, background=link.threaded, epoch=link.epoch))
+        link.add_trace(traces[-1])
+
     try:
-        return _record(config, link, out, load, t_start, on_plan, axes)
+        return _record(config, link, out, load, t_start, on_plan, axes, next_trace)
     finally:
-        link.remove_trace(trace)
-        trace.stop()
+        link.remove_trace(traces[-1])
+        traces[-1].stop()
 
 
 def _record(
@@ -188,6 +215,7 @@ def _record(
     t_start: float,
     on_plan: Callable[[Plan], Callable[[int], None] | None] | None,
     axes: dict[str, AxisLink] | None,
+    next_trace: Callable[[str], None],
 ) -> RecordResult:
     axes = axes or bring_up(link, config)
     home(link, axes, config)  # reference: home -- before the plan starts where it left them
@@ -229,29 +257,90 @@ def _record(
             starting.replace(f"sync_before_plan: {ENABLING}\n", f"sync_before_plan: {enable_cycles}\n", 1),
         )
 
+    supervision = stream_supervision(config, {a: axes[a] for a in plan.axes})
     result = stream(
         link,
         axes,
         plan,
-        supervision=stream_supervision(config, {a: axes[a] for a in plan.axes}),
+        supervision=supervision,
         progress=progress,
         timing_limits=config.master.timing,
         sync_producer=config.master.sync_producer,
         on_start=started,
     )
-    rec = result.recording
-    samples = {a: int(len(rec.raw) - result.missing[a]) for a in plan.axes}
+    rec, timing, sent, first = result.recording, result.timing, result.cycles_sent, result.sync_before_plan
+    repeats: list[dict] = []
+    # a FIFO run dry (the master away longer than the records ahead cover): the drives made a planned
+    # stop and hold; the segment it happened in is marked and streamed again from its start
+    while isinstance(result.aborted, RanDry) and len(repeats) < MAX_REPEATS:
+        row = result.aborted.row  # as a row of the plan (a repeat's rows follow its approach)
+        if repeats:
+            row = repeats[-1]["from_row"] + max(0, row - repeats[-1]["approach_rows"])
+        segment = next(s for s in plan.segments if s.end > row)
+        here = {a: axes[a].position_rad() for a in plan.axes}
+        resumed, approach = resume_plan(plan, segment, here)
+        name = f"trace-repeat{len(repeats) + 1}.blf"
+        log.warning(
+            "%s; segment %d (%s, rows %d-%d) is streamed again from its start after an approach of %d rows",
+            result.aborted,
+            plan.segments.index(segment),
+            segment.kind,
+            segment.start,
+            segment.end,
+            approach,
+        )
+        dry = {"axis": result.aborted.axis, "row": row, "reason": result.aborted.reason}
+        next_trace(name)
+        result = stream(
+            link,
+            axes,
+            resumed,
+            supervision=supervision,
+            progress=None if progress is None else _shifted(progress, segment.start, approach),
+            timing_limits=config.master.timing,
+            sync_producer=config.master.sync_producer,
+        )
+        repeats.append(
+            {
+                "segment": plan.segments.index(segment),
+                "ran_dry": dry,
+                "from_row": segment.start,
+                "approach_rows": approach,
+                "trace": name,
+                "sync_before_plan": result.sync_before_plan,
+                "cycles_sent": result.cycles_sent,
+                "rows_skipped": sorted(result.recording.skipped),
+            }
+        )
+        rec.resume(segment.start, result.recording, approach)
+        sent = segment.start + max(0, result.cycles_sent - approach)
+    if repeats:  # the timing of the rows kept; rows_skipped: the first stream's (each repeat has its own)
+        engine = timing.engine
+        timing = measure(
+            rec.sync_time,
+            plan.period,
+            rec.missing(),
+            wall=link.threaded,
+            priority=timing.priority,
+            limits=config.master.timing,
+            joins=tuple(r["from_row"] for r in repeats),
+        )
+        timing.engine = engine
+    missing = rec.missing()
+    samples = {a: int(len(rec.raw) - missing[a]) for a in plan.axes}
     meta["counts"].update(
         {
-            "cycles_sent": result.cycles_sent,
+            "cycles_sent": sent,
             "samples_received": samples,
-            "samples_missing": dict(result.missing),
-            "sync_before_plan": result.sync_before_plan,
+            "samples_missing": missing,
+            "sync_before_plan": first,
         }
     )
     meta["holding"] = result.holding
     meta["status"] = "ok" if result.aborted is None else "aborted"
-    meta["timing"] = result.timing.as_dict()
+    meta["timing"] = timing.as_dict()
+    if repeats:
+        meta["repeats"] = repeats
     if result.aborted is not None:
         meta["abort"] = {"axis": result.aborted.axis, "reason": result.aborted.reason}
     with deferred():  # the data so far is written whole before a signal ends the command
@@ -260,12 +349,18 @@ def _record(
     return RecordResult(
         out,
         plan,
-        result.cycles_sent,
+        sent,
         samples,
-        dict(result.missing),
+        missing,
         result.aborted,
         load.describe(),
         time.perf_counter() - t_start,
-        result.timing,
+        timing,
         result.holding,
+        repeats,
     )
+
+
+def _shifted(progress: Callable[[int], None], start: int, approach: int) -> Callable[[int], None]:
+    """A repeat's progress as rows of the plan: its approach holds at the segment's start."""
+    return lambda rows: progress(start + max(0, rows - approach))

@@ -173,6 +173,28 @@ def injector(master: int, length_s: float, every_s: float, seed: int, log: Path)
     return subprocess.Popen(command, cwd=root)
 
 
+def stalling_at(pid_of, stalls, seconds):
+    """An ``on_plan`` hook (:func:`drive_bridge.recorder.record`) whose progress stops the process
+    ``pid_of()`` names for ``seconds`` at each fraction of the plan in ``stalls``, once each:
+    (the hook, the plan rows it stopped at so far)."""
+    done = []
+
+    def on_plan(plan):
+        rows = [round(f * len(plan.demand)) for f in stalls]
+
+        def progress(k):
+            if len(done) < len(rows) and k >= rows[len(done)]:
+                pid = pid_of()
+                os.kill(pid, signal.SIGSTOP)
+                time.sleep(seconds)
+                os.kill(pid, signal.SIGCONT)
+                done.append(k)
+
+        return progress
+
+    return on_plan, done
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--master", type=int, required=True, help="the master's main process")

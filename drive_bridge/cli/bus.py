@@ -238,6 +238,8 @@ def cmd_record(args: argparse.Namespace) -> int:
         for axis in result.plan.axes:
             print(f"  axis {axis}: {result.samples[axis]} samples, {result.missing[axis]} missing")
         print(timing_line(result.timing))
+        if result.repeats:
+            print(f"  {result.repeated()}")
         print(f"wrote {result.out_dir / 'log.csv'}, meta.yaml, trace.blf")
         print(holding_lines(result.holding))
     if result.aborted is not None:

@@ -230,6 +230,7 @@ def campaign(ctx: Context) -> str:
     return (
         f"{result.plan.duration:.1f} s of motion on {', '.join(result.plan.axes)} "
         f"({len(result.plan.segments)} segments), {missing} samples missing, bus load {result.bus_load}{late}"
+        + (f"; {result.repeated()}" if result.repeats else "")
         + (" -- TIMING DEGRADED" if result.timing.degraded else "")
     )
 

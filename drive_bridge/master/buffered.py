@@ -34,6 +34,9 @@ from ..config import MasterConfig, NodeConfig, PdoConfig
 
 #: an event-driven RPDO (CiA 301: manufacturer-specific event; acted on when received)
 EVENT_DRIVEN = 255
+#: times a run streams a stretch of motion again after a drive's FIFO ran dry in it (a host away
+#: more often than that ends the run with the planned stop said)
+MAX_REPEATS = 3
 FILL = (INTERPOLATION_DATA_CONFIGURATION, BUFFER_FILL)
 
 

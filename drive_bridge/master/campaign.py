@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
@@ -364,6 +364,68 @@ def approach_move(
     ramp = max(1, int(np.ceil(ramp_s / period)))  # 1.25: room for sampling
     padded = np.concatenate([np.full(ramp, p0), move, np.full(ramp, p1)])
     return np.convolve(padded, np.ones(ramp) / ramp, "valid")
+
+
+def resume_plan(plan: Plan, segment: Segment, here: dict[str, float]) -> tuple[Plan, int]:
+    """The rest of ``plan`` from ``segment`` on, after an approach from where the axes stand to where
+    the segment starts (a segment repeated after a planned stop); checked against the plan's limits.
+
+    Parameters
+    ----------
+    plan : Plan
+        The plan (its ``limits`` set, as :func:`build_plan` sets them).
+    segment : Segment
+        The segment it goes on from.
+    here : dict of str to float
+        Per axis, where it stands [rad].
+
+    Returns
+    -------
+    plan : Plan
+        The approach, then the plan's rows from the segment's start; its segments in its own rows.
+    approach : int
+        The approach's rows (the plan's row ``segment.start`` is the resumed plan's row ``approach``).
+    """
+    seq = _Sequence(plan.axes, here, plan.period)
+    seq.add(
+        "approach",
+        plan.axes,
+        {
+            a: approach_move(plan.limits[a], here[a], float(plan.demand[segment.start, i]), plan.period)
+            for i, a in enumerate(plan.axes)
+        },
+        APPROACH_LEVEL,
+        APPROACH_LEVEL,
+    )
+    lead = seq.n
+    rest = plan.demand[segment.start :]
+    demand = (
+        np.vstack([np.column_stack([np.concatenate(seq.columns[a]) for a in plan.axes]), rest])
+        if lead
+        else rest
+    )
+    segments = seq.segments + [
+        replace(s, start=s.start - segment.start + lead, end=s.end - segment.start + lead)
+        for s in plan.segments
+        if s.start >= segment.start
+    ]
+
+    def after(values: np.ndarray | None) -> np.ndarray | None:
+        return (
+            None if values is None else np.vstack([np.zeros((lead, len(plan.axes))), values[segment.start :]])
+        )
+
+    resumed = Plan(
+        plan.axes,
+        demand,
+        segments,
+        plan.period,
+        after(plan.torque_ff_Nm),
+        after(plan.velocity_ff_rad_s),
+        dict(plan.limits),
+    )
+    check_plan(resumed, plan.limits)
+    return resumed, lead
 
 
 def plan_summary(plan: Plan, limits: dict[str, Limits]) -> dict[str, dict]:

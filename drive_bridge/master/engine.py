@@ -818,7 +818,7 @@ class Engine:
                 ):
                     left = int(raw[r, ax.fill]) if ax.ahead and ax.fill >= 0 else -1
                     if left == 0:  # its FIFO ran dry: a planned stop
-                        return ("dry", ax.name, f"at row {r}", None)
+                        return ("dry", ax.name, str(r), None)
                     what = (
                         "interpolation is not active"
                         if ax.interpolating

@@ -225,6 +225,28 @@ class Recording:
         """
         return {axis: int(np.count_nonzero(~self.valid(axis)[: self.rows])) for axis in self.axes}
 
+    def resume(self, keep: int, then: Recording, skip: int) -> None:
+        """Its first ``keep`` rows, then the rows of ``then`` (the same axes and PDOs: the plan
+        streamed again from row ``keep`` after ``skip`` rows of approach): a segment repeated.
+
+        Parameters
+        ----------
+        keep : int
+            The rows kept (the repeated segment's first row).
+        then : Recording
+            The repeat's recording (truncated).
+        skip : int
+            Its approach's rows.
+        """
+        self.raw = np.concatenate([self.raw[:keep], then.raw[skip:]])
+        self.got = np.concatenate([self.got[:keep], then.got[skip:]])
+        self.demand = np.concatenate([self.demand[:keep], then.demand[skip:]])
+        self.sync_time = np.concatenate([self.sync_time[:keep], then.sync_time[skip:]])
+        self.skipped = {r for r in self.skipped if r < keep} | {
+            r - skip + keep for r in then.skipped if r >= skip
+        }
+        self.rows = len(self.raw)
+
     def truncate(self) -> None:
         """Drop rows after the last SYNC (the plan was not finished) -- but for the plan's last
         periods a late master sent no SYNC in (``skipped``): rows of the run like any period

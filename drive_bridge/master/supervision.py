@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import canopen
 
 from ..cia.p301 import MASTER_LOSS, emcy_text
-from ..errors import GuardStop, Interrupted, MotionAborted
+from ..errors import GuardStop, Interrupted, MotionAborted, RanDry
 from .bringup import AxisLink
 from .engine import (
     Outcome,
@@ -205,11 +205,12 @@ def _stop_reason(
         return MotionAborted(f"no TPDO: {detail}", axis)
     if kind == "dry" and axis is not None:
         cover = axes[axis].streaming.depth * supervision.period_s
-        return MotionAborted(
-            f"its interpolation FIFO ran dry ({detail}): this host was away longer than the "
+        return RanDry(
+            f"its interpolation FIFO ran dry (at row {detail}): this host was away longer than the "
             f"{cover * 1e3:.0f} ms of records kept ahead (master.stall_cover_ms); the drive made a planned "
             f"stop and holds, no fault",
             axis,
+            int(detail),
         )
     if kind == "guard" and axis is not None and guard is not None:
         return GuardStop(guard.reason(axis, float(axes[axis].cfg.scaling.velocity_from_device(int(detail)))))

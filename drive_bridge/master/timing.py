@@ -109,6 +109,7 @@ def measure(
     priority: str,
     limits: TimingLimits,
     setpoints_late: int = 0,
+    joins: tuple[int, ...] = (),
 ) -> Timing:
     """The timing of a run from its SYNC time stamps [s], missing samples per axis and the SYNCs that
     came before their setpoints.
@@ -130,13 +131,16 @@ def measure(
     setpoints_late : int
         SYNCs the interface sent (on time) that the engine answered with no setpoints, as they were
         handed over together, late: judged as late cycles are.
+    joins : tuple of int
+        Rows a repeated segment's stream starts at: the time before them is no SYNC gap.
 
     Returns
     -------
     Timing
         The timing, and whether it is degraded.
     """
-    gaps = np.diff(sync_time[np.isfinite(sync_time)])
+    pieces = np.split(sync_time, sorted(joins))
+    gaps = np.concatenate([np.diff(piece[np.isfinite(piece)]) for piece in pieces])
     n = len(sync_time)
     late = float(np.count_nonzero(gaps > LATE_FACTOR * period) / len(gaps) * 100) if len(gaps) else 0.0
     t = Timing(

@@ -2,15 +2,17 @@
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..config import BusConfig
-from ..errors import MotionAborted
+from ..errors import MotionAborted, RanDry
 from ..logs import to_table
 from ..master.bringup import AxisLink
+from ..master.buffered import MAX_REPEATS
 from ..master.campaign import APPROACH_LEVEL, Plan, Segment, approach_move, check_plan
 from ..master.homing import home
 from ..master.link import Link
@@ -19,6 +21,8 @@ from ..master.supervision import VelocityGuard
 from ..master.timing import Timing
 from ..recorder import stream_supervision
 from .feedforward import MasterFeedForward
+
+log = logging.getLogger(__name__)
 
 
 @dataclass
@@ -198,29 +202,33 @@ def run(
     period = config.master.sync_period_s
     names = list(demand)
     home(link, {a: axes[a] for a in names}, config)  # reference: home, before the first motion
-    plan_, n_app = plan(
-        config,
-        axes,
-        demand,
-        {a: axes[a].position_rad() for a in names},
-        kind=kind,
-        level=level,
-        feedforward=feedforward,
-        approach_level=approach_level,
-        torque_offset=torque_offset,
-    )
     m = config.master
-    progress = on_plan(plan_) if on_plan else None
-    result = stream(
-        link,
-        {a: axes[a] for a in names},
-        plan_,
-        supervision=stream_supervision(config, {a: axes[a] for a in names}),
-        progress=progress,
-        timing_limits=m.timing,
-        sync_producer=m.sync_producer,
-        guard=guard,
-    )
+    for repeat in range(MAX_REPEATS + 1):  # a FIFO run dry (its planned stop): the whole run again
+        plan_, n_app = plan(
+            config,
+            axes,
+            demand,
+            {a: axes[a].position_rad() for a in names},
+            kind=kind,
+            level=level,
+            feedforward=feedforward,
+            approach_level=approach_level,
+            torque_offset=torque_offset,
+        )
+        progress = on_plan(plan_) if on_plan and not repeat else None
+        result = stream(
+            link,
+            {a: axes[a] for a in names},
+            plan_,
+            supervision=stream_supervision(config, {a: axes[a] for a in names}),
+            progress=progress,
+            timing_limits=m.timing,
+            sync_producer=m.sync_producer,
+            guard=guard,
+        )
+        if not isinstance(result.aborted, RanDry) or repeat == MAX_REPEATS:
+            break
+        log.warning("%s; the %s runs again from where the axes stopped", result.aborted, kind)
     names_, values, _ = to_table(result.recording, {a: axes[a].cfg.scaling for a in names}, period)
     col = {n: values[:, i] for i, n in enumerate(names_)}
     rows = slice(n_app, max(n_app, len(values)))

@@ -14,7 +14,7 @@ from drive_bridge.cli import main
 from drive_bridge.config import load_bus_config
 from drive_bridge.errors import UserError
 from drive_bridge.ident import identify
-from drive_bridge.master.campaign import build_plan
+from drive_bridge.master.campaign import build_plan, resume_plan
 from drive_bridge.resources import DEFAULT_BUS_CONFIG
 from harness.support import PAPER, bus_yml_beside
 
@@ -55,6 +55,35 @@ def test_the_short_campaign_stays_inside_every_limit(jerk_share):
         centre = 0.5 * (lim.position_max + lim.position_min)
         assert q.max() - centre > 0.85 * half and centre - q.min() > 0.85 * half  # the whole stroke
         assert q[0] == pytest.approx(start[a], abs=1e-3) and q[-1] == pytest.approx(start[a])  # from and back
+
+
+@pytest.mark.parametrize("design", ["short", "paper"])
+def test_a_segment_resumed_from_where_the_axes_stopped_is_the_plans_rest_after_an_approach(design):
+    """A segment streamed again (its FIFO ran dry mid-way): an approach inside the limits from where
+    each axis stands to the segment's first row, then the plan's rows from there, unchanged, with the
+    segments in the resumed plan's rows."""
+    cfg, limits = _limits()
+    start = {"x": 1.0, "y": -20.0, "z": 5.0}
+    plan = build_plan(replace(cfg.campaign, design=design), limits, start, PERIOD)
+    segment = plan.segments[len(plan.segments) // 2]
+    here = {
+        a: float(plan.demand[(segment.start + segment.end) // 2, i]) + 0.1 for i, a in enumerate(plan.axes)
+    }
+    resumed, approach = resume_plan(plan, segment, here)
+    assert approach > 0 and resumed.segments[0].kind == "approach" and resumed.segments[0].end == approach
+    assert np.allclose(resumed.demand[0], [here[a] for a in plan.axes], atol=1e-6)
+    assert np.array_equal(resumed.demand[approach:], plan.demand[segment.start :])
+    assert [(s.kind, s.end - s.start) for s in resumed.segments[1:]] == [
+        (s.kind, s.end - s.start) for s in plan.segments[plan.segments.index(segment) :]
+    ]
+    for i, a in enumerate(plan.axes):
+        q = resumed.demand[: approach + 1, i]
+        v, acc = (np.abs(np.diff(q, k)) / PERIOD**k for k in (1, 2))
+        assert v.max() <= limits[a].max_velocity and acc.max() <= limits[a].max_acceleration
+    same, none = resume_plan(
+        plan, segment, {a: float(plan.demand[segment.start, i]) for i, a in enumerate(plan.axes)}
+    )
+    assert none == 0 and np.array_equal(same.demand, plan.demand[segment.start :])
 
 
 def test_limits_no_multisine_can_cover_the_stroke_in_are_a_clear_refusal():

@@ -7,8 +7,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import os
-import signal
 import time
 import tracemalloc
 from collections.abc import Callable
@@ -42,6 +40,7 @@ from drive_bridge.master.timing import measure
 from drive_bridge.recorder import RecordResult, record
 from drive_bridge.sim.lockstep import LinkPort, LockstepLink
 from harness.machine_floor import beside_the_floor, run_stall_ms
+from harness.stalls import stalling_at
 from harness.support import Bench, clean_config, quick_config, read_csv
 
 PERIOD = 0.002
@@ -584,27 +583,6 @@ def test_the_cyclic_path_does_not_grow_while_it_streams():
 
 
 # ---------------------------------------------------------------- wall clock, drives in their own process
-def _stalling(pid_of, stalls, seconds):
-    """A progress hook that stops the process ``pid_of()`` names for ``seconds`` at each fraction of the
-    plan in ``stalls``."""
-    done = []
-
-    def on_plan(plan):
-        rows = [round(f * len(plan.demand)) for f in stalls]
-
-        def progress(k):
-            if len(done) < len(rows) and k >= rows[len(done)]:
-                pid = pid_of()
-                os.kill(pid, signal.SIGSTOP)
-                time.sleep(seconds)
-                os.kill(pid, signal.SIGCONT)
-                done.append(k)
-
-        return progress
-
-    return on_plan, done
-
-
 @pytest.mark.realtime
 @pytest.mark.slow  # seconds on the wall clock
 def test_a_stalled_simulator_is_no_fault_of_the_master_or_the_drives(tmp_path):
@@ -614,7 +592,7 @@ def test_a_stalled_simulator_is_no_fault_of_the_master_or_the_drives(tmp_path):
 
     def stalled() -> tuple[RecordResult, list[int]]:
         with open_link(config, sim=True, realtime=True) as link:
-            on_plan, done = _stalling(lambda: link.simulator.process.pid, [0.2, 0.45, 0.7], 0.03)
+            on_plan, done = stalling_at(lambda: link.simulator.process.pid, [0.2, 0.45, 0.7], 0.03)
             return record(config, link, tmp_path, on_plan=on_plan), done
 
     # a run the machine itself stalled past the drives' timeout (its own floor held up as long) runs again
@@ -643,7 +621,7 @@ def test_a_master_stalled_past_the_drives_timeout_is_caught_by_the_drives_and_sa
 
     def stalled() -> tuple[RecordResult, list[int], int]:
         with open_link(config, sim=True, realtime=True) as link:
-            on_plan, done = _stalling(lambda: link.engine.pid, [0.3], 0.08)
+            on_plan, done = stalling_at(lambda: link.engine.pid, [0.3], 0.08)
             result = record(config, link, tmp_path, on_plan=on_plan)
             return result, done, link.network[config.nodes["y"].node_id].sdo[0x6041].raw
 
