@@ -313,7 +313,7 @@ def _record(
             }
         )
         rec.resume(segment.start, result.recording, approach)
-        sent = segment.start + max(0, result.cycles_sent - approach)
+        sent = len(rec.raw)
     if repeats:  # the timing of the rows kept; rows_skipped: the first stream's (each repeat has its own)
         engine = timing.engine
         timing = measure(

@@ -228,6 +228,7 @@ class Recording:
     def resume(self, keep: int, then: Recording, skip: int) -> None:
         """Its first ``keep`` rows, then the rows of ``then`` (the same axes and PDOs: the plan
         streamed again from row ``keep`` after ``skip`` rows of approach): a segment repeated.
+        A repeat stopped before its approach ended leaves the rows as they were.
 
         Parameters
         ----------
@@ -238,6 +239,8 @@ class Recording:
         skip : int
             Its approach's rows.
         """
+        if len(then.raw) <= skip:
+            return
         self.raw = np.concatenate([self.raw[:keep], then.raw[skip:]])
         self.got = np.concatenate([self.got[:keep], then.got[skip:]])
         self.demand = np.concatenate([self.demand[:keep], then.demand[skip:]])
