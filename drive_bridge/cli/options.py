@@ -228,7 +228,8 @@ def confirm_motion(
         print(preview(), file=sys.stderr)
     print(
         f"{what} will enable and move the real axes {axes} on {config.master.interface}:"
-        f"{config.master.channel}; each moves within the limits of {config.path}. Stand clear.",
+        f"{config.master.channel}; each moves within the limits of {config.path} (a stretch a stall of "
+        f"this computer stops, the drives' planned stop, is moved again from its start). Stand clear.",
         file=sys.stderr,
     )
     try:

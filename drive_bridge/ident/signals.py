@@ -441,10 +441,15 @@ def _settling_samples(settings: Settings, sos: np.ndarray) -> int:
 
 
 def _usable(log: Log, axis: str, settings: Settings) -> Iterator[tuple[slice, slice]]:
-    """(segment slice, the part kept after the edge cut) of each segment long enough to filter."""
+    """(segment slice, the part kept after the edge cut) of each segment long enough to filter
+    in which the axis moves: a segment that spans under ``MOVING_FRACTION`` of the axis's travel
+    is its standstill (a campaign that moves the axes in turn, split by a time gap), which no fit
+    uses."""
     r, edge = settings.decimation, settings.edge
+    q = log.axes[axis].q
+    travel = float(np.nanmax(q) - np.nanmin(q))
     for a, b in log.axes[axis].segments:
-        if b - a > 2 * edge + 3 * r * 9:
+        if b - a > 2 * edge + 3 * r * 9 and np.nanmax(q[a:b]) - np.nanmin(q[a:b]) >= MOVING_FRACTION * travel:
             yield slice(a, b), slice(edge, b - a - edge)
 
 
@@ -614,16 +619,21 @@ def motion_bandwidth(log: Log, axis: str) -> float:
     UserError
         An axis that does not move.
     """
-    ax = log.axes[axis]
-    # the segment with the most motion (a log split by missing rows may hold a long standstill)
-    a, b = max(ax.segments, key=lambda s: int(np.count_nonzero(np.diff(ax.q[s[0] : s[1]]))))
+    a, b = _most_motion(log, axis)
     fs = 1.0 / log.dt
-    v = np.gradient(ax.q[a:b], log.dt)
+    v = np.gradient(log.axes[axis].q[a:b], log.dt)
     f, pxx = welch(v - v.mean(), fs, min(len(v), 4096))
     cum = np.cumsum(pxx)
     if cum[-1] <= 0:
         raise UserError(f"{log.path}: axis {axis!r} does not move (its position is constant)")
     return float(max(f[np.searchsorted(cum, MOTION_POWER * cum[-1])], f[1]))
+
+
+def _most_motion(log: Log, axis: str) -> tuple[int, int]:
+    """The axis's segment with the most motion (a log split by missing rows or a time gap may hold
+    a long standstill)."""
+    ax = log.axes[axis]
+    return max(ax.segments, key=lambda s: int(np.count_nonzero(np.diff(ax.q[s[0] : s[1]]))))
 
 
 def quantisation_cutoff(log: Log, axis: str, bw: float) -> float:
@@ -650,13 +660,12 @@ def quantisation_cutoff(log: Log, axis: str, bw: float) -> float:
     float
         [Hz]; inf for a position that is not on counts.
     """
-    ax = log.axes[axis]
-    a, b = max(ax.segments, key=lambda s: s[1] - s[0])
-    step = count_step(ax.q[a:b])
+    a, b = _most_motion(log, axis)  # (the longest may be a standstill: a campaign split by a gap)
+    step = count_step(log.axes[axis].q[a:b])
     if step is None:
         return np.inf
     fs = 1.0 / log.dt
-    f, pxx = welch(np.gradient(ax.q[a:b], log.dt), fs, min(b - a, 4096))
+    f, pxx = welch(np.gradient(log.axes[axis].q[a:b], log.dt), fs, min(b - a, 4096))
     band = f <= QUANTISATION_BAND * bw
     power = float(np.sum((2 * np.pi * f[band]) ** 2 * pxx[band]) * (f[1] - f[0]))
     noise = (2 * np.pi) ** 4 * step**2 / 12 / (5 * fs / 2)

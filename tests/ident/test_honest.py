@@ -306,3 +306,46 @@ def test_a_log_that_never_turns_back_says_c0_is_collinear_with_the_offset(tmp_pa
     p, sd = r.model.params_, r.param_std
     assert "J" not in r.diagnostics.undetermined and abs(p["J"] - 1e-4) <= 3 * sd["J"]
     assert "c1" not in r.diagnostics.undetermined and abs(p["c1"] - 5e-4) <= 3 * sd["c1"]
+
+
+def test_a_log_split_by_a_time_gap_gives_what_the_whole_log_gives(tmp_path):
+    """Y through the short campaign's multisine while Z stands, then Z while Y stands, as a campaign
+    that moves its axes in turn; the same log with 8 s between the halves (a segment streamed again
+    after a stall, or a logger paused) is identified as the whole one: each axis from the half it
+    moves in. Before, Y's standstill half set its quantisation cut-off (the longest segment, not the
+    one with the motion) and Z's standstill half was fitted (a coupling to Y's position and a
+    Stribeck term Z does not have)."""
+    from dataclasses import replace
+
+    import numpy as np
+
+    from drive_bridge.config import load_bus_config
+    from drive_bridge.master.campaign import build_plan
+    from drive_bridge.sim.plantlog import plant_log
+    from harness.support import BUS_CONFIG
+
+    from .test_identify import sim_config
+
+    cfg = load_bus_config(BUS_CONFIG)
+    design = replace(cfg.campaign, design="short", together=False)
+    moves = {
+        a: build_plan(design, {a: cfg.nodes[a].limits}, {a: 0.0}, 0.002).demand[:, 0] for a in ("y", "z")
+    }
+    n = len(moves["y"])
+    demand = {
+        "y": np.concatenate([moves["y"], np.full(len(moves["z"]), moves["y"][-1])]),
+        "z": np.concatenate([np.zeros(n), moves["z"]]),
+    }
+    cols = plant_log(sim_config(None), demand)
+    whole = identify(write_log(tmp_path / "whole.csv", cols), axes=["y", "z"])
+    cols["time_s"] = np.where(np.arange(len(cols["time_s"])) >= n, cols["time_s"] + 8.0, cols["time_s"])
+    split = identify(write_log(tmp_path / "split.csv", cols), axes=["y", "z"])
+    for axis in ("y", "z"):
+        assert set(split[axis].model.params_) == set(whole[axis].model.params_), (
+            axis,
+            split[axis].model.params_,
+        )
+        for name in ("J", "c0", "c1"):
+            assert split[axis].model.params_[name] == pytest.approx(
+                whole[axis].model.params_[name], rel=0.01
+            ), (axis, name)
