@@ -314,19 +314,19 @@ def _record(
         )
         rec.resume(segment.start, result.recording, approach)
         sent = len(rec.raw)
+    missing = rec.missing()
     if repeats:  # the timing of the rows kept; rows_skipped: the first stream's (each repeat has its own)
         engine = timing.engine
         timing = measure(
             rec.sync_time,
             plan.period,
-            rec.missing(),
+            missing,
             wall=link.threaded,
             priority=timing.priority,
             limits=config.master.timing,
             joins=tuple(r["from_row"] for r in repeats),
         )
         timing.engine = engine
-    missing = rec.missing()
     samples = {a: int(len(rec.raw) - missing[a]) for a in plan.axes}
     meta["counts"].update(
         {

@@ -48,21 +48,18 @@ def record_sub_mode(vendor_id: int, limits: tuple[float | None, float | None]) -
     (int, str)
         The sub-mode and the reason in words.
     """
-    known = POSITION_RECORD_SUB_MODES.get(vendor_id)
     lowest, highest = limits
-    if (
-        known is not None
-        and (lowest is None or lowest <= known[0])
-        and (highest is None or known[0] <= highest)
-    ):
-        return known[
-            0
-        ], f"interpolation sub-mode {known[0]} (0x60C0): {known[1]}, its acceleration fed forward"
-    why = (
-        "its vendor's higher-order sub-mode is outside the range 0x60C0 admits"
-        if known is not None
-        else "no higher-order sub-mode is known for its vendor"
-    )
+    known = POSITION_RECORD_SUB_MODES.get(vendor_id)
+    if known is None:
+        why = "no higher-order sub-mode is known for its vendor"
+    else:
+        sub_mode, words = known
+        if (lowest is None or lowest <= sub_mode) and (highest is None or sub_mode <= highest):
+            return (
+                sub_mode,
+                f"interpolation sub-mode {sub_mode} (0x60C0): {words}, its acceleration fed forward",
+            )
+        why = "its vendor's higher-order sub-mode is outside the range 0x60C0 admits"
     return 0, (
         f"interpolation sub-mode 0 (0x60C0, linear; {why}): no acceleration inside a record, "
         "so the following error grows with the acceleration"

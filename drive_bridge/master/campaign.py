@@ -398,34 +398,19 @@ def resume_plan(plan: Plan, segment: Segment, here: dict[str, float]) -> tuple[P
         APPROACH_LEVEL,
     )
     lead = seq.n
-    rest = plan.demand[segment.start :]
-    demand = (
-        np.vstack([np.column_stack([np.concatenate(seq.columns[a]) for a in plan.axes]), rest])
-        if lead
-        else rest
-    )
-    segments = seq.segments + [
-        replace(s, start=s.start - segment.start + lead, end=s.end - segment.start + lead)
-        for s in plan.segments
-        if s.start >= segment.start
-    ]
+    for s in plan.segments[plan.segments.index(segment) :]:  # the plan's own rows, segment by segment
+        pieces = {a: plan.demand[s.start : s.end, i] for i, a in enumerate(plan.axes)}
+        seq.add(s.kind, list(s.axes), pieces, s.velocity_fraction, s.acceleration_fraction, s.cycles)
 
     def after(values: np.ndarray | None) -> np.ndarray | None:
         return (
             None if values is None else np.vstack([np.zeros((lead, len(plan.axes))), values[segment.start :]])
         )
 
-    resumed = Plan(
-        plan.axes,
-        demand,
-        segments,
-        plan.period,
-        after(plan.torque_ff_Nm),
-        after(plan.velocity_ff_rad_s),
-        dict(plan.limits),
-    )
-    check_plan(resumed, plan.limits)
-    return resumed, lead
+    resumed = seq.plan(plan.limits)  # (checked against them)
+    return replace(
+        resumed, torque_ff_Nm=after(plan.torque_ff_Nm), velocity_ff_rad_s=after(plan.velocity_ff_rad_s)
+    ), lead
 
 
 def plan_summary(plan: Plan, limits: dict[str, Limits]) -> dict[str, dict]:
