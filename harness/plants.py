@@ -280,8 +280,74 @@ def trapezoid_log(
     q_ref = np.concatenate(pieces)[:n]
     v_ref = np.gradient(q_ref, T)
     a_ref = np.gradient(v_ref, T)
-    q, tau = _trapezoid(q_ref, v_ref, a_ref, T, J, c0, c1)
+    q, tau = _trapezoid(q_ref, v_ref, a_ref, T, J, c0, c1, n, J)
     return _logged_at_1khz(np.arange(n) * T, q, tau, duration_s, noise_Nm, seed)
+
+
+def campaign_log(
+    *,
+    max_velocity: float = 10.47,
+    max_acceleration: float = 523.6,
+    stroke: float = 12.0,
+    fractions: tuple[float, ...] = (0.2, 0.4, 0.8),
+    level_s: float = 8.0,
+    J: float = 8.9e-5,
+    c0: float = 0.22,
+    c1: float = 3.1e-4,
+    payload: tuple[float, float] | None = None,
+    noise_Nm: float = 0.004,
+    rate_hz: float = 500.0,
+    seed: int = 0,
+    fs_int: float = 10_000.0,
+) -> dict[str, np.ndarray]:
+    """A rigid axis through the paper's excitation, written here from its description (not
+    ``drive_bridge.master.campaign``): for each velocity fraction, each acceleration fraction of
+    ``max_velocity`` / ``max_acceleration``, ``level_s`` of trapezoids back and forth over
+    ± ``stroke`` [rad] with 0.2 s of rest at each end; the cascade and plant of ``trapezoid_log``;
+    ``payload`` = (time [s], inertia after it): a payload added part-way.  Logged at ``rate_hz`` as
+    a SYNC-driven log is: the encoder's 2¹⁶ counts a turn, the torque with seeded noise, 1 mNm."""
+    T = 1.0 / fs_int
+    rest = int(0.2 * fs_int)
+    pieces, here = [np.full(rest, -stroke)], -stroke
+    for vf in fractions:
+        for af in fractions:
+            v, a, spent = vf * max_velocity, af * max_acceleration, 0
+            while spent < level_s * fs_int:
+                there = -here
+                move = _move(here, there, v, a, T)
+                pieces += [move, np.full(rest, there)]
+                spent += len(move) + rest
+                here = there
+    q_ref = np.concatenate(pieces)
+    v_ref = np.gradient(q_ref, T)
+    a_ref = np.gradient(v_ref, T)
+    n = len(q_ref)
+    change, J_after = (int(payload[0] * fs_int), payload[1]) if payload is not None else (n, J)
+    q, tau = _trapezoid(q_ref, v_ref, a_ref, T, J, c0, c1, change, J_after)
+    t = np.arange(n) * T
+    stamps = np.arange(int(t[-1] * rate_hz)) / rate_hz
+    rng = np.random.default_rng(seed)
+    inc = 2**16 / (2 * np.pi)
+    return {
+        "time_s": stamps,
+        "y_position_rad": np.floor(np.interp(stamps, t, q) * inc) / inc,
+        "y_torque_Nm": np.round(np.interp(stamps, t, tau) + noise_Nm * rng.standard_normal(len(stamps)), 3),
+    }
+
+
+def _move(p0: float, p1: float, v: float, a: float, T: float) -> np.ndarray:
+    """A trapezoid (a triangle where the distance is short) from ``p0`` to ``p1``, sampled every ``T``."""
+    dist = abs(p1 - p0)
+    v = min(v, np.sqrt(dist * a))
+    t_acc, t_end = v / a, dist / v + v / a
+    t = np.arange(1, int(np.ceil(t_end / T)) + 1) * T
+    t = np.minimum(t, t_end)
+    s = np.where(
+        t < t_acc,
+        0.5 * a * t**2,
+        np.where(t <= dist / v, 0.5 * a * t_acc**2 + v * (t - t_acc), dist - 0.5 * a * (t_end - t) ** 2),
+    )
+    return p0 + np.sign(p1 - p0) * s
 
 
 def two_mass_log(
@@ -363,8 +429,9 @@ def _joint(q_ref, v_ref, a_ref, T, J, c0, c1, gravity_Nm, kp, kd):
 
 
 @njit(cache=True)
-def _trapezoid(q_ref, v_ref, a_ref, T, J, c0, c1):
-    """trapezoid_log's rigid axis under its cascade with the inertia fed forward: position, torque."""
+def _trapezoid(q_ref, v_ref, a_ref, T, J, c0, c1, change, J_after):
+    """trapezoid_log's rigid axis under its cascade with the inertia ``J`` fed forward, the plant's
+    inertia ``J_after`` from sample ``change`` on: position, torque."""
     n = len(q_ref)
     q, tau = np.empty(n), np.empty(n)
     qk, vk, integ = q_ref[0], 0.0, 0.0
@@ -372,9 +439,10 @@ def _trapezoid(q_ref, v_ref, a_ref, T, J, c0, c1):
         e_v = 60.0 * (q_ref[k] - qk) + v_ref[k] - vk
         integ += 25.0 * e_v * T
         u = 0.08 * (e_v + integ) + J * a_ref[k]
+        J_k = J if k < change else J_after
         if not (vk == 0.0 and abs(u) <= c0):
             s_dir = np.sign(vk) if vk != 0.0 else np.sign(u)
-            v_new = vk + T / J * (u - c1 * vk - c0 * s_dir)
+            v_new = vk + T / J_k * (u - c1 * vk - c0 * s_dir)
             vk = 0.0 if vk != 0.0 and v_new * vk < 0 else v_new
         qk += vk * T
         q[k], tau[k] = qk, u

@@ -2,6 +2,7 @@
 
     python tools/bench_identify.py crb [--seeds 50]       # estimator spread against the reported std
     python tools/bench_identify.py coverage [--cases 40]  # true values within 3 reported std?
+    python tools/bench_identify.py consistency [--seeds 60]  # the consistency check's false alarms and power
     python tools/bench_identify.py speed                   # 3 axes, 300 s at 500 Hz, with residual tracing
     python tools/bench_identify.py full [--log DIR] [--against REV] [--profile N] [--floor]
                                                            # the full paper campaign (867 s), where the time goes
@@ -16,6 +17,11 @@ structure no library effect or one-variable spline models (friction or torque de
 variables at once), amplitudes, plants and seeds drawn at random (seeded): the share of cases
 where the true J, c0, c1 lie within 3 reported std.  speed: the shipped robot (with its hidden
 effects), the default campaign cut to 100 s per axis, one axis after the other: 300 s of log.
+consistency: the independent plants of :mod:`harness.consistency` (sines; the paper's trapezoid
+levels) over ``--seeds`` noise seeds: the share of clean seeds flagged against the stated false-alarm
+rate (with its binomial 95 % interval), whether the p-values are uniform as they must be on clean
+data (Kolmogorov-Smirnov), and the seeds flagged where the inertia steps +10 %, +50 % halfway, with
+the step each says it detects.
 full: the log of the full paper campaign (``--log``: a record directory, as ``commission --sim``
 leaves in ``campaign/``; default: the shipped robot's plant run bus-free through the campaign,
 867 s at 500 Hz), identified as ``commission`` does; beside it the plain least squares of the same
@@ -171,6 +177,31 @@ def coverage(cases: int, verbose: bool = False) -> None:
             f"  {k:<3} true value within 3 reported std in {inside[k]}/{cases} = {inside[k] / cases:.0%}, "
             f"worst {worst[k]:.1f} std"
         )
+
+
+def consistency(seeds: int) -> None:
+    from scipy import stats
+
+    from harness.consistency import FAMILIES, checked
+
+    for family, (_, words) in FAMILIES.items():
+        clean = checked(family, range(seeds))
+        rate = clean[0]["test"]["false_alarm_rate"]
+        flagged = sum(a["consistent"] is False for a in clean)
+        low, high = stats.binomtest(flagged, seeds, rate).proportion_ci(0.95)
+        ks = stats.kstest([a["test"]["p_value"] for a in clean], "uniform").pvalue
+        print(f"{family}: {words}")
+        print(
+            f"  clean: {flagged} of {seeds} flagged ({flagged / seeds:.1%}, 95 % interval {low:.1%}-{high:.1%}; "
+            f"stated rate {rate:.0%}); p-values uniform: KS p = {ks:.2f}"
+        )
+        for step in (0.10, 0.50):
+            answers = checked(family, range(seeds), step)
+            hit = sum(a["consistent"] is False for a in answers)
+            said = np.median([a["test"]["detects"]["J"] for a in answers])
+            print(
+                f"  J +{step:.0%} halfway: {hit} of {seeds} flagged; the step it says it sees 95 % of the time: {said:.1%} (median)"
+            )
 
 
 def speed() -> None:
@@ -397,7 +428,7 @@ def full(log_dir: str | None, against: str | None, profile: int, runs: int, at_f
 
 if __name__ == "__main__":
     parser = argparse.ArgumentParser()
-    parser.add_argument("mode", choices=["crb", "coverage", "speed", "full"])
+    parser.add_argument("mode", choices=["crb", "coverage", "consistency", "speed", "full"])
     parser.add_argument("--log", help="full: a record directory (default: a plant log of the paper campaign)")
     parser.add_argument(
         "--against", help="full: a git revision whose identification is timed in the same run"
@@ -417,6 +448,8 @@ if __name__ == "__main__":
         crb(args.seeds)
     elif args.mode == "coverage":
         coverage(args.cases, args.verbose)
+    elif args.mode == "consistency":
+        consistency(args.seeds)
     elif args.mode == "full":
         full(args.log, args.against, args.profile, args.runs, args.floor)
     else:

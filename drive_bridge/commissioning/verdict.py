@@ -114,9 +114,11 @@ def axis_criteria(entry: dict, acc: Acceptance) -> list[dict]:
         )
     if acc.require_consistent:
         c = entry.get("consistency")
+        rate = ((c or {}).get("test") or {}).get("false_alarm_rate")
         out.append(
             _criterion(
-                "identification consistent between parts of the data",
+                "identification consistent between parts of the data"
+                + (f" (a test flagging {rate:.0%} of consistent axes)" if rate else ""),
                 "WARN",
                 None if c is None else c.get("consistent"),
                 True,

@@ -130,6 +130,12 @@ def summary(results: dict[str, AxisResult]) -> str:
             lines.append(f"  {delay_text(r.diagnostics.sampling)}")
         if r.diagnostics.consistency and r.diagnostics.consistency["consistent"] is False:
             lines.append(f"  NOT CONSISTENT: {consistency_text(r.diagnostics.consistency)}")
+        if (
+            r.diagnostics.consistency
+            and r.diagnostics.consistency["consistent"]
+            and (agreed := agreement_text(r.diagnostics.consistency))
+        ):
+            lines.append(f"  consistency: {agreed}")
         if r.diagnostics.consistency and r.diagnostics.consistency["consistent"] is None:
             lines.append(f"  consistency not checked: {not_run_text(r.diagnostics.consistency)}")
         if runs := (r.diagnostics.consistency or {}).get("between_runs"):
@@ -279,6 +285,7 @@ def consistency_text(c: dict) -> str:
     str
         The sentence.
     """
+    test = c.get("test") or {}
     return (
         "; ".join(
             f"{p} differs between the {m['between'][0]} and the {m['between'][1]} by {m['sigmas']:.3g} std ("
@@ -287,6 +294,42 @@ def consistency_text(c: dict) -> str:
             for p, m in c["moved"].items()
         )
         + ": the data hold more than one value (a payload change, a warm-up, or structure the model lacks)"
+        + (
+            f"; the parts' chi-squared {test['chi2']:g} on {test['dof']} degrees of freedom, p = "
+            f"{test['p_value']:.2g}, beyond the {test['false_alarm_rate']:.0%} that consistent data reach"
+            if test
+            else ""
+        )
+    )
+
+
+def agreement_text(c: dict) -> str:
+    """That the parts of the data agree, at what false-alarm rate, and the steps the test would see.
+
+    Parameters
+    ----------
+    c : dict
+        ``consistency``'s answer (``consistent`` true, with its ``test``).
+
+    Returns
+    -------
+    str
+        The sentence ("" where no test was made).
+    """
+    test = c.get("test") or {}
+    if not test:
+        return ""
+    steps = test.get("detects") or {}
+    return (
+        f"the parts agree (p = {test['p_value']:.2g}; the test flags {test['false_alarm_rate']:.0%} of "
+        f"consistent axes)"
+        + (
+            "; a step between the halves of "
+            + ", ".join(f"{p} {s:.0%}" for p, s in sorted(steps.items()) if s is not None)
+            + f" would be seen {test['detection_power']:.0%} of the time"
+            if steps
+            else ""
+        )
     )
 
 
@@ -676,6 +719,12 @@ def build_report(results: dict[str, AxisResult], out: Path, source: str, figures
             doc.para(_sentence(friction_text(r)))
         if r.diagnostics.consistency and r.diagnostics.consistency["consistent"] is False:
             doc.para([Strong("Not consistent:"), f" {consistency_text(r.diagnostics.consistency)}."])
+        if (
+            r.diagnostics.consistency
+            and r.diagnostics.consistency["consistent"]
+            and (agreed := agreement_text(r.diagnostics.consistency))
+        ):
+            doc.para([Strong("Consistency:"), f" {agreed}."])
         if r.diagnostics.consistency and r.diagnostics.consistency["consistent"] is None:
             doc.para([Strong("Consistency not checked:"), f" {not_run_text(r.diagnostics.consistency)}."])
         if runs := (r.diagnostics.consistency or {}).get("between_runs"):

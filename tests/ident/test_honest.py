@@ -349,3 +349,34 @@ def test_a_log_split_by_a_time_gap_gives_what_the_whole_log_gives(tmp_path):
             assert split[axis].model.params_[name] == pytest.approx(
                 whole[axis].model.params_[name], rel=0.01
             ), (axis, name)
+
+
+@pytest.mark.parametrize("family", ["sines", "campaign"])
+def test_the_consistency_check_flags_consistent_axes_at_the_rate_it_states(family):
+    """50 noise seeds of an independent plant whose J, c0 and c1 hold: the check states its
+    false-alarm rate (1 %) and flags no more seeds than that rate allows (at most 3 of 50: a
+    binomial 1 % run goes beyond 3 once in 600). Before, nine comparisons at 3 std each of
+    parts' HAC std flagged 17 of 60 seeds on the campaign."""
+    from scipy import stats
+
+    from harness.consistency import checked
+
+    answers = checked(family, range(50))
+    rate = answers[0]["test"]["false_alarm_rate"]
+    assert rate == 0.01 and all(a["test"]["false_alarm_rate"] == rate for a in answers)
+    flagged = sum(a["consistent"] is False for a in answers)
+    assert flagged <= stats.binom.isf(1 / 600, 50, rate), flagged
+
+
+def test_a_payload_added_halfway_is_flagged_where_the_data_can_show_it():
+    """The inertia grows 10 % halfway: on the sines the halves determine J to a fraction of that,
+    and at least 95 % of 50 seeds are flagged with J named. On the campaign's trapezoids the slow
+    levels barely determine J, and the check says what it can see: wherever the step it states
+    it detects 95 % of the time is below the +50 % made, the seed is flagged."""
+    from harness.consistency import checked
+
+    sines = checked("sines", range(50), step=0.10)
+    assert sum(a["consistent"] is False and "J" in a["moved"] for a in sines) >= 0.95 * 50
+    campaign = checked("campaign", range(50), step=0.50)
+    seen = [a for a in campaign if a["test"]["detects"]["J"] < 0.50 / 1.25]  # relative to the mean J
+    assert len(seen) >= 10 and sum(a["consistent"] is False for a in seen) >= 0.95 * len(seen)
