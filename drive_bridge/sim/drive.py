@@ -137,7 +137,7 @@ from .heartbeats import HeartbeatConsumer
 from .ip_fifo import IpFifo
 from .nmt_slave import RESET_COMMUNICATION, NmtSlave
 from .pdo_map import ABORT_RANGE, ABORT_STATE, PdoMapping
-from .plant import Plant
+from .plant import Plant, whole_ticks
 from .profile_motion import ProfileMotion
 from .pvt_buffer import ERR_UNDERFLOW, PvtBuffer
 from .robot_config import SimAxis
@@ -207,7 +207,7 @@ class DriveHost(Protocol):
         """The drive's RPDO COB-IDs changed."""
 
     def cycle_period_written(self, period_us: int) -> None:
-        """0x1006 written: the SYNC period [µs] the drives' loops lock to.
+        """0x1006 (or 0x60C2) written: the SYNC period [µs] the drives' loops lock to.
 
         Parameters
         ----------
@@ -667,6 +667,8 @@ class SimDrive:
             self.nmt.heartbeat_time_written(self.plant.time, value)
         elif index == CYCLE_PERIOD:
             self.host.cycle_period_written(value)
+        elif index == INTERPOLATION_TIME_PERIOD and sub in (1, 2):
+            self._interpolation_period_written(sub, value)
         elif index == COB_ID_SYNC:
             self.host.sync_producer_written(self, bool(value & SYNC_PRODUCER))
         elif index == SYNC_COUNTER_OVERFLOW:  # CiA 301: only while no cycle period runs; 1 is not a value
@@ -1075,6 +1077,22 @@ class SimDrive:
             [s].
         """
         return SETPOINT_TIMEOUT_PERIODS * self._interpolation_period() + 1e-9
+
+    def _interpolation_period_written(self, sub: int, value: int) -> None:
+        """0x60C2 written: the loops lock to value × 10^index as to a SYNC period (0x1006), the
+        period a master that writes no 0x1006 still says; refused with an SDO abort where it is
+        no whole number of loop ticks, or would change the loops' period while the drive is enabled."""
+        mantissa = value if sub == 1 else self.objects.get(INTERPOLATION_TIME_PERIOD, 1)
+        exponent = value if sub == 2 else self.objects.get(INTERPOLATION_TIME_PERIOD, 2)
+        period = mantissa * 10.0**exponent
+        ticks = whole_ticks(period)
+        if not ticks:
+            raise SdoAbortedError(ABORT_RANGE)
+        if ticks == self.plant.ticks_per_period:
+            return
+        if self.state == ENABLED:
+            raise SdoAbortedError(ABORT_STATE)
+        self.host.cycle_period_written(round(period * 1e6))
 
     def _interpolation_period(self) -> float:
         """0x60C2 [s]: value × 10^index (the SYNC period where the drive has no such object)."""

@@ -124,7 +124,7 @@ class SimRobot:
         return self.plant.sync_period
 
     def cycle_period_written(self, period_us: int) -> None:
-        """0x1006 written on a drive: the drives' loops lock to that SYNC period, as a drive's
+        """0x1006 or 0x60C2 written on a drive: the drives' loops lock to that SYNC period, as a drive's
         phase-locked loop does (one grid: the SYNC is the bus's), from the next SYNC on; 0 (no
         SYNC expected) and a period that is not a whole number of loop ticks leave it as it is.
 

@@ -412,3 +412,20 @@ def test_torque_and_velocity_offsets_reach_the_loops(bench):
     assert drive.plant_demand[kernel.T_OFF] == pytest.approx(0.6 * 1.27)
     pushed = run_csp(b, node, np.zeros(10))[0]
     assert np.max(np.abs(held)) < np.max(np.abs(pushed)) and node.sdo[0x6064].raw != p0
+
+
+def test_the_interpolation_period_is_refused_a_change_while_enabled(bench):
+    """0x60C2 written with the period the drive runs is taken whatever its state; another period
+    while the drive is enabled is refused with abort 0x08000022 (the device state), and taken
+    once it is disabled."""
+    node = bench().nodes["x"]
+    map_pdos(node)
+    node.sdo[0x60C2][2].raw, node.sdo[0x60C2][1].raw = -3, 2  # the 2 ms it runs at
+    enable_csp(node)
+    node.sdo[0x60C2][1].raw = 2  # the same: taken
+    with pytest.raises(canopen.SdoAbortedError) as refused:
+        node.sdo[0x60C2][1].raw = 4
+    assert refused.value.code == 0x08000022 and node.sdo[0x60C2][1].raw == 2
+    node.sdo[0x6040].raw = 0x06
+    node.sdo[0x60C2][1].raw = 4
+    assert node.sdo[0x60C2][1].raw == 4

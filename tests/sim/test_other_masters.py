@@ -147,25 +147,27 @@ def test_what_a_tool_reads_and_writes_by_sdo_is_what_cia_301_and_402_define(driv
         assert node.sdo[index].raw == defined
 
 
-def test_csp_at_a_10_ms_sync_moves_as_0x60c2_says_not_stop_and_go(drives):
-    """A master of its own at a 10 ms SYNC (the simulator started at its default 2 ms), 0x1006 and
-    0x60C2 = 10 ms written, cyclic synchronous position with controlword and target in the EDS's
-    RPDO1 after each SYNC: the drive interpolates each setpoint over 10 ms -- its velocity, read at
-    any moment of the cruise, is the commanded one (not 2 ms of motion and 8 of standstill) -- and
-    the axis arrives when the profile ends."""
+@pytest.mark.parametrize("period_ms, node_id", [(10, 3), (20, 1)])
+def test_csp_at_the_masters_sync_moves_as_0x60c2_says_not_stop_and_go(drives, period_ms, node_id):
+    """A master of its own at a 10 or 20 ms SYNC (the simulator started at its default 2 ms),
+    writing only 0x60C2 to match (no 0x1006, as ros2_canopen's examples and canopen's own node
+    leave it), cyclic synchronous position with controlword and target in the EDS's RPDO1 after
+    each SYNC: the drive interpolates each setpoint over the period -- its velocity, read at any
+    moment of the cruise, is the commanded one (not 2 ms of motion and the rest standstill) -- and
+    the axis arrives when the profile ends.  Before, the drive kept its 2 ms and faulted.  (An axis
+    of its own each: switched off at the end, Z falls onto its end stop.)"""
     network = drives
-    node = canopen.BaseNode402(3, str(PROJECT_EDS))
+    node = canopen.BaseNode402(node_id, str(PROJECT_EDS))
     network.add_node(node)
     node.nmt.state = "PRE-OPERATIONAL"
-    node.sdo[0x1006].raw = 10_000  # [µs]
-    node.sdo[0x60C2][1].raw, node.sdo[0x60C2][2].raw = 10, -3  # 10 × 10⁻³ s
+    node.sdo[0x60C2][2].raw, node.sdo[0x60C2][1].raw = -3, period_ms  # period_ms × 10⁻³ s
     node.setup_402_state_machine()
     node.nmt.state = "OPERATIONAL"
     node.op_mode = "CYCLIC SYNCHRONOUS POSITION"
     pdo = node.rpdo[1]  # 0x6040 + 0x607A, synchronous
     start = node.sdo[0x6064].raw
     per_rad = 1048576 / (2 * math.pi)
-    speed, accel, period = 2.0 * per_rad, 10.0 * per_rad, 0.010  # [inc/s], [inc/s²], [s]
+    speed, accel, period = 2.0 * per_rad, 10.0 * per_rad, period_ms / 1e3  # [inc/s], [inc/s²], [s]
     ramp, cruise = speed / accel, 1.0  # [s]
     # the setpoints of a trapezoid: ramp, 1 s at speed, ramp
     target = np.round(trapezoid(start, start + speed * (ramp + cruise), speed, accel, period)).astype(int)
@@ -174,7 +176,8 @@ def test_csp_at_a_10_ms_sync_moves_as_0x60c2_says_not_stop_and_go(drives):
 
     def master() -> None:  # SYNC, then the setpoint for the period it opens, on an absolute schedule
         t0 = time.monotonic()
-        for k, setpoint in enumerate([start] * 50 + list(target) + [int(target[-1])] * 100):
+        hold = round(0.5 / period)  # 0.5 s before the profile, 1 s after it
+        for k, setpoint in enumerate([start] * hold + list(target) + [int(target[-1])] * 2 * hold):
             time.sleep(max(0.0, t0 + k * period - time.monotonic()))
             network.sync.transmit()
             pdo[0].raw, pdo[1].raw = controlword[0], setpoint
@@ -198,6 +201,7 @@ def test_csp_at_a_10_ms_sync_moves_as_0x60c2_says_not_stop_and_go(drives):
     finally:
         thread.join()
         controlword[0] = 0x06
+        time.sleep(3 * period)  # the last RPDO (enable operation) taken first: the drive's grid arms it
         node.sdo[0x6040].raw = 0x06
     velocity = np.array(sampled)
     assert len(velocity) > 30
@@ -206,6 +210,24 @@ def test_csp_at_a_10_ms_sync_moves_as_0x60c2_says_not_stop_and_go(drives):
         np.percentile(velocity, 5) > 0.7 * speed and np.percentile(velocity, 95) < 1.3 * speed
     )  # ... steadily
     assert abs(arrived - target[-1]) < 0.01 * per_rad  # and there when the profile ended (+1 s)
+    del network[node_id]
+
+
+def test_an_interpolation_period_the_loops_cannot_run_is_refused_with_an_sdo_abort(drives):
+    """0x60C2 = 3 × 10⁻⁴ s (not a whole number of the 0.5 ms loop tick) is refused with abort
+    0x06090030 (value range) a master can read, and the period the drive keeps is the one before;
+    a change while the drive is enabled is refused as the device state's (0x08000022)."""
+    network = drives
+    node = network.add_node(1, str(PROJECT_EDS))
+    node.nmt.state = "PRE-OPERATIONAL"
+    node.sdo[0x60C2][2].raw, node.sdo[0x60C2][1].raw = -3, 10
+    node.sdo[0x60C2][2].raw = -4  # 10 × 10⁻⁴ s = 1 ms: whole ticks
+    with pytest.raises(canopen.SdoAbortedError) as refused:
+        node.sdo[0x60C2][1].raw = 3  # 0.3 ms
+    assert refused.value.code == 0x06090030
+    assert (node.sdo[0x60C2][1].raw, node.sdo[0x60C2][2].raw) == (10, -4)
+    node.sdo[0x60C2][2].raw, node.sdo[0x60C2][1].raw = -3, 10  # back to the module's 10 ms
+    del network[1]
 
 
 PER_REV = 1048576  # the simulated drives' position unit: encoder increments per motor revolution
@@ -260,6 +282,7 @@ def operational(network: canopen.Network, node_id: int) -> Iterator[tuple[canope
     node.TIMEOUT_CHECK_TPDO = 1.0
     network.add_node(node)
     node.nmt.state = "PRE-OPERATIONAL"
+    node.sdo[0x60C2][2].raw, node.sdo[0x60C2][1].raw = -3, 10  # the interpolation period: the SYNC's
     node.setup_402_state_machine()
     tpdo = Tpdo1(network, node_id)
     node.nmt.state = "OPERATIONAL"
