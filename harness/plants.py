@@ -263,25 +263,12 @@ def trapezoid_log(
     pieces, n = [rest - stroke], int(duration_s * fs_int)
     while sum(len(p) for p in pieces) < n:
         for a, b in ((-stroke, stroke), (stroke, -stroke)):
-            dist, v = abs(b - a), min(velocity, np.sqrt(abs(b - a) * acceleration))
-            t_acc = v / acceleration
-            t = np.arange(1, int(np.ceil((dist / v + t_acc) / T)) + 1) * T
-            t = np.minimum(t, dist / v + t_acc)
-            s = np.where(
-                t < t_acc,
-                0.5 * acceleration * t**2,
-                np.where(
-                    t <= dist / v,
-                    0.5 * acceleration * t_acc**2 + v * (t - t_acc),
-                    dist - 0.5 * acceleration * (dist / v + t_acc - t) ** 2,
-                ),
-            )
-            pieces += [a + np.sign(b - a) * s, rest + b]
+            pieces += [_move(a, b, velocity, acceleration, T), rest + b]
     q_ref = np.concatenate(pieces)[:n]
     v_ref = np.gradient(q_ref, T)
     a_ref = np.gradient(v_ref, T)
     q, tau = _trapezoid(q_ref, v_ref, a_ref, T, J, c0, c1, n, J)
-    return _logged_at_1khz(np.arange(n) * T, q, tau, duration_s, noise_Nm, seed)
+    return _logged(np.arange(n) * T, q, tau, duration_s, noise_Nm, seed)
 
 
 def campaign_log(
@@ -324,15 +311,7 @@ def campaign_log(
     n = len(q_ref)
     change, J_after = (int(payload[0] * fs_int), payload[1]) if payload is not None else (n, J)
     q, tau = _trapezoid(q_ref, v_ref, a_ref, T, J, c0, c1, change, J_after)
-    t = np.arange(n) * T
-    stamps = np.arange(int(t[-1] * rate_hz)) / rate_hz
-    rng = np.random.default_rng(seed)
-    inc = 2**16 / (2 * np.pi)
-    return {
-        "time_s": stamps,
-        "y_position_rad": np.floor(np.interp(stamps, t, q) * inc) / inc,
-        "y_torque_Nm": np.round(np.interp(stamps, t, tau) + noise_Nm * rng.standard_normal(len(stamps)), 3),
-    }
+    return _logged(np.arange(n) * T, q, tau, (n - 1) * T, noise_Nm, seed, rate_hz)
 
 
 def _move(p0: float, p1: float, v: float, a: float, T: float) -> np.ndarray:
@@ -384,15 +363,22 @@ def two_mass_log(
     wc = 2 * np.pi * velocity_loop_hz
     kv, ti, kp = J_motor * wc, 4 / wc, wc / 8
     q, tau = _two_mass(q_ref, v_ref, T, kp, kv, ti, k, d, J_motor, J_load, c0, c1)
-    return _logged_at_1khz(t, q, tau, duration_s, noise_Nm, seed)
+    return _logged(t, q, tau, duration_s, noise_Nm, seed)
 
 
-def _logged_at_1khz(
-    t: np.ndarray, q: np.ndarray, tau: np.ndarray, duration_s: float, noise_Nm: float, seed: int
+def _logged(
+    t: np.ndarray,
+    q: np.ndarray,
+    tau: np.ndarray,
+    duration_s: float,
+    noise_Nm: float,
+    seed: int,
+    rate_hz: float = 1000.0,
 ) -> dict[str, np.ndarray]:
-    """A plant's position and torque at the instants ``t`` [s], logged at 1 kHz as closed_loop_log's
-    are: the encoder's 2¹⁶ counts a turn, the torque with seeded noise rounded to 1 mNm."""
-    stamps = np.arange(int(duration_s * 1000)) / 1000.0
+    """A plant's position and torque at the instants ``t`` [s], logged at ``rate_hz`` as
+    closed_loop_log's are: the encoder's 2¹⁶ counts a turn, the torque with seeded noise rounded
+    to 1 mNm."""
+    stamps = np.arange(int(duration_s * rate_hz)) / rate_hz
     rng = np.random.default_rng(seed)
     inc = 2**16 / (2 * np.pi)
     return {
