@@ -57,7 +57,7 @@ DELAY_SIGMAS = 3.0  # a torque delay estimated beyond this many std is aligned (
 MAX_REALIGNMENTS = 3  # ... at most this many times while the tracing adds effects
 CONSISTENT_SIGMAS = 3.0  # the slower and faster half's c0 or c1 differing by more: friction not linear
 #: the consistency check's rate of flagging parts of the data that do hold one J, c0 and c1, over
-#: the whole family of comparisons (measured: tools/bench_consistency.py)
+#: the whole family of comparisons (measured: tools/bench_identify.py consistency)
 FALSE_ALARM_RATE = 0.01
 DETECTION_POWER = 0.95  # the consistency check states the step in J, c0, c1 it flags this often
 DEGENERATE = 30.0  # a part whose refit has a J, c0 or c1 std this many times the whole fit's is degenerate,
@@ -431,6 +431,9 @@ def _same_values(estimates: dict[str, tuple[np.ndarray, np.ndarray]], unit: np.n
     each = {}
     for i, p in enumerate(BASE):
         weights = {n: 1.0 / (c[i, i] / unit[i] ** 2) for n, (_, c) in estimates.items() if c[i, i] > 0}
+        if len(weights) < 2:  # no two parts with a std for it: nothing to set against
+            each[p] = 1.0
+            continue
         mean = sum(weights[n] * values[n][i] for n in weights) / sum(weights.values())
         part_stat = float(sum(weights[n] * (values[n][i] - mean) ** 2 for n in weights))
         each[p] = float(stats.chi2.sf(part_stat, len(weights) - 1))
