@@ -416,7 +416,9 @@ def _base_covariance(fit: AxisModel) -> np.ndarray:
     return fit.cov_[: len(BASE), : len(BASE)] * np.outer(scale, scale)
 
 
-def _same_values(estimates: dict[str, tuple[np.ndarray, np.ndarray]], unit: np.ndarray) -> dict:
+def _same_values(
+    estimates: dict[str, tuple[np.ndarray, np.ndarray]], unit: np.ndarray
+) -> tuple[dict, dict[str, float]]:
     """The chi-squared test that every part holds one and the same J, c1, c0: each part's
     difference from their pooled (inverse-covariance-weighted) value in its own covariance,
     summed, on 3·(parts − 1) degrees of freedom; and per parameter the same on its own.
@@ -437,12 +439,7 @@ def _same_values(estimates: dict[str, tuple[np.ndarray, np.ndarray]], unit: np.n
         mean = sum(weights[n] * values[n][i] for n in weights) / sum(weights.values())
         part_stat = float(sum(weights[n] * (values[n][i] - mean) ** 2 for n in weights))
         each[p] = float(stats.chi2.sf(part_stat, len(weights) - 1))
-    return {
-        "chi2": round(statistic, 2),
-        "dof": dof,
-        "p_value": float(stats.chi2.sf(statistic, dof)),
-        "p_each": each,
-    }
+    return {"chi2": round(statistic, 2), "dof": dof, "p_value": float(stats.chi2.sf(statistic, dof))}, each
 
 
 def _detectable_steps(estimates: dict, dof: int, reported: Uncertainty) -> dict:
@@ -519,8 +516,7 @@ def consistency(reported: Uncertainty, est: Samples, val: Samples, second_run: b
     if len(fits) >= 2:
         estimates = {n: (f.coef_[: len(BASE)], _base_covariance(f)) for n, f in fits.items()}
         unit = np.array([max(reported.param_std[p], 1e-300) for p in BASE])
-        test = _same_values(estimates, unit)
-        p_each = test.pop("p_each")
+        test, p_each = _same_values(estimates, unit)
         out["test"] = {**test, "false_alarm_rate": FALSE_ALARM_RATE}
         if {"first half", "second half"} <= set(estimates):
             out["test"]["detects"] = _detectable_steps(estimates, test["dof"], reported)
