@@ -270,50 +270,55 @@ def _record(
     )
     rec, timing, sent, first = result.recording, result.timing, result.cycles_sent, result.sync_before_plan
     repeats: list[dict] = []
-    # a FIFO run dry (the master away longer than the records ahead cover): the drives made a planned
-    # stop and hold; the segment it happened in is marked and streamed again from its start
-    while isinstance(result.aborted, RanDry) and len(repeats) < MAX_REPEATS:
-        row = result.aborted.row  # as a row of the plan (a repeat's rows follow its approach)
-        if repeats:
-            row = repeats[-1]["from_row"] + max(0, row - repeats[-1]["approach_rows"])
-        segment = next(s for s in plan.segments if s.end > row)
-        here = {a: axes[a].position_rad() for a in plan.axes}
-        resumed, approach = resume_plan(plan, segment, here)
-        name = f"trace-repeat{len(repeats) + 1}.blf"
-        log.warning(
-            "%s; segment %d (%s, rows %d-%d) is streamed again from its start after an approach of %d rows",
-            result.aborted,
-            plan.segments.index(segment),
-            segment.kind,
-            segment.start,
-            segment.end,
-            approach,
-        )
-        dry = {"axis": result.aborted.axis, "row": row, "reason": result.aborted.reason}
-        next_trace(name)
-        result = stream(
-            link,
-            axes,
-            resumed,
-            supervision=supervision,
-            progress=None if progress is None else _shifted(progress, segment.start, approach),
-            timing_limits=config.master.timing,
-            sync_producer=config.master.sync_producer,
-        )
-        repeats.append(
-            {
-                "segment": plan.segments.index(segment),
-                "ran_dry": dry,
-                "from_row": segment.start,
-                "approach_rows": approach,
-                "trace": name,
-                "sync_before_plan": result.sync_before_plan,
-                "cycles_sent": result.cycles_sent,
-                "rows_skipped": sorted(result.recording.skipped),
-            }
-        )
-        rec.resume(segment.start, result.recording, approach)
-        sent = len(rec.raw)
+    failure: BaseException | None = None  # what ended the repeats early: raised once the data is written
+    try:
+        # a FIFO run dry (the master away longer than the records ahead cover): the drives made a
+        # planned stop and hold; the segment it happened in is marked and streamed again from its start
+        while isinstance(result.aborted, RanDry) and len(repeats) < MAX_REPEATS:
+            row = result.aborted.row  # as a row of the plan (a repeat's rows follow its approach)
+            if repeats:
+                row = repeats[-1]["from_row"] + max(0, row - repeats[-1]["approach_rows"])
+            segment = next(s for s in plan.segments if s.end > row)
+            here = {a: axes[a].position_rad() for a in plan.axes}
+            resumed, approach, begin = resume_plan(plan, segment, here)
+            name = f"trace-repeat{len(repeats) + 1}.blf"
+            log.warning(
+                "%s; segment %d (%s, rows %d-%d) is streamed again from row %d after an approach of %d rows",
+                result.aborted,
+                plan.segments.index(segment),
+                segment.kind,
+                segment.start,
+                segment.end,
+                begin,
+                approach,
+            )
+            dry = {"axis": result.aborted.axis, "row": row, "reason": result.aborted.reason}
+            next_trace(name)
+            result = stream(
+                link,
+                axes,
+                resumed,
+                supervision=supervision,
+                progress=None if progress is None else _shifted(progress, begin, approach),
+                timing_limits=config.master.timing,
+                sync_producer=config.master.sync_producer,
+            )
+            repeats.append(
+                {
+                    "segment": plan.segments.index(segment),
+                    "ran_dry": dry,
+                    "from_row": begin,
+                    "approach_rows": approach,
+                    "trace": name,
+                    "sync_before_plan": result.sync_before_plan,
+                    "cycles_sent": result.cycles_sent,
+                    "rows_skipped": sorted(result.recording.skipped),
+                }
+            )
+            rec.resume(begin, result.recording, approach)
+            sent = len(rec.raw)
+    except BaseException as exc:  # noqa: BLE001 - the rows so far are written before it goes on up
+        failure = exc
     missing = rec.missing()
     if repeats:  # the timing of the rows kept; rows_skipped: the first stream's (each repeat has its own)
         engine = timing.engine
@@ -343,9 +348,14 @@ def _record(
         meta["repeats"] = repeats
     if result.aborted is not None:
         meta["abort"] = {"axis": result.aborted.axis, "reason": result.aborted.reason}
+    if failure is not None:
+        meta["status"] = "aborted"
+        meta["abort"] = {"axis": None, "reason": f"repeating a segment: {type(failure).__name__}: {failure}"}
     with deferred():  # the data so far is written whole before a signal ends the command
         write_csv(out / LOG_NAME, rec, {n: axes[n].cfg.scaling for n in plan.axes}, plan.period)
         write_meta(out / META_NAME, meta)
+    if failure is not None:
+        raise failure
     return RecordResult(
         out,
         plan,

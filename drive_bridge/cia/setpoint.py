@@ -21,6 +21,11 @@ from __future__ import annotations
 from .p402 import CSP, IP, MODE_NAMES
 
 PVT = (0x20C1, 0)
+#: maxon's interpolation buffer status (0x20C4:1): underflow/overflow warnings and errors, enabled,
+#: interpolating (:mod:`drive_bridge.sim.pvt_buffer` has its bits)
+PVT_BUFFER_STATUS = (0x20C4, 1)
+#: the longest time a PVT record carries: its time field is 8 bits of ms [s]
+PVT_RECORD_MAX_S = 0.255
 IP_RECORD = (0x60C1, 1)  # CiA 402's interpolation data record: a position
 #: object that carries a position setpoint -> the mode it is streamed in
 SETPOINT_OBJECTS = {(0x607A, 0): CSP, IP_RECORD: IP, PVT: IP}

@@ -67,7 +67,7 @@ from ..cia.setpoint import (
 from ..config import BusConfig, MasterConfig, NodeConfig, PdoConfig
 from ..errors import BusError, DriveRefused, InternalError
 from ..outputs import hex_object, identity_hex, stamped
-from .buffered import Streaming, buffered_node, capacity_in, records_ahead, why_not
+from .buffered import Feed, Streaming, buffered_node, capacity_in, feed_way, records_ahead
 from .drive_limits import read_limits
 from .drive_units import read_units, reconcile
 from .link import Clock, Link
@@ -514,8 +514,8 @@ def bring_up(link: Link, config: BusConfig) -> dict[str, AxisLink]:
         ax.mode, ax.setpoint, ax.modes = _streaming_mode(node, ncfg, config.path)
         ax.streaming = _streaming(link, config, node, ax)
         if ax.streaming.buffered:
-            ax.cfg = ncfg = buffered_node(ncfg)
-            ax.mode, ax.setpoint = IP, IP_RECORD
+            ax.cfg = ncfg = buffered_node(ncfg, ax.streaming.record)
+            ax.mode, ax.setpoint = IP, ax.streaming.record
         log.info("axis %s: %s", name, ax.streaming.why)
         written = drive_settings(name, ncfg, period, config.master, ax.streaming.depth, counter)
         before |= _unseen(snapshot(node, name, [(i, s) for i, s, _ in written]), before)
@@ -631,8 +631,8 @@ def plan_bring_up(link: Link, config: BusConfig) -> dict[str, AxisLink]:
         ax.mode, ax.setpoint, ax.modes = _streaming_mode(ax.node, ax.cfg, config.path)
         ax.streaming = _streaming(link, config, ax.node, ax)
         if ax.streaming.buffered:
-            ax.cfg = buffered_node(ax.cfg)
-            ax.mode, ax.setpoint = IP, IP_RECORD
+            ax.cfg = buffered_node(ax.cfg, ax.streaming.record)
+            ax.mode, ax.setpoint = IP, ax.streaming.record
         if ax.mode == IP and INTERPOLATION_SUB_MODE in ax.cfg.od:
             _sub_mode(ax)
         ax.drive_limits = {
@@ -719,14 +719,27 @@ def _streaming(link: Link, config: BusConfig, node: canopen.RemoteNode, ax: Axis
         node, INTERPOLATION_DATA_CONFIGURATION, BUFFER_MAXIMUM, f"axis {ax.name}'s interpolation buffer size"
     )
     capacity = capacity_in(ncfg) if said is None else int(said)  # what the drive says wins
-    reason = why_not(ncfg, ax.modes, capacity, depth)
-    if reason is None:
+    feed = feed_way(ncfg, ax.modes, capacity, depth, config.master.sync_period_s)
+    cover = f"({config.master.stall_cover_s * 1e3:.0f} ms, master.stall_cover_ms)"
+    if isinstance(feed, Feed) and feed.record == PVT:
+        ms = round(feed.stride * config.master.sync_period_s * 1e3)
         return Streaming(
             depth,
-            f"ahead into its interpolation FIFO ({capacity} records): {depth} records "
-            f"({config.master.stall_cover_s * 1e3:.0f} ms, master.stall_cover_ms) kept ahead of the "
-            f"SYNCs that take them, so a stall of this host that long leaves the motion untouched",
+            f"ahead into its PVT buffer ({capacity} records, each of {ms} ms on the drive's own clock): "
+            f"{math.ceil(depth / feed.stride)} records {cover} kept ahead of the time the drive takes "
+            f"them, so a stall of this host that long leaves the motion untouched (past them the "
+            f"buffer underflows: a fault on this drive)",
+            PVT,
+            feed.stride,
         )
+    if isinstance(feed, Feed):
+        return Streaming(
+            depth,
+            f"ahead into its interpolation FIFO ({capacity} records): {depth} records {cover} kept "
+            f"ahead of the SYNCs that take them, so a stall of this host that long leaves the motion "
+            f"untouched",
+        )
+    reason = feed
     if way == "buffered":
         raise DriveRefused(
             f"axis {ax.name}: master.streaming in {config.path} is buffered, but {reason}; "

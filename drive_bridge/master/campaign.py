@@ -366,9 +366,10 @@ def approach_move(
     return np.convolve(padded, np.ones(ramp) / ramp, "valid")
 
 
-def resume_plan(plan: Plan, segment: Segment, here: dict[str, float]) -> tuple[Plan, int]:
+def resume_plan(plan: Plan, segment: Segment, here: dict[str, float]) -> tuple[Plan, int, int]:
     """The rest of ``plan`` from ``segment`` on, after an approach from where the axes stand to where
-    the segment starts (a segment repeated after a planned stop); checked against the plan's limits.
+    the plan stands at rest at or before the segment's start (a segment repeated after a planned
+    stop; a segment may begin a row into its first move); checked against the plan's limits.
 
     Parameters
     ----------
@@ -382,16 +383,21 @@ def resume_plan(plan: Plan, segment: Segment, here: dict[str, float]) -> tuple[P
     Returns
     -------
     plan : Plan
-        The approach, then the plan's rows from the segment's start; its segments in its own rows.
+        The approach, then the plan's rows from ``begin``; its segments in its own rows.
     approach : int
-        The approach's rows (the plan's row ``segment.start`` is the resumed plan's row ``approach``).
+        The approach's rows (the plan's row ``begin`` is the resumed plan's row ``approach``).
+    begin : int
+        The plan's row it resumes at: the segment's start, or the row before its first move.
     """
+    begin = segment.start
+    while begin > 0 and np.any(plan.demand[begin] != plan.demand[begin - 1]):
+        begin -= 1  # into the move: back to where it starts from rest
     seq = _Sequence(plan.axes, here, plan.period)
     seq.add(
         "approach",
         plan.axes,
         {
-            a: approach_move(plan.limits[a], here[a], float(plan.demand[segment.start, i]), plan.period)
+            a: approach_move(plan.limits[a], here[a], float(plan.demand[begin, i]), plan.period)
             for i, a in enumerate(plan.axes)
         },
         APPROACH_LEVEL,
@@ -399,18 +405,21 @@ def resume_plan(plan: Plan, segment: Segment, here: dict[str, float]) -> tuple[P
     )
     lead = seq.n
     for s in plan.segments[plan.segments.index(segment) :]:  # the plan's own rows, segment by segment
-        pieces = {a: plan.demand[s.start : s.end, i] for i, a in enumerate(plan.axes)}
+        first = begin if s is segment else s.start
+        pieces = {a: plan.demand[first : s.end, i] for i, a in enumerate(plan.axes)}
         seq.add(s.kind, list(s.axes), pieces, s.velocity_fraction, s.acceleration_fraction, s.cycles)
 
     def after(values: np.ndarray | None) -> np.ndarray | None:
-        return (
-            None if values is None else np.vstack([np.zeros((lead, len(plan.axes))), values[segment.start :]])
-        )
+        return None if values is None else np.vstack([np.zeros((lead, len(plan.axes))), values[begin:]])
 
     resumed = seq.plan(plan.limits)  # (checked against them)
-    return replace(
-        resumed, torque_ff_Nm=after(plan.torque_ff_Nm), velocity_ff_rad_s=after(plan.velocity_ff_rad_s)
-    ), lead
+    return (
+        replace(
+            resumed, torque_ff_Nm=after(plan.torque_ff_Nm), velocity_ff_rad_s=after(plan.velocity_ff_rad_s)
+        ),
+        lead,
+        begin,
+    )
 
 
 def plan_summary(plan: Plan, limits: dict[str, Limits]) -> dict[str, dict]:

@@ -196,6 +196,13 @@ class AxisJob:
         rows go out ahead of the SYNCs that take them, at most ``FEED_PER_PERIOD`` a period.
     fill : int
         The column of the FIFO's fill 0x60C4:2 in ``raw`` (-1: not mapped).
+    stride : int
+        Plan rows one record fed ahead spans (a PVT record's own time; the record of its last row
+        goes out, carrying that time).
+    tail : (int, int)
+        Records fed after the plan's last, and the record (a drive that faults on an empty buffer,
+        maxon's PVT: the plan's end held for longer than a stall at the end lasts, until the
+        master's hold words end interpolation); (0, 0): none.
     """
 
     name: str
@@ -218,6 +225,8 @@ class AxisJob:
     velocity_guard: float = math.inf
     ahead: int = 0
     fill: int = -1
+    stride: int = 1
+    tail: tuple[int, int] = (0, 0)
 
 
 @dataclass(frozen=True)
@@ -736,18 +745,27 @@ class Engine:
                 self.pending[axis] = int(table[row, ax.position_column])
 
     def _feed(self, taken: int) -> bool:
-        """Each buffered axis's FIFO topped up to its ``ahead`` records past the ``taken`` plan rows
-        (at most :data:`FEED_PER_PERIOD` records this period); True when every one holds them."""
+        """Each buffered axis's buffer topped up to its ``ahead`` rows past the ``taken`` plan rows
+        (at most :data:`FEED_PER_PERIOD` records this period, each the record of the last row it
+        spans); True when every one holds them."""
         job, table, send, now = self.job, self.arrays.table, self.port.send, self.port.now
         for rpdo, codec, buffer, values in self._ahead:
             axis = rpdo.axis
-            wanted = min(job.rows, taken + job.axes[axis].ahead)
+            ax = job.axes[axis]
+            wanted = min(job.rows, taken + ax.ahead)
+            if wanted == job.rows:  # the plan's last record is due: the tail after it
+                wanted += ax.tail[0]
             for _ in range(FEED_PER_PERIOD):
                 row = self.fed[axis]
                 if row >= wanted:
                     break
+                if row < job.rows:  # a record of the plan: its last row's (past it, the tail's)
+                    row = min(job.rows, row + ax.stride) - 1
                 for i, (kind, arg) in enumerate(rpdo.fields):
-                    values[i] = int(table[row, arg]) if kind == FIELD_TABLE else arg
+                    if kind != FIELD_TABLE:
+                        values[i] = arg
+                    else:
+                        values[i] = int(table[row, arg]) if row < job.rows else ax.tail[1]
                 codec.pack_into(buffer, 0, *values)
                 send(rpdo.cob_id, buffer, now())
                 self.fed[axis] = row + 1

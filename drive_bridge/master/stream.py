@@ -50,7 +50,7 @@ from ..cia.p402 import (
     state_name,
 )
 from ..cia.pdo import PdoCodec
-from ..cia.setpoint import PVT, SETPOINT_OBJECTS, pack_pvt
+from ..cia.setpoint import PVT, PVT_BUFFER_STATUS, PVT_RECORD_MAX_S, SETPOINT_OBJECTS, pack_pvt
 from ..config import TimingLimits
 from ..errors import Interrupted, MotionAborted, UserError
 from ..outputs import hex_object
@@ -140,15 +140,14 @@ def _job(
                 if index == CONTROLWORD:
                     fields.append((FIELD_CONTROLWORD, 0))
                 elif entry == PVT:  # position, velocity at that position, time to reach it [ms]
-                    vel = np.clip(
-                        sc.velocity_to_device(np.gradient(demand, plan.period)), -(2**23), 2**23 - 1
+                    columns.append(
+                        _pvt_records(
+                            positions,
+                            sc.velocity_to_device(np.gradient(demand, plan.period)),
+                            plan.period,
+                            ax.streaming.stride,
+                        )
                     )
-                    ms = round(plan.period * 1000)
-                    records = np.array(
-                        [pack_pvt(p, v, ms) for p, v in zip(positions.tolist(), vel.tolist())],
-                        dtype=np.uint64,
-                    )
-                    columns.append(records.view(np.int64))
                     fields.append((FIELD_TABLE, len(columns) - 1))
                 elif entry in SETPOINT_OBJECTS:
                     fields.append((FIELD_TABLE, position_column))
@@ -174,7 +173,9 @@ def _job(
             rpdos.append(
                 RpdoJob(
                     codec.cob_id,
-                    codec.struct.format,
+                    codec.struct.format.replace(
+                        "Q", "q"
+                    ),  # (the table holds a 64-bit record as int64: same bytes)
                     tuple(fields),
                     ai,
                     not records_only,
@@ -193,7 +194,7 @@ def _job(
                 STATUSWORD,
                 VELOCITY_ACTUAL,
                 torque_object(sc.torque_feedback, sc.torque_index),
-                0x20C4,
+                PVT_BUFFER_STATUS[0],
                 INTERPOLATION_DATA_CONFIGURATION,
             )
             if (a, index) in rec.columns
@@ -210,7 +211,7 @@ def _job(
                 cols[STATUSWORD],
                 cols.get(VELOCITY_ACTUAL, -1),
                 cols.get(torque_object(sc.torque_feedback, sc.torque_index), -1),
-                cols.get(0x20C4, -1),
+                cols.get(PVT_BUFFER_STATUS[0], -1),
                 position_column,
                 CW_ENABLE_IP if ax.mode == IP else CW_ENABLE,
                 ax.mode == IP,
@@ -226,6 +227,8 @@ def _job(
                 else guard.limits[a] * sc.velocity_per_rad_s,
                 ax.streaming.depth,
                 cols.get(INTERPOLATION_DATA_CONFIGURATION, -1),
+                ax.streaming.stride,
+                _pvt_tail(ax, positions, plan.period),
             )
         )
     tpdos = [
@@ -453,6 +456,30 @@ def _inside_drive_limits(ax: AxisLink, demand: np.ndarray) -> None:
             f"limits the drive holds (0x607D: {float(sc.position_from_device(lo)):.4f} .. "
             f"{float(sc.position_from_device(hi)):.4f} rad); nothing was enabled or moved"
         )
+
+
+def _pvt_records(positions: np.ndarray, velocities: np.ndarray, period_s: float, stride: int) -> np.ndarray:
+    """maxon's PVT records (0x20C1 as int64), one a row: each row's position and velocity [device
+    units], and the time to reach it from the record before, where records end every ``stride`` rows
+    and at the last (the rows between are never sent)."""
+    n = len(positions)
+    ends = np.unique(np.append(np.arange(stride - 1, n, stride), n - 1))
+    ms = np.full(n, round(stride * period_s * 1e3), dtype=np.int64)
+    ms[ends] = np.diff(ends, prepend=-1) * round(period_s * 1e3)
+    velocities = np.clip(velocities, -(2**23), 2**23 - 1)
+    records = [pack_pvt(p, v, t) for p, v, t in zip(positions.tolist(), velocities.tolist(), ms.tolist())]
+    return np.array(records, dtype=np.uint64).view(np.int64)
+
+
+def _pvt_tail(ax: AxisLink, positions: np.ndarray, period_s: float) -> tuple[int, int]:
+    """PVT records fed ahead: records of the longest time holding the plan's last position, as many
+    as outlast the records kept ahead and one more, fed after the plan's last (maxon's drive faults
+    on an empty buffer; the master's hold words end interpolation before they run out)."""
+    if not (ax.streaming.buffered and ax.streaming.record == PVT):
+        return (0, 0)
+    count = math.ceil(ax.streaming.depth * period_s / PVT_RECORD_MAX_S) + 1
+    hold = pack_pvt(int(positions[-1]), 0, round(PVT_RECORD_MAX_S * 1e3))
+    return (count, int(np.array([hold], dtype=np.uint64).view(np.int64)[0]))
 
 
 def _records_only(ax: AxisLink, codec: PdoCodec) -> bool:

@@ -10,6 +10,7 @@ from dataclasses import dataclass
 import canopen
 
 from ..cia.p301 import MASTER_LOSS, emcy_text
+from ..cia.setpoint import PVT_BUFFER_STATUS
 from ..errors import GuardStop, Interrupted, MotionAborted, RanDry
 from .bringup import AxisLink
 from .engine import (
@@ -197,7 +198,7 @@ def _stop_reason(
             )
         buffer = (
             _buffer_cause(axes[axis])
-            if any(i == 0x20C4 for c in axes[axis].tpdos for i in c.objects)
+            if any(i == PVT_BUFFER_STATUS[0] for c in axes[axis].tpdos for i in c.objects)
             else None
         )
         return buffer or MotionAborted(f"drive sent {emcy_text(code)} (EMCY 0x{code:04X})", axis, code)
@@ -246,7 +247,7 @@ def _buffer_status_error(axis: str, status: int) -> MotionAborted | None:
 def _buffer_cause(ax: AxisLink) -> MotionAborted | None:
     """After an EMCY, the interpolation buffer status read by SDO: an error there is the cause."""
     try:
-        return _buffer_status_error(ax.name, ax.node.sdo[0x20C4][1].raw)
+        return _buffer_status_error(ax.name, ax.node.sdo[PVT_BUFFER_STATUS[0]][PVT_BUFFER_STATUS[1]].raw)
     except (canopen.SdoCommunicationError, canopen.SdoAbortedError):
         return None
 

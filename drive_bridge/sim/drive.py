@@ -140,6 +140,7 @@ from .pdo_map import ABORT_RANGE, ABORT_STATE, PdoMapping
 from .plant import Plant, whole_ticks
 from .profile_motion import ProfileMotion
 from .pvt_buffer import ERR_UNDERFLOW, PvtBuffer
+from .pvt_buffer import RECORDS as PVT_RECORDS
 from .robot_config import SimAxis
 from .state_machine import next_state
 from .storage import ObjectStorage
@@ -325,6 +326,8 @@ class SimDrive:
         self.pos_per_rad = self.vel_per_si = self.inc_per_rad
         self.modes = [m for m in supported_modes(self._supported_bits()) if m in IMPLEMENTED_MODES]
         self.online = True  # False: the drive has dropped off the bus
+        #: interpolating PVT records on its own clock (the first one taken at a period start)
+        self.pvt_running = False
         #: maxon's PVT input buffer, where the drive takes PVT records
         self.pvt: PvtBuffer | None = (
             PvtBuffer()
@@ -462,6 +465,7 @@ class SimDrive:
         )
         if self.pvt is not None:
             self.pvt.reset()
+        self.pvt_running = False
         if self.fifo is not None:
             self.fifo.reset()
             self._fill_changed()
@@ -508,6 +512,10 @@ class SimDrive:
             self.objects.set(DEVICE_TYPE, 0, DEVICE_TYPE_SERVO)
         if SUPPORTED_DRIVE_MODES in self.od and default(self.od, SUPPORTED_DRIVE_MODES) is None:
             self.objects.set(SUPPORTED_DRIVE_MODES, 0, self.spec.supported_modes)
+        if self.pvt is not None:  # maxon's EDS gives no size: the drive says it (0x60C4:1 and :2)
+            for sub in (BUFFER_MAXIMUM, BUFFER_FILL):
+                if self.od.get_variable(INTERPOLATION_DATA_CONFIGURATION, sub) is not None:
+                    self.objects.set(INTERPOLATION_DATA_CONFIGURATION, sub, PVT_RECORDS)
 
     def heartbeat_due(self, now: float) -> None:
         """Its own heartbeat and its event-driven TPDOs, when due.
@@ -806,6 +814,8 @@ class SimDrive:
         if cw == self.controlword and cw in (0x0F, 0x1F) and self.state == ENABLED:
             return  # the streaming steady state
         new_setpoint = cw & 0x10 and not self.controlword & 0x10
+        if not cw & 0x10:
+            self.pvt_running = False
         if new_setpoint and self.fifo is not None:
             self.fifo.dry = False  # interpolation enabled again: the records take over
         previous, self.controlword = self.controlword, cw
@@ -881,8 +891,18 @@ class SimDrive:
     # ------------------------------------------------------------------ cyclic
     @property
     def internal_profile(self) -> bool:
-        """True when the drive generates its own demand (quick stop, PV, PP, homing) on its own clock."""
-        return self.state == QUICK_STOP or (self.state == ENABLED and self.mode in (PV, PP, HM))
+        """True when the drive generates its own demand on its own clock: quick stop, PV, PP,
+        homing, and maxon's PVT records while it interpolates (each lasts its own time, whatever
+        the SYNCs do)."""
+        return self.state == QUICK_STOP or (
+            self.state == ENABLED and (self.mode in (PV, PP, HM) or (self.pvt_running and self.pvt_clock))
+        )
+
+    @property
+    def pvt_clock(self) -> bool:
+        """Interpolating maxon's PVT records (IP, bit 4 set): from the period start that takes the
+        first record, on the drive's own clock (:attr:`pvt_running`)."""
+        return self.pvt is not None and self.mode == IP and self.following
 
     @property
     def streaming(self) -> bool:
@@ -926,6 +946,14 @@ class SimDrive:
         rpdos.clear()
         if not self.internal_profile:
             self.next_period()
+        else:
+            self.record_due()
+
+    def record_due(self) -> None:
+        """Interpolating PVT records: where the record's own time is over, the next one."""
+        if self.pvt_clock and self.plant.tick0[self.index] >= self.plant.period_ticks[self.index]:
+            self.next_period()
+            self.plant.tick0[self.index] = 0
 
     def next_period(self) -> None:
         """Set the demand P0 -> P1 of the interpolation period that starts now."""
@@ -949,6 +977,9 @@ class SimDrive:
                     self.setpoint_inc, _, record_ms = record
                     self.new_target, record_s = True, record_ms / 1000.0
                     self.last_setpoint_time = self.plant.time
+                    if not self.pvt_running:  # the first record: the rest on the drive's own clock
+                        self.pvt_running = True
+                        self.plant.tick0[self.index] = 0
                 else:  # the buffer ran dry while interpolating
                     d[kernel.P0] = d[kernel.P1]
                     self.internal_limit = False

@@ -304,7 +304,7 @@ class SimRobot:
         if self._steady is not None and self._steady.period():
             self.plant.tick0[:] = 0  # every drive starts an interpolation period
             return
-        self._supervise()
+        self._supervise(boundary=True)
         for drive in self.drives.values():
             drive.on_sync()
             if not drive.internal_profile:  # a new interpolation period starts at SYNC
@@ -335,7 +335,7 @@ class SimRobot:
             ticks -= step
 
     # ------------------------------------------------------------------ plant
-    def advance(self, n_ticks: int) -> None:
+    def advance(self, n_ticks: int, boundary: bool = False) -> None:
         """Run loops and plant for ``n_ticks`` velocity-loop ticks, then faults and heartbeats; a drive
         that makes its own profile (quick stop, PV, PP, homing) starts its next period on the tick its
         period ends, however the ticks are asked for (its demand never waits a tick for it).
@@ -344,19 +344,23 @@ class SimRobot:
         ----------
         n_ticks : int
             Velocity-loop ticks.
+        boundary : bool
+            The ticks end on a period boundary of the SYNC grid (a PVT record due there is taken
+            when the period starts, after the RPDOs that came for it).
         """
         self._run_plant(self._through_profile_periods(n_ticks))
-        self._supervise()
+        self._supervise(boundary)
 
     def _through_profile_periods(self, n_ticks: int) -> int:
         """Loops and plant through every end of a period of a drive making its own profile that falls
         before the end of the next ``n_ticks`` ticks, each followed by what the drives do then (its
         next period among it); the ticks left."""
+        period_ticks, tick0 = self.plant.period_ticks, self.plant.tick0
         while n_ticks > 0:
-            if n_ticks <= self.plant.ticks_per_period and not self.plant.tick0.any():
+            if n_ticks <= min(self.plant.ticks_per_period, int(period_ticks.min())) and not tick0.any():
                 return n_ticks  # (every period starts now: none ends sooner)
             ends = [
-                self.plant.ticks_per_period - int(self.plant.tick0[drive.index])
+                int(period_ticks[drive.index]) - int(tick0[drive.index])
                 for drive in self.drives.values()
                 if drive.internal_profile
             ]
@@ -374,13 +378,18 @@ class SimRobot:
         for timer in self.timers:
             timer(self.plant.time)
 
-    def _supervise(self) -> None:
+    def _supervise(self, boundary: bool = False) -> None:
         """What the drives do between SYNCs: their own profiles' periods, watching the nodes they
-        consume heartbeats of, their faults and their heartbeats."""
+        consume heartbeats of, their faults and their heartbeats.  On a ``boundary`` of the SYNC
+        grid a PVT record due is left to the period's start (:meth:`.SimDrive.start_period`)."""
         if self._steady is not None:
             self._steady.stale = True
         for drive in self.drives.values():
-            if drive.internal_profile and self.plant.tick0[drive.index] >= self.plant.ticks_per_period:
+            if (
+                drive.internal_profile
+                and self.plant.tick0[drive.index] >= self.plant.period_ticks[drive.index]
+                and not (boundary and drive.pvt_clock)
+            ):
                 drive.next_period()
                 self.plant.tick0[drive.index] = 0
             if drive.online:
@@ -513,7 +522,7 @@ class SimRobot:
         """Loops and plant for ``n_ticks`` velocity-loop ticks, each period boundary in its place."""
         while n_ticks > 0:
             step = min(n_ticks, self.plant.ticks_per_period - self._phase)
-            self.advance(step)
+            self.advance(step, boundary=self._phase + step == self.plant.ticks_per_period)
             n_ticks -= step
             self._phase += step
             if self._phase == self.plant.ticks_per_period:
@@ -564,7 +573,7 @@ class SimRobot:
         to_boundary = self.plant.ticks_per_period - self._phase
         if early and nearest >= to_boundary:
             # on the boundary's tick: sampled before its period starts, as a SYNC is in lockstep
-            self.advance(to_boundary)
+            self.advance(to_boundary, boundary=True)
             self._bus_time = max(self._bus_time, self._t0 + self.plant.time)
             self._sample()
             self._next_boundary()
@@ -588,9 +597,11 @@ class SimRobot:
             self._arm()
         elif self._sync_tag != self._boundary:
             for drive in self.drives.values():
-                if drive.online and drive.following:
+                if drive.online and drive.following and not drive.internal_profile:
                     drive.next_period()
                     self.plant.tick0[drive.index] = 0
+                else:
+                    drive.record_due()
             return
         for drive, armed in zip(self.drives.values(), self._armed):
             drive.start_period(armed)

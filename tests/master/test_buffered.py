@@ -17,9 +17,10 @@ from drive_bridge.cia.setpoint import record_sub_mode
 from drive_bridge.cli import main
 from drive_bridge.config import load_bus_config
 from drive_bridge.connect import open_link
+from drive_bridge.errors import BusError
 from drive_bridge.logs import decode_trace
 from drive_bridge.master.bringup import bring_up
-from drive_bridge.master.buffered import MAX_REPEATS, buffered_node, records_ahead, why_not
+from drive_bridge.master.buffered import MAX_REPEATS, Feed, buffered_node, feed_way, records_ahead
 from drive_bridge.master.campaign import approach_move
 from drive_bridge.master.engine import FEED_PER_PERIOD
 from drive_bridge.params.profile import load_profile
@@ -118,9 +119,9 @@ def test_a_drive_without_a_deep_fifo_is_streamed_per_sync_or_refused_by_name(tmp
     config = load_bus_config(BUS_CONFIG)
     ours = config.nodes["z"]
     depth = records_ahead(config.master)
-    assert why_not(ours, [1, 3, 6, 7, 8], 1024, depth) is None
-    assert "no interpolated position mode" in why_not(ours, [1, 3, 6, 8], 1024, depth)
-    assert "holds 1 record(s)" in why_not(ours, [7, 8], 1, depth)
+    assert feed_way(ours, [1, 3, 6, 7, 8], 1024, depth, 0.002) == Feed((0x60C1, 1))
+    assert "no interpolated position mode" in feed_way(ours, [1, 3, 6, 8], 1024, depth, 0.002)
+    assert "holds 1 record(s)" in feed_way(ours, [7, 8], 1, depth, 0.002)
     node = buffered_node(ours)
     assert node.rpdo[-1].transmission == 255 and node.rpdo[-1].mapping == ((0x60C1, 1),)
     assert node.tpdo[-1].mapping == ((0x60C4, 2),)
@@ -152,11 +153,12 @@ def test_buffered_refuses_a_drive_without_a_deep_fifo_by_axis_and_key(tmp_path, 
 
 
 # ------------------------------------------------------------------ the wall clock, stalls injected
-def record_stalled(tmp_path, length_s: float, every_s: float, seed: int, edit: str = ""):
+def record_stalled(tmp_path, length_s: float, every_s: float, seed: int, edit: str = "", cfg=None, axes="z"):
     """``drive-bridge record --sim --realtime --quick --axes z`` in a process of its own, its main
     process and engine stopped ``length_s`` at random moments ``every_s`` apart on average (the
-    simulated drives left running): (exit code, meta.yaml, log.csv, the stalls made, stderr)."""
-    cfg = bus_yml_beside(tmp_path)
+    simulated drives left running): (exit code, meta.yaml, log.csv, the stalls made, stderr).
+    ``cfg``: the bus.yml (default: the shipped one); ``axes``: those recorded."""
+    cfg = cfg or bus_yml_beside(tmp_path)
     if edit:
         cfg.write_text(cfg.read_text().replace("master:\n", f"master:\n  {edit}\n", 1))
     out = tmp_path / "run"
@@ -170,7 +172,7 @@ def record_stalled(tmp_path, length_s: float, every_s: float, seed: int, edit: s
             "--realtime",
             "--quick",
             "--axes",
-            "z",
+            axes,
             "--config",
             str(cfg),
             "--out",
@@ -189,6 +191,7 @@ def record_stalled(tmp_path, length_s: float, every_s: float, seed: int, edit: s
         stalls.wait()
     made = [json.loads(line) for line in log.read_text().splitlines()] if log.exists() else []
     meta = yaml.safe_load((out / "meta.yaml").read_text())
+    assert (out / "log.csv").exists(), f"exit {master.returncode}, no log.csv: {err}"
     return master.returncode, meta, read_csv(out / "log.csv"), made, err
 
 
@@ -208,6 +211,72 @@ def test_stalls_the_fifo_covers_leave_no_trace(tmp_path):
     began = meta["timing"].get("started_at")
     assert len(made) >= 3, made  # (about 7 s of motion, a stall a second)
     assert began is None or any(s["began"] > began for s in made)
+
+
+def maxon_z_bus_yml(tmp_path):
+    """The shipped bus.yml with z on maxon's EPOS2 (config/examples/maxon_epos2.yml's node, its
+    vendor EDS read in place): x keeps time for the bus, z has no SYNC of its own."""
+    from drive_bridge.resources import data
+
+    eds = VENDOR_EDS / "maxon_epos2_50-5.eds"
+    if not eds.exists():
+        pytest.skip("../shared/eds-vendor not present")
+    doc = yaml.safe_load(bus_yml_beside(tmp_path).read_text())
+    maxon = yaml.safe_load(data("config", "examples", "maxon_epos2.yml").read_text())["defaults"]
+    doc["nodes"]["z"].update(maxon, dcf=str(eds), scaling={**maxon["scaling"], "feed_m_per_rev": 0.010})
+    cfg = tmp_path / "mixed.yml"
+    cfg.write_text(yaml.safe_dump(doc, sort_keys=False))
+    return cfg
+
+
+def test_maxon_pvt_records_span_periods_to_keep_the_cover_in_half_the_buffer():
+    """maxon's 64 PVT records hold 500 ms ahead in half of them with records of 16 ms (8 SYNC
+    periods of 2 ms, whole ms); a cover 64 records of 255 ms cannot hold is refused with the reason;
+    the records fed ahead go into an event-driven RPDO, and the status 0x20C4:1 that bus.yml maps
+    already is not mapped twice."""
+    from drive_bridge.cia.setpoint import PVT
+
+    eds = VENDOR_EDS / "maxon_epos2_50-5.eds"
+    if not eds.exists():
+        pytest.skip("../shared/eds-vendor not present")
+    from drive_bridge.resources import data
+
+    config = load_bus_config(data("config", "examples", "maxon_epos2.yml"))
+    node = config.nodes["z"]
+    depth = records_ahead(config.master)
+    assert depth == 250  # 500 ms of 2 ms periods
+    assert feed_way(node, [1, 3, 6, 7], 64, depth, 0.002) == Feed(PVT, 8)
+    assert feed_way(node, [1, 3, 6, 7], 64, 250, 0.0015).stride == 8  # 12 ms: whole ms
+    assert "longer than the 255 ms" in feed_way(node, [1, 3, 6, 7], 64, 5000, 0.002)
+    assert "does not say how many records" in feed_way(node, [1, 3, 6, 7], None, 250, 0.002)
+    fed = buffered_node(node, PVT)
+    assert fed.rpdo[-1].transmission == 255 and fed.rpdo[-1].mapping == ((0x20C1, 0),)
+    assert all((0x20C1, 0) not in p.mapping for p in fed.rpdo[:-1])
+    assert fed.tpdo == node.tpdo  # 0x20C4:1 was mapped by bus.yml
+
+
+@pytest.mark.realtime
+@pytest.mark.slow
+def test_maxon_pvt_records_fed_ahead_ride_out_stalls_on_the_drives_own_clock(tmp_path):
+    """maxon's EPOS2 as z (no SYNC of its own, no CSP, no FIFO fill to read) beside the project's
+    drive x, which keeps time for the bus, on the wall clock: z's PVT buffer fed ahead with 16 ms
+    records, the master stopped 200 ms once a second on average; z takes the records on its own
+    clock, never underflows (nor at the plan's end, the master away or not), and every SYNC has
+    its row."""
+    code, meta, (names, data), made, err = record_stalled(
+        tmp_path, 0.2, 1.0, seed=7, cfg=maxon_z_bus_yml(tmp_path), axes="x,z"
+    )
+    assert code == 0, err
+    assert meta["timing"]["engine"]["sync_source"].startswith("drive x (node 1), on its own clock")
+    assert (
+        "ahead into its PVT buffer (64 records, each of 16 ms" in meta["timing"]["engine"]["streaming"]["z"]
+    )
+    assert meta["timing"]["samples_missing"] == {"x": 0, "z": 0}
+    assert len(made) >= 3, made
+    status = column(names, data, "z_ip_buffer_status").astype(int)
+    assert not np.any(status & 0x0300)  # no underflow, no overflow
+    position, demand = column(names, data, "z_position_rad"), column(names, data, "z_position_demand_rad")
+    assert np.max(np.abs(position - demand)) < 0.01 * np.ptp(demand)
 
 
 @pytest.mark.realtime
@@ -248,7 +317,9 @@ def test_a_segment_the_fifo_ran_dry_in_is_streamed_again_and_the_campaign_goes_o
     repeat = result.repeats[0]
     assert repeat["ran_dry"]["axis"] == "z" and "ran dry" in repeat["ran_dry"]["reason"]
     segment = result.plan.segments[repeat["segment"]]
-    assert repeat["from_row"] == segment.start <= repeat["ran_dry"]["row"] < segment.end
+    begin = repeat["from_row"]  # the segment's start, or where its first move starts from rest
+    assert begin <= segment.start <= repeat["ran_dry"]["row"] < segment.end
+    assert np.array_equal(result.plan.demand[begin], result.plan.demand[begin - 1])
     assert f"segment {repeat['segment']} ({segment.kind}) streamed again from row" in result.repeated()
     meta = yaml.safe_load((tmp_path / "meta.yaml").read_text())
     assert meta["status"] == "ok" and meta["repeats"] == result.repeats
@@ -262,6 +333,30 @@ def test_a_segment_the_fifo_ran_dry_in_is_streamed_again_and_the_campaign_goes_o
     decoded_names, decoded, _, _, problem = decode_trace(tmp_path / "trace.blf")
     assert problem is None and decoded_names == names
     assert np.allclose(decoded, data, equal_nan=True)
+
+
+@pytest.mark.realtime
+@pytest.mark.slow
+def test_an_error_while_a_segment_is_repeated_still_leaves_the_rows_recorded(tmp_path, monkeypatch):
+    """The FIFO ran dry and the drive holds; the position read the repeat starts from fails (a
+    drive gone quiet): the error goes on up, but log.csv has the rows of the stream before it and
+    meta.yaml says the run was aborted and why."""
+    config = buffered(quick_config(), stall_cover_s=0.04).only(["z"])
+
+    def gone_quiet(plan, segment, here):
+        raise BusError("axis z: no SDO response")
+
+    monkeypatch.setattr("drive_bridge.recorder.resume_plan", gone_quiet)
+    with open_link(config, sim=True, realtime=True) as link:
+        on_plan, done = stalling_at(lambda: link.engine.pid, [0.5], 0.2)
+        with pytest.raises(BusError, match="no SDO response"):
+            record(config, link, tmp_path, on_plan=on_plan)
+    assert done
+    meta = yaml.safe_load((tmp_path / "meta.yaml").read_text())
+    assert meta["status"] == "aborted" and "no SDO response" in meta["abort"]["reason"]
+    names, data = read_csv(tmp_path / "log.csv")
+    sent = meta["counts"]["cycles_sent"]
+    assert 0 < sent < meta["counts"]["cycles_planned"] and len(data) == sent
 
 
 @pytest.mark.realtime

@@ -16,7 +16,7 @@ from drive_bridge.errors import UserError
 from drive_bridge.ident import identify
 from drive_bridge.master.campaign import build_plan, resume_plan
 from drive_bridge.resources import DEFAULT_BUS_CONFIG
-from harness.support import PAPER, bus_yml_beside
+from harness.support import PAPER, bus_yml_beside, quick_config
 
 pytestmark = pytest.mark.slow
 
@@ -60,30 +60,51 @@ def test_the_short_campaign_stays_inside_every_limit(jerk_share):
 @pytest.mark.parametrize("design", ["short", "paper"])
 def test_a_segment_resumed_from_where_the_axes_stopped_is_the_plans_rest_after_an_approach(design):
     """A segment streamed again (its FIFO ran dry mid-way): an approach inside the limits from where
-    each axis stands to the segment's first row, then the plan's rows from there, unchanged, with the
-    segments in the resumed plan's rows."""
+    each axis stands to where the plan stands at rest at the segment's start (or the row before its
+    first move, where the segment begins a row into it), then the plan's rows from there,
+    unchanged, with the segments in the resumed plan's rows; for every segment of the plan."""
     cfg, limits = _limits()
     start = {"x": 1.0, "y": -20.0, "z": 5.0}
     plan = build_plan(replace(cfg.campaign, design=design), limits, start, PERIOD)
+    for segment in plan.segments[1:]:
+        here = {
+            a: float(plan.demand[(segment.start + segment.end) // 2, i]) + 0.1
+            for i, a in enumerate(plan.axes)
+        }
+        resumed, approach, begin = resume_plan(plan, segment, here)  # (inside the limits, or it raises)
+        assert begin <= segment.start and np.array_equal(plan.demand[begin], plan.demand[begin - 1])
+        assert approach > 0 and resumed.segments[0].kind == "approach" and resumed.segments[0].end == approach
+        assert np.allclose(resumed.demand[0], [here[a] for a in plan.axes], atol=1e-6)
+        assert np.array_equal(resumed.demand[approach:], plan.demand[begin:])
+        assert [(s.kind, s.end - s.start) for s in resumed.segments[1:]] == [
+            (s.kind, s.end - (begin if s is segment else s.start))
+            for s in plan.segments[plan.segments.index(segment) :]
+        ]
+        for i, a in enumerate(plan.axes):
+            q = resumed.demand[: approach + 3, i]  # the approach, and the plan's first move from rest
+            v, acc = (np.abs(np.diff(q, k)) / PERIOD**k for k in (1, 2))
+            assert v.max() <= limits[a].max_velocity and acc.max() <= limits[a].max_acceleration * (1 + 1e-9)
     segment = plan.segments[len(plan.segments) // 2]
-    here = {
-        a: float(plan.demand[(segment.start + segment.end) // 2, i]) + 0.1 for i, a in enumerate(plan.axes)
-    }
-    resumed, approach = resume_plan(plan, segment, here)
-    assert approach > 0 and resumed.segments[0].kind == "approach" and resumed.segments[0].end == approach
-    assert np.allclose(resumed.demand[0], [here[a] for a in plan.axes], atol=1e-6)
-    assert np.array_equal(resumed.demand[approach:], plan.demand[segment.start :])
-    assert [(s.kind, s.end - s.start) for s in resumed.segments[1:]] == [
-        (s.kind, s.end - s.start) for s in plan.segments[plan.segments.index(segment) :]
-    ]
-    for i, a in enumerate(plan.axes):
-        q = resumed.demand[: approach + 1, i]
-        v, acc = (np.abs(np.diff(q, k)) / PERIOD**k for k in (1, 2))
-        assert v.max() <= limits[a].max_velocity and acc.max() <= limits[a].max_acceleration
-    same, none = resume_plan(
-        plan, segment, {a: float(plan.demand[segment.start, i]) for i, a in enumerate(plan.axes)}
+    rest = resume_plan(plan, segment, here)[2]  # standing where it resumes: no approach
+    same, none, begin = resume_plan(
+        plan, segment, {a: float(plan.demand[rest, i]) for i, a in enumerate(plan.axes)}
     )
-    assert none == 0 and np.array_equal(same.demand, plan.demand[segment.start :])
+    assert none == 0 and begin == rest and np.array_equal(same.demand, plan.demand[begin:])
+
+
+def test_the_quick_campaign_resumed_at_a_segment_that_begins_in_its_move_stays_inside_the_limits():
+    """The quick campaign's z: two of its levels begin a row into their first move (7.5 rad/s at
+    their second row); streamed again, the approach ends where that move starts from rest, not at
+    the moving row (3770 rad/s² there against z's 3142: the repeat was refused, exit 2)."""
+    config = quick_config().only(["z"])
+    limits = {"z": config.nodes["z"].limits}
+    plan = build_plan(config.campaign, limits, {"z": -75.0}, PERIOD)
+    moving = [s for s in plan.segments[1:] if plan.demand[s.start, 0] != plan.demand[s.start - 1, 0]]
+    assert moving, "the quick campaign no longer has a segment that begins in its move"
+    for segment in moving:
+        here = {"z": float(plan.demand[segment.start, 0]) + 0.5}
+        resumed, approach, begin = resume_plan(plan, segment, here)
+        assert begin < segment.start and np.array_equal(resumed.demand[approach:], plan.demand[begin:])
 
 
 def test_limits_no_multisine_can_cover_the_stroke_in_are_a_clear_refusal():

@@ -185,19 +185,31 @@ def _interpolating(b, node):
 
 
 def test_the_maxon_fifo_underflows_when_a_record_does_not_come():
+    """maxon's PVT records are taken on the drive's own clock, each after its own time, SYNC or
+    not: four records of 20 ms keep it interpolating for 80 ms; past them the buffer underflows,
+    a fault with EMCY 0xFF02."""
     from drive_bridge.cia.setpoint import pack_pvt
 
     b = _epos2()
-    node = b.nodes["y"]
+    node, drive = b.nodes["y"], b.robot.drives["y"]
     codes = []
     node.emcy.add_callback(lambda e: codes.append(e.code))
     start = node.sdo[0x6064].raw
-    _interpolating(b, node)
-    for _ in range(3):  # one record a period: it keeps up
-        node.sdo[0x20C1].raw = pack_pvt(start, 0, 2)
-        b.net.sync.transmit()
+    node.nmt.send_command(0x80)
+    node.sdo[0x60C4][6].raw = 0
+    node.sdo[0x60C4][6].raw = 1
+    assert node.sdo[0x60C4][1].raw == 64  # the drive says its size (maxon's EDS gives none)
+    for k in range(1, 5):
+        node.sdo[0x20C1].raw = pack_pvt(start + 10 * k, 0, 20)
+    node.sdo[0x6060].raw = 7
+    for cw in (0x06, 0x07, 0x0F, 0x1F):
+        node.sdo[0x6040].raw = cw
+    b.net.sync.transmit()  # interpolation starts with the period: the first record
+    b.link.pump()
+    b.robot.idle(0.050)  # no SYNC: the records go on, one each 20 ms
+    assert len(drive.pvt.records) == 1
     assert not node.sdo[0x6041].raw & 0x0008 and node.sdo[0x20C4][1].raw & 0xC000 == 0xC000
-    b.net.sync.transmit()  # a period without a record
+    b.robot.idle(0.050)  # past the last record's time: nothing to take
     b.link.pump()
     assert node.sdo[0x6041].raw & 0x0008 and node.sdo[0x20C4][1].raw & 0x0100 and 0xFF02 in codes
 
