@@ -26,6 +26,7 @@ import time
 from pathlib import Path
 
 ENGINE = "drive_bridge.master.coprocess"  # the cyclic engine's process, as its command line names it
+SIMULATOR = "drive_bridge.sim.process"  # the wall-clock simulated drives' process
 DRIVES = "drive_bridge.sim.process"  # the simulated drives' (never stopped)
 
 
@@ -71,6 +72,12 @@ def master_processes(master: int) -> list[int]:
     """The master's main process and its cyclic engine's (a child that runs :data:`ENGINE`); the
     simulated drives' process and anything else it started are left running."""
     return [master] + [pid for pid in children(master) if ENGINE in command_line(pid)]
+
+
+def simulator_process(master: int) -> int:
+    """The wall-clock simulated drives' process the master ``master`` started (held up as a host
+    holds a process up: what a real drive never is, and what its catching up must survive)."""
+    return next(pid for pid in children(master) if SIMULATOR in command_line(pid))
 
 
 def stall(pids: list[int], length_s: float) -> float:
@@ -175,8 +182,8 @@ def injector(master: int, length_s: float, every_s: float, seed: int, log: Path)
 
 def stalling_at(pid_of, stalls, seconds):
     """An ``on_plan`` hook (:func:`drive_bridge.recorder.record`) whose progress stops the process
-    ``pid_of()`` names for ``seconds`` at each fraction of the plan in ``stalls``, once each:
-    (the hook, the plan rows it stopped at so far)."""
+    ``pid_of()`` names (or the processes, a list) together for ``seconds`` at each fraction of the
+    plan in ``stalls``, once each: (the hook, the plan rows it stopped at so far)."""
     done = []
 
     def on_plan(plan):
@@ -184,10 +191,8 @@ def stalling_at(pid_of, stalls, seconds):
 
         def progress(k):
             if len(done) < len(rows) and k >= rows[len(done)]:
-                pid = pid_of()
-                os.kill(pid, signal.SIGSTOP)
-                time.sleep(seconds)
-                os.kill(pid, signal.SIGCONT)
+                pids = pid_of()
+                stall(pids if isinstance(pids, list) else [pids], seconds)
                 done.append(k)
 
         return progress

@@ -71,6 +71,9 @@ HEARTBEAT_OPERATIONAL = b"\x05"  # the master's heartbeat: NMT state operational
 FOLLOW_GRACE_SYNCS = 2
 #: how often [s] the engine checks the drives' heartbeats, the bus's error frames and its stop request
 CHECK_EVERY_S = 0.05
+#: a gap this long between two turns of the engine's loop (which waits CHECK_EVERY_S at most) is
+#: the host holding the engine up: the time is not the drives' silence [s]
+AWAY_S = 0.1
 INT16 = (-(2**15), 2**15 - 1)
 #: kinds of an RPDO field: the controlword, a column of the setpoint table, a constant, a column of
 #: the torque offsets (less what the velocity loop holds at rest, see :attr:`AxisJob.torque_Nm_per_raw`)
@@ -594,6 +597,10 @@ class Engine:
         self.velocity: list[int | None] = [None] * n_axes
         self.age = [0] * n_axes  # SYNCs since each axis's last statusword
         self.heard = [0.0] * n_axes  # engine time of each drive's last frame (any)
+        self.sync_heard = -math.inf  # engine time of the last SYNC another node sent
+        self.sync_read = -math.inf  # engine time the last SYNC was read (or sent)
+        self.turned = -math.inf  # engine time of the loop's last turn (:meth:`_turn`)
+        self.away_s = 0.0  # time the host held the engine up, in all
         self.beat = [0.0] * n_axes  # engine time of each drive's last heartbeat
         self.last_complete = [math.inf] * n_axes  # SYNC time of each axis's last complete row
         self.emcy: tuple[int, int] | None = None  # (axis, code) of the first EMCY of this run
@@ -799,10 +806,18 @@ class Engine:
 
     # ------------------------------------------------------------------ judging
     def _judge(self, now: float) -> tuple[str, str | None, str, int | None] | None:
-        """Judge every row whose synchronous window the bus has passed; the first fault found."""
+        """Judge every row whose synchronous window the bus has passed; the first fault found.
+
+        The bus's own time says so: a frame from the drives stamped past the row's window.  Only
+        where nothing at all came for longer than the heartbeat timeout does the engine's clock
+        stand in (the drives gone quiet): a burst of frames stamped in the past -- a drive held up
+        and sending what it owes, a receive buffer drained after a stall -- is judged by its
+        stamps, each row once the frames after it are in, never before its own TPDOs are read."""
         job, arrays, sup = self.job, self.arrays, self.job.supervision
         sync_time, got, raw = arrays.sync_time, arrays.got, arrays.raw
-        evidence = max(self.evidence, now - sup.heartbeat_timeout_s)
+        evidence = self.evidence
+        if now - max(*self.heard, self.sync_heard) > sup.heartbeat_timeout_s:
+            evidence = max(evidence, now - sup.heartbeat_timeout_s)
         while self.judged <= self.row:
             r = self.judged
             t = sync_time[r]
@@ -895,6 +910,7 @@ class Engine:
             self.start = self.phase_start = self.next_check = port.now()
             self.heard = [self.start] * len(job.axes)
             self.beat = [self.start] * len(job.axes)
+            self.turned = self.start
             self._enter(ENABLING, self.start)
             # the first RPDOs: the run's SYNCs are those stamped after them (a SYNC the bus had
             # before, read only now, is not one -- nor is it in the trace, where decode counts them)
@@ -935,6 +951,7 @@ class Engine:
         if port.periodic_sync:
             seen = self.syncs_seen
             now = self._await_sync()
+            self._turn(now)
             late = now - self.last_sync  # the RPDOs that follow go out this long after their SYNC
             out.worst_wake_ms = max(out.worst_wake_ms, late * 1e3)
             if late > job.supervision.window_s:
@@ -943,6 +960,7 @@ class Engine:
                 out.setpoints_late += self.syncs_seen - seen - 1  # SYNCs that came before their setpoints
         else:
             now, late = self._wake()
+            self._turn(now)
             out.worst_wake_ms = max(out.worst_wake_ms, late * 1e3)
             if late > period / 2:
                 out.late_cycles += 1
@@ -1005,7 +1023,9 @@ class Engine:
         port, control, out = self.port, self.arrays.control, self.outcome
         seen = self.syncs_seen
         first = self.last_sync == -math.inf  # (where start_sync did not see one)
-        since = port.now() if first else self.last_sync
+        # since the last SYNC came: its stamp, or later where it was read later (a burst a drive
+        # sends of SYNCs it owes after being held up is read over some ms, stamped in the past)
+        since = port.now() if first else max(self.last_sync, self.sync_read)
         sup = self.job.supervision
         # (a SYNC from elsewhere may come late, and the ones it owes then: the drives stop on their own
         # after their setpoint timeout, or once the records fed ahead run out)
@@ -1014,6 +1034,7 @@ class Engine:
         while True:
             port.wait_sync(min(since + limit, port.now() + CHECK_EVERY_S))
             now = port.now()
+            since += self._turn(now)  # (the engine held up: no SYNC's absence)
             if self.syncs_seen != seen:
                 return now
             out.abort = out.abort or self._watch(now, int(control[STOP_REQUEST]))
@@ -1024,6 +1045,20 @@ class Engine:
                     f"no SYNC from {port.sync_source} for {(now - since) * 1e3:.0f} ms"
                     + ("" if first else f", longer than the drives wait for setpoints ({limit * 1e3:.0f} ms)")
                 )
+
+    def _turn(self, now: float) -> float:
+        """A turn of the engine's loop at ``now``: where the host held the engine up since the last
+        (a gap over :data:`AWAY_S`), the time it was away is not the drives' silence -- when each
+        was last heard is moved on by it (a host that stops every process, the drives' stand-ins
+        among them, leaves them nothing to send until it lets them go); that time [s], else 0."""
+        gap, self.turned = now - self.turned, now
+        if gap <= AWAY_S:
+            return 0.0
+        self.away_s += gap
+        self.heard = [t + gap for t in self.heard]
+        self.beat = [t + gap for t in self.beat]
+        self.sync_heard += gap
+        return gap
 
     def _wake(self) -> tuple[float, float]:
         """Wait for the start of period ``slot`` on the absolute schedule: the time then, and how
@@ -1048,6 +1083,7 @@ class Engine:
         if self.last_sync > -math.inf:
             out.largest_sync_gap_ms = max(out.largest_sync_gap_ms, (stamp - self.last_sync) * 1e3)
         self.last_sync = stamp
+        self.sync_read = self.port.now()
         self.syncs_seen += 1
         if row >= 0:
             if self.row < 0:  # a drive's silence counts from the plan's first SYNC (row 0, or a
@@ -1072,6 +1108,8 @@ class Engine:
         the counter, the SYNCs its count skipped are lost ones: their periods pass without a row."""
         if stamp < self.start:  # before the first RPDO: not a SYNC of this run
             return
+        if self.job.sync_from is not None:  # a drive's: the drives are heard (not so the kernel's)
+            self.sync_heard = self.port.now()
         overflow = self.job.sync_counter
         if overflow and data:
             if self.count:

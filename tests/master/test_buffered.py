@@ -5,6 +5,7 @@ feeds it ahead and may stall.  Lockstep proves the logic; stalls injected into a
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from dataclasses import replace
@@ -30,7 +31,7 @@ from drive_bridge.resources import DEFAULT_BUS_CONFIG as BUS_CONFIG
 from drive_bridge.tuning import motion
 from drive_bridge.tuning.design import design_gains
 from harness.paths import VENDOR_EDS
-from harness.stalls import injector, stalling_at
+from harness.stalls import injector, simulator_process, stalling_at
 from harness.support import PAPER, Bench, bus_yml_beside, clean_config, quick_config, read_csv
 
 
@@ -333,6 +334,28 @@ def test_a_segment_the_fifo_ran_dry_in_is_streamed_again_and_the_campaign_goes_o
     decoded_names, decoded, _, _, problem = decode_trace(tmp_path / "trace.blf")
     assert problem is None and decoded_names == names
     assert np.allclose(decoded, data, equal_nan=True)
+
+
+@pytest.mark.realtime
+@pytest.mark.slow
+def test_a_host_that_holds_master_and_drives_up_together_leaves_no_trace(tmp_path):
+    """The host holds the engine and the simulated drives up together for 400 ms, twice (a VM's
+    vCPUs held: what the idle paper campaign met) -- longer than the 300 ms the master waits for a
+    heartbeat, shorter than the records kept ahead.  The engine does not count the time it was
+    away as the drives' silence, and judges the SYNCs and TPDOs they then send in a burst, stamped
+    in the past, by those stamps once read: no "heartbeat lost" or "no SYNC" stop, no repeat, a
+    row for every SYNC.  (Before, it stopped: heartbeat lost; the paper campaign stopped twice
+    with "no TPDO: no feedback for 22 ms".)"""
+    config = buffered(quick_config()).only(["x", "z"])
+    with open_link(config, sim=True, realtime=True) as link:
+        on_plan, done = stalling_at(
+            lambda: [link.engine.pid, simulator_process(os.getpid())], [0.3, 0.6], 0.4
+        )
+        result = record(config, link, tmp_path, on_plan=on_plan)
+    assert result.ok, result.aborted
+    assert len(done) == 2
+    assert result.timing.engine["sync_source"].startswith("drive x (node 1), on its own clock")
+    assert result.missing == {"x": 0, "z": 0} and not result.repeats
 
 
 @pytest.mark.realtime
