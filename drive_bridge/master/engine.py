@@ -600,7 +600,6 @@ class Engine:
         self.sync_heard = -math.inf  # engine time of the last SYNC another node sent
         self.sync_read = -math.inf  # engine time the last SYNC was read (or sent)
         self.turned = -math.inf  # engine time of the loop's last turn (:meth:`_turn`)
-        self.away_s = 0.0  # time the host held the engine up, in all
         self.beat = [0.0] * n_axes  # engine time of each drive's last heartbeat
         self.last_complete = [math.inf] * n_axes  # SYNC time of each axis's last complete row
         self.emcy: tuple[int, int] | None = None  # (axis, code) of the first EMCY of this run
@@ -1048,16 +1047,17 @@ class Engine:
 
     def _turn(self, now: float) -> float:
         """A turn of the engine's loop at ``now``: where the host held the engine up since the last
-        (a gap over :data:`AWAY_S`), the time it was away is not the drives' silence -- when each
-        was last heard is moved on by it (a host that stops every process, the drives' stand-ins
-        among them, leaves them nothing to send until it lets them go); that time [s], else 0."""
+        (a gap over :data:`AWAY_S`), the time it was away is not the drives' silence nor their
+        slowness -- when each was last heard, its last heartbeat, the last drive SYNC and the
+        phase's start move on by it (a host that stops every process, the drives' stand-ins among
+        them, leaves them nothing to send until it lets them go); that time [s], else 0."""
         gap, self.turned = now - self.turned, now
         if gap <= AWAY_S:
             return 0.0
-        self.away_s += gap
         self.heard = [t + gap for t in self.heard]
         self.beat = [t + gap for t in self.beat]
         self.sync_heard += gap
+        self.phase_start += gap  # (nor the drives' slowness to enable, hold or stop)
         return gap
 
     def _wake(self) -> tuple[float, float]:

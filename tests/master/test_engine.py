@@ -208,6 +208,34 @@ class _HeldUpOnce(_Drives):
         super().send(cob_id, data, stamp)
 
 
+class _HeldWhileEnabling(_Drives):
+    """:class:`_Drives` whose drive enables at the 6th SYNC, its master held up 1.5 s at its 2nd wait
+    (the drive held with it, as a host holds every process: it sends nothing meanwhile)."""
+
+    def __init__(self):
+        super().__init__()
+        self.waits = self.syncs = 0
+
+    def wait_until(self, deadline):
+        self.waits += 1
+        self.t = max(self.t, deadline + (1.5 if self.waits == 2 else 0.0))
+
+    def send(self, cob_id, data, stamp):
+        if cob_id == SYNC_COB_ID:
+            self.syncs += 1
+            self.reply = (0x1237 if self.syncs > 5 else 0x0233).to_bytes(2, "little") + bytes(6)
+        super().send(cob_id, data, stamp)
+
+
+def test_time_the_host_held_the_engine_up_is_not_a_drives_silence_or_slowness():
+    """1.5 s away while a drive enables -- past the heartbeat timeout (0.3 s) and the state timeout
+    (1.0 s) -- is the engine's absence, not the drive's: no "heartbeat lost", no "not enabled", the
+    plan streamed whole."""
+    job, arrays = _streaming_job(100)
+    outcome = Engine(job, arrays, _HeldWhileEnabling()).run()
+    assert outcome.abort is None and outcome.rows_sent == job.rows
+
+
 @pytest.mark.parametrize("late", [0.4, 0.7, 0.9, 1.3, 1.9, 2.2, 3.6])
 def test_no_two_syncs_closer_than_half_a_period_whenever_the_master_wakes(late):
     """Held up ``late`` periods once mid-stream, the master sends the SYNC of the period whose start
