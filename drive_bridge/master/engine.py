@@ -597,7 +597,6 @@ class Engine:
         self.velocity: list[int | None] = [None] * n_axes
         self.age = [0] * n_axes  # SYNCs since each axis's last statusword
         self.heard = [0.0] * n_axes  # engine time of each drive's last frame (any)
-        self.sync_heard = -math.inf  # engine time of the last SYNC another node sent
         self.sync_read = -math.inf  # engine time the last SYNC was read (or sent)
         self.turned = -math.inf  # engine time of the loop's last turn (:meth:`_turn`)
         self.beat = [0.0] * n_axes  # engine time of each drive's last heartbeat
@@ -815,7 +814,8 @@ class Engine:
         job, arrays, sup = self.job, self.arrays, self.job.supervision
         sync_time, got, raw = arrays.sync_time, arrays.got, arrays.raw
         evidence = self.evidence
-        if now - max(*self.heard, self.sync_heard) > sup.heartbeat_timeout_s:
+        drive_sync = self.sync_read if job.sync_from is not None else -math.inf  # (not the kernel's)
+        if now - max(*self.heard, drive_sync) > sup.heartbeat_timeout_s:
             evidence = max(evidence, now - sup.heartbeat_timeout_s)
         while self.judged <= self.row:
             r = self.judged
@@ -949,8 +949,7 @@ class Engine:
         period, control = self.period, arrays.control
         if port.periodic_sync:
             seen = self.syncs_seen
-            now = self._await_sync()
-            self._turn(now)
+            now = self._await_sync()  # (each of its turns taken)
             late = now - self.last_sync  # the RPDOs that follow go out this long after their SYNC
             out.worst_wake_ms = max(out.worst_wake_ms, late * 1e3)
             if late > job.supervision.window_s:
@@ -1048,16 +1047,19 @@ class Engine:
     def _turn(self, now: float) -> float:
         """A turn of the engine's loop at ``now``: where the host held the engine up since the last
         (a gap over :data:`AWAY_S`), the time it was away is not the drives' silence nor their
-        slowness -- when each was last heard, its last heartbeat, the last drive SYNC and the
+        slowness -- when each was last heard, its last heartbeat, the last SYNC read and the
         phase's start move on by it (a host that stops every process, the drives' stand-ins among
         them, leaves them nothing to send until it lets them go); that time [s], else 0."""
         gap, self.turned = now - self.turned, now
         if gap <= AWAY_S:
             return 0.0
-        self.heard = [t + gap for t in self.heard]
-        self.beat = [t + gap for t in self.beat]
-        self.sync_heard += gap
-        self.phase_start += gap  # (nor the drives' slowness to enable, hold or stop)
+        # (never past now: what was read as the engine ran again is news, not old)
+        self.heard = [min(t + gap, now) for t in self.heard]
+        self.beat = [min(t + gap, now) for t in self.beat]
+        self.sync_read = min(self.sync_read + gap, now)
+        self.phase_start = min(
+            self.phase_start + gap, now
+        )  # (nor the drives' slowness to enable, hold or stop)
         return gap
 
     def _wake(self) -> tuple[float, float]:
@@ -1108,8 +1110,6 @@ class Engine:
         the counter, the SYNCs its count skipped are lost ones: their periods pass without a row."""
         if stamp < self.start:  # before the first RPDO: not a SYNC of this run
             return
-        if self.job.sync_from is not None:  # a drive's: the drives are heard (not so the kernel's)
-            self.sync_heard = self.port.now()
         overflow = self.job.sync_counter
         if overflow and data:
             if self.count:

@@ -173,9 +173,8 @@ def _job(
             rpdos.append(
                 RpdoJob(
                     codec.cob_id,
-                    codec.struct.format.replace(
-                        "Q", "q"
-                    ),  # (the table holds a 64-bit record as int64: same bytes)
+                    # a 64-bit field packed signed: the table holds a PVT record as int64 (same bytes)
+                    codec.struct.format.replace("Q", "q"),
                     tuple(fields),
                     ai,
                     not records_only,

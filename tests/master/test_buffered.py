@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 import yaml
 
-from drive_bridge.cia.setpoint import record_sub_mode
+from drive_bridge.cia.setpoint import PVT, record_sub_mode
 from drive_bridge.cli import main
 from drive_bridge.config import load_bus_config
 from drive_bridge.connect import open_link
@@ -28,6 +28,7 @@ from drive_bridge.params.profile import load_profile
 from drive_bridge.params.write import write_parameters
 from drive_bridge.recorder import record
 from drive_bridge.resources import DEFAULT_BUS_CONFIG as BUS_CONFIG
+from drive_bridge.resources import data
 from drive_bridge.tuning import motion
 from drive_bridge.tuning.design import design_gains
 from harness.paths import VENDOR_EDS
@@ -133,8 +134,6 @@ def test_buffered_refuses_a_drive_without_a_deep_fifo_by_axis_and_key(tmp_path, 
     """config/examples/nanotec_c5e.yml (the C5-E's buffer holds one record) with
     ``master.streaming: buffered``: the run is refused before anything is enabled, naming the axis,
     the reason and the key."""
-    from drive_bridge.resources import data
-
     if not (VENDOR_EDS / "nanotec_C5-E-2-09.eds").exists():
         pytest.skip("../shared/eds-vendor not present")
     cfg = tmp_path / "bus.yml"
@@ -217,8 +216,6 @@ def test_stalls_the_fifo_covers_leave_no_trace(tmp_path):
 def maxon_z_bus_yml(tmp_path):
     """The shipped bus.yml with z on maxon's EPOS2 (config/examples/maxon_epos2.yml's node, its
     vendor EDS read in place): x keeps time for the bus, z has no SYNC of its own."""
-    from drive_bridge.resources import data
-
     eds = VENDOR_EDS / "maxon_epos2_50-5.eds"
     if not eds.exists():
         pytest.skip("../shared/eds-vendor not present")
@@ -235,13 +232,8 @@ def test_maxon_pvt_records_span_periods_to_keep_the_cover_in_half_the_buffer():
     periods of 2 ms, whole ms); a cover 64 records of 255 ms cannot hold is refused with the reason;
     the records fed ahead go into an event-driven RPDO, and the status 0x20C4:1 that bus.yml maps
     already is not mapped twice."""
-    from drive_bridge.cia.setpoint import PVT
-
-    eds = VENDOR_EDS / "maxon_epos2_50-5.eds"
-    if not eds.exists():
+    if not (VENDOR_EDS / "maxon_epos2_50-5.eds").exists():
         pytest.skip("../shared/eds-vendor not present")
-    from drive_bridge.resources import data
-
     config = load_bus_config(data("config", "examples", "maxon_epos2.yml"))
     node = config.nodes["z"]
     depth = records_ahead(config.master)
